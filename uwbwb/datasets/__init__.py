@@ -1,0 +1,12 @@
+"""Public datasets: discovery, manifest + fetch, and one loader module per format.
+
+Loader modules: :mod:`.lias` (lias-planar-uwb), :mod:`.iasl` (iasl-uwb-imu),
+:mod:`.hanyang` (hanyang-outdoor-uwb static), :mod:`.tidy` (your own data in a
+generic tidy CSV).
+"""
+
+from .discovery import (EXTERNAL_DIR, PROJECT_ROOT, SHARED_DIR, data_dirs, dataset_available,
+                        find_dataset)
+
+__all__ = ["EXTERNAL_DIR", "PROJECT_ROOT", "SHARED_DIR", "data_dirs", "dataset_available",
+           "find_dataset"]
