@@ -1,0 +1,56 @@
+"""Every notebook runs end to end (FAST mode) and is committed clean."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import nbformat
+import pytest
+
+NOTEBOOK_DIR = Path(__file__).resolve().parents[1] / "notebooks"
+NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
+#: Hard limit per notebook in FAST mode (seconds of kernel time per cell).
+CELL_TIMEOUT_S = 600
+
+
+def _ids(paths):
+    return [p.stem for p in paths]
+
+
+def test_there_are_notebooks():
+    assert NOTEBOOKS, f"no notebooks found in {NOTEBOOK_DIR}"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=_ids(NOTEBOOKS))
+def test_notebook_committed_clean(path):
+    nb = nbformat.read(path, as_version=4)
+    dirty = [i for i, c in enumerate(nb.cells)
+             if c.cell_type == "code" and (c.get("outputs") or c.get("execution_count") is not None)]
+    assert not dirty, f"{path.name}: code cells {dirty} carry outputs or execution counts"
+    assert "widgets" not in nb.metadata, f"{path.name}: widget state saved in metadata"
+    tagged = [i for i, c in enumerate(nb.cells) if "parameters" in c.get("metadata", {}).get("tags", [])]
+    assert len(tagged) == 1, f"{path.name}: needs exactly one cell tagged 'parameters', has {len(tagged)}"
+    params = nb.cells[tagged[0]].source
+    for name in ("FAST", "SEED", "DATA_DIR", "SUMMARY_PATH"):
+        assert f"{name} =" in params, f"{path.name}: parameters cell lacks {name}"
+    assert nb.cells[0].cell_type == "markdown", f"{path.name}: first cell must be the citation/overview"
+
+
+@pytest.mark.notebook
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=_ids(NOTEBOOKS))
+def test_notebook_executes_fast(path, tmp_path):
+    """Execute with papermill in FAST mode; any error fails, and a summary must be written."""
+    import papermill as pm
+
+    summary = tmp_path / f"{path.stem}.summary.json"
+    out = tmp_path / path.name
+    try:
+        pm.execute_notebook(str(path), str(out), parameters={"FAST": True, "SUMMARY_PATH": str(summary)},
+                            kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
+                            execution_timeout=CELL_TIMEOUT_S)
+    except pm.PapermillExecutionError as exc:
+        pytest.fail(f"{path.name} failed in cell {exc.exec_count}: {exc.ename}: {exc.evalue}")
+    rows = json.loads(summary.read_text())
+    assert rows, f"{path.name}: published an empty summary"
+    assert {r["notebook"] for r in rows} == {path.stem}, f"{path.name}: summary rows name another notebook"
