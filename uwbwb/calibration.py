@@ -1,0 +1,334 @@
+"""Per anchor–tag range calibration from recordings with known positions.
+
+Two-way ranges carry systematic, pair-specific distortions (antenna delays,
+body shadowing). We model them as in :mod:`uwbwb.models.ranging`::
+
+    range_meas = scale * range_true + bias + noise
+
+and fit ``(bias, scale)`` for every anchor–tag pair by robust linear regression
+of measured on true ranges, where the true range comes from the recording's
+ground truth (static poses: pose ⊕ tag offset; dynamic runs: motion capture).
+Applying the calibration inverts the model: ``range_true ≈ (range_meas − bias) / scale``.
+
+Fit: Huber M-estimation by iteratively reweighted least squares, vectorised
+over all pairs at once. The Huber threshold is ``1.345 × σ̂`` with σ̂ the
+normalised median absolute deviation of the current residuals, which keeps
+95 % efficiency for Gaussian noise while bounding the pull of NLOS outliers.
+A pair whose true ranges span less than ``min_span_m`` cannot separate scale
+from bias: it gets a bias-only fit (scale fixed at 1) and is flagged.
+
+Results are plain tables, saved as CSV or JSON (never pickle).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import numpy as np
+import pandas as pd
+
+from .types import RangeLog, Recording
+
+_HUBER_K = 1.345
+_MAD_TO_SIGMA = 1.4826
+_FORMAT = "uwbwb.range_calibration"
+_COLUMNS = ["tag_id", "anchor_id", "bias_m", "scale", "scale_fitted", "n_samples",
+            "true_span_m", "resid_median_m", "resid_sigma_m", "resid_rms_m"]
+
+
+@dataclass(frozen=True)
+class RangeCalibration:
+    """Fitted per-pair range distortion; apply it to range logs of the same anchors and tags.
+
+    Attributes
+    ----------
+    anchor_ids, tag_ids
+        Labels of the pairs' anchors and tags.
+    bias_m, scale
+        Shape ``(n_tags, n_anchors)``; ``range_meas ≈ scale * range_true + bias_m``.
+    scale_fitted
+        Shape ``(n_tags, n_anchors)``, bool; False where only a bias was fitted.
+    n_samples
+        Samples each pair's fit used, shape ``(n_tags, n_anchors)``.
+    true_span_m
+        Spread (max − min) of the true ranges each fit saw, metres.
+    resid_median_m, resid_sigma_m, resid_rms_m
+        Post-fit residual median, robust σ (1.4826·MAD) and RMS per pair, metres.
+    source
+        Labels of the recordings the fit used.
+    loss
+        Description of the robust loss.
+    """
+
+    anchor_ids: tuple[str, ...]
+    tag_ids: tuple[str, ...]
+    bias_m: np.ndarray
+    scale: np.ndarray
+    scale_fitted: np.ndarray
+    n_samples: np.ndarray
+    true_span_m: np.ndarray
+    resid_median_m: np.ndarray
+    resid_sigma_m: np.ndarray
+    resid_rms_m: np.ndarray
+    source: tuple[str, ...] = ()
+    loss: str = f"huber (IRLS, threshold {_HUBER_K} x 1.4826 MAD)"
+    meta: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        shape = (len(self.tag_ids), len(self.anchor_ids))
+        object.__setattr__(self, "anchor_ids", tuple(map(str, self.anchor_ids)))
+        object.__setattr__(self, "tag_ids", tuple(map(str, self.tag_ids)))
+        object.__setattr__(self, "source", tuple(map(str, self.source)))
+        for name, dtype in (("bias_m", float), ("scale", float), ("scale_fitted", bool), ("n_samples", int),
+                            ("true_span_m", float), ("resid_median_m", float), ("resid_sigma_m", float),
+                            ("resid_rms_m", float)):
+            arr = np.array(getattr(self, name), dtype=dtype)
+            if arr.shape != shape:
+                raise ValueError(f"RangeCalibration.{name} must have shape {shape}, got {arr.shape}")
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        if np.any(self.scale <= 0):
+            raise ValueError("RangeCalibration.scale must be positive")
+
+    # ------------------------------------------------------------------ use
+    def _check(self, log: RangeLog) -> int:
+        if log.tag_id not in self.tag_ids:
+            raise ValueError(f"calibration has no tag {log.tag_id!r} (it covers tags {list(self.tag_ids)})")
+        if tuple(log.anchor_ids) != self.anchor_ids:
+            raise ValueError(f"range log of tag {log.tag_id!r} has anchors {list(log.anchor_ids)}, "
+                             f"the calibration was fitted for anchors {list(self.anchor_ids)}")
+        return self.tag_ids.index(log.tag_id)
+
+    def apply(self, log: RangeLog) -> RangeLog:
+        """Calibrated copy of ``log``: ``(range_m − bias_m) / scale`` per anchor.
+
+        A calibrated range that would be negative (a measurement below its
+        pair's bias) is set missing (NaN); :meth:`apply_recording` counts them.
+        """
+        k = self._check(log)
+        r = (log.range_m - self.bias_m[k]) / self.scale[k]
+        return RangeLog(log.t_s, np.where(r < 0, np.nan, r), log.anchor_ids, log.tag_id, log.t0)
+
+    def apply_recording(self, rec: Recording) -> Recording:
+        """A copy of ``rec`` with every tag's ranges calibrated (a cleaning step records it)."""
+        from dataclasses import replace
+
+        from .types import CleaningStep
+
+        ranges = {tag: self.apply(log) for tag, log in rec.ranges.items()}
+        n_clip = sum(int(np.sum((log.range_m - self.bias_m[self._check(log)]) < 0)) for log in rec.ranges.values())
+        step = CleaningStep("range calibration", n_clip,
+                            f"(range - bias)/scale per pair from {', '.join(self.source) or 'a fit'}; "
+                            f"{n_clip} ranges below their pair's bias set missing")
+        return replace(rec, ranges=ranges, cleaning=rec.cleaning + (step,),
+                       meta={**rec.meta, "range_calibration": list(self.source)})
+
+    # ------------------------------------------------------------- tables
+    def to_frame(self) -> pd.DataFrame:
+        """One row per pair with the columns of the CSV format."""
+        t, a = np.meshgrid(np.arange(len(self.tag_ids)), np.arange(len(self.anchor_ids)), indexing="ij")
+        df = pd.DataFrame({"tag_id": np.asarray(self.tag_ids, object)[t.ravel()],
+                           "anchor_id": np.asarray(self.anchor_ids, object)[a.ravel()]})
+        for col in _COLUMNS[2:]:
+            df[col] = getattr(self, col).ravel()
+        return df
+
+    @classmethod
+    def from_frame(cls, df: pd.DataFrame, *, source=(), loss=None, where="table") -> "RangeCalibration":
+        missing = [c for c in _COLUMNS if c not in df.columns]
+        if missing:
+            hint = ""
+            if any(c.endswith(("_cm", "_mm")) for c in df.columns):
+                hint = " (this table is not in metres; uwbwb stores calibrations in SI units)"
+            raise ValueError(f"{where}: calibration table lacks columns {missing}{hint}")
+        tags = tuple(dict.fromkeys(df["tag_id"].astype(str)))
+        anchors = tuple(dict.fromkeys(df["anchor_id"].astype(str)))
+        if len(df) != len(tags) * len(anchors) or df.duplicated(["tag_id", "anchor_id"]).any():
+            raise ValueError(f"{where}: calibration table must hold each (tag_id, anchor_id) pair exactly once")
+        df = df.assign(tag_id=df["tag_id"].astype(str), anchor_id=df["anchor_id"].astype(str))
+        df = df.set_index(["tag_id", "anchor_id"]).loc[pd.MultiIndex.from_product([tags, anchors])]
+        shape = (len(tags), len(anchors))
+        kw = {c: df[c].to_numpy().reshape(shape) for c in _COLUMNS[2:]}
+        kw["scale_fitted"] = kw["scale_fitted"].astype(str).isin(["True", "true", "1"]) if \
+            kw["scale_fitted"].dtype == object else kw["scale_fitted"].astype(bool)
+        extra = {} if loss is None else {"loss": loss}
+        return cls(anchors, tags, source=tuple(source), **kw, **extra)
+
+    def save(self, path: str | Path) -> Path:
+        """Write as ``.csv`` (one row per pair) or ``.json`` (with provenance)."""
+        path = Path(path)
+        if path.suffix == ".csv":
+            self.to_frame().to_csv(path, index=False, float_format="%.6g")
+        elif path.suffix == ".json":
+            doc = {"format": _FORMAT, "version": 1, "units": {"bias": "m", "scale": "1", "resid": "m"},
+                   "model": "range_meas = scale * range_true + bias", "loss": self.loss,
+                   "source": list(self.source), "pairs": self.to_frame().to_dict(orient="records")}
+            path.write_text(json.dumps(doc, indent=1, default=_json_default))
+        else:
+            raise ValueError(f"{path}: calibration files are .csv or .json")
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "RangeCalibration":
+        """Read a file written by :meth:`save`."""
+        path = Path(path)
+        if path.suffix == ".csv":
+            return cls.from_frame(pd.read_csv(path, dtype={"tag_id": str, "anchor_id": str}), where=str(path))
+        if path.suffix == ".json":
+            doc = json.loads(path.read_text())
+            if doc.get("format") != _FORMAT:
+                raise ValueError(f"{path}: not a uwbwb range calibration (format={doc.get('format')!r})")
+            if doc.get("units", {}).get("bias") != "m":
+                raise ValueError(f"{path}: bias units {doc.get('units')!r}; expected metres")
+            return cls.from_frame(pd.DataFrame(doc["pairs"]), source=doc.get("source", ()),
+                                  loss=doc.get("loss"), where=str(path))
+        raise ValueError(f"{path}: calibration files are .csv or .json")
+
+
+def _json_default(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(f"cannot serialise {type(x).__name__}")
+
+
+# ---------------------------------------------------------------------- fit
+def true_ranges(rec: Recording, tag: str) -> np.ndarray:
+    """Ranges predicted from ground truth at the range log's epochs, ``(T, n_anchors)``, metres.
+
+    Epochs where the truth does not cover the range time stamp are NaN.
+    """
+    log, truth = rec.ranges[tag], rec.truth[tag]
+    if truth.dim != 3:
+        raise ValueError(f"{rec.label}: truth of tag {tag!r} is {truth.dim}-D; range calibration needs 3-D positions")
+    pos = truth.interp(log.t_s)
+    return np.linalg.norm(pos[:, None, :] - rec.anchors.pos_m[None], axis=-1)
+
+
+def pair_samples(recordings: Iterable[Recording]):
+    """Stack (true, measured) samples per pair over recordings.
+
+    Returns
+    -------
+    anchor_ids, tag_ids, true_m, meas_m
+        ``true_m`` and ``meas_m`` have shape ``(N, n_tags, n_anchors)`` with NaN
+        where a pair has no sample at that row.
+    """
+    recordings = list(recordings)
+    if not recordings:
+        raise ValueError("no recordings to calibrate from")
+    anchor_ids = recordings[0].anchors.ids
+    tag_ids = recordings[0].tags
+    trues, meas = [], []
+    for rec in recordings:
+        if rec.anchors.ids != anchor_ids or rec.tags != tag_ids:
+            raise ValueError(f"{rec.label}: anchors {rec.anchors.ids} / tags {rec.tags} differ from "
+                             f"{recordings[0].label}: {anchor_ids} / {tag_ids}")
+        if not np.allclose(rec.anchors.pos_m, recordings[0].anchors.pos_m):
+            raise ValueError(f"{rec.label}: anchor positions differ from {recordings[0].label}")
+        missing = [t for t in tag_ids if t not in rec.truth]
+        if missing:
+            raise ValueError(f"{rec.label}: no ground truth for tags {missing}")
+        n = max(len(rec.ranges[t]) for t in tag_ids)
+        tr = np.full((n, len(tag_ids), len(anchor_ids)), np.nan)
+        me = np.full_like(tr, np.nan)
+        for k, tag in enumerate(tag_ids):
+            m = len(rec.ranges[tag])
+            tr[:m, k] = true_ranges(rec, tag)
+            me[:m, k] = rec.ranges[tag].range_m
+        trues.append(tr)
+        meas.append(me)
+    return anchor_ids, tag_ids, np.concatenate(trues), np.concatenate(meas)
+
+
+def _robust_sigma(resid: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    r = np.where(mask, resid, np.nan)
+    med = np.nanmedian(r, axis=0)
+    return _MAD_TO_SIGMA * np.nanmedian(np.abs(r - med), axis=0)
+
+
+def fit_range_calibration(recordings: Sequence[Recording] | Recording, *, fit_scale: bool = True,
+                          min_span_m: float = 1.0, min_samples: int = 30, n_iter: int = 30
+                          ) -> RangeCalibration:
+    """Fit per-pair ``(bias, scale)`` from recordings that carry ground truth.
+
+    Parameters
+    ----------
+    recordings
+        Recordings of the same anchors and tags, each with per-tag truth
+        (e.g. :func:`uwbwb.datasets.lias.load_static` poses, or a dynamic run).
+    fit_scale
+        Fit a scale per pair; if False, only a bias (scale = 1).
+    min_span_m
+        A pair whose true ranges span less than this gets a bias-only fit.
+    min_samples
+        A pair with fewer usable samples is an error (its calibration would be a guess).
+    n_iter
+        IRLS iterations.
+
+    Returns
+    -------
+    RangeCalibration
+    """
+    if isinstance(recordings, Recording):
+        recordings = [recordings]
+    anchor_ids, tag_ids, x, y = pair_samples(recordings)
+    mask = np.isfinite(x) & np.isfinite(y)
+    n = mask.sum(axis=0)
+    if np.any(n < min_samples):
+        k, a = np.argwhere(n < min_samples)[0]
+        raise ValueError(f"pair {tag_ids[k]}-{anchor_ids[a]} has only {n[k, a]} samples with truth "
+                         f"(need {min_samples})")
+    xs = np.where(mask, x, np.nan)
+    span = np.nanmax(xs, axis=0) - np.nanmin(xs, axis=0)
+    with_scale = fit_scale & (span >= min_span_m)
+    x0 = np.where(mask, x, 0.0)
+    y0 = np.where(mask, y, 0.0)
+    w = mask.astype(float)
+    bias = np.zeros(n.shape)
+    scale = np.ones(n.shape)
+    for _ in range(n_iter):
+        # weighted normal equations of y = scale * x + bias, all pairs at once
+        sw, sx, sy = w.sum(0), (w * x0).sum(0), (w * y0).sum(0)
+        sxx, sxy = (w * x0 * x0).sum(0), (w * x0 * y0).sum(0)
+        det = sw * sxx - sx * sx
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s_full = (sw * sxy - sx * sy) / det
+            b_full = (sy - s_full * sx) / sw
+            b_only = (sy - sx) / sw
+        scale = np.where(with_scale, s_full, 1.0)
+        bias = np.where(with_scale, b_full, b_only)
+        resid = y0 - (scale * x0 + bias)
+        sigma = np.maximum(_robust_sigma(resid, mask), 1e-4)
+        thr = _HUBER_K * sigma
+        a = np.abs(resid)
+        w = np.where(mask, np.where(a <= thr, 1.0, thr / np.maximum(a, 1e-12)), 0.0)
+    resid = np.where(mask, y0 - (scale * x0 + bias), np.nan)
+    return RangeCalibration(
+        anchor_ids, tag_ids, bias, scale, with_scale, n, span,
+        resid_median_m=np.nanmedian(resid, axis=0),
+        resid_sigma_m=_robust_sigma(resid, mask),
+        resid_rms_m=np.sqrt(np.nanmean(resid ** 2, axis=0)),
+        source=tuple(r.label for r in recordings))
+
+
+def range_residuals(rec: Recording, calibration: RangeCalibration | None = None) -> pd.DataFrame:
+    """Measured (optionally calibrated) minus truth-predicted range, per pair.
+
+    Returns a table with one row per pair: ``tag_id, anchor_id, n, median_m,
+    sigma_m`` (1.4826·MAD), ``rms_m``, ``p95_abs_m``.
+    """
+    rows = []
+    for tag in rec.tags:
+        log = rec.ranges[tag] if calibration is None else calibration.apply(rec.ranges[tag])
+        r = log.range_m - true_ranges(rec, tag)
+        for j, anchor in enumerate(rec.anchors.ids):
+            v = r[:, j][np.isfinite(r[:, j])]
+            med = np.median(v) if v.size else np.nan
+            rows.append({"tag_id": tag, "anchor_id": anchor, "n": v.size, "median_m": med,
+                         "sigma_m": _MAD_TO_SIGMA * np.median(np.abs(v - med)) if v.size else np.nan,
+                         "rms_m": np.sqrt(np.mean(v ** 2)) if v.size else np.nan,
+                         "p95_abs_m": np.quantile(np.abs(v), 0.95) if v.size else np.nan})
+    return pd.DataFrame(rows)
