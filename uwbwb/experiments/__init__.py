@@ -1,0 +1,1 @@
+"""One module per notebook: the functions it calls, its figure builders and headline numbers."""
