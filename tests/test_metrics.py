@@ -1,0 +1,182 @@
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import uwbwb as uw
+from uwbwb import metrics as m
+
+
+# --------------------------------------------------------------------------- errors
+
+
+def test_position_error_horizontal_and_3d():
+    est = np.array([[3.0, 4.0, 10.0], [0.0, 0.0, 0.0]])
+    true = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 2.0]])
+    np.testing.assert_allclose(m.position_error_m(est, true), [5.0, 0.0])
+    np.testing.assert_allclose(m.position_error_m(est, true, horizontal=False), [np.sqrt(125.0), 2.0])
+    np.testing.assert_allclose(m.position_error_m(est[:, :2], true), [5.0, 0.0])
+    with pytest.raises(ValueError, match="equal dimension"):
+        m.position_error_m(est[:, :2], true, horizontal=False)
+    with pytest.raises(ValueError, match="epochs"):
+        m.position_error_m(est, true[:1])
+    with pytest.raises(ValueError):
+        m.position_error_m(est[0], true[0])
+
+
+def test_errors_vs_truth_interpolates_and_counts_exclusions():
+    t_truth = np.linspace(0.0, 10.0, 11)
+    truth = uw.Trajectory(t_truth, np.column_stack([t_truth, 2 * t_truth]), name="truth")
+    t_est = np.array([-1.0, 0.0, 2.5, 7.25, 10.0, 10.5, 12.0])
+    offset = np.array([0.0, 0.3, 0.0, 0.4, 0.0, 0.0, 0.0])
+    est = uw.Trajectory(t_est, np.column_stack([t_est + offset, 2 * t_est]), name="LS")
+    es = m.errors_vs_truth(est, truth)
+    assert es.name == "LS" and es.n_outside == 3 and es.n_in_gap == 0 and es.n_excluded == 3
+    np.testing.assert_allclose(es.t_s, [0.0, 2.5, 7.25, 10.0])
+    np.testing.assert_allclose(es.err_m, [0.3, 0.0, 0.4, 0.0], atol=1e-12)
+    assert "3 outside the truth time span excluded" in es.report()
+    assert es.stats()["n_excluded"] == 3
+
+
+def test_errors_vs_truth_gaps():
+    t_truth = np.array([0.0, 1.0, 2.0, 5.0, 6.0])
+    truth = uw.Trajectory(t_truth, np.zeros((5, 3)))
+    t_est = np.array([0.5, 2.0, 3.0, 4.5, 5.5])
+    est = uw.Trajectory(t_est, np.ones((5, 3)))
+    es = m.errors_vs_truth(est, truth, max_gap_s=1.5, horizontal=False)
+    np.testing.assert_allclose(es.t_s, [0.5, 2.0, 5.5])          # 2.0 is a truth sample: kept
+    assert es.n_in_gap == 2 and es.n_outside == 0
+    np.testing.assert_allclose(es.err_m, np.sqrt(3.0))
+    assert "2 in truth gaps excluded" in es.report()
+    assert len(m.errors_vs_truth(est, truth)) == 5
+    with pytest.raises(ValueError):
+        m.errors_vs_truth(est, truth, max_gap_s=0.0)
+    with pytest.raises(ValueError):
+        m.errors_vs_truth(est.pos_m, truth)
+
+
+# --------------------------------------------------------------------------- statistics
+
+
+def test_ecdf_and_quantile_rule():
+    x, F = m.ecdf([3.0, 1.0, 2.0, 4.0])
+    np.testing.assert_allclose(x, [1, 2, 3, 4])
+    np.testing.assert_allclose(F, [0.25, 0.5, 0.75, 1.0])
+    assert m.cep([3.0, 1.0, 2.0, 4.0], 0.5) == 2.0          # ceil(0.5 * 4) = 2nd smallest
+    assert m.cep([3.0, 1.0, 2.0, 4.0], 0.51) == 3.0
+    assert m.cep([3.0, 1.0, 2.0, 4.0], 1.0) == 4.0
+    e = np.arange(1.0, 101.0)
+    assert m.cep95(e) == 95.0 and m.cep50(e) == 50.0       # 0.95 * 100 must not round up to 96
+    rng = np.random.default_rng(3)
+    for n in (1, 7, 20, 333):
+        e = rng.exponential(size=n)
+        for p in (0.05, 0.5, 0.9, 0.95, 1.0):
+            assert m.cep(e, p) == np.quantile(e, p, method="inverted_cdf")
+            x, F = m.ecdf(e)
+            assert F[np.searchsorted(x, m.cep(e, p))] >= p   # the CEP is a point on the ECDF
+
+
+def test_cep_of_rayleigh_errors():
+    rng = np.random.default_rng(42)
+    sigma = 0.2
+    err = np.linalg.norm(sigma * rng.standard_normal((20_000, 2)), axis=1)
+    assert m.cep50(err) == pytest.approx(sigma * np.sqrt(2 * np.log(2)), rel=0.02)
+    assert m.cep95(err) == pytest.approx(sigma * np.sqrt(-2 * np.log(0.05)), rel=0.02)
+    assert m.rmse(err) == pytest.approx(sigma * np.sqrt(2), rel=0.02)
+
+
+def test_error_stats_and_nan_policy():
+    s = m.error_stats([1.0, 2.0, 3.0, 4.0])
+    assert s == {"n": 4, "n_omitted": 0, "mean": 2.5, "median": 2.5, "rmse": pytest.approx(np.sqrt(7.5)),
+                 "cep50": 2.0, "cep95": 4.0, "max": 4.0}
+    with pytest.raises(ValueError, match="1 NaN"):
+        m.error_stats([1.0, np.nan])
+    for f in (m.ecdf, m.cep50, m.cep95, m.rmse):
+        with pytest.raises(ValueError, match="NaN"):
+            f([1.0, np.nan])
+    s = m.error_stats([1.0, np.nan, 3.0], nan="omit")
+    assert s["n"] == 2 and s["n_omitted"] == 1 and s["mean"] == 2.0
+    for bad in ([], [np.nan], [1.0, np.inf], [-1.0, 1.0], [[1.0, 2.0]]):
+        with pytest.raises(ValueError):
+            m.error_stats(bad, nan="omit")
+    with pytest.raises(ValueError):
+        m.error_stats([1.0], nan="drop")
+    with pytest.raises(ValueError):
+        m.cep([1.0], 0.0)
+    assert m.rmse([-3.0, 3.0]) == 3.0                         # signed values are fine for RMSE / ECDF
+
+
+# --------------------------------------------------------------------------- summary
+
+
+def _summary():
+    s = m.Summary("00_quickstart")
+    s.add(quantity="CEP95, tag t0, raw multilateration", value=0.31, unit="m",
+          paper_value=None, data="lias-planar-uwb/fast")
+    s.add(quantity="RMSE, EKF", value=np.float32(12.5), unit="cm", paper_value=np.int64(11), data="synthetic")
+    s.add(quantity="epochs", value=np.int64(500), unit="", paper_value=float("nan"), data="synthetic")
+    return s
+
+
+def test_summary_frame():
+    s = _summary()
+    df = s.frame()
+    assert list(df.columns) == ["notebook", "quantity", "value", "unit", "paper_value", "data"]
+    assert len(s) == len(df) == 3
+    assert (df["notebook"] == "00_quickstart").all()
+    assert df["value"].tolist() == [0.31, 12.5, 500.0]
+    assert np.isnan(df["paper_value"][0]) and df["paper_value"][1] == 11.0 and np.isnan(df["paper_value"][2])
+    empty = m.Summary("x").frame()
+    assert list(empty.columns) == list(m.Summary.COLUMNS) and len(empty) == 0
+
+
+@pytest.mark.parametrize("field, bad", [
+    ("value", "0.3"), ("value", float("nan")), ("value", np.inf), ("value", True), ("value", 1 + 2j),
+    ("value", None), ("value", np.array([1.0])), ("paper_value", np.inf), ("paper_value", "3"),
+    ("unit", None), ("unit", 3), ("data", "fast"), ("data", "/fast"), ("data", "lias/"), ("data", None),
+    ("quantity", ""), ("quantity", 3),
+])
+def test_summary_validation(field, bad):
+    row = dict(quantity="q", value=1.0, unit="m", paper_value=None, data="synthetic")
+    row[field] = bad
+    with pytest.raises(ValueError):
+        m.Summary("nb").add(**row)
+
+
+def test_summary_rejects_duplicates_and_bad_notebook():
+    s = _summary()
+    with pytest.raises(ValueError, match="already added"):
+        s.add(quantity="RMSE, EKF", value=1.0, unit="cm", data="synthetic")
+    s.add(quantity="RMSE, EKF", value=1.0, unit="cm", data="lias-planar-uwb/fast")   # other data: fine
+    with pytest.raises(ValueError):
+        m.Summary("")
+    with pytest.raises(ValueError, match="nothing to publish"):
+        m.Summary("nb").publish("unused.json")
+
+
+def test_summary_publish_json_round_trip(tmp_path):
+    s = _summary()
+    path = tmp_path / "deep" / "er" / "00_quickstart.summary.json"
+    df = s.publish(path)
+    pd.testing.assert_frame_equal(df, s.frame())
+    rows = json.loads(path.read_text())
+    assert rows[0] == {"notebook": "00_quickstart", "quantity": "CEP95, tag t0, raw multilateration",
+                       "value": 0.31, "unit": "m", "paper_value": None, "data": "lias-planar-uwb/fast"}
+    assert rows[1]["paper_value"] == 11.0 and rows[2]["paper_value"] is None
+    assert "NaN" not in path.read_text()
+    back = m.Summary.from_json(path)
+    pd.testing.assert_frame_equal(back.frame(), s.frame())
+    assert back.notebook == "00_quickstart"
+    # publish() without a path only returns the frame.
+    assert s.publish() is not None and sorted(p.name for p in tmp_path.rglob("*.json")) == [path.name]
+
+
+def test_summary_from_json_rejects_bad_files(tmp_path):
+    p = tmp_path / "s.json"
+    for text in ("not json", "[]", "{}", '[{"notebook": "a"}]',
+                 '[{"notebook":"a","quantity":"q","value":1,"unit":"m","paper_value":null,"data":"x/y"},'
+                 ' {"notebook":"b","quantity":"q","value":1,"unit":"m","paper_value":null,"data":"x/y"}]'):
+        p.write_text(text)
+        with pytest.raises(ValueError):
+            m.Summary.from_json(p)
