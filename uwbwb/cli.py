@@ -1,0 +1,286 @@
+"""Command line: ``python -m uwbwb`` (or ``uwbwb``).
+
+Commands
+--------
+``datasets [--data-dir DIR] [--no-verify] [--all]``
+    For every dataset in the manifest: where it was found, checksum status
+    counts, and the recordings its loader lists.
+``fetch NAME [--dest DIR] [--base-url URL]``
+    Download a dataset from upstream with checksum verification (resumable).
+``reproduce [--quick] [--only NB ...] [--out DIR] [-p KEY VALUE ...] [--timeout S]``
+    Execute the notebooks headless; write executed notebooks, HTML and
+    ``summary.json`` / ``summary.md`` (default into ``reports/``).
+
+Exit codes: 0 success; 1 failure (``datasets``: a dataset absent or a file
+missing or wrong; ``fetch``: a download failed; ``reproduce``: a notebook failed
+or wrote no summary); 2 bad arguments.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+from typing import Sequence
+
+#: Recordings listed per dataset before "... and N more" (``--all`` lists every one).
+MAX_RECORDINGS_SHOWN = 12
+
+
+def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.ArgumentParser]]:
+    """The top-level parser and the parser of each command (for command-specific usage errors)."""
+    parser = argparse.ArgumentParser(
+        prog="python -m uwbwb",
+        description="uwbwb — a Jupyter workbench for indoor UWB positioning research.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = sub.add_parser("datasets", help="where each dataset is, checksum status, recordings",
+                       description="For every dataset in the manifest: where it was found, how its "
+                                   "files compare with the manifest checksums, and its recordings.")
+    p.add_argument("--data-dir", metavar="DIR", default=None,
+                   help="look only in DIR (a folder holding one sub-folder per dataset)")
+    p.add_argument("--no-verify", action="store_true",
+                   help="only check that files exist (skip sizes and SHA-256)")
+    p.add_argument("--all", action="store_true", help="list every recording")
+
+    p = sub.add_parser("fetch", help="download a dataset from upstream, verified against the manifest",
+                       description="Download the files of dataset NAME that are missing or wrong, "
+                                   "verify each against the manifest SHA-256, resume interrupted "
+                                   "downloads, skip files already correct.")
+    p.add_argument("name", metavar="NAME", help="dataset name (see `python -m uwbwb datasets`)")
+    p.add_argument("--dest", metavar="DIR", default=None,
+                   help="data directory to write NAME/ into (default data/external)")
+    p.add_argument("--base-url", metavar="URL", default=None,
+                   help="raw-file URL of the upstream repository (default from data/datasets.json)")
+    p.add_argument("--timeout", metavar="S", type=_positive_float, default=60.0,
+                   help="network timeout per connect/read in seconds (default 60)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    p = sub.add_parser("reproduce", help="execute the notebooks and collect their headline numbers",
+                       description="Execute notebooks/*.ipynb with papermill; write <stem>.ipynb, "
+                                   "<stem>.html, <stem>.summary.json and the aggregated "
+                                   "summary.json / summary.md into the output folder.")
+    p.add_argument("--quick", action="store_true", help="pass FAST=True (small, CI-sized experiments)")
+    p.add_argument("--only", nargs="+", action="extend", metavar="NB", default=None,
+                   help="run only notebooks whose stem starts with NB (e.g. 00 or 00_quickstart)")
+    p.add_argument("--out", metavar="DIR", default=None, help="output folder (default reports/)")
+    p.add_argument("-p", "--parameter", nargs=2, action="append", metavar=("KEY", "VALUE"), default=[],
+                   help="notebook parameter; VALUE is read as a Python literal when possible "
+                        "(3, 0.5, True, None, [1, 2]), else as a string")
+    p.add_argument("--timeout", metavar="S", type=_positive_float, default=None,
+                   help="execution timeout per cell in seconds (default none)")
+    return parser, sub.choices
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return value
+
+
+# -- datasets ---------------------------------------------------------------------------------------
+
+def _indent(text: str, prefix: str = "    ") -> str:
+    return "\n".join(prefix + line for line in text.splitlines())
+
+
+def _locate(name: str, data_dir: str | None) -> tuple[Path | None, str]:
+    """Dataset root (or None) and a line saying where it was found or where it was looked for."""
+    from .datasets.discovery import data_dirs, find_dataset
+    from .errors import DataNotFoundError
+
+    candidates = data_dirs(data_dir)
+    if data_dir is not None:
+        candidates = candidates[:1]
+    try:
+        root = find_dataset(name, data_dir)
+    except DataNotFoundError:
+        searched = ", ".join(str(base) for _, base in candidates)
+        return None, f"not found (searched {searched}); get it with: python -m uwbwb fetch {name}"
+    origin = next((o for o, base in candidates if (base / name) == root), "")
+    return root, f"{root}" + (f"  [{origin}]" if origin else "")
+
+
+def _checksum_lines(name: str, root: Path, manifest, verify_checksums: bool) -> tuple[list[str], int]:
+    """Lines on the files' state, and the number of files not ok."""
+    from .datasets.manifest import dataset_files, verify
+
+    if verify_checksums:
+        report = verify(name, root, manifest=manifest)
+        counts = report["status"].value_counts()
+        n_mismatch = int(counts["size_mismatch"] + counts["sha_mismatch"])
+        lines = [f"checksums:  {counts['ok']} ok, {counts['missing']} missing, {n_mismatch} mismatch "
+                 f"(of {len(report)} files in the manifest)"]
+        bad = report[report["status"] != "ok"]
+    else:
+        files = dataset_files(name, manifest)
+        present = [(root / p).is_file() for p in files["path"]]
+        lines = [f"files:      {sum(present)} of {len(files)} present (checksums not verified)"]
+        bad = files.loc[[not p for p in present]].assign(status="missing")
+    for row in bad.head(5).itertuples(index=False):
+        lines.append(f"            {row.status}: {row.path}")
+    if len(bad) > 5:
+        lines.append(f"            ... and {len(bad) - 5} more")
+    return lines, len(bad)
+
+
+def _cell_text(value, root: Path | None) -> str:
+    if value is None or (isinstance(value, float) and value != value):
+        return ""  # missing: blank rather than "nan"
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    text = str(value)
+    if root is not None and isinstance(value, (str, Path)):
+        prefix = str(root) + "/"
+        if text.startswith(prefix):
+            return text[len(prefix):]
+    return text
+
+
+def _table_text(table, root: Path | None = None) -> str:
+    """A DataFrame as plain text: text columns aligned left, numbers right, blanks for
+    missing values, and paths under ``root`` shown relative to it."""
+    columns = []
+    for col in table.columns:
+        numeric = table[col].dtype.kind in "biuf"
+        cells = [_cell_text(v, root) for v in table[col]]
+        width = max([len(str(col)), *map(len, cells)])
+        align = str.rjust if numeric else str.ljust
+        columns.append([align(str(col), width), *(align(c, width) for c in cells)])
+    return "\n".join("  ".join(row).rstrip() for row in zip(*columns))
+
+
+def _recording_lines(info, root: Path, show_all: bool) -> list[str]:
+    """The loader's recording table (paths relative to ``root``), or why it is unavailable.
+
+    Never raises: a missing or broken loader must not stop the overview of the others.
+    """
+    module_name = info.loader if info is not None else ""
+    if not module_name:
+        return ["recordings: recording listing unavailable (no loader registered in data/datasets.json)"]
+    try:
+        module = importlib.import_module(module_name)
+        list_recordings = module.list_recordings
+    except Exception as exc:  # absent (not written yet, not installed) or broken on import
+        return [f"recordings: recording listing unavailable ({module_name}: {type(exc).__name__}: {exc})"]
+    try:
+        table = list_recordings(data_dir=root.parent)
+    except Exception as exc:  # the loader's own error is reported, the next dataset still shown
+        return [f"recordings: recording listing failed ({module_name}: {type(exc).__name__}: {exc})"]
+    n = len(table)
+    shown = table if show_all or n <= MAX_RECORDINGS_SHOWN else table.head(MAX_RECORDINGS_SHOWN)
+    lines = [f"recordings: {n}" + (" (paths relative to the dataset root)" if n else "")]
+    if n:
+        lines.append(_indent(_table_text(shown, root)))
+    if len(shown) < n:
+        lines.append(f"    ... and {n - len(shown)} more (--all lists every one)")
+    return lines
+
+
+def cmd_datasets(args: argparse.Namespace) -> int:
+    from .datasets.manifest import load_datasets_info, load_manifest
+
+    manifest = load_manifest()
+    infos = load_datasets_info()
+    names = list(dict.fromkeys(manifest["dataset"]))
+    all_ok = True
+    for k, name in enumerate(names):
+        info = infos.get(name)
+        if k:
+            print()
+        print(name)
+        if info is not None:
+            print(f"  upstream:   {info.repository}  (licence: {info.license})")
+            if not info.redistributable:
+                print(f"  note:       {info.note}")
+        root, where = _locate(name, args.data_dir)
+        print(f"  found:      {where}")
+        if root is None:
+            all_ok = False
+            continue
+        lines, n_bad = _checksum_lines(name, root, manifest, not args.no_verify)
+        all_ok = all_ok and n_bad == 0
+        lines += _recording_lines(info, root, args.all)
+        print(_indent("\n".join(lines), "  "))
+    return 0 if all_ok else 1
+
+
+# -- fetch ------------------------------------------------------------------------------------------
+
+def cmd_fetch(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from .datasets.fetch import FetchError, fetch
+    from .datasets.manifest import load_datasets_info, load_manifest
+
+    manifest = load_manifest()
+    known = list(dict.fromkeys(manifest["dataset"]))
+    if args.name not in known:
+        parser.error(f"unknown dataset {args.name!r}; choose from: {', '.join(known)}")
+    info = load_datasets_info().get(args.name)
+    if info is not None:
+        print(f"{args.name}: {info.repository} (licence: {info.license})")
+        if not info.redistributable:
+            print(f"note: {info.note}")
+    try:
+        report = fetch(args.name, args.dest, manifest=manifest, base_url=args.base_url,
+                       timeout_s=args.timeout, progress=not args.quiet)
+    except FetchError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        if exc.report is not None and exc.report.downloaded:
+            print(f"({len(exc.report.downloaded)} file(s) were completed before the error and are kept; "
+                  f"run the command again to continue)", file=sys.stderr)
+        return 1
+    print(report)
+    if info is not None:
+        print(f"cite: {info.citation}")
+    return 0
+
+
+# -- reproduce --------------------------------------------------------------------------------------
+
+def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from .reproduce import RESERVED_PARAMETERS, parse_parameter_value, reproduce, select_notebooks
+
+    parameters = {}
+    for key, value in args.parameter:
+        if not key.isidentifier():
+            parser.error(f"-p {key}: parameter names must be Python identifiers")
+        if key in RESERVED_PARAMETERS:
+            parser.error(f"-p {key}: set by the runner (one summary file per notebook in --out)")
+        parameters[key] = parse_parameter_value(value)
+    if args.only:
+        try:
+            select_notebooks(only=args.only)
+        except ValueError as exc:
+            parser.error(str(exc))
+
+    result = reproduce(quick=args.quick, only=args.only, out=args.out, parameters=parameters,
+                       timeout_s=args.timeout, log=lambda line: print(line, flush=True))
+    print(f"wrote {result.summary_md} and {result.summary_json}")
+    for run in result.failed:
+        print(f"FAILED {run.notebook}: {run.error}", file=sys.stderr)
+    return result.exit_code
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit code (2 for bad arguments)."""
+    parser, commands = _build_parser()
+    try:
+        args = parser.parse_args(argv)
+        if args.command is None:
+            parser.print_help(sys.stderr)
+            return 2
+        if args.command == "datasets":
+            return cmd_datasets(args)
+        if args.command == "fetch":
+            return cmd_fetch(args, commands["fetch"])
+        return cmd_reproduce(args, commands["reproduce"])
+    except SystemExit as exc:  # argparse reports bad arguments by exiting with status 2
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    except (OSError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
