@@ -1,0 +1,333 @@
+"""Motion models driven by continuous-time white noise, shared by simulators and filters.
+
+Three kinematic models of increasing order, as in De Angelis (thesis summary,
+eqs 11–18, after Li & Jilkov's survey of maneuvering-target models):
+
+=========================  ======  ==========================  ================  ==============
+model                      order   state per axis              white noise on    PSD ``q`` unit
+=========================  ======  ==========================  ================  ==============
+:class:`RandomWalk` (RW)   1       position                    velocity          m²/s
+:class:`RandomForce` (RF)  2       position, velocity          acceleration      m²/s³
+:class:`RandomJerk` (RJ)   3       position, velocity, accel.  jerk              m²/s⁵
+=========================  ======  ==========================  ================  ==============
+
+Each is the ``n``-fold integral of a white process ``w(t)`` with (two-sided)
+power spectral density ``q`` per axis, ``E[w(t) w(s)] = q δ(t − s)``. Over a
+step ``dt`` the exact discretisation gives, per axis,
+
+.. math::
+
+    F_{ij} = \\frac{dt^{j-i}}{(j-i)!}\\ (j \\ge i), \\qquad
+    Q_{ij} = q\\,\\frac{dt^{2n-1-i-j}}{(2n-1-i-j)\\,(n-1-i)!\\,(n-1-j)!},
+
+i.e. ``Q = q dt`` (RW), ``q [[dt³/3, dt²/2], [dt²/2, dt]]`` (RF) and
+``q [[dt⁵/20, dt⁴/8, dt³/6], [dt⁴/8, dt³/3, dt²/2], [dt³/6, dt²/2, dt]]`` (RJ).
+The thesis' eq. (17) ``F_3`` is the RJ transition above.
+
+States are stacked derivative-major, ``[p (dim), v (dim), a (dim)]``, so the
+position is always ``x[..., :dim]`` whatever the model. ``dim`` is 2 or 3.
+
+Driving-noise "variances" as the thesis reports them (its Table 1, in m/s,
+m/s² and m/s³) are standard deviations of the driving process over one filter
+step. We relate them to the PSD by ``q = σ_w² · dt`` (the variance of the white
+process averaged over ``dt`` is ``q / dt``); for the random walk this makes
+``Q = σ_v² dt²`` exactly the thesis' eq. (12). See :meth:`MotionModel.from_sigma`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from math import factorial
+from typing import ClassVar
+
+import numpy as np
+
+__all__ = ["MotionModel", "RandomWalk", "RandomForce", "RandomJerk", "MOTION_MODELS", "make_motion_model",
+           "transition_1d", "noise_1d"]
+
+
+def transition_1d(order: int, dt_s) -> np.ndarray:
+    """Per-axis transition of an ``order``-fold integrator, shape ``(..., order, order)``.
+
+    ``F[i, j] = dt^(j−i) / (j−i)!`` for ``j ≥ i``, 0 below the diagonal.
+    ``dt_s`` may be a scalar or an array of step lengths (seconds).
+    """
+    dt = np.asarray(dt_s, float)[..., None, None]
+    i, j = np.indices((order, order))
+    k = np.clip(j - i, 0, None)
+    fact = np.array([factorial(int(m)) for m in k.ravel()], float).reshape(k.shape)
+    return np.where(j >= i, dt ** k / fact, 0.0)
+
+
+def noise_1d(order: int, dt_s) -> np.ndarray:
+    """Per-axis discrete process noise for unit PSD, shape ``(..., order, order)``.
+
+    ``Q[i, j] = dt^p / (p (n−1−i)! (n−1−j)!)`` with ``p = 2n − 1 − i − j``:
+    the covariance accumulated over ``dt`` by white noise of unit PSD driving
+    the ``order``-th derivative.
+    """
+    dt = np.asarray(dt_s, float)[..., None, None]
+    n = order
+    i, j = np.indices((n, n))
+    p = 2 * n - 1 - i - j
+    denom = p * np.array([factorial(n - 1 - a) * factorial(n - 1 - b) for a, b in zip(i.ravel(), j.ravel())],
+                         float).reshape(p.shape)
+    return dt ** p / denom
+
+
+def _per_axis(block: np.ndarray, dim: int) -> np.ndarray:
+    """Kronecker product ``block ⊗ I_dim`` over the last two axes (derivative-major stacking)."""
+    n = block.shape[-1]
+    eye = np.eye(dim)
+    full = block[..., :, None, :, None] * eye[:, None, :]
+    return full.reshape(block.shape[:-2] + (n * dim, n * dim))
+
+
+class MotionModel:
+    """Common behaviour of the white-noise-driven kinematic models.
+
+    Subclasses are frozen dataclasses with one PSD field (named with its unit)
+    and ``dim``. Class attributes describe the model: ``order`` (number of
+    derivative blocks in the state), ``abbreviation`` ("RW", "RF", "RJ"),
+    ``driven`` (the quantity that is white), ``psd_unit`` and ``sigma_unit``.
+    """
+
+    order: ClassVar[int]
+    abbreviation: ClassVar[str]
+    driven: ClassVar[str]
+    psd_field: ClassVar[str]
+    psd_unit: ClassVar[str]
+    sigma_unit: ClassVar[str]
+    dim: int
+
+    def _validate(self):
+        if self.dim not in (2, 3):
+            raise ValueError(f"{type(self).__name__}.dim must be 2 or 3, got {self.dim!r}")
+        if not np.isfinite(self.psd) or self.psd < 0:
+            raise ValueError(f"{type(self).__name__}.{self.psd_field} must be finite and >= 0, got {self.psd!r}")
+
+    # ----------------------------------------------------------- description
+    @property
+    def psd(self) -> float:
+        """Spectral density ``q`` of the white driving noise per axis (unit: :attr:`psd_unit`)."""
+        return float(getattr(self, self.psd_field))
+
+    @property
+    def n_x(self) -> int:
+        """State size, ``order · dim``."""
+        return self.order * self.dim
+
+    @property
+    def state_labels(self) -> tuple[str, ...]:
+        """Column names of the state, e.g. ``("x_m", "y_m", "vx_mps", "vy_mps")``."""
+        axes = "xyz"[: self.dim]
+        prefix = [("", "_m"), ("v", "_mps"), ("a", "_mps2")][: self.order]
+        return tuple(f"{p}{a}{u}" for p, u in prefix for a in axes)
+
+    def with_psd(self, psd: float):
+        """The same model with another PSD."""
+        return replace(self, **{self.psd_field: float(psd)})
+
+    @classmethod
+    def from_sigma(cls, sigma: float, dt_s: float, dim: int = 2):
+        """Model whose driving process has standard deviation ``sigma`` over a step ``dt_s``.
+
+        ``q = sigma² · dt_s``; ``sigma`` is in :attr:`sigma_unit` (m/s, m/s², m/s³),
+        the unit of the thesis' Table 1.
+        """
+        if sigma < 0 or dt_s <= 0:
+            raise ValueError(f"sigma must be >= 0 and dt_s > 0, got {sigma!r}, {dt_s!r}")
+        return cls(**{cls.psd_field: float(sigma) ** 2 * float(dt_s), "dim": dim})
+
+    def sigma(self, dt_s: float) -> float:
+        """Driving-process standard deviation over a step ``dt_s``, ``sqrt(q / dt_s)`` (:attr:`sigma_unit`)."""
+        return float(np.sqrt(self.psd / dt_s))
+
+    def __str__(self) -> str:
+        return f"{self.abbreviation} (q = {self.psd:.3g} {self.psd_unit}, {self.dim}-D)"
+
+    # ----------------------------------------------------------- matrices
+    def F(self, dt_s) -> np.ndarray:
+        """State transition over ``dt_s`` seconds, shape ``(..., n_x, n_x)``."""
+        return _per_axis(transition_1d(self.order, dt_s), self.dim)
+
+    def Q(self, dt_s) -> np.ndarray:
+        """Process-noise covariance over ``dt_s`` seconds, shape ``(..., n_x, n_x)`` (SI units of the state)."""
+        return self.psd * _per_axis(noise_1d(self.order, dt_s), self.dim)
+
+    def Q_sqrt(self, dt_s) -> np.ndarray:
+        """A square root ``L`` of :meth:`Q` (``L Lᵀ = Q``), shape ``(..., n_x, n_x)``.
+
+        Computed from the scaling ``Q(dt) = q dt · D Q(1) D`` with
+        ``D = diag(dt^(n−1−i))``, which stays exact where a Cholesky factorisation
+        of ``Q(dt)`` itself would be ill-conditioned (tiny ``dt``, high order).
+        """
+        dt = np.asarray(dt_s, float)
+        n = self.order
+        L1 = np.linalg.cholesky(noise_1d(n, 1.0))
+        scale = dt[..., None] ** (n - 1 - np.arange(n)) * np.sqrt(self.psd * dt)[..., None]   # (..., n)
+        return _per_axis(scale[..., :, None] * L1, self.dim)
+
+    def G(self, dt_s) -> np.ndarray:
+        """Input matrix for a piecewise-constant input on the driven derivative, shape ``(..., n_x, dim)``.
+
+        ``G[k] = dt^(n−k) / (n−k)!`` per axis (RW: ``dt``; RF: ``dt²/2, dt``;
+        RJ: ``dt³/6, dt²/2, dt``). The simulators use it for steering commands.
+        """
+        dt = np.asarray(dt_s, float)[..., None]
+        n = self.order
+        g = np.stack([dt[..., 0] ** (n - k) / factorial(n - k) for k in range(n)], axis=-1)  # (..., n)
+        return (g[..., :, None, None] * np.eye(self.dim)).reshape(g.shape[:-1] + (n * self.dim, self.dim))
+
+    @property
+    def H_pos(self) -> np.ndarray:
+        """Selection matrix of the position, shape ``(dim, n_x)``."""
+        return np.eye(self.dim, self.n_x)
+
+    def position(self, x: np.ndarray) -> np.ndarray:
+        """Positions from states: ``x[..., :dim]`` (metres)."""
+        return np.asarray(x)[..., : self.dim]
+
+    def velocity(self, x: np.ndarray) -> np.ndarray | None:
+        """Velocities from states (m/s), or None for the random walk (no velocity state)."""
+        return None if self.order < 2 else np.asarray(x)[..., self.dim: 2 * self.dim]
+
+    # ----------------------------------------------------------- states
+    def initial_state(self, pos_m, vel_mps=None, acc_mps2=None) -> np.ndarray:
+        """Stack a state vector ``(n_x,)`` from its parts (missing derivatives are zero)."""
+        parts = [np.asarray(pos_m, float)]
+        for k, v in enumerate((vel_mps, acc_mps2)[: self.order - 1]):
+            parts.append(np.zeros(self.dim) if v is None else np.asarray(v, float))
+        x = np.concatenate(parts)
+        if x.shape != (self.n_x,):
+            raise ValueError(f"{self.abbreviation}: parts give a state of shape {x.shape}, expected ({self.n_x},)")
+        return x
+
+    def initial_covariance(self, pos_sigma_m: float = 1.0, vel_sigma_mps: float = 1.0,
+                           acc_sigma_mps2: float = 1.0) -> np.ndarray:
+        """Diagonal prior covariance ``(n_x, n_x)`` from per-axis standard deviations."""
+        sig = np.array([pos_sigma_m, vel_sigma_mps, acc_sigma_mps2][: self.order], float)
+        return np.diag(np.repeat(sig ** 2, self.dim))
+
+    def sample_path(self, x0: np.ndarray, t_s: np.ndarray, *, rng: np.random.Generator,
+                    u: np.ndarray | None = None) -> np.ndarray:
+        """Draw states at ``t_s`` from the model: ``x_{k+1} = F x_k + G u_k + w_k``, ``w_k ~ N(0, Q)``.
+
+        Parameters
+        ----------
+        x0
+            State at ``t_s[0]``, shape ``(n_x,)``.
+        t_s
+            Times, shape ``(T,)``, seconds, strictly increasing.
+        u
+            Optional piecewise-constant input on the driven derivative, shape
+            ``(T − 1, dim)`` (held over each step).
+
+        Returns
+        -------
+        ndarray, shape ``(T, n_x)``
+        """
+        t_s = np.asarray(t_s, float)
+        dt = np.diff(t_s)
+        if np.any(dt <= 0):
+            raise ValueError("sample_path: t_s must be strictly increasing")
+        F = self.F(dt)
+        w = np.einsum("tij,tj->ti", self.Q_sqrt(dt), rng.standard_normal((dt.size, self.n_x)))
+        if u is not None:
+            w = w + np.einsum("tij,tj->ti", self.G(dt), np.asarray(u, float))
+        x = np.empty((t_s.size, self.n_x))
+        x[0] = x0
+        for k in range(dt.size):
+            x[k + 1] = F[k] @ x[k] + w[k]
+        return x
+
+
+@dataclass(frozen=True)
+class RandomWalk(MotionModel):
+    """Random walk (RW): position state, white velocity (thesis eqs 11–12).
+
+    Attributes
+    ----------
+    psd_m2ps
+        Spectral density ``q`` of the white velocity, m²/s. ``Q = q dt``.
+    dim
+        Number of position coordinates (2 or 3).
+    """
+
+    psd_m2ps: float = 0.07
+    dim: int = 2
+
+    order: ClassVar[int] = 1
+    abbreviation: ClassVar[str] = "RW"
+    driven: ClassVar[str] = "velocity"
+    psd_field: ClassVar[str] = "psd_m2ps"
+    psd_unit: ClassVar[str] = "m²/s"
+    sigma_unit: ClassVar[str] = "m/s"
+
+    def __post_init__(self):
+        self._validate()
+
+
+@dataclass(frozen=True)
+class RandomForce(MotionModel):
+    """Random force (RF): constant velocity with white acceleration (thesis eqs 13–14).
+
+    Attributes
+    ----------
+    psd_m2ps3
+        Spectral density ``q`` of the white acceleration, m²/s³.
+    dim
+        Number of position coordinates (2 or 3).
+    """
+
+    psd_m2ps3: float = 0.1
+    dim: int = 2
+
+    order: ClassVar[int] = 2
+    abbreviation: ClassVar[str] = "RF"
+    driven: ClassVar[str] = "acceleration"
+    psd_field: ClassVar[str] = "psd_m2ps3"
+    psd_unit: ClassVar[str] = "m²/s³"
+    sigma_unit: ClassVar[str] = "m/s²"
+
+    def __post_init__(self):
+        self._validate()
+
+
+@dataclass(frozen=True)
+class RandomJerk(MotionModel):
+    """Random jerk (RJ): constant acceleration with white jerk (thesis eqs 15–18).
+
+    Attributes
+    ----------
+    psd_m2ps5
+        Spectral density ``q`` of the white jerk, m²/s⁵.
+    dim
+        Number of position coordinates (2 or 3).
+    """
+
+    psd_m2ps5: float = 0.1
+    dim: int = 2
+
+    order: ClassVar[int] = 3
+    abbreviation: ClassVar[str] = "RJ"
+    driven: ClassVar[str] = "jerk"
+    psd_field: ClassVar[str] = "psd_m2ps5"
+    psd_unit: ClassVar[str] = "m²/s⁵"
+    sigma_unit: ClassVar[str] = "m/s³"
+
+    def __post_init__(self):
+        self._validate()
+
+
+#: The three models by their abbreviation.
+MOTION_MODELS: dict[str, type[MotionModel]] = {"RW": RandomWalk, "RF": RandomForce, "RJ": RandomJerk}
+
+
+def make_motion_model(name: str, *, sigma: float, dt_s: float, dim: int = 2) -> MotionModel:
+    """Model ``"RW" | "RF" | "RJ"`` with driving std ``sigma`` over steps of ``dt_s`` (see :meth:`MotionModel.from_sigma`)."""
+    try:
+        cls = MOTION_MODELS[name.upper()]
+    except KeyError:
+        raise ValueError(f"unknown motion model {name!r}; choose one of {list(MOTION_MODELS)}") from None
+    return cls.from_sigma(sigma, dt_s, dim)

@@ -1,0 +1,352 @@
+"""TDoA measurement model: pseudo-TDoA from ranges, analytic Jacobian, reference-correlated noise.
+
+A TDoA (expressed as a range difference, metres) between anchor ``j`` and the
+reference anchor ``k`` for a tag at ``p`` is
+
+.. math::  h_j(p) = \\lVert p - a_j \\rVert - \\lVert p - a_k \\rVert,
+           \\qquad \\frac{\\partial h_j}{\\partial p} = u_j(p) - u_k(p),
+           \\quad u_i = \\frac{p - a_i}{\\lVert p - a_i \\rVert}.
+
+The thesis (De Angelis, Sec. 6) forms TDoAs from the T4F system's two-way
+ranges ("TOA converted to TDoA"). If range ``j`` carries independent noise of
+variance ``σ_j²``, every difference with the same reference shares the
+reference's noise, so
+
+.. math::  Σ_{jl} = σ_j^2 δ_{jl} + σ_k^2, \\qquad Σ = σ^2 (I + 1 1^T)\\ \\text{for equal } σ.
+
+With that covariance the TDoA vector carries exactly the information of the
+ranges up to their common offset, so LS and EKF estimates do not depend on the
+choice of reference. Ignoring the correlation (``correlated=False``,
+``Σ = diag(σ_j² + σ_k²)``) is the common shortcut; then the reference matters.
+
+2-D problems (``dim=2``) estimate the horizontal position of a tag at a known
+height ``z_m``; the ranges still include the vertical anchor–tag offset.
+
+Storage convention (:class:`TdoaLog`): ``tdoa_m[t, j] = r_j − r_ref(t)``, exactly
+0 in the reference column and NaN where anchor ``j`` has no measurement. Any
+other anchor of the epoch can serve as reference: ``tdoa_m[t] − tdoa_m[t, k]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ..types import RangeLog
+
+__all__ = ["TdoaLog", "TdoaModel", "pseudo_tdoa", "range_sigma_from_truth", "empirical_tdoa_covariance"]
+
+_MAD_TO_SIGMA = 1.4826
+
+
+def pseudo_tdoa(range_m: np.ndarray, ref: int = 0, *, fallback: str = "nearest") -> tuple[np.ndarray, np.ndarray]:
+    """Range differences to a reference anchor, per epoch.
+
+    Parameters
+    ----------
+    range_m
+        Ranges, shape ``(T, n_anchors)``, metres; NaN = no measurement.
+    ref
+        Index of the preferred reference anchor.
+    fallback
+        Reference for epochs where ``ref`` is missing: ``"nearest"`` (the anchor
+        with the smallest measured range, the one most likely in line of sight)
+        or ``"first"`` (the lowest-index available anchor).
+
+    Returns
+    -------
+    tdoa_m : ndarray, shape ``(T, n_anchors)``
+        ``range_m[t, j] − range_m[t, ref_t]``; 0 at the reference, NaN where missing.
+    ref_idx : ndarray of int, shape ``(T,)``
+        Reference anchor per epoch; −1 (and an all-NaN row) where fewer than two
+        anchors were measured.
+    """
+    r = np.asarray(range_m, float)
+    if r.ndim != 2:
+        raise ValueError(f"pseudo_tdoa: range_m must be (T, n_anchors), got shape {r.shape}")
+    n = r.shape[1]
+    if not 0 <= ref < n:
+        raise ValueError(f"pseudo_tdoa: reference index {ref} outside 0..{n - 1}")
+    ok = np.isfinite(r)
+    if fallback == "nearest":
+        alt = np.argmin(np.where(ok, r, np.inf), axis=1)
+    elif fallback == "first":
+        alt = np.argmax(ok, axis=1)
+    else:
+        raise ValueError(f"pseudo_tdoa: fallback must be 'nearest' or 'first', got {fallback!r}")
+    ref_idx = np.where(ok[:, ref], ref, alt)
+    enough = ok.sum(axis=1) >= 2
+    ref_idx = np.where(enough, ref_idx, -1)
+    r_ref = np.take_along_axis(r, np.clip(ref_idx, 0, None)[:, None], axis=1)
+    tdoa = r - r_ref
+    tdoa[~enough] = np.nan
+    tdoa[np.flatnonzero(enough), ref_idx[enough]] = 0.0
+    return tdoa, ref_idx
+
+
+@dataclass(frozen=True)
+class TdoaLog:
+    """TDoAs (range differences) of one tag, one row per epoch.
+
+    Attributes
+    ----------
+    t_s
+        Epoch times, shape ``(T,)``, seconds, strictly increasing.
+    tdoa_m
+        ``r_j − r_ref``, shape ``(T, n_anchors)``, metres; 0 in the reference
+        column, NaN where anchor ``j`` was not measured.
+    ref
+        Reference anchor index per epoch, shape ``(T,)``; −1 for epochs without
+        a TDoA (all-NaN row).
+    anchor_ids
+        Column labels.
+    tag_id
+        Tag identifier.
+    """
+
+    t_s: np.ndarray
+    tdoa_m: np.ndarray
+    ref: np.ndarray
+    anchor_ids: tuple[str, ...]
+    tag_id: str = "tag"
+
+    def __post_init__(self):
+        t = np.array(self.t_s, float)
+        d = np.array(self.tdoa_m, float)
+        ref = np.array(self.ref, int)
+        ids = tuple(map(str, self.anchor_ids))
+        if t.ndim != 1 or d.shape != (t.size, len(ids)) or ref.shape != t.shape:
+            raise ValueError(f"TdoaLog: need t_s (T,), tdoa_m (T, {len(ids)}), ref (T,); "
+                             f"got {t.shape}, {d.shape}, {ref.shape}")
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            raise ValueError("TdoaLog.t_s must be strictly increasing")
+        if np.any((ref < -1) | (ref >= len(ids))):
+            raise ValueError(f"TdoaLog.ref must be in -1..{len(ids) - 1}")
+        has = ref >= 0
+        if np.any(np.isfinite(d[~has])):
+            raise ValueError("TdoaLog: epochs with ref = -1 must be all NaN")
+        at_ref = d[np.flatnonzero(has), ref[has]]
+        if np.any(at_ref != 0.0):
+            raise ValueError("TdoaLog: tdoa_m must be exactly 0 in each epoch's reference column")
+        if np.any(np.isfinite(d[has]).sum(axis=1) < 2):
+            raise ValueError("TdoaLog: an epoch with a reference needs at least one other anchor")
+        for name, arr in (("t_s", t), ("tdoa_m", d), ("ref", ref)):
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "anchor_ids", ids)
+        object.__setattr__(self, "tag_id", str(self.tag_id))
+
+    @classmethod
+    def from_ranges(cls, log: RangeLog, ref: int | str = 0, *, fallback: str = "nearest") -> "TdoaLog":
+        """Pseudo-TDoA from a :class:`~uwbwb.types.RangeLog` (see :func:`pseudo_tdoa`).
+
+        ``ref`` is an anchor index or an anchor id.
+        """
+        k = list(log.anchor_ids).index(str(ref)) if isinstance(ref, str) else int(ref)
+        tdoa, ref_idx = pseudo_tdoa(log.range_m, k, fallback=fallback)
+        return cls(log.t_s, tdoa, ref_idx, log.anchor_ids, log.tag_id)
+
+    def __len__(self) -> int:
+        return self.t_s.size
+
+    @property
+    def n_anchors(self) -> int:
+        return len(self.anchor_ids)
+
+    @property
+    def n_tdoa(self) -> np.ndarray:
+        """Number of TDoAs per epoch (anchors measured − 1, or 0), shape ``(T,)``."""
+        return np.maximum(np.isfinite(self.tdoa_m).sum(axis=1) - 1, 0)
+
+    def select(self, mask_or_index) -> "TdoaLog":
+        idx = np.arange(len(self))[mask_or_index]
+        return TdoaLog(self.t_s[idx], self.tdoa_m[idx], self.ref[idx], self.anchor_ids, self.tag_id)
+
+    def between(self, t_start_s: float, t_end_s: float) -> "TdoaLog":
+        """Epochs with ``t_start_s <= t_s < t_end_s``."""
+        return self.select((self.t_s >= t_start_s) & (self.t_s < t_end_s))
+
+    def to_frame(self) -> pd.DataFrame:
+        """Tidy table ``t_s, anchor_id, ref_id, tdoa_m`` (reference and missing entries omitted)."""
+        ti, ai = np.nonzero(np.isfinite(self.tdoa_m))
+        keep = ai != self.ref[ti]
+        ti, ai = ti[keep], ai[keep]
+        ids = np.asarray(self.anchor_ids, dtype=object)
+        return pd.DataFrame({"t_s": self.t_s[ti], "anchor_id": ids[ai], "ref_id": ids[self.ref[ti]],
+                             "tdoa_m": self.tdoa_m[ti, ai]})
+
+
+@dataclass(frozen=True)
+class TdoaModel:
+    """TDoA measurement model for a fixed set of anchors.
+
+    Attributes
+    ----------
+    anchor_pos_m
+        Anchor positions, shape ``(n_anchors, 3)``, metres.
+    sigma_m
+        Standard deviation of each anchor's range noise, scalar or shape
+        ``(n_anchors,)``, metres.
+    dim
+        Estimated coordinates: 2 (x, y at known height ``z_m``) or 3.
+    z_m
+        Tag height for ``dim=2``, metres (ignored in 3-D).
+    correlated
+        Use the reference-correlated covariance (default) or only its diagonal.
+    """
+
+    anchor_pos_m: np.ndarray
+    sigma_m: np.ndarray | float = 0.1
+    dim: int = 2
+    z_m: float = 0.0
+    correlated: bool = True
+
+    def __post_init__(self):
+        a = np.array(self.anchor_pos_m, float)
+        if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 3:
+            raise ValueError(f"TdoaModel.anchor_pos_m must be (n_anchors >= 3, 3), got {a.shape}")
+        if self.dim not in (2, 3):
+            raise ValueError(f"TdoaModel.dim must be 2 or 3, got {self.dim!r}")
+        s = np.broadcast_to(np.array(self.sigma_m, float), (a.shape[0],)).copy()
+        if np.any(~np.isfinite(s)) or np.any(s <= 0):
+            raise ValueError("TdoaModel.sigma_m must be finite and positive")
+        a.setflags(write=False)
+        s.setflags(write=False)
+        object.__setattr__(self, "anchor_pos_m", a)
+        object.__setattr__(self, "sigma_m", s)
+        object.__setattr__(self, "z_m", float(self.z_m))
+
+    @property
+    def n_anchors(self) -> int:
+        return self.anchor_pos_m.shape[0]
+
+    # ------------------------------------------------------------ geometry
+    def _offsets(self, pos_m) -> np.ndarray:
+        """``p − a_i`` with the fixed height appended in 2-D, shape ``(..., n_anchors, 3)``."""
+        p = np.asarray(pos_m, float)
+        if p.shape[-1] != self.dim:
+            raise ValueError(f"TdoaModel: positions must have {self.dim} coordinates, got shape {p.shape}")
+        if self.dim == 2:
+            p = np.concatenate([p, np.full(p.shape[:-1] + (1,), self.z_m)], axis=-1)
+        return p[..., None, :] - self.anchor_pos_m
+
+    def ranges(self, pos_m) -> np.ndarray:
+        """True ranges to every anchor, shape ``(..., n_anchors)``, metres."""
+        return np.linalg.norm(self._offsets(pos_m), axis=-1)
+
+    def unit_vectors(self, pos_m) -> np.ndarray:
+        """``∂r_i/∂p``, shape ``(..., n_anchors, dim)`` (the estimated coordinates only)."""
+        d = self._offsets(pos_m)
+        r = np.linalg.norm(d, axis=-1, keepdims=True)
+        return (d / np.maximum(r, 1e-12))[..., : self.dim]
+
+    def h(self, pos_m, ref) -> np.ndarray:
+        """Predicted TDoAs ``r_j − r_ref`` for every anchor, shape ``(..., n_anchors)`` (0 at ``ref``).
+
+        ``ref`` is an int or an int array broadcastable to ``pos_m.shape[:-1]``.
+        """
+        r = self.ranges(pos_m)
+        ref = np.broadcast_to(np.asarray(ref, int), r.shape[:-1])
+        return r - np.take_along_axis(r, ref[..., None], axis=-1)
+
+    def jacobian(self, pos_m, ref) -> np.ndarray:
+        """Analytic ``∂h/∂p``, shape ``(..., n_anchors, dim)`` (zero row at ``ref``)."""
+        u = self.unit_vectors(pos_m)
+        ref = np.broadcast_to(np.asarray(ref, int), u.shape[:-2])
+        return u - np.take_along_axis(u, ref[..., None, None], axis=-2)
+
+    # ------------------------------------------------------------ noise
+    def covariance(self, used, ref: int) -> np.ndarray:
+        """Covariance of the TDoAs of anchors ``used`` (excluding ``ref``) w.r.t. ``ref``, ``(m, m)``.
+
+        ``Σ = diag(σ_used²) + σ_ref² 1 1ᵀ`` (or ``diag(σ_used² + σ_ref²)`` if
+        ``correlated`` is False).
+        """
+        used = np.asarray(used, int)
+        if np.any(used == ref):
+            raise ValueError("TdoaModel.covariance: the reference anchor cannot be among the differences")
+        var = self.sigma_m[used] ** 2
+        var_ref = self.sigma_m[ref] ** 2
+        if self.correlated:
+            return np.diag(var) + var_ref
+        return np.diag(var + var_ref)
+
+    def epoch(self, tdoa_row_m: np.ndarray, pos_m: np.ndarray, ref: int, anchors=None):
+        """Everything one EKF/LS update needs from one epoch.
+
+        Parameters
+        ----------
+        tdoa_row_m
+            One row of :attr:`TdoaLog.tdoa_m`, shape ``(n_anchors,)``: range
+            differences to that epoch's reference (0 there), NaN where missing.
+        pos_m
+            Linearisation point, shape ``(dim,)``.
+        ref
+            Reference anchor to use; any measured anchor works, because
+            ``r_j − r_k = row[j] − row[k]`` whatever the row's own reference.
+        anchors
+            Anchor indices to use, ``ref`` included (default: all measured ones).
+
+        Returns
+        -------
+        z, h, H, R, others
+            Measured TDoAs ``(m,)``, predicted ``(m,)``, Jacobian ``(m, dim)``,
+            covariance ``(m, m)`` and the anchor index of each row ``(m,)``.
+        """
+        row = np.asarray(tdoa_row_m, float)
+        anchors = np.flatnonzero(np.isfinite(row)) if anchors is None else np.asarray(anchors, int)
+        if ref not in anchors or not np.isfinite(row[ref]):
+            raise ValueError(f"TdoaModel.epoch: reference {ref} is not among the measured anchors {anchors.tolist()}")
+        others = anchors[anchors != ref]
+        z = row[others] - row[ref]
+        h = self.h(pos_m, ref)[others]
+        H = self.jacobian(pos_m, ref)[others]
+        return z, h, H, self.covariance(others, ref), others
+
+
+def range_sigma_from_truth(range_m: np.ndarray, true_range_m: np.ndarray, *, robust: bool = True) -> np.ndarray:
+    """Per-anchor range-noise standard deviation from measurements with known truth.
+
+    Parameters
+    ----------
+    range_m, true_range_m
+        Measured and true ranges, shape ``(T, n_anchors)``, metres (NaN = missing).
+    robust
+        True: ``1.4826 · MAD`` of the residuals around their median (the spread,
+        insensitive to NLOS outliers and to a constant bias). False: the RMS of
+        the residuals (bias and outliers included: the total error a filter sees
+        if nothing corrects them).
+
+    Returns
+    -------
+    ndarray, shape ``(n_anchors,)``, metres
+    """
+    res = np.asarray(range_m, float) - np.asarray(true_range_m, float)
+    if res.ndim != 2:
+        raise ValueError(f"range_sigma_from_truth: need (T, n_anchors) arrays, got shape {res.shape}")
+    n_ok = np.isfinite(res).sum(axis=0)
+    if np.any(n_ok < 2):
+        bad = np.flatnonzero(n_ok < 2).tolist()
+        raise ValueError(f"range_sigma_from_truth: anchors {bad} have fewer than two residuals")
+    if robust:
+        med = np.nanmedian(res, axis=0)
+        return _MAD_TO_SIGMA * np.nanmedian(np.abs(res - med), axis=0)
+    return np.sqrt(np.nanmean(res ** 2, axis=0))
+
+
+def empirical_tdoa_covariance(tdoa_m: np.ndarray, true_tdoa_m: np.ndarray, ref: int) -> np.ndarray:
+    """Sample covariance of TDoA errors for a fixed reference, shape ``(n_anchors − 1, n_anchors − 1)``.
+
+    Uses the epochs where all anchors and the reference ``ref`` were measured
+    (``tdoa_m[:, ref] == 0``); rows and columns are the anchors other than
+    ``ref`` in index order. Compare with :meth:`TdoaModel.covariance`.
+    """
+    d = np.asarray(tdoa_m, float)
+    e = d - np.asarray(true_tdoa_m, float)
+    full = np.all(np.isfinite(e), axis=1) & (d[:, ref] == 0.0)
+    if full.sum() < d.shape[1] + 1:
+        raise ValueError(f"empirical_tdoa_covariance: only {int(full.sum())} complete epochs with reference {ref}")
+    others = np.delete(np.arange(d.shape[1]), ref)
+    return np.cov(e[full][:, others], rowvar=False)
