@@ -1,0 +1,329 @@
+"""Measurement packets of a ranging blind node (Zupanec et al., Table 1).
+
+A blind node pings its anchors round-robin and forms a *measurement packet*
+every ~130 ms: a time stamp and one ``ranging``/``status`` pair per anchor.
+Stored one row per (packet, anchor), tab-separated, with a header::
+
+    timestamp       anchor ID       ranging status
+    1452967702506   1       21.49   OK
+    1452967702506   2       12.64   OK
+    1452967702506   3       0.00    ERR
+    ...
+
+* ``timestamp`` -- integer milliseconds on the node's clock (the time the
+  packet was formed); all rows of a packet share it.
+* ``anchor ID`` -- the anchor's label (any token without white space).
+* ``ranging`` -- the reported distance, metres.
+* ``status`` -- ``OK`` or ``ERR``. An ``ERR`` range is *missing* (NaN in the
+  :class:`~uwbwb.RangeLog`), whatever number the ranging column holds; the
+  loader counts them per anchor.
+
+One file holds one blind node. :func:`read_packets` returns a :class:`PacketLog`
+(the ranges as a ``(T, n_anchors)`` :class:`~uwbwb.RangeLog`, ``t_s`` in seconds
+from the first packet, plus what was cleaned); :func:`load_recording` combines
+the files of several nodes with anchor positions into a
+:class:`~uwbwb.Recording`; :func:`write_packets` writes a range log back in this
+format (NaN as ``0.00 ERR``).
+
+Cleaning (counted in :attr:`PacketLog.cleaning`, never silent): ``ERR``
+statuses, anchors absent from a packet, blank lines, exact duplicate rows, and
+packets out of time order (sorted). Everything else that does not fit the
+format is a :class:`~uwbwb.DataFormatError` naming file and line.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import DataFormatError
+from ..types import Anchors, CleaningStep, RangeLog, Recording, Trajectory, _natural_key
+
+__all__ = ["HEADER", "PacketLog", "load_recording", "read_packets", "write_packets"]
+
+#: The header row, fields separated by tabs.
+HEADER = ("timestamp", "anchor ID", "ranging", "status")
+_STATUSES = ("OK", "ERR")
+_INT_RE = re.compile(r"[0-9]+")
+_ID_RE = re.compile(r"\S+")
+_FLOAT_RE = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
+
+
+@dataclass(frozen=True)
+class PacketLog:
+    """The packets of one blind node as loaded from one file.
+
+    Attributes
+    ----------
+    ranges
+        Ranges per packet, ``range_m`` of shape ``(T, n_anchors)``, metres, NaN
+        where the status was ``ERR`` or the anchor was absent from the packet;
+        ``t_s`` in seconds since the first packet; ``t0`` the first packet's
+        time stamp in milliseconds (int).
+    t0_ms
+        Time stamp of the first packet, milliseconds on the node's clock.
+    n_err
+        Number of ``ERR`` statuses per anchor, keyed by anchor ID.
+    n_absent
+        Number of packets without a row for the anchor, keyed by anchor ID.
+    cleaning
+        What the loader removed or changed.
+    path
+        The file read.
+    """
+
+    ranges: RangeLog
+    t0_ms: int
+    n_err: Mapping[str, int]
+    n_absent: Mapping[str, int]
+    cleaning: tuple[CleaningStep, ...] = ()
+    path: Path | None = None
+
+    @property
+    def n_packets(self) -> int:
+        return len(self.ranges)
+
+    @property
+    def anchor_ids(self) -> tuple[str, ...]:
+        return self.ranges.anchor_ids
+
+    def report(self) -> str:
+        """One line per cleaning step (or a note that nothing was cleaned)."""
+        name = self.path.name if self.path is not None else "packets"
+        if not self.cleaning:
+            return f"{name}: {self.n_packets} packets, nothing cleaned"
+        return "\n".join(f"{name}: {s}" for s in self.cleaning)
+
+
+def _split(line: str) -> list[str]:
+    return line.rstrip("\r\n").split("\t")
+
+
+def read_packets(path: str | os.PathLike, *, anchor_ids=None, tag_id: str | None = None) -> PacketLog:
+    """Read one blind node's measurement packets.
+
+    Parameters
+    ----------
+    path
+        Tab-separated packet file with the header of :data:`HEADER`.
+    anchor_ids
+        Expected anchor IDs, in the column order wanted. An ID in the file that
+        is not listed is an error; a listed ID that never appears gets a column
+        of NaN (counted as absent). Default: the IDs found, in natural order
+        (``"2"`` before ``"10"``).
+    tag_id
+        Label of the node; default the file stem.
+
+    Returns
+    -------
+    PacketLog
+
+    Raises
+    ------
+    uwbwb.DataFormatError
+        Wrong header, a row with the wrong number of fields, a time stamp that
+        is not integer milliseconds, a range that is not a finite non-negative
+        number, an unknown status or anchor, conflicting rows for the same
+        packet and anchor, or a file without packets.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise DataFormatError(path, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    lines = text.splitlines()
+    if not lines or not lines[0].strip():
+        raise DataFormatError(path, f"empty file; expected the header {'<TAB>'.join(HEADER)!r}", line=1)
+    head = [h.strip() for h in _split(lines[0])]
+    if tuple(head) != HEADER:
+        raise DataFormatError(path, f"header is {lines[0]!r}; expected the tab-separated fields {list(HEADER)}",
+                              line=1)
+    if anchor_ids is not None:
+        anchor_ids = tuple(str(a) for a in anchor_ids)
+        if len(set(anchor_ids)) != len(anchor_ids):
+            raise ValueError(f"anchor_ids must be unique, got {anchor_ids}")
+        known = set(anchor_ids)
+
+    stamps, ids, values, ok, line_no = [], [], [], [], []
+    n_blank = 0
+    for i, raw in enumerate(lines[1:], start=2):
+        if not raw.strip():
+            n_blank += 1
+            continue
+        fields = [f.strip() for f in _split(raw)]
+        if len(fields) != len(HEADER):
+            raise DataFormatError(path, f"expected {len(HEADER)} tab-separated fields "
+                                        f"({', '.join(HEADER)}), found {len(fields)}: {raw!r}", line=i)
+        ts, aid, rng_txt, status = fields
+        if not _INT_RE.fullmatch(ts):
+            raise DataFormatError(path, f"timestamp {ts!r} is not an integer number of milliseconds",
+                                  line=i, column="timestamp")
+        if not _ID_RE.fullmatch(aid):
+            raise DataFormatError(path, f"anchor ID {aid!r} is empty or contains white space",
+                                  line=i, column="anchor ID")
+        if anchor_ids is not None and aid not in known:
+            raise DataFormatError(path, f"anchor ID {aid!r} is not one of the expected {list(anchor_ids)}",
+                                  line=i, column="anchor ID")
+        if status not in _STATUSES:
+            raise DataFormatError(path, f"status {status!r} is neither 'OK' nor 'ERR'", line=i, column="status")
+        if not _FLOAT_RE.fullmatch(rng_txt):
+            raise DataFormatError(path, f"ranging {rng_txt!r} is not a number (metres)", line=i, column="ranging")
+        value = float(rng_txt)
+        if status == "OK" and not (math.isfinite(value) and value >= 0):
+            raise DataFormatError(path, f"ranging {rng_txt!r} with status OK must be a finite distance >= 0 m",
+                                  line=i, column="ranging")
+        stamps.append(int(ts))
+        ids.append(aid)
+        values.append(value)
+        ok.append(status == "OK")
+        line_no.append(i)
+    if not stamps:
+        raise DataFormatError(path, "the file holds a header but no packets", line=len(lines))
+
+    df = pd.DataFrame({"ms": np.asarray(stamps, dtype=np.int64), "anchor": ids,
+                       "range_m": np.asarray(values, float), "ok": np.asarray(ok, bool),
+                       "line": np.asarray(line_no, np.int64)})
+    cleaning: list[CleaningStep] = []
+    if n_blank:
+        cleaning.append(CleaningStep("blank lines skipped", n_blank, "empty lines between packets"))
+
+    # time order: packets are written as formed; sort (stably) if they are not
+    n_back = int(np.sum(np.diff(df["ms"].to_numpy()) < 0))
+    if n_back:
+        df = df.sort_values("ms", kind="stable").reset_index(drop=True)
+        cleaning.append(CleaningStep("rows sorted by time", n_back,
+                                     "places where the time stamp went backwards"))
+
+    # the same (packet, anchor) twice: identical rows are dropped, conflicting ones are an error
+    key = ["ms", "anchor"]
+    dup = df.duplicated(key, keep=False)
+    if dup.any():
+        d = df[dup]
+        same = d.groupby(key).agg(r=("range_m", "nunique"), s=("ok", "nunique"))
+        bad = same[(same.r > 1) | (same.s > 1)]
+        if len(bad):
+            ms, aid = bad.index[0]
+            rows = d[(d.ms == ms) & (d.anchor == aid)]["line"].tolist()
+            raise DataFormatError(path, f"packet {ms} reports anchor {aid!r} more than once with different "
+                                        f"values (lines {rows})", line=int(rows[1]))
+        n_dup = int(df.duplicated(key).sum())
+        df = df.drop_duplicates(key).reset_index(drop=True)
+        cleaning.append(CleaningStep("duplicate rows dropped", n_dup,
+                                     "exact repeats of a (timestamp, anchor ID) row"))
+
+    if anchor_ids is None:
+        anchor_ids = tuple(sorted(df["anchor"].unique(), key=_natural_key))
+    ms_u, inv = np.unique(df["ms"].to_numpy(), return_inverse=True)
+    col = pd.Index(anchor_ids).get_indexer(df["anchor"])
+    r = np.full((ms_u.size, len(anchor_ids)), np.nan)
+    present = np.zeros(r.shape, bool)
+    okv = df["ok"].to_numpy()
+    present[inv, col] = True
+    r[inv[okv], col[okv]] = df["range_m"].to_numpy()[okv]
+
+    n_err = {a: int(np.sum(~okv & (col == j))) for j, a in enumerate(anchor_ids)}
+    n_absent = {a: int(np.sum(~present[:, j])) for j, a in enumerate(anchor_ids)}
+    if sum(n_err.values()):
+        per = ", ".join(f"{a}: {n}" for a, n in n_err.items() if n)
+        cleaning.append(CleaningStep("ERR status -> missing", sum(n_err.values()), f"per anchor {per}"))
+    if sum(n_absent.values()):
+        per = ", ".join(f"{a}: {n}" for a, n in n_absent.items() if n)
+        cleaning.append(CleaningStep("anchor absent from packet -> missing", sum(n_absent.values()),
+                                     f"per anchor {per}"))
+    t0_ms = int(ms_u[0])
+    log = RangeLog((ms_u - t0_ms) / 1000.0, r, anchor_ids, tag_id if tag_id is not None else path.stem, t0_ms)
+    return PacketLog(log, t0_ms, n_err, n_absent, tuple(cleaning), path)
+
+
+def write_packets(path: str | os.PathLike, log: RangeLog, *, t0_ms: int | None = None,
+                  decimals: int = 2) -> Path:
+    """Write a range log as measurement packets (the inverse of :func:`read_packets`).
+
+    Parameters
+    ----------
+    path
+        File to write (tab-separated, header :data:`HEADER`).
+    log
+        Ranges, one packet per epoch; NaN is written as ``0.00`` with status ``ERR``.
+    t0_ms
+        Time stamp of ``t_s = 0``, milliseconds; default ``log.t0`` when it is an
+        integer (as :func:`read_packets` sets it), else 0.
+    decimals
+        Decimal places of the ranging column (2, i.e. centimetres, as in Table 1).
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+
+    Raises
+    ------
+    ValueError
+        When two epochs fall into the same millisecond (the format could not
+        tell them apart).
+    """
+    path = Path(path)
+    if t0_ms is None:
+        t0_ms = int(log.t0) if isinstance(log.t0, (int, np.integer)) else 0
+    if isinstance(decimals, bool) or not isinstance(decimals, (int, np.integer)) or decimals < 0:
+        raise ValueError(f"decimals must be a non-negative integer, got {decimals!r}")
+    ms = np.round(int(t0_ms) + log.t_s * 1000.0).astype(np.int64)
+    if ms.size > 1 and np.any(np.diff(ms) <= 0):
+        i = int(np.flatnonzero(np.diff(ms) <= 0)[0])
+        raise ValueError(f"epochs {i} and {i + 1} (t_s={log.t_s[i]!r}, {log.t_s[i + 1]!r}) fall into the same "
+                         f"millisecond; the packet format cannot separate them")
+    if np.any(ms < 0):
+        raise ValueError("time stamps before 0 ms cannot be written; pass a larger t0_ms")
+    T, n = log.range_m.shape
+    ok = np.isfinite(log.range_m)
+    rng_txt = np.char.mod(f"%.{int(decimals)}f", np.where(ok, log.range_m, 0.0))
+    table = pd.DataFrame({
+        "timestamp": np.repeat(ms, n),
+        "anchor ID": np.tile(np.asarray(log.anchor_ids, dtype=object), T),
+        "ranging": rng_txt.ravel(),
+        "status": np.where(ok.ravel(), "OK", "ERR"),
+    })
+    table.to_csv(path, sep="\t", index=False, lineterminator="\n")
+    return path
+
+
+def load_recording(files: Mapping[str, str | os.PathLike], anchors: Anchors, *,
+                   truth: Mapping[str, Trajectory] | None = None, dataset: str = "packets",
+                   name: str = "") -> Recording:
+    """Combine packet files of several blind nodes into a :class:`~uwbwb.Recording`.
+
+    Parameters
+    ----------
+    files
+        Packet file per node, keyed by the node's tag id (e.g. ``{"L": ..., "H": ...}``).
+    anchors
+        Anchor positions; their IDs must be the packet files' anchor IDs.
+    truth
+        Optional ground truth per tag, on the packet clock (``t_s`` since each
+        file's first packet; use :meth:`~uwbwb.Trajectory.shifted` to align
+        files that start at different times -- see ``meta["t0_ms"]``).
+    dataset, name
+        Labels of the recording.
+
+    Returns
+    -------
+    Recording
+        Cleaning steps prefixed with the tag; ``meta`` holds each file's path
+        and first time stamp (``t0_ms``).
+    """
+    ranges, cleaning, t0, paths = {}, [], {}, {}
+    for tag, f in files.items():
+        pk = read_packets(f, anchor_ids=anchors.ids, tag_id=tag)
+        ranges[tag] = pk.ranges
+        cleaning += [CleaningStep(f"{tag}: {s.name}", s.n_affected, s.detail) for s in pk.cleaning]
+        t0[tag] = pk.t0_ms
+        paths[tag] = str(pk.path)
+    return Recording(dataset, name, anchors, ranges, dict(truth or {}), cleaning=tuple(cleaning),
+                     meta={"t0_ms": t0, "paths": paths, "source": "uwbwb.datasets.packets"})

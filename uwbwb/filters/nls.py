@@ -1,0 +1,589 @@
+"""Trajectory of a linearly moving node by nonlinear least squares (Zupanec et al., eq. 1).
+
+The *resolution routine* fits an initial position ``P`` and a constant velocity
+``v`` to every range measured during one straight walk::
+
+    [P0, v] = argmin_{P, v}  sum_k sum_{m in D_k} ( ||P + v t_m - P_k|| - d_{k,m} )^2        (1)
+
+with ``P_k`` the position of anchor ``k``, ``d_{k,m}`` its ``m``-th range and
+``t_m`` the measurement time from the segment's start (``t_0 = 0``). With
+``v = 0`` (``static=True``) it is ordinary static localisation from all ranges
+of a stationary segment.
+
+Measurements are handled *unrolled*: one entry per (time, anchor, range)
+(:class:`RangeSamples`), so that pruning heuristics can drop single ranges.
+
+Solvers
+-------
+``method="bfgs"``
+    Quasi-Newton (BFGS) on the sum of squares with its analytic gradient,
+    :func:`scipy.optimize.minimize` -- the paper's ``fminunc(...,
+    'SpecifyObjectiveGradient', true, 'Algorithm', 'quasi-newton')``.
+``method="least_squares"``
+    :func:`scipy.optimize.least_squares` (trust-region reflective) on the
+    residual vector with its analytic Jacobian; optionally a robust ``loss``.
+
+Both work internally on a centred and scaled time axis (``t' = (t - t_mid) /
+half_span``, velocity ``v' = v · half_span``), which leaves the minimiser of (1)
+unchanged and keeps the position and velocity unknowns on the same scale (so
+BFGS's identity start is not badly conditioned); results are reported in the
+paper's parameters ``(P0, v)`` at ``t_0``.
+
+Dimensions
+----------
+``dim=3`` solves ``P, v`` in 3-D as in the paper. ``dim=2`` solves the
+horizontal ``(x, y)`` of ``P`` and ``v`` for a node at a known height ``z_m``
+(``v_z = 0``) -- the right choice when the anchors are (nearly) coplanar with the
+node, which makes the height unobservable.
+
+Initial guess
+-------------
+Not the paper's all-zeros vector (the anchor frame's origin can be far from the
+node, and with coplanar anchors ``P = 0`` may sit on the mirror side): each
+epoch with enough ranges gets a closed-form linear fix
+(:func:`uwbwb.geometry.linear_multilaterate`); ``P0, v`` come from a line fitted
+to those fixes over time (two passes, the second without fixes further than
+3 robust standard deviations from the first line). In 3-D with coplanar anchors
+the fixes are horizontal at the height hint ``z_m`` (default: 1 m below the
+lowest anchor, i.e. on the side of the anchor plane where nodes are). Without
+any fix the guess is the anchors' centroid, at rest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import least_squares, minimize
+
+from ..geometry import linear_multilaterate
+from ..types import Anchors, RangeLog, Trajectory
+
+__all__ = ["RangeSamples", "TrajectoryFit", "fit_trajectory", "initial_guess", "objective",
+           "residuals", "residual_jacobian", "unroll"]
+
+_TINY_M = 1e-9
+_MAD_TO_SIGMA = 1.4826
+
+
+# --------------------------------------------------------------------------- measurements
+
+
+@dataclass(frozen=True)
+class RangeSamples:
+    """Ranges unrolled to one entry per measurement (the ``D`` of eq. 1).
+
+    Attributes
+    ----------
+    t_s
+        Measurement times, shape ``(M,)``, seconds (non-decreasing).
+    anchor_index
+        Index of the anchor of each range, shape ``(M,)``, into ``anchor_ids``.
+    range_m
+        Measured ranges, shape ``(M,)``, metres, finite.
+    anchor_ids
+        Labels of the anchors (columns of the range log they came from).
+    """
+
+    t_s: np.ndarray
+    anchor_index: np.ndarray
+    range_m: np.ndarray
+    anchor_ids: tuple[str, ...]
+
+    def __post_init__(self):
+        t = np.array(self.t_s, float)
+        k = np.array(self.anchor_index, np.intp)
+        r = np.array(self.range_m, float)
+        ids = tuple(str(a) for a in self.anchor_ids)
+        if t.ndim != 1 or k.shape != t.shape or r.shape != t.shape:
+            raise ValueError(f"t_s, anchor_index and range_m must be 1-D of equal length, "
+                             f"got {t.shape}, {k.shape}, {r.shape}")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(r))):
+            raise ValueError("RangeSamples hold finite times and ranges only (drop missing ranges first)")
+        if np.any(r < 0):
+            raise ValueError("RangeSamples.range_m contains negative ranges")
+        if k.size and (k.min() < 0 or k.max() >= len(ids)):
+            raise ValueError(f"anchor_index must lie in [0, {len(ids)})")
+        if t.size > 1 and np.any(np.diff(t) < 0):
+            raise ValueError("RangeSamples.t_s must be non-decreasing")
+        for a in (t, k, r):
+            a.setflags(write=False)
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(self, "anchor_index", k)
+        object.__setattr__(self, "range_m", r)
+        object.__setattr__(self, "anchor_ids", ids)
+
+    def __len__(self) -> int:
+        return self.t_s.size
+
+    def select(self, mask_or_index) -> "RangeSamples":
+        """The samples selected by a boolean mask or an increasing index array."""
+        idx = np.arange(len(self))[mask_or_index]
+        return RangeSamples(self.t_s[idx], self.anchor_index[idx], self.range_m[idx], self.anchor_ids)
+
+    def to_matrix(self) -> tuple[np.ndarray, np.ndarray]:
+        """Back to epochs: unique times ``(T,)`` and ranges ``(T, n_anchors)`` (NaN = none).
+
+        If an anchor has two samples at one time, the later one is kept.
+        """
+        t, inv = np.unique(self.t_s, return_inverse=True)
+        r = np.full((t.size, len(self.anchor_ids)), np.nan)
+        r[inv, self.anchor_index] = self.range_m
+        return t, r
+
+    def to_frame(self) -> pd.DataFrame:
+        """Tidy table ``t_s, anchor_id, range_m``."""
+        return pd.DataFrame({"t_s": self.t_s,
+                             "anchor_id": np.asarray(self.anchor_ids, object)[self.anchor_index],
+                             "range_m": self.range_m})
+
+
+def unroll(ranges: RangeLog | np.ndarray, t_s=None, anchor_ids=None) -> RangeSamples:
+    """Unroll a ``(T, n_anchors)`` range table (NaN = missing) to :class:`RangeSamples`.
+
+    Parameters
+    ----------
+    ranges
+        A :class:`~uwbwb.RangeLog`, or an array ``(T, n_anchors)`` in metres
+        together with ``t_s`` ``(T,)`` (seconds).
+    t_s, anchor_ids
+        Only for an array input; ``anchor_ids`` defaults to ``"0", "1", ...``.
+    """
+    if isinstance(ranges, RangeLog):
+        if t_s is not None or anchor_ids is not None:
+            raise ValueError("t_s and anchor_ids come from the RangeLog")
+        t_s, r, anchor_ids = ranges.t_s, ranges.range_m, ranges.anchor_ids
+    else:
+        r = np.asarray(ranges, float)
+        if r.ndim != 2:
+            raise ValueError(f"ranges must have shape (T, n_anchors), got {r.shape}")
+        if t_s is None:
+            raise ValueError("an array of ranges needs t_s")
+        t_s = np.asarray(t_s, float)
+        if t_s.shape != (r.shape[0],):
+            raise ValueError(f"t_s must have shape ({r.shape[0]},), got {t_s.shape}")
+        anchor_ids = tuple(str(i) for i in range(r.shape[1])) if anchor_ids is None else anchor_ids
+        if len(anchor_ids) != r.shape[1]:
+            raise ValueError(f"{len(anchor_ids)} anchor_ids for {r.shape[1]} columns")
+    ti, ai = np.nonzero(np.isfinite(r))
+    return RangeSamples(t_s[ti], ai, r[ti, ai], tuple(anchor_ids))
+
+
+# --------------------------------------------------------------------------- model (eq. 1)
+
+
+def _anchor_array(anchors) -> np.ndarray:
+    A = np.asarray(getattr(anchors, "pos_m", anchors), float)
+    if A.ndim != 2 or A.shape[1] != 3 or A.shape[0] == 0:
+        raise ValueError(f"anchors must have shape (n_anchors, 3), got {A.shape}")
+    if not np.all(np.isfinite(A)):
+        raise ValueError("anchor positions must be finite")
+    return A
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Which coordinates of ``P`` and ``v`` are unknowns; maps theta <-> (P, v)."""
+
+    dim: int
+    static: bool
+    z_m: float | None  # fixed height for dim=2
+
+    @property
+    def n_params(self) -> int:
+        return self.dim * (1 if self.static else 2)
+
+    def unpack(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        theta = np.asarray(theta, float)
+        d = self.dim
+        P = np.empty(3)
+        v = np.zeros(3)
+        P[:d] = theta[:d]
+        if d == 2:
+            P[2] = self.z_m
+        if not self.static:
+            v[:d] = theta[d: 2 * d]
+        return P, v
+
+    def pack(self, P, v) -> np.ndarray:
+        d = self.dim
+        return np.asarray(P, float)[:d].copy() if self.static else \
+            np.concatenate([np.asarray(P, float)[:d], np.asarray(v, float)[:d]])
+
+
+def _check_theta(theta, layout: _Layout) -> np.ndarray:
+    theta = np.asarray(theta, float)
+    if theta.shape != (layout.n_params,):
+        raise ValueError(f"theta must have shape ({layout.n_params},) for dim={layout.dim}, "
+                         f"static={layout.static}, got {theta.shape}")
+    return theta
+
+
+def _layout(dim, static, z_m) -> _Layout:
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 2 or 3, got {dim!r}")
+    if dim == 2:
+        if z_m is None or not np.isfinite(z_m):
+            raise ValueError("dim=2 needs the node height z_m (metres)")
+        return _Layout(2, bool(static), float(z_m))
+    return _Layout(3, bool(static), None)
+
+
+def _resid_jac(theta, t, k, d, A, layout: _Layout, want_jac: bool = True):
+    P, v = layout.unpack(theta)
+    diff = P + np.multiply.outer(t, v) - A[k]                    # (M, 3)
+    dist = np.sqrt(np.einsum("mi,mi->m", diff, diff))
+    res = dist - d
+    if not want_jac:
+        return res, None
+    u = diff[:, : layout.dim] / np.maximum(dist, _TINY_M)[:, None]   # (M, dim)
+    J = u if layout.static else np.concatenate([u, u * t[:, None]], axis=1)
+    return res, J
+
+
+def _t_rel(samples: RangeSamples, t0_s) -> np.ndarray:
+    if len(samples) == 0:
+        return samples.t_s
+    return samples.t_s - (samples.t_s[0] if t0_s is None else float(t0_s))
+
+
+def residuals(theta, samples: RangeSamples, anchors, *, dim: int = 3, static: bool = False,
+              z_m: float | None = None, t0_s: float | None = None) -> np.ndarray:
+    """Residuals of eq. (1), ``||P + v t_m - P_k|| - d_{k,m}``, shape ``(M,)``, metres.
+
+    Parameters
+    ----------
+    theta
+        Unknowns: ``[x, y, z, v_x, v_y, v_z]`` (``dim=3``), ``[x, y, v_x, v_y]``
+        (``dim=2``, height ``z_m``), without the velocity part when ``static``;
+        metres and m/s, ``P`` at time ``t0_s``.
+    samples
+        The measurements ``D`` (times in seconds).
+    anchors
+        :class:`~uwbwb.Anchors` or array ``(n_anchors, 3)``, metres.
+    dim, static, z_m
+        As in :func:`fit_trajectory`.
+    t0_s
+        Time origin of ``P`` (``t_m = t_s - t0_s``); default the first sample's
+        time, as in eq. (1) and :class:`TrajectoryFit`.
+    """
+    layout = _layout(dim, static, z_m)
+    theta = _check_theta(theta, layout)
+    A = _anchor_array(anchors)
+    return _resid_jac(theta, _t_rel(samples, t0_s), samples.anchor_index, samples.range_m, A, layout, False)[0]
+
+
+def residual_jacobian(theta, samples: RangeSamples, anchors, *, dim: int = 3, static: bool = False,
+                      z_m: float | None = None, t0_s: float | None = None) -> np.ndarray:
+    """Analytic Jacobian of :func:`residuals`, shape ``(M, n_params)``.
+
+    Row ``m`` is ``[u_m, u_m t_m]`` with ``u_m`` the unit vector from anchor
+    ``k`` to the node's position at ``t_m`` (restricted to the solved
+    coordinates); only ``u_m`` when ``static``. Parameters as in :func:`residuals`.
+    """
+    layout = _layout(dim, static, z_m)
+    theta = _check_theta(theta, layout)
+    A = _anchor_array(anchors)
+    return _resid_jac(theta, _t_rel(samples, t0_s), samples.anchor_index, samples.range_m, A, layout)[1]
+
+
+def objective(theta, samples: RangeSamples, anchors, *, dim: int = 3, static: bool = False,
+              z_m: float | None = None, t0_s: float | None = None) -> tuple[float, np.ndarray]:
+    """The sum of squares of eq. (1) and its analytic gradient (parameters as in :func:`residuals`).
+
+    Returns
+    -------
+    f : float
+        ``sum_m r_m^2``, m².
+    grad : numpy.ndarray
+        ``2 J^T r``, shape ``(n_params,)``.
+    """
+    layout = _layout(dim, static, z_m)
+    theta = _check_theta(theta, layout)
+    A = _anchor_array(anchors)
+    r, J = _resid_jac(theta, _t_rel(samples, t0_s), samples.anchor_index, samples.range_m, A, layout)
+    return float(r @ r), 2.0 * (J.T @ r)
+
+
+# --------------------------------------------------------------------------- initial guess
+
+
+def _line_fit(t: np.ndarray, X: np.ndarray, static: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares ``X ≈ a + b t`` (b = 0 when static); returns (a, b)."""
+    if static or np.ptp(t) == 0:
+        return X.mean(axis=0), np.zeros(X.shape[1])
+    G = np.column_stack([np.ones_like(t), t])
+    coef, *_ = np.linalg.lstsq(G, X, rcond=None)
+    return coef[0], coef[1]
+
+
+def _coplanar(A: np.ndarray, rel_tol: float = 0.05) -> bool:
+    """True when the anchors' spread off their best plane is below ``rel_tol`` of their extent."""
+    if A.shape[0] < 4:
+        return True
+    sv = np.linalg.svd(A - A.mean(axis=0), compute_uv=False)
+    return bool(sv[2] <= rel_tol * sv[0])
+
+
+def initial_guess(samples: RangeSamples, anchors, *, dim: int = 3, static: bool = False,
+                  z_m: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A start point ``(P0, v)`` for eq. (1) from per-epoch linear fixes (see module notes).
+
+    Parameters
+    ----------
+    samples, anchors, dim, static
+        As in :func:`fit_trajectory`.
+    z_m
+        ``dim=2``: the node height. ``dim=3``: a height hint used only when the
+        anchors are (nearly) coplanar -- out-of-plane spread below 5 % of their
+        extent -- (default 1 m below the lowest anchor).
+
+    Returns
+    -------
+    P0_m, vel_mps : numpy.ndarray
+        Shape ``(3,)`` each.
+    """
+    A = _anchor_array(anchors)
+    if dim == 2 and z_m is None:
+        raise ValueError("dim=2 needs the node height z_m (metres)")
+    t, R = samples.to_matrix()
+    z_hint = float(z_m) if z_m is not None else float(A[:, 2].min() - 1.0)
+    if dim == 3 and not _coplanar(A):
+        fix = linear_multilaterate(R, A, dim=3)
+    else:
+        # coplanar anchors: the linear 3-D fix is singular (and its mirror ambiguous): fix at the hint
+        xy = linear_multilaterate(R, A, dim=2, z_m=z_hint)
+        fix = np.column_stack([xy, np.full(len(xy), z_hint)])
+    good = np.isfinite(fix).all(axis=1)
+    if good.sum() < (1 if static else 2):
+        P = A.mean(axis=0)
+        P[2] = z_hint
+        return P, np.zeros(3)
+    tg, X = t[good], fix[good]
+    a, b = _line_fit(tg, X, static)
+    resid = np.linalg.norm(X - (a + np.multiply.outer(tg, b)), axis=1)
+    scale = _MAD_TO_SIGMA * np.median(np.abs(resid - np.median(resid))) + 1e-6
+    keep = resid <= np.median(resid) + 3 * scale
+    if keep.sum() >= 2:
+        a, b = _line_fit(tg[keep], X[keep], static)
+    t0 = samples.t_s[0] if len(samples) else 0.0
+    P0 = a + b * t0
+    if dim == 2:
+        P0[2], b[2] = z_hint, 0.0
+    return P0, b
+
+
+# --------------------------------------------------------------------------- fit
+
+
+@dataclass(frozen=True)
+class TrajectoryFit:
+    """Result of the resolution routine (eq. 1) and how the solver got there.
+
+    Attributes
+    ----------
+    p0_m
+        Position at ``t0_s``, shape ``(3,)``, metres (``z`` = the fixed height for ``dim=2``).
+    vel_mps
+        Velocity, shape ``(3,)``, m/s (zeros when ``static``).
+    t0_s
+        Time of ``p0_m``: the first measurement of the segment, seconds.
+    t_end_s
+        Time of the last measurement, seconds.
+    cost_m2
+        Sum of squared residuals at the solution (the objective of eq. 1).
+    residual_rms_m
+        ``sqrt(cost / M)``.
+    n_used
+        Number of ranges ``M`` in the fit.
+    cov
+        Covariance of the solved unknowns (order of ``theta``), ``s^2 (J^T J)^-1``
+        with ``s^2 = cost / (M - n_params)``; NaN where singular.
+    success
+        The solver's own success flag.
+    converged
+        ``success``, or the gradient at the solution is below ``gtol`` anyway
+        (BFGS may stop on rounding with a solution that is already optimal).
+    message
+        The solver's message.
+    n_iter, n_fev
+        Iterations and function evaluations.
+    grad_norm
+        Infinity norm of the gradient of the *mean* squared residual at the
+        solution, metres (scale-free across segment sizes).
+    method, dim, static
+        How the fit was set up.
+    theta0
+        Initial guess, in the order of ``theta`` (paper parameters).
+    """
+
+    p0_m: np.ndarray
+    vel_mps: np.ndarray
+    t0_s: float
+    t_end_s: float
+    cost_m2: float
+    residual_rms_m: float
+    n_used: int
+    cov: np.ndarray
+    success: bool
+    converged: bool
+    message: str
+    n_iter: int
+    n_fev: int
+    grad_norm: float
+    method: str
+    dim: int
+    static: bool
+    theta0: np.ndarray = field(repr=False)
+
+    @property
+    def theta(self) -> np.ndarray:
+        """The solution in the paper's parameters (see :func:`residuals`)."""
+        return _Layout(self.dim, self.static, self.p0_m[2]).pack(self.p0_m, self.vel_mps)
+
+    @property
+    def speed_mps(self) -> float:
+        return float(np.linalg.norm(self.vel_mps))
+
+    def position_at(self, t_s) -> np.ndarray:
+        """``P0 + v (t - t0)``, shape ``(..., 3)``, metres."""
+        return self.p0_m + np.multiply.outer(np.asarray(t_s, float) - self.t0_s, self.vel_mps)
+
+    def to_trajectory(self, t_s=None, name: str = "NLS") -> Trajectory:
+        """The fitted straight line sampled at ``t_s`` (default: its start and end)."""
+        t = np.array([self.t0_s, self.t_end_s] if t_s is None else t_s, float)
+        if t.size == 2 and t[0] == t[1]:
+            t = t[:1]
+        vel = np.broadcast_to(self.vel_mps, (t.size, 3))
+        return Trajectory(t, self.position_at(t), vel, name=name)
+
+    def report(self) -> str:
+        """One line: solver, outcome, iterations, residual RMS."""
+        state = "converged" if self.converged else "NOT converged"
+        return (f"{self.method}: {state} after {self.n_iter} iterations / {self.n_fev} evaluations, "
+                f"|grad| = {self.grad_norm:.2e} m, residual RMS = {self.residual_rms_m:.3f} m over "
+                f"{self.n_used} ranges ({self.message})")
+
+
+def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, static: bool = False,
+                   z_m: float | None = None, method: str = "bfgs", x0=None, loss: str = "linear",
+                   f_scale_m: float = 1.0, gtol: float = 1e-9, max_iter: int = 500) -> TrajectoryFit:
+    """Solve eq. (1) for the initial position and velocity of a straight walk.
+
+    Parameters
+    ----------
+    samples
+        The ranges of one segment: :class:`RangeSamples` or a
+        :class:`~uwbwb.RangeLog` (NaN = missing). ``t0`` is the first
+        measurement's time.
+    anchors
+        :class:`~uwbwb.Anchors` (or array ``(n_anchors, 3)``), metres, in the
+        order of the range columns.
+    dim
+        3 (solve ``P, v`` in 3-D, the paper) or 2 (horizontal, node at height ``z_m``).
+    static
+        Fix ``v = 0``: static localisation from all ranges.
+    z_m
+        Node height for ``dim=2`` (required), height hint for the initial guess
+        with ``dim=3`` (optional; see :func:`initial_guess`), metres.
+    method
+        ``"bfgs"`` (quasi-Newton, like the paper's ``fminunc``) or ``"least_squares"``.
+    x0
+        Initial ``(P0, v)`` as a pair of 3-vectors, or ``theta``; default :func:`initial_guess`.
+    loss, f_scale_m
+        Robust loss of ``least_squares`` (``"linear"`` is eq. 1 itself); scale in metres.
+    gtol
+        Gradient tolerance on the mean squared residual (metres).
+    max_iter
+        Iteration cap.
+
+    Returns
+    -------
+    TrajectoryFit
+
+    Raises
+    ------
+    ValueError
+        Fewer ranges than unknowns, or bad parameters.
+    """
+    if isinstance(samples, RangeLog):
+        samples = unroll(samples)
+    if method not in ("bfgs", "least_squares"):
+        raise ValueError(f"method must be 'bfgs' or 'least_squares', got {method!r}")
+    if method == "bfgs" and loss != "linear":
+        raise ValueError("a robust loss needs method='least_squares'")
+    layout = _layout(dim, static, z_m if dim == 2 else None)
+    A = _anchor_array(anchors)
+    if len(samples.anchor_ids) != A.shape[0]:
+        raise ValueError(f"samples have {len(samples.anchor_ids)} anchors, anchors {A.shape[0]}")
+    M, p = len(samples), layout.n_params
+    if M < p:
+        raise ValueError(f"{M} ranges cannot determine {p} unknowns")
+
+    t0 = float(samples.t_s[0])
+    t_end = float(samples.t_s[-1])
+    if x0 is None:
+        P_init, v_init = initial_guess(samples, A, dim=dim, static=static, z_m=z_m)
+        theta0 = layout.pack(P_init, v_init)
+    elif isinstance(x0, tuple) and len(x0) == 2:
+        theta0 = layout.pack(np.asarray(x0[0], float), np.asarray(x0[1], float))
+    else:
+        theta0 = _check_theta(x0, layout)
+    if not np.all(np.isfinite(theta0)):
+        raise ValueError("the initial guess is not finite")
+
+    # centred, scaled time axis: t' = (t - t_mid) / h, v' = v h, P_mid = P0 + v (t_mid - t0)
+    t_mid = 0.5 * (t0 + t_end)
+    h = 0.5 * (t_end - t0) if (t_end > t0 and not static) else 1.0
+    tc = (samples.t_s - t_mid) / h
+    k, d = samples.anchor_index, samples.range_m
+    d_ = layout.dim
+
+    def to_internal(theta):
+        if static:
+            return theta.copy()
+        P, v = theta[:d_], theta[d_:]
+        return np.concatenate([P + v * (t_mid - t0), v * h])
+
+    def from_internal(q):
+        if static:
+            return q.copy()
+        Pm, vq = q[:d_], q[d_:]
+        v = vq / h
+        return np.concatenate([Pm - v * (t_mid - t0), v])
+
+    def fun_grad(q):
+        r, J = _resid_jac(q, tc, k, d, A, layout)
+        return float(r @ r) / M, (2.0 / M) * (J.T @ r)
+
+    q0 = to_internal(theta0)
+    if method == "bfgs":
+        res = minimize(fun_grad, q0, jac=True, method="BFGS",
+                       options={"gtol": gtol, "maxiter": int(max_iter)})
+        q, n_iter, n_fev, success, msg = res.x, int(res.nit), int(res.nfev), bool(res.success), str(res.message)
+    else:
+        res = least_squares(lambda q: _resid_jac(q, tc, k, d, A, layout, False)[0], q0,
+                            jac=lambda q: _resid_jac(q, tc, k, d, A, layout)[1], method="trf",
+                            loss=loss, f_scale=f_scale_m, gtol=1e-12, xtol=1e-12, ftol=1e-12,
+                            max_nfev=int(max_iter))
+        q, n_iter, n_fev, success, msg = res.x, int(res.nfev), int(res.nfev), bool(res.success), str(res.message)
+
+    f, g = fun_grad(q)
+    grad_norm = float(np.max(np.abs(g)))
+    r, J = _resid_jac(q, tc, k, d, A, layout)
+    theta = from_internal(q)
+    P, v = layout.unpack(theta)
+
+    # covariance in the paper's parameters: Jacobian of eq. 1 at theta (t from t0)
+    Jp = _resid_jac(theta, samples.t_s - t0, k, d, A, layout)[1]
+    dof = M - p
+    cov = np.full((p, p), np.nan)
+    if dof > 0:
+        H = Jp.T @ Jp
+        lam = np.linalg.eigvalsh(H)
+        if lam[0] > 1e-12 * lam[-1] > 0:
+            cov = float(r @ r) / dof * np.linalg.inv(H)
+    return TrajectoryFit(P, v, t0, t_end, float(r @ r), float(np.sqrt(f)), M, cov, success,
+                         bool(success or grad_norm <= max(gtol, 1e-7)), msg, n_iter, n_fev, grad_norm,
+                         method, layout.dim, layout.static, theta0)
