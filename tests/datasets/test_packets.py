@@ -120,6 +120,7 @@ def test_blank_lines_are_counted(tmp_path):
 @pytest.mark.parametrize("line, problem, column", [
     ("1452967702506.5\t1\t2.00\tOK", "integer number of milliseconds", "timestamp"),
     ("-5\t1\t2.00\tOK", "integer number of milliseconds", "timestamp"),
+    ("99999999999999999999999\t1\t2.00\tOK", "out of range", "timestamp"),
     ("1452967702506\t1\tabc\tOK", "not a number", "ranging"),
     ("1452967702506\t1\tnan\tOK", "not a number", "ranging"),
     ("1452967702506\t1\t-2.00\tOK", "finite distance", "ranging"),

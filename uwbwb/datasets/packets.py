@@ -51,6 +51,7 @@ __all__ = ["HEADER", "PacketLog", "load_recording", "read_packets", "write_packe
 #: The header row, fields separated by tabs.
 HEADER = ("timestamp", "anchor ID", "ranging", "status")
 _STATUSES = ("OK", "ERR")
+_MAX_MS = 2 ** 62  # keeps time stamps and their differences inside int64
 _INT_RE = re.compile(r"[0-9]+")
 _ID_RE = re.compile(r"\S+")
 _FLOAT_RE = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
@@ -164,6 +165,9 @@ def read_packets(path: str | os.PathLike, *, anchor_ids=None, tag_id: str | None
         ts, aid, rng_txt, status = fields
         if not _INT_RE.fullmatch(ts):
             raise DataFormatError(path, f"timestamp {ts!r} is not an integer number of milliseconds",
+                                  line=i, column="timestamp")
+        if int(ts) >= _MAX_MS:
+            raise DataFormatError(path, f"timestamp {ts!r} is out of range (milliseconds below {_MAX_MS})",
                                   line=i, column="timestamp")
         if not _ID_RE.fullmatch(aid):
             raise DataFormatError(path, f"anchor ID {aid!r} is empty or contains white space",
