@@ -164,3 +164,17 @@ def test_configuration_errors():
     log = TdoaLog([0.0], [[0.0, 1.0, 2.0]], [0], ("a", "b", "c"))
     with pytest.raises(ValueError, match="anchors"):
         TdoaEkf(RandomWalk(), TdoaModel(ANCHORS)).run(log)
+
+
+def test_gate_is_bypassed_after_max_skipped_epochs():
+    model = TdoaModel(ANCHORS, 0.1, dim=2, z_m=1.0)
+    t = np.arange(0, 10, 0.1)
+    pos = np.tile([12.0, 17.0], (t.size, 1))
+    log = _log(model, pos, t)
+    x0 = kalman.Gaussian(np.array([17.0, 12.0]), 0.01 * np.eye(2))     # 7 m off and overconfident
+    stuck = TdoaEkf(RandomWalk(1e-6), model, gate_prob=0.99, max_skipped=10 ** 6).run(log, x0=x0)
+    assert np.all(stuck.dof == 0) and np.linalg.norm(stuck.pos_m[-1] - pos[-1]) > 5
+    back = TdoaEkf(RandomWalk(1e-6), model, gate_prob=0.99, max_skipped=3).run(log, x0=x0)
+    assert np.all(back.dof[:3] == 0) and back.dof[3] == 7          # 4th epoch used ungated
+    err = np.linalg.norm(back.pos_m - pos, axis=1)
+    assert err[-1] < 1.0 and err[-1] < err[3] < err[2]              # pulled back towards the target

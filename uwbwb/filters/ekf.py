@@ -20,7 +20,10 @@ models are right. Optional χ² gating (``gate_prob``): if the NIS of an epoch
 exceeds the ``gate_prob`` quantile of χ²(m), the anchor whose removal lowers
 the NIS most is dropped (re-referencing if it was the reference) and the test
 repeated, until the epoch passes or fewer than ``min_tdoa`` TDoAs remain, in
-which case the epoch is skipped (prediction only).
+which case the epoch is skipped (prediction only). A filter that has drifted
+away (e.g. a random walk whose driving noise is far too small to follow the
+target) would otherwise reject every later epoch and never come back; so after
+``max_skipped`` consecutive skipped epochs the next epoch is used ungated.
 """
 
 from __future__ import annotations
@@ -74,6 +77,8 @@ class TdoaEkf:
         χ² gate probability (e.g. 0.999), or None for no gating.
     min_tdoa
         Fewest TDoAs an update may use after gating; default ``dim``.
+    max_skipped
+        Consecutive epochs the gate may skip before the next one is used ungated.
     init_pos_sigma_m, init_vel_sigma_mps, init_acc_sigma_mps2
         Prior standard deviations at initialisation (per axis).
     """
@@ -82,6 +87,7 @@ class TdoaEkf:
     measurement: TdoaModel
     gate_prob: float | None = None
     min_tdoa: int | None = None
+    max_skipped: int = 10
     init_pos_sigma_m: float = 1.0
     init_vel_sigma_mps: float = 1.0
     init_acc_sigma_mps2: float = 1.0
@@ -94,6 +100,8 @@ class TdoaEkf:
             raise ValueError(f"gate_prob must be in (0, 1) or None, got {self.gate_prob!r}")
         if self.min_tdoa is not None and self.min_tdoa < 1:
             raise ValueError("min_tdoa must be >= 1")
+        if self.max_skipped < 0:
+            raise ValueError("max_skipped must be >= 0")
 
     @property
     def name(self) -> str:
@@ -122,7 +130,8 @@ class TdoaEkf:
         S = H @ state.P @ H.T + R
         return float(y @ np.linalg.solve(S, y))
 
-    def update(self, state: Gaussian, tdoa_row_m: np.ndarray, ref: int) -> tuple[Gaussian, EpochUpdate]:
+    def update(self, state: Gaussian, tdoa_row_m: np.ndarray, ref: int, *,
+               gate: bool = True) -> tuple[Gaussian, EpochUpdate]:
         """Posterior after one epoch's TDoAs (eqs 7–9, Joseph form), with optional gating.
 
         Parameters
@@ -131,6 +140,8 @@ class TdoaEkf:
             One row of :attr:`~uwbwb.models.tdoa.TdoaLog.tdoa_m`, shape ``(n_anchors,)``.
         ref
             That row's reference anchor (−1: nothing to update).
+        gate
+            Apply the χ² gate (if ``gate_prob`` is set).
         """
         row = np.asarray(tdoa_row_m, float)
         anchors = np.flatnonzero(np.isfinite(row))
@@ -138,7 +149,7 @@ class TdoaEkf:
         if ref < 0 or anchors.size < 2:
             return state, EpochUpdate(np.nan, 0, 0)
         n_rejected = 0
-        if self.gate_prob is not None:
+        if self.gate_prob is not None and gate:
             while True:
                 nis = self._nis(state, row, ref, anchors)
                 if nis <= chi2.ppf(self.gate_prob, anchors.size - 1):
@@ -198,12 +209,14 @@ class TdoaEkf:
                 return EkfResult(log.t_s.copy(), x, P, nis, dof, n_rej, self.motion, name or self.name)
         else:
             start, state = 0, x0
-        t_prev = log.t_s[start]
+        dt = np.diff(log.t_s[start:])
+        F_all, Q_all = self.motion.F(dt), self.motion.Q(dt)      # all steps at once
+        skipped = 0
         for k in range(start, T):
             if k > start:
-                state = self.predict(state, log.t_s[k] - t_prev)
-                t_prev = log.t_s[k]
-            state, info = self.update(state, log.tdoa_m[k], int(log.ref[k]))
+                state = kalman.predict(state, F_all[k - start - 1], Q_all[k - start - 1])
+            state, info = self.update(state, log.tdoa_m[k], int(log.ref[k]), gate=skipped < self.max_skipped)
+            skipped = skipped + 1 if info.n_rejected and not info.dof else 0
             x[k], P[k], nis[k], dof[k], n_rej[k] = state.x, state.P, info.nis, info.dof, info.n_rejected
         return EkfResult(log.t_s.copy(), x, P, nis, dof, n_rej, self.motion, name or self.name)
 

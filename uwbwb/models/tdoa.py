@@ -300,9 +300,12 @@ class TdoaModel:
         if ref not in anchors or not np.isfinite(row[ref]):
             raise ValueError(f"TdoaModel.epoch: reference {ref} is not among the measured anchors {anchors.tolist()}")
         others = anchors[anchors != ref]
+        d = self._offsets(pos_m)                       # (n, 3): one pass for ranges and unit vectors
+        r = np.sqrt(np.einsum("ij,ij->i", d, d))
+        u = d[:, : self.dim] / np.maximum(r, 1e-12)[:, None]
         z = row[others] - row[ref]
-        h = self.h(pos_m, ref)[others]
-        H = self.jacobian(pos_m, ref)[others]
+        h = r[others] - r[ref]
+        H = u[others] - u[ref]
         return z, h, H, self.covariance(others, ref), others
 
 
