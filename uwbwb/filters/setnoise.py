@@ -1,0 +1,594 @@
+"""Set-noise particle filter, its set-blind baseline, and the exact set-noise Kalman filter (paper 000).
+
+Model (paper 000, eqs. 2–6). State ``X = [x, ẋ, y, ẏ]`` (m, m/s); between fixes
+``T`` seconds apart (eq. 3)::
+
+    x ← x + T ẋ,   ẋ ← ẋ + N(0, σ_d)      (same for y)
+
+so σ_d (m/s) is the standard deviation of the velocity change *per step*.
+A fix ``(x̃, ỹ)`` taken with sensor set ``s`` is ``x̃ = x + N(μx_s, σx_s)``, ``ỹ = y + N(μy_s, σy_s)``
+(eq. 6), with ``(μ, σ)`` from a :class:`uwbwb.models.setnoise.SetNoiseModel`.
+
+Filters
+-------
+* **Set-noise PF** (eqs. 7–12): K particles start at the known position with zero
+  velocity and equal weights; each fix multiplies the weights by eq. 9 with the
+  observed set's ``(μ, σ)``; weights are normalised (eq. 10); the output is the
+  weighted mean (eq. 11); when ``ESS = K/(1+CV) < 0.5·K`` (eq. 12) the particles
+  are resampled. The paper writes "ESS < 0.5"; we read it as a fraction of K.
+* **Baseline PF**: the same filter fed the facility-wide model for every fix
+  (:meth:`~uwbwb.models.setnoise.SetNoiseModel.facility_only`).
+* **Set-noise KF**: given the observed sets the model is linear-Gaussian, so a
+  Kalman filter with the set's bias and variance is the exact posterior the PF
+  approximates. With the known start (``P₀ = 0``) both filters share the prior.
+
+Timing: the prior holds at the first fix (step 0 is an update only); every later
+fix is preceded by one prediction over the actual interval ``T = t_k − t_{k−1}``.
+
+Three implementations of the PF share these equations:
+
+* :func:`pf_init`, :func:`pf_predict`, :func:`pf_update`, :func:`pf_estimate`,
+  :func:`pf_resample` — the textbook steps on ``(..., K, 4)`` particles;
+* :func:`reference_pf` — one filter run written with those steps (the readable
+  reference, and the "per-trial loop" of ``benchmarks/bench_setnoise_pf.py``);
+* :func:`pf_sweep` — the Monte Carlo sweep: filter variants × trials × σ_d values
+  as leading array axes, processed in cache-sized blocks with in-place updates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ..models.setnoise import SetFixLog, SetNoiseModel, log_likelihood
+from . import particle
+
+#: State layout.
+STATE = ("x_m", "vx_mps", "y_m", "vy_mps")
+_POS = [0, 2]
+_VEL = [1, 3]
+
+
+# --------------------------------------------------------------------------- inputs
+
+def _times(t_s) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(t_s, float)
+    if t.ndim != 1 or t.size < 1:
+        raise ValueError(f"t_s must be a non-empty 1-D array, got shape {t.shape}")
+    dt = np.diff(t, prepend=t[0])
+    if np.any(dt[1:] <= 0):
+        raise ValueError("t_s must be strictly increasing")
+    return t, dt
+
+
+def _noise_arrays(z_m, mu_m, sigma_m, T: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    z = np.asarray(z_m, float)
+    mu = np.asarray(mu_m, float)
+    sd = np.asarray(sigma_m, float)
+    if z.shape != (T, 2):
+        raise ValueError(f"z_m must have shape ({T}, 2), got {z.shape}")
+    if mu.shape[-2:] != (T, 2) or sd.shape != mu.shape:
+        raise ValueError(f"mu_m and sigma_m must have equal shapes (..., {T}, 2), got {mu.shape}, {sd.shape}")
+    if not (np.all(np.isfinite(z)) and np.all(np.isfinite(mu))):
+        raise ValueError("fixes and biases must be finite")
+    if not np.all(sd > 0):
+        raise ValueError("sigma_m must be positive")
+    return z, mu, sd
+
+
+def _check_common(n_particles: int, ess_fraction: float, resampler: str) -> None:
+    if n_particles < 1:
+        raise ValueError(f"n_particles must be >= 1, got {n_particles}")
+    if not 0.0 <= ess_fraction <= 1.0:
+        raise ValueError(f"ess_fraction is a fraction of K in [0, 1], got {ess_fraction}")
+    if resampler not in particle.RESAMPLERS:
+        raise ValueError(f"unknown resampler {resampler!r}; choose from {particle.RESAMPLERS}")
+
+
+def model_noise(fixes: SetFixLog, model: SetNoiseModel) -> tuple[np.ndarray, np.ndarray]:
+    """``(μ, σ)`` of every fix under ``model``, shapes ``(T, 2)``, metres."""
+    mu, sd, _ = model.lookup(fixes.set_id)
+    return mu, sd
+
+
+# --------------------------------------------------------------------------- PF steps
+
+@dataclass(frozen=True)
+class ParticleState:
+    """Particles ``(..., K, 4)`` in the layout :data:`STATE` and their log-weights ``(..., K)``."""
+
+    particles: np.ndarray
+    logw: np.ndarray
+
+
+def pf_init(x0_m, n_particles: int, batch_shape: tuple = ()) -> ParticleState:
+    """Eq. 7: every particle at the known start ``x0_m = (x₀, y₀)`` with zero velocity, weights ``1/K``."""
+    x0 = np.asarray(x0_m, float)
+    if x0.shape != (2,):
+        raise ValueError(f"x0_m must be (x, y), got shape {x0.shape}")
+    p = np.zeros(tuple(batch_shape) + (n_particles, 4))
+    p[..., _POS] = x0
+    return ParticleState(p, np.full(tuple(batch_shape) + (n_particles,), -np.log(n_particles)))
+
+
+def pf_predict(state: ParticleState, dt_s: float, sigma_d_mps, *, rng: np.random.Generator) -> ParticleState:
+    """Eq. 3: ``x ← x + T ẋ``, ``ẋ ← ẋ + N(0, σ_d)`` per axis (positions move with the old velocity).
+
+    ``sigma_d_mps`` is a scalar or broadcastable to the batch shape ``(...)``.
+    """
+    p = state.particles.copy()
+    p[..., _POS] += dt_s * p[..., _VEL]
+    sd = np.asarray(sigma_d_mps, float)[..., None, None]
+    # draws ordered axis-major, (2, ..., K), the order pf_sweep uses too
+    kick = np.moveaxis(rng.standard_normal((2,) + p.shape[:-1]), 0, -1)
+    p[..., _VEL] += sd * kick
+    return ParticleState(p, state.logw)
+
+
+def pf_update(state: ParticleState, z_m, mu_m, sigma_m) -> ParticleState:
+    """Eqs. 8–10: add eq. 9's log-likelihood of fix ``z`` (bias ``μ``, spread ``σ``) and normalise."""
+    ll = log_likelihood(state.particles[..., _POS], np.asarray(z_m)[..., None, :],
+                        np.asarray(mu_m)[..., None, :], np.asarray(sigma_m)[..., None, :])
+    logw, _ = particle.normalise_log_weights(state.logw + ll)
+    return ParticleState(state.particles, logw)
+
+
+def pf_estimate(state: ParticleState) -> np.ndarray:
+    """Eq. 11: weighted mean state, shape ``(..., 4)``."""
+    return particle.weighted_mean(state.particles, state.logw)
+
+
+def pf_resample(state: ParticleState, *, rng: np.random.Generator, ess_fraction: float = 0.5,
+                method: str = "multinomial") -> tuple[ParticleState, np.ndarray]:
+    """Eq. 12 and resampling: rows with ``ESS < ess_fraction · K`` are resampled; returns which."""
+    p, logw, done = particle.resample(state.particles, state.logw, rng=rng, threshold=ess_fraction, method=method)
+    return ParticleState(p, logw), done
+
+
+# --------------------------------------------------------------------------- one run
+
+@dataclass(frozen=True)
+class FilterRun:
+    """Output of one filter over one recording.
+
+    Attributes
+    ----------
+    t_s
+        Times, shape ``(T,)``, seconds.
+    state
+        Posterior mean ``[x, ẋ, y, ẏ]`` after each fix, shape ``(T, 4)``.
+    ess
+        Effective sample size after each update (before resampling), shape ``(T,)``;
+        NaN for a Kalman filter.
+    resampled
+        Whether the particles were resampled at each step, shape ``(T,)``.
+    name
+        Label (e.g. ``"set-noise PF"``).
+    """
+
+    t_s: np.ndarray
+    state: np.ndarray
+    ess: np.ndarray
+    resampled: np.ndarray
+    name: str = "filter"
+    meta: dict = field(default_factory=dict, compare=False)
+
+    @property
+    def pos_m(self) -> np.ndarray:
+        """Estimated positions, shape ``(T, 2)``, metres."""
+        return self.state[:, _POS]
+
+    def to_frame(self) -> pd.DataFrame:
+        """Tidy table ``t_s, x_m, vx_mps, y_m, vy_mps, ess, resampled``."""
+        df = pd.DataFrame(self.state, columns=list(STATE))
+        df.insert(0, "t_s", self.t_s)
+        df["ess"], df["resampled"] = self.ess, self.resampled
+        return df
+
+
+def reference_pf(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps: float, *, rng: np.random.Generator,
+                 n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "multinomial",
+                 name: str = "PF") -> FilterRun:
+    """One particle-filter run, written step by step with :func:`pf_predict` / :func:`pf_update`.
+
+    This is the readable reference of the method; :func:`pf_sweep` computes the
+    same filter for many trials and parameters at once.
+
+    Parameters
+    ----------
+    t_s
+        Fix times, shape ``(T,)``, seconds.
+    z_m
+        Fixes, shape ``(T, 2)``, metres.
+    mu_m, sigma_m
+        Bias and standard deviation for each fix, shape ``(T, 2)``, metres (from the set
+        of each fix for the set-noise PF, the facility-wide model for the baseline).
+    x0_m
+        Known start position, shape ``(2,)``, metres.
+    sigma_d_mps
+        Velocity noise per step, m/s.
+    rng
+        Source of the process noise and the resampling variates.
+
+    Returns
+    -------
+    FilterRun
+    """
+    _check_common(n_particles, ess_fraction, resampler)
+    t, dt = _times(t_s)
+    z, mu, sd = _noise_arrays(z_m, mu_m, sigma_m, t.size)
+    if mu.shape != (t.size, 2):
+        raise ValueError(f"reference_pf runs one filter: mu_m must be ({t.size}, 2), got {mu.shape}")
+    state = pf_init(x0_m, n_particles)
+    est = np.empty((t.size, 4))
+    ess = np.empty(t.size)
+    resampled = np.zeros(t.size, bool)
+    for k in range(t.size):
+        if k:
+            state = pf_predict(state, dt[k], sigma_d_mps, rng=rng)
+        state = pf_update(state, z[k], mu[k], sd[k])
+        est[k] = pf_estimate(state)
+        ess[k] = particle.effective_sample_size(state.logw)
+        state, resampled[k] = pf_resample(state, rng=rng, ess_fraction=ess_fraction, method=resampler)
+    return FilterRun(t, est, ess, resampled, name,
+                     {"n_particles": n_particles, "sigma_d_mps": sigma_d_mps, "ess_fraction": ess_fraction,
+                      "resampler": resampler})
+
+
+def run_set_noise_pf(fixes: SetFixLog, model: SetNoiseModel, x0_m, sigma_d_mps: float, *,
+                     rng: np.random.Generator, n_particles: int = 1000, ess_fraction: float = 0.5,
+                     resampler: str = "multinomial", name: str | None = None) -> FilterRun:
+    """The paper's filter on one recording: the set of each fix selects its ``(μ, σ)``.
+
+    Pass ``model.facility_only()`` for the baseline PF.
+    """
+    mu, sd = model_noise(fixes, model)
+    if name is None:
+        name = "set-noise PF" if len(model) else "baseline PF"
+    return reference_pf(fixes.t_s, fixes.pos_m, mu, sd, x0_m, sigma_d_mps, rng=rng, n_particles=n_particles,
+                        ess_fraction=ess_fraction, resampler=resampler, name=name)
+
+
+# --------------------------------------------------------------------------- the sweep
+
+@dataclass(frozen=True)
+class PFSweep:
+    """Monte Carlo sweep of particle filters.
+
+    Attributes
+    ----------
+    t_s
+        Fix times, shape ``(T,)``.
+    sigma_d_mps
+        Velocity-noise values, shape ``(S,)``, m/s.
+    pos_m
+        Estimated positions, shape ``(M, n_trials, S, T, 2)``, metres
+        (M filter variants, i.e. noise models).
+    n_resampled
+        Resampling events per run, shape ``(M, n_trials, S)``.
+    ess_mean
+        Mean ESS over the run's steps, shape ``(M, n_trials, S)``.
+    n_particles, ess_fraction, resampler, common_random_numbers, dtype
+        The settings used.
+    """
+
+    t_s: np.ndarray
+    sigma_d_mps: np.ndarray
+    pos_m: np.ndarray
+    n_resampled: np.ndarray
+    ess_mean: np.ndarray
+    n_particles: int
+    ess_fraction: float
+    resampler: str
+    common_random_numbers: bool
+    dtype: str
+
+    @property
+    def n_trials(self) -> int:
+        return self.pos_m.shape[1]
+
+    def mean_error_m(self, truth_m: np.ndarray) -> np.ndarray:
+        """Mean Euclidean error of each run against ``truth_m (T, 2)``: shape ``(M, n_trials, S)``."""
+        return np.linalg.norm(self.pos_m - np.asarray(truth_m, float), axis=-1).mean(axis=-1)
+
+
+def _block_trials(n_rows_per_trial: int, n_particles: int, block_particles: int, n_trials: int) -> int:
+    return int(np.clip(block_particles // max(n_rows_per_trial * n_particles, 1), 1, n_trials))
+
+
+def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Generator, n_trials: int = 1,
+             n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "multinomial",
+             common_random_numbers: bool = True, dtype=np.float32, block_particles: int = 1 << 17,
+             progress: bool = False, desc: str = "PF sweep") -> PFSweep:
+    """Run the PF for every filter variant × trial × σ_d value as one batched computation.
+
+    Parameters
+    ----------
+    t_s, z_m, x0_m
+        As for :func:`reference_pf` (one recording).
+    mu_m, sigma_m
+        Per-fix bias and spread, shape ``(T, 2)`` or ``(M, T, 2)`` for M filter variants
+        (e.g. ``M = 2``: baseline and set-noise PF).
+    sigma_d_mps
+        Velocity-noise values, scalar or shape ``(S,)``, m/s.
+    rng
+        Parent generator. Trial ``i`` draws all its randomness from child ``i`` of
+        ``rng.spawn(n_trials)``, so its result does not depend on how trials are
+        grouped into blocks.
+    n_trials
+        Independent repetitions (the paper's 100).
+    common_random_numbers
+        If True (default), within a trial every σ_d value and filter variant uses the
+        same standard-normal draws for the process noise (scaled by its own σ_d):
+        each run is still an exact PF, but differences between σ_d values and between
+        filters are estimated with less Monte Carlo noise, and the draws cost S·M
+        times less. If False, every run draws its own noise.
+    dtype
+        Floating type of the particle arrays (float32 halves memory traffic;
+        positions are stored relative to ``x0_m`` to keep full resolution).
+    block_particles
+        Particles processed together (whole trials); sized to stay in cache.
+    progress
+        Show a ``tqdm`` bar over time steps (× blocks).
+
+    Returns
+    -------
+    PFSweep
+    """
+    _check_common(n_particles, ess_fraction, resampler)
+    t, dt = _times(t_s)
+    T = t.size
+    z, mu, sd = _noise_arrays(z_m, mu_m, sigma_m, T)
+    if mu.ndim == 2:
+        mu, sd = mu[None], sd[None]
+    if mu.ndim != 3:
+        raise ValueError(f"mu_m must be (T, 2) or (M, T, 2), got {mu.shape}")
+    x0 = np.asarray(x0_m, float)
+    if x0.shape != (2,):
+        raise ValueError(f"x0_m must be (x, y), got shape {x0.shape}")
+    sig_d = np.atleast_1d(np.asarray(sigma_d_mps, float))
+    if sig_d.ndim != 1 or np.any(sig_d < 0):
+        raise ValueError("sigma_d_mps must be a non-negative scalar or 1-D array")
+    if n_trials < 1:
+        raise ValueError(f"n_trials must be >= 1, got {n_trials}")
+    M, S, K = mu.shape[0], sig_d.size, n_particles
+    dtype = np.dtype(dtype)
+
+    # Per-fix constants of eq. 9, relative to the start: centre c = z − μ − x0, a = 1/(2σ²).
+    centre = (z[None] - mu - x0).astype(dtype)                       # (M, T, 2)
+    half_prec = (0.5 / sd ** 2).astype(dtype)                         # (M, T, 2)
+    dt_d = dt.astype(dtype)
+    children = rng.spawn(n_trials)
+    b = _block_trials(M * S, K, block_particles, n_trials)
+    n_blocks = -(-n_trials // b)
+
+    pos = np.empty((M, n_trials, S, T, 2))
+    n_res = np.zeros((M, n_trials, S), np.int64)
+    ess_sum = np.zeros((M, n_trials, S))
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=n_blocks * T, desc=desc, unit="step", mininterval=0.5)
+    try:
+        for first in range(0, n_trials, b):
+            trials = range(first, min(first + b, n_trials))
+            blk_pos, blk_res, blk_ess = _sweep_block(
+                [children[i] for i in trials], centre, half_prec, dt_d, sig_d, K, M, ess_fraction, resampler,
+                common_random_numbers, dtype, bar)
+            sl = slice(trials.start, trials.stop)
+            pos[:, sl] = np.moveaxis(blk_pos, 0, 1) + x0
+            n_res[:, sl] = np.moveaxis(blk_res, 0, 1)
+            ess_sum[:, sl] = np.moveaxis(blk_ess, 0, 1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return PFSweep(t, sig_d, pos, n_res, ess_sum / T, K, ess_fraction, resampler, common_random_numbers,
+                   dtype.name)
+
+
+def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampler, crn, dtype, bar):
+    """All steps for one block of trials.
+
+    State components are separate ``(b, M, S, K)`` arrays (trial, variant, σ_d,
+    particle), updated in place. Returns positions ``(b, M, S, T, 2)`` relative to
+    the start, resampling counts and ESS sums ``(b, M, S)``.
+    """
+    b, S, T = len(rngs), sig_d.size, centre.shape[1]
+    shape = (b, M, S, K)
+    x, vx, y, vy = (np.zeros(shape, dtype) for _ in range(4))
+    logw = np.full(shape, -np.log(K), dtype)
+    w = np.empty(shape, dtype)
+    tmp = np.empty(shape, dtype)
+    Mn, Sn = (1, 1) if crn else (M, S)
+    noise = np.empty((b, 2, Mn, Sn, K), dtype)       # standard normals, one contiguous slab per trial
+    kick = np.empty((b, 2, Mn, S, K), dtype)         # scaled by each run's σ_d
+    sd_b = sig_d.astype(dtype).reshape(1, 1, 1, S, 1)
+    pos = np.empty((b, M, S, T, 2), dtype)
+    n_res = np.zeros((b, M, S), np.int64)
+    ess_sum = np.zeros((b, M, S))
+    trial_of_row = np.repeat(np.arange(b), M * S)
+    c_x, c_y = (centre[:, :, i].T.reshape(T, 1, M, 1, 1) for i in (0, 1))
+    a_x, a_y = (half_prec[:, :, i].T.reshape(T, 1, M, 1, 1) for i in (0, 1))
+    log_k = dtype.type(-np.log(K))
+
+    for k in range(T):
+        if k:
+            # eq. 3: positions move with the old velocity, then the velocity takes its kick
+            np.multiply(vx, dt[k], out=tmp)
+            x += tmp
+            np.multiply(vy, dt[k], out=tmp)
+            y += tmp
+            for j, g in enumerate(rngs):
+                g.standard_normal(out=noise[j], dtype=dtype)
+            np.multiply(noise, sd_b, out=kick)
+            vx += kick[:, 0]
+            vy += kick[:, 1]
+        # eq. 9 in logs, eq. 10 by log-sum-exp
+        np.subtract(x, c_x[k], out=tmp)
+        np.square(tmp, out=tmp)
+        tmp *= a_x[k]
+        logw -= tmp
+        np.subtract(y, c_y[k], out=tmp)
+        np.square(tmp, out=tmp)
+        tmp *= a_y[k]
+        logw -= tmp
+        logw -= logw.max(axis=-1, keepdims=True)
+        np.exp(logw, out=w)
+        total = w.sum(axis=-1, keepdims=True)
+        w /= total
+        logw -= np.log(total)
+        # eq. 11 and eq. 12
+        pos[..., k, 0] = np.einsum("...k,...k->...", w, x)
+        pos[..., k, 1] = np.einsum("...k,...k->...", w, y)
+        ess = 1.0 / np.einsum("...k,...k->...", w, w).astype(np.float64)
+        ess_sum += ess
+        need = ess < ess_fraction * K
+        if need.any():
+            _resample_rows(need, w, (x, vx, y, vy), logw, rngs, trial_of_row, resampler, log_k)
+            n_res += need
+        if bar is not None:
+            bar.update(1)
+    return pos, n_res, ess_sum
+
+
+def _resample_rows(need, w, arrays, logw, rngs, trial_of_row, resampler, log_k):
+    """Resample the flagged rows in place; each trial's variates come from its own generator."""
+    K = w.shape[-1]
+    rows = np.flatnonzero(need)
+    owner = trial_of_row[rows]
+    wr = w.reshape(-1, K)[rows]
+    per_row = 1 if resampler == "systematic" else K
+    u = np.empty((rows.size, per_row))
+    for j in np.unique(owner):
+        sel = owner == j
+        u[sel] = rngs[j].random((int(sel.sum()), per_row))
+    if resampler == "systematic":
+        idx = particle.systematic_indices(wr, u[:, 0])
+    else:
+        idx = particle.multinomial_indices(wr, u)
+    flat = idx + (rows * K)[:, None]
+    for a in arrays:
+        a.reshape(-1, K)[rows] = a.reshape(-1)[flat]
+    logw.reshape(-1, K)[rows] = log_k
+
+
+# --------------------------------------------------------------------------- Kalman filter
+
+def cv_matrices(dt_s: float, sigma_d_mps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Transition ``F`` and process noise ``Q`` (4 × 4) of eq. 3 for the state :data:`STATE`.
+
+    The velocity kick enters after the position update, so ``Q = diag(0, σ_d², 0, σ_d²)``.
+    """
+    F1 = np.array([[1.0, dt_s], [0.0, 1.0]])
+    F = np.kron(np.eye(2), F1)
+    Q = np.diag([0.0, sigma_d_mps ** 2, 0.0, sigma_d_mps ** 2])
+    return F, Q
+
+
+H_POS = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class KFSweep:
+    """Set-noise Kalman filter for several σ_d values (and noise-model variants).
+
+    Attributes
+    ----------
+    t_s
+        Shape ``(T,)``.
+    sigma_d_mps
+        Shape ``(S,)``.
+    state
+        Posterior means ``(..., S, T, 4)``.
+    cov
+        Posterior covariances ``(..., S, T, 4, 4)`` (x and y blocks; cross terms are zero).
+    nis
+        Normalised innovation squared per fix, ``(..., S, T)`` (χ² with 2 dof if the model holds).
+    """
+
+    t_s: np.ndarray
+    sigma_d_mps: np.ndarray
+    state: np.ndarray
+    cov: np.ndarray
+    nis: np.ndarray
+
+    @property
+    def pos_m(self) -> np.ndarray:
+        return self.state[..., _POS]
+
+    def mean_error_m(self, truth_m) -> np.ndarray:
+        """Mean Euclidean error against ``truth_m (T, 2)``, shape ``(..., S)``."""
+        return np.linalg.norm(self.pos_m - np.asarray(truth_m, float), axis=-1).mean(axis=-1)
+
+
+def kf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps) -> KFSweep:
+    """Exact set-noise Kalman filter, vectorised over σ_d values (and leading model axes).
+
+    Per axis the state ``(p, v)`` evolves by eq. 3 and the fix observes ``p + μ``
+    with variance ``σ²``; the x and y axes decouple (diagonal noise), so each is a
+    2-state filter run in closed form with the Joseph-form update
+    ``P⁺ = (I − KH) P (I − KH)ᵀ + K R Kᵀ``. It is checked against
+    :mod:`uwbwb.filters.kalman` (the filterpy edge) in the tests.
+
+    Parameters
+    ----------
+    t_s, z_m, x0_m
+        As for :func:`reference_pf`.
+    mu_m, sigma_m
+        Shape ``(..., T, 2)``.
+    sigma_d_mps
+        Scalar or ``(S,)``, m/s.
+
+    Returns
+    -------
+    KFSweep
+    """
+    t, dt = _times(t_s)
+    T = t.size
+    z, mu, sd = _noise_arrays(z_m, mu_m, sigma_m, T)
+    sig_d = np.atleast_1d(np.asarray(sigma_d_mps, float))
+    lead = mu.shape[:-2]
+    S = sig_d.size
+    bshape = lead + (S, 2)                                  # batch: models..., σ_d, axis
+    q = np.broadcast_to(sig_d[:, None] ** 2, bshape)
+    zc = np.broadcast_to((z - mu)[..., None, :, :], lead + (S, T, 2))   # bias-corrected fixes
+    r = np.broadcast_to((sd ** 2)[..., None, :, :], lead + (S, T, 2))
+    p = np.broadcast_to(np.asarray(x0_m, float), bshape).copy()
+    v = np.zeros(bshape)
+    P00, P01, P11 = np.zeros(bshape), np.zeros(bshape), np.zeros(bshape)
+    state = np.empty(lead + (S, T, 4))
+    cov = np.zeros(lead + (S, T, 4, 4))
+    nis = np.zeros(lead + (S, T))
+    for k in range(T):
+        if k:
+            h = dt[k]
+            p = p + h * v
+            P00, P01, P11 = P00 + 2 * h * P01 + h * h * P11, P01 + h * P11, P11 + q
+        rk = r[..., k, :]
+        innov = zc[..., k, :] - p
+        Sk = P00 + rk
+        K0, K1 = P00 / Sk, P01 / Sk
+        p, v = p + K0 * innov, v + K1 * innov
+        a = 1.0 - K0
+        P00, P01, P11 = (a * a * P00 + K0 * K0 * rk,
+                         a * (P01 - K1 * P00) + K0 * K1 * rk,
+                         P11 - 2 * K1 * P01 + K1 * K1 * P00 + K1 * K1 * rk)
+        nis[..., k] = np.sum(innov * innov / Sk, axis=-1)
+        state[..., k, 0], state[..., k, 1] = p[..., 0], v[..., 0]
+        state[..., k, 2], state[..., k, 3] = p[..., 1], v[..., 1]
+        for ax, i in enumerate((0, 2)):
+            cov[..., k, i, i], cov[..., k, i, i + 1] = P00[..., ax], P01[..., ax]
+            cov[..., k, i + 1, i], cov[..., k, i + 1, i + 1] = P01[..., ax], P11[..., ax]
+    return KFSweep(t, sig_d, state, cov, nis)
+
+
+def run_set_noise_kf(fixes: SetFixLog, model: SetNoiseModel, x0_m, sigma_d_mps: float,
+                     name: str = "set-noise KF") -> FilterRun:
+    """The set-noise Kalman filter on one recording (see :func:`kf_sweep`)."""
+    mu, sd = model_noise(fixes, model)
+    res = kf_sweep(fixes.t_s, fixes.pos_m, mu, sd, x0_m, sigma_d_mps)
+    n = len(fixes)
+    return FilterRun(res.t_s, res.state[0], np.full(n, np.nan), np.zeros(n, bool), name,
+                     {"sigma_d_mps": sigma_d_mps, "cov": res.cov[0], "nis": res.nis[0]})

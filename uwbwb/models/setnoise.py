@@ -1,0 +1,489 @@
+"""Sensor-set switching noise: the measurement model of Banerjee, Suski & Hoover (paper 000).
+
+A UWB system such as Ubisense reports a 2-D position computed from a *set* of
+sensors that changes from one measurement to the next. Because every sensor's
+ranges carry their own systematic error, every set produces its own systematic
+position error. The paper models the error of a measurement taken with set ``s``
+as an independent Gaussian per axis (its eq. 1 and eq. 6)::
+
+    x̃ = x + N(μx_s, σx_s),    ỹ = y + N(μy_s, σy_s)
+
+This module holds that model and everything that touches it, so the simulator
+(:mod:`uwbwb.sim.setnoise`), the calibration and the filters
+(:mod:`uwbwb.filters.setnoise`) share one definition:
+
+- sensor sets as integer bit masks (bit ``i`` set ⇔ sensor ``i`` used) with the
+  paper's labels (``'76540'``: sensors in descending order);
+- :class:`SetFixLog`, a log of position fixes with the set behind each fix;
+- :class:`SetNoiseModel`, the per-set ``(μ, σ)`` table plus the facility-wide
+  default, with :meth:`SetNoiseModel.fit` implementing the paper's calibration
+  rules (section II-B2) and :func:`log_likelihood` its eq. 9.
+
+Interpretations of the paper made here (also stated in notebook 01):
+
+- σ is the sample standard deviation (``ddof=1``) of the errors about their mean.
+- "weighted-averaged by the number of measurements" is applied literally to all
+  four parameters, σ included (not a pooled variance).
+- The facility-wide model is the mean and standard deviation of *all*
+  calibration errors, whatever their set or location.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+#: Minimum number of measurements of a set at one location for the paper's calibration to model it.
+MIN_COUNT = 30
+
+
+# --------------------------------------------------------------------------- sensor sets
+
+def set_id_from_mask(used: np.ndarray) -> np.ndarray:
+    """Integer set ids from a boolean "sensor used" mask.
+
+    Parameters
+    ----------
+    used
+        Shape ``(..., n_sensors)``, bool; ``n_sensors <= 62``.
+
+    Returns
+    -------
+    ndarray of int64, shape ``(...)``
+        ``sum(2**i for used sensors i)``.
+    """
+    used = np.asarray(used, bool)
+    n = used.shape[-1]
+    if n > 62:
+        raise ValueError(f"at most 62 sensors can be encoded in a set id, got {n}")
+    return used.astype(np.int64) @ (np.int64(1) << np.arange(n, dtype=np.int64))
+
+
+def set_members(set_id: int, n_sensors: int = 62) -> tuple[int, ...]:
+    """Sensor indices in a set, ascending."""
+    set_id = int(set_id)
+    return tuple(i for i in range(n_sensors) if (set_id >> i) & 1)
+
+
+def set_mask(set_id, n_sensors: int) -> np.ndarray:
+    """Boolean mask ``(..., n_sensors)`` of the sensors in each set id (inverse of :func:`set_id_from_mask`)."""
+    set_id = np.asarray(set_id, np.int64)
+    return ((set_id[..., None] >> np.arange(n_sensors, dtype=np.int64)) & 1).astype(bool)
+
+
+def set_label(set_id: int, sensor_ids=None) -> str:
+    """The paper's label of a set: members in descending order, e.g. ``'76540'``.
+
+    Parameters
+    ----------
+    set_id
+        Bit mask of the set.
+    sensor_ids
+        Optional names of the sensors (index → name). Single-character names are
+        concatenated as in the paper; longer names are joined with ``'+'``.
+    """
+    members = set_members(set_id)[::-1]
+    if sensor_ids is None:
+        names = [str(i) for i in members]
+    else:
+        names = [str(sensor_ids[i]) for i in members]
+    return "".join(names) if all(len(n) == 1 for n in names) else "+".join(names)
+
+
+def parse_set_label(label: str) -> int:
+    """Set id of a paper-style label of single-digit sensors (``'76540'`` → 0b11110001)."""
+    if not label.isdigit() or len(set(label)) != len(label):
+        raise ValueError(f"a set label is distinct digits such as '76540', got {label!r}")
+    return sum(1 << int(c) for c in label)
+
+
+# --------------------------------------------------------------------------- fixes
+
+@dataclass(frozen=True, eq=False)
+class SetFixLog:
+    """Position fixes, each computed from a sensor set (the paper's observations ``Z``, eq. 5).
+
+    Attributes
+    ----------
+    t_s
+        Fix times, shape ``(T,)``, seconds, strictly increasing.
+    pos_m
+        Fixed positions ``(x̃, ỹ)``, shape ``(T, 2)``, metres.
+    set_id
+        Sensor set of each fix as a bit mask, shape ``(T,)``, int64.
+    sensor_ids
+        Names of the sensors, index ``i`` ↔ bit ``i``.
+    truth_m
+        Optional true positions at ``t_s``, shape ``(T, 2)``, metres.
+    name
+        Label for legends and tables.
+    """
+
+    t_s: np.ndarray
+    pos_m: np.ndarray
+    set_id: np.ndarray
+    sensor_ids: tuple[str, ...]
+    truth_m: np.ndarray | None = None
+    name: str = "fixes"
+
+    def __post_init__(self):
+        t = np.array(self.t_s, float)
+        p = np.array(self.pos_m, float)
+        s = np.array(self.set_id, np.int64)
+        if t.ndim != 1 or p.shape != (t.size, 2) or s.shape != t.shape:
+            raise ValueError(f"SetFixLog needs shapes t_s (T,), pos_m (T, 2), set_id (T,); "
+                             f"got {t.shape}, {p.shape}, {s.shape}")
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            raise ValueError("SetFixLog.t_s must be strictly increasing")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(p))):
+            raise ValueError("SetFixLog.t_s and pos_m must be finite (drop failed fixes before building the log)")
+        ids = tuple(str(i) for i in self.sensor_ids)
+        if np.any(s <= 0) or np.any(s >> len(ids)):
+            raise ValueError(f"SetFixLog.set_id must be non-empty sets of the {len(ids)} sensors")
+        arrays = [("t_s", t), ("pos_m", p), ("set_id", s)]
+        if self.truth_m is not None:
+            g = np.array(self.truth_m, float)
+            if g.shape != p.shape:
+                raise ValueError(f"SetFixLog.truth_m must have shape {p.shape}, got {g.shape}")
+            arrays.append(("truth_m", g))
+        for name, arr in arrays:
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "sensor_ids", ids)
+
+    def __len__(self) -> int:
+        return self.t_s.size
+
+    @property
+    def error_m(self) -> np.ndarray:
+        """Fix minus truth, shape ``(T, 2)``, metres (needs ``truth_m``)."""
+        if self.truth_m is None:
+            raise ValueError(f"{self.name}: no truth to compute errors against")
+        return self.pos_m - self.truth_m
+
+    def labels(self) -> np.ndarray:
+        """Paper-style set label of every fix, shape ``(T,)``, object."""
+        uniq, inv = np.unique(self.set_id, return_inverse=True)
+        return np.array([set_label(s, self.sensor_ids) for s in uniq], dtype=object)[inv]
+
+    def set_frequency(self) -> pd.DataFrame:
+        """Sets by decreasing frequency: ``set_id, label, count, share, cum_share``."""
+        uniq, counts = np.unique(self.set_id, return_counts=True)
+        order = np.lexsort((uniq, -counts))
+        uniq, counts = uniq[order], counts[order]
+        share = counts / counts.sum()
+        return pd.DataFrame({"set_id": uniq, "label": [set_label(s, self.sensor_ids) for s in uniq],
+                             "count": counts, "share": share, "cum_share": np.cumsum(share)})
+
+    def select(self, mask_or_index) -> "SetFixLog":
+        idx = np.arange(len(self))[mask_or_index]
+        return SetFixLog(self.t_s[idx], self.pos_m[idx], self.set_id[idx], self.sensor_ids,
+                         None if self.truth_m is None else self.truth_m[idx], self.name)
+
+    def to_frame(self) -> pd.DataFrame:
+        """Tidy table ``t_s, x_m, y_m, set_id, set_label[, true_x_m, true_y_m]``."""
+        df = pd.DataFrame({"t_s": self.t_s, "x_m": self.pos_m[:, 0], "y_m": self.pos_m[:, 1],
+                           "set_id": self.set_id, "set_label": self.labels()})
+        if self.truth_m is not None:
+            df["true_x_m"], df["true_y_m"] = self.truth_m[:, 0], self.truth_m[:, 1]
+        return df
+
+
+# --------------------------------------------------------------------------- eq. 9
+
+def log_likelihood(pos_m: np.ndarray, z_m: np.ndarray, mu_m: np.ndarray, sigma_m: np.ndarray,
+                   *, normalised: bool = False) -> np.ndarray:
+    """Log of the paper's eq. 9: likelihood of fix ``z`` given state positions ``pos``.
+
+    ``log p = −(x − μx − x̃)² / (2σx²) − (y − μy − ỹ)² / (2σy²)``
+
+    Eq. 9 omits the Gaussian normalising constant; it depends only on the set,
+    not on the particle, and cancels when weights are normalised (eq. 10).
+
+    Parameters
+    ----------
+    pos_m
+        Positions ``(x, y)`` to score, shape ``(..., 2)``, metres.
+    z_m, mu_m, sigma_m
+        Fix, set bias and set standard deviation, each broadcastable to ``pos_m``, metres.
+    normalised
+        Add ``−log(2π σx σy)``, making it the log of a proper density.
+
+    Returns
+    -------
+    ndarray, shape ``pos_m.shape[:-1]``
+    """
+    pos_m, z_m, mu_m, sigma_m = (np.asarray(a) for a in (pos_m, z_m, mu_m, sigma_m))
+    r = (pos_m + mu_m - z_m) / sigma_m
+    out = -0.5 * np.sum(r * r, axis=-1)
+    if normalised:
+        out = out - np.log(2 * np.pi * np.prod(sigma_m, axis=-1))
+    return out
+
+
+# --------------------------------------------------------------------------- the model
+
+def location_statistics(error_m: np.ndarray, set_id: np.ndarray, location: np.ndarray) -> pd.DataFrame:
+    """Per location and set: count, mean and sample standard deviation of the fix errors.
+
+    Parameters
+    ----------
+    error_m
+        Fix minus true position, shape ``(N, 2)``, metres.
+    set_id
+        Set of each fix, shape ``(N,)``.
+    location
+        Calibration location label of each fix, shape ``(N,)``.
+
+    Returns
+    -------
+    DataFrame
+        ``location, set_id, n, mu_x_m, mu_y_m, sigma_x_m, sigma_y_m`` (σ with ``ddof=1``,
+        NaN for a single measurement), sorted by location then decreasing ``n``.
+    """
+    error_m = np.asarray(error_m, float)
+    set_id = np.asarray(set_id, np.int64)
+    location = np.asarray(location)
+    if error_m.ndim != 2 or error_m.shape[1] != 2 or set_id.shape != (error_m.shape[0],) \
+            or location.shape != set_id.shape:
+        raise ValueError(f"need error_m (N, 2), set_id (N,), location (N,); got {error_m.shape}, "
+                         f"{set_id.shape}, {location.shape}")
+    if not np.all(np.isfinite(error_m)):
+        raise ValueError("error_m contains non-finite values")
+    df = pd.DataFrame({"location": location, "set_id": set_id, "ex": error_m[:, 0], "ey": error_m[:, 1]})
+    g = df.groupby(["location", "set_id"], sort=True)
+    out = pd.DataFrame({"n": g.size(), "mu_x_m": g["ex"].mean(), "mu_y_m": g["ey"].mean(),
+                        "sigma_x_m": g["ex"].std(ddof=1), "sigma_y_m": g["ey"].std(ddof=1)}).reset_index()
+    out = out.sort_values(["location", "n", "set_id"], ascending=[True, False, True], kind="stable")
+    return out.reset_index(drop=True)
+
+
+@dataclass(frozen=True, eq=False)
+class SetNoiseModel:
+    """Per-set Gaussian fix noise ``N(μx, μy, σx, σy)`` (eq. 1) with a facility-wide default.
+
+    Attributes
+    ----------
+    set_id
+        Modelled sets, shape ``(n_sets,)``, int64 bit masks, sorted ascending.
+    mu_m
+        Mean error ``(μx, μy)`` per set, shape ``(n_sets, 2)``, metres.
+    sigma_m
+        Standard deviation ``(σx, σy)`` per set, shape ``(n_sets, 2)``, metres, > 0.
+    n
+        Calibration measurements behind each set's model, shape ``(n_sets,)``.
+    default_mu_m, default_sigma_m
+        Facility-wide model used for every set without its own, shape ``(2,)``, metres.
+    default_n
+        Calibration measurements behind the facility-wide model.
+    sensor_ids
+        Sensor names, index ``i`` ↔ bit ``i`` of the set ids.
+    """
+
+    set_id: np.ndarray
+    mu_m: np.ndarray
+    sigma_m: np.ndarray
+    n: np.ndarray
+    default_mu_m: np.ndarray
+    default_sigma_m: np.ndarray
+    default_n: int = 0
+    sensor_ids: tuple[str, ...] = tuple(str(i) for i in range(8))
+    meta: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        s = np.array(self.set_id, np.int64).reshape(-1)
+        mu = np.array(self.mu_m, float).reshape(-1, 2) if s.size else np.zeros((0, 2))
+        sd = np.array(self.sigma_m, float).reshape(-1, 2) if s.size else np.zeros((0, 2))
+        n = np.array(self.n, np.int64).reshape(-1)
+        dmu = np.array(self.default_mu_m, float)
+        dsd = np.array(self.default_sigma_m, float)
+        if mu.shape != (s.size, 2) or sd.shape != (s.size, 2) or n.shape != s.shape:
+            raise ValueError(f"SetNoiseModel: set_id {s.shape}, mu_m {mu.shape}, sigma_m {sd.shape}, "
+                             f"n {n.shape} do not describe the same sets")
+        if dmu.shape != (2,) or dsd.shape != (2,):
+            raise ValueError("SetNoiseModel: default_mu_m and default_sigma_m must have shape (2,)")
+        if np.any(np.diff(s) <= 0):
+            raise ValueError("SetNoiseModel.set_id must be unique and sorted ascending")
+        if not (np.all(np.isfinite(mu)) and np.all(np.isfinite(dmu))):
+            raise ValueError("SetNoiseModel: biases must be finite")
+        if not (np.all(sd > 0) and np.all(dsd > 0) and np.all(np.isfinite(sd)) and np.all(np.isfinite(dsd))):
+            raise ValueError("SetNoiseModel: standard deviations must be finite and positive")
+        for name, arr in (("set_id", s), ("mu_m", mu), ("sigma_m", sd), ("n", n),
+                          ("default_mu_m", dmu), ("default_sigma_m", dsd)):
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "default_n", int(self.default_n))
+        object.__setattr__(self, "sensor_ids", tuple(str(i) for i in self.sensor_ids))
+
+    def __len__(self) -> int:
+        return self.set_id.size
+
+    # ------------------------------------------------------------------ use
+    def lookup(self, set_id) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(μ, σ)`` for each observed set; unmodelled sets get the facility-wide model.
+
+        Parameters
+        ----------
+        set_id
+            Observed sets, any shape ``(...)``.
+
+        Returns
+        -------
+        mu_m, sigma_m
+            Shape ``(..., 2)``, metres.
+        modelled
+            Shape ``(...)``, bool: True where the set has its own model.
+        """
+        q = np.asarray(set_id, np.int64)
+        mu = np.broadcast_to(self.default_mu_m, q.shape + (2,)).copy()
+        sd = np.broadcast_to(self.default_sigma_m, q.shape + (2,)).copy()
+        modelled = np.zeros(q.shape, bool)
+        if self.set_id.size:
+            pos = np.minimum(np.searchsorted(self.set_id, q), self.set_id.size - 1)
+            modelled = self.set_id[pos] == q
+            mu[modelled] = self.mu_m[pos[modelled]]
+            sd[modelled] = self.sigma_m[pos[modelled]]
+        return mu, sd, modelled
+
+    def facility_only(self) -> "SetNoiseModel":
+        """The same facility-wide model with no per-set entries (the paper's baseline filter)."""
+        return SetNoiseModel(np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, np.int64),
+                             self.default_mu_m, self.default_sigma_m, self.default_n, self.sensor_ids,
+                             {**self.meta, "variant": "facility-wide only"})
+
+    def sample(self, pos_m: np.ndarray, set_id: np.ndarray, *, rng: np.random.Generator) -> np.ndarray:
+        """Fixes drawn from the model (eq. 6): ``pos + μ_s + σ_s · N(0, 1)`` per axis.
+
+        Parameters
+        ----------
+        pos_m
+            True positions, shape ``(T, 2)``, metres.
+        set_id
+            Set of each fix, shape ``(T,)``.
+
+        Returns
+        -------
+        ndarray, shape ``(T, 2)``, metres.
+        """
+        mu, sd, _ = self.lookup(set_id)
+        return np.asarray(pos_m, float) + mu + sd * rng.standard_normal(mu.shape)
+
+    # ------------------------------------------------------------------ fit
+    @classmethod
+    def fit(cls, error_m: np.ndarray, set_id: np.ndarray, location: np.ndarray, *,
+            min_count: int = MIN_COUNT, min_sigma_m: float = 1e-3, sensor_ids=None) -> "SetNoiseModel":
+        """Calibrate from fixes at known locations (paper section II-B2).
+
+        Rules, in the paper's words and order:
+
+        1. at each location, ``(μx, μy, σx, σy)`` of every set with at least
+           ``min_count`` (30) measurements there; sets below the gate get no model
+           at that location;
+        2. each set's parameters are averaged across locations, weighted by the
+           number of its measurements at each location;
+        3. a facility-wide model — mean and standard deviation of all calibration
+           errors — serves every set that has no model.
+
+        Parameters
+        ----------
+        error_m
+            Fix minus true position, shape ``(N, 2)``, metres.
+        set_id
+            Set of each fix, shape ``(N,)``.
+        location
+            Calibration location of each fix, shape ``(N,)`` (any hashable labels).
+        min_count
+            The per-location gate (must be ≥ 2 so that σ exists).
+        min_sigma_m
+            Floor on every fitted σ (quantised fixes can repeat exactly, and a zero σ
+            would make eq. 9 infinite); ``meta["n_sigma_floored"]`` counts the raised values.
+        sensor_ids
+            Sensor names for labels; defaults to ``'0'..'7'`` (or as many as the ids need).
+
+        Returns
+        -------
+        SetNoiseModel
+            With ``meta["per_location"]``, the table of rule 1 (all sets, gate flag included).
+        """
+        if min_count < 2:
+            raise ValueError(f"min_count must be >= 2 (a standard deviation needs two samples), got {min_count}")
+        stats = location_statistics(error_m, set_id, location)
+        stats["gated_in"] = stats["n"] >= min_count
+        kept = stats[stats["gated_in"]]
+        w = kept["n"].to_numpy(float)
+        grp = kept.groupby("set_id", sort=True)
+        cols = ["mu_x_m", "mu_y_m", "sigma_x_m", "sigma_y_m"]
+        weighted = kept[cols].mul(w, axis=0).groupby(kept["set_id"], sort=True).sum()
+        n_set = grp["n"].sum()
+        avg = weighted.div(n_set.astype(float), axis=0)
+        err = np.asarray(error_m, float)
+        if err.shape[0] < 2:
+            raise ValueError("the facility-wide model needs at least two calibration measurements")
+        if sensor_ids is None:
+            top = int(np.max(np.asarray(set_id, np.int64))).bit_length()
+            sensor_ids = tuple(str(i) for i in range(max(8, top)))
+        sigma = avg[["sigma_x_m", "sigma_y_m"]].to_numpy(float)
+        default_sigma = err.std(axis=0, ddof=1)
+        n_floored = int(np.sum(sigma < min_sigma_m) + np.sum(default_sigma < min_sigma_m))
+        return cls(set_id=avg.index.to_numpy(np.int64),
+                   mu_m=avg[["mu_x_m", "mu_y_m"]].to_numpy(float),
+                   sigma_m=np.maximum(sigma, min_sigma_m),
+                   n=n_set.to_numpy(np.int64),
+                   default_mu_m=err.mean(axis=0), default_sigma_m=np.maximum(default_sigma, min_sigma_m),
+                   default_n=err.shape[0], sensor_ids=sensor_ids,
+                   meta={"per_location": stats, "min_count": min_count, "min_sigma_m": min_sigma_m,
+                         "n_sigma_floored": n_floored})
+
+    @classmethod
+    def from_fixes(cls, logs, *, min_count: int = MIN_COUNT) -> "SetNoiseModel":
+        """:meth:`fit` on calibration logs, one :class:`SetFixLog` (with truth) per location.
+
+        The logs' names label the locations, so they must be distinct.
+        """
+        logs = list(logs)
+        if not logs:
+            raise ValueError("no calibration logs")
+        names = [log.name for log in logs]
+        if len(set(names)) != len(names):
+            raise ValueError(f"calibration logs need distinct names (they label the locations), got {names}")
+        ids = logs[0].sensor_ids
+        if any(log.sensor_ids != ids for log in logs):
+            raise ValueError("calibration logs use different sensors")
+        return cls.fit(np.concatenate([log.error_m for log in logs]), np.concatenate([log.set_id for log in logs]),
+                       np.repeat(np.array(names, dtype=object), [len(log) for log in logs]),
+                       min_count=min_count, sensor_ids=ids)
+
+    # ------------------------------------------------------------------ tables
+    def to_frame(self) -> pd.DataFrame:
+        """One row per modelled set plus a last row ``label='default'`` for the facility-wide model.
+
+        Columns ``set_id, label, n, mu_x_m, mu_y_m, sigma_x_m, sigma_y_m``; the default row
+        has ``set_id = 0``.
+        """
+        rows = pd.DataFrame({"set_id": self.set_id,
+                             "label": [set_label(s, self.sensor_ids) for s in self.set_id],
+                             "n": self.n, "mu_x_m": self.mu_m[:, 0], "mu_y_m": self.mu_m[:, 1],
+                             "sigma_x_m": self.sigma_m[:, 0], "sigma_y_m": self.sigma_m[:, 1]})
+        default = pd.DataFrame({"set_id": [0], "label": ["default"], "n": [self.default_n],
+                                "mu_x_m": [self.default_mu_m[0]], "mu_y_m": [self.default_mu_m[1]],
+                                "sigma_x_m": [self.default_sigma_m[0]], "sigma_y_m": [self.default_sigma_m[1]]})
+        return pd.concat([rows.sort_values("n", ascending=False, kind="stable"), default], ignore_index=True)
+
+    @classmethod
+    def from_frame(cls, df: pd.DataFrame, sensor_ids=None) -> "SetNoiseModel":
+        """Inverse of :meth:`to_frame`."""
+        cols = ["set_id", "n", "mu_x_m", "mu_y_m", "sigma_x_m", "sigma_y_m"]
+        missing = [c for c in cols if c not in df.columns]
+        if missing:
+            raise ValueError(f"set-noise table lacks columns {missing}")
+        is_default = df["set_id"].to_numpy(np.int64) == 0
+        if is_default.sum() != 1:
+            raise ValueError("set-noise table needs exactly one facility-wide row (set_id 0)")
+        d = df[is_default].iloc[0]
+        sets = df[~is_default].sort_values("set_id")
+        kw = {} if sensor_ids is None else {"sensor_ids": sensor_ids}
+        return cls(sets["set_id"].to_numpy(np.int64), sets[["mu_x_m", "mu_y_m"]].to_numpy(float),
+                   sets[["sigma_x_m", "sigma_y_m"]].to_numpy(float), sets["n"].to_numpy(np.int64),
+                   [d["mu_x_m"], d["mu_y_m"]], [d["sigma_x_m"], d["sigma_y_m"]], int(d["n"]), **kw)
