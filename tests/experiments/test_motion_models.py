@@ -1,0 +1,136 @@
+from dataclasses import replace
+
+import matplotlib
+import numpy as np
+import pandas as pd
+import pytest
+
+from uwbwb.experiments import motion_models as mm
+from uwbwb.sim import walk
+from uwbwb.types import Anchors, RangeLog, Trajectory
+
+matplotlib.use("Agg")
+
+
+@pytest.fixture(scope="module")
+def office_runs():
+    cal, _ = mm.synthetic_acquisition("office", seed=1, duration_s=25.0, role="calibration")
+    test, _ = mm.synthetic_acquisition("office", seed=1, duration_s=25.0)
+    return cal, test
+
+
+@pytest.fixture(scope="module")
+def los_run():
+    """An office walk with no obstacles and no body shadowing: pure DWM1000 LOS noise."""
+    cfg = walk.office(duration_s=30.0, obstacles=(), tags=(walk.TagMount("tag1", 0, 0, 1.8),), p_missing_los=0.0)
+    rec, _ = walk.simulate_walk(cfg, rng=np.random.default_rng(9))
+    return mm.tag_runs(rec, z_m={"tag1": 1.8})[0]
+
+
+def test_synthetic_acquisitions(office_runs):
+    cal, test = office_runs
+    assert [r.tag for r in test] == ["tag1", "tag2"] and all(r.raw is not None for r in test)
+    assert test[0].name == "office" and cal[0].name == "office (calibration)"
+    assert test[0].data == "synthetic" and test[0].dim == 2 and test[0].z_m == pytest.approx(1.8)
+    assert test[0].dt_s == pytest.approx(0.1)
+    assert not np.allclose(np.nan_to_num(cal[0].ranges.range_m), np.nan_to_num(test[0].ranges.range_m))
+    again, _ = mm.synthetic_acquisition("office", seed=1, duration_s=25.0)
+    np.testing.assert_array_equal(again[1].ranges.range_m, test[1].ranges.range_m)
+
+
+def test_tag_run_decimation_window_and_validation(office_runs):
+    run = office_runs[1][0]
+    slow = run.decimated(2.0)
+    assert slow.dt_s == pytest.approx(0.5) and len(slow.ranges) == int(np.ceil(len(run.ranges) / 5))
+    assert set(slow.raw.t_s) <= set(slow.ranges.t_s)
+    assert run.decimated(None) is run and run.decimated(50.0) is run
+    part = run.between(5.0, 10.0, name="part")
+    assert part.name == "part" and part.ranges.t_s.min() >= 5.0 and part.ranges.t_s.max() < 10.0
+    assert part.truth.t_s[0] <= 5.0 and part.truth.t_s[-1] >= 10.0
+    other = Anchors(tuple("BCDEFG"), run.anchors.pos_m)
+    with pytest.raises(ValueError, match="differ"):
+        replace(run, anchors=other)
+
+
+def test_true_ranges_and_sigma_fit_on_los_data(los_run):
+    r = los_run.ranges.range_m - los_run.true_range_m()
+    assert abs(np.nanmean(r)) < 0.01
+    sig = mm.fit_range_sigma(los_run)
+    np.testing.assert_allclose(sig, 0.05, rtol=0.15)
+    empirical, model = mm.tdoa_noise_check(los_run, sig, ref=2)
+    assert empirical.shape == model.shape == (5, 5)
+    np.testing.assert_allclose(empirical, model, atol=0.0015)          # σ²(I + 11ᵀ) with σ ≈ 5 cm
+    assert np.all(np.diag(empirical) > 1.5 * empirical[0, 1])
+
+
+def test_raw_multilateration_is_exact_on_exact_ranges():
+    anchors = Anchors(tuple("ABCD"), np.array([[0, 0, 2.5], [10, 0, 2.5], [10, 8, 2.4], [0, 8, 2.6]]))
+    t = np.arange(20) * 0.1
+    pos = np.column_stack([2 + 0.5 * t, 3 + 0.2 * t, np.full(t.size, 1.2)])
+    r = np.linalg.norm(pos[:, None] - anchors.pos_m, axis=-1)
+    run = mm.TagRun("synthetic", "x", "t", RangeLog(t, r, anchors.ids, "t"), Trajectory(t, pos), anchors, 2, 1.2)
+    raw = mm.raw_multilateration(run)
+    np.testing.assert_allclose(raw.pos_m, pos[:, :2], atol=1e-6)
+
+
+def test_estimate_calibrate_and_tables(office_runs):
+    cal, test = office_runs
+    sig = {r.key: mm.fit_range_sigma(r) for r in cal}
+    grids = {"RW": [0.1, 1.0], "RF": [1.0], "RJ": [1.0, 10.0]}
+    curves = mm.calibration_curves(cal, sig, grids=grids, progress=False)
+    assert len(curves) == 2 * 5
+    assert list(curves.columns) == ["run", "tag", "model", "sigma", "sigma_unit", "psd", "psd_unit", "cep95_m",
+                                    "rmse_m"]
+    np.testing.assert_allclose(curves.psd, curves.sigma ** 2 * 0.1)
+    assert set(curves.psd_unit) == {"m²/s", "m²/s³", "m²/s⁵"}
+    best = mm.best_sigmas(curves)
+    assert set(best) == {"RW", "RF", "RJ"} and best["RF"] == 1.0
+    # a random walk driven by 0.1 m/s cannot follow a 0.8 m/s walker
+    rw = curves[curves.model == "RW"].groupby("sigma").cep95_m.mean()
+    assert rw[0.1] > rw[1.0] and best["RW"] == 1.0
+
+    est = mm.estimate(test[0], sig[cal[0].key], best)
+    assert set(est.trajectories) == {"raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ"}
+    c = est.cep95()
+    assert all(0 < v < 3 for v in c.values())
+    assert c["EKF-RW"] < c["raw"]
+    assert min(est.coverage().values()) > 0.95
+    nis = est.nis()
+    assert list(nis.index) == ["RW", "RF", "RJ"] and (nis["n"] > 200).all()
+    table = mm.cep95_table([est], ["raw", "LS", "EKF-RW"])
+    assert table.loc[("office", "tag1"), "LS"] == pytest.approx(c["LS"])
+
+
+def test_best_sigmas_minimises_the_mean_over_runs():
+    curves = pd.DataFrame({"run": ["a"] * 3 + ["b"] * 3, "tag": ["t"] * 6, "model": ["RW"] * 6,
+                           "sigma": [0.1, 1.0, 10.0] * 2, "cep95_m": [0.5, 0.4, 0.9, 0.3, 0.6, 0.2]})
+    # means: 0.1 -> 0.40, 1.0 -> 0.50, 10 -> 0.55
+    assert mm.best_sigmas(curves) == {"RW": 0.1}
+
+
+def test_ranking_and_paper_table():
+    table = pd.DataFrame({"EKF-RW": [0.4, 0.5], "EKF-RF": [0.7, 0.3], "EKF-RJ": [1.0, 0.45]},
+                         index=pd.MultiIndex.from_tuples([("office", "tag1"), ("agv1", "tag1")], names=["run", "tag"]))
+    assert list(mm.ranking(table)) == ["RW < RF < RJ", "RF < RJ < RW"]
+    paper = mm.paper_table(mm.PAPER_MODELS_CEP95, [("office", "tag2"), ("lab", "t0")], ["EKF-RW", "EKF-RJ"])
+    assert paper.loc[("office", "tag2"), "EKF-RJ"] == 1.14 and np.isnan(paper.loc[("lab", "t0"), "EKF-RW"])
+    assert mm.PAPER_METHODS_CEP95[("office", "tag2")]["raw"] == 2.03
+
+
+def test_figures(office_runs):
+    import matplotlib.pyplot as plt
+
+    cal, test = office_runs
+    curves = pd.DataFrame({"run": "x", "tag": "t", "model": np.repeat(["RW", "RF", "RJ"], 2),
+                           "sigma": [0.1, 1.0] * 3, "cep95_m": [0.5, 0.4, 0.6, 0.5, 0.7, 0.6]})
+    fig = mm.calibration_figure(curves, best={"RW": 1.0, "RF": 1.0, "RJ": 1.0}, paper=mm.PAPER_SIGMA["office"])
+    assert len(fig.axes) == 3 and fig.axes[0].get_xscale() == "log"
+    plt.close(fig)
+    est = mm.estimate(test[1], 0.3, {"RW": 1.0, "RF": 1.0, "RJ": 1.0})
+    ax = mm.paths_figure(est, t_range_s=(0.0, 10.0))
+    assert ax.get_title() == "office, tag2"
+    ax = mm.cdf_figure(est)
+    assert len(ax.get_legend().get_texts()) == 5
+    ax = mm.scenario_figure(walk.office(), truth=test[0].truth)
+    assert "6 anchors" in ax.get_title()
+    plt.close("all")

@@ -1,0 +1,524 @@
+"""Notebook 03: TDoA EKF with random-walk / random-force / random-jerk models vs LS and raw output.
+
+Reproduces De Angelis, *Analysis of the performance of an UWB localization
+system using Bayesian tracking filters* (Politecnico di Milano, thesis summary,
+2021–22): pseudo-TDoA from two-way ranges, a per-epoch Gauss–Newton LS fix, an
+EKF with three motion models whose driving-noise level is calibrated against
+ground truth (Table 1), and CEP95 tables (Tables 2–5) and path figures (Figs 5–10).
+
+The pipeline for one tag of one recording (:class:`TagRun`):
+
+1. ranges → pseudo-TDoA to a reference anchor (:class:`~uwbwb.models.tdoa.TdoaLog`);
+2. range-noise level per anchor from a *calibration* run with truth
+   (:func:`fit_range_sigma`) → TDoA covariance ``Σ = diag(σ_j²) + σ_ref² 11ᵀ``;
+3. driving-noise calibration: CEP95 of each EKF over a grid of driving
+   standard deviations on the calibration run (:func:`calibration_curves`),
+   the minimum per model (:func:`best_sigmas`);
+4. on a *different* test run: raw output, LS and the three EKFs
+   (:func:`estimate`), CEP95 tables (:func:`cep95_table`) and figures.
+
+Driving "variances" follow the thesis' Table 1 units (m/s, m/s², m/s³): they
+are the standard deviation ``σ_w`` of the white driving process over one step
+of the nominal epoch period ``T``, i.e. PSD ``q = σ_w² T`` (see
+:mod:`uwbwb.models.motion`).
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass, field, replace
+from typing import Iterable, Mapping, Sequence
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from .. import geometry, metrics, plotting
+from ..filters.ekf import EkfResult, TdoaEkf
+from ..filters.tdoa_ls import TdoaLsResult, tdoa_least_squares
+from ..models.motion import MOTION_MODELS, make_motion_model
+from ..models.tdoa import TdoaLog, TdoaModel, empirical_tdoa_covariance, range_sigma_from_truth
+from ..sim import walk
+from ..types import Anchors, RangeLog, Recording, Trajectory
+
+__all__ = [
+    "MODELS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "DEFAULT_GRIDS",
+    "TagRun", "Estimates", "tag_runs", "thin", "synthetic_acquisition", "fit_range_sigma",
+    "raw_multilateration", "estimate", "calibration_curves", "best_sigmas", "cep95_table", "ranking",
+    "paper_table", "tdoa_noise_check", "scenario_figure", "calibration_figure", "paths_figure", "cdf_figure",
+]
+
+#: Motion models in the thesis' order.
+MODELS = ("RW", "RF", "RJ")
+
+#: Thesis Table 1: driving-process standard deviation per model and scenario (m/s, m/s², m/s³).
+#: The AGV row prints "1 m/" for RW; read as 1 m/s.
+PAPER_SIGMA = {"office": {"RW": 0.83, "RF": 1.0, "RJ": 1.0}, "agv": {"RW": 1.0, "RF": 1.0, "RJ": 1.0}}
+
+#: Thesis Tables 2 (office) and 4 (AGV): CEP95 (m) of EKF (random walk), LS and the raw T4F output.
+PAPER_METHODS_CEP95 = {
+    ("office", "tag1"): {"EKF-RW": 0.41, "LS": 1.02, "raw": 1.23},
+    ("office", "tag2"): {"EKF-RW": 0.48, "LS": 1.02, "raw": 2.03},
+    ("agv1", "tag1"): {"EKF-RW": 0.41, "LS": 0.77, "raw": 1.03},
+    ("agv1", "tag2"): {"EKF-RW": 0.44, "LS": 0.76, "raw": 0.61},
+    ("agv2", "tag1"): {"EKF-RW": 0.35, "LS": 0.37, "raw": 0.46},
+    ("agv2", "tag2"): {"EKF-RW": 0.34, "LS": 0.45, "raw": 0.60},
+}
+
+#: Thesis Tables 3 (office) and 5 (AGV): CEP95 (m) per motion model. Table 5 labels its rows
+#: "Acq 1 Tag 1, Acq 1 Tag 2, Acq 1 Tag 1, Acq 1 Tag 2"; we read them in order as acquisitions
+#: 1 and 2 (the third label repeats a row name; its values differ from the first row).
+PAPER_MODELS_CEP95 = {
+    ("office", "tag1"): {"EKF-RW": 0.41, "EKF-RF": 0.77, "EKF-RJ": 1.03},
+    ("office", "tag2"): {"EKF-RW": 0.48, "EKF-RF": 1.13, "EKF-RJ": 1.14},
+    ("agv1", "tag1"): {"EKF-RW": 0.13, "EKF-RF": 0.25, "EKF-RJ": 0.33},
+    ("agv1", "tag2"): {"EKF-RW": 0.44, "EKF-RF": 0.60, "EKF-RJ": 0.58},
+    ("agv2", "tag1"): {"EKF-RW": 0.44, "EKF-RF": 0.60, "EKF-RJ": 0.59},
+    ("agv2", "tag2"): {"EKF-RW": 0.34, "EKF-RF": 0.34, "EKF-RJ": 0.28},
+}
+
+#: Default calibration grids of the driving standard deviation (model units), log-spaced.
+DEFAULT_GRIDS = {"RW": np.geomspace(0.05, 5.0, 11), "RF": np.geomspace(0.05, 20.0, 11),
+                 "RJ": np.geomspace(0.05, 100.0, 11)}
+
+#: Largest truth sampling gap interpolated across when computing errors, seconds.
+MAX_TRUTH_GAP_S = 0.5
+
+
+def ekf_name(model: str) -> str:
+    """Estimator label of the EKF with ``model`` (``"EKF-RW"`` ...), as in :data:`uwbwb.plotting.COLORS`."""
+    return f"EKF-{model}"
+
+
+# --------------------------------------------------------------------------- inputs
+
+
+@dataclass(frozen=True)
+class TagRun:
+    """One tag of one recording, ready for the estimators.
+
+    Attributes
+    ----------
+    data
+        Summary label: ``"synthetic"`` or ``"dataset/recording"``.
+    name
+        Display name of the acquisition (``"office"``, ``"fast"``, ``"scenario2"``...).
+    tag
+        Tag id.
+    ranges
+        The tag's ranges.
+    truth
+        Ground truth of the tag (3-D positions; errors are horizontal).
+    anchors
+        Anchor positions (columns of ``ranges``).
+    dim
+        Estimated coordinates: 2 (tag at known height ``z_m``) or 3.
+    z_m
+        Tag height for ``dim=2`` (known mounting height), metres.
+    raw
+        The device's own output if the acquisition has one (synthetic: :func:`uwbwb.sim.walk.device_output`);
+        None means raw multilateration is used (:func:`raw_multilateration`).
+    """
+
+    data: str
+    name: str
+    tag: str
+    ranges: RangeLog
+    truth: Trajectory
+    anchors: Anchors
+    dim: int = 2
+    z_m: float = 0.0
+    raw: Trajectory | None = field(default=None, repr=False)
+
+    def __post_init__(self):
+        if self.dim not in (2, 3):
+            raise ValueError(f"TagRun.dim must be 2 or 3, got {self.dim!r}")
+        if tuple(self.ranges.anchor_ids) != tuple(self.anchors.ids):
+            raise ValueError(f"{self.name}/{self.tag}: range columns {self.ranges.anchor_ids} differ from the "
+                             f"anchors {self.anchors.ids}")
+        if len(self.ranges) < 2:
+            raise ValueError(f"{self.name}/{self.tag}: fewer than two epochs")
+
+    @property
+    def key(self) -> str:
+        """``"name/tag"``."""
+        return f"{self.name}/{self.tag}"
+
+    @property
+    def dt_s(self) -> float:
+        """Nominal epoch period (median step), seconds."""
+        return float(np.median(np.diff(self.ranges.t_s)))
+
+    def tdoa(self, ref: int = 0, *, fallback: str = "nearest") -> TdoaLog:
+        """Pseudo-TDoA of this run to anchor index ``ref``."""
+        return TdoaLog.from_ranges(self.ranges, ref, fallback=fallback)
+
+    def true_range_m(self) -> np.ndarray:
+        """Ranges predicted from truth at the range epochs, ``(T, n_anchors)``; NaN outside the truth span."""
+        return geometry.ranges(self.truth.interp(self.ranges.t_s), self.anchors.pos_m)
+
+    def model(self, sigma_m, *, correlated: bool = True) -> TdoaModel:
+        """TDoA measurement model for this run with per-anchor range noise ``sigma_m``."""
+        return TdoaModel(self.anchors.pos_m, sigma_m, dim=self.dim, z_m=self.z_m, correlated=correlated)
+
+    def between(self, t_start_s: float, t_end_s: float, name: str | None = None) -> "TagRun":
+        """The epochs in ``[t_start_s, t_end_s)`` (truth and raw output cut alike)."""
+        pad = MAX_TRUTH_GAP_S
+        return replace(self, name=name or self.name, ranges=self.ranges.between(t_start_s, t_end_s),
+                       truth=self.truth.between(t_start_s - pad, t_end_s + pad),
+                       raw=None if self.raw is None else self.raw.between(t_start_s, t_end_s))
+
+    def decimated(self, rate_hz: float | None) -> "TagRun":
+        """Every ``k``-th epoch so that the rate is at most ``rate_hz`` (None or a lower native rate: unchanged)."""
+        if rate_hz is None:
+            return self
+        k = int(np.floor(1.0 / (rate_hz * self.dt_s) + 1e-9))
+        if k <= 1:
+            return self
+        keep = np.arange(0, len(self.ranges), k)
+        raw = self.raw
+        if raw is not None:
+            raw = raw.select(np.isin(raw.t_s, self.ranges.t_s[keep]))
+        return replace(self, ranges=self.ranges.select(keep), raw=raw)
+
+
+def tag_runs(rec: Recording, tags: Sequence[str] | None = None, *, dim: int = 2, z_m: Mapping | None = None,
+             rate_hz: float | None = None, raw: Mapping[str, Trajectory] | None = None,
+             name: str | None = None) -> list[TagRun]:
+    """:class:`TagRun` per tag of a recording.
+
+    Parameters
+    ----------
+    rec
+        A recording with truth per tag.
+    tags
+        Tags to use (default: all with truth).
+    dim
+        2 (known height) or 3.
+    z_m
+        Tag height per tag for ``dim=2``; default: the median truth height of the tag
+        (a rigidly mounted tag's height is known in practice).
+    rate_hz
+        Decimate to at most this rate (see :meth:`TagRun.decimated`).
+    raw
+        The device's own output per tag, if any.
+    name
+        Display name (default ``rec.name``).
+    """
+    tags = list(tags) if tags is not None else [t for t in rec.tags if t in rec.truth]
+    missing = [t for t in tags if t not in rec.truth or t not in rec.ranges]
+    if missing:
+        raise ValueError(f"{rec.label}: no ranges or truth for tags {missing}; available {list(rec.truth)}")
+    data = "synthetic" if rec.dataset == "synthetic" else rec.label
+    runs = []
+    for tag in tags:
+        truth = rec.truth[tag]
+        h = float(np.median(truth.pos_m[:, 2])) if truth.dim == 3 else 0.0
+        if z_m is not None and tag in z_m:
+            h = float(z_m[tag])
+        runs.append(TagRun(data, name or rec.name, tag, rec.ranges[tag], truth, rec.anchors, dim, h,
+                           None if raw is None else raw.get(tag)).decimated(rate_hz))
+    return runs
+
+
+def thin(recordings: Iterable[Recording], step: int) -> list[Recording]:
+    """Every ``step``-th epoch of each tag's ranges and truth (for FAST runs of slow fits)."""
+    out = []
+    for rec in recordings:
+        ranges = {t: log.select(slice(None, None, step)) for t, log in rec.ranges.items()}
+        truth = {t: tr.select(slice(None, None, step)) for t, tr in rec.truth.items()}
+        out.append(replace(rec, ranges=ranges, truth=truth))
+    return out
+
+
+def synthetic_acquisition(name: str, *, seed: int, duration_s: float | None = None, rate_hz: float | None = None,
+                          role: str = "test") -> tuple[list[TagRun], walk.WalkTruth]:
+    """Simulate one acquisition of scenario ``name`` (``office``, ``agv1``, ``agv2``) and wrap its tags.
+
+    ``role`` (``"test"`` or ``"calibration"``) picks an independent random stream
+    for the same ``seed``, so calibration and test acquisitions never share noise.
+    The device output (:func:`uwbwb.sim.walk.device_output`) is attached as ``raw``.
+    """
+    changes = {} if duration_s is None else {"duration_s": float(duration_s)}
+    if rate_hz is not None:
+        changes["rate_hz"] = float(rate_hz)
+    cfg = walk.scenario(name, **changes)
+    rng = np.random.default_rng([int(seed), zlib.crc32(f"{name}/{role}".encode())])
+    rec, truth = walk.simulate_walk(cfg, rng=rng)
+    heights = {m.tag_id: m.height_m for m in cfg.tags}
+    raw = {t: walk.device_output(rec.ranges[t], rec.anchors, z_m=heights[t]) for t in rec.tags}
+    label = name if role == "test" else f"{name} (calibration)"
+    return tag_runs(rec, dim=2, z_m=heights, raw=raw, name=label), truth
+
+
+# --------------------------------------------------------------------------- estimation
+
+
+def fit_range_sigma(run: TagRun, *, robust: bool = False, floor_m: float = 0.02) -> np.ndarray:
+    """Range-noise standard deviation per anchor from a run with truth, ``(n_anchors,)``, metres.
+
+    ``robust=False`` (default): RMS of measured − true range, biases and NLOS
+    excursions included — the whole error the filter has to live with, as the
+    thesis builds its covariance from the measurement error. ``robust=True``:
+    1.4826·MAD (the spread around the median only). Values are floored at
+    ``floor_m`` (range resolution and unmodelled effects).
+    """
+    sig = range_sigma_from_truth(run.ranges.range_m, run.true_range_m(), robust=robust)
+    return np.maximum(sig, floor_m)
+
+
+def raw_multilateration(run: TagRun, *, sigma_m=None, name: str = "raw") -> Trajectory:
+    """Per-epoch range multilateration (:func:`uwbwb.geometry.multilaterate`, Gauss–Newton, all anchors)."""
+    kw = {"z_m": run.z_m} if run.dim == 2 else {}
+    res = geometry.multilaterate(run.ranges.range_m, run.anchors.pos_m, dim=run.dim, sigma_m=sigma_m, **kw)
+    return res.to_trajectory(run.ranges.t_s, name=name)
+
+
+@dataclass(frozen=True)
+class Estimates:
+    """Every estimator's output for one :class:`TagRun`.
+
+    Attributes
+    ----------
+    run
+        The input.
+    trajectories
+        Name → trajectory (``"raw"``, ``"LS"``, ``"EKF-RW"``, ...).
+    errors
+        Name → horizontal errors against truth (:class:`~uwbwb.metrics.ErrorSeries`).
+    ekf
+        Model → EKF result.
+    ls
+        The LS result (per-epoch status included).
+    sigmas
+        Model → driving standard deviation used.
+    n_epochs
+        Epochs in the run (for coverage: estimators may leave epochs out).
+    """
+
+    run: TagRun
+    trajectories: dict
+    errors: dict
+    ekf: dict
+    ls: TdoaLsResult
+    sigmas: dict
+    n_epochs: int
+
+    def cep95(self) -> dict[str, float]:
+        """Name → CEP95 (m)."""
+        return {k: metrics.cep95(e.err_m) for k, e in self.errors.items()}
+
+    def coverage(self) -> dict[str, float]:
+        """Name → fraction of the run's epochs with an estimate."""
+        return {k: len(t) / self.n_epochs for k, t in self.trajectories.items()}
+
+    def nis(self) -> pd.DataFrame:
+        """NIS consistency per EKF (see :meth:`~uwbwb.filters.ekf.EkfResult.nis_consistency`)."""
+        rows = [{"model": m, **r.nis_consistency(), "n_rejected": int(r.n_rejected.sum())} for m, r in self.ekf.items()]
+        return pd.DataFrame(rows).set_index("model")
+
+
+def _errors(traj: Trajectory, run: TagRun) -> metrics.ErrorSeries:
+    return metrics.errors_vs_truth(traj, run.truth, horizontal=True, max_gap_s=MAX_TRUTH_GAP_S)
+
+
+def run_ekf(run: TagRun, model: str, sigma: float, measurement: TdoaModel, *, ref: int = 0,
+            gate_prob: float | None = None, tdoa: TdoaLog | None = None) -> EkfResult:
+    """The EKF with motion model ``model`` at driving standard deviation ``sigma`` over one run."""
+    motion = make_motion_model(model, sigma=sigma, dt_s=run.dt_s, dim=run.dim)
+    log = tdoa if tdoa is not None else run.tdoa(ref)
+    return TdoaEkf(motion, measurement, gate_prob=gate_prob).run(log, name=ekf_name(model))
+
+
+def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, ref: int = 0, gate_prob: float | None = None,
+             correlated: bool = True, models: Sequence[str] = MODELS) -> Estimates:
+    """Raw output, TDoA LS and the EKFs on one run.
+
+    Parameters
+    ----------
+    run
+        The test run.
+    sigma_m
+        Range-noise standard deviation per anchor (from a calibration run), metres.
+    sigmas
+        Driving standard deviation per model (model units, see :data:`PAPER_SIGMA`).
+    ref
+        Reference anchor index of the pseudo-TDoA.
+    gate_prob
+        χ² gate of the EKFs (None: no gating).
+    correlated
+        Model the reference correlation of the TDoA noise.
+    """
+    measurement = run.model(sigma_m, correlated=correlated)
+    log = run.tdoa(ref)
+    ls = tdoa_least_squares(log, measurement)
+    trajs = {"raw": run.raw if run.raw is not None else raw_multilateration(run), "LS": ls.to_trajectory("LS")}
+    ekfs = {}
+    for m in models:
+        ekfs[m] = run_ekf(run, m, sigmas[m], measurement, gate_prob=gate_prob, tdoa=log)
+        trajs[ekf_name(m)] = ekfs[m].to_trajectory()
+    errors = {k: _errors(t, run) for k, t in trajs.items()}
+    return Estimates(run, trajs, errors, ekfs, ls, {m: float(sigmas[m]) for m in models}, len(run.ranges))
+
+
+def calibration_curves(runs: Sequence[TagRun], sigma_m: Mapping[str, np.ndarray], *,
+                       grids: Mapping[str, Sequence[float]] | None = None, models: Sequence[str] = MODELS,
+                       ref: int = 0, gate_prob: float | None = None, correlated: bool = True,
+                       progress: bool = True) -> pd.DataFrame:
+    """CEP95 of each EKF over a grid of driving standard deviations (thesis Table 1 procedure).
+
+    Parameters
+    ----------
+    runs
+        Calibration runs (with truth).
+    sigma_m
+        Range-noise standard deviation per anchor for each run, keyed by :attr:`TagRun.key`.
+    grids
+        Driving standard deviations per model (default :data:`DEFAULT_GRIDS`).
+
+    Returns
+    -------
+    DataFrame
+        One row per (run, model, sigma): ``run, tag, model, sigma, sigma_unit, psd, psd_unit,
+        cep95_m, rmse_m``.
+    """
+    from tqdm.auto import tqdm
+
+    grids = dict(DEFAULT_GRIDS if grids is None else grids)
+    jobs = [(r, m, s) for r in runs for m in models for s in grids[m]]
+    rows = []
+    cache = {}
+    for r, m, s in tqdm(jobs, desc="driving-noise calibration", disable=not progress, leave=False):
+        if r.key not in cache:
+            cache[r.key] = (r.model(sigma_m[r.key], correlated=correlated), r.tdoa(ref))
+        meas, log = cache[r.key]
+        res = run_ekf(r, m, float(s), meas, gate_prob=gate_prob, tdoa=log)
+        err = _errors(res.to_trajectory(), r).err_m
+        cls = MOTION_MODELS[m]
+        rows.append({"run": r.name, "tag": r.tag, "model": m, "sigma": float(s), "sigma_unit": cls.sigma_unit,
+                     "psd": float(s) ** 2 * r.dt_s, "psd_unit": cls.psd_unit,
+                     "cep95_m": metrics.cep95(err), "rmse_m": metrics.rmse(err)})
+    return pd.DataFrame(rows)
+
+
+def best_sigmas(curves: pd.DataFrame) -> dict[str, float]:
+    """Per model, the grid value minimising the mean CEP95 over the calibration runs/tags.
+
+    One value per model and scenario, as in the thesis' Table 1.
+    """
+    mean = curves.groupby(["model", "sigma"], sort=True)["cep95_m"].mean().reset_index()
+    best = mean.loc[mean.groupby("model")["cep95_m"].idxmin()]
+    return {m: float(s) for m, s in zip(best["model"], best["sigma"])}
+
+
+def cep95_table(estimates: Iterable[Estimates], methods: Sequence[str]) -> pd.DataFrame:
+    """CEP95 (m) per run/tag (rows) and method (columns)."""
+    rows = []
+    for est in estimates:
+        c = est.cep95()
+        rows.append({"run": est.run.name, "tag": est.run.tag, **{m: c[m] for m in methods}})
+    return pd.DataFrame(rows).set_index(["run", "tag"])
+
+
+def ranking(table: pd.DataFrame, models: Sequence[str] = MODELS) -> pd.Series:
+    """Order of the motion models by CEP95 per row, e.g. ``"RW < RF < RJ"``."""
+    cols = [ekf_name(m) for m in models]
+
+    def order(row):
+        ranked = sorted(zip(row[cols], models))
+        return " < ".join(m for _, m in ranked)
+
+    return table.apply(order, axis=1).rename("ranking")
+
+
+def paper_table(paper: Mapping, keys: Sequence[tuple[str, str]], methods: Sequence[str]) -> pd.DataFrame:
+    """The thesis' CEP95 values for ``keys`` (scenario, tag) in the layout of :func:`cep95_table`."""
+    rows = [{"run": k[0], "tag": k[1], **{m: paper.get(k, {}).get(m, np.nan) for m in methods}} for k in keys]
+    return pd.DataFrame(rows).set_index(["run", "tag"])
+
+
+def tdoa_noise_check(run: TagRun, sigma_m, *, ref: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Empirical covariance of the TDoA errors of ``run`` next to the model's ``diag(σ_j²) + σ_ref² 11ᵀ``.
+
+    Uses the epochs where every anchor was measured (reference ``ref``); rows and
+    columns are the anchors other than ``ref``. Returns ``(empirical, model)``, m².
+    """
+    log = run.tdoa(ref)
+    true = run.true_range_m()
+    true_tdoa = true - true[:, [ref]]
+    empirical = empirical_tdoa_covariance(log.tdoa_m, true_tdoa, ref)
+    others = np.delete(np.arange(len(run.anchors)), ref)
+    return empirical, run.model(sigma_m).covariance(others, ref)
+
+
+# --------------------------------------------------------------------------- figures
+
+
+def scenario_figure(config: walk.WalkScenario, *, ax=None, truth: Trajectory | None = None):
+    """Floor plan of a simulated scenario: anchors, obstacles (grey: low, black: full height) and the path."""
+    ax = plotting.floor_plan(config.anchors, ax=ax)
+    for o in config.obstacles:
+        tall = o.height_m >= 1.9
+        ax.plot([o.x0_m, o.x1_m], [o.y0_m, o.y1_m], color="#000000" if tall else "#9e9e9e",
+                linewidth=2.5 if tall else 1.5, solid_capstyle="butt")
+    xy, _ = walk.path_points(config.waypoints_m, config.corner_radius_m)
+    ax.plot(np.r_[xy[:, 0], xy[0, 0]], np.r_[xy[:, 1], xy[0, 1]], color="#bdbdbd", linestyle=":", label="path")
+    if truth is not None:
+        ax.plot(truth.pos_m[:, 0], truth.pos_m[:, 1], color=plotting.color_for("truth"), linewidth=1, label="truth")
+    ax.set_title(f"{config.name}: {len(config.anchors)} anchors, obstacles (black ≥ 1.9 m tall, grey lower)")
+    ax.legend(loc="best", fontsize="small")
+    return ax
+
+
+
+def calibration_figure(curves: pd.DataFrame, *, best: Mapping[str, float] | None = None,
+                       paper: Mapping[str, float] | None = None, models: Sequence[str] = MODELS,
+                       title: str | None = None):
+    """CEP95 against driving standard deviation, one panel per motion model (thesis Table 1 procedure).
+
+    Each run/tag is a thin line; the mean over them (what :func:`best_sigmas` minimises)
+    is thick; ``best`` is marked and ``paper`` drawn as a dashed vertical line.
+    Returns the Figure.
+    """
+    fig, axes = plt.subplots(1, len(models), figsize=(4.2 * len(models), 3.4), sharey=True, squeeze=False)
+    for ax, m in zip(axes[0], models):
+        sub = curves[curves.model == m]
+        color = plotting.color_for(ekf_name(m))
+        for (run, tag), g in sub.groupby(["run", "tag"]):
+            ax.plot(g.sigma, g.cep95_m, color=color, alpha=0.35, linewidth=1, marker=".")
+        mean = sub.groupby("sigma")["cep95_m"].mean()
+        ax.plot(mean.index, mean.values, color=color, linewidth=2.2, label=f"{ekf_name(m)} mean")
+        if best is not None and m in best:
+            ax.plot([best[m]], [mean.loc[best[m]]], marker="*", markersize=13, color="#000000", linestyle="none",
+                    label=f"best {best[m]:.3g} {MOTION_MODELS[m].sigma_unit}")
+        if paper is not None and m in paper:
+            ax.axvline(paper[m], color="#555555", linestyle="--", linewidth=1,
+                       label=f"thesis {paper[m]:g} {MOTION_MODELS[m].sigma_unit}")
+        ax.set_xscale("log")
+        ax.set_xlabel(f"driving σ of {MOTION_MODELS[m].driven} ({MOTION_MODELS[m].sigma_unit})")
+        ax.set_title(f"{m}: white {MOTION_MODELS[m].driven}")
+        ax.legend(fontsize="small")
+    axes[0, 0].set_ylabel("CEP95 (m)")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def paths_figure(est: Estimates, names: Sequence[str] = ("EKF-RW", "LS", "raw"), *, ax=None,
+                 t_range_s: tuple[float, float] | None = None):
+    """Paths of the chosen estimators against truth on the floor plan (thesis Figs 5, 7, 9 / 6, 8, 10)."""
+    trajs = {"truth": est.run.truth}
+    trajs.update({n: est.trajectories[n] for n in names})
+    if t_range_s is not None:
+        trajs = {k: v.between(*t_range_s) for k, v in trajs.items()}
+    ax = plotting.trajectories(trajs, ax=ax, anchors=est.run.anchors)
+    ax.set_title(f"{est.run.name}, {est.run.tag}")
+    return ax
+
+
+def cdf_figure(est: Estimates, names: Sequence[str] = ("EKF-RW", "EKF-RF", "EKF-RJ", "LS", "raw"), *, ax=None):
+    """Empirical CDFs of the horizontal error with CEP50/CEP95 marked."""
+    ax = plotting.error_cdf({n: est.errors[n] for n in names}, ax=ax)
+    ax.set_title(f"{est.run.name}, {est.run.tag}")
+    return ax
