@@ -1,0 +1,613 @@
+"""Drive JupyterLab in headless Chromium: run a notebook, then check and poke its panels.
+
+Used by ``tests/test_browser.py`` and ``benchmarks/bench_widgets.py``.
+
+* :func:`prepare_notebook` writes a copy of a notebook with parameters injected
+  the way papermill injects them (same functions, same "injected-parameters"
+  cell after the cell tagged ``parameters``), outputs cleared, kernel ``python3``.
+* :class:`LabServer` runs ``jupyter lab`` from this interpreter's environment on
+  127.0.0.1 with a random port and token and throw-away runtime, config,
+  settings and workspace folders; it shuts down with its kernels, whatever happens.
+* :func:`launch_chromium` starts the system Chromium (never a downloaded one).
+* :func:`check_notebook` opens a notebook, runs all cells, asserts that nothing
+  failed, changes one control of every ``uwbwb-panel`` and asserts that the
+  panel updated; every failure is an ``AssertionError`` naming the notebook.
+
+JupyterLab is told to expose its application object (``window.jupyterapp``,
+the setting JupyterLab's own UI tests use), so cells are run with the
+``notebook:run-all-cells`` command and progress is read from the notebook model
+rather than from pixels.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import secrets
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.error
+import urllib.request
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOK_DIR = ROOT / "notebooks"
+OUTPUT_DIR = ROOT / "test-output" / "browser"
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+#: Parameters the browser test injects (the same as CI's papermill runs).
+FAST_PARAMETERS = {"FAST": True}
+#: Longest time one notebook may take to run all its cells.
+RUN_TIMEOUT_S = float(os.environ.get("UWBWB_BROWSER_TIMEOUT_S", "600"))
+#: Longest time JupyterLab may take to open a notebook and start its kernel.
+OPEN_TIMEOUT_S = 180.0
+#: Longest time a panel may take to update after a control change.
+UPDATE_TIMEOUT_S = 60.0
+#: A panel counts as updated once its output has not changed for this long.
+SETTLE_S = 0.3
+#: Longest time widget views may show "Loading widget..." after the last cell ran.
+WIDGET_LOAD_TIMEOUT_S = 30.0
+
+# JupyterLab user settings for the throw-away settings folder: every cell attached to the
+# DOM (the default windowing skips off-screen cells), no news or update checks.
+LAB_SETTINGS = {
+    "@jupyterlab/notebook-extension/tracker.jupyterlab-settings": {"windowingMode": "none"},
+    "@jupyterlab/apputils-extension/notification.jupyterlab-settings":
+        {"fetchNews": "false", "checkForUpdates": False},
+}
+
+
+def project_notebooks() -> list[Path]:
+    """The project's notebooks, sorted by name."""
+    return sorted(NOTEBOOK_DIR.glob("*.ipynb"))
+
+
+# --------------------------------------------------------------------------- notebook copy
+
+def prepare_notebook(src: Path, dst_dir: Path, parameters: dict | None = None) -> Path:
+    """Copy ``src`` into ``dst_dir`` with ``parameters`` injected as papermill does.
+
+    The copy keeps the file name, has no outputs or execution counts, and names
+    the ``python3`` kernel of this environment.
+    """
+    from papermill.iorw import load_notebook_node, write_ipynb
+    from papermill.parameterize import parameterize_notebook
+
+    nb = load_notebook_node(str(src))
+    if parameters:
+        nb = parameterize_notebook(nb, parameters, kernel_name="python3", language="python")
+    for cell in nb.cells:
+        if cell.cell_type == "code":
+            cell.outputs = []
+            cell.execution_count = None
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3 (uwbwb)",
+                                 "language": "python"}
+    nb.metadata.pop("widgets", None)
+    dst = Path(dst_dir) / Path(src).name
+    write_ipynb(nb, str(dst))
+    return dst
+
+
+# --------------------------------------------------------------------------- server
+
+def _terminate_with_parent() -> None:
+    """In the child before exec (Linux): SIGTERM when the parent dies, even by SIGKILL.
+
+    The server then shuts its kernels down itself, so a killed test run leaves
+    nothing behind.
+    """
+    with contextlib.suppress(Exception):
+        import ctypes
+        PR_SET_PDEATHSIG = 1
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class LabServer:
+    """``jupyter lab`` on loopback, serving ``root_dir``; use as a context manager.
+
+    Everything it writes (runtime files, settings, workspaces, log) lives in a
+    temporary folder removed on exit. :meth:`stop` shuts the server down through
+    its API, then kills whatever is left of it and of its kernels.
+    """
+
+    def __init__(self, root_dir: Path, *, start_timeout_s: float = 120.0):
+        self.root_dir = Path(root_dir)
+        self.start_timeout_s = start_timeout_s
+        self.token = secrets.token_hex(24)
+        self.port: int | None = None
+        self.proc: subprocess.Popen | None = None
+        self._state_dir: Path | None = None
+        self._log = None
+
+    @property
+    def base_url(self) -> str:
+        return f"http://127.0.0.1:{self.port}"
+
+    @property
+    def log_path(self) -> Path:
+        return self._state_dir / "server.log"
+
+    def log_tail(self, n_lines: int = 40) -> str:
+        try:
+            return "\n".join(self.log_path.read_text(errors="replace").splitlines()[-n_lines:])
+        except OSError:
+            return "(no server log)"
+
+    def lab_url(self, notebook: str, workspace: str) -> str:
+        """URL opening ``notebook`` (relative to root_dir) in a fresh named workspace."""
+        return f"{self.base_url}/lab/workspaces/{workspace}/tree/{notebook}?reset&token={self.token}"
+
+    def api(self, method: str, path: str, timeout_s: float = 10.0):
+        req = urllib.request.Request(f"{self.base_url}{path}", method=method,
+                                     headers={"Authorization": f"token {self.token}"})
+        with urllib.request.urlopen(req, timeout=timeout_s) as resp:
+            body = resp.read()
+        return json.loads(body) if body else None
+
+    def start(self) -> "LabServer":
+        self._state_dir = Path(tempfile.mkdtemp(prefix="uwbwb-lab-"))
+        env = dict(os.environ)
+        for var, sub in (("JUPYTER_RUNTIME_DIR", "runtime"), ("JUPYTER_CONFIG_DIR", "config"),
+                         ("JUPYTERLAB_SETTINGS_DIR", "settings"),
+                         ("JUPYTERLAB_WORKSPACES_DIR", "workspaces")):
+            (self._state_dir / sub).mkdir()
+            env[var] = str(self._state_dir / sub)
+        for rel, values in LAB_SETTINGS.items():
+            path = self._state_dir / "settings" / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(values))
+        env["JUPYTER_PREFER_ENV_PATH"] = "1"  # this venv's kernelspec and lab extensions first
+        env.pop("JUPYTER_TOKEN", None)
+        self.port = _free_port()
+        cmd = [sys.executable, "-m", "jupyter", "lab", "--no-browser",
+               "--ServerApp.ip=127.0.0.1", f"--ServerApp.port={self.port}", "--ServerApp.port_retries=0",
+               f"--IdentityProvider.token={self.token}", f"--ServerApp.root_dir={self.root_dir}",
+               "--LabApp.expose_app_in_browser=True", "--LabApp.news_url=None",
+               "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate",
+               "--LabApp.extension_manager=readonly", "--ServerApp.terminals_enabled=False"]
+        if hasattr(os, "geteuid") and os.geteuid() == 0:  # containers and CI run as root
+            cmd.append("--allow-root")
+        self._log = open(self.log_path, "wb")
+        self.proc = subprocess.Popen(cmd, env=env, stdin=subprocess.DEVNULL, stdout=self._log,
+                                     stderr=subprocess.STDOUT, start_new_session=True,
+                                     preexec_fn=_terminate_with_parent)
+        deadline = time.monotonic() + self.start_timeout_s
+        while True:
+            if self.proc.poll() is not None:
+                raise RuntimeError(f"jupyter lab exited with code {self.proc.returncode}:\n{self.log_tail()}")
+            try:
+                self.api("GET", "/api/status", timeout_s=2)
+                return self
+            except (urllib.error.URLError, ConnectionError, TimeoutError, OSError):
+                pass
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"jupyter lab did not answer within {self.start_timeout_s:.0f} s:\n"
+                                   f"{self.log_tail()}")
+            time.sleep(0.25)
+
+    def shutdown_kernels(self) -> None:
+        """Shut down every running kernel (between notebooks, to free CPU and memory)."""
+        for kernel in self.api("GET", "/api/kernels"):
+            with contextlib.suppress(urllib.error.URLError, OSError):
+                self.api("DELETE", f"/api/kernels/{kernel['id']}", timeout_s=30)
+
+    def stop(self) -> None:
+        if self.proc is None:
+            return
+        proc, self.proc = self.proc, None
+        try:
+            import psutil
+            try:
+                descendants = psutil.Process(proc.pid).children(recursive=True)
+            except psutil.Error:
+                descendants = []
+            if proc.poll() is None:
+                with contextlib.suppress(urllib.error.URLError, OSError):
+                    self.api("POST", "/api/shutdown", timeout_s=5)
+                try:
+                    proc.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    with contextlib.suppress(ProcessLookupError):
+                        os.killpg(proc.pid, signal.SIGTERM)
+                    try:
+                        proc.wait(timeout=5)
+                    except subprocess.TimeoutExpired:
+                        with contextlib.suppress(ProcessLookupError):
+                            os.killpg(proc.pid, signal.SIGKILL)
+                        proc.wait(timeout=5)
+            # Kernels run in sessions of their own: kill any the server left behind.
+            for child in descendants:
+                with contextlib.suppress(psutil.Error):
+                    child.kill()
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(proc.pid, signal.SIGKILL)
+        finally:
+            if self._log is not None:
+                self._log.close()
+            shutil.rmtree(self._state_dir, ignore_errors=True)
+
+    def __enter__(self) -> "LabServer":
+        try:
+            return self.start()
+        except BaseException:
+            self.stop()
+            raise
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+
+def widget_manager_versions(server: LabServer) -> tuple[str, str]:
+    """``(served, installed)`` versions of the JupyterLab widget manager extension.
+
+    *served* is what the running JupyterLab reports for
+    ``@jupyter-widgets/jupyterlab-manager``; *installed* is the version of that
+    extension in this environment's ``jupyterlab_widgets`` distribution, the one
+    matched to its ``ipywidgets``. Raises AssertionError if the extension is not
+    served, not enabled or broken.
+    """
+    from importlib.metadata import distribution
+
+    name = "@jupyter-widgets/jupyterlab-manager"
+    served = {e["name"]: e for e in server.api("GET", "/lab/api/extensions")}
+    ext = served.get(name)
+    assert ext is not None, f"JupyterLab does not serve {name}; it serves {sorted(served)}"
+    assert ext["enabled"] and ext["status"] == "ok", f"{name} is not usable: {ext}"
+    dist = distribution("jupyterlab_widgets")
+    package_json = [f for f in dist.files or ()
+                    if f.as_posix().endswith("labextensions/" + name + "/package.json")]
+    assert package_json, f"jupyterlab_widgets {dist.version} ships no {name} extension"
+    installed = json.loads(package_json[0].read_text())["version"]
+    return ext["installed_version"], installed
+
+
+# --------------------------------------------------------------------------- browser
+
+def launch_chromium(playwright):
+    """The system Chromium, headless, through Playwright."""
+    if not CHROMIUM.exists():
+        raise FileNotFoundError(f"{CHROMIUM} not found (apt-get install chromium)")
+    return playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, headless=True)
+
+
+@contextlib.contextmanager
+def lab_session(root_dir: Path):
+    """``(server, browser)`` for one folder of prepared notebooks; everything closed on exit."""
+    from playwright.sync_api import sync_playwright
+
+    with LabServer(root_dir) as server, sync_playwright() as pw:
+        browser = launch_chromium(pw)
+        try:
+            yield server, browser
+        finally:
+            browser.close()
+
+
+# --------------------------------------------------------------------------- page helpers
+
+# State of the notebook at `path` as seen by JupyterLab: kernel status, executed cells,
+# error outputs (from the model, so nothing is missed by rendering).
+_JS_STATE = """(path) => {
+  const app = window.jupyterapp;
+  if (!app) return {phase: 'no app'};
+  let nb = null;
+  for (const w of app.shell.widgets('main')) { if (w.context && w.context.path === path) nb = w; }
+  if (!nb || !nb.context.isReady) return {phase: 'opening'};
+  const sc = nb.sessionContext;
+  const kernel = sc.session ? sc.session.kernel : null;
+  const cells = nb.content.widgets.filter(c => c.model.type === 'code');
+  const errors = [];
+  cells.forEach((c, i) => {
+    for (let k = 0; k < c.model.outputs.length; k++) {
+      const o = c.model.outputs.get(k).toJSON();
+      if (o.output_type === 'error') errors.push(`code cell ${i + 1}: ${o.ename}: ${o.evalue}`);
+    }
+  });
+  const pending = cells.findIndex(c => c.model.executionCount === null);
+  return {phase: 'open', id: nb.id, kernel: kernel ? kernel.status : 'none', ready: sc.isReady,
+          nCode: cells.length, pending: pending, errors: errors,
+          runAll: window.__uwbwbRunAll || null};
+}"""
+
+_JS_RUN_ALL = """async (id) => {
+  const app = window.jupyterapp;
+  app.shell.activateById(id);
+  window.__uwbwbRunAll = 'running';
+  app.commands.execute('notebook:run-all-cells').then(
+    ok => { window.__uwbwbRunAll = ok === false ? 'stopped' : 'done'; },
+    err => { window.__uwbwbRunAll = 'failed: ' + err; });
+}"""
+
+# Text of every stderr output and of everything that looks like a widget failure.
+_JS_PAGE_PROBLEMS = """() => {
+  const out = [];
+  for (const el of document.querySelectorAll(
+      '.jp-OutputArea-output[data-mime-type="application/vnd.jupyter.stderr"]')) {
+    const t = el.innerText;
+    if (/Traceback|\\b[A-Z]\\w*(Error|Exception)\\b/.test(t)) out.push('stderr output: ' + t.slice(0, 2000));
+  }
+  if (document.body.innerText.includes('Error displaying widget'))
+    out.push('"Error displaying widget" shown');
+  for (const el of document.querySelectorAll('.uwbwb-error'))
+    out.push('panel error: ' + el.innerText.slice(0, 2000));
+  return out;
+}"""
+
+# A fingerprint of a panel's output: readout text and figure image.
+_JS_PANEL_STATE = """(panel) => {
+  const readout = panel.querySelector('.uwbwb-readout');
+  const img = panel.querySelector('.uwbwb-figure img');
+  const error = panel.querySelector('.uwbwb-error');
+  return {readout: readout ? readout.innerText : null, img: img ? img.src : null,
+          error: error ? error.innerText : null};
+}"""
+
+
+def _wait_for_widget_views(page, name: str) -> None:
+    """Wait until no output shows "Loading widget..." (a model the front end never got)."""
+    deadline = time.monotonic() + WIDGET_LOAD_TIMEOUT_S
+    while page.evaluate("() => document.body.innerText.includes('Loading widget...')"):
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{name}: a widget still shows 'Loading widget...' "
+                                 f"{WIDGET_LOAD_TIMEOUT_S:.0f} s after the last cell ran (its model "
+                                 "never reached the front end's widget manager)")
+        time.sleep(0.1)
+
+
+def _page_problems(page) -> list[str]:
+    return page.evaluate(_JS_PAGE_PROBLEMS)
+
+
+class _Console:
+    """Collects the page's console errors and uncaught exceptions for failure messages."""
+
+    def __init__(self, page):
+        self.messages: list[str] = []
+        page.on("console", lambda m: self.messages.append(f"console.{m.type}: {m.text}")
+                if m.type == "error" else None)
+        page.on("pageerror", lambda e: self.messages.append(f"page error: {e}"))
+
+    def tail(self, n: int = 10) -> str:
+        return "\n".join(self.messages[-n:]) or "(none)"
+
+
+def open_and_run(page, server: LabServer, name: str, *, workspace: str,
+                 timeout_s: float = RUN_TIMEOUT_S) -> float:
+    """Open notebook ``name`` (relative to the server root), run all cells, wait until done.
+
+    Returns the time from "run all" to the last cell finishing, in seconds.
+    Raises AssertionError (naming the notebook) on a cell error, a dead kernel or
+    a timeout.
+    """
+    page.goto(server.lab_url(name, workspace), wait_until="domcontentloaded")
+    deadline = time.monotonic() + min(timeout_s, OPEN_TIMEOUT_S)
+    state: dict = {}
+    while True:  # open, kernel started and idle
+        state = page.evaluate(_JS_STATE, name)
+        if state.get("phase") == "open" and state["ready"] and state["kernel"] == "idle":
+            break
+        if time.monotonic() > deadline:
+            raise AssertionError(
+                f"{name}: JupyterLab did not open the notebook with an idle kernel within "
+                f"{OPEN_TIMEOUT_S:.0f} s (state {state}; a kernel-selection dialog means kernel "
+                f"'python3' is missing).\nServer log:\n{server.log_tail()}")
+        time.sleep(0.2)
+    t0 = time.monotonic()
+    deadline = t0 + timeout_s
+    page.evaluate(_JS_RUN_ALL, state["id"])
+    while True:
+        time.sleep(0.25)
+        state = page.evaluate(_JS_STATE, name)
+        if state.get("errors"):
+            raise AssertionError(f"{name}: cell error while running all cells:\n  "
+                                 + "\n  ".join(state["errors"]))
+        run_all = str(state.get("runAll"))
+        if run_all.startswith("failed"):
+            raise AssertionError(f"{name}: 'run all cells' failed: {run_all}")
+        if state.get("kernel") in ("dead", "autorestarting", "restarting", "unknown"):
+            raise AssertionError(f"{name}: the kernel is {state['kernel']} while running code cell "
+                                 f"{state.get('pending', -1) + 1}.\nServer log:\n{server.log_tail()}")
+        if run_all in ("done", "stopped") and state.get("kernel") == "idle":
+            if state.get("pending") == -1:
+                return time.monotonic() - t0
+            if run_all == "stopped":
+                raise AssertionError(f"{name}: 'run all cells' stopped before code cell "
+                                     f"{state['pending'] + 1} of {state['nCode']}")
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{name}: not finished within {timeout_s:.0f} s: code cell "
+                                 f"{state.get('pending', -1) + 1} of {state.get('nCode')} has not finished "
+                                 f"(kernel {state.get('kernel')}).")
+
+
+@dataclass
+class ControlChange:
+    """One control change of one panel and what it did."""
+
+    control: str
+    action: str
+    direction: int
+    latency_s: float
+    readout_before: str | None
+    readout_after: str | None
+    figure_changed: bool
+
+
+def change_control(page, panel, *, name: str, index: int, direction: int = +1,
+                   timeout_s: float = UPDATE_TIMEOUT_S) -> ControlChange:
+    """Change one control of ``panel`` (a locator) like a user, wait for the panel to update.
+
+    The control is the panel's first slider (moved one step with an arrow key,
+    ``direction`` +1 right, -1 left, reversed at the end of its range; the
+    direction used is returned), else its first dropdown (next option), else its
+    first number box (value + 1 and Enter). Latency is measured from the key
+    press / selection to the first DOM change of the readout or figure.
+    Returns what happened; raises AssertionError naming the notebook ``name``
+    when the panel shows an error or nothing updated within ``timeout_s``.
+    """
+    where = f"{name}: panel {index + 1}"
+    before = panel.evaluate(_JS_PANEL_STATE)
+    controls = panel.locator(".uwbwb-controls")
+    handle = controls.locator(".noUi-handle").first
+    select = controls.locator("select").first
+    number = controls.locator("input[type=number]").first
+    t0 = time.monotonic()
+    if handle.count():
+        label = _control_label(handle, ".widget-slider")
+        now, lo, hi = (float(handle.get_attribute(a)) for a in
+                       ("aria-valuenow", "aria-valuemin", "aria-valuemax"))
+        if (direction > 0 and now >= hi) or (direction < 0 and now <= lo):
+            direction = -direction
+        key = "ArrowRight" if direction > 0 else "ArrowLeft"
+        handle.focus()
+        t0 = time.monotonic()
+        handle.press(key)
+        action = f"slider {key}"
+    elif select.count():
+        label = _control_label(select, ".widget-dropdown")
+        options = select.locator("option").all_text_contents()
+        current = select.evaluate("s => s.selectedIndex")
+        if len(options) < 2:
+            raise AssertionError(f"{where}: its only control, dropdown {label!r}, has one option")
+        target = options[(current + 1) % len(options)]
+        t0 = time.monotonic()
+        select.select_option(label=target)
+        action = f"dropdown -> {target!r}"
+    elif number.count():
+        label = _control_label(number, ".widget-inline-hbox")
+        value = int(float(number.input_value())) + 1
+        number.fill(str(value))
+        t0 = time.monotonic()
+        number.press("Enter")
+        action = f"number box -> {value}"
+    else:
+        raise AssertionError(f"{where}: no slider, dropdown or number box to change")
+    deadline = t0 + timeout_s
+    while True:  # the first update ...
+        after = panel.evaluate(_JS_PANEL_STATE)
+        if after["error"]:
+            raise AssertionError(f"{where}: error after changing {label!r} ({action}):\n{after['error']}")
+        if after["readout"] != before["readout"] or after["img"] != before["img"]:
+            latency = time.monotonic() - t0
+            break
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{where}: changed {label!r} ({action}) but neither the readout nor "
+                                 f"the figure updated within {timeout_s:.0f} s")
+        time.sleep(0.01)
+    # ... and the rest of it (readout and figure arrive as separate messages): the
+    # latency runs to the last change seen before the panel is quiet for SETTLE_S.
+    quiet_since = time.monotonic()
+    while time.monotonic() - quiet_since < SETTLE_S and time.monotonic() < deadline:
+        time.sleep(0.01)
+        now_state = panel.evaluate(_JS_PANEL_STATE)
+        if now_state != after:
+            after, quiet_since = now_state, time.monotonic()
+            latency = quiet_since - t0
+    if after["error"]:
+        raise AssertionError(f"{where}: error after changing {label!r} ({action}):\n{after['error']}")
+    return ControlChange(label, action, direction, latency, before["readout"], after["readout"],
+                         after["img"] != before["img"])
+
+
+def _control_label(element, container: str) -> str:
+    box = element.locator(f"xpath=ancestor::*[contains(@class, '{container.strip('.')}')][1]")
+    label = box.locator("label").first
+    return label.inner_text().strip() if label.count() else "?"
+
+
+# --------------------------------------------------------------------------- the check
+
+@dataclass
+class NotebookReport:
+    """What :func:`check_notebook` saw."""
+
+    name: str
+    run_s: float
+    panels: list[ControlChange] = field(default_factory=list)
+    screenshots: list[Path] = field(default_factory=list)
+
+
+def check_notebook(server: LabServer, browser, name: str, *, out_dir: Path | None = None,
+                   timeout_s: float = RUN_TIMEOUT_S,
+                   update_timeout_s: float = UPDATE_TIMEOUT_S) -> NotebookReport:
+    """Run notebook ``name`` (already in the server's root) in the browser and check its panels.
+
+    Asserts: no error output or error-looking stderr, no "Error displaying widget",
+    no panel error, at least one ``uwbwb-panel``, and every panel updates its readout
+    or figure after one control change. Screenshots (whole panel before and after,
+    figure before) and a ``report.json`` go to ``out_dir``. Failures raise
+    AssertionError whose message starts with the notebook's name. The notebook's
+    kernel is shut down afterwards.
+    """
+    stem = Path(name).stem
+    out_dir = Path(out_dir) if out_dir is not None else OUTPUT_DIR / stem
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for old in [*out_dir.glob("panel*.png"), out_dir / "failure.png", out_dir / "report.json"]:
+        old.unlink(missing_ok=True)  # nothing from an earlier run may pass for this one's
+    context = browser.new_context(viewport={"width": 1400, "height": 1000})
+    page = context.new_page()
+    page.set_default_timeout(30_000)
+    console = _Console(page)
+    try:
+        try:
+            run_s = open_and_run(page, server, name, workspace=f"check-{stem}", timeout_s=timeout_s)
+            report = NotebookReport(name, run_s)
+            _wait_for_widget_views(page, name)
+            problems = _page_problems(page)
+            if problems:
+                raise AssertionError(f"{name}: after running all cells:\n  " + "\n  ".join(problems))
+            panels = page.locator(".uwbwb-panel")
+            n_panels = panels.count()
+            if n_panels == 0:
+                raise AssertionError(f"{name}: no uwbwb-panel was rendered (is the widget manager "
+                                     f"missing?). Browser console:\n{console.tail()}")
+            for i in range(n_panels):
+                panel = panels.nth(i)
+                panel.scroll_into_view_if_needed()
+                shot = out_dir / f"panel{i + 1}-before.png"
+                panel.screenshot(path=str(shot))
+                report.screenshots.append(shot)
+                figure = panel.locator(".uwbwb-figure img").first
+                if figure.count():
+                    shot = out_dir / f"panel{i + 1}-figure.png"
+                    figure.screenshot(path=str(shot))
+                    report.screenshots.append(shot)
+                report.panels.append(change_control(page, panel, name=name, index=i,
+                                                    timeout_s=update_timeout_s))
+                shot = out_dir / f"panel{i + 1}-after.png"
+                panel.screenshot(path=str(shot))
+                report.screenshots.append(shot)
+            problems = _page_problems(page)
+            if problems:
+                raise AssertionError(f"{name}: after changing controls:\n  " + "\n  ".join(problems))
+        except AssertionError:
+            with contextlib.suppress(Exception):
+                page.screenshot(path=str(out_dir / "failure.png"), full_page=True)
+            raise
+        except Exception as exc:  # Playwright timeouts and the like: still name the notebook
+            with contextlib.suppress(Exception):
+                page.screenshot(path=str(out_dir / "failure.png"), full_page=True)
+            raise AssertionError(f"{name}: {type(exc).__name__}: {exc}\nBrowser console:\n"
+                                 f"{console.tail()}") from exc
+        (out_dir / "report.json").write_text(json.dumps(
+            {"notebook": name, "run_s": report.run_s,
+             "panels": [vars(p) for p in report.panels]}, indent=2))
+        return report
+    finally:
+        context.close()
+        with contextlib.suppress(Exception):
+            server.shutdown_kernels()
+
