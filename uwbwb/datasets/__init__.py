@@ -11,8 +11,8 @@ from .discovery import (EXTERNAL_DIR, PROJECT_ROOT, SHARED_DIR, data_dirs, datas
 __all__ = ["EXTERNAL_DIR", "PROJECT_ROOT", "SHARED_DIR", "data_dirs", "dataset_available",
            "find_dataset"]
 
-from .fetch import ChecksumError, FetchError, FetchReport, fetch
+from .catalog import overview
 from .manifest import DatasetInfo, load_datasets_info, load_manifest, verify
 
-__all__ += ["ChecksumError", "DatasetInfo", "FetchError", "FetchReport", "fetch", "load_datasets_info",
-            "load_manifest", "verify"]
+# ``fetch`` stays a sub-module (``uw.datasets.fetch.fetch(name)``), not shadowed by the function.
+__all__ += ["DatasetInfo", "load_datasets_info", "load_manifest", "overview", "verify"]
