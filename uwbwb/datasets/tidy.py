@@ -1,0 +1,538 @@
+"""Bring your own recording: a generic tidy CSV format.
+
+A recording in this format is two or three small CSV files: the ranges, the
+anchor positions and, optionally, the ground truth. They are read by
+:func:`load_recording` into a :class:`uwbwb.Recording`, and
+:func:`write_recording` (or the three ``write_*_csv`` functions) writes a
+recording back so that reading it again gives exactly the same numbers.
+
+General rules (all three files)
+-------------------------------
+* Plain text, UTF-8 (a leading byte-order mark is accepted), lines ending in
+  ``\\n`` or ``\\r\\n``.
+* Fields are separated by commas; there is no quoting, so identifiers must not
+  contain commas. Spaces around a field are ignored.
+* The first line that is neither empty nor a comment is the header, and it must
+  be exactly one of the headers listed below (column order included).
+* Empty lines and lines whose first character is ``#`` are ignored, so a file
+  may carry notes (``# recorded 2024-05-01, anchors surveyed by total station``).
+* Numbers are decimal, optionally with an exponent (``1.25``, ``-3e-2``);
+  ``nan`` and ``inf`` are not numbers here. Units are SI: seconds, metres.
+* Every data line must have as many fields as the header.
+
+Ranges file (required)
+----------------------
+Header ``t_s,anchor_id,range_m``, optionally followed by ``status`` and/or
+``tag_id``, in that order::
+
+    t_s,anchor_id,range_m,status,tag_id
+    0.00,A1,3.412,OK,tag
+    0.00,A2,5.030,OK,tag
+    0.00,A3,,ERR,tag
+    0.02,A1,3.418,OK,tag
+
+* ``t_s`` — time of the measurement, seconds, any origin. Rows must be in
+  non-decreasing ``t_s`` order over the whole file. The rows of one tag that
+  share a ``t_s`` form one epoch (one row of the tag's
+  :class:`~uwbwb.RangeLog`).
+* ``anchor_id`` — must be listed in the anchors file.
+* ``range_m`` — measured range, metres, ``>= 0``.
+* ``status`` (optional, default ``OK``) — ``OK`` keeps the row; ``ERR`` marks a
+  failed measurement: its range becomes missing (NaN) and the row is counted in
+  the recording's cleaning report; ``range_m`` may then be empty. Any other
+  value is an error. An ``ERR`` row still makes its epoch exist, even when no
+  anchor of that epoch has a range.
+* ``tag_id`` (optional, default ``tag``) — identifier of the tag.
+* A repeated ``(t_s, anchor_id, tag_id)`` is an error (never averaged).
+
+Anchors file (required)
+-----------------------
+Header ``anchor_id,x_m,y_m,z_m``; one line per anchor, unique identifiers, at
+least one anchor. Positions in metres, in the frame of the truth file. The
+order of the lines fixes the column order of every range log.
+
+Truth file (optional)
+---------------------
+Header ``t_s,x_m,y_m``, optionally followed by ``z_m`` and/or ``tag_id``, in
+that order. Positions (metres) of each tag on the clock of the ranges file.
+Rows are in non-decreasing ``t_s`` order over the file, and a repeated
+``(t_s, tag_id)`` is an error. Every tag in it must have ranges.
+
+What is and is not stored
+-------------------------
+The format holds times, anchor identifiers, ranges and tag positions. It does
+not hold :attr:`RangeLog.t0` (an absolute time origin), trajectory velocities,
+attitudes or names; the writers refuse trajectories that carry velocities or
+attitudes rather than drop them silently. Floats are written in Python's
+shortest round-trip form, so values read back are bit-for-bit equal.
+
+Errors
+------
+Any violation raises :class:`uwbwb.DataFormatError` naming the file, the line
+(1-based, as an editor shows it) and, where it applies, the column.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from ..errors import DataFormatError, DataNotFoundError
+from ..types import Anchors, CleaningStep, RangeLog, Recording, Trajectory, _natural_key
+
+NAME = "tidy"
+
+RANGES_HEADERS = (
+    ("t_s", "anchor_id", "range_m"),
+    ("t_s", "anchor_id", "range_m", "status"),
+    ("t_s", "anchor_id", "range_m", "tag_id"),
+    ("t_s", "anchor_id", "range_m", "status", "tag_id"),
+)
+ANCHORS_HEADER = ("anchor_id", "x_m", "y_m", "z_m")
+TRUTH_HEADERS = (
+    ("t_s", "x_m", "y_m"),
+    ("t_s", "x_m", "y_m", "z_m"),
+    ("t_s", "x_m", "y_m", "tag_id"),
+    ("t_s", "x_m", "y_m", "z_m", "tag_id"),
+)
+#: Tag identifier used when a file has no ``tag_id`` column.
+DEFAULT_TAG = "tag"
+STATUS_OK = "OK"
+STATUS_ERR = "ERR"
+
+PathLike = str | os.PathLike
+
+
+# --------------------------------------------------------------------------------------------
+# Text helpers, shared with the other loader modules of this package
+# --------------------------------------------------------------------------------------------
+
+def _read_bytes(path: PathLike) -> bytes:
+    try:
+        return Path(path).read_bytes()
+    except FileNotFoundError:
+        raise DataNotFoundError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise DataFormatError(path, "is a directory, expected a text file") from None
+
+
+def _decode_lines(path: PathLike, data: bytes) -> list[str]:
+    """Lines of UTF-8 ``data`` without their ``\\n`` / ``\\r\\n`` terminators.
+
+    Line ``i`` of the result is line ``i + 1`` of the file. A final line
+    terminator does not start an extra (empty) line; a byte-order mark is
+    removed.
+    """
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise DataFormatError(path, f"not UTF-8 text (byte {data[exc.start]:#04x})", line=line) from None
+    if text.startswith("\ufeff"):
+        text = text[1:]
+    lines = text.split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    return [ln[:-1] if ln.endswith("\r") else ln for ln in lines]
+
+
+def _numbers(path: PathLike, values: Sequence[str], line_no: np.ndarray, column: str, *,
+             allow_empty: bool = False, allow: Sequence[float] = ()) -> np.ndarray:
+    """Parse text fields to float, vectorised; the first bad field raises.
+
+    Parameters
+    ----------
+    values
+        Field texts, one per data line (surrounding spaces are ignored).
+    line_no
+        1-based file line of each value, shape ``(len(values),)``.
+    column
+        Column name, for the error message.
+    allow_empty
+        Empty fields give NaN instead of an error.
+    allow
+        Non-finite values accepted as such (e.g. ``-inf``); all others, and
+        ``nan``, are errors.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(len(values),)``, float.
+    """
+    text = pd.Series(list(values), dtype=object).str.strip()
+    num = pd.to_numeric(text, errors="coerce")
+    try:
+        out = np.array(num, dtype=float)
+    except (TypeError, ValueError, OverflowError):  # huge integers come back as objects
+        out = np.array([_to_float(v) for v in num], dtype=float)
+    ok = np.isfinite(out)  # "nan", "inf" and overflowing literals are not finite
+    for special in allow:
+        ok |= out == special
+    empty = text.to_numpy(dtype=object) == ""
+    if allow_empty:
+        ok |= empty
+        out[empty] = np.nan
+    if not ok.all():
+        i = int(np.flatnonzero(~ok)[0])
+        what = "is empty" if empty[i] else f"is not a finite number: {values[i]!r}"
+        raise DataFormatError(path, f"{column} {what}", line=int(line_no[i]), column=column)
+    return out
+
+
+def _to_float(value) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError, OverflowError):
+        return math.nan
+
+
+def _identifiers(path: PathLike, values: Sequence[str], line_no: np.ndarray, column: str) -> list[str]:
+    """Stripped identifiers; empty or non-printable ones raise."""
+    out = [v.strip() for v in values]
+    for i, v in enumerate(out):
+        if not v or not v.isprintable():
+            raise DataFormatError(path, f"{column} must be a non-empty printable identifier, got {values[i]!r}",
+                                  line=int(line_no[i]), column=column)
+    return out
+
+
+def _csv_table(path: PathLike, headers: Sequence[tuple[str, ...]], what: str
+               ) -> tuple[tuple[str, ...], dict[str, list[str]], np.ndarray]:
+    """Header, columns of field texts and 1-based line numbers of a tidy CSV file.
+
+    Empty lines and ``#`` comment lines are skipped. The header must be one of
+    ``headers``; every data line must have as many fields as the header; a file
+    with no data line is an error.
+    """
+    lines = _decode_lines(path, _read_bytes(path))
+    numbered = [(i + 1, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")]
+    if not numbered:
+        raise DataFormatError(path, f"empty {what} file: expected a header line "
+                                    f"{','.join(headers[-1])!r} and data lines")
+    header_line, header_text = numbered[0]
+    header = tuple(f.strip() for f in header_text.split(","))
+    if header not in headers:
+        expected = " or ".join(repr(",".join(h)) for h in headers)
+        raise DataFormatError(path, f"header {header_text!r} is not a {what} header; expected {expected}",
+                              line=header_line)
+    body = numbered[1:]
+    if not body:
+        raise DataFormatError(path, f"{what} file has a header but no data lines", line=header_line)
+    fields = [ln.split(",") for _, ln in body]
+    line_no = np.array([n for n, _ in body], dtype=int)
+    for (n, _), f in zip(body, fields):
+        if len(f) != len(header):
+            raise DataFormatError(path, f"{len(f)} fields, the header has {len(header)} "
+                                        f"({','.join(header)})", line=n)
+    columns = {name: [f[k] for f in fields] for k, name in enumerate(header)}
+    return header, columns, line_no
+
+
+def _check_time_order(path: PathLike, t_s: np.ndarray, line_no: np.ndarray) -> None:
+    dec = np.flatnonzero(np.diff(t_s) < 0)
+    if dec.size:
+        i = int(dec[0]) + 1
+        raise DataFormatError(path, f"t_s goes backwards ({float(t_s[i])!r} after {float(t_s[i - 1])!r} on line "
+                                    f"{line_no[i - 1]}); rows must be in non-decreasing time order",
+                              line=int(line_no[i]), column="t_s")
+
+
+def _check_unique(path: PathLike, keys: pd.DataFrame, line_no: np.ndarray, what: str) -> None:
+    dup = keys.duplicated(keep=False).to_numpy()
+    if dup.any():
+        first_dup = keys.duplicated(keep="first").to_numpy()
+        i = int(np.flatnonzero(first_dup)[0])
+        same = np.flatnonzero((keys == keys.iloc[i]).all(axis=1).to_numpy())
+        key = tuple(v.item() if isinstance(v, np.generic) else v for v in keys.iloc[i])
+        raise DataFormatError(path, f"repeated {what} {key} (first on line "
+                                    f"{line_no[same[0]]})", line=int(line_no[i]))
+
+
+# --------------------------------------------------------------------------------------------
+# Readers
+# --------------------------------------------------------------------------------------------
+
+def read_anchors_csv(path: PathLike) -> Anchors:
+    """Anchor positions from an anchors file (``anchor_id,x_m,y_m,z_m``).
+
+    Returns
+    -------
+    Anchors
+        In file order; ``pos_m`` shape ``(n_anchors, 3)``, metres.
+
+    Raises
+    ------
+    DataFormatError
+        Bad header, field count, number or identifier, a repeated identifier,
+        or no anchors at all.
+    """
+    _, cols, line_no = _csv_table(path, (ANCHORS_HEADER,), "anchors")
+    ids = _identifiers(path, cols["anchor_id"], line_no, "anchor_id")
+    _check_unique(path, pd.DataFrame({"anchor_id": ids}), line_no, "anchor_id")
+    pos = np.column_stack([_numbers(path, cols[c], line_no, c) for c in ("x_m", "y_m", "z_m")])
+    return Anchors(tuple(ids), pos)
+
+
+def _read_ranges(path: PathLike, anchors: Anchors | None
+                 ) -> tuple[dict[str, RangeLog], tuple[CleaningStep, ...]]:
+    header, cols, line_no = _csv_table(path, RANGES_HEADERS, "ranges")
+    t_s = _numbers(path, cols["t_s"], line_no, "t_s")
+    _check_time_order(path, t_s, line_no)
+    anchor_id = _identifiers(path, cols["anchor_id"], line_no, "anchor_id")
+    n = t_s.size
+    if "status" in header:
+        status = np.array([s.strip() for s in cols["status"]], dtype=object)
+        bad = ~np.isin(status, [STATUS_OK, STATUS_ERR])
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise DataFormatError(path, f"status must be {STATUS_OK!r} or {STATUS_ERR!r}, got "
+                                        f"{cols['status'][i]!r}", line=int(line_no[i]), column="status")
+        err = status == STATUS_ERR
+    else:
+        err = np.zeros(n, dtype=bool)
+    tag_id = (_identifiers(path, cols["tag_id"], line_no, "tag_id") if "tag_id" in header
+              else [DEFAULT_TAG] * n)
+    range_m = _numbers(path, cols["range_m"], line_no, "range_m", allow_empty=True)
+    missing = np.isnan(range_m) & ~err
+    if missing.any():
+        i = int(np.flatnonzero(missing)[0])
+        raise DataFormatError(path, "range_m is empty on an OK row (mark failed measurements "
+                                    "with status ERR)", line=int(line_no[i]), column="range_m")
+    negative = (range_m < 0) & ~err
+    if negative.any():
+        i = int(np.flatnonzero(negative)[0])
+        raise DataFormatError(path, f"range_m must be >= 0, got {float(range_m[i])!r}",
+                              line=int(line_no[i]), column="range_m")
+    keys = pd.DataFrame({"t_s": t_s, "anchor_id": anchor_id, "tag_id": tag_id})
+    _check_unique(path, keys, line_no, "(t_s, anchor_id, tag_id)")
+    if anchors is None:
+        anchor_ids = tuple(sorted(set(anchor_id), key=_natural_key))
+    else:
+        anchor_ids = tuple(anchors.ids)
+        unknown = ~keys["anchor_id"].isin(anchor_ids).to_numpy()
+        if unknown.any():
+            i = int(np.flatnonzero(unknown)[0])
+            raise DataFormatError(path, f"anchor {anchor_id[i]!r} is not in the anchors file "
+                                        f"(known: {list(anchor_ids)})", line=int(line_no[i]),
+                                  column="anchor_id")
+    col = pd.Index(anchor_ids).get_indexer(keys["anchor_id"])
+    logs: dict[str, RangeLog] = {}
+    tags = keys["tag_id"].to_numpy(dtype=object)
+    for tag in dict.fromkeys(tag_id):
+        rows = np.flatnonzero(tags == tag)
+        epochs, inv = np.unique(t_s[rows], return_inverse=True)
+        r = np.full((epochs.size, len(anchor_ids)), np.nan)
+        keep = ~err[rows]
+        r[inv[keep], col[rows][keep]] = range_m[rows][keep]
+        logs[tag] = RangeLog(epochs, r, anchor_ids, tag)
+    cleaning = ()
+    if err.any():
+        cleaning = (CleaningStep("ERR status rows", int(err.sum()),
+                                 f"{Path(path).name}: ranges marked ERR are missing (NaN)"),)
+    return logs, cleaning
+
+
+def read_ranges_csv(path: PathLike, anchors: Anchors | None = None, *, with_cleaning: bool = False):
+    """Range logs, one per tag, from a ranges file.
+
+    Parameters
+    ----------
+    path
+        The ranges CSV (see the module docstring for the format).
+    anchors
+        If given, every ``anchor_id`` must be one of them and each log's columns
+        follow ``anchors.ids``; otherwise the columns are the identifiers found
+        in the file, in natural order (``A2`` before ``A10``).
+    with_cleaning
+        Also return the cleaning steps (the count of ``ERR`` rows).
+
+    Returns
+    -------
+    dict[str, RangeLog] or (dict[str, RangeLog], tuple[CleaningStep, ...])
+        Keyed by tag id in order of first appearance. ``range_m`` has shape
+        ``(T, n_anchors)`` with NaN where a tag–anchor pair has no range.
+    """
+    logs, cleaning = _read_ranges(path, anchors)
+    return (logs, cleaning) if with_cleaning else logs
+
+
+def read_truth_csv(path: PathLike) -> dict[str, Trajectory]:
+    """Ground-truth trajectories, one per tag, from a truth file.
+
+    Returns
+    -------
+    dict[str, Trajectory]
+        Keyed by tag id (``"tag"`` without a ``tag_id`` column), each named
+        ``"truth"``, ``pos_m`` shape ``(T, 2)`` or ``(T, 3)``, metres.
+    """
+    header, cols, line_no = _csv_table(path, TRUTH_HEADERS, "truth")
+    t_s = _numbers(path, cols["t_s"], line_no, "t_s")
+    _check_time_order(path, t_s, line_no)
+    axes = [c for c in ("x_m", "y_m", "z_m") if c in header]
+    pos = np.column_stack([_numbers(path, cols[c], line_no, c) for c in axes])
+    tag_id = (_identifiers(path, cols["tag_id"], line_no, "tag_id") if "tag_id" in header
+              else [DEFAULT_TAG] * t_s.size)
+    _check_unique(path, pd.DataFrame({"t_s": t_s, "tag_id": tag_id}), line_no, "(t_s, tag_id)")
+    tags = np.array(tag_id, dtype=object)
+    return {tag: Trajectory(t_s[tags == tag], pos[tags == tag], name="truth")
+            for tag in dict.fromkeys(tag_id)}
+
+
+def load_recording(ranges_csv: PathLike, anchors_csv: PathLike, truth_csv: PathLike | None = None,
+                   name: str | None = None) -> Recording:
+    """A :class:`~uwbwb.Recording` from tidy CSV files.
+
+    Parameters
+    ----------
+    ranges_csv, anchors_csv, truth_csv
+        The files (format in the module docstring); truth is optional.
+    name
+        Recording name; defaults to the ranges file name without extension.
+
+    Returns
+    -------
+    Recording
+        ``dataset="tidy"``; ``cleaning`` counts the ``ERR`` rows; ``meta``
+        holds the source paths.
+    """
+    anchors = read_anchors_csv(anchors_csv)
+    ranges, cleaning = _read_ranges(ranges_csv, anchors)
+    truth: dict[str, Trajectory] = {}
+    if truth_csv is not None:
+        truth = read_truth_csv(truth_csv)
+        unknown = [t for t in truth if t not in ranges]
+        if unknown:
+            raise DataFormatError(truth_csv, f"truth for tags {unknown} that have no ranges in "
+                                             f"{Path(ranges_csv).name} (tags there: {list(ranges)})")
+    meta = {"source": {"ranges": str(ranges_csv), "anchors": str(anchors_csv),
+                       "truth": None if truth_csv is None else str(truth_csv)}}
+    return Recording(NAME, name or Path(ranges_csv).stem, anchors, ranges, truth,
+                     cleaning=cleaning, meta=meta)
+
+
+# --------------------------------------------------------------------------------------------
+# Writers
+# --------------------------------------------------------------------------------------------
+
+def _check_identifiers(ids, what: str) -> None:
+    for i in ids:
+        s = str(i)
+        if not s or s != s.strip() or "," in s or not s.isprintable() or s.startswith("#"):
+            raise ValueError(f"{what} {s!r} cannot be written: identifiers must be non-empty, printable, "
+                             f"without commas or surrounding spaces, and not start with '#'")
+
+
+def _write(path: PathLike, df: pd.DataFrame) -> Path:
+    path = Path(path)
+    df.to_csv(path, index=False, lineterminator="\n", na_rep="")
+    return path
+
+
+def write_anchors_csv(path: PathLike, anchors: Anchors) -> Path:
+    """Write ``anchors`` as an anchors file; returns the path."""
+    _check_identifiers(anchors.ids, "anchor_id")
+    return _write(path, anchors.to_frame())
+
+
+def write_ranges_csv(path: PathLike, ranges: Mapping[str, RangeLog] | RangeLog) -> Path:
+    """Write range logs as a ranges file with the full header.
+
+    Rows are ordered by time, then tag, then anchor column. Missing ranges
+    (NaN) are not written, except that an epoch with no range at all is kept
+    as one ``ERR`` row so that reading the file gives the same epochs back.
+
+    Parameters
+    ----------
+    ranges
+        One :class:`RangeLog` or a mapping tag id → log (the mapping key is the
+        tag id written).
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    if isinstance(ranges, RangeLog):
+        ranges = {ranges.tag_id: ranges}
+    _check_identifiers(ranges, "tag_id")
+    parts = []
+    for order, (tag, log) in enumerate(ranges.items()):
+        _check_identifiers(log.anchor_ids, "anchor_id")
+        if log.n_anchors == 0:
+            raise ValueError(f"range log of tag {tag!r} has no anchors")
+        finite = np.isfinite(log.range_m)
+        ti, ai = np.nonzero(finite)
+        empty = np.flatnonzero(~finite.any(axis=1))
+        parts.append(pd.DataFrame({
+            "t_s": np.concatenate([log.t_s[ti], log.t_s[empty]]),
+            "anchor_id": np.concatenate([np.asarray(log.anchor_ids, dtype=object)[ai],
+                                         np.full(empty.size, log.anchor_ids[0], dtype=object)]),
+            "range_m": np.concatenate([log.range_m[ti, ai], np.full(empty.size, np.nan)]),
+            "status": [STATUS_OK] * ti.size + [STATUS_ERR] * empty.size,
+            "tag_id": tag,
+            "_tag": order,
+            "_col": np.concatenate([ai, np.zeros(empty.size, dtype=int)]),
+        }))
+    df = (pd.concat(parts, ignore_index=True) if parts else
+          pd.DataFrame(columns=["t_s", "anchor_id", "range_m", "status", "tag_id", "_tag", "_col"]))
+    df = df.sort_values(["t_s", "_tag", "_col"], kind="stable").drop(columns=["_tag", "_col"])
+    return _write(path, df)
+
+
+def write_truth_csv(path: PathLike, truth: Mapping[str, Trajectory] | Trajectory, *,
+                    tag_id: str = DEFAULT_TAG) -> Path:
+    """Write ground-truth trajectories as a truth file (``t_s,x_m,y_m[,z_m],tag_id``).
+
+    Parameters
+    ----------
+    truth
+        One trajectory (written for ``tag_id``) or a mapping tag id →
+        trajectory. All must have the same dimension (2 or 3).
+
+    Raises
+    ------
+    ValueError
+        A trajectory carries velocities or attitudes (the format holds
+        positions only: pass ``dataclasses.replace(traj, vel_mps=None, rot=None)``
+        to write positions alone), or dimensions differ.
+    """
+    if isinstance(truth, Trajectory):
+        truth = {tag_id: truth}
+    _check_identifiers(truth, "tag_id")
+    dims = {traj.dim for traj in truth.values()}
+    if len(dims) > 1:
+        raise ValueError(f"trajectories of different dimensions {sorted(dims)} cannot share one truth file")
+    parts = []
+    for order, (tag, traj) in enumerate(truth.items()):
+        if traj.vel_mps is not None or traj.rot is not None:
+            raise ValueError(f"truth of tag {tag!r} carries velocities or attitudes, which the tidy truth "
+                             f"format does not hold; drop them explicitly with dataclasses.replace")
+        parts.append(traj.to_frame().assign(tag_id=tag, _tag=order))
+    dim = dims.pop() if dims else 3
+    cols = ["t_s", "x_m", "y_m", "z_m"][: dim + 1] + ["tag_id"]
+    df = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=cols + ["_tag"])
+    df = df.sort_values(["t_s", "_tag"], kind="stable")[cols]
+    return _write(path, df)
+
+
+def write_recording(recording: Recording, directory: PathLike) -> dict[str, Path]:
+    """Write ``recording`` as ``ranges.csv``, ``anchors.csv`` (and ``truth.csv``) in ``directory``.
+
+    Returns
+    -------
+    dict[str, pathlib.Path]
+        Keys ``ranges``, ``anchors`` and, when the recording has truth,
+        ``truth``: ``load_recording(p["ranges"], p["anchors"], p.get("truth"))``
+        reads the recording back.
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    paths = {"ranges": write_ranges_csv(directory / "ranges.csv", recording.ranges),
+             "anchors": write_anchors_csv(directory / "anchors.csv", recording.anchors)}
+    if recording.truth:
+        paths["truth"] = write_truth_csv(directory / "truth.csv", recording.truth)
+    return paths
