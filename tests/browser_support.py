@@ -393,7 +393,8 @@ def open_and_run(page, server: LabServer, name: str, *, workspace: str,
     Raises AssertionError (naming the notebook) on a cell error, a dead kernel or
     a timeout.
     """
-    page.goto(server.lab_url(name, workspace), wait_until="domcontentloaded")
+    page.goto(server.lab_url(name, workspace), wait_until="domcontentloaded",
+              timeout=OPEN_TIMEOUT_S * 1000)
     deadline = time.monotonic() + min(timeout_s, OPEN_TIMEOUT_S)
     state: dict = {}
     while True:  # open, kernel started and idle
