@@ -134,3 +134,50 @@ def test_figures(office_runs):
     ax = mm.scenario_figure(walk.office(), truth=test[0].truth)
     assert "6 anchors" in ax.get_title()
     plt.close("all")
+
+
+def test_sigma_fit_methods_and_common_mode(los_run):
+    # a range error common to all anchors cancels in every TDoA: the 'tdoa' fit ignores it, 'rms' does not
+    shifted = replace(los_run, ranges=RangeLog(los_run.ranges.t_s, los_run.ranges.range_m + 0.4,
+                                               los_run.ranges.anchor_ids, los_run.tag))
+    np.testing.assert_allclose(mm.fit_range_sigma(shifted), mm.fit_range_sigma(los_run), atol=1e-9)
+    assert np.all(mm.fit_range_sigma(shifted, method="rms") > 0.35)
+    np.testing.assert_allclose(mm.fit_range_sigma(shifted, method="robust"), 0.05, rtol=0.15)
+    assert np.all(mm.fit_range_sigma(los_run, floor_m=0.2) == 0.2)
+    with pytest.raises(ValueError, match="method"):
+        mm.fit_range_sigma(los_run, method="mad")
+
+
+def test_split_runs_and_study(office_runs):
+    cal, test = office_runs
+    first, second = mm.split_runs(test, 0.5)
+    assert first[0].name.startswith("office 0–") and second[0].ranges.t_s[0] >= first[0].ranges.t_s[-1]
+    assert len(first[0].ranges) + len(second[0].ranges) == len(test[0].ranges)
+    with pytest.raises(ValueError, match="fraction"):
+        mm.split_runs(test, 1.0)
+    grids = {"RW": [1.0], "RF": [1.0, 3.0], "RJ": [3.0]}
+    study = mm.run_study(cal, test, grids=grids, progress=False)
+    assert study.best == {"RW": 1.0, "RF": study.best["RF"], "RJ": 3.0}
+    assert set(study.sigma_m) == {"tag1", "tag2"} and study.sigma_m["tag1"].shape == (6,)
+    table = study.table()
+    assert list(table.columns) == ["raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ"] and len(table) == 2
+    assert study.estimate_for("office", "tag2").run.tag == "tag2"
+    with pytest.raises(KeyError, match="no test result"):
+        study.estimate_for("office", "tag9")
+    with pytest.raises(ValueError, match="no calibration run"):
+        mm.run_study(cal[:1], test, grids=grids, progress=False)
+
+
+def test_ranging_summary_and_covariance_figure(los_run):
+    import matplotlib.pyplot as plt
+
+    cfg = walk.office(duration_s=10.0)
+    rec, truth = walk.simulate_walk(cfg, rng=np.random.default_rng(2))
+    runs = mm.tag_runs(rec, z_m={"tag1": 1.8, "tag2": 1.3})
+    table = mm.ranging_summary(runs, truth)
+    assert table.loc[("office", "tag2"), "NLOS links (%)"] > table.loc[("office", "tag1"), "NLOS links (%)"]
+    assert abs(table.loc[("office", "tag1"), "LOS error mean (cm)"]) < 2
+    emp, mod = mm.tdoa_noise_check(los_run, mm.fit_range_sigma(los_run))
+    fig = mm.covariance_figure(emp, mod, list("BCDEF"), title="x")
+    assert len(fig.axes) == 3
+    plt.close(fig)

@@ -10,7 +10,8 @@ The pipeline for one tag of one recording (:class:`TagRun`):
 
 1. ranges → pseudo-TDoA to a reference anchor (:class:`~uwbwb.models.tdoa.TdoaLog`);
 2. range-noise level per anchor from a *calibration* run with truth
-   (:func:`fit_range_sigma`) → TDoA covariance ``Σ = diag(σ_j²) + σ_ref² 11ᵀ``;
+   (:func:`fit_range_sigma`; by default the part of the range error that does
+   not cancel in a TDoA) → TDoA covariance ``Σ = diag(σ_j²) + σ_ref² 11ᵀ``;
 3. driving-noise calibration: CEP95 of each EKF over a grid of driving
    standard deviations on the calibration run (:func:`calibration_curves`),
    the minimum per model (:func:`best_sigmas`);
@@ -44,8 +45,8 @@ from ..types import Anchors, RangeLog, Recording, Trajectory
 __all__ = [
     "MODELS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "DEFAULT_GRIDS",
     "TagRun", "Estimates", "tag_runs", "thin", "synthetic_acquisition", "fit_range_sigma",
-    "raw_multilateration", "estimate", "calibration_curves", "best_sigmas", "cep95_table", "ranking",
-    "paper_table", "tdoa_noise_check", "scenario_figure", "calibration_figure", "paths_figure", "cdf_figure",
+    "raw_multilateration", "ranging_summary", "estimate", "calibration_curves", "best_sigmas", "cep95_table", "ranking",
+    "paper_table", "split_runs", "Study", "run_study", "tdoa_noise_check", "scenario_figure", "covariance_figure", "calibration_figure", "paths_figure", "cdf_figure",
 ]
 
 #: Motion models in the thesis' order.
@@ -254,16 +255,52 @@ def synthetic_acquisition(name: str, *, seed: int, duration_s: float | None = No
 # --------------------------------------------------------------------------- estimation
 
 
-def fit_range_sigma(run: TagRun, *, robust: bool = False, floor_m: float = 0.02) -> np.ndarray:
+def ranging_summary(runs: Sequence[TagRun], truth: walk.WalkTruth) -> pd.DataFrame:
+    """What the simulator did to the ranges of each tag: NLOS share, error by condition, dropouts."""
+    rows = []
+    for r in runs:
+        nlos, err = truth.nlos[r.tag], truth.range_error_m[r.tag]
+        ok = np.isfinite(err)
+        rows.append({"run": r.name, "tag": r.tag, "epochs": len(r.ranges), "NLOS links (%)": 100 * nlos.mean(),
+                     "LOS error mean (cm)": 100 * err[ok & ~nlos].mean(),
+                     "LOS error sd (cm)": 100 * err[ok & ~nlos].std(),
+                     "NLOS error mean (cm)": 100 * err[ok & nlos].mean() if (ok & nlos).any() else np.nan,
+                     "missing ranges (%)": 100 * (~ok).mean()})
+    return pd.DataFrame(rows).set_index(["run", "tag"])
+
+
+def fit_range_sigma(run: TagRun, *, method: str = "tdoa", floor_m: float = 0.02) -> np.ndarray:
     """Range-noise standard deviation per anchor from a run with truth, ``(n_anchors,)``, metres.
 
-    ``robust=False`` (default): RMS of measured − true range, biases and NLOS
-    excursions included — the whole error the filter has to live with, as the
-    thesis builds its covariance from the measurement error. ``robust=True``:
-    1.4826·MAD (the spread around the median only). Values are floored at
-    ``floor_m`` (range resolution and unmodelled effects).
+    The thesis builds its TDoA covariance from the measurement errors of its
+    acquisitions; three readings of that are offered:
+
+    ``"tdoa"`` (default)
+        RMS of the range errors after removing, at every epoch, their mean over
+        the anchors measured (× ``sqrt(n/(n−1))`` to undo the shrinkage for
+        independent errors). A range error common to all anchors cancels in
+        every TDoA, so this is the part of the error the TDoA filter sees; the
+        rest (per-anchor biases, NLOS excursions) stays in.
+    ``"rms"``
+        RMS of the range errors themselves (common part included).
+    ``"robust"``
+        1.4826·MAD around the median (spread only, biases and outliers excluded).
+
+    Values are floored at ``floor_m`` (range resolution, unmodelled effects).
     """
-    sig = range_sigma_from_truth(run.ranges.range_m, run.true_range_m(), robust=robust)
+    err = run.ranges.range_m - run.true_range_m()
+    if method == "tdoa":
+        ok = np.isfinite(err)
+        n = ok.sum(axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            common = np.where(n >= 2, np.nansum(np.where(ok, err, 0.0), axis=1, keepdims=True) / n, np.nan)
+            shrink = np.where(n >= 2, n / np.maximum(n - 1, 1), np.nan)
+        centred = (err - common) * np.sqrt(shrink)
+        sig = range_sigma_from_truth(centred, np.zeros_like(centred), robust=False)
+    elif method in ("rms", "robust"):
+        sig = range_sigma_from_truth(run.ranges.range_m, run.true_range_m(), robust=method == "robust")
+    else:
+        raise ValueError(f"method must be 'tdoa', 'rms' or 'robust', got {method!r}")
     return np.maximum(sig, floor_m)
 
 
@@ -411,6 +448,81 @@ def best_sigmas(curves: pd.DataFrame) -> dict[str, float]:
     return {m: float(s) for m, s in zip(best["model"], best["sigma"])}
 
 
+def split_runs(runs: Sequence[TagRun], fraction: float = 0.5) -> tuple[list[TagRun], list[TagRun]]:
+    """Split each run in time: the first ``fraction`` for calibration, the rest for testing.
+
+    The names say which part (``"fast 0–67 s"``). Used when a dataset has a single
+    run of the kind (the LIAS ``fast`` run): calibration and test never share epochs.
+    """
+    if not 0 < fraction < 1:
+        raise ValueError(f"fraction must be in (0, 1), got {fraction!r}")
+    first, second = [], []
+    for r in runs:
+        t0, t1 = float(r.ranges.t_s[0]), float(r.ranges.t_s[-1])
+        tm = t0 + fraction * (t1 - t0)
+        first.append(r.between(t0, tm, name=f"{r.name} {t0:.0f}–{tm:.0f} s"))
+        second.append(r.between(tm, t1 + 1e-9, name=f"{r.name} {tm:.0f}–{t1:.0f} s"))
+    return first, second
+
+
+@dataclass(frozen=True)
+class Study:
+    """Calibrate on some runs, test on others.
+
+    Attributes
+    ----------
+    curves
+        Calibration curves (:func:`calibration_curves`).
+    best
+        Driving standard deviation per model (:func:`best_sigmas`).
+    sigma_m
+        Range-noise standard deviation per anchor, per tag, fitted on the calibration runs.
+    estimates
+        One :class:`Estimates` per test run.
+    """
+
+    curves: pd.DataFrame
+    best: dict
+    sigma_m: dict
+    estimates: list
+
+    def table(self, methods: Sequence[str] = ("raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ")) -> pd.DataFrame:
+        """CEP95 per test run (rows) and method (columns), metres."""
+        return cep95_table(self.estimates, methods)
+
+    def estimate_for(self, name: str, tag: str) -> Estimates:
+        """The test result of run ``name`` and ``tag``."""
+        for e in self.estimates:
+            if e.run.name == name and e.run.tag == tag:
+                return e
+        raise KeyError(f"no test result for {name}/{tag}; have {[e.run.key for e in self.estimates]}")
+
+
+def run_study(cal_runs: Sequence[TagRun], test_runs: Sequence[TagRun], *, grids=None,
+              models: Sequence[str] = MODELS, ref: int = 0, gate_prob: float | None = None,
+              correlated: bool = True, sigma_method: str = "tdoa", progress: bool = True) -> Study:
+    """Fit range noise and driving noise on ``cal_runs``, then run every estimator on ``test_runs``.
+
+    A test run takes the range-noise fit of the calibration run with the same tag
+    (pooled over those runs by taking the RMS when a tag has several). The driving
+    noise per model is one value for all tags (:func:`best_sigmas`).
+    """
+    fits = {r.key: fit_range_sigma(r, method=sigma_method) for r in cal_runs}
+    per_tag: dict[str, list] = {}
+    for r in cal_runs:
+        per_tag.setdefault(r.tag, []).append(fits[r.key])
+    sigma_tag = {t: np.sqrt(np.mean(np.square(v), axis=0)) for t, v in per_tag.items()}
+    missing = sorted({r.tag for r in test_runs} - set(sigma_tag))
+    if missing:
+        raise ValueError(f"test tags {missing} have no calibration run")
+    curves = calibration_curves(cal_runs, fits, grids=grids, models=models, ref=ref, gate_prob=gate_prob,
+                                correlated=correlated, progress=progress)
+    best = best_sigmas(curves)
+    ests = [estimate(r, sigma_tag[r.tag], best, ref=ref, gate_prob=gate_prob, correlated=correlated, models=models)
+            for r in test_runs]
+    return Study(curves, best, sigma_tag, ests)
+
+
 def cep95_table(estimates: Iterable[Estimates], methods: Sequence[str]) -> pd.DataFrame:
     """CEP95 (m) per run/tag (rows) and method (columns)."""
     rows = []
@@ -469,6 +581,21 @@ def scenario_figure(config: walk.WalkScenario, *, ax=None, truth: Trajectory | N
     ax.legend(loc="best", fontsize="small")
     return ax
 
+
+
+def covariance_figure(empirical: np.ndarray, model: np.ndarray, labels: Sequence[str], *, title: str = ""):
+    """Empirical TDoA error covariance beside the reference-correlated model, in cm², same colour scale."""
+    fig, axes = plt.subplots(1, 2, figsize=(8.4, 3.8))
+    vmax = 1e4 * max(np.abs(empirical).max(), np.abs(model).max())
+    for ax, M, name in zip(axes, (empirical, model), ("empirical (truth)", "model diag(σ²) + σ_ref² 11ᵀ")):
+        im = ax.imshow(1e4 * M, cmap="RdBu_r", vmin=-vmax, vmax=vmax)
+        ax.set_xticks(range(len(labels)), labels)
+        ax.set_yticks(range(len(labels)), labels)
+        ax.set_title(name, fontsize="medium")
+    fig.colorbar(im, ax=axes, label="cm²", shrink=0.85)
+    if title:
+        fig.suptitle(title)
+    return fig
 
 
 def calibration_figure(curves: pd.DataFrame, *, best: Mapping[str, float] | None = None,
