@@ -107,6 +107,20 @@ def test_calibration_rules_on_hand_computed_case(calib):
     np.testing.assert_allclose(sd[0], model.sigma_m[0])
 
 
+def test_pooled_sigma_rule_adds_the_spread_between_locations(calib):
+    err, sets, loc = calib
+    model = SetNoiseModel.fit(err, sets, loc, sigma_rule="pooled")
+    paper = SetNoiseModel.fit(err, sets, loc)
+    np.testing.assert_allclose(model.mu_m, paper.mu_m)
+    mx = (30 * 0.1 + 40 * 0.3) / 70
+    var_x = (30 * (_sample_std(0.02, 30) ** 2 + (0.1 - mx) ** 2) + 40 * (_sample_std(0.06, 40) ** 2 + (0.3 - mx) ** 2)) / 70
+    assert model.sigma_m[0, 0] == pytest.approx(np.sqrt(var_x))
+    np.testing.assert_allclose(model.sigma_m[1], paper.sigma_m[1])       # one location: the rules agree
+    np.testing.assert_allclose(model.default_sigma_m, paper.default_sigma_m)
+    with pytest.raises(ValueError, match="sigma_rule"):
+        SetNoiseModel.fit(err, sets, loc, sigma_rule="median")
+
+
 def test_gate_is_at_least_30(calib):
     err, sets, loc = calib
     table = SetNoiseModel.fit(err, sets, loc).meta["per_location"]

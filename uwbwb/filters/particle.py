@@ -13,6 +13,7 @@ normalise_log_weights   log-weights that sum to one (eq. 10 of paper 000), and t
 coefficient_of_variation   eq. 12 of paper 000, ``CV = (1/K) Σ (K w − 1)²``
 effective_sample_size   ``ESS = K / (1 + CV) = 1 / Σ w²``
 weighted_mean           ``Σ w x`` (eq. 11 of paper 000)
+systematic_counts       copy counts of systematic resampling (O(K), no search)
 systematic_indices, multinomial_indices    ancestor indices from given uniforms
 resample_indices        the same, drawing the uniforms from ``rng``
 resample                resample the rows whose ESS fell below ``threshold · K``
@@ -121,12 +122,50 @@ def _cdf(w: np.ndarray) -> np.ndarray:
     return c
 
 
+def systematic_counts(w: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Copy counts of systematic resampling: how many new particles descend from each particle.
+
+    With cumulative weights ``c`` and positions ``(j + u)/K``, ``j = 0 … K−1``, particle ``k``
+    is copied ``n_k = N_k − N_{k−1}`` times, ``N_k = #{j : (j + u)/K < c_k} = ⌈K c_k − u⌉``.
+    Each ``n_k`` is ``⌊K w_k⌋`` or ``⌈K w_k⌉``; the counts of a row sum to K. O(K), no search.
+
+    Parameters
+    ----------
+    w
+        Normalised weights, shape ``(..., K)`` (float32 is kept in float32).
+    u
+        One uniform variate in ``[0, 1)`` per row, shape ``(...)``.
+
+    Returns
+    -------
+    ndarray of int32, shape ``(..., K)``
+    """
+    w = np.asarray(w)
+    K = w.shape[-1]
+    if K >= 2 ** 31 - 1:
+        raise ValueError(f"too many particles for int32 counts: {K}")
+    dtype = np.float32 if w.dtype == np.float32 else np.float64
+    u = np.asarray(u, dtype)
+    if u.shape != w.shape[:-1]:
+        raise ValueError(f"systematic resampling needs one uniform per row, shape {w.shape[:-1]}, got {u.shape}")
+    c = np.cumsum(w, axis=-1, dtype=dtype)
+    # ⌈K c − u⌉ = ⌊K c + 1 − u⌋ (except on a null set), and K c + 1 − u > 0, so truncation floors
+    c *= K / c[..., -1:]
+    c += (1 - u)[..., None]
+    n_below = c.astype(np.int32)              # int32: converting float32 to int64 is several times slower
+    np.minimum(n_below, K, out=n_below)       # guards against rounding of K·c_k only
+    n_below[..., -1] = K
+    counts = np.empty_like(n_below)
+    counts[..., 0] = n_below[..., 0]
+    np.subtract(n_below[..., 1:], n_below[..., :-1], out=counts[..., 1:])
+    return counts
+
+
 def systematic_indices(w: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Ancestor indices by systematic resampling.
 
-    Particle ``j`` of the new set is the ancestor whose cumulative-weight
-    interval ``[c_{k−1}, c_k)`` holds ``(j + u) / K``. Computed from copy counts
-    ``n_k = ⌈K c_k − u⌉ − ⌈K c_{k−1} − u⌉``, so it costs O(K) per row and needs no search.
+    Particle ``j`` of the new set is the ancestor whose cumulative-weight interval
+    ``[c_{k−1}, c_k)`` holds ``(j + u) / K`` (see :func:`systematic_counts`).
 
     Parameters
     ----------
@@ -141,17 +180,7 @@ def systematic_indices(w: np.ndarray, u: np.ndarray) -> np.ndarray:
     """
     w = np.asarray(w)
     K = w.shape[-1]
-    c = _cdf(w)
-    u = np.asarray(u, c.dtype)
-    if u.shape != w.shape[:-1]:
-        raise ValueError(f"systematic_indices: need one uniform per row, shape {w.shape[:-1]}, got {u.shape}")
-    n_below = c                               # reuse the buffer: n_below[k] = #{j : (j + u)/K < c_k}
-    n_below *= K
-    n_below -= u[..., None]
-    np.ceil(n_below, out=n_below)
-    np.clip(n_below, 0, K, out=n_below)       # guards against rounding of K·c_k only
-    n_below[..., -1] = K
-    counts = np.diff(n_below.astype(np.intp), axis=-1, prepend=0).reshape(-1)
+    counts = systematic_counts(w, u).reshape(-1)
     rows = counts.size // K
     ancestors = np.repeat(np.arange(rows * K), counts) - np.repeat(K * np.arange(rows), K)
     return ancestors.reshape(w.shape)

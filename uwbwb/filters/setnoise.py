@@ -392,12 +392,14 @@ def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampl
     """All steps for one block of trials.
 
     State components are separate ``(b, M, S, K)`` arrays (trial, variant, σ_d,
-    particle), updated in place. Returns positions ``(b, M, S, T, 2)`` relative to
-    the start, resampling counts and ESS sums ``(b, M, S)``.
+    particle), updated in place; resampling gathers into spare buffers and swaps.
+    Returns positions ``(b, M, S, T, 2)`` relative to the start, resampling counts
+    and ESS sums ``(b, M, S)``.
     """
     b, S, T = len(rngs), sig_d.size, centre.shape[1]
     shape = (b, M, S, K)
-    x, vx, y, vy = (np.zeros(shape, dtype) for _ in range(4))
+    state = [np.zeros(shape, dtype) for _ in range(4)]              # x, ẋ, y, ẏ
+    spare = [np.empty(shape, dtype) for _ in range(4)]
     logw = np.full(shape, -np.log(K), dtype)
     w = np.empty(shape, dtype)
     tmp = np.empty(shape, dtype)
@@ -408,12 +410,13 @@ def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampl
     pos = np.empty((b, M, S, T, 2), dtype)
     n_res = np.zeros((b, M, S), np.int64)
     ess_sum = np.zeros((b, M, S))
-    trial_of_row = np.repeat(np.arange(b), M * S)
+    rows = _Rows(rngs, M * S, K, resampler, dtype)
     c_x, c_y = (centre[:, :, i].T.reshape(T, 1, M, 1, 1) for i in (0, 1))
     a_x, a_y = (half_prec[:, :, i].T.reshape(T, 1, M, 1, 1) for i in (0, 1))
     log_k = dtype.type(-np.log(K))
 
     for k in range(T):
+        x, vx, y, vy = state
         if k:
             # eq. 3: positions move with the old velocity, then the velocity takes its kick
             np.multiply(vx, dt[k], out=tmp)
@@ -446,32 +449,62 @@ def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampl
         ess_sum += ess
         need = ess < ess_fraction * K
         if need.any():
-            _resample_rows(need, w, (x, vx, y, vy), logw, rngs, trial_of_row, resampler, log_k)
+            flat = rows.ancestors(need, w)
+            for i in range(4):
+                np.take(state[i].reshape(-1), flat, out=spare[i].reshape(-1))
+            state, spare = spare, state
+            logw[need] = log_k
             n_res += need
         if bar is not None:
             bar.update(1)
     return pos, n_res, ess_sum
 
 
-def _resample_rows(need, w, arrays, logw, rngs, trial_of_row, resampler, log_k):
-    """Resample the flagged rows in place; each trial's variates come from its own generator."""
-    K = w.shape[-1]
-    rows = np.flatnonzero(need)
-    owner = trial_of_row[rows]
-    wr = w.reshape(-1, K)[rows]
-    per_row = 1 if resampler == "systematic" else K
-    u = np.empty((rows.size, per_row))
-    for j in np.unique(owner):
-        sel = owner == j
-        u[sel] = rngs[j].random((int(sel.sum()), per_row))
-    if resampler == "systematic":
-        idx = particle.systematic_indices(wr, u[:, 0])
-    else:
-        idx = particle.multinomial_indices(wr, u)
-    flat = idx + (rows * K)[:, None]
-    for a in arrays:
-        a.reshape(-1, K)[rows] = a.reshape(-1)[flat]
-    logw.reshape(-1, K)[rows] = log_k
+class _Rows:
+    """Ancestor indices for the rows of a block, as flat indices into the whole block.
+
+    Rows that are not resampled keep their particles (identity). Each trial's
+    uniform variates come from its own generator, drawn in row order for its
+    flagged rows only, so a trial's randomness does not depend on its block.
+    """
+
+    def __init__(self, rngs, rows_per_trial, K, resampler, dtype):
+        self.rngs, self.K, self.resampler = rngs, K, resampler
+        self.trial_of_row = np.repeat(np.arange(len(rngs)), rows_per_trial)
+        self.identity = np.arange(len(rngs) * rows_per_trial * K)
+        self.dtype = dtype
+
+    def _uniforms(self, rows: np.ndarray, per_row: int) -> np.ndarray:
+        owner = self.trial_of_row[rows]
+        u = np.empty((rows.size, per_row))
+        for j in np.unique(owner):
+            sel = owner == j
+            u[sel] = self.rngs[j].random((int(sel.sum()), per_row))
+        return u
+
+    def ancestors(self, need: np.ndarray, w: np.ndarray) -> np.ndarray:
+        K = self.K
+        need = need.reshape(-1)
+        rows = np.flatnonzero(need)
+        w2 = w.reshape(-1, K)
+        if self.resampler == "systematic":
+            u = self._uniforms(rows, 1)[:, 0]
+            if rows.size > need.size // 2:
+                # most rows resample: one pass over the whole block, identity counts elsewhere
+                u_all = np.zeros(need.size)
+                u_all[rows] = u
+                counts = particle.systematic_counts(w2, u_all)
+                counts[~need] = 1
+                return np.repeat(self.identity, counts.reshape(-1))
+            counts = particle.systematic_counts(w2[rows], u)
+            flat = self.identity.copy()
+            base = self.identity.reshape(-1, K)[rows].reshape(-1)
+            flat.reshape(-1, K)[rows] = np.repeat(base, counts.reshape(-1)).reshape(-1, K)
+            return flat
+        idx = particle.multinomial_indices(w2[rows], self._uniforms(rows, K))
+        flat = self.identity.copy()
+        flat.reshape(-1, K)[rows] = idx + (rows * K)[:, None]
+        return flat
 
 
 # --------------------------------------------------------------------------- Kalman filter

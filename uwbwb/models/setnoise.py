@@ -26,6 +26,7 @@ Interpretations of the paper made here (also stated in notebook 01):
   four parameters, σ included (not a pooled variance).
 - The facility-wide model is the mean and standard deviation of *all*
   calibration errors, whatever their set or location.
+- Eq. 9's sign is taken from eq. 6 (see :func:`log_likelihood`).
 """
 
 from __future__ import annotations
@@ -197,7 +198,13 @@ def log_likelihood(pos_m: np.ndarray, z_m: np.ndarray, mu_m: np.ndarray, sigma_m
                    *, normalised: bool = False) -> np.ndarray:
     """Log of the paper's eq. 9: likelihood of fix ``z`` given state positions ``pos``.
 
-    ``log p = −(x − μx − x̃)² / (2σx²) − (y − μy − ỹ)² / (2σy²)``
+    ``log p = −(x + μx − x̃)² / (2σx²) − (y + μy − ỹ)² / (2σy²)``
+
+    Sign: eq. 9 prints ``(x − μx) − x̃``, but the paper defines μ as the mean shift
+    of the measurements relative to the truth (section II-B1) and writes
+    ``x̃ = x + N(μx, σx)`` (eq. 6); a particle's most probable measurement is then
+    ``x + μx``, which is what we use (the printed sign would add the bias twice
+    instead of removing it).
 
     Eq. 9 omits the Gaussian normalising constant; it depends only on the set,
     not on the particle, and cancels when weights are normalised (eq. 10).
@@ -373,7 +380,8 @@ class SetNoiseModel:
     # ------------------------------------------------------------------ fit
     @classmethod
     def fit(cls, error_m: np.ndarray, set_id: np.ndarray, location: np.ndarray, *,
-            min_count: int = MIN_COUNT, min_sigma_m: float = 1e-3, sensor_ids=None) -> "SetNoiseModel":
+            min_count: int = MIN_COUNT, sigma_rule: str = "paper", min_sigma_m: float = 1e-3,
+            sensor_ids=None) -> "SetNoiseModel":
         """Calibrate from fixes at known locations (paper section II-B2).
 
         Rules, in the paper's words and order:
@@ -385,6 +393,13 @@ class SetNoiseModel:
            number of its measurements at each location;
         3. a facility-wide model — mean and standard deviation of all calibration
            errors — serves every set that has no model.
+
+        Rule 2 applied to σ (``sigma_rule="paper"``) keeps only the spread *within*
+        locations: when a set's bias changes from place to place (multipath,
+        geometry), the model is overconfident away from the calibration spots.
+        ``sigma_rule="pooled"`` instead uses the law of total variance over the gated
+        locations, ``σ² = Σ n_l (σ_l² + (μ_l − μ)²) / Σ n_l`` — the spread of the set's
+        error when the location is not known (μ is the same weighted mean).
 
         Parameters
         ----------
@@ -399,6 +414,8 @@ class SetNoiseModel:
         min_sigma_m
             Floor on every fitted σ (quantised fixes can repeat exactly, and a zero σ
             would make eq. 9 infinite); ``meta["n_sigma_floored"]`` counts the raised values.
+        sigma_rule
+            ``"paper"`` (count-weighted average of σ) or ``"pooled"`` (see above).
         sensor_ids
             Sensor names for labels; defaults to ``'0'..'7'`` (or as many as the ids need).
 
@@ -407,6 +424,8 @@ class SetNoiseModel:
         SetNoiseModel
             With ``meta["per_location"]``, the table of rule 1 (all sets, gate flag included).
         """
+        if sigma_rule not in ("paper", "pooled"):
+            raise ValueError(f"sigma_rule must be 'paper' or 'pooled', got {sigma_rule!r}")
         if min_count < 2:
             raise ValueError(f"min_count must be >= 2 (a standard deviation needs two samples), got {min_count}")
         stats = location_statistics(error_m, set_id, location)
@@ -425,6 +444,12 @@ class SetNoiseModel:
             top = int(np.max(np.asarray(set_id, np.int64))).bit_length()
             sensor_ids = tuple(str(i) for i in range(max(8, top)))
         sigma = avg[["sigma_x_m", "sigma_y_m"]].to_numpy(float)
+        if sigma_rule == "pooled":
+            mean_of_set = avg.loc[kept["set_id"], ["mu_x_m", "mu_y_m"]].to_numpy()
+            spread = kept[["sigma_x_m", "sigma_y_m"]].to_numpy() ** 2 \
+                + (kept[["mu_x_m", "mu_y_m"]].to_numpy() - mean_of_set) ** 2
+            var = pd.DataFrame(spread * w[:, None]).groupby(kept["set_id"].to_numpy(), sort=True).sum()
+            sigma = np.sqrt(var.to_numpy() / n_set.to_numpy(float)[:, None])
         default_sigma = err.std(axis=0, ddof=1)
         n_floored = int(np.sum(sigma < min_sigma_m) + np.sum(default_sigma < min_sigma_m))
         return cls(set_id=avg.index.to_numpy(np.int64),
@@ -433,11 +458,11 @@ class SetNoiseModel:
                    n=n_set.to_numpy(np.int64),
                    default_mu_m=err.mean(axis=0), default_sigma_m=np.maximum(default_sigma, min_sigma_m),
                    default_n=err.shape[0], sensor_ids=sensor_ids,
-                   meta={"per_location": stats, "min_count": min_count, "min_sigma_m": min_sigma_m,
-                         "n_sigma_floored": n_floored})
+                   meta={"per_location": stats, "min_count": min_count, "sigma_rule": sigma_rule,
+                         "min_sigma_m": min_sigma_m, "n_sigma_floored": n_floored})
 
     @classmethod
-    def from_fixes(cls, logs, *, min_count: int = MIN_COUNT) -> "SetNoiseModel":
+    def from_fixes(cls, logs, *, min_count: int = MIN_COUNT, sigma_rule: str = "paper") -> "SetNoiseModel":
         """:meth:`fit` on calibration logs, one :class:`SetFixLog` (with truth) per location.
 
         The logs' names label the locations, so they must be distinct.
@@ -453,7 +478,7 @@ class SetNoiseModel:
             raise ValueError("calibration logs use different sensors")
         return cls.fit(np.concatenate([log.error_m for log in logs]), np.concatenate([log.set_id for log in logs]),
                        np.repeat(np.array(names, dtype=object), [len(log) for log in logs]),
-                       min_count=min_count, sensor_ids=ids)
+                       min_count=min_count, sigma_rule=sigma_rule, sensor_ids=ids)
 
     # ------------------------------------------------------------------ tables
     def to_frame(self) -> pd.DataFrame:

@@ -1,0 +1,175 @@
+import dataclasses
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+import pytest  # noqa: E402
+
+from tests.conftest import real_dataset  # noqa: E402
+from uwbwb.experiments import setnoise as E  # noqa: E402
+from uwbwb.models.setnoise import set_mask  # noqa: E402
+from uwbwb.sim import setnoise as S  # noqa: E402
+
+SMALL = dataclasses.replace(S.FacilityConfig(), n_calibration=300, n_legs=2, speeds_mps=(0.35, 1.0))
+TINY_SWEEP = E.SweepConfig(sigma_d_mps=(0.1, 0.3, 0.5), n_trials=3, n_particles=100)
+
+
+@pytest.fixture(scope="module")
+def study():
+    return E.synthetic_study(SMALL, rng=np.random.default_rng(0))
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    yield
+    plt.close("all")
+
+
+def test_sweep_config_validation():
+    with pytest.raises(ValueError, match="increasing"):
+        E.SweepConfig(sigma_d_mps=(0.3, 0.1))
+    with pytest.raises(ValueError, match=">= 1"):
+        E.SweepConfig(n_trials=0)
+    fast = E.SweepConfig.fast()
+    assert fast.n_trials < E.SweepConfig().n_trials and len(E.SweepConfig().sigma_d_mps) >= 15
+
+
+def test_synthetic_study_and_table1(study):
+    assert len(study.calibration) == 6 and len(study.recordings) == 2
+    assert np.allclose(study.fig3.truth_m[0], SMALL.fig3_xy_m)
+    assert study.pooled.set_id.tolist() == study.model.set_id.tolist()
+    assert np.all(study.pooled.sigma_m >= study.model.sigma_m - 1e-12)      # pooled adds between-location spread
+    t1 = E.table1(study.recordings)
+    assert t1["recording"].tolist() == ["rec1", "rec2"]
+    np.testing.assert_allclose(t1["speed_cmps"], [35, 100], rtol=0.03)   # path length / time span of the fixes
+    assert t1["paper_raw_error_cm"].tolist() == [18, 19]                       # paper values ride along by position
+    sh = E.set_shares(study.fig3)
+    assert 0 < sh["top1_share"] <= sh["top5_share"] <= 1 and len(sh["top_labels"]) == 5
+    with pytest.raises(KeyError, match="rec9"):
+        study.recording("rec9")
+
+
+def test_sweep_table_and_reproducibility(study):
+    df = E.sweep(study.recordings, study.model, TINY_SWEEP, rng=np.random.default_rng(1), pooled=study.pooled,
+                 progress=False)
+    assert set(df["filter"]) == set(E.FILTERS)
+    assert len(df) == 2 * 3 * len(E.FILTERS)
+    raw = df[df["filter"] == E.RAW].groupby("recording")["mean_error_m"].nunique()
+    assert (raw == 1).all()                                                   # raw does not depend on σ_d
+    pf = df[df["filter"] == E.SET_PF]
+    assert (pf["n_trials"] == 3).all() and (pf["sem_error_m"] > 0).all()
+    again = E.sweep(study.recordings, study.model, TINY_SWEEP, rng=np.random.default_rng(1), pooled=study.pooled,
+                    progress=False)
+    pd.testing.assert_frame_equal(df, again)
+    # in the paper's band the filters beat the raw fixes
+    band = E.band_summary(df).set_index(["recording", "filter"])
+    assert band.loc[("mean", E.SET_KF), "improvement_pct"] > 0
+    assert band.loc[("mean", E.SET_PF), "improvement_pct"] > 0
+
+
+def test_band_summary_hand_case():
+    rows = []
+    for rec, raw in (("a", 0.20), ("b", 0.10)):
+        for s, e in ((0.2, 0.5), (0.3, 0.16), (0.5, 0.12), (0.6, 0.5)):
+            rows += [(rec, E.RAW, s, raw, 0.0, 1), (rec, E.SET_PF, s, e if rec == "a" else e / 2, 0.01, 5)]
+    df = pd.DataFrame(rows, columns=["recording", "filter", "sigma_d_mps", "mean_error_m", "sem_error_m", "n_trials"])
+    b = E.band_summary(df).set_index(["recording", "filter"])
+    # band 0.3-0.5: a → mean(0.16, 0.12) = 0.14 (raw 0.20); b → 0.07 (raw 0.10)
+    assert b.loc[("a", E.SET_PF), "error_cm"] == pytest.approx(14.0)
+    assert b.loc[("a", E.SET_PF), "improvement_pct"] == pytest.approx(30.0)
+    assert b.loc[("mean", E.SET_PF), "error_cm"] == pytest.approx(10.5)
+    assert b.loc[("mean", E.SET_PF), "improvement_cm"] == pytest.approx(4.5)
+    m = E.mean_over_recordings(df)
+    assert m.loc[(m["filter"] == E.SET_PF) & (m["sigma_d_mps"] == 0.3), "mean_error_m"].item() == pytest.approx(0.12)
+    assert m.loc[(m["filter"] == E.SET_PF) & (m["sigma_d_mps"] == 0.3), "sem_error_m"].item() == pytest.approx(
+        np.sqrt(2 * 0.01 ** 2) / 2)
+    with pytest.raises(ValueError, match="band"):
+        E.band_summary(df, band=(2.0, 3.0))
+
+
+def test_trace_and_pf_kf_gap(study):
+    rec = study.recordings[0]
+    est = E.trace(rec, study.model, 0.3, rng=np.random.default_rng(2), n_particles=300)
+    assert set(est) == {"truth", E.RAW, E.BASE_PF, E.SET_PF, E.BASE_KF, E.SET_KF}
+    assert all(v.shape == (len(rec), 2) for v in est.values())
+    gap = E.pf_kf_gap(rec, study.model, 0.3, (30, 1000), n_trials=3, rng=np.random.default_rng(3))
+    assert gap["rms_gap_m"].iloc[1] < 0.5 * gap["rms_gap_m"].iloc[0]
+    assert gap["kf_error_m"].nunique() == 1
+
+
+def test_figures_draw_what_they_say(study):
+    fig, axes = plt.subplots(2, 4)
+    ax = E.plot_facility(study.facility, ax=axes[0, 0])
+    assert "test track" in [t.get_text() for t in ax.get_legend().get_texts()]
+    assert len(E.plot_fixes(study.fig3, ax=axes[0, 1]).get_legend().get_texts()) == 7   # other, 5 sets, truth
+    assert len(E.plot_set_frequency(study.fig3, ax=axes[0, 2], n_bars=6).patches) == 6
+    assert len(E.plot_set_ellipses(study.fig3, ax=axes[0, 3], n_sets=4).patches) == 4
+    est = E.trace(study.recordings[0], study.model, 0.3, rng=np.random.default_rng(2), n_particles=100)
+    assert len(E.plot_trace(est, ax=axes[1, 0], index=slice(0, 50)).lines) == 4
+    df = E.sweep(study.recordings[:1], study.model, TINY_SWEEP, rng=np.random.default_rng(1), progress=False)
+    assert len(E.plot_sweep(df, "rec1", ax=axes[1, 1]).lines) == 5
+    gap = pd.DataFrame({"n_particles": [10, 100], "rms_gap_m": [0.1, 0.03]})
+    assert len(E.plot_pf_kf_gap(gap, ax=axes[1, 2]).lines) == 2
+
+
+# --------------------------------------------------------------------------- real-data pipeline
+
+@pytest.fixture(scope="module")
+def rig_inputs(tmp_path_factory):
+    return E.real_inputs(tmp_path_factory.mktemp("no_data"), seed=1, fast=True)
+
+
+def test_real_inputs_fall_back_to_the_rig(rig_inputs):
+    assert rig_inputs.synthetic and rig_inputs.data_label == "synthetic"
+    assert "not found" in rig_inputs.note
+
+
+def test_emulated_sets(rig_inputs):
+    rec = rig_inputs.static[0]
+    emu = E.Emulation(set_size=5, fading_db=0.0, decimate=4)
+    fixes, rep = E.emulate_fixes(rec, "t0", emu, rng=np.random.default_rng(0))
+    assert rep["kept_after_decimation"] == -(-rep["epochs"] // 4)
+    assert rep["fixes"] == len(fixes) == rep["kept_after_decimation"] - rep["no_truth"] - rep["too_few_ranges"] \
+        - rep["fix_failed"]
+    used = set_mask(fixes.set_id, 8)
+    assert np.all(used.sum(1) == 5)
+    # without fading the set is the five shortest ranges of the epoch
+    r = rec.ranges["t0"].range_m[::4][: len(fixes)]
+    shortest = np.argsort(r, axis=1)[:, :5]
+    np.testing.assert_array_equal(np.sort(np.flatnonzero(used[0])), np.sort(shortest[0]))
+    assert fixes.name == f"{rec.name}/t0"
+    # fading makes a static tag switch sets
+    faded, _ = E.emulate_fixes(rec, "t0", E.Emulation(decimate=4), rng=np.random.default_rng(0))
+    assert len(np.unique(faded.set_id)) > 3
+    with pytest.raises(ValueError):
+        E.Emulation(set_size=2)
+
+
+def test_real_study_on_the_rig(rig_inputs):
+    st = E.real_study(rig_inputs, E.Emulation(decimate=4), rng=np.random.default_rng(0))
+    assert st.range_calibration is not None and st.label == "calibrated ranges"
+    assert len(st.tests) == len(rig_inputs.dynamic.tags)
+    assert len(st.calibration) == len(rig_inputs.static) * len(rig_inputs.dynamic.tags)
+    assert set(st.reports["role"]) == {"calibration", "test"}
+    assert len(st.model) > 0 and all(E.modelled_share(t, st.model) > 0.3 for t in st.tests)
+    raw = [E.raw_error_m(t) for t in st.tests]
+    assert all(0 < e < 0.3 for e in raw)
+    uncal = E.real_study(rig_inputs, E.Emulation(decimate=4), range_calibration=False, rng=np.random.default_rng(0))
+    assert uncal.range_calibration is None
+    assert np.mean([E.raw_error_m(t) for t in uncal.tests]) > np.mean(raw)      # the rig has per-pair biases
+
+
+@pytest.mark.realdata
+def test_real_study_on_lias():
+    root = real_dataset(E.LIAS)
+    inputs = E.real_inputs(root.parent, "fast", "8.14", fast=True)
+    assert not inputs.synthetic and inputs.data_label == "lias-planar-uwb/fast"
+    st = E.real_study(inputs, E.Emulation(decimate=20), rng=np.random.default_rng(0))
+    raw = [E.raw_error_m(t) for t in st.tests]
+    assert all(0.01 < e < 0.2 for e in raw), raw
+    assert all(E.modelled_share(t, st.model) > 0.5 for t in st.tests)
+    assert (st.reports.query("role == 'test'")["fixes"] > 500).all()
