@@ -326,8 +326,9 @@ def robust_mean(points_m, *, retention: float = 0.5, dropout: float = 0.01, t_s=
     history = [c]
     for n_drop in drop_schedule(P.shape[0], retention, dropout):
         idx = np.flatnonzero(kept)
-        dist = np.linalg.norm(P[idx] - (c + np.multiply.outer(t[idx] - t0, v)), axis=1)
-        far = idx[np.argsort(dist, kind="stable")[-n_drop:]]
+        ref = c + np.multiply.outer(t[idx] - t0, v) if moving else c
+        dist = np.linalg.norm(P[idx] - ref, axis=1)
+        far = idx[np.argpartition(dist, dist.size - n_drop)[dist.size - n_drop:]]
         kept[far] = False
         c, v = _centre(P[kept], t[kept], t0, moving)
         history.append(c)
