@@ -89,6 +89,19 @@ def test_band_summary_hand_case():
         np.sqrt(2 * 0.01 ** 2) / 2)
     with pytest.raises(ValueError, match="band"):
         E.band_summary(df, band=(2.0, 3.0))
+    best = E.best_sigma(df).set_index(["recording", "filter"])
+    assert best.loc[("a", E.SET_PF), "sigma_d_mps"] == 0.5 and best.loc[("b", E.SET_PF), "mean_error_m"] == 0.06
+
+
+def test_normalised_residuals_hand_case():
+    from uwbwb.models.setnoise import SetFixLog, SetNoiseModel
+
+    log = SetFixLog([0.0, 1.0], [[0.3, 0.0], [0.1, 0.0]], [1, 1], tuple("01234567"), np.zeros((2, 2)))
+    model = SetNoiseModel([1], [[0.2, 0.0]], [[0.1, 0.1]], [40], [0.0, 0.0], [0.2, 0.2])
+    # set model: residuals (±0.1)/0.1 in x, 0 in y -> mean of (1, 0, 1, 0) = 0.5
+    # default: (0.3/0.2)² = 2.25, (0.1/0.2)² = 0.25 in x, 0 in y -> 0.625
+    got = E.normalised_residuals(log, {"set": model, "default": model.facility_only()})
+    assert got == pytest.approx({"set": 0.5, "default": 0.625})
 
 
 def test_trace_and_pf_kf_gap(study):

@@ -66,6 +66,9 @@ def test_sweep_trials_do_not_depend_on_blocking_and_seed_reproduces():
     per_trial = F.pf_sweep(*args, rng=np.random.default_rng(3), n_trials=3, n_particles=100, block_particles=1)
     np.testing.assert_allclose(one_block.pos_m, per_trial.pos_m, atol=1e-5)
     np.testing.assert_array_equal(one_block.n_resampled, per_trial.n_resampled)
+    threaded = F.pf_sweep(*args, rng=np.random.default_rng(3), n_trials=3, n_particles=100, block_particles=1,
+                          n_threads=2)
+    np.testing.assert_array_equal(threaded.pos_m, per_trial.pos_m)
     again = F.pf_sweep(*args, rng=np.random.default_rng(3), n_trials=3, n_particles=100)
     np.testing.assert_array_equal(one_block.pos_m, again.pos_m)
     other = F.pf_sweep(*args, rng=np.random.default_rng(4), n_trials=3, n_particles=100)

@@ -80,6 +80,8 @@ class SweepConfig:
     common_random_numbers
         Share process-noise draws between σ_d values and the two filters of a trial
         (see :func:`uwbwb.filters.setnoise.pf_sweep`).
+    n_threads
+        Worker threads of the sweep (the numbers do not depend on it).
     """
 
     sigma_d_mps: tuple = SIGMA_D_GRID_MPS
@@ -88,13 +90,14 @@ class SweepConfig:
     ess_fraction: float = 0.5
     resampler: str = "systematic"
     common_random_numbers: bool = True
+    n_threads: int = 1
 
     def __post_init__(self):
         s = np.asarray(self.sigma_d_mps, float)
         if s.ndim != 1 or s.size < 1 or np.any(s <= 0) or np.any(np.diff(s) <= 0):
             raise ValueError("sigma_d_mps must be increasing positive values")
-        if self.n_trials < 1 or self.n_particles < 1:
-            raise ValueError("n_trials and n_particles must be >= 1")
+        if self.n_trials < 1 or self.n_particles < 1 or self.n_threads < 1:
+            raise ValueError("n_trials, n_particles and n_threads must be >= 1")
         if not 0 <= self.ess_fraction <= 1:
             raise ValueError("ess_fraction must be in [0, 1]")
 
@@ -208,7 +211,7 @@ def sweep(recordings, model: SetNoiseModel, config: SweepConfig = SweepConfig(),
         pf = filt.pf_sweep(log.t_s, log.pos_m, mu, sd, x0, sig, rng=rng, n_trials=config.n_trials,
                            n_particles=config.n_particles, ess_fraction=config.ess_fraction,
                            resampler=config.resampler, common_random_numbers=config.common_random_numbers,
-                           progress=progress, desc=f"{log.name}: PF sweep")
+                           n_threads=config.n_threads, progress=progress, desc=f"{log.name}: PF sweep")
         err = pf.mean_error_m(log.truth_m)                                  # (2, trials, S)
         kf = filt.kf_sweep(log.t_s, log.pos_m, mu, sd, x0, sig).mean_error_m(log.truth_m)   # (2, S)
         if pooled is not None:
@@ -262,6 +265,27 @@ def band_summary(df: pd.DataFrame, band=BAND_MPS) -> pd.DataFrame:
                         "improvement_cm": 100 * (raw[rec] - row[name]),
                         "improvement_pct": 100 * (raw[rec] - row[name]) / raw[rec]})
     return pd.DataFrame(out)
+
+
+def best_sigma(df: pd.DataFrame) -> pd.DataFrame:
+    """Per recording and estimator, the σ_d with the lowest mean error (chosen on the data itself).
+
+    Returns
+    -------
+    DataFrame
+        ``recording, filter, sigma_d_mps, mean_error_m``.
+    """
+    idx = df.groupby(["recording", "filter"], sort=False)["mean_error_m"].idxmin()
+    return df.loc[idx, ["recording", "filter", "sigma_d_mps", "mean_error_m"]].reset_index(drop=True)
+
+
+def normalised_residuals(log: SetFixLog, models: dict) -> dict:
+    """Mean squared normalised fix residual ``((z − x − μ)/σ)²`` per model (1 when σ is right)."""
+    out = {}
+    for name, m in models.items():
+        mu, sd, _ = m.lookup(log.set_id)
+        out[name] = float(np.mean(((log.error_m - mu) / sd) ** 2))
+    return out
 
 
 # --------------------------------------------------------------------------- Fig. 8 and PF → KF
@@ -614,6 +638,14 @@ def plot_trace(estimates: dict, ax=None, *, index=None, axis: int = 0, unit: str
     return ax
 
 
+def _sweep_style() -> dict:
+    from ..plotting import color_for
+
+    # Kalman filters dashed in the colour of their family (the baseline KF has no colour of its own)
+    return {BASE_KF: (color_for(BASE_PF), "--"), SET_KF: (color_for(SET_KF), "--"),
+            SET_KF_POOLED: (color_for(SET_KF), ":")}
+
+
 def plot_sweep(df: pd.DataFrame, recording: str, ax=None, *, names=FILTERS, unit: str = "cm", band=BAND_MPS):
     """Fig. 9 (one recording): mean error against σ_d; PF curves with ±2 standard errors."""
     from .. import plotting
@@ -627,12 +659,11 @@ def plot_sweep(df: pd.DataFrame, recording: str, ax=None, *, names=FILTERS, unit
             continue
         x = g["sigma_d_mps"].to_numpy() * 100
         y = g["mean_error_m"].to_numpy() * s
-        dash = ":" if "pooled" in name else "--" if "KF" in name else "-"
-        style = dict(linestyle=dash, marker="" if name == RAW else ".")
-        ax.plot(x, y, color=plotting.color_for(name), label=name, **style)
+        colour, dash = _sweep_style().get(name, (plotting.color_for(name), "-"))
+        ax.plot(x, y, color=colour, label=name, linestyle=dash, marker="" if name == RAW else ".")
         e = 2 * g["sem_error_m"].to_numpy() * s
         if np.any(e > 0):
-            ax.fill_between(x, y - e, y + e, color=plotting.color_for(name), alpha=0.2, linewidth=0)
+            ax.fill_between(x, y - e, y + e, color=colour, alpha=0.2, linewidth=0)
     if band is not None:
         ax.axvspan(100 * band[0], 100 * band[1], color="#f0f0f0", zorder=0)
     ax.set_xlabel("σ_d (cm/s)")

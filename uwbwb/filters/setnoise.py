@@ -16,6 +16,8 @@ Filters
   observed set's ``(μ, σ)``; weights are normalised (eq. 10); the output is the
   weighted mean (eq. 11); when ``ESS = K/(1+CV) < 0.5·K`` (eq. 12) the particles
   are resampled. The paper writes "ESS < 0.5"; we read it as a fraction of K.
+  Resampling is systematic by default; ``resampler="multinomial"`` is the paper's
+  "select with replacement" (same expectation, more variance, O(K log K)).
 * **Baseline PF**: the same filter fed the facility-wide model for every fix
   (:meth:`~uwbwb.models.setnoise.SetNoiseModel.facility_only`).
 * **Set-noise KF**: given the observed sets the model is linear-Gaussian, so a
@@ -37,6 +39,8 @@ Three implementations of the PF share these equations:
 
 from __future__ import annotations
 
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -141,7 +145,7 @@ def pf_estimate(state: ParticleState) -> np.ndarray:
 
 
 def pf_resample(state: ParticleState, *, rng: np.random.Generator, ess_fraction: float = 0.5,
-                method: str = "multinomial") -> tuple[ParticleState, np.ndarray]:
+                method: str = "systematic") -> tuple[ParticleState, np.ndarray]:
     """Eq. 12 and resampling: rows with ``ESS < ess_fraction · K`` are resampled; returns which."""
     p, logw, done = particle.resample(state.particles, state.logw, rng=rng, threshold=ess_fraction, method=method)
     return ParticleState(p, logw), done
@@ -189,7 +193,7 @@ class FilterRun:
 
 
 def reference_pf(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps: float, *, rng: np.random.Generator,
-                 n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "multinomial",
+                 n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "systematic",
                  name: str = "PF") -> FilterRun:
     """One particle-filter run, written step by step with :func:`pf_predict` / :func:`pf_update`.
 
@@ -239,7 +243,7 @@ def reference_pf(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps: float, *, rng: np.r
 
 def run_set_noise_pf(fixes: SetFixLog, model: SetNoiseModel, x0_m, sigma_d_mps: float, *,
                      rng: np.random.Generator, n_particles: int = 1000, ess_fraction: float = 0.5,
-                     resampler: str = "multinomial", name: str | None = None) -> FilterRun:
+                     resampler: str = "systematic", name: str | None = None) -> FilterRun:
     """The paper's filter on one recording: the set of each fix selects its ``(μ, σ)``.
 
     Pass ``model.facility_only()`` for the baseline PF.
@@ -299,9 +303,9 @@ def _block_trials(n_rows_per_trial: int, n_particles: int, block_particles: int,
 
 
 def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Generator, n_trials: int = 1,
-             n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "multinomial",
+             n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "systematic",
              common_random_numbers: bool = True, dtype=np.float32, block_particles: int = 1 << 17,
-             progress: bool = False, desc: str = "PF sweep") -> PFSweep:
+             n_threads: int = 1, progress: bool = False, desc: str = "PF sweep") -> PFSweep:
     """Run the PF for every filter variant × trial × σ_d value as one batched computation.
 
     Parameters
@@ -330,6 +334,9 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
         positions are stored relative to ``x0_m`` to keep full resolution).
     block_particles
         Particles processed together (whole trials); sized to stay in cache.
+    n_threads
+        Worker threads, each advancing its own blocks of trials (results do not
+        depend on it).
     progress
         Show a ``tqdm`` bar over time steps (× blocks).
 
@@ -351,8 +358,8 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
     sig_d = np.atleast_1d(np.asarray(sigma_d_mps, float))
     if sig_d.ndim != 1 or np.any(sig_d < 0):
         raise ValueError("sigma_d_mps must be a non-negative scalar or 1-D array")
-    if n_trials < 1:
-        raise ValueError(f"n_trials must be >= 1, got {n_trials}")
+    if n_trials < 1 or n_threads < 1:
+        raise ValueError(f"n_trials and n_threads must be >= 1, got {n_trials}, {n_threads}")
     M, S, K = mu.shape[0], sig_d.size, n_particles
     dtype = np.dtype(dtype)
 
@@ -362,25 +369,37 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
     dt_d = dt.astype(dtype)
     children = rng.spawn(n_trials)
     b = _block_trials(M * S, K, block_particles, n_trials)
-    n_blocks = -(-n_trials // b)
+    blocks = [range(first, min(first + b, n_trials)) for first in range(0, n_trials, b)]
 
     pos = np.empty((M, n_trials, S, T, 2))
     n_res = np.zeros((M, n_trials, S), np.int64)
     ess_sum = np.zeros((M, n_trials, S))
-    bar = None
+    bar, lock = None, threading.Lock()
     if progress:
         from tqdm.auto import tqdm
-        bar = tqdm(total=n_blocks * T, desc=desc, unit="step", mininterval=0.5)
+        bar = tqdm(total=len(blocks) * T, desc=desc, unit="step", mininterval=0.5)
+
+    def tick():
+        with lock:
+            bar.update(1)
+
+    def run(trials: range) -> None:
+        blk_pos, blk_res, blk_ess = _sweep_block(
+            [children[i] for i in trials], centre, half_prec, dt_d, sig_d, K, M, ess_fraction, resampler,
+            common_random_numbers, dtype, tick if bar is not None else None)
+        sl = slice(trials.start, trials.stop)
+        pos[:, sl] = np.moveaxis(blk_pos, 0, 1) + x0
+        n_res[:, sl] = np.moveaxis(blk_res, 0, 1)
+        ess_sum[:, sl] = np.moveaxis(blk_ess, 0, 1)
+
     try:
-        for first in range(0, n_trials, b):
-            trials = range(first, min(first + b, n_trials))
-            blk_pos, blk_res, blk_ess = _sweep_block(
-                [children[i] for i in trials], centre, half_prec, dt_d, sig_d, K, M, ess_fraction, resampler,
-                common_random_numbers, dtype, bar)
-            sl = slice(trials.start, trials.stop)
-            pos[:, sl] = np.moveaxis(blk_pos, 0, 1) + x0
-            n_res[:, sl] = np.moveaxis(blk_res, 0, 1)
-            ess_sum[:, sl] = np.moveaxis(blk_ess, 0, 1)
+        if n_threads > 1 and len(blocks) > 1:
+            # NumPy releases the GIL inside the array operations, so blocks advance in parallel
+            with ThreadPoolExecutor(max_workers=n_threads) as pool:
+                list(pool.map(run, blocks))
+        else:
+            for trials in blocks:
+                run(trials)
     finally:
         if bar is not None:
             bar.close()
@@ -388,7 +407,7 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
                    dtype.name)
 
 
-def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampler, crn, dtype, bar):
+def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampler, crn, dtype, tick):
     """All steps for one block of trials.
 
     State components are separate ``(b, M, S, K)`` arrays (trial, variant, σ_d,
@@ -437,15 +456,15 @@ def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampl
         np.square(tmp, out=tmp)
         tmp *= a_y[k]
         logw -= tmp
+        # the log-weights are only shifted (max 0, as in log-sum-exp); the normalisation
+        # of eq. 10 is applied to the sums below, which saves two passes over the block
         logw -= logw.max(axis=-1, keepdims=True)
         np.exp(logw, out=w)
-        total = w.sum(axis=-1, keepdims=True)
-        w /= total
-        logw -= np.log(total)
-        # eq. 11 and eq. 12
-        pos[..., k, 0] = np.einsum("...k,...k->...", w, x)
-        pos[..., k, 1] = np.einsum("...k,...k->...", w, y)
-        ess = 1.0 / np.einsum("...k,...k->...", w, w).astype(np.float64)
+        total = w.sum(axis=-1, dtype=np.float64)
+        # eq. 11 and eq. 12 (ESS = 1 / Σ w² for normalised w)
+        pos[..., k, 0] = np.einsum("...k,...k->...", w, x) / total
+        pos[..., k, 1] = np.einsum("...k,...k->...", w, y) / total
+        ess = total ** 2 / np.einsum("...k,...k->...", w, w)
         ess_sum += ess
         need = ess < ess_fraction * K
         if need.any():
@@ -455,8 +474,8 @@ def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampl
             state, spare = spare, state
             logw[need] = log_k
             n_res += need
-        if bar is not None:
-            bar.update(1)
+        if tick is not None:
+            tick()
     return pos, n_res, ess_sum
 
 
