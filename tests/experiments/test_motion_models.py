@@ -181,3 +181,8 @@ def test_ranging_summary_and_covariance_figure(los_run):
     fig = mm.covariance_figure(emp, mod, list("BCDEF"), title="x")
     assert len(fig.axes) == 3
     plt.close(fig)
+
+
+def test_banner_escapes_its_message():
+    html = mm.banner("data <absent> & skipped")._repr_html_()
+    assert "data &lt;absent&gt; &amp; skipped" in html and "background" in html

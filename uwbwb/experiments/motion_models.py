@@ -46,7 +46,7 @@ __all__ = [
     "MODELS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "DEFAULT_GRIDS",
     "TagRun", "Estimates", "tag_runs", "thin", "synthetic_acquisition", "fit_range_sigma",
     "raw_multilateration", "ranging_summary", "estimate", "calibration_curves", "best_sigmas", "cep95_table", "ranking",
-    "paper_table", "split_runs", "Study", "run_study", "tdoa_noise_check", "scenario_figure", "covariance_figure", "calibration_figure", "paths_figure", "cdf_figure",
+    "paper_table", "split_runs", "Study", "run_study", "tdoa_noise_check", "banner", "scenario_figure", "covariance_figure", "calibration_figure", "paths_figure", "cdf_figure",
 ]
 
 #: Motion models in the thesis' order.
@@ -233,14 +233,31 @@ def thin(recordings: Iterable[Recording], step: int) -> list[Recording]:
 
 
 def synthetic_acquisition(name: str, *, seed: int, duration_s: float | None = None, rate_hz: float | None = None,
-                          role: str = "test") -> tuple[list[TagRun], walk.WalkTruth]:
+                          role: str = "test", changes: Mapping | None = None,
+                          label: str | None = None) -> tuple[list[TagRun], walk.WalkTruth]:
     """Simulate one acquisition of scenario ``name`` (``office``, ``agv1``, ``agv2``) and wrap its tags.
 
-    ``role`` (``"test"`` or ``"calibration"``) picks an independent random stream
-    for the same ``seed``, so calibration and test acquisitions never share noise.
+    Parameters
+    ----------
+    seed
+        Seed of the acquisition.
+    duration_s, rate_hz
+        Override the scenario's length and location rate.
+    role
+        ``"test"`` or ``"calibration"``: an independent random stream for the same
+        ``seed``, so calibration and test acquisitions never share noise.
+    changes
+        Further :class:`~uwbwb.sim.walk.WalkScenario` field changes (an ablation).
+        The random stream depends only on ``name``, ``role`` and ``seed``, so an
+        ablation sees the same walk and the same noise draws.
+    label
+        Display name (default ``name``; ``" (calibration)"`` is appended for that role).
+
     The device output (:func:`uwbwb.sim.walk.device_output`) is attached as ``raw``.
     """
-    changes = {} if duration_s is None else {"duration_s": float(duration_s)}
+    changes = dict(changes or {})
+    if duration_s is not None:
+        changes["duration_s"] = float(duration_s)
     if rate_hz is not None:
         changes["rate_hz"] = float(rate_hz)
     cfg = walk.scenario(name, **changes)
@@ -248,7 +265,8 @@ def synthetic_acquisition(name: str, *, seed: int, duration_s: float | None = No
     rec, truth = walk.simulate_walk(cfg, rng=rng)
     heights = {m.tag_id: m.height_m for m in cfg.tags}
     raw = {t: walk.device_output(rec.ranges[t], rec.anchors, z_m=heights[t]) for t in rec.tags}
-    label = name if role == "test" else f"{name} (calibration)"
+    label = label or name
+    label = label if role == "test" else f"{label} (calibration)"
     return tag_runs(rec, dim=2, z_m=heights, raw=raw, name=label), truth
 
 
@@ -564,6 +582,16 @@ def tdoa_noise_check(run: TagRun, sigma_m, *, ref: int = 0) -> tuple[np.ndarray,
 
 
 # --------------------------------------------------------------------------- figures
+
+
+def banner(message: str):
+    """A conspicuous HTML banner (e.g. "real data absent: ..."), for ``IPython.display.display``."""
+    import html
+
+    from IPython.display import HTML
+
+    return HTML('<div style="background:#fde2e1;border:2px solid #c0392b;padding:8px;font-weight:bold">'
+                f"{html.escape(message)}</div>")
 
 
 def scenario_figure(config: walk.WalkScenario, *, ax=None, truth: Trajectory | None = None):
