@@ -46,7 +46,8 @@ def test_noise_free_tour_is_recovered_by_every_heuristic():
     assert res.moves.mean_err_m.max() < 0.1
     assert res.moves.vel_err_mps.max() < 0.02
     np.testing.assert_allclose(res.moves.speed_ratio, 1.0, atol=0.02)
-    assert set(res.track.heuristic) == {"none", "robust_mean", "residual"}
+    assert set(res.track[res.track.kind == "move"].heuristic) == {"none", "robust_mean", "residual"}
+    assert set(res.track[res.track.kind == "stop"].heuristic) == set(res.stops.heuristic)
     assert set(res.recordings) == {"tour1-fast"}
 
 
@@ -60,6 +61,8 @@ def test_pruning_beats_plain_nls_with_nlos_and_same_seed_same_numbers():
     for h in ("percentile", "robust_mean", "residual"):
         assert table.loc[h, "stop_median_m"] < table.loc["none", "stop_median_m"]
     assert np.isnan(table.loc["percentile", "vel_err_median_mps"])
+    assert not table.loc["percentile", "all_includes_walks"] and table.loc["residual", "all_includes_walks"]
+    assert table.loc["residual", "walk_p90_m"] > 0
     assert ex.winner(table, "stop_median_m") != "none"
 
 
@@ -113,7 +116,8 @@ def _static_recordings(rng, n_sites=3, T=300):
             p = np.array([1.0 + site, 1.0 + 0.7 * site + 0.01 * yaw, 0.97])
             r = np.linalg.norm(p - anchors.pos_m, axis=1) + bias + 0.02 * rng.standard_normal((T, 6))
             t = np.arange(T) * 0.01
-            recs.append(Recording("synthetic", f"s/pos{site}_deg_{yaw}", anchors, {"t0": RangeLog(t, r, anchors.ids, "t0")},
+            recs.append(Recording("synthetic", f"s/pos{site}_deg_{yaw}", anchors,
+                                  {"t0": RangeLog(t, r, anchors.ids, "t0")},
                                   {"t0": Trajectory(t, np.tile(p, (T, 1)))}, meta={"site": site, "yaw_deg": yaw}))
     return recs
 

@@ -33,11 +33,11 @@ from ..sim import tours as tours_mod
 from ..types import RangeLog, Recording, Trajectory
 
 __all__ = [
-    "HEURISTIC_MARKERS", "SyntheticConfig", "decimate", "SyntheticResult", "heuristic_color", "heuristic_summary",
-    "loso_calibrations", "percentile_by_file", "plot_error_cdf_percentile", "plot_error_histogram",
-    "plot_polar_errors", "plot_robust_mean_cloud", "plot_segment_fits", "plot_coverage",
-    "run_dynamic_segments", "run_static_poses", "run_synthetic", "run_tour", "segment_ranges",
-    "straight_segments", "winner", "error_cdf_by_heuristic", "p90",
+    "HEURISTIC_MARKERS", "SyntheticConfig", "SyntheticResult", "data_banner", "decimate",
+    "error_cdf_by_heuristic", "heuristic_color", "heuristic_summary", "loso_calibrations", "p90",
+    "percentile_by_file", "plot_coverage", "plot_error_cdf_percentile", "plot_error_histogram",
+    "plot_polar_errors", "plot_robust_mean_cloud", "plot_segment_fits", "run_dynamic_segments",
+    "run_static_poses", "run_synthetic", "run_tour", "segment_ranges", "straight_segments", "winner",
 ]
 
 #: Marker per heuristic in the polar charts (the paper draws residual pruning as an asterisk).
@@ -99,8 +99,9 @@ class SyntheticResult:
         One row per (experiment, node, walk, heuristic): ``P0``/``v`` estimates,
         start/end/mean horizontal errors, velocity error, speed ratio, heading error.
     track
-        Horizontal error of every walk's fitted line at every packet time:
-        ``experiment, tag, segment, heuristic, t_s, err_m``.
+        Horizontal error of the piecewise estimate (each stop's position, each
+        walk's fitted line) at every packet time -- "all distance errors":
+        ``experiment, tag, segment, kind ("stop"/"move"), heuristic, t_s, err_m``.
     recordings
         ``{experiment name: (Recording, TourTruth)}``.
     """
@@ -158,6 +159,9 @@ def run_tour(rec: Recording, truth: tours_mod.TourTruth, config: SyntheticConfig
                     stops.append({**common, "true_x_m": seg.start_xy_m[0], "true_y_m": seg.start_xy_m[1],
                                   "err_m": float(np.hypot(*d)), "bearing_deg": float(_bearing_deg(d)),
                                   "err_z_m": float(res.p0_m[2] - z)})
+                    track.append(pd.DataFrame({"experiment": rec.name, "tag": tag, "segment": seg.index,
+                                               "kind": "stop", "heuristic": h, "t_s": t_pk,
+                                               "err_m": float(np.hypot(*d))}))
                     continue
                 est = res.position_at(t_pk)[:, :2]
                 err = np.linalg.norm(est - true_xy, axis=1)
@@ -172,7 +176,7 @@ def run_tour(rec: Recording, truth: tours_mod.TourTruth, config: SyntheticConfig
                               "speed_ratio": float(np.linalg.norm(v_est) / np.linalg.norm(v_true)),
                               "heading_err_deg": float((ang + 180.0) % 360.0 - 180.0)})
                 track.append(pd.DataFrame({"experiment": rec.name, "tag": tag, "segment": seg.index,
-                                           "heuristic": h, "t_s": t_pk, "err_m": err}))
+                                           "kind": "move", "heuristic": h, "t_s": t_pk, "err_m": err}))
     return stops, moves, track
 
 
@@ -203,19 +207,21 @@ def run_synthetic(config: SyntheticConfig = SyntheticConfig(), *, rng: np.random
         track += tr
         recs[rec.name] = (rec, truth)
     track_df = pd.concat(track, ignore_index=True) if track else pd.DataFrame(
-        columns=["experiment", "tag", "segment", "heuristic", "t_s", "err_m"])
+        columns=["experiment", "tag", "segment", "kind", "heuristic", "t_s", "err_m"])
     return SyntheticResult(pd.DataFrame(stops), pd.DataFrame(moves), track_df, recs)
 
 
 def heuristic_summary(stops: pd.DataFrame, moves: pd.DataFrame | None = None,
                       track: pd.DataFrame | None = None) -> pd.DataFrame:
     """Per heuristic: stationary error median / 90th percentile / max, and (if given)
-    walk velocity error (median) and mean track error (median, 90th percentile).
+    walk velocity error and the per-packet errors.
 
     Returns a DataFrame indexed by heuristic (in :data:`HEURISTICS` order) with
-    columns ``n_stops, stop_median_m, stop_p90_m, stop_max_m`` and, with moves,
-    ``n_walks, vel_err_median_mps, speed_ratio_median, heading_err_median_deg``,
-    with track ``track_median_m, track_p90_m``.
+    columns ``label, n_stops, stop_median_m, stop_p90_m, stop_max_m``; with
+    ``moves``: ``n_walks, vel_err_median_mps, speed_ratio_median,
+    heading_err_median_deg``; with ``track``: ``all_median_m, all_p90_m`` (every
+    packet time of stops and walks; stops only for the 5th percentile, which
+    ``all_includes_walks`` says) and ``walk_median_m, walk_p90_m``.
     """
     rows = []
     for h in [h for h in HEURISTICS if h in set(stops["heuristic"])]:
@@ -228,8 +234,13 @@ def heuristic_summary(stops: pd.DataFrame, moves: pd.DataFrame | None = None,
                        speed_ratio_median=m.speed_ratio.median(),
                        heading_err_median_deg=m.heading_err_deg.abs().median())
         if track is not None and len(track) and h in set(track["heuristic"]):
-            e = track.loc[track.heuristic == h, "err_m"].to_numpy()
-            row.update(track_median_m=np.median(e), track_p90_m=np.quantile(e, 0.9))
+            tr = track[track.heuristic == h]
+            e = tr["err_m"].to_numpy()
+            row.update(all_median_m=np.median(e), all_p90_m=np.quantile(e, 0.9),
+                       all_includes_walks=bool((tr["kind"] == "move").any()))
+            w = tr.loc[tr["kind"] == "move", "err_m"].to_numpy()
+            if w.size:
+                row.update(walk_median_m=np.median(w), walk_p90_m=np.quantile(w, 0.9))
         rows.append(row)
     return pd.DataFrame(rows).set_index("heuristic")
 
@@ -507,6 +518,21 @@ def percentile_by_file(samples: pd.DataFrame, q: float = 5.0, min_samples: int =
     return out
 
 
+# =========================================================================== notebook helpers
+
+
+def data_banner(name: str, available: bool, instead: str = "this section is skipped"):
+    """A coloured banner saying whether real dataset ``name`` was found (IPython HTML)."""
+    from IPython.display import HTML
+
+    if available:
+        return HTML(f'<div style="background:#e3f1e3;border:1px solid #4a8;padding:6px">'
+                    f'Real data <b>{name}</b> found.</div>')
+    return HTML(f'<div style="background:#fde2e1;border:2px solid #c0392b;padding:8px;font-weight:bold">'
+                f'Real data {name} is not available on this machine: {instead}. '
+                f'Get it with <code>python -m uwbwb fetch {name}</code> or set DATA_DIR.</div>')
+
+
 # =========================================================================== figures
 
 
@@ -522,6 +548,7 @@ def plot_coverage(config: tours_mod.TourConfig = tours_mod.TourConfig(), ax=None
     for p, r in zip(anchors.pos_m, R):
         ax.add_patch(plt.Circle(p[:2], r, fill=False, color="#6b6ecf", lw=0.8, ls="--"))
     floor_plan(anchors, ax)
+    ax.set_aspect("equal", adjustable="box")      # the room's extent fixes the limits
     if tour is not None:
         kp = np.asarray(tours_mod.TOURS[tour])
         ax.plot(kp[:, 0], kp[:, 1], "-", color="#000000", lw=1.2)
@@ -579,8 +606,11 @@ def plot_robust_mean_cloud(result, truth_xy=None, ax=None):
     cloud, rm = result.detail
     ax = ax if ax is not None else plt.subplots()[1]
     P = cloud.pos_m
-    ax.plot(P[~rm.kept, 0], P[~rm.kept, 1], ".", ms=2, color="#bdbdbd", label=f"dropped ({(~rm.kept).sum()})")
-    ax.plot(P[rm.kept, 0], P[rm.kept, 1], ".", ms=2, color="#31a354", label=f"retained ({rm.kept.sum()})")
+    ax.plot(P[~rm.kept, 0], P[~rm.kept, 1], ".", ms=2, color="#bdbdbd")
+    ax.plot(P[rm.kept, 0], P[rm.kept, 1], ".", ms=2, color="#31a354")
+    # legend proxies with readable markers (the cloud itself is drawn with tiny dots)
+    ax.plot([], [], "o", ms=5, color="#bdbdbd", label=f"dropped ({(~rm.kept).sum()})")
+    ax.plot([], [], "o", ms=5, color="#31a354", label=f"retained ({rm.kept.sum()})")
     ax.plot(rm.history_m[:, 0], rm.history_m[:, 1], "-", color="#d62728", lw=1, label="centroid path")
     ax.plot(*rm.center_m, "o", color="#d62728", mfc="none", ms=9, label="robust mean")
     if truth_xy is not None:
@@ -588,7 +618,7 @@ def plot_robust_mean_cloud(result, truth_xy=None, ax=None):
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.legend(fontsize="small", markerscale=3)
+    ax.legend(fontsize="small")
     return ax
 
 

@@ -18,7 +18,9 @@ Solvers
 ``method="bfgs"``
     Quasi-Newton (BFGS) on the sum of squares with its analytic gradient,
     :func:`scipy.optimize.minimize` -- the paper's ``fminunc(...,
-    'SpecifyObjectiveGradient', true, 'Algorithm', 'quasi-newton')``.
+    'SpecifyObjectiveGradient', true, 'Algorithm', 'quasi-newton')``. The
+    inverse-Hessian estimate starts from the Gauss--Newton matrix ``(J^T J)^-1``
+    at the initial guess rather than the identity (same method, fewer iterations).
 ``method="least_squares"``
     :func:`scipy.optimize.least_squares` (trust-region reflective) on the
     residual vector with its analytic Jacobian; optionally a robust ``loss``.
@@ -58,7 +60,7 @@ import pandas as pd
 from scipy.optimize import least_squares, minimize
 
 from ..geometry import linear_multilaterate
-from ..types import Anchors, RangeLog, Trajectory
+from ..types import RangeLog, Trajectory
 
 __all__ = ["RangeSamples", "TrajectoryFit", "fit_trajectory", "initial_guess", "objective",
            "residuals", "residual_jacobian", "unroll"]
@@ -468,7 +470,7 @@ class TrajectoryFit:
 
 def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, static: bool = False,
                    z_m: float | None = None, method: str = "bfgs", x0=None, loss: str = "linear",
-                   f_scale_m: float = 1.0, gtol: float = 1e-9, max_iter: int = 500) -> TrajectoryFit:
+                   f_scale_m: float = 1.0, gtol: float = 1e-7, max_iter: int = 500) -> TrajectoryFit:
     """Solve eq. (1) for the initial position and velocity of a straight walk.
 
     Parameters
@@ -559,8 +561,16 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
 
     q0 = to_internal(theta0)
     if method == "bfgs":
-        res = minimize(fun_grad, q0, jac=True, method="BFGS",
-                       options={"gtol": gtol, "maxiter": int(max_iter)})
+        options = {"gtol": gtol, "maxiter": int(max_iter)}
+        # start the quasi-Newton matrix from the Gauss-Newton Hessian (2/M) J^T J at q0 instead of the
+        # identity: same BFGS iteration, far fewer steps (it matters inside residual pruning's loop)
+        J0 = _resid_jac(q0, tc, k, d, A, layout)[1]
+        H0 = (2.0 / M) * (J0.T @ J0)
+        lam, V = np.linalg.eigh(H0)
+        if lam[0] > 1e-9 * lam[-1] > 0:
+            Hi = (V / lam) @ V.T
+            options["hess_inv0"] = 0.5 * (Hi + Hi.T)
+        res = minimize(fun_grad, q0, jac=True, method="BFGS", options=options)
         q, n_iter, n_fev, success, msg = res.x, int(res.nit), int(res.nfev), bool(res.success), str(res.message)
     else:
         res = least_squares(lambda q: _resid_jac(q, tc, k, d, A, layout, False)[0], q0,

@@ -44,8 +44,8 @@ from scipy.stats import norm
 from ..models.ranging import TwrRangeModel
 from ..types import Anchors, RangeLog, Recording, Trajectory
 
-__all__ = ["NlosRangeModel", "Segment", "TOURS", "TourConfig", "TourTruth", "cafeteria_anchors",
-           "coverage_count", "draw_range_model", "simulate_tour", "tour_path", "tour_xy"]
+__all__ = ["NlosRangeModel", "Segment", "T0_MS", "TOURS", "TourConfig", "TourTruth", "cafeteria_anchors",
+           "coverage_count", "coverage_radius_m", "draw_range_model", "simulate_tour", "tour_path", "tour_xy"]
 
 #: Keypoints (x, y) in metres of the three tours; each starts and ends with a stop.
 TOURS: dict[int, tuple[tuple[float, float], ...]] = {
