@@ -27,7 +27,7 @@ Filters
 Timing: the prior holds at the first fix (step 0 is an update only); every later
 fix is preceded by one prediction over the actual interval ``T = t_k − t_{k−1}``.
 
-Three implementations of the PF share these equations:
+The PF equations are implemented at three levels:
 
 * :func:`pf_init`, :func:`pf_predict`, :func:`pf_update`, :func:`pf_estimate`,
   :func:`pf_resample` — the textbook steps on ``(..., K, 4)`` particles;
@@ -429,7 +429,7 @@ def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampl
     pos = np.empty((b, M, S, T, 2), dtype)
     n_res = np.zeros((b, M, S), np.int64)
     ess_sum = np.zeros((b, M, S))
-    rows = _Rows(rngs, M * S, K, resampler, dtype)
+    rows = _Rows(rngs, M * S, K, resampler)
     c_x, c_y = (centre[:, :, i].T.reshape(T, 1, M, 1, 1) for i in (0, 1))
     a_x, a_y = (half_prec[:, :, i].T.reshape(T, 1, M, 1, 1) for i in (0, 1))
     log_k = dtype.type(-np.log(K))
@@ -487,11 +487,10 @@ class _Rows:
     flagged rows only, so a trial's randomness does not depend on its block.
     """
 
-    def __init__(self, rngs, rows_per_trial, K, resampler, dtype):
+    def __init__(self, rngs, rows_per_trial, K, resampler):
         self.rngs, self.K, self.resampler = rngs, K, resampler
         self.trial_of_row = np.repeat(np.arange(len(rngs)), rows_per_trial)
         self.identity = np.arange(len(rngs) * rows_per_trial * K)
-        self.dtype = dtype
 
     def _uniforms(self, rows: np.ndarray, per_row: int) -> np.ndarray:
         owner = self.trial_of_row[rows]
