@@ -116,3 +116,5 @@ def test_scenario_validation():
         walk.office(tags=(TagMount("t", 0, 0, 1), TagMount("t", 0, 0, 1)))
     with pytest.raises(ValueError, match="anchor_pos_m"):
         walk.office(anchor_pos_m=((0, 0, 1),))
+    with pytest.raises(ValueError, match="consecutive waypoints"):
+        walk.office(waypoints_m=((0, 0), (5, 0), (5, 0), (0, 4)))

@@ -46,7 +46,8 @@ __all__ = [
     "MODELS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "DEFAULT_GRIDS",
     "TagRun", "Estimates", "tag_runs", "thin", "synthetic_acquisition", "fit_range_sigma",
     "raw_multilateration", "ranging_summary", "estimate", "calibration_curves", "best_sigmas", "cep95_table", "ranking",
-    "paper_table", "split_runs", "Study", "run_study", "tdoa_noise_check", "banner", "scenario_figure", "covariance_figure", "calibration_figure", "paths_figure", "cdf_figure",
+    "paper_table", "split_runs", "Study", "run_study", "tdoa_noise_check", "banner", "scenario_figure",
+    "covariance_figure", "calibration_figure", "paths_figure", "cdf_figure", "ekf_name", "run_ekf",
 ]
 
 #: Motion models in the thesis' order.

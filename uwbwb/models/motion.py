@@ -325,7 +325,10 @@ MOTION_MODELS: dict[str, type[MotionModel]] = {"RW": RandomWalk, "RF": RandomFor
 
 
 def make_motion_model(name: str, *, sigma: float, dt_s: float, dim: int = 2) -> MotionModel:
-    """Model ``"RW" | "RF" | "RJ"`` with driving std ``sigma`` over steps of ``dt_s`` (see :meth:`MotionModel.from_sigma`)."""
+    """Model ``"RW" | "RF" | "RJ"`` with driving std ``sigma`` over steps of ``dt_s``.
+
+    See :meth:`MotionModel.from_sigma` for the convention ``q = sigma² · dt_s``.
+    """
     try:
         cls = MOTION_MODELS[name.upper()]
     except KeyError:

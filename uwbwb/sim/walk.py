@@ -112,7 +112,8 @@ class WalkScenario:
         Corners of the closed path ``((x, y), ...)``, metres; the loop is
         driven ``n_laps`` times (fractional allowed) or until ``duration_s``.
     corner_radius_m
-        Radius of the circular arcs that round every corner of the path.
+        Radius of the circular arcs that round every corner of the path (smaller
+        where a leg is too short to hold it).
     speed_mps
         Cruise speed; in turns ``speed / (1 + turn_slowdown_m · curvature)``.
     turn_slowdown_m
@@ -176,6 +177,8 @@ class WalkScenario:
             raise ValueError(f"{self.name}: anchor_pos_m must be (n_anchors >= 4, 3), got {a.shape}")
         if w.ndim != 2 or w.shape[1] != 2 or w.shape[0] < 3:
             raise ValueError(f"{self.name}: waypoints_m must be (n >= 3, 2), got {w.shape}")
+        if np.any(np.linalg.norm(w - np.roll(w, -1, axis=0), axis=1) < 1e-6):
+            raise ValueError(f"{self.name}: consecutive waypoints (last to first included) must differ")
         positive = ("speed_mps", "duration_s", "rate_hz", "tau_s", "max_acc_mps2", "lookahead_m",
                     "sigma_los_m", "sigma_nlos_m", "sim_rate_hz")
         bad = [k for k in positive if not getattr(self, k) > 0]
@@ -328,9 +331,9 @@ def steer(config: WalkScenario, *, rng: np.random.Generator) -> tuple[np.ndarray
     motion = config.motion
     dt = 1.0 / config.sim_rate_hz
     t_s = np.arange(0.0, config.duration_s + 1e-9, dt)
-    xy, kappa = path_points(config.waypoints_m, config.corner_radius_m)
-    N = len(xy)
     step = 0.02
+    xy, kappa = path_points(config.waypoints_m, config.corner_radius_m, step_m=step)
+    N = len(xy)
     # speed profile: slower in turns, looking 1.5 m ahead so the target brakes before a corner
     v_path = config.speed_mps / (1.0 + config.turn_slowdown_m * kappa)
     ahead = int(1.5 / step)
