@@ -1,5 +1,10 @@
-"""Models shared by simulators and estimators: motion models and measurement models."""
+"""Models shared by simulators and estimators.
 
-from . import ranging
+:mod:`.ranging` (two-way ranging with per-pair bias/scale), :mod:`.motion`
+(random walk / random force / random jerk), :mod:`.tdoa` (TDoA measurements),
+:mod:`.setnoise` (sensor-set position noise).
+"""
 
-__all__ = ["ranging"]
+from . import motion, ranging, setnoise, tdoa
+
+__all__ = ["motion", "ranging", "setnoise", "tdoa"]

@@ -1,5 +1,10 @@
-"""Simulators, one per scenario, built from the models in :mod:`uwbwb.models`."""
+"""Simulators, one per scenario, built from the models in :mod:`uwbwb.models`.
 
-from . import rig
+:mod:`.rig` (planar trolley with several tags), :mod:`.setnoise` (sensor-set
+facility, notebook 01), :mod:`.tours` (ceiling anchors and walking tours,
+notebook 02), :mod:`.walk` (office walk and AGV runs, notebook 03).
+"""
 
-__all__ = ["rig"]
+from . import rig, setnoise, tours, walk
+
+__all__ = ["rig", "setnoise", "tours", "walk"]
