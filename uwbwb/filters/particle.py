@@ -138,7 +138,7 @@ def systematic_counts(w: np.ndarray, u: np.ndarray) -> np.ndarray:
 
     Returns
     -------
-    ndarray of int32, shape ``(..., K)``
+    ndarray of intp, shape ``(..., K)``
     """
     w = np.asarray(w)
     K = w.shape[-1]
@@ -152,10 +152,12 @@ def systematic_counts(w: np.ndarray, u: np.ndarray) -> np.ndarray:
     # ⌈K c − u⌉ = ⌊K c + 1 − u⌋ (except on a null set), and K c + 1 − u > 0, so truncation floors
     c *= K / c[..., -1:]
     c += (1 - u)[..., None]
-    n_below = c.astype(np.int32)              # int32: converting float32 to int64 is several times slower
+    # int32 here (converting float32 to int64 is several times slower), intp for the counts
+    # (np.repeat is several times slower with int32 repeats)
+    n_below = c.astype(np.int32)
     np.minimum(n_below, K, out=n_below)       # guards against rounding of K·c_k only
     n_below[..., -1] = K
-    counts = np.empty_like(n_below)
+    counts = np.empty(n_below.shape, np.intp)
     counts[..., 0] = n_below[..., 0]
     np.subtract(n_below[..., 1:], n_below[..., :-1], out=counts[..., 1:])
     return counts
