@@ -61,3 +61,25 @@ def test_notebook_executes_fast(path, tmp_path):
     rows = json.loads(summary.read_text())
     assert rows, f"{path.name}: published an empty summary"
     assert {r["notebook"] for r in rows} == {path.stem}, f"{path.name}: summary rows name another notebook"
+
+
+@pytest.mark.notebook
+def test_quickstart_runs_unchanged_on_another_lias_recording(tmp_path):
+    """A recording that is not in ../shared (synthetic, upstream layout, run name 'medium')."""
+    import numpy as np
+    import papermill as pm
+
+    from tests.fixtures import lias as fx
+
+    data_dir = tmp_path / "data"
+    rng = np.random.default_rng(11)
+    fx.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 20.0, "clock_offset_s": 0.2}},
+                 sessions=[fx.session_814(rng)])
+    summary = tmp_path / "summary.json"
+    pm.execute_notebook(str(NOTEBOOK_DIR / "00_quickstart.ipynb"), str(tmp_path / "out.ipynb"),
+                        parameters={"FAST": True, "DATA_DIR": str(data_dir), "RECORDING": "medium",
+                                    "SUMMARY_PATH": str(summary)},
+                        kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
+                        execution_timeout=CELL_TIMEOUT_S)
+    rows = json.loads(summary.read_text())
+    assert {r["data"] for r in rows} == {"lias-planar-uwb/medium"}
