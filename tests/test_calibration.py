@@ -105,3 +105,38 @@ def test_too_few_samples_is_an_error(rng):
     static, _ = rig.simulate_static(rig.RigConfig(), poses_xy_yaw=[(0, 0, 0)], duration_s=0.1, rng=rng)
     with pytest.raises(ValueError, match="samples"):
         fit_range_calibration(static)
+
+
+# ----------------------------------------------------------------------------- with the LIAS loader
+
+def test_calibrates_another_rooms_static_poses_with_its_own_anchor_table(tmp_path):
+    """The 8.20 room has its own anchor/tag/pose tables: same code, no changes."""
+    from tests.fixtures import lias as fx
+    from uwbwb.datasets import lias
+
+    rng = np.random.default_rng(4)
+    fx.make_tree(tmp_path, rng=rng, sessions=[fx.session_814(rng), fx.session_820(rng)])
+    static = lias.load_static("8.20", tmp_path)
+    np.testing.assert_allclose(static[0].anchors.pos_m, fx.ROOM_B.anchors_m, atol=1e-4)
+    cal = fit_range_calibration(static)
+    assert cal.source == tuple(r.label for r in static)
+    resid = range_residuals(static[0], cal)
+    assert resid["median_m"].abs().max() < 0.5      # fixture biases are redrawn per file: loose bound
+
+
+@pytest.mark.realdata
+def test_lias_static_calibration_improves_the_fast_run():
+    """Calibrate on the 8.14 static poses, evaluate on the dynamic run of the same room."""
+    from tests.conftest import real_dataset
+    from uwbwb.datasets import lias
+
+    real_dataset(lias.NAME)
+    static = [r for r in lias.load_static("8.14")]
+    cal = fit_range_calibration(static)
+    fast = lias.load_dynamic("fast")
+    before = range_residuals(fast)
+    after = range_residuals(fast, cal)
+    # per-pair biases of ~0.1-0.3 m on the moving trolley shrink to a few centimetres
+    assert before["median_m"].abs().median() > 0.08
+    assert after["median_m"].abs().median() < 0.04
+    assert cal.scale_fitted.all() and np.all(np.abs(cal.scale - 1) < 0.05)
