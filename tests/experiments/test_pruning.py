@@ -221,3 +221,58 @@ def test_hanyang_percentile_lands_near_the_truth_in_los():
     assert len(los) > 10 and len(nlos) > 10
     assert abs(los.pq_err_m.median()) < 0.3
     assert nlos.median_err_m.median() > los.median_err_m.median()
+
+
+# --------------------------------------------------------------------------- section 10 text
+
+def _summary(stop_median, all_p90=(1.9, 0.6, 1.5, 1.7), speed=(0.997, np.nan, 1.02, 1.0)):
+    return pd.DataFrame({"stop_median_m": stop_median, "all_p90_m": all_p90, "speed_ratio_median": speed},
+                        index=pd.Index(["none", "percentile", "robust_mean", "residual"], name="heuristic"))
+
+
+def _hanyang(los_offset, nlos_offset, slope=0.004):
+    rng = np.arange(2.0, 62.0, 4.0)
+    rows = [{"condition": c, "true_range_m": r, "median_err_m": off + slope * r, "pq_err_m": off + slope * r - 0.03}
+            for c, off in (("LOS", los_offset), ("NLOS", nlos_offset)) for r in rng]
+    return pd.DataFrame(rows)
+
+
+def test_discussion_follows_the_tables():
+    persistence = pd.DataFrame([[0.72, 0.52, 0.44, 0.50], [1.26, 0.48, 0.50, 0.76], [0.67, 0.72, 0.58, 0.73]],
+                               index=[0.0, 3.0, 30.0], columns=["none", "percentile", "robust_mean", "residual"])
+    static = pd.concat({"raw": _summary([0.169, 0.131, 0.235, 0.243]),
+                        "calibrated (LOSO)": _summary([0.050, 0.041, 0.069, 0.038])})
+    dynamic = pd.DataFrame({"mean_err_m": [0.157, 0.247, 0.254, 0.075, 0.078, 0.076],
+                            "speed_ratio": [1.081, 1.106, 1.075, 1.001, 1.007, 1.007]},
+                           index=pd.MultiIndex.from_product([["raw", "calibrated"],
+                                                             ["none", "residual", "robust_mean"]]))
+    text = ex.discussion_markdown(_summary([1.157, 0.321, 0.515, 0.604]), persistence=persistence,
+                                  lias_static=static, lias_dynamic=dynamic, hanyang=_hanyang(0.12, 0.16))
+    assert ("ranks the 5th percentile (0.32 m), then the robust mean (0.52 m), residual pruning (0.60 m) and "
+            "plain NLS (1.16 m) — not the paper's") in text
+    assert "designed for" in text and "do not tune it" in text
+    assert "(30 s episodes in the sensitivity table, against 3 s)" in text
+    assert "the 5th percentile and the robust mean get worse, the others do not" in text
+    assert "the robust mean takes the lead from the 5th percentile (by 0.14 m)" in text
+    assert "residual pruning does not become the clear winner" in text
+    assert "the 5th percentile (0.13 m) helps" in text and "residual pruning (0.24 m) hurt:" in text
+    assert "within 3 cm of each other" in text and "calibration, not pruning, removes most" in text
+    assert "with raw ranges plain NLS beats every heuristic" in text
+    assert "with calibrated ranges plain NLS is as good as any heuristic" in text
+    assert "(0.5 m LOS, 2.5 m mean NLOS excess) and are smaller (residual pruning: 90 % under 1.70 m)" in text
+    assert "too large for the raw LIAS pieces (1.081)" in text and "removes the excess" in text
+    assert "Hanyang NLOS is mild" in text and "over the 56 m of distances, dominates both" in text
+    assert "+0.21 m (LOS)" in text and "long in both conditions" in text
+
+
+def test_discussion_when_the_paper_ranking_comes_out():
+    persistence = pd.DataFrame([[1.0, 0.6, 0.65, 0.5], [1.2, 0.9, 0.8, 0.6]], index=[3.0, 30.0],
+                               columns=["none", "percentile", "robust_mean", "residual"])
+    text = ex.discussion_markdown(_summary([1.0, 0.8, 0.6, 0.4], speed=(1.10, np.nan, 1.1, 1.1)),
+                                  persistence=persistence, hanyang=_hanyang(0.0, 1.0, slope=0.0))
+    assert "— the paper's ranking" in text and "do not tune it" not in text and "designed for" not in text
+    assert "every estimator gets worse" in text and "residual pruning stays the best heuristic" in text
+    assert "(lead 0.10 m → 0.20 m), as in the paper" in text
+    assert "LIAS" not in text and "too large for our synthetic walks (1.100)" in text
+    assert "Hanyang NLOS is strong" in text and "growing with distance" not in text
+    assert "long in both conditions" not in text and "−0.03 m (LOS)" in text
