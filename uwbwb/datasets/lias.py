@@ -238,6 +238,17 @@ def _ordinal_lines(mask: np.ndarray, first_line: int, limit: int = 5) -> str:
     return ", ".join(str(int(i)) for i in idx) + more
 
 
+def _repeated_stamps(t_s: np.ndarray, lines: np.ndarray, what: str) -> tuple[np.ndarray, CleaningStep | None]:
+    """Rows repeating the previous row's stamp (1 ms resolution): mask and the counted step."""
+    repeat = np.concatenate([[False], np.diff(t_s) == 0])
+    if not repeat.any():
+        return repeat, None
+    shown = ", ".join(str(int(v)) for v in lines[repeat][:5]) + (", ..." if repeat.sum() > 5 else "")
+    return repeat, CleaningStep(what, int(repeat.sum()),
+                                f"rows with the same stamp as the previous row (1 ms resolution); "
+                                f"later row dropped (lines {shown})")
+
+
 # ----------------------------------------------------------------------------- UWB files
 
 def read_uwb_csv(path: str | os.PathLike, *, n_anchors: int = _N_ANCHORS, n_tags: int = _N_TAGS,
@@ -340,13 +351,9 @@ def read_uwb_csv(path: str | os.PathLike, *, n_anchors: int = _N_ANCHORS, n_tags
     if keep.size == 0:
         raise DataFormatError(path, f"no row holds all {n_pairs} ranges", line=1)
     t_s, rng, kept_lines = t_all[keep], rng[keep], line_no[keep]
-    repeat = np.concatenate([[False], np.diff(t_s) == 0])
-    if repeat.any():
-        cleaning.append(CleaningStep(
-            "repeated UWB time stamps", int(repeat.sum()),
-            f"rows with the same stamp as the previous row (1 ms resolution); later row dropped "
-            f"(lines {', '.join(str(int(v)) for v in kept_lines[repeat][:5])}"
-            f"{', ...' if repeat.sum() > 5 else ''})"))
+    repeat, step = _repeated_stamps(t_s, kept_lines, "repeated UWB time stamps")
+    if step is not None:
+        cleaning.append(step)
         t_s, rng = t_s[~repeat], rng[~repeat]
     zero, huge = rng == 0, rng > max_range_m
     if zero.any():
@@ -434,13 +441,9 @@ def read_mocap_csv(path: str | os.PathLike, *, return_cleaning: bool = False):
     if keep.size == 0:
         raise DataFormatError(path, "every motion-capture row is a dropout (all zeros)", line=2)
     t_s, values, kept_lines = t_s[keep], values[keep], line_no[keep]
-    repeat = np.concatenate([[False], np.diff(t_s) == 0])
-    if repeat.any():
-        cleaning.append(CleaningStep(
-            "repeated motion-capture stamps", int(repeat.sum()),
-            f"rows with the same stamp as the previous row (1 ms resolution); later row dropped "
-            f"(lines {', '.join(str(int(v)) for v in kept_lines[repeat][:5])}"
-            f"{', ...' if repeat.sum() > 5 else ''})"))
+    repeat, step = _repeated_stamps(t_s, kept_lines, "repeated motion-capture stamps")
+    if step is not None:
+        cleaning.append(step)
         t_s, values = t_s[~repeat], values[~repeat]
     out = (t_s, values[:, :3], values[:, 3:], t0)
     return out + (cleaning,) if return_cleaning else out
