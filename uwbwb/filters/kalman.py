@@ -11,6 +11,7 @@ rather than ``z − Hx``.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,8 +49,17 @@ def _symmetric(P: np.ndarray) -> np.ndarray:
     return 0.5 * (P + P.T)
 
 
+_local = threading.local()
+
+
 def _filter(state: Gaussian) -> KalmanFilter:
-    kf = KalmanFilter(dim_x=state.x.size, dim_z=1)
+    # One filterpy object per state size and thread, reloaded with (x, P) on every call:
+    # predict/update pass F, Q, H, R explicitly, so nothing else carries over between calls,
+    # and building a new KalmanFilter each step would cost about a fifth of the step.
+    cache = _local.__dict__.setdefault("filters", {})
+    kf = cache.get(state.x.size)
+    if kf is None:
+        kf = cache[state.x.size] = KalmanFilter(dim_x=state.x.size, dim_z=1)
     kf.x = state.x.reshape(-1, 1).copy()
     kf.P = np.array(state.P, copy=True)
     return kf
