@@ -447,8 +447,10 @@ def emulate_fixes(rec: Recording, tag: str, emulation: Emulation = Emulation(), 
         power = -10 * emulation.path_loss_exponent * np.log10(np.where(r > 0, r, np.nan))
     used = sim.select_sets(power, emulation.set_size, emulation.fading_db, rng=rng)
     enough = used.sum(axis=1) >= emulation.set_size
+    # the tag rides at a fixed height on the rig: one constant (the median truth height), never per-epoch truth
+    tag_height_m = float(np.median(truth.pos_m[:, 2]))
     res = geometry.multilaterate(np.where(used, r, np.nan)[enough], rec.anchors.pos_m, dim=2,
-                                 z_m=truth_xyz[has_truth][enough, 2], min_anchors=emulation.set_size)
+                                 z_m=tag_height_m, min_anchors=emulation.set_size)
     ok = res.ok
     t = log.t_s[has_truth][enough][ok]
     fixes = SetFixLog(t, res.pos_m[ok], set_id_from_mask(used[enough][ok]), rec.anchors.ids,
