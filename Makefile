@@ -5,6 +5,8 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 LAB_IP ?= 127.0.0.1
 LAB_PORT ?= 8888
+# JupyterLab refuses to start as root unless told; containers and CI machines often run as root.
+LAB_ROOT := $(if $(filter 0,$(shell id -u)),--allow-root,)
 
 .PHONY: lab test reproduce bench env clean
 
@@ -20,7 +22,7 @@ env: $(STAMP)
 
 ## Open the workbench: JupyterLab on notebooks/ (token auth on, loopback only by default).
 lab: $(STAMP)
-	$(VENV)/bin/jupyter lab --notebook-dir=notebooks --ServerApp.ip=$(LAB_IP) --ServerApp.port=$(LAB_PORT)
+	$(VENV)/bin/jupyter lab --notebook-dir=notebooks --ServerApp.ip=$(LAB_IP) --ServerApp.port=$(LAB_PORT) $(LAB_ROOT)
 
 ## Run the whole test suite, notebooks and the browser test included.
 test: $(STAMP)
