@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import json
 import sys
-import threading
 import types
 
 import pandas as pd
 import pytest
 
-from tests.datasets.test_fetch import _Server
+from tests.datasets.test_fetch import serving
 from uwbwb import cli
 from uwbwb import reproduce as rp
 from uwbwb.datasets import manifest as mf
@@ -145,14 +144,8 @@ def test_datasets_with_the_committed_manifest_on_an_empty_dir(tmp_path, capsys):
 
 @pytest.fixture
 def server():
-    files = {rel: data for rel, data in TREES["toy-a"].items()}
-    srv = _Server(files)
-    thread = threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
-    thread.start()
-    yield srv
-    srv.shutdown()
-    srv.server_close()
-    thread.join(timeout=5)
+    with serving(dict(TREES["toy-a"])) as srv:
+        yield srv
 
 
 def test_fetch_command_downloads_and_reports(toy_project, server, tmp_path, capsys):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import re
 import threading
 import urllib.parse
@@ -123,15 +124,24 @@ def manifest_csv(files, tmp_path_factory):
     return out
 
 
-@pytest.fixture
-def server(files):
+@contextlib.contextmanager
+def serving(files):
+    """A :class:`_Server` for ``files`` on 127.0.0.1, running in a thread; shut down on exit."""
     srv = _Server(files)
     thread = threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
     thread.start()
-    yield srv
-    srv.shutdown()
-    srv.server_close()
-    thread.join(timeout=5)
+    try:
+        yield srv
+    finally:
+        srv.shutdown()
+        srv.server_close()
+        thread.join(timeout=5)
+
+
+@pytest.fixture
+def server(files):
+    with serving(files) as srv:
+        yield srv
 
 
 @pytest.fixture
