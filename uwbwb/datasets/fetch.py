@@ -136,6 +136,7 @@ def _stream(url: str, rel: str, part: Path, size_bytes: int, timeout_s: float,
     try:
         resp = _open(url, offset, timeout_s)
     except urllib.error.HTTPError as exc:
+        exc.close()  # an HTTPError holds the open error response
         if exc.code == 416 and offset:
             part.unlink()  # the server cannot continue from our partial data: start over
             raise _Interrupted("server refused to resume (HTTP 416)") from None
