@@ -1,34 +1,34 @@
-"""TDoA extended Kalman filter with a white-noise-driven motion model (thesis eqs 1–10).
+"""Extended Kalman filtering: one generic filter over any measurement model, and its TDoA form.
 
-Prediction (eqs 5–6, with the covariance propagation written correctly as
-``A P Aᵀ + Q``; the thesis prints ``AᵀPA + Q``)::
+The generic filter (:class:`Ekf`) takes a transition model giving ``F(dt)``, ``Q(dt)``
+(every :mod:`uwbwb.models.motion` model fits) and a measurement model that linearises
+each epoch's measurement at the prior mean, returning :class:`Linearisation`
+``(z, h(x⁻), H, R)``. Prediction and update are the textbook steps::
 
-    x⁻ = F(dt) x,        P⁻ = F(dt) P F(dt)ᵀ + Q(dt)
-
-with ``F``, ``Q`` from a :mod:`uwbwb.models.motion` model. Update (eqs 7–9) with
-the TDoA model linearised at the prior (eqs 3–4)::
-
+    x⁻ = F x,  P⁻ = F P Fᵀ + Q
     y = z − h(x⁻),  S = H P⁻ Hᵀ + R,  G = P⁻ Hᵀ S⁻¹,  x = x⁻ + G y,
     P = (I − G H) P⁻ (I − G H)ᵀ + G R Gᵀ              (Joseph form)
 
-Both steps go through :mod:`uwbwb.filters.kalman`, the one edge that touches
-filterpy. The estimate is the posterior mean (eq. 10).
+both through :mod:`uwbwb.filters.kalman`, the one edge that touches filterpy. A run keeps
+priors *and* posteriors (:class:`KalmanRun`), so the Rauch–Tung–Striebel smoother, NEES
+and NIS consistency work on any filter built this way; :meth:`KalmanRun.to_estimates`
+gives the package's common result type :class:`~uwbwb.types.Estimates`.
 
-Every update reports the normalised innovation squared ``NIS = yᵀ S⁻¹ y``,
-χ²-distributed with ``m`` (number of TDoAs) degrees of freedom when the
-models are right. Optional χ² gating (``gate_prob``): if the NIS of an epoch
-exceeds the ``gate_prob`` quantile of χ²(m), the anchor whose removal lowers
-the NIS most is dropped (re-referencing if it was the reference) and the test
-repeated, until the epoch passes or fewer than ``min_tdoa`` TDoAs remain, in
-which case the epoch is skipped (prediction only). A filter that has drifted
-away (e.g. a random walk whose driving noise is far too small to follow the
-target) would otherwise reject every later epoch and never come back; so after
-``max_skipped`` consecutive skipped epochs the next epoch is used ungated.
+Gating: an epoch whose normalised innovation squared ``NIS = yᵀ S⁻¹ y`` exceeds the
+``gate_prob`` quantile of χ²(m) is rejected (prediction only, status ``GATED``). The
+default ``gate_prob = 0.9999`` rejects one consistent epoch in ten thousand and any
+absurd measurement; ``gate_prob=None`` means *no gate*: every measurement is used, however
+far from the prediction. A filter that has lost the target would reject everything after,
+so after ``max_gated`` consecutive gated epochs the next one is used ungated.
+
+:class:`TdoaEkf` is the TDoA filter of notebook 03 (thesis eqs 1–10); its gate can drop
+single anchors before giving up an epoch.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any, Protocol, Sequence
 
 import numpy as np
 import pandas as pd
@@ -36,13 +36,347 @@ from scipy.stats import chi2
 
 from ..models.motion import MotionModel
 from ..models.tdoa import TdoaLog, TdoaModel
-from ..types import Trajectory
+from ..types import EstimateStatus, Estimates, Trajectory
 from . import kalman
 from .kalman import Gaussian
 from .tdoa_ls import tdoa_least_squares
 
-__all__ = ["TdoaEkf", "EkfResult", "EpochUpdate", "run_tdoa_ekf"]
+__all__ = ["Ekf", "KalmanRun", "Linearisation", "MeasurementModel", "TransitionModel", "UpdateInfo",
+           "nis_consistency", "TdoaEkf", "EkfResult", "EpochUpdate", "run_tdoa_ekf"]
 
+
+# ====================================================================== generic EKF
+@dataclass(frozen=True)
+class Linearisation:
+    """One epoch's measurement linearised at the prior mean ``x⁻``.
+
+    Attributes
+    ----------
+    z
+        Measurement, shape ``(m,)``.
+    h
+        Predicted measurement ``h(x⁻)``, shape ``(m,)``.
+    H
+        Jacobian ``∂h/∂x`` at ``x⁻`` with respect to the *full* state, shape ``(m, n_x)``.
+    R
+        Measurement noise covariance, shape ``(m, m)``.
+    """
+
+    z: np.ndarray
+    h: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+
+    def __post_init__(self):
+        z = np.atleast_1d(np.asarray(self.z, float))
+        h = np.atleast_1d(np.asarray(self.h, float))
+        H = np.atleast_2d(np.asarray(self.H, float))
+        R = np.atleast_2d(np.asarray(self.R, float))
+        m = z.size
+        if z.ndim != 1 or h.shape != (m,) or H.shape[0] != m or R.shape != (m, m):
+            raise ValueError(f"Linearisation: z {z.shape}, h {h.shape}, H {H.shape}, R {R.shape} do not fit "
+                             f"(expected (m,), (m,), (m, n_x), (m, m))")
+        for name, a in (("z", z), ("h", h), ("H", H), ("R", R)):
+            object.__setattr__(self, name, a)
+
+    @property
+    def innovation(self) -> np.ndarray:
+        """``z − h(x⁻)``, shape ``(m,)``."""
+        return self.z - self.h
+
+
+class MeasurementModel(Protocol):
+    """What :class:`Ekf` needs from a measurement model."""
+
+    def linearise(self, x: np.ndarray, measurement: Any) -> Linearisation | None:
+        """Linearise ``measurement`` (one epoch's, in the model's own form) at state ``x``.
+
+        Returns None when the epoch holds nothing usable (the filter then only predicts).
+        """
+
+
+class TransitionModel(Protocol):
+    """What :class:`Ekf` needs from a motion model (:class:`~uwbwb.models.motion.MotionModel` fits)."""
+
+    n_x: int
+
+    def F(self, dt_s) -> np.ndarray:
+        """State transition, shape ``(..., n_x, n_x)`` for ``dt_s`` of shape ``(...)``."""
+
+    def Q(self, dt_s) -> np.ndarray:
+        """Process noise covariance, shape ``(..., n_x, n_x)``."""
+
+
+@dataclass(frozen=True)
+class UpdateInfo:
+    """What one :meth:`Ekf.update` did: ``nis`` (NaN if nothing was measured), ``dof`` (size of
+    the measurement used, 0 if none) and the epoch's :class:`~uwbwb.types.EstimateStatus`."""
+
+    nis: float
+    dof: int
+    status: EstimateStatus
+
+
+def _check_gate(gate_prob, owner: str) -> None:
+    if gate_prob is not None and not (isinstance(gate_prob, (int, float)) and 0 < gate_prob < 1):
+        raise ValueError(f"{owner}.gate_prob must be in (0, 1) or None (no gate), got {gate_prob!r}")
+
+
+@dataclass(frozen=True)
+class Ekf:
+    """Extended Kalman filter over any transition and measurement model.
+
+    Attributes
+    ----------
+    transition
+        Gives ``F(dt)`` and ``Q(dt)`` (vectorised over ``dt``) and ``n_x``.
+    measurement
+        Gives a :class:`Linearisation` per epoch (:class:`MeasurementModel`).
+    pos_index
+        State components that are the position (2 or 3 of them), for results and metrics.
+    vel_index
+        State components that are the velocity, or None.
+    gate_prob
+        χ² gate probability on each epoch's NIS; None = no gate (every measurement used).
+    max_gated
+        Consecutive gated epochs after which the next epoch is used ungated.
+    """
+
+    transition: TransitionModel
+    measurement: MeasurementModel
+    pos_index: tuple[int, ...]
+    vel_index: tuple[int, ...] | None = None
+    gate_prob: float | None = 0.9999
+    max_gated: int = 10
+
+    def __post_init__(self):
+        n = int(self.transition.n_x)
+        pos = tuple(int(i) for i in self.pos_index)
+        if len(pos) not in (2, 3) or not all(0 <= i < n for i in pos):
+            raise ValueError(f"Ekf.pos_index must name 2 or 3 of the {n} state components, got {self.pos_index!r}")
+        object.__setattr__(self, "pos_index", pos)
+        if self.vel_index is not None:
+            vel = tuple(int(i) for i in self.vel_index)
+            if len(vel) != len(pos) or not all(0 <= i < n for i in vel):
+                raise ValueError(f"Ekf.vel_index must name {len(pos)} of the {n} state components, "
+                                 f"got {self.vel_index!r}")
+            object.__setattr__(self, "vel_index", vel)
+        _check_gate(self.gate_prob, "Ekf")
+        if not isinstance(self.max_gated, (int, np.integer)) or self.max_gated < 0:
+            raise ValueError(f"Ekf.max_gated must be an integer >= 0, got {self.max_gated!r}")
+
+    def predict(self, state: Gaussian, dt_s: float) -> Gaussian:
+        """Prior after ``dt_s`` seconds: ``x⁻ = F x``, ``P⁻ = F P Fᵀ + Q``."""
+        return kalman.predict(state, self.transition.F(dt_s), self.transition.Q(dt_s))
+
+    def update(self, state: Gaussian, measurement, *, gate: bool = True) -> tuple[Gaussian, UpdateInfo]:
+        """Posterior after one epoch's ``measurement`` (Joseph form), or the prior if it is gated.
+
+        Parameters
+        ----------
+        state
+            Prior.
+        measurement
+            The epoch's measurement in the measurement model's own form.
+        gate
+            Apply the χ² gate (if ``gate_prob`` is set).
+        """
+        lin = self.measurement.linearise(state.x, measurement)
+        if lin is None or lin.z.size == 0:
+            return state, UpdateInfo(np.nan, 0, EstimateStatus.PREDICTED)
+        if lin.H.shape[1] != state.x.size:
+            raise ValueError(f"Ekf.update: the measurement Jacobian has {lin.H.shape[1]} columns, "
+                             f"the state {state.x.size} components")
+        post, inn = kalman.update(state, lin.z, lin.H, lin.R, h_x=lin.h)
+        if gate and self.gate_prob is not None and inn.nis > chi2.ppf(self.gate_prob, lin.z.size):
+            return state, UpdateInfo(inn.nis, 0, EstimateStatus.GATED)
+        return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED)
+
+    def run(self, t_s, measurements: Sequence, x0: Gaussian, *, start: int = 0, name: str = "EKF") -> "KalmanRun":
+        """Filter a whole recording.
+
+        Parameters
+        ----------
+        t_s
+            Epoch times, shape ``(T,)``, seconds, strictly increasing.
+        measurements
+            One measurement per epoch (length ``T``), in the measurement model's form.
+        x0
+            Prior at epoch ``start`` (updated with that epoch's measurement).
+        start
+            First epoch filtered; earlier epochs have no estimate.
+        name
+            Label of the run.
+
+        Returns
+        -------
+        KalmanRun
+        """
+        t_s = np.asarray(t_s, float)
+        T, n = t_s.size, x0.x.size
+        if len(measurements) != T:
+            raise ValueError(f"Ekf.run: {len(measurements)} measurements for {T} epochs")
+        if T > 1 and np.any(np.diff(t_s) <= 0):
+            raise ValueError("Ekf.run: t_s must be strictly increasing")
+        if not 0 <= start <= T:
+            raise ValueError(f"Ekf.run: start must be in 0..{T}, got {start}")
+        if n != self.transition.n_x:
+            raise ValueError(f"Ekf.run: x0 has {n} components, the transition model {self.transition.n_x}")
+        xm, Pm = np.full((T, n), np.nan), np.full((T, n, n), np.nan)
+        xp, Pp = np.full((T, n), np.nan), np.full((T, n, n), np.nan)
+        F = np.full((T, n, n), np.nan)
+        nis, dof = np.full(T, np.nan), np.zeros(T, int)
+        status = np.full(T, EstimateStatus.NO_ESTIMATE, np.int8)
+        if start < T:
+            dt = np.diff(t_s[start:])
+            F_all, Q_all = self.transition.F(dt), self.transition.Q(dt)   # every step at once
+            F[start] = np.eye(n)
+            state, gated = x0, 0
+            for k in range(start, T):
+                if k > start:
+                    state = kalman.predict(state, F_all[k - start - 1], Q_all[k - start - 1])
+                    F[k] = F_all[k - start - 1]
+                xm[k], Pm[k] = state.x, state.P
+                state, info = self.update(state, measurements[k], gate=gated < self.max_gated)
+                gated = gated + 1 if info.status == EstimateStatus.GATED else 0
+                xp[k], Pp[k], nis[k], dof[k], status[k] = state.x, state.P, info.nis, info.dof, info.status
+        return KalmanRun(t_s.copy(), xm, Pm, xp, Pp, F, nis, dof, status, self.pos_index, self.vel_index, name)
+
+
+@dataclass(frozen=True)
+class KalmanRun:
+    """Priors and posteriors of one Kalman-filter run.
+
+    Attributes
+    ----------
+    t_s
+        Epoch times, shape ``(T,)``, seconds.
+    x_prior, P_prior
+        Predicted means ``(T, n_x)`` and covariances ``(T, n_x, n_x)`` at each epoch, before
+        its measurement; NaN where the filter had not started.
+    x_post, P_post
+        Filtered means and covariances after each epoch's measurement (equal to the prior
+        where the epoch was predicted only or gated).
+    F
+        Transition into each epoch from the one before, ``(T, n_x, n_x)`` (identity at the
+        first filtered epoch), kept for smoothing.
+    nis, dof
+        NIS per epoch (NaN if nothing was measured; computed also for gated epochs) and the
+        size of the measurement used (0 if none was used).
+    status
+        :class:`~uwbwb.types.EstimateStatus` per epoch.
+    pos_index, vel_index
+        State components of the position and velocity.
+    name
+        Label.
+    """
+
+    t_s: np.ndarray
+    x_prior: np.ndarray
+    P_prior: np.ndarray
+    x_post: np.ndarray
+    P_post: np.ndarray
+    F: np.ndarray
+    nis: np.ndarray
+    dof: np.ndarray
+    status: np.ndarray
+    pos_index: tuple[int, ...]
+    vel_index: tuple[int, ...] | None = None
+    name: str = "EKF"
+
+    def __len__(self) -> int:
+        return self.t_s.size
+
+    @property
+    def started(self) -> np.ndarray:
+        """Epochs from the first filtered one on, bool ``(T,)``."""
+        return self.status != EstimateStatus.NO_ESTIMATE
+
+    def smooth(self, name: str | None = None) -> "KalmanRun":
+        """Rauch–Tung–Striebel smoothed run (the posteriors replaced by smoothed estimates).
+
+        For ``k`` from the last epoch back, with ``C_k = P_k Fₖ₊₁ᵀ (P⁻ₖ₊₁)⁻¹``::
+
+            x̂ₖ = xₖ + C_k (x̂ₖ₊₁ − x⁻ₖ₊₁),   P̂ₖ = Pₖ + C_k (P̂ₖ₊₁ − P⁻ₖ₊₁) C_kᵀ
+        """
+        idx = np.flatnonzero(self.started)
+        xs, Ps = self.x_post.copy(), self.P_post.copy()
+        for j in range(idx.size - 2, -1, -1):
+            k, k1 = idx[j], idx[j + 1]
+            # C = P F1ᵀ (P⁻)⁻¹ = ((P⁻)⁻¹ F1 P)ᵀ, P⁻ symmetric positive definite
+            C = np.linalg.solve(self.P_prior[k1], self.F[k1] @ self.P_post[k]).T
+            xs[k] = self.x_post[k] + C @ (xs[k1] - self.x_prior[k1])
+            Ps[k] = self.P_post[k] + C @ (Ps[k1] - self.P_prior[k1]) @ C.T
+            Ps[k] = 0.5 * (Ps[k] + Ps[k].T)
+        return replace(self, x_post=xs, P_post=Ps, name=name or f"{self.name}-RTS")
+
+    def nees(self, x_true: np.ndarray, index: Sequence[int] | None = None) -> np.ndarray:
+        """Normalised estimation error squared ``eᵀ P⁻¹ e`` per epoch, shape ``(T,)``.
+
+        Parameters
+        ----------
+        x_true
+            True values of the state components ``index``, shape ``(T, len(index))``.
+        index
+            State components compared (default: all). Pass ``pos_index`` for the position NEES.
+            χ²(len(index))-distributed when the filter is consistent; NaN before the start.
+        """
+        idx = np.arange(self.x_post.shape[1]) if index is None else np.asarray(index, int)
+        x_true = np.asarray(x_true, float)
+        if x_true.shape != (len(self), idx.size):
+            raise ValueError(f"KalmanRun.nees: x_true must have shape ({len(self)}, {idx.size}), got {x_true.shape}")
+        e = self.x_post[:, idx] - x_true
+        P = self.P_post[:, idx[:, None], idx]
+        out = np.full(len(self), np.nan)
+        ok = self.started & np.all(np.isfinite(e), axis=1)
+        out[ok] = np.einsum("ti,ti->t", e[ok], np.linalg.solve(P[ok], e[ok][..., None])[..., 0])
+        return out
+
+    def nis_consistency(self, prob: float = 0.95) -> dict:
+        """χ² consistency of the NIS over the updated epochs (see :func:`nis_consistency`)."""
+        up = self.status == EstimateStatus.UPDATED
+        return nis_consistency(self.nis[up], self.dof[up], prob)
+
+    def to_estimates(self) -> Estimates:
+        """The common result type: posterior positions (velocities, covariances) and status."""
+        pos = self.x_post[:, list(self.pos_index)]
+        cov = self.P_post[:, list(self.pos_index)][:, :, list(self.pos_index)]
+        vel = None if self.vel_index is None else self.x_post[:, list(self.vel_index)]
+        return Estimates(self.t_s, pos, self.status, self.name, cov, vel, {"nis": self.nis, "dof": self.dof})
+
+
+def nis_consistency(nis: np.ndarray, dof: np.ndarray, prob: float = 0.95) -> dict:
+    """χ² test of a filter's NIS over its updates.
+
+    Under correct models the sum of the NIS over ``n`` updates is χ²(Σ dof). The verdict
+    compares that sum with its central ``prob`` interval: above it the filter is
+    *over-confident* (its covariances are too small for its errors), below it
+    *under-confident*.
+
+    Returns
+    -------
+    dict
+        ``n`` updates, ``mean_nis_over_dof`` (≈ 1 when consistent), ``fraction_inside``
+        (share of single updates inside their own central ``prob`` interval),
+        ``sum_nis``, ``sum_dof``, the interval ``sum_lo``/``sum_hi`` and ``verdict``
+        (``"consistent"``, ``"over-confident"``, ``"under-confident"`` or ``"no updates"``).
+    """
+    nis, dof = np.asarray(nis, float), np.asarray(dof, int)
+    ok = (dof > 0) & np.isfinite(nis)
+    if not ok.any():
+        return {"n": 0, "mean_nis_over_dof": np.nan, "fraction_inside": np.nan, "sum_nis": np.nan,
+                "sum_dof": 0, "sum_lo": np.nan, "sum_hi": np.nan, "verdict": "no updates"}
+    nis, dof = nis[ok], dof[ok]
+    a = (1 - prob) / 2
+    inside = (nis >= chi2.ppf(a, dof)) & (nis <= chi2.ppf(1 - a, dof))
+    total = int(dof.sum())
+    lo, hi, s = float(chi2.ppf(a, total)), float(chi2.ppf(1 - a, total)), float(nis.sum())
+    verdict = "over-confident" if s > hi else "under-confident" if s < lo else "consistent"
+    return {"n": int(ok.sum()), "mean_nis_over_dof": s / total, "fraction_inside": float(inside.mean()),
+            "sum_nis": s, "sum_dof": total, "sum_lo": lo, "sum_hi": hi, "verdict": verdict}
+
+
+# ====================================================================== TDoA EKF (notebook 03)
 
 @dataclass(frozen=True)
 class EpochUpdate:
@@ -66,6 +400,33 @@ class EpochUpdate:
 @dataclass(frozen=True)
 class TdoaEkf:
     """A TDoA EKF: motion model + measurement model + gating and initialisation settings.
+
+    TDoA extended Kalman filter with a white-noise-driven motion model (thesis eqs 1–10).
+
+    Prediction (eqs 5–6, with the covariance propagation written correctly as
+    ``A P Aᵀ + Q``; the thesis prints ``AᵀPA + Q``)::
+
+        x⁻ = F(dt) x,        P⁻ = F(dt) P F(dt)ᵀ + Q(dt)
+
+    with ``F``, ``Q`` from a :mod:`uwbwb.models.motion` model. Update (eqs 7–9) with
+    the TDoA model linearised at the prior (eqs 3–4)::
+
+        y = z − h(x⁻),  S = H P⁻ Hᵀ + R,  G = P⁻ Hᵀ S⁻¹,  x = x⁻ + G y,
+        P = (I − G H) P⁻ (I − G H)ᵀ + G R Gᵀ              (Joseph form)
+
+    Both steps go through :mod:`uwbwb.filters.kalman`, the one edge that touches
+    filterpy. The estimate is the posterior mean (eq. 10).
+
+    Every update reports the normalised innovation squared ``NIS = yᵀ S⁻¹ y``,
+    χ²-distributed with ``m`` (number of TDoAs) degrees of freedom when the
+    models are right. Optional χ² gating (``gate_prob``): if the NIS of an epoch
+    exceeds the ``gate_prob`` quantile of χ²(m), the anchor whose removal lowers
+    the NIS most is dropped (re-referencing if it was the reference) and the test
+    repeated, until the epoch passes or fewer than ``min_tdoa`` TDoAs remain, in
+    which case the epoch is skipped (prediction only). A filter that has drifted
+    away (e.g. a random walk whose driving noise is far too small to follow the
+    target) would otherwise reject every later epoch and never come back; so after
+    ``max_skipped`` consecutive skipped epochs the next epoch is used ungated.
 
     Attributes
     ----------
@@ -270,29 +631,10 @@ class EkfResult:
         """Epochs after initialisation, bool ``(T,)``."""
         return np.all(np.isfinite(self.x), axis=1)
 
-    def nis_consistency(self, prob: float = 0.95) -> dict[str, float]:
-        """χ² consistency of the NIS over the updated epochs.
-
-        Returns
-        -------
-        dict
-            ``n`` epochs, ``mean_nis_over_dof`` (≈ 1 when consistent),
-            ``fraction_inside`` (share of epochs with NIS inside the central
-            ``prob`` interval of χ²(dof), ≈ ``prob`` when consistent) and
-            ``sum_nis``/``sum_dof`` with the two-sided ``prob`` bounds of the
-            sum under the χ²(Σdof) hypothesis.
-        """
+    def nis_consistency(self, prob: float = 0.95) -> dict:
+        """χ² consistency of the NIS over the updated epochs (see :func:`nis_consistency`)."""
         up = self.dof > 0
-        if not up.any():
-            return {"n": 0, "mean_nis_over_dof": np.nan, "fraction_inside": np.nan, "sum_nis": np.nan,
-                    "sum_dof": 0, "sum_lo": np.nan, "sum_hi": np.nan}
-        nis, dof = self.nis[up], self.dof[up]
-        a = (1 - prob) / 2
-        inside = (nis >= chi2.ppf(a, dof)) & (nis <= chi2.ppf(1 - a, dof))
-        total = int(dof.sum())
-        return {"n": int(up.sum()), "mean_nis_over_dof": float(nis.sum() / total),
-                "fraction_inside": float(inside.mean()), "sum_nis": float(nis.sum()), "sum_dof": total,
-                "sum_lo": float(chi2.ppf(a, total)), "sum_hi": float(chi2.ppf(1 - a, total))}
+        return nis_consistency(self.nis[up], self.dof[up], prob)
 
     def to_frame(self) -> pd.DataFrame:
         """Table ``t_s``, the state columns (``x_m, y_m, vx_mps, ...``), position SDs, ``nis, dof, n_rejected``."""

@@ -101,6 +101,18 @@ def update(state: Gaussian, z: np.ndarray, H: np.ndarray, R: np.ndarray,
     R = np.atleast_2d(np.asarray(R, float))
     if H.shape != (z.size, state.x.size) or R.shape != (z.size, z.size):
         raise ValueError(f"update: z {z.shape}, H {H.shape}, R {R.shape} do not fit state of size {state.x.size}")
+    for name, a in (("z", z), ("H", H), ("R", R)) + ((("h_x", np.asarray(h_x, float)),) if h_x is not None else ()):
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"update: {name} contains non-finite values; a missing measurement is left out, "
+                             f"not passed as NaN")
+    if np.any(np.diag(R) <= 0) or not np.allclose(R, R.T):
+        raise ValueError(f"update: R must be symmetric with positive variances, got diagonal {np.diag(R).tolist()}")
+    S = H @ state.P @ H.T + R
+    try:
+        np.linalg.cholesky(_symmetric(S))
+    except np.linalg.LinAlgError:
+        raise ValueError("update: the innovation covariance H P Hᵀ + R is not positive definite "
+                         "(check R and the state covariance)") from None
     if h_x is not None:
         # Linearised update: filterpy forms y = z_lin − H x⁻, so z_lin = z − h(x⁻) + H x⁻ gives y = z − h(x⁻).
         z = z - np.asarray(h_x, float).ravel() + H @ state.x
