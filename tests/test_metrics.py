@@ -111,23 +111,27 @@ def test_error_stats_and_nan_policy():
 
 
 def _summary():
-    s = m.Summary("00_quickstart")
+    s = m.Summary("00_quickstart", fast=False)
     s.add(quantity="CEP95, tag t0, raw multilateration", value=0.31, unit="m",
-          paper_value=None, data="lias-planar-uwb/fast")
-    s.add(quantity="RMSE, EKF", value=np.float32(12.5), unit="cm", paper_value=np.int64(11), data="synthetic")
-    s.add(quantity="epochs", value=np.int64(500), unit="", paper_value=float("nan"), data="synthetic")
+          paper_value=None, data="lias-planar-uwb/fast", kind="reproduced")
+    s.add(quantity="RMSE, EKF", value=np.float32(12.5), unit="cm", paper_value=np.int64(11), data="synthetic",
+          kind="target")
+    s.add(quantity="epochs", value=np.int64(500), unit="", paper_value=float("nan"), data="synthetic",
+          kind="input")
     return s
 
 
 def test_summary_frame():
     s = _summary()
     df = s.frame()
-    assert list(df.columns) == ["notebook", "quantity", "value", "unit", "paper_value", "data"]
+    assert list(df.columns) == ["notebook", "quantity", "value", "unit", "paper_value", "data", "kind", "mode"]
+    assert df["kind"].tolist() == ["reproduced", "target", "input"] and (df["mode"] == "full").all()
     assert len(s) == len(df) == 3
     assert (df["notebook"] == "00_quickstart").all()
     assert df["value"].tolist() == [0.31, 12.5, 500.0]
     assert np.isnan(df["paper_value"][0]) and df["paper_value"][1] == 11.0 and np.isnan(df["paper_value"][2])
-    empty = m.Summary("x").frame()
+    assert len(m.Summary("x", fast=True)) == 0 and m.Summary("x", fast=True).mode == "FAST"
+    empty = m.Summary("x", fast=False).frame()
     assert list(empty.columns) == list(m.Summary.COLUMNS) and len(empty) == 0
 
 
@@ -135,24 +139,33 @@ def test_summary_frame():
     ("value", "0.3"), ("value", float("nan")), ("value", np.inf), ("value", True), ("value", 1 + 2j),
     ("value", None), ("value", np.array([1.0])), ("paper_value", np.inf), ("paper_value", "3"),
     ("unit", None), ("unit", 3), ("data", "fast"), ("data", "/fast"), ("data", "lias/"), ("data", None),
-    ("quantity", ""), ("quantity", 3),
+    ("quantity", ""), ("quantity", 3), ("kind", "reproduce"), ("kind", None), ("kind", "Target"),
 ])
 def test_summary_validation(field, bad):
-    row = dict(quantity="q", value=1.0, unit="m", paper_value=None, data="synthetic")
+    row = dict(quantity="q", value=1.0, unit="m", paper_value=None, data="synthetic", kind="reproduced")
     row[field] = bad
-    with pytest.raises(ValueError):
-        m.Summary("nb").add(**row)
+    with pytest.raises(ValueError, match=field):
+        m.Summary("nb", fast=False).add(**row)
+
+
+def test_summary_needs_kind_and_mode():
+    with pytest.raises(TypeError):
+        m.Summary("nb")                      # the mode is not guessed
+    with pytest.raises(TypeError):
+        m.Summary("nb", fast=True).add(quantity="q", value=1.0, unit="m", data="synthetic")
+    with pytest.raises(ValueError, match="fast"):
+        m.Summary("nb", fast="yes")
 
 
 def test_summary_rejects_duplicates_and_bad_notebook():
     s = _summary()
     with pytest.raises(ValueError, match="already added"):
-        s.add(quantity="RMSE, EKF", value=1.0, unit="cm", data="synthetic")
-    s.add(quantity="RMSE, EKF", value=1.0, unit="cm", data="lias-planar-uwb/fast")   # other data: fine
+        s.add(quantity="RMSE, EKF", value=1.0, unit="cm", data="synthetic", kind="reproduced")
+    s.add(quantity="RMSE, EKF", value=1.0, unit="cm", data="lias-planar-uwb/fast", kind="reproduced")
     with pytest.raises(ValueError):
-        m.Summary("")
+        m.Summary("", fast=False)
     with pytest.raises(ValueError, match="nothing to publish"):
-        m.Summary("nb").publish("unused.json")
+        m.Summary("nb", fast=False).publish("unused.json")
 
 
 def test_summary_publish_json_round_trip(tmp_path):
@@ -162,7 +175,8 @@ def test_summary_publish_json_round_trip(tmp_path):
     pd.testing.assert_frame_equal(df, s.frame())
     rows = json.loads(path.read_text())
     assert rows[0] == {"notebook": "00_quickstart", "quantity": "CEP95, tag t0, raw multilateration",
-                       "value": 0.31, "unit": "m", "paper_value": None, "data": "lias-planar-uwb/fast"}
+                       "value": 0.31, "unit": "m", "paper_value": None, "data": "lias-planar-uwb/fast",
+                       "kind": "reproduced", "mode": "full"}
     assert rows[1]["paper_value"] == 11.0 and rows[2]["paper_value"] is None
     assert "NaN" not in path.read_text()
     back = m.Summary.from_json(path)
@@ -174,9 +188,12 @@ def test_summary_publish_json_round_trip(tmp_path):
 
 def test_summary_from_json_rejects_bad_files(tmp_path):
     p = tmp_path / "s.json"
+    row = '{"notebook":"%s","quantity":"q%s","value":1,"unit":"m","paper_value":null,"data":"x/y",' \
+          '"kind":"reproduced","mode":"%s"}'
     for text in ("not json", "[]", "{}", '[{"notebook": "a"}]',
-                 '[{"notebook":"a","quantity":"q","value":1,"unit":"m","paper_value":null,"data":"x/y"},'
-                 ' {"notebook":"b","quantity":"q","value":1,"unit":"m","paper_value":null,"data":"x/y"}]'):
+                 f'[{row % ("a", 1, "full")}, {row % ("b", 2, "full")}]',      # two notebooks
+                 f'[{row % ("a", 1, "full")}, {row % ("a", 2, "FAST")}]',      # two modes
+                 f'[{row % ("a", 1, "quick")}]'):
         p.write_text(text)
         with pytest.raises(ValueError):
             m.Summary.from_json(p)

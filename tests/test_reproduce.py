@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import nbformat
@@ -14,11 +15,12 @@ from uwbwb import reproduce as rp
 GOOD_PARAMS = 'FAST = False\nSEED = 0\nDATA_DIR = None\nSUMMARY_PATH = None\nN = 1\nLABEL = "default"\n'
 GOOD_BODY = """\
 import json
+mode = "FAST" if FAST else "full"
 rows = [
     {"notebook": "01_good", "quantity": "doubled N", "value": 2.5 * N, "unit": "m",
-     "paper_value": None, "data": LABEL},
+     "paper_value": None, "data": LABEL, "kind": "reproduced", "mode": mode},
     {"notebook": "01_good", "quantity": "fast | flag", "value": FAST, "unit": "",
-     "paper_value": 1.0, "data": "synthetic"},
+     "paper_value": 1.0, "data": "synthetic", "kind": "target", "mode": mode},
 ]
 with open(SUMMARY_PATH, "w") as fh:
     json.dump(rows, fh)
@@ -50,7 +52,8 @@ def ran(tmp_path_factory):
     out.mkdir()
     # A summary left from an earlier run must not count for this one.
     (out / "02_broken.summary.json").write_text(json.dumps(
-        [{"notebook": "02_broken", "quantity": "old", "value": 1, "unit": "", "paper_value": None, "data": ""}]))
+        [{"notebook": "02_broken", "quantity": "old", "value": 1, "unit": "", "paper_value": None, "data": "",
+          "kind": "reproduced", "mode": "FAST"}]))
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(rp, "NOTEBOOKS_DIR", notebooks)
         code = cli.main(["reproduce", "--quick", "--out", str(out), "-p", "N", "4",
@@ -90,8 +93,10 @@ def test_parameters_reach_the_notebook_and_summary_is_aggregated(ran):
 def test_summary_markdown_has_numbers_and_status(ran):
     _, out = ran
     md = (out / "summary.md").read_text()
-    assert "| 01_good | doubled N | 10 | m |  | synthetic run |" in md  # blank paper value
-    assert r"| 01_good | fast \| flag | True |  | 1 | synthetic |" in md
+    assert "| 01_good | doubled N | 10 (FAST) | m |  | reproduced | FAST | synthetic run |" in md  # blank paper value
+    assert r"| 01_good | fast \| flag | True (FAST) |  | 1 | target | FAST | synthetic |" in md
+    head = md.split("## Headline numbers")[0]
+    assert "**FAST mode.** All rows come from FAST runs (01_good)" in head
     status = {}
     for line in md.splitlines():
         cells = line.removeprefix("| ").removesuffix(" |").split(" | ")
@@ -120,16 +125,88 @@ def test_notebook_without_summary_counts_as_failed(tmp_path, monkeypatch):
     assert "No notebook published a summary." in result.summary_md.read_text()
 
 
-def test_parse_parameter_value():
-    assert rp.parse_parameter_value("3") == 3
-    assert rp.parse_parameter_value("0.25") == 0.25
-    assert rp.parse_parameter_value("True") is True
-    assert rp.parse_parameter_value("None") is None
-    assert rp.parse_parameter_value("[1, 2.5]") == [1, 2.5]
-    assert rp.parse_parameter_value("'07'") == "07"
-    assert rp.parse_parameter_value("lias-planar-uwb") == "lias-planar-uwb"
-    assert rp.parse_parameter_value("scenario1") == "scenario1"
-    assert rp.parse_parameter_value("") == ""
+def test_parse_parameter_value_takes_the_type_of_the_default():
+    parse = rp.parse_parameter_value
+    assert parse("8.20", "8.14") == "8.20"                   # a string default keeps the text as typed
+    assert parse("None", "fast") == "None" and parse("", "x") == ""
+    assert parse("True", False) is True and parse("false", True) is False
+    assert parse("3", 1) == 3 and parse("3", 0.5) == 3.0 and isinstance(parse("3", 0.5), float)
+    assert parse("1e-3", 0.5) == 0.001
+    assert parse("(1, 2)", (1, 2, 3)) == (1, 2) and parse("1,", (1, 2)) == (1,)
+    assert parse("('slow',)", ("slow", "fast")) == ("slow",)
+    assert parse("3", None) == 3 and parse("[1, 2.5]", None) == [1, 2.5] and parse("t0", None) == "t0"
+    assert parse("None", None) is None and parse("'07'", None) == "07"
+
+
+@pytest.mark.parametrize("text, default, expected", [
+    ("maybe", False, "True or False"),
+    ("1", True, "True or False"),
+    ("2.5", 1, "an integer"),
+    ("True", 1, "an integer"),
+    ("fast", 0.5, "a number"),
+    ("None", 0.5, "a number"),
+    ("1", (1, 2), "a tuple like (1, 2)"),
+    ("slow,fast", ("slow", "fast"), "a tuple like ('slow', 'fast')"),
+    ("(1, 'x')", (1, 2), "a tuple"),
+])
+def test_parse_parameter_value_rejects_values_that_do_not_fit(text, default, expected):
+    with pytest.raises(ValueError, match=rf"-p NAME .*expected {re.escape(expected)}.*default of NAME"):
+        rp.parse_parameter_value(text, default, name="NAME")
+
+
+def test_resolve_parameters_checks_names_and_types_per_notebook(tmp_path):
+    a = _notebook(tmp_path / "01_a.ipynb", GOOD_PARAMS + "TOURS = (1, 2, 3)\n", "")
+    b = _notebook(tmp_path / "02_b.ipynb", GOOD_PARAMS + "TOURS = 'all'\n", "")
+    resolved = rp.resolve_parameters([a, b], {"FAST": True}, text={"TOURS": "(2,)", "LABEL": "x"})
+    assert resolved[a] == {"FAST": True, "TOURS": (2,), "LABEL": "x"}
+    assert resolved[b] == {"FAST": True, "TOURS": "(2,)", "LABEL": "x"}   # typed by each notebook's default
+    c = _notebook(tmp_path / "03_c.ipynb", "FAST = False\nSUMMARY_PATH = None\nONLY_HERE = 1\n", "")
+    assert rp.resolve_parameters([a, c], text={"ONLY_HERE": "2"}) == {a: {}, c: {"ONLY_HERE": 2}}
+    with pytest.raises(ValueError, match="unknown parameter.*NO_SUCH_PARAM.*valid names: DATA_DIR, FAST, LABEL"):
+        rp.resolve_parameters([a, b], text={"NO_SUCH_PARAM": "1"})
+    with pytest.raises(ValueError, match="01_a: -p FAST maybe: expected True or False"):
+        rp.resolve_parameters([a], text={"FAST": "maybe"})
+    with pytest.raises(ValueError, match="01_a: parameter N='4': expected an integer"):
+        rp.resolve_parameters([a], {"N": "4"})
+    with pytest.raises(ValueError, match="exactly one code cell tagged 'parameters', found 0"):
+        nb = nbformat.v4.new_notebook()
+        nbformat.write(nb, tmp_path / "04_none.ipynb")
+        rp.resolve_parameters([tmp_path / "04_none.ipynb"], text={"N": "1"})
+
+
+def test_the_readme_example_reaches_notebook_02_as_the_string_typed(monkeypatch, tmp_path):
+    """``python -m uwbwb reproduce --only 02 -p STATIC_SESSION 8.20`` on the project's notebooks."""
+    received = {}
+
+    def fake_run(source, out_dir, parameters, **kwargs):   # stop before executing: record what would be passed
+        received[source.stem] = dict(parameters)
+        return rp.NotebookRun(notebook=source.stem, source=source, executed=out_dir / "x.ipynb", html=None,
+                              summary=out_dir / "x.json", seconds=0.0, error=None)
+
+    monkeypatch.setattr(rp, "run_notebook", fake_run)
+    argv = "reproduce --only 02 -p STATIC_SESSION 8.20".split() + ["--out", str(tmp_path)]
+    assert cli.main(argv) == 0
+    (stem,) = received
+    assert stem.startswith("02") and received[stem] == {"STATIC_SESSION": "8.20"}
+    assert rp.notebook_parameters(rp.NOTEBOOKS_DIR / f"{stem}.ipynb")["STATIC_SESSION"] == "8.14"
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["-p", "FAST", "maybe"], "-p FAST maybe: expected True or False"),
+    (["-p", "NO_SUCH_PARAM", "1"], "unknown parameter(s) NO_SUCH_PARAM"),
+    (["-p", "N", "many"], "-p N many: expected an integer"),
+    (["-p", "N", "1", "-p", "N", "2"], "-p N given twice"),
+])
+def test_cli_rejects_bad_parameters_before_any_notebook_runs(argv, message, monkeypatch, tmp_path, capsys):
+    _notebook(tmp_path / "01_good.ipynb", GOOD_PARAMS, GOOD_BODY)
+    monkeypatch.setattr(rp, "NOTEBOOKS_DIR", tmp_path)
+    monkeypatch.setattr(rp, "run_notebook", lambda *a, **k: pytest.fail("a notebook ran"))
+    assert cli.main(["reproduce", "--out", str(tmp_path / "out"), *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err
+    if "unknown" in message:
+        assert "valid names: DATA_DIR, FAST, LABEL, N, SEED" in err
+    assert not (tmp_path / "out").exists()
 
 
 def test_select_notebooks_by_prefix_or_stem(tmp_path):
@@ -152,6 +229,13 @@ def test_reproduce_rejects_bad_settings_before_running(tmp_path):
         rp.reproduce(notebooks_dir=tmp_path / "nb", out=tmp_path, parameters={"SUMMARY_PATH": "x"})
     with pytest.raises(ValueError, match="timeout"):
         rp.reproduce(notebooks_dir=tmp_path / "nb", out=tmp_path, timeout_s=0)
+    with pytest.raises(ValueError, match="unknown parameter"):
+        rp.reproduce(notebooks_dir=tmp_path / "nb", out=tmp_path, parameters={"NOPE": 1})
+    with pytest.raises(ValueError, match="expected True or False"):
+        rp.reproduce(notebooks_dir=tmp_path / "nb", out=tmp_path, parameters={"FAST": "maybe"})
+    _notebook(tmp_path / "nb" / "03_nofast.ipynb", "SUMMARY_PATH = None\n", "")
+    with pytest.raises(ValueError, match="03_nofast does not declare"):
+        rp.reproduce(notebooks_dir=tmp_path / "nb", out=tmp_path, quick=True)
     assert not (tmp_path / "summary.json").exists()
 
 
@@ -161,21 +245,31 @@ def test_reproduce_rejects_bad_settings_before_running(tmp_path):
     ("[]", "non-empty JSON list"),
     ('[{"notebook": "nb", "quantity": "q", "value": 1}]', "keys must be"),
     (json.dumps([dict.fromkeys(rp.SUMMARY_KEYS, "") | {"notebook": "other"}]), "names notebook 'other'"),
+    (json.dumps([dict.fromkeys(rp.SUMMARY_KEYS, "") | {"notebook": "nb", "kind": "guess"}]), "kind must be"),
+    (json.dumps([dict.fromkeys(rp.SUMMARY_KEYS, "") | {"notebook": "nb", "kind": "input", "mode": "quick"}]),
+     "mode must be"),
+    (json.dumps([dict.fromkeys(rp.SUMMARY_KEYS, "") | {"notebook": "nb", "kind": "input", "mode": "full"}]),
+     "mode 'full', but the notebook ran with FAST=True"),
 ])
 def test_read_summary_reports_problems(tmp_path, content, problem):
     path = tmp_path / "nb.summary.json"
     if content is not None:
         path.write_text(content)
-    rows, error = rp.read_summary(path, "nb")
+    rows, error = rp.read_summary(path, "nb", "FAST")
     assert rows == [] and problem in error
 
 
 def test_summary_markdown_formats_values():
     row = {"notebook": "nb", "quantity": "CEP95", "value": 0.123456789, "unit": "m", "paper_value": None,
-           "data": "sim"}
+           "data": "sim", "kind": "reproduced", "mode": "full"}
+    fast = row | {"quantity": "CEP50", "paper_value": 0.1, "mode": "FAST", "kind": "target"}
     run = rp.NotebookRun(notebook="nb", source=Path("nb.ipynb"), executed=Path("nb.out.ipynb"), html=None,
                          summary=Path("nb.summary.json"), seconds=2.04, error=None, rows=(row,))
-    md = rp.summary_markdown([run], {"FAST": True})
-    assert "| nb | CEP95 | 0.1235 | m |  | sim |" in md
+    md = rp.summary_markdown([run], {"FAST": False})
+    assert "| nb | CEP95 | 0.1235 | m |  | reproduced | full | sim |" in md
+    assert "FAST mode" not in md and "(FAST)" not in md
     assert "| nb | ok | 2.0 |  |" in md
-    assert "`FAST=True`" in md and "All 1 notebooks ok." in md
+    assert "`FAST=False`" in md and "All 1 notebooks ok." in md
+    md = rp.summary_markdown([rp.NotebookRun(**{**run.__dict__, "rows": (row, fast)})])
+    assert "| nb | CEP50 | 0.1235 (FAST) | m | 0.1 | target | FAST | sim |" in md
+    assert md.index("**FAST mode.** 1 of 2 rows come from FAST runs (nb)") < md.index("## Headline numbers")

@@ -66,8 +66,10 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
                    help="run only notebooks whose stem starts with NB (e.g. 00 or 00_quickstart)")
     p.add_argument("--out", metavar="DIR", default=None, help="output folder (default reports/)")
     p.add_argument("-p", "--parameter", nargs=2, action="append", metavar=("KEY", "VALUE"), default=[],
-                   help="notebook parameter; VALUE is read as a Python literal when possible "
-                        "(3, 0.5, True, None, [1, 2]), else as a string")
+                   help="notebook parameter, given to every selected notebook that declares it; "
+                        "VALUE takes the type of the parameter's default in the notebook's parameters "
+                        "cell (text stays text: -p STATIC_SESSION 8.20; True/False; numbers; tuples "
+                        "as Python literals). Unknown names and values that do not fit are errors")
     p.add_argument("--timeout", metavar="S", type=_positive_float, default=None,
                    help="execution timeout per cell in seconds (default none)")
     return parser, sub.choices
@@ -243,22 +245,23 @@ def cmd_fetch(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 # -- reproduce --------------------------------------------------------------------------------------
 
 def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from .reproduce import RESERVED_PARAMETERS, parse_parameter_value, reproduce, select_notebooks
+    from .reproduce import RESERVED_PARAMETERS, reproduce, resolve_parameters, select_notebooks
 
-    parameters = {}
+    text = {}
     for key, value in args.parameter:
         if not key.isidentifier():
             parser.error(f"-p {key}: parameter names must be Python identifiers")
         if key in RESERVED_PARAMETERS:
             parser.error(f"-p {key}: set by the runner (one summary file per notebook in --out)")
-        parameters[key] = parse_parameter_value(value)
-    if args.only:
-        try:
-            select_notebooks(only=args.only)
-        except ValueError as exc:
-            parser.error(str(exc))
+        if key in text:
+            parser.error(f"-p {key} given twice")
+        text[key] = value
+    try:  # every problem with the selection or the parameters is reported before any notebook runs
+        resolve_parameters(select_notebooks(only=args.only), text=text)
+    except ValueError as exc:
+        parser.error(str(exc))
 
-    result = reproduce(quick=args.quick, only=args.only, out=args.out, parameters=parameters,
+    result = reproduce(quick=args.quick, only=args.only, out=args.out, text_parameters=text,
                        timeout_s=args.timeout, log=lambda line: print(line, flush=True))
     print(f"wrote {result.summary_md} and {result.summary_json}")
     for run in result.failed:

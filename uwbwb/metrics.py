@@ -308,36 +308,57 @@ def _real(value, what: str, *, allow_none: bool = False) -> float | None:
 class Summary:
     """Headline numbers of one notebook, for the reproduction report.
 
+    Every row says what kind of number it is and which mode produced it:
+
+    ``kind``
+        ``"reproduced"`` — came out of the method; ``"target"`` — a simulator
+        parameter was chosen to hit it (agreement with the paper is by
+        construction); ``"input"`` — taken from the paper (or follows directly
+        from a value taken from it).
+    ``mode``
+        ``"FAST"`` (small CI-sized experiments: smoke-test numbers) or ``"full"``.
+
     Parameters
     ----------
     notebook
         Notebook name, e.g. ``"00_quickstart"``.
+    fast
+        The notebook's ``FAST`` parameter: the mode of every row.
 
     Examples
     --------
-    >>> s = Summary("00_quickstart")
+    >>> s = Summary("00_quickstart", fast=False)
     >>> s.add(quantity="CEP95, tag t0, raw multilateration", value=0.31, unit="m",
-    ...       paper_value=None, data="lias-planar-uwb/fast")
+    ...       paper_value=None, data="lias-planar-uwb/fast", kind="reproduced")
     >>> list(s.frame().columns)
-    ['notebook', 'quantity', 'value', 'unit', 'paper_value', 'data']
+    ['notebook', 'quantity', 'value', 'unit', 'paper_value', 'data', 'kind', 'mode']
+    >>> s.frame()["mode"].tolist()
+    ['full']
     """
 
-    COLUMNS = ("notebook", "quantity", "value", "unit", "paper_value", "data")
+    COLUMNS = ("notebook", "quantity", "value", "unit", "paper_value", "data", "kind", "mode")
+    #: Allowed values of ``kind``.
+    KINDS = ("reproduced", "target", "input")
+    #: Allowed values of ``mode``: under ``FAST=True`` and otherwise.
+    MODES = ("FAST", "full")
 
-    def __init__(self, notebook: str):
+    def __init__(self, notebook: str, *, fast: bool):
         if not isinstance(notebook, str) or not notebook.strip():
             raise ValueError(f"notebook must be a non-empty string, got {notebook!r}")
+        if not isinstance(fast, (bool, np.bool_)):
+            raise ValueError(f"fast must be True or False (the notebook's FAST parameter), got {fast!r}")
         self.notebook = notebook
+        self.mode = "FAST" if fast else "full"
         self._rows: list[dict] = []
 
     def __len__(self) -> int:
         return len(self._rows)
 
     def __repr__(self) -> str:
-        return f"Summary({self.notebook!r}, {len(self)} rows)"
+        return f"Summary({self.notebook!r}, {len(self)} rows, mode {self.mode})"
 
-    def add(self, *, quantity: str, value, unit: str, data: str, paper_value=None) -> None:
-        """Record one reproduced number.
+    def add(self, *, quantity: str, value, unit: str, data: str, kind: str, paper_value=None) -> None:
+        """Record one headline number.
 
         Parameters
         ----------
@@ -345,11 +366,13 @@ class Summary:
             What was measured, specific enough to be unique with ``data``
             (e.g. ``"CEP95, tag t0, raw multilateration"``).
         value
-            The reproduced value: a finite real number (numpy scalars accepted).
+            The value: a finite real number (numpy scalars accepted).
         unit
             Unit of ``value`` and ``paper_value`` (e.g. ``"m"``, ``"cm"``, ``"%"``, ``""``).
         data
             ``"synthetic"`` or ``"dataset/recording"`` (e.g. ``Recording.label``).
+        kind
+            ``"reproduced"``, ``"target"`` or ``"input"`` (see the class docstring).
         paper_value
             The value the paper reports, or None (NaN is read as None).
 
@@ -366,10 +389,12 @@ class Summary:
             raise ValueError(f"unit of {quantity!r} must be a string, got {unit!r}")
         if not isinstance(data, str) or not (data == "synthetic" or _is_recording_label(data)):
             raise ValueError(f"data of {quantity!r} must be 'synthetic' or 'dataset/recording', got {data!r}")
+        if kind not in self.KINDS:
+            raise ValueError(f"kind of {quantity!r} must be one of {', '.join(self.KINDS)}, got {kind!r}")
         if any(r["quantity"] == quantity and r["data"] == data for r in self._rows):
             raise ValueError(f"{self.notebook}: quantity {quantity!r} on data {data!r} was already added")
         self._rows.append({"notebook": self.notebook, "quantity": quantity, "value": v, "unit": unit,
-                           "paper_value": pv, "data": data})
+                           "paper_value": pv, "data": data, "kind": kind, "mode": self.mode})
 
     def frame(self) -> pd.DataFrame:
         """The rows as a DataFrame with exactly :attr:`COLUMNS` (``paper_value`` NaN where None)."""
@@ -401,14 +426,19 @@ class Summary:
             raise ValueError(f"{path}: not valid JSON ({exc})") from None
         if not isinstance(rows, list) or not rows or not all(isinstance(r, dict) for r in rows):
             raise ValueError(f"{path}: expected a non-empty JSON list of objects")
-        names = {r.get("notebook") for r in rows}
-        if len(names) != 1:
-            raise ValueError(f"{path}: rows from several notebooks {sorted(map(str, names))}")
-        s = cls(rows[0]["notebook"])
         for i, r in enumerate(rows):
             if set(r) != set(cls.COLUMNS):
                 raise ValueError(f"{path}: row {i} has keys {sorted(r)}, expected {list(cls.COLUMNS)}")
-            s.add(quantity=r["quantity"], value=r["value"], unit=r["unit"], data=r["data"],
+        names = {r["notebook"] for r in rows}
+        if len(names) != 1:
+            raise ValueError(f"{path}: rows from several notebooks {sorted(map(str, names))}")
+        modes = {r["mode"] for r in rows}
+        if len(modes) != 1 or not modes <= set(cls.MODES):
+            raise ValueError(f"{path}: mode must be one of {', '.join(cls.MODES)} and the same in every row, "
+                             f"got {sorted(map(str, modes))}")
+        s = cls(rows[0]["notebook"], fast=rows[0]["mode"] == "FAST")
+        for r in rows:
+            s.add(quantity=r["quantity"], value=r["value"], unit=r["unit"], data=r["data"], kind=r["kind"],
                   paper_value=r["paper_value"])
         return s
 

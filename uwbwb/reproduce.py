@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
 from .datasets.discovery import PROJECT_ROOT
+from .metrics import Summary
 
 #: Notebooks run by default.
 NOTEBOOKS_DIR = PROJECT_ROOT / "notebooks"
@@ -42,7 +43,7 @@ REPORTS_DIR = PROJECT_ROOT / "reports"
 #: Kernel the notebooks are executed with.
 KERNEL_NAME = "python3"
 #: Keys of every summary row, in display order.
-SUMMARY_KEYS = ("notebook", "quantity", "value", "unit", "paper_value", "data")
+SUMMARY_KEYS = Summary.COLUMNS
 #: Parameters set by the runner itself; they cannot be overridden.
 RESERVED_PARAMETERS = ("SUMMARY_PATH",)
 
@@ -126,16 +127,192 @@ class ReproduceResult:
         return 0 if self.ok else 1
 
 
-def parse_parameter_value(text: str) -> Any:
-    """A ``-p KEY VALUE`` value: a Python literal when it parses as one, else the string.
+_MISSING = object()
 
-    ``"3"`` → 3, ``"0.5"`` → 0.5, ``"True"`` → True, ``"None"`` → None,
-    ``"[1, 2]"`` → [1, 2], ``"'x'"`` → ``"x"``, ``"lias"`` → ``"lias"``.
+
+def notebook_parameters(notebook: str | os.PathLike) -> dict[str, Any]:
+    """The parameters a notebook declares and their defaults.
+
+    Read from its one code cell tagged ``parameters``: every top-level
+    ``NAME = <literal>`` assignment. A default that is not a literal (an
+    expression) is returned as None, i.e. it takes any literal.
+
+    Raises
+    ------
+    ValueError
+        The notebook has no such cell, several, or a cell that is not valid Python.
     """
+    import nbformat
+
+    path = Path(notebook)
+    nb = nbformat.read(path, as_version=4)
+    cells = [c for c in nb.cells if c.cell_type == "code" and "parameters" in c.metadata.get("tags", [])]
+    if len(cells) != 1:
+        raise ValueError(f"{path.name}: expected exactly one code cell tagged 'parameters', found {len(cells)}")
     try:
-        return ast.literal_eval(text)
-    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+        tree = ast.parse(cells[0].source)
+    except SyntaxError as exc:
+        raise ValueError(f"{path.name}: parameters cell, line {exc.lineno}: {exc.msg}") from None
+    declared = {}
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name):
+            name, value = node.targets[0].id, node.value
+        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and node.value is not None:
+            name, value = node.target.id, node.value
+        else:
+            continue
+        try:
+            declared[name] = ast.literal_eval(value)
+        except (ValueError, SyntaxError, TypeError):
+            declared[name] = None
+    return declared
+
+
+def _kind(default: Any) -> str:
+    """Name of the type a parameter's values must have, from its default."""
+    if default is None:
+        return "literal"
+    if isinstance(default, bool):
+        return "bool"
+    if isinstance(default, int):
+        return "int"
+    if isinstance(default, float):
+        return "float"
+    if isinstance(default, str):
+        return "str"
+    if isinstance(default, (tuple, list)):
+        return type(default).__name__
+    return type(default).__name__
+
+
+def _fits(value: Any, default: Any) -> Any:
+    """``value`` converted to the declared type of ``default``, or ``_MISSING`` if it does not fit."""
+    kind = _kind(default)
+    if kind == "literal":
+        return value
+    if kind == "bool":
+        return value if isinstance(value, bool) else _MISSING
+    if kind == "int":
+        return value if isinstance(value, int) and not isinstance(value, bool) else _MISSING
+    if kind == "float":
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        return float(value) if ok else _MISSING
+    if kind == "str":
+        return value if isinstance(value, str) else _MISSING
+    if kind in ("tuple", "list"):
+        if not isinstance(value, (tuple, list)):
+            return _MISSING
+        element_defaults = {type(d) for d in default}
+        if len(element_defaults) == 1 and default:     # a homogeneous default: elements must fit it too
+            converted = [_fits(v, default[0]) for v in value]
+            if any(v is _MISSING for v in converted):
+                return _MISSING
+            value = converted
+        return type(default)(value)
+    return value if isinstance(value, type(default)) else _MISSING
+
+
+def _expected(name: str, default: Any) -> str:
+    kind = _kind(default)
+    example = {"bool": "True or False", "int": "an integer", "float": "a number", "str": "text",
+               "literal": "a Python literal or text"}.get(kind, f"a {kind}")
+    if kind in ("tuple", "list"):
+        example += f" like {default!r}"
+    return f"{example} (the default of {name} is {default!r})"
+
+
+def parse_parameter_value(text: str, default: Any = None, *, name: str = "value") -> Any:
+    """A ``-p NAME VALUE`` value typed by the parameter's declared default.
+
+    ``default`` a string: the text exactly as typed (``"8.20"`` stays ``"8.20"``).
+    A bool: ``True``/``False`` (also lower case). An int, float, tuple or list:
+    the text read as a Python literal that fits that type (an int is accepted for
+    a float; a tuple's elements must fit the default's elements when those share
+    one type). None (or a default that is not a literal): any Python literal,
+    else the text.
+
+    Raises
+    ------
+    ValueError
+        A value that does not fit, naming the parameter and what was expected.
+    """
+    kind = _kind(default)
+    if kind == "str":
         return text
+    if kind == "bool":
+        if text.strip() in ("True", "true"):
+            return True
+        if text.strip() in ("False", "false"):
+            return False
+        raise ValueError(f"-p {name} {text}: expected {_expected(name, default)}")
+    try:
+        value = ast.literal_eval(text.strip())
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+        if kind == "literal":
+            return text
+        raise ValueError(f"-p {name} {text}: expected {_expected(name, default)}") from None
+    fitted = _fits(value, default)
+    if fitted is _MISSING:
+        raise ValueError(f"-p {name} {text}: expected {_expected(name, default)}")
+    return fitted
+
+
+def resolve_parameters(notebooks: Iterable[str | os.PathLike], parameters: Mapping[str, Any] | None = None,
+                       *, text: Mapping[str, str] | None = None) -> dict[Path, dict[str, Any]]:
+    """The parameters each notebook will receive, checked against what it declares.
+
+    Parameters
+    ----------
+    notebooks
+        The selected notebooks.
+    parameters
+        Python values (e.g. ``{"FAST": True, "N_TRIALS": 5}``): each must fit the
+        type of the declared default (see :func:`parse_parameter_value`).
+    text
+        Values as typed on the command line (``-p NAME VALUE``): typed by each
+        notebook's declared default. A name in both wins from ``text``.
+
+    Returns
+    -------
+    dict
+        Notebook path → ``{name: value}`` for the names that notebook declares.
+
+    Raises
+    ------
+    ValueError
+        A reserved name, a name that no selected notebook declares (the message
+        lists the valid names), or a value that does not fit its declared type.
+    """
+    notebooks = [Path(nb) for nb in notebooks]
+    given = dict(parameters or {}) | dict(text or {})
+    reserved = sorted(set(given) & set(RESERVED_PARAMETERS))
+    if reserved:
+        raise ValueError(f"parameter(s) {', '.join(reserved)} are set by the runner and cannot be passed")
+    declared = {nb: notebook_parameters(nb) for nb in notebooks}
+    valid = sorted({name for d in declared.values() for name in d} - set(RESERVED_PARAMETERS))
+    unknown = [name for name in given if not any(name in d for d in declared.values())]
+    if unknown:
+        stems = ", ".join(nb.stem for nb in notebooks)
+        raise ValueError(f"unknown parameter(s) {', '.join(unknown)}: not declared by {stems}; "
+                         f"valid names: {', '.join(valid)}")
+    resolved = {}
+    for nb, defaults in declared.items():
+        params = {}
+        for name, value in given.items():
+            if name not in defaults:
+                continue
+            if text is not None and name in text:
+                try:
+                    params[name] = parse_parameter_value(text[name], defaults[name], name=name)
+                except ValueError as exc:
+                    raise ValueError(f"{nb.stem}: {exc}") from None
+            else:
+                fitted = _fits(value, defaults[name])
+                if fitted is _MISSING:
+                    raise ValueError(f"{nb.stem}: parameter {name}={value!r}: expected {_expected(name, defaults[name])}")
+                params[name] = fitted
+        resolved[nb] = params
+    return resolved
 
 
 def select_notebooks(notebooks_dir: str | os.PathLike | None = None,
@@ -182,8 +359,12 @@ def _first_line(exc: BaseException) -> str:
     return f"{line} (cell [{where}])" if where is not None else line
 
 
-def read_summary(path: Path, notebook: str) -> tuple[list[dict], str | None]:
-    """Rows of a notebook's summary file and the problem with it (None when valid)."""
+def read_summary(path: Path, notebook: str, mode: str | None = None) -> tuple[list[dict], str | None]:
+    """Rows of a notebook's summary file and the problem with it (None when valid).
+
+    ``mode`` (``"FAST"`` / ``"full"``), when given, is the mode the notebook ran
+    in: every row must say so.
+    """
     if not path.is_file():
         return [], f"no summary file: the notebook wrote nothing to SUMMARY_PATH ({path})"
     try:
@@ -198,6 +379,13 @@ def read_summary(path: Path, notebook: str) -> tuple[list[dict], str | None]:
             return [], f"summary file {path.name}, row {i}: keys must be {', '.join(SUMMARY_KEYS)}, got {keys}"
         if row["notebook"] != notebook:
             return [], f"summary file {path.name}, row {i}: names notebook {row['notebook']!r}, not {notebook!r}"
+        if row["kind"] not in Summary.KINDS:
+            return [], f"summary file {path.name}, row {i}: kind must be one of {', '.join(Summary.KINDS)}, got {row['kind']!r}"
+        if row["mode"] not in Summary.MODES:
+            return [], f"summary file {path.name}, row {i}: mode must be one of {', '.join(Summary.MODES)}, got {row['mode']!r}"
+        if mode is not None and row["mode"] != mode:
+            return [], (f"summary file {path.name}, row {i}: mode {row['mode']!r}, but the notebook ran with "
+                        f"FAST={mode == 'FAST'} (pass fast=FAST to uw.metrics.Summary)")
     return [{k: row[k] for k in SUMMARY_KEYS} for row in rows], None
 
 
@@ -211,7 +399,11 @@ def _export_html(executed: Path, html: Path) -> None:
 
 def run_notebook(source: Path, out_dir: Path, parameters: Mapping[str, Any], *,
                  timeout_s: float | None = None, kernel_name: str = KERNEL_NAME) -> NotebookRun:
-    """Execute one notebook into ``out_dir`` and read its summary (see :func:`reproduce`)."""
+    """Execute one notebook into ``out_dir`` and read its summary (see :func:`reproduce`).
+
+    ``parameters`` go to papermill as given (see :func:`resolve_parameters` for
+    checking them first).
+    """
     import papermill as pm
 
     stem = source.stem
@@ -238,7 +430,8 @@ def run_notebook(source: Path, out_dir: Path, parameters: Mapping[str, Any], *,
             error = error or f"HTML export failed: {_first_line(exc)}"
     else:
         html = None
-    rows, problem = read_summary(summary, stem)
+    fast = parameters.get("FAST", notebook_parameters(source).get("FAST"))
+    rows, problem = read_summary(summary, stem, ("FAST" if fast else "full") if isinstance(fast, bool) else None)
     if error is None:
         error = problem
     return NotebookRun(notebook=stem, source=source, executed=executed, html=html, summary=summary,
@@ -261,18 +454,39 @@ def _table(header: list[str], rows: list[list[Any]]) -> list[str]:
     return lines
 
 
+#: Mark beside a FAST row's value in ``summary.md``.
+FAST_MARK = "(FAST)"
+
+
 def summary_markdown(runs: Iterable[NotebookRun], parameters: Mapping[str, Any] | None = None) -> str:
-    """The ``summary.md`` text: headline numbers, then the run status of every notebook."""
+    """The ``summary.md`` text: headline numbers, then the run status of every notebook.
+
+    When any row comes from a FAST run, a note at the top says so, and each FAST
+    row's value is followed by :data:`FAST_MARK` (smoke-test numbers: they must
+    not be read as a reproduction of the paper's value beside them).
+    """
     runs = list(runs)
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     out = ["# Reproduction summary", "",
            f"Generated by `python -m uwbwb reproduce` on {stamp}."]
     if parameters:
         out.append("Parameters: " + ", ".join(f"`{k}={v!r}`" for k, v in parameters.items()) + ".")
-    out += ["", "## Headline numbers", ""]
-    rows = [[row[k] for k in SUMMARY_KEYS] for run in runs for row in run.rows]
+    all_rows = [row for run in runs for row in run.rows]
+    fast_notebooks = list(dict.fromkeys(row["notebook"] for row in all_rows if row["mode"] == "FAST"))
+    if fast_notebooks:
+        n_fast = sum(row["mode"] == "FAST" for row in all_rows)
+        scope = "All rows" if n_fast == len(all_rows) else f"{n_fast} of {len(all_rows)} rows"
+        out += ["", f"**FAST mode.** {scope} come from FAST runs ({', '.join(fast_notebooks)}): small, "
+                    f"CI-sized experiments whose numbers are smoke tests, not reproductions. "
+                    f"Their values are marked {FAST_MARK}; do not compare them with the paper's values."]
+    out += ["", "## Headline numbers", "",
+            "Kind: *reproduced* came out of the method; *target* is a number a simulator parameter "
+            "was chosen to hit; *input* is taken from the paper.", ""]
+    rows = [[row["notebook"], row["quantity"],
+             _cell(row["value"]) + (f" {FAST_MARK}" if row["mode"] == "FAST" else ""),
+             row["unit"], row["paper_value"], row["kind"], row["mode"], row["data"]] for row in all_rows]
     if rows:
-        out += _table(["notebook", "quantity", "value", "unit", "paper value", "data"], rows)
+        out += _table(["notebook", "quantity", "value", "unit", "paper value", "kind", "mode", "data"], rows)
     else:
         out.append("No notebook published a summary.")
     out += ["", "## Notebook runs", ""]
@@ -286,6 +500,7 @@ def summary_markdown(runs: Iterable[NotebookRun], parameters: Mapping[str, Any] 
 
 def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
               out: str | os.PathLike | None = None, parameters: Mapping[str, Any] | None = None,
+              text_parameters: Mapping[str, str] | None = None,
               timeout_s: float | None = None, notebooks_dir: str | os.PathLike | None = None,
               kernel_name: str = KERNEL_NAME,
               log: Callable[[str], None] | None = None) -> ReproduceResult:
@@ -300,7 +515,11 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     out
         Output folder; default ``reports/`` in the project.
     parameters
-        Extra papermill parameters for every notebook (they override ``FAST``).
+        Extra notebook parameters as Python values (they override ``FAST``);
+        each goes to the selected notebooks that declare it.
+    text_parameters
+        Extra notebook parameters as typed on the command line, typed by each
+        notebook's declared default (see :func:`resolve_parameters`).
     timeout_s
         Execution timeout per cell, in seconds (None: no limit).
     notebooks_dir
@@ -318,24 +537,27 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     Raises
     ------
     ValueError
-        Bad selection, a reserved parameter name, or a non-positive timeout.
+        Before any notebook runs: bad selection, a reserved or unknown parameter
+        name, a value that does not fit its parameter's declared type, a notebook
+        without ``FAST`` under ``quick``, or a non-positive timeout.
     """
-    parameters = dict(parameters or {})
-    reserved = sorted(set(parameters) & set(RESERVED_PARAMETERS))
-    if reserved:
-        raise ValueError(f"parameter(s) {', '.join(reserved)} are set by the runner and cannot be passed")
     if timeout_s is not None and not timeout_s > 0:
         raise ValueError(f"timeout must be positive seconds, got {timeout_s!r}")
     notebooks = select_notebooks(notebooks_dir, only)
+    if quick:
+        lacking = [nb.stem for nb in notebooks if "FAST" not in notebook_parameters(nb)]
+        if lacking:
+            raise ValueError(f"--quick sets FAST, which {', '.join(lacking)} does not declare in its parameters cell")
+    given = ({"FAST": True} if quick else {}) | dict(parameters or {})
+    resolved = resolve_parameters(notebooks, given, text=text_parameters)
     out_dir = Path(REPORTS_DIR if out is None else out).expanduser().resolve()
     out_dir.mkdir(parents=True, exist_ok=True)
-    params = ({"FAST": True} if quick else {}) | parameters
 
     runs = []
     for i, source in enumerate(notebooks, 1):
         if log:
             log(f"[{i}/{len(notebooks)}] {source.stem} ...")
-        run = run_notebook(source, out_dir, params, timeout_s=timeout_s, kernel_name=kernel_name)
+        run = run_notebook(source, out_dir, resolved[source], timeout_s=timeout_s, kernel_name=kernel_name)
         runs.append(run)
         if log:
             log(f"[{i}/{len(notebooks)}] {run.notebook}: {run.status} ({run.seconds:.1f} s)"
@@ -345,5 +567,6 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     result = ReproduceResult(runs=tuple(runs), out_dir=out_dir, summary_json=summary_json,
                              summary_md=summary_md)
     summary_json.write_text(json.dumps(result.rows, indent=2, allow_nan=True) + "\n", encoding="utf-8")
-    summary_md.write_text(summary_markdown(runs, params), encoding="utf-8")
+    shown = {name: value for params in resolved.values() for name, value in params.items()}
+    summary_md.write_text(summary_markdown(runs, shown), encoding="utf-8")
     return result
