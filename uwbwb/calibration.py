@@ -332,3 +332,91 @@ def range_residuals(rec: Recording, calibration: RangeCalibration | None = None)
                          "rms_m": np.sqrt(np.mean(v ** 2)) if v.size else np.nan,
                          "p95_abs_m": np.quantile(np.abs(v), 0.95) if v.size else np.nan})
     return pd.DataFrame(rows)
+
+
+@dataclass(frozen=True)
+class MountHeight:
+    """The height at which rigidly mounted tags ride, taken from calibration recordings.
+
+    2-D solvers need the tag height; it must not come from the truth of the recording
+    that is then scored. This comes from static calibration poses, whose truth is the
+    surveyed (or declared) pose, never from a moving test run.
+
+    Attributes
+    ----------
+    z_m
+        Common mount height: the median of ``per_tag_m``, metres.
+    per_tag_m
+        Height of each tag, metres (median over the calibration recordings).
+    source
+        One sentence saying where the height came from.
+    range_slope
+        Largest ``|z_anchor − z_tag| / range`` over the calibration poses and anchors:
+        a height error ``dz`` changes a range by at most about ``range_slope · dz``
+        (plus ``dz² / (2 r)``). Near 0 when anchors and tags share a plane, where the
+        height is also unobservable from the ranges.
+    """
+
+    z_m: float
+    per_tag_m: dict
+    source: str
+    range_slope: float
+
+    def range_change_m(self, dz_m: float) -> float:
+        """Worst-case change of a true range for a height error ``dz_m``, metres (first order)."""
+        return self.range_slope * abs(float(dz_m))
+
+
+def tag_mount_height(static: Sequence[Recording] | Recording, *, tags=None,
+                     max_spread_m: float = 0.05) -> MountHeight:
+    """Tag mount height from static calibration recordings (never from a test run's truth).
+
+    Parameters
+    ----------
+    static
+        Static recordings with 3-D truth per tag (e.g. ``lias.load_static`` poses, or
+        ``uwbwb.sim.rig.simulate_static``).
+    tags
+        Tags to use (default: every tag with truth in the first recording).
+    max_spread_m
+        A recording whose truth height of a tag spans more than this is not a static
+        pose: ``ValueError``.
+
+    Returns
+    -------
+    MountHeight
+
+    Raises
+    ------
+    ValueError
+        No recordings, a tag without 3-D truth, or a moving "static" recording.
+    """
+    recs = [static] if isinstance(static, Recording) else list(static)
+    if not recs:
+        raise ValueError("tag_mount_height needs at least one static calibration recording")
+    tags = tuple(recs[0].truth) if tags is None else tuple(tags)
+    if not tags:
+        raise ValueError(f"{recs[0].label}: no tag has ground truth, so no mount height can be read")
+    heights = {t: [] for t in tags}
+    slope = 0.0
+    for rec in recs:
+        for t in tags:
+            tr = rec.truth.get(t)
+            if tr is None or tr.dim != 3 or len(tr) == 0:
+                raise ValueError(f"{rec.label}: tag {t!r} needs 3-D truth to give its mount height")
+            z = tr.pos_m[:, 2]
+            if np.ptp(z) > max_spread_m:
+                raise ValueError(f"{rec.label}: truth height of tag {t!r} spans {np.ptp(z):.3f} m "
+                                 f"(> {max_spread_m} m): not a static calibration pose")
+            heights[t].append(float(np.median(z)))
+            p = np.median(tr.pos_m, axis=0)
+            d = np.linalg.norm(rec.anchors.pos_m - p, axis=1)
+            slope = max(slope, float(np.max(np.abs(rec.anchors.pos_m[:, 2] - p[2]) / np.maximum(d, 1e-9))))
+    per_tag = {t: float(np.median(h)) for t, h in heights.items()}
+    declared = {rec.meta.get("centroid_z_m") for rec in recs}
+    if len(declared) == 1 and None not in declared:
+        src = (f"rig height {declared.pop():.3f} m declared for the {len(recs)} static poses "
+               f"(plus each tag's body offset)")
+    else:
+        src = f"truth of {len(recs)} static calibration recordings"
+    return MountHeight(float(np.median(list(per_tag.values()))), per_tag, src, slope)

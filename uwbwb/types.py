@@ -402,6 +402,40 @@ class Recording:
         """``dataset/name``, as used in the ``data`` column of summaries."""
         return f"{self.dataset}/{self.name}"
 
+    def decimate(self, step: int) -> "Recording":
+        """Every ``step``-th range epoch of every tag: the one thinning rule of the package.
+
+        Ranges keep epochs ``0, step, 2·step, …`` of each tag. A tag's truth that is
+        sampled on that tag's range epochs (same time stamps, e.g. static poses or a
+        simulator's truth) is thinned alike; truth on its own clock (e.g. motion
+        capture at another rate) is kept whole, since estimates are compared with it
+        by interpolation. The IMU log is kept whole. ``meta["decimated"]`` holds the
+        total step (steps multiply when decimating twice).
+
+        Parameters
+        ----------
+        step
+            Positive integer; 1 returns the recording unchanged.
+
+        Raises
+        ------
+        ValueError
+            If ``step`` is not a positive integer.
+        """
+        if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 1:
+            raise ValueError(f"{self.label}: decimation step must be a positive integer, got {step!r}")
+        step = int(step)
+        if step == 1:
+            return self
+        ranges = {t: log.select(slice(None, None, step)) for t, log in self.ranges.items()}
+        truth = {}
+        for t, tr in self.truth.items():
+            log = self.ranges[t]
+            on_ranges = len(tr) == len(log) and np.array_equal(tr.t_s, log.t_s)
+            truth[t] = tr.select(slice(None, None, step)) if on_ranges else tr
+        meta = {**self.meta, "decimated": step * int(self.meta.get("decimated", 1))}
+        return Recording(self.dataset, self.name, self.anchors, ranges, truth, self.imu, self.cleaning, meta)
+
     def cleaning_report(self) -> str:
         """One line per cleaning step, or a note that nothing was removed."""
         if not self.cleaning:

@@ -65,11 +65,52 @@ import ipywidgets as widgets
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
-__all__ = ["Panel", "float_slider", "int_slider", "dropdown", "seed_box"]
+__all__ = ["Panel", "float_slider", "int_slider", "dropdown", "seed_box", "data_banner"]
 
 #: Width of a control row; descriptions take their natural width inside it.
 _CONTROL_LAYOUT = {"width": "34em"}
 _CONTROL_STYLE = {"description_width": "initial"}
+
+
+# --------------------------------------------------------------------------- data banner
+
+_BANNER_STYLE = {
+    True: "background:#e3f1e3;border:1px solid #4a8;padding:6px",
+    False: "background:#fde2e1;border:2px solid #c0392b;padding:8px;font-weight:bold",
+}
+
+
+def data_banner(dataset: str, found: bool, *, detail: str = "", instead: str = "this section is skipped"):
+    """The one banner every notebook shows about its real data, for ``IPython.display.display``.
+
+    Parameters
+    ----------
+    dataset
+        Dataset name, e.g. ``"lias-planar-uwb"``.
+    found
+        Whether the real data was found and is used: a quiet green line; otherwise a
+        conspicuous red box that says what happens instead and how to get the data.
+    detail
+        What was used (when found) or why it is missing (when not), one sentence.
+    instead
+        When not found: what the notebook does instead (``"this section is skipped"``,
+        ``"a synthetic stand-in is shown"``, ...).
+
+    Returns
+    -------
+    IPython.display.HTML
+        Its text is escaped; the element carries CSS class ``uwbwb-data-banner``.
+    """
+    from IPython.display import HTML
+
+    name = html.escape(dataset)
+    if found:
+        text = f"Real data <b>{name}</b> found" + (f": {html.escape(detail)}" if detail else ".")
+    else:
+        why = f" ({html.escape(detail)})" if detail else ""
+        text = (f"Real data {name} is not available on this machine{why}: {html.escape(instead)}. "
+                f"Get it with <code>python -m uwbwb fetch {name}</code> or set DATA_DIR.")
+    return HTML(f'<div class="uwbwb-data-banner" style="{_BANNER_STYLE[bool(found)]}">{text}</div>')
 
 
 # --------------------------------------------------------------------------- controls

@@ -16,3 +16,6 @@ from .manifest import DatasetInfo, load_datasets_info, load_manifest, verify
 
 # ``fetch`` stays a sub-module (``uw.datasets.fetch.fetch(name)``), not shadowed by the function.
 __all__ += ["DatasetInfo", "load_datasets_info", "load_manifest", "overview", "verify"]
+from .standin import RoomData, load_lias_room
+
+__all__ += ["RoomData", "load_lias_room"]
