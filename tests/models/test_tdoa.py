@@ -150,3 +150,28 @@ def test_range_sigma_from_truth(rng):
     assert rms[0] == pytest.approx(np.hypot(0.3, 0.05), rel=0.05) and rms[1] > 0.5
     with pytest.raises(ValueError, match="fewer than two"):
         range_sigma_from_truth(np.full((3, 2), np.nan), true[:3])
+
+
+def test_triangle_outliers_rejects_injected_outliers_and_keeps_clean_ones(rng):
+    from uwbwb.models.tdoa import triangle_outliers
+
+    model = TdoaModel(ANCHORS[:4], 0.05, dim=2, z_m=0.3)
+    pos = rng.uniform([1, 1], [9, 7], (500, 2))
+    clean = model.h(pos, 0) + np.where(np.arange(4) == 0, 0.0, rng.normal(0, 0.05, (500, 4)))
+    assert not triangle_outliers(clean, 0, model.anchor_pos_m, 0.2).any()
+    dirty = clean.copy()
+    bad = rng.random((500, 4)) < 0.1
+    bad[:, 0] = False
+    dirty[bad] += np.sign(rng.normal(size=bad.sum())) * 25.0   # gross multipath excess: beyond any baseline
+    flagged = triangle_outliers(dirty, 0, model.anchor_pos_m, 0.2)
+    np.testing.assert_array_equal(flagged, bad)
+    # where it cannot help: a 0.5 m NLOS excess on a TDoA far from its bound passes
+    mild = clean.copy()
+    mild[:, 1] += 0.5
+    centre = np.linalg.norm(pos - [5, 4], axis=1) < 1.5
+    assert not triangle_outliers(mild[centre], 0, model.anchor_pos_m, 0.2).any()
+    # NaN (missing) and the reference never flagged; per-row references respected
+    row = np.array([[np.nan, 0.0, 30.0, 0.1]])
+    np.testing.assert_array_equal(triangle_outliers(row, [1], model.anchor_pos_m, 0.0), [[False, False, True, False]])
+    with pytest.raises(ValueError, match="anchor_pos_m"):
+        triangle_outliers(row, 1, model.anchor_pos_m[:3], 0.0)

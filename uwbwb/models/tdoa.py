@@ -36,7 +36,8 @@ import pandas as pd
 
 from ..types import RangeLog
 
-__all__ = ["TdoaLog", "TdoaModel", "pseudo_tdoa", "range_sigma_from_truth", "empirical_tdoa_covariance"]
+__all__ = ["TdoaLog", "TdoaModel", "pseudo_tdoa", "range_sigma_from_truth", "empirical_tdoa_covariance",
+           "triangle_outliers"]
 
 _MAD_TO_SIGMA = 1.4826
 
@@ -353,3 +354,43 @@ def empirical_tdoa_covariance(tdoa_m: np.ndarray, true_tdoa_m: np.ndarray, ref: 
         raise ValueError(f"empirical_tdoa_covariance: only {int(full.sum())} complete epochs with reference {ref}")
     others = np.delete(np.arange(d.shape[1]), ref)
     return np.cov(e[full][:, others], rowvar=False)
+
+
+def triangle_outliers(tdoa_m: np.ndarray, ref, anchor_pos_m: np.ndarray, c_m: float) -> np.ndarray:
+    """The TDoA plausibility test of paper 004, eq. (4): flag ``|L_{1,2}| > ‖P1 − P2‖ − C``.
+
+    By the triangle inequality a range difference can never exceed the distance
+    between its two stations; a TDoA within ``C`` of that bound (or beyond it) is
+    taken as a multipath/NLOS outlier. The test sees only the measurement, so an
+    NLOS excess that keeps the TDoA inside the bound passes it.
+
+    Parameters
+    ----------
+    tdoa_m
+        TDoAs ``r_j − r_ref`` as stored in :attr:`TdoaLog.tdoa_m`, shape
+        ``(..., n_anchors)`` (0 at the reference, NaN where missing), metres.
+    ref
+        Reference anchor per row, int or int array of shape ``tdoa_m.shape[:-1]`` (−1: none).
+    anchor_pos_m
+        Anchor positions ``(n_anchors, 3)``, metres.
+    c_m
+        The margin ``C`` of eq. (4), metres (0: the plain triangle inequality; may be negative
+        to tolerate measurements slightly beyond the bound).
+
+    Returns
+    -------
+    ndarray of bool, shape ``tdoa_m.shape``
+        True where a measured TDoA fails the test (never at the reference or where missing).
+    """
+    d = np.asarray(tdoa_m, float)
+    a = np.asarray(anchor_pos_m, float)
+    if a.ndim != 2 or a.shape != (d.shape[-1], 3):
+        raise ValueError(f"triangle_outliers: anchor_pos_m must be ({d.shape[-1]}, 3), got {a.shape}")
+    if not np.isfinite(c_m):
+        raise ValueError(f"triangle_outliers: C must be finite, got {c_m!r}")
+    ref = np.broadcast_to(np.asarray(ref, int), d.shape[:-1])
+    baseline = np.linalg.norm(a[:, None, :] - a[None, :, :], axis=-1)          # (n, n)
+    bound = baseline[np.clip(ref, 0, None)] - c_m                              # (..., n)
+    out = np.isfinite(d) & (np.abs(d) > bound) & (ref >= 0)[..., None]
+    idx = np.arange(d.shape[-1])
+    return out & (idx != ref[..., None])

@@ -1,0 +1,347 @@
+"""Strapdown inertial navigation in a local level frame, and its error-state model (paper 004, eq. 3).
+
+Frames and conventions (all explicit, all tested)
+--------------------------------------------------
+* **Navigation frame** ``n``: local level, fixed to the room, ``"ENU"`` (x east,
+  y north, z up; gravity ``g_n = [0, 0, −g]``) or ``"NED"`` (``g_n = [0, 0, +g]``).
+* **Body frame** ``b``: the IMU's axes after :class:`~uwbwb.models.imu.ImuConvention`
+  has rotated the sensor axes into it.
+* **Attitude**: unit quaternion ``q = [w, x, y, z]`` (scalar first, Hamilton
+  product) rotating body vectors into the navigation frame, ``v_n = C(q) v_b``.
+  :func:`quat_convert` changes to and from the scalar-last order other libraries use.
+* **Euler angles** (:func:`euler_from_dcm`): ``C = Rz(yaw) Ry(pitch) Rx(roll)``;
+  in ENU yaw is measured counter-clockwise from east.
+
+Mechanization (eq. 3, ``X_{k+1} = f_ins(X_k, U_k)``) over one interval
+``[t_k, t_{k+1}]`` with specific force ``f`` and angular rate ``ω`` sampled at
+both ends (second order, trapezoidal)::
+
+    q_{k+1} = q_k ⊗ Exp(½ (ω_k + ω_{k+1}) Δt)
+    v_{k+1} = v_k + ½ (C_k f_k + C_{k+1} f_{k+1}) Δt + g_n Δt
+    p_{k+1} = p_k + ½ (v_k + v_{k+1}) Δt
+
+The global error is ``O(Δt²)`` (tested by halving ``Δt``).
+
+**Earth rate is neglected.** Ω_ie = 7.3e-5 rad/s = 15 °/h. A MEMS gyro's
+residual bias is 10–1000 °/h and its angle random walk alone exceeds what Earth
+rate adds over the minutes of a room-scale run; the Coriolis term ``2 Ω × v``
+at 1 m/s is 1.5e-4 m/s², about 1 mm of position over 60 s even uncorrected;
+transport rate over a room is nil. A tactical IMU would need Ω_ie in both the
+mechanization and the error model; the UWB updates absorb it here.
+
+Error state (15, navigation-frame attitude error)::
+
+    δx = [δp (3), δv (3), δθ (3), δb_a (3), δb_g (3)],
+    C_true = Exp(δθ) Ĉ,  p_true = p̂ + δp,  v_true = v̂ + δv,  b_true = b̂ + δb
+
+with continuous dynamics (``f̂ = f̃ − b̂_a``, ``ω̂ = ω̃ − b̂_g``)::
+
+    δṗ = δv
+    δv̇ = −[Ĉ f̂ ×] δθ − Ĉ δb_a − Ĉ n_a
+    δθ̇ = −Ĉ δb_g − Ĉ n_g
+    δḃ_a = n_ba,  δḃ_g = n_bg
+
+discretised as ``F = I + A Δt`` and ``Q = G Q_c Gᵀ Δt`` (isotropic noises make
+``Q`` independent of the attitude). After a correction ``δx̂`` is injected into
+the nominal state the error is reset to zero and the covariance transformed by
+``P ← G P Gᵀ`` with ``G = blockdiag(I₆, J_l(δθ̂) ≈ I + ½[δθ̂ ×], I₆)``
+(:func:`reset_jacobian`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "GRAVITY_MPS2", "N_ERR", "Mechanization", "NavState", "dcm_from_euler", "dcm_to_quat", "euler_from_dcm",
+    "error_transition", "inject", "quat_convert", "quat_from_rotvec", "quat_multiply", "quat_to_dcm",
+    "quat_to_rotvec", "reset_jacobian", "skew", "yaw_jacobian",
+]
+
+#: Standard gravity, m/s².
+GRAVITY_MPS2 = 9.80665
+#: Size of the error state [δp, δv, δθ, δb_a, δb_g].
+N_ERR = 15
+P_, V_, TH_, BA_, BG_ = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
+
+
+# --------------------------------------------------------------------------- rotations
+
+def skew(v) -> np.ndarray:
+    """Cross-product matrix ``[v ×]``, shape ``(..., 3, 3)``."""
+    v = np.asarray(v, float)
+    z = np.zeros(v.shape[:-1])
+    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1),
+                     np.stack([v[..., 2], z, -v[..., 0]], -1),
+                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
+
+
+def quat_multiply(p, q) -> np.ndarray:
+    """Hamilton product ``p ⊗ q`` of scalar-first quaternions, shape ``(..., 4)``."""
+    p, q = np.asarray(p, float), np.asarray(q, float)
+    pw, px, py, pz = np.moveaxis(p, -1, 0)
+    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
+    return np.stack([pw * qw - px * qx - py * qy - pz * qz,
+                     pw * qx + px * qw + py * qz - pz * qy,
+                     pw * qy - px * qz + py * qw + pz * qx,
+                     pw * qz + px * qy - py * qx + pz * qw], -1)
+
+
+def quat_from_rotvec(rv) -> np.ndarray:
+    """``Exp(rv)``: rotation vector (rad, shape ``(..., 3)``) to a scalar-first unit quaternion."""
+    rv = np.asarray(rv, float)
+    a = np.linalg.norm(rv, axis=-1, keepdims=True)
+    half = 0.5 * a
+    # sin(a/2)/a, with its Taylor series near 0
+    k = np.where(a > 1e-8, np.sin(half) / np.where(a > 1e-8, a, 1.0), 0.5 - a * a / 48.0)
+    return np.concatenate([np.cos(half), k * rv], -1)
+
+
+def quat_to_rotvec(q) -> np.ndarray:
+    """``Log(q)``: scalar-first unit quaternion to a rotation vector (rad), shortest rotation."""
+    q = np.asarray(q, float)
+    q = np.where(q[..., :1] < 0, -q, q)
+    v = q[..., 1:]
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    ang = 2.0 * np.arctan2(s, q[..., :1])
+    k = np.where(s > 1e-12, ang / np.where(s > 1e-12, s, 1.0), 2.0 / np.maximum(q[..., :1], 1e-300))
+    return k * v
+
+
+def quat_to_dcm(q) -> np.ndarray:
+    """Rotation matrix ``C`` (body → navigation) of a scalar-first quaternion, shape ``(..., 3, 3)``."""
+    q = np.asarray(q, float)
+    w, x, y, z = np.moveaxis(q / np.linalg.norm(q, axis=-1, keepdims=True), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
+def dcm_to_quat(C) -> np.ndarray:
+    """Scalar-first unit quaternion (``w >= 0``) of rotation matrices ``(..., 3, 3)``."""
+    C = np.asarray(C, float)
+    tr = np.trace(C, axis1=-2, axis2=-1)
+    cand = np.stack([1 + tr, 1 + 2 * C[..., 0, 0] - tr, 1 + 2 * C[..., 1, 1] - tr, 1 + 2 * C[..., 2, 2] - tr], -1)
+    i = np.argmax(cand, axis=-1)
+    s = np.sqrt(np.maximum(np.take_along_axis(cand, i[..., None], -1)[..., 0], 1e-300))
+    d = [C[..., 2, 1] - C[..., 1, 2], C[..., 0, 2] - C[..., 2, 0], C[..., 1, 0] - C[..., 0, 1]]
+    o = [C[..., 0, 1] + C[..., 1, 0], C[..., 0, 2] + C[..., 2, 0], C[..., 1, 2] + C[..., 2, 1]]
+    rows = [np.stack([s, d[0] / s, d[1] / s, d[2] / s], -1),
+            np.stack([d[0] / s, s, o[0] / s, o[1] / s], -1),
+            np.stack([d[1] / s, o[0] / s, s, o[2] / s], -1),
+            np.stack([d[2] / s, o[1] / s, o[2] / s, s], -1)]
+    q = 0.5 * np.choose(i[..., None], rows)
+    return np.where(q[..., :1] < 0, -q, q)
+
+
+def quat_convert(q, src: str, dst: str) -> np.ndarray:
+    """Reorder quaternion components between ``"wxyz"`` (scalar first, ours) and ``"xyzw"`` (scalar last)."""
+    for name, order in (("src", src), ("dst", dst)):
+        if order not in ("wxyz", "xyzw"):
+            raise ValueError(f"quat_convert: {name} order must be 'wxyz' or 'xyzw', got {order!r}")
+    q = np.asarray(q, float)
+    if q.shape[-1] != 4:
+        raise ValueError(f"quat_convert: quaternions need 4 components, got shape {q.shape}")
+    if src == dst:
+        return q.copy()
+    return np.roll(q, -1 if src == "wxyz" else 1, axis=-1)
+
+
+def dcm_from_euler(roll_rad, pitch_rad, yaw_rad) -> np.ndarray:
+    """``C = Rz(yaw) Ry(pitch) Rx(roll)``, shape ``(..., 3, 3)``."""
+    r, p, y = (np.asarray(a, float) for a in (roll_rad, pitch_rad, yaw_rad))
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.stack([
+        np.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr], -1),
+        np.stack([sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr], -1),
+        np.stack([-sp, cp * sr, cp * cr], -1)], -2)
+
+
+def euler_from_dcm(C) -> np.ndarray:
+    """``[roll, pitch, yaw]`` (rad), shape ``(..., 3)``, inverse of :func:`dcm_from_euler`."""
+    C = np.asarray(C, float)
+    return np.stack([np.arctan2(C[..., 2, 1], C[..., 2, 2]),
+                     -np.arcsin(np.clip(C[..., 2, 0], -1.0, 1.0)),
+                     np.arctan2(C[..., 1, 0], C[..., 0, 0])], -1)
+
+
+def yaw_jacobian(C) -> np.ndarray:
+    """``∂yaw/∂δθ`` (shape ``(3,)``) for the navigation-frame attitude error ``C = Exp(δθ) Ĉ``."""
+    c = np.asarray(C, float)[:, 0]
+    S = skew(c)
+    return (-c[0] * S[1] + c[1] * S[0]) / (c[0] ** 2 + c[1] ** 2)
+
+
+# --------------------------------------------------------------------------- mechanization
+
+def _dcm(q) -> np.ndarray:
+    """:func:`quat_to_dcm` of one unit quaternion, with scalar arithmetic (the per-step path)."""
+    w, x, y, z = q.tolist()
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def _rotate(q, rv) -> np.ndarray:
+    """``q ⊗ Exp(rv)`` for one quaternion and rotation vector, normalised (the per-step path)."""
+    a, b, c = rv.tolist()
+    ang = math.sqrt(a * a + b * b + c * c)
+    k = math.sin(0.5 * ang) / ang if ang > 1e-8 else 0.5 - ang * ang / 48.0
+    rw, rx, ry, rz = math.cos(0.5 * ang), k * a, k * b, k * c
+    w, x, y, z = q.tolist()
+    out = np.array([w * rw - x * rx - y * ry - z * rz, w * rx + x * rw + y * rz - z * ry,
+                    w * ry - x * rz + y * rw + z * rx, w * rz + x * ry - y * rx + z * rw])
+    return out / math.sqrt(out @ out)
+
+
+@dataclass(frozen=True)
+class NavState:
+    """Position ``(3,)`` m, velocity ``(3,)`` m/s, attitude quaternion ``[w, x, y, z]`` (body → nav)."""
+
+    pos_m: np.ndarray
+    vel_mps: np.ndarray
+    quat: np.ndarray
+
+    def __post_init__(self):
+        for name, n in (("pos_m", 3), ("vel_mps", 3), ("quat", 4)):
+            a = np.array(getattr(self, name), float)
+            if a.shape != (n,) or not np.all(np.isfinite(a)):
+                raise ValueError(f"NavState.{name} must be {n} finite numbers, got {a!r}")
+            if name == "quat":
+                norm = np.linalg.norm(a)
+                if abs(norm - 1.0) > 1e-6:
+                    raise ValueError(f"NavState.quat must be a unit quaternion [w, x, y, z], |q| = {norm:g}")
+                a = a / norm
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
+    @property
+    def dcm(self) -> np.ndarray:
+        return quat_to_dcm(self.quat)
+
+    @classmethod
+    def from_euler(cls, pos_m, vel_mps, roll_rad: float, pitch_rad: float, yaw_rad: float) -> "NavState":
+        return cls(pos_m, vel_mps, dcm_to_quat(dcm_from_euler(roll_rad, pitch_rad, yaw_rad)))
+
+
+@dataclass(frozen=True)
+class Mechanization:
+    """Strapdown navigation equations in a local level frame (eq. 3).
+
+    Attributes
+    ----------
+    frame
+        ``"ENU"`` or ``"NED"``.
+    gravity_mps2
+        Magnitude of gravity, m/s² (constant over a room).
+    """
+
+    frame: str = "ENU"
+    gravity_mps2: float = GRAVITY_MPS2
+
+    def __post_init__(self):
+        if self.frame not in ("ENU", "NED"):
+            raise ValueError(f"Mechanization.frame must be 'ENU' or 'NED', got {self.frame!r}")
+        if not 9.0 < self.gravity_mps2 < 10.5:
+            raise ValueError(f"Mechanization.gravity_mps2 = {self.gravity_mps2!r} m/s² is not Earth gravity "
+                             "(accelerations in g must be converted by ImuConvention first)")
+
+    @property
+    def g_n(self) -> np.ndarray:
+        """Gravity vector in the navigation frame, m/s²."""
+        return np.array([0.0, 0.0, -self.gravity_mps2 if self.frame == "ENU" else self.gravity_mps2])
+
+    def step(self, pos, vel, quat, f0, f1, w0, w1, dt_s: float):
+        """One interval of the trapezoidal mechanization (module docstring).
+
+        ``f0, f1`` (m/s²) and ``w0, w1`` (rad/s): body-frame specific force and
+        angular rate at the interval's start and end, shape ``(3,)``. Returns
+        ``(pos, vel, quat, C0, C1)`` with ``C0, C1`` the attitude matrices at
+        both ends.
+        """
+        C0 = _dcm(quat)
+        q1 = _rotate(quat, 0.5 * (w0 + w1) * dt_s)
+        C1 = _dcm(q1)
+        v1 = vel + (0.5 * dt_s) * (C0 @ f0 + C1 @ f1) + self.g_n * dt_s
+        p1 = pos + (0.5 * dt_s) * (vel + v1)
+        return p1, v1, q1, C0, C1
+
+    def integrate(self, t_s, acc_mps2, gyro_radps, x0: NavState):
+        """Dead reckoning from ``x0`` at ``t_s[0]`` through all samples.
+
+        Parameters
+        ----------
+        t_s
+            Sample times, shape ``(T,)``, s.
+        acc_mps2, gyro_radps
+            Body-frame specific force and angular rate, shape ``(T, 3)``, SI.
+        x0
+            State at ``t_s[0]``.
+
+        Returns
+        -------
+        pos_m (T, 3), vel_mps (T, 3), quat (T, 4)
+        """
+        t = np.asarray(t_s, float)
+        f = np.asarray(acc_mps2, float)
+        w = np.asarray(gyro_radps, float)
+        if f.shape != (t.size, 3) or w.shape != (t.size, 3):
+            raise ValueError(f"integrate: need acc and gyro of shape ({t.size}, 3), got {f.shape}, {w.shape}")
+        pos, vel, quat = (np.empty((t.size, n)) for n in (3, 3, 4))
+        pos[0], vel[0], quat[0] = x0.pos_m, x0.vel_mps, x0.quat
+        dt = np.diff(t)
+        for k in range(t.size - 1):
+            pos[k + 1], vel[k + 1], quat[k + 1], _, _ = self.step(pos[k], vel[k], quat[k], f[k], f[k + 1], w[k],
+                                                                 w[k + 1], dt[k])
+        return pos, vel, quat
+
+
+# --------------------------------------------------------------------------- error state
+
+def error_dynamics(C, f_b) -> np.ndarray:
+    """Continuous error dynamics ``A`` (15 × 15) at attitude ``C`` and bias-corrected specific force ``f_b``."""
+    A = np.zeros((N_ERR, N_ERR))
+    A[P_, V_] = np.eye(3)
+    A[V_, TH_] = -skew(C @ f_b)
+    A[V_, BA_] = -C
+    A[TH_, BG_] = -C
+    return A
+
+
+def error_transition(C, f_b, dt_s: float) -> np.ndarray:
+    """Discrete error transition ``F = I + A Δt + ½ (A Δt)²`` over one IMU interval, shape ``(15, 15)``."""
+    Adt = error_dynamics(C, f_b) * dt_s
+    return np.eye(N_ERR) + Adt + 0.5 * Adt @ Adt
+
+
+def inject(pos, vel, quat, b_a, b_g, dx):
+    """Nominal state after adding the error estimate ``dx (15,)``: returns ``(pos, vel, quat, b_a, b_g)``."""
+    q = quat_multiply(quat_from_rotvec(dx[TH_]), quat)
+    return pos + dx[P_], vel + dx[V_], q / np.linalg.norm(q), b_a + dx[BA_], b_g + dx[BG_]
+
+
+def reset_jacobian(dtheta_rad) -> np.ndarray:
+    """``G = ∂δx⁺/∂δx`` of the reset after injecting attitude correction ``δθ̂`` (15 × 15).
+
+    With ``C = Exp(δθ) Ĉ`` and ``Ĉ⁺ = Exp(δθ̂) Ĉ`` the new error is
+    ``δθ⁺ = Log(Exp(δθ) Exp(−δθ̂))``; linearised about the estimate
+    (``δθ = δθ̂ + ε``) it is ``J_l(δθ̂) ε`` with the left Jacobian of SO(3)
+
+    .. math::  J_l(φ) = I + \\frac{1 - \\cos θ}{θ^2}[φ×] + \\frac{θ - \\sin θ}{θ^3}[φ×]^2,\\quad θ = |φ|,
+
+    whose first-order form is the usual ``I + ½ [δθ̂ ×]``. Every other block is the identity.
+    """
+    phi = np.asarray(dtheta_rad, float)
+    th = float(np.linalg.norm(phi))
+    S = skew(phi)
+    if th < 1e-6:
+        a, b = 0.5 - th * th / 24.0, 1.0 / 6.0 - th * th / 120.0
+    else:
+        a, b = (1 - math.cos(th)) / th ** 2, (th - math.sin(th)) / th ** 3
+    G = np.eye(N_ERR)
+    G[TH_, TH_] += a * S + b * S @ S
+    return G
