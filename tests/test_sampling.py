@@ -1,0 +1,100 @@
+import numpy as np
+import pytest
+
+from uwbwb import Anchors
+from uwbwb import sampling as smp
+from uwbwb.models import doppler as dm
+
+REF = (dm.REFERENCE_POS_M, dm.REFERENCE_VEL_MPS)
+
+
+@pytest.fixture(scope="module")
+def cubic():
+    return dm.DopplerModel.for_layout(dm.cubic_layout())
+
+
+def test_kernel_counts_equal_numpy_on_the_same_stream(cubic):
+    """The compiled kernel draws X then V from the chunk's generator, exactly as numpy would."""
+    n, thresholds = 100_000, (0.5, 1.0, 3.0)
+    res = smp.brute_force(cubic, *REF, n, seed=5, chunk_size=40_000, thresholds_m=thresholds,
+                          keep_below_m=1.0, workers=1)
+    counts = np.zeros(3, int)
+    kept = []
+    for ss, m in smp.chunk_seeds(5, n, 40_000):
+        u = np.random.default_rng(ss).random((m, 6))
+        X, V = -5 + 10 * u[:, :3], -3 + 6 * u[:, 3:]
+        d = cubic.distance_m(cubic.delta_p(X, V), cubic.delta_p(*REF))
+        counts += [np.count_nonzero(d < t) for t in thresholds]
+        kept.append(d[d < 1.0])
+    assert [e.n_hits for e in res.estimates] == counts.tolist()
+    np.testing.assert_allclose(res.samples.delta_m, np.concatenate(kept), rtol=1e-9)
+    d_again = cubic.distance_m(cubic.delta_p(res.samples.pos_m, res.samples.vel_mps), cubic.delta_p(*REF))
+    np.testing.assert_allclose(res.samples.delta_m, d_again, rtol=1e-9)
+
+
+def test_fraction_of_a_layout_with_beacons_at_infinity_is_known_in_closed_form():
+    """All beacons far below: u = (0, 0, 1) everywhere, so δ depends on V_z alone and
+    δ < τ ⟺ |f(V_z/v_s) − f(r_ref)| < τ / (v_s ‖P‖) with f(r) = r / (1 − r)."""
+    far = Anchors(tuple(f"b{i}" for i in range(8)), np.tile([0.0, 0.0, -1e7], (8, 1)))
+    m = dm.DopplerModel.for_layout(far)
+    tau = 0.15
+    res = smp.brute_force(m, *REF, 400_000, seed=1, thresholds_m=(tau,), keep_below_m=None, confidence=0.999)
+    f_ref = (REF[1][2] / m.v_s_mps) / (1 - REF[1][2] / m.v_s_mps)
+    c = tau / (m.v_s_mps * np.linalg.norm(m.period_s))
+    lo, hi = (m.v_s_mps * f / (1 + f) for f in (f_ref - c, f_ref + c))
+    exact = (min(hi, 3.0) - max(lo, -3.0)) / 6.0
+    est = res.estimate(tau)
+    assert est.ci_low < exact < est.ci_high, (exact, est)
+
+
+def test_conditional_agrees_with_brute_force_within_intervals(cubic):
+    thresholds = (0.3, 0.6)
+    brute = smp.brute_force(cubic, *REF, 3_000_000, seed=2, thresholds_m=thresholds, keep_below_m=None,
+                            confidence=0.999)
+    cond = smp.conditional(cubic, *REF, 100_000, seed=3, thresholds_m=thresholds, confidence=0.999)
+    for t in thresholds:
+        b, c = brute.estimate(t), cond.estimate(t)
+        assert b.n_hits > 50 and c.n_hits > 50
+        assert c.ci_low < b.ci_high and b.ci_low < c.ci_high, (b, c)
+        # the conditional estimate is tighter for fewer exact evaluations
+        assert c.ci_high - c.ci_low < 0.5 * (b.ci_high - b.ci_low) and c.n_draws < b.n_draws
+    # weights of the kept draws add up to the estimate
+    assert cond.samples.below(0.3).weight.sum() == pytest.approx(cond.estimate(0.3).fraction)
+
+
+def test_same_seed_same_fraction_whatever_the_workers(cubic):
+    a = smp.brute_force(cubic, *REF, 300_000, seed=9, chunk_size=50_000, thresholds_m=(1.0,), workers=1)
+    b = smp.brute_force(cubic, *REF, 300_000, seed=9, chunk_size=50_000, thresholds_m=(1.0,), workers=2)
+    c = smp.brute_force(cubic, *REF, 300_000, seed=10, chunk_size=50_000, thresholds_m=(1.0,), workers=2)
+    assert a.estimates == b.estimates and a.estimates != c.estimates
+    ca = smp.conditional(cubic, *REF, 20_000, seed=4, chunk_size=5_000, workers=1)
+    cb = smp.conditional(cubic, *REF, 20_000, seed=4, chunk_size=5_000, workers=2)
+    assert ca.estimates == cb.estimates
+
+
+def test_ranging_term_shrinks_the_ghost_set(cubic):
+    without = smp.conditional(cubic, *REF, 50_000, seed=6, thresholds_m=(0.5,))
+    with_r = smp.conditional(cubic, *REF, 50_000, seed=6, thresholds_m=(0.5,), ranges=True)
+    assert with_r.estimate(0.5).fraction < 0.2 * without.estimate(0.5).fraction
+    # every kept sample with ranges lies close to the reference position
+    assert np.all(np.linalg.norm(with_r.samples.pos_m - REF[0], axis=1) < 0.5 + 1e-9)
+
+
+def test_kept_samples_overflow_is_counted_not_lost(cubic):
+    res = smp.brute_force(cubic, *REF, 20_000, seed=1, thresholds_m=(100.0,), keep_below_m=100.0,
+                          max_kept_per_chunk=1000, chunk_size=10_000, workers=1)
+    assert len(res.samples) == 2000 and res.overflow == 18_000
+
+
+def test_clopper_pearson_edges():
+    lo, hi = smp.clopper_pearson(0, 1000)
+    assert lo == 0.0 and hi == pytest.approx(1 - 0.025 ** (1 / 1000))
+    with pytest.raises(ValueError):
+        smp.clopper_pearson(5, 3)
+
+
+def test_resampled_ghosts_follow_the_weights():
+    g = smp.GhostSamples(np.zeros((2, 3)), np.zeros((2, 3)), np.array([0.01, 0.02]), np.array([1.0, 3.0]))
+    r = g.resample(4000, rng=np.random.default_rng(0))
+    assert np.mean(r.delta_m == 0.02) == pytest.approx(0.75, abs=0.03)
+    assert r.weight.sum() == pytest.approx(4.0)

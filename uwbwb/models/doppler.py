@@ -1,0 +1,328 @@
+"""Doppler-period measurement model of independent ultrasonic beacons (paper 003, eq 1).
+
+A beacon at ``T`` chirps every ``P`` seconds (each beacon has its own period).
+A receiver at ``X`` moving with velocity ``V`` sees the period stretched by
+``ΔP``; eq 1 of McCarthy et al. relates the two:
+
+.. math::
+
+    \\frac{\\Delta P}{P + \\Delta P}\\, v_s = \\frac{X - T}{\\lVert X - T\\rVert}\\cdot V = u\\cdot V,
+    \\qquad\\text{so}\\qquad
+    \\Delta P = P\\,\\frac{r}{1 - r},\\quad r = \\frac{u\\cdot V}{v_s}.
+
+Moving away from a beacon (``u·V > 0``) lengthens its period. ``v_s`` is the
+speed of sound (default: dry air at 20 °C, :func:`speed_of_sound_mps`).
+
+A measured ``ΔP`` is the difference of two arrival times one period apart, so
+it describes the receiver *averaged over that period* (section 2.2). With
+``lag_s`` the model evaluates eq 1 at ``X − lag·V`` — the position half a
+period earlier when ``lag = P/2``, i.e. at the middle of the measured period
+under constant velocity. ``lag = 0`` is the paper's instantaneous reading.
+
+Section 5 of the paper proposes adding pseudo-ranges from a model of each
+beacon's transmission clock; :meth:`DopplerModel.pseudo_range_m` is that
+measurement, ``‖X − T‖``.
+
+One :class:`DopplerModel` is used by the Monte Carlo sampler
+(:mod:`uwbwb.sampling`), the chirp simulator (:mod:`uwbwb.sim.chirps`) and both
+filters (:mod:`uwbwb.filters.doppler`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..types import Anchors
+
+__all__ = ["speed_of_sound_mps", "DopplerModel", "ReceiverMotion", "cubic_layout", "lab_layout",
+           "beacon_periods_s", "REFERENCE_POS_M", "REFERENCE_VEL_MPS", "PAPER_DP_REF_S"]
+
+#: Reference pair of section 3.1 (metres, metres per second).
+REFERENCE_POS_M = np.array([-0.5, 0.5, 0.4])
+REFERENCE_VEL_MPS = np.array([0.5, 0.7, 0.1])
+#: ΔP_ref the paper quotes for beacon 0 at (−2, −2, −2) and beacon 7 at (2, 2, 2) (input, seconds).
+PAPER_DP_REF_S = {0: 1.1e-3, 7: -1.2e-3}
+
+
+def speed_of_sound_mps(temperature_c: float = 20.0) -> float:
+    """Speed of sound in dry air, ``331.3 √(1 + θ / 273.15)`` m/s (343.2 m/s at 20 °C)."""
+    if not temperature_c > -273.15:
+        raise ValueError(f"temperature must be above absolute zero, got {temperature_c!r} °C")
+    return float(331.3 * np.sqrt(1.0 + temperature_c / 273.15))
+
+
+def beacon_periods_s(n: int, first_s: float = 0.501, step_s: float = 0.006) -> np.ndarray:
+    """Unique beacon periods ``first + i·step`` (default 501, 507, … ms; mean ≈ 520 ms for 8 beacons)."""
+    if n < 1 or first_s <= 0 or step_s < 0:
+        raise ValueError(f"need n >= 1, first_s > 0, step_s >= 0; got {n}, {first_s}, {step_s}")
+    return first_s + step_s * np.arange(n)
+
+
+def cubic_layout() -> Anchors:
+    """Section 3.1's cube: beacons on the corners of a 4 m cube centred at the origin.
+
+    Beacon ``i`` has coordinates ``(±2, ±2, ±2)`` with the bits of ``i`` giving
+    the signs of x, y, z (z fastest), so beacon 0 is (−2, −2, −2), beacon 1 is
+    (−2, −2, 2) and beacon 7 is (2, 2, 2), the paper's order.
+    """
+    pos = np.array([[x, y, z] for x in (-2.0, 2.0) for y in (-2.0, 2.0) for z in (-2.0, 2.0)])
+    return Anchors(tuple(f"b{i}" for i in range(8)), pos)
+
+
+def lab_layout() -> Anchors:
+    """A reconstruction of the paper's lab (section 3.3): 8 beacons on walls and ceiling.
+
+    The paper gives no coordinates, only "on the walls and ceiling" with "only a
+    small variation in the Z-coordinates". Assumption: a 6 m × 5 m room centred at
+    the origin, ceiling at z = 1.5 m; four irregularly placed ceiling beacons and
+    four high on the walls (z 1.1–1.3 m), so the z spread is 0.4 m.
+    """
+    pos = np.array([[-1.5, -1.2, 1.5], [1.4, -1.0, 1.5], [-1.0, 1.3, 1.5], [1.6, 1.1, 1.5],
+                    [-3.0, 0.3, 1.2], [3.0, -0.4, 1.25], [0.5, -2.5, 1.1], [-0.6, 2.5, 1.3]])
+    return Anchors(tuple(f"b{i}" for i in range(8)), pos)
+
+
+@dataclass(frozen=True)
+class DopplerModel:
+    """Eq 1 for a set of beacons with their periods, and its noise.
+
+    Attributes
+    ----------
+    beacons
+        Beacon positions (``n`` beacons).
+    period_s
+        Nominal period of each beacon, shape ``(n,)``, seconds, all distinct.
+    v_s_mps
+        Speed of sound, m/s.
+    sigma_t_s
+        Standard deviation of the timing jitter of one chirp arrival, seconds
+        (the lab's 1–2 cm of ranging noise is 30–60 µs at 343 m/s).
+    lag
+        Where in the measured period eq 1 is evaluated, as a fraction of the period
+        before the arrival that closes it: 0 = at the arrival (the paper's
+        instantaneous reading), 0.5 = the middle of the period.
+    """
+
+    beacons: Anchors
+    period_s: np.ndarray
+    v_s_mps: float = speed_of_sound_mps(20.0)
+    sigma_t_s: float = 0.015 / speed_of_sound_mps(20.0)
+    lag: float = 0.5
+
+    def __post_init__(self):
+        P = np.array(self.period_s, float, copy=True)
+        if P.shape != (len(self.beacons),):
+            raise ValueError(f"period_s must have shape ({len(self.beacons)},), got {P.shape}")
+        if not np.all(np.isfinite(P)) or np.any(P <= 0):
+            raise ValueError(f"periods must be finite and > 0, got {P}")
+        if np.unique(P).size != P.size:
+            raise ValueError("beacon periods must be distinct (the period identifies the beacon)")
+        if not (np.isfinite(self.v_s_mps) and self.v_s_mps > 0):
+            raise ValueError(f"v_s_mps must be > 0, got {self.v_s_mps!r}")
+        if not (np.isfinite(self.sigma_t_s) and self.sigma_t_s >= 0):
+            raise ValueError(f"sigma_t_s must be >= 0, got {self.sigma_t_s!r}")
+        if not 0.0 <= self.lag <= 1.0:
+            raise ValueError(f"lag must be in [0, 1], got {self.lag!r}")
+        P.setflags(write=False)
+        object.__setattr__(self, "period_s", P)
+        object.__setattr__(self, "v_s_mps", float(self.v_s_mps))
+        object.__setattr__(self, "sigma_t_s", float(self.sigma_t_s))
+        object.__setattr__(self, "lag", float(self.lag))
+
+    @classmethod
+    def for_layout(cls, beacons: Anchors, **kwargs) -> "DopplerModel":
+        """Model with the default periods 501, 507, … ms (:func:`beacon_periods_s`)."""
+        return cls(beacons, beacon_periods_s(len(beacons)), **kwargs)
+
+    @property
+    def n_beacons(self) -> int:
+        return len(self.beacons)
+
+    @property
+    def sigma_dp_s(self) -> float:
+        """Standard deviation of one measured ΔP, ``√2 σ_t`` (difference of two jittered arrivals)."""
+        return float(np.sqrt(2.0) * self.sigma_t_s)
+
+    @property
+    def sigma_m(self) -> float:
+        """Timing jitter expressed as a distance, ``v_s σ_t`` (metres)."""
+        return self.v_s_mps * self.sigma_t_s
+
+    # ------------------------------------------------------------------ eq 1
+    def _select(self, beacon):
+        T = self.beacons.pos_m if beacon is None else self.beacons.pos_m[np.asarray(beacon)]
+        P = self.period_s if beacon is None else self.period_s[np.asarray(beacon)]
+        return T, P
+
+    def delta_p(self, pos_m, vel_mps, beacon=None, *, instantaneous: bool = True) -> np.ndarray:
+        """Period shift ``ΔP`` of eq 1, seconds.
+
+        Parameters
+        ----------
+        pos_m, vel_mps
+            Receiver position and velocity, shape ``(..., 3)``.
+        beacon
+            None: every beacon, result ``(..., n)``. An integer array broadcastable
+            with ``pos_m[..., 0]``: that beacon per row, result ``(...)``.
+        instantaneous
+            True evaluates eq 1 at ``pos_m`` (section 3's sampling). False applies
+            :attr:`lag`: eq 1 at ``pos_m − lag·P·vel_mps`` (a period that ended at
+            the state's time, measured under constant velocity).
+        """
+        X = np.asarray(pos_m, float)
+        V = np.asarray(vel_mps, float)
+        T, P = self._select(beacon)
+        if beacon is None:
+            X, V = X[..., None, :], V[..., None, :]
+        if not instantaneous and self.lag:
+            X = X - (self.lag * P)[..., None] * V
+        d = X - T
+        r = np.sum(d * V, axis=-1) / (np.linalg.norm(d, axis=-1) * self.v_s_mps)
+        return P * r / (1.0 - r)
+
+    def jacobian(self, pos_m, vel_mps, beacon=None, *, instantaneous: bool = True) -> np.ndarray:
+        """Derivative of :meth:`delta_p` w.r.t. the state ``[X, V]``, shape ``(..., n or -, 6)``.
+
+        With ``d = X − T``, ``ρ = ‖d‖``, ``u = d / ρ`` and ``r = u·V / v_s``:
+        ``∂ΔP/∂r = P / (1 − r)²``, ``∂r/∂X = (I − u uᵀ) V / (ρ v_s)``,
+        ``∂r/∂V = u / v_s`` (plus ``−lag·P ∂r/∂X`` through the lagged position).
+        """
+        X = np.asarray(pos_m, float)
+        V = np.asarray(vel_mps, float)
+        T, P = self._select(beacon)
+        if beacon is None:
+            X, V = X[..., None, :], V[..., None, :]
+        lagged = (not instantaneous) and self.lag
+        if lagged:
+            X = X - (self.lag * P)[..., None] * V
+        d = X - T
+        rho = np.linalg.norm(d, axis=-1, keepdims=True)
+        u = d / rho
+        uv = np.sum(u * V, axis=-1, keepdims=True)
+        r = uv / self.v_s_mps
+        dr_dx = (V - uv * u) / (rho * self.v_s_mps)
+        dr_dv = u / self.v_s_mps
+        if lagged:
+            dr_dv = dr_dv - (self.lag * P)[..., None] * dr_dx
+        scale = P[..., None] / (1.0 - r) ** 2
+        return np.concatenate([scale * dr_dx, scale * dr_dv], axis=-1)
+
+    def pseudo_range_m(self, pos_m, beacon=None) -> np.ndarray:
+        """Range ``‖X − T‖`` (metres): the pseudo-range a beacon-clock model gives (section 5)."""
+        X = np.asarray(pos_m, float)
+        T, _ = self._select(beacon)
+        if beacon is None:
+            X = X[..., None, :]
+        return np.linalg.norm(X - T, axis=-1)
+
+    def distance_m(self, dp_a_s, dp_b_s) -> np.ndarray:
+        """Section 3's δ as a distance: ``v_s ‖ΔP_a − ΔP_b‖`` over the last axis, metres.
+
+        The paper says δ is expressed in cm "by dividing by the speed of sound"; a
+        time becomes a distance by *multiplying* by it, which is what is done here.
+        """
+        diff = np.asarray(dp_a_s, float) - np.asarray(dp_b_s, float)
+        return self.v_s_mps * np.linalg.norm(diff, axis=-1)
+
+    def linearise(self, x: np.ndarray, measurement):
+        """One chirp's measurement linearised at state ``x = [X, V]`` (6,), for :class:`~uwbwb.filters.ekf.Ekf`.
+
+        ``measurement`` is ``(beacon, dp_s, range_m)``: the beacon index (−1: none),
+        the measured ΔP (NaN: none) and a pseudo-range (NaN: none). Uses the lagged
+        model (:attr:`lag`). Returns None when nothing usable was measured.
+        """
+        from ..filters.ekf import Linearisation
+
+        beacon, dp_s, range_m = measurement
+        beacon = int(beacon)
+        if beacon < 0:
+            return None
+        x = np.asarray(x, float)
+        z, h, H, R = [], [], [], []
+        if np.isfinite(dp_s):
+            b = np.array(beacon)
+            z.append(float(dp_s))
+            h.append(float(self.delta_p(x[:3], x[3:], b, instantaneous=False)))
+            H.append(self.jacobian(x[:3], x[3:], b, instantaneous=False))
+            R.append(self.sigma_dp_s ** 2)
+        if np.isfinite(range_m):
+            d = x[:3] - self.beacons.pos_m[beacon]
+            rho = float(np.linalg.norm(d))
+            z.append(float(range_m))
+            h.append(rho)
+            H.append(np.concatenate([d / rho, np.zeros(3)]))
+            R.append(self.sigma_m ** 2)
+        if not z:
+            return None
+        return Linearisation(np.array(z), np.array(h), np.array(H), np.diag(R))
+
+    def log_likelihood(self, pos_m, vel_mps, beacon, dp_s, *, range_m=None) -> np.ndarray:
+        """Gaussian log-likelihood of one measured ΔP (and optionally a pseudo-range) per row.
+
+        ``ΔP ~ N(h(X, V), 2 σ_t²)`` with the lagged model; a pseudo-range
+        ``~ N(‖X − T‖, (v_s σ_t)²)``. Shapes broadcast like :meth:`delta_p` with a beacon.
+        """
+        s = self.sigma_dp_s
+        if s <= 0:
+            raise ValueError("log_likelihood needs sigma_t_s > 0")
+        y = (np.asarray(dp_s, float) - self.delta_p(pos_m, vel_mps, beacon, instantaneous=False)) / s
+        ll = -0.5 * y * y - np.log(s * np.sqrt(2 * np.pi))
+        if range_m is not None:
+            sr = self.sigma_m
+            yr = (np.asarray(range_m, float) - self.pseudo_range_m(pos_m, beacon)) / sr
+            ll = ll - 0.5 * yr * yr - np.log(sr * np.sqrt(2 * np.pi))
+        return ll
+
+
+@dataclass(frozen=True)
+class ReceiverMotion:
+    """Section 4.2's receiver motion: position moves with velocity, velocity takes random kicks.
+
+    Interpretation: the "random variation" of σ 2 m/s² (x, y) and 0.2 m/s² (z) is
+    an acceleration held constant over each step between chirps (discrete white
+    noise acceleration), so over ``dt`` the state ``[X, V]`` gets
+    ``Δx = v dt + a dt²/2``, ``Δv = a dt``, ``a ~ N(0, diag σ²)``.
+
+    Attributes
+    ----------
+    sigma_acc_mps2
+        Per-axis acceleration standard deviation, shape ``(3,)``, m/s².
+    """
+
+    sigma_acc_mps2: tuple[float, float, float] = (2.0, 2.0, 0.2)
+
+    def __post_init__(self):
+        s = tuple(float(v) for v in self.sigma_acc_mps2)
+        if len(s) != 3 or not all(np.isfinite(v) and v >= 0 for v in s):
+            raise ValueError(f"sigma_acc_mps2 must be three values >= 0, got {self.sigma_acc_mps2!r}")
+        object.__setattr__(self, "sigma_acc_mps2", s)
+
+    n_x = 6
+
+    def F(self, dt_s) -> np.ndarray:
+        """Transition over ``dt_s``, shape ``(..., 6, 6)``."""
+        dt = np.asarray(dt_s, float)[..., None, None]
+        eye = np.eye(3)
+        top = np.concatenate([np.broadcast_to(eye, dt.shape[:-2] + (3, 3)), dt * eye], axis=-1)
+        bottom = np.concatenate([np.zeros(dt.shape[:-2] + (3, 3)), np.broadcast_to(eye, dt.shape[:-2] + (3, 3))],
+                                axis=-1)
+        return np.concatenate([top, bottom], axis=-2)
+
+    def Q(self, dt_s) -> np.ndarray:
+        """Process noise ``G diag(σ²) Gᵀ`` with ``G = [dt²/2 I; dt I]``, shape ``(..., 6, 6)``."""
+        dt = np.asarray(dt_s, float)[..., None, None]
+        s2 = np.diag(np.square(self.sigma_acc_mps2))
+        return np.concatenate([np.concatenate([dt ** 4 / 4 * s2, dt ** 3 / 2 * s2], axis=-1),
+                               np.concatenate([dt ** 3 / 2 * s2, dt ** 2 * s2], axis=-1)], axis=-2)
+
+    def propagate(self, x: np.ndarray, dt_s, *, rng: np.random.Generator | None) -> np.ndarray:
+        """Move states ``(..., 6)`` over ``dt_s`` (scalar or broadcastable); ``rng=None``: no noise."""
+        x = np.asarray(x, float)
+        dt = np.asarray(dt_s, float)[..., None]
+        a = 0.0 if rng is None else rng.standard_normal(x.shape[:-1] + (3,)) * np.asarray(self.sigma_acc_mps2)
+        out = np.empty_like(x)
+        out[..., :3] = x[..., :3] + x[..., 3:] * dt + 0.5 * a * dt * dt
+        out[..., 3:] = x[..., 3:] + a * dt
+        return out
