@@ -52,36 +52,13 @@ def test_ranges_bad_input(pos, kw):
         geo.ranges(pos, ANCHORS, **kw)
 
 
-def test_tdoa_from_ranges():
-    r = np.array([[1.0, 2.0, 4.0], [3.0, np.nan, 5.0]])
-    d, idx = geo.tdoa_from_ranges(r, ref=1)
-    np.testing.assert_array_equal(idx, [0, 2])
-    np.testing.assert_allclose(d[0], [-1.0, 2.0])
-    assert np.all(np.isnan(d[1]))
-    with pytest.raises(ValueError):
-        geo.tdoa_from_ranges(r, ref=3)
-
-
-def test_tdoa_covariance_closed_form():
-    S = geo.tdoa_covariance(0.1, 4)
-    np.testing.assert_allclose(S, 0.01 * (np.eye(3) + np.ones((3, 3))))
-    S = geo.tdoa_covariance([0.1, 0.2, 0.3], 3, ref=2)
-    np.testing.assert_allclose(S, np.diag([0.01, 0.04]) + 0.09)
-    for bad in ((0.0, 3), (0.1, 1), ([0.1, 0.2], 3)):
-        with pytest.raises(ValueError):
-            geo.tdoa_covariance(*bad)
-
-
-@pytest.mark.parametrize("sigma, ref", [(0.15, 0), (np.array([0.05, 0.1, 0.2, 0.3, 0.1]), 3)])
-def test_tdoa_covariance_matches_monte_carlo(sigma, ref):
-    rng = np.random.default_rng(7)
-    n, N = 5, 200_000
-    noise = np.broadcast_to(sigma, (n,)) * rng.standard_normal((N, n))
-    d, _ = geo.tdoa_from_ranges(10.0 + noise, ref=ref)
-    S_mc = np.cov(d, rowvar=False)
-    S = geo.tdoa_covariance(sigma, n, ref=ref)
-    # Sampling error of a covariance entry is ~ S_ii * sqrt(2 / N) ~ 0.3 %; allow 3 %.
-    np.testing.assert_allclose(S_mc, S, atol=0.03 * S.max())
+def test_yaw_rotation_turns_about_z_and_broadcasts():
+    R = geo.yaw_rotation(np.pi / 2)
+    np.testing.assert_allclose(R @ [1.0, 0.0, 0.5], [0.0, 1.0, 0.5], atol=1e-12)
+    Rs = geo.yaw_rotation(np.array([[0.0, 0.3], [1.0, -2.0]]))
+    assert Rs.shape == (2, 2, 3, 3)
+    np.testing.assert_allclose(Rs @ np.swapaxes(Rs, -1, -2), np.broadcast_to(np.eye(3), Rs.shape), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(Rs), 1.0)
 
 
 # --------------------------------------------------------------------------- Jacobian / GDOP

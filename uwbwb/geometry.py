@@ -1,4 +1,6 @@
-"""Range geometry: predicted ranges, TDoA, multilateration and dilution of precision.
+"""Range geometry: predicted ranges, frame rotations, multilateration and dilution of precision.
+
+TDoA measurements (range differences and their covariance) live in :mod:`uwbwb.models.tdoa`.
 
 Conventions
 -----------
@@ -31,7 +33,7 @@ from .types import Trajectory
 
 __all__ = [
     "MultilaterationResult", "Status", "gdop", "linear_multilaterate", "multilaterate",
-    "multilaterate_one", "range_jacobian", "ranges", "tdoa_covariance", "tdoa_from_ranges",
+    "multilaterate_one", "range_jacobian", "ranges", "yaw_rotation",
 ]
 
 #: A symmetric geometry matrix with smallest/largest eigenvalue ratio at or
@@ -71,7 +73,7 @@ class Status(enum.IntEnum):
         return self.name.lower()
 
 
-# --------------------------------------------------------------------------- ranges / TDoA
+# --------------------------------------------------------------------------- ranges and frames
 
 
 def _as_anchors(anchor_pos_m) -> np.ndarray:
@@ -154,78 +156,16 @@ def range_jacobian(pos_m, anchor_pos_m, *, z_m=None) -> np.ndarray:
     return diff[..., :k] / r[..., None]
 
 
-def tdoa_from_ranges(range_m, ref: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Range differences ``r_i - r_ref`` for every anchor ``i != ref``.
+def yaw_rotation(yaw_rad) -> np.ndarray:
+    """Rotation about +z by ``yaw_rad`` (body to world), shape ``(..., 3, 3)`` for ``yaw_rad`` of shape ``(...)``.
 
-    Parameters
-    ----------
-    range_m
-        Ranges, shape ``(..., n_anchors)``, metres; NaN (missing) propagates.
-    ref
-        Index of the reference anchor.
-
-    Returns
-    -------
-    diff_m : numpy.ndarray
-        Range differences, shape ``(..., n_anchors - 1)``, metres.
-    anchor_index : numpy.ndarray
-        Anchor index of each column of ``diff_m``, shape ``(n_anchors - 1,)``.
+    ``[[cos, -sin, 0], [sin, cos, 0], [0, 0, 1]]``: a body-frame vector ``v`` is ``R @ v`` in the world.
     """
-    r = np.asarray(range_m, dtype=float)
-    if r.ndim == 0 or r.shape[-1] < 2:
-        raise ValueError(f"range_m must have shape (..., n_anchors) with n_anchors >= 2, got {r.shape}")
-    n = r.shape[-1]
-    ref = _check_index(ref, n, "ref")
-    others = np.array([i for i in range(n) if i != ref], dtype=int)
-    return r[..., others] - r[..., [ref]], others
-
-
-def _check_index(i, n: int, name: str) -> int:
-    if isinstance(i, (bool, np.bool_)) or not isinstance(i, (int, np.integer)):
-        raise ValueError(f"{name} must be an integer anchor index, got {i!r}")
-    if not -n <= int(i) < n:
-        raise ValueError(f"{name}={i} is out of range for {n} anchors")
-    return int(i) % n
-
-
-def tdoa_covariance(sigma_m, n_anchors: int, *, ref: int = 0) -> np.ndarray:
-    """Covariance of the range differences produced by :func:`tdoa_from_ranges`.
-
-    With independent range errors of standard deviation ``sigma_i`` the
-    differences ``d_i = r_i - r_ref`` share the reference error, so
-
-    ``Sigma = diag(sigma_i^2, i != ref) + sigma_ref^2 * 1 1^T``,
-
-    which for equal ``sigma`` is ``sigma^2 (I + 1 1^T)``.
-
-    Parameters
-    ----------
-    sigma_m
-        Range standard deviation, metres: a scalar (all anchors equal) or shape
-        ``(n_anchors,)`` (one per anchor, in anchor order).
-    n_anchors
-        Number of anchors (``>= 2``).
-    ref
-        Index of the reference anchor (matters only for per-anchor ``sigma_m``).
-
-    Returns
-    -------
-    numpy.ndarray
-        Shape ``(n_anchors - 1, n_anchors - 1)``, m², rows/columns in the order of
-        ``tdoa_from_ranges(..., ref)[1]``.
-    """
-    if isinstance(n_anchors, (bool, np.bool_)) or not isinstance(n_anchors, (int, np.integer)) or n_anchors < 2:
-        raise ValueError(f"n_anchors must be an integer >= 2, got {n_anchors!r}")
-    ref = _check_index(ref, int(n_anchors), "ref")
-    s = np.asarray(sigma_m, dtype=float)
-    if s.ndim == 0:
-        s = np.full(int(n_anchors), float(s))
-    if s.shape != (n_anchors,):
-        raise ValueError(f"sigma_m must be a scalar or have shape ({n_anchors},), got {s.shape}")
-    if not np.all(np.isfinite(s)) or np.any(s <= 0):
-        raise ValueError("sigma_m must be finite and positive")
-    others = np.array([i for i in range(n_anchors) if i != ref], dtype=int)
-    return np.diag(s[others] ** 2) + s[ref] ** 2 * np.ones((n_anchors - 1, n_anchors - 1))
+    yaw = np.asarray(yaw_rad, dtype=float)
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.zeros(yaw.shape + (3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1], R[..., 2, 2] = c, -s, s, c, 1.0
+    return R
 
 
 # --------------------------------------------------------------------------- problem set-up

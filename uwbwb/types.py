@@ -10,8 +10,8 @@ matching ``from_frame`` so that round trips through pandas are exact.
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
-from typing import Mapping
+from dataclasses import dataclass, field, replace
+from typing import ClassVar, Mapping
 
 import numpy as np
 import pandas as pd
@@ -441,6 +441,494 @@ class Recording:
         if not self.cleaning:
             return f"{self.label}: no cleaning steps were needed"
         return "\n".join(f"{self.label}: {s}" for s in self.cleaning)
+
+
+# ====================================================================== TDoA logs
+
+def pseudo_tdoa(range_m: np.ndarray, ref: int = 0, *, fallback: str = "nearest") -> tuple[np.ndarray, np.ndarray]:
+    """Range differences to a reference anchor, per epoch.
+
+    Parameters
+    ----------
+    range_m
+        Ranges, shape ``(T, n_anchors)``, metres; NaN = no measurement.
+    ref
+        Index of the preferred reference anchor.
+    fallback
+        Reference for epochs where ``ref`` is missing: ``"nearest"`` (the anchor
+        with the smallest measured range, the one most likely in line of sight)
+        or ``"first"`` (the lowest-index available anchor).
+
+    Returns
+    -------
+    tdoa_m : ndarray, shape ``(T, n_anchors)``
+        ``range_m[t, j] − range_m[t, ref_t]``; 0 at the reference, NaN where missing.
+    ref_idx : ndarray of int, shape ``(T,)``
+        Reference anchor per epoch; −1 (and an all-NaN row) where fewer than two
+        anchors were measured.
+    """
+    r = np.asarray(range_m, float)
+    if r.ndim != 2:
+        raise ValueError(f"pseudo_tdoa: range_m must be (T, n_anchors), got shape {r.shape}")
+    n = r.shape[1]
+    if not 0 <= ref < n:
+        raise ValueError(f"pseudo_tdoa: reference index {ref} outside 0..{n - 1}")
+    ok = np.isfinite(r)
+    if fallback == "nearest":
+        alt = np.argmin(np.where(ok, r, np.inf), axis=1)
+    elif fallback == "first":
+        alt = np.argmax(ok, axis=1)
+    else:
+        raise ValueError(f"pseudo_tdoa: fallback must be 'nearest' or 'first', got {fallback!r}")
+    ref_idx = np.where(ok[:, ref], ref, alt)
+    enough = ok.sum(axis=1) >= 2
+    ref_idx = np.where(enough, ref_idx, -1)
+    r_ref = np.take_along_axis(r, np.clip(ref_idx, 0, None)[:, None], axis=1)
+    tdoa = r - r_ref
+    tdoa[~enough] = np.nan
+    tdoa[np.flatnonzero(enough), ref_idx[enough]] = 0.0
+    return tdoa, ref_idx
+
+
+@dataclass(frozen=True)
+class TdoaLog:
+    """TDoAs (range differences) of one tag, one row per epoch.
+
+    Attributes
+    ----------
+    t_s
+        Epoch times, shape ``(T,)``, seconds, strictly increasing.
+    tdoa_m
+        ``r_j − r_ref``, shape ``(T, n_anchors)``, metres; 0 in the reference
+        column, NaN where anchor ``j`` was not measured.
+    ref
+        Reference anchor index per epoch, shape ``(T,)``; −1 for epochs without
+        a TDoA (all-NaN row).
+    anchor_ids
+        Column labels.
+    tag_id
+        Tag identifier.
+    """
+
+    t_s: np.ndarray
+    tdoa_m: np.ndarray
+    ref: np.ndarray
+    anchor_ids: tuple[str, ...]
+    tag_id: str = "tag"
+
+    def __post_init__(self):
+        t = np.array(self.t_s, float)
+        d = np.array(self.tdoa_m, float)
+        ref = np.array(self.ref, int)
+        ids = tuple(map(str, self.anchor_ids))
+        if t.ndim != 1 or d.shape != (t.size, len(ids)) or ref.shape != t.shape:
+            raise ValueError(f"TdoaLog: need t_s (T,), tdoa_m (T, {len(ids)}), ref (T,); "
+                             f"got {t.shape}, {d.shape}, {ref.shape}")
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            raise ValueError("TdoaLog.t_s must be strictly increasing")
+        if np.any((ref < -1) | (ref >= len(ids))):
+            raise ValueError(f"TdoaLog.ref must be in -1..{len(ids) - 1}")
+        has = ref >= 0
+        if np.any(np.isfinite(d[~has])):
+            raise ValueError("TdoaLog: epochs with ref = -1 must be all NaN")
+        at_ref = d[np.flatnonzero(has), ref[has]]
+        if np.any(at_ref != 0.0):
+            raise ValueError("TdoaLog: tdoa_m must be exactly 0 in each epoch's reference column")
+        if np.any(np.isfinite(d[has]).sum(axis=1) < 2):
+            raise ValueError("TdoaLog: an epoch with a reference needs at least one other anchor")
+        for name, arr in (("t_s", t), ("tdoa_m", d), ("ref", ref)):
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "anchor_ids", ids)
+        object.__setattr__(self, "tag_id", str(self.tag_id))
+
+    @classmethod
+    def from_ranges(cls, log: RangeLog, ref: int | str = 0, *, fallback: str = "nearest") -> "TdoaLog":
+        """Pseudo-TDoA from a :class:`RangeLog` (see :func:`pseudo_tdoa`).
+
+        ``ref`` is an anchor index or an anchor id.
+        """
+        k = list(log.anchor_ids).index(str(ref)) if isinstance(ref, str) else int(ref)
+        tdoa, ref_idx = pseudo_tdoa(log.range_m, k, fallback=fallback)
+        return cls(log.t_s, tdoa, ref_idx, log.anchor_ids, log.tag_id)
+
+    def __len__(self) -> int:
+        return self.t_s.size
+
+    @property
+    def n_anchors(self) -> int:
+        return len(self.anchor_ids)
+
+    @property
+    def n_tdoa(self) -> np.ndarray:
+        """Number of TDoAs per epoch (anchors measured − 1, or 0), shape ``(T,)``."""
+        return np.maximum(np.isfinite(self.tdoa_m).sum(axis=1) - 1, 0)
+
+    def select(self, mask_or_index) -> "TdoaLog":
+        idx = np.arange(len(self))[mask_or_index]
+        return TdoaLog(self.t_s[idx], self.tdoa_m[idx], self.ref[idx], self.anchor_ids, self.tag_id)
+
+    def between(self, t_start_s: float, t_end_s: float) -> "TdoaLog":
+        """Epochs with ``t_start_s <= t_s < t_end_s``."""
+        return self.select((self.t_s >= t_start_s) & (self.t_s < t_end_s))
+
+    def to_frame(self) -> pd.DataFrame:
+        """Tidy table ``t_s, anchor_id, ref_id, tdoa_m`` (reference and missing entries omitted)."""
+        ti, ai = np.nonzero(np.isfinite(self.tdoa_m))
+        keep = ai != self.ref[ti]
+        ti, ai = ti[keep], ai[keep]
+        ids = np.asarray(self.anchor_ids, dtype=object)
+        return pd.DataFrame({"t_s": self.t_s[ti], "anchor_id": ids[ai], "ref_id": ids[self.ref[ti]],
+                             "tdoa_m": self.tdoa_m[ti, ai]})
+
+
+# ====================================================================== sensor-set fixes (paper 000)
+
+# Sensor sets are integer bit masks (bit ``i`` set <=> sensor ``i`` used), labelled as in the
+# paper ('76540': members in descending order).
+
+def set_id_from_mask(used: np.ndarray) -> np.ndarray:
+    """Integer set ids from a boolean "sensor used" mask.
+
+    Parameters
+    ----------
+    used
+        Shape ``(..., n_sensors)``, bool; ``n_sensors <= 62``.
+
+    Returns
+    -------
+    ndarray of int64, shape ``(...)``
+        ``sum(2**i for used sensors i)``.
+    """
+    used = np.asarray(used, bool)
+    n = used.shape[-1]
+    if n > 62:
+        raise ValueError(f"at most 62 sensors can be encoded in a set id, got {n}")
+    return used.astype(np.int64) @ (np.int64(1) << np.arange(n, dtype=np.int64))
+
+
+def set_members(set_id: int, n_sensors: int = 62) -> tuple[int, ...]:
+    """Sensor indices in a set, ascending."""
+    set_id = int(set_id)
+    return tuple(i for i in range(n_sensors) if (set_id >> i) & 1)
+
+
+def set_mask(set_id, n_sensors: int) -> np.ndarray:
+    """Boolean mask ``(..., n_sensors)`` of the sensors in each set id (inverse of :func:`set_id_from_mask`)."""
+    set_id = np.asarray(set_id, np.int64)
+    return ((set_id[..., None] >> np.arange(n_sensors, dtype=np.int64)) & 1).astype(bool)
+
+
+def set_label(set_id: int, sensor_ids=None) -> str:
+    """The paper's label of a set: members in descending order, e.g. ``'76540'``.
+
+    Parameters
+    ----------
+    set_id
+        Bit mask of the set.
+    sensor_ids
+        Optional names of the sensors (index → name). Single-character names are
+        concatenated as in the paper; longer names are joined with ``'+'``.
+    """
+    members = set_members(set_id)[::-1]
+    if sensor_ids is None:
+        names = [str(i) for i in members]
+    else:
+        names = [str(sensor_ids[i]) for i in members]
+    return "".join(names) if all(len(n) == 1 for n in names) else "+".join(names)
+
+
+def parse_set_label(label: str) -> int:
+    """Set id of a paper-style label of single-digit sensors (``'76540'`` → 0b11110001)."""
+    if not label.isdigit() or len(set(label)) != len(label):
+        raise ValueError(f"a set label is distinct digits such as '76540', got {label!r}")
+    return sum(1 << int(c) for c in label)
+
+
+@dataclass(frozen=True, eq=False)
+class SetFixLog:
+    """Position fixes, each computed from a sensor set (Banerjee et al., paper 000: the observations ``Z`` of eq. 5).
+
+    Attributes
+    ----------
+    t_s
+        Fix times, shape ``(T,)``, seconds, strictly increasing.
+    pos_m
+        Fixed positions ``(x̃, ỹ)``, shape ``(T, 2)``, metres.
+    set_id
+        Sensor set of each fix as a bit mask, shape ``(T,)``, int64.
+    sensor_ids
+        Names of the sensors, index ``i`` ↔ bit ``i``.
+    truth_m
+        Optional true positions at ``t_s``, shape ``(T, 2)``, metres.
+    name
+        Label for legends and tables.
+    """
+
+    t_s: np.ndarray
+    pos_m: np.ndarray
+    set_id: np.ndarray
+    sensor_ids: tuple[str, ...]
+    truth_m: np.ndarray | None = None
+    name: str = "fixes"
+
+    def __post_init__(self):
+        t = np.array(self.t_s, float)
+        p = np.array(self.pos_m, float)
+        s = np.array(self.set_id, np.int64)
+        if t.ndim != 1 or p.shape != (t.size, 2) or s.shape != t.shape:
+            raise ValueError(f"SetFixLog needs shapes t_s (T,), pos_m (T, 2), set_id (T,); "
+                             f"got {t.shape}, {p.shape}, {s.shape}")
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            raise ValueError("SetFixLog.t_s must be strictly increasing")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(p))):
+            raise ValueError("SetFixLog.t_s and pos_m must be finite (drop failed fixes before building the log)")
+        ids = tuple(str(i) for i in self.sensor_ids)
+        if np.any(s <= 0) or np.any(s >> len(ids)):
+            raise ValueError(f"SetFixLog.set_id must be non-empty sets of the {len(ids)} sensors")
+        arrays = [("t_s", t), ("pos_m", p), ("set_id", s)]
+        if self.truth_m is not None:
+            g = np.array(self.truth_m, float)
+            if g.shape != p.shape:
+                raise ValueError(f"SetFixLog.truth_m must have shape {p.shape}, got {g.shape}")
+            arrays.append(("truth_m", g))
+        for name, arr in arrays:
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "sensor_ids", ids)
+
+    def __len__(self) -> int:
+        return self.t_s.size
+
+    @property
+    def error_m(self) -> np.ndarray:
+        """Fix minus truth, shape ``(T, 2)``, metres (needs ``truth_m``)."""
+        if self.truth_m is None:
+            raise ValueError(f"{self.name}: no truth to compute errors against")
+        return self.pos_m - self.truth_m
+
+    def labels(self) -> np.ndarray:
+        """Paper-style set label of every fix, shape ``(T,)``, object."""
+        uniq, inv = np.unique(self.set_id, return_inverse=True)
+        return np.array([set_label(s, self.sensor_ids) for s in uniq], dtype=object)[inv]
+
+    def set_frequency(self) -> pd.DataFrame:
+        """Sets by decreasing frequency: ``set_id, label, count, share, cum_share``."""
+        uniq, counts = np.unique(self.set_id, return_counts=True)
+        order = np.lexsort((uniq, -counts))
+        uniq, counts = uniq[order], counts[order]
+        share = counts / counts.sum()
+        return pd.DataFrame({"set_id": uniq, "label": [set_label(s, self.sensor_ids) for s in uniq],
+                             "count": counts, "share": share, "cum_share": np.cumsum(share)})
+
+    def select(self, mask_or_index) -> "SetFixLog":
+        idx = np.arange(len(self))[mask_or_index]
+        return SetFixLog(self.t_s[idx], self.pos_m[idx], self.set_id[idx], self.sensor_ids,
+                         None if self.truth_m is None else self.truth_m[idx], self.name)
+
+    def to_frame(self) -> pd.DataFrame:
+        """Tidy table ``t_s, x_m, y_m, set_id, set_label[, true_x_m, true_y_m]``."""
+        df = pd.DataFrame({"t_s": self.t_s, "x_m": self.pos_m[:, 0], "y_m": self.pos_m[:, 1],
+                           "set_id": self.set_id, "set_label": self.labels()})
+        if self.truth_m is not None:
+            df["true_x_m"], df["true_y_m"] = self.truth_m[:, 0], self.truth_m[:, 1]
+        return df
+
+
+# ====================================================================== unrolled range samples
+
+@dataclass(frozen=True)
+class RangeSamples:
+    """Ranges unrolled to one entry per measurement (the ``D`` of Zupanec et al. eq. 1).
+
+    Attributes
+    ----------
+    t_s
+        Measurement times, shape ``(M,)``, seconds (non-decreasing).
+    anchor_index
+        Index of the anchor of each range, shape ``(M,)``, into ``anchor_ids``.
+    range_m
+        Measured ranges, shape ``(M,)``, metres, finite.
+    anchor_ids
+        Labels of the anchors (columns of the range log they came from).
+    """
+
+    t_s: np.ndarray
+    anchor_index: np.ndarray
+    range_m: np.ndarray
+    anchor_ids: tuple[str, ...]
+
+    def __post_init__(self):
+        t = np.array(self.t_s, float)
+        k = np.array(self.anchor_index, np.intp)
+        r = np.array(self.range_m, float)
+        ids = tuple(str(a) for a in self.anchor_ids)
+        if t.ndim != 1 or k.shape != t.shape or r.shape != t.shape:
+            raise ValueError(f"t_s, anchor_index and range_m must be 1-D of equal length, "
+                             f"got {t.shape}, {k.shape}, {r.shape}")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(r))):
+            raise ValueError("RangeSamples hold finite times and ranges only (drop missing ranges first)")
+        if np.any(r < 0):
+            raise ValueError("RangeSamples.range_m contains negative ranges")
+        if k.size and (k.min() < 0 or k.max() >= len(ids)):
+            raise ValueError(f"anchor_index must lie in [0, {len(ids)})")
+        if t.size > 1 and np.any(np.diff(t) < 0):
+            raise ValueError("RangeSamples.t_s must be non-decreasing")
+        for a in (t, k, r):
+            a.setflags(write=False)
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(self, "anchor_index", k)
+        object.__setattr__(self, "range_m", r)
+        object.__setattr__(self, "anchor_ids", ids)
+
+    def __len__(self) -> int:
+        return self.t_s.size
+
+    def select(self, mask_or_index) -> "RangeSamples":
+        """The samples selected by a boolean mask or an increasing index array."""
+        idx = np.arange(len(self))[mask_or_index]
+        return RangeSamples(self.t_s[idx], self.anchor_index[idx], self.range_m[idx], self.anchor_ids)
+
+    def to_matrix(self) -> tuple[np.ndarray, np.ndarray]:
+        """Back to epochs: unique times ``(T,)`` and ranges ``(T, n_anchors)`` (NaN = none).
+
+        If an anchor has two samples at one time, the later one is kept.
+        """
+        t, inv = np.unique(self.t_s, return_inverse=True)
+        r = np.full((t.size, len(self.anchor_ids)), np.nan)
+        r[inv, self.anchor_index] = self.range_m
+        return t, r
+
+    def to_frame(self) -> pd.DataFrame:
+        """Tidy table ``t_s, anchor_id, range_m``."""
+        return pd.DataFrame({"t_s": self.t_s,
+                             "anchor_id": np.asarray(self.anchor_ids, object)[self.anchor_index],
+                             "range_m": self.range_m})
+
+    @classmethod
+    def from_ranges(cls, ranges: "RangeLog | np.ndarray", t_s=None, anchor_ids=None) -> "RangeSamples":
+        """Unroll a ``(T, n_anchors)`` range table (NaN = missing) to :class:`RangeSamples`.
+
+        Parameters
+        ----------
+        ranges
+            A :class:`RangeLog`, or an array ``(T, n_anchors)`` in metres
+            together with ``t_s`` ``(T,)`` (seconds).
+        t_s, anchor_ids
+            Only for an array input; ``anchor_ids`` defaults to ``"0", "1", ...``.
+        """
+        if isinstance(ranges, RangeLog):
+            if t_s is not None or anchor_ids is not None:
+                raise ValueError("t_s and anchor_ids come from the RangeLog")
+            t_s, r, anchor_ids = ranges.t_s, ranges.range_m, ranges.anchor_ids
+        else:
+            r = np.asarray(ranges, float)
+            if r.ndim != 2:
+                raise ValueError(f"ranges must have shape (T, n_anchors), got {r.shape}")
+            if t_s is None:
+                raise ValueError("an array of ranges needs t_s")
+            t_s = np.asarray(t_s, float)
+            if t_s.shape != (r.shape[0],):
+                raise ValueError(f"t_s must have shape ({r.shape[0]},), got {t_s.shape}")
+            anchor_ids = tuple(str(i) for i in range(r.shape[1])) if anchor_ids is None else anchor_ids
+            if len(anchor_ids) != r.shape[1]:
+                raise ValueError(f"{len(anchor_ids)} anchor_ids for {r.shape[1]} columns")
+        ti, ai = np.nonzero(np.isfinite(r))
+        return cls(t_s[ti], ai, r[ti, ai], tuple(anchor_ids))
+
+
+# ====================================================================== one tag of one recording
+
+@dataclass(frozen=True)
+class TagRun:
+    """One tag of one recording, ready for the estimators.
+
+    Attributes
+    ----------
+    data
+        Summary label: ``"synthetic"`` or ``"dataset/recording"``.
+    name
+        Display name of the acquisition (``"office"``, ``"fast"``, ``"scenario2"``...).
+    tag
+        Tag id.
+    ranges
+        The tag's ranges.
+    truth
+        Ground truth of the tag (3-D positions; errors are horizontal).
+    anchors
+        Anchor positions (columns of ``ranges``).
+    dim
+        Estimated coordinates: 2 (tag at known height ``z_m``) or 3.
+    z_m
+        Tag height for ``dim=2`` (known mounting height), metres.
+    raw
+        The device's own output if the acquisition has one (synthetic: :func:`uwbwb.sim.walk.device_output`);
+        None means raw multilateration is used
+        (:func:`uwbwb.experiments.motion_models.raw_multilateration`).
+    """
+
+    data: str
+    name: str
+    tag: str
+    ranges: RangeLog
+    truth: Trajectory
+    anchors: Anchors
+    dim: int = 2
+    z_m: float = 0.0
+    raw: Trajectory | None = field(default=None, repr=False)
+
+    #: Largest truth sampling gap interpolated across when computing errors, seconds.
+    max_truth_gap_s: ClassVar[float] = 0.5
+
+    def __post_init__(self):
+        if self.dim not in (2, 3):
+            raise ValueError(f"TagRun.dim must be 2 or 3, got {self.dim!r}")
+        if tuple(self.ranges.anchor_ids) != tuple(self.anchors.ids):
+            raise ValueError(f"{self.name}/{self.tag}: range columns {self.ranges.anchor_ids} differ from the "
+                             f"anchors {self.anchors.ids}")
+        if len(self.ranges) < 2:
+            raise ValueError(f"{self.name}/{self.tag}: fewer than two epochs")
+
+    @property
+    def key(self) -> str:
+        """``"name/tag"``."""
+        return f"{self.name}/{self.tag}"
+
+    @property
+    def dt_s(self) -> float:
+        """Nominal epoch period (median step), seconds."""
+        return float(np.median(np.diff(self.ranges.t_s)))
+
+    def tdoa(self, ref: int = 0, *, fallback: str = "nearest") -> TdoaLog:
+        """Pseudo-TDoA of this run to anchor index ``ref``."""
+        return TdoaLog.from_ranges(self.ranges, ref, fallback=fallback)
+
+    def true_range_m(self) -> np.ndarray:
+        """Ranges predicted from truth at the range epochs, ``(T, n_anchors)``; NaN outside the truth span."""
+        pos = self.truth.interp(self.ranges.t_s)
+        if pos.shape[1] != 3:
+            raise ValueError(f"{self.key}: true ranges need 3-D truth, got {pos.shape[1]}-D")
+        return np.linalg.norm(pos[:, None, :] - self.anchors.pos_m, axis=-1)
+
+    def between(self, t_start_s: float, t_end_s: float, name: str | None = None) -> "TagRun":
+        """The epochs in ``[t_start_s, t_end_s)`` (truth and raw output cut alike)."""
+        pad = self.max_truth_gap_s
+        return replace(self, name=name or self.name, ranges=self.ranges.between(t_start_s, t_end_s),
+                       truth=self.truth.between(t_start_s - pad, t_end_s + pad),
+                       raw=None if self.raw is None else self.raw.between(t_start_s, t_end_s))
+
+    def decimated(self, rate_hz: float | None) -> "TagRun":
+        """Every ``k``-th epoch so that the rate is at most ``rate_hz`` (None or a lower native rate: unchanged)."""
+        if rate_hz is None:
+            return self
+        k = int(np.floor(1.0 / (rate_hz * self.dt_s) + 1e-9))
+        if k <= 1:
+            return self
+        keep = np.arange(0, len(self.ranges), k)
+        raw = self.raw
+        if raw is not None:
+            raw = raw.select(np.isin(raw.t_s, self.ranges.t_s[keep]))
+        return replace(self, ranges=self.ranges.select(keep), raw=raw)
 
 
 class EstimateStatus(enum.IntEnum):

@@ -7,7 +7,7 @@ import pytest
 
 from uwbwb.experiments import motion_models as mm
 from uwbwb.sim import walk
-from uwbwb.types import Anchors, RangeLog, Trajectory
+from uwbwb.types import Anchors, RangeLog, TagRun, Trajectory
 
 matplotlib.use("Agg")
 
@@ -68,7 +68,7 @@ def test_raw_multilateration_is_exact_on_exact_ranges():
     t = np.arange(20) * 0.1
     pos = np.column_stack([2 + 0.5 * t, 3 + 0.2 * t, np.full(t.size, 1.2)])
     r = np.linalg.norm(pos[:, None] - anchors.pos_m, axis=-1)
-    run = mm.TagRun("synthetic", "x", "t", RangeLog(t, r, anchors.ids, "t"), Trajectory(t, pos), anchors, 2, 1.2)
+    run = TagRun("synthetic", "x", "t", RangeLog(t, r, anchors.ids, "t"), Trajectory(t, pos), anchors, 2, 1.2)
     raw = mm.raw_multilateration(run)
     np.testing.assert_allclose(raw.pos_m, pos[:, :2], atol=1e-6)
 

@@ -11,7 +11,7 @@ import pytest  # noqa: E402
 
 from tests.conftest import real_dataset  # noqa: E402
 from uwbwb.experiments import setnoise as E  # noqa: E402
-from uwbwb.models.setnoise import set_mask  # noqa: E402
+from uwbwb.types import set_mask  # noqa: E402
 from uwbwb.sim import setnoise as S  # noqa: E402
 
 SMALL = dataclasses.replace(S.FacilityConfig(), n_calibration=300, n_legs=2, speeds_mps=(0.35, 1.0))
@@ -94,7 +94,8 @@ def test_band_summary_hand_case():
 
 
 def test_normalised_residuals_hand_case():
-    from uwbwb.models.setnoise import SetFixLog, SetNoiseModel
+    from uwbwb.models.setnoise import SetNoiseModel
+    from uwbwb.types import SetFixLog
 
     log = SetFixLog([0.0, 1.0], [[0.3, 0.0], [0.1, 0.0]], [1, 1], tuple("01234567"), np.zeros((2, 2)))
     model = SetNoiseModel([1], [[0.2, 0.0]], [[0.1, 0.1]], [40], [0.0, 0.0], [0.2, 0.2])

@@ -4,7 +4,8 @@ import pytest
 from uwbwb.filters import kalman
 from uwbwb.filters.ekf import TdoaEkf, run_tdoa_ekf
 from uwbwb.models.motion import RandomForce, RandomJerk, RandomWalk
-from uwbwb.models.tdoa import TdoaLog, TdoaModel, pseudo_tdoa
+from uwbwb.models.tdoa import TdoaModel
+from uwbwb.types import TdoaLog, pseudo_tdoa
 
 ANCHORS = np.array([[0.0, 0.0, 3.0], [30.0, 0.0, 0.5], [30.0, 30.0, 3.0], [0.0, 30.0, 0.5],
                     [15.0, -2.0, 2.0], [15.0, 32.0, 1.0], [-2.0, 15.0, 2.0], [32.0, 15.0, 1.5]])

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from uwbwb import RangeLog
+from uwbwb.types import RangeSamples
 from uwbwb.filters import nls
 from uwbwb.geometry import multilaterate
 
@@ -37,7 +38,7 @@ def _fd_grad(f, x, h=1e-6):
 @pytest.mark.parametrize("dim, static", [(3, False), (3, True), (2, False), (2, True)])
 def test_gradient_and_jacobian_match_finite_differences(rng, dim, static):
     log = _walk(CEILING, np.array([4.0, 3.0, 1.3]), np.array([0.7, 0.4, 0.0]), sigma_m=0.2, rng=rng)
-    s = nls.unroll(log)
+    s = RangeSamples.from_ranges(log)
     n = dim * (1 if static else 2)
     theta = rng.normal(0, 1, n) + np.r_[[5.0, 4.0, 1.0][:dim], [0.5, 0.2, 0.1][:dim]][:n]
     kw = dict(dim=dim, static=static, z_m=1.3 if dim == 2 else None)
@@ -67,13 +68,13 @@ def test_coplanar_anchors_without_height_hint_start_below_the_ceiling():
     P0, v = np.array([9.0, 6.0, 2.0]), np.array([-0.5, 0.2, 0.0])
     fit = nls.fit_trajectory(_walk(CEILING, P0, v), CEILING)       # hint: 1 m below the lowest anchor
     np.testing.assert_allclose(fit.p0_m, P0, atol=1e-4)
-    P_init, _ = nls.initial_guess(nls.unroll(_walk(CEILING, P0, v)), CEILING)
+    P_init, _ = nls.initial_guess(RangeSamples.from_ranges(_walk(CEILING, P0, v)), CEILING)
     assert P_init[2] < CEILING[:, 2].min()
 
 
 def test_initial_guess_is_close_and_not_zero(rng):
     P0, v = np.array([4.0, 3.0, 1.3]), np.array([0.7, 0.4, 0.0])
-    s = nls.unroll(_walk(CEILING, P0, v, sigma_m=0.1, rng=rng))
+    s = RangeSamples.from_ranges(_walk(CEILING, P0, v, sigma_m=0.1, rng=rng))
     P, vel = nls.initial_guess(s, CEILING, z_m=1.3)
     assert np.linalg.norm(P[:2] - P0[:2]) < 0.5 and np.linalg.norm(vel[:2] - v[:2]) < 0.1
     fit = nls.fit_trajectory(s, CEILING, z_m=1.3)
@@ -92,7 +93,7 @@ def test_dim2_holds_the_height_and_matches_3d_for_exact_height():
 def test_static_equals_multilateration_of_one_epoch(rng):
     p = np.array([6.0, 4.0, 1.8])
     r = np.linalg.norm(p - SCATTER, axis=1) + 0.05 * rng.standard_normal(6)
-    fit = nls.fit_trajectory(nls.unroll(r[None], [0.0]), SCATTER, static=True, z_m=1.5)
+    fit = nls.fit_trajectory(RangeSamples.from_ranges(r[None], [0.0]), SCATTER, static=True, z_m=1.5)
     ref = multilaterate(r[None], SCATTER, dim=3, x0=np.array([6.0, 4.0, 1.5]))
     np.testing.assert_allclose(fit.p0_m, ref.pos_m[0], atol=1e-6)
     assert np.all(fit.vel_mps == 0)
@@ -137,9 +138,9 @@ def test_bad_parameters():
     with pytest.raises(ValueError, match="robust loss"):
         nls.fit_trajectory(log, SCATTER, loss="soft_l1")
     with pytest.raises(ValueError, match="cannot determine"):
-        nls.fit_trajectory(nls.unroll(log).select(slice(0, 4)), SCATTER)
+        nls.fit_trajectory(RangeSamples.from_ranges(log).select(slice(0, 4)), SCATTER)
     with pytest.raises(ValueError, match="theta"):
-        nls.objective(np.zeros(4), nls.unroll(log), SCATTER)
+        nls.objective(np.zeros(4), RangeSamples.from_ranges(log), SCATTER)
     with pytest.raises(ValueError, match="anchors"):
         nls.fit_trajectory(log, SCATTER[:5])
 
@@ -153,18 +154,3 @@ def test_robust_loss_resists_an_nlos_anchor(rng):
     plain = nls.fit_trajectory(log, SCATTER, method="least_squares")
     robust = nls.fit_trajectory(log, SCATTER, method="least_squares", loss="soft_l1", f_scale_m=0.1)
     assert np.linalg.norm(robust.p0_m - P0) < 0.5 * np.linalg.norm(plain.p0_m - P0)
-
-
-def test_unroll_and_samples():
-    r = np.array([[1.0, np.nan, 2.0], [np.nan, 3.0, 4.0]])
-    s = nls.unroll(r, [0.0, 0.5], anchor_ids=("a", "b", "c"))
-    np.testing.assert_array_equal(s.anchor_index, [0, 2, 1, 2])
-    t, R = s.to_matrix()
-    np.testing.assert_array_equal(R, r)
-    assert list(s.to_frame().anchor_id) == ["a", "c", "b", "c"]
-    with pytest.raises(ValueError, match="finite"):
-        nls.RangeSamples([0.0], [0], [np.nan], ("a",))
-    with pytest.raises(ValueError, match="non-decreasing"):
-        nls.RangeSamples([1.0, 0.0], [0, 0], [1.0, 1.0], ("a",))
-    with pytest.raises(ValueError, match="t_s"):
-        nls.unroll(r)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from uwbwb import RangeLog
+from uwbwb.types import RangeSamples
 from uwbwb.filters import nls, pruning
 
 XY = np.array([[1.0, 1.0], [12.0, 0.5], [18.0, 6.0], [14.0, 11.0], [3.0, 10.0], [7.0, 4.5]])
@@ -149,7 +150,7 @@ def test_residual_pruning_drops_exactly_the_injected_outliers(rng, static):
     out.flat[rng.choice(T * 6, 36, replace=False)] = True     # 5 % NLOS, +1.5..4 m
     r[out] += rng.uniform(1.5, 4.0, out.sum())
     log = RangeLog(t, r, IDS)
-    s = nls.unroll(log)
+    s = RangeSamples.from_ranges(log)
     rp = pruning.residual_pruning(s, ANCHORS, retention=0.9, dropout=0.005, static=static, z_m=2.0)
     assert rp.kept.sum() == int(np.ceil(0.9 * T * 6)) and rp.n_rounds == 18
     injected = out[np.nonzero(np.isfinite(r))]                # unrolled order = row-major

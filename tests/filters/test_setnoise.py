@@ -3,7 +3,8 @@ import pytest
 
 from uwbwb.filters import kalman
 from uwbwb.filters import setnoise as F
-from uwbwb.models.setnoise import SetFixLog, SetNoiseModel
+from uwbwb.models.setnoise import SetNoiseModel
+from uwbwb.types import SetFixLog
 
 
 def _case(T=60, speed_mps=0.35, seed=1):

@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 
 from uwbwb.filters.tdoa_ls import STATUS, tdoa_least_squares
-from uwbwb.models.tdoa import TdoaLog, TdoaModel, pseudo_tdoa
+from uwbwb.models.tdoa import TdoaModel
+from uwbwb.types import TdoaLog, pseudo_tdoa
 
 ANCHORS = np.array([[0.0, 0.0, 2.0], [10.0, 0.0, 2.5], [10.0, 8.0, 2.0], [0.0, 8.0, 2.5],
                     [5.0, -1.0, 0.5], [5.0, 9.0, 1.0]])

@@ -2,30 +2,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from uwbwb.models.setnoise import (SetFixLog, SetNoiseModel, location_statistics, log_likelihood,
-                                   parse_set_label, set_id_from_mask, set_label, set_mask, set_members)
+from uwbwb.models.setnoise import SetNoiseModel, location_statistics, log_likelihood
+from uwbwb.types import SetFixLog
 
-
-# --------------------------------------------------------------------------- sets
-
-def test_set_ids_round_trip_and_paper_labels():
-    used = np.zeros((2, 8), bool)
-    used[0, [0, 4, 5, 6, 7]] = True
-    used[1, [0, 2, 4, 5, 7]] = True
-    ids = set_id_from_mask(used)
-    assert ids.tolist() == [0b11110001, 0b10110101]
-    assert set_label(ids[0]) == "76540"
-    assert set_label(ids[1]) == "75420"
-    assert parse_set_label("76540") == ids[0]
-    assert set_members(ids[1]) == (0, 2, 4, 5, 7)
-    np.testing.assert_array_equal(set_mask(ids, 8), used)
-    assert set_label(ids[0], ("a0", "a1", "a2", "a3", "a4", "a5", "a6", "a7")) == "a7+a6+a5+a4+a0"
-
-
-def test_parse_set_label_rejects_non_sets():
-    for bad in ("7654a", "76640", ""):
-        with pytest.raises(ValueError):
-            parse_set_label(bad)
 
 
 # --------------------------------------------------------------------------- eq. 9
@@ -180,38 +159,12 @@ def test_sample_follows_the_model():
     np.testing.assert_array_equal(z, z2)
 
 
-# --------------------------------------------------------------------------- fix logs
+# --------------------------------------------------------------------------- calibration from fix logs
 
 def _log(n=6, name="loc"):
     t = np.arange(n) * 0.1
     sets = np.array([0b11111, 0b11111, 0b101111, 0b11111, 0b101111, 0b1110011])[:n]
     return SetFixLog(t, np.zeros((n, 2)) + 0.1, sets, tuple(str(i) for i in range(8)), np.zeros((n, 2)), name)
-
-
-def test_fix_log_frequency_and_frame():
-    log = _log()
-    fr = log.set_frequency()
-    assert fr["label"].tolist() == ["43210", "53210", "65410"]
-    assert fr["count"].tolist() == [3, 2, 1]
-    np.testing.assert_allclose(fr["cum_share"], [0.5, 5 / 6, 1.0])
-    df = log.to_frame()
-    assert list(df.columns) == ["t_s", "x_m", "y_m", "set_id", "set_label", "true_x_m", "true_y_m"]
-    np.testing.assert_allclose(log.error_m, 0.1)
-    assert len(log.select(slice(0, 3))) == 3
-
-
-def test_fix_log_rejects_bad_input():
-    ids = tuple("01234567")
-    with pytest.raises(ValueError, match="strictly increasing"):
-        SetFixLog([0.0, 0.0], np.zeros((2, 2)), [1, 1], ids)
-    with pytest.raises(ValueError, match="finite"):
-        SetFixLog([0.0, 1.0], [[0.0, np.nan], [0.0, 0.0]], [1, 1], ids)
-    with pytest.raises(ValueError, match="non-empty sets"):
-        SetFixLog([0.0, 1.0], np.zeros((2, 2)), [1, 256], ids)
-    with pytest.raises(ValueError, match="shape"):
-        SetFixLog([0.0, 1.0], np.zeros((3, 2)), [1, 1], ids)
-    with pytest.raises(ValueError, match="no truth"):
-        SetFixLog([0.0], np.zeros((1, 2)), [1], ids).error_m
 
 
 def test_from_fixes_labels_locations_by_name():

@@ -1,9 +1,8 @@
 import numpy as np
 import pytest
 
-from uwbwb.models.tdoa import (TdoaLog, TdoaModel, empirical_tdoa_covariance, pseudo_tdoa,
-                               range_sigma_from_truth)
-from uwbwb.types import RangeLog
+from uwbwb.models.tdoa import TdoaModel, empirical_tdoa_covariance, range_sigma_from_truth
+from uwbwb.types import pseudo_tdoa
 
 ANCHORS = np.array([[0.0, 0.0, 2.0], [10.0, 0.0, 2.5], [10.0, 8.0, 2.0], [0.0, 8.0, 2.5],
                     [5.0, -1.0, 0.5], [5.0, 9.0, 1.0]])
@@ -79,50 +78,6 @@ def test_pseudo_tdoa_covariance_matches_model(rng):
     d, ref = pseudo_tdoa(true_r + 0.07 * rng.standard_normal(true_r.shape), 2)
     C = empirical_tdoa_covariance(d, np.tile(model.h(pos, 2), (T, 1)), 2)
     np.testing.assert_allclose(C, model.covariance([0, 1, 3, 4, 5], 2), atol=0.07 ** 2 * 0.06)
-
-
-def test_pseudo_tdoa_reference_fallback():
-    r = np.array([[5.0, 3.0, 4.0, 7.0],
-                  [np.nan, 6.0, 2.0, 9.0],
-                  [np.nan, np.nan, np.nan, 1.0],
-                  [1.0, 1.0, np.nan, np.nan]])
-    d, ref = pseudo_tdoa(r, 0)
-    np.testing.assert_array_equal(ref, [0, 2, -1, 0])
-    np.testing.assert_allclose(d[0], [0.0, -2.0, -1.0, 2.0])
-    np.testing.assert_allclose(d[1], [np.nan, 4.0, 0.0, 7.0])
-    assert np.all(np.isnan(d[2]))
-    np.testing.assert_allclose(d[3], [0.0, 0.0, np.nan, np.nan])    # equal ranges: a real 0 TDoA
-    _, ref_first = pseudo_tdoa(r, 0, fallback="first")
-    np.testing.assert_array_equal(ref_first, [0, 1, -1, 0])
-    with pytest.raises(ValueError, match="fallback"):
-        pseudo_tdoa(r, 0, fallback="random")
-    with pytest.raises(ValueError, match="reference index"):
-        pseudo_tdoa(r, 4)
-
-
-def test_tdoa_log_from_ranges_and_frame():
-    log = RangeLog(np.array([0.0, 0.1]), np.array([[5.0, 3.0, 4.0], [np.nan, 6.0, 2.0]]), ("a", "b", "c"), "t1")
-    tl = TdoaLog.from_ranges(log, "b")
-    np.testing.assert_array_equal(tl.ref, [1, 1])
-    np.testing.assert_array_equal(tl.n_tdoa, [2, 1])
-    df = tl.to_frame()
-    assert list(df.columns) == ["t_s", "anchor_id", "ref_id", "tdoa_m"]
-    assert len(df) == 3 and set(df.ref_id) == {"b"}
-    assert len(tl.between(0.05, 1.0)) == 1
-
-
-def test_tdoa_log_validation():
-    ids = ("a", "b", "c")
-    with pytest.raises(ValueError, match="exactly 0"):
-        TdoaLog([0.0], [[1.0, 2.0, 3.0]], [0], ids)
-    with pytest.raises(ValueError, match="all NaN"):
-        TdoaLog([0.0], [[0.0, 2.0, np.nan]], [-1], ids)
-    with pytest.raises(ValueError, match="at least one other"):
-        TdoaLog([0.0], [[0.0, np.nan, np.nan]], [0], ids)
-    with pytest.raises(ValueError, match="strictly increasing"):
-        TdoaLog([0.0, 0.0], [[0.0, 1.0, 1.0]] * 2, [0, 0], ids)
-    with pytest.raises(ValueError, match="need t_s"):
-        TdoaLog([0.0], [[0.0, 1.0]], [0], ids)
 
 
 def test_epoch_terms_any_reference():

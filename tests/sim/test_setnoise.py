@@ -3,7 +3,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from uwbwb.models.setnoise import SetNoiseModel, set_mask
+from uwbwb.models.setnoise import SetNoiseModel
+from uwbwb.types import set_mask
 from uwbwb.sim import setnoise as S
 
 CFG = S.FacilityConfig()

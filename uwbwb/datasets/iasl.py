@@ -95,6 +95,7 @@ from scipy.ndimage import uniform_filter1d
 from scipy.optimize import least_squares
 
 from ..errors import DataFormatError, DataNotFoundError
+from ..geometry import yaw_rotation
 from ..types import Anchors, CleaningStep, ImuLog, RangeLog, Recording, Trajectory, _natural_key
 from .discovery import find_dataset
 from .tidy import _decode_lines, _numbers, _read_bytes
@@ -524,11 +525,6 @@ def read_gt(path: PathLike) -> GtFile:
 # Registration of the mocap track to the anchor frame and UWB clock
 # --------------------------------------------------------------------------------------------
 
-def _rz(yaw_rad: float) -> np.ndarray:
-    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 def _track(t_ref: np.ndarray, x_ref: np.ndarray, t: np.ndarray, max_gap_s: float):
     """Piecewise-linear samples of a track.
 
@@ -648,7 +644,7 @@ class Registration:
 
     def apply(self, truth: Trajectory, name: str | None = None) -> Trajectory:
         """``truth`` (mocap clock and frame) moved to the UWB clock and anchor frame."""
-        r = _rz(self.yaw_rad)
+        r = yaw_rotation(self.yaw_rad)
         pos = truth.pos_m @ r.T + self.translation_m
         vel = None if truth.vel_mps is None else truth.vel_mps @ r.T
         rot = None if truth.rot is None else np.einsum("ij,tjk->tik", r, truth.rot)
@@ -853,7 +849,7 @@ class _RangeModel:
         key = (x.tobytes(), yaw, bias)
         if self._cache[0] != key:
             trans, dt, psi, b = self.unpack(x, yaw, bias)
-            rz = _rz(psi)
+            rz = yaw_rotation(psi)
             g, v, _ = _track(self.truth.t_s, self.truth.pos_m, self.t_epoch - dt, self.max_gap_s)
             g, v = g[self.epoch], v[self.epoch]
             diff = g @ rz.T + trans - self.anchor_pos

@@ -87,6 +87,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import DataFormatError, DataNotFoundError
+from ..geometry import yaw_rotation
 from ..types import Anchors, CleaningStep, RangeLog, Recording, Trajectory
 from .discovery import find_dataset
 
@@ -1017,11 +1018,6 @@ def load_dynamic(recording: str = "fast", data_dir: str | os.PathLike | None = N
                      meta=meta)
 
 
-def _yaw_rot(yaw_rad: float) -> np.ndarray:
-    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 def load_static(session: str = "8.14", data_dir: str | os.PathLike | None = None, *,
                 site: int | None = None, yaw_deg: int | None = None,
                 centroid_z_m: float = TROLLEY_CENTROID_Z_M,
@@ -1109,7 +1105,7 @@ def load_static(session: str = "8.14", data_dir: str | os.PathLike | None = None
                                                   return_cleaning=True)
         yaw_rad = np.deg2rad(float(pose["yaw_deg"]))
         centre = np.array([pose["x_m"], pose["y_m"], centroid_z_m], float)
-        tag_pos = centre + tables.tag_offsets_m @ _yaw_rot(yaw_rad).T
+        tag_pos = centre + tables.tag_offsets_m @ yaw_rotation(yaw_rad).T
         ranges, truth = {}, {}
         for j, tag in enumerate(tables.tag_ids):
             ranges[tag] = RangeLog(t_s, range_m[:, :, j], tables.anchors.ids, tag, t0)

@@ -6,9 +6,9 @@ system using Bayesian tracking filters* (Politecnico di Milano, thesis summary,
 EKF with three motion models whose driving-noise level is calibrated against
 ground truth (Table 1), and CEP95 tables (Tables 2–5) and path figures (Figs 5–10).
 
-The pipeline for one tag of one recording (:class:`TagRun`):
+The pipeline for one tag of one recording (:class:`~uwbwb.types.TagRun`):
 
-1. ranges → pseudo-TDoA to a reference anchor (:class:`~uwbwb.models.tdoa.TdoaLog`);
+1. ranges → pseudo-TDoA to a reference anchor (:class:`~uwbwb.types.TdoaLog`);
 2. range-noise level per anchor from a *calibration* run with truth
    (:func:`fit_range_sigma`; by default the part of the range error that does
    not cancel in a TDoA) → TDoA covariance ``Σ = diag(σ_j²) + σ_ref² 11ᵀ``;
@@ -40,13 +40,13 @@ from .. import geometry, metrics, plotting
 from ..filters.ekf import EkfResult, TdoaEkf
 from ..filters.tdoa_ls import TdoaLsResult, tdoa_least_squares
 from ..models.motion import MOTION_MODELS, make_motion_model
-from ..models.tdoa import TdoaLog, TdoaModel, empirical_tdoa_covariance, range_sigma_from_truth
+from ..models.tdoa import TdoaModel, empirical_tdoa_covariance, range_sigma_from_truth
 from ..sim import walk
-from ..types import Anchors, RangeLog, Recording, Trajectory
+from ..types import RangeLog, Recording, TagRun, TdoaLog, Trajectory
 
 __all__ = [
     "MODELS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "DEFAULT_GRIDS",
-    "TagRun", "Estimates", "tag_runs", "thin", "synthetic_acquisition", "fit_range_sigma",
+    "Estimates", "tag_runs", "thin", "synthetic_acquisition", "fit_range_sigma",
     "raw_multilateration", "ranging_summary", "estimate", "calibration_curves", "best_sigmas", "cep95_table", "ranking",
     "paper_table", "split_runs", "Study", "run_study", "tdoa_noise_check", "banner", "scenario_figure",
     "covariance_figure", "calibration_figure", "paths_figure", "cdf_figure", "ekf_name", "run_ekf",
@@ -86,9 +86,6 @@ PAPER_MODELS_CEP95 = {
 DEFAULT_GRIDS = {"RW": np.geomspace(0.05, 5.0, 11), "RF": np.geomspace(0.05, 20.0, 11),
                  "RJ": np.geomspace(0.05, 100.0, 11)}
 
-#: Largest truth sampling gap interpolated across when computing errors, seconds.
-MAX_TRUTH_GAP_S = 0.5
-
 
 def ekf_name(model: str) -> str:
     """Estimator label of the EKF with ``model`` (``"EKF-RW"`` ...), as in :data:`uwbwb.plotting.COLORS`."""
@@ -96,95 +93,6 @@ def ekf_name(model: str) -> str:
 
 
 # --------------------------------------------------------------------------- inputs
-
-
-@dataclass(frozen=True)
-class TagRun:
-    """One tag of one recording, ready for the estimators.
-
-    Attributes
-    ----------
-    data
-        Summary label: ``"synthetic"`` or ``"dataset/recording"``.
-    name
-        Display name of the acquisition (``"office"``, ``"fast"``, ``"scenario2"``...).
-    tag
-        Tag id.
-    ranges
-        The tag's ranges.
-    truth
-        Ground truth of the tag (3-D positions; errors are horizontal).
-    anchors
-        Anchor positions (columns of ``ranges``).
-    dim
-        Estimated coordinates: 2 (tag at known height ``z_m``) or 3.
-    z_m
-        Tag height for ``dim=2`` (known mounting height), metres.
-    raw
-        The device's own output if the acquisition has one (synthetic: :func:`uwbwb.sim.walk.device_output`);
-        None means raw multilateration is used (:func:`raw_multilateration`).
-    """
-
-    data: str
-    name: str
-    tag: str
-    ranges: RangeLog
-    truth: Trajectory
-    anchors: Anchors
-    dim: int = 2
-    z_m: float = 0.0
-    raw: Trajectory | None = field(default=None, repr=False)
-
-    def __post_init__(self):
-        if self.dim not in (2, 3):
-            raise ValueError(f"TagRun.dim must be 2 or 3, got {self.dim!r}")
-        if tuple(self.ranges.anchor_ids) != tuple(self.anchors.ids):
-            raise ValueError(f"{self.name}/{self.tag}: range columns {self.ranges.anchor_ids} differ from the "
-                             f"anchors {self.anchors.ids}")
-        if len(self.ranges) < 2:
-            raise ValueError(f"{self.name}/{self.tag}: fewer than two epochs")
-
-    @property
-    def key(self) -> str:
-        """``"name/tag"``."""
-        return f"{self.name}/{self.tag}"
-
-    @property
-    def dt_s(self) -> float:
-        """Nominal epoch period (median step), seconds."""
-        return float(np.median(np.diff(self.ranges.t_s)))
-
-    def tdoa(self, ref: int = 0, *, fallback: str = "nearest") -> TdoaLog:
-        """Pseudo-TDoA of this run to anchor index ``ref``."""
-        return TdoaLog.from_ranges(self.ranges, ref, fallback=fallback)
-
-    def true_range_m(self) -> np.ndarray:
-        """Ranges predicted from truth at the range epochs, ``(T, n_anchors)``; NaN outside the truth span."""
-        return geometry.ranges(self.truth.interp(self.ranges.t_s), self.anchors.pos_m)
-
-    def model(self, sigma_m, *, correlated: bool = True) -> TdoaModel:
-        """TDoA measurement model for this run with per-anchor range noise ``sigma_m``."""
-        return TdoaModel(self.anchors.pos_m, sigma_m, dim=self.dim, z_m=self.z_m, correlated=correlated)
-
-    def between(self, t_start_s: float, t_end_s: float, name: str | None = None) -> "TagRun":
-        """The epochs in ``[t_start_s, t_end_s)`` (truth and raw output cut alike)."""
-        pad = MAX_TRUTH_GAP_S
-        return replace(self, name=name or self.name, ranges=self.ranges.between(t_start_s, t_end_s),
-                       truth=self.truth.between(t_start_s - pad, t_end_s + pad),
-                       raw=None if self.raw is None else self.raw.between(t_start_s, t_end_s))
-
-    def decimated(self, rate_hz: float | None) -> "TagRun":
-        """Every ``k``-th epoch so that the rate is at most ``rate_hz`` (None or a lower native rate: unchanged)."""
-        if rate_hz is None:
-            return self
-        k = int(np.floor(1.0 / (rate_hz * self.dt_s) + 1e-9))
-        if k <= 1:
-            return self
-        keep = np.arange(0, len(self.ranges), k)
-        raw = self.raw
-        if raw is not None:
-            raw = raw.select(np.isin(raw.t_s, self.ranges.t_s[keep]))
-        return replace(self, ranges=self.ranges.select(keep), raw=raw)
 
 
 def tag_runs(rec: Recording, tags: Sequence[str] | None = None, *, dim: int = 2, z_m: Mapping | None = None,
@@ -378,7 +286,7 @@ class Estimates:
 
 
 def _errors(traj: Trajectory, run: TagRun) -> metrics.ErrorSeries:
-    return metrics.errors_vs_truth(traj, run.truth, horizontal=True, max_gap_s=MAX_TRUTH_GAP_S)
+    return metrics.errors_vs_truth(traj, run.truth, horizontal=True, max_gap_s=TagRun.max_truth_gap_s)
 
 
 def run_ekf(run: TagRun, model: str, sigma: float, measurement: TdoaModel, *, ref: int = 0,
@@ -408,7 +316,7 @@ def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, ref: int = 0,
     correlated
         Model the reference correlation of the TDoA noise.
     """
-    measurement = run.model(sigma_m, correlated=correlated)
+    measurement = TdoaModel.for_tag(run, sigma_m, correlated=correlated)
     log = run.tdoa(ref)
     ls = tdoa_least_squares(log, measurement)
     trajs = {"raw": run.raw if run.raw is not None else raw_multilateration(run), "LS": ls.to_trajectory("LS")}
@@ -449,7 +357,7 @@ def calibration_curves(runs: Sequence[TagRun], sigma_m: Mapping[str, np.ndarray]
     cache = {}
     for r, m, s in tqdm(jobs, desc="driving-noise calibration", disable=not progress, leave=False):
         if r.key not in cache:
-            cache[r.key] = (r.model(sigma_m[r.key], correlated=correlated), r.tdoa(ref))
+            cache[r.key] = (TdoaModel.for_tag(r, sigma_m[r.key], correlated=correlated), r.tdoa(ref))
         meas, log = cache[r.key]
         res = run_ekf(r, m, float(s), meas, gate_prob=gate_prob, tdoa=log)
         err = _errors(res.to_trajectory(), r).err_m
@@ -582,7 +490,7 @@ def tdoa_noise_check(run: TagRun, sigma_m, *, ref: int = 0) -> tuple[np.ndarray,
     true_tdoa = true - true[:, [ref]]
     empirical = empirical_tdoa_covariance(log.tdoa_m, true_tdoa, ref)
     others = np.delete(np.arange(len(run.anchors)), ref)
-    return empirical, run.model(sigma_m).covariance(others, ref)
+    return empirical, TdoaModel.for_tag(run, sigma_m).covariance(others, ref)
 
 
 # --------------------------------------------------------------------------- discussion

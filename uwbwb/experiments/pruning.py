@@ -27,11 +27,10 @@ import numpy as np
 import pandas as pd
 
 from .. import metrics
-from ..filters.nls import unroll
 from ..filters.pruning import HEURISTICS, LABELS, PruningConfig, localize
 from ..plotting import color_for, floor_plan
 from ..sim import tours as tours_mod
-from ..types import RangeLog, Recording, Trajectory
+from ..types import RangeLog, RangeSamples, Recording, Trajectory
 
 __all__ = [
     "HEURISTIC_MARKERS", "SyntheticConfig", "SyntheticResult", "data_banner", "decimate",
@@ -138,7 +137,7 @@ def run_tour(rec: Recording, truth: tours_mod.TourTruth, config: SyntheticConfig
         for seg in truth.segments:
             log = segment_ranges(rec.ranges[tag], seg, period_s=tcfg.period_s,
                                  skip_first_packet=config.skip_first_packet)
-            samples = unroll(log)
+            samples = RangeSamples.from_ranges(log)
             if len(samples) < 12:
                 continue
             still = seg.kind == "stop"
@@ -311,7 +310,7 @@ def run_static_poses(recordings, *, tags=None, heuristics=HEURISTICS, config: Pr
             log = log.select(slice(None, None, int(stride)))
             z = _node_height(rec, tag)
             true = rec.truth[tag].pos_m[0]
-            samples = unroll(log)
+            samples = RangeSamples.from_ranges(log)
             for h in heuristics:
                 res = localize(samples, rec.anchors, h, config, stationary=True, z_m=z)
                 d = res.p0_m[:2] - true[:2]
@@ -459,7 +458,7 @@ def run_dynamic_segments(rec: Recording, segments: pd.DataFrame, *, tags=None,
         z = _node_height(rec, tag)
         for seg in segments.itertuples(index=False):
             log = full.between(seg.t_start_s, seg.t_end_s).select(slice(None, None, int(stride)))
-            samples = unroll(log)
+            samples = RangeSamples.from_ranges(log)
             if len(samples) < 12:
                 continue
             true = rec.truth[tag].interp(log.t_s)[:, :2]

@@ -32,9 +32,9 @@ from .. import geometry
 from ..calibration import RangeCalibration, fit_range_calibration
 from ..datasets.discovery import dataset_available
 from ..filters import setnoise as filt
-from ..models.setnoise import SetFixLog, SetNoiseModel, location_statistics, set_id_from_mask
+from ..models.setnoise import SetNoiseModel, location_statistics
 from ..sim import setnoise as sim
-from ..types import Recording
+from ..types import Recording, SetFixLog, set_id_from_mask
 
 LIAS = "lias-planar-uwb"
 

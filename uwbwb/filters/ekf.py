@@ -35,8 +35,8 @@ import pandas as pd
 from scipy.stats import chi2
 
 from ..models.motion import MotionModel
-from ..models.tdoa import TdoaLog, TdoaModel
-from ..types import EstimateStatus, Estimates, Trajectory
+from ..models.tdoa import TdoaModel
+from ..types import EstimateStatus, Estimates, TdoaLog, Trajectory
 from . import kalman
 from .kalman import Gaussian
 from .tdoa_ls import tdoa_least_squares
@@ -498,7 +498,7 @@ class TdoaEkf:
         Parameters
         ----------
         tdoa_row_m
-            One row of :attr:`~uwbwb.models.tdoa.TdoaLog.tdoa_m`, shape ``(n_anchors,)``.
+            One row of :attr:`~uwbwb.types.TdoaLog.tdoa_m`, shape ``(n_anchors,)``.
         ref
             That row's reference anchor (−1: nothing to update).
         gate

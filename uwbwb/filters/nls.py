@@ -11,7 +11,7 @@ with ``P_k`` the position of anchor ``k``, ``d_{k,m}`` its ``m``-th range and
 of a stationary segment.
 
 Measurements are handled *unrolled*: one entry per (time, anchor, range)
-(:class:`RangeSamples`), so that pruning heuristics can drop single ranges.
+(:class:`~uwbwb.types.RangeSamples`), so that pruning heuristics can drop single ranges.
 
 Solvers
 -------
@@ -60,116 +60,12 @@ import pandas as pd
 from scipy.optimize import least_squares, minimize
 
 from ..geometry import linear_multilaterate
-from ..types import RangeLog, Trajectory
+from ..types import RangeLog, RangeSamples, Trajectory
 
-__all__ = ["RangeSamples", "TrajectoryFit", "fit_trajectory", "initial_guess", "objective",
-           "residuals", "residual_jacobian", "unroll"]
+__all__ = ["TrajectoryFit", "fit_trajectory", "initial_guess", "objective", "residuals", "residual_jacobian"]
 
 _TINY_M = 1e-9
 _MAD_TO_SIGMA = 1.4826
-
-
-# --------------------------------------------------------------------------- measurements
-
-
-@dataclass(frozen=True)
-class RangeSamples:
-    """Ranges unrolled to one entry per measurement (the ``D`` of eq. 1).
-
-    Attributes
-    ----------
-    t_s
-        Measurement times, shape ``(M,)``, seconds (non-decreasing).
-    anchor_index
-        Index of the anchor of each range, shape ``(M,)``, into ``anchor_ids``.
-    range_m
-        Measured ranges, shape ``(M,)``, metres, finite.
-    anchor_ids
-        Labels of the anchors (columns of the range log they came from).
-    """
-
-    t_s: np.ndarray
-    anchor_index: np.ndarray
-    range_m: np.ndarray
-    anchor_ids: tuple[str, ...]
-
-    def __post_init__(self):
-        t = np.array(self.t_s, float)
-        k = np.array(self.anchor_index, np.intp)
-        r = np.array(self.range_m, float)
-        ids = tuple(str(a) for a in self.anchor_ids)
-        if t.ndim != 1 or k.shape != t.shape or r.shape != t.shape:
-            raise ValueError(f"t_s, anchor_index and range_m must be 1-D of equal length, "
-                             f"got {t.shape}, {k.shape}, {r.shape}")
-        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(r))):
-            raise ValueError("RangeSamples hold finite times and ranges only (drop missing ranges first)")
-        if np.any(r < 0):
-            raise ValueError("RangeSamples.range_m contains negative ranges")
-        if k.size and (k.min() < 0 or k.max() >= len(ids)):
-            raise ValueError(f"anchor_index must lie in [0, {len(ids)})")
-        if t.size > 1 and np.any(np.diff(t) < 0):
-            raise ValueError("RangeSamples.t_s must be non-decreasing")
-        for a in (t, k, r):
-            a.setflags(write=False)
-        object.__setattr__(self, "t_s", t)
-        object.__setattr__(self, "anchor_index", k)
-        object.__setattr__(self, "range_m", r)
-        object.__setattr__(self, "anchor_ids", ids)
-
-    def __len__(self) -> int:
-        return self.t_s.size
-
-    def select(self, mask_or_index) -> "RangeSamples":
-        """The samples selected by a boolean mask or an increasing index array."""
-        idx = np.arange(len(self))[mask_or_index]
-        return RangeSamples(self.t_s[idx], self.anchor_index[idx], self.range_m[idx], self.anchor_ids)
-
-    def to_matrix(self) -> tuple[np.ndarray, np.ndarray]:
-        """Back to epochs: unique times ``(T,)`` and ranges ``(T, n_anchors)`` (NaN = none).
-
-        If an anchor has two samples at one time, the later one is kept.
-        """
-        t, inv = np.unique(self.t_s, return_inverse=True)
-        r = np.full((t.size, len(self.anchor_ids)), np.nan)
-        r[inv, self.anchor_index] = self.range_m
-        return t, r
-
-    def to_frame(self) -> pd.DataFrame:
-        """Tidy table ``t_s, anchor_id, range_m``."""
-        return pd.DataFrame({"t_s": self.t_s,
-                             "anchor_id": np.asarray(self.anchor_ids, object)[self.anchor_index],
-                             "range_m": self.range_m})
-
-
-def unroll(ranges: RangeLog | np.ndarray, t_s=None, anchor_ids=None) -> RangeSamples:
-    """Unroll a ``(T, n_anchors)`` range table (NaN = missing) to :class:`RangeSamples`.
-
-    Parameters
-    ----------
-    ranges
-        A :class:`~uwbwb.RangeLog`, or an array ``(T, n_anchors)`` in metres
-        together with ``t_s`` ``(T,)`` (seconds).
-    t_s, anchor_ids
-        Only for an array input; ``anchor_ids`` defaults to ``"0", "1", ...``.
-    """
-    if isinstance(ranges, RangeLog):
-        if t_s is not None or anchor_ids is not None:
-            raise ValueError("t_s and anchor_ids come from the RangeLog")
-        t_s, r, anchor_ids = ranges.t_s, ranges.range_m, ranges.anchor_ids
-    else:
-        r = np.asarray(ranges, float)
-        if r.ndim != 2:
-            raise ValueError(f"ranges must have shape (T, n_anchors), got {r.shape}")
-        if t_s is None:
-            raise ValueError("an array of ranges needs t_s")
-        t_s = np.asarray(t_s, float)
-        if t_s.shape != (r.shape[0],):
-            raise ValueError(f"t_s must have shape ({r.shape[0]},), got {t_s.shape}")
-        anchor_ids = tuple(str(i) for i in range(r.shape[1])) if anchor_ids is None else anchor_ids
-        if len(anchor_ids) != r.shape[1]:
-            raise ValueError(f"{len(anchor_ids)} anchor_ids for {r.shape[1]} columns")
-    ti, ai = np.nonzero(np.isfinite(r))
-    return RangeSamples(t_s[ti], ai, r[ti, ai], tuple(anchor_ids))
 
 
 # --------------------------------------------------------------------------- model (eq. 1)
@@ -510,7 +406,7 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
         Fewer ranges than unknowns, or bad parameters.
     """
     if isinstance(samples, RangeLog):
-        samples = unroll(samples)
+        samples = RangeSamples.from_ranges(samples)
     if method not in ("bfgs", "least_squares"):
         raise ValueError(f"method must be 'bfgs' or 'least_squares', got {method!r}")
     if method == "bfgs" and loss != "linear":

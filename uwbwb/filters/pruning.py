@@ -41,8 +41,8 @@ from itertools import combinations
 import numpy as np
 
 from ..geometry import Status, multilaterate
-from ..types import RangeLog
-from .nls import RangeSamples, TrajectoryFit, _anchor_array, fit_trajectory, residuals, unroll
+from ..types import RangeLog, RangeSamples
+from .nls import TrajectoryFit, _anchor_array, fit_trajectory, residuals
 
 __all__ = ["HEURISTICS", "LABELS", "LocalizationResult", "PruningConfig", "ResidualPruning",
            "RobustMean", "TupleCloud", "drop_schedule", "localize", "percentile_fix", "percentile_ranges",
@@ -457,7 +457,7 @@ def localize(ranges: RangeLog | RangeSamples, anchors, heuristic: str = "residua
     """
     if heuristic not in HEURISTICS:
         raise ValueError(f"heuristic must be one of {HEURISTICS}, got {heuristic!r}")
-    samples = unroll(ranges) if isinstance(ranges, RangeLog) else ranges
+    samples = RangeSamples.from_ranges(ranges) if isinstance(ranges, RangeLog) else ranges
     if len(samples) == 0:
         raise ValueError("the segment holds no ranges")
     t0, t_end = float(samples.t_s[0]), float(samples.t_s[-1])

@@ -46,7 +46,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..models.setnoise import SetFixLog, SetNoiseModel, log_likelihood
+from ..models.setnoise import SetNoiseModel, log_likelihood
+from ..types import SetFixLog
 from . import particle
 
 #: State layout.

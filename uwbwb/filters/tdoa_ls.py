@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..models.tdoa import TdoaLog, TdoaModel
-from ..types import Trajectory
+from ..models.tdoa import TdoaModel
+from ..types import TdoaLog, Trajectory
 
 __all__ = ["TdoaLsResult", "tdoa_least_squares", "STATUS"]
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..geometry import yaw_rotation
 from ..models.ranging import TwrRangeModel, rigid_points
 from ..types import Anchors, RangeLog, Recording, Trajectory
 
@@ -103,9 +104,7 @@ def _recording(config, name, t_s, centroid_m, yaw_rad, model, *, rng, meta) -> R
     tags_m = rigid_points(centroid_m, yaw_rad, offsets)                    # (T, n_tags, 3)
     true_range = np.linalg.norm(tags_m[:, :, None, :] - anchors.pos_m[None, None], axis=-1)
     meas = model.sample(true_range, rng=rng)                                 # (T, n_tags, n_anchors)
-    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
-    rot = np.zeros((t_s.size, 3, 3))
-    rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = c, -s, s, c, 1.0
+    rot = yaw_rotation(yaw_rad)
     ranges, truth = {}, {}
     for k, tag in enumerate(config.tag_ids):
         ranges[tag] = RangeLog(t_s, meas[:, k], anchors.ids, tag)

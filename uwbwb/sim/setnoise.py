@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry import multilaterate
-from ..models.setnoise import SetFixLog, set_id_from_mask
+from ..types import SetFixLog, set_id_from_mask
 
 #: Paper 000, Table I: recording number → approximate speed (m/s).
 TABLE1_SPEEDS_MPS = (0.11, 0.35, 0.65, 1.00, 1.20)
