@@ -11,6 +11,12 @@ Commands
     Execute the notebooks headless; write executed notebooks, HTML and
     ``summary.json`` / ``summary.md`` (default into ``reports/``).
 
+``score TARGET [--out DIR] [--calibrate-on SPEC] [--fraction F] [--tags ...] [--rate-hz R] [--fast]``
+    Every estimator on one recording (``DATASET/RECORDING`` or a tidy CSV folder) against its
+    Cramér–Rao bound: calibration and tuning on the first ``F`` of the run (or on another
+    recording), scoring on the rest; writes ``scoreboard.csv``, ``scoreboard.md`` and
+    ``scoreboard.png`` into ``--out`` (default ``reports/score/<recording>``).
+
 Exit codes: 0 success; 1 failure (``datasets``: a dataset absent or a file
 missing or wrong; ``fetch``: a download failed; ``reproduce``: a notebook failed
 or wrote no summary); 2 bad arguments.
@@ -72,6 +78,24 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
                         "as Python literals). Unknown names and values that do not fit are errors")
     p.add_argument("--timeout", metavar="S", type=_positive_float, default=None,
                    help="execution timeout per cell in seconds (default none)")
+
+    p = sub.add_parser("score", help="every estimator on one recording, against the Cramér–Rao bound",
+                       description="Calibrate on one part of a recording (or another recording), score every "
+                                   "estimator on the rest, and write the board (CSV, Markdown, figure).")
+    p.add_argument("target", metavar="TARGET",
+                   help="DATASET/RECORDING (e.g. lias-planar-uwb/fast, iasl-uwb-imu/scenario2) or a folder "
+                        "holding ranges.csv, anchors.csv and truth.csv in the tidy format")
+    p.add_argument("--out", metavar="DIR", default=None, help="output folder (default reports/score/<name>)")
+    p.add_argument("--calibrate-on", metavar="SPEC", default=None,
+                   help="calibrate on this recording (same anchors and tags) instead of the first part")
+    p.add_argument("--fraction", metavar="F", type=float, default=0.5,
+                   help="share of the run (from its start) used for calibration when no --calibrate-on (0.5)")
+    p.add_argument("--tags", nargs="+", metavar="TAG", default=None, help="tags to score (default all with truth)")
+    p.add_argument("--rate-hz", metavar="R", type=_positive_float, default=10.0,
+                   help="rate every method runs at; ranges are thinned to it (default 10)")
+    p.add_argument("--data-dir", metavar="DIR", default=None, help="folder holding the datasets")
+    p.add_argument("--fast", action="store_true", help="CI-sized tuning grids and particle counts")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
     return parser, sub.choices
 
 
@@ -269,6 +293,28 @@ def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
     return result.exit_code
 
 
+# -- score ----------------------------------------------------------------------------------------
+
+def cmd_score(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from .scoreboard import score, split_in_time
+    from .scoreboard.sources import load_target
+
+    if not 0 < args.fraction < 1:
+        parser.error(f"--fraction must be in (0, 1), got {args.fraction}")
+    rec = load_target(args.target, args.data_dir)
+    if args.calibrate_on is not None:
+        cal, test = load_target(args.calibrate_on, args.data_dir), rec
+    else:
+        cal, test = split_in_time(rec, args.fraction)
+    board = score(test, cal, tags=args.tags, rate_hz=args.rate_hz, fast=args.fast, progress=not args.quiet,
+                  label=rec.label)
+    out = Path(args.out) if args.out else Path("reports") / "score" / rec.name.replace("/", "_")
+    paths = board.write(out)
+    print(board.markdown())
+    print("wrote " + ", ".join(str(p) for p in paths.values()))
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (2 for bad arguments)."""
     parser, commands = _build_parser()
@@ -281,6 +327,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return cmd_datasets(args)
         if args.command == "fetch":
             return cmd_fetch(args, commands["fetch"])
+        if args.command == "score":
+            return cmd_score(args, commands["score"])
         return cmd_reproduce(args, commands["reproduce"])
     except SystemExit as exc:  # argparse reports bad arguments by exiting with status 2
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)

@@ -1,0 +1,149 @@
+"""The scoreboard: filters reach their bound where truth and noise are known, the protocol keeps the
+scoring truth away from the estimators, and ``python -m uwbwb score`` runs on recordings of any origin."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from uwbwb import cli
+from uwbwb.datasets import tidy
+from uwbwb.scoreboard import (Estimator, board as board_mod, calibrate, default_estimators, score, split_in_time,
+                              synthetic as syn)
+from uwbwb.scoreboard.estimators import CalibratedLs, TdoaEkfEstimator, TdoaLs
+from uwbwb.types import Trajectory
+
+
+def test_filters_reach_their_bound_where_truth_and_noise_are_known():
+    """Synthetic runs from the model itself, exact noise: LS, TDoA LS and the EKF with the true
+    motion model must meet their Cramér–Rao bounds within Monte Carlo error (30 runs)."""
+    mc = syn.monte_carlo(30, seed=7)
+    eff = syn.efficiency_summary(mc).set_index("method")
+    assert set(eff.index) == {"LS", "TDoA LS", "EKF-RF"}
+    for m, r in eff.iterrows():
+        assert abs(r.z) < 3.0, f"{m}: efficiency {r.efficiency:.3f} ± {r.efficiency_se:.3f} is not 1 within MC error"
+        assert 0.9 < r.efficiency < 1.1, f"{m}: efficiency {r.efficiency:.3f}"
+    # the tracking filter uses its motion model: well below the snapshot fixes
+    assert eff.loc["EKF-RF", "rmse_m"] < 0.9 * eff.loc["LS", "rmse_m"]
+
+
+def test_default_estimators_fit_the_interface():
+    ests = default_estimators(fast=True)
+    assert all(isinstance(e, Estimator) for e in ests)
+    names = [e.name for e in ests]
+    assert len(set(names)) == len(names)
+    for needed in ("raw LS", "LS", "TDoA LS", "EKF-RW", "EKF-RF", "EKF-RJ", "set-noise KF", "set-noise PF", "NLS",
+                   "UWB/INS"):
+        assert needed in names
+
+
+def _rec(seed=3, duration_s=30.0, **kw):
+    return syn.simulate(syn.SyntheticConfig(duration_s=duration_s, **kw), rng=np.random.default_rng(seed))
+
+
+def test_split_parts_share_no_epoch_and_truth_is_padded_only():
+    rec = _rec()
+    cal, test = split_in_time(rec, 0.4)
+    a, b = cal.ranges["tag"].t_s, test.ranges["tag"].t_s
+    assert a.size + b.size == len(rec.ranges["tag"]) and a[-1] < b[0]
+    assert cal.truth["tag"].t_s[-1] <= a[-1] + 0.5 + 1e-9
+
+
+def test_estimators_never_read_the_scoring_truth():
+    """Moving the scoring part's truth far away must not change a single estimate."""
+    rec = _rec(duration_s=20.0)
+    cal_rec, test = split_in_time(rec)
+    ests = [e for e in default_estimators(fast=True) if e.name != "UWB/INS"]
+    cal = calibrate(cal_rec, ests, rate_hz=None)
+    tr = test.truth["tag"]
+    moved = replace(test, truth={"tag": Trajectory(tr.t_s, tr.pos_m + [50.0, -20.0, 0.0], name="truth")})
+    for est in ests:
+        a, b = est.estimate(test, "tag", cal), est.estimate(moved, "tag", cal)
+        np.testing.assert_array_equal(a.pos_m, b.pos_m, err_msg=est.name)
+        np.testing.assert_array_equal(a.status, b.status, err_msg=est.name)
+
+
+def test_a_method_below_its_bound_is_explained():
+    """Calibrated range noise twice the true one: LS beats the (pessimistic) bound, and the note says why."""
+    cfg = syn.SyntheticConfig(duration_s=20.0)
+    ests = [CalibratedLs(), TdoaLs(), TdoaEkfEstimator("RF", grid=(1.0,))]
+    rec = syn.simulate(cfg, rng=np.random.default_rng(5))
+    cal = syn.exact_calibration(cfg, calibrate(rec, ests, rate_hz=None, dim=2))
+    cal = replace(cal, range_sigma_m={"tag": 2 * cal.sigma("tag")})
+    b = score(rec, rec, estimators=ests, rate_hz=None, calibration=cal)
+    row = b.table().set_index("method").loc["LS"]
+    assert row.efficiency < 0.7
+    assert row.note.startswith("BEATS its bound") and "less noisy than calibrated" in row.note
+    assert "over-states the noise" in row.note           # NEES well below 2
+
+
+def _write_tidy(directory, seed=11):
+    rec = _rec(seed=seed, duration_s=30.0)
+    tr = rec.truth["tag"]
+    rec = replace(rec, truth={"tag": Trajectory(tr.t_s, tr.pos_m, name="truth")})   # the format holds no velocity
+    tidy.write_recording(rec, directory)
+    return rec
+
+
+def test_score_command_on_a_tidy_recording(tmp_path, capsys):
+    _write_tidy(tmp_path / "myrun")
+    out = tmp_path / "out"
+    rc = cli.main(["score", str(tmp_path / "myrun"), "--out", str(out), "--fast", "--quiet", "--rate-hz", "5"])
+    assert rc == 0, capsys.readouterr().err
+    table = pd.read_csv(out / "scoreboard.csv")
+    names = [e.name for e in default_estimators(fast=True)]
+    assert table["method"].tolist() == names                      # one row per method
+    assert {"bound_m", "bound_kind", "efficiency", "coverage", "rmse_m", "cep50_m", "cep95_m", "nees_mean",
+            "us_per_epoch", "mode", "kind"} <= set(table.columns)
+    ran = table[table["method"] != "UWB/INS"]
+    assert (ran["coverage"] > 0.9).all() and ran["bound_m"].notna().all() and (ran["bound_m"] > 0).all()
+    assert table.loc[table["method"] == "UWB/INS", "note"].str.contains("needs an IMU").all()
+    assert set(table["mode"]) == {"FAST"} and set(table["data"]) == {"tidy/myrun"}
+    md = (out / "scoreboard.md").read_text()
+    assert "| method |" in md and "bound (m)" in md and "FAST" in md
+    assert (out / "scoreboard.png").stat().st_size > 10_000
+
+
+def test_score_command_errors_clearly(tmp_path, capsys):
+    assert cli.main(["score", "no-such-dataset/x"]) == 1
+    assert "neither a folder nor DATASET/RECORDING" in capsys.readouterr().err
+    (tmp_path / "empty").mkdir()
+    assert cli.main(["score", str(tmp_path / "empty")]) == 1
+    assert "needs ranges.csv and anchors.csv" in capsys.readouterr().err
+
+
+def test_board_runs_unchanged_on_a_lias_recording_not_in_shared(tmp_path, capsys):
+    """A generated LIAS tree (run name 'medium', three tags, biased ranges) through the command line."""
+    from tests.fixtures import lias as fx
+
+    data_dir = tmp_path / "data"
+    rng = np.random.default_rng(4)
+    fx.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 24.0, "clock_offset_s": 0.2}},
+                 sessions=[fx.session_814(rng)])
+    out = tmp_path / "out"
+    rc = cli.main(["score", "lias-planar-uwb/medium", "--data-dir", str(data_dir), "--out", str(out), "--fast",
+                   "--quiet", "--rate-hz", "5", "--tags", "t0"])
+    assert rc == 0, capsys.readouterr().err
+    table = pd.read_csv(out / "scoreboard.csv").set_index("method")
+    assert set(table["data"]) == {"lias-planar-uwb/medium"}
+    assert table.loc["LS", "rmse_m"] < table.loc["raw LS", "rmse_m"]     # the fixture's ranges carry biases
+    assert np.isfinite(table.loc["EKF-RF", "efficiency"])
+
+
+def test_summary_rows_come_from_the_board():
+    from uwbwb.metrics import Summary
+
+    cfg = syn.SyntheticConfig()
+    ests = [CalibratedLs()]
+    rec = syn.simulate(cfg, rng=np.random.default_rng(2))
+    b = score(rec, rec, estimators=ests, rate_hz=None,
+              calibration=syn.exact_calibration(cfg, calibrate(rec, ests, rate_hz=None, dim=2)))
+    s = Summary("06_scoreboard", fast=True) if "fast" in Summary.__init__.__code__.co_varnames else Summary("06_scoreboard")
+    b.to_summary(s)
+    df = s.frame()
+    assert set(df["data"]) == {"synthetic"}
+    row = df[df["quantity"] == "RMSE, LS"].iloc[0]
+    assert row["value"] == pytest.approx(b.table().set_index("method").loc["LS", "rmse_m"])

@@ -1,0 +1,469 @@
+"""The board: every estimator on the same scoring part, with the same calibration, against its bound.
+
+:func:`score` runs the protocol of :mod:`.protocol` with the estimators of
+:mod:`.estimators` and returns a :class:`Board`. Per method (rows of
+:meth:`Board.table`; all tags pooled, per tag in :meth:`Board.by_tag`):
+
+``coverage``
+    Share of the scoring epochs (those with truth) where the method gave a position.
+``rmse_m, cep50_m, cep95_m``
+    Horizontal errors over the epochs it covered.
+``rmse_common_m``
+    RMSE over the epochs *every* method on the board covered (the like-for-like figure).
+``bound_m``, ``bound_kind``
+    The method's own Cramér–Rao bound aggregated as ``sqrt(mean_k tr C_k)`` (horizontal
+    block) over the covered epochs where it exists (``n_bound`` of them).
+``efficiency``
+    RMSE over those same epochs divided by ``bound_m``: 1 is as good as the measurements
+    allow; below 1 the method *beats* its bound, which the ``note`` explains from the data.
+``nees_mean``, ``nees_dof``, ``nees_ok``
+    Mean NEES of the position (methods with a covariance) against its χ² 95 % interval
+    (epochs treated as independent: a tracking filter's errors are correlated, so read it
+    as indicative).
+``nis_over_dof``, ``nis_verdict``
+    NIS per degree of freedom and the χ² verdict (:func:`uwbwb.filters.ekf.nis_consistency`).
+``us_per_epoch``, ``time_ratio``
+    Compute time per epoch (this machine, this run) and its ratio to ``raw LS``'s in the
+    same run.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+from scipy.stats import chi2
+
+from .. import metrics
+from ..filters.ekf import nis_consistency
+from ..types import Estimates, Recording
+from .estimators import Estimator, calibrated_log, default_estimators, truth_at
+from .protocol import Calibration, fit_calibration, scored_tags, split_in_time, thin
+
+__all__ = ["Board", "Entry", "calibrate", "score", "score_recording", "TABLE_COLUMNS", "N_BLOCKS"]
+
+#: Contiguous blocks used for the standard error of a mean squared error (errors are correlated in time).
+N_BLOCKS = 20
+
+#: Columns of :meth:`Board.table`, in order.
+TABLE_COLUMNS = ("method", "coverage", "n_scored", "rmse_m", "cep50_m", "cep95_m", "rmse_common_m", "bound_m",
+                 "bound_kind", "n_bound", "efficiency", "efficiency_se", "nees_mean", "nees_dof", "nees_ok",
+                 "nis_over_dof", "nis_verdict", "us_per_epoch", "time_ratio", "note")
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One method on one tag of the scoring part.
+
+    Attributes
+    ----------
+    method, tag
+        Labels.
+    estimates
+        The method's output (None if it did not apply).
+    bound
+        Its bound at the same epochs (None if it did not apply).
+    truth_pos_m
+        True positions at the epochs, ``(T, dim)``; NaN where the truth does not reach.
+    seconds
+        Wall time of :meth:`Estimator.estimate`.
+    skipped
+        Why the method did not run here (None if it ran).
+    """
+
+    method: str
+    tag: str
+    estimates: Estimates | None
+    bound: object | None
+    truth_pos_m: np.ndarray | None
+    seconds: float = float("nan")
+    skipped: str | None = None
+
+    @property
+    def error_m(self) -> np.ndarray:
+        """Horizontal error per epoch, ``(T,)``; NaN where no estimate or no truth."""
+        e = self.estimates.pos_m[:, :2] - self.truth_pos_m[:, :2]
+        return np.sqrt(np.sum(e * e, axis=1))
+
+    @property
+    def scoring(self) -> np.ndarray:
+        """Epochs with truth, bool ``(T,)``."""
+        return np.all(np.isfinite(self.truth_pos_m), axis=1)
+
+    @property
+    def scored(self) -> np.ndarray:
+        """Epochs with truth and an estimate, bool ``(T,)``."""
+        return self.scoring & self.estimates.has_estimate
+
+    @property
+    def bound_trace_m2(self) -> np.ndarray:
+        """Horizontal trace of the bound per epoch, ``(T,)``, m² (NaN where none)."""
+        return np.trace(self.bound.pos_cov_m2[:, :2, :2], axis1=1, axis2=2)
+
+    @property
+    def nees(self) -> np.ndarray:
+        """Position NEES per epoch (NaN where no covariance or no truth)."""
+        est = self.estimates
+        out = np.full(len(est), np.nan)
+        if est.pos_cov_m2 is None:
+            return out
+        e = est.pos_m - self.truth_pos_m
+        ok = self.scored & np.all(np.isfinite(est.pos_cov_m2.reshape(len(est), -1)), axis=1)
+        ok[ok] = np.linalg.eigvalsh(est.pos_cov_m2[ok])[:, 0] > 0      # a zero covariance has no NEES
+        if ok.any():
+            out[ok] = np.einsum("ti,ti->t", e[ok], np.linalg.solve(est.pos_cov_m2[ok], e[ok][..., None])[..., 0])
+        return out
+
+
+def calibrate(cal_rec: Recording, estimators: Sequence[Estimator], tags: Sequence[str] | None = None, *,
+              rate_hz: float | None = None, dim: int | None = None, progress: bool = False) -> Calibration:
+    """Fit the shared calibration on ``cal_rec``, then let each estimator tune itself on it."""
+    tags = scored_tags(cal_rec, tags)
+    cal = fit_calibration(cal_rec, tags, rate_hz=rate_hz, dim=dim)
+    rec = thin(cal_rec, rate_hz)
+    for est in estimators:
+        usable = [t for t in tags if est.applies(rec, t, cal) is None]
+        if not usable:
+            continue
+        if progress:
+            print(f"tuning {est.name} on {rec.label} ...", flush=True)
+        params = est.tune(rec, usable, cal)
+        if params:
+            cal = cal.with_tuned(est.name, params)
+    return cal
+
+
+def _block_se_ratio(sq_err: np.ndarray, trace: np.ndarray) -> float:
+    """Standard error of ``sqrt(mean sq_err / mean trace)`` from :data:`N_BLOCKS` contiguous blocks."""
+    n = sq_err.size
+    if n < 2 * N_BLOCKS:
+        return float("nan")
+    edges = np.linspace(0, n, N_BLOCKS + 1).astype(int)
+    ratios = np.array([np.mean(sq_err[a:b]) / np.mean(trace[a:b]) for a, b in zip(edges[:-1], edges[1:])])
+    r = np.mean(sq_err) / np.mean(trace)
+    se_r = np.std(ratios, ddof=1) / np.sqrt(N_BLOCKS)
+    return float(se_r / (2 * np.sqrt(r))) if r > 0 else float("nan")
+
+
+@dataclass(frozen=True)
+class Board:
+    """The scoreboard of one recording (see the module docstring for the columns).
+
+    Attributes
+    ----------
+    label
+        ``dataset/recording`` the board is about.
+    part
+        Label of the scored data itself (e.g. the second half of ``label``).
+    calibration
+        The calibration every method used (fitted on ``calibration.source``).
+    entries
+        One :class:`Entry` per (method, tag).
+    methods
+        Method names in board order.
+    diagnostics
+        Per tag, what the scoring part's truth says about the noise and the motion
+        (used to explain a method that beats its bound).
+    fast
+        Whether CI-sized settings were used (numbers are then smoke tests).
+    """
+
+    label: str
+    part: str
+    calibration: Calibration
+    entries: tuple[Entry, ...]
+    methods: tuple[str, ...]
+    diagnostics: Mapping[str, Mapping] = field(default_factory=dict)
+    fast: bool = False
+
+    @property
+    def data_label(self) -> str:
+        """The ``data`` field of summary rows: ``synthetic`` or ``dataset/recording``."""
+        return "synthetic" if self.label.startswith("synthetic/") else self.label
+
+    @property
+    def mode(self) -> str:
+        return "FAST" if self.fast else "full"
+
+    @property
+    def tags(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(e.tag for e in self.entries))
+
+    def entry(self, method: str, tag: str) -> Entry:
+        for e in self.entries:
+            if e.method == method and e.tag == tag:
+                return e
+        raise KeyError(f"no entry for {method!r} on tag {tag!r}; methods {list(self.methods)}, tags {list(self.tags)}")
+
+    def ran(self, tag: str | None = None) -> list[Entry]:
+        """Entries that ran (optionally of one tag)."""
+        return [e for e in self.entries if e.skipped is None and (tag is None or e.tag == tag)]
+
+    def errors(self, tag: str | None = None) -> dict[str, np.ndarray]:
+        """Method → scored horizontal errors (pooled over tags, or of one tag), metres."""
+        out: dict[str, list] = {}
+        for e in self.ran(tag):
+            out.setdefault(e.method, []).append(e.error_m[e.scored])
+        return {m: np.concatenate(v) for m, v in out.items()}
+
+    def _common(self, tag: str) -> np.ndarray:
+        ents = self.ran(tag)
+        return np.logical_and.reduce([e.scored for e in ents]) if ents else np.zeros(0, bool)
+
+    def _row(self, method: str, ents: list[Entry], skipped: list[Entry]) -> dict:
+        row = {c: np.nan for c in TABLE_COLUMNS}
+        row.update(method=method, note="", bound_kind="", nis_verdict="", nees_ok=None)
+        if not ents:
+            row["note"] = "not run: " + "; ".join(sorted({e.skipped for e in skipped}))
+            row["coverage"] = 0.0
+            row["n_scored"] = 0
+            return row
+        err = np.concatenate([e.error_m[e.scored] for e in ents])
+        n_scoring = sum(int(e.scoring.sum()) for e in ents)
+        row["coverage"] = err.size / n_scoring if n_scoring else np.nan
+        row["n_scored"] = int(err.size)
+        if err.size:
+            row.update(rmse_m=metrics.rmse(err), cep50_m=metrics.cep50(err), cep95_m=metrics.cep95(err))
+        common = np.concatenate([e.error_m[self._common(e.tag)] for e in ents])
+        if common.size:
+            row["rmse_common_m"] = metrics.rmse(common)
+        tr = np.concatenate([e.bound_trace_m2[e.scored] for e in ents])
+        have = np.isfinite(tr)
+        row["bound_kind"] = ents[0].bound.kind
+        row["n_bound"] = int(have.sum())
+        if have.any():
+            row["bound_m"] = float(np.sqrt(np.mean(tr[have])))
+            row["efficiency"] = float(np.sqrt(np.mean(err[have] ** 2)) / row["bound_m"])
+            row["efficiency_se"] = _block_se_ratio(err[have] ** 2, tr[have])
+        nees = np.concatenate([e.nees[e.scored] for e in ents])
+        nees = nees[np.isfinite(nees)]
+        if nees.size:
+            d = ents[0].estimates.dim
+            lo, hi = chi2.ppf([0.025, 0.975], nees.size * d) / nees.size
+            row.update(nees_mean=float(nees.mean()), nees_dof=d, nees_ok=bool(lo <= nees.mean() <= hi))
+        if "nis" in ents[0].estimates.info:
+            nis = np.concatenate([e.estimates.info["nis"][e.scored] for e in ents])
+            dof = np.concatenate([np.asarray(e.estimates.info["dof"])[e.scored] for e in ents])
+            c = nis_consistency(nis, dof)
+            row.update(nis_over_dof=c["mean_nis_over_dof"], nis_verdict=c["verdict"])
+        epochs = sum(len(e.estimates) for e in ents)
+        row["us_per_epoch"] = 1e6 * sum(e.seconds for e in ents) / epochs if epochs else np.nan
+        return row
+
+    def table(self) -> pd.DataFrame:
+        """One row per method (tags pooled), columns :data:`TABLE_COLUMNS`."""
+        rows = []
+        for m in self.methods:
+            ents = [e for e in self.entries if e.method == m]
+            rows.append(self._row(m, [e for e in ents if e.skipped is None], [e for e in ents if e.skipped]))
+        df = pd.DataFrame(rows, columns=list(TABLE_COLUMNS))
+        base = df.loc[df["method"] == "raw LS", "us_per_epoch"]
+        if len(base) and np.isfinite(base.iloc[0]) and base.iloc[0] > 0:
+            df["time_ratio"] = df["us_per_epoch"] / base.iloc[0]
+        df["note"] = [r.note or self.explain(r) for r in df.itertuples(index=False)]
+        return df
+
+    def by_tag(self) -> pd.DataFrame:
+        """One row per (tag, method)."""
+        rows = []
+        for tag in self.tags:
+            for m in self.methods:
+                ents = [e for e in self.entries if e.method == m and e.tag == tag]
+                row = self._row(m, [e for e in ents if e.skipped is None], [e for e in ents if e.skipped])
+                rows.append({"tag": tag, **row})
+        return pd.DataFrame(rows)
+
+    # ------------------------------------------------------------------ findings
+    def explain(self, row) -> str:
+        """Why a method's RMSE is below its bound (empty when it is not, beyond sampling error)."""
+        eff, se = row.efficiency, row.efficiency_se
+        if not np.isfinite(eff) or eff >= 1:
+            return ""
+        if np.isfinite(se) and eff > 1 - 2 * se:
+            return f"below its bound by {1 - eff:.0%}, within 2 standard errors ({se:.2f}): sampling error"
+        reasons = []
+        diag = [d for d in self.diagnostics.values()]
+        ratio = np.nanmedian([d["sigma_ratio"] for d in diag]) if diag else np.nan
+        if np.isfinite(ratio) and ratio < 0.9:
+            reasons.append(f"the ranges of the scoring part are less noisy than calibrated "
+                           f"(robust σ {ratio:.2f}× the calibration's): the bound's noise model is pessimistic here")
+        kind = str(row.bound_kind)
+        if kind.startswith("PCRLB") and "set-noise" not in kind:
+            model = kind.split()[-1]
+            implied = np.nanmedian([d.get(f"sigma_w_{model}", np.nan) for d in diag]) if diag else np.nan
+            tuned = self.calibration.params(f"EKF-{model}").get("sigma_w", np.nan)
+            if np.isfinite(implied) and implied < tuned:
+                reasons.append(f"the true track is smoother than the {model} prior: driving-noise σ from the "
+                               f"truth {implied:.3g} vs tuned {tuned:.3g}, so the PCRLB (an average over the "
+                               f"model's random tracks) is no bound for this track")
+            else:
+                reasons.append(f"the {model} prior (tuned σ_w {tuned:.3g}) misdescribes this track; the PCRLB "
+                               f"is an average over the model's random tracks")
+        if "set-noise" in kind:
+            reasons.append("the per-set noise was fitted on the calibration part; where the scoring part's fixes "
+                           "are less spread than that, the bound given the fixes is pessimistic")
+        if row.nees_mean is not None and np.isfinite(row.nees_mean) and row.nees_mean < 0.8 * row.nees_dof:
+            reasons.append(f"its own covariance is also larger than its errors (NEES {row.nees_mean:.2f} < "
+                           f"{row.nees_dof:.0f}): the noise model over-states the noise")
+        if not reasons:
+            reasons.append("no diagnostic explains it: check the noise model")
+        return f"BEATS its bound ({eff:.2f} ± {se:.2f}): " + "; ".join(reasons)
+
+    # ------------------------------------------------------------------ output
+    def markdown(self) -> str:
+        """The table as Markdown (the bound in its own column), with a header saying what it is."""
+        df = self.table()
+        lines = [f"# Scoreboard: {self.label} ({self.mode} mode; numbers are *reproduced*: they come out of the "
+                 f"methods run here)", "",
+                 f"Calibration and tuning on {self.calibration.source}; scored on {self.part}, "
+                 f"tags {', '.join(self.tags)}; {self.calibration.dim}-D, {self.calibration.rate_hz:.3g} Hz. "
+                 "Errors are horizontal; the bound is each method's own Cramér–Rao bound (its kind in the next "
+                 "column) over the same epochs; efficiency = RMSE / bound.", ""]
+        if self.fast:
+            lines += ["FAST mode: CI-sized tuning grids and particle counts — smoke-test numbers.", ""]
+        head = ["method", "coverage", "RMSE (m)", "CEP50 (m)", "CEP95 (m)", "RMSE common (m)", "bound (m)",
+                "bound kind", "efficiency", "NEES / dof", "NIS / dof", "µs/epoch", "note"]
+        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+
+        def f(x, fmt=".3f"):
+            return "—" if x is None or (isinstance(x, float) and not np.isfinite(x)) else format(x, fmt)
+
+        for r in df.itertuples(index=False):
+            eff = f"{r.efficiency:.2f} ± {r.efficiency_se:.2f}" if np.isfinite(r.efficiency_se) else f(r.efficiency, ".2f")
+            nees = f"{r.nees_mean:.2f} / {r.nees_dof:.0f}" if np.isfinite(r.nees_mean) else "—"
+            nis = f"{r.nis_over_dof:.2f} ({r.nis_verdict})" if np.isfinite(r.nis_over_dof) else "—"
+            lines.append("| " + " | ".join([r.method, f(r.coverage, ".1%"), f(r.rmse_m), f(r.cep50_m), f(r.cep95_m),
+                                              f(r.rmse_common_m), f(r.bound_m), r.bound_kind or "—", eff, nees, nis,
+                                              f(r.us_per_epoch, ".0f"), r.note or ""]) + " |")
+        lines += ["", "```", self.calibration.describe(), "```", ""]
+        return "\n".join(lines)
+
+    def write(self, out: str | Path, *, figure: bool = True) -> dict[str, Path]:
+        """Write ``scoreboard.csv``, ``scoreboard.md`` (and ``scoreboard.png``) into ``out``."""
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = {"csv": out / "scoreboard.csv", "md": out / "scoreboard.md"}
+        df = self.table()
+        df.insert(0, "data", self.label)
+        df["mode"] = self.mode
+        df["kind"] = "reproduced"
+        df.to_csv(paths["csv"], index=False, lineterminator="\n")
+        paths["md"].write_text(self.markdown(), encoding="utf-8")
+        if figure:
+            import matplotlib.pyplot as plt
+
+            from .figures import board_figure
+
+            fig = board_figure(self)
+            paths["png"] = out / "scoreboard.png"
+            fig.savefig(paths["png"], dpi=110, bbox_inches="tight")
+            plt.close(fig)
+        return paths
+
+    def to_summary(self, summary, *, methods: Sequence[str] | None = None) -> None:
+        """Record each method's RMSE, bound and efficiency into a :class:`uwbwb.metrics.Summary`."""
+        df = self.table().set_index("method")
+        for m in (methods or self.methods):
+            r = df.loc[m]
+            if not np.isfinite(r.rmse_m):
+                continue
+            for q, v, u in ((f"RMSE, {m}", r.rmse_m, "m"), (f"bound, {m} ({r.bound_kind})", r.bound_m, "m"),
+                            (f"efficiency RMSE/bound, {m}", r.efficiency, ""), (f"coverage, {m}", r.coverage, "")):
+                if np.isfinite(v):
+                    _add(summary, quantity=q, value=float(v), unit=u, data=self.data_label)
+
+
+def _add(summary, **row) -> None:
+    """One place that knows the Summary's signature (kind/mode columns where the Summary has them)."""
+    if "kind" in getattr(summary, "COLUMNS", ()):
+        summary.add(kind="reproduced", **row)
+    else:
+        summary.add(**row)
+
+
+def _diagnostics(rec: Recording, tag: str, cal: Calibration) -> dict:
+    """What the scoring part's truth says: range noise vs the calibration's, driving noise per model."""
+    log = calibrated_log(rec, tag, cal)
+    pos = truth_at(rec, tag, log.t_s, 3 if rec.truth[tag].dim == 3 else 2)
+    out = {"sigma_ratio": np.nan}
+    if pos.shape[1] == 3:
+        res = log.range_m - np.linalg.norm(pos[:, None, :] - rec.anchors.pos_m[None], axis=-1)
+        med = np.nanmedian(res, axis=0)
+        robust = 1.4826 * np.nanmedian(np.abs(res - med), axis=0)
+        ok = np.isfinite(robust)
+        if ok.any():
+            out["sigma_ratio"] = float(np.median(robust[ok] / cal.sigma(tag)[ok]))
+    have = np.all(np.isfinite(pos), axis=1)
+    if have.sum() > 5:
+        t, p = log.t_s[have], pos[have][:, :cal.dim]
+        dt = float(np.median(np.diff(t)))
+        d = p
+        for order, m in enumerate(("RW", "RF", "RJ"), start=1):
+            d = np.diff(d, axis=0) / dt
+            out[f"sigma_w_{m}"] = float(np.sqrt(np.mean(np.sum(d * d, axis=1)) / cal.dim))
+    return out
+
+
+def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estimator] | None = None,
+          tags: Sequence[str] | None = None, rate_hz: float | None = 10.0, dim: int | None = None,
+          calibration: Calibration | None = None, fast: bool = False, progress: bool = False,
+          label: str | None = None) -> Board:
+    """Calibrate on ``cal_rec`` and score every estimator on ``test_rec``.
+
+    Parameters
+    ----------
+    test_rec, cal_rec
+        Scoring and calibration recordings of the same anchors and tags, both with truth.
+    estimators
+        Default :func:`~.estimators.default_estimators`.
+    tags
+        Tags to score (default all with truth in both).
+    rate_hz
+        Rate every method runs at (ranges thinned to it; None = native).
+    dim
+        Force 2 or 3 (default from the calibration truth).
+    calibration
+        Use this calibration (e.g. the exact noise of a synthetic run) instead of fitting one.
+    fast
+        CI-sized settings (recorded in the board's mode).
+    label
+        What the board is about (default ``test_rec.label``; :func:`score_recording` gives the whole run's).
+    """
+    estimators = list(default_estimators(fast=fast) if estimators is None else estimators)
+    names = [e.name for e in estimators]
+    if len(set(names)) != len(names):
+        raise ValueError(f"estimator names must be unique, got {names}")
+    tags = scored_tags(test_rec, tags)
+    if calibration is None:
+        calibration = calibrate(cal_rec, estimators, tags, rate_hz=rate_hz, dim=dim, progress=progress)
+    rec = thin(test_rec, rate_hz)
+    entries = []
+    for tag in tags:
+        for est in estimators:
+            why = est.applies(rec, tag, calibration)
+            if why is not None:
+                entries.append(Entry(est.name, tag, None, None, None, skipped=why))
+                continue
+            if progress:
+                print(f"scoring {est.name} on {rec.label}/{tag} ...", flush=True)
+            t0 = time.perf_counter()
+            out = est.estimate(rec, tag, calibration)
+            seconds = time.perf_counter() - t0
+            if not np.array_equal(out.t_s, rec.ranges[tag].t_s):
+                raise ValueError(f"{est.name}: estimates must be on the tag's epochs ({len(rec.ranges[tag])}), "
+                                 f"got {len(out)}")
+            b = est.bound(rec, tag, calibration, out)
+            truth = truth_at(rec, tag, out.t_s, out.dim)
+            entries.append(Entry(est.name, tag, out, b, truth, seconds))
+    diag = {t: _diagnostics(rec, t, calibration) for t in tags}
+    return Board(label or test_rec.label, test_rec.label, calibration, tuple(entries), tuple(names), diag, fast)
+
+
+def score_recording(rec: Recording, *, fraction: float = 0.5, **kw) -> Board:
+    """:func:`score` with the first ``fraction`` of ``rec`` calibrating and the rest scored."""
+    cal, test = split_in_time(rec, fraction)
+    return score(test, cal, label=rec.label, **kw)

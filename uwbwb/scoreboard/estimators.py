@@ -1,0 +1,533 @@
+"""One estimator interface, and every method of the package wrapped into it.
+
+A method joins the board by implementing :class:`Estimator`:
+
+``name``
+    Its label in tables and plots (one fixed colour per name, :data:`uwbwb.plotting.COLORS`).
+``applies(rec, tag, cal)``
+    None if it can run on this recording, else the reason it cannot (e.g. "needs an IMU").
+``tune(rec, tags, cal)``
+    Parameters chosen on the *calibration* recording (driving noise, window length...),
+    returned as a dict; the board stores them in the :class:`~.protocol.Calibration`.
+``estimate(rec, tag, cal)``
+    Per-epoch :class:`~uwbwb.types.Estimates` over the recording's epochs of ``tag``, using
+    only ``cal`` (fitted on other data) and the recording's measurements — never its truth.
+``bound(rec, tag, cal, est)``
+    The Cramér–Rao bound of this method's own measurement and motion model at the
+    estimate's epochs (:class:`uwbwb.bounds.Bound`), evaluated along the truth.
+
+The adapters below wrap the existing estimators without changing them. Every method
+but ``raw LS`` uses the calibrated ranges (the calibration is information every method
+is given; ``raw LS`` shows what it is worth). Where an estimator's result type has no
+``to_estimates()`` yet, the conversion lives here, in one function per result type.
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass
+from typing import Mapping, Protocol, Sequence, runtime_checkable
+
+import numpy as np
+
+from .. import bounds, geometry, metrics
+from ..filters.ekf import EkfResult, TdoaEkf
+from ..filters.nls import fit_trajectory, unroll
+from ..filters.setnoise import cv_matrices, model_noise, run_set_noise_kf, run_set_noise_pf
+from ..filters.tdoa_ls import TdoaLsResult, tdoa_least_squares
+from ..models.motion import make_motion_model
+from ..models.setnoise import SetFixLog, SetNoiseModel, set_id_from_mask
+from ..models.tdoa import TdoaLog, TdoaModel
+from ..sim.setnoise import select_sets
+from ..types import EstimateStatus, Estimates, RangeLog, Recording
+from .protocol import Calibration
+
+__all__ = ["Estimator", "BaseEstimator", "RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "SetNoiseFilter",
+           "WindowNls", "UwbInsHook", "default_estimators", "truth_at", "MAX_TRUTH_GAP_S"]
+
+#: Largest truth gap interpolated across when scoring or evaluating a bound, seconds.
+MAX_TRUTH_GAP_S = 0.5
+
+_UP, _PRED, _GATED, _NONE = (int(s) for s in (EstimateStatus.UPDATED, EstimateStatus.PREDICTED,
+                                               EstimateStatus.GATED, EstimateStatus.NO_ESTIMATE))
+
+
+@runtime_checkable
+class Estimator(Protocol):
+    """What the board needs from a method (module docstring)."""
+
+    name: str
+
+    def applies(self, rec: Recording, tag: str, cal: Calibration) -> str | None: ...
+
+    def tune(self, rec: Recording, tags: Sequence[str], cal: Calibration) -> Mapping: ...
+
+    def estimate(self, rec: Recording, tag: str, cal: Calibration) -> Estimates: ...
+
+    def bound(self, rec: Recording, tag: str, cal: Calibration, est: Estimates) -> bounds.Bound: ...
+
+
+class BaseEstimator:
+    """Defaults: applies everywhere, tunes nothing."""
+
+    name = "estimator"
+
+    def applies(self, rec: Recording, tag: str, cal: Calibration) -> str | None:
+        return None
+
+    def tune(self, rec: Recording, tags: Sequence[str], cal: Calibration) -> Mapping:
+        return {}
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name!r})"
+
+
+# ----------------------------------------------------------------------------- shared pieces
+
+def calibrated_log(rec: Recording, tag: str, cal: Calibration) -> RangeLog:
+    """``tag``'s ranges with the calibration's per-pair bias/scale removed."""
+    return cal.range_calibration.apply(rec.ranges[tag])
+
+
+def truth_at(rec: Recording, tag: str, t_s: np.ndarray, dim: int) -> np.ndarray:
+    """True positions ``(T, dim)`` at ``t_s``; NaN outside the truth or in gaps over :data:`MAX_TRUTH_GAP_S`."""
+    tr = rec.truth[tag]
+    t_s = np.asarray(t_s, float)
+    pos = tr.interp(t_s)[:, :dim]
+    if len(tr) > 1:
+        i = np.clip(np.searchsorted(tr.t_s, t_s, side="right"), 1, len(tr) - 1)
+        exact = np.isin(t_s, tr.t_s)
+        pos[~exact & (tr.t_s[i] - tr.t_s[i - 1] > MAX_TRUTH_GAP_S)] = np.nan
+    return pos
+
+
+def _ok_cov(cov: np.ndarray) -> np.ndarray:
+    """Epochs whose covariance is finite, bool ``(T,)``."""
+    return np.all(np.isfinite(cov.reshape(cov.shape[0], -1)), axis=1)
+
+
+def _snapshot(t_s, pos, ok, cov, name, info=None) -> Estimates:
+    pos = np.where(ok[:, None], pos, np.nan)
+    cov = np.where(ok[:, None, None], cov, np.nan)
+    status = np.where(ok, _UP, _NONE).astype(np.int8)
+    return Estimates(t_s, pos, status, name, cov, None, info or {})
+
+
+def _nan_bound(t_s, dim, kind) -> bounds.Bound:
+    return bounds.Bound(t_s, np.full((len(t_s), dim, dim), np.nan), kind)
+
+
+def _range_bound(rec, tag, cal, log: RangeLog, kind="CRLB ranges") -> bounds.Bound:
+    pos = truth_at(rec, tag, log.t_s, cal.dim)
+    have = np.all(np.isfinite(pos), axis=1)
+    C = np.full((len(log), cal.dim, cal.dim), np.nan)
+    if have.any():
+        info = bounds.range_information(pos[have], rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
+                                        mask=np.isfinite(log.range_m[have]))
+        C[have] = bounds.crlb(info)
+    return bounds.Bound(log.t_s, C, kind)
+
+
+def _tdoa_model(rec, tag, cal) -> TdoaModel:
+    return TdoaModel(rec.anchors.pos_m, cal.sigma(tag), dim=cal.dim, z_m=cal.height(tag) or 0.0)
+
+
+def _tdoa_information(rec, tag, cal, log: RangeLog) -> tuple[np.ndarray, np.ndarray]:
+    """TDoA information ``(T, dim, dim)`` at the true positions, and where truth exists ``(T,)``."""
+    pos = truth_at(rec, tag, log.t_s, cal.dim)
+    have = np.all(np.isfinite(pos), axis=1)
+    info = np.zeros((len(log), cal.dim, cal.dim))
+    if have.any():
+        mask = np.isfinite(log.range_m[have])
+        info[have] = np.where((mask.sum(axis=1) >= 2)[:, None, None],
+                              bounds.tdoa_information(pos[have], _tdoa_model(rec, tag, cal), mask=mask), 0.0)
+    return info, have
+
+
+def _errors_rmse(est: Estimates, rec: Recording, tag: str, dim: int) -> float:
+    """RMSE (horizontal) of ``est`` against ``rec``'s truth: what tuning on the calibration part minimises."""
+    tr = est.to_trajectory()
+    if len(tr) == 0:
+        return float("inf")
+    e = metrics.errors_vs_truth(tr, rec.truth[tag], horizontal=True, max_gap_s=MAX_TRUTH_GAP_S)
+    return metrics.rmse(e.err_m) if len(e) else float("inf")
+
+
+# ----------------------------------------------------------------------------- snapshot methods
+
+@dataclass(frozen=True)
+class RawLs(BaseEstimator):
+    """Per-epoch Gauss–Newton multilateration of the raw ranges (:func:`uwbwb.geometry.multilaterate`),
+    unweighted, no range calibration: the baseline."""
+
+    name: str = "raw LS"
+
+    def estimate(self, rec, tag, cal):
+        log = rec.ranges[tag]
+        res = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag))
+        return _snapshot(log.t_s, res.pos_m, res.ok, res.cov_m2, self.name, {"n_used": res.n_used})
+
+    def bound(self, rec, tag, cal, est):
+        return _range_bound(rec, tag, cal, rec.ranges[tag])
+
+
+@dataclass(frozen=True)
+class CalibratedLs(BaseEstimator):
+    """Multilateration of the per-pair calibrated ranges, weighted by the calibrated range noise."""
+
+    name: str = "LS"
+
+    def estimate(self, rec, tag, cal):
+        log = calibrated_log(rec, tag, cal)
+        res = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag),
+                                     sigma_m=cal.sigma(tag))
+        return _snapshot(log.t_s, res.pos_m, res.ok, res.cov_m2, self.name, {"n_used": res.n_used})
+
+    def bound(self, rec, tag, cal, est):
+        return _range_bound(rec, tag, cal, calibrated_log(rec, tag, cal))
+
+
+def _tdoa_ls_estimates(res: TdoaLsResult, name: str) -> Estimates:
+    return _snapshot(res.t_s, res.pos_m, res.ok, res.cov_m2, name, {"n_tdoa": res.n_tdoa})
+
+
+@dataclass(frozen=True)
+class TdoaLs(BaseEstimator):
+    """Gauss–Newton TDoA fix per epoch (:func:`uwbwb.filters.tdoa_ls.tdoa_least_squares`), pseudo-TDoA
+    to anchor ``ref`` with the reference-correlated covariance."""
+
+    name: str = "TDoA LS"
+    ref: int = 0
+
+    def estimate(self, rec, tag, cal):
+        log = calibrated_log(rec, tag, cal)
+        res = tdoa_least_squares(TdoaLog.from_ranges(log, self.ref), _tdoa_model(rec, tag, cal))
+        return _tdoa_ls_estimates(res, self.name)
+
+    def bound(self, rec, tag, cal, est):
+        log = calibrated_log(rec, tag, cal)
+        info, _ = _tdoa_information(rec, tag, cal, log)
+        return bounds.Bound(log.t_s, bounds.crlb(info), "CRLB TDoA")
+
+
+# ----------------------------------------------------------------------------- TDoA EKFs
+
+def _ekf_estimates(res: EkfResult) -> Estimates:
+    """:class:`~uwbwb.filters.ekf.EkfResult` → :class:`Estimates` (status from ``dof`` and ``n_rejected``)."""
+    valid = res.valid
+    status = np.where(~valid, _NONE, np.where(res.dof > 0, _UP, np.where(res.n_rejected > 0, _GATED, _PRED)))
+    return Estimates(res.t_s, res.pos_m, status.astype(np.int8), res.name, res.pos_cov_m2,
+                     res.motion.velocity(res.x),
+                     {"nis": res.nis, "dof": res.dof, "n_rejected": res.n_rejected})
+
+
+#: Driving-noise grids searched on the calibration part (model units: m/s, m/s², m/s³).
+EKF_GRIDS = {"RW": np.geomspace(0.05, 5.0, 9), "RF": np.geomspace(0.05, 20.0, 9), "RJ": np.geomspace(0.05, 100.0, 9)}
+
+
+@dataclass(frozen=True)
+class TdoaEkfEstimator(BaseEstimator):
+    """The TDoA EKF of notebook 03 (:class:`uwbwb.filters.ekf.TdoaEkf`) with motion model ``model``.
+
+    ``tune`` picks the driving-noise standard deviation minimising the RMSE on the
+    calibration part over :data:`EKF_GRIDS` (one value for all tags). The χ² gate is on
+    (``gate_prob``). Its bound is the posterior CRLB with the same motion model (tuned
+    driving noise), the TDoA information of every epoch and the filter's initial
+    covariance as prior, from the filter's first epoch.
+    """
+
+    model: str = "RF"
+    gate_prob: float | None = 0.9999
+    ref: int = 0
+    grid: tuple[float, ...] | None = None
+
+    @property
+    def name(self) -> str:
+        return f"EKF-{self.model}"
+
+    def _dt(self, cal: Calibration) -> float:
+        return 1.0 / cal.rate_hz
+
+    def _filter(self, cal, tag, rec, sigma_w) -> TdoaEkf:
+        motion = make_motion_model(self.model, sigma=sigma_w, dt_s=self._dt(cal), dim=cal.dim)
+        return TdoaEkf(motion, _tdoa_model(rec, tag, cal), gate_prob=self.gate_prob)
+
+    def _run(self, rec, tag, cal, sigma_w) -> Estimates:
+        log = TdoaLog.from_ranges(calibrated_log(rec, tag, cal), self.ref)
+        return _ekf_estimates(self._filter(cal, tag, rec, sigma_w).run(log, name=self.name))
+
+    def tune(self, rec, tags, cal):
+        grid = EKF_GRIDS[self.model] if self.grid is None else np.asarray(self.grid, float)
+        cost = [np.mean([_errors_rmse(self._run(rec, t, cal, s), rec, t, cal.dim) for t in tags]) for s in grid]
+        best = int(np.argmin(cost))
+        return {"sigma_w": float(grid[best]), "grid": tuple(float(g) for g in grid),
+                "grid_rmse_m": tuple(float(c) for c in cost)}
+
+    def estimate(self, rec, tag, cal):
+        return self._run(rec, tag, cal, cal.params(self.name)["sigma_w"])
+
+    def bound(self, rec, tag, cal, est):
+        log = calibrated_log(rec, tag, cal)
+        info, have = _tdoa_information(rec, tag, cal, log)
+        start = np.flatnonzero(est.has_estimate)
+        C = np.full((len(log), cal.dim, cal.dim), np.nan)
+        kind = f"PCRLB {self.model}"
+        if start.size == 0:
+            return bounds.Bound(log.t_s, C, kind)
+        k0 = int(start[0])
+        ekf = self._filter(cal, tag, rec, cal.params(self.name)["sigma_w"])
+        P0 = ekf.motion.initial_covariance(ekf.init_pos_sigma_m, ekf.init_vel_sigma_mps, ekf.init_acc_sigma_mps2)
+        C[k0:] = bounds.tracking_bound(ekf.motion, log.t_s[k0:], info[k0:], P0)
+        C[~have] = np.nan                     # no truth there: the bound is not evaluated
+        return bounds.Bound(log.t_s, C, kind)
+
+
+# ----------------------------------------------------------------------------- set-noise filters
+
+@dataclass(frozen=True)
+class SetEmulation:
+    """Sensor sets emulated on two-way ranges as notebook 01 does: the ``set_size`` anchors with the
+    strongest emulated power (path loss ``−10 n log10 r`` plus fading ``N(0, fading_db)``) form the set;
+    the fix is the 2-D LS position from that set at the tag's calibrated height."""
+
+    set_size: int = 5
+    fading_db: float = 2.5
+    path_loss_exponent: float = 2.0
+
+
+def emulated_fixes(log: RangeLog, anchors, z_m: float, emulation: SetEmulation, *, rng: np.random.Generator,
+                   truth_m: np.ndarray | None = None, name: str = "fixes") -> tuple[SetFixLog, np.ndarray]:
+    """Set fixes of one range log, and the index of each fix's epoch in ``log``.
+
+    ``truth_m`` (``(T, 2)``, calibration only) is attached for fitting the set-noise model;
+    epochs without truth are then left out.
+    """
+    r = log.range_m
+    with np.errstate(divide="ignore", invalid="ignore"):
+        power = -10 * emulation.path_loss_exponent * np.log10(np.where(r > 0, r, np.nan))
+    used = select_sets(power, emulation.set_size, emulation.fading_db, rng=rng)
+    enough = used.sum(axis=1) >= emulation.set_size
+    if truth_m is not None:
+        enough &= np.all(np.isfinite(truth_m), axis=1)
+    res = geometry.multilaterate(np.where(used, r, np.nan)[enough], anchors, dim=2, z_m=z_m,
+                                 min_anchors=emulation.set_size)
+    idx = np.flatnonzero(enough)[res.ok]
+    fixes = SetFixLog(log.t_s[idx], res.pos_m[res.ok], set_id_from_mask(used[idx]), log.anchor_ids,
+                      None if truth_m is None else truth_m[idx], name)
+    return fixes, idx
+
+
+#: σ_d grid (m/s per step) searched by the set-noise KF on the calibration part.
+SIGMA_D_GRID_MPS = (0.02, 0.04, 0.08, 0.15, 0.3, 0.6)
+
+
+@dataclass(frozen=True)
+class SetNoiseFilter(BaseEstimator):
+    """The set-noise Kalman filter or particle filter of notebook 01 on emulated sensor sets.
+
+    ``tune`` emulates fixes on the calibration part, fits the per-set noise model on them
+    (one location per tag) and picks σ_d minimising the KF's RMSE there; the PF uses the
+    same σ_d and model. Both start at the first fix (the paper starts at the known true
+    position; that would use the truth). 2-D only. Bound: the posterior CRLB of the same
+    constant-velocity model given the fixes and their per-set σ.
+    """
+
+    kind: str = "KF"
+    n_particles: int = 1000
+    emulation: SetEmulation = SetEmulation()
+    seed: int = 0
+
+    @property
+    def name(self) -> str:
+        return f"set-noise {self.kind}"
+
+    def applies(self, rec, tag, cal):
+        if cal.dim != 2:
+            return "the set-noise filters are planar (state x, ẋ, y, ẏ)"
+        if len(rec.anchors) < self.emulation.set_size:
+            return f"needs at least {self.emulation.set_size} anchors to emulate sets"
+        return None
+
+    def _rng(self, rec, tag) -> np.random.Generator:
+        return np.random.default_rng([self.seed, zlib.crc32(f"{rec.label}/{tag}/{self.name}".encode())])
+
+    def _fixes(self, rec, tag, cal, truth: bool = False):
+        log = calibrated_log(rec, tag, cal)
+        t = truth_at(rec, tag, log.t_s, 2) if truth else None
+        return emulated_fixes(log, rec.anchors.pos_m, cal.height(tag), self.emulation, rng=self._rng(rec, tag),
+                              truth_m=t, name=f"{rec.label}/{tag}")
+
+    def tune(self, rec, tags, cal):
+        if self.kind != "KF":
+            return {}                                 # the PF takes the KF's tuning (see estimate)
+        fixes = [self._fixes(rec, t, cal, truth=True)[0] for t in tags]
+        model = SetNoiseModel.from_fixes(fixes)
+        cost = []
+        for s in SIGMA_D_GRID_MPS:
+            errs = []
+            for f in fixes:
+                run = run_set_noise_kf(f, model, f.pos_m[0], s)
+                errs.append(np.sum((run.pos_m - f.truth_m) ** 2, axis=1))
+            cost.append(float(np.sqrt(np.mean(np.concatenate(errs)))))
+        best = int(np.argmin(cost))
+        return {"sigma_d_mps": float(SIGMA_D_GRID_MPS[best]), "model": model, "n_sets": len(model),
+                "grid_rmse_m": tuple(cost)}
+
+    def _params(self, cal):
+        p = cal.params("set-noise KF")
+        if "model" not in p:
+            raise ValueError("the set-noise filters need the set-noise KF's tuning (include 'set-noise KF' in the board)")
+        return p
+
+    def estimate(self, rec, tag, cal):
+        p = self._params(cal)
+        log = rec.ranges[tag]
+        fixes, idx = self._fixes(rec, tag, cal)
+        T = len(log)
+        pos = np.full((T, 2), np.nan)
+        status = np.full(T, _NONE, np.int8)
+        cov = np.full((T, 2, 2), np.nan) if self.kind == "KF" else None
+        info = {"nis": np.full(T, np.nan), "dof": np.zeros(T, int)}
+        if len(fixes):
+            if self.kind == "KF":
+                run = run_set_noise_kf(fixes, p["model"], fixes.pos_m[0], p["sigma_d_mps"], name=self.name)
+                cov[idx] = run.meta["cov"][:, [0, 2]][:, :, [0, 2]]
+                info["nis"][idx], info["dof"][idx] = run.meta["nis"], 2
+            else:
+                run = run_set_noise_pf(fixes, p["model"], fixes.pos_m[0], p["sigma_d_mps"], rng=self._rng(rec, tag),
+                                       n_particles=self.n_particles, name=self.name)
+            pos[idx] = run.pos_m
+            status[idx] = _UP
+        return Estimates(log.t_s, pos, status, self.name, cov, None, info)
+
+    def bound(self, rec, tag, cal, est):
+        p = self._params(cal)
+        fixes, idx = self._fixes(rec, tag, cal)
+        C = np.full((len(est), 2, 2), np.nan)
+        kind = "PCRLB set-noise CV (given the fixes)"
+        if len(fixes) == 0:
+            return bounds.Bound(est.t_s, C, kind)
+        _, sd = model_noise(fixes, p["model"])
+        dt = np.diff(fixes.t_s, prepend=fixes.t_s[0])
+        FQ = [cv_matrices(float(h), p["sigma_d_mps"]) for h in dt]
+        F = np.stack([f for f, _ in FQ])
+        Q = np.stack([q for _, q in FQ])
+        info = np.zeros((len(fixes), 4, 4))
+        info[:, 0, 0], info[:, 2, 2] = 1 / sd[:, 0] ** 2, 1 / sd[:, 1] ** 2
+        P0 = np.diag([1e4, 1.0, 1e4, 1.0])       # position from the first fix, velocity ~ 1 m/s
+        full = bounds.pcrlb(P0, F, Q, info)
+        C[idx] = full[:, [0, 2]][:, :, [0, 2]]
+        have = np.all(np.isfinite(truth_at(rec, tag, est.t_s, 2)), axis=1)
+        C[~have] = np.nan
+        return bounds.Bound(est.t_s, C, kind)
+
+
+# ----------------------------------------------------------------------------- trajectory NLS
+
+#: Window lengths (s) the windowed NLS tries on the calibration part.
+NLS_WINDOWS_S = (0.5, 1.0, 2.0)
+
+
+@dataclass(frozen=True)
+class WindowNls(BaseEstimator):
+    """Trajectory NLS of notebook 02 (:func:`uwbwb.filters.nls.fit_trajectory`, eq. 1: a
+    constant-velocity line ``P0 + v (t − t0)`` fitted to all ranges of a segment) on
+    consecutive fixed-length windows, so that no truth is needed to cut segments. ``tune``
+    picks the window length on the calibration part. Bound: the CRLB of the same line fit
+    per window (:func:`uwbwb.bounds.line_crlb`).
+    """
+
+    name: str = "NLS"
+    windows_s: tuple[float, ...] = NLS_WINDOWS_S
+
+    def _windows(self, log: RangeLog, w: float) -> np.ndarray:
+        return np.floor((log.t_s - log.t_s[0]) / w).astype(int) if len(log) else np.zeros(0, int)
+
+    def _run(self, rec, tag, cal, w) -> Estimates:
+        log = calibrated_log(rec, tag, cal)
+        T, d = len(log), cal.dim
+        pos, cov = np.full((T, d), np.nan), np.full((T, d, d), np.nan)
+        status = np.full(T, _NONE, np.int8)
+        win = self._windows(log, w)
+        for k in np.unique(win):
+            idx = np.flatnonzero(win == k)
+            part = log.select(idx)
+            samples = unroll(part)
+            if idx.size < 3 or len(samples) < 2 * d + 2:
+                continue
+            try:
+                fit = fit_trajectory(samples, rec.anchors, dim=d, z_m=cal.height(tag))
+            except ValueError:
+                continue
+            if not fit.converged:
+                continue
+            tau = part.t_s - fit.t0_s
+            pos[idx] = fit.position_at(part.t_s)[:, :d]
+            A = np.concatenate([np.broadcast_to(np.eye(d), (idx.size, d, d)), tau[:, None, None] * np.eye(d)], axis=-1)
+            cov[idx] = np.einsum("kij,jl,kml->kim", A, fit.cov, A)
+            status[idx] = _UP
+        return Estimates(log.t_s, pos, status, self.name, cov, None, {"window": win})
+
+    def tune(self, rec, tags, cal):
+        cost = [np.mean([_errors_rmse(self._run(rec, t, cal, w), rec, t, cal.dim) for t in tags])
+                for w in self.windows_s]
+        best = int(np.argmin(cost))
+        return {"window_s": float(self.windows_s[best]), "grid_rmse_m": tuple(float(c) for c in cost)}
+
+    def estimate(self, rec, tag, cal):
+        return self._run(rec, tag, cal, cal.params(self.name)["window_s"])
+
+    def bound(self, rec, tag, cal, est):
+        log = calibrated_log(rec, tag, cal)
+        pos = truth_at(rec, tag, log.t_s, cal.dim)
+        C = np.full((len(log), cal.dim, cal.dim), np.nan)
+        win = np.asarray(est.info["window"])
+        for k in np.unique(win):
+            idx = np.flatnonzero((win == k) & est.has_estimate)
+            if idx.size < 2 or not np.all(np.isfinite(pos[idx])):
+                continue
+            C[idx] = bounds.line_crlb(log.t_s[idx], pos[idx], rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
+                                      mask=np.isfinite(log.range_m[idx]))
+        return bounds.Bound(log.t_s, C, "CRLB line fit per window")
+
+
+# ----------------------------------------------------------------------------- UWB/INS
+
+@dataclass(frozen=True)
+class UwbInsHook(BaseEstimator):
+    """Place of the UWB/INS filters (notebook 05) on the board.
+
+    It runs nothing yet: where the recording has no IMU it says so, and where it has one it
+    says that the filters are not in the package. The notebook-05 filters join by replacing
+    this entry with adapters implementing :class:`Estimator` (loose and tight), their bound
+    being the posterior CRLB of their own error-state model.
+    """
+
+    name: str = "UWB/INS"
+
+    def applies(self, rec, tag, cal):
+        if rec.imu is None:
+            return "needs an IMU (this recording has none)"
+        return "the UWB/INS filters (notebook 05) are not in this package yet"
+
+    def estimate(self, rec, tag, cal):
+        raise NotImplementedError(self.applies(rec, tag, cal))
+
+    def bound(self, rec, tag, cal, est):
+        raise NotImplementedError(self.applies(rec, tag, cal))
+
+
+def default_estimators(*, fast: bool = False, seed: int = 0) -> list[Estimator]:
+    """Every method of the package, in the board's order.
+
+    ``fast`` shrinks what costs time (particles, tuning grids) for CI-sized runs.
+    """
+    grid = None
+    ekfs = []
+    for m in ("RW", "RF", "RJ"):
+        if fast:
+            grid = tuple(float(g) for g in EKF_GRIDS[m][::2])
+        ekfs.append(TdoaEkfEstimator(m, grid=grid))
+    return [RawLs(), CalibratedLs(), TdoaLs(), *ekfs,
+            SetNoiseFilter("KF", seed=seed), SetNoiseFilter("PF", n_particles=200 if fast else 1000, seed=seed),
+            WindowNls(windows_s=(1.0,) if fast else NLS_WINDOWS_S), UwbInsHook()]

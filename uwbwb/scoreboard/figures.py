@@ -1,0 +1,87 @@
+"""Figures of the board: error CDFs of every method in one panel, RMSE against the bound,
+error over time with the bound's band. Every function takes ``ax=`` and returns the Axes."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from .. import plotting
+
+__all__ = ["board_figure", "error_cdfs", "error_over_time", "rmse_vs_bound"]
+
+
+def _methods(board, methods):
+    ran = {e.method for e in board.ran()}
+    return [m for m in (methods or board.methods) if m in ran]
+
+
+def error_cdfs(board, ax=None, *, methods: Sequence[str] | None = None, tag: str | None = None, unit: str = "m"):
+    """Empirical CDFs of the scored horizontal errors of each method (tags pooled, or ``tag``)."""
+    errs = board.errors(tag)
+    errs = {m: errs[m] for m in _methods(board, methods) if m in errs and errs[m].size}
+    ax = plotting.error_cdf(errs, ax=ax, unit=unit)
+    ax.set_title(f"{board.label}{'' if tag is None else ' / ' + tag}: error CDF ({board.mode})", fontsize="medium")
+    return ax
+
+
+def rmse_vs_bound(board, ax=None, *, methods: Sequence[str] | None = None, unit: str = "m"):
+    """Bars of each method's RMSE with its own bound as a black tick, efficiency written above."""
+    scale = 100.0 if unit == "cm" else 1.0
+    df = board.table().set_index("method")
+    names = [m for m in _methods(board, methods) if np.isfinite(df.loc[m, "rmse_m"])]
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 3.5))
+    x = np.arange(len(names))
+    rmse = df.loc[names, "rmse_m"].to_numpy(float) * scale
+    bound = df.loc[names, "bound_m"].to_numpy(float) * scale
+    ax.bar(x, rmse, color=[plotting.color_for(m) for m in names], label="RMSE")
+    ax.scatter(x, bound, marker="_", s=900, color="black", zorder=3, label="its Cramér–Rao bound")
+    for xi, r, e in zip(x, rmse, df.loc[names, "efficiency"].to_numpy(float)):
+        if np.isfinite(e):
+            ax.annotate(f"×{e:.2f}", (xi, r), ha="center", va="bottom", fontsize="x-small",
+                        xytext=(0, 2), textcoords="offset points")
+    ax.set_xticks(x, names, rotation=30, ha="right")
+    ax.set_ylabel(f"RMSE ({unit})")
+    ax.set_title(f"RMSE vs bound (×: efficiency RMSE/bound) — {board.mode}", fontsize="medium")
+    ax.legend(loc="upper left", fontsize="small")
+    return ax
+
+
+def error_over_time(board, method: str, tag: str | None = None, ax=None, *, unit: str = "m"):
+    """One method's error against time with its per-epoch RMSE bound as a shaded band."""
+    scale = 100.0 if unit == "cm" else 1.0
+    tag = tag or board.tags[0]
+    e = board.entry(method, tag)
+    if e.skipped:
+        raise ValueError(f"{method} did not run on tag {tag}: {e.skipped}")
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 3))
+    t = e.estimates.t_s
+    err = np.where(e.scored, e.error_m, np.nan) * scale
+    bnd = np.sqrt(e.bound_trace_m2) * scale
+    ax.fill_between(t, 0, bnd, color="#bdbdbd", alpha=0.6, step="mid", label=f"RMSE bound ({e.bound.kind})")
+    ax.plot(t, err, color=plotting.color_for(method), linewidth=0.9, label=f"{method} error")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel(f"error ({unit})")
+    ax.set_ylim(bottom=0)
+    ax.set_title(f"{board.label} / {tag}: {method}", fontsize="medium")
+    ax.legend(loc="upper right", fontsize="small")
+    return ax
+
+
+def board_figure(board, *, methods: Sequence[str] | None = None, time_method: str | None = None):
+    """The three panels in one figure (what ``python -m uwbwb score`` writes)."""
+    fig = plt.figure(figsize=(13, 8.5))
+    gs = fig.add_gridspec(2, 2, height_ratios=[1.2, 1.0])
+    error_cdfs(board, fig.add_subplot(gs[0, 0]), methods=methods)
+    rmse_vs_bound(board, fig.add_subplot(gs[0, 1]), methods=methods)
+    ran = _methods(board, methods)
+    if time_method is None:
+        time_method = next((m for m in ("EKF-RF", "EKF-RW", "LS") if m in ran), ran[0] if ran else None)
+    if time_method is not None:
+        error_over_time(board, time_method, ax=fig.add_subplot(gs[1, :]))
+    fig.tight_layout()
+    return fig
