@@ -32,14 +32,14 @@ import numpy as np
 
 from .. import bounds, geometry, metrics
 from ..filters.ekf import EkfResult, TdoaEkf
-from ..filters.nls import fit_trajectory, unroll
+from ..filters.nls import fit_trajectory
 from ..filters.setnoise import cv_matrices, model_noise, run_set_noise_kf, run_set_noise_pf
 from ..filters.tdoa_ls import TdoaLsResult, tdoa_least_squares
 from ..models.motion import make_motion_model
-from ..models.setnoise import SetFixLog, SetNoiseModel, set_id_from_mask
-from ..models.tdoa import TdoaLog, TdoaModel
+from ..models.setnoise import SetNoiseModel
+from ..models.tdoa import TdoaModel
 from ..sim.setnoise import select_sets
-from ..types import EstimateStatus, Estimates, RangeLog, Recording
+from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples, Recording, SetFixLog, TdoaLog, set_id_from_mask
 from .protocol import Calibration
 
 __all__ = ["Estimator", "BaseEstimator", "RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "SetNoiseFilter",
@@ -452,7 +452,7 @@ class WindowNls(BaseEstimator):
         for k in np.unique(win):
             idx = np.flatnonzero(win == k)
             part = log.select(idx)
-            samples = unroll(part)
+            samples = RangeSamples.from_ranges(part)
             if idx.size < 3 or len(samples) < 2 * d + 2:
                 continue
             try:
