@@ -18,7 +18,14 @@ class DataFormatError(ValueError):
         1-based line number in the file, when the problem is on one line.
     column
         Column name or 1-based index, when known.
+
+    The message is bounded: a problem longer than :data:`MAX_PROBLEM_CHARS`
+    (e.g. quoting a line of a file whose line ends were not recognised) is cut,
+    saying how long it was; the full text stays in :attr:`problem`.
     """
+
+    #: Longest problem text put into the message.
+    MAX_PROBLEM_CHARS = 400
 
     def __init__(self, path: str | Path, problem: str, line: int | None = None,
                  column: str | int | None = None):
@@ -31,7 +38,10 @@ class DataFormatError(ValueError):
             where += f", line {line}"
         if column is not None:
             where += f", column {column}"
-        super().__init__(f"{where}: {problem}")
+        shown = problem
+        if len(shown) > self.MAX_PROBLEM_CHARS:
+            shown = f"{shown[:self.MAX_PROBLEM_CHARS]}... [message cut: {len(problem)} characters]"
+        super().__init__(f"{where}: {shown}")
 
 
 class DataNotFoundError(FileNotFoundError):

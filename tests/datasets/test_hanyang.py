@@ -120,7 +120,7 @@ def test_sorting_and_duplicates_are_counted(tmp_path):
     lines = path.read_text().splitlines()
     path.write_text("\n".join([lines[0], lines[2], lines[1], lines[3], lines[3]] + lines[4:]) + "\n")
     sf = hanyang.read_static_file(path)
-    assert [(s.name, s.n_affected) for s in sf.cleaning] == [("sort by time", 2), ("duplicate rows", 1)]
+    assert [(s.name, s.n_affected) for s in sf.cleaning] == [("rows sorted by time", 2), ("repeated rows dropped", 1)]
     assert len(sf.samples) == 6 and list(sf.samples["line"][:2]) == [3, 2]
 
 

@@ -178,7 +178,7 @@ def test_rows_sorted_and_duplicates_counted(synthetic, tmp_path):
     lines = _lines(base / iasl.NAME / "scenario1" / "uwb.csv")
     lines = [lines[0], lines[2], lines[1], lines[3], lines[3]] + lines[4:10]
     uwb = iasl.read_uwb(_put(tmp_path / "uwb.csv", lines))
-    assert [(s.name, s.n_affected) for s in uwb.cleaning] == [("sort by time", 2), ("drop duplicate rows", 1)]
+    assert [(s.name, s.n_affected) for s in uwb.cleaning] == [("rows sorted by time", 2), ("repeated rows dropped", 1)]
     assert len(uwb.ranges) == 9
 
 

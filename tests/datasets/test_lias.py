@@ -84,7 +84,7 @@ def test_read_uwb_csv_values_order_and_quirks(tree):
     assert np.diff(t_s).max() < 0.05 and t_s[-1] > 12.0
     first = d.uwb_path.read_text().splitlines()[0].split(",")
     np.testing.assert_array_equal(r[0], np.array(first[1:], float).reshape(8, 3))  # a0-t0, a0-t1, ...
-    assert _steps(cleaning) == {"incomplete UWB rows": 4, "repeated UWB time stamps": 1, "zero ranges": 1}
+    assert _steps(cleaning) == {"incomplete UWB rows": 4, "repeated rows dropped": 1, "zero ranges -> missing": 1}
     assert np.isnan(r).sum() == 1 and np.isnan(r[:, 3, 1]).sum() == 1
     assert t_s.size == len(d.t_uwb_s) - 4 - 1
 
@@ -106,7 +106,8 @@ def test_read_mocap_csv(tree):
     assert t0 == pd.Timestamp("2022-08-15 09:59:48.214") + pd.Timedelta(seconds=OFFSET_S - 1.8)
     row = d.mocap_path.read_text().splitlines()[1].split(",")
     np.testing.assert_array_equal(quat[0], np.array(row[4:], float))  # raw column order
-    assert _steps(cleaning) == {"repeated motion-capture stamps": 3}
+    assert _steps(cleaning) == {"repeated rows dropped": 3}
+    assert "motion-capture" in cleaning[0].detail and d.mocap_path.name in cleaning[0].detail
 
 
 def test_quaternion_to_rot_orders_agree():
@@ -156,7 +157,8 @@ def test_load_dynamic_shapes_ids_and_meta(fast):
                 "quaternion_spreads_m", "convention_spreads_m", "registration"):
         assert key in fast.meta
     steps = _steps(fast.cleaning)
-    assert steps["incomplete UWB rows"] == 4 and steps["repeated motion-capture stamps"] == 3
+    repeats = {s.detail.split(":")[0]: s.n_affected for s in fast.cleaning if s.name == "repeated rows dropped"}
+    assert steps["incomplete UWB rows"] == 4 and repeats["motion_capture_dynamic_exp_fast.csv"] == 3
     assert steps["truth outside the UWB span"] > 0
 
 
@@ -348,7 +350,7 @@ def test_uwb_failure_values_become_nan_and_are_counted(tree, tmp_path):
     lines = tree["dynamic"]["medium"].uwb_path.read_text().splitlines()
     path = fx.write_lines(tmp_path / "u.csv", _edit_line(lines, 3, _replace_field(4, "652.8")))
     _, r, _, cleaning = lias.read_uwb_csv(path, return_cleaning=True)
-    assert _steps(cleaning)["implausible ranges"] == 1 and np.isnan(r[3, 1, 0])
+    assert _steps(cleaning)["implausible ranges -> missing"] == 1 and np.isnan(r[3, 1, 0])
 
 
 MOCAP_CASES = {

@@ -97,15 +97,15 @@ def test_unsorted_packets_are_sorted_and_counted(tmp_path):
     pk = packets.read_packets(_write(tmp_path, text))
     np.testing.assert_allclose(pk.ranges.t_s, [0.0, 0.130])
     assert pk.ranges.range_m[0, 0] == 21.49
-    assert {s.name: s.n_affected for s in pk.cleaning}["rows sorted by time"] == 1
+    assert {s.name: s.n_affected for s in pk.cleaning}["rows sorted by time"] == len(lines) - 1   # every row moved
 
 
 def test_exact_duplicates_dropped_conflicts_rejected(tmp_path):
     lines = TABLE_1.splitlines()
     pk = packets.read_packets(_write(tmp_path, "\n".join(lines + [lines[3]]) + "\n"))
-    assert {s.name: s.n_affected for s in pk.cleaning}["duplicate rows dropped"] == 1
+    assert {s.name: s.n_affected for s in pk.cleaning}["repeated rows dropped"] == 1
     conflict = lines + ["1452967702506\t2\t12.99\tOK"]
-    with pytest.raises(DataFormatError, match="more than once") as exc:
+    with pytest.raises(DataFormatError, match="two different .timestamp, anchor ID. rows") as exc:
         packets.read_packets(_write(tmp_path, "\n".join(conflict) + "\n", "c.tsv"))
     assert exc.value.line == 14
 
@@ -123,7 +123,7 @@ def test_blank_lines_are_counted(tmp_path):
     ("99999999999999999999999\t1\t2.00\tOK", "out of range", "timestamp"),
     ("1452967702506\t1\tabc\tOK", "not a number", "ranging"),
     ("1452967702506\t1\tnan\tOK", "not a number", "ranging"),
-    ("1452967702506\t1\t-2.00\tOK", "finite distance", "ranging"),
+    ("1452967702506\t1\t-2.00\tOK", "negative range", "ranging"),
     ("1452967702506\t1\t2.00\tok", "neither 'OK' nor 'ERR'", "status"),
     ("1452967702506\t1\t2.00", "4 tab-separated fields", None),
     ("1452967702506\t1\t2.00\tOK\textra", "4 tab-separated fields", None),
@@ -224,6 +224,6 @@ def test_mutated_files_load_or_raise_data_format_error(tmp_path, data):
     assert np.all(np.isnan(r) | (r >= 0))
     assert np.all(np.diff(pk.ranges.t_s) > 0)
     n_rows = sum(1 for ln in text.splitlines()[1:] if ln.strip())
-    n_dup = sum(s.n_affected for s in pk.cleaning if s.name == "duplicate rows dropped")
+    n_dup = sum(s.n_affected for s in pk.cleaning if s.name == "repeated rows dropped")
     n_absent = sum(pk.n_absent.values())
     assert r.size == n_rows - n_dup + n_absent          # every row is accounted for

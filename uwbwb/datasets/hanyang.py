@@ -39,8 +39,11 @@ File format and quirks handled (each one tested)
   and RSSI. The same damage in a required column is an error.
 * ``RSSI(dBm)`` / ``RSSI_fp(dBm)`` of ``-inf`` (zero received power estimate)
   become NaN, counted. Any other non-finite required value is an error.
-  Negative measured ranges would be kept (they are measurements; the
-  ``range_error_m`` column shows them).
+* ``Distance`` follows the package's range rule
+  (:mod:`uwbwb.datasets.cleaning`): a negative range is an error, a range above
+  ``max_range_m`` (default :data:`~uwbwb.datasets.cleaning.MAX_RANGE_M`) becomes
+  NaN and is counted; 0 is kept (this format has no "no range" value). Large
+  errors within that span (NLOS) are measurements and are kept.
 * Rows out of time order are sorted, exact duplicate rows removed (both
   counted); two different rows with one ``timestamp`` are an error.
 
@@ -62,6 +65,7 @@ import pandas as pd
 
 from ..errors import DataFormatError, DataNotFoundError
 from ..types import CleaningStep, _natural_key
+from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 from .discovery import find_dataset
 from .tidy import _decode_lines, _numbers, _read_bytes
 
@@ -138,8 +142,15 @@ class StaticFile:
         return self.samples.empty
 
 
-def read_static_file(path: PathLike) -> StaticFile:
+def read_static_file(path: PathLike, *, max_range_m: float = MAX_RANGE_M) -> StaticFile:
     """Read one ``{D}m.csv`` file (format and quirks in the module docstring).
+
+    Parameters
+    ----------
+    path
+        The file.
+    max_range_m
+        Measured ranges above this become NaN (counted).
 
     Returns
     -------
@@ -150,8 +161,8 @@ def read_static_file(path: PathLike) -> StaticFile:
     DataFormatError
         Empty file, missing required column, wrong field count, a required
         value that is not a finite number, a sample after the summary lines,
-        a malformed summary line, a NUL byte inside the text, or two different
-        rows with the same time stamp.
+        a malformed summary line, a NUL byte inside the text, a negative
+        range, or two different rows with the same time stamp.
     """
     name = Path(path).name
     data = _read_bytes(path)
@@ -219,8 +230,11 @@ def read_static_file(path: PathLike) -> StaticFile:
             v[ninf] = np.nan
             steps.append(CleaningStep(f"{col} -inf -> NaN", int(ninf.sum()),
                                       f"{name}: zero received-power estimate"))
-    values, line_no, more = _order(path, values, line_no, known.index("timestamp"))
-    steps += more
+    idx, more = order_rows(path, values[:, known.index("timestamp")], line_no, what="sample", values=values)
+    values, line_no = values[idx], line_no[idx]
+    j = known.index("Distance")
+    values[:, j], ranges = check_ranges(path, values[:, j], line_no, max_range_m=max_range_m, columns=["Distance"])
+    steps += more + ranges
     t = values[:, known.index("timestamp")]
     cols = {"line": line_no, "t_s": t - t[0] if t.size else t}
     cols.update({COLUMNS[c]: values[:, j] for j, c in enumerate(known)})
@@ -258,31 +272,6 @@ def _summary_value(path: PathLike, text: str, line: int) -> float | None:
     if np.isnan(value) or not re.fullmatch(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|-inf|inf", text):
         raise DataFormatError(path, f"summary value is not a number: {text!r}", line=line)
     return value
-
-
-def _order(path: PathLike, values: np.ndarray, line_no: np.ndarray, t_col: int
-           ) -> tuple[np.ndarray, np.ndarray, list[CleaningStep]]:
-    """Sort rows by time and drop exact repeats; different rows sharing a time stamp raise."""
-    steps = []
-    name = Path(path).name
-    order = np.argsort(values[:, t_col], kind="stable")
-    moved = int(np.sum(order != np.arange(order.size)))
-    if moved:
-        steps.append(CleaningStep("sort by time", moved, f"{name}: rows out of time order"))
-    values, line_no = values[order], line_no[order]
-    same_t = np.flatnonzero(np.diff(values[:, t_col]) == 0) + 1
-    a, b = values[same_t], values[same_t - 1]
-    identical = np.all((a == b) | (np.isnan(a) & np.isnan(b)), axis=1)
-    if not identical.all():
-        i = int(same_t[~identical][0])
-        raise DataFormatError(path, f"two different rows share timestamp {float(values[i, t_col])!r} (other one on "
-                                    f"line {line_no[i - 1]})", line=int(line_no[i]))
-    if same_t.size:
-        steps.append(CleaningStep("duplicate rows", int(same_t.size), f"{name}: exact repeats removed"))
-        keep = np.ones(values.shape[0], dtype=bool)
-        keep[same_t] = False
-        values, line_no = values[keep], line_no[keep]
-    return values, line_no, steps
 
 
 # --------------------------------------------------------------------------------------------
@@ -363,7 +352,7 @@ def list_recordings(data_dir: PathLike | None = None) -> pd.DataFrame:
 
 
 def load_static(data_dir: PathLike | None = None, *, condition: str | None = None,
-                height_m: float | list[float] | None = None) -> pd.DataFrame:
+                height_m: float | list[float] | None = None, max_range_m: float = MAX_RANGE_M) -> pd.DataFrame:
     """Tidy table of all static samples, optionally for one condition / some heights.
 
     Parameters
@@ -375,6 +364,8 @@ def load_static(data_dir: PathLike | None = None, *, condition: str | None = Non
     height_m
         A tag height or a list of them, metres (e.g. ``1.0`` or ``[0.5, 2.0]``);
         None for all.
+    max_range_m
+        Measured ranges above this become NaN (counted; see :func:`read_static_file`).
 
     Returns
     -------
@@ -398,7 +389,7 @@ def load_static(data_dir: PathLike | None = None, *, condition: str | None = Non
     files = _select(_scan(_static_root(data_dir)), condition, height_m).reset_index(drop=True)
     parts, counts, steps, header_only = [], [], {}, []
     for row in files.itertuples(index=False):
-        sf = read_static_file(row.path)
+        sf = read_static_file(row.path, max_range_m=max_range_m)
         if sf.header_only:
             header_only.append(row.file)
         for s in sf.cleaning:

@@ -31,8 +31,11 @@ Quirks handled (each one tested)
   cleaning step.
 * ``gt.csv`` rows whose 12 values are all zero are motion-capture dropouts:
   removed and counted.
-* A range of exactly 0 in ``uwb.csv`` is the module's "no range" value: it
-  becomes NaN, counted. Negative ranges are errors.
+* Ranges follow the package's range rule (:mod:`uwbwb.datasets.cleaning`): a
+  range of exactly 0 in ``uwb.csv`` is the module's "no range" value and becomes
+  NaN, counted; a range above ``max_range_m`` (default
+  :data:`~uwbwb.datasets.cleaning.MAX_RANGE_M`) becomes NaN, counted; a negative
+  range is an error.
 * Rows out of time order are sorted (counted); exact duplicate rows are removed
   (counted); two different rows with one time stamp are an error.
 * The rotation in ``gt.csv`` read row-major maps mocap-frame vectors into the
@@ -97,6 +100,7 @@ from scipy.optimize import least_squares
 from ..errors import DataFormatError, DataNotFoundError
 from ..geometry import yaw_rotation
 from ..types import Anchors, CleaningStep, ImuLog, RangeLog, Recording, Trajectory, _natural_key
+from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 from .discovery import find_dataset
 from .tidy import _decode_lines, _numbers, _read_bytes
 
@@ -280,32 +284,6 @@ def _read_tab(path: PathLike, what: str, columns: Callable[[int], tuple[str, ...
     return values, line_no
 
 
-def _order_rows(path: PathLike, t: np.ndarray, values: np.ndarray, line_no: np.ndarray, what: str
-                ) -> tuple[np.ndarray, list[CleaningStep]]:
-    """Row order that sorts by ``t`` and drops exact duplicate rows.
-
-    Two different rows sharing a time stamp raise :class:`DataFormatError`.
-    """
-    steps = []
-    order = np.argsort(t, kind="stable")
-    moved = int(np.sum(order != np.arange(t.size)))
-    if moved:
-        steps.append(CleaningStep("sort by time", moved, f"{Path(path).name}: {what} rows out of time order"))
-    t, values, line_no = t[order], values[order], line_no[order]
-    same_t = np.flatnonzero(np.diff(t) == 0) + 1
-    identical = np.all(values[same_t] == values[same_t - 1], axis=1)
-    if not identical.all():
-        i = int(same_t[~identical][0])
-        raise DataFormatError(path, f"two different {what} rows share time stamp {float(t[i])!r} (other one on line "
-                                    f"{line_no[i - 1]})", line=int(line_no[i]))
-    if same_t.size:
-        steps.append(CleaningStep("drop duplicate rows", int(same_t.size),
-                                  f"{Path(path).name}: exact repeats of the previous {what} row"))
-    keep = np.ones(t.size, dtype=bool)
-    keep[same_t] = False
-    return order[keep], steps
-
-
 @dataclass(frozen=True)
 class UwbFile:
     """Contents of one ``uwb.csv``.
@@ -333,7 +311,8 @@ class UwbFile:
     cleaning: tuple[CleaningStep, ...] = ()
 
 
-def read_uwb(path: PathLike, anchor_ids: Sequence[str] | None = None) -> UwbFile:
+def read_uwb(path: PathLike, anchor_ids: Sequence[str] | None = None, *,
+             max_range_m: float = MAX_RANGE_M) -> UwbFile:
     """Read ``uwb.csv`` (tab-separated; header optional; blank lines skipped).
 
     Parameters
@@ -343,6 +322,8 @@ def read_uwb(path: PathLike, anchor_ids: Sequence[str] | None = None) -> UwbFile
     anchor_ids
         Names of the ``Distance 1..N`` columns (default ``a1..aN``); their
         number must match the file.
+    max_range_m
+        Ranges above this become NaN (counted).
 
     Returns
     -------
@@ -359,19 +340,11 @@ def read_uwb(path: PathLike, anchor_ids: Sequence[str] | None = None) -> UwbFile
     elif len(anchor_ids) != n_anchors:
         raise DataFormatError(path, f"{n_anchors} distance columns but {len(anchor_ids)} anchors "
                                     f"({list(anchor_ids)})")
-    idx, steps = _order_rows(path, values[:, 0], values, line_no, "UWB")
+    idx, steps = order_rows(path, values[:, 0], line_no, what="UWB", values=values)
     values, line_no = values[idx], line_no[idx]
-    r = values[:, len(UWB_COLUMNS):].copy()
-    neg = np.argwhere(r < 0)
-    if neg.size:
-        i, k = neg[0]
-        raise DataFormatError(path, f"negative range {float(r[i, k])!r}", line=int(line_no[i]),
-                              column=f"Distance {k + 1}")
-    zero = r == 0
-    if zero.any():
-        r[zero] = np.nan
-        steps.append(CleaningStep("zero ranges -> missing", int(zero.sum()),
-                                  f"{Path(path).name}: the module reports 0 for 'no range'"))
+    r, more = check_ranges(path, values[:, len(UWB_COLUMNS):], line_no, max_range_m=max_range_m,
+                           zero_is_missing=True, columns=[f"Distance {k + 1}" for k in range(n_anchors)])
+    steps += more
     t_s = (values[:, 0] - values[0, 0]) / 1000.0
     if np.any(np.diff(t_s) <= 0):  # distinct ms stamps that collapse in floating point
         raise DataFormatError(path, "Local Time stamps too large to resolve in milliseconds")
@@ -456,12 +429,7 @@ def read_imu(path: PathLike) -> ImuFile:
     """
     values, line_no = _read_tab(path, "IMU", lambda n: IMU_COLUMNS if n == len(IMU_COLUMNS) else None,
                                 "Time, Linear acceleration X/Y/Z, Angular velocity X/Y/Z")
-    steps: list[CleaningStep] = []
-    order = np.argsort(values[:, 0], kind="stable")
-    moved = int(np.sum(order != np.arange(order.size)))
-    if moved:
-        steps.append(CleaningStep("sort by time", moved,
-                                  f"{Path(path).name}: IMU rows out of time order (order within a second kept)"))
+    order, steps = order_rows(path, values[:, 0], line_no, what="IMU", repeats="keep")  # order within a second kept
     values, line_no = values[order], line_no[order]
     stamp = values[:, 0]
     t0 = float(np.floor(stamp[0]))
@@ -514,7 +482,7 @@ def read_gt(path: PathLike) -> GtFile:
         values, line_no = values[~dropout], line_no[~dropout]
     if values.shape[0] == 0:
         raise DataFormatError(path, "no ground-truth rows left after removing all-zero dropout rows")
-    idx, more = _order_rows(path, values[:, 0], values, line_no, "ground-truth")
+    idx, more = order_rows(path, values[:, 0], line_no, what="ground-truth", values=values)
     steps += more
     values = values[idx]
     rot = values[:, 4:13].reshape(-1, 3, 3).transpose(0, 2, 1)
@@ -1075,7 +1043,7 @@ def align_imu(imu: ImuLog, truth: Trajectory, *, max_lag_s: float | None = None)
 
 def load_scenario(scenario: str = "scenario1", data_dir: PathLike | None = None, *, register: bool = True,
                   fit_yaw: bool = False, fit_range_bias: bool = True,
-                  max_offset_s: float | None = None) -> Recording:
+                  max_offset_s: float | None = None, max_range_m: float = MAX_RANGE_M) -> Recording:
     """One scenario as a :class:`~uwbwb.Recording` on the UWB clock and in the anchor frame.
 
     Parameters
@@ -1091,6 +1059,8 @@ def load_scenario(scenario: str = "scenario1", data_dir: PathLike | None = None,
         recording's containers are then *not* mutually aligned).
     fit_yaw, fit_range_bias, max_offset_s
         Passed to :func:`register_truth`.
+    max_range_m
+        Ranges above this become NaN (counted; see :func:`read_uwb`).
 
     Returns
     -------
@@ -1123,7 +1093,7 @@ def load_scenario(scenario: str = "scenario1", data_dir: PathLike | None = None,
     if yaml_path is None:
         raise DataNotFoundError(f"no {ANCHORS_FILE} in {folder} or {root}")
     anchors = read_anchors(yaml_path)
-    uwb = read_uwb(folder / UWB_FILE, anchors.ids)
+    uwb = read_uwb(folder / UWB_FILE, anchors.ids, max_range_m=max_range_m)
     imu_path, gt_path = folder / IMU_FILE, folder / GT_FILE
     imu = read_imu(imu_path) if imu_path.is_file() else None
     gt = read_gt(gt_path) if gt_path.is_file() else None

@@ -33,8 +33,10 @@ the 24 ranges a0-t0, a0-t1, a0-t2, a1-t0, ... a7-t2, in metres.
   the previous row's stamp): the later row is dropped and counted. A stamp that goes
   *back* in time never occurs upstream; it is reported as a
   :class:`~uwbwb.errors.DataFormatError` rather than sorted away.
-* **Zero ranges** (a failed measurement; one occurs upstream) become NaN, counted, and
-  so do ranges above ``max_range_m`` (100 m; the device's failure values such as
+* **Ranges** follow the package's range rule (:mod:`uwbwb.datasets.cleaning`): zero
+  ranges (a failed measurement; one occurs upstream) become NaN, counted, and so do
+  ranges above ``max_range_m`` (default
+  :data:`~uwbwb.datasets.cleaning.MAX_RANGE_M`; the device's failure values such as
   652.8 m appear in the extra slots upstream, never yet in a real one). Negative
   ranges cannot come from two-way ranging and raise
   :class:`~uwbwb.errors.DataFormatError`. Ordinary outliers (NLOS, a metre or two) are
@@ -89,7 +91,9 @@ import pandas as pd
 from ..errors import DataFormatError, DataNotFoundError
 from ..geometry import yaw_rotation
 from ..types import Anchors, CleaningStep, RangeLog, Recording, Trajectory
+from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 from .discovery import find_dataset
+from .tidy import _read_bytes
 
 __all__ = ["NAME", "TROLLEY_CENTROID_Z_M", "LiasTables", "list_recordings", "read_uwb_csv",
            "read_mocap_csv", "read_tables", "quaternion_to_rot", "load_dynamic", "load_static"]
@@ -130,7 +134,7 @@ def _read_lines(path: Path) -> list[str]:
     Raises DataFormatError for an empty file, undecodable bytes or a blank line
     between data lines.
     """
-    raw = path.read_bytes()
+    raw = _read_bytes(path)
     if not raw.strip():
         raise DataFormatError(path, "file is empty (expected CSV rows)", line=1)
     try:
@@ -214,16 +218,6 @@ def _seconds_since(t: pd.Series, t0: pd.Timestamp) -> np.ndarray:
     return (t - t0).dt.total_seconds().to_numpy(float)
 
 
-def _check_not_backwards(path: Path, t_s: np.ndarray, lines_no: np.ndarray, what: str) -> None:
-    back = np.flatnonzero(np.diff(t_s) < 0)
-    if back.size:
-        i = int(back[0])
-        raise DataFormatError(
-            path, f"{what} time stamp goes back {t_s[i] - t_s[i + 1]:.3f} s from line "
-                  f"{lines_no[i]}; upstream files are in time order, so the file looks spliced or "
-                  f"corrupt", line=int(lines_no[i + 1]), column="time")
-
-
 def _column_label(names, j: int, offset: int) -> str:
     name = names[j] if j < len(names) else "extra slot"
     return f"{j + offset} ({name})"
@@ -239,21 +233,10 @@ def _ordinal_lines(mask: np.ndarray, first_line: int, limit: int = 5) -> str:
     return ", ".join(str(int(i)) for i in idx) + more
 
 
-def _repeated_stamps(t_s: np.ndarray, lines: np.ndarray, what: str) -> tuple[np.ndarray, CleaningStep | None]:
-    """Rows repeating the previous row's stamp (1 ms resolution): mask and the counted step."""
-    repeat = np.concatenate([[False], np.diff(t_s) == 0])
-    if not repeat.any():
-        return repeat, None
-    shown = ", ".join(str(int(v)) for v in lines[repeat][:5]) + (", ..." if repeat.sum() > 5 else "")
-    return repeat, CleaningStep(what, int(repeat.sum()),
-                                f"rows with the same stamp as the previous row (1 ms resolution); "
-                                f"later row dropped (lines {shown})")
-
-
 # ----------------------------------------------------------------------------- UWB files
 
 def read_uwb_csv(path: str | os.PathLike, *, n_anchors: int = _N_ANCHORS, n_tags: int = _N_TAGS,
-                 max_range_m: float = 100.0, return_cleaning: bool = False):
+                 max_range_m: float = MAX_RANGE_M, return_cleaning: bool = False):
     """Read one UWB range file (dynamic or static; the format is the same).
 
     Parameters
@@ -265,7 +248,8 @@ def read_uwb_csv(path: str | os.PathLike, *, n_anchors: int = _N_ANCHORS, n_tags
     n_anchors, n_tags
         Expected numbers of anchors and tags (8 and 3 in the published set).
     max_range_m
-        Ranges above this are device failure values and become NaN (counted).
+        Ranges above this are device failure values and become NaN (counted); default
+        :data:`~uwbwb.datasets.cleaning.MAX_RANGE_M`.
     return_cleaning
         Also return the list of :class:`~uwbwb.types.CleaningStep` taken.
 
@@ -291,6 +275,9 @@ def read_uwb_csv(path: str | os.PathLike, *, n_anchors: int = _N_ANCHORS, n_tags
         backwards time stamp, an empty file, no complete row at all, or values in the extra
         slots on most rows (the file has more anchors or tags than expected).
     """
+    for name, n in (("n_anchors", n_anchors), ("n_tags", n_tags)):
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"{name} must be a positive integer, got {n!r}")
     path = Path(path)
     n_pairs = n_anchors * n_tags
     names = _pair_labels(n_anchors, n_tags)
@@ -319,7 +306,7 @@ def read_uwb_csv(path: str | os.PathLike, *, n_anchors: int = _N_ANCHORS, n_tags
     t0 = t_abs.iloc[0]
     t_all = _seconds_since(t_abs, t0)
     line_no = np.arange(1, n_rows + 1)
-    _check_not_backwards(path, t_all, line_no, "UWB")
+    order_rows(path, t_all, line_no, what="UWB", backwards="error", repeats="keep")
 
     cleaning: list[CleaningStep] = []
     complete = n_val >= n_pairs
@@ -341,29 +328,15 @@ def read_uwb_csv(path: str | os.PathLike, *, n_anchors: int = _N_ANCHORS, n_tags
             f"rows with values in the slots after the {n_pairs} ranges (anchors not in the "
             f"tables); the {n_pairs} ranges kept, the extra values ignored "
             f"(lines {_ordinal_lines(extra, 1)})"))
-    rng = values[:, :n_pairs]
-    negative = complete[:, None] & (rng < 0)
-    if negative.any():
-        i, j = (int(k[0]) for k in np.nonzero(negative))
-        raise DataFormatError(path, f"negative range {rng[i, j]:g} m", line=i + 1,
-                              column=_column_label(names, j, 2))
-
     keep = np.flatnonzero(complete)
     if keep.size == 0:
         raise DataFormatError(path, f"no row holds all {n_pairs} ranges", line=1)
-    t_s, rng, kept_lines = t_all[keep], rng[keep], line_no[keep]
-    repeat, step = _repeated_stamps(t_s, kept_lines, "repeated UWB time stamps")
-    if step is not None:
-        cleaning.append(step)
-        t_s, rng = t_s[~repeat], rng[~repeat]
-    zero, huge = rng == 0, rng > max_range_m
-    if zero.any():
-        cleaning.append(CleaningStep("zero ranges", int(zero.sum()),
-                                     "ranges of exactly 0 m (failed measurement) set to NaN"))
-    if huge.any():
-        cleaning.append(CleaningStep("implausible ranges", int(huge.sum()),
-                                     f"ranges above {max_range_m:g} m (device failure values) set to NaN"))
-    rng = np.where(zero | huge, np.nan, rng)
+    t_s, rng, kept_lines = t_all[keep], values[keep, :n_pairs], line_no[keep]
+    idx, steps = order_rows(path, t_s, kept_lines, what="UWB", backwards="error", repeats="drop_later")
+    t_s, rng, kept_lines = t_s[idx], rng[idx], kept_lines[idx]
+    rng, more = check_ranges(path, rng, kept_lines, max_range_m=max_range_m, zero_is_missing=True,
+                             columns=[_column_label(names, j, 2) for j in range(n_pairs)])
+    cleaning += steps + more
     out = (t_s, rng.reshape(-1, n_anchors, n_tags), t0)
     return out + (cleaning,) if return_cleaning else out
 
@@ -419,7 +392,7 @@ def read_mocap_csv(path: str | os.PathLike, *, return_cleaning: bool = False):
     t0 = t_abs.iloc[0]
     t_s = _seconds_since(t_abs, t0)
     line_no = np.arange(2, len(lines) + 1)
-    _check_not_backwards(path, t_s, line_no, "motion-capture")
+    order_rows(path, t_s, line_no, what="motion-capture", backwards="error", repeats="keep")
 
     cleaning: list[CleaningStep] = []
     dropout = np.all(values == 0, axis=1)
@@ -442,10 +415,9 @@ def read_mocap_csv(path: str | os.PathLike, *, return_cleaning: bool = False):
     if keep.size == 0:
         raise DataFormatError(path, "every motion-capture row is a dropout (all zeros)", line=2)
     t_s, values, kept_lines = t_s[keep], values[keep], line_no[keep]
-    repeat, step = _repeated_stamps(t_s, kept_lines, "repeated motion-capture stamps")
-    if step is not None:
-        cleaning.append(step)
-        t_s, values = t_s[~repeat], values[~repeat]
+    idx, steps = order_rows(path, t_s, kept_lines, what="motion-capture", backwards="error", repeats="drop_later")
+    cleaning += steps
+    t_s, values = t_s[idx], values[idx]
     out = (t_s, values[:, :3], values[:, 3:], t0)
     return out + (cleaning,) if return_cleaning else out
 

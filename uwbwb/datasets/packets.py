@@ -25,15 +25,17 @@ the files of several nodes with anchor positions into a
 :class:`~uwbwb.Recording`; :func:`write_packets` writes a range log back in this
 format (NaN as ``0.00 ERR``).
 
-Cleaning (counted in :attr:`PacketLog.cleaning`, never silent): ``ERR``
-statuses, anchors absent from a packet, blank lines, exact duplicate rows, and
-packets out of time order (sorted). Everything else that does not fit the
-format is a :class:`~uwbwb.DataFormatError` naming file and line.
+Cleaning (counted in :attr:`PacketLog.cleaning`, never silent), by the
+package's rules (:mod:`uwbwb.datasets.cleaning`): ``ERR`` statuses, anchors
+absent from a packet, blank lines, exact duplicate rows, packets out of time
+order (sorted), and ``OK`` ranges above ``max_range_m`` (set to NaN). A negative
+``OK`` range, and everything else that does not fit the format, is a
+:class:`~uwbwb.DataFormatError` naming file and line. UTF-8 with or without a
+byte-order mark; ``\n`` or ``\r\n`` line ends.
 """
 
 from __future__ import annotations
 
-import math
 import os
 import re
 from collections.abc import Mapping
@@ -45,6 +47,8 @@ import pandas as pd
 
 from ..errors import DataFormatError
 from ..types import Anchors, CleaningStep, RangeLog, Recording, Trajectory, _natural_key
+from .cleaning import MAX_RANGE_M, check_ranges, order_rows
+from .tidy import _decode_lines, _read_bytes
 
 __all__ = ["HEADER", "PacketLog", "load_recording", "read_packets", "write_packets"]
 
@@ -107,7 +111,8 @@ def _split(line: str) -> list[str]:
     return line.rstrip("\r\n").split("\t")
 
 
-def read_packets(path: str | os.PathLike, *, anchor_ids=None, tag_id: str | None = None) -> PacketLog:
+def read_packets(path: str | os.PathLike, *, anchor_ids=None, tag_id: str | None = None,
+                 max_range_m: float = MAX_RANGE_M) -> PacketLog:
     """Read one blind node's measurement packets.
 
     Parameters
@@ -121,6 +126,8 @@ def read_packets(path: str | os.PathLike, *, anchor_ids=None, tag_id: str | None
         (``"2"`` before ``"10"``).
     tag_id
         Label of the node; default the file stem.
+    max_range_m
+        ``OK`` ranges above this become NaN (counted).
 
     Returns
     -------
@@ -130,16 +137,14 @@ def read_packets(path: str | os.PathLike, *, anchor_ids=None, tag_id: str | None
     ------
     uwbwb.DataFormatError
         Wrong header, a row with the wrong number of fields, a time stamp that
-        is not integer milliseconds, a range that is not a finite non-negative
-        number, an unknown status or anchor, conflicting rows for the same
+        is not integer milliseconds, a range that is not a number, a negative
+        ``OK`` range, an unknown status or anchor, conflicting rows for the same
         packet and anchor, or a file without packets.
+    uwbwb.DataNotFoundError
+        No such file.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise DataFormatError(path, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    lines = text.splitlines()
+    lines = _decode_lines(path, _read_bytes(path))
     if not lines or not lines[0].strip():
         raise DataFormatError(path, f"empty file; expected the header {'<TAB>'.join(HEADER)!r}", line=1)
     head = [h.strip() for h in _split(lines[0])]
@@ -179,48 +184,31 @@ def read_packets(path: str | os.PathLike, *, anchor_ids=None, tag_id: str | None
             raise DataFormatError(path, f"status {status!r} is neither 'OK' nor 'ERR'", line=i, column="status")
         if not _FLOAT_RE.fullmatch(rng_txt):
             raise DataFormatError(path, f"ranging {rng_txt!r} is not a number (metres)", line=i, column="ranging")
-        value = float(rng_txt)
-        if status == "OK" and not (math.isfinite(value) and value >= 0):
-            raise DataFormatError(path, f"ranging {rng_txt!r} with status OK must be a finite distance >= 0 m",
-                                  line=i, column="ranging")
         stamps.append(int(ts))
         ids.append(aid)
-        values.append(value)
+        values.append(float(rng_txt))
         ok.append(status == "OK")
         line_no.append(i)
     if not stamps:
         raise DataFormatError(path, "the file holds a header but no packets", line=len(lines))
 
-    df = pd.DataFrame({"ms": np.asarray(stamps, dtype=np.int64), "anchor": ids,
-                       "range_m": np.asarray(values, float), "ok": np.asarray(ok, bool),
-                       "line": np.asarray(line_no, np.int64)})
+    ms = np.asarray(stamps, dtype=np.int64)
+    okv = np.asarray(ok, bool)
+    line_no = np.asarray(line_no, np.int64)
+    range_m = np.asarray(values, float)
     cleaning: list[CleaningStep] = []
     if n_blank:
         cleaning.append(CleaningStep("blank lines skipped", n_blank, "empty lines between packets"))
-
-    # time order: packets are written as formed; sort (stably) if they are not
-    n_back = int(np.sum(np.diff(df["ms"].to_numpy()) < 0))
-    if n_back:
-        df = df.sort_values("ms", kind="stable").reset_index(drop=True)
-        cleaning.append(CleaningStep("rows sorted by time", n_back,
-                                     "places where the time stamp went backwards"))
-
-    # the same (packet, anchor) twice: identical rows are dropped, conflicting ones are an error
-    key = ["ms", "anchor"]
-    dup = df.duplicated(key, keep=False)
-    if dup.any():
-        d = df[dup]
-        same = d.groupby(key).agg(r=("range_m", "nunique"), s=("ok", "nunique"))
-        bad = same[(same.r > 1) | (same.s > 1)]
-        if len(bad):
-            ms, aid = bad.index[0]
-            rows = d[(d.ms == ms) & (d.anchor == aid)]["line"].tolist()
-            raise DataFormatError(path, f"packet {ms} reports anchor {aid!r} more than once with different "
-                                        f"values (lines {rows})", line=int(rows[1]))
-        n_dup = int(df.duplicated(key).sum())
-        df = df.drop_duplicates(key).reset_index(drop=True)
-        cleaning.append(CleaningStep("duplicate rows dropped", n_dup,
-                                     "exact repeats of a (timestamp, anchor ID) row"))
+    # time order (sorted if need be) and repeats of a (packet, anchor) row (exact ones dropped, others an error)
+    range_m, steps = check_ranges(path, range_m, line_no, max_range_m=max_range_m, columns=["ranging"],
+                                  ignore=~okv)
+    anchor_code, anchor_names = pd.factorize(pd.Series(ids, dtype=object))
+    idx, more = order_rows(path, ms, line_no, what="(timestamp, anchor ID)", key=anchor_code,
+                           values=np.column_stack([range_m, okv]))
+    cleaning += more + steps
+    range_m = range_m[idx]
+    df = pd.DataFrame({"ms": ms[idx], "anchor": np.asarray(anchor_names, dtype=object)[anchor_code[idx]],
+                       "range_m": range_m, "ok": okv[idx]})
 
     if anchor_ids is None:
         anchor_ids = tuple(sorted(df["anchor"].unique(), key=_natural_key))
