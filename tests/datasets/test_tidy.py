@@ -53,7 +53,8 @@ def random_recording(rng: np.random.Generator) -> Recording:
 def test_recording_round_trips_exactly(tmp_path, seed):
     rec = random_recording(np.random.default_rng(seed))
     paths = tidy.write_recording(rec, tmp_path)
-    back = tidy.load_recording(paths["ranges"], paths["anchors"], paths["truth"], name="rand")
+    # the random ranges span many magnitudes (exact float text round trip), some beyond MAX_RANGE_M
+    back = tidy.load_recording(paths["ranges"], paths["anchors"], paths["truth"], name="rand", max_range_m=np.inf)
     assert back.anchors.ids == rec.anchors.ids
     np.testing.assert_array_equal(back.anchors.pos_m, rec.anchors.pos_m)
     assert set(back.ranges) == set(rec.ranges)
@@ -225,3 +226,30 @@ def test_error_message_names_the_column(tmp_path):
     path = _write(tmp_path, "r.csv", "t_s,anchor_id,range_m\n0,A1,abc\n")
     with pytest.raises(DataFormatError, match=re.escape(f"{path}, line 2, column range_m")):
         tidy.read_ranges_csv(path)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_typed_reader_agrees_with_the_field_by_field_reader(tmp_path, seed, monkeypatch):
+    rec = random_recording(np.random.default_rng(seed))
+    paths = tidy.write_recording(rec, tmp_path)
+    text = paths["ranges"].read_text().splitlines()
+    # comments, blank lines and spaces around fields: the typed reader must still count lines right
+    text = [text[0], "# a note", ""] + [" " + ln.replace(",", " , ", 1) for ln in text[1:4]] + text[4:]
+    paths["ranges"].write_text("\n".join(text) + "\n")
+    typed = tidy.read_ranges_csv(paths["ranges"], with_cleaning=True, max_range_m=np.inf)
+    truth = tidy.read_truth_csv(paths["truth"])
+    monkeypatch.setattr(tidy, "_fast_table", lambda *a, **k: None)
+    fields = tidy.read_ranges_csv(paths["ranges"], with_cleaning=True, max_range_m=np.inf)
+    assert typed[1] == fields[1]
+    for tag, log in typed[0].items():
+        np.testing.assert_array_equal(log.t_s, fields[0][tag].t_s)
+        np.testing.assert_array_equal(log.range_m, fields[0][tag].range_m)
+        np.testing.assert_array_equal(truth[tag].pos_m, tidy.read_truth_csv(paths["truth"])[tag].pos_m)
+    # an error after the comment lines names the right line in both readers
+    bad = text[:10] + [text[10].split(",")[0] + ",A1,-1,OK,front"] + text[11:]
+    paths["ranges"].write_text("\n".join(bad) + "\n")
+    with pytest.raises(DataFormatError, match="line 11"):
+        tidy.read_ranges_csv(paths["ranges"])
+    monkeypatch.undo()
+    with pytest.raises(DataFormatError, match="line 11"):
+        tidy.read_ranges_csv(paths["ranges"])

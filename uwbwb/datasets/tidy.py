@@ -36,7 +36,10 @@ Header ``t_s,anchor_id,range_m``, optionally followed by ``status`` and/or
   share a ``t_s`` form one epoch (one row of the tag's
   :class:`~uwbwb.RangeLog`).
 * ``anchor_id`` — must be listed in the anchors file.
-* ``range_m`` — measured range, metres, ``>= 0``.
+* ``range_m`` — measured range, metres, ``>= 0`` (a negative one is an error); a
+  range above ``max_range_m`` (default
+  :data:`~uwbwb.datasets.cleaning.MAX_RANGE_M`) is a device failure value: it
+  becomes missing (NaN) and is counted in the cleaning report.
 * ``status`` (optional, default ``OK``) — ``OK`` keeps the row; ``ERR`` marks a
   failed measurement: its range becomes missing (NaN) and the row is counted in
   the recording's cleaning report; ``range_m`` may then be empty. Any other
@@ -70,12 +73,22 @@ Errors
 ------
 Any violation raises :class:`uwbwb.DataFormatError` naming the file, the line
 (1-based, as an editor shows it) and, where it applies, the column.
+
+Memory
+------
+Files are parsed into typed columns (floats, and integer codes for the few
+distinct identifiers) by pandas' C parser, without a Python object per row, so
+reading needs little more than the parsed arrays (``benchmarks/bench_tidy_memory.py``
+measures it). A file the fast parser cannot read exactly is read again field by
+field, which finds and reports the offending line.
 """
 
 from __future__ import annotations
 
+import io
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -84,6 +97,7 @@ import pandas as pd
 
 from ..errors import DataFormatError, DataNotFoundError
 from ..types import Anchors, CleaningStep, RangeLog, Recording, Trajectory, _natural_key
+from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 
 NAME = "tidy"
 
@@ -233,24 +247,138 @@ def _csv_table(path: PathLike, headers: Sequence[tuple[str, ...]], what: str
     return header, columns, line_no
 
 
-def _check_time_order(path: PathLike, t_s: np.ndarray, line_no: np.ndarray) -> None:
-    dec = np.flatnonzero(np.diff(t_s) < 0)
-    if dec.size:
-        i = int(dec[0]) + 1
-        raise DataFormatError(path, f"t_s goes backwards ({float(t_s[i])!r} after {float(t_s[i - 1])!r} on line "
-                                    f"{line_no[i - 1]}); rows must be in non-decreasing time order",
-                              line=int(line_no[i]), column="t_s")
+@dataclass
+class _Table:
+    """A tidy CSV file as typed columns.
+
+    ``floats``: column → float array (NaN only where empty fields are allowed);
+    ``codes``: identifier column → (integer code per row, stripped names);
+    ``line_no``: 1-based file line of each row.
+    """
+
+    header: tuple[str, ...]
+    floats: dict[str, np.ndarray]
+    codes: dict[str, tuple[np.ndarray, list[str]]]
+    line_no: np.ndarray
+
+    def __len__(self) -> int:
+        return self.line_no.size
 
 
-def _check_unique(path: PathLike, keys: pd.DataFrame, line_no: np.ndarray, what: str) -> None:
-    dup = keys.duplicated(keep=False).to_numpy()
-    if dup.any():
-        first_dup = keys.duplicated(keep="first").to_numpy()
-        i = int(np.flatnonzero(first_dup)[0])
-        same = np.flatnonzero((keys == keys.iloc[i]).all(axis=1).to_numpy())
-        key = tuple(v.item() if isinstance(v, np.generic) else v for v in keys.iloc[i])
-        raise DataFormatError(path, f"repeated {what} {key} (first on line "
-                                    f"{line_no[same[0]]})", line=int(line_no[i]))
+def _header(path: PathLike, data: bytes, headers: Sequence[tuple[str, ...]], what: str
+            ) -> tuple[int, tuple[str, ...], int]:
+    """1-based line, fields and end offset (in ``data``) of the header: the first line that is
+    neither empty nor a comment."""
+    pos, line = 0, 1
+    while pos < len(data):
+        end = data.find(b"\n", pos)
+        end = len(data) if end < 0 else end
+        ln = data[pos:end].removesuffix(b"\r").decode("utf-8")
+        if ln.strip() and not ln.startswith("#"):
+            header = tuple(f.strip() for f in ln.split(","))
+            if header not in headers:
+                expected = " or ".join(repr(",".join(h)) for h in headers)
+                raise DataFormatError(path, f"header {ln!r} is not a {what} header; expected {expected}", line=line)
+            return line, header, end + 1
+        pos, line = end + 1, line + 1
+    raise DataFormatError(path, f"empty {what} file: expected a header line {','.join(headers[-1])!r} and data lines")
+
+
+def _body_line_numbers(body: bytes, first_line: int, n_rows: int) -> np.ndarray | None:
+    """File lines of the data rows of ``body`` (the bytes after the header), skipping empty and
+    comment lines as the format says; None if they do not add up to ``n_rows``."""
+    n_lines = body.count(b"\n") + (0 if body.endswith(b"\n") or not body else 1)
+    if n_lines == n_rows:   # no empty or comment line: consecutive lines
+        return first_line + np.arange(n_rows)
+    keep = [i for i, ln in enumerate(body.split(b"\n")[:n_lines]) if ln.strip() and not ln.startswith(b"#")]
+    return first_line + np.asarray(keep, dtype=np.int64) if len(keep) == n_rows else None
+
+
+def _fast_table(path: PathLike, body: bytes, header: tuple[str, ...], header_line: int,
+                numeric: Sequence[str], empty_ok: Sequence[str]) -> _Table | None:
+    """Typed columns through pandas' C parser, or None when it cannot read the file exactly as the
+    format says (then the field-by-field reader runs and reports what is wrong)."""
+    if body.count(b"#") != body.count(b"\n#") + body.startswith(b"#"):
+        return None   # a '#' inside a line: the C parser would cut the line there
+    names = list(header) + ["__extra__"]
+    dtype = {c: (float if c in numeric else "category") for c in names}
+    try:
+        frame = pd.read_csv(io.BytesIO(body), header=None, names=names, dtype=dtype, engine="c",
+                            encoding="utf-8", keep_default_na=False, na_values={c: [""] for c in empty_ok},
+                            skipinitialspace=True, skip_blank_lines=True, comment="#", index_col=False)
+    except (ValueError, pd.errors.ParserError):
+        return None
+    if len(frame) == 0 or (frame["__extra__"].cat.categories != "").any():
+        return None   # no data, or a line with more fields than the header
+    floats = {}
+    for c in numeric:
+        v = frame[c].to_numpy(float)
+        bad = ~np.isfinite(v) if c not in empty_ok else np.isinf(v)
+        if bad.any():
+            return None
+        floats[c] = v
+    codes = {}
+    for c in header:
+        if c in numeric:
+            continue
+        col = frame[c]
+        raw = col.cat.codes.to_numpy()
+        if (raw < 0).any():
+            return None
+        code, names_c = pd.factorize(pd.Index(col.cat.categories.astype(str)).str.strip())
+        codes[c] = (code[raw].astype(np.int64), list(names_c))
+    line_no = _body_line_numbers(body, header_line + 1, len(frame))
+    if line_no is None:
+        return None
+    return _Table(header, floats, codes, line_no)
+
+
+def _slow_table(path: PathLike, headers: Sequence[tuple[str, ...]], what: str, numeric: Sequence[str],
+                empty_ok: Sequence[str]) -> _Table:
+    """The same columns, read field by field (finds and reports the first bad field)."""
+    header, cols, line_no = _csv_table(path, headers, what)
+    floats = {c: _numbers(path, cols[c], line_no, c, allow_empty=c in empty_ok) for c in numeric if c in header}
+    codes = {}
+    for c in header:
+        if c not in numeric:
+            code, names = pd.factorize(pd.Series([v.strip() for v in cols[c]], dtype=object))
+            codes[c] = (code.astype(np.int64), list(names))
+    return _Table(header, floats, codes, line_no)
+
+
+def _typed_table(path: PathLike, headers: Sequence[tuple[str, ...]], what: str, numeric: Sequence[str],
+                 empty_ok: Sequence[str] = ()) -> _Table:
+    """A tidy CSV file as typed columns (:class:`_Table`); any format violation raises."""
+    data = _read_bytes(path)
+    if data.isascii() or _is_utf8(data):
+        data = data.removeprefix(b"\xef\xbb\xbf")
+        header_line, header, body_start = _header(path, data, headers, what)
+        body = data[body_start:]
+        del data
+        table = _fast_table(path, body, header, header_line, [c for c in numeric if c in header], empty_ok)
+        del body
+        if table is not None:
+            return table
+    return _slow_table(path, headers, what, numeric, empty_ok)
+
+
+def _is_utf8(data: bytes) -> bool:
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+def _identifier_codes(path: PathLike, table: _Table, column: str) -> tuple[np.ndarray, list[str]]:
+    """Codes and names of an identifier column; an empty or non-printable identifier raises."""
+    code, names = table.codes[column]
+    for k, name in enumerate(names):
+        if not name or not name.isprintable():
+            i = int(np.flatnonzero(code == k)[0])
+            raise DataFormatError(path, f"{column} must be a non-empty printable identifier, got {name!r}",
+                                  line=int(table.line_no[i]), column=column)
+    return code, names
 
 
 # --------------------------------------------------------------------------------------------
@@ -273,71 +401,74 @@ def read_anchors_csv(path: PathLike) -> Anchors:
     """
     _, cols, line_no = _csv_table(path, (ANCHORS_HEADER,), "anchors")
     ids = _identifiers(path, cols["anchor_id"], line_no, "anchor_id")
-    _check_unique(path, pd.DataFrame({"anchor_id": ids}), line_no, "anchor_id")
+    seen: dict[str, int] = {}
+    for i, a in enumerate(ids):
+        if a in seen:
+            raise DataFormatError(path, f"repeated anchor_id {a!r} (first on line {seen[a]})", line=int(line_no[i]))
+        seen[a] = int(line_no[i])
     pos = np.column_stack([_numbers(path, cols[c], line_no, c) for c in ("x_m", "y_m", "z_m")])
     return Anchors(tuple(ids), pos)
 
 
-def _read_ranges(path: PathLike, anchors: Anchors | None
+def _read_ranges(path: PathLike, anchors: Anchors | None, max_range_m: float = MAX_RANGE_M
                  ) -> tuple[dict[str, RangeLog], tuple[CleaningStep, ...]]:
-    header, cols, line_no = _csv_table(path, RANGES_HEADERS, "ranges")
-    t_s = _numbers(path, cols["t_s"], line_no, "t_s")
-    _check_time_order(path, t_s, line_no)
-    anchor_id = _identifiers(path, cols["anchor_id"], line_no, "anchor_id")
+    table = _typed_table(path, RANGES_HEADERS, "ranges", ("t_s", "range_m"), empty_ok=("range_m",))
+    header, line_no = table.header, table.line_no
+    t_s, range_m = table.floats["t_s"], table.floats["range_m"]
     n = t_s.size
+    a_code, a_names = _identifier_codes(path, table, "anchor_id")
     if "status" in header:
-        status = np.array([s.strip() for s in cols["status"]], dtype=object)
-        bad = ~np.isin(status, [STATUS_OK, STATUS_ERR])
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise DataFormatError(path, f"status must be {STATUS_OK!r} or {STATUS_ERR!r}, got "
-                                        f"{cols['status'][i]!r}", line=int(line_no[i]), column="status")
-        err = status == STATUS_ERR
+        s_code, s_names = table.codes["status"]
+        for k, name in enumerate(s_names):
+            if name not in (STATUS_OK, STATUS_ERR):
+                i = int(np.flatnonzero(s_code == k)[0])
+                raise DataFormatError(path, f"status must be {STATUS_OK!r} or {STATUS_ERR!r}, got {name!r}",
+                                      line=int(line_no[i]), column="status")
+        err = s_code == s_names.index(STATUS_ERR) if STATUS_ERR in s_names else np.zeros(n, dtype=bool)
     else:
         err = np.zeros(n, dtype=bool)
-    tag_id = (_identifiers(path, cols["tag_id"], line_no, "tag_id") if "tag_id" in header
-              else [DEFAULT_TAG] * n)
-    range_m = _numbers(path, cols["range_m"], line_no, "range_m", allow_empty=True)
+    if "tag_id" in header:
+        g_code, g_names = _identifier_codes(path, table, "tag_id")
+    else:
+        g_code, g_names = np.zeros(n, np.int64), [DEFAULT_TAG]
     missing = np.isnan(range_m) & ~err
     if missing.any():
         i = int(np.flatnonzero(missing)[0])
         raise DataFormatError(path, "range_m is empty on an OK row (mark failed measurements "
                                     "with status ERR)", line=int(line_no[i]), column="range_m")
-    negative = (range_m < 0) & ~err
-    if negative.any():
-        i = int(np.flatnonzero(negative)[0])
-        raise DataFormatError(path, f"range_m must be >= 0, got {float(range_m[i])!r}",
-                              line=int(line_no[i]), column="range_m")
-    keys = pd.DataFrame({"t_s": t_s, "anchor_id": anchor_id, "tag_id": tag_id})
-    _check_unique(path, keys, line_no, "(t_s, anchor_id, tag_id)")
     if anchors is None:
-        anchor_ids = tuple(sorted(set(anchor_id), key=_natural_key))
+        anchor_ids = tuple(sorted(a_names, key=_natural_key))
     else:
         anchor_ids = tuple(anchors.ids)
-        unknown = ~keys["anchor_id"].isin(anchor_ids).to_numpy()
-        if unknown.any():
-            i = int(np.flatnonzero(unknown)[0])
-            raise DataFormatError(path, f"anchor {anchor_id[i]!r} is not in the anchors file "
+        unknown = [k for k, a in enumerate(a_names) if a not in anchor_ids]
+        if unknown:
+            i = int(np.flatnonzero(np.isin(a_code, unknown))[0])
+            raise DataFormatError(path, f"anchor {a_names[a_code[i]]!r} is not in the anchors file "
                                         f"(known: {list(anchor_ids)})", line=int(line_no[i]),
                                   column="anchor_id")
-    col = pd.Index(anchor_ids).get_indexer(keys["anchor_id"])
+    order, steps = order_rows(path, t_s, line_no, what="ranges (t_s, anchor_id, tag_id)", backwards="error",
+                              repeats="error", key=a_code * len(g_names) + g_code)
+    del order   # rows are already in time order (a step back is an error)
+    range_m, more = check_ranges(path, range_m, line_no, max_range_m=max_range_m, columns=["range_m"], ignore=err)
+    col = pd.Index(anchor_ids).get_indexer(a_names)[a_code]
     logs: dict[str, RangeLog] = {}
-    tags = keys["tag_id"].to_numpy(dtype=object)
-    for tag in dict.fromkeys(tag_id):
-        rows = np.flatnonzero(tags == tag)
+    for k in np.unique(g_code, return_index=True)[1].argsort():   # tags in order of first appearance
+        tag = g_names[k]
+        rows = np.flatnonzero(g_code == k)
         epochs, inv = np.unique(t_s[rows], return_inverse=True)
         r = np.full((epochs.size, len(anchor_ids)), np.nan)
         keep = ~err[rows]
         r[inv[keep], col[rows][keep]] = range_m[rows][keep]
         logs[tag] = RangeLog(epochs, r, anchor_ids, tag)
-    cleaning = ()
+    cleaning = list(steps) + more
     if err.any():
-        cleaning = (CleaningStep("ERR status rows", int(err.sum()),
-                                 f"{Path(path).name}: ranges marked ERR are missing (NaN)"),)
-    return logs, cleaning
+        cleaning.insert(0, CleaningStep("ERR status rows", int(err.sum()),
+                                        f"{Path(path).name}: ranges marked ERR are missing (NaN)"))
+    return logs, tuple(cleaning)
 
 
-def read_ranges_csv(path: PathLike, anchors: Anchors | None = None, *, with_cleaning: bool = False):
+def read_ranges_csv(path: PathLike, anchors: Anchors | None = None, *, with_cleaning: bool = False,
+                    max_range_m: float = MAX_RANGE_M):
     """Range logs, one per tag, from a ranges file.
 
     Parameters
@@ -349,7 +480,9 @@ def read_ranges_csv(path: PathLike, anchors: Anchors | None = None, *, with_clea
         follow ``anchors.ids``; otherwise the columns are the identifiers found
         in the file, in natural order (``A2`` before ``A10``).
     with_cleaning
-        Also return the cleaning steps (the count of ``ERR`` rows).
+        Also return the cleaning steps (``ERR`` rows, ranges above ``max_range_m``).
+    max_range_m
+        Ranges above this become NaN (counted).
 
     Returns
     -------
@@ -357,7 +490,7 @@ def read_ranges_csv(path: PathLike, anchors: Anchors | None = None, *, with_clea
         Keyed by tag id in order of first appearance. ``range_m`` has shape
         ``(T, n_anchors)`` with NaN where a tag–anchor pair has no range.
     """
-    logs, cleaning = _read_ranges(path, anchors)
+    logs, cleaning = _read_ranges(path, anchors, max_range_m)
     return (logs, cleaning) if with_cleaning else logs
 
 
@@ -370,21 +503,21 @@ def read_truth_csv(path: PathLike) -> dict[str, Trajectory]:
         Keyed by tag id (``"tag"`` without a ``tag_id`` column), each named
         ``"truth"``, ``pos_m`` shape ``(T, 2)`` or ``(T, 3)``, metres.
     """
-    header, cols, line_no = _csv_table(path, TRUTH_HEADERS, "truth")
-    t_s = _numbers(path, cols["t_s"], line_no, "t_s")
-    _check_time_order(path, t_s, line_no)
+    table = _typed_table(path, TRUTH_HEADERS, "truth", ("t_s", "x_m", "y_m", "z_m"))
+    header, line_no, t_s = table.header, table.line_no, table.floats["t_s"]
     axes = [c for c in ("x_m", "y_m", "z_m") if c in header]
-    pos = np.column_stack([_numbers(path, cols[c], line_no, c) for c in axes])
-    tag_id = (_identifiers(path, cols["tag_id"], line_no, "tag_id") if "tag_id" in header
-              else [DEFAULT_TAG] * t_s.size)
-    _check_unique(path, pd.DataFrame({"t_s": t_s, "tag_id": tag_id}), line_no, "(t_s, tag_id)")
-    tags = np.array(tag_id, dtype=object)
-    return {tag: Trajectory(t_s[tags == tag], pos[tags == tag], name="truth")
-            for tag in dict.fromkeys(tag_id)}
+    pos = np.column_stack([table.floats[c] for c in axes])
+    if "tag_id" in header:
+        g_code, g_names = _identifier_codes(path, table, "tag_id")
+    else:
+        g_code, g_names = np.zeros(t_s.size, np.int64), [DEFAULT_TAG]
+    order_rows(path, t_s, line_no, what="truth (t_s, tag_id)", backwards="error", repeats="error", key=g_code)
+    return {g_names[k]: Trajectory(t_s[g_code == k], pos[g_code == k], name="truth")
+            for k in np.unique(g_code, return_index=True)[1].argsort()}
 
 
 def load_recording(ranges_csv: PathLike, anchors_csv: PathLike, truth_csv: PathLike | None = None,
-                   name: str | None = None) -> Recording:
+                   name: str | None = None, *, max_range_m: float = MAX_RANGE_M) -> Recording:
     """A :class:`~uwbwb.Recording` from tidy CSV files.
 
     Parameters
@@ -393,15 +526,17 @@ def load_recording(ranges_csv: PathLike, anchors_csv: PathLike, truth_csv: PathL
         The files (format in the module docstring); truth is optional.
     name
         Recording name; defaults to the ranges file name without extension.
+    max_range_m
+        Ranges above this become NaN (counted).
 
     Returns
     -------
     Recording
-        ``dataset="tidy"``; ``cleaning`` counts the ``ERR`` rows; ``meta``
-        holds the source paths.
+        ``dataset="tidy"``; ``cleaning`` counts the ``ERR`` rows and the ranges
+        above ``max_range_m``; ``meta`` holds the source paths.
     """
     anchors = read_anchors_csv(anchors_csv)
-    ranges, cleaning = _read_ranges(ranges_csv, anchors)
+    ranges, cleaning = _read_ranges(ranges_csv, anchors, max_range_m)
     truth: dict[str, Trajectory] = {}
     if truth_csv is not None:
         truth = read_truth_csv(truth_csv)
