@@ -3,6 +3,7 @@ import pytest
 
 from uwbwb.filters import kalman
 from uwbwb.filters import setnoise as F
+from uwbwb.models.motion import VelocityKick
 from uwbwb.models.setnoise import SetNoiseModel
 from uwbwb.types import SetFixLog
 
@@ -25,13 +26,13 @@ def _case(T=60, speed_mps=0.35, seed=1):
 def test_predict_is_eq3():
     state = F.pf_init([1.0, 2.0], 4)
     p = state.particles.copy()
-    p[:, [1, 3]] = [[0.5, -0.25]] * 4
-    moved = F.pf_predict(F.ParticleState(p, state.logw), 0.2, 0.0, rng=np.random.default_rng(0))
-    np.testing.assert_allclose(moved.particles[:, [0, 2]], [[1.1, 1.95]] * 4)   # old velocity moves the position
-    np.testing.assert_allclose(moved.particles[:, [1, 3]], [[0.5, -0.25]] * 4)
-    kicked = F.pf_predict(F.pf_init([0.0, 0.0], 20000), 0.1, 0.3, rng=np.random.default_rng(1))
-    np.testing.assert_allclose(kicked.particles[:, [0, 2]], 0.0)            # positions see the kick one step later
-    np.testing.assert_allclose(kicked.particles[:, [1, 3]].std(0), 0.3, rtol=0.03)
+    p[:, 2:] = [[0.5, -0.25]] * 4
+    moved = F.pf_predict(F.ParticleState(p, state.logw), 0.2, VelocityKick(0.0), rng=np.random.default_rng(0))
+    np.testing.assert_allclose(moved.particles[:, :2], [[1.1, 1.95]] * 4)   # old velocity moves the position
+    np.testing.assert_allclose(moved.particles[:, 2:], [[0.5, -0.25]] * 4)
+    kicked = F.pf_predict(F.pf_init([0.0, 0.0], 20000), 0.1, VelocityKick(0.3), rng=np.random.default_rng(1))
+    np.testing.assert_allclose(kicked.particles[:, :2], 0.0)            # positions see the kick one step later
+    np.testing.assert_allclose(kicked.particles[:, 2:].std(0), 0.3, rtol=0.03)
 
 
 def test_update_weights_are_eq9_normalised():
@@ -99,12 +100,12 @@ def test_kf_sweep_matches_the_filterpy_edge_step_by_step():
     t, z, mu, sd, truth = _case(T=25)
     sigma_d = 0.3
     res = F.kf_sweep(t, z, mu, sd, truth[0], [0.05, sigma_d])
-    state = kalman.Gaussian(np.array([truth[0, 0], 0.0, truth[0, 1], 0.0]), np.zeros((4, 4)))
+    motion = VelocityKick(sigma_d)
+    state = kalman.Gaussian(motion.initial_state(truth[0]), np.zeros((4, 4)))
     for k in range(t.size):
         if k:
-            Fm, Q = F.cv_matrices(t[k] - t[k - 1], sigma_d)
-            state = kalman.predict(state, Fm, Q)
-        state, inn = kalman.update(state, z[k] - mu[k], F.H_POS, np.diag(sd[k] ** 2))
+            state = kalman.predict(state, motion.F(t[k] - t[k - 1]), motion.Q(t[k] - t[k - 1]))
+        state, inn = kalman.update(state, z[k] - mu[k], motion.H_pos, np.diag(sd[k] ** 2))
         np.testing.assert_allclose(res.state[1, k], state.x, atol=1e-12)
         np.testing.assert_allclose(res.cov[1, k], state.P, atol=1e-12)
         assert res.nis[1, k] == pytest.approx(inn.nis, abs=1e-9)
@@ -152,7 +153,7 @@ def test_run_wrappers_use_the_model():
     kf = F.run_set_noise_kf(fixes, model, truth[0], 0.2)
     assert (pf.name, base.name, kf.name) == ("set-noise PF", "baseline PF", "set-noise KF")
     df = pf.to_frame()
-    assert list(df.columns) == ["t_s", "x_m", "vx_mps", "y_m", "vy_mps", "ess", "resampled"]
+    assert list(df.columns) == ["t_s", "x_m", "y_m", "vx_mps", "vy_mps", "ess", "resampled"]
     assert np.all((df["ess"] >= 1) & (df["ess"] <= 200))
     assert not np.allclose(pf.pos_m, base.pos_m)
     assert np.isnan(kf.ess).all() and kf.pos_m.shape == (30, 2)

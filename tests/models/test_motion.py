@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from uwbwb.models.motion import (MOTION_MODELS, RandomForce, RandomJerk, RandomWalk, make_motion_model,
+from uwbwb.models.motion import (MOTION_MODELS, RandomForce, RandomJerk, RandomWalk, VelocityKick, make_motion_model,
                                  noise_1d, transition_1d)
 
 DT = 0.5
@@ -150,3 +150,30 @@ def test_bad_parameters():
         RandomJerk.from_sigma(1.0, 0.0)
     with pytest.raises(ValueError, match="strictly increasing"):
         RandomWalk().sample_path(np.zeros(2), np.array([0.0, 0.0]), rng=np.random.default_rng(0))
+
+
+# --------------------------------------------------------------------------- velocity kick (paper 000, eq. 3)
+
+def test_velocity_kick_matrices_are_eq3():
+    m = VelocityKick(0.3)
+    assert m.state_labels == ("x_m", "y_m", "vx_mps", "vy_mps")
+    F = m.F(0.5)
+    np.testing.assert_array_equal(F, [[1, 0, 0.5, 0], [0, 1, 0, 0.5], [0, 0, 1, 0], [0, 0, 0, 1]])
+    np.testing.assert_array_equal(m.Q(0.5), np.diag([0.0, 0.0, 0.09, 0.09]))
+    np.testing.assert_array_equal(m.Q(np.array([0.1, 2.0])), np.broadcast_to(np.diag([0, 0, 0.09, 0.09]), (2, 4, 4)))
+    assert m.F(np.array([0.1, 0.2])).shape == (2, 4, 4)
+    np.testing.assert_array_equal(m.H_pos @ m.initial_state([1.0, 2.0], [3.0, 4.0]), [1.0, 2.0])
+    with pytest.raises(ValueError):
+        VelocityKick(-0.1)
+
+
+def test_velocity_kick_step_moves_with_old_velocity_then_kicks():
+    m = VelocityKick(0.3)
+    x = np.tile(m.initial_state([1.0, 2.0], [0.5, -0.25]), (20000, 1))
+    y = m.step(x, 0.2, rng=np.random.default_rng(0))
+    np.testing.assert_allclose(y[:, :2], [[1.1, 1.95]] * 20000)
+    np.testing.assert_allclose(y[:, 2:].mean(0), [0.5, -0.25], atol=0.01)
+    np.testing.assert_allclose(y[:, 2:].std(0), 0.3, rtol=0.03)
+    # the sample covariance of one step is F P F' + Q with P = 0
+    np.testing.assert_allclose(np.cov((y - m.F(0.2) @ x[0]).T), m.Q(0.2), atol=0.005)
+    np.testing.assert_array_equal(m.step(x, 0.2, rng=np.random.default_rng(0)), y)

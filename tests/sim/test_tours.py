@@ -84,37 +84,6 @@ def test_nlos_is_more_likely_where_coverage_is_poor():
     assert np.all(m.p_nlos(np.array([1.0, 15.0, 2.0])) > m.p_nlos(np.array([12.0, 8.0, 2.0])).min())
 
 
-def test_error_distribution_is_the_model_mixture():
-    cfg = dataclasses.replace(tours.TourConfig(), resolution_m=0.0, p_err_in=0.0, p_err_out=0.0,
-                              nlos_dwell_s=0.0)
-    rng = np.random.default_rng(3)
-    model = tours.draw_range_model(cfg, rng=rng)
-    pos = np.broadcast_to(np.array([2.0, 14.0, 1.3]), (20000, 2, 6, 3))
-    r, nlos = model.sample(pos, rng=rng)
-    err = r[:, 0, 0] - np.linalg.norm(pos[0, 0, 0] - model.anchor_pos_m[0]) - model.los.bias_m[0, 0]
-    p = float(model.p_nlos(pos[0, 0, 0])[0])
-    assert nlos[:, 0, 0].mean() == pytest.approx(p, abs=0.015)
-    for e in (-0.5, 0.0, 0.5, 2.0, 3.5):
-        assert np.mean(err <= e) == pytest.approx(model.error_cdf(e, p), abs=0.015)
-    q = model.error_quantile(0.05, p)
-    assert model.error_cdf(q, p) == pytest.approx(0.05)
-    x = np.linspace(-3, 8, 2001)
-    assert np.trapezoid(model.error_pdf(x, p), x) == pytest.approx(1.0, abs=1e-3)
-
-
-def test_nlos_episodes_last_the_dwell_time():
-    cfg = dataclasses.replace(tours.TourConfig(), nlos_dwell_s=2.0, p_nlos_in=0.3, p_nlos_out=0.3)
-    rng = np.random.default_rng(4)
-    model = tours.draw_range_model(cfg, rng=rng)
-    pos = np.broadcast_to(np.array([12.0, 8.0, 1.3]), (6000, 2, 6, 3))
-    _, nlos = model.sample(pos, rng=rng, dt_s=0.13)
-    s = nlos.reshape(6000, -1)
-    assert s.mean() == pytest.approx(0.3, abs=0.04)
-    starts = np.sum(s[1:] & ~s[:-1])
-    mean_episode_s = s[1:].sum() / starts * 0.13
-    assert mean_episode_s == pytest.approx(2.0, rel=0.15)
-
-
 def test_same_seed_same_numbers_and_packets_round_trip(tmp_path):
     cfg = tours.TourConfig(tour=1, pace="fast")
     a, _ = tours.simulate_tour(cfg, rng=np.random.default_rng(7))

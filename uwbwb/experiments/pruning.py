@@ -28,6 +28,7 @@ import pandas as pd
 
 from .. import metrics
 from ..filters.pruning import HEURISTICS, LABELS, PruningConfig, localize
+from ..models.ranging import NlosRangeModel
 from ..plotting import color_for, floor_plan
 from ..sim import tours as tours_mod
 from ..types import RangeLog, RangeSamples, Recording, Trajectory
@@ -766,7 +767,7 @@ def plot_coverage(config: tours_mod.TourConfig = tours_mod.TourConfig(), ax=None
     return ax
 
 
-def plot_error_histogram(errors_m, model: tours_mod.NlosRangeModel | None = None, p_nlos: float | None = None,
+def plot_error_histogram(errors_m, model: NlosRangeModel | None = None, p_nlos: float | None = None,
                          ax=None, *, bias_m: float = 0.0, label: str = "simulated", bins: int = 60):
     """Fig. 4: range-error histogram with the bimodal model density (if given)."""
     ax = ax if ax is not None else plt.subplots()[1]
@@ -784,7 +785,7 @@ def plot_error_histogram(errors_m, model: tours_mod.NlosRangeModel | None = None
 
 
 def plot_error_cdf_percentile(errors_m, ax=None, *, q: float = 5.0, label: str = "errors", color=None,
-                              model: tours_mod.NlosRangeModel | None = None, p_nlos: float | None = None,
+                              model: NlosRangeModel | None = None, p_nlos: float | None = None,
                               bias_m: float = 0.0):
     """Fig. 5: empirical CDF of range errors with the ``q``-th percentile marked."""
     ax = ax if ax is not None else plt.subplots()[1]

@@ -10,6 +10,9 @@ with ``P_k`` the position of anchor ``k``, ``d_{k,m}`` its ``m``-th range and
 ``v = 0`` (``static=True``) it is ordinary static localisation from all ranges
 of a stationary segment.
 
+The range model of eq. (1), its residuals and analytic Jacobian, is
+:class:`uwbwb.models.track.LinearTrackRanges`; this module solves it.
+
 Measurements are handled *unrolled*: one entry per (time, anchor, range)
 (:class:`~uwbwb.types.RangeSamples`), so that pruning heuristics can drop single ranges.
 
@@ -60,148 +63,12 @@ import pandas as pd
 from scipy.optimize import least_squares, minimize
 
 from ..geometry import linear_multilaterate
+from ..models.track import LinearTrackRanges, anchor_array
 from ..types import RangeLog, RangeSamples, Trajectory
 
-__all__ = ["TrajectoryFit", "fit_trajectory", "initial_guess", "objective", "residuals", "residual_jacobian"]
+__all__ = ["TrajectoryFit", "fit_trajectory", "initial_guess"]
 
-_TINY_M = 1e-9
 _MAD_TO_SIGMA = 1.4826
-
-
-# --------------------------------------------------------------------------- model (eq. 1)
-
-
-def _anchor_array(anchors) -> np.ndarray:
-    A = np.asarray(getattr(anchors, "pos_m", anchors), float)
-    if A.ndim != 2 or A.shape[1] != 3 or A.shape[0] == 0:
-        raise ValueError(f"anchors must have shape (n_anchors, 3), got {A.shape}")
-    if not np.all(np.isfinite(A)):
-        raise ValueError("anchor positions must be finite")
-    return A
-
-
-@dataclass(frozen=True)
-class _Layout:
-    """Which coordinates of ``P`` and ``v`` are unknowns; maps theta <-> (P, v)."""
-
-    dim: int
-    static: bool
-    z_m: float | None  # fixed height for dim=2
-
-    @property
-    def n_params(self) -> int:
-        return self.dim * (1 if self.static else 2)
-
-    def unpack(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        theta = np.asarray(theta, float)
-        d = self.dim
-        P = np.empty(3)
-        v = np.zeros(3)
-        P[:d] = theta[:d]
-        if d == 2:
-            P[2] = self.z_m
-        if not self.static:
-            v[:d] = theta[d: 2 * d]
-        return P, v
-
-    def pack(self, P, v) -> np.ndarray:
-        d = self.dim
-        return np.asarray(P, float)[:d].copy() if self.static else \
-            np.concatenate([np.asarray(P, float)[:d], np.asarray(v, float)[:d]])
-
-
-def _check_theta(theta, layout: _Layout) -> np.ndarray:
-    theta = np.asarray(theta, float)
-    if theta.shape != (layout.n_params,):
-        raise ValueError(f"theta must have shape ({layout.n_params},) for dim={layout.dim}, "
-                         f"static={layout.static}, got {theta.shape}")
-    return theta
-
-
-def _layout(dim, static, z_m) -> _Layout:
-    if dim not in (2, 3):
-        raise ValueError(f"dim must be 2 or 3, got {dim!r}")
-    if dim == 2:
-        if z_m is None or not np.isfinite(z_m):
-            raise ValueError("dim=2 needs the node height z_m (metres)")
-        return _Layout(2, bool(static), float(z_m))
-    return _Layout(3, bool(static), None)
-
-
-def _resid_jac(theta, t, k, d, A, layout: _Layout, want_jac: bool = True):
-    P, v = layout.unpack(theta)
-    diff = P + np.multiply.outer(t, v) - A[k]                    # (M, 3)
-    dist = np.sqrt(np.einsum("mi,mi->m", diff, diff))
-    res = dist - d
-    if not want_jac:
-        return res, None
-    u = diff[:, : layout.dim] / np.maximum(dist, _TINY_M)[:, None]   # (M, dim)
-    J = u if layout.static else np.concatenate([u, u * t[:, None]], axis=1)
-    return res, J
-
-
-def _t_rel(samples: RangeSamples, t0_s) -> np.ndarray:
-    if len(samples) == 0:
-        return samples.t_s
-    return samples.t_s - (samples.t_s[0] if t0_s is None else float(t0_s))
-
-
-def residuals(theta, samples: RangeSamples, anchors, *, dim: int = 3, static: bool = False,
-              z_m: float | None = None, t0_s: float | None = None) -> np.ndarray:
-    """Residuals of eq. (1), ``||P + v t_m - P_k|| - d_{k,m}``, shape ``(M,)``, metres.
-
-    Parameters
-    ----------
-    theta
-        Unknowns: ``[x, y, z, v_x, v_y, v_z]`` (``dim=3``), ``[x, y, v_x, v_y]``
-        (``dim=2``, height ``z_m``), without the velocity part when ``static``;
-        metres and m/s, ``P`` at time ``t0_s``.
-    samples
-        The measurements ``D`` (times in seconds).
-    anchors
-        :class:`~uwbwb.Anchors` or array ``(n_anchors, 3)``, metres.
-    dim, static, z_m
-        As in :func:`fit_trajectory`.
-    t0_s
-        Time origin of ``P`` (``t_m = t_s - t0_s``); default the first sample's
-        time, as in eq. (1) and :class:`TrajectoryFit`.
-    """
-    layout = _layout(dim, static, z_m)
-    theta = _check_theta(theta, layout)
-    A = _anchor_array(anchors)
-    return _resid_jac(theta, _t_rel(samples, t0_s), samples.anchor_index, samples.range_m, A, layout, False)[0]
-
-
-def residual_jacobian(theta, samples: RangeSamples, anchors, *, dim: int = 3, static: bool = False,
-                      z_m: float | None = None, t0_s: float | None = None) -> np.ndarray:
-    """Analytic Jacobian of :func:`residuals`, shape ``(M, n_params)``.
-
-    Row ``m`` is ``[u_m, u_m t_m]`` with ``u_m`` the unit vector from anchor
-    ``k`` to the node's position at ``t_m`` (restricted to the solved
-    coordinates); only ``u_m`` when ``static``. Parameters as in :func:`residuals`.
-    """
-    layout = _layout(dim, static, z_m)
-    theta = _check_theta(theta, layout)
-    A = _anchor_array(anchors)
-    return _resid_jac(theta, _t_rel(samples, t0_s), samples.anchor_index, samples.range_m, A, layout)[1]
-
-
-def objective(theta, samples: RangeSamples, anchors, *, dim: int = 3, static: bool = False,
-              z_m: float | None = None, t0_s: float | None = None) -> tuple[float, np.ndarray]:
-    """The sum of squares of eq. (1) and its analytic gradient (parameters as in :func:`residuals`).
-
-    Returns
-    -------
-    f : float
-        ``sum_m r_m^2``, m².
-    grad : numpy.ndarray
-        ``2 J^T r``, shape ``(n_params,)``.
-    """
-    layout = _layout(dim, static, z_m)
-    theta = _check_theta(theta, layout)
-    A = _anchor_array(anchors)
-    r, J = _resid_jac(theta, _t_rel(samples, t0_s), samples.anchor_index, samples.range_m, A, layout)
-    return float(r @ r), 2.0 * (J.T @ r)
 
 
 # --------------------------------------------------------------------------- initial guess
@@ -242,7 +109,7 @@ def initial_guess(samples: RangeSamples, anchors, *, dim: int = 3, static: bool 
     P0_m, vel_mps : numpy.ndarray
         Shape ``(3,)`` each.
     """
-    A = _anchor_array(anchors)
+    A = anchor_array(anchors)
     if dim == 2 and z_m is None:
         raise ValueError("dim=2 needs the node height z_m (metres)")
     t, R = samples.to_matrix()
@@ -337,8 +204,9 @@ class TrajectoryFit:
 
     @property
     def theta(self) -> np.ndarray:
-        """The solution in the paper's parameters (see :func:`residuals`)."""
-        return _Layout(self.dim, self.static, self.p0_m[2]).pack(self.p0_m, self.vel_mps)
+        """The solution in the paper's parameters (see :class:`~uwbwb.models.track.LinearTrackRanges`)."""
+        d = self.dim
+        return self.p0_m[:d].copy() if self.static else np.concatenate([self.p0_m[:d], self.vel_mps[:d]])
 
     @property
     def speed_mps(self) -> float:
@@ -411,11 +279,11 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
         raise ValueError(f"method must be 'bfgs' or 'least_squares', got {method!r}")
     if method == "bfgs" and loss != "linear":
         raise ValueError("a robust loss needs method='least_squares'")
-    layout = _layout(dim, static, z_m if dim == 2 else None)
-    A = _anchor_array(anchors)
+    model = LinearTrackRanges(anchors, dim, static, z_m if dim == 2 else None)
+    A = model.anchor_pos_m
     if len(samples.anchor_ids) != A.shape[0]:
         raise ValueError(f"samples have {len(samples.anchor_ids)} anchors, anchors {A.shape[0]}")
-    M, p = len(samples), layout.n_params
+    M, p = len(samples), model.n_params
     if M < p:
         raise ValueError(f"{M} ranges cannot determine {p} unknowns")
 
@@ -423,11 +291,11 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
     t_end = float(samples.t_s[-1])
     if x0 is None:
         P_init, v_init = initial_guess(samples, A, dim=dim, static=static, z_m=z_m)
-        theta0 = layout.pack(P_init, v_init)
+        theta0 = model.pack(P_init, v_init)
     elif isinstance(x0, tuple) and len(x0) == 2:
-        theta0 = layout.pack(np.asarray(x0[0], float), np.asarray(x0[1], float))
+        theta0 = model.pack(np.asarray(x0[0], float), np.asarray(x0[1], float))
     else:
-        theta0 = _check_theta(x0, layout)
+        theta0 = model.check_theta(x0)
     if not np.all(np.isfinite(theta0)):
         raise ValueError("the initial guess is not finite")
 
@@ -436,7 +304,7 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
     h = 0.5 * (t_end - t0) if (t_end > t0 and not static) else 1.0
     tc = (samples.t_s - t_mid) / h
     k, d = samples.anchor_index, samples.range_m
-    d_ = layout.dim
+    d_ = model.dim
 
     def to_internal(theta):
         if static:
@@ -452,7 +320,7 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
         return np.concatenate([Pm - v * (t_mid - t0), v])
 
     def fun_grad(q):
-        r, J = _resid_jac(q, tc, k, d, A, layout)
+        r, J = model.residuals_jacobian(q, tc, k, d)
         return float(r @ r) / M, (2.0 / M) * (J.T @ r)
 
     q0 = to_internal(theta0)
@@ -460,7 +328,7 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
         options = {"gtol": gtol, "maxiter": int(max_iter)}
         # start the quasi-Newton matrix from the Gauss-Newton Hessian (2/M) J^T J at q0 instead of the
         # identity: same BFGS iteration, far fewer steps (it matters inside residual pruning's loop)
-        J0 = _resid_jac(q0, tc, k, d, A, layout)[1]
+        J0 = model.residuals_jacobian(q0, tc, k, d)[1]
         H0 = (2.0 / M) * (J0.T @ J0)
         lam, V = np.linalg.eigh(H0)
         if lam[0] > 1e-9 * lam[-1] > 0:
@@ -469,20 +337,20 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
         res = minimize(fun_grad, q0, jac=True, method="BFGS", options=options)
         q, n_iter, n_fev, success, msg = res.x, int(res.nit), int(res.nfev), bool(res.success), str(res.message)
     else:
-        res = least_squares(lambda q: _resid_jac(q, tc, k, d, A, layout, False)[0], q0,
-                            jac=lambda q: _resid_jac(q, tc, k, d, A, layout)[1], method="trf",
+        res = least_squares(lambda q: model.residuals_jacobian(q, tc, k, d, jacobian=False)[0], q0,
+                            jac=lambda q: model.residuals_jacobian(q, tc, k, d)[1], method="trf",
                             loss=loss, f_scale=f_scale_m, gtol=1e-12, xtol=1e-12, ftol=1e-12,
                             max_nfev=int(max_iter))
         q, n_iter, n_fev, success, msg = res.x, int(res.nfev), int(res.nfev), bool(res.success), str(res.message)
 
     f, g = fun_grad(q)
     grad_norm = float(np.max(np.abs(g)))
-    r, J = _resid_jac(q, tc, k, d, A, layout)
+    r, J = model.residuals_jacobian(q, tc, k, d)
     theta = from_internal(q)
-    P, v = layout.unpack(theta)
+    P, v = model.unpack(theta)
 
     # covariance in the paper's parameters: Jacobian of eq. 1 at theta (t from t0)
-    Jp = _resid_jac(theta, samples.t_s - t0, k, d, A, layout)[1]
+    Jp = model.residuals_jacobian(theta, samples.t_s - t0, k, d)[1]
     dof = M - p
     cov = np.full((p, p), np.nan)
     if dof > 0:
@@ -492,4 +360,4 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
             cov = float(r @ r) / dof * np.linalg.inv(H)
     return TrajectoryFit(P, v, t0, t_end, float(r @ r), float(np.sqrt(f)), M, cov, success,
                          bool(success or grad_norm <= max(gtol, 1e-7)), msg, n_iter, n_fev, grad_norm,
-                         method, layout.dim, layout.static, theta0)
+                         method, model.dim, model.static, theta0)

@@ -41,8 +41,9 @@ from itertools import combinations
 import numpy as np
 
 from ..geometry import Status, multilaterate
+from ..models.track import LinearTrackRanges, anchor_array
 from ..types import RangeLog, RangeSamples
-from .nls import TrajectoryFit, _anchor_array, fit_trajectory, residuals
+from .nls import TrajectoryFit, fit_trajectory
 
 __all__ = ["HEURISTICS", "LABELS", "LocalizationResult", "PruningConfig", "ResidualPruning",
            "RobustMean", "TupleCloud", "drop_schedule", "localize", "percentile_fix", "percentile_ranges",
@@ -229,7 +230,7 @@ def tuple_fixes(range_m, anchors, *, z_m: float, t_s=None, k: int = 3,
     min_tuple_spread
         Skip tuples that are nearly collinear in plan (see module notes).
     """
-    A = _anchor_array(anchors)
+    A = anchor_array(anchors)
     R = np.asarray(range_m, float)
     if R.ndim != 2 or R.shape[1] != A.shape[0]:
         raise ValueError(f"range_m must have shape (T, {A.shape[0]}), got {R.shape}")
@@ -372,10 +373,11 @@ def residual_pruning(samples: RangeSamples, anchors, *, retention: float = 0.9, 
     kw = dict(dim=dim, static=static, z_m=z_m, method=method)
     kept = np.ones(len(samples), bool)
     fit = fit_trajectory(samples, anchors, **kw)
+    model = LinearTrackRanges(anchors, dim, static, z_m if dim == 2 else None)
     history = [fit.residual_rms_m]
     for n_drop in drop_schedule(len(samples), retention, dropout):
         idx = np.flatnonzero(kept)
-        r = residuals(fit.theta, samples, anchors, dim=dim, static=static, z_m=z_m, t0_s=fit.t0_s)[idx]
+        r = model.residuals(fit.theta, samples, t0_s=fit.t0_s)[idx]
         worst = idx[np.argsort(np.abs(r), kind="stable")[-n_drop:]]
         kept[worst] = False
         sub = samples.select(kept)

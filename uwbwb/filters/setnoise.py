@@ -1,7 +1,7 @@
 """Set-noise particle filter, its set-blind baseline, and the exact set-noise Kalman filter (paper 000).
 
-Model (paper 000, eqs. 2–6). State ``X = [x, ẋ, y, ẏ]`` (m, m/s); between fixes
-``T`` seconds apart (eq. 3)::
+Model (paper 000, eqs. 2–6). Motion: :class:`uwbwb.models.motion.VelocityKick`, state
+``[x, y, ẋ, ẏ]`` (m, m/s); between fixes ``T`` seconds apart (eq. 3)::
 
     x ← x + T ẋ,   ẋ ← ẋ + N(0, σ_d)      (same for y)
 
@@ -30,11 +30,17 @@ fix is preceded by one prediction over the actual interval ``T = t_k − t_{k−
 The PF equations are implemented at three levels:
 
 * :func:`pf_init`, :func:`pf_predict`, :func:`pf_update`, :func:`pf_estimate`,
-  :func:`pf_resample` — the textbook steps on ``(..., K, 4)`` particles;
+  :func:`pf_resample` — the textbook steps on ``(..., K, 4)`` particles, the prediction
+  being the motion model's own :meth:`~uwbwb.models.motion.VelocityKick.step`;
 * :func:`reference_pf` — one filter run written with those steps (the readable
   reference, and the "per-trial loop" of ``benchmarks/bench_setnoise_pf.py``);
 * :func:`pf_sweep` — the Monte Carlo sweep: filter variants × trials × σ_d values
-  as leading array axes, processed in cache-sized blocks with in-place updates.
+  as leading array axes, processed in cache-sized blocks with in-place updates (eq. 3
+  written out per state component; tested to reproduce :func:`reference_pf`).
+
+The Kalman filter (:func:`kf_sweep`) runs the same model in closed form per axis; it is
+tested against the generic Kalman steps with :class:`~uwbwb.models.motion.VelocityKick`'s
+``F`` and ``Q``.
 """
 
 from __future__ import annotations
@@ -46,14 +52,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ..models.motion import VelocityKick
 from ..models.setnoise import SetNoiseModel, log_likelihood
 from ..types import SetFixLog
 from . import particle
 
-#: State layout.
-STATE = ("x_m", "vx_mps", "y_m", "vy_mps")
-_POS = [0, 2]
-_VEL = [1, 3]
+#: State layout of the set-noise filters (that of a 2-D :class:`~uwbwb.models.motion.VelocityKick`).
+STATE = VelocityKick(dim=2).state_labels
 
 
 # --------------------------------------------------------------------------- inputs
@@ -114,27 +119,18 @@ def pf_init(x0_m, n_particles: int, batch_shape: tuple = ()) -> ParticleState:
     if x0.shape != (2,):
         raise ValueError(f"x0_m must be (x, y), got shape {x0.shape}")
     p = np.zeros(tuple(batch_shape) + (n_particles, 4))
-    p[..., _POS] = x0
+    p[..., :2] = x0
     return ParticleState(p, np.full(tuple(batch_shape) + (n_particles,), -np.log(n_particles)))
 
 
-def pf_predict(state: ParticleState, dt_s: float, sigma_d_mps, *, rng: np.random.Generator) -> ParticleState:
-    """Eq. 3: ``x ← x + T ẋ``, ``ẋ ← ẋ + N(0, σ_d)`` per axis (positions move with the old velocity).
-
-    ``sigma_d_mps`` is a scalar or broadcastable to the batch shape ``(...)``.
-    """
-    p = state.particles.copy()
-    p[..., _POS] += dt_s * p[..., _VEL]
-    sd = np.asarray(sigma_d_mps, float)[..., None, None]
-    # draws ordered axis-major, (2, ..., K), the order pf_sweep uses too
-    kick = np.moveaxis(rng.standard_normal((2,) + p.shape[:-1]), 0, -1)
-    p[..., _VEL] += sd * kick
-    return ParticleState(p, state.logw)
+def pf_predict(state: ParticleState, dt_s: float, motion: VelocityKick, *, rng: np.random.Generator) -> ParticleState:
+    """Eq. 3 for every particle: ``x ← x + T ẋ``, ``ẋ ← ẋ + N(0, σ_d)`` per axis (:meth:`VelocityKick.step`)."""
+    return ParticleState(motion.step(state.particles, dt_s, rng=rng), state.logw)
 
 
 def pf_update(state: ParticleState, z_m, mu_m, sigma_m) -> ParticleState:
     """Eqs. 8–10: add eq. 9's log-likelihood of fix ``z`` (bias ``μ``, spread ``σ``) and normalise."""
-    ll = log_likelihood(state.particles[..., _POS], np.asarray(z_m)[..., None, :],
+    ll = log_likelihood(state.particles[..., :2], np.asarray(z_m)[..., None, :],
                         np.asarray(mu_m)[..., None, :], np.asarray(sigma_m)[..., None, :])
     logw, _ = particle.normalise_log_weights(state.logw + ll)
     return ParticleState(state.particles, logw)
@@ -163,7 +159,7 @@ class FilterRun:
     t_s
         Times, shape ``(T,)``, seconds.
     state
-        Posterior mean ``[x, ẋ, y, ẏ]`` after each fix, shape ``(T, 4)``.
+        Posterior mean ``[x, y, ẋ, ẏ]`` after each fix, shape ``(T, 4)``.
     ess
         Effective sample size after each update (before resampling), shape ``(T,)``;
         NaN for a Kalman filter.
@@ -183,10 +179,10 @@ class FilterRun:
     @property
     def pos_m(self) -> np.ndarray:
         """Estimated positions, shape ``(T, 2)``, metres."""
-        return self.state[:, _POS]
+        return self.state[:, :2]
 
     def to_frame(self) -> pd.DataFrame:
-        """Tidy table ``t_s, x_m, vx_mps, y_m, vy_mps, ess, resampled``."""
+        """Tidy table ``t_s, x_m, y_m, vx_mps, vy_mps, ess, resampled``."""
         df = pd.DataFrame(self.state, columns=list(STATE))
         df.insert(0, "t_s", self.t_s)
         df["ess"], df["resampled"] = self.ess, self.resampled
@@ -226,13 +222,14 @@ def reference_pf(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps: float, *, rng: np.r
     z, mu, sd = _noise_arrays(z_m, mu_m, sigma_m, t.size)
     if mu.shape != (t.size, 2):
         raise ValueError(f"reference_pf runs one filter: mu_m must be ({t.size}, 2), got {mu.shape}")
+    motion = VelocityKick(sigma_d_mps, dim=2)
     state = pf_init(x0_m, n_particles)
     est = np.empty((t.size, 4))
     ess = np.empty(t.size)
     resampled = np.zeros(t.size, bool)
     for k in range(t.size):
         if k:
-            state = pf_predict(state, dt[k], sigma_d_mps, rng=rng)
+            state = pf_predict(state, dt[k], motion, rng=rng)
         state = pf_update(state, z[k], mu[k], sd[k])
         est[k] = pf_estimate(state)
         ess[k] = particle.effective_sample_size(state.logw)
@@ -528,19 +525,6 @@ class _Rows:
 
 # --------------------------------------------------------------------------- Kalman filter
 
-def cv_matrices(dt_s: float, sigma_d_mps: float) -> tuple[np.ndarray, np.ndarray]:
-    """Transition ``F`` and process noise ``Q`` (4 × 4) of eq. 3 for the state :data:`STATE`.
-
-    The velocity kick enters after the position update, so ``Q = diag(0, σ_d², 0, σ_d²)``.
-    """
-    F1 = np.array([[1.0, dt_s], [0.0, 1.0]])
-    F = np.kron(np.eye(2), F1)
-    Q = np.diag([0.0, sigma_d_mps ** 2, 0.0, sigma_d_mps ** 2])
-    return F, Q
-
-
-H_POS = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]])
-
 
 @dataclass(frozen=True)
 class KFSweep:
@@ -568,7 +552,7 @@ class KFSweep:
 
     @property
     def pos_m(self) -> np.ndarray:
-        return self.state[..., _POS]
+        return self.state[..., :2]
 
     def mean_error_m(self, truth_m) -> np.ndarray:
         """Mean Euclidean error against ``truth_m (T, 2)``, shape ``(..., S)``."""
@@ -628,11 +612,11 @@ def kf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps) -> KFSweep:
                          a * (P01 - K1 * P00) + K0 * K1 * rk,
                          P11 - 2 * K1 * P01 + K1 * K1 * P00 + K1 * K1 * rk)
         nis[..., k] = np.sum(innov * innov / Sk, axis=-1)
-        state[..., k, 0], state[..., k, 1] = p[..., 0], v[..., 0]
-        state[..., k, 2], state[..., k, 3] = p[..., 1], v[..., 1]
-        for ax, i in enumerate((0, 2)):
-            cov[..., k, i, i], cov[..., k, i, i + 1] = P00[..., ax], P01[..., ax]
-            cov[..., k, i + 1, i], cov[..., k, i + 1, i + 1] = P01[..., ax], P11[..., ax]
+        state[..., k, :2], state[..., k, 2:] = p, v
+        for ax in (0, 1):
+            i, j = ax, ax + 2                               # position and velocity of this axis
+            cov[..., k, i, i], cov[..., k, i, j] = P00[..., ax], P01[..., ax]
+            cov[..., k, j, i], cov[..., k, j, j] = P01[..., ax], P11[..., ax]
     return KFSweep(t, sig_d, state, cov, nis)
 
 

@@ -32,6 +32,10 @@ m/s² and m/s³) are standard deviations of the driving process over one filter
 step. We relate them to the PSD by ``q = σ_w² · dt`` (the variance of the white
 process averaged over ``dt`` is ``q / dt``); for the random walk this makes
 ``Q = σ_v² dt²`` exactly the thesis' eq. (12). See :meth:`MotionModel.from_sigma`.
+
+:class:`VelocityKick` is the discrete-time constant-velocity model of Banerjee et al.
+(paper 000, eq. 3): the velocity changes by an independent ``N(0, σ_d²)`` at every step,
+whatever its length, after the position has moved with the old velocity.
 """
 
 from __future__ import annotations
@@ -43,7 +47,7 @@ from typing import ClassVar
 import numpy as np
 
 __all__ = ["MotionModel", "RandomWalk", "RandomForce", "RandomJerk", "MOTION_MODELS", "make_motion_model",
-           "transition_1d", "noise_1d"]
+           "transition_1d", "noise_1d", "VelocityKick"]
 
 
 def transition_1d(order: int, dt_s) -> np.ndarray:
@@ -334,3 +338,105 @@ def make_motion_model(name: str, *, sigma: float, dt_s: float, dim: int = 2) -> 
     except KeyError:
         raise ValueError(f"unknown motion model {name!r}; choose one of {list(MOTION_MODELS)}") from None
     return cls.from_sigma(sigma, dt_s, dim)
+
+
+@dataclass(frozen=True)
+class VelocityKick:
+    """Constant velocity with a random velocity change per step (paper 000, eq. 3).
+
+    Between fixes ``T`` seconds apart, per axis::
+
+        p ← p + T v,    v ← v + N(0, σ_d²)
+
+    so ``σ_d`` is the standard deviation of the velocity change *per step* (m/s), not a
+    spectral density: ``F(T)`` is the constant-velocity transition and
+    ``Q = diag(0, σ_d²)`` per axis for any ``T``. States are derivative-major like the other
+    models here, ``[p (dim), v (dim)]``.
+
+    The set-noise filters (:mod:`uwbwb.filters.setnoise`) use this object: the particle
+    filter's reference steps through :meth:`step`, the Kalman filter through :meth:`F` and
+    :meth:`Q`; their batched kernels are tested against it.
+
+    Attributes
+    ----------
+    sigma_d_mps
+        Standard deviation of the velocity change per step, m/s (>= 0).
+    dim
+        Number of position coordinates (2 or 3).
+    """
+
+    sigma_d_mps: float = 0.3
+    dim: int = 2
+
+    order: ClassVar[int] = 2
+    abbreviation: ClassVar[str] = "CV"
+
+    def __post_init__(self):
+        if self.dim not in (2, 3):
+            raise ValueError(f"VelocityKick.dim must be 2 or 3, got {self.dim!r}")
+        if not np.isfinite(self.sigma_d_mps) or self.sigma_d_mps < 0:
+            raise ValueError(f"VelocityKick.sigma_d_mps must be finite and >= 0, got {self.sigma_d_mps!r}")
+
+    @property
+    def n_x(self) -> int:
+        """State size, ``2 · dim``."""
+        return 2 * self.dim
+
+    @property
+    def state_labels(self) -> tuple[str, ...]:
+        """Column names of the state, e.g. ``("x_m", "y_m", "vx_mps", "vy_mps")``."""
+        axes = "xyz"[: self.dim]
+        return tuple(f"{a}_m" for a in axes) + tuple(f"v{a}_mps" for a in axes)
+
+    def F(self, dt_s) -> np.ndarray:
+        """State transition over steps ``dt_s`` (scalar or array), shape ``(..., n_x, n_x)``."""
+        return _per_axis(transition_1d(2, dt_s), self.dim)
+
+    def Q(self, dt_s) -> np.ndarray:
+        """Process noise ``diag(0, σ_d²)`` per axis, shape ``(..., n_x, n_x)`` (independent of ``dt_s``)."""
+        dt = np.asarray(dt_s, float)
+        block = np.zeros(dt.shape + (2, 2))
+        block[..., 1, 1] = self.sigma_d_mps ** 2
+        return _per_axis(block, self.dim)
+
+    @property
+    def H_pos(self) -> np.ndarray:
+        """Selection matrix of the position, shape ``(dim, n_x)``."""
+        return np.eye(self.dim, self.n_x)
+
+    def position(self, x: np.ndarray) -> np.ndarray:
+        """Positions from states ``(..., n_x)``: ``x[..., :dim]`` (metres)."""
+        return np.asarray(x)[..., : self.dim]
+
+    def velocity(self, x: np.ndarray) -> np.ndarray:
+        """Velocities from states: ``x[..., dim:]`` (m/s)."""
+        return np.asarray(x)[..., self.dim:]
+
+    def initial_state(self, pos_m, vel_mps=None) -> np.ndarray:
+        """State ``(n_x,)`` from a position and a velocity (zero if not given)."""
+        v = np.zeros(self.dim) if vel_mps is None else np.asarray(vel_mps, float)
+        x = np.concatenate([np.asarray(pos_m, float), v])
+        if x.shape != (self.n_x,):
+            raise ValueError(f"VelocityKick: parts give a state of shape {x.shape}, expected ({self.n_x},)")
+        return x
+
+    def propagate(self, x: np.ndarray, dt_s, dv_mps) -> np.ndarray:
+        """Eq. 3 with given velocity changes: ``p + dt v`` and ``v + dv`` for states ``(..., n_x)``.
+
+        ``dv_mps`` has shape ``(..., dim)`` (broadcastable to the states' velocities).
+        """
+        x = np.array(x, float, copy=True)
+        d = self.dim
+        x[..., :d] += dt_s * x[..., d:]
+        x[..., d:] += dv_mps
+        return x
+
+    def step(self, x: np.ndarray, dt_s, *, rng: np.random.Generator) -> np.ndarray:
+        """Eq. 3 with ``dv ~ N(0, σ_d²)`` per axis for states ``(..., n_x)`` (e.g. particles ``(..., K, n_x)``).
+
+        The standard normals are drawn axis-major, shape ``(dim, ...)``, the order the batched
+        particle-filter kernel draws them in.
+        """
+        x = np.asarray(x, float)
+        w = np.moveaxis(rng.standard_normal((self.dim,) + x.shape[:-1]), 0, -1)
+        return self.propagate(x, dt_s, self.sigma_d_mps * w)

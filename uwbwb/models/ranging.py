@@ -1,11 +1,14 @@
-"""Two-way-ranging measurement model, shared by simulators and calibration.
+"""Two-way-ranging measurement models, shared by simulators, calibration and estimators.
 
-A measured range relates to the true anchor–tag distance by a per-pair affine
-distortion plus noise::
+:class:`TwrRangeModel`: a measured range relates to the true anchor–tag distance by a
+per-pair affine distortion plus noise::
 
     range_meas = scale * range_true + bias + noise (+ occasional positive outlier)
 
 so the inverse used by calibration is ``range_true ≈ (range_meas - bias) / scale``.
+
+:class:`NlosRangeModel`: that LOS part plus a coverage-dependent, persistent NLOS excess
+(the bimodal error of Zupanec et al.), with its analytic error distribution.
 """
 
 from __future__ import annotations
@@ -13,6 +16,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import brentq
+from scipy.stats import norm
 
 
 def rigid_points(centroid_m: np.ndarray, yaw_rad: np.ndarray, offsets_m: np.ndarray) -> np.ndarray:
@@ -94,3 +99,163 @@ class TwrRangeModel:
         if self.resolution_m > 0:
             r = np.round(r / self.resolution_m) * self.resolution_m
         return r
+
+
+@dataclass(frozen=True)
+class NlosRangeModel:
+    """Bimodal two-way-ranging error: LOS distortion + coverage-dependent NLOS excess (Zupanec et al., Figs 4–5).
+
+    ``range = scale·d + bias + N(0, sigma²) + [NLOS]·max(N(mu, s²), 0)``, with
+    ``P(NLOS)`` = ``p_nlos_in`` inside the anchor's coverage disc and
+    ``p_nlos_out`` outside (logistic transition of width ``edge_m``), and a range
+    failing (``ERR``, NaN) with ``p_err_in`` / ``p_err_out`` likewise.
+
+    NLOS is a *state* of a node--anchor link, not a coin flip per range: a
+    two-state Markov chain per link whose NLOS episodes last ``nlos_dwell_s`` on
+    average and whose stationary NLOS probability is ``P(NLOS)`` at the node's
+    current position (obstructions persist while the node stands still). With
+    ``nlos_dwell_s = 0`` every range draws its state independently. The marginal
+    error distribution at a point is the bimodal mixture either way.
+
+    Attributes
+    ----------
+    los
+        LOS part (per node and anchor bias/scale, noise, resolution).
+    anchor_pos_m
+        Anchors, shape ``(n_anchors, 3)``.
+    coverage_m
+        Coverage radius per anchor, shape ``(n_anchors,)``.
+    p_nlos_in, p_nlos_out
+        NLOS probability inside / outside the coverage disc.
+    nlos_mean_m, nlos_sigma_m
+        Mean and standard deviation of the NLOS excess (normal, clipped at 0), metres.
+    p_err_in, p_err_out
+        Probability of a failed range (NaN) inside / outside the disc.
+    edge_m
+        Width of the logistic transition at the disc's edge, metres.
+    nlos_dwell_s
+        Mean NLOS episode of a link, seconds (0: independent draws per range).
+    """
+
+    los: TwrRangeModel
+    anchor_pos_m: np.ndarray
+    coverage_m: np.ndarray
+    p_nlos_in: float = 0.05
+    p_nlos_out: float = 0.3
+    nlos_mean_m: float = 2.5
+    nlos_sigma_m: float = 1.0
+    p_err_in: float = 0.02
+    p_err_out: float = 0.15
+    edge_m: float = 0.5
+    nlos_dwell_s: float = 3.0
+
+    def __post_init__(self):
+        A = np.array(self.anchor_pos_m, float)
+        R = np.array(self.coverage_m, float)
+        if A.ndim != 2 or A.shape[1] != 3 or R.shape != (A.shape[0],):
+            raise ValueError(f"anchor_pos_m must be (n, 3) and coverage_m (n,), got {A.shape}, {R.shape}")
+        if self.los.bias_m.shape[1] != A.shape[0]:
+            raise ValueError("the LOS model must have one column per anchor")
+        for a in (A, R):
+            a.setflags(write=False)
+        object.__setattr__(self, "anchor_pos_m", A)
+        object.__setattr__(self, "coverage_m", R)
+
+    def _outside_dist(self, d_xy_m: np.ndarray) -> np.ndarray:
+        return 1.0 / (1.0 + np.exp(-(d_xy_m - self.coverage_m) / (self.edge_m / 4)))
+
+    def outside(self, pos_m) -> np.ndarray:
+        """Degree of being outside each anchor's disc in [0, 1], shape ``(..., n_anchors)``."""
+        d = np.linalg.norm(np.asarray(pos_m, float)[..., None, :2] - self.anchor_pos_m[:, :2], axis=-1)
+        return self._outside_dist(d)
+
+    def p_nlos(self, pos_m) -> np.ndarray:
+        """NLOS probability per anchor at node positions ``(..., 3)``; shape ``(..., n_anchors)``."""
+        w = self.outside(pos_m)
+        return self.p_nlos_in + (self.p_nlos_out - self.p_nlos_in) * w
+
+    def p_err(self, pos_m) -> np.ndarray:
+        """Probability of a failed range per anchor; shape ``(..., n_anchors)``."""
+        w = self.outside(pos_m)
+        return self.p_err_in + (self.p_err_out - self.p_err_in) * w
+
+    # ------------------------------------------------------------ the error distribution (Figs 4-5)
+    def error_pdf(self, err_m, p_nlos: float, *, bias_m: float = 0.0) -> np.ndarray:
+        """Density of ``range - true range`` for a given NLOS probability (1/m).
+
+        A two-component normal mixture (the NLOS clip at 0 is ignored; it
+        removes ``Phi(-mu/s)`` of the NLOS mass). Quantisation is ignored.
+        """
+        e = np.asarray(err_m, float) - bias_m
+        s1 = max(self.los.sigma_m, 1e-9)
+        s2 = np.hypot(s1, self.nlos_sigma_m)
+        return (1 - p_nlos) * norm.pdf(e, 0, s1) + p_nlos * norm.pdf(e, self.nlos_mean_m, s2)
+
+    def error_cdf(self, err_m, p_nlos: float, *, bias_m: float = 0.0) -> np.ndarray:
+        """Cumulative distribution matching :meth:`error_pdf`."""
+        e = np.asarray(err_m, float) - bias_m
+        s1 = max(self.los.sigma_m, 1e-9)
+        s2 = np.hypot(s1, self.nlos_sigma_m)
+        return (1 - p_nlos) * norm.cdf(e, 0, s1) + p_nlos * norm.cdf(e, self.nlos_mean_m, s2)
+
+    def error_quantile(self, q: float, p_nlos: float, *, bias_m: float = 0.0) -> float:
+        """The ``q``-quantile (``0 < q < 1``) of :meth:`error_cdf`, metres."""
+        if not 0 < q < 1:
+            raise ValueError(f"q must lie in (0, 1), got {q!r}")
+        span = 10 * (self.los.sigma_m + self.nlos_sigma_m + self.nlos_mean_m) + 1
+        return float(brentq(lambda e: self.error_cdf(e, p_nlos) - q, -span, span)) + bias_m
+
+    # ------------------------------------------------------------ sampling
+    def sample(self, pos_m, *, rng: np.random.Generator, dt_s: float | None = None):
+        """Measured ranges for node positions.
+
+        Parameters
+        ----------
+        pos_m
+            Node positions at the measurement instants, shape ``(T, n_tags, n_anchors, 3)``
+            (each range may be taken at its own instant), metres.
+        rng
+            Random generator.
+        dt_s
+            Time between consecutive rows (the packet period), seconds: needed for
+            NLOS episodes (``nlos_dwell_s > 0``); without it states are independent.
+
+        Returns
+        -------
+        range_m : numpy.ndarray
+            Shape ``(T, n_tags, n_anchors)``, metres, NaN for failed ranges.
+        nlos : numpy.ndarray
+            Bool, same shape: the range carries an NLOS excess.
+        """
+        pos = np.asarray(pos_m, float)
+        n = self.anchor_pos_m.shape[0]
+        if pos.ndim != 4 or pos.shape[2:] != (n, 3):
+            raise ValueError(f"pos_m must have shape (T, n_tags, {n}, 3), got {pos.shape}")
+        d = np.linalg.norm(pos - self.anchor_pos_m, axis=-1)
+        w = self._outside_dist(np.linalg.norm(pos[..., :2] - self.anchor_pos_m[:, :2], axis=-1))
+        r = self.los.sample(d, rng=rng)
+        p_n = self.p_nlos_in + (self.p_nlos_out - self.p_nlos_in) * w
+        p_e = self.p_err_in + (self.p_err_out - self.p_err_in) * w
+        u = rng.random(d.shape)
+        if self.nlos_dwell_s > 0 and dt_s is not None and d.shape[0] > 1:
+            nlos = self._markov_states(p_n, u, dt_s)
+        else:
+            nlos = u < p_n
+        excess = np.maximum(rng.normal(self.nlos_mean_m, self.nlos_sigma_m, d.shape), 0.0)
+        if self.los.resolution_m > 0:
+            excess = np.round(excess / self.los.resolution_m) * self.los.resolution_m
+        r = r + nlos * excess
+        r[rng.random(d.shape) < p_e] = np.nan
+        return r, nlos
+
+    def _markov_states(self, p_n: np.ndarray, u: np.ndarray, dt_s: float) -> np.ndarray:
+        """NLOS states along axis 0 with stationary probability ``p_n`` (per row) and mean
+        NLOS episode ``nlos_dwell_s``: P(N->L) = a, P(L->N) = a p / (1 - p)."""
+        a = min(1.0, dt_s / self.nlos_dwell_s)
+        p = np.clip(p_n, 0.0, 0.999)
+        b = np.minimum(1.0, a * p / (1.0 - p))
+        state = np.empty(p.shape, bool)
+        state[0] = u[0] < p[0]
+        for i in range(1, p.shape[0]):
+            state[i] = np.where(state[i - 1], u[i] >= a, u[i] < b[i])
+        return state
