@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+from uwbwb.filters import kalman
 from uwbwb.filters.kalman import Gaussian, predict, update
 
 
@@ -39,3 +40,22 @@ def test_nonlinear_update_uses_h_of_x():
 def test_shape_errors_are_clear():
     with pytest.raises(ValueError, match="do not fit"):
         update(Gaussian([0.0, 0.0], np.eye(2)), [1.0, 2.0], np.eye(2)[:1], [[1.0]])
+
+
+@pytest.mark.parametrize("correlated", [False, True])
+def test_sequential_update_equals_the_batch_update(correlated, rng):
+    n, m = 7, 4
+    A = rng.normal(size=(n, n))
+    state = kalman.Gaussian(rng.normal(size=n), A @ A.T + np.eye(n))
+    H = rng.normal(size=(m, n))
+    R = np.diag(rng.uniform(0.1, 1.0, m))
+    if correlated:
+        R = R + 0.3
+    z, h = rng.normal(size=m), rng.normal(size=m)
+    batch, inn = kalman.update(state, z, H, R, h_x=h)
+    seq, parts = kalman.update_sequential(state, z, H, R, h_x=h)
+    np.testing.assert_allclose(seq.x, batch.x, atol=1e-10)
+    np.testing.assert_allclose(seq.P, batch.P, atol=1e-10)
+    assert parts.sum() == pytest.approx(inn.nis, rel=1e-10)
+    with pytest.raises(ValueError, match="non-finite"):
+        kalman.update_sequential(state, np.full(m, np.nan), H, R)

@@ -203,3 +203,11 @@ def test_inject_then_reset_keeps_zero_mean_error():
     p1, v1, q1, ba, bg = ins.inject(p, v, q, np.zeros(3), np.zeros(3), dx)
     np.testing.assert_allclose(np.concatenate([p1, v1, ba, bg]), np.concatenate([dx[:6], dx[9:]]))
     np.testing.assert_allclose(quat_to_rotvec(quat_multiply(q1, q * [1, -1, -1, -1])), dx[6:9], atol=1e-12)
+
+
+def test_block_transition_equals_the_matrix_series(rng):
+    C = dcm_from_euler(0.2, -0.3, 1.0)
+    f = np.array([0.5, -0.2, 9.6])
+    dt = 0.05
+    Adt = ins.error_dynamics(C, f) * dt
+    np.testing.assert_allclose(ins.error_transition(C, f, dt), np.eye(15) + Adt + 0.5 * Adt @ Adt, atol=1e-14)

@@ -122,3 +122,55 @@ def update(state: Gaussian, z: np.ndarray, H: np.ndarray, R: np.ndarray,
     S = _symmetric(kf.S)
     nis = float(y @ np.linalg.solve(S, y))
     return Gaussian(kf.x[:, 0], _symmetric(kf.P)), Innovation(y, S, nis)
+
+
+def update_sequential(state: Gaussian, z: np.ndarray, H: np.ndarray, R: np.ndarray,
+                      h_x: np.ndarray | None = None) -> tuple[Gaussian, np.ndarray]:
+    """The update of :func:`update`, one scalar measurement at a time (same posterior).
+
+    Correlated noise is decorrelated first: with ``R = L Lᵀ`` (Cholesky), the rows of
+    ``L⁻¹ (z − h)`` and ``L⁻¹ H`` have unit, independent noise and are applied one after
+    the other, each with a scalar Joseph-form update. With a diagonal ``R`` each row is
+    simply one measurement with its own Jacobian. Error-state filters that take every
+    TDoA or range as its own update use this; it avoids an ``m × m`` inverse and the
+    filterpy round trip per row (plain numpy, 1-D states in and out).
+
+    Returns
+    -------
+    posterior, nis_parts
+        Symmetrised posterior and the NIS of each sequential row, shape ``(m,)``; their
+        sum equals the batch NIS ``yᵀ S⁻¹ y``.
+    """
+    z = np.asarray(z, float).ravel()
+    H = np.atleast_2d(np.asarray(H, float))
+    R = np.atleast_2d(np.asarray(R, float))
+    if H.shape != (z.size, state.x.size) or R.shape != (z.size, z.size):
+        raise ValueError(f"update_sequential: z {z.shape}, H {H.shape}, R {R.shape} do not fit state of size "
+                         f"{state.x.size}")
+    y = z - (H @ state.x if h_x is None else np.asarray(h_x, float).ravel())
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(H)) and np.all(np.isfinite(R))):
+        raise ValueError("update_sequential: non-finite values; a missing measurement is left out, not passed as NaN")
+    if np.count_nonzero(R - np.diag(np.diag(R))):
+        L = np.linalg.cholesky(R)
+        y = np.linalg.solve(L, y)
+        H = np.linalg.solve(L, H)
+        r = np.ones(z.size)
+    else:
+        r = np.diag(R).copy()
+    if np.any(r <= 0):
+        raise ValueError(f"update_sequential: R must have positive variances, got {r.tolist()}")
+    x, P = state.x.copy(), np.array(state.P, copy=True)
+    nis = np.empty(z.size)
+    for i in range(z.size):
+        h = H[i]
+        Ph = P @ h
+        s = float(h @ Ph) + r[i]
+        k = Ph / s
+        innov = y[i] - float(h @ (x - state.x))   # rows after the first see the updated mean
+        nis[i] = innov * innov / s
+        x += k * innov
+        # Joseph form (I − k hᵀ) P (I − k hᵀ)ᵀ + r k kᵀ, expanded (valid for any gain k)
+        kc = k[:, None]
+        kPh = kc * Ph
+        P = P - kPh - kPh.T + s * (kc * k)
+    return Gaussian(x, _symmetric(P)), nis

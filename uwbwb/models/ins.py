@@ -172,7 +172,7 @@ def euler_from_dcm(C) -> np.ndarray:
 def yaw_jacobian(C) -> np.ndarray:
     """``∂yaw/∂δθ`` (shape ``(3,)``) for the navigation-frame attitude error ``C = Exp(δθ) Ĉ``."""
     c = np.asarray(C, float)[:, 0]
-    S = skew(c)
+    S = _skew3(c)
     return (-c[0] * S[1] + c[1] * S[0]) / (c[0] ** 2 + c[1] ** 2)
 
 
@@ -184,6 +184,28 @@ def _dcm(q) -> np.ndarray:
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def _skew3(v) -> np.ndarray:
+    """:func:`skew` of one 3-vector (the per-step path)."""
+    a, b, c = v.tolist()
+    return np.array([[0.0, -c, b], [c, 0.0, -a], [-b, a, 0.0]])
+
+
+def _exp_left(rv, q) -> np.ndarray:
+    """``Exp(rv) ⊗ q`` for one rotation vector and quaternion, normalised (the per-step path)."""
+    a, b, c = rv.tolist()
+    ang = math.sqrt(a * a + b * b + c * c)
+    k = math.sin(0.5 * ang) / ang if ang > 1e-8 else 0.5 - ang * ang / 48.0
+    rw, rx, ry, rz = math.cos(0.5 * ang), k * a, k * b, k * c
+    w, x, y, z = q.tolist()
+    out = np.array([rw * w - rx * x - ry * y - rz * z, rw * x + rx * w + ry * z - rz * y,
+                    rw * y - rx * z + ry * w + rz * x, rw * z + rx * y - ry * x + rz * w])
+    return out / math.sqrt(out @ out)
+
+
+def _yaw(C) -> float:
+    return math.atan2(C[1, 0], C[0, 0])
 
 
 def _rotate(q, rv) -> np.ndarray:
@@ -313,15 +335,27 @@ def error_dynamics(C, f_b) -> np.ndarray:
 
 
 def error_transition(C, f_b, dt_s: float) -> np.ndarray:
-    """Discrete error transition ``F = I + A Δt + ½ (A Δt)²`` over one IMU interval, shape ``(15, 15)``."""
-    Adt = error_dynamics(C, f_b) * dt_s
-    return np.eye(N_ERR) + Adt + 0.5 * Adt @ Adt
+    """Discrete error transition ``F = I + A Δt + ½ (A Δt)²`` over one IMU interval, shape ``(15, 15)``.
+
+    Written out block by block (``A²`` has only three non-zero blocks), so no 15 × 15
+    product is formed per step; equal to the expression above (tested).
+    """
+    S = _skew3(C @ f_b)
+    F = np.eye(N_ERR)
+    h = 0.5 * dt_s * dt_s
+    F[P_, V_] = dt_s * np.eye(3)
+    F[V_, TH_] = -dt_s * S
+    F[V_, BA_] = -dt_s * C
+    F[TH_, BG_] = -dt_s * C
+    F[P_, TH_] = -h * S
+    F[P_, BA_] = -h * C
+    F[V_, BG_] = h * (S @ C)
+    return F
 
 
 def inject(pos, vel, quat, b_a, b_g, dx):
     """Nominal state after adding the error estimate ``dx (15,)``: returns ``(pos, vel, quat, b_a, b_g)``."""
-    q = quat_multiply(quat_from_rotvec(dx[TH_]), quat)
-    return pos + dx[P_], vel + dx[V_], q / np.linalg.norm(q), b_a + dx[BA_], b_g + dx[BG_]
+    return pos + dx[P_], vel + dx[V_], _exp_left(dx[TH_], quat), b_a + dx[BA_], b_g + dx[BG_]
 
 
 def reset_jacobian(dtheta_rad) -> np.ndarray:
@@ -336,8 +370,8 @@ def reset_jacobian(dtheta_rad) -> np.ndarray:
     whose first-order form is the usual ``I + ½ [δθ̂ ×]``. Every other block is the identity.
     """
     phi = np.asarray(dtheta_rad, float)
-    th = float(np.linalg.norm(phi))
-    S = skew(phi)
+    th = math.sqrt(float(phi @ phi))
+    S = _skew3(phi)
     if th < 1e-6:
         a, b = 0.5 - th * th / 24.0, 1.0 / 6.0 - th * th / 120.0
     else:

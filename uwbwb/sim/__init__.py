@@ -2,9 +2,10 @@
 
 :mod:`.rig` (planar trolley with several tags), :mod:`.setnoise` (sensor-set
 facility, notebook 01), :mod:`.tours` (ceiling anchors and walking tours,
-notebook 02), :mod:`.walk` (office walk and AGV runs, notebook 03).
+notebook 02), :mod:`.walk` (office walk and AGV runs, notebook 03), :mod:`.robot` (mobile robot
+with IMU and TDoA tag, notebook 05).
 """
 
-from . import rig, setnoise, tours, walk
+from . import rig, robot, setnoise, tours, walk
 
-__all__ = ["rig", "setnoise", "tours", "walk"]
+__all__ = ["rig", "robot", "setnoise", "tours", "walk"]

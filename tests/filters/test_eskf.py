@@ -1,0 +1,239 @@
+"""Error-state UWB/INS filters: Jacobians, noise-free runs, consistency (NEES, NIS), biases,
+closed-loop reset, outlier handling, and the paper's loose filter."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from uwbwb.filters import eskf
+from uwbwb.filters.tdoa_ls import tdoa_least_squares
+from uwbwb.models.imu import GRADES, ImuErrorModel
+from uwbwb.models.ins import (NavState, dcm_from_euler, dcm_to_quat, quat_from_rotvec, quat_multiply, quat_to_dcm,
+                              quat_to_rotvec)
+from uwbwb.models.tdoa import TdoaLog, TdoaModel
+from uwbwb.sim import robot
+from uwbwb.types import EstimateStatus, Estimates
+
+QUIET = ImuErrorModel(acc_noise_density=0, gyro_noise_density=0, acc_bias_sigma_mps2=0, gyro_bias_sigma_radps=0,
+                      acc_bias_rw=0, gyro_bias_rw=0, mag_heading_sigma_rad=0)
+CLEAN = dict(outlier_rate=0.0, p_missing=0.0)
+PAPER_HALF = robot.PAPER_WAYPOINTS_M[:4]
+
+
+def _tight(cfg, **kw):
+    kw.setdefault("imu_model", GRADES["consumer"])
+    model = cfg.tdoa_model(sigma_m=max(cfg.sigma_toa_m, 0.01))
+    return eskf.TightEskf(uwb=eskf.TdoaUpdate(model, 0.1), lever_arm_m=cfg.lever_arm_m,
+                          height_m=cfg.tag_height_m, **kw)
+
+
+def _short():
+    """A two-leg run with one turn, about 9 s."""
+    return robot.broken_line(((2.0, 1.0), (3.2, 1.0), (3.2, 1.9)), turn_s=1.5, pause_s=0.5)
+
+
+def _err(run, res):
+    return np.linalg.norm(res.pos_m - run.truth.pos_m, axis=1)
+
+
+# ----------------------------------------------------------------- Jacobians
+@pytest.mark.parametrize("update", ["tdoa", "range"])
+def test_measurement_jacobian_against_finite_differences(update, rng):
+    anchors = np.array([[0, 0, 2.4], [7, 0, 2.2], [7, 5, 2.4], [0, 5, 2.2]], float)
+    lever = np.array([0.1, -0.05, 0.2])
+    p, C = np.array([3.0, 2.0, 0.3]), dcm_from_euler(0.05, -0.1, 0.8)
+    row = np.array([0.0, 0.5, 1.0, -0.3]) if update == "tdoa" else np.array([3.0, 4.0, 5.0, 3.5])
+    model = (eskf.TdoaUpdate(TdoaModel(anchors, 0.05, dim=3), None) if update == "tdoa"
+             else eskf.RangeUpdate(anchors, 0.05))
+
+    def h_of(dx):
+        Ct = quat_to_dcm(quat_from_rotvec(dx[6:9])) @ C
+        pt = p + dx[:3]
+        return model.linearise(pt + Ct @ lever, eskf._tag_jacobian(Ct, lever), row, 0).h
+
+    lin = model.linearise(p + C @ lever, eskf._tag_jacobian(C, lever), row, 0)
+    eps = 1e-6
+    J = np.column_stack([(h_of(eps * e) - h_of(-eps * e)) / (2 * eps) for e in np.eye(15)])
+    np.testing.assert_allclose(lin.H, J, atol=1e-7)
+    assert np.abs(lin.H[:, 6:9]).max() > 1e-3          # the lever arm makes attitude observable
+
+
+# ----------------------------------------------------------------- noise-free
+def test_noise_free_run_has_zero_error():
+    cfg = robot.RobotConfig(sigma_toa_m=0.0, imu=QUIET, **CLEAN)
+    run = robot.simulate(_short(), cfg, rng=np.random.default_rng(0))
+    res = _tight(cfg).run(run.imu, run.tdoa, run.x0)
+    assert np.abs(_err(run, res)).max() < 2e-4
+    np.testing.assert_allclose(res.euler_rad[:, 2], run.yaw_true_rad, atol=1e-4)   # O(Δt²) in turns
+    ins_only = _tight(cfg).run(run.imu, None, run.x0, t_s=run.truth.t_s)
+    assert _err(run, ins_only).max() < 2e-4            # the ideal IMU dead-reckons exactly too
+
+
+def test_accumulated_and_per_step_propagation_agree(rng):
+    cfg = robot.RobotConfig()
+    run = robot.simulate(robot.hold(duration_s=2.0), cfg, rng=rng)
+    a = _tight(cfg).run(run.imu, run.tdoa, run.x0, heading=run.heading)
+    b = _tight(cfg).run(run.imu, run.tdoa, run.x0, heading=run.heading, reference_step=True)
+    np.testing.assert_allclose(a.pos_m, b.pos_m, atol=1e-9)
+    np.testing.assert_allclose(a.P, b.P, atol=1e-12)
+
+
+# ----------------------------------------------------------------- consistency
+def _perturbed_start(run, P0, rng):
+    d = rng.multivariate_normal(np.zeros(15), P0)
+    x = run.x0
+    q = quat_multiply(quat_from_rotvec(-d[6:9]), x.quat)
+    return NavState(x.pos_m - d[:3], x.vel_mps - d[3:6], q / np.linalg.norm(q)), -d[9:12], -d[12:15]
+
+
+def test_monte_carlo_nees_inside_chi2_bounds():
+    """Average NEES of [δp, δv, δθ] over 12 runs stays inside its 99 % χ² band at most epochs."""
+    n_runs, motion = 12, _short()
+    cfg = robot.RobotConfig(**CLEAN)
+    nees = []
+    for s in range(n_runs):
+        rng = np.random.default_rng(100 + s)
+        run = robot.simulate(motion, cfg, rng=rng)
+        filt = _tight(cfg)
+        x0, ba0, bg0 = _perturbed_start(run, filt.initial_covariance(), rng)
+        res = filt.run(run.imu, run.tdoa, x0, heading=run.heading, acc_bias0=run.acc_bias_mps2[0] + ba0,
+                       gyro_bias0=run.gyro_bias_radps[0] + bg0)
+        k = np.searchsorted(np.asarray(run.imu.t_s), run.truth.t_s)
+        p_t, v_t, q_t = (a[np.minimum(k, len(a) - 1)] for a in run.nav_truth)
+        ep = (p_t - (res.pos_m - quat_to_dcm(res.quat) @ np.asarray(cfg.lever_arm_m)))
+        ev = v_t - res.vel_mps
+        eth = quat_to_rotvec(quat_multiply(q_t, res.quat * [1, -1, -1, -1]))
+        e = np.concatenate([ep, ev, eth], axis=1)
+        P = res.P[:, :9, :9]
+        nees.append(np.einsum("ti,tij,tj->t", e, np.linalg.inv(P), e))
+    mean = np.mean(nees, axis=0)[10:]
+    lo, hi = chi2.ppf([0.005, 0.995], 9 * n_runs) / n_runs
+    inside = np.mean((mean > lo) & (mean < hi))
+    assert inside > 0.8, (inside, mean.mean(), lo, hi)
+    assert 0.7 * 9 < mean.mean() < 1.3 * 9
+
+
+def test_nis_is_consistent_on_simulated_data():
+    cfg = robot.RobotConfig(**CLEAN)
+    run = robot.simulate(robot.broken_line(PAPER_HALF), cfg, rng=np.random.default_rng(5))
+    res = _tight(cfg).run(run.imu, run.tdoa, run.x0, heading=run.heading)
+    c = res.nis_consistency()
+    assert 0.85 < c["mean_nis_over_dof"] < 1.15, c
+    assert c["sum_lo"] * 0.97 < c["sum_nis"] < c["sum_hi"] * 1.03, c
+
+
+# ----------------------------------------------------------------- biases and the closed loop
+def test_injected_biases_are_estimated_and_the_drift_removed():
+    ba, bg = np.array([0.15, -0.1, 0.05]), np.array([0.0, 0.0, 0.01])
+    quiet_noise = replace(GRADES["industrial"], acc_bias_sigma_mps2=0.0, gyro_bias_sigma_radps=0.0, acc_bias_rw=0.0,
+                          gyro_bias_rw=0.0)
+    cfg = robot.RobotConfig(imu=quiet_noise, outage_start_s=26.0, outage_s=4.0, **CLEAN)
+    run = robot.simulate(robot.broken_line(), cfg, rng=np.random.default_rng(9))
+    biased = type(run.imu)(run.imu.t_s, run.imu.acc_mps2 + ba, run.imu.gyro_radps + bg)
+    filt = _tight(cfg, imu_model=replace(GRADES["consumer"], acc_bias_sigma_mps2=0.2, gyro_bias_sigma_radps=0.02))
+    res = filt.run(biased, run.tdoa, run.x0, heading=run.heading)
+    before = run.truth.t_s < 26.0
+    np.testing.assert_allclose(res.acc_bias_mps2[before][-1, :2], ba[:2], atol=0.03)
+    np.testing.assert_allclose(res.gyro_bias_radps[before][-1, 2], bg[2], atol=2e-3)
+    err = _err(run, res)
+    drift = 0.5 * np.linalg.norm(ba[:2]) * 4.0 ** 2        # what the uncorrected bias alone does in 4 s
+    assert err[run.outage].max() < 0.1 * drift, (err[run.outage].max(), drift)
+    # without feedback of the biases (the paper's 4 states) the outage error is the drift
+    no_bias = _tight(cfg, imu_model=replace(GRADES["consumer"], acc_bias_sigma_mps2=1e-6, gyro_bias_sigma_radps=1e-8,
+                                             acc_bias_rw=0.0, gyro_bias_rw=0.0))
+    res2 = no_bias.run(biased, run.tdoa, run.x0, heading=run.heading)
+    assert _err(run, res2)[run.outage].max() > 3 * err[run.outage].max()
+
+
+def test_closed_and_open_loop_agree_for_small_errors():
+    cfg = robot.RobotConfig(imu=GRADES["tactical"], **CLEAN)
+    run = robot.simulate(_short(), cfg, rng=np.random.default_rng(2))
+    closed = _tight(cfg, imu_model=GRADES["tactical"]).run(run.imu, run.tdoa, run.x0, heading=run.heading)
+    opened = _tight(cfg, imu_model=GRADES["tactical"], feedback=False).run(run.imu, run.tdoa, run.x0,
+                                                                          heading=run.heading)
+    assert np.abs(closed.pos_m - opened.pos_m).max() < 5e-3
+    assert np.sqrt(np.mean(_err(run, closed) ** 2)) < 0.03
+
+
+# ----------------------------------------------------------------- outliers
+def test_outlier_tests_reject_injected_outliers_and_keep_clean_ones():
+    cfg = robot.RobotConfig(outlier_rate=0.08, outlier_excess_m=(1.0, 8.0))
+    motion = robot.broken_line(PAPER_HALF)
+    run = robot.simulate(motion, cfg, rng=np.random.default_rng(4))
+    res = _tight(cfg).run(run.imu, run.tdoa, run.x0, heading=run.heading)
+    # a TDoA is bad when either of its stations carries an excess
+    ref = run.tdoa.ref
+    bad = run.outlier | run.outlier[np.arange(len(ref)), ref][:, None]
+    bad &= np.isfinite(run.tdoa.tdoa_m)
+    bad[np.arange(len(ref)), ref] = False
+    n_bad = int(bad.sum())
+    rejected = int(res.n_outliers.sum() + res.n_gated.sum())
+    assert rejected >= 0.8 * n_bad, (rejected, n_bad)
+    n_clean = int(np.isfinite(run.tdoa.tdoa_m).sum() - len(ref) - n_bad)
+    assert rejected - n_bad < 0.02 * n_clean                  # few clean TDoAs thrown away
+    clean = robot.simulate(motion, replace(cfg, outlier_rate=0.0), rng=np.random.default_rng(4))
+    res_clean = _tight(cfg).run(clean.imu, clean.tdoa, clean.x0, heading=clean.heading)
+    rmse = lambda r, x: np.sqrt(np.mean(_err(r, x) ** 2))  # noqa: E731
+    assert rmse(run, res) < 1.5 * rmse(clean, res_clean)
+    off = eskf.TightEskf(GRADES["consumer"], eskf.TdoaUpdate(cfg.tdoa_model(), None), lever_arm_m=cfg.lever_arm_m,
+                         height_m=cfg.tag_height_m, gate_prob=None)
+    assert rmse(run, off.run(run.imu, run.tdoa, run.x0, heading=run.heading)) > 2 * rmse(run, res)
+
+
+def test_single_tdoa_still_updates_through_an_outage():
+    cfg = robot.RobotConfig(outage_start_s=8.0, outage_s=5.0, **CLEAN)
+    run = robot.simulate(robot.broken_line(PAPER_HALF), cfg, rng=np.random.default_rng(7))
+    res = _tight(cfg).run(run.imu, run.tdoa, run.x0, heading=run.heading)
+    assert np.all(res.dof[run.outage] <= 1) and np.mean(res.status[run.outage] == EstimateStatus.UPDATED) > 0.9
+    est = res.to_estimates(dim=2)
+    assert isinstance(est, Estimates) and est.coverage == 1.0
+
+
+# ----------------------------------------------------------------- the paper's loose filter
+def _fixes(run, cfg):
+    m2 = TdoaModel(np.asarray(cfg.stations_m), max(cfg.sigma_toa_m, 0.01), dim=2, z_m=cfg.tag_height_m)
+    ls = tdoa_least_squares(run.tdoa, m2)
+    st = np.where(ls.ok, EstimateStatus.UPDATED, EstimateStatus.NO_ESTIMATE).astype(np.int8)
+    return Estimates(ls.t_s, np.where(ls.ok[:, None], ls.pos_m, np.nan), st, "UWB")
+
+
+def test_loose_filter_noise_free_and_its_matrices():
+    cfg = robot.RobotConfig(sigma_toa_m=0.0, imu=QUIET, **CLEAN)
+    run = robot.simulate(_short(), cfg, rng=np.random.default_rng(0))
+    loose = eskf.LooseFilter(height_m=cfg.tag_height_m, lever_arm_m=cfg.lever_arm_m)
+    still = robot.simulate(robot.hold(duration_s=5.0), cfg, rng=np.random.default_rng(0))
+    res = loose.run(still.imu, _fixes(still, cfg), still.x0, heading=still.heading)
+    assert np.abs(res.pos_m[:, :2] - still.truth.pos_m[:, :2]).max() < 1e-6
+    # moving, the method itself leaves a small error even without noise: the differenced UWB
+    # velocity lags by half its window, and levelling reads accelerations as tilt
+    res = loose.run(run.imu, _fixes(run, cfg), run.x0, heading=run.heading)
+    assert np.abs(res.pos_m[:, :2] - run.truth.pos_m[:, :2]).max() < 0.02
+    A, Q, R = loose.matrices(0.02)
+    np.testing.assert_allclose(A, [[1, 0, 0.02, 0], [0, 1, 0, 0.02], [0, 0, 1, 0], [0, 0, 0, 1]])
+    assert Q.shape == R.shape == (4, 4) and eskf.LooseFilter(dim=3).matrices(0.02)[0].shape == (6, 6)
+
+
+def test_loose_filter_gets_nothing_in_an_outage_and_drifts_where_tight_does_not():
+    cfg = robot.RobotConfig(outage_start_s=12.0, outage_s=5.0, **CLEAN)
+    run = robot.simulate(robot.broken_line(), cfg, rng=np.random.default_rng(3))
+    fixes = _fixes(run, cfg)
+    assert not fixes.has_estimate[run.outage].any()           # one TDoA: no 2-D fix
+    loose = eskf.LooseFilter(height_m=cfg.tag_height_m, lever_arm_m=cfg.lever_arm_m).run(
+        run.imu, fixes, run.x0, heading=run.heading)
+    tight = _tight(cfg).run(run.imu, run.tdoa, run.x0, heading=run.heading)
+    e_l = np.linalg.norm(loose.pos_m[:, :2] - run.truth.pos_m[:, :2], axis=1)[run.outage].max()
+    e_t = np.linalg.norm(tight.pos_m[:, :2] - run.truth.pos_m[:, :2], axis=1)[run.outage].max()
+    assert e_t < e_l, (e_t, e_l)
+
+
+def test_inputs_are_checked():
+    cfg = robot.RobotConfig()
+    with pytest.raises(ValueError, match="3-D"):
+        eskf.TdoaUpdate(TdoaModel(np.asarray(cfg.stations_m), 0.1, dim=2))
+    with pytest.raises(ValueError, match="lever_arm"):
+        eskf.TightEskf(GRADES["consumer"], eskf.RangeUpdate(np.zeros((3, 3))), lever_arm_m=[0, 0])
+    run = robot.simulate(robot.hold(duration_s=1.0), cfg, rng=np.random.default_rng(0))
+    with pytest.raises(ValueError, match="TdoaLog"):
+        eskf.TightEskf(GRADES["consumer"], eskf.RangeUpdate(np.asarray(cfg.stations_m))).run(run.imu, run.tdoa, run.x0)

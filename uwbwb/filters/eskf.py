@@ -1,0 +1,660 @@
+"""UWB/INS fusion by error-state Kalman filters (paper 004): the paper's loose filter and a tight one.
+
+Both run the strapdown mechanization of :mod:`uwbwb.models.ins` at the IMU rate and
+correct it at the UWB epochs; every prediction and update goes through
+:mod:`uwbwb.filters.kalman`. Results come back as :class:`FusionRun` (with
+:meth:`FusionRun.to_estimates` giving the common :class:`~uwbwb.types.Estimates`).
+
+**Loose — the paper's filter (eqs 5–7).** Error state ``[δP_E, δP_N, δV_E, δV_N]``
+(``dim=2``; ``dim=3`` adds the vertical pair for a flying platform), constant-velocity
+transition ``A`` with the UWB period ``T``, ``H = I`` and
+``z = [P_ins − P_uwb; V_ins − V_uwb]``. ``P_uwb`` is a UWB position fix (TDoA least
+squares after the eq-4 test); ``V_uwb`` is its backward difference over ``vel_window``
+epochs, ``(P_k − P_{k−w}) / (t_k − t_{k−w})``. The INS attitude comes, as in the paper's
+IMU, from the gyro with a complementary correction towards accelerometer levelling and,
+where there is one, the magnetometer heading (time constant ``attitude_tau_s``); the
+filter does not estimate attitude or sensor biases. Closed loop: the estimated errors are
+subtracted from the INS position and velocity and the error state is reset to zero.
+
+**Tight.** Error state ``[δp, δv, δθ, δb_a, δb_g]`` (15; :mod:`uwbwb.models.ins`),
+propagated with the IMU (``F = I + AΔt + ½(AΔt)²``, ``Q`` from the
+:class:`~uwbwb.models.imu.ImuErrorModel`). Every TDoA (or range) of an epoch is its own
+scalar update, with the Jacobian of ``h = ‖p + C l − a_j‖ − ‖p + C l − a_ref‖`` with
+respect to position *and attitude* (lever arm ``l``): first the eq-4 test drops
+implausible TDoAs, then each remaining TDoA must pass a χ²(1) innovation gate
+(``gate_prob``) against the prior, then the survivors are applied one at a time
+(decorrelated through the Cholesky factor of their reference-correlated covariance,
+:func:`~uwbwb.filters.kalman.update_sequential`). So a single TDoA still corrects the
+INS when too few stations are heard for a position fix. Optional pseudo-measurements:
+a magnetometer heading and a known tag height (a ground robot). Closed loop
+(``feedback=True``): after the epoch the error estimate is injected into the nominal
+state, the error reset to zero and ``P ← G P Gᵀ``
+(:func:`~uwbwb.models.ins.reset_jacobian`). With ``feedback=False`` the nominal INS
+runs open loop and the error state carries the whole correction (output = nominal ⊕ δx).
+
+Time: the IMU samples and the UWB epochs are merged into one time line; IMU values at
+a UWB epoch are interpolated linearly, so each update happens at its own time stamp.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.stats import chi2
+
+from ..models.imu import ImuErrorModel
+from ..models.ins import (BA_, BG_, N_ERR, P_, TH_, V_, Mechanization, NavState, _dcm, _exp_left, _skew3, _yaw,
+                          euler_from_dcm, error_transition, inject, quat_to_dcm, reset_jacobian, yaw_jacobian)
+from ..models.tdoa import TdoaLog, TdoaModel, triangle_outliers
+from ..types import EstimateStatus, Estimates, ImuLog, RangeLog
+from . import kalman
+from .ekf import Linearisation
+from .kalman import Gaussian
+
+__all__ = ["FusionRun", "HeadingLog", "LooseFilter", "RangeUpdate", "TdoaUpdate", "TightEskf", "merge_timeline"]
+
+_DEG = math.pi / 180.0
+
+
+# ====================================================================== inputs
+@dataclass(frozen=True)
+class HeadingLog:
+    """Magnetometer headings (yaw, rad, navigation frame) at times ``t_s``."""
+
+    t_s: np.ndarray
+    yaw_rad: np.ndarray
+
+    def __post_init__(self):
+        t, y = np.asarray(self.t_s, float), np.asarray(self.yaw_rad, float)
+        if t.ndim != 1 or y.shape != t.shape:
+            raise ValueError(f"HeadingLog needs t_s and yaw_rad of equal length, got {t.shape}, {y.shape}")
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(self, "yaw_rad", y)
+
+    def at(self, t_s: np.ndarray) -> np.ndarray:
+        """Heading at each of ``t_s`` (nearest sample within half a sample interval, else NaN)."""
+        t_s = np.asarray(t_s, float)
+        if self.t_s.size == 0:
+            return np.full(t_s.shape, np.nan)
+        k = np.clip(np.searchsorted(self.t_s, t_s), 1, max(self.t_s.size - 1, 1))
+        k = np.where(np.abs(self.t_s[k - 1] - t_s) <= np.abs(self.t_s[np.minimum(k, self.t_s.size - 1)] - t_s),
+                     k - 1, np.minimum(k, self.t_s.size - 1))
+        half = 0.5 * (np.median(np.diff(self.t_s)) if self.t_s.size > 1 else np.inf)
+        return np.where(np.abs(self.t_s[k] - t_s) <= half + 1e-9, self.yaw_rad[k], np.nan)
+
+
+def merge_timeline(imu: ImuLog, t_epoch_s: np.ndarray):
+    """IMU samples and UWB epochs on one time line.
+
+    Returns
+    -------
+    t_s (N,), acc_mps2 (N, 3), gyro_radps (N, 3), epoch_idx (E,)
+        The union of the IMU times and the epochs inside the IMU span, the IMU values
+        there (linear interpolation at epochs between samples), and each epoch's index
+        in ``t_s`` (−1 for epochs outside the IMU span).
+    """
+    te = np.asarray(t_epoch_s, float)
+    inside = (te >= imu.t_s[0]) & (te <= imu.t_s[-1])
+    t = np.union1d(imu.t_s, te[inside])
+    acc = np.column_stack([np.interp(t, imu.t_s, imu.acc_mps2[:, j]) for j in range(3)])
+    gyro = np.column_stack([np.interp(t, imu.t_s, imu.gyro_radps[:, j]) for j in range(3)])
+    idx = np.full(te.size, -1)
+    idx[inside] = np.searchsorted(t, te[inside])
+    return t, acc, gyro, idx
+
+
+# ====================================================================== measurement models
+def _tag_jacobian(C: np.ndarray, lever_m: np.ndarray) -> np.ndarray:
+    """``∂(p + C l)/∂δx``, shape ``(3, 15)``: identity on δp, ``−[C l ×]`` on δθ."""
+    J = np.zeros((3, N_ERR))
+    J[:, P_] = np.eye(3)
+    J[:, TH_] = -_skew3(C @ lever_m)
+    return J
+
+
+@dataclass(frozen=True)
+class TdoaUpdate:
+    """Raw TDoAs as error-state measurements (plus the eq-4 test).
+
+    Attributes
+    ----------
+    model
+        TDoA model with ``dim=3`` (anchors, per-anchor range σ, reference correlation).
+    outlier_c_m
+        ``C`` of eq. (4), metres; None disables the test.
+    """
+
+    model: TdoaModel
+    outlier_c_m: float | None = 0.1
+
+    def __post_init__(self):
+        if self.model.dim != 3:
+            raise ValueError("TdoaUpdate needs a 3-D TdoaModel (the INS state is 3-D; a known height is a "
+                             "separate pseudo-measurement)")
+
+    def screen(self, tdoa_m: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The eq-4 test over a whole log: TDoAs with the rejected ones set to NaN, and the
+        number rejected per epoch."""
+        d = np.array(tdoa_m, float)
+        if self.outlier_c_m is None:
+            return d, np.zeros(d.shape[0], int)
+        bad = triangle_outliers(d, ref, self.model.anchor_pos_m, self.outlier_c_m)
+        d[bad] = np.nan
+        return d, bad.sum(axis=1)
+
+    def linearise(self, tag_pos_m, J_tag, row, ref) -> Linearisation | None:
+        """Linearisation of one epoch's (screened) TDoAs at the tag position."""
+        if ref < 0 or np.isfinite(row).sum() < 2:
+            return None
+        z, h, H_pos, R, _ = self.model.epoch(row, tag_pos_m, int(ref))
+        return Linearisation(z, h, H_pos @ J_tag, R)
+
+
+@dataclass(frozen=True)
+class RangeUpdate:
+    """Ranges (two-way, independent noise) as error-state measurements.
+
+    Attributes
+    ----------
+    anchor_pos_m
+        ``(n_anchors, 3)``, m.
+    sigma_m
+        Range noise SD, scalar or per anchor, m.
+    bias_m
+        Common range bias subtracted from every range, m.
+    """
+
+    anchor_pos_m: np.ndarray
+    sigma_m: np.ndarray | float = 0.1
+    bias_m: float = 0.0
+
+    def __post_init__(self):
+        a = np.array(self.anchor_pos_m, float)
+        if a.ndim != 2 or a.shape[1] != 3:
+            raise ValueError(f"RangeUpdate.anchor_pos_m must be (n, 3), got {a.shape}")
+        s = np.broadcast_to(np.array(self.sigma_m, float), (a.shape[0],)).copy()
+        if np.any(~(s > 0)):
+            raise ValueError("RangeUpdate.sigma_m must be positive")
+        object.__setattr__(self, "anchor_pos_m", a)
+        object.__setattr__(self, "sigma_m", s)
+
+    def screen(self, range_m: np.ndarray, ref=None) -> tuple[np.ndarray, np.ndarray]:
+        """Ranges have no eq-4 test: returned unchanged, zero rejections."""
+        return np.asarray(range_m, float), np.zeros(len(range_m), int)
+
+    def linearise(self, tag_pos_m, J_tag, row, ref=None) -> Linearisation | None:
+        ok = np.flatnonzero(np.isfinite(row))
+        if ok.size == 0:
+            return None
+        d = tag_pos_m - self.anchor_pos_m[ok]
+        r = np.sqrt(np.einsum("ij,ij->i", d, d))
+        u = d / np.maximum(r, 1e-9)[:, None]
+        return Linearisation(row[ok] - self.bias_m, r, u @ J_tag, np.diag(self.sigma_m[ok] ** 2))
+
+
+# ====================================================================== result
+@dataclass(frozen=True)
+class FusionRun:
+    """One fusion run at the UWB epochs.
+
+    Attributes
+    ----------
+    t_s
+        Epoch times ``(T,)``, s.
+    pos_m, vel_mps
+        Tag position and IMU velocity ``(T, 3)`` (corrected output); NaN before the start.
+    quat
+        Attitude ``(T, 4)`` ``[w, x, y, z]`` body → navigation.
+    acc_bias_mps2, gyro_bias_radps
+        Estimated IMU biases ``(T, 3)`` (zero for filters that do not estimate them).
+    P
+        Error covariance after each epoch ``(T, n, n)`` (15 for the tight filter, 4/6 loose).
+    pos_cov_m2
+        Tag position covariance ``(T, 3, 3)`` (NaN in the vertical of a 2-D loose filter).
+    nis, dof
+        Sum of the epoch's update NIS and the number of scalar updates used.
+    n_outliers, n_gated
+        Per epoch: TDoAs (or fixes) rejected by the eq-4 test, and by the χ² gate.
+    status
+        :class:`~uwbwb.types.EstimateStatus` codes ``(T,)``.
+    name
+        Label.
+    """
+
+    t_s: np.ndarray
+    pos_m: np.ndarray
+    vel_mps: np.ndarray
+    quat: np.ndarray
+    acc_bias_mps2: np.ndarray
+    gyro_bias_radps: np.ndarray
+    P: np.ndarray
+    pos_cov_m2: np.ndarray
+    nis: np.ndarray
+    dof: np.ndarray
+    n_outliers: np.ndarray
+    n_gated: np.ndarray
+    status: np.ndarray
+    name: str = "fusion"
+    meta: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return self.t_s.size
+
+    @property
+    def euler_rad(self) -> np.ndarray:
+        """Roll, pitch, yaw ``(T, 3)``, rad."""
+        out = np.full((len(self), 3), np.nan)
+        ok = np.all(np.isfinite(self.quat), axis=1)
+        out[ok] = euler_from_dcm(quat_to_dcm(self.quat[ok]))
+        return out
+
+    def to_estimates(self, dim: int = 3, name: str | None = None) -> Estimates:
+        """The common result type (positions in ``dim`` coordinates)."""
+        status = self.status.copy()
+        pos = self.pos_m[:, :dim].copy()
+        pos[status == EstimateStatus.NO_ESTIMATE] = np.nan
+        return Estimates(self.t_s, pos, status, name or self.name, self.pos_cov_m2[:, :dim, :dim],
+                         self.vel_mps[:, :dim], {"nis": self.nis, "dof": self.dof, "n_outliers": self.n_outliers,
+                                                 "n_gated": self.n_gated})
+
+    def nis_consistency(self, prob: float = 0.95) -> dict[str, float]:
+        """Mean NIS per degree of freedom and the two-sided χ² bounds of the NIS sum."""
+        up = self.dof > 0
+        total = int(self.dof[up].sum())
+        if total == 0:
+            return {"n": 0, "mean_nis_over_dof": np.nan, "sum_lo": np.nan, "sum_hi": np.nan, "sum_nis": np.nan}
+        a = (1 - prob) / 2
+        s = float(self.nis[up].sum())
+        return {"n": int(up.sum()), "mean_nis_over_dof": s / total, "sum_nis": s, "sum_dof": total,
+                "sum_lo": float(chi2.ppf(a, total)), "sum_hi": float(chi2.ppf(1 - a, total))}
+
+    def to_frame(self) -> pd.DataFrame:
+        eul = np.degrees(self.euler_rad)
+        cols = {"t_s": self.t_s}
+        cols.update({f"{a}_m": self.pos_m[:, k] for k, a in enumerate("xyz")})
+        cols.update({f"v{a}_mps": self.vel_mps[:, k] for k, a in enumerate("xyz")})
+        cols.update({f"{a}_deg": eul[:, k] for k, a in enumerate(("roll", "pitch", "yaw"))})
+        cols.update(nis=self.nis, dof=self.dof, n_outliers=self.n_outliers, n_gated=self.n_gated,
+                    status=[EstimateStatus(s).label for s in self.status])
+        return pd.DataFrame(cols)
+
+
+def _empty(T: int, n: int):
+    nan = lambda *s: np.full((T,) + s, np.nan)  # noqa: E731
+    return dict(pos_m=nan(3), vel_mps=nan(3), quat=nan(4), acc_bias_mps2=nan(3), gyro_bias_radps=nan(3),
+                P=nan(n, n), pos_cov_m2=nan(3, 3), nis=nan(), dof=np.zeros(T, int), n_outliers=np.zeros(T, int),
+                n_gated=np.zeros(T, int), status=np.full(T, EstimateStatus.NO_ESTIMATE, np.int8))
+
+
+def _wrap(a):
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+# ====================================================================== tight
+@dataclass(frozen=True)
+class TightEskf:
+    """Tightly coupled 15-state error-state filter (module docstring).
+
+    Attributes
+    ----------
+    imu_model
+        IMU errors: the process noise (white noise, bias random walks) and the initial bias
+        uncertainty; its ``mag_heading_sigma_rad`` is the heading measurement's σ.
+    uwb
+        :class:`TdoaUpdate` or :class:`RangeUpdate`.
+    mechanization
+        Navigation frame and gravity.
+    lever_arm_m
+        Tag position relative to the IMU in the body frame, m.
+    gate_prob
+        Per-measurement χ²(1) gate probability; None: no gate.
+    max_gated
+        Consecutive epochs with every UWB measurement gated after which the next epoch is used ungated.
+    q_scale, r_scale
+        Multipliers on the process-noise and UWB measurement variances.
+    feedback
+        Closed loop (True) or open loop (False).
+    height_m, height_sigma_m
+        Known tag height (a ground robot) used as a pseudo-measurement at every epoch; None: not used.
+    init_sigma
+        Initial error SDs: position m, velocity m/s, roll/pitch rad, yaw rad.
+    """
+
+    imu_model: ImuErrorModel
+    uwb: TdoaUpdate | RangeUpdate
+    mechanization: Mechanization = Mechanization()
+    lever_arm_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gate_prob: float | None = 0.999
+    max_gated: int = 25
+    q_scale: float = 1.0
+    r_scale: float = 1.0
+    feedback: bool = True
+    height_m: float | None = None
+    height_sigma_m: float = 0.01
+    init_sigma: tuple[float, float, float, float] = (0.3, 0.1, 2 * _DEG, 5 * _DEG)
+    name: str = "tight"
+
+    def __post_init__(self):
+        lever = np.array(self.lever_arm_m, float)
+        if lever.shape != (3,):
+            raise ValueError(f"TightEskf.lever_arm_m must be 3 numbers (m, body frame), got {self.lever_arm_m!r}")
+        object.__setattr__(self, "lever_arm_m", lever)
+        if self.gate_prob is not None and not 0 < self.gate_prob < 1:
+            raise ValueError(f"TightEskf.gate_prob must be in (0, 1) or None, got {self.gate_prob!r}")
+        if not (self.q_scale > 0 and self.r_scale > 0):
+            raise ValueError("TightEskf.q_scale and r_scale must be positive")
+
+    # ---------------------------------------------------------------- noise
+    def initial_covariance(self) -> np.ndarray:
+        sp, sv, stilt, syaw = self.init_sigma
+        m = self.imu_model
+        d = np.concatenate([[sp] * 3, [sv] * 3, [stilt, stilt, syaw], [max(m.acc_bias_sigma_mps2, 1e-6)] * 3,
+                            [max(m.gyro_bias_sigma_radps, 1e-8)] * 3])
+        return np.diag(d ** 2)
+
+    def process_noise_rate(self) -> np.ndarray:
+        """Diagonal of ``G Q_c Gᵀ`` per second (isotropic noises: no attitude dependence), ``(15,)``."""
+        m = self.imu_model
+        q = np.zeros(N_ERR)
+        q[V_] = m.acc_noise_density ** 2
+        q[TH_] = m.gyro_noise_density ** 2
+        q[BA_] = m.acc_bias_rw ** 2
+        q[BG_] = m.gyro_bias_rw ** 2
+        return q * self.q_scale
+
+    # ---------------------------------------------------------------- run
+    def run(self, imu: ImuLog, uwb: TdoaLog | RangeLog | None, x0: NavState, *, t_s: np.ndarray | None = None,
+            heading: HeadingLog | None = None, acc_bias0=None, gyro_bias0=None, name: str | None = None,
+            reference_step: bool = False) -> FusionRun:
+        """Filter a recording.
+
+        Parameters
+        ----------
+        imu
+            Body-frame SI samples (see :class:`~uwbwb.models.imu.ImuConvention`).
+        uwb
+            TDoA log (with :class:`TdoaUpdate`) or range log (with :class:`RangeUpdate`);
+            None: INS only (no UWB updates at all).
+        x0
+            Navigation state at the first IMU sample.
+        t_s
+            Output epochs when ``uwb`` is None (default: the IMU times).
+        heading
+            Magnetometer headings, used at the UWB epochs if given.
+        acc_bias0, gyro_bias0
+            Initial bias estimates (default zero).
+        reference_step
+            Propagate the covariance with :func:`kalman.predict` at every IMU step (the
+            straightforward form, for benchmarks and tests) instead of once per epoch
+            with the accumulated transition; results are identical up to rounding.
+        """
+        t_ep = (imu.t_s if t_s is None else np.asarray(t_s, float)) if uwb is None else uwb.t_s
+        T = t_ep.size
+        if uwb is not None and isinstance(uwb, TdoaLog) != isinstance(self.uwb, TdoaUpdate):
+            raise ValueError("TightEskf.run: a TdoaLog needs a TdoaUpdate model and a RangeLog a RangeUpdate")
+        rows, refs, n_out_all = None, None, np.zeros(T, int)
+        if uwb is not None:
+            refs = uwb.ref if isinstance(uwb, TdoaLog) else np.zeros(T, int)
+            rows, n_out_all = self.uwb.screen(uwb.tdoa_m if isinstance(uwb, TdoaLog) else uwb.range_m, refs)
+        t, acc, gyro, ep_idx = merge_timeline(imu, t_ep)
+        yaw_meas = heading.at(t_ep) if heading is not None else np.full(T, np.nan)
+        out = _empty(T, N_ERR)
+        mech, lever = self.mechanization, self.lever_arm_m
+        p, v, q = x0.pos_m.copy(), x0.vel_mps.copy(), x0.quat.copy()
+        ba = np.zeros(3) if acc_bias0 is None else np.array(acc_bias0, float)
+        bg = np.zeros(3) if gyro_bias0 is None else np.array(gyro_bias0, float)
+        dx = np.zeros(N_ERR)
+        P = self.initial_covariance()
+        qrate = self.process_noise_rate()
+        I15 = np.eye(N_ERR)
+        Phi, Qacc = I15.copy(), np.zeros((N_ERR, N_ERR))
+        gate1 = chi2.ppf(self.gate_prob, 1) if self.gate_prob is not None else np.inf
+        sig_yaw = self.imu_model.mag_heading_sigma_rad
+        gated_run = 0
+        # epochs sorted by their place on the time line (several epochs never share one: t is a union)
+        order = np.argsort(ep_idx, kind="stable")
+        order = order[ep_idx[order] >= 0]
+        ep_at = np.full(t.size, -1)
+        ep_at[ep_idx[order]] = order
+        for i in range(t.size):
+            if i > 0:
+                dt = t[i] - t[i - 1]
+                f0, f1 = acc[i - 1] - ba, acc[i] - ba
+                p, v, q, C0, _ = mech.step(p, v, q, f0, f1, gyro[i - 1] - bg, gyro[i] - bg, dt)
+                F = error_transition(C0, f0, dt)
+                Qd = np.diag(qrate * dt)
+                if reference_step:
+                    st = kalman.predict(Gaussian(dx, P), F, Qd)
+                    dx, P = st.x, st.P
+                else:
+                    Phi = F @ Phi
+                    Qacc = F @ Qacc @ F.T + Qd
+            k = ep_at[i]
+            if k < 0:
+                continue
+            if not reference_step:
+                st = kalman.predict(Gaussian(dx, P), Phi, Qacc)
+                dx, P = st.x, st.P
+                Phi, Qacc = I15, np.zeros((N_ERR, N_ERR))
+            C = _dcm(q)
+            J_tag = _tag_jacobian(C, lever)
+            tag = p + C @ lever
+            parts = []                                   # (z, h, H, R) blocks used this epoch
+            n_gated, n_out = 0, int(n_out_all[k])
+            uwb_used = 0
+            if rows is not None:
+                lin = self.uwb.linearise(tag, J_tag, rows[k], int(refs[k]))
+                if lin is not None:
+                    R = lin.R * self.r_scale
+                    y = lin.z - lin.h - lin.H @ dx
+                    s = np.einsum("ij,jk,ik->i", lin.H, P, lin.H) + np.diag(R)
+                    keep = y * y / s <= gate1 if gated_run < self.max_gated else np.ones(y.size, bool)
+                    n_gated = int((~keep).sum())
+                    if keep.any():
+                        parts.append((lin.z[keep], lin.h[keep] + lin.H[keep] @ dx, lin.H[keep],
+                                      R[np.ix_(keep, keep)]))
+                        uwb_used = int(keep.sum())
+                    gated_run = gated_run + 1 if (n_gated and not uwb_used) else 0
+            if np.isfinite(yaw_meas[k]) and sig_yaw > 0:
+                Hy = np.zeros(N_ERR)
+                Hy[TH_] = yaw_jacobian(C)
+                resid = _wrap(yaw_meas[k] - _yaw(C))
+                parts.append((np.array([resid]), np.array([Hy @ dx]), Hy[None], np.array([[sig_yaw ** 2]])))
+            if self.height_m is not None:
+                parts.append((np.array([self.height_m]), np.array([tag[2] + J_tag[2] @ dx]), J_tag[2:3],
+                              np.array([[self.height_sigma_m ** 2]])))
+            nis, dof = np.nan, 0
+            if parts:
+                z = np.concatenate([a[0] for a in parts])
+                h = np.concatenate([a[1] for a in parts])
+                H = np.vstack([a[2] for a in parts])
+                R = _block_diag([a[3] for a in parts])
+                st, nis_parts = kalman.update_sequential(Gaussian(dx, P), z, H, R, h_x=h)
+                dx, P = st.x, st.P
+                nis = float(nis_parts[:uwb_used].sum()) if uwb_used else np.nan
+                dof = uwb_used
+            if self.feedback:
+                p, v, q, ba, bg = inject(p, v, q, ba, bg, dx)
+                G = reset_jacobian(dx[TH_])
+                P = G @ P @ G.T
+                dx = np.zeros(N_ERR)
+                po, vo, qo, bao, bgo = p, v, q, ba, bg
+            else:
+                po, vo, qo, bao, bgo = inject(p, v, q, ba, bg, dx)
+            Co = _dcm(qo)
+            Jo = _tag_jacobian(Co, lever)
+            out["pos_m"][k] = po + Co @ lever
+            out["vel_mps"][k], out["quat"][k] = vo, qo
+            out["acc_bias_mps2"][k], out["gyro_bias_radps"][k] = bao, bgo
+            out["P"][k] = P
+            out["pos_cov_m2"][k] = Jo @ P @ Jo.T
+            out["nis"][k], out["dof"][k], out["n_outliers"][k], out["n_gated"][k] = nis, dof, n_out, n_gated
+            out["status"][k] = (EstimateStatus.UPDATED if uwb_used else
+                                EstimateStatus.GATED if n_gated else EstimateStatus.PREDICTED)
+        return FusionRun(t_ep.copy(), name=name or (self.name if uwb is not None else "INS-only"), **out)
+
+
+def _block_diag(blocks) -> np.ndarray:
+    n = sum(b.shape[0] for b in blocks)
+    out = np.zeros((n, n))
+    i = 0
+    for b in blocks:
+        m = b.shape[0]
+        out[i:i + m, i:i + m] = b
+        i += m
+    return out
+
+
+# ====================================================================== loose (the paper's filter)
+@dataclass(frozen=True)
+class LooseFilter:
+    """The paper's loosely coupled filter, eqs 5–7 (module docstring).
+
+    Attributes
+    ----------
+    dim
+        2: the paper's 4 states (E, N); 3: 6 states with the vertical pair.
+    q_pos_m_rts, q_vel_mps_rts
+        Process noise densities of ``W_P`` and ``W_V`` (eq. 5): over a UWB step ``T`` their
+        variances are ``q² T`` (m/√s and m/s/√s).
+    sigma_r_pos_m, sigma_r_vel_mps
+        Measurement noise SDs of the UWB position and differenced velocity (eq. 6).
+    vel_window
+        Epochs spanned by the backward difference giving ``V_uwb``.
+    attitude_tau_s
+        Time constant of the complementary attitude correction (levelling; heading where
+        a magnetometer heading is given).
+    height_m
+        For ``dim=2``: the known tag height the INS vertical channel is held at.
+    q_scale, r_scale
+        Multipliers on Q and R.
+    feedback
+        Closed loop (True) or open loop.
+    """
+
+    mechanization: Mechanization = Mechanization()
+    dim: int = 2
+    q_pos_m_rts: float = 0.01
+    q_vel_mps_rts: float = 0.05
+    sigma_r_pos_m: float = 0.05
+    sigma_r_vel_mps: float = 0.15
+    vel_window: int = 5
+    attitude_tau_s: float = 2.0
+    height_m: float | None = None
+    lever_arm_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    q_scale: float = 1.0
+    r_scale: float = 1.0
+    feedback: bool = True
+    name: str = "loose"
+
+    def __post_init__(self):
+        if self.dim not in (2, 3):
+            raise ValueError(f"LooseFilter.dim must be 2 or 3, got {self.dim!r}")
+        if self.vel_window < 1:
+            raise ValueError("LooseFilter.vel_window must be >= 1")
+        object.__setattr__(self, "lever_arm_m", np.array(self.lever_arm_m, float))
+
+    def matrices(self, T_s: float):
+        """``A``, ``Q``, ``R`` of eqs 5–6 for UWB period ``T_s``."""
+        d = self.dim
+        A = np.eye(2 * d)
+        A[:d, d:] = T_s * np.eye(d)
+        Q = np.diag([self.q_pos_m_rts ** 2] * d + [self.q_vel_mps_rts ** 2] * d) * (T_s * self.q_scale)
+        R = np.diag([self.sigma_r_pos_m ** 2] * d + [self.sigma_r_vel_mps ** 2] * d) * self.r_scale
+        return A, Q, R
+
+    def run(self, imu: ImuLog, fixes: Estimates, x0: NavState, *, heading: HeadingLog | None = None,
+            name: str | None = None) -> FusionRun:
+        """Filter a recording.
+
+        Parameters
+        ----------
+        imu
+            Body-frame SI samples.
+        fixes
+            UWB position fixes at the UWB epochs (e.g. TDoA LS after the eq-4 test); epochs
+            without a fix (``NO_ESTIMATE``) are prediction only.
+        x0
+            Navigation state at the first IMU sample.
+        heading
+            Magnetometer headings (used by the attitude correction).
+        """
+        d = self.dim
+        t_ep = fixes.t_s
+        T = t_ep.size
+        t, acc, gyro, ep_idx = merge_timeline(imu, t_ep)
+        yaw_meas = heading.at(t_ep) if heading is not None else np.full(T, np.nan)
+        fix = np.full((T, 3), np.nan)
+        fix[:, :fixes.dim] = fixes.pos_m
+        has = fixes.has_estimate & np.all(np.isfinite(fixes.pos_m), axis=1)
+        out = _empty(T, 2 * d)
+        mech, lever = self.mechanization, self.lever_arm_m
+        p, v, q = x0.pos_m.copy(), x0.vel_mps.copy(), x0.quat.copy()
+        dx = np.zeros(2 * d)
+        _, _, R = self.matrices(1.0)
+        P = np.diag([self.sigma_r_pos_m ** 2] * d + [self.sigma_r_vel_mps ** 2] * d)
+        ep_at = np.full(t.size, -1)
+        ok = ep_idx >= 0
+        ep_at[ep_idx[ok]] = np.flatnonzero(ok)
+        last_t = None
+        hist_t, hist_p = [], []
+        g_up = -mech.g_n / np.linalg.norm(mech.g_n)
+        for i in range(t.size):
+            if i > 0:
+                p, v, q, _, _ = mech.step(p, v, q, acc[i - 1], acc[i], gyro[i - 1], gyro[i], t[i] - t[i - 1])
+                if d == 2 and self.height_m is not None:
+                    p[2], v[2] = self.height_m - (_dcm(q) @ lever)[2], 0.0
+            k = ep_at[i]
+            if k < 0:
+                continue
+            T_s = 0.0 if last_t is None else t[i] - last_t
+            last_t = t[i]
+            # attitude: complementary levelling (+ heading), the paper's gyro + magnetometer AHRS
+            C = _dcm(q)
+            gain = min(1.0, T_s / self.attitude_tau_s) if T_s > 0 else 0.0
+            if gain > 0:
+                fn = C @ acc[i]
+                corr = gain * np.cross(fn / max(math.sqrt(fn @ fn), 1e-9), g_up)
+                if np.isfinite(yaw_meas[k]):
+                    corr[2] += gain * _wrap(yaw_meas[k] - _yaw(C))
+                q = _exp_left(corr, q)
+            A, Q, _ = self.matrices(T_s)
+            st = kalman.predict(Gaussian(dx, P), A, Q)
+            dx, P = st.x, st.P
+            C = _dcm(q)
+            tag = p + C @ lever
+            nis, dof, status = np.nan, 0, EstimateStatus.PREDICTED
+            if has[k]:
+                hist_t.append(t_ep[k])
+                hist_p.append(fix[k, :d].copy())
+                z_pos = tag[:d] - fix[k, :d]
+                if len(hist_t) > self.vel_window and t_ep[k] - hist_t[-1 - self.vel_window] < 1.0:
+                    v_uwb = (hist_p[-1] - hist_p[-1 - self.vel_window]) / (t_ep[k] - hist_t[-1 - self.vel_window])
+                    z, H, Rk = np.concatenate([z_pos, v[:d] - v_uwb]), np.eye(2 * d), R
+                else:
+                    z, H, Rk = z_pos, np.eye(2 * d)[:d], R[:d, :d]
+                st, inn = kalman.update(Gaussian(dx, P), z, H, Rk)
+                dx, P = st.x, st.P
+                nis, dof, status = inn.nis, z.size, EstimateStatus.UPDATED
+                hist_t, hist_p = hist_t[-self.vel_window - 1:], hist_p[-self.vel_window - 1:]
+            if self.feedback:
+                p[:d] -= dx[:d]
+                v[:d] -= dx[d:]
+                dx = np.zeros(2 * d)
+                po, vo = p.copy(), v.copy()
+            else:
+                po, vo = p.copy(), v.copy()
+                po[:d] -= dx[:d]
+                vo[:d] -= dx[d:]
+            out["pos_m"][k] = po + C @ lever
+            out["vel_mps"][k], out["quat"][k] = vo, q
+            out["acc_bias_mps2"][k] = out["gyro_bias_radps"][k] = 0.0
+            out["P"][k] = P
+            cov = np.full((3, 3), np.nan)
+            cov[:d, :d] = P[:d, :d]
+            out["pos_cov_m2"][k] = cov
+            out["nis"][k], out["dof"][k], out["status"][k] = nis, dof, status
+        return FusionRun(t_ep.copy(), name=name or self.name, **out)
