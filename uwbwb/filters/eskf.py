@@ -45,11 +45,11 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
-from ..models.imu import ImuErrorModel
+from ..models.imu import HeadingLog, ImuErrorModel
 from ..models.ins import (BA_, BG_, N_ERR, P_, TH_, V_, Mechanization, NavState, _dcm, _exp_left, _skew3, _yaw,
                           euler_from_dcm, error_transition, inject, quat_to_dcm, reset_jacobian, yaw_jacobian)
-from ..models.tdoa import TdoaLog, TdoaModel, triangle_outliers
-from ..types import EstimateStatus, Estimates, ImuLog, RangeLog
+from ..models.tdoa import TdoaModel, triangle_outliers
+from ..types import EstimateStatus, Estimates, ImuLog, RangeLog, TdoaLog
 from . import kalman
 from .ekf import Linearisation
 from .kalman import Gaussian
@@ -60,32 +60,6 @@ _DEG = math.pi / 180.0
 
 
 # ====================================================================== inputs
-@dataclass(frozen=True)
-class HeadingLog:
-    """Magnetometer headings (yaw, rad, navigation frame) at times ``t_s``."""
-
-    t_s: np.ndarray
-    yaw_rad: np.ndarray
-
-    def __post_init__(self):
-        t, y = np.asarray(self.t_s, float), np.asarray(self.yaw_rad, float)
-        if t.ndim != 1 or y.shape != t.shape:
-            raise ValueError(f"HeadingLog needs t_s and yaw_rad of equal length, got {t.shape}, {y.shape}")
-        object.__setattr__(self, "t_s", t)
-        object.__setattr__(self, "yaw_rad", y)
-
-    def at(self, t_s: np.ndarray) -> np.ndarray:
-        """Heading at each of ``t_s`` (nearest sample within half a sample interval, else NaN)."""
-        t_s = np.asarray(t_s, float)
-        if self.t_s.size == 0:
-            return np.full(t_s.shape, np.nan)
-        k = np.clip(np.searchsorted(self.t_s, t_s), 1, max(self.t_s.size - 1, 1))
-        k = np.where(np.abs(self.t_s[k - 1] - t_s) <= np.abs(self.t_s[np.minimum(k, self.t_s.size - 1)] - t_s),
-                     k - 1, np.minimum(k, self.t_s.size - 1))
-        half = 0.5 * (np.median(np.diff(self.t_s)) if self.t_s.size > 1 else np.inf)
-        return np.where(np.abs(self.t_s[k] - t_s) <= half + 1e-9, self.yaw_rad[k], np.nan)
-
-
 def merge_timeline(imu: ImuLog, t_epoch_s: np.ndarray):
     """IMU samples and UWB epochs on one time line.
 

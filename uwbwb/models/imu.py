@@ -30,7 +30,7 @@ import numpy as np
 from ..types import ImuLog
 from .ins import GRAVITY_MPS2
 
-__all__ = ["GRADES", "ImuConvention", "ImuErrorModel", "ImuErrors"]
+__all__ = ["GRADES", "HeadingLog", "ImuConvention", "ImuErrorModel", "ImuErrors"]
 
 _DEG = np.pi / 180.0
 
@@ -186,3 +186,29 @@ class ImuConvention:
         acc = np.asarray(imu.acc_mps2) * (self.g_mps2 if self.acc_unit == "g" else 1.0) * self.acc_scale
         gyro = np.asarray(imu.gyro_radps) * (_DEG if self.gyro_unit == "deg/s" else 1.0)
         return ImuLog(imu.t_s, acc @ self.R_body_sensor.T, gyro @ self.R_body_sensor.T)
+
+
+@dataclass(frozen=True)
+class HeadingLog:
+    """Magnetometer headings (yaw, rad, navigation frame) at times ``t_s``."""
+
+    t_s: np.ndarray
+    yaw_rad: np.ndarray
+
+    def __post_init__(self):
+        t, y = np.asarray(self.t_s, float), np.asarray(self.yaw_rad, float)
+        if t.ndim != 1 or y.shape != t.shape:
+            raise ValueError(f"HeadingLog needs t_s and yaw_rad of equal length, got {t.shape}, {y.shape}")
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(self, "yaw_rad", y)
+
+    def at(self, t_s: np.ndarray) -> np.ndarray:
+        """Heading at each of ``t_s`` (nearest sample within half a sample interval, else NaN)."""
+        t_s = np.asarray(t_s, float)
+        if self.t_s.size == 0:
+            return np.full(t_s.shape, np.nan)
+        k = np.clip(np.searchsorted(self.t_s, t_s), 1, max(self.t_s.size - 1, 1))
+        k = np.where(np.abs(self.t_s[k - 1] - t_s) <= np.abs(self.t_s[np.minimum(k, self.t_s.size - 1)] - t_s),
+                     k - 1, np.minimum(k, self.t_s.size - 1))
+        half = 0.5 * (np.median(np.diff(self.t_s)) if self.t_s.size > 1 else np.inf)
+        return np.where(np.abs(self.t_s[k] - t_s) <= half + 1e-9, self.yaw_rad[k], np.nan)

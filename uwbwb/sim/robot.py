@@ -29,11 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..filters.eskf import HeadingLog
-from ..models.imu import GRADES, ImuErrorModel
+from ..models.imu import GRADES, HeadingLog, ImuErrorModel
 from ..models.ins import Mechanization, NavState, dcm_from_euler, dcm_to_quat
-from ..models.tdoa import TdoaLog, TdoaModel
-from ..types import Anchors, ImuLog, RangeLog, Trajectory
+from ..models.tdoa import TdoaModel
+from ..types import Anchors, ImuLog, RangeLog, TdoaLog, Trajectory
 
 __all__ = ["PAPER_WAYPOINTS_M", "PAPER_STATIC_M", "RobotConfig", "RobotMotion", "RobotRun", "broken_line",
            "hold", "simulate"]
