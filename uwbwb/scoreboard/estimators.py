@@ -33,9 +33,9 @@ import numpy as np
 from .. import bounds, geometry, metrics
 from ..filters.ekf import EkfResult, TdoaEkf
 from ..filters.nls import fit_trajectory
-from ..filters.setnoise import cv_matrices, model_noise, run_set_noise_kf, run_set_noise_pf
+from ..filters.setnoise import model_noise, run_set_noise_kf, run_set_noise_pf
 from ..filters.tdoa_ls import TdoaLsResult, tdoa_least_squares
-from ..models.motion import make_motion_model
+from ..models.motion import VelocityKick, make_motion_model
 from ..models.setnoise import SetNoiseModel
 from ..models.tdoa import TdoaModel
 from ..sim.setnoise import select_sets
@@ -391,7 +391,7 @@ class SetNoiseFilter(BaseEstimator):
         if len(fixes):
             if self.kind == "KF":
                 run = run_set_noise_kf(fixes, p["model"], fixes.pos_m[0], p["sigma_d_mps"], name=self.name)
-                cov[idx] = run.meta["cov"][:, [0, 2]][:, :, [0, 2]]
+                cov[idx] = run.meta["cov"][:, :2, :2]
                 info["nis"][idx], info["dof"][idx] = run.meta["nis"], 2
             else:
                 run = run_set_noise_pf(fixes, p["model"], fixes.pos_m[0], p["sigma_d_mps"], rng=self._rng(rec, tag),
@@ -409,9 +409,9 @@ class SetNoiseFilter(BaseEstimator):
             return bounds.Bound(est.t_s, C, kind)
         _, sd = model_noise(fixes, p["model"])
         dt = np.diff(fixes.t_s, prepend=fixes.t_s[0])
-        FQ = [cv_matrices(float(h), p["sigma_d_mps"]) for h in dt]
-        F = np.stack([f for f, _ in FQ])
-        Q = np.stack([q for _, q in FQ])
+        motion, axis_major = VelocityKick(p["sigma_d_mps"]), [0, 2, 1, 3]     # state x, ẋ, y, ẏ here
+        F = motion.F(dt)[:, axis_major][:, :, axis_major]
+        Q = motion.Q(dt)[:, axis_major][:, :, axis_major]
         info = np.zeros((len(fixes), 4, 4))
         info[:, 0, 0], info[:, 2, 2] = 1 / sd[:, 0] ** 2, 1 / sd[:, 1] ** 2
         P0 = np.diag([1e4, 1.0, 1e4, 1.0])       # position from the first fix, velocity ~ 1 m/s
