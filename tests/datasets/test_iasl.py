@@ -280,52 +280,6 @@ def test_registered_recording_is_consistent(loaded):
     assert rec.meta["imu_noise"]["stdV"] == pytest.approx(0.0015387262937311438)
 
 
-def test_register_truth_fits_a_yaw_when_asked():
-    rng = np.random.default_rng(3)
-    t_mocap = np.round(np.arange(0.1, 25.0, 0.1), 1)
-    pos, rot = fx.flight(t_mocap)
-    truth = Trajectory(t_mocap, pos, rot=rot)
-    yaw = np.radians(4.0)
-    rz = np.array([[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]])
-    t_uwb = np.arange(0.0, 24.0, 0.02)
-    p = fx.flight(t_uwb - 0.4)[0] @ rz.T + [4.4, 4.0, 0.1]
-    r = np.linalg.norm(p[:, None] - fx.ANCHORS_M[None], axis=2) + rng.normal(0, 0.02, (t_uwb.size, 8))
-    a = Anchors(tuple(f"a{k}" for k in range(1, 9)), fx.ANCHORS_M)
-    log = RangeLog(t_uwb, r, a.ids)
-    plain = iasl.register_truth(log, a, truth, fit_range_bias=False)
-    assert plain.yaw_check_deg == pytest.approx(4.0, abs=0.2)
-    assert plain.yaw_check_rms_m < plain.rms_m - 0.01
-    fitted = iasl.register_truth(log, a, truth, fit_yaw=True, fit_range_bias=False)
-    assert np.degrees(fitted.yaw_rad) == pytest.approx(4.0, abs=0.1)
-    assert fitted.time_offset_s == pytest.approx(0.4, abs=0.01)
-    np.testing.assert_allclose(fitted.translation_m, [4.4, 4.0, 0.1], atol=0.01)
-    assert fitted.yaw_check_deg is None
-    moved = fitted.apply(truth)
-    np.testing.assert_allclose(moved.t_s, truth.t_s + fitted.time_offset_s)
-    np.testing.assert_allclose(moved.rot[:, 2, 2], truth.rot[:, 2, 2])
-
-
-def test_registration_needs_overlap():
-    t = np.arange(0.0, 10.0, 0.1)
-    pos, rot = fx.flight(t)
-    a = Anchors(tuple(f"a{k}" for k in range(1, 9)), fx.ANCHORS_M)
-    log = RangeLog(t[:5], np.full((5, 8), 5.0), a.ids)
-    with pytest.raises(iasl.RegistrationError):
-        iasl.register_truth(log, a, Trajectory(t, pos + 4, rot=rot))
-
-
-def test_multilaterate_linear():
-    rng = np.random.default_rng(0)
-    p = rng.uniform([1, 1, 0.5], [7, 7, 2], (20, 3))
-    r = np.linalg.norm(p[:, None] - fx.ANCHORS_M[None], axis=2)
-    r[3, :5] = np.nan      # 3 ranges left: no fix
-    r[4, [0, 6]] = np.nan  # 6 ranges: still a fix
-    fix = iasl.multilaterate_linear(fx.ANCHORS_M, r)
-    assert np.isnan(fix[3]).all()
-    keep = np.arange(20) != 3
-    np.testing.assert_allclose(fix[keep], p[keep], atol=1e-9)
-
-
 # --- scenario loader -------------------------------------------------------------------------
 
 def test_load_scenario_unregistered_keeps_raw_clocks(synthetic):
