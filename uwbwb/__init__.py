@@ -9,15 +9,15 @@ sub-modules by role: ``uw.geometry``, ``uw.metrics``, ``uw.plotting``,
 from importlib import import_module
 
 from .errors import DataFormatError, DataNotFoundError, GeometryError
-from .types import (Anchors, CleaningStep, EstimateStatus, Estimates, ImuLog, RangeLog, RangeSamples, Recording,
-                    SetFixLog, TagRun, TdoaLog, Trajectory)
+from .types import (Anchors, ChirpFlag, ChirpLog, CleaningStep, EstimateStatus, Estimates, ImuLog, RangeLog,
+                    RangeSamples, Recording, SetFixLog, TagRun, TdoaLog, Trajectory)
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Anchors", "CleaningStep", "DataFormatError", "DataNotFoundError", "EstimateStatus", "Estimates",
-    "GeometryError", "ImuLog", "RangeLog", "RangeSamples", "Recording", "SetFixLog", "TagRun", "TdoaLog",
-    "Trajectory", "__version__",
+    "Anchors", "ChirpFlag", "ChirpLog", "CleaningStep", "DataFormatError", "DataNotFoundError", "EstimateStatus",
+    "Estimates", "GeometryError", "ImuLog", "RangeLog", "RangeSamples", "Recording", "SetFixLog", "TagRun",
+    "TdoaLog", "Trajectory", "__version__",
 ]
 
 _SUBMODULES = {"geometry", "metrics", "plotting", "datasets", "calibration", "models",

@@ -109,3 +109,14 @@ def test_bad_arguments():
         P.multinomial_indices(np.full((2, 3), 1 / 3), np.zeros(2))
     with pytest.raises(ValueError, match="do not match"):
         P.resample(np.zeros((2, 3, 1)), np.zeros((2, 4)), rng=np.random.default_rng(0))
+
+
+def test_roughen_scales_with_the_spread_and_respects_rows():
+    from uwbwb.filters.particle import roughen
+
+    rng = np.random.default_rng(0)
+    x = np.stack([rng.uniform(0, 1, (2, 4000)), rng.uniform(0, 10, (2, 4000))], axis=-1)   # (2, K, 2)
+    y = roughen(x, rng=np.random.default_rng(1), k=0.2, rows=np.array([True, False]))
+    np.testing.assert_array_equal(y[1], x[1])
+    d = (y[0] - x[0]).std(axis=0)
+    np.testing.assert_allclose(d, 0.2 * np.ptp(x[0], axis=0) * 4000 ** -0.5, rtol=0.05)

@@ -2,7 +2,7 @@
 
 Loader modules: :mod:`.lias` (lias-planar-uwb), :mod:`.iasl` (iasl-uwb-imu),
 :mod:`.hanyang` (hanyang-outdoor-uwb static), :mod:`.tidy` (your own data in a
-generic tidy CSV).
+generic tidy CSV), :mod:`.chirps` (ultrasonic chirp logs as tidy CSV).
 """
 
 from .discovery import (EXTERNAL_DIR, PROJECT_ROOT, SHARED_DIR, data_dirs, dataset_available,

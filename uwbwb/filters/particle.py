@@ -281,3 +281,33 @@ def resample(particles: np.ndarray, logw: np.ndarray, *, rng: np.random.Generato
         particles[need] = np.take_along_axis(particles[need], idx[..., None], axis=-2)
         logw[need] = -np.log(K)
     return particles, logw, need
+
+
+def roughen(particles: np.ndarray, *, rng: np.random.Generator, k: float = 0.2,
+            rows: np.ndarray | None = None) -> np.ndarray:
+    """Roughening (Gordon, Salmond & Smith 1993): jitter resampled particles against impoverishment.
+
+    Each component ``j`` gets independent noise ``N(0, σ_j²)`` with
+    ``σ_j = k · E_j · K^(−1/n_x)``, ``E_j`` the spread (max − min) of component ``j``
+    over the row's particles.
+
+    Parameters
+    ----------
+    particles
+        Shape ``(..., K, n_x)``.
+    k
+        Tuning constant (Gordon et al. use 0.2).
+    rows
+        Optional boolean mask over the batch axes ``(...)``: only these rows are jittered.
+
+    Returns
+    -------
+    ndarray, same shape: a new array.
+    """
+    particles = np.asarray(particles, float)
+    K, n_x = particles.shape[-2:]
+    spread = np.ptp(particles, axis=-2, keepdims=True)                 # (..., 1, n_x)
+    sigma = k * spread * K ** (-1.0 / n_x)
+    if rows is not None:
+        sigma = sigma * np.asarray(rows, bool)[..., None, None]
+    return particles + sigma * rng.standard_normal(particles.shape)

@@ -103,6 +103,12 @@ class DopplerModel:
         Where in the measured period eq 1 is evaluated, as a fraction of the period
         before the arrival that closes it: 0 = at the arrival (the paper's
         instantaneous reading), 0.5 = the middle of the period.
+    sigma_model_mps
+        Filters only (an assumption, not a property of the hardware): how far the
+        radial speed averaged over a period may differ from eq 1 evaluated at one
+        state, m/s. The receiver turns and accelerates within a period (half a
+        second), which a single state cannot express; this term adds
+        ``(P σ_model / v_s)²`` to the variance of each ΔP. The simulator ignores it.
     """
 
     beacons: Anchors
@@ -110,6 +116,7 @@ class DopplerModel:
     v_s_mps: float = speed_of_sound_mps(20.0)
     sigma_t_s: float = 0.015 / speed_of_sound_mps(20.0)
     lag: float = 0.5
+    sigma_model_mps: float = 0.1
 
     def __post_init__(self):
         P = np.array(self.period_s, float, copy=True)
@@ -123,6 +130,8 @@ class DopplerModel:
             raise ValueError(f"v_s_mps must be > 0, got {self.v_s_mps!r}")
         if not (np.isfinite(self.sigma_t_s) and self.sigma_t_s >= 0):
             raise ValueError(f"sigma_t_s must be >= 0, got {self.sigma_t_s!r}")
+        if not (np.isfinite(self.sigma_model_mps) and self.sigma_model_mps >= 0):
+            raise ValueError(f"sigma_model_mps must be >= 0, got {self.sigma_model_mps!r}")
         if not 0.0 <= self.lag <= 1.0:
             raise ValueError(f"lag must be in [0, 1], got {self.lag!r}")
         P.setflags(write=False)
@@ -141,9 +150,18 @@ class DopplerModel:
         return len(self.beacons)
 
     @property
-    def sigma_dp_s(self) -> float:
-        """Standard deviation of one measured ΔP, ``√2 σ_t`` (difference of two jittered arrivals)."""
+    def sigma_jitter_dp_s(self) -> float:
+        """Standard deviation of the timing part of one measured ΔP, ``√2 σ_t`` (two jittered arrivals)."""
         return float(np.sqrt(2.0) * self.sigma_t_s)
+
+    def sigma_dp_s(self, beacon=None) -> np.ndarray:
+        """Standard deviation the filters give one ΔP of ``beacon`` (all beacons if None), seconds.
+
+        ``√(2 σ_t² + (P σ_model / v_s)²)``: timing jitter of the two arrivals plus the
+        model error of reading a period average as one state (:attr:`sigma_model_mps`).
+        """
+        _, P = self._select(beacon)
+        return np.sqrt(2.0 * self.sigma_t_s ** 2 + (P * self.sigma_model_mps / self.v_s_mps) ** 2)
 
     @property
     def sigma_m(self) -> float:
@@ -246,7 +264,7 @@ class DopplerModel:
             z.append(float(dp_s))
             h.append(float(self.delta_p(x[:3], x[3:], b, instantaneous=False)))
             H.append(self.jacobian(x[:3], x[3:], b, instantaneous=False))
-            R.append(self.sigma_dp_s ** 2)
+            R.append(float(self.sigma_dp_s(b)) ** 2)
         if np.isfinite(range_m):
             d = x[:3] - self.beacons.pos_m[beacon]
             rho = float(np.linalg.norm(d))
@@ -261,12 +279,12 @@ class DopplerModel:
     def log_likelihood(self, pos_m, vel_mps, beacon, dp_s, *, range_m=None) -> np.ndarray:
         """Gaussian log-likelihood of one measured ΔP (and optionally a pseudo-range) per row.
 
-        ``ΔP ~ N(h(X, V), 2 σ_t²)`` with the lagged model; a pseudo-range
+        ``ΔP ~ N(h(X, V), σ_ΔP²)`` (:meth:`sigma_dp_s`) with the lagged model; a pseudo-range
         ``~ N(‖X − T‖, (v_s σ_t)²)``. Shapes broadcast like :meth:`delta_p` with a beacon.
         """
-        s = self.sigma_dp_s
-        if s <= 0:
-            raise ValueError("log_likelihood needs sigma_t_s > 0")
+        s = self.sigma_dp_s(beacon)
+        if np.any(s <= 0):
+            raise ValueError("log_likelihood needs sigma_t_s > 0 or sigma_model_mps > 0")
         y = (np.asarray(dp_s, float) - self.delta_p(pos_m, vel_mps, beacon, instantaneous=False)) / s
         ll = -0.5 * y * y - np.log(s * np.sqrt(2 * np.pi))
         if range_m is not None:

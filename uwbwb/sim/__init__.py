@@ -2,10 +2,11 @@
 
 :mod:`.rig` (planar trolley with several tags), :mod:`.setnoise` (sensor-set
 facility, notebook 01), :mod:`.tours` (ceiling anchors and walking tours,
-notebook 02), :mod:`.walk` (office walk and AGV runs, notebook 03), :mod:`.robot` (mobile robot
-with IMU and TDoA tag, notebook 05).
+notebook 02), :mod:`.walk` (office walk and AGV runs, notebook 03), :mod:`.chirps`
+(ultrasonic beacon chirps heard by a moving receiver, notebook 04), :mod:`.robot` (mobile
+robot with IMU and TDoA tag, notebook 05).
 """
 
-from . import rig, robot, setnoise, tours, walk
+from . import chirps, rig, robot, setnoise, tours, walk
 
-__all__ = ["rig", "robot", "setnoise", "tours", "walk"]
+__all__ = ["chirps", "rig", "robot", "setnoise", "tours", "walk"]

@@ -1,0 +1,407 @@
+"""Position and velocity from Doppler period shifts of independent beacons (paper 003, section 4).
+
+* :func:`assign_chirps` — the receiver's front end: assigns detected chirps to
+  beacons by their periodicity and measures ΔP per period (section 2).
+* :func:`clock_pseudo_ranges` — pseudo-ranges from a model of the beacons'
+  transmission clocks (the ranging term proposed in section 5).
+* :class:`DopplerPf` — the 6-D particle filter of section 4.2: particles move
+  with their velocity plus random acceleration, one ΔP at a time as chirps
+  arrive; vectorised over particles *and* independent runs.
+* :class:`ScaatMhEkf` — the Kalman filter of section 4.1: single constraint at a
+  time (SCAAT) EKF on eq 1, one hypothesis per plausible source of an ambiguous
+  chirp (including noise), pruned by likelihood. Built on
+  :class:`uwbwb.filters.ekf.Ekf`.
+
+Both filters take the same :class:`~uwbwb.models.doppler.DopplerModel` (eq 1,
+noise) and :class:`~uwbwb.models.doppler.ReceiverMotion`, and return
+:class:`uwbwb.types.Estimates` (one per run).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..models.doppler import DopplerModel, ReceiverMotion
+from ..types import ChirpFlag, ChirpLog, EstimateStatus, Estimates
+from .ekf import Ekf
+from .kalman import Gaussian
+from .particle import normalise_log_weights, resample, roughen
+
+__all__ = ["assign_chirps", "clock_pseudo_ranges", "DopplerPf", "PfRuns", "ScaatMhEkf"]
+
+
+# ------------------------------------------------------------------------------------ front end
+
+def assign_chirps(t_s, model: DopplerModel, *, window_s: float = 0.004, max_gap: int = 3) -> ChirpLog:
+    """Assign detections to beacons by periodicity and measure ΔP (section 2).
+
+    A detection at ``t`` fits beacon ``i`` (whose last assigned chirp arrived at
+    ``t_i``) when ``t − t_i`` is close to ``k P_i`` for some ``k = 1 … max_gap``:
+    ``ΔP = (t − t_i)/k − P_i`` with ``|ΔP| ≤ window_s`` (``k > 1``: chirps were missed,
+    flag ``GAP``). Several fits: the smallest ``|ΔP|`` wins (flag ``AMBIGUOUS``). No
+    fit: the detection may start a train — if an earlier unassigned detection lies
+    ``P_j ± window_s`` before it for a beacon ``j`` that is not locked, both become
+    beacon ``j``'s (flag ``LOCK``, no ΔP); otherwise the detection is ``UNASSIGNED``.
+    A beacon unheard for more than ``max_gap + ½`` periods is unlocked.
+
+    Parameters
+    ----------
+    t_s
+        Arrival times, shape ``(N,)``, strictly increasing.
+    model
+        Supplies the nominal periods (and beacon ids).
+    window_s
+        Largest period shift accepted (``P v / v_s``: 3 ms at 2 m/s for P ≈ 0.5 s).
+    max_gap
+        Largest number of periods bridged over missed chirps.
+    """
+    t_s = np.asarray(t_s, float)
+    P = model.period_s
+    n = P.size
+    last = np.full(n, np.nan)
+    beacon = np.full(t_s.size, -1)
+    dp = np.full(t_s.size, np.nan)
+    flags = np.zeros(t_s.size, np.int8)
+    pending: list[int] = []
+    for r, t in enumerate(t_s):
+        stale = np.isfinite(last) & (t - last > (max_gap + 0.5) * P)
+        last[stale] = np.nan
+        gap = t - last
+        k = np.rint(gap / P)
+        shift = gap / np.where(k > 0, k, np.nan) - P
+        fits = np.isfinite(last) & (k >= 1) & (k <= max_gap) & (np.abs(shift) <= window_s)
+        if fits.any():
+            cand = np.flatnonzero(fits)
+            i = int(cand[np.argmin(np.abs(shift[cand]))])
+            beacon[r], dp[r], last[i] = i, shift[i], t
+            flags[r] |= (ChirpFlag.GAP if k[i] > 1 else 0) | (ChirpFlag.AMBIGUOUS if cand.size > 1 else 0)
+            continue
+        pending = [p for p in pending if t - t_s[p] <= P.max() + window_s]
+        best = None
+        for p in pending:
+            off = np.abs(t - t_s[p] - P)
+            off[np.isfinite(last)] = np.inf
+            j = int(np.argmin(off))
+            if off[j] <= window_s and (best is None or off[j] < best[2]):
+                best = (p, j, off[j])
+        if best is None:
+            pending.append(r)
+            flags[r] |= ChirpFlag.UNASSIGNED
+            continue
+        p, j, _ = best
+        pending.remove(p)
+        beacon[p] = beacon[r] = j
+        flags[p] = ChirpFlag.LOCK
+        flags[r] = ChirpFlag.LOCK
+        last[j] = t
+    return ChirpLog(t_s, beacon, dp, flags, model.beacons.ids)
+
+
+def clock_pseudo_ranges(log: ChirpLog, model: DopplerModel, phase_s) -> np.ndarray:
+    """Pseudo-ranges ``v_s (t − t_emit)`` from a beacon-clock model (section 5), metres.
+
+    ``t_emit`` is the emission of the assigned beacon that the clock model (phase
+    ``phase_s[i]`` and period ``P_i``) places last before the arrival (flights last
+    tens of milliseconds, far less than a period). NaN where the row has no beacon.
+    """
+    phase = np.asarray(phase_s, float)
+    out = np.full(len(log), np.nan)
+    ok = log.beacon >= 0
+    i = log.beacon[ok]
+    P = model.period_s[i]
+    t_emit = phase[i] + np.floor((log.t_s[ok] - phase[i]) / P) * P
+    out[ok] = model.v_s_mps * (log.t_s[ok] - t_emit)
+    return out
+
+
+def _rows(log: ChirpLog, use_ambiguous: bool) -> np.ndarray:
+    use = log.measured.copy()
+    if not use_ambiguous:
+        use &= ~log.has(ChirpFlag.AMBIGUOUS)
+    return np.flatnonzero(use)
+
+
+# ------------------------------------------------------------------------------------ particle filter
+
+@dataclass(frozen=True)
+class PfRuns:
+    """Several independent particle-filter runs over one chirp log.
+
+    Attributes
+    ----------
+    t_s
+        Update times (the chirps used), shape ``(T,)``.
+    pos_m, vel_mps
+        Weighted-mean estimates, shape ``(R, T, 3)``.
+    ess
+        Effective sample size after each update, shape ``(R, T)``.
+    name
+        Label of the filter.
+    """
+
+    t_s: np.ndarray
+    pos_m: np.ndarray
+    vel_mps: np.ndarray
+    ess: np.ndarray
+    name: str = "PF"
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n_runs(self) -> int:
+        return self.pos_m.shape[0]
+
+    def estimates(self, run: int = 0) -> Estimates:
+        """Run ``run`` as the common :class:`~uwbwb.types.Estimates` (status UPDATED at every chirp used)."""
+        return Estimates(self.t_s, self.pos_m[run], np.full(self.t_s.size, EstimateStatus.UPDATED, np.int8),
+                         self.name, vel_mps=self.vel_mps[run], info={"ess": self.ess[run]})
+
+    def at(self, t_s: float) -> np.ndarray:
+        """Every run's position estimate at the last update at or before ``t_s``, shape ``(R, 3)``."""
+        k = int(np.searchsorted(self.t_s, t_s, side="right")) - 1
+        if k < 0:
+            raise ValueError(f"no update at or before t = {t_s} s")
+        return self.pos_m[:, k]
+
+
+@dataclass(frozen=True)
+class DopplerPf:
+    """Section 4.2's particle filter over ``[X, V]``.
+
+    Attributes
+    ----------
+    model
+        Eq 1 and its noise (lagged evaluation, :attr:`DopplerModel.lag`).
+    motion
+        Random-acceleration motion of the particles.
+    n_particles
+        Particles per run.
+    room_lo_m, room_hi_m
+        The room (3 values each): initial positions are uniform in it, and particles
+        that leave it get zero weight (the receiver is known to be inside the room;
+        without this, Doppler ghosts far below the floor attract the particles).
+    init_speed_mps
+        Initial velocities are uniform in ``[−init_speed, init_speed]³``.
+    resample_threshold
+        Resample when ESS < threshold · K (systematic).
+    roughening
+        Roughening constant applied after each resampling (:func:`~uwbwb.filters.particle.roughen`;
+        0 = none). One ΔP is far narrower than the prior, so without it the first
+        updates collapse the particles onto a handful of states.
+    outlier_prob
+        Probability that a used ΔP is an outlier (a chirp given to the wrong beacon by
+        the front end), uniform over ``±outlier_window_s``: the likelihood is
+        ``(1 − ε) N(ΔP; h, σ²) + ε / (2 · window)``, so one bad chirp cannot wipe out
+        every particle.
+    use_ambiguous
+        Also use chirps flagged ``AMBIGUOUS`` (as assigned by the front end).
+
+    Particles of a run that all leave the room are drawn again uniformly in it (the
+    run has lost track); ``PfRuns.meta["restarts"]`` counts these per run.
+    """
+
+    model: DopplerModel
+    motion: ReceiverMotion = ReceiverMotion()
+    n_particles: int = 2000
+    room_lo_m: tuple = (-3.0, -2.5, -1.2)
+    room_hi_m: tuple = (3.0, 2.5, 1.5)
+    init_speed_mps: float = 1.5
+    resample_threshold: float = 0.5
+    roughening: float = 0.2
+    outlier_prob: float = 0.05
+    outlier_window_s: float = 0.004
+    use_ambiguous: bool = False
+    name: str = "PF"
+
+    def __post_init__(self):
+        if self.n_particles < 2:
+            raise ValueError(f"n_particles must be >= 2, got {self.n_particles}")
+        if not np.all(np.asarray(self.room_hi_m) > np.asarray(self.room_lo_m)):
+            raise ValueError("room_hi_m must exceed room_lo_m on every axis")
+
+    def run(self, log: ChirpLog, *, n_runs: int = 1, rng: np.random.Generator, ranges_m=None,
+            block_runs: int = 100, progress: bool = False) -> PfRuns:
+        """Filter ``log`` ``n_runs`` times with independent particles.
+
+        Parameters
+        ----------
+        ranges_m
+            Optional pseudo-range per row of ``log`` (:func:`clock_pseudo_ranges`); NaN = none.
+        block_runs
+            Runs filtered together (memory: block × K × 6 floats per array).
+        """
+        from tqdm.auto import tqdm
+
+        rows = _rows(log, self.use_ambiguous)
+        if rows.size == 0:
+            raise ValueError("the chirp log has no usable ΔP measurement")
+        K = self.n_particles
+        t, b, dp = log.t_s[rows], log.beacon[rows], log.dp_s[rows]
+        rng_r = None if ranges_m is None else np.asarray(ranges_m, float)[rows]
+        pos = np.empty((n_runs, rows.size, 3))
+        vel = np.empty((n_runs, rows.size, 3))
+        ess = np.empty((n_runs, rows.size))
+        restarts = np.zeros(n_runs, int)
+        lo, hi = np.asarray(self.room_lo_m, float), np.asarray(self.room_hi_m, float)
+        for start in tqdm(range(0, n_runs, block_runs), disable=not progress, desc=self.name):
+            R = min(block_runs, n_runs - start)
+            x = self._draw(rng, R, lo, hi)
+            logw = np.full((R, K), -np.log(K))
+            t_prev = t[0]
+            for k in range(rows.size):
+                x = self.motion.propagate(x, t[k] - t_prev, rng=rng)
+                t_prev = t[k]
+                r_k = None
+                if rng_r is not None and np.isfinite(rng_r[k]):
+                    r_k = rng_r[k]
+                inside = np.all((x[..., :3] >= lo) & (x[..., :3] <= hi), axis=-1)
+                lost = ~np.any(inside, axis=-1)
+                if lost.any():                           # the run lost track: start it again
+                    x[lost] = self._draw(rng, int(lost.sum()), lo, hi)
+                    logw[lost] = -np.log(K)
+                    inside[lost] = True
+                    restarts[start:start + R] += lost
+                ll = self.model.log_likelihood(x[..., :3], x[..., 3:], np.int64(b[k]), dp[k], range_m=r_k)
+                if self.outlier_prob > 0:
+                    ll = np.logaddexp(np.log1p(-self.outlier_prob) + ll,
+                                      np.log(self.outlier_prob / (2 * self.outlier_window_s)))
+                logw, _ = normalise_log_weights(np.where(inside, logw + ll, -np.inf))
+                w = np.exp(logw)
+                pos[start:start + R, k] = np.einsum("rk,rkn->rn", w, x[..., :3])
+                vel[start:start + R, k] = np.einsum("rk,rkn->rn", w, x[..., 3:])
+                ess[start:start + R, k] = 1.0 / np.sum(w * w, axis=-1)
+                x, logw, resampled = resample(x, logw, rng=rng, threshold=self.resample_threshold)
+                if self.roughening > 0 and resampled.any():
+                    x = roughen(x, rng=rng, k=self.roughening, rows=resampled)
+        return PfRuns(t, pos, vel, ess, self.name, {"rows": rows, "n_particles": K, "restarts": restarts})
+
+    def _draw(self, rng, R, lo, hi):
+        K = self.n_particles
+        return np.concatenate([rng.uniform(lo, hi, (R, K, 3)),
+                               rng.uniform(-self.init_speed_mps, self.init_speed_mps, (R, K, 3))], axis=-1)
+
+
+# ------------------------------------------------------------------------------------ SCAAT MH-EKF
+
+@dataclass
+class _Hypothesis:
+    state: Gaussian
+    t_s: float
+    last_s: np.ndarray            # last assigned arrival per beacon (NaN: not locked)
+    logw: float
+    assigned: bool = False
+
+
+@dataclass(frozen=True)
+class ScaatMhEkf:
+    """Section 4.1's Kalman filter: SCAAT EKF on eq 1 with multiple hypotheses per ambiguous chirp.
+
+    Every detection is one constraint. For each live hypothesis, the detection may come
+    from any beacon whose train it fits (as in :func:`assign_chirps`, but with that
+    hypothesis' own assignment history) or be noise; each possibility becomes a child
+    hypothesis. A child that assigns the chirp to beacon ``i`` after ``k`` periods is
+    updated by :meth:`Ekf.update` with ``ΔP = (t − t_i)/k − P_i`` and weighted by
+    ``p_d (1 − p_d)^(k−1) N(ΔP; h(x⁻), S)``; the noise child keeps its state and is
+    weighted by the clutter density ``spurious_rate_hz`` (per second of arrival time,
+    the unit of ΔP). Children below ``prune_ratio`` of the best are dropped and at most
+    ``max_hypotheses`` kept. Beacon trains are started from the front end's ``LOCK``
+    rows. The estimate is the most probable hypothesis' mean.
+
+    Attributes
+    ----------
+    model, motion
+        As for :class:`DopplerPf`.
+    p_detect
+        Probability that a chirp is detected.
+    spurious_rate_hz
+        Rate of spurious detections (clutter).
+    window_s, max_gap
+        Gates of the association, as in :func:`assign_chirps`.
+    max_hypotheses, prune_ratio
+        Pruning.
+    """
+
+    model: DopplerModel
+    motion: ReceiverMotion = ReceiverMotion()
+    p_detect: float = 0.95
+    spurious_rate_hz: float = 0.5
+    window_s: float = 0.004
+    max_gap: int = 3
+    max_hypotheses: int = 8
+    prune_ratio: float = 1e-3
+    name: str = "MH-EKF"
+
+    @property
+    def ekf(self) -> Ekf:
+        return Ekf(self.motion, self.model, pos_index=(0, 1, 2), vel_index=(3, 4, 5), gate_prob=None)
+
+    def run(self, log: ChirpLog, x0: Gaussian, *, ranges_m=None) -> Estimates:
+        """Filter ``log`` from the prior ``x0`` (at the first detection's time).
+
+        Returns
+        -------
+        Estimates
+            One epoch per detection; status UPDATED where the best hypothesis used the
+            detection, PREDICTED where it read it as noise. ``info``: ``n_hypotheses``,
+            ``beacon`` (the best hypothesis' assignment, −1 for noise).
+        """
+        ekf = self.ekf
+        P = self.model.period_s
+        n_b = P.size
+        rr = np.full(len(log), np.nan) if ranges_m is None else np.asarray(ranges_m, float)
+        hyps = [_Hypothesis(x0, float(log.t_s[0]) if len(log) else 0.0, np.full(n_b, np.nan), 0.0)]
+        T = len(log)
+        pos, vel = np.full((T, 3), np.nan), np.full((T, 3), np.nan)
+        cov = np.full((T, 3, 3), np.nan)
+        status = np.full(T, EstimateStatus.PREDICTED, np.int8)
+        n_h, chosen = np.zeros(T, int), np.full(T, -1)
+        log_clutter = np.log(self.spurious_rate_hz) if self.spurious_rate_hz > 0 else -np.inf
+        lock = log.has(ChirpFlag.LOCK)
+        for r, t in enumerate(log.t_s):
+            children = []
+            for h in hyps:
+                last = h.last_s.copy()
+                stale = np.isfinite(last) & (t - last > (self.max_gap + 0.5) * P)
+                last[stale] = np.nan
+                if lock[r] and log.beacon[r] >= 0 and not np.isfinite(last[log.beacon[r]]):
+                    started = last.copy()
+                    started[log.beacon[r]] = t
+                    children.append(_Hypothesis(h.state, h.t_s, started, h.logw, False))
+                    continue
+                gap = t - last
+                k = np.rint(gap / P)
+                shift = gap / np.where(k > 0, k, np.nan) - P
+                fits = np.flatnonzero(np.isfinite(last) & (k >= 1) & (k <= self.max_gap)
+                                      & (np.abs(shift) <= self.window_s))
+                if fits.size:
+                    prior = ekf.predict(h.state, t - h.t_s)
+                for i in fits:
+                    meas = (int(i), float(shift[i]), rr[r] if log.beacon[r] == i else np.nan)
+                    lin = self.model.linearise(prior.x, meas)
+                    S = lin.H @ prior.P @ lin.H.T + lin.R
+                    y = lin.innovation
+                    ll = -0.5 * (y @ np.linalg.solve(S, y) + np.linalg.slogdet(2 * np.pi * S)[1])
+                    post, _ = ekf.update(prior, meas, gate=False)
+                    moved = last.copy()
+                    moved[i] = t
+                    children.append(_Hypothesis(post, float(t), moved,
+                                                h.logw + ll + np.log(self.p_detect)
+                                                + (k[i] - 1) * np.log1p(-self.p_detect), True))
+                children.append(_Hypothesis(h.state, h.t_s, last, h.logw + log_clutter, False))
+            logw = np.array([c.logw for c in children])
+            logw -= logw.max()
+            order = np.argsort(-logw, kind="stable")
+            keep = [children[j] for j in order[: self.max_hypotheses] if logw[j] >= np.log(self.prune_ratio)]
+            for c in keep:
+                c.logw -= np.max([c2.logw for c2 in keep])
+            hyps = keep
+            best = hyps[0]
+            x = ekf.predict(best.state, t - best.t_s) if t > best.t_s else best.state
+            pos[r], vel[r], cov[r] = x.x[:3], x.x[3:], x.P[:3, :3]
+            status[r] = EstimateStatus.UPDATED if best.assigned and best.t_s == t else EstimateStatus.PREDICTED
+            n_h[r] = len(hyps)
+            if best.assigned and best.t_s == t:
+                chosen[r] = int(np.flatnonzero(best.last_s == t)[0])
+        return Estimates(np.asarray(log.t_s, float), pos, status, self.name, pos_cov_m2=cov, vel_mps=vel,
+                         info={"n_hypotheses": n_h, "beacon": chosen})
