@@ -11,7 +11,7 @@ Cramér–Rao bound (notebook 06 and ``python -m uwbwb score``).
 
 from .board import Board, Entry, calibrate, score, score_recording
 from .estimators import BaseEstimator, Estimator, default_estimators
-from .protocol import Calibration, fit_calibration, split_in_time, thin
+from .protocol import Calibration, between, fit_calibration, split_in_time, thin
 
 __all__ = ["BaseEstimator", "Board", "Calibration", "Entry", "Estimator", "calibrate", "default_estimators",
-           "fit_calibration", "score", "score_recording", "split_in_time", "thin"]
+           "between", "fit_calibration", "score", "score_recording", "split_in_time", "thin"]

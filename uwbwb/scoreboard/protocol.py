@@ -30,7 +30,7 @@ import numpy as np
 from ..calibration import RangeCalibration, fit_range_calibration
 from ..types import Recording
 
-__all__ = ["Calibration", "PLANAR_SPREAD_M", "TRUTH_PAD_S", "fit_calibration", "scored_tags", "split_in_time",
+__all__ = ["Calibration", "between", "PLANAR_SPREAD_M", "TRUTH_PAD_S", "fit_calibration", "scored_tags", "split_in_time",
            "thin"]
 
 #: Calibration truth whose height (5th–95th percentile) spans less than this is a planar problem.
@@ -52,14 +52,15 @@ def scored_tags(rec: Recording, tags: Sequence[str] | None = None) -> tuple[str,
     return tuple(str(t) for t in tags)
 
 
-def _cut(rec: Recording, t0: float, t1: float, name: str) -> Recording:
+def between(rec: Recording, t0: float, t1: float, name: str | None = None) -> Recording:
+    """The epochs ``t0 <= t < t1`` of every tag (truth padded by :data:`TRUTH_PAD_S`, IMU cut alike)."""
     ranges = {t: log.between(t0, t1) for t, log in rec.ranges.items()}
     truth = {t: tr.between(t0 - TRUTH_PAD_S, t1 + TRUTH_PAD_S) for t, tr in rec.truth.items()}
     imu = rec.imu
     if imu is not None:
         keep = (imu.t_s >= t0) & (imu.t_s < t1)
         imu = type(imu)(imu.t_s[keep], imu.acc_mps2[keep], imu.gyro_radps[keep])
-    return replace(rec, name=name, ranges=ranges, truth=truth, imu=imu)
+    return replace(rec, name=name or rec.name, ranges=ranges, truth=truth, imu=imu)
 
 
 def split_in_time(rec: Recording, fraction: float = 0.5) -> tuple[Recording, Recording]:
@@ -76,8 +77,8 @@ def split_in_time(rec: Recording, fraction: float = 0.5) -> tuple[Recording, Rec
         raise ValueError(f"{rec.label}: no ranges to split")
     t0, t1 = float(min(starts)), float(max(ends))
     tm = t0 + fraction * (t1 - t0)
-    return (_cut(rec, t0, tm, f"{rec.name} [{t0:.0f}–{tm:.0f} s]"),
-            _cut(rec, tm, t1 + 1e-9, f"{rec.name} [{tm:.0f}–{t1:.0f} s]"))
+    return (between(rec, t0, tm, f"{rec.name} [{t0:.0f}–{tm:.0f} s]"),
+            between(rec, tm, t1 + 1e-9, f"{rec.name} [{tm:.0f}–{t1:.0f} s]"))
 
 
 def thin(rec: Recording, rate_hz: float | None) -> Recording:
