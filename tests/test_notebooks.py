@@ -83,3 +83,30 @@ def test_quickstart_runs_unchanged_on_another_lias_recording(tmp_path):
                         execution_timeout=CELL_TIMEOUT_S)
     rows = json.loads(summary.read_text())
     assert {r["data"] for r in rows} == {"lias-planar-uwb/medium"}
+
+
+@pytest.mark.notebook
+def test_set_noise_runs_unchanged_on_another_lias_recording(tmp_path):
+    """Notebook 01's real-data section on a recording that is not in ../shared (run name 'medium')."""
+    import numpy as np
+    import papermill as pm
+
+    from tests.fixtures import lias as fx
+
+    data_dir = tmp_path / "data"
+    rng = np.random.default_rng(12)
+    fx.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 30.0, "clock_offset_s": 0.3}},
+                 sessions=[fx.session_814(rng)])
+    summary = tmp_path / "summary.json"
+    pm.execute_notebook(str(NOTEBOOK_DIR / "01_set_noise_pf.ipynb"), str(tmp_path / "out.ipynb"),
+                        parameters={"FAST": True, "DATA_DIR": str(data_dir), "RECORDING": "medium",
+                                    "SUMMARY_PATH": str(summary)},
+                        kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
+                        execution_timeout=CELL_TIMEOUT_S)
+    rows = json.loads(summary.read_text())
+    real = [r for r in rows if r["data"] != "synthetic"]
+    assert real and {r["data"] for r in real} == {"lias-planar-uwb/medium"}
+    assert {r["mode"] for r in rows} == {"FAST"}
+    kinds = {r["quantity"]: r["kind"] for r in rows}
+    assert all(k == "target" for q, k in kinds.items() if q.startswith(("raw error, recording", "top")))
+    assert all(k == "input" for q, k in kinds.items() if q.startswith("fixes"))

@@ -139,14 +139,17 @@ def rig_inputs(tmp_path_factory):
 
 def test_real_inputs_fall_back_to_the_rig(rig_inputs):
     assert rig_inputs.synthetic and rig_inputs.data_label == "synthetic"
-    assert "not found" in rig_inputs.note
+    assert "not found" in rig_inputs.reason and "synthetic rig" in rig_inputs.note
+    assert "synthetic stand-in" in rig_inputs.banner().data
 
 
 def test_emulated_sets(rig_inputs):
     rec = rig_inputs.static[0]
     emu = E.Emulation(set_size=5, fading_db=0.0, decimate=4)
-    fixes, rep = E.emulate_fixes(rec, "t0", emu, rng=np.random.default_rng(0))
+    z = float(rec.truth["t0"].pos_m[0, 2])
+    fixes, rep = E.emulate_fixes(rec, "t0", emu, tag_height_m=z, rng=np.random.default_rng(0))
     assert rep["kept_after_decimation"] == -(-rep["epochs"] // 4)
+    assert rep["coverage"] == pytest.approx(rep["fixes"] / (rep["kept_after_decimation"] - rep["no_truth"]))
     assert rep["fixes"] == len(fixes) == rep["kept_after_decimation"] - rep["no_truth"] - rep["too_few_ranges"] \
         - rep["fix_failed"]
     used = set_mask(fixes.set_id, 8)
@@ -157,7 +160,7 @@ def test_emulated_sets(rig_inputs):
     np.testing.assert_array_equal(np.sort(np.flatnonzero(used[0])), np.sort(shortest[0]))
     assert fixes.name == f"{rec.name}/t0"
     # fading makes a static tag switch sets
-    faded, _ = E.emulate_fixes(rec, "t0", E.Emulation(decimate=4), rng=np.random.default_rng(0))
+    faded, _ = E.emulate_fixes(rec, "t0", E.Emulation(decimate=4), tag_height_m=z, rng=np.random.default_rng(0))
     assert len(np.unique(faded.set_id)) > 3
     with pytest.raises(ValueError):
         E.Emulation(set_size=2)
@@ -175,6 +178,27 @@ def test_real_study_on_the_rig(rig_inputs):
     uncal = E.real_study(rig_inputs, E.Emulation(decimate=4), range_calibration=False, rng=np.random.default_rng(0))
     assert uncal.range_calibration is None
     assert np.mean([E.raw_error_m(t) for t in uncal.tests]) > np.mean(raw)      # the rig has per-pair biases
+    # the mount height comes from the static poses, the coverage is reported per role
+    assert st.tag_height.z_m == pytest.approx(0.97, abs=0.01) and "static" in st.tag_height.source
+    cov = st.coverage()
+    assert list(cov.index) == ["calibration", "test"] and (cov["coverage"] <= 1).all()
+    lo, hi = E.range_bias_span_m(st)
+    assert lo < hi and E.range_bias_span_m(uncal) is None
+
+
+def test_the_test_run_truth_height_does_not_reach_the_fixes(rig_inputs):
+    """Moving the dynamic run's truth up by 30 cm changes no fix: the height comes from the static poses."""
+    import dataclasses as dc
+
+    from uwbwb.types import Trajectory
+
+    lifted = {t: Trajectory(tr.t_s, tr.pos_m + [0.0, 0.0, 0.3], name=tr.name)
+              for t, tr in rig_inputs.dynamic.truth.items()}
+    moved = dc.replace(rig_inputs, dynamic=dc.replace(rig_inputs.dynamic, truth=lifted))
+    a = E.real_study(rig_inputs, E.Emulation(decimate=8), rng=np.random.default_rng(2))
+    b = E.real_study(moved, E.Emulation(decimate=8), rng=np.random.default_rng(2))
+    for x, y in zip(a.tests, b.tests):
+        np.testing.assert_array_equal(x.pos_m, y.pos_m)
 
 
 @pytest.mark.realdata
@@ -223,7 +247,9 @@ def test_discussion_quotes_the_run_and_words_the_outcome():
                           E.SET_KF: (24, 15.8), E.SET_KF_POOLED: (23, 15.5)})
     text = _discussion(sweep, _residuals((2.0, 2.2), (1.6, 1.8)))
     assert "41.6 %" in text and "87.8 %" in text and "1500/470/250/165/140" in text
-    assert "Raw errors are 17.0–18.2 cm" in text and "ours does not" in text
+    assert "raw errors of 17.0–18.2 cm" in text and "ours does not" in text
+    assert "aimed at, not reproduced" in text and "are inputs" in text and "9.26–9.56 Hz" in text
+    assert "emerge" not in text
     assert "20.0 % (4.0 cm)" in text                                  # set-noise PF: 16 cm against raw 20 cm
     assert "Most of it is smoothing" in text and "the set model adds 1.0 cm between the two PFs" in text
     assert "breaks down at small σ_d" in text and "90.0 cm, worse than the raw fixes' 20.0 cm" in text
@@ -269,3 +295,75 @@ def test_discussion_of_the_real_run():
     rig = _discussion(syn, _residuals((2.0, 2.2), (1.6, 1.8)), real_sweeps={"calibrated": cal},
                       real_residuals={"calibrated": _residuals((1.0, 1.2), (1.0, 1.0))}, real_synthetic=True)
     assert "synthetic LIAS-like rig" in rig and "simulated range errors" in rig and "fit the moving trolley" in rig
+
+
+# --------------------------------------------------------------------------- kinds, the second track, the resampler
+
+def test_fix_rates_from_table1_average_to_the_simulator_rate():
+    rates = E.fix_rates_hz()
+    assert rates[0] == pytest.approx(1521 / (1750 / 11))                     # 9.56 Hz, not 9.4
+    assert round(float(np.mean(rates)), 1) == S.FacilityConfig().rate_hz
+
+
+def test_headline_rows_say_their_kind(study):
+    t1 = E.table1(study.recordings)
+    imp = pd.DataFrame({"improvement_pct": 1.0, "improvement_cm": 0.1},
+                       index=[E.SET_PF, E.BASE_PF, E.SET_KF, E.BASE_KF, E.SET_KF_POOLED])
+    rows = E.headline_rows(shares=E.set_shares(study.fig3), table1=t1, improvement=imp, off_improvement=imp)
+    kind = {r["quantity"]: r["kind"] for r in rows}
+    assert all(kind[q] == E.TARGET for q in kind if q.startswith(("raw error", "top")))
+    assert all(kind[q] == E.INPUT for q in kind if q.startswith("fixes"))
+    assert all(kind[q] == E.REPRODUCED for q in kind if "improvement" in q)
+    assert sum("away from calibration" in q for q in kind) == 4
+    targets = E.paper_targets(E.set_shares(study.fig3), t1)
+    assert set(targets["kind"]) == {E.TARGET, E.INPUT}
+
+
+def test_second_track_keeps_away_from_the_calibration_locations(study):
+    assert len(study.off_recordings) == len(study.recordings)
+    assert all(r.name.startswith("off-") for r in study.off_recordings)
+    prox = E.calibration_proximity(study.recordings + study.off_recordings, SMALL).set_index("recording")
+    assert (prox.loc[["rec1", "rec2"], "within_corr_share"] > 0.3).all()      # through the Fig. 3 location
+    assert (prox.loc[["off-rec1", "off-rec2"], "within_corr_share"] == 0).all()
+    assert (prox.loc[["off-rec1", "off-rec2"], "median_distance_m"] > 1.9).all()
+    # the paper's recordings are the same with or without the second track
+    alone = E.synthetic_study(SMALL, rng=np.random.default_rng(0), off_track_xy_m=None)
+    assert alone.off_recordings == ()
+    np.testing.assert_array_equal(alone.recordings[1].pos_m, study.recordings[1].pos_m)
+
+
+def test_resampler_check_reports_its_scope(study):
+    cfg = E.SweepConfig(sigma_d_mps=(0.3, 0.5), n_trials=3, n_particles=100)
+    chk = E.resampler_check(study.recordings[0], study.model, cfg, rng=np.random.default_rng(0))
+    assert chk["recording"] == "rec1" and chk["sigma_d_mps"] == (0.3, 0.5) and chk["n_trials"] == 3
+    assert chk["diff_cm"] == pytest.approx(chk["error_cm"]["systematic"] - chk["error_cm"]["multinomial"])
+    assert chk["z"] >= 0
+    with pytest.raises(ValueError, match="exactly two"):
+        E.resampler_check(study.recordings[0], study.model, cfg, rng=np.random.default_rng(0),
+                          resamplers=("systematic",))
+
+
+def test_discussion_of_the_second_track_and_the_resampler():
+    on = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (60, 17), E.SET_PF: (90, 16), E.BASE_KF: (25, 16.5),
+                       E.SET_KF: (24, 15.8), E.SET_KF_POOLED: (23, 15.5)}, sigmas=(0.02, 0.3, 0.5))
+    off = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (17, 17), E.SET_PF: (17.5, 17.5), E.BASE_KF: (16.5, 16.5),
+                        E.SET_KF: (16.6, 16.6), E.SET_KF_POOLED: (16.5, 16.5)}, sigmas=(0.3, 0.5),
+                       recordings=("off-a", "off-b"))
+    prox = pd.DataFrame({"recording": ["a", "b", "off-a", "off-b"], "n_fixes": [100, 100, 100, 100],
+                         "within_corr_share": [0.4, 0.4, 0.0, 0.0], "median_distance_m": [0.8, 0.8, 2.0, 2.0]})
+    chk = {"recording": "rec2", "sigma_d_mps": (0.3, 0.4, 0.5), "n_trials": 20, "n_particles": 1000,
+           "resamplers": ("systematic", "multinomial"), "error_cm": {"systematic": 14.0, "multinomial": 14.1},
+           "se_cm": {"systematic": 0.05, "multinomial": 0.05}, "diff_cm": -0.1, "z": 1.41}
+    text = _discussion(on, _residuals((2.0, 2.2), (1.6, 1.8)), off_sweep=off, proximity=prox, resampler=chk)
+    part = text.split("Away from the calibration locations.")[1].split("\n")[0]
+    assert "40 % of the fixes" in part and "calibration locations 0 %" in part
+    assert "set-noise PF improves on its raw fixes by 12.5 % (paper's track: +20.0 %)" in part
+    assert "-0.10 cm there against +0.70 cm" in part
+    assert "does worse than ignoring the sets" in part
+    worse = _discussion(on, _residuals((2.0, 2.2), (1.6, 1.8)), proximity=prox,
+                        off_sweep=off.assign(mean_error_m=np.where(off["filter"] == E.SET_PF, 0.25,
+                                                                   off["mean_error_m"])))
+    assert "set-noise PF is 25.0 % worse than its raw fixes" in worse
+    res = text.split("Resampler (interpretation 6).")[1].split("\n")[0]
+    assert "one recording (rec2)" in res and "30, 40 and 50 cm/s" in res and "20 trials" in res
+    assert "same within Monte Carlo noise" in res and "were not checked" in res

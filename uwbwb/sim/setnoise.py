@@ -22,13 +22,15 @@ directly:
 4. **Position**: 2-D least squares at the known tag height
    (:func:`uwbwb.geometry.multilaterate`).
 
-So each set's systematic error *emerges* from its sensors' range errors and the
-geometry, and it changes (slowly) with position — which the paper's per-set
-model, calibrated at six locations, only approximates.
+So each set's systematic error is computed from its sensors' range errors and
+the geometry rather than drawn per set, and it changes (slowly) with position —
+which the paper's per-set model, calibrated at six locations, only approximates.
+Its size is not a finding of the simulator: the defaults below were chosen to hit
+the paper's numbers (see the last paragraph).
 
 Recordings follow paper 000's Table I and section II-D/E: a tag at 0.92 m on a
 trolley pulled back and forth seven times along a 2.5 m straight track (17.5 m),
-at five speeds, fixes at ≈ 9.4 Hz; ground truth moves at constant speed with
+at five speeds, fixes at 9.4 Hz; ground truth moves at constant speed with
 instantaneous turns, which is exactly how the paper reconstructs its truth.
 
 The facility layout, losses and error sizes are our choices (the paper gives a
@@ -36,7 +38,9 @@ floor plan without dimensions). The selection defaults (losses, fading) make the
 set statistics at the paper's Fig. 3 location resemble its Fig. 4 (top set
 < 45 %, top five ≈ 86 %); the error defaults make the raw error, averaged over
 facility draws, about 21 cm (paper: 18–23 cm, mean 20.6 cm). Individual draws
-range over roughly 18–25 cm.
+range over roughly 18–25 cm. These set shares and raw errors are therefore
+calibration *targets* of the simulator, not reproductions; the fix counts are
+*inputs* (track, speeds and rate taken from the paper).
 """
 
 from __future__ import annotations
@@ -100,7 +104,9 @@ class FacilityConfig:
     n_legs
         Passes along the track per recording (paper: back and forth seven times).
     rate_hz
-        Fix rate (paper: 1521 fixes in 159 s ≈ 9.4 Hz).
+        Fix rate, Hz. The paper states none; Table I implies fixes ÷ (1750 cm ÷ speed)
+        = 9.56, 9.34, 9.29, 9.37 and 9.26 Hz for its five recordings (1521 fixes in
+        159 s is 9.56 Hz), 9.36 Hz on average, which 9.4 Hz rounds.
     speeds_mps
         Speeds of the five recordings (Table I).
     """

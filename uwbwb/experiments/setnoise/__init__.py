@@ -1,0 +1,33 @@
+"""Notebook 01: sensor-set switching noise and the set-noise particle filter (paper 000).
+
+:mod:`.study` is the synthetic re-creation (facility, calibration, Table I, the
+Fig. 9 sweep, the resampler check, summary rows with their kind), :mod:`.real`
+the sets emulated on ``lias-planar-uwb`` ranges, :mod:`.figures` the figure
+builders and :mod:`.discussion` the comparison with the paper written from the
+run's numbers. Everything the notebook uses is importable from here.
+"""
+
+from .discussion import discussion_markdown
+from .figures import (plot_facility, plot_fixes, plot_pf_kf_gap, plot_set_ellipses, plot_set_frequency,
+                      plot_sweep, plot_trace)
+from .real import (Emulation, RealStudy, emulate_fixes, modelled_share, range_bias_span_m, real_inputs,
+                   real_study)
+from .study import (BAND_MPS, BASE_KF, BASE_PF, FACILITY_WIDE, FILTERS, INPUT, OFF_TRACK_XY_M, PAPER,
+                    PAPER_SIGMA_RULE, POOLED_SIGMA_RULE, RAW, REPRODUCED, SET_KF, SET_KF_POOLED, SET_PF,
+                    SIGMA_D_GRID_MPS, TARGET, SweepConfig, SyntheticStudy, band_sigmas, band_summary, best_sigma,
+                    calibration_proximity, fix_rates_hz, headline_rows, mean_over_recordings, normalised_residuals,
+                    paper_targets, pf_kf_gap, raw_error_m, resampler_check, residual_table, set_shares, sweep,
+                    synthetic_study, table1, trace)
+
+LIAS = "lias-planar-uwb"
+
+__all__ = [
+    "BAND_MPS", "BASE_KF", "BASE_PF", "FACILITY_WIDE", "FILTERS", "INPUT", "LIAS", "OFF_TRACK_XY_M", "PAPER",
+    "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "RAW", "REPRODUCED", "SET_KF", "SET_KF_POOLED", "SET_PF",
+    "SIGMA_D_GRID_MPS", "TARGET", "Emulation", "RealStudy", "SweepConfig", "SyntheticStudy", "band_sigmas",
+    "band_summary", "best_sigma", "calibration_proximity", "discussion_markdown", "emulate_fixes", "fix_rates_hz",
+    "headline_rows", "mean_over_recordings", "modelled_share", "normalised_residuals", "paper_targets",
+    "pf_kf_gap", "plot_facility", "plot_fixes", "plot_pf_kf_gap", "plot_set_ellipses", "plot_set_frequency",
+    "plot_sweep", "plot_trace", "range_bias_span_m", "raw_error_m", "real_inputs", "real_study",
+    "resampler_check", "residual_table", "set_shares", "sweep", "synthetic_study", "table1", "trace",
+]
