@@ -1,7 +1,10 @@
+import dataclasses
+
 import numpy as np
 import pytest
 
 from uwbwb.experiments import quickstart as qs
+from uwbwb.types import Trajectory
 
 
 @pytest.fixture(scope="module")
@@ -9,25 +12,74 @@ def synthetic(tmp_path_factory):
     return qs.load(tmp_path_factory.mktemp("empty"), fast=True, seed=1)
 
 
+@pytest.fixture(scope="module")
+def compared(synthetic):
+    cal = qs.calibrate(synthetic)
+    return cal, *qs.compare_calibration(synthetic.dynamic, cal, tag_height_m=synthetic.tag_height.per_tag_m)
+
+
 def test_absent_data_gives_a_labelled_synthetic_stand_in(synthetic):
     assert synthetic.synthetic and synthetic.data_label == "synthetic"
-    assert "SYNTHETIC" in synthetic.note
+    assert "not found" in synthetic.room.reason
+    assert "synthetic stand-in" in synthetic.room.banner().data
     assert len(synthetic.static) == 30
+    assert all(r.meta["decimated"] == 10 for r in synthetic.static)          # FAST thins the static poses
 
 
-def test_calibration_fitted_on_static_improves_the_dynamic_run(synthetic):
-    cal = qs.calibrate(synthetic)
-    table, errors = qs.compare_calibration(synthetic.dynamic, cal, tag_height_m=synthetic.tag_height_m)
+def test_tag_height_comes_from_the_static_poses(synthetic):
+    assert synthetic.tag_height.z_m == pytest.approx(0.97, abs=0.01)
+    assert "static" in synthetic.tag_height.source
+
+
+def test_calibration_fitted_on_static_improves_the_dynamic_run(compared):
+    cal, table, errors = compared
     raw = table[table.variant == "raw"].set_index("tag")
     calibrated = table[table.variant == "calibrated"].set_index("tag")
     # biases of 5-40 cm dominate raw fixes; calibration leaves centimetre-level noise
     assert (raw.cep95_m > 0.15).all()
     assert (calibrated.cep95_m < 0.5 * raw.cep95_m).all()
-    assert (table.fixes == table.epochs).all()
+    assert (table.fixes == table.epochs).all() and (table.coverage == 1).all()
     assert set(errors) == {"raw", "calibrated"}
 
 
-def test_decimate_keeps_truth_and_thins_ranges(synthetic):
-    rec = qs.decimate(synthetic.dynamic, 10)
-    assert len(rec.ranges["t0"]) == int(np.ceil(len(synthetic.dynamic.ranges["t0"]) / 10))
-    assert rec.truth is synthetic.dynamic.truth
+def test_both_variants_are_scored_on_the_same_epochs(synthetic):
+    """An epoch only one variant fixes is left out of both variants' CEP, and coverage says so."""
+    rec = synthetic.dynamic
+    tag = rec.tags[0]
+    log = rec.ranges[tag]
+    r = np.array(log.range_m)
+    r[:50, 2:] = np.nan                                   # two anchors left: no 2-D fix on raw or calibrated
+    holed = dataclasses.replace(rec, ranges={**rec.ranges, tag: dataclasses.replace(log, range_m=r)})
+    cal = qs.calibrate(synthetic)
+    table, _ = qs.compare_calibration(holed, cal, tag_height_m=synthetic.tag_height.z_m)
+    row = table[table.tag == tag].set_index("variant")
+    assert (row.fixes == len(log) - 50).all()
+    assert row.coverage.iloc[0] == pytest.approx((len(log) - 50) / len(log))
+    assert (row.compared == len(log) - 50).all()
+
+
+def test_truth_height_of_the_dynamic_run_is_not_used(synthetic):
+    lifted = {t: Trajectory(tr.t_s, tr.pos_m + [0.0, 0.0, 0.4], name=tr.name)
+              for t, tr in synthetic.dynamic.truth.items()}
+    moved = dataclasses.replace(synthetic, room=dataclasses.replace(
+        synthetic.room, dynamic=dataclasses.replace(synthetic.dynamic, truth=lifted)))
+    assert moved.tag_height == synthetic.tag_height
+
+
+def test_discussion_states_the_run_numbers(synthetic, compared):
+    cal, table, _ = compared
+    text = qs.discussion_markdown(table, cal, synthetic=True)
+    b = np.asarray(cal.bias_m)
+    assert f"{100 * b.min():.1f} to {100 * b.max():.1f} cm" in text
+    raw, calibrated = (table[table.variant == v].cep95_m.mean() for v in ("raw", "calibrated"))
+    assert f"from {raw:.3f} m to {calibrated:.3f} m" in text and "simulated rig" in text
+    assert "same epochs" in text
+    worse = table.assign(cep95_m=np.where(table.variant == "calibrated", 2 * raw, table.cep95_m))
+    assert "does not lower CEP95" in qs.discussion_markdown(worse, cal, synthetic=False)
+
+
+def test_headline_rows_carry_kind_and_coverage(compared):
+    _, table, _ = compared
+    rows = qs.headline_rows(table)
+    assert {r["kind"] for r in rows} == {"reproduced"}
+    assert sum(r["quantity"].startswith("coverage") for r in rows) == len(table)

@@ -1,0 +1,157 @@
+"""What notebook 00 (quickstart) runs: the room's recordings (or a stand-in), raw
+multilateration of every tag against ground truth, and the effect of a range calibration
+fitted on other recordings of the same room.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ... import geometry, metrics
+from ...calibration import MountHeight, RangeCalibration, fit_range_calibration, range_residuals, tag_mount_height
+from ...datasets.standin import RoomData, load_lias_room
+from ...sim import rig
+from ...types import Recording
+
+#: The two variants compared: per-epoch multilateration of raw and of calibrated ranges.
+VARIANTS = ("raw", "calibrated")
+
+
+@dataclass(frozen=True)
+class QuickstartData:
+    """The recordings notebook 00 works on.
+
+    Attributes
+    ----------
+    room
+        The dynamic run, the static calibration poses and where they came from.
+    tag_height
+        The tags' mount height, from the static poses (never from the dynamic run's truth).
+    """
+
+    room: RoomData
+    tag_height: MountHeight
+
+    @property
+    def dynamic(self) -> Recording:
+        return self.room.dynamic
+
+    @property
+    def static(self) -> tuple[Recording, ...]:
+        return self.room.static
+
+    @property
+    def synthetic(self) -> bool:
+        return self.room.synthetic
+
+    @property
+    def data_label(self) -> str:
+        """The ``data`` field of summary rows: ``synthetic`` or ``dataset/recording``."""
+        return self.room.data_label
+
+
+def load(data_dir=None, recording: str = "fast", static_session: str = "8.14", *, seed: int = 0,
+         fast: bool = False) -> QuickstartData:
+    """The LIAS dynamic run + static poses, or the synthetic rig when they are absent.
+
+    Under ``fast`` the static recordings are decimated 10× (calibration needs far
+    fewer than their ~10,000 samples per pose); the dynamic run is used whole.
+    """
+    stand_in = rig.RigConfig(duration_s=60.0 if fast else 180.0)
+    room = load_lias_room(data_dir, recording, static_session, stand_in=stand_in,
+                          static_duration_s=5.0 if fast else 30.0, rng=np.random.default_rng(seed))
+    if fast:
+        from dataclasses import replace
+
+        room = replace(room, static=tuple(r.decimate(10) for r in room.static))
+    return QuickstartData(room, tag_mount_height(room.static))
+
+
+def multilaterate_tags(rec: Recording, *, tag_height_m, calibration: RangeCalibration | None = None
+                       ) -> dict[str, geometry.MultilaterationResult]:
+    """Per-epoch 2-D multilateration (known tag height) of every tag's ranges.
+
+    ``tag_height_m`` is one height for all tags or a mapping tag → height, metres.
+    """
+    out = {}
+    for tag in rec.tags:
+        z = tag_height_m[tag] if isinstance(tag_height_m, dict) else float(tag_height_m)
+        log = rec.ranges[tag] if calibration is None else calibration.apply(rec.ranges[tag])
+        out[tag] = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=2, z_m=z)
+    return out
+
+
+def tag_errors(rec: Recording, fixes: dict[str, geometry.MultilaterationResult], name: str
+               ) -> dict[str, metrics.ErrorSeries]:
+    """Horizontal errors of each tag's fixes against its ground truth (epochs with a fix and truth)."""
+    out = {}
+    for tag, res in fixes.items():
+        est = res.to_trajectory(rec.ranges[tag].t_s, name=name)
+        out[tag] = metrics.errors_vs_truth(est, rec.truth[tag], horizontal=True)
+    return out
+
+
+def compare_calibration(rec: Recording, calibration: RangeCalibration, *, tag_height_m
+                        ) -> tuple[pd.DataFrame, dict]:
+    """Raw multilateration before vs after calibration, per tag, scored on the same epochs.
+
+    A variant can fail to fix an epoch the other fixes; both are therefore scored on
+    the epochs where *both* have a fix and truth covers the epoch (``compared``), and
+    each variant's ``coverage`` (its fixes ÷ epochs inside the truth's span) stands
+    beside its errors.
+
+    Returns
+    -------
+    table
+        One row per tag and variant (``raw``/``calibrated``): ``epochs``, ``with_truth``,
+        ``fixes`` (with truth), ``coverage``, ``compared``, CEP50, CEP95 and RMSE (m) on
+        the compared epochs, median |range residual| (m).
+    errors
+        ``{variant: {tag: ErrorSeries}}`` of every fix with truth, for plotting.
+    """
+    errors, resid = {}, {}
+    for variant, cal in zip(VARIANTS, (None, calibration)):
+        fixes = multilaterate_tags(rec, tag_height_m=tag_height_m, calibration=cal)
+        errors[variant] = tag_errors(rec, fixes, variant)
+        resid[variant] = range_residuals(rec, cal)
+    rows = []
+    for tag in rec.tags:
+        t = rec.ranges[tag].t_s
+        span = rec.truth[tag].t_s
+        with_truth = int(np.count_nonzero((t >= span[0]) & (t <= span[-1])))
+        ok = {v: np.isfinite(errors[v][tag].err_m) for v in VARIANTS}
+        common = np.intersect1d(*(errors[v][tag].t_s[ok[v]] for v in VARIANTS))
+        for v in VARIANTS:
+            e = errors[v][tag]
+            cmp = e.err_m[ok[v] & np.isin(e.t_s, common)]
+            r = resid[v]
+            rows.append({"tag": tag, "variant": v, "epochs": t.size, "with_truth": with_truth,
+                         "fixes": int(ok[v].sum()), "coverage": ok[v].sum() / with_truth if with_truth else np.nan,
+                         "compared": cmp.size, "cep50_m": metrics.cep50(cmp), "cep95_m": metrics.cep95(cmp),
+                         "rmse_m": metrics.rmse(cmp),
+                         "median_abs_range_resid_m": float(r.loc[r.tag_id == tag, "median_m"].abs().median())})
+    return pd.DataFrame(rows), errors
+
+
+def calibrate(data: QuickstartData) -> RangeCalibration:
+    """Fit the per-pair range calibration on the static recordings only."""
+    return fit_range_calibration(list(data.static))
+
+
+def headline_rows(table: pd.DataFrame) -> list[dict]:
+    """Summary rows of notebook 00 (keyword arguments of ``Summary.add`` without ``data``); all reproduced."""
+    rows = []
+    for row in table.itertuples():
+        for q in ("cep50", "cep95"):
+            rows.append(dict(quantity=f"{q.upper()}, tag {row.tag}, {row.variant} multilateration",
+                             value=getattr(row, f"{q}_m"), unit="m", kind="reproduced"))
+        rows.append(dict(quantity=f"coverage, tag {row.tag}, {row.variant} multilateration",
+                         value=100 * row.coverage, unit="%", kind="reproduced"))
+    raw = table[table.variant == "raw"].set_index("tag")
+    cal = table[table.variant == "calibrated"].set_index("tag")
+    rows.append(dict(quantity="CEP95 change from calibration, mean over tags", unit="m", kind="reproduced",
+                     value=float((cal.cep95_m - raw.cep95_m).mean())))
+    return rows
