@@ -110,3 +110,30 @@ def test_set_noise_runs_unchanged_on_another_lias_recording(tmp_path):
     kinds = {r["quantity"]: r["kind"] for r in rows}
     assert all(k == "target" for q, k in kinds.items() if q.startswith(("raw error, recording", "top")))
     assert all(k == "input" for q, k in kinds.items() if q.startswith("fixes"))
+
+
+@pytest.mark.notebook
+def test_pruning_runs_unchanged_on_other_recordings(tmp_path):
+    """Notebook 02 on recordings that are not in ../shared: another LIAS run and a Hanyang tree of short files."""
+    import numpy as np
+    import papermill as pm
+
+    from tests.fixtures import hanyang as hfx
+    from tests.fixtures import lias as fx
+
+    data_dir = tmp_path / "data"
+    rng = np.random.default_rng(12)
+    fx.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 40.0, "clock_offset_s": 0.2}},
+                 sessions=[fx.session_814(rng, files=((1, 0), (2, 0), (3, 0), (1, 60)))], static_rows=300)
+    hfx.write_dataset(data_dir / "hanyang-outdoor-uwb", rng=rng)     # 12 samples a file: too few for a percentile
+    summary = tmp_path / "summary.json"
+    pm.execute_notebook(str(NOTEBOOK_DIR / "02_pruning_nls.ipynb"), str(tmp_path / "out.ipynb"),
+                        parameters={"FAST": True, "DATA_DIR": str(data_dir), "RECORDING": "medium",
+                                    "SUMMARY_PATH": str(summary)},
+                        kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
+                        execution_timeout=CELL_TIMEOUT_S)
+    rows = json.loads(summary.read_text())
+    data = {r["data"] for r in rows}
+    assert {"synthetic", "lias-planar-uwb/8.14", "lias-planar-uwb/medium"} <= data
+    assert "hanyang-outdoor-uwb/static" not in data                   # no file long enough: no rows, no KeyError
+    assert {r["kind"] for r in rows} == {"reproduced"} and {r["mode"] for r in rows} == {"FAST"}

@@ -14,7 +14,7 @@ import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 
 from tests.conftest import real_dataset  # noqa: E402
-from uwbwb import Anchors, RangeLog, Recording, Trajectory  # noqa: E402
+from uwbwb import Anchors, RangeLog, Recording, Trajectory, calibration, metrics  # noqa: E402
 from uwbwb.experiments import pruning as ex  # noqa: E402
 from uwbwb.filters.pruning import PruningConfig, localize  # noqa: E402
 from uwbwb.sim import tours  # noqa: E402
@@ -32,7 +32,7 @@ def _close_figures():
 def _small(**tour_kw):
     base = dataclasses.replace(tours.TourConfig(), **tour_kw)
     return ex.SyntheticConfig(tours=(1,), paces=("fast",), tags=("H",), tour=base,
-                              pruning=PruningConfig(res_dropout=0.02, rm_dropout=0.05))
+                              pruning=PruningConfig(dim=2, res_dropout=0.02, rm_dropout=0.05))
 
 
 def test_noise_free_tour_is_recovered_by_every_heuristic():
@@ -46,9 +46,13 @@ def test_noise_free_tour_is_recovered_by_every_heuristic():
     assert res.moves.mean_err_m.max() < 0.1
     assert res.moves.vel_err_mps.max() < 0.02
     np.testing.assert_allclose(res.moves.speed_ratio, 1.0, atol=0.02)
-    assert set(res.track[res.track.kind == "move"].heuristic) == {"none", "robust_mean", "residual"}
-    assert set(res.track[res.track.kind == "stop"].heuristic) == set(res.stops.heuristic)
-    assert set(res.recordings) == {"tour1-fast"}
+    assert set(res.track[res.track.kind == "move"].heuristic) == {"none", "robust_mean", "residual", "point"}
+    assert set(res.track[res.track.kind == "stop"].heuristic) == set(res.stops.heuristic) | {"point"}
+    assert set(res.recordings) == {"tour1-fast"} and res.dim == 2
+    # the point-based baseline fixes noise-free packets exactly (at the known height)
+    pt = res.track[res.track.heuristic == "point"]
+    assert pt.err_m.notna().all() and pt.err_m.max() < 0.2      # walks: the 130 ms ranging spread
+    assert pt[pt.kind == "stop"].err_m.max() < 0.01
 
 
 def test_pruning_beats_plain_nls_with_nlos_and_same_seed_same_numbers():
@@ -57,13 +61,77 @@ def test_pruning_beats_plain_nls_with_nlos_and_same_seed_same_numbers():
     b = ex.run_synthetic(cfg, rng=np.random.default_rng(5))
     pd.testing.assert_frame_equal(a.stops, b.stops)
     table = ex.heuristic_summary(a.stops, a.moves, a.track)
-    assert list(table.index) == ["none", "percentile", "robust_mean", "residual"]
-    for h in ("percentile", "robust_mean", "residual"):
-        assert table.loc[h, "stop_median_m"] < table.loc["none", "stop_median_m"]
+    assert list(table.index) == ["none", "percentile", "robust_mean", "residual", "point"]
+    for h in ("robust_mean", "residual"):       # same packets; the NLOS outliers live in the tail
+        assert table.loc[h, "all_p90_m"] < table.loc["none", "all_p90_m"]
     assert np.isnan(table.loc["percentile", "vel_err_median_mps"])
     assert not table.loc["percentile", "all_includes_walks"] and table.loc["residual", "all_includes_walks"]
     assert table.loc["residual", "walk_p90_m"] > 0
     assert ex.winner(table, "stop_median_m") != "none"
+    # every estimator that covers walks is scored on the same packets
+    walks = table[table.all_includes_walks]
+    assert set(walks.index) == {"none", "robust_mean", "residual", "point"} and walks.n_epochs.nunique() == 1
+    assert (table.coverage <= 1).all() and table.loc["none", "coverage"] == 1.0
+    assert list(ex.rank_heuristics(table).sort_values().index) == list(
+        table.loc[["percentile", "robust_mean", "residual"], "stop_median_m"].sort_values().index)
+
+
+def test_3d_comparison_on_the_same_packets_reports_height_errors():
+    cfg = _small()
+    two = ex.run_synthetic(cfg, rng=np.random.default_rng(5))
+    with pytest.raises(ValueError, match="robust mean"):
+        dataclasses.replace(cfg, pruning=PruningConfig(dim=3))
+    cfg3 = dataclasses.replace(cfg, heuristics=("none", "percentile", "residual"),
+                               pruning=dataclasses.replace(cfg.pruning, dim=3))
+    three = ex.run_recordings(two.recordings, cfg3)
+    assert three.dim == 3 and set(three.stops.heuristic) == {"none", "percentile", "residual"}
+    # same packets: identical epoch sets per estimator
+    key = ["experiment", "tag", "segment", "t_s"]
+    a = two.track[two.track.heuristic == "none"][key].reset_index(drop=True)
+    b = three.track[three.track.heuristic == "none"][key].reset_index(drop=True)
+    pd.testing.assert_frame_equal(a, b)
+    assert (two.stops.err_z_m == 0).all() and (three.stops.err_z_m != 0).all()
+    np.testing.assert_allclose(three.stops.err_3d_m, np.hypot(three.stops.err_m, three.stops.err_z_m))
+    t = ex.heuristic_summary(three.stops, three.moves, three.track)
+    assert t.loc["percentile", "stop_err_z_median_m"] > 0.3     # short percentile ranges lift the node
+
+
+def test_epoch_summary_counts_failures_beside_accuracy():
+    ep = pd.DataFrame({"heuristic": ["none"] * 10 + ["point"] * 10,
+                       "err_m": np.r_[np.arange(10.0), np.arange(8.0), np.nan, np.nan]})
+    s = ex.epoch_summary(ep)
+    assert list(s.index) == ["none", "point"]
+    assert s.loc["none", "coverage"] == 1.0 and s.loc["point", "coverage"] == 0.8
+    assert s.loc["point", "median_m"] == 3.5 and s.loc["none", "p90_failed_counted_m"] == 8.0
+    assert np.isinf(s.loc["point", "p90_failed_counted_m"])
+
+
+def test_segments_with_too_few_ranges_count_as_not_covered():
+    cfg = dataclasses.replace(_small(**QUIET), heuristics=("none",))
+    rec, truth = tours.simulate_tour(dataclasses.replace(cfg.tour, tour=1, pace="fast"), rng=np.random.default_rng(2))
+    ranges = dict(rec.ranges)
+    log = ranges["H"]
+    stop = truth.segments[0]
+    R = log.range_m.copy()
+    inside = (log.t_s >= stop.t_start_s) & (log.t_s <= stop.t_end_s)
+    R[np.flatnonzero(inside)[1:]] = np.nan                       # one packet (6 ranges) left in the first stop
+    ranges["H"] = RangeLog(log.t_s, R, log.anchor_ids, log.tag_id)
+    rec = dataclasses.replace(rec, ranges=ranges)
+    s, m, tr = ex.run_tour(rec, truth, cfg)
+    track = pd.concat(tr)
+    first = track[(track.segment == 0) & (track.heuristic == "none")]
+    assert len(first) > 2 and first.err_m.isna().all()
+    assert 0 not in {r["segment"] for r in s}
+    cov = ex.epoch_summary(track).coverage
+    assert cov["none"] < 1.0 and cov["point"] < 1.0
+
+
+def test_outlier_free_control_and_sensitivity_shapes():
+    cfg = _small()
+    ctl = ex.outlier_free_control(cfg, seed=1)
+    assert "point" not in ctl.index and {"none", "residual"} <= set(ctl.index)
+    sens = ex.sensitivity(dataclasses.replace(cfg, heuristics=("none", "residual")), dwell_s=(0.0, 30.0), seed=1)
+    assert list(sens.index) == [0.0, 30.0] and list(sens.columns) == ["none", "residual"]
 
 
 def test_summary_and_winner_on_a_constructed_table():
@@ -122,29 +190,45 @@ def _static_recordings(rng, n_sites=3, T=300):
     return recs
 
 
+H = {"t0": 0.97}
+
+
 def test_static_poses_raw_vs_leave_one_site_out_calibration(rng):
     recs = _static_recordings(rng)
-    raw = ex.run_static_poses(recs, stride=3)
-    assert len(raw) == 6 * 4 and set(raw.columns) >= {"err_m", "bearing_deg", "site", "calibrated"}
+    raw = ex.run_static_poses(recs, heights_m=H, stride=3)
+    assert len(raw.poses) == 6 * 4 and set(raw.poses.columns) >= {"err_m", "bearing_deg", "site", "calibrated"}
+    # every estimator scored on every thinned epoch of every pose
+    n_ep = sum(len(r.ranges["t0"].select(slice(None, None, 3))) for r in recs)
+    assert (raw.epochs.groupby("heuristic").size() == n_ep).all() and len(raw.epochs) == 5 * n_ep
     cals = ex.loso_calibrations(recs, stride=2, fit_scale=False)
     for site, cal in cals.items():
         assert not any(f"pos{site}_" in s for s in cal.source)          # never the evaluated site
         assert len(cal.source) == 4
-    calib = ex.run_static_poses(recs, stride=3, calibrations=cals)
-    assert calib.calibrated.all()
-    assert calib.err_m.median() < 0.5 * raw.err_m.median()
+    calib = ex.run_static_poses(recs, heights_m=H, stride=3, calibrations=cals)
+    assert calib.poses.calibrated.all()
+    assert calib.poses.err_m.median() < 0.5 * raw.poses.err_m.median()
+    es = ex.epoch_summary(calib.epochs)
+    assert es.loc["point", "coverage"] == 1.0 and es.loc["point", "median_m"] > es.loc["none", "median_m"]
     with pytest.raises(ValueError, match="calibration for site"):
-        ex.run_static_poses(recs, calibrations={1: cals[1]})
+        ex.run_static_poses(recs, heights_m=H, calibrations={1: cals[1]})
     with pytest.raises(ValueError, match="two sites"):
         ex.loso_calibrations([r for r in recs if r.meta["site"] == 1])
+    with pytest.raises(ValueError, match="not from the evaluated recording"):
+        ex.run_static_poses(recs, heights_m=None)
 
 
-def test_decimate_thins_ranges_and_matching_truth(rng):
-    rec = _static_recordings(rng, n_sites=1, T=100)[0]
-    d = ex.decimate(rec, 10)
-    assert len(d.ranges["t0"]) == 10 and len(d.truth["t0"]) == 10 and d.meta["decimated"] == 10
-    with pytest.raises(ValueError):
-        ex.decimate(rec, 0)
+def test_range_error_stats_find_the_bias_and_the_long_outliers(rng):
+    recs = _static_recordings(rng)
+    st = ex.range_error_stats(recs, stride=1)
+    assert len(st) == 6 and (st.bias_m > 0.05).all() and (st.frac_long == 0).all()
+    long = []
+    for r in recs:
+        log = r.ranges["t0"]
+        R = log.range_m.copy()
+        R[::10, 0] += 2.0                                              # 10 % NLOS-like excess on anchor a0
+        long.append(dataclasses.replace(r, ranges={"t0": RangeLog(log.t_s, R, log.anchor_ids, "t0")}))
+    st = ex.range_error_stats(long, stride=1).set_index("anchor")
+    assert st.loc["a0", "frac_long"] == pytest.approx(0.1, abs=0.01) and st.loc["a1", "frac_long"] == 0
 
 
 def test_dynamic_segments_on_a_noise_free_tour():
@@ -152,12 +236,16 @@ def test_dynamic_segments_on_a_noise_free_tour():
                                      rng=np.random.default_rng(3))
     segs = ex.straight_segments(rec.truth["L"], tol_m=0.05)
     assert len(segs) == len(tours.TOURS[1]) - 1                      # the four walks
-    out = ex.run_dynamic_segments(rec, segs, tags=["L"], heuristics=("none", "residual"),
+    out = ex.run_dynamic_segments(rec, segs, heights_m={"L": 1.3}, tags=["L"], heuristics=("none", "residual"),
                                   config=PruningConfig(dim=2, res_dropout=0.02))
-    assert len(out) == 2 * len(segs)
-    assert out.mean_err_m.max() < 0.1 and out.vel_err_mps.max() < 0.02
+    assert len(out.pieces) == 2 * len(segs)
+    assert out.pieces.mean_err_m.max() < 0.1 and out.pieces.vel_err_mps.max() < 0.02
+    es = ex.epoch_summary(out.epochs)
+    assert set(es.index) == {"none", "residual", "point"} and es.n_epochs.nunique() == 1
+    # fits cover the walks only, point fixes every epoch (the stops too)
+    assert out.run_coverage["none"] < 0.9 * out.run_coverage["point"] and out.run_coverage["point"] > 0.95
     with pytest.raises(ValueError, match="stationary"):
-        ex.run_dynamic_segments(rec, segs, heuristics=("percentile",))
+        ex.run_dynamic_segments(rec, segs, heights_m={"L": 1.3}, heuristics=("percentile",))
 
 
 def test_percentile_by_file():
@@ -173,6 +261,11 @@ def test_percentile_by_file():
     assert out.loc[1, "frac_over_1m"] == 1.0 and out.loc[0, "frac_over_1m"] == 0.0
     with pytest.raises(ValueError, match="lack"):
         ex.percentile_by_file(df.drop(columns="file"))
+    # short files only: an empty table, and no condition to look up
+    short = ex.percentile_by_file(df[df.file == "c"])
+    assert short.empty and short.attrs["n_skipped"] == 1 and ex.hanyang_table(short).empty
+    t = ex.hanyang_table(out)
+    assert list(t.index) == ["LOS", "NLOS"] and list(t.n_files) == [1, 1]
 
 
 def test_figures_draw():
@@ -193,6 +286,49 @@ def test_figures_draw():
     r = localize(log, rec.anchors, "robust_mean", stationary=True, z_m=2.0)
     ex.plot_robust_mean_cloud(r, truth_xy=tours.TOURS[1][0])
     assert len(ex.error_cdf_by_heuristic(res.stops)) == 4
+    assert list(ex.error_cdf_by_heuristic(res.track)) == [ex.LABELS[h] for h in ex.ESTIMATORS]
+    assert ex.heuristic_color("point") != ex.heuristic_color("none")
+
+
+def test_hanyang_figure_draws_whatever_conditions_there_are():
+    samples = pd.DataFrame({"condition": ["LOS"] * 40, "range_error_m": np.linspace(0.1, 0.4, 40),
+                            "height_m": 1.0, "true_range_m": 10.0, "range_m": 10.0 + np.linspace(0.1, 0.4, 40),
+                            "file": "a"})
+    axes = ex.plot_hanyang(samples, ex.percentile_by_file(samples))
+    assert len(axes) == 3 and len(axes[2].lines) == 3          # zero line + LOS median + LOS percentile
+    axes = ex.plot_hanyang(samples.iloc[:5], ex.percentile_by_file(samples.iloc[:5]))
+    assert len(axes[2].lines) == 1                              # no file long enough: only the zero line
+
+
+def test_tour_explorer_serves_the_run_and_caches_other_settings():
+    cfg = _small()
+    res = ex.run_synthetic(cfg, rng=np.random.default_rng(1))
+    xp = ex.TourExplorer(res, cfg, seed=0)
+    p = cfg.pruning
+    args = (1, "fast", "H", "residual", p.res_retention, 100 * p.res_dropout, p.rm_retention, 100 * p.rm_dropout)
+    st, mv = xp.rows(*args)
+    assert xp.n_solved == 0 and len(st) == len(tours.TOURS[1])
+    pd.testing.assert_frame_equal(st, res.stops[res.stops.heuristic == "residual"])
+    other = (*args[:4], 0.8, *args[5:])
+    fig, out = xp.render(*other[3:], *other[:3])
+    assert xp.n_solved == 1 and np.isfinite(out["median stop error (m)"])
+    xp.render(*other[3:], *other[:3])
+    assert xp.n_solved == 1 and xp.rows.cache_info().hits >= 1       # cached
+    xp.rows(3, "slow", "L", "none", *args[4:])                        # a tour the run did not simulate
+    assert xp.n_solved == 2 and xp.experiment.cache_info().currsize == 2
+
+
+def test_piece_explorer_uses_the_given_height_not_the_truth():
+    rec, truth = tours.simulate_tour(dataclasses.replace(tours.TourConfig(tour=1, pace="slow"), **QUIET),
+                                     rng=np.random.default_rng(3))
+    segs = ex.straight_segments(rec.truth["L"], tol_m=0.05)
+    xp = ex.PieceExplorer(rec, segs, heights_m={"L": 1.3}, config=PruningConfig(dim=2, res_dropout=0.02), stride=2)
+    fig, out = xp.render(0, "L", "none", 0.9, 0.5, 2.0, "raw")
+    assert out["mean error (m)"] < 0.1 and xp.range_options == ["raw"]
+    wrong = ex.PieceExplorer(rec, segs, heights_m={"L": 0.3}, config=PruningConfig(dim=2), stride=2)
+    assert wrong.render(0, "L", "none", 0.9, 0.5, 2.0, "raw")[1]["mean error (m)"] > out["mean error (m)"]
+    with pytest.raises(ValueError, match="calibration"):
+        xp.piece(0, "L", "none", 0.9, 0.5, 2.0, "calibrated")
 
 
 @pytest.mark.realdata
@@ -201,12 +337,14 @@ def test_lias_static_pose_and_dynamic_segment():
     from uwbwb.datasets import lias
 
     recs = lias.load_static("8.14", data_dir=root.parent, site=5, yaw_deg=0)
-    out = ex.run_static_poses(recs, tags=["t0"], stride=100)
+    heights = calibration.tag_mount_height(recs).per_tag_m
+    out = ex.run_static_poses(recs, heights_m=heights, tags=["t0"], stride=100).poses
     assert len(out) == 4 and out.err_m.max() < 0.6
     dyn = lias.load_dynamic("fast", data_dir=root.parent)
     segs = ex.straight_segments(dyn.truth["t0"])
     assert len(segs) >= 10 and segs.duration_s.sum() > 0.5 * (dyn.truth["t0"].t_s[-1] - dyn.truth["t0"].t_s[0])
-    res = ex.run_dynamic_segments(dyn, segs.head(3), tags=["t0"], heuristics=("none",), stride=10)
+    res = ex.run_dynamic_segments(dyn, segs.head(3), heights_m=heights, tags=["t0"], heuristics=("none",),
+                                  stride=10).pieces
     assert len(res) == 3 and res.mean_err_m.max() < 0.6 and res.vel_err_mps.max() < 0.3
 
 
@@ -223,11 +361,27 @@ def test_hanyang_percentile_lands_near_the_truth_in_los():
     assert nlos.median_err_m.median() > los.median_err_m.median()
 
 
-# --------------------------------------------------------------------------- section 10 text
+# --------------------------------------------------------------------------- section 10: facts, then words
 
-def _summary(stop_median, all_p90=(1.9, 0.6, 1.5, 1.7), speed=(0.997, np.nan, 1.02, 1.0)):
-    return pd.DataFrame({"stop_median_m": stop_median, "all_p90_m": all_p90, "speed_ratio_median": speed},
-                        index=pd.Index(["none", "percentile", "robust_mean", "residual"], name="heuristic"))
+HS = ["none", "percentile", "robust_mean", "residual"]
+
+
+def _summary(stop_median, all_p90=(1.9, 0.6, 1.5, 1.7), speed=(0.997, np.nan, 1.02, 1.0), point=None):
+    t = pd.DataFrame({"stop_median_m": stop_median, "all_p90_m": all_p90, "speed_ratio_median": speed,
+                      "all_median_m": np.asarray(all_p90) / 2, "coverage": 1.0,
+                      "all_includes_walks": [True, False, True, True]},
+                     index=pd.Index(HS, name="heuristic"))
+    if point is not None:
+        t.loc["point"] = {"stop_median_m": np.nan, "all_p90_m": point, "speed_ratio_median": np.nan,
+                          "all_median_m": point / 2, "coverage": 0.97, "all_includes_walks": True}
+    return t
+
+
+def _three_d():
+    return pd.DataFrame({"stop_median_m": [1.2, 0.3, 0.6], "stop_err_z_median_m": [1.6, 1.1, 0.6],
+                         "stop_err_z_bias_m": [1.6, 1.1, -0.6],
+                         "stop_err_3d_median_m": [2.3, 1.2, 1.4]},
+                        index=pd.Index(["none", "percentile", "residual"], name="heuristic"))
 
 
 def _hanyang(los_offset, nlos_offset, slope=0.004):
@@ -237,42 +391,103 @@ def _hanyang(los_offset, nlos_offset, slope=0.004):
     return pd.DataFrame(rows)
 
 
-def test_discussion_follows_the_tables():
-    persistence = pd.DataFrame([[0.72, 0.52, 0.44, 0.50], [1.26, 0.48, 0.50, 0.76], [0.67, 0.72, 0.58, 0.73]],
-                               index=[0.0, 3.0, 30.0], columns=["none", "percentile", "robust_mean", "residual"])
+def _lias():
     static = pd.concat({"raw": _summary([0.169, 0.131, 0.235, 0.243]),
                         "calibrated (LOSO)": _summary([0.050, 0.041, 0.069, 0.038])})
     dynamic = pd.DataFrame({"mean_err_m": [0.157, 0.247, 0.254, 0.075, 0.078, 0.076],
                             "speed_ratio": [1.081, 1.106, 1.075, 1.001, 1.007, 1.007]},
                            index=pd.MultiIndex.from_product([["raw", "calibrated"],
                                                              ["none", "residual", "robust_mean"]]))
-    text = ex.discussion_markdown(_summary([1.157, 0.321, 0.515, 0.604]), persistence=persistence,
-                                  lias_static=static, lias_dynamic=dynamic, hanyang=_hanyang(0.12, 0.16))
-    assert ("ranks the 5th percentile (0.32 m), then the robust mean (0.52 m), residual pruning (0.60 m) and "
-            "plain NLS (1.16 m) — not the paper's") in text
-    assert "designed for" in text and "do not tune it" in text
-    assert "(30 s episodes in the sensitivity table, against 3 s)" in text
-    assert "the 5th percentile and the robust mean get worse, the others do not" in text
-    assert "the robust mean takes the lead from the 5th percentile (by 0.14 m)" in text
-    assert "residual pruning does not become the clear winner" in text
-    assert "the 5th percentile (0.13 m) helps" in text and "residual pruning (0.24 m) hurt:" in text
-    assert "within 3 cm of each other" in text and "calibration, not pruning, removes most" in text
-    assert "with raw ranges plain NLS beats every heuristic" in text
-    assert "with calibrated ranges plain NLS is as good as any heuristic" in text
-    assert "(0.5 m LOS, 2.5 m mean NLOS excess) and are smaller (residual pruning: 90 % under 1.70 m)" in text
-    assert "too large for the raw LIAS pieces (1.081)" in text and "removes the excess" in text
-    assert "Hanyang NLOS is mild" in text and "over the 56 m of distances, dominates both" in text
-    assert "+0.21 m (LOS)" in text and "long in both conditions" in text
+    ranges = pd.DataFrame({"bias_m": np.linspace(0.05, 0.45, 24), "spread_m": 0.05, "n": 100,
+                           "frac_long": [0.0] * 23 + [0.24]})
+    epochs = {"raw": pd.DataFrame({"median_m": [0.17, 0.21], "coverage": [1.0, 0.99]}, index=["none", "point"])}
+    dyn_epochs = {"raw": (pd.DataFrame({"median_m": [0.16, 0.19], "coverage": [1.0, 1.0]}, index=["none", "point"]),
+                          pd.Series({"none": 0.4, "point": 0.98}))}
+    return dict(lias_static=static, lias_dynamic=dynamic, lias_ranges=ranges, lias_static_epochs=epochs,
+                lias_dynamic_epochs=dyn_epochs)
+
+
+PERSIST = pd.DataFrame([[0.72, 0.52, 0.44, 0.50], [1.26, 0.48, 0.50, 0.76], [0.67, 0.72, 0.58, 0.73]],
+                       index=[0.0, 3.0, 30.0], columns=HS)
+
+
+def test_discussion_facts_follow_the_tables():
+    syn = _summary([1.157, 0.321, 0.515, 0.604], point=2.9)
+    f = ex.discussion_facts(syn, synthetic_other=_three_d(), persistence=PERSIST, hanyang=_hanyang(0.12, 0.16),
+                            **_lias())
+    assert f["ranking"] == ("percentile", "robust_mean", "residual") and not f["paper_ranking"]
+    assert f["point_best_nls"] == "robust_mean" and f["nls_beats_point_p90"]
+    assert f["point"]["point"]["coverage"] == 0.97
+    g = f["geometry"]
+    assert g["percentile_dz_m"] == 1.1 and g["percentile_h_3d_m"] == 0.3 and g["percentile_h_known_m"] == 0.321
+    assert g["ranking_3d"] == ("percentile", "residual") and g["ranking_3d_by_3d_error"] == ("percentile", "residual")
+    assert g["ranking_known"] == ("percentile", "robust_mean", "residual") and g["percentile_dz_bias_m"] == 1.1
+    assert f["lias_point_verdict"] == {"raw": "better than"} and f["lias_dynamic_point"]["raw"]["verdict"] == "better than"
+    p = f["persistence"]
+    assert (p["base_s"], p["long_s"]) == (3.0, 30.0) and p["worse"] == ["percentile", "robust_mean"]
+    assert (p["best_base"], p["best_long"]) == ("percentile", "robust_mean")
+    assert p["lead_long_m"] == pytest.approx(0.14)
+    r = f["lias_ranges"]
+    assert r["frac_positive"] == 1.0 and r["frac_long"] == pytest.approx(0.01)
+    assert r["bias_p10_m"] == pytest.approx(0.09, abs=0.01) and r["bias_p90_m"] == pytest.approx(0.41, abs=0.01)
+    s = f["lias_static"]
+    assert s["helps"] == ["percentile"] and s["hurts"] == ["robust_mean", "residual"]
+    assert s["cal_gain_m"] > s["prune_gain_m"] and s["cal_spread_m"] == pytest.approx(0.031)
+    assert f["lias_dynamic"]["raw"]["verdict"] == "plain NLS beats every heuristic"
+    assert f["lias_dynamic"]["calibrated"]["verdict"] == "plain NLS is as good as any heuristic"
+    assert f["lias_dynamic_point"]["raw"]["run_coverage"] == {"none": 0.4, "point": 0.98}
+    assert dict(f["speed_ratios"])["the raw LIAS pieces"] == 1.081
+    h = f["hanyang"]
+    assert h["gap_m"] == pytest.approx(0.04) and h["span_m"] == 56.0
+    assert min(h["growth_m"].values()) == pytest.approx(0.224)
+
+
+def test_discussion_words_state_the_facts():
+    syn = _summary([1.157, 0.321, 0.515, 0.604], point=2.9)
+    text = ex.discussion_markdown(syn, synthetic_other=_three_d(), persistence=PERSIST,
+                                  hanyang=_hanyang(0.12, 0.16), **_lias())
+    for number in ("0.32 m", "1.16 m", "2.90 m", "97 %", "1.10 m", "0.14 m", "0.09", "0.41", "1.0 %",
+                   "0.157", "1.081", "+0.21", "40 %", "98 %"):
+        assert number in text, number
+    assert "not the paper's ranking" in text and "do not tune it" in text
+    assert "beats the point-based fixes" in text and "too high" in text and "same as at the known height" in text
+    assert "better than the point fixes with raw ranges" in text
+    assert "little NLOS" not in text and "0.1–0.5 m" not in text     # said only when the run computes it
+    assert text.index("the 5th percentile (0.32 m)") < text.index("the robust mean (0.52 m)")
 
 
 def test_discussion_when_the_paper_ranking_comes_out():
-    persistence = pd.DataFrame([[1.0, 0.6, 0.65, 0.5], [1.2, 0.9, 0.8, 0.6]], index=[3.0, 30.0],
-                               columns=["none", "percentile", "robust_mean", "residual"])
-    text = ex.discussion_markdown(_summary([1.0, 0.8, 0.6, 0.4], speed=(1.10, np.nan, 1.1, 1.1)),
-                                  persistence=persistence, hanyang=_hanyang(0.0, 1.0, slope=0.0))
+    persistence = pd.DataFrame([[1.0, 0.6, 0.65, 0.5], [1.2, 0.9, 0.8, 0.6]], index=[3.0, 30.0], columns=HS)
+    syn = _summary([1.0, 0.8, 0.6, 0.4], speed=(1.10, np.nan, 1.1, 1.1), point=1.2)
+    f = ex.discussion_facts(syn, persistence=persistence, hanyang=_hanyang(0.0, 1.0, slope=0.0))
+    assert f["paper_ranking"] and f["persistence"]["worse"] == HS and f["persistence"]["best_long"] == "residual"
+    assert not f["nls_beats_point_p90"] and "geometry" not in f and "lias_static" not in f
+    text = ex.discussion_markdown(syn, persistence=persistence, hanyang=_hanyang(0.0, 1.0, slope=0.0))
     assert "— the paper's ranking" in text and "do not tune it" not in text and "designed for" not in text
-    assert "every estimator gets worse" in text and "residual pruning stays the best heuristic" in text
-    assert "(lead 0.10 m → 0.20 m), as in the paper" in text
-    assert "LIAS" not in text and "too large for our synthetic walks (1.100)" in text
-    assert "Hanyang NLOS is strong" in text and "growing with distance" not in text
-    assert "long in both conditions" not in text and "−0.03 m (LOS)" in text
+    assert "does not beat the point-based fixes" in text
+    assert "LIAS" not in text and "(1.100)" in text and "strong" in text and "−0.03 m (LOS)" in text
+
+
+def test_discussion_with_one_hanyang_condition_only():
+    f = ex.discussion_facts(_summary([1.0, 0.8, 0.6, 0.4]), hanyang=_hanyang(0.0, 1.0).query("condition == 'LOS'"))
+    assert f["hanyang"]["conditions"] == ["LOS"] and "gap_m" not in f["hanyang"]
+    assert "no LOS vs NLOS comparison" in ex.discussion_markdown(
+        _summary([1.0, 0.8, 0.6, 0.4]), hanyang=_hanyang(0.0, 1.0).query("condition == 'LOS'"))
+
+
+def test_headline_rows_say_their_kind_and_never_a_paper_bound(rng):
+    syn = _summary([1.157, 0.321, 0.515, 0.604], point=2.9)
+    rows = ex.headline_rows(synthetic=syn, synthetic_dim=2, synthetic_3d=_three_d().assign(all_p90_m=1.0))
+    assert rows and {r["kind"] for r in rows} == {"reproduced"}
+    assert all(np.isfinite(r["value"]) for r in rows)
+    ranks = {r["quantity"]: r for r in rows if r["quantity"].startswith("rank")}
+    assert len(ranks) == 3 and {r["paper_value"] for r in ranks.values()} == {1, 2, 3}
+    q = {r["quantity"]: r["value"] for r in rows}
+    assert q["rank by median stationary error among the three heuristics (1 = best), 5th percentile (known height)"] == 1
+    assert "packet coverage, point-based (per packet) (known height)" in q
+    assert q["90 % of all distance errors, residual pruning minus point-based (known height)"] == pytest.approx(-1.2)
+    assert "median stationary height error |dz|, 5th percentile (3-D, no height)" in q
+    s = metrics.Summary("02_pruning_nls", fast=True)
+    for r in rows:
+        s.add(**r)
+    assert len(s.frame()) == len(rows)
