@@ -272,6 +272,14 @@ def fit_range_calibration(recordings: Sequence[Recording] | Recording, *, fit_sc
     -------
     RangeCalibration
     """
+    if isinstance(n_iter, (bool, np.bool_)) or not isinstance(n_iter, (int, np.integer)) or n_iter < 1:
+        raise ValueError(f"n_iter must be an integer >= 1 (IRLS iterations; 0 would return an unfitted "
+                         f"identity), got {n_iter!r}")
+    if isinstance(min_samples, (bool, np.bool_)) or not isinstance(min_samples, (int, np.integer)) or min_samples < 2:
+        raise ValueError(f"min_samples must be an integer >= 2, got {min_samples!r}")
+    if not (isinstance(min_span_m, (int, float, np.floating, np.integer)) and np.isfinite(min_span_m)
+            and min_span_m >= 0):
+        raise ValueError(f"min_span_m must be a finite number of metres >= 0, got {min_span_m!r}")
     if isinstance(recordings, Recording):
         recordings = [recordings]
     anchor_ids, tag_ids, x, y = pair_samples(recordings)

@@ -31,6 +31,21 @@ def _as_float(a) -> np.ndarray:
     return a if a.dtype.kind == "f" else a.astype(float)
 
 
+def _check_particles(a: np.ndarray, name: str) -> None:
+    """At least one particle along the last axis (a filter of zero particles has no estimate)."""
+    if a.ndim == 0 or a.shape[-1] == 0:
+        raise ValueError(f"{name} must have shape (..., K) with K >= 1 particles, got shape {a.shape}")
+
+
+def _check_weights(w: np.ndarray) -> None:
+    """Resampling weights: at least one particle, finite, non-negative, a positive sum per row."""
+    _check_particles(w, "w")
+    total = np.sum(w, axis=-1)
+    if not (np.all(w >= 0) and np.all(np.isfinite(total)) and np.all(total > 0)):   # NaN fails w >= 0
+        raise ValueError("w must hold finite, non-negative weights with a positive sum in every row "
+                         "(normalised weights, e.g. exp of normalise_log_weights)")
+
+
 def normalise_log_weights(logw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Normalise log-weights over the last axis with log-sum-exp.
 
@@ -48,6 +63,7 @@ def normalise_log_weights(logw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ``log Σ exp(logw)``, shape ``(...)``.
     """
     logw = _as_float(logw)
+    _check_particles(logw, "logw")
     m = np.max(logw, axis=-1, keepdims=True)
     if not np.all(np.isfinite(m)):
         raise ValueError("normalise_log_weights: a row has no finite log-weight (all particles have zero weight)")
@@ -141,6 +157,7 @@ def systematic_counts(w: np.ndarray, u: np.ndarray) -> np.ndarray:
     ndarray of intp, shape ``(..., K)``
     """
     w = np.asarray(w)
+    _check_weights(w)
     K = w.shape[-1]
     if K >= 2 ** 31 - 1:
         raise ValueError(f"too many particles for int32 counts: {K}")
@@ -208,6 +225,7 @@ def multinomial_indices(w: np.ndarray, u: np.ndarray) -> np.ndarray:
     ndarray of intp, shape ``(..., K)``
     """
     w = np.asarray(w)
+    _check_weights(w)
     u = np.asarray(u, np.float64)
     if u.shape != w.shape:
         raise ValueError(f"multinomial_indices: need K uniforms per row, shape {w.shape}, got {u.shape}")

@@ -88,9 +88,13 @@ def _noise_arrays(z_m, mu_m, sigma_m, T: int) -> tuple[np.ndarray, np.ndarray, n
     return z, mu, sd
 
 
+def _check_n_particles(n_particles) -> None:
+    if isinstance(n_particles, (bool, np.bool_)) or not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
+        raise ValueError(f"n_particles must be an integer >= 1, got {n_particles!r}")
+
+
 def _check_common(n_particles: int, ess_fraction: float, resampler: str) -> None:
-    if n_particles < 1:
-        raise ValueError(f"n_particles must be >= 1, got {n_particles}")
+    _check_n_particles(n_particles)
     if not 0.0 <= ess_fraction <= 1.0:
         raise ValueError(f"ess_fraction is a fraction of K in [0, 1], got {ess_fraction}")
     if resampler not in particle.RESAMPLERS:
@@ -115,6 +119,7 @@ class ParticleState:
 
 def pf_init(x0_m, n_particles: int, batch_shape: tuple = ()) -> ParticleState:
     """Eq. 7: every particle at the known start ``x0_m = (x₀, y₀)`` with zero velocity, weights ``1/K``."""
+    _check_n_particles(n_particles)
     x0 = np.asarray(x0_m, float)
     if x0.shape != (2,):
         raise ValueError(f"x0_m must be (x, y), got shape {x0.shape}")

@@ -74,8 +74,11 @@ class TdoaModel:
         if self.dim not in (2, 3):
             raise ValueError(f"TdoaModel.dim must be 2 or 3, got {self.dim!r}")
         s = np.broadcast_to(np.array(self.sigma_m, float), (a.shape[0],)).copy()
-        if np.any(~np.isfinite(s)) or np.any(s <= 0):
-            raise ValueError("TdoaModel.sigma_m must be finite and positive")
+        with np.errstate(over="ignore", under="ignore"):
+            var = s * s
+        if np.any(~np.isfinite(s)) or np.any(s <= 0) or np.any(~np.isfinite(var)) or np.any(var == 0):
+            raise ValueError(f"TdoaModel.sigma_m must be finite and positive with a representable variance "
+                             f"(sigma_m**2 neither 0 nor inf), got {s.tolist()}")
         a.setflags(write=False)
         s.setflags(write=False)
         object.__setattr__(self, "anchor_pos_m", a)
