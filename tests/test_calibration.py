@@ -140,3 +140,13 @@ def test_lias_static_calibration_improves_the_fast_run():
     assert before["median_m"].abs().median() > 0.08
     assert after["median_m"].abs().median() < 0.04
     assert cal.scale_fitted.all() and np.all(np.abs(cal.scale - 1) < 0.05)
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(n_iter=0), "n_iter"), (dict(n_iter=2.5), "n_iter"), (dict(min_samples=1), "min_samples"),
+    (dict(min_span_m=-1.0), "min_span_m"), (dict(min_span_m=float("nan")), "min_span_m"),
+])
+def test_fit_parameters_are_checked(campaign, kwargs, name):
+    # n_iter=0 used to return an identity calibration marked as fitted
+    with pytest.raises(ValueError, match=name):
+        fit_range_calibration(campaign[1], **kwargs)

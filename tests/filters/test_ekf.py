@@ -111,7 +111,7 @@ def test_chi2_gate_rejects_nlos_outliers(rng):
     r[hit, 3] += 3.0                                    # strong positive NLOS bias on anchor 3
     r[hit & (np.arange(t.size) % 20 == 10), 0] += 3.0   # ...and sometimes on the reference too
     log = TdoaLog(t, *pseudo_tdoa(r, 0), IDS)
-    plain = run_tdoa_ekf(log, RandomForce(0.2), model)
+    plain = run_tdoa_ekf(log, RandomForce(0.2), model, gate_prob=None)
     gated = run_tdoa_ekf(log, RandomForce(0.2), model, gate_prob=0.999)
     assert gated.n_rejected[hit].sum() >= hit.sum() + (hit & (np.arange(t.size) % 20 == 10)).sum()
     assert gated.n_rejected[~hit].sum() <= 5          # false alarms ~ 0.1 % of epochs

@@ -419,7 +419,7 @@ class TdoaEkf:
 
     Every update reports the normalised innovation squared ``NIS = yᵀ S⁻¹ y``,
     χ²-distributed with ``m`` (number of TDoAs) degrees of freedom when the
-    models are right. Optional χ² gating (``gate_prob``): if the NIS of an epoch
+    models are right. χ² gating (``gate_prob``, on by default): if the NIS of an epoch
     exceeds the ``gate_prob`` quantile of χ²(m), the anchor whose removal lowers
     the NIS most is dropped (re-referencing if it was the reference) and the test
     repeated, until the epoch passes or fewer than ``min_tdoa`` TDoAs remain, in
@@ -435,7 +435,10 @@ class TdoaEkf:
     measurement
         TDoA measurement model (anchors, noise, reference correlation).
     gate_prob
-        χ² gate probability (e.g. 0.999), or None for no gating.
+        χ² gate probability. The default 0.9999 rejects one consistent epoch in ten
+        thousand and any absurd TDoA (a tracking filter should not follow one bad
+        measurement kilometres away). ``None`` means *no gate*: every TDoA is used,
+        however absurd.
     min_tdoa
         Fewest TDoAs an update may use after gating; default ``dim``.
     max_skipped
@@ -446,7 +449,7 @@ class TdoaEkf:
 
     motion: MotionModel
     measurement: TdoaModel
-    gate_prob: float | None = None
+    gate_prob: float | None = 0.9999
     min_tdoa: int | None = None
     max_skipped: int = 10
     init_pos_sigma_m: float = 1.0
@@ -652,7 +655,7 @@ class EkfResult:
         return Trajectory(self.t_s[ok], self.pos_m[ok], None if vel is None else vel[ok], name=name or self.name)
 
 
-def run_tdoa_ekf(log: TdoaLog, motion: MotionModel, measurement: TdoaModel, *, gate_prob: float | None = None,
+def run_tdoa_ekf(log: TdoaLog, motion: MotionModel, measurement: TdoaModel, *, gate_prob: float | None = 0.9999,
                  x0: Gaussian | None = None, name: str | None = None, **settings) -> EkfResult:
     """Shorthand for ``TdoaEkf(motion, measurement, gate_prob, **settings).run(log, x0=x0, name=name)``."""
     return TdoaEkf(motion, measurement, gate_prob=gate_prob, **settings).run(log, x0=x0, name=name)
