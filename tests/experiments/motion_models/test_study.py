@@ -1,0 +1,198 @@
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from uwbwb.experiments import motion_models as mm
+from uwbwb.sim import walk
+from uwbwb.types import Anchors, RangeLog, TagRun, Trajectory
+
+def test_synthetic_acquisitions(office_runs):
+    cal, test = office_runs
+    assert [r.tag for r in test] == ["tag1", "tag2"] and all(r.raw is not None for r in test)
+    assert test[0].name == "office" and cal[0].name == "office (calibration)"
+    assert test[0].data == "synthetic" and test[0].dim == 2 and test[0].z_m == pytest.approx(1.8)
+    assert test[0].dt_s == pytest.approx(0.1)
+    assert not np.allclose(np.nan_to_num(cal[0].ranges.range_m), np.nan_to_num(test[0].ranges.range_m))
+    again, _ = mm.synthetic_acquisition("office", seed=1, duration_s=25.0)
+    np.testing.assert_array_equal(again[1].ranges.range_m, test[1].ranges.range_m)
+
+
+def test_tag_run_decimation_window_and_validation(office_runs):
+    run = office_runs[1][0]
+    slow = run.decimated(2.0)
+    assert slow.dt_s == pytest.approx(0.5) and len(slow.ranges) == int(np.ceil(len(run.ranges) / 5))
+    assert set(slow.raw.t_s) <= set(slow.ranges.t_s)
+    assert run.decimated(None) is run and run.decimated(50.0) is run
+    part = run.between(5.0, 10.0, name="part")
+    assert part.name == "part" and part.ranges.t_s.min() >= 5.0 and part.ranges.t_s.max() < 10.0
+    assert part.truth.t_s[0] <= 5.0 and part.truth.t_s[-1] >= 10.0
+    other = Anchors(tuple("BCDEFG"), run.anchors.pos_m)
+    with pytest.raises(ValueError, match="differ"):
+        replace(run, anchors=other)
+
+
+def test_true_ranges_and_sigma_fit_on_los_data(los_run):
+    r = los_run.ranges.range_m - los_run.true_range_m()
+    assert abs(np.nanmean(r)) < 0.01
+    sig = mm.fit_range_sigma(los_run)
+    np.testing.assert_allclose(sig, 0.05, rtol=0.15)
+    empirical, model = mm.tdoa_noise_check(los_run, sig, ref=2)
+    assert empirical.shape == model.shape == (5, 5)
+    np.testing.assert_allclose(empirical, model, atol=0.0015)          # σ²(I + 11ᵀ) with σ ≈ 5 cm
+    assert np.all(np.diag(empirical) > 1.5 * empirical[0, 1])
+
+
+def test_raw_multilateration_is_exact_on_exact_ranges():
+    anchors = Anchors(tuple("ABCD"), np.array([[0, 0, 2.5], [10, 0, 2.5], [10, 8, 2.4], [0, 8, 2.6]]))
+    t = np.arange(20) * 0.1
+    pos = np.column_stack([2 + 0.5 * t, 3 + 0.2 * t, np.full(t.size, 1.2)])
+    r = np.linalg.norm(pos[:, None] - anchors.pos_m, axis=-1)
+    run = TagRun("synthetic", "x", "t", RangeLog(t, r, anchors.ids, "t"), Trajectory(t, pos), anchors, 2, 1.2)
+    raw = mm.raw_multilateration(run)
+    np.testing.assert_allclose(raw.pos_m, pos[:, :2], atol=1e-6)
+
+
+def test_estimate_calibrate_and_tables(office_runs):
+    cal, test = office_runs
+    sig = {r.key: mm.fit_range_sigma(r) for r in cal}
+    grids = {"RW": [0.1, 1.0], "RF": [1.0], "RJ": [1.0, 10.0]}
+    curves = mm.calibration_curves(cal, sig, grids=grids, gate_prob=None, progress=False)
+    assert len(curves) == 2 * 5
+    assert list(curves.columns) == ["run", "tag", "model", "sigma", "sigma_unit", "psd", "psd_unit", "cep95_m",
+                                    "rmse_m"]
+    np.testing.assert_allclose(curves.psd, curves.sigma ** 2 * 0.1)
+    assert set(curves.psd_unit) == {"m²/s", "m²/s³", "m²/s⁵"}
+    best = mm.best_sigmas(curves)
+    assert set(best) == {"RW", "RF", "RJ"} and best["RF"] == 1.0
+    # a random walk driven by 0.1 m/s cannot follow a 0.8 m/s walker
+    rw = curves[curves.model == "RW"].groupby("sigma").cep95_m.mean()
+    assert rw[0.1] > rw[1.0] and best["RW"] == 1.0
+
+    est = mm.estimate(test[0], sig[cal[0].key], best, gate_prob=None)
+    assert set(est.trajectories) == {"raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ"} and est.gate_prob is None
+    c = est.cep95()
+    assert all(0 < v < 3 for v in c.values())
+    assert c["EKF-RW"] < c["raw"]
+    assert min(est.coverage().values()) > 0.95
+    nis = est.nis()
+    assert list(nis.index) == ["RW", "RF", "RJ"] and (nis["n"] > 200).all()
+    assert set(nis["verdict"]) <= {"consistent", "over-confident", "under-confident"}
+    assert (nis["mean_lo"] < 1).all() and (nis["mean_hi"] > 1).all()
+    table = mm.cep95_table([est], ["raw", "LS", "EKF-RW"])
+    assert table.loc[("office", "tag1"), "LS"] == pytest.approx(c["LS"])
+
+
+def test_best_sigmas_minimises_the_mean_over_runs():
+    curves = pd.DataFrame({"run": ["a"] * 3 + ["b"] * 3, "tag": ["t"] * 6, "model": ["RW"] * 6,
+                           "sigma": [0.1, 1.0, 10.0] * 2, "cep95_m": [0.5, 0.4, 0.9, 0.3, 0.6, 0.2]})
+    # means: 0.1 -> 0.40, 1.0 -> 0.50, 10 -> 0.55
+    assert mm.best_sigmas(curves) == {"RW": 0.1}
+
+
+def test_ranking_and_paper_table():
+    table = pd.DataFrame({"EKF-RW": [0.4, 0.5], "EKF-RF": [0.7, 0.3], "EKF-RJ": [1.0, 0.45]},
+                         index=pd.MultiIndex.from_tuples([("office", "tag1"), ("agv1", "tag1")], names=["run", "tag"]))
+    assert list(mm.ranking(table)) == ["RW < RF < RJ", "RF < RJ < RW"]
+    paper = mm.paper_table(mm.PAPER_MODELS_CEP95, [("office", "tag2"), ("lab", "t0")], ["EKF-RW", "EKF-RJ"])
+    assert paper.loc[("office", "tag2"), "EKF-RJ"] == 1.14 and np.isnan(paper.loc[("lab", "t0"), "EKF-RW"])
+    assert mm.PAPER_METHODS_CEP95[("office", "tag2")]["raw"] == 2.03
+
+
+def test_sigma_fit_methods_and_common_mode(los_run):
+    # a range error common to all anchors cancels in every TDoA: the 'tdoa' fit ignores it, 'rms' does not
+    shifted = replace(los_run, ranges=RangeLog(los_run.ranges.t_s, los_run.ranges.range_m + 0.4,
+                                               los_run.ranges.anchor_ids, los_run.tag))
+    np.testing.assert_allclose(mm.fit_range_sigma(shifted), mm.fit_range_sigma(los_run), atol=1e-9)
+    assert np.all(mm.fit_range_sigma(shifted, method="rms") > 0.35)
+    np.testing.assert_allclose(mm.fit_range_sigma(shifted, method="robust"), 0.05, rtol=0.15)
+    assert np.all(mm.fit_range_sigma(los_run, floor_m=0.2) == 0.2)
+    with pytest.raises(ValueError, match="method"):
+        mm.fit_range_sigma(los_run, method="mad")
+
+
+def test_split_runs_and_study(office_runs):
+    cal, test = office_runs
+    first, second = mm.split_runs(test, 0.5)
+    assert first[0].name.startswith("office 0–") and second[0].ranges.t_s[0] >= first[0].ranges.t_s[-1]
+    assert len(first[0].ranges) + len(second[0].ranges) == len(test[0].ranges)
+    with pytest.raises(ValueError, match="fraction"):
+        mm.split_runs(test, 1.0)
+    grids = {"RW": [1.0], "RF": [1.0, 3.0], "RJ": [3.0]}
+    study = mm.run_study(cal, test, grids=grids, gate_prob=None, progress=False)
+    assert study.best == {"RW": 1.0, "RF": study.best["RF"], "RJ": 3.0}
+    assert set(study.sigma_m) == {"tag1", "tag2"} and study.sigma_m["tag1"].shape == (6,)
+    table = study.table()
+    assert list(table.columns) == ["raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ"] and len(table) == 2
+    assert study.result_for("office", "tag2").run.tag == "tag2"
+    assert list(study.coverage().columns) == [*mm.METHODS, "common"]
+    assert study.nis().index.names == ["run/tag", "model"] and len(study.nis()) == 6
+    with pytest.raises(KeyError, match="no test result"):
+        study.result_for("office", "tag9")
+    with pytest.raises(ValueError, match="no calibration run"):
+        mm.run_study(cal[:1], test, grids=grids, gate_prob=None, progress=False)
+    with pytest.raises(TypeError, match="gate_prob"):
+        mm.run_study(cal, test, grids=grids, progress=False)          # the gate is always the caller's choice
+
+
+def _outage(run, t0_s, t1_s, keep=2):
+    """``run`` with all but ``keep`` anchors missing in ``[t0_s, t1_s)``: LS fails there, the EKF coasts."""
+    r = run.ranges.range_m.copy()
+    r[(run.ranges.t_s >= t0_s) & (run.ranges.t_s < t1_s), keep:] = np.nan
+    return replace(run, ranges=RangeLog(run.ranges.t_s, r, run.ranges.anchor_ids, run.tag), raw=None)
+
+
+def test_scoring_on_common_epochs_with_coverage_beside(office_runs):
+    cal, test = office_runs
+    run = _outage(test[0], 10.0, 14.0)
+    est = mm.estimate(run, mm.fit_range_sigma(cal[0]), {"RW": 1.0, "RF": 3.0, "RJ": 10.0}, gate_prob=None)
+    cov = est.coverage()
+    assert cov["EKF-RW"] > cov["LS"] + 0.1 and cov["common"] == pytest.approx(cov["LS"], abs=0.01)
+    t = est.common_t_s()
+    assert not np.any((t >= 10.0) & (t < 14.0))                            # LS's outage is not scored
+    common = est.common_errors()
+    assert len({e.size for e in common.values()}) == 1 and common["LS"].size == t.size
+    ekf_own = est.errors["EKF-RW"]
+    in_outage = (ekf_own.t_s >= 10.0) & (ekf_own.t_s < 14.0)
+    assert in_outage.sum() > 30                                              # the EKF coasted there ...
+    assert common["EKF-RW"].size == ekf_own.err_m.size - in_outage.sum()   # ... and is scored without them
+    own = est.cep95(common=False)
+    assert own["LS"] == pytest.approx(est.cep95()["LS"])                     # LS's own epochs are the common ones
+    table = mm.coverage_table([est])
+    assert table.loc[("office", "tag1"), "LS"] == pytest.approx(100 * cov["LS"])
+    with pytest.raises(ValueError, match="no epoch where every estimator"):
+        mm.estimate(_outage(test[0], -1.0, 1e9), mm.fit_range_sigma(cal[0]), {"RW": 1.0}, gate_prob=None,
+                    models=("RW",)).cep95()
+
+
+def test_nis_verdict_follows_the_noise_level(los_run):
+    # pure LOS noise: with the fitted σ the filter is near consistent; with σ × 3 it is under-confident and
+    # with σ / 3 over-confident (the χ² interval for ~1500 innovations is about ±7 % around 1)
+    sig = mm.fit_range_sigma(los_run)
+    verdict = {}
+    for k in (1 / 3, 1.0, 3.0):
+        est = mm.estimate(los_run, sig * k, {"RW": 1.0}, gate_prob=None, models=("RW",))
+        verdict[k] = est.nis().loc["RW"]
+    assert verdict[3.0]["verdict"] == "under-confident" and verdict[1 / 3]["verdict"] == "over-confident"
+    assert verdict[3.0]["mean_nis_over_dof"] < verdict[1.0]["mean_nis_over_dof"] < verdict[1 / 3]["mean_nis_over_dof"]
+    assert 0.5 < verdict[1.0]["mean_nis_over_dof"] < 2.0
+
+
+def test_summary_rows_say_their_kind(office_runs):
+    cal, test = office_runs
+    est = mm.estimate(test[0], mm.fit_range_sigma(cal[0]), {"RW": 1.0, "RF": 3.0, "RJ": 10.0}, gate_prob=None)
+    rows = mm.summary_rows([est], data="synthetic", paper=True)
+    by_q = {r["quantity"]: r for r in rows}
+    assert by_q["CEP95 office tag1 EKF-RW"]["paper_value"] == 0.41
+    assert by_q["CEP95 office tag1 EKF-RW"]["value"] == pytest.approx(est.cep95()["EKF-RW"])
+    assert by_q["coverage office tag1 LS"]["unit"] == "%" and by_q["coverage office tag1 LS"]["paper_value"] is None
+    assert "mean NIS/dof office tag1 EKF-RJ" in by_q
+    assert {r["kind"] for r in rows} == {"reproduced"}
+    real = mm.summary_rows([est], data="lias-planar-uwb/x", label="{tag} {method} (calibrated, test part {run})")
+    assert "CEP95 tag1 LS (calibrated, test part office)" in {r["quantity"] for r in real}
+    assert all(r["paper_value"] is None for r in real)
+    sig = {r["quantity"]: r for r in mm.sigma_rows({"RW": 1.6, "RF": 4.5, "RJ": 15.0}, "office")}
+    assert sig["driving sigma RW (office)"]["kind"] == "target"               # the simulated speed equals it
+    assert sig["driving sigma RF (office)"]["kind"] == "reproduced"
+    assert sig["driving sigma RW (office)"]["paper_value"] == 0.83 and sig["driving sigma RJ (office)"]["unit"] == "m/s³"
