@@ -1,7 +1,12 @@
 """Office-walking and AGV scenarios of De Angelis' thesis (T4F / DWM1000 system), re-created.
 
 The thesis' raw data are not public; this simulator rebuilds the two settings
-from what the text states and from DWM1000 behaviour:
+from what the text states (an office walk with two tags, AGV runs in a cluttered
+hall, DWM1000 ranging within ±10 cm) and, where it states nothing, from
+assumptions. The speeds are such assumptions: the thesis gives none, and the
+cruise speeds were set equal to its Table 1 random-walk σ (0.83 and 1 m/s), so a
+random-walk σ calibrated on these runs is a calibration *target*, not a
+reproduction. Rooms, obstacles, their biases and body shadowing are assumptions too:
 
 * **office** — a person walks a curved loop at about 0.8 m/s through a
   cluttered office (walls, desks, cabinets), carrying two tags: tag 1 on the

@@ -19,4 +19,4 @@ def los_run():
     """An office walk with no obstacles and no body shadowing: pure DWM1000 LOS noise."""
     cfg = walk.office(duration_s=30.0, obstacles=(), tags=(walk.TagMount("tag1", 0, 0, 1.8),), p_missing_los=0.0)
     rec, _ = walk.simulate_walk(cfg, rng=np.random.default_rng(9))
-    return mm.tag_runs(rec, z_m={"tag1": 1.8})[0]
+    return mm.tag_runs(rec, dim=2, z_m={"tag1": 1.8})[0]

@@ -1,4 +1,3 @@
-import numpy as np
 import pandas as pd
 
 from uwbwb.experiments import motion_models as mm
@@ -99,7 +98,11 @@ def test_discussion_states_coverage_and_consistency():
                 ("office/tag2", "RW"): ("over-confident", 1.4), ("office/tag2", "RF"): ("under-confident", 0.52)})
     text = mm.discussion_markdown(SYNTHETIC, curves={}, best={}, coverage=cov, nis=nis)
     assert "all five estimators have a position (96.5–99.0 % of the synthetic test epochs)" in text
-    assert "LS has a fix on 97.0–99.5 %" in text
+    assert "LS has a fix on 97.0–99.5 % of them" in text and "changes no number" not in text
+    full = pd.DataFrame({"LS": [100.0], "common": [100.0]}, index=pd.MultiIndex.from_tuples([("office", "tag1")]))
+    assert "(100.0 % of the synthetic test epochs)" in mm.discussion_markdown(SYNTHETIC, curves={}, best={},
+                                                                            coverage=full)
+    assert "changes no number" in mm.discussion_markdown(SYNTHETIC, curves={}, best={}, coverage=full)
     assert "Consistency: the filters are not consistent" in text
     assert "Of 4 filter runs, 1 consistent, 1 over-confident, 2 under-confident" in text
     assert "Over-confident runs (EKF-RW)" in text and "mean NIS per degree of freedom of 0.52–0.60" in text

@@ -1,7 +1,6 @@
 import matplotlib
 import numpy as np
 import pandas as pd
-import pytest
 
 from uwbwb.experiments import motion_models as mm
 from uwbwb.sim import walk
@@ -33,7 +32,7 @@ def test_ranging_summary_and_covariance_figure(los_run):
 
     cfg = walk.office(duration_s=10.0)
     rec, truth = walk.simulate_walk(cfg, rng=np.random.default_rng(2))
-    runs = mm.tag_runs(rec, z_m={"tag1": 1.8, "tag2": 1.3})
+    runs = mm.tag_runs(rec, dim=2, z_m={"tag1": 1.8, "tag2": 1.3})
     table = mm.ranging_summary(runs, truth)
     assert table.loc[("office", "tag2"), "NLOS links (%)"] > table.loc[("office", "tag1"), "NLOS links (%)"]
     assert abs(table.loc[("office", "tag1"), "LOS error mean (cm)"]) < 2
@@ -41,8 +40,3 @@ def test_ranging_summary_and_covariance_figure(los_run):
     fig = mm.covariance_figure(emp, mod, list("BCDEF"), title="x")
     assert len(fig.axes) == 3
     plt.close(fig)
-
-
-def test_banner_escapes_its_message():
-    html = mm.banner("data <absent> & skipped")._repr_html_()
-    assert "data &lt;absent&gt; &amp; skipped" in html and "background" in html

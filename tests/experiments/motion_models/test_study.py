@@ -19,12 +19,22 @@ def test_synthetic_acquisitions(office_runs):
     np.testing.assert_array_equal(again[1].ranges.range_m, test[1].ranges.range_m)
 
 
-def test_tag_run_decimation_window_and_validation(office_runs):
+def test_tag_runs_thinning_window_height_and_validation(office_runs):
+    cfg = walk.office(duration_s=20.0)
+    rec, _ = walk.simulate_walk(cfg, rng=np.random.default_rng(4))
+    heights = {m.tag_id: m.height_m for m in cfg.tags}
+    raw = {t: walk.device_output(rec.ranges[t], rec.anchors, z_m=heights[t]) for t in rec.tags}
+    full = mm.tag_runs(rec, dim=2, z_m=heights, raw=raw)
+    slow = mm.tag_runs(rec, dim=2, z_m=heights, raw=raw, rate_hz=2.0)
+    assert slow[0].dt_s == pytest.approx(0.5) and len(slow[0].ranges) == int(np.ceil(len(full[0].ranges) / 5))
+    np.testing.assert_array_equal(slow[1].ranges.t_s, rec.decimate(5).ranges["tag2"].t_s)   # the one thinning rule
+    assert set(slow[0].raw.t_s) <= set(slow[0].ranges.t_s) and len(slow[0].truth) == len(full[0].truth)
+    assert mm.tag_runs(rec, dim=2, z_m=heights, rate_hz=50.0)[0].ranges.t_s.size == len(full[0].ranges)
+    assert [r.z_m for r in full] == [1.8, 1.3]
+    with pytest.raises(ValueError, match="tag height"):       # 2-D needs a height that is not the test truth's
+        mm.tag_runs(rec, dim=2)
+    assert mm.tag_runs(rec, dim=3)[0].z_m == 0.0
     run = office_runs[1][0]
-    slow = run.decimated(2.0)
-    assert slow.dt_s == pytest.approx(0.5) and len(slow.ranges) == int(np.ceil(len(run.ranges) / 5))
-    assert set(slow.raw.t_s) <= set(slow.ranges.t_s)
-    assert run.decimated(None) is run and run.decimated(50.0) is run
     part = run.between(5.0, 10.0, name="part")
     assert part.name == "part" and part.ranges.t_s.min() >= 5.0 and part.ranges.t_s.max() < 10.0
     assert part.truth.t_s[0] <= 5.0 and part.truth.t_s[-1] >= 10.0

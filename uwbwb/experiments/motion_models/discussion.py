@@ -45,6 +45,11 @@ def _span_m(values) -> str:
     return f"{lo} m" if lo == hi else f"{lo}–{hi} m"
 
 
+def _span_pct(values) -> str:
+    lo, hi = f"{np.min(values):.1f}", f"{np.max(values):.1f}"
+    return f"{lo} %" if lo == hi else f"{lo}–{hi} %"
+
+
 def _model_row(row: pd.Series) -> str:
     """How the three EKFs of one CEP95 row compare, in words."""
     cols = [ekf_name(m) for m in MODELS]
@@ -294,10 +299,15 @@ def discussion_markdown(synthetic: pd.DataFrame, *, curves: Mapping[str, pd.Data
     # --- coverage and consistency
     if coverage is not None and len(coverage):
         ls_cov, common = coverage["LS"], coverage["common"]
-        out.append(f"* **Coverage.** Every CEP95 above is taken on the epochs where all five estimators have a "
-                   f"position ({common.min():.1f}–{common.max():.1f} % of the synthetic test epochs); LS has a fix "
-                   f"on {ls_cov.min():.1f}–{ls_cov.max():.1f} % of them, the EKFs coast through the rest, and "
-                   "those coasted epochs are not scored.")
+        text = ("* **Coverage.** Every CEP95 above is taken on the epochs where all five estimators have a position "
+                f"({_span_pct(common)} of the synthetic test epochs). ")
+        if ls_cov.min() >= 100.0 and common.min() >= 100.0:
+            text += "Every estimator has a position at every epoch here, so this changes no number."
+        else:
+            text += (f"LS has a fix on {_span_pct(ls_cov)} of them; the EKFs predict through the epochs where it "
+                     "fails, and those epochs are not scored (an EKF is never credited or blamed for an epoch "
+                     "LS could not solve).")
+        out.append(text)
     if nis is not None and len(nis):
         counts = nis["verdict"].value_counts()
         n = int(counts.sum())

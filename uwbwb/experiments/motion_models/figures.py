@@ -18,17 +18,7 @@ from ...sim import walk
 from ...types import Trajectory
 from .study import MODELS, TagResults, ekf_name
 
-__all__ = ["banner", "scenario_figure", "covariance_figure", "calibration_figure", "paths_figure", "cdf_figure"]
-
-
-def banner(message: str):
-    """A conspicuous HTML banner (e.g. "real data absent: ..."), for ``IPython.display.display``."""
-    import html
-
-    from IPython.display import HTML
-
-    return HTML('<div style="background:#fde2e1;border:2px solid #c0392b;padding:8px;font-weight:bold">'
-                f"{html.escape(message)}</div>")
+__all__ = ["scenario_figure", "covariance_figure", "calibration_figure", "paths_figure", "cdf_figure"]
 
 
 def scenario_figure(config: walk.WalkScenario, *, ax=None, truth: Trajectory | None = None):

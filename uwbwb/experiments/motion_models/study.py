@@ -32,7 +32,7 @@ of the nominal epoch period ``T``, i.e. PSD ``q = σ_w² T`` (see
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -48,7 +48,7 @@ from ...types import Recording, TagRun, TdoaLog, Trajectory
 
 __all__ = [
     "MODELS", "METHODS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "DEFAULT_GRIDS",
-    "TagResults", "tag_runs", "thin", "synthetic_acquisition", "fit_range_sigma",
+    "TagResults", "tag_runs", "synthetic_acquisition", "fit_range_sigma",
     "raw_multilateration", "ranging_summary", "estimate", "calibration_curves", "best_sigmas", "cep95_table",
     "coverage_table", "nis_table", "ranking", "paper_table", "split_runs", "Study", "run_study",
     "tdoa_noise_check", "ekf_name", "run_ekf", "SIGMA_KIND", "summary_rows", "sigma_rows", "record",
@@ -99,7 +99,7 @@ def ekf_name(model: str) -> str:
 # --------------------------------------------------------------------------- inputs
 
 
-def tag_runs(rec: Recording, tags: Sequence[str] | None = None, *, dim: int = 2, z_m: Mapping | None = None,
+def tag_runs(rec: Recording, tags: Sequence[str] | None = None, *, dim: int, z_m: Mapping[str, float] | None = None,
              rate_hz: float | None = None, raw: Mapping[str, Trajectory] | None = None,
              name: str | None = None) -> list[TagRun]:
     """:class:`TagRun` per tag of a recording.
@@ -111,14 +111,16 @@ def tag_runs(rec: Recording, tags: Sequence[str] | None = None, *, dim: int = 2,
     tags
         Tags to use (default: all with truth).
     dim
-        2 (known height) or 3.
+        2 (tag at a known height) or 3.
     z_m
-        Tag height per tag for ``dim=2``; default: the median truth height of the tag
-        (a rigidly mounted tag's height is known in practice).
+        Tag height per tag, required for ``dim=2``. It must come from calibration data
+        or the dataset's description (:func:`uwbwb.calibration.tag_mount_height`, a
+        simulator's declared mount), never from the truth of the run being scored.
     rate_hz
-        Decimate to at most this rate (see :meth:`TagRun.decimated`).
+        Thin to at most this rate with :meth:`uwbwb.types.Recording.decimate`, the
+        step taken from the median epoch period over the tags (None: unchanged).
     raw
-        The device's own output per tag, if any.
+        The device's own output per tag, if any (kept at the remaining epochs).
     name
         Display name (default ``rec.name``).
     """
@@ -126,26 +128,22 @@ def tag_runs(rec: Recording, tags: Sequence[str] | None = None, *, dim: int = 2,
     missing = [t for t in tags if t not in rec.truth or t not in rec.ranges]
     if missing:
         raise ValueError(f"{rec.label}: no ranges or truth for tags {missing}; available {list(rec.truth)}")
+    if dim == 2 and (z_m is None or any(t not in z_m for t in tags)):
+        raise ValueError(f"{rec.label}: 2-D runs need the tag height of every tag {tags} (from calibration data "
+                         f"or the dataset's description), got {z_m!r}")
+    if rate_hz is not None:
+        dt = float(np.median(np.concatenate([np.diff(rec.ranges[t].t_s) for t in tags])))
+        rec = rec.decimate(max(1, int(np.floor(1.0 / (rate_hz * dt) + 1e-9))))
     data = "synthetic" if rec.dataset == "synthetic" else rec.label
     runs = []
     for tag in tags:
-        truth = rec.truth[tag]
-        h = float(np.median(truth.pos_m[:, 2])) if truth.dim == 3 else 0.0
-        if z_m is not None and tag in z_m:
-            h = float(z_m[tag])
-        runs.append(TagRun(data, name or rec.name, tag, rec.ranges[tag], truth, rec.anchors, dim, h,
-                           None if raw is None else raw.get(tag)).decimated(rate_hz))
+        log = rec.ranges[tag]
+        dev = None if raw is None else raw.get(tag)
+        if dev is not None:
+            dev = dev.select(np.isin(dev.t_s, log.t_s))
+        runs.append(TagRun(data, name or rec.name, tag, log, rec.truth[tag], rec.anchors, dim,
+                           float(z_m[tag]) if dim == 2 else 0.0, dev))
     return runs
-
-
-def thin(recordings: Iterable[Recording], step: int) -> list[Recording]:
-    """Every ``step``-th epoch of each tag's ranges and truth (for FAST runs of slow fits)."""
-    out = []
-    for rec in recordings:
-        ranges = {t: log.select(slice(None, None, step)) for t, log in rec.ranges.items()}
-        truth = {t: tr.select(slice(None, None, step)) for t, tr in rec.truth.items()}
-        out.append(replace(rec, ranges=ranges, truth=truth))
-    return out
 
 
 def synthetic_acquisition(name: str, *, seed: int, duration_s: float | None = None, rate_hz: float | None = None,
@@ -658,4 +656,4 @@ def summary_rows(results: Iterable[TagResults], *, data: str, label: str = "{run
 def record(summary: metrics.Summary, rows: Iterable[dict]) -> None:
     """Add :func:`summary_rows` / :func:`sigma_rows` rows to a :class:`~uwbwb.metrics.Summary`."""
     for r in rows:
-        summary.add(**{k: v for k, v in r.items() if k != "kind"})
+        summary.add(**r)
