@@ -464,11 +464,14 @@ def test_discussion_when_the_paper_ranking_comes_out():
     assert not f["nls_beats_point_p90"] and "geometry" not in f and "lias_static" not in f
     text = ex.discussion_markdown(syn, persistence=persistence, hanyang=_hanyang(0.0, 1.0, slope=0.0))
     assert "— the paper's ranking" in text and "do not tune it" not in text and "designed for" not in text
-    assert "does not beat the point-based fixes" in text
+    assert "does not beat the point-based fixes" in text and "unbounded" not in text
     assert "LIAS" not in text and "(1.100)" in text and "strong" in text and "−0.03 m (LOS)" in text
 
 
 def test_discussion_with_one_hanyang_condition_only():
+    low = _summary([1.0, 0.8, 0.6, 0.4], point=2.0)
+    low.loc["point", "coverage"] = 0.7
+    assert "30 % of the packets without a position" in ex.discussion_markdown(low)
     f = ex.discussion_facts(_summary([1.0, 0.8, 0.6, 0.4]), hanyang=_hanyang(0.0, 1.0).query("condition == 'LOS'"))
     assert f["hanyang"]["conditions"] == ["LOS"] and "gap_m" not in f["hanyang"]
     assert "no LOS vs NLOS comparison" in ex.discussion_markdown(

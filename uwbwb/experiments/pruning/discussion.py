@@ -272,6 +272,10 @@ def discussion_markdown(synthetic: pd.DataFrame, *, tour: tours_mod.TourConfig =
                 f"(90th percentiles in the ratio {pt[b]['p90_m'] / pt[POINT]['p90_m']:.2f})"
                 + (f"; plain NLS, without pruning, puts 90 % under {pt['none']['p90_m']:.2f} m" if "none" in pt
                    and b != "none" else "") + ".")
+        if pt[POINT]["coverage"] < 0.9:
+            text += (f" The point fixes leave {_pct(1 - pt[POINT]['coverage'])} of the packets without a position "
+                     "(no fix, or a singular geometry at the solution); counting those as failures, their 90th "
+                     "percentile is unbounded.")
         out.append(text)
 
     if "lias_static" in f:
