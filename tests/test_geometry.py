@@ -321,3 +321,17 @@ def test_bad_ranges():
     for bad in (r[:, :5], r[0], np.where(r > 5, -1.0, r), np.where(r > 5, np.inf, r)):
         with pytest.raises(ValueError):
             geo.multilaterate(bad, ANCHORS, dim=3)
+
+
+def test_to_estimates_marks_failed_epochs_and_keeps_covariances(rng):
+    A = ANCHORS
+    pos = rng.uniform(1, 7, size=(5, 2))
+    r = geo.ranges(pos, A, z_m=1.0)
+    r[2, 1:] = np.nan                                   # too few ranges at epoch 2
+    res = geo.multilaterate(r, A, dim=2, z_m=1.0, sigma_m=0.1)
+    est = res.to_estimates(np.arange(5) * 0.1, name="LS")
+    assert est.status.tolist() == [0, 0, 3, 0, 0] and est.name == "LS"
+    np.testing.assert_allclose(est.pos_m[res.ok], res.pos_m[res.ok])
+    assert np.isnan(est.pos_m[2]).all() and est.coverage == pytest.approx(0.8)
+    np.testing.assert_allclose(est.pos_cov_m2[0], res.cov_m2[0])
+    np.testing.assert_array_equal(est.info["n_used"], res.n_used)

@@ -29,7 +29,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 from .errors import GeometryError
-from .types import Trajectory
+from .types import EstimateStatus, Estimates, Trajectory
 
 __all__ = [
     "MultilaterationResult", "Status", "gdop", "linear_multilaterate", "multilaterate",
@@ -481,6 +481,16 @@ class MultilaterationResult:
         t = self._check_t(t_s)
         ok = self.ok
         return Trajectory(t[ok], self.pos_m[ok], name=name)
+
+    def to_estimates(self, t_s, name: str = "LS") -> Estimates:
+        """The common result type: OK epochs ``UPDATED`` with position and covariance, the others
+        ``NO_ESTIMATE``; ``info`` holds ``n_used``, ``gdop`` and ``residual_rms_m``."""
+        t = self._check_t(t_s)
+        ok = self.ok
+        status = np.where(ok, EstimateStatus.UPDATED, EstimateStatus.NO_ESTIMATE).astype(np.int8)
+        return Estimates(t, np.where(ok[:, None], self.pos_m, np.nan), status, name,
+                         np.where(ok[:, None, None], self.cov_m2, np.nan), None,
+                         {"n_used": self.n_used, "gdop": self.gdop, "residual_rms_m": self.residual_rms_m})
 
     def to_frame(self, t_s) -> pd.DataFrame:
         """One row per epoch (all epochs, NaN where not OK).

@@ -5,7 +5,7 @@ from uwbwb.filters import kalman
 from uwbwb.filters.ekf import TdoaEkf, run_tdoa_ekf
 from uwbwb.models.motion import RandomForce, RandomJerk, RandomWalk
 from uwbwb.models.tdoa import TdoaModel
-from uwbwb.types import TdoaLog, pseudo_tdoa
+from uwbwb.types import EstimateStatus, TdoaLog, pseudo_tdoa
 
 ANCHORS = np.array([[0.0, 0.0, 3.0], [30.0, 0.0, 0.5], [30.0, 30.0, 3.0], [0.0, 30.0, 0.5],
                     [15.0, -2.0, 2.0], [15.0, 32.0, 1.0], [-2.0, 15.0, 2.0], [32.0, 15.0, 1.5]])
@@ -66,7 +66,7 @@ def test_update_is_joseph_form_ekf_equations():
     prior = kalman.Gaussian(np.array([10.0, 12.0, 0.5, -0.2]), np.diag([0.3, 0.4, 0.1, 0.1]))
     row = model.h(np.array([10.3, 11.8]), 1)
     row[5] = np.nan
-    post, info = ekf.update(prior, row, 1)
+    post, info = ekf.update(prior, (row, 1))
     z, h, Hp, R, _ = model.epoch(row, prior.x[:2], 1)
     H = np.hstack([Hp, np.zeros_like(Hp)])
     S = H @ prior.P @ H.T + R
@@ -74,7 +74,7 @@ def test_update_is_joseph_form_ekf_equations():
     IKH = np.eye(4) - K @ H
     np.testing.assert_allclose(post.x, prior.x + K @ (z - h))
     np.testing.assert_allclose(post.P, IKH @ prior.P @ IKH.T + K @ R @ K.T, atol=1e-12)
-    assert info.dof == 6 and info.n_rejected == 0
+    assert info.dof == 6 and info.n_rejected == 0 and info.status == EstimateStatus.UPDATED
     assert info.nis == pytest.approx((z - h) @ np.linalg.solve(S, z - h))
 
 
@@ -94,11 +94,11 @@ def test_estimate_does_not_depend_on_reference_when_correlation_is_modelled(rng)
     r = model.ranges(pos) + 0.1 * rng.standard_normal((t.size, 8))
     logs = [TdoaLog(t, *pseudo_tdoa(r, k), IDS) for k in (0, 5)]
     a, b = (run_tdoa_ekf(lg, RandomForce(0.5), model) for lg in logs)
-    np.testing.assert_allclose(a.x, b.x, atol=1e-9)
+    np.testing.assert_allclose(a.x_post, b.x_post, atol=1e-9)
     np.testing.assert_allclose(a.nis, b.nis, atol=1e-9)
     naive = TdoaModel(ANCHORS, 0.1, dim=2, z_m=1.0, correlated=False)
     c, d = (run_tdoa_ekf(lg, RandomForce(0.5), naive) for lg in logs)
-    assert np.abs(c.x - d.x).max() > 1e-3
+    assert np.abs(c.x_post - d.x_post).max() > 1e-3
 
 
 def test_chi2_gate_rejects_nlos_outliers(rng):
@@ -126,8 +126,9 @@ def test_gate_skips_epoch_when_too_few_measurements_remain():
     prior = ekf.init(np.array([10.0, 10.0]))
     prior = kalman.Gaussian(prior.x, 0.01 * prior.P)
     row = model.h(np.array([20.0, 20.0]), 0)            # 14 m away: everything inconsistent
-    post, info = ekf.update(prior, row, 0)
+    post, info = ekf.update(prior, (row, 0))
     assert info.dof == 0 and np.isnan(info.nis) and info.n_rejected > 0
+    assert info.status == EstimateStatus.GATED
     np.testing.assert_array_equal(post.x, prior.x)
 
 
@@ -138,10 +139,14 @@ def test_run_result_frame_and_trajectory(rng):
     r = model.ranges(pos) + 0.1 * rng.standard_normal((t.size, 8))
     r[:3] = np.nan                                      # no data at first: initialise at epoch 3
     res = run_tdoa_ekf(TdoaLog(t, *pseudo_tdoa(r, 0), IDS), RandomForce(0.5), model, name="mine")
-    assert not res.valid[:3].any() and res.valid[3:].all()
+    assert not res.started[:3].any() and res.started[3:].all()
+    assert (res.status[:3] == EstimateStatus.NO_ESTIMATE).all() and (res.status[3:] == EstimateStatus.UPDATED).all()
     df = res.to_frame()
-    assert list(df.columns) == ["t_s", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m", "sd_y_m", "nis", "dof",
+    assert list(df.columns) == ["t_s", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m", "sd_y_m", "status", "nis", "dof",
                                 "n_rejected"]
+    est = res.to_estimates()
+    assert est.name == "mine" and est.coverage == pytest.approx(1 - 3 / t.size)
+    np.testing.assert_array_equal(est.pos_m[3:], res.x_post[3:, :2])
     traj = res.to_trajectory()
     assert traj.name == "mine" and len(traj) == t.size - 3 and traj.vel_mps is not None
     assert res.dof[3] == 7 and np.isnan(res.nis[:3]).all()
@@ -179,3 +184,36 @@ def test_gate_is_bypassed_after_max_skipped_epochs():
     assert np.all(back.dof[:3] == 0) and back.dof[3] == 7          # 4th epoch used ungated
     err = np.linalg.norm(back.pos_m - pos, axis=1)
     assert err[-1] < 1.0 and err[-1] < err[3] < err[2]              # pulled back towards the target
+
+
+def test_tdoa_ekf_keeps_priors_so_smoothing_and_nees_work():
+    rng = np.random.default_rng(7)
+    motion = RandomForce(0.05)
+    model = TdoaModel(ANCHORS, 0.1, dim=2, z_m=1.0)
+    t = np.arange(0, 30, 0.1)
+    x = motion.sample_path(motion.initial_state([15.0, 15.0], [0.3, -0.2]), t, rng=rng)
+    log = _log(model, motion.position(x), t, sigma=0.1, rng=rng, p_missing=0.1)
+    ekf = TdoaEkf(motion, model)
+    res = ekf.run(log, x0=kalman.Gaussian(x[0], ekf.init(x[0, :2]).P))
+    np.testing.assert_allclose(res.x_prior[1:], np.einsum("tij,tj->ti", res.F[1:], res.x_post[:-1]), atol=1e-12)
+    smooth = res.smooth()
+    err = lambda r: np.sqrt(np.mean(np.sum((r.pos_m - motion.position(x)) ** 2, axis=1)))  # noqa: E731
+    assert err(smooth) < 0.8 * err(res)
+    nees = res.nees(motion.position(x), index=res.pos_index)
+    assert 1.6 < np.nanmean(nees) < 2.4                        # χ²(2) on average
+    assert res.nis_consistency()["verdict"] == "consistent"
+
+
+def test_gated_epochs_are_reported_as_such_in_the_common_result(rng):
+    model = TdoaModel(ANCHORS, 0.1, dim=2, z_m=1.0)
+    t = np.arange(0, 20, 0.1)
+    pos = np.column_stack([8 + 0.5 * t, 10 + 0.2 * t])
+    r = model.ranges(pos) + 0.1 * rng.standard_normal((t.size, 8))
+    r[100, :] += np.array([0.0, 9.0, -7.0, 8.0, -9.0, 7.0, -8.0, 9.0])      # nothing consistent left
+    r[50:52] = np.nan                                                     # nothing measured
+    res = run_tdoa_ekf(TdoaLog(t, *pseudo_tdoa(r, 0), IDS), RandomForce(0.2), model, gate_prob=0.999)
+    est = res.to_estimates()
+    assert est.status[100] == EstimateStatus.GATED and res.n_rejected[100] > 0 and res.dof[100] == 0
+    assert (est.status[50:52] == EstimateStatus.PREDICTED).all()
+    np.testing.assert_array_equal(res.x_post[100], res.x_prior[100])
+    assert est.status_counts()["updated"] == t.size - 3

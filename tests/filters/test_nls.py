@@ -134,3 +134,17 @@ def test_robust_loss_resists_an_nlos_anchor(rng):
     plain = nls.fit_trajectory(log, SCATTER, method="least_squares")
     robust = nls.fit_trajectory(log, SCATTER, method="least_squares", loss="soft_l1", f_scale_m=0.1)
     assert np.linalg.norm(robust.p0_m - P0) < 0.5 * np.linalg.norm(plain.p0_m - P0)
+
+
+def test_fit_to_estimates_propagates_the_line_covariance(rng):
+    P0, v = np.array([4.0, 3.0, 1.3]), np.array([0.7, 0.4, 0.0])
+    log = _walk(CEILING, P0, v, sigma_m=0.1, rng=rng)
+    fit = nls.fit_trajectory(log, CEILING, dim=2, z_m=1.3)
+    est = fit.to_estimates(log.t_s)
+    assert est.name == "NLS" and (est.status == 0).all()
+    np.testing.assert_allclose(est.pos_m, fit.position_at(log.t_s)[:, :2])
+    np.testing.assert_allclose(est.pos_cov_m2[0], fit.cov[:2, :2], rtol=1e-12)     # at t0: the P0 block
+    tau = log.t_s[-1] - fit.t0_s
+    A = np.hstack([np.eye(2), tau * np.eye(2)])
+    np.testing.assert_allclose(est.pos_cov_m2[-1], A @ fit.cov @ A.T, rtol=1e-12)
+    np.testing.assert_allclose(est.vel_mps[5], fit.vel_mps[:2])

@@ -174,3 +174,21 @@ def test_bad_arguments_are_reported():
         F.pf_sweep(t, z[:5], mu, sd, truth[0], 0.1, rng=rng)
     with pytest.raises(ValueError, match="one filter"):
         F.reference_pf(t, z, np.stack([mu, mu]), np.stack([sd, sd]), truth[0], 0.1, rng=rng)
+
+
+def test_filter_runs_give_the_common_result_type():
+    t, z, mu, sd, truth = _case(T=30)
+    sets = np.where(mu[:, 0] > 0, 3, 5)
+    fixes = SetFixLog(t, z, sets, tuple("01234567"), truth, "rec")
+    model = SetNoiseModel([3, 5], [[0.08, -0.03], [-0.05, 0.06]], [[0.10, 0.08], [0.15, 0.12]], [50, 50],
+                          [0.0, 0.0], [0.2, 0.2], 100)
+    kf = F.run_set_noise_kf(fixes, model, truth[0], 0.2)
+    est = kf.to_estimates()
+    assert est.name == "set-noise KF" and (est.status == 0).all()
+    np.testing.assert_array_equal(est.pos_m, kf.pos_m)
+    np.testing.assert_array_equal(est.vel_mps, kf.state[:, 2:])
+    np.testing.assert_array_equal(est.pos_cov_m2, kf.meta["cov"][:, :2, :2])
+    np.testing.assert_array_equal(est.info["nis"], kf.meta["nis"])
+    assert est.info["dof"].tolist() == [2] * t.size
+    pf = F.run_set_noise_pf(fixes, model, truth[0], 0.2, rng=np.random.default_rng(0), n_particles=200).to_estimates()
+    assert pf.pos_cov_m2 is None and set(pf.info) == {"ess", "resampled"} and pf.coverage == 1.0

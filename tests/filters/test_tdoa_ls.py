@@ -83,3 +83,16 @@ def test_anchor_count_mismatch():
     log = TdoaLog([0.0], [[0.0, 1.0, 2.0]], [0], ("a", "b", "c"))
     with pytest.raises(ValueError, match="anchors"):
         tdoa_least_squares(log, model)
+
+
+def test_to_estimates_is_the_fixes_with_status(rng):
+    model = TdoaModel(ANCHORS, 0.05, dim=2, z_m=1.0)
+    pos = rng.uniform([1, 1], [9, 7], (20, 2))
+    r = model.ranges(pos) + 0.05 * rng.standard_normal((20, 6))
+    r[4, 2:] = np.nan                                   # two anchors: one TDoA, no 2-D fix
+    res = tdoa_least_squares(_log(r), model)
+    est = res.to_estimates("TDoA LS")
+    assert est.name == "TDoA LS" and est.status[4] == 3 and (est.status[res.ok] == 0).all()
+    np.testing.assert_array_equal(est.pos_m[res.ok], res.pos_m[res.ok])
+    np.testing.assert_array_equal(est.pos_cov_m2[res.ok], res.cov_m2[res.ok])
+    np.testing.assert_array_equal(est.info["n_tdoa"], res.n_tdoa)

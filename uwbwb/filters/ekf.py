@@ -21,8 +21,9 @@ absurd measurement; ``gate_prob=None`` means *no gate*: every measurement is use
 far from the prediction. A filter that has lost the target would reject everything after,
 so after ``max_gated`` consecutive gated epochs the next one is used ungated.
 
-:class:`TdoaEkf` is the TDoA filter of notebook 03 (thesis eqs 1–10); its gate can drop
-single anchors before giving up an epoch.
+:class:`TdoaEkf` is the TDoA filter of notebook 03 (thesis eqs 1–10): this filter with the
+TDoA measurement adapter :class:`TdoaMeasurement`, whose gate can drop single anchors
+before giving up an epoch.
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ from .kalman import Gaussian
 from .tdoa_ls import tdoa_least_squares
 
 __all__ = ["Ekf", "KalmanRun", "Linearisation", "MeasurementModel", "TransitionModel", "UpdateInfo",
-           "nis_consistency", "TdoaEkf", "EkfResult", "EpochUpdate", "run_tdoa_ekf"]
+           "nis_consistency", "TdoaEkf", "TdoaMeasurement", "run_tdoa_ekf"]
 
 
 # ====================================================================== generic EKF
@@ -110,11 +111,13 @@ class TransitionModel(Protocol):
 @dataclass(frozen=True)
 class UpdateInfo:
     """What one :meth:`Ekf.update` did: ``nis`` (NaN if nothing was measured), ``dof`` (size of
-    the measurement used, 0 if none) and the epoch's :class:`~uwbwb.types.EstimateStatus`."""
+    the measurement used, 0 if none), the epoch's :class:`~uwbwb.types.EstimateStatus` and
+    ``n_rejected``, the measurement components (e.g. anchors) a gate removed."""
 
     nis: float
     dof: int
     status: EstimateStatus
+    n_rejected: int = 0
 
 
 def _check_gate(gate_prob, owner: str) -> None:
@@ -225,7 +228,7 @@ class Ekf:
         xm, Pm = np.full((T, n), np.nan), np.full((T, n, n), np.nan)
         xp, Pp = np.full((T, n), np.nan), np.full((T, n, n), np.nan)
         F = np.full((T, n, n), np.nan)
-        nis, dof = np.full(T, np.nan), np.zeros(T, int)
+        nis, dof, n_rej = np.full(T, np.nan), np.zeros(T, int), np.zeros(T, int)
         status = np.full(T, EstimateStatus.NO_ESTIMATE, np.int8)
         if start < T:
             dt = np.diff(t_s[start:])
@@ -240,7 +243,9 @@ class Ekf:
                 state, info = self.update(state, measurements[k], gate=gated < self.max_gated)
                 gated = gated + 1 if info.status == EstimateStatus.GATED else 0
                 xp[k], Pp[k], nis[k], dof[k], status[k] = state.x, state.P, info.nis, info.dof, info.status
-        return KalmanRun(t_s.copy(), xm, Pm, xp, Pp, F, nis, dof, status, self.pos_index, self.vel_index, name)
+                n_rej[k] = info.n_rejected
+        return KalmanRun(t_s.copy(), xm, Pm, xp, Pp, F, nis, dof, status, self.pos_index, self.vel_index, name,
+                         n_rej)
 
 
 @dataclass(frozen=True)
@@ -269,6 +274,8 @@ class KalmanRun:
         State components of the position and velocity.
     name
         Label.
+    n_rejected
+        Measurement components removed by the gate per epoch, ``(T,)`` (zeros if none were).
     """
 
     t_s: np.ndarray
@@ -283,9 +290,25 @@ class KalmanRun:
     pos_index: tuple[int, ...]
     vel_index: tuple[int, ...] | None = None
     name: str = "EKF"
+    n_rejected: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.n_rejected is None:
+            object.__setattr__(self, "n_rejected", np.zeros(self.t_s.size, int))
 
     def __len__(self) -> int:
         return self.t_s.size
+
+    @property
+    def pos_m(self) -> np.ndarray:
+        """Filtered positions, shape ``(T, dim)``, metres; NaN before the start."""
+        return self.x_post[:, list(self.pos_index)]
+
+    @property
+    def pos_cov_m2(self) -> np.ndarray:
+        """Filtered position covariances, shape ``(T, dim, dim)``, m²."""
+        idx = list(self.pos_index)
+        return self.P_post[:, idx][:, :, idx]
 
     @property
     def started(self) -> np.ndarray:
@@ -338,11 +361,19 @@ class KalmanRun:
         return nis_consistency(self.nis[up], self.dof[up], prob)
 
     def to_estimates(self) -> Estimates:
-        """The common result type: posterior positions (velocities, covariances) and status."""
-        pos = self.x_post[:, list(self.pos_index)]
-        cov = self.P_post[:, list(self.pos_index)][:, :, list(self.pos_index)]
+        """The common result type: posterior positions (velocities, covariances) and status;
+        ``info`` holds ``nis``, ``dof`` and ``n_rejected``."""
         vel = None if self.vel_index is None else self.x_post[:, list(self.vel_index)]
-        return Estimates(self.t_s, pos, self.status, self.name, cov, vel, {"nis": self.nis, "dof": self.dof})
+        return Estimates(self.t_s, self.pos_m, self.status, self.name, self.pos_cov_m2, vel,
+                         {"nis": self.nis, "dof": self.dof, "n_rejected": self.n_rejected})
+
+    def to_trajectory(self, name: str | None = None) -> Trajectory:
+        """Filtered positions (and velocities, if in the state) from the first filtered epoch on."""
+        return self.to_estimates().to_trajectory(name)
+
+    def to_frame(self) -> pd.DataFrame:
+        """Table of :meth:`to_estimates` (``t_s``, positions, velocities, SDs, ``status``, ``nis, dof, n_rejected``)."""
+        return self.to_estimates().to_frame()
 
 
 def nis_consistency(nis: np.ndarray, dof: np.ndarray, prob: float = 0.95) -> dict:
@@ -379,61 +410,79 @@ def nis_consistency(nis: np.ndarray, dof: np.ndarray, prob: float = 0.95) -> dic
 # ====================================================================== TDoA EKF (notebook 03)
 
 @dataclass(frozen=True)
-class EpochUpdate:
-    """What one update did.
+class TdoaMeasurement:
+    """The TDoA measurement model as :class:`Ekf` sees it (thesis eqs 3–4).
+
+    One epoch's measurement is ``(tdoa_row_m, ref)``: a row of
+    :attr:`~uwbwb.types.TdoaLog.tdoa_m` and its reference anchor (−1: nothing measured).
+    The model (:meth:`~uwbwb.models.tdoa.TdoaModel.epoch`) is linearised at the position
+    part of the state; its Jacobian is lifted to the full state with the motion model's
+    ``H_pos``.
 
     Attributes
     ----------
-    nis
-        NIS of the accepted measurement set (NaN if the epoch was skipped).
-    dof
-        Number of TDoAs used (0 if skipped).
-    n_rejected
-        Anchors removed by the gate.
+    model
+        TDoA model (anchors, noise, reference correlation).
+    motion
+        Motion model giving the state layout (its ``dim`` must equal ``model.dim``).
     """
 
-    nis: float
-    dof: int
-    n_rejected: int
+    model: TdoaModel
+    motion: MotionModel
+
+    def __post_init__(self):
+        if self.motion.dim != self.model.dim:
+            raise ValueError(f"motion model is {self.motion.dim}-D but the measurement model is "
+                             f"{self.model.dim}-D")
+
+    @staticmethod
+    def epochs(log: TdoaLog) -> list[tuple[np.ndarray, int]]:
+        """The measurements of a log, one ``(tdoa_row_m, ref)`` per epoch."""
+        return list(zip(log.tdoa_m, log.ref.tolist()))
+
+    def terms(self, x: np.ndarray, row: np.ndarray, ref: int, anchors: np.ndarray) -> Linearisation:
+        """Linearisation using anchors ``anchors`` (``ref`` among them) with reference ``ref``."""
+        z, h, H_pos, R, _ = self.model.epoch(row, self.motion.position(x), ref, anchors)
+        return Linearisation(z, h, H_pos @ self.motion.H_pos, R)
+
+    def linearise(self, x: np.ndarray, measurement) -> Linearisation | None:
+        """All measured anchors of the epoch, or None if fewer than two were measured."""
+        row, ref = measurement
+        row = np.asarray(row, float)
+        anchors = np.flatnonzero(np.isfinite(row))
+        if ref < 0 or anchors.size < 2:
+            return None
+        return self.terms(x, row, int(ref), anchors)
 
 
-@dataclass(frozen=True)
-class TdoaEkf:
-    """A TDoA EKF: motion model + measurement model + gating and initialisation settings.
+@dataclass(frozen=True, init=False)
+class TdoaEkf(Ekf):
+    """TDoA extended Kalman filter with a white-noise-driven motion model (thesis eqs 1–10).
 
-    TDoA extended Kalman filter with a white-noise-driven motion model (thesis eqs 1–10).
-
-    Prediction (eqs 5–6, with the covariance propagation written correctly as
-    ``A P Aᵀ + Q``; the thesis prints ``AᵀPA + Q``)::
+    :class:`Ekf` with the :class:`TdoaMeasurement` adapter. Prediction (eqs 5–6, with the
+    covariance propagation written correctly as ``A P Aᵀ + Q``; the thesis prints
+    ``AᵀPA + Q``)::
 
         x⁻ = F(dt) x,        P⁻ = F(dt) P F(dt)ᵀ + Q(dt)
 
-    with ``F``, ``Q`` from a :mod:`uwbwb.models.motion` model. Update (eqs 7–9) with
-    the TDoA model linearised at the prior (eqs 3–4)::
+    with ``F``, ``Q`` from a :mod:`uwbwb.models.motion` model. Update (eqs 7–9) with the
+    TDoA model linearised at the prior (eqs 3–4), in Joseph form; the estimate is the
+    posterior mean (eq. 10). A run keeps priors and posteriors (:class:`KalmanRun`), so
+    :meth:`KalmanRun.smooth` and :meth:`KalmanRun.nees` apply.
 
-        y = z − h(x⁻),  S = H P⁻ Hᵀ + R,  G = P⁻ Hᵀ S⁻¹,  x = x⁻ + G y,
-        P = (I − G H) P⁻ (I − G H)ᵀ + G R Gᵀ              (Joseph form)
+    Gating overrides the generic one: if the NIS of an epoch exceeds the ``gate_prob``
+    quantile of χ²(m), the anchor whose removal lowers the NIS most is dropped
+    (re-referencing if it was the reference) and the test repeated, until the epoch passes
+    or fewer than ``min_tdoa`` TDoAs remain, in which case the epoch is gated (prediction
+    only). After ``max_skipped`` consecutive gated epochs the next one is used ungated.
 
-    Both steps go through :mod:`uwbwb.filters.kalman`, the one edge that touches
-    filterpy. The estimate is the posterior mean (eq. 10).
-
-    Every update reports the normalised innovation squared ``NIS = yᵀ S⁻¹ y``,
-    χ²-distributed with ``m`` (number of TDoAs) degrees of freedom when the
-    models are right. χ² gating (``gate_prob``, on by default): if the NIS of an epoch
-    exceeds the ``gate_prob`` quantile of χ²(m), the anchor whose removal lowers
-    the NIS most is dropped (re-referencing if it was the reference) and the test
-    repeated, until the epoch passes or fewer than ``min_tdoa`` TDoAs remain, in
-    which case the epoch is skipped (prediction only). A filter that has drifted
-    away (e.g. a random walk whose driving noise is far too small to follow the
-    target) would otherwise reject every later epoch and never come back; so after
-    ``max_skipped`` consecutive skipped epochs the next epoch is used ungated.
-
-    Attributes
+    Parameters
     ----------
     motion
         Motion model (its ``dim`` must equal ``measurement.dim``).
     measurement
-        TDoA measurement model (anchors, noise, reference correlation).
+        TDoA measurement model (anchors, noise, reference correlation); the filter's
+        ``measurement`` attribute is its :class:`TdoaMeasurement` adapter.
     gate_prob
         χ² gate probability. The default 0.9999 rejects one consistent epoch in ten
         thousand and any absurd TDoA (a tracking filter should not follow one bad
@@ -447,31 +496,43 @@ class TdoaEkf:
         Prior standard deviations at initialisation (per axis).
     """
 
-    motion: MotionModel
-    measurement: TdoaModel
-    gate_prob: float | None = 0.9999
     min_tdoa: int | None = None
-    max_skipped: int = 10
     init_pos_sigma_m: float = 1.0
     init_vel_sigma_mps: float = 1.0
     init_acc_sigma_mps2: float = 1.0
 
-    def __post_init__(self):
-        if self.motion.dim != self.measurement.dim:
-            raise ValueError(f"motion model is {self.motion.dim}-D but the measurement model is "
-                             f"{self.measurement.dim}-D")
-        if self.gate_prob is not None and not 0 < self.gate_prob < 1:
-            raise ValueError(f"gate_prob must be in (0, 1) or None, got {self.gate_prob!r}")
-        if self.min_tdoa is not None and self.min_tdoa < 1:
+    def __init__(self, motion: MotionModel, measurement: TdoaModel, gate_prob: float | None = 0.9999,
+                 min_tdoa: int | None = None, max_skipped: int = 10, init_pos_sigma_m: float = 1.0,
+                 init_vel_sigma_mps: float = 1.0, init_acc_sigma_mps2: float = 1.0):
+        if min_tdoa is not None and min_tdoa < 1:
             raise ValueError("min_tdoa must be >= 1")
-        if self.max_skipped < 0:
+        if not isinstance(max_skipped, (int, np.integer)) or max_skipped < 0:
             raise ValueError("max_skipped must be >= 0")
+        _check_gate(gate_prob, "TdoaEkf")
+        d = motion.dim
+        fields = dict(transition=motion, measurement=TdoaMeasurement(measurement, motion),
+                      pos_index=tuple(range(d)), vel_index=tuple(range(d, 2 * d)) if motion.order >= 2 else None,
+                      gate_prob=gate_prob, max_gated=max_skipped, min_tdoa=min_tdoa,
+                      init_pos_sigma_m=init_pos_sigma_m, init_vel_sigma_mps=init_vel_sigma_mps,
+                      init_acc_sigma_mps2=init_acc_sigma_mps2)
+        for k, v in fields.items():
+            object.__setattr__(self, k, v)
+        self.__post_init__()
+
+    @property
+    def motion(self) -> MotionModel:
+        """The motion model (the filter's transition)."""
+        return self.transition
+
+    @property
+    def tdoa_model(self) -> TdoaModel:
+        """The TDoA measurement model."""
+        return self.measurement.model
 
     @property
     def name(self) -> str:
         return f"EKF-{self.motion.abbreviation}"
 
-    # ------------------------------------------------------------ steps
     def init(self, pos_m: np.ndarray, vel_mps: np.ndarray | None = None) -> Gaussian:
         """Initial state at ``pos_m`` (velocity and acceleration zero unless given)."""
         m = self.motion
@@ -479,62 +540,44 @@ class TdoaEkf:
                         m.initial_covariance(self.init_pos_sigma_m, self.init_vel_sigma_mps,
                                              self.init_acc_sigma_mps2))
 
-    def predict(self, state: Gaussian, dt_s: float) -> Gaussian:
-        """Prior after ``dt_s`` seconds (eqs 5–6)."""
-        return kalman.predict(state, self.motion.F(dt_s), self.motion.Q(dt_s))
-
-    def _terms(self, state, row, ref, anchors):
-        z, h, H_pos, R, _ = self.measurement.epoch(row, self.motion.position(state.x), ref, anchors)
-        H = H_pos @ self.motion.H_pos
-        return z, h, H, R
-
-    def _nis(self, state, row, ref, anchors) -> float:
-        z, h, H, R = self._terms(state, row, ref, anchors)
-        y = z - h
-        S = H @ state.P @ H.T + R
+    def _nis(self, state: Gaussian, row, ref, anchors) -> float:
+        lin = self.measurement.terms(state.x, row, ref, anchors)
+        y = lin.z - lin.h
+        S = lin.H @ state.P @ lin.H.T + lin.R
         return float(y @ np.linalg.solve(S, y))
 
-    def update(self, state: Gaussian, tdoa_row_m: np.ndarray, ref: int, *,
-               gate: bool = True) -> tuple[Gaussian, EpochUpdate]:
-        """Posterior after one epoch's TDoAs (eqs 7–9, Joseph form), with optional gating.
+    def update(self, state: Gaussian, measurement, *, gate: bool = True) -> tuple[Gaussian, UpdateInfo]:
+        """Posterior after one epoch's ``(tdoa_row_m, ref)`` (eqs 7–9, Joseph form), gating anchor by anchor.
 
-        Parameters
-        ----------
-        tdoa_row_m
-            One row of :attr:`~uwbwb.types.TdoaLog.tdoa_m`, shape ``(n_anchors,)``.
-        ref
-            That row's reference anchor (−1: nothing to update).
-        gate
-            Apply the χ² gate (if ``gate_prob`` is set).
+        Returns the prior with status ``GATED`` if the gate left fewer than ``min_tdoa``
+        TDoAs; ``n_rejected`` counts the anchors it removed.
         """
-        row = np.asarray(tdoa_row_m, float)
+        if self.gate_prob is None or not gate:
+            return super().update(state, measurement, gate=False)
+        row, ref = measurement
+        row, ref = np.asarray(row, float), int(ref)
         anchors = np.flatnonzero(np.isfinite(row))
-        min_tdoa = self.min_tdoa if self.min_tdoa is not None else self.measurement.dim
         if ref < 0 or anchors.size < 2:
-            return state, EpochUpdate(np.nan, 0, 0)
+            return state, UpdateInfo(np.nan, 0, EstimateStatus.PREDICTED)
+        min_tdoa = self.min_tdoa if self.min_tdoa is not None else self.tdoa_model.dim
         n_rejected = 0
-        if self.gate_prob is not None and gate:
-            while True:
-                nis = self._nis(state, row, ref, anchors)
-                if nis <= chi2.ppf(self.gate_prob, anchors.size - 1):
-                    break
-                if anchors.size - 2 < max(min_tdoa, 1):
-                    return state, EpochUpdate(np.nan, 0, n_rejected + anchors.size)
-                trial = []
-                for k in anchors:
-                    rest = anchors[anchors != k]
-                    trial.append(self._nis(state, row, ref if k != ref else int(rest[0]), rest))
-                drop = anchors[int(np.argmin(trial))]
-                anchors = anchors[anchors != drop]
-                if drop == ref:
-                    ref = int(anchors[0])
-                n_rejected += 1
-        z, h, H, R = self._terms(state, row, ref, anchors)
-        post, inn = kalman.update(state, z, H, R, h_x=h)
-        return post, EpochUpdate(inn.nis, z.size, n_rejected)
+        while not self._nis(state, row, ref, anchors) <= chi2.ppf(self.gate_prob, anchors.size - 1):
+            if anchors.size - 2 < max(min_tdoa, 1):
+                return state, UpdateInfo(np.nan, 0, EstimateStatus.GATED, n_rejected + anchors.size)
+            trial = []
+            for k in anchors:
+                rest = anchors[anchors != k]
+                trial.append(self._nis(state, row, ref if k != ref else int(rest[0]), rest))
+            drop = anchors[int(np.argmin(trial))]
+            anchors = anchors[anchors != drop]
+            if drop == ref:
+                ref = int(anchors[0])
+            n_rejected += 1
+        lin = self.measurement.terms(state.x, row, ref, anchors)
+        post, inn = kalman.update(state, lin.z, lin.H, lin.R, h_x=lin.h)
+        return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED, n_rejected)
 
-    # ------------------------------------------------------------ batch
-    def run(self, log: TdoaLog, *, x0: Gaussian | None = None, name: str | None = None) -> "EkfResult":
+    def run(self, log: TdoaLog, *, x0: Gaussian | None = None, name: str | None = None) -> KalmanRun:
         """Filter a whole recording.
 
         Parameters
@@ -545,117 +588,29 @@ class TdoaEkf:
             Initial state at ``log.t_s[0]``. Default: at the first epoch with a
             valid LS fix (:func:`~uwbwb.filters.tdoa_ls.tdoa_least_squares`), with
             zero velocity/acceleration and the ``init_*_sigma`` prior; that
-            epoch's TDoAs then update this weak prior. Earlier epochs are NaN.
+            epoch's TDoAs then update this weak prior. Earlier epochs have no estimate.
         name
             Label of the result (default ``"EKF-RW"`` etc.).
 
         Returns
         -------
-        EkfResult
+        KalmanRun
         """
-        if log.n_anchors != self.measurement.n_anchors:
-            raise ValueError(f"TdoaEkf.run: log has {log.n_anchors} anchors, the model {self.measurement.n_anchors}")
-        T, n_x = len(log), self.motion.n_x
-        x = np.full((T, n_x), np.nan)
-        P = np.full((T, n_x, n_x), np.nan)
-        nis = np.full(T, np.nan)
-        dof = np.zeros(T, int)
-        n_rej = np.zeros(T, int)
+        if log.n_anchors != self.tdoa_model.n_anchors:
+            raise ValueError(f"TdoaEkf.run: log has {log.n_anchors} anchors, the model {self.tdoa_model.n_anchors}")
+        T, start = len(log), 0
         if x0 is None:
-            start = None
+            start, x0 = T, self.init(np.zeros(self.motion.dim))       # no LS fix: no estimate anywhere
             for lo in range(0, T, 64):
-                ls = tdoa_least_squares(log.select(slice(lo, lo + 64)), self.measurement)
+                ls = tdoa_least_squares(log.select(slice(lo, lo + 64)), self.tdoa_model)
                 if ls.ok.any():
                     k = int(np.flatnonzero(ls.ok)[0])
-                    start, state = lo + k, self.init(ls.pos_m[k])
+                    start, x0 = lo + k, self.init(ls.pos_m[k])
                     break
-            if start is None:
-                return EkfResult(log.t_s.copy(), x, P, nis, dof, n_rej, self.motion, name or self.name)
-        else:
-            start, state = 0, x0
-        dt = np.diff(log.t_s[start:])
-        F_all, Q_all = self.motion.F(dt), self.motion.Q(dt)      # all steps at once
-        skipped = 0
-        for k in range(start, T):
-            if k > start:
-                state = kalman.predict(state, F_all[k - start - 1], Q_all[k - start - 1])
-            state, info = self.update(state, log.tdoa_m[k], int(log.ref[k]), gate=skipped < self.max_skipped)
-            skipped = skipped + 1 if info.n_rejected and not info.dof else 0
-            x[k], P[k], nis[k], dof[k], n_rej[k] = state.x, state.P, info.nis, info.dof, info.n_rejected
-        return EkfResult(log.t_s.copy(), x, P, nis, dof, n_rej, self.motion, name or self.name)
-
-
-@dataclass(frozen=True)
-class EkfResult:
-    """Filtered states of one recording.
-
-    Attributes
-    ----------
-    t_s
-        Epoch times, shape ``(T,)``, seconds.
-    x
-        Posterior means, shape ``(T, n_x)`` (state layout of ``motion``); NaN before initialisation.
-    P
-        Posterior covariances, shape ``(T, n_x, n_x)``.
-    nis
-        NIS per epoch, shape ``(T,)``; NaN where no update was made.
-    dof
-        TDoAs used per epoch (the NIS degrees of freedom), shape ``(T,)``.
-    n_rejected
-        Anchors rejected by the χ² gate per epoch, shape ``(T,)``.
-    motion
-        The motion model used.
-    name
-        Label, e.g. ``"EKF-RW"``.
-    """
-
-    t_s: np.ndarray
-    x: np.ndarray
-    P: np.ndarray
-    nis: np.ndarray
-    dof: np.ndarray
-    n_rejected: np.ndarray
-    motion: MotionModel
-    name: str = "EKF"
-
-    @property
-    def pos_m(self) -> np.ndarray:
-        """Positions, shape ``(T, dim)``, metres."""
-        return self.motion.position(self.x)
-
-    @property
-    def pos_cov_m2(self) -> np.ndarray:
-        """Position covariances, shape ``(T, dim, dim)``, m²."""
-        d = self.motion.dim
-        return self.P[:, :d, :d]
-
-    @property
-    def valid(self) -> np.ndarray:
-        """Epochs after initialisation, bool ``(T,)``."""
-        return np.all(np.isfinite(self.x), axis=1)
-
-    def nis_consistency(self, prob: float = 0.95) -> dict:
-        """χ² consistency of the NIS over the updated epochs (see :func:`nis_consistency`)."""
-        up = self.dof > 0
-        return nis_consistency(self.nis[up], self.dof[up], prob)
-
-    def to_frame(self) -> pd.DataFrame:
-        """Table ``t_s``, the state columns (``x_m, y_m, vx_mps, ...``), position SDs, ``nis, dof, n_rejected``."""
-        cols = {"t_s": self.t_s}
-        cols.update({lab: self.x[:, k] for k, lab in enumerate(self.motion.state_labels)})
-        sd = np.sqrt(np.diagonal(self.pos_cov_m2, axis1=1, axis2=2))
-        cols.update({f"sd_{a}_m": sd[:, k] for k, a in enumerate("xyz"[: self.motion.dim])})
-        cols.update(nis=self.nis, dof=self.dof, n_rejected=self.n_rejected)
-        return pd.DataFrame(cols)
-
-    def to_trajectory(self, name: str | None = None) -> Trajectory:
-        """Filtered positions (and velocities, if in the state) after initialisation."""
-        ok = self.valid
-        vel = self.motion.velocity(self.x)
-        return Trajectory(self.t_s[ok], self.pos_m[ok], None if vel is None else vel[ok], name=name or self.name)
+        return super().run(log.t_s, TdoaMeasurement.epochs(log), x0, start=start, name=name or self.name)
 
 
 def run_tdoa_ekf(log: TdoaLog, motion: MotionModel, measurement: TdoaModel, *, gate_prob: float | None = 0.9999,
-                 x0: Gaussian | None = None, name: str | None = None, **settings) -> EkfResult:
+                 x0: Gaussian | None = None, name: str | None = None, **settings) -> KalmanRun:
     """Shorthand for ``TdoaEkf(motion, measurement, gate_prob, **settings).run(log, x0=x0, name=name)``."""
     return TdoaEkf(motion, measurement, gate_prob=gate_prob, **settings).run(log, x0=x0, name=name)

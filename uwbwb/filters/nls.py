@@ -64,7 +64,7 @@ from scipy.optimize import least_squares, minimize
 
 from ..geometry import linear_multilaterate
 from ..models.track import LinearTrackRanges, anchor_array
-from ..types import RangeLog, RangeSamples, Trajectory
+from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples, Trajectory
 
 __all__ = ["TrajectoryFit", "fit_trajectory", "initial_guess"]
 
@@ -223,6 +223,22 @@ class TrajectoryFit:
             t = t[:1]
         vel = np.broadcast_to(self.vel_mps, (t.size, 3))
         return Trajectory(t, self.position_at(t), vel, name=name)
+
+    def to_estimates(self, t_s, name: str = "NLS") -> Estimates:
+        """The common result type at epochs ``t_s`` ``(T,)``: the fitted line's positions and
+        velocity, and the position covariance propagated from :attr:`cov`
+        (``A cov Aᵀ`` with ``A = [I, (t − t0) I]``). All epochs are ``UPDATED`` if the
+        solver converged, else ``NO_ESTIMATE``."""
+        t = np.asarray(t_s, float)
+        d, T = self.dim, t.size
+        if not self.converged:
+            return Estimates(t, np.full((T, d), np.nan), np.full(T, EstimateStatus.NO_ESTIMATE, np.int8), name)
+        A = np.broadcast_to(np.eye(d), (T, d, d))
+        if not self.static:
+            A = np.concatenate([A, (t - self.t0_s)[:, None, None] * np.eye(d)], axis=-1)
+        cov = np.einsum("kij,jl,kml->kim", A, self.cov, A)
+        return Estimates(t, self.position_at(t)[:, :d], np.full(T, EstimateStatus.UPDATED, np.int8), name, cov,
+                         np.broadcast_to(self.vel_mps[:d], (T, d)))
 
     def report(self) -> str:
         """One line: solver, outcome, iterations, residual RMS."""

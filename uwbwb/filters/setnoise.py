@@ -54,7 +54,7 @@ import pandas as pd
 
 from ..models.motion import VelocityKick
 from ..models.setnoise import SetNoiseModel, log_likelihood
-from ..types import SetFixLog
+from ..types import EstimateStatus, Estimates, SetFixLog
 from . import particle
 
 #: State layout of the set-noise filters (that of a 2-D :class:`~uwbwb.models.motion.VelocityKick`).
@@ -185,6 +185,20 @@ class FilterRun:
     def pos_m(self) -> np.ndarray:
         """Estimated positions, shape ``(T, 2)``, metres."""
         return self.state[:, :2]
+
+    def to_estimates(self) -> Estimates:
+        """The common result type: every fix ``UPDATED``, with velocities; the Kalman filter's
+        position covariances and ``nis``/``dof`` (2 per fix), the particle filter's ``ess`` and
+        ``resampled`` in ``info``."""
+        T = self.t_s.size
+        status = np.full(T, EstimateStatus.UPDATED, np.int8)
+        cov = self.meta.get("cov")
+        if cov is not None:
+            cov = np.asarray(cov)[:, :2, :2]
+            info = {"nis": np.asarray(self.meta["nis"]), "dof": np.full(T, 2)}
+        else:
+            info = {"ess": self.ess, "resampled": self.resampled}
+        return Estimates(self.t_s, self.pos_m, status, self.name, cov, self.state[:, 2:], info)
 
     def to_frame(self) -> pd.DataFrame:
         """Tidy table ``t_s, x_m, y_m, vx_mps, vy_mps, ess, resampled``."""

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from ..models.tdoa import TdoaModel
-from ..types import TdoaLog, Trajectory
+from ..types import EstimateStatus, Estimates, TdoaLog, Trajectory
 
 __all__ = ["TdoaLsResult", "tdoa_least_squares", "STATUS"]
 
@@ -88,6 +88,15 @@ class TdoaLsResult:
     def to_trajectory(self, name: str = "LS") -> Trajectory:
         """The valid fixes as a :class:`~uwbwb.types.Trajectory` (failed epochs left out)."""
         return Trajectory(self.t_s[self.ok], self.pos_m[self.ok], name=name)
+
+    def to_estimates(self, name: str = "LS") -> Estimates:
+        """The common result type: valid fixes ``UPDATED`` (with covariance), failed epochs
+        ``NO_ESTIMATE``; ``info`` holds ``n_tdoa``, ``n_iter`` and ``residual_rms_m``."""
+        ok = self.ok
+        status = np.where(ok, EstimateStatus.UPDATED, EstimateStatus.NO_ESTIMATE).astype(np.int8)
+        return Estimates(self.t_s, np.where(ok[:, None], self.pos_m, np.nan), status, name,
+                         np.where(ok[:, None, None], self.cov_m2, np.nan), None,
+                         {"n_tdoa": self.n_tdoa, "n_iter": self.n_iter, "residual_rms_m": self.residual_rms_m})
 
 
 def _weights(log: TdoaLog, model: TdoaModel, used: np.ndarray) -> np.ndarray:

@@ -18,8 +18,9 @@ A method joins the board by implementing :class:`Estimator`:
 
 The adapters below wrap the existing estimators without changing them. Every method
 but ``raw LS`` uses the calibrated ranges (the calibration is information every method
-is given; ``raw LS`` shows what it is worth). Where an estimator's result type has no
-``to_estimates()`` yet, the conversion lives here, in one function per result type.
+is given; ``raw LS`` shows what it is worth). Estimators return the package's common
+result type through their results' ``to_estimates()``; the set-noise filters and the
+windowed NLS, which run on parts of a recording, place their parts on its epochs here.
 """
 
 from __future__ import annotations
@@ -31,10 +32,10 @@ from typing import Mapping, Protocol, Sequence, runtime_checkable
 import numpy as np
 
 from .. import bounds, geometry, metrics
-from ..filters.ekf import EkfResult, TdoaEkf
+from ..filters.ekf import TdoaEkf
 from ..filters.nls import fit_trajectory
 from ..filters.setnoise import model_noise, run_set_noise_kf, run_set_noise_pf
-from ..filters.tdoa_ls import TdoaLsResult, tdoa_least_squares
+from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import VelocityKick, make_motion_model
 from ..models.setnoise import SetNoiseModel
 from ..models.tdoa import TdoaModel
@@ -48,8 +49,7 @@ __all__ = ["Estimator", "BaseEstimator", "RawLs", "CalibratedLs", "TdoaLs", "Tdo
 #: Largest truth gap interpolated across when scoring or evaluating a bound, seconds.
 MAX_TRUTH_GAP_S = 0.5
 
-_UP, _PRED, _GATED, _NONE = (int(s) for s in (EstimateStatus.UPDATED, EstimateStatus.PREDICTED,
-                                               EstimateStatus.GATED, EstimateStatus.NO_ESTIMATE))
+_UP, _NONE = int(EstimateStatus.UPDATED), int(EstimateStatus.NO_ESTIMATE)
 
 
 @runtime_checkable
@@ -106,13 +106,6 @@ def _ok_cov(cov: np.ndarray) -> np.ndarray:
     return np.all(np.isfinite(cov.reshape(cov.shape[0], -1)), axis=1)
 
 
-def _snapshot(t_s, pos, ok, cov, name, info=None) -> Estimates:
-    pos = np.where(ok[:, None], pos, np.nan)
-    cov = np.where(ok[:, None, None], cov, np.nan)
-    status = np.where(ok, _UP, _NONE).astype(np.int8)
-    return Estimates(t_s, pos, status, name, cov, None, info or {})
-
-
 def _nan_bound(t_s, dim, kind) -> bounds.Bound:
     return bounds.Bound(t_s, np.full((len(t_s), dim, dim), np.nan), kind)
 
@@ -165,7 +158,7 @@ class RawLs(BaseEstimator):
     def estimate(self, rec, tag, cal):
         log = rec.ranges[tag]
         res = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag))
-        return _snapshot(log.t_s, res.pos_m, res.ok, res.cov_m2, self.name, {"n_used": res.n_used})
+        return res.to_estimates(log.t_s, self.name)
 
     def bound(self, rec, tag, cal, est):
         return _range_bound(rec, tag, cal, rec.ranges[tag])
@@ -181,14 +174,10 @@ class CalibratedLs(BaseEstimator):
         log = calibrated_log(rec, tag, cal)
         res = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag),
                                      sigma_m=cal.sigma(tag))
-        return _snapshot(log.t_s, res.pos_m, res.ok, res.cov_m2, self.name, {"n_used": res.n_used})
+        return res.to_estimates(log.t_s, self.name)
 
     def bound(self, rec, tag, cal, est):
         return _range_bound(rec, tag, cal, calibrated_log(rec, tag, cal))
-
-
-def _tdoa_ls_estimates(res: TdoaLsResult, name: str) -> Estimates:
-    return _snapshot(res.t_s, res.pos_m, res.ok, res.cov_m2, name, {"n_tdoa": res.n_tdoa})
 
 
 @dataclass(frozen=True)
@@ -202,7 +191,7 @@ class TdoaLs(BaseEstimator):
     def estimate(self, rec, tag, cal):
         log = calibrated_log(rec, tag, cal)
         res = tdoa_least_squares(TdoaLog.from_ranges(log, self.ref), _tdoa_model(rec, tag, cal))
-        return _tdoa_ls_estimates(res, self.name)
+        return res.to_estimates(self.name)
 
     def bound(self, rec, tag, cal, est):
         log = calibrated_log(rec, tag, cal)
@@ -211,15 +200,6 @@ class TdoaLs(BaseEstimator):
 
 
 # ----------------------------------------------------------------------------- TDoA EKFs
-
-def _ekf_estimates(res: EkfResult) -> Estimates:
-    """:class:`~uwbwb.filters.ekf.EkfResult` → :class:`Estimates` (status from ``dof`` and ``n_rejected``)."""
-    valid = res.valid
-    status = np.where(~valid, _NONE, np.where(res.dof > 0, _UP, np.where(res.n_rejected > 0, _GATED, _PRED)))
-    return Estimates(res.t_s, res.pos_m, status.astype(np.int8), res.name, res.pos_cov_m2,
-                     res.motion.velocity(res.x),
-                     {"nis": res.nis, "dof": res.dof, "n_rejected": res.n_rejected})
-
 
 #: Driving-noise grids searched on the calibration part (model units: m/s, m/s², m/s³).
 EKF_GRIDS = {"RW": np.geomspace(0.05, 5.0, 9), "RF": np.geomspace(0.05, 20.0, 9), "RJ": np.geomspace(0.05, 100.0, 9)}
@@ -254,7 +234,7 @@ class TdoaEkfEstimator(BaseEstimator):
 
     def _run(self, rec, tag, cal, sigma_w) -> Estimates:
         log = TdoaLog.from_ranges(calibrated_log(rec, tag, cal), self.ref)
-        return _ekf_estimates(self._filter(cal, tag, rec, sigma_w).run(log, name=self.name))
+        return self._filter(cal, tag, rec, sigma_w).run(log, name=self.name).to_estimates()
 
     def tune(self, rec, tags, cal):
         grid = EKF_GRIDS[self.model] if self.grid is None else np.asarray(self.grid, float)

@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 
 from ... import geometry, metrics
-from ...filters.ekf import EkfResult, TdoaEkf, nis_consistency
+from ...filters.ekf import KalmanRun, TdoaEkf
 from ...filters.tdoa_ls import TdoaLsResult, tdoa_least_squares
 from ...models.motion import MOTION_MODELS, make_motion_model
 from ...models.tdoa import TdoaModel, empirical_tdoa_covariance, range_sigma_from_truth
@@ -323,7 +323,7 @@ class TagResults:
         return {**self.coverage_own(), "common": self.common_t_s().size / self.n_epochs}
 
     def nis(self, prob: float = 0.95) -> pd.DataFrame:
-        """NIS consistency per EKF (:func:`uwbwb.filters.ekf.nis_consistency`).
+        """NIS consistency per EKF (:meth:`uwbwb.filters.ekf.KalmanRun.nis_consistency`).
 
         Under right noise models the NIS summed over the ``n`` updates is χ² with
         ``sum_dof`` degrees of freedom; the verdict compares it with the central
@@ -333,8 +333,7 @@ class TagResults:
         """
         rows = []
         for m, r in self.ekf.items():
-            up = r.dof > 0
-            c = nis_consistency(r.nis[up], r.dof[up], prob)
+            c = r.nis_consistency(prob)
             dof = max(c["sum_dof"], 1)
             rows.append({"model": m, "n": c["n"], "mean_nis_over_dof": c["mean_nis_over_dof"],
                          "mean_lo": c["sum_lo"] / dof, "mean_hi": c["sum_hi"] / dof,
@@ -348,7 +347,7 @@ def _errors(traj: Trajectory, run: TagRun) -> metrics.ErrorSeries:
 
 
 def run_ekf(run: TagRun, model: str, sigma: float, measurement: TdoaModel, *, gate_prob: float | None,
-            ref: int = 0, tdoa: TdoaLog | None = None) -> EkfResult:
+            ref: int = 0, tdoa: TdoaLog | None = None) -> KalmanRun:
     """The EKF with motion model ``model`` at driving standard deviation ``sigma`` over one run.
 
     ``gate_prob`` is required: the χ² gate (or None, no gate) is a setting of the
