@@ -578,32 +578,33 @@ def loso_calibrations(recordings, *, stride: int = 1, **fit_kw) -> dict:
 def range_error_stats(recordings, *, tags=None, stride: int = 10, long_m: float = 0.5) -> pd.DataFrame:
     """What the static poses' ranges look like: per anchor--tag pair bias and long outliers.
 
-    Range error = measured range minus the range from the pose's true tag position.
-    Per pair (pooled over poses): ``bias_m`` (median error), ``spread_m``
-    (1.4826 × median absolute deviation), ``frac_long`` (fraction of errors more than
-    ``long_m`` above the pair's median: the positive excess NLOS would add).
+    Range error = measured range minus the range from the pose's true tag position
+    (:func:`uwbwb.calibration.pair_samples`, pooled over the poses, every ``stride``-th
+    epoch). Per pair: ``bias_m`` (median error), ``spread_m`` (1.4826 × median absolute
+    deviation), ``frac_long`` (fraction of errors more than ``long_m`` above the pair's
+    median: the positive excess NLOS would add).
 
     Returns
     -------
     pandas.DataFrame
-        One row per ``(anchor, tag)``: ``n, bias_m, spread_m, frac_long``.
+        One row per ``(anchor, tag)`` with samples: ``n, bias_m, spread_m, frac_long``.
     """
-    errs = {}
-    for rec in recordings:
-        for tag in (rec.tags if tags is None else tags):
-            log = rec.ranges[tag].select(slice(None, None, int(stride)))
-            true = np.linalg.norm(rec.truth[tag].pos_m[0] - rec.anchors.pos_m, axis=1)
-            e = log.range_m - true
-            for j, a in enumerate(rec.anchors.ids):
-                errs.setdefault((a, tag), []).append(e[:, j][np.isfinite(e[:, j])])
+    from ...calibration import pair_samples
+
+    anchor_ids, tag_ids, true_m, meas_m = pair_samples([r.decimate(int(stride)) for r in recordings])
+    err = meas_m - true_m                                                    # (N, n_tags, n_anchors)
     rows = []
-    for (a, tag), parts in errs.items():
-        e = np.concatenate(parts)
-        if not e.size:
+    for k, tag in enumerate(tag_ids):
+        if tags is not None and tag not in tags:
             continue
-        med = np.median(e)
-        rows.append({"anchor": a, "tag": tag, "n": e.size, "bias_m": med,
-                     "spread_m": 1.4826 * np.median(np.abs(e - med)), "frac_long": float(np.mean(e > med + long_m))})
+        for j, a in enumerate(anchor_ids):
+            e = err[:, k, j][np.isfinite(err[:, k, j])]
+            if not e.size:
+                continue
+            med = np.median(e)
+            rows.append({"anchor": a, "tag": tag, "n": e.size, "bias_m": med,
+                         "spread_m": 1.4826 * np.median(np.abs(e - med)),
+                         "frac_long": float(np.mean(e > med + long_m))})
     return pd.DataFrame(rows)
 
 
