@@ -236,8 +236,12 @@ def test_typed_reader_agrees_with_the_field_by_field_reader(tmp_path, seed, monk
     # comments, blank lines and spaces around fields: the typed reader must still count lines right
     text = [text[0], "# a note", ""] + [" " + ln.replace(",", " , ", 1) for ln in text[1:4]] + text[4:]
     paths["ranges"].write_text("\n".join(text) + "\n")
+    fast = tidy._fast_table
+    used = []
+    monkeypatch.setattr(tidy, "_fast_table", lambda *a, **k: used.append(fast(*a, **k)) or used[-1])
     typed = tidy.read_ranges_csv(paths["ranges"], with_cleaning=True, max_range_m=np.inf)
     truth = tidy.read_truth_csv(paths["truth"])
+    assert len(used) == 2 and all(t is not None for t in used)    # both files took the typed path
     monkeypatch.setattr(tidy, "_fast_table", lambda *a, **k: None)
     fields = tidy.read_ranges_csv(paths["ranges"], with_cleaning=True, max_range_m=np.inf)
     assert typed[1] == fields[1]

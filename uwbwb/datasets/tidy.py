@@ -284,28 +284,48 @@ def _header(path: PathLike, data: bytes, headers: Sequence[tuple[str, ...]], wha
     raise DataFormatError(path, f"empty {what} file: expected a header line {','.join(headers[-1])!r} and data lines")
 
 
-def _body_line_numbers(body: bytes, first_line: int, n_rows: int) -> np.ndarray | None:
-    """File lines of the data rows of ``body`` (the bytes after the header), skipping empty and
+class _Tail(io.RawIOBase):
+    """A read-only stream over ``data[start:]`` that copies only the chunks the parser asks for."""
+
+    def __init__(self, data: bytes, start: int):
+        self._view, self._pos = memoryview(data), start
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer) -> int:
+        n = min(len(buffer), len(self._view) - self._pos)
+        buffer[:n] = self._view[self._pos:self._pos + n]
+        self._pos += n
+        return n
+
+
+def _body_line_numbers(data: bytes, start: int, first_line: int, n_rows: int) -> np.ndarray | None:
+    """File lines of the data rows in ``data[start:]`` (the bytes after the header), skipping empty and
     comment lines as the format says; None if they do not add up to ``n_rows``."""
-    n_lines = body.count(b"\n") + (0 if body.endswith(b"\n") or not body else 1)
+    size = len(data) - start
+    n_lines = data.count(b"\n", start) + (0 if data.endswith(b"\n") or size <= 0 else 1)
     if n_lines == n_rows:   # no empty or comment line: consecutive lines
         return first_line + np.arange(n_rows)
-    keep = [i for i, ln in enumerate(body.split(b"\n")[:n_lines]) if ln.strip() and not ln.startswith(b"#")]
+    lines = data[start:].split(b"\n")[:n_lines]
+    keep = [i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith(b"#")]
     return first_line + np.asarray(keep, dtype=np.int64) if len(keep) == n_rows else None
 
 
-def _fast_table(path: PathLike, body: bytes, header: tuple[str, ...], header_line: int,
+def _fast_table(path: PathLike, data: bytes, start: int, header: tuple[str, ...], header_line: int,
                 numeric: Sequence[str], empty_ok: Sequence[str]) -> _Table | None:
-    """Typed columns through pandas' C parser, or None when it cannot read the file exactly as the
-    format says (then the field-by-field reader runs and reports what is wrong)."""
-    if body.count(b"#") != body.count(b"\n#") + body.startswith(b"#"):
+    """Typed columns of ``data[start:]`` through pandas' C parser, or None when it cannot read the file
+    exactly as the format says (then the field-by-field reader runs and reports what is wrong)."""
+    n_hash = data.count(b"#", start)
+    if n_hash and n_hash != data.count(b"\n#", start - 1 if start else 0) + (start == 0 and data.startswith(b"#")):
         return None   # a '#' inside a line: the C parser would cut the line there
     names = list(header) + ["__extra__"]
     dtype = {c: (float if c in numeric else "category") for c in names}
     try:
-        frame = pd.read_csv(io.BytesIO(body), header=None, names=names, dtype=dtype, engine="c",
-                            encoding="utf-8", keep_default_na=False, na_values={c: [""] for c in empty_ok},
-                            skipinitialspace=True, skip_blank_lines=True, comment="#", index_col=False)
+        frame = pd.read_csv(io.BufferedReader(_Tail(data, start)), header=None, names=names, dtype=dtype,
+                            engine="c", encoding="utf-8", keep_default_na=False,
+                            na_values={c: [""] for c in empty_ok}, skipinitialspace=True, skip_blank_lines=True,
+                            comment="#", index_col=False)
     except (ValueError, pd.errors.ParserError):
         return None
     if len(frame) == 0 or (frame["__extra__"].cat.categories != "").any():
@@ -327,7 +347,7 @@ def _fast_table(path: PathLike, body: bytes, header: tuple[str, ...], header_lin
             return None
         code, names_c = pd.factorize(pd.Index(col.cat.categories.astype(str)).str.strip())
         codes[c] = (code[raw].astype(np.int64), list(names_c))
-    line_no = _body_line_numbers(body, header_line + 1, len(frame))
+    line_no = _body_line_numbers(data, start, header_line + 1, len(frame))
     if line_no is None:
         return None
     return _Table(header, floats, codes, line_no)
@@ -353,10 +373,9 @@ def _typed_table(path: PathLike, headers: Sequence[tuple[str, ...]], what: str, 
     if data.isascii() or _is_utf8(data):
         data = data.removeprefix(b"\xef\xbb\xbf")
         header_line, header, body_start = _header(path, data, headers, what)
-        body = data[body_start:]
+        table = _fast_table(path, data, body_start, header, header_line, [c for c in numeric if c in header],
+                            empty_ok)
         del data
-        table = _fast_table(path, body, header, header_line, [c for c in numeric if c in header], empty_ok)
-        del body
         if table is not None:
             return table
     return _slow_table(path, headers, what, numeric, empty_ok)
