@@ -103,3 +103,38 @@ def test_negative_driving_noise_is_an_error():
     z, mu, sd = np.zeros((5, 2)), np.zeros((5, 2)), np.ones((5, 2))
     with pytest.raises(ValueError, match="sigma_d_mps"):
         sn.reference_pf(t, z, mu, sd, np.zeros(2), -0.3, rng=np.random.default_rng(0), n_particles=10)
+
+
+# --- every public filter parameter is checked where it enters ------------------------------------------
+
+@pytest.mark.parametrize("call, name", [
+    (lambda: particle.resample(np.zeros((2, 4, 2)), np.zeros((2, 4)), rng=np.random.default_rng(0),
+                               threshold=float("nan")), "threshold"),
+    (lambda: particle.resample(np.zeros((2, 4, 2)), np.zeros((2, 4)), rng=np.random.default_rng(0),
+                               method="stratified"), "method"),
+    (lambda: particle.roughen(np.zeros((2, 4, 2)), rng=np.random.default_rng(0), k=-1.0), "k"),
+    (lambda: sn.pf_sweep(np.arange(5.0), np.zeros((5, 2)), np.zeros((5, 2)), np.ones((5, 2)), np.zeros(2), [0.3],
+                         rng=np.random.default_rng(0), n_trials=2.5, n_particles=10), "n_trials"),
+    (lambda: sn.kf_sweep(np.arange(5.0), np.zeros((5, 2)), np.zeros((5, 2)), np.ones((5, 2)), np.zeros(2),
+                         [-0.3]), "sigma_d_mps"),
+    (lambda: sn.reference_pf(np.arange(5.0), np.zeros((5, 2)), np.zeros((5, 2)), np.ones((5, 2)), np.zeros(2), 0.3,
+                             rng=np.random.default_rng(0), n_particles=10, ess_fraction="half"), "ess_fraction"),
+])
+def test_filter_parameters_are_checked(call, name):
+    with pytest.raises(ValueError, match=name):
+        call()
+
+
+def test_pruning_and_tdoa_ls_parameters_are_checked():
+    from uwbwb.filters import pruning, tdoa_ls
+    with pytest.raises(ValueError, match="retention"):
+        pruning.drop_schedule(100, 1.5, 0.01)
+    with pytest.raises(ValueError, match="n0"):
+        pruning.drop_schedule(-1, 0.5, 0.01)
+    with pytest.raises(ValueError, match="q"):
+        pruning.percentile_ranges(np.ones((5, 3)), q=200)
+    with pytest.raises(ValueError, match="retention"):
+        pruning.robust_mean(np.zeros((10, 2)), retention=0.0)
+    model, log, _ = _one_absurd_tdoa()
+    with pytest.raises(ValueError, match="max_iter"):
+        tdoa_ls.tdoa_least_squares(log, model, max_iter=2.5)

@@ -162,7 +162,7 @@ def test_run_wrappers_use_the_model():
 def test_bad_arguments_are_reported():
     t, z, mu, sd, truth = _case(T=10)
     rng = np.random.default_rng(0)
-    with pytest.raises(ValueError, match="fraction of K"):
+    with pytest.raises(ValueError, match="ess_fraction must be a number in \\[0, 1\\]"):
         F.pf_sweep(t, z, mu, sd, truth[0], 0.1, rng=rng, ess_fraction=50)
     with pytest.raises(ValueError, match="unknown resampler"):
         F.reference_pf(t, z, mu, sd, truth[0], 0.1, rng=rng, resampler="residual")

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..validate import choice, number, probability
+
 RESAMPLERS = ("systematic", "multinomial")
 
 
@@ -256,6 +258,7 @@ def resample_indices(logw: np.ndarray, *, rng: np.random.Generator, method: str 
     -------
     ndarray of intp, shape ``(..., K)``
     """
+    choice("method", method, RESAMPLERS)
     w = _normalised_weights(logw)
     if method == "systematic":
         return systematic_indices(w, rng.random(w.shape[:-1]))
@@ -287,6 +290,8 @@ def resample(particles: np.ndarray, logw: np.ndarray, *, rng: np.random.Generato
     resampled
         Shape ``(...)``, bool: which rows were resampled.
     """
+    threshold = probability("threshold", threshold, open_interval=False)
+    choice("method", method, RESAMPLERS)
     particles = np.asarray(particles)
     logw = _as_float(logw)
     if particles.shape[:-1] != logw.shape:
@@ -322,6 +327,7 @@ def roughen(particles: np.ndarray, *, rng: np.random.Generator, k: float = 0.2,
     -------
     ndarray, same shape: a new array.
     """
+    k = number("k", k, minimum=0.0)
     particles = np.asarray(particles, float)
     K, n_x = particles.shape[-2:]
     spread = np.ptp(particles, axis=-2, keepdims=True)                 # (..., 1, n_x)

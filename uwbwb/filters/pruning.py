@@ -43,6 +43,7 @@ import numpy as np
 from ..geometry import Status, multilaterate
 from ..models.track import LinearTrackRanges, anchor_array
 from ..types import RangeLog, RangeSamples
+from ..validate import integer, number
 from .nls import TrajectoryFit, fit_trajectory
 
 __all__ = ["HEURISTICS", "LABELS", "LocalizationResult", "PruningConfig", "ResidualPruning",
@@ -116,6 +117,9 @@ def drop_schedule(n0: int, retention: float, dropout: float) -> np.ndarray:
     ``max(1, round(dropout * n0))`` per iteration until ``ceil(retention * n0)``
     remain (the last step may be smaller). Empty when nothing is to be dropped.
     """
+    n0 = integer("n0", n0, minimum=0)
+    retention = number("retention", retention, minimum=0.0, maximum=1.0, strict_minimum=True)
+    dropout = number("dropout", dropout, minimum=0.0, maximum=1.0, strict_minimum=True)
     target = max(1, math.ceil(retention * n0 - 1e-9))
     step = max(1, int(round(dropout * n0)))
     n_drop = max(0, n0 - target)
@@ -143,6 +147,7 @@ def percentile_ranges(range_m, q: float = 5.0) -> np.ndarray:
     numpy.ndarray
         Shape ``(n_anchors,)``, metres; NaN for an anchor without ranges.
     """
+    number("q", q, minimum=0.0, maximum=100.0)
     r = np.asarray(range_m, float)
     if r.ndim != 2:
         raise ValueError(f"range_m must have shape (T, n_anchors), got {r.shape}")
@@ -313,6 +318,8 @@ def robust_mean(points_m, *, retention: float = 0.5, dropout: float = 0.01, t_s=
     -------
     RobustMean
     """
+    number("retention", retention, minimum=0.0, maximum=1.0, strict_minimum=True)
+    number("dropout", dropout, minimum=0.0, maximum=1.0, strict_minimum=True)
     P = np.asarray(points_m, float)
     if P.ndim != 2 or P.shape[0] == 0:
         raise ValueError(f"points_m must have shape (N, d) with N >= 1, got {P.shape}")
@@ -370,6 +377,8 @@ def residual_pruning(samples: RangeSamples, anchors, *, retention: float = 0.9, 
     Parameters are as in :func:`~uwbwb.filters.nls.fit_trajectory` and
     :class:`PruningConfig`. Each re-solve starts from the previous solution.
     """
+    number("retention", retention, minimum=0.0, maximum=1.0, strict_minimum=True)
+    number("dropout", dropout, minimum=0.0, maximum=1.0, strict_minimum=True)
     kw = dict(dim=dim, static=static, z_m=z_m, method=method)
     kept = np.ones(len(samples), bool)
     fit = fit_trajectory(samples, anchors, **kw)

@@ -55,6 +55,7 @@ import pandas as pd
 from ..models.motion import VelocityKick
 from ..models.setnoise import SetNoiseModel, log_likelihood
 from ..types import EstimateStatus, Estimates, SetFixLog
+from ..validate import integer, probability
 from . import particle
 
 #: State layout of the set-noise filters (that of a 2-D :class:`~uwbwb.models.motion.VelocityKick`).
@@ -89,14 +90,12 @@ def _noise_arrays(z_m, mu_m, sigma_m, T: int) -> tuple[np.ndarray, np.ndarray, n
 
 
 def _check_n_particles(n_particles) -> None:
-    if isinstance(n_particles, (bool, np.bool_)) or not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
-        raise ValueError(f"n_particles must be an integer >= 1, got {n_particles!r}")
+    integer("n_particles", n_particles, minimum=1)
 
 
 def _check_common(n_particles: int, ess_fraction: float, resampler: str) -> None:
     _check_n_particles(n_particles)
-    if not 0.0 <= ess_fraction <= 1.0:
-        raise ValueError(f"ess_fraction is a fraction of K in [0, 1], got {ess_fraction}")
+    probability("ess_fraction", ess_fraction, open_interval=False)
     if resampler not in particle.RESAMPLERS:
         raise ValueError(f"unknown resampler {resampler!r}; choose from {particle.RESAMPLERS}")
 
@@ -373,10 +372,10 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
     if x0.shape != (2,):
         raise ValueError(f"x0_m must be (x, y), got shape {x0.shape}")
     sig_d = np.atleast_1d(np.asarray(sigma_d_mps, float))
-    if sig_d.ndim != 1 or np.any(sig_d < 0):
-        raise ValueError("sigma_d_mps must be a non-negative scalar or 1-D array")
-    if n_trials < 1 or n_threads < 1:
-        raise ValueError(f"n_trials and n_threads must be >= 1, got {n_trials}, {n_threads}")
+    if sig_d.ndim != 1 or not np.all(np.isfinite(sig_d) & (sig_d >= 0)):
+        raise ValueError(f"sigma_d_mps must be a finite non-negative scalar or 1-D array, got {sigma_d_mps!r}")
+    integer("n_trials", n_trials, minimum=1)
+    integer("n_threads", n_threads, minimum=1)
     M, S, K = mu.shape[0], sig_d.size, n_particles
     dtype = np.dtype(dtype)
 
@@ -604,6 +603,8 @@ def kf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps) -> KFSweep:
     T = t.size
     z, mu, sd = _noise_arrays(z_m, mu_m, sigma_m, T)
     sig_d = np.atleast_1d(np.asarray(sigma_d_mps, float))
+    if sig_d.ndim != 1 or not np.all(np.isfinite(sig_d) & (sig_d >= 0)):
+        raise ValueError(f"sigma_d_mps must be a finite non-negative scalar or 1-D array, got {sigma_d_mps!r}")
     lead = mu.shape[:-2]
     S = sig_d.size
     bshape = lead + (S, 2)                                  # batch: models..., σ_d, axis

@@ -25,6 +25,7 @@ import pandas as pd
 
 from ..models.tdoa import TdoaModel
 from ..types import EstimateStatus, Estimates, TdoaLog, Trajectory
+from ..validate import integer, number
 
 __all__ = ["TdoaLsResult", "tdoa_least_squares", "STATUS"]
 
@@ -138,6 +139,9 @@ def tdoa_least_squares(log: TdoaLog, model: TdoaModel, *, x0_m: np.ndarray | Non
     -------
     TdoaLsResult
     """
+    integer("max_iter", max_iter, minimum=1)
+    number("tol_m", tol_m, minimum=0.0, strict_minimum=True)
+    integer("max_halvings", max_halvings, minimum=0)
     if log.n_anchors != model.n_anchors:
         raise ValueError(f"tdoa_least_squares: log has {len(log.anchor_ids)} anchors, model {model.n_anchors}")
     T, n = log.tdoa_m.shape
