@@ -167,3 +167,28 @@ def test_motion_models_runs_unchanged_on_other_recordings(tmp_path):
     assert {r["mode"] for r in rows} == {"FAST"} and {r["kind"] for r in rows} == {"reproduced", "target"}
     real = [r for r in rows if r["data"] != "synthetic"]
     assert real and all(r["kind"] == "reproduced" and r["paper_value"] is None for r in real)
+
+
+@pytest.mark.notebook
+def test_scoreboard_runs_unchanged_on_another_lias_recording(tmp_path):
+    """Notebook 06 on a generated LIAS tree (run 'medium', biased ranges): the board and its checks
+    hold for any recording of the format."""
+    import numpy as np
+    import papermill as pm
+
+    from tests.fixtures import lias as fx
+
+    data_dir = tmp_path / "data"
+    rng = np.random.default_rng(12)
+    fx.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 30.0, "clock_offset_s": 0.3}},
+                 sessions=[fx.session_814(rng)])
+    summary = tmp_path / "summary.json"
+    pm.execute_notebook(str(NOTEBOOK_DIR / "06_scoreboard.ipynb"), str(tmp_path / "out.ipynb"),
+                        parameters={"FAST": True, "DATA_DIR": str(data_dir), "LIAS_RECORDING": "medium",
+                                    "SUMMARY_PATH": str(summary)},
+                        kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
+                        execution_timeout=CELL_TIMEOUT_S)
+    rows = json.loads(summary.read_text())
+    assert {r["data"] for r in rows} == {"synthetic", "lias-planar-uwb/medium"}
+    assert {r["kind"] for r in rows} == {"reproduced"} and {r["mode"] for r in rows} == {"FAST"}
+    assert any(r["quantity"] == "efficiency RMSE/bound, EKF-RF" for r in rows)

@@ -11,7 +11,7 @@ Commands
     Execute the notebooks headless; write executed notebooks, HTML and
     ``summary.json`` / ``summary.md`` (default into ``reports/``).
 
-``score TARGET [--out DIR] [--calibrate-on SPEC] [--fraction F] [--tags ...] [--rate-hz R] [--fast]``
+``score TARGET [--out DIR] [--calibrate-on SPEC] [--fraction F] [--tags ...] [--methods ...] [--rate-hz R] [--fast]``
     Every estimator on one recording (``DATASET/RECORDING`` or a tidy CSV folder) against its
     Cramér–Rao bound: calibration and tuning on the first ``F`` of the run (or on another
     recording), scoring on the rest; writes ``scoreboard.csv``, ``scoreboard.md`` and
@@ -94,6 +94,8 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
     p.add_argument("--rate-hz", metavar="R", type=_positive_float, default=10.0,
                    help="rate every method runs at; ranges are thinned to it (default 10)")
     p.add_argument("--data-dir", metavar="DIR", default=None, help="folder holding the datasets")
+    p.add_argument("--methods", nargs="+", metavar="NAME", default=None,
+                   help="only these methods (names as in the table, e.g. LS EKF-RF 'set-noise KF')")
     p.add_argument("--fast", action="store_true", help="CI-sized tuning grids and particle counts")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     return parser, sub.choices
@@ -296,18 +298,27 @@ def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
 # -- score ----------------------------------------------------------------------------------------
 
 def cmd_score(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from .scoreboard import score, split_in_time
+    from .scoreboard import default_estimators, score, split_in_time
     from .scoreboard.sources import load_target
 
     if not 0 < args.fraction < 1:
         parser.error(f"--fraction must be in (0, 1), got {args.fraction}")
+    estimators = default_estimators(fast=args.fast)
+    if args.methods is not None:
+        known = [e.name for e in estimators]
+        unknown = [m for m in args.methods if m not in known]
+        if unknown:
+            parser.error(f"--methods: unknown {unknown}; choose from {known}")
+        if "set-noise PF" in args.methods and "set-noise KF" not in args.methods:
+            args.methods.append("set-noise KF")        # the PF takes the KF's tuning
+        estimators = [e for e in estimators if e.name in args.methods]
     rec = load_target(args.target, args.data_dir)
     if args.calibrate_on is not None:
         cal, test = load_target(args.calibrate_on, args.data_dir), rec
     else:
         cal, test = split_in_time(rec, args.fraction)
-    board = score(test, cal, tags=args.tags, rate_hz=args.rate_hz, fast=args.fast, progress=not args.quiet,
-                  label=rec.label)
+    board = score(test, cal, estimators=estimators, tags=args.tags, rate_hz=args.rate_hz, fast=args.fast,
+                  progress=not args.quiet, label=rec.label)
     out = Path(args.out) if args.out else Path("reports") / "score" / rec.name.replace("/", "_")
     paths = board.write(out)
     print(board.markdown())

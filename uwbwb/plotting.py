@@ -24,6 +24,8 @@ COLORS: dict[str, str] = {
     "truth": "#000000",
     "raw": "#9e9e9e",
     "LS": "#1f77b4",
+    "raw LS": "#9e9e9e",
+    "TDoA LS": "#aec7e8",
     "NLS": "#17becf",
     "EKF": "#d62728",
     "EKF-RW": "#ff7f0e",

@@ -113,6 +113,18 @@ def test_score_command_errors_clearly(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     assert cli.main(["score", str(tmp_path / "empty")]) == 1
     assert "needs ranges.csv and anchors.csv" in capsys.readouterr().err
+    assert cli.main(["score", str(tmp_path / "empty"), "--methods", "LS", "no-such-method"]) == 2
+    assert "unknown ['no-such-method']" in capsys.readouterr().err
+
+
+def test_score_command_runs_a_chosen_subset(tmp_path):
+    _write_tidy(tmp_path / "run")
+    out = tmp_path / "out"
+    assert cli.main(["score", str(tmp_path / "run"), "--out", str(out), "--quiet", "--rate-hz", "5",
+                     "--methods", "LS", "EKF-RW", "--fraction", "0.3"]) == 0
+    table = pd.read_csv(out / "scoreboard.csv")
+    assert table["method"].tolist() == ["LS", "EKF-RW"]
+    assert "[0–9 s]" in (out / "scoreboard.md").read_text()      # 30 % of the 30 s run calibrated
 
 
 def test_board_runs_unchanged_on_a_lias_recording_not_in_shared(tmp_path, capsys):
@@ -141,9 +153,9 @@ def test_summary_rows_come_from_the_board():
     rec = syn.simulate(cfg, rng=np.random.default_rng(2))
     b = score(rec, rec, estimators=ests, rate_hz=None,
               calibration=syn.exact_calibration(cfg, calibrate(rec, ests, rate_hz=None, dim=2)))
-    s = Summary("06_scoreboard", fast=True) if "fast" in Summary.__init__.__code__.co_varnames else Summary("06_scoreboard")
+    s = Summary("06_scoreboard", fast=True)
     b.to_summary(s)
     df = s.frame()
-    assert set(df["data"]) == {"synthetic"}
+    assert set(df["data"]) == {"synthetic"} and set(df["kind"]) == {"reproduced"} and set(df["mode"]) == {"FAST"}
     row = df[df["quantity"] == "RMSE, LS"].iloc[0]
     assert row["value"] == pytest.approx(b.table().set_index("method").loc["LS", "rmse_m"])

@@ -326,7 +326,7 @@ class Board:
         if self.fast:
             lines += ["FAST mode: CI-sized tuning grids and particle counts — smoke-test numbers.", ""]
         head = ["method", "coverage", "RMSE (m)", "CEP50 (m)", "CEP95 (m)", "RMSE common (m)", "bound (m)",
-                "bound kind", "efficiency", "NEES / dof", "NIS / dof", "µs/epoch", "note"]
+                "bound kind", "efficiency", "NEES / dof", "NIS / dof", "µs/epoch", "time × raw LS", "note"]
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
 
         def f(x, fmt=".3f"):
@@ -338,7 +338,7 @@ class Board:
             nis = f"{r.nis_over_dof:.2f} ({r.nis_verdict})" if np.isfinite(r.nis_over_dof) else "—"
             lines.append("| " + " | ".join([r.method, f(r.coverage, ".1%"), f(r.rmse_m), f(r.cep50_m), f(r.cep95_m),
                                               f(r.rmse_common_m), f(r.bound_m), r.bound_kind or "—", eff, nees, nis,
-                                              f(r.us_per_epoch, ".0f"), r.note or ""]) + " |")
+                                              f(r.us_per_epoch, ".0f"), f(r.time_ratio, ".1f"), r.note or ""]) + " |")
         lines += ["", "```", self.calibration.describe(), "```", ""]
         return "\n".join(lines)
 
@@ -378,11 +378,8 @@ class Board:
 
 
 def _add(summary, **row) -> None:
-    """One place that knows the Summary's signature (kind/mode columns where the Summary has them)."""
-    if "kind" in getattr(summary, "COLUMNS", ()):
-        summary.add(kind="reproduced", **row)
-    else:
-        summary.add(**row)
+    """A board's numbers are *reproduced*: they come out of the methods run here."""
+    summary.add(kind="reproduced", **row)
 
 
 def _diagnostics(rec: Recording, tag: str, cal: Calibration) -> dict:

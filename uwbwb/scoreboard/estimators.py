@@ -478,9 +478,12 @@ class UwbInsHook(BaseEstimator):
     """Place of the UWB/INS filters (notebook 05) on the board.
 
     It runs nothing yet: where the recording has no IMU it says so, and where it has one it
-    says that the filters are not in the package. The notebook-05 filters join by replacing
-    this entry with adapters implementing :class:`Estimator` (loose and tight), their bound
-    being the posterior CRLB of their own error-state model.
+    says what is missing. The loose and tight filters of :mod:`uwbwb.filters.eskf` join by
+    replacing this entry with two adapters implementing :class:`Estimator`: ``tune`` = the
+    IMU calibration on the calibration recording, ``estimate`` = rest levelling, in-motion
+    alignment and the filter run (``FusionRun.to_estimates``, no estimate before the
+    alignment ends), ``bound`` = the posterior CRLB of the linearised error-state model
+    (:func:`uwbwb.bounds.pcrlb` with its ``F``, ``Q`` and the TDoA information).
     """
 
     name: str = "UWB/INS"
@@ -488,7 +491,8 @@ class UwbInsHook(BaseEstimator):
     def applies(self, rec, tag, cal):
         if rec.imu is None:
             return "needs an IMU (this recording has none)"
-        return "the UWB/INS filters (notebook 05) are not in this package yet"
+        return ("the UWB/INS filters (uwbwb.filters.eskf) need notebook 05's IMU calibration and in-motion "
+                "alignment, which are not in the package yet")
 
     def estimate(self, rec, tag, cal):
         raise NotImplementedError(self.applies(rec, tag, cal))

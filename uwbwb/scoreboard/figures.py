@@ -45,8 +45,10 @@ def rmse_vs_bound(board, ax=None, *, methods: Sequence[str] | None = None, unit:
                         xytext=(0, 2), textcoords="offset points")
     ax.set_xticks(x, names, rotation=30, ha="right")
     ax.set_ylabel(f"RMSE ({unit})")
+    top = np.nanmax(np.concatenate([rmse, bound])) if len(names) else 1.0
+    ax.set_ylim(0, 1.3 * top)
     ax.set_title(f"RMSE vs bound (×: efficiency RMSE/bound) — {board.mode}", fontsize="medium")
-    ax.legend(loc="upper left", fontsize="small")
+    ax.legend(loc="upper right", fontsize="small", framealpha=0.9)
     return ax
 
 
