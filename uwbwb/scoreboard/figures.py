@@ -37,7 +37,8 @@ def rmse_vs_bound(board, ax=None, *, methods: Sequence[str] | None = None, unit:
     x = np.arange(len(names))
     rmse = df.loc[names, "rmse_m"].to_numpy(float) * scale
     bound = df.loc[names, "bound_m"].to_numpy(float) * scale
-    ax.bar(x, rmse, color=[plotting.color_for(m) for m in names], label="RMSE")
+    ax.bar(x, rmse, color=[plotting.color_for(m) for m in names])
+    ax.bar([], [], color="white", edgecolor="black", label="RMSE (bar, method's colour)")
     ax.scatter(x, bound, marker="_", s=900, color="black", zorder=3, label="its Cramér–Rao bound")
     for xi, r, e in zip(x, rmse, df.loc[names, "efficiency"].to_numpy(float)):
         if np.isfinite(e):
