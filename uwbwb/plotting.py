@@ -24,7 +24,7 @@ COLORS: dict[str, str] = {
     "truth": "#000000",
     "raw": "#9e9e9e",
     "LS": "#1f77b4",
-    "raw LS": "#9e9e9e",
+    "raw LS": "#7f7f7f",
     "TDoA LS": "#aec7e8",
     "NLS": "#17becf",
     "EKF": "#d62728",
