@@ -286,7 +286,8 @@ def discussion_markdown(synthetic: pd.DataFrame, *, tour: tours_mod.TourConfig =
         if r:
             text += (f"Against the pose tables, the median range error per anchor–tag pair lies between "
                      f"{r['bias_p10_m']:.2f} and {r['bias_p90_m']:.2f} m (10th–90th percentile over pairs; "
-                     f"{_pct(r['frac_positive'])} of the pairs read long), while only {100 * r['frac_long']:.1f} % of ranges "
+                     f"{_pct(r['frac_positive'])} of the pairs read long), while only "
+                     f"{100 * r['frac_long']:.1f} % of ranges "
                      f"are more than 0.5 m longer than their pair's median: a per-pair bias, not NLOS outliers, "
                      "dominates. ")
         text += f"On raw ranges (plain NLS: {raw['none']:.2f} m median)"

@@ -31,19 +31,19 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ... import metrics
 from ...filters.pruning import HEURISTICS, LABELS as HEURISTIC_LABELS, PruningConfig, localize
 from ...geometry import Status, linear_multilaterate, multilaterate
 from ...sim import tours as tours_mod
 from ...types import RangeLog, RangeSamples, Recording, Trajectory
 
 __all__ = [
-    "ESTIMATORS", "LABELS", "MIN_SEGMENT_RANGES", "POINT", "PAPER_RANKING", "DynamicResult", "StaticResult", "SyntheticConfig",
+    "ESTIMATORS", "LABELS", "MIN_SEGMENT_RANGES", "POINT", "PAPER_RANKING", "DynamicResult", "StaticResult",
+    "SyntheticConfig",
     "SyntheticResult", "TourExplorer", "PieceExplorer", "epoch_summary", "hanyang_table",
-    "headline_rows", "heuristic_summary", "loso_calibrations", "outlier_free_control", "p90", "percentile_by_file",
+    "headline_rows", "heuristic_summary", "loso_calibrations", "outlier_free_control", "percentile_by_file",
     "point_fixes",
     "range_error_stats", "rank_heuristics", "run_dynamic_segments", "run_recordings", "run_static_poses",
-    "run_synthetic", "run_tour", "segment_ranges", "sensitivity", "straight_segments", "winner", "wins_table",
+    "run_synthetic", "run_tour", "segment_ranges", "sensitivity", "straight_segments", "wins_table",
 ]
 
 #: The point-based baseline's name in the tables: one multilateration per packet/epoch.
@@ -407,14 +407,6 @@ def heuristic_summary(stops: pd.DataFrame, moves: pd.DataFrame | None = None,
                 row.update(stop_packet_median_m=np.median(sp))
         rows.append(row)
     return pd.DataFrame(rows).set_index("heuristic")
-
-
-def winner(table: pd.DataFrame, column: str) -> str:
-    """The estimator with the smallest value in ``column`` (NaN rows ignored)."""
-    col = table[column].dropna()
-    if col.empty:
-        raise ValueError(f"no values in column {column!r}")
-    return str(col.idxmin())
 
 
 def rank_heuristics(table: pd.DataFrame, column: str = "stop_median_m") -> pd.Series:
@@ -842,11 +834,6 @@ def wins_table(entries: dict) -> pd.DataFrame:
     three = [h for h in PAPER_RANKING if h in t.columns]
     t["best heuristic"] = t[three].idxmin(axis=1).map(LABELS)
     return t
-
-
-def p90(errors) -> float:
-    """The error below which 90 % of the errors lie (the paper's "90 % under X m")."""
-    return metrics.cep(np.asarray(errors, float), 0.9)
 
 
 def _fin(x) -> bool:
