@@ -37,6 +37,11 @@ COLORS: dict[str, str] = {
     "set-noise KF": "#393b79",
     "INS": "#e7ba52",
     "ESKF": "#843c39",
+    "UWB-only": "#9e9e9e",
+    "INS-only": "#e7ba52",
+    "loose": "#1f77b4",
+    "tight": "#d62728",
+    "tight (ranges)": "#ff9896",
     "calibrated": "#31a354",
     "uncalibrated": "#de2d26",
 }

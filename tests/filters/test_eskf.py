@@ -67,7 +67,7 @@ def test_noise_free_run_has_zero_error():
     res = _tight(cfg).run(run.imu, run.tdoa, run.x0)
     assert np.abs(_err(run, res)).max() < 2e-4
     np.testing.assert_allclose(res.euler_rad[:, 2], run.yaw_true_rad, atol=1e-4)   # O(Δt²) in turns
-    ins_only = _tight(cfg).run(run.imu, None, run.x0, t_s=run.truth.t_s)
+    ins_only = eskf.dead_reckon(run.imu, run.x0, run.truth.t_s, lever_arm_m=cfg.lever_arm_m)
     assert _err(run, ins_only).max() < 2e-4            # the ideal IMU dead-reckons exactly too
 
 

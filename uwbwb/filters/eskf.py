@@ -54,7 +54,8 @@ from . import kalman
 from .ekf import Linearisation
 from .kalman import Gaussian
 
-__all__ = ["FusionRun", "HeadingLog", "LooseFilter", "RangeUpdate", "TdoaUpdate", "TightEskf", "merge_timeline"]
+__all__ = ["FusionRun", "HeadingLog", "LooseFilter", "RangeUpdate", "TdoaUpdate", "TightEskf", "dead_reckon",
+           "merge_timeline"]
 
 _DEG = math.pi / 180.0
 
@@ -265,6 +266,25 @@ def _empty(T: int, n: int):
 
 def _wrap(a):
     return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def dead_reckon(imu: ImuLog, x0: NavState, t_s: np.ndarray, *, mechanization: Mechanization = Mechanization(),
+                lever_arm_m=(0.0, 0.0, 0.0), acc_bias=None, gyro_bias=None, name: str = "INS-only") -> FusionRun:
+    """INS alone: the mechanization from ``x0`` with constant bias corrections, no aiding at all,
+    reported at ``t_s`` (status ``PREDICTED``; no covariance)."""
+    t_ep = np.asarray(t_s, float)
+    t, acc, gyro, idx = merge_timeline(imu, t_ep)
+    ba = np.zeros(3) if acc_bias is None else np.asarray(acc_bias, float)
+    bg = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, float)
+    p, v, q = mechanization.integrate(t, acc - ba, gyro - bg, x0)
+    out = _empty(t_ep.size, N_ERR)
+    ok = idx >= 0
+    C = quat_to_dcm(q[idx[ok]])
+    out["pos_m"][ok] = p[idx[ok]] + C @ np.asarray(lever_arm_m, float)
+    out["vel_mps"][ok], out["quat"][ok] = v[idx[ok]], q[idx[ok]]
+    out["acc_bias_mps2"][ok], out["gyro_bias_radps"][ok] = ba, bg
+    out["status"][ok] = EstimateStatus.PREDICTED
+    return FusionRun(t_ep.copy(), name=name, **out)
 
 
 # ====================================================================== tight

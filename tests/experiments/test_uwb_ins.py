@@ -1,0 +1,105 @@
+"""Notebook 05's study code: comparisons on the same epochs, error ranges, the eq-4 screening,
+and the real-data path on any scenario folder by name."""
+
+import numpy as np
+import pytest
+
+from tests.conftest import real_dataset
+from tests.fixtures import iasl as fx
+from uwbwb.experiments.uwb_ins import discussion, study
+from uwbwb.models.tdoa import TdoaModel
+from uwbwb.types import TdoaLog
+
+
+@pytest.fixture(scope="module")
+def short_dynamic():
+    run = study.simulate_case("dynamic", seed=3, legs=2, outage_s=3.0)
+    return run, study.compare_synthetic(run)
+
+
+def test_synthetic_comparison_scores_every_method_on_the_same_epochs(short_dynamic):
+    run, comp = short_dynamic
+    assert list(comp.estimates) == list(study.METHODS)
+    assert all(len(e) == len(run.truth) for e in comp.estimates.values())
+    t = comp.table()
+    assert t.loc["tight", "RMSE (m)"] < t.loc["UWB-only", "RMSE (m)"]
+    assert t.loc["INS-only", "RMSE (m)"] > 5 * t.loc["tight", "RMSE (m)"]
+    out = comp.table("outage")
+    assert out.loc["UWB-only", "coverage"] == 0.0 and out.loc["tight", "coverage"] == 1.0
+    assert (t["epochs"] == t["epochs"].iloc[0]).all()
+
+
+def test_methods_subset_and_unknown_method(short_dynamic):
+    run, _ = short_dynamic
+    comp = study.compare_synthetic(run, methods=("UWB-only", "loose"))
+    assert list(comp.estimates) == ["UWB-only", "loose"]
+    with pytest.raises(ValueError, match="unknown methods"):
+        study.compare_synthetic(run, methods=("EKF",))
+
+
+def test_error_ranges_are_min_and_max_of_the_signed_errors(short_dynamic):
+    _, comp = short_dynamic
+    r = study.error_ranges(comp, "tight")
+    e = comp.estimates["tight"].pos_m[:, :2] - comp.truth.pos_m[:, :2]
+    e = e[comp.masks["scored"]]
+    assert r["E_min"] == pytest.approx(e[:, 0].min()) and r["N_max"] == pytest.approx(e[:, 1].max())
+    assert r["E_lo"] >= r["E_min"] and r["max_abs"] >= max(abs(r["signed_min"]), abs(r["signed_max"])) - 1e-12
+
+
+def test_screened_tdoa_removes_what_eq4_rejects():
+    anchors = np.array([[0, 0, 2.4], [7, 0, 2.2], [7, 5, 2.4], [0, 5, 2.2]], float)
+    d = np.array([[0.0, 1.0, 30.0, np.nan], [0.0, 20.0, np.nan, np.nan]])
+    log = TdoaLog(np.array([0.0, 0.02]), d, np.array([0, 0]), ("a", "b", "c", "d"))
+    out, n = study.screened_tdoa(log, anchors, 0.1)
+    np.testing.assert_array_equal(n, [1, 1])
+    assert np.isnan(out.tdoa_m[0, 2]) and out.ref[1] == -1
+    same, none = study.screened_tdoa(log, anchors, None)
+    assert same is log and not none.any()
+
+
+def test_discussion_is_written_from_the_numbers(short_dynamic):
+    _, comp = short_dynamic
+    rng = {n: study.error_ranges(comp, n) for n in ("loose", "tight")}
+    text = discussion.discussion_markdown(rng, rng, {"d": comp.table()["RMSE (m)"].to_dict()},
+                                          comp.table("outage")["max (m)"].to_dict(), comp.rejected, None, True)
+    assert "FAST" in text and f"{rng['tight']['E_min']:.2f}" in text
+
+
+def _fixture_tree(tmp_path, names):
+    root = tmp_path / "iasl-uwb-imu"
+    root.mkdir(parents=True)
+    (root / "uwb.yaml").write_text(fx.YAML_TEXT)
+    rng = np.random.default_rng(8)
+    for name in names:
+        fx.write_scenario(root / name, rng=rng, duration_s=45.0)
+    return tmp_path
+
+
+@pytest.mark.parametrize("names", [("flight_a", "flight_b")])
+def test_real_data_path_runs_on_any_scenario_by_name(tmp_path, names):
+    from uwbwb.datasets import iasl
+
+    data = _fixture_tree(tmp_path, names)
+    cal = study.calibrate_iasl(iasl.load_scenario(names[0], data))
+    assert cal.source.endswith(names[0])
+    # the fixture's accelerometer reads 1.056 × the specific force, z down (as upstream)
+    assert cal.notes["accelerometer scale (flight fit, cross-check)"] == pytest.approx(1 / 1.056, rel=0.03)
+    np.testing.assert_allclose(np.diag(cal.convention.R_body_sensor), [1, -1, -1])
+    comp = study.compare_iasl(iasl.load_scenario(names[1], data), cal, still_s=1.0, align_s=15.0)
+    t = comp.table()
+    assert comp.label.endswith(names[1])
+    assert t.loc["tight", "coverage"] > 0.99 and np.isfinite(t.loc["tight", "RMSE (m)"])
+    assert t.loc["tight", "RMSE (m)"] < 2 * t.loc["UWB-only", "RMSE (m)"] + 0.05
+
+
+@pytest.mark.realdata
+def test_real_iasl_calibration_transfers():
+    from uwbwb.datasets import iasl
+
+    real_dataset("iasl-uwb-imu")
+    cal = study.calibrate_iasl(iasl.load_scenario("scenario1"))
+    assert 0.93 < cal.convention.acc_scale < 0.96              # ≈ 9.81 / 10.3
+    comp = study.compare_iasl(iasl.load_scenario("scenario2"), cal, duration_s=20.0, align_s=15.0)
+    t = comp.table()
+    assert t.loc["tight", "RMSE (m)"] < 1.2 * t.loc["UWB-only", "RMSE (m)"]
+    assert t.loc["INS-only", "RMSE (m)"] > 1.0
