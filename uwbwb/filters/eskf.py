@@ -47,7 +47,8 @@ from scipy.stats import chi2
 
 from ..models.imu import HeadingLog, ImuErrorModel
 from ..models.ins import (BA_, BG_, N_ERR, P_, TH_, V_, Mechanization, NavState, _dcm, _exp_left, _skew3, _yaw,
-                          euler_from_dcm, error_transition, inject, quat_to_dcm, reset_jacobian, yaw_jacobian)
+                          euler_from_dcm, error_transition, inject, propagate, quat_to_dcm, reset_jacobian,
+                          yaw_jacobian)
 from ..models.tdoa import TdoaModel, triangle_outliers
 from ..types import EstimateStatus, Estimates, ImuLog, RangeLog, TdoaLog
 from . import kalman
@@ -403,8 +404,6 @@ class TightEskf:
         dx = np.zeros(N_ERR)
         P = self.initial_covariance()
         qrate = self.process_noise_rate()
-        I15 = np.eye(N_ERR)
-        Phi, Qacc = I15.copy(), np.zeros((N_ERR, N_ERR))
         gate1 = chi2.ppf(self.gate_prob, 1) if self.gate_prob is not None else np.inf
         sig_yaw = self.imu_model.mag_heading_sigma_rad
         gated_run = 0
@@ -413,26 +412,26 @@ class TightEskf:
         order = order[ep_idx[order] >= 0]
         ep_at = np.full(t.size, -1)
         ep_at[ep_idx[order]] = order
-        for i in range(t.size):
-            if i > 0:
-                dt = t[i] - t[i - 1]
-                f0, f1 = acc[i - 1] - ba, acc[i] - ba
-                p, v, q, C0, _ = mech.step(p, v, q, f0, f1, gyro[i - 1] - bg, gyro[i] - bg, dt)
-                F = error_transition(C0, f0, dt)
-                Qd = np.diag(qrate * dt)
-                if reference_step:
-                    st = kalman.predict(Gaussian(dx, P), F, Qd)
+        g_n = mech.g_n
+        last = 0
+        for i in np.flatnonzero(ep_at >= 0):
+            if reference_step:
+                # the straightforward form: Python mechanization, filterpy predict at every IMU step
+                for j in range(last + 1, i + 1):
+                    dt = t[j] - t[j - 1]
+                    f0, f1 = acc[j - 1] - ba, acc[j] - ba
+                    p, v, q, C0, _ = mech.step(p, v, q, f0, f1, gyro[j - 1] - bg, gyro[j] - bg, dt)
+                    st = kalman.predict(Gaussian(dx, P), error_transition(C0, f0, dt), np.diag(qrate * dt))
                     dx, P = st.x, st.P
-                else:
-                    Phi = F @ Phi
-                    Qacc = F @ Qacc @ F.T + Qd
+            else:
+                if i > last:
+                    p, v, q = p.copy(), v.copy(), q.copy()
+                    Phi, Qacc = np.eye(N_ERR), np.zeros((N_ERR, N_ERR))
+                    propagate(p, v, q, ba, bg, t, acc, gyro, last, i, g_n, qrate, Phi, Qacc)
+                    st = kalman.predict(Gaussian(dx, P), Phi, Qacc)
+                    dx, P = st.x, st.P
+            last = i
             k = ep_at[i]
-            if k < 0:
-                continue
-            if not reference_step:
-                st = kalman.predict(Gaussian(dx, P), Phi, Qacc)
-                dx, P = st.x, st.P
-                Phi, Qacc = I15, np.zeros((N_ERR, N_ERR))
             C = _dcm(q)
             J_tag = _tag_jacobian(C, lever)
             tag = p + C @ lever
@@ -472,8 +471,10 @@ class TightEskf:
                 dof = uwb_used
             if self.feedback:
                 p, v, q, ba, bg = inject(p, v, q, ba, bg, dx)
-                G = reset_jacobian(dx[TH_])
-                P = G @ P @ G.T
+                Gt = reset_jacobian(dx[TH_])[TH_, TH_]       # G P Gᵀ: G differs from I only there
+                P = P.copy()
+                P[TH_, :] = Gt @ P[TH_, :]
+                P[:, TH_] = P[:, TH_] @ Gt.T
                 dx = np.zeros(N_ERR)
                 po, vo, qo, bao, bgo = p, v, q, ba, bg
             else:

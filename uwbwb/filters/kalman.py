@@ -14,6 +14,7 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
@@ -160,17 +161,35 @@ def update_sequential(state: Gaussian, z: np.ndarray, H: np.ndarray, R: np.ndarr
     if np.any(r <= 0):
         raise ValueError(f"update_sequential: R must have positive variances, got {r.tolist()}")
     x, P = state.x.copy(), np.array(state.P, copy=True)
-    nis = np.empty(z.size)
-    for i in range(z.size):
-        h = H[i]
-        Ph = P @ h
-        s = float(h @ Ph) + r[i]
-        k = Ph / s
-        innov = y[i] - float(h @ (x - state.x))   # rows after the first see the updated mean
-        nis[i] = innov * innov / s
-        x += k * innov
-        # Joseph form (I − k hᵀ) P (I − k hᵀ)ᵀ + r k kᵀ, expanded (valid for any gain k)
-        kc = k[:, None]
-        kPh = kc * Ph
-        P = P - kPh - kPh.T + s * (kc * k)
+    nis = _scalar_updates(x, P, np.ascontiguousarray(y), np.ascontiguousarray(H), r)
     return Gaussian(x, _symmetric(P)), nis
+
+
+@numba.njit(cache=True, nogil=True)
+def _scalar_updates(x, P, y, H, r):
+    """Rows of :func:`update_sequential`, in place on ``x`` and ``P``; returns each row's NIS."""
+    n, m = x.size, y.size
+    x0 = x.copy()
+    nis = np.empty(m)
+    Ph = np.empty(n)
+    for i in range(m):
+        s = r[i]
+        innov = y[i]
+        for a in range(n):
+            acc = 0.0
+            for b in range(n):
+                acc += P[a, b] * H[i, b]
+            Ph[a] = acc
+            s += H[i, a] * acc
+            innov -= H[i, a] * (x[a] - x0[a])        # rows after the first see the updated mean
+        nis[i] = innov * innov / s
+        for a in range(n):
+            x[a] += Ph[a] / s * innov
+        # Joseph form (I − k hᵀ) P (I − k hᵀ)ᵀ + r k kᵀ with k = Ph / s, expanded:
+        # P − k Phᵀ − Ph kᵀ + s k kᵀ (valid for any gain k)
+        for a in range(n):
+            ka = Ph[a] / s
+            for b in range(n):
+                kb = Ph[b] / s
+                P[a, b] += -ka * Ph[b] - Ph[a] * kb + s * ka * kb
+    return nis

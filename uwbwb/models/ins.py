@@ -53,12 +53,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 __all__ = [
     "GRAVITY_MPS2", "N_ERR", "Mechanization", "NavState", "dcm_from_euler", "dcm_to_quat", "euler_from_dcm",
     "error_transition", "inject", "quat_convert", "quat_from_rotvec", "quat_multiply", "quat_to_dcm",
-    "quat_to_rotvec", "reset_jacobian", "skew", "yaw_jacobian",
+    "quat_to_rotvec", "reset_jacobian", "skew", "yaw_jacobian", "propagate",
 ]
 
 #: Standard gravity, m/s².
@@ -379,3 +380,76 @@ def reset_jacobian(dtheta_rad) -> np.ndarray:
     G = np.eye(N_ERR)
     G[TH_, TH_] += a * S + b * S @ S
     return G
+
+
+# --------------------------------------------------------------------------- compiled propagation
+
+@numba.njit(cache=True, nogil=True)
+def _dcm_nb(q, C):
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    C[0, 0] = 1 - 2 * (y * y + z * z)
+    C[0, 1] = 2 * (x * y - w * z)
+    C[0, 2] = 2 * (x * z + w * y)
+    C[1, 0] = 2 * (x * y + w * z)
+    C[1, 1] = 1 - 2 * (x * x + z * z)
+    C[1, 2] = 2 * (y * z - w * x)
+    C[2, 0] = 2 * (x * z - w * y)
+    C[2, 1] = 2 * (y * z + w * x)
+    C[2, 2] = 1 - 2 * (x * x + y * y)
+
+
+@numba.njit(cache=True, nogil=True)
+def propagate(pos, vel, quat, b_a, b_g, t, acc, gyro, i0, i1, g_n, qrate, Phi, Qacc):
+    """Mechanization and error-covariance pieces from sample ``i0`` to ``i1`` (compiled).
+
+    The same equations as :meth:`Mechanization.step` and :func:`error_transition` (tested
+    equal), for the IMU steps between two UWB epochs: the nominal state is advanced in place
+    (``pos, vel, quat``) and ``Phi ← F Phi``, ``Qacc ← F Qacc Fᵀ + diag(qrate) Δt`` per step.
+    ``acc``/``gyro`` are raw samples; the biases ``b_a``, ``b_g`` are removed here.
+    """
+    C0 = np.empty((3, 3))
+    C1 = np.empty((3, 3))
+    F = np.eye(15)
+    for i in range(i0 + 1, i1 + 1):
+        dt = t[i] - t[i - 1]
+        f0 = acc[i - 1] - b_a
+        f1 = acc[i] - b_a
+        rv = 0.5 * (gyro[i - 1] + gyro[i] - 2.0 * b_g) * dt
+        _dcm_nb(quat, C0)
+        ang = math.sqrt(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2])
+        k = math.sin(0.5 * ang) / ang if ang > 1e-8 else 0.5 - ang * ang / 48.0
+        rw, rx, ry, rz = math.cos(0.5 * ang), k * rv[0], k * rv[1], k * rv[2]
+        w, x, y, z = quat[0], quat[1], quat[2], quat[3]
+        q0 = w * rw - x * rx - y * ry - z * rz
+        q1 = w * rx + x * rw + y * rz - z * ry
+        q2 = w * ry - x * rz + y * rw + z * rx
+        q3 = w * rz + x * ry - y * rx + z * rw
+        nq = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+        quat[0], quat[1], quat[2], quat[3] = q0 / nq, q1 / nq, q2 / nq, q3 / nq
+        _dcm_nb(quat, C1)
+        cf0 = C0 @ f0
+        v1 = vel + 0.5 * dt * (cf0 + C1 @ f1) + g_n * dt
+        pos += 0.5 * dt * (vel + v1)
+        vel[:] = v1
+        # F = I + AΔt + ½(AΔt)², blocks as in error_transition
+        h = 0.5 * dt * dt
+        S = np.zeros((3, 3))
+        S[0, 1], S[0, 2], S[1, 0] = -cf0[2], cf0[1], cf0[2]
+        S[1, 2], S[2, 0], S[2, 1] = -cf0[0], -cf0[1], cf0[0]
+        SC = S @ C0
+        F[:, :] = 0.0
+        for j in range(15):
+            F[j, j] = 1.0
+        for a in range(3):
+            F[a, 3 + a] = dt
+            for b in range(3):
+                F[3 + a, 6 + b] = -dt * S[a, b]
+                F[3 + a, 9 + b] = -dt * C0[a, b]
+                F[6 + a, 12 + b] = -dt * C0[a, b]
+                F[a, 6 + b] = -h * S[a, b]
+                F[a, 9 + b] = -h * C0[a, b]
+                F[3 + a, 12 + b] = h * SC[a, b]
+        Phi[:, :] = F @ Phi
+        Qacc[:, :] = F @ Qacc @ F.T
+        for j in range(15):
+            Qacc[j, j] += qrate[j] * dt

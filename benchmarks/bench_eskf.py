@@ -1,0 +1,69 @@
+"""Throughput of the tight UWB/INS error-state filter against a straightforward per-step form.
+
+Both run the same 15-state filter (:class:`uwbwb.filters.eskf.TightEskf`) on the same simulated
+dynamic run of notebook 05 (100 Hz IMU, 50 Hz TDoA, four stations):
+
+* **per step** — ``reference_step=True``: the covariance goes through
+  :func:`uwbwb.filters.kalman.predict` (filterpy) at every IMU step;
+* **accumulated** — the default: the transition and noise of the IMU steps between two UWB
+  epochs are accumulated in NumPy and applied with one :func:`kalman.predict` per epoch.
+
+Updates are the same sequential per-TDoA updates in both. Printed: seconds per 10 000 IMU
+steps of each (wall clock in this process, on whatever load the machine has), their ratio,
+and the largest position difference between the two (they are the same filter).
+
+Run:  python benchmarks/bench_eskf.py [--repeat N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from uwbwb.experiments.uwb_ins import study
+from uwbwb.filters import eskf
+
+
+def _setup(seed: int):
+    run = study.simulate_case("dynamic", seed=seed, legs=3)
+    cfg = run.config
+    filt = eskf.TightEskf(cfg.imu, eskf.TdoaUpdate(cfg.tdoa_model(), 0.1), lever_arm_m=cfg.lever_arm_m,
+                          height_m=cfg.tag_height_m)
+    return run, filt
+
+
+def _time(fn, repeat: int):
+    """Best wall and CPU time of ``repeat`` calls (CPU time is less sensitive to a loaded machine)."""
+    best, cpu, out = np.inf, np.inf, None
+    for _ in range(repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        out = fn()
+        best, cpu = min(best, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
+    return best, cpu, out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3, help="best of N runs each")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    run, filt = _setup(args.seed)
+    n_steps = len(run.imu)
+    filt.run(run.imu.__class__(run.imu.t_s[:50], run.imu.acc_mps2[:50], run.imu.gyro_radps[:50]), run.tdoa,
+             run.x0)                                           # compile the kernels outside the timing
+    t_ref, c_ref, ref = _time(lambda: filt.run(run.imu, run.tdoa, run.x0, heading=run.heading,
+                                               reference_step=True), args.repeat)
+    t_acc, c_acc, acc = _time(lambda: filt.run(run.imu, run.tdoa, run.x0, heading=run.heading), args.repeat)
+    per = 1e4 / n_steps
+    print(f"run: {n_steps} IMU steps, {len(run.tdoa)} UWB epochs ({run.motion.duration_s:.1f} s)")
+    print(f"per step     : {t_ref * per:6.3f} s wall, {c_ref * per:6.3f} s CPU per 10 000 IMU steps")
+    print(f"accumulated  : {t_acc * per:6.3f} s wall, {c_acc * per:6.3f} s CPU per 10 000 IMU steps")
+    print(f"speed-up     : {t_ref / t_acc:5.2f} x wall, {c_ref / c_acc:5.2f} x CPU (same process, best of "
+          f"{args.repeat})")
+    print(f"max |Δpos|   : {np.abs(ref.pos_m - acc.pos_m).max():.2e} m (same filter)")
+
+
+if __name__ == "__main__":
+    main()
