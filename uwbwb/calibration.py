@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from .types import RangeLog, Recording
+from .validate import integer, number
 
 _HUBER_K = 1.345
 _MAD_TO_SIGMA = 1.4826
@@ -272,14 +273,9 @@ def fit_range_calibration(recordings: Sequence[Recording] | Recording, *, fit_sc
     -------
     RangeCalibration
     """
-    if isinstance(n_iter, (bool, np.bool_)) or not isinstance(n_iter, (int, np.integer)) or n_iter < 1:
-        raise ValueError(f"n_iter must be an integer >= 1 (IRLS iterations; 0 would return an unfitted "
-                         f"identity), got {n_iter!r}")
-    if isinstance(min_samples, (bool, np.bool_)) or not isinstance(min_samples, (int, np.integer)) or min_samples < 2:
-        raise ValueError(f"min_samples must be an integer >= 2, got {min_samples!r}")
-    if not (isinstance(min_span_m, (int, float, np.floating, np.integer)) and np.isfinite(min_span_m)
-            and min_span_m >= 0):
-        raise ValueError(f"min_span_m must be a finite number of metres >= 0, got {min_span_m!r}")
+    integer("n_iter", n_iter, minimum=1)          # 0 would return an unfitted identity
+    integer("min_samples", min_samples, minimum=2)
+    number("min_span_m", min_span_m, minimum=0.0)
     if isinstance(recordings, Recording):
         recordings = [recordings]
     anchor_ids, tag_ids, x, y = pair_samples(recordings)
@@ -399,6 +395,7 @@ def tag_mount_height(static: Sequence[Recording] | Recording, *, tags=None,
     ValueError
         No recordings, a tag without 3-D truth, or a moving "static" recording.
     """
+    number("max_spread_m", max_spread_m, minimum=0.0)
     recs = [static] if isinstance(static, Recording) else list(static)
     if not recs:
         raise ValueError("tag_mount_height needs at least one static calibration recording")

@@ -138,3 +138,14 @@ def test_pruning_and_tdoa_ls_parameters_are_checked():
     model, log, _ = _one_absurd_tdoa()
     with pytest.raises(ValueError, match="max_iter"):
         tdoa_ls.tdoa_least_squares(log, model, max_iter=2.5)
+
+
+def test_ekf_parameters_are_checked():
+    from uwbwb.filters.ekf import nis_consistency
+    model, _, _ = _one_absurd_tdoa()
+    with pytest.raises(ValueError, match="init_pos_sigma_m"):
+        TdoaEkf(RandomForce(0.3), model, init_pos_sigma_m=-1.0)
+    with pytest.raises(ValueError, match="gate_prob"):
+        TdoaEkf(RandomForce(0.3), model, gate_prob="high")
+    with pytest.raises(ValueError, match="prob"):
+        nis_consistency(np.ones(5), np.ones(5), prob=2.0)

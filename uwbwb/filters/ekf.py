@@ -38,6 +38,7 @@ from scipy.stats import chi2
 from ..models.motion import MotionModel
 from ..models.tdoa import TdoaModel
 from ..types import EstimateStatus, Estimates, TdoaLog, Trajectory
+from ..validate import number, probability
 from . import kalman
 from .kalman import Gaussian
 from .tdoa_ls import tdoa_least_squares
@@ -392,6 +393,7 @@ def nis_consistency(nis: np.ndarray, dof: np.ndarray, prob: float = 0.95) -> dic
         ``sum_nis``, ``sum_dof``, the interval ``sum_lo``/``sum_hi`` and ``verdict``
         (``"consistent"``, ``"over-confident"``, ``"under-confident"`` or ``"no updates"``).
     """
+    probability("prob", prob)
     nis, dof = np.asarray(nis, float), np.asarray(dof, int)
     ok = (dof > 0) & np.isfinite(nis)
     if not ok.any():
@@ -509,6 +511,9 @@ class TdoaEkf(Ekf):
         if not isinstance(max_skipped, (int, np.integer)) or max_skipped < 0:
             raise ValueError("max_skipped must be >= 0")
         _check_gate(gate_prob, "TdoaEkf")
+        for name, sigma in (("init_pos_sigma_m", init_pos_sigma_m), ("init_vel_sigma_mps", init_vel_sigma_mps),
+                            ("init_acc_sigma_mps2", init_acc_sigma_mps2)):
+            number(name, sigma, minimum=0.0, strict_minimum=True)
         d = motion.dim
         fields = dict(transition=motion, measurement=TdoaMeasurement(measurement, motion),
                       pos_index=tuple(range(d)), vel_index=tuple(range(d, 2 * d)) if motion.order >= 2 else None,
