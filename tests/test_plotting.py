@@ -37,7 +37,8 @@ def test_colors_fixed_distinct_and_fallback_deterministic():
     assert plotting.color_for("truth") == "#000000"
     assert plotting.color_for("raw") == plotting.COLORS["raw"]
     for name in ("LS", "EKF", "EKF-RW", "EKF-RF", "EKF-RJ", "PF", "baseline PF", "set-noise PF",
-                 "set-noise KF", "NLS", "INS", "ESKF", "calibrated", "uncalibrated"):
+                 "set-noise KF", "NLS", "INS", "ESKF", "calibrated", "uncalibrated", "UWB-only", "INS-only",
+                 "loose", "tight", "tight (ranges)"):
         assert plotting.color_for(name) == plotting.COLORS[name]
     assert plotting.color_for("ekf-rw") == plotting.COLORS["EKF-RW"]
     assert len(set(plotting.COLORS.values())) == len(plotting.COLORS)
