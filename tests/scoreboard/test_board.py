@@ -11,8 +11,8 @@ import pytest
 
 from uwbwb import cli
 from uwbwb.datasets import tidy
-from uwbwb.scoreboard import (Estimator, board as board_mod, calibrate, default_estimators, score, split_in_time,
-                              synthetic as syn)
+from uwbwb.scoreboard import Estimator, calibrate, default_estimators, score, split_in_time
+from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, TdoaEkfEstimator, TdoaLs
 from uwbwb.types import Trajectory
 
@@ -159,3 +159,22 @@ def test_summary_rows_come_from_the_board():
     assert set(df["data"]) == {"synthetic"} and set(df["kind"]) == {"reproduced"} and set(df["mode"]) == {"FAST"}
     row = df[df["quantity"] == "RMSE, LS"].iloc[0]
     assert row["value"] == pytest.approx(b.table().set_index("method").loc["LS", "rmse_m"])
+
+
+def test_board_on_a_generated_iasl_tree_calibrates_on_another_scenario(tmp_path, capsys):
+    """3-D drone flights (not in ../shared): calibrated on scenario1, scored on scenario2; the drone
+    carries an IMU, so the UWB/INS entry says what it needs instead of saying there is no IMU."""
+    from tests.fixtures import iasl as fx
+
+    fx.write_dataset(tmp_path / "data" / "iasl-uwb-imu", rng=np.random.default_rng(8), duration_s=30.0)
+    out = tmp_path / "out"
+    rc = cli.main(["score", "iasl-uwb-imu/scenario2", "--calibrate-on", "iasl-uwb-imu/scenario1",
+                   "--data-dir", str(tmp_path / "data"), "--out", str(out), "--fast", "--quiet", "--rate-hz", "5",
+                   "--methods", "LS", "TDoA LS", "EKF-RF", "set-noise KF", "UWB/INS"])
+    assert rc == 0, capsys.readouterr().err
+    table = pd.read_csv(out / "scoreboard.csv").set_index("method")
+    assert set(table["data"]) == {"iasl-uwb-imu/scenario2"}
+    assert "3-D" in (out / "scoreboard.md").read_text()
+    assert np.isfinite(table.loc["EKF-RF", "bound_m"]) and table.loc["LS", "coverage"] > 0.9
+    assert "planar" in table.loc["set-noise KF", "note"]
+    assert "IMU calibration" in table.loc["UWB/INS", "note"]

@@ -101,15 +101,6 @@ def truth_at(rec: Recording, tag: str, t_s: np.ndarray, dim: int) -> np.ndarray:
     return pos
 
 
-def _ok_cov(cov: np.ndarray) -> np.ndarray:
-    """Epochs whose covariance is finite, bool ``(T,)``."""
-    return np.all(np.isfinite(cov.reshape(cov.shape[0], -1)), axis=1)
-
-
-def _nan_bound(t_s, dim, kind) -> bounds.Bound:
-    return bounds.Bound(t_s, np.full((len(t_s), dim, dim), np.nan), kind)
-
-
 def _range_bound(rec, tag, cal, log: RangeLog, kind="CRLB ranges") -> bounds.Bound:
     pos = truth_at(rec, tag, log.t_s, cal.dim)
     have = np.all(np.isfinite(pos), axis=1)

@@ -28,7 +28,7 @@ def error_cdfs(board, ax=None, *, methods: Sequence[str] | None = None, tag: str
 
 
 def rmse_vs_bound(board, ax=None, *, methods: Sequence[str] | None = None, unit: str = "m"):
-    """Bars of each method's RMSE with its own bound as a black tick, efficiency written above."""
+    """Bars of each method's RMSE with its own bound as a black tick; efficiency and coverage written above."""
     scale = 100.0 if unit == "cm" else 1.0
     df = board.table().set_index("method")
     names = [m for m in _methods(board, methods) if np.isfinite(df.loc[m, "rmse_m"])]
@@ -40,15 +40,16 @@ def rmse_vs_bound(board, ax=None, *, methods: Sequence[str] | None = None, unit:
     ax.bar(x, rmse, color=[plotting.color_for(m) for m in names])
     ax.bar([], [], color="white", edgecolor="black", label="RMSE (bar, method's colour)")
     ax.scatter(x, bound, marker="_", s=900, color="black", zorder=3, label="its Cramér–Rao bound")
-    for xi, r, e in zip(x, rmse, df.loc[names, "efficiency"].to_numpy(float)):
-        if np.isfinite(e):
-            ax.annotate(f"×{e:.2f}", (xi, r), ha="center", va="bottom", fontsize="x-small",
-                        xytext=(0, 2), textcoords="offset points")
+    for xi, r, e, c in zip(x, rmse, df.loc[names, "efficiency"].to_numpy(float),
+                           df.loc[names, "coverage"].to_numpy(float)):
+        text = (f"×{e:.2f}\n" if np.isfinite(e) else "") + f"{c:.0%}"
+        ax.annotate(text, (xi, r), ha="center", va="bottom", fontsize="x-small", xytext=(0, 2),
+                    textcoords="offset points")
     ax.set_xticks(x, names, rotation=30, ha="right")
     ax.set_ylabel(f"RMSE ({unit})")
     top = np.nanmax(np.concatenate([rmse, bound])) if len(names) else 1.0
     ax.set_ylim(0, 1.3 * top)
-    ax.set_title(f"RMSE vs bound (×: efficiency RMSE/bound) — {board.mode}", fontsize="medium")
+    ax.set_title(f"RMSE vs bound (×: efficiency RMSE/bound; %: coverage) — {board.mode}", fontsize="medium")
     ax.legend(loc="upper right", fontsize="small", framealpha=0.9)
     return ax
 

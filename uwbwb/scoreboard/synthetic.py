@@ -28,6 +28,7 @@ from ..models.motion import RandomForce
 from ..types import Anchors, RangeLog, Recording, Trajectory
 from .board import Board, calibrate, score
 from .estimators import CalibratedLs, TdoaEkfEstimator, TdoaLs, default_estimators
+from .protocol import Calibration
 
 __all__ = ["SyntheticConfig", "exact_calibration", "monte_carlo", "simulate", "synthetic_board", "efficiency_summary"]
 
@@ -88,7 +89,7 @@ def simulate(config: SyntheticConfig = SyntheticConfig(), *, rng: np.random.Gene
                      meta={"config": config, "truth_state": x})
 
 
-def exact_calibration(config: SyntheticConfig, cal) -> "Calibration":
+def exact_calibration(config: SyntheticConfig, cal: Calibration) -> Calibration:
     """``cal`` with the simulator's exact noise: range σ, no range bias, height, RF driving noise."""
     anchors = config.anchors()
     n = len(anchors)
