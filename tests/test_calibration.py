@@ -5,9 +5,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from uwbwb.calibration import RangeCalibration, fit_range_calibration, range_residuals
+from uwbwb.calibration import (RangeCalibration, fit_range_calibration, fit_range_sigma, fit_set_noise,
+                               fit_set_noise_from_fixes, location_statistics, percentile_by_file, range_residuals,
+                               range_sigma_from_truth)
 from uwbwb.sim import rig
-from uwbwb.types import RangeLog
+from uwbwb.types import Anchors, RangeLog, SetFixLog, TagRun, Trajectory
 
 
 @pytest.fixture(scope="module")
@@ -150,3 +152,165 @@ def test_fit_parameters_are_checked(campaign, kwargs, name):
     # n_iter=0 used to return an identity calibration marked as fitted
     with pytest.raises(ValueError, match=name):
         fit_range_calibration(campaign[1], **kwargs)
+
+
+# --------------------------------------------------------------------------- range noise per anchor (paper 002)
+
+def test_range_sigma_from_truth(rng):
+    T = 5000
+    true = np.full((T, 2), 5.0)
+    meas = true + np.array([0.05, 0.10]) * rng.standard_normal((T, 2)) + np.array([0.3, 0.0])
+    meas[rng.random(T) < 0.05, 1] += 3.0                              # NLOS outliers on anchor 1
+    robust = range_sigma_from_truth(meas, true)
+    np.testing.assert_allclose(robust, [0.05, 0.10], rtol=0.08)
+    rms = range_sigma_from_truth(meas, true, robust=False)
+    assert rms[0] == pytest.approx(np.hypot(0.3, 0.05), rel=0.05) and rms[1] > 0.5
+    with pytest.raises(ValueError, match="fewer than two"):
+        range_sigma_from_truth(np.full((3, 2), np.nan), true[:3])
+
+
+def test_fit_range_sigma_readings():
+    anchors = Anchors(tuple("ABCD"), np.array([[0, 0, 2.5], [10, 0, 2.5], [10, 8, 2.4], [0, 8, 2.6]]))
+    rng = np.random.default_rng(11)
+    t = np.arange(4000) * 0.1
+    pos = np.column_stack([5 + 2 * np.sin(0.05 * t), 4 + 2 * np.cos(0.05 * t), np.full(t.size, 1.2)])
+    true = np.linalg.norm(pos[:, None] - anchors.pos_m, axis=-1)
+    common = 0.4 * rng.standard_normal((t.size, 1))                        # cancels in every TDoA
+    meas = true + common + 0.05 * rng.standard_normal(true.shape)
+    run = TagRun("synthetic", "x", "t", RangeLog(t, meas, anchors.ids, "t"), Trajectory(t, pos), anchors, 2, 1.2)
+    np.testing.assert_allclose(fit_range_sigma(run), 0.05, rtol=0.08)               # the part TDoAs see
+    assert np.all(fit_range_sigma(run, method="rms") > 0.35)                         # common part included
+    assert np.all(fit_range_sigma(run, floor_m=0.5) == 0.5)
+    with pytest.raises(ValueError, match="method"):
+        fit_range_sigma(run, method="mad")
+
+
+# --------------------------------------------------------------------------- NLOS percentile per file
+
+def test_percentile_by_file():
+    df = pd.DataFrame({"condition": ["LOS"] * 100 + ["NLOS"] * 100 + ["LOS"] * 5,
+                       "height_m": 1.0, "true_range_m": [10.0] * 200 + [20.0] * 5,
+                       "range_m": np.r_[10.0 + np.linspace(0, 0.99, 100), 12.0 + np.linspace(0, 0.99, 100),
+                                        np.full(5, 20.0)],
+                       "file": ["a"] * 100 + ["b"] * 100 + ["c"] * 5})
+    out = percentile_by_file(df, q=5)
+    assert list(out.file) == ["a", "b"] and out.attrs["n_skipped"] == 1
+    np.testing.assert_allclose(out.pq_err_m, [np.percentile(np.linspace(0, .99, 100), 5),
+                                              2.0 + np.percentile(np.linspace(0, .99, 100), 5)])
+    assert out.loc[1, "frac_over_1m"] == 1.0 and out.loc[0, "frac_over_1m"] == 0.0
+    with pytest.raises(ValueError, match="lack"):
+        percentile_by_file(df.drop(columns="file"))
+    # short files only: an empty table, and no condition to look up
+    short = percentile_by_file(df[df.file == "c"])
+    assert short.empty and short.attrs["n_skipped"] == 1
+
+
+# --------------------------------------------------------------------------- set-noise model (paper 000)
+
+def _two_valued(mean, spread, n):
+    """n values (n even) with the given mean, half at mean+spread and half at mean-spread."""
+    return np.r_[np.full(n // 2, mean + spread), np.full(n // 2, mean - spread)]
+
+
+def _sample_std(spread, n):
+    return spread * np.sqrt(n / (n - 1))
+
+
+@pytest.fixture
+def calib():
+    """Hand-built calibration data at two locations.
+
+    set 1: 30 fixes at A (ex mean 0.1 ± 0.02, ey mean -0.1 ± 0.04) and 40 at B (0.3 ± 0.06, 0.1 ± 0.02)
+    set 2: 28 at A (below the gate) and 34 at B (0.0 ± 0.1, 0.2 ± 0.1)
+    set 3: 10 at A and 10 at B (below the gate everywhere)
+    """
+    rows = []
+
+    def add(loc, s, n, mx, sx, my, sy):
+        rows.append(pd.DataFrame({"loc": loc, "set": s, "ex": _two_valued(mx, sx, n), "ey": _two_valued(my, sy, n)}))
+
+    add("A", 1, 30, 0.1, 0.02, -0.1, 0.04)
+    add("B", 1, 40, 0.3, 0.06, 0.1, 0.02)
+    add("A", 2, 28, -0.5, 0.3, 0.5, 0.3)
+    add("B", 2, 34, 0.0, 0.1, 0.2, 0.1)
+    add("A", 3, 10, 1.0, 0.1, 1.0, 0.1)
+    add("B", 3, 10, -1.0, 0.1, -1.0, 0.1)
+    df = pd.concat(rows, ignore_index=True)
+    return df[["ex", "ey"]].to_numpy(), df["set"].to_numpy(), df["loc"].to_numpy()
+
+
+def test_calibration_rules_on_hand_computed_case(calib):
+    err, sets, loc = calib
+    model = fit_set_noise(err, sets, loc)
+    assert model.set_id.tolist() == [1, 2]                         # set 3 never reaches 30 at one location
+    # set 1: count-weighted average of the per-location parameters (30 at A, 40 at B)
+    np.testing.assert_allclose(model.mu_m[0], [(30 * 0.1 + 40 * 0.3) / 70, (30 * -0.1 + 40 * 0.1) / 70])
+    np.testing.assert_allclose(model.sigma_m[0], [(30 * _sample_std(0.02, 30) + 40 * _sample_std(0.06, 40)) / 70,
+                                                  (30 * _sample_std(0.04, 30) + 40 * _sample_std(0.02, 40)) / 70])
+    assert model.n.tolist() == [70, 34]
+    # set 2: the 28 fixes at A are below the gate, so only B counts
+    np.testing.assert_allclose(model.mu_m[1], [0.0, 0.2], atol=1e-15)
+    np.testing.assert_allclose(model.sigma_m[1], [_sample_std(0.1, 34)] * 2)
+    # facility-wide default: mean and sample std of all 152 errors
+    np.testing.assert_allclose(model.default_mu_m, err.mean(axis=0))
+    np.testing.assert_allclose(model.default_sigma_m, err.std(axis=0, ddof=1))
+    assert model.default_n == 152
+    # set 3 (and any unseen set) falls back to the default
+    mu, sd, modelled = model.lookup([1, 3, 99])
+    assert modelled.tolist() == [True, False, False]
+    np.testing.assert_allclose(mu[1:], np.tile(model.default_mu_m, (2, 1)))
+    np.testing.assert_allclose(sd[0], model.sigma_m[0])
+
+
+def test_pooled_sigma_rule_adds_the_spread_between_locations(calib):
+    err, sets, loc = calib
+    model = fit_set_noise(err, sets, loc, sigma_rule="pooled")
+    paper = fit_set_noise(err, sets, loc)
+    np.testing.assert_allclose(model.mu_m, paper.mu_m)
+    mx = (30 * 0.1 + 40 * 0.3) / 70
+    var_x = (30 * (_sample_std(0.02, 30) ** 2 + (0.1 - mx) ** 2) + 40 * (_sample_std(0.06, 40) ** 2 + (0.3 - mx) ** 2)) / 70
+    assert model.sigma_m[0, 0] == pytest.approx(np.sqrt(var_x))
+    np.testing.assert_allclose(model.sigma_m[1], paper.sigma_m[1])       # one location: the rules agree
+    np.testing.assert_allclose(model.default_sigma_m, paper.default_sigma_m)
+    with pytest.raises(ValueError, match="sigma_rule"):
+        fit_set_noise(err, sets, loc, sigma_rule="median")
+
+
+def test_gate_is_at_least_30(calib):
+    err, sets, loc = calib
+    table = fit_set_noise(err, sets, loc).meta["per_location"]
+    gate = dict(zip(zip(table["location"], table["set_id"]), table["gated_in"]))
+    assert gate[("A", 1)] and not gate[("A", 2)] and gate[("B", 2)]
+    # moving the gate to 28 admits set 2 at A; 31 drops set 1 at A
+    assert fit_set_noise(err, sets, loc, min_count=28).n.tolist() == [70, 62]
+    assert fit_set_noise(err, sets, loc, min_count=31).n.tolist() == [40, 34]
+    with pytest.raises(ValueError, match="min_count"):
+        fit_set_noise(err, sets, loc, min_count=1)
+
+
+def test_location_statistics_table():
+    err = np.array([[0.0, 1.0], [2.0, 3.0], [4.0, 5.0]])
+    t = location_statistics(err, [5, 5, 6], ["a", "a", "a"])
+    assert t["set_id"].tolist() == [5, 6] and t["n"].tolist() == [2, 1]
+    np.testing.assert_allclose(t.loc[0, ["mu_x_m", "mu_y_m", "sigma_x_m"]].to_numpy(float), [1.0, 2.0, np.sqrt(2)])
+    assert np.isnan(t.loc[1, "sigma_x_m"])
+    with pytest.raises(ValueError, match="non-finite"):
+        location_statistics([[np.nan, 0.0]], [1], ["a"])
+
+
+def _fix_log(n=6, name="loc"):
+    t = np.arange(n) * 0.1
+    sets = np.array([0b11111, 0b11111, 0b101111, 0b11111, 0b101111, 0b1110011])[:n]
+    return SetFixLog(t, np.zeros((n, 2)) + 0.1, sets, tuple(str(i) for i in range(8)), np.zeros((n, 2)), name)
+
+
+def test_from_fixes_labels_locations_by_name():
+    a, b = _fix_log(name="A"), _fix_log(name="B")
+    model = fit_set_noise_from_fixes([a, b], min_count=2)
+    assert set(model.meta["per_location"]["location"]) == {"A", "B"}
+    assert model.n.tolist() == [6, 4]
+    # identical fixes give σ = 0, which the fit floors (eq. 9 would be infinite)
+    np.testing.assert_allclose(model.sigma_m, 1e-3)
+    assert model.meta["n_sigma_floored"] == 6
+    with pytest.raises(ValueError, match="distinct names"):
+        fit_set_noise_from_fixes([a, _fix_log(name="A")])

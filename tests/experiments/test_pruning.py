@@ -249,26 +249,6 @@ def test_dynamic_segments_on_a_noise_free_tour():
         ex.run_dynamic_segments(rec, segs, heights_m={"L": 1.3}, heuristics=("percentile",))
 
 
-def test_percentile_by_file():
-    df = pd.DataFrame({"condition": ["LOS"] * 100 + ["NLOS"] * 100 + ["LOS"] * 5,
-                       "height_m": 1.0, "true_range_m": [10.0] * 200 + [20.0] * 5,
-                       "range_m": np.r_[10.0 + np.linspace(0, 0.99, 100), 12.0 + np.linspace(0, 0.99, 100),
-                                        np.full(5, 20.0)],
-                       "file": ["a"] * 100 + ["b"] * 100 + ["c"] * 5})
-    out = ex.percentile_by_file(df, q=5)
-    assert list(out.file) == ["a", "b"] and out.attrs["n_skipped"] == 1
-    np.testing.assert_allclose(out.pq_err_m, [np.percentile(np.linspace(0, .99, 100), 5),
-                                              2.0 + np.percentile(np.linspace(0, .99, 100), 5)])
-    assert out.loc[1, "frac_over_1m"] == 1.0 and out.loc[0, "frac_over_1m"] == 0.0
-    with pytest.raises(ValueError, match="lack"):
-        ex.percentile_by_file(df.drop(columns="file"))
-    # short files only: an empty table, and no condition to look up
-    short = ex.percentile_by_file(df[df.file == "c"])
-    assert short.empty and short.attrs["n_skipped"] == 1 and ex.hanyang_table(short).empty
-    t = ex.hanyang_table(out)
-    assert list(t.index) == ["LOS", "NLOS"] and list(t.n_files) == [1, 1]
-
-
 def test_figures_draw():
     cfg = _small()
     res = ex.run_synthetic(cfg, rng=np.random.default_rng(1))
@@ -295,9 +275,9 @@ def test_hanyang_figure_draws_whatever_conditions_there_are():
     samples = pd.DataFrame({"condition": ["LOS"] * 40, "range_error_m": np.linspace(0.1, 0.4, 40),
                             "height_m": 1.0, "true_range_m": 10.0, "range_m": 10.0 + np.linspace(0.1, 0.4, 40),
                             "file": "a"})
-    axes = ex.plot_hanyang(samples, ex.percentile_by_file(samples))
+    axes = ex.plot_hanyang(samples, calibration.percentile_by_file(samples))
     assert len(axes) == 3 and len(axes[2].lines) == 3          # zero line + LOS median + LOS percentile
-    axes = ex.plot_hanyang(samples.iloc[:5], ex.percentile_by_file(samples.iloc[:5]))
+    axes = ex.plot_hanyang(samples.iloc[:5], calibration.percentile_by_file(samples.iloc[:5]))
     assert len(axes[2].lines) == 1                              # no file long enough: only the zero line
 
 
@@ -355,7 +335,7 @@ def test_hanyang_percentile_lands_near_the_truth_in_los():
     from uwbwb.datasets import hanyang
 
     df = hanyang.load_static(data_dir=root.parent, height_m=1.0)
-    out = ex.percentile_by_file(df)
+    out = calibration.percentile_by_file(df)
     los, nlos = out[out.condition == "LOS"], out[out.condition == "NLOS"]
     assert len(los) > 10 and len(nlos) > 10
     assert abs(los.pq_err_m.median()) < 0.3
@@ -497,3 +477,15 @@ def test_headline_rows_say_their_kind_and_never_a_paper_bound(rng):
     for r in rows:
         s.add(**r)
     assert len(s.frame()) == len(rows)
+
+
+def test_hanyang_table_per_condition():
+    df = pd.DataFrame({"condition": ["LOS"] * 100 + ["NLOS"] * 100 + ["LOS"] * 5,
+                       "height_m": 1.0, "true_range_m": [10.0] * 200 + [20.0] * 5,
+                       "range_m": np.r_[10.0 + np.linspace(0, 0.99, 100), 12.0 + np.linspace(0, 0.99, 100),
+                                        np.full(5, 20.0)],
+                       "file": ["a"] * 100 + ["b"] * 100 + ["c"] * 5})
+    out = calibration.percentile_by_file(df, q=5)
+    assert ex.hanyang_table(calibration.percentile_by_file(df[df.file == "c"])).empty
+    t = ex.hanyang_table(out)
+    assert list(t.index) == ["LOS", "NLOS"] and list(t.n_files) == [1, 1]

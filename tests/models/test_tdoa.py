@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from uwbwb.models.tdoa import TdoaModel, empirical_tdoa_covariance, range_sigma_from_truth
+from uwbwb.calibration import empirical_tdoa_covariance
+from uwbwb.models.tdoa import TdoaModel
 from uwbwb.types import pseudo_tdoa
 
 ANCHORS = np.array([[0.0, 0.0, 2.0], [10.0, 0.0, 2.5], [10.0, 8.0, 2.0], [0.0, 8.0, 2.5],
@@ -92,19 +93,6 @@ def test_epoch_terms_any_reference():
     np.testing.assert_allclose(R, model.covariance(others, 3))
     with pytest.raises(ValueError, match="not among"):
         model.epoch(row, p, 4)
-
-
-def test_range_sigma_from_truth(rng):
-    T = 5000
-    true = np.full((T, 2), 5.0)
-    meas = true + np.array([0.05, 0.10]) * rng.standard_normal((T, 2)) + np.array([0.3, 0.0])
-    meas[rng.random(T) < 0.05, 1] += 3.0                              # NLOS outliers on anchor 1
-    robust = range_sigma_from_truth(meas, true)
-    np.testing.assert_allclose(robust, [0.05, 0.10], rtol=0.08)
-    rms = range_sigma_from_truth(meas, true, robust=False)
-    assert rms[0] == pytest.approx(np.hypot(0.3, 0.05), rel=0.05) and rms[1] > 0.5
-    with pytest.raises(ValueError, match="fewer than two"):
-        range_sigma_from_truth(np.full((3, 2), np.nan), true[:3])
 
 
 def test_triangle_outliers_rejects_injected_outliers_and_keeps_clean_ones(rng):

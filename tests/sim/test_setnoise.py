@@ -3,7 +3,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from uwbwb.models.setnoise import SetNoiseModel
+from uwbwb.calibration import fit_set_noise_from_fixes
 from uwbwb.types import set_mask
 from uwbwb.sim import setnoise as S
 
@@ -67,7 +67,7 @@ def test_set_noise_emerges_from_sensor_errors():
     cfg = dataclasses.replace(CFG, range_sigma_m=0.0)
     fac = S.make_facility(cfg, rng=np.random.default_rng(4))
     log = S.static_fixes(fac, cfg.fig3_xy_m, 600, rng=np.random.default_rng(5))
-    model = SetNoiseModel.from_fixes([log])
+    model = fit_set_noise_from_fixes([log])
     assert len(model) >= 4
     assert np.all(model.sigma_m < 0.005)                           # set → error is deterministic here
     assert np.ptp(model.mu_m, axis=0).max() > 0.05                # ... and differs between sets

@@ -62,13 +62,13 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares, minimize
 
+from ..calibration import MAD_TO_SIGMA
 from ..geometry import linear_multilaterate
 from ..models.track import LinearTrackRanges, anchor_array
 from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples, Trajectory
 
 __all__ = ["TrajectoryFit", "fit_trajectory", "initial_guess"]
 
-_MAD_TO_SIGMA = 1.4826
 
 
 # --------------------------------------------------------------------------- initial guess
@@ -128,7 +128,7 @@ def initial_guess(samples: RangeSamples, anchors, *, dim: int = 3, static: bool 
     tg, X = t[good], fix[good]
     a, b = _line_fit(tg, X, static)
     resid = np.linalg.norm(X - (a + np.multiply.outer(tg, b)), axis=1)
-    scale = _MAD_TO_SIGMA * np.median(np.abs(resid - np.median(resid))) + 1e-6
+    scale = MAD_TO_SIGMA * np.median(np.abs(resid - np.median(resid))) + 1e-6
     keep = resid <= np.median(resid) + 3 * scale
     if keep.sum() >= 2:
         a, b = _line_fit(tg[keep], X[keep], static)

@@ -15,8 +15,8 @@ This module holds that model and everything that touches it, so the simulator
 - the fixes it explains, :class:`uwbwb.types.SetFixLog` (sensor sets as integer bit masks,
   bit ``i`` set ⇔ sensor ``i`` used, with the paper's labels such as ``'76540'``);
 - :class:`SetNoiseModel`, the per-set ``(μ, σ)`` table plus the facility-wide
-  default, with :meth:`SetNoiseModel.fit` implementing the paper's calibration
-  rules (section II-B2) and :func:`log_likelihood` its eq. 9.
+  default (fitted by :func:`uwbwb.calibration.fit_set_noise`, the paper's calibration
+  rules of section II-B2), and :func:`log_likelihood`, its eq. 9.
 
 Interpretations of the paper made here (also stated in notebook 01):
 
@@ -35,10 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..types import SetFixLog, set_label
-
-#: Minimum number of measurements of a set at one location for the paper's calibration to model it.
-MIN_COUNT = 30
+from ..types import set_label
 
 
 # --------------------------------------------------------------------------- eq. 9
@@ -80,41 +77,6 @@ def log_likelihood(pos_m: np.ndarray, z_m: np.ndarray, mu_m: np.ndarray, sigma_m
 
 
 # --------------------------------------------------------------------------- the model
-
-def location_statistics(error_m: np.ndarray, set_id: np.ndarray, location: np.ndarray) -> pd.DataFrame:
-    """Per location and set: count, mean and sample standard deviation of the fix errors.
-
-    Parameters
-    ----------
-    error_m
-        Fix minus true position, shape ``(N, 2)``, metres.
-    set_id
-        Set of each fix, shape ``(N,)``.
-    location
-        Calibration location label of each fix, shape ``(N,)``.
-
-    Returns
-    -------
-    DataFrame
-        ``location, set_id, n, mu_x_m, mu_y_m, sigma_x_m, sigma_y_m`` (σ with ``ddof=1``,
-        NaN for a single measurement), sorted by location then decreasing ``n``.
-    """
-    error_m = np.asarray(error_m, float)
-    set_id = np.asarray(set_id, np.int64)
-    location = np.asarray(location)
-    if error_m.ndim != 2 or error_m.shape[1] != 2 or set_id.shape != (error_m.shape[0],) \
-            or location.shape != set_id.shape:
-        raise ValueError(f"need error_m (N, 2), set_id (N,), location (N,); got {error_m.shape}, "
-                         f"{set_id.shape}, {location.shape}")
-    if not np.all(np.isfinite(error_m)):
-        raise ValueError("error_m contains non-finite values")
-    df = pd.DataFrame({"location": location, "set_id": set_id, "ex": error_m[:, 0], "ey": error_m[:, 1]})
-    g = df.groupby(["location", "set_id"], sort=True)
-    out = pd.DataFrame({"n": g.size(), "mu_x_m": g["ex"].mean(), "mu_y_m": g["ey"].mean(),
-                        "sigma_x_m": g["ex"].std(ddof=1), "sigma_y_m": g["ey"].std(ddof=1)}).reset_index()
-    out = out.sort_values(["location", "n", "set_id"], ascending=[True, False, True], kind="stable")
-    return out.reset_index(drop=True)
-
 
 @dataclass(frozen=True, eq=False)
 class SetNoiseModel:
@@ -227,108 +189,6 @@ class SetNoiseModel:
         return np.asarray(pos_m, float) + mu + sd * rng.standard_normal(mu.shape)
 
     # ------------------------------------------------------------------ fit
-    @classmethod
-    def fit(cls, error_m: np.ndarray, set_id: np.ndarray, location: np.ndarray, *,
-            min_count: int = MIN_COUNT, sigma_rule: str = "paper", min_sigma_m: float = 1e-3,
-            sensor_ids=None) -> "SetNoiseModel":
-        """Calibrate from fixes at known locations (paper section II-B2).
-
-        Rules, in the paper's words and order:
-
-        1. at each location, ``(μx, μy, σx, σy)`` of every set with at least
-           ``min_count`` (30) measurements there; sets below the gate get no model
-           at that location;
-        2. each set's parameters are averaged across locations, weighted by the
-           number of its measurements at each location;
-        3. a facility-wide model — mean and standard deviation of all calibration
-           errors — serves every set that has no model.
-
-        Rule 2 applied to σ (``sigma_rule="paper"``) keeps only the spread *within*
-        locations: when a set's bias changes from place to place (multipath,
-        geometry), the model is overconfident away from the calibration spots.
-        ``sigma_rule="pooled"`` instead uses the law of total variance over the gated
-        locations, ``σ² = Σ n_l (σ_l² + (μ_l − μ)²) / Σ n_l`` — the spread of the set's
-        error when the location is not known (μ is the same weighted mean).
-
-        Parameters
-        ----------
-        error_m
-            Fix minus true position, shape ``(N, 2)``, metres.
-        set_id
-            Set of each fix, shape ``(N,)``.
-        location
-            Calibration location of each fix, shape ``(N,)`` (any hashable labels).
-        min_count
-            The per-location gate (must be ≥ 2 so that σ exists).
-        min_sigma_m
-            Floor on every fitted σ (quantised fixes can repeat exactly, and a zero σ
-            would make eq. 9 infinite); ``meta["n_sigma_floored"]`` counts the raised values.
-        sigma_rule
-            ``"paper"`` (count-weighted average of σ) or ``"pooled"`` (see above).
-        sensor_ids
-            Sensor names for labels; defaults to ``'0'..'7'`` (or as many as the ids need).
-
-        Returns
-        -------
-        SetNoiseModel
-            With ``meta["per_location"]``, the table of rule 1 (all sets, gate flag included).
-        """
-        if sigma_rule not in ("paper", "pooled"):
-            raise ValueError(f"sigma_rule must be 'paper' or 'pooled', got {sigma_rule!r}")
-        if min_count < 2:
-            raise ValueError(f"min_count must be >= 2 (a standard deviation needs two samples), got {min_count}")
-        stats = location_statistics(error_m, set_id, location)
-        stats["gated_in"] = stats["n"] >= min_count
-        kept = stats[stats["gated_in"]]
-        w = kept["n"].to_numpy(float)
-        grp = kept.groupby("set_id", sort=True)
-        cols = ["mu_x_m", "mu_y_m", "sigma_x_m", "sigma_y_m"]
-        weighted = kept[cols].mul(w, axis=0).groupby(kept["set_id"], sort=True).sum()
-        n_set = grp["n"].sum()
-        avg = weighted.div(n_set.astype(float), axis=0)
-        err = np.asarray(error_m, float)
-        if err.shape[0] < 2:
-            raise ValueError("the facility-wide model needs at least two calibration measurements")
-        if sensor_ids is None:
-            top = int(np.max(np.asarray(set_id, np.int64))).bit_length()
-            sensor_ids = tuple(str(i) for i in range(max(8, top)))
-        sigma = avg[["sigma_x_m", "sigma_y_m"]].to_numpy(float)
-        if sigma_rule == "pooled":
-            mean_of_set = avg.loc[kept["set_id"], ["mu_x_m", "mu_y_m"]].to_numpy()
-            spread = kept[["sigma_x_m", "sigma_y_m"]].to_numpy() ** 2 \
-                + (kept[["mu_x_m", "mu_y_m"]].to_numpy() - mean_of_set) ** 2
-            var = pd.DataFrame(spread * w[:, None]).groupby(kept["set_id"].to_numpy(), sort=True).sum()
-            sigma = np.sqrt(var.to_numpy() / n_set.to_numpy(float)[:, None])
-        default_sigma = err.std(axis=0, ddof=1)
-        n_floored = int(np.sum(sigma < min_sigma_m) + np.sum(default_sigma < min_sigma_m))
-        return cls(set_id=avg.index.to_numpy(np.int64),
-                   mu_m=avg[["mu_x_m", "mu_y_m"]].to_numpy(float),
-                   sigma_m=np.maximum(sigma, min_sigma_m),
-                   n=n_set.to_numpy(np.int64),
-                   default_mu_m=err.mean(axis=0), default_sigma_m=np.maximum(default_sigma, min_sigma_m),
-                   default_n=err.shape[0], sensor_ids=sensor_ids,
-                   meta={"per_location": stats, "min_count": min_count, "sigma_rule": sigma_rule,
-                         "min_sigma_m": min_sigma_m, "n_sigma_floored": n_floored})
-
-    @classmethod
-    def from_fixes(cls, logs, *, min_count: int = MIN_COUNT, sigma_rule: str = "paper") -> "SetNoiseModel":
-        """:meth:`fit` on calibration logs, one :class:`SetFixLog` (with truth) per location.
-
-        The logs' names label the locations, so they must be distinct.
-        """
-        logs = list(logs)
-        if not logs:
-            raise ValueError("no calibration logs")
-        names = [log.name for log in logs]
-        if len(set(names)) != len(names):
-            raise ValueError(f"calibration logs need distinct names (they label the locations), got {names}")
-        ids = logs[0].sensor_ids
-        if any(log.sensor_ids != ids for log in logs):
-            raise ValueError("calibration logs use different sensors")
-        return cls.fit(np.concatenate([log.error_m for log in logs]), np.concatenate([log.set_id for log in logs]),
-                       np.repeat(np.array(names, dtype=object), [len(log) for log in logs]),
-                       min_count=min_count, sigma_rule=sigma_rule, sensor_ids=ids)
-
     # ------------------------------------------------------------------ tables
     def to_frame(self) -> pd.DataFrame:
         """One row per modelled set plus a last row ``label='default'`` for the facility-wide model.

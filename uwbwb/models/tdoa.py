@@ -36,10 +36,7 @@ import numpy as np
 
 from ..types import TagRun
 
-__all__ = ["TdoaModel", "range_sigma_from_truth", "empirical_tdoa_covariance", "triangle_outliers"]
-
-_MAD_TO_SIGMA = 1.4826
-
+__all__ = ["TdoaModel", "triangle_outliers"]
 
 
 @dataclass(frozen=True)
@@ -179,52 +176,6 @@ class TdoaModel:
         h = r[others] - r[ref]
         H = u[others] - u[ref]
         return z, h, H, self.covariance(others, ref), others
-
-
-def range_sigma_from_truth(range_m: np.ndarray, true_range_m: np.ndarray, *, robust: bool = True) -> np.ndarray:
-    """Per-anchor range-noise standard deviation from measurements with known truth.
-
-    Parameters
-    ----------
-    range_m, true_range_m
-        Measured and true ranges, shape ``(T, n_anchors)``, metres (NaN = missing).
-    robust
-        True: ``1.4826 · MAD`` of the residuals around their median (the spread,
-        insensitive to NLOS outliers and to a constant bias). False: the RMS of
-        the residuals (bias and outliers included: the total error a filter sees
-        if nothing corrects them).
-
-    Returns
-    -------
-    ndarray, shape ``(n_anchors,)``, metres
-    """
-    res = np.asarray(range_m, float) - np.asarray(true_range_m, float)
-    if res.ndim != 2:
-        raise ValueError(f"range_sigma_from_truth: need (T, n_anchors) arrays, got shape {res.shape}")
-    n_ok = np.isfinite(res).sum(axis=0)
-    if np.any(n_ok < 2):
-        bad = np.flatnonzero(n_ok < 2).tolist()
-        raise ValueError(f"range_sigma_from_truth: anchors {bad} have fewer than two residuals")
-    if robust:
-        med = np.nanmedian(res, axis=0)
-        return _MAD_TO_SIGMA * np.nanmedian(np.abs(res - med), axis=0)
-    return np.sqrt(np.nanmean(res ** 2, axis=0))
-
-
-def empirical_tdoa_covariance(tdoa_m: np.ndarray, true_tdoa_m: np.ndarray, ref: int) -> np.ndarray:
-    """Sample covariance of TDoA errors for a fixed reference, shape ``(n_anchors − 1, n_anchors − 1)``.
-
-    Uses the epochs where all anchors and the reference ``ref`` were measured
-    (``tdoa_m[:, ref] == 0``); rows and columns are the anchors other than
-    ``ref`` in index order. Compare with :meth:`TdoaModel.covariance`.
-    """
-    d = np.asarray(tdoa_m, float)
-    e = d - np.asarray(true_tdoa_m, float)
-    full = np.all(np.isfinite(e), axis=1) & (d[:, ref] == 0.0)
-    if full.sum() < d.shape[1] + 1:
-        raise ValueError(f"empirical_tdoa_covariance: only {int(full.sum())} complete epochs with reference {ref}")
-    others = np.delete(np.arange(d.shape[1]), ref)
-    return np.cov(e[full][:, others], rowvar=False)
 
 
 def triangle_outliers(tdoa_m: np.ndarray, ref, anchor_pos_m: np.ndarray, c_m: float) -> np.ndarray:

@@ -32,12 +32,12 @@ from typing import Mapping, Protocol, Sequence, runtime_checkable
 import numpy as np
 
 from .. import bounds, geometry, metrics
+from ..calibration import fit_set_noise_from_fixes
 from ..filters.ekf import TdoaEkf
 from ..filters.nls import fit_trajectory
 from ..filters.setnoise import model_noise, run_set_noise_kf, run_set_noise_pf
 from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import VelocityKick, make_motion_model
-from ..models.setnoise import SetNoiseModel
 from ..models.tdoa import TdoaModel
 from ..sim.setnoise import select_sets
 from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples, Recording, SetFixLog, TdoaLog, set_id_from_mask
@@ -332,7 +332,7 @@ class SetNoiseFilter(BaseEstimator):
         if self.kind != "KF":
             return {}                                 # the PF takes the KF's tuning (see estimate)
         fixes = [self._fixes(rec, t, cal, truth=True)[0] for t in tags]
-        model = SetNoiseModel.from_fixes(fixes)
+        model = fit_set_noise_from_fixes(fixes)
         cost = []
         for s in SIGMA_D_GRID_MPS:
             errs = []

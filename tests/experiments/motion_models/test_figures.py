@@ -2,6 +2,7 @@ import matplotlib
 import numpy as np
 import pandas as pd
 
+from uwbwb.calibration import fit_range_sigma
 from uwbwb.experiments import motion_models as mm
 from uwbwb.sim import walk
 
@@ -36,7 +37,7 @@ def test_ranging_summary_and_covariance_figure(los_run):
     table = mm.ranging_summary(runs, truth)
     assert table.loc[("office", "tag2"), "NLOS links (%)"] > table.loc[("office", "tag1"), "NLOS links (%)"]
     assert abs(table.loc[("office", "tag1"), "LOS error mean (cm)"]) < 2
-    emp, mod = mm.tdoa_noise_check(los_run, mm.fit_range_sigma(los_run))
+    emp, mod = mm.tdoa_noise_check(los_run, fit_range_sigma(los_run))
     fig = mm.covariance_figure(emp, mod, list("BCDEF"), title="x")
     assert len(fig.axes) == 3
     plt.close(fig)

@@ -4,6 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from uwbwb.calibration import fit_range_sigma
 from uwbwb.experiments import motion_models as mm
 from uwbwb.sim import walk
 from uwbwb.types import Anchors, RangeLog, TagRun, Trajectory
@@ -46,7 +47,7 @@ def test_tag_runs_thinning_window_height_and_validation(office_runs):
 def test_true_ranges_and_sigma_fit_on_los_data(los_run):
     r = los_run.ranges.range_m - los_run.true_range_m()
     assert abs(np.nanmean(r)) < 0.01
-    sig = mm.fit_range_sigma(los_run)
+    sig = fit_range_sigma(los_run)
     np.testing.assert_allclose(sig, 0.05, rtol=0.15)
     empirical, model = mm.tdoa_noise_check(los_run, sig, ref=2)
     assert empirical.shape == model.shape == (5, 5)
@@ -66,7 +67,7 @@ def test_raw_multilateration_is_exact_on_exact_ranges():
 
 def test_estimate_calibrate_and_tables(office_runs):
     cal, test = office_runs
-    sig = {r.key: mm.fit_range_sigma(r) for r in cal}
+    sig = {r.key: fit_range_sigma(r) for r in cal}
     grids = {"RW": [0.1, 1.0], "RF": [1.0], "RJ": [1.0, 10.0]}
     curves = mm.calibration_curves(cal, sig, grids=grids, gate_prob=None, progress=False)
     assert len(curves) == 2 * 5
@@ -114,12 +115,12 @@ def test_sigma_fit_methods_and_common_mode(los_run):
     # a range error common to all anchors cancels in every TDoA: the 'tdoa' fit ignores it, 'rms' does not
     shifted = replace(los_run, ranges=RangeLog(los_run.ranges.t_s, los_run.ranges.range_m + 0.4,
                                                los_run.ranges.anchor_ids, los_run.tag))
-    np.testing.assert_allclose(mm.fit_range_sigma(shifted), mm.fit_range_sigma(los_run), atol=1e-9)
-    assert np.all(mm.fit_range_sigma(shifted, method="rms") > 0.35)
-    np.testing.assert_allclose(mm.fit_range_sigma(shifted, method="robust"), 0.05, rtol=0.15)
-    assert np.all(mm.fit_range_sigma(los_run, floor_m=0.2) == 0.2)
+    np.testing.assert_allclose(fit_range_sigma(shifted), fit_range_sigma(los_run), atol=1e-9)
+    assert np.all(fit_range_sigma(shifted, method="rms") > 0.35)
+    np.testing.assert_allclose(fit_range_sigma(shifted, method="robust"), 0.05, rtol=0.15)
+    assert np.all(fit_range_sigma(los_run, floor_m=0.2) == 0.2)
     with pytest.raises(ValueError, match="method"):
-        mm.fit_range_sigma(los_run, method="mad")
+        fit_range_sigma(los_run, method="mad")
 
 
 def test_split_runs_and_study(office_runs):
@@ -156,7 +157,7 @@ def _outage(run, t0_s, t1_s, keep=2):
 def test_scoring_on_common_epochs_with_coverage_beside(office_runs):
     cal, test = office_runs
     run = _outage(test[0], 10.0, 14.0)
-    est = mm.estimate(run, mm.fit_range_sigma(cal[0]), {"RW": 1.0, "RF": 3.0, "RJ": 10.0}, gate_prob=None)
+    est = mm.estimate(run, fit_range_sigma(cal[0]), {"RW": 1.0, "RF": 3.0, "RJ": 10.0}, gate_prob=None)
     cov = est.coverage()
     assert cov["EKF-RW"] > cov["LS"] + 0.1 and cov["common"] == pytest.approx(cov["LS"], abs=0.01)
     t = est.common_t_s()
@@ -172,14 +173,14 @@ def test_scoring_on_common_epochs_with_coverage_beside(office_runs):
     table = mm.coverage_table([est])
     assert table.loc[("office", "tag1"), "LS"] == pytest.approx(100 * cov["LS"])
     with pytest.raises(ValueError, match="no epoch where every estimator"):
-        mm.estimate(_outage(test[0], -1.0, 1e9), mm.fit_range_sigma(cal[0]), {"RW": 1.0}, gate_prob=None,
+        mm.estimate(_outage(test[0], -1.0, 1e9), fit_range_sigma(cal[0]), {"RW": 1.0}, gate_prob=None,
                     models=("RW",)).cep95()
 
 
 def test_nis_verdict_follows_the_noise_level(los_run):
     # pure LOS noise: with the fitted σ the filter is near consistent; with σ × 3 it is under-confident and
     # with σ / 3 over-confident (the χ² interval for ~1500 innovations is about ±7 % around 1)
-    sig = mm.fit_range_sigma(los_run)
+    sig = fit_range_sigma(los_run)
     verdict = {}
     for k in (1 / 3, 1.0, 3.0):
         est = mm.estimate(los_run, sig * k, {"RW": 1.0}, gate_prob=None, models=("RW",))
@@ -191,7 +192,7 @@ def test_nis_verdict_follows_the_noise_level(los_run):
 
 def test_summary_rows_say_their_kind(office_runs):
     cal, test = office_runs
-    est = mm.estimate(test[0], mm.fit_range_sigma(cal[0]), {"RW": 1.0, "RF": 3.0, "RJ": 10.0}, gate_prob=None)
+    est = mm.estimate(test[0], fit_range_sigma(cal[0]), {"RW": 1.0, "RF": 3.0, "RJ": 10.0}, gate_prob=None)
     rows = mm.summary_rows([est], data="synthetic", paper=True)
     by_q = {r["quantity"]: r for r in rows}
     assert by_q["CEP95 office tag1 EKF-RW"]["paper_value"] == 0.41

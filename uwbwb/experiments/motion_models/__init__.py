@@ -9,7 +9,7 @@ from .discussion import TIE_M, discussion_markdown
 from .figures import calibration_figure, cdf_figure, covariance_figure, paths_figure, scenario_figure
 from .study import (DEFAULT_GRIDS, METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95,
                     PAPER_SIGMA, SIGMA_KIND, Study, TagResults, best_sigmas, calibration_curves,
-                    cep95_table, coverage_table, ekf_name, estimate, fit_range_sigma, nis_table, paper_table,
+                    cep95_table, coverage_table, ekf_name, estimate, nis_table, paper_table,
                     ranging_summary, ranking, raw_multilateration, record, run_ekf, run_study, sigma_rows,
                     split_runs, summary_rows, synthetic_acquisition, tag_runs, tdoa_noise_check)
 
@@ -17,7 +17,7 @@ __all__ = [
     "DEFAULT_GRIDS", "METHODS", "MODELS", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95",
     "PAPER_SIGMA", "SIGMA_KIND", "Study", "TagResults", "TIE_M", "best_sigmas",
     "calibration_curves", "calibration_figure", "cdf_figure", "cep95_table", "covariance_figure", "coverage_table",
-    "discussion_markdown", "ekf_name", "estimate", "fit_range_sigma", "nis_table", "paper_table", "paths_figure",
+    "discussion_markdown", "ekf_name", "estimate", "nis_table", "paper_table", "paths_figure",
     "ranging_summary", "ranking", "raw_multilateration", "record", "run_ekf", "run_study", "scenario_figure",
     "sigma_rows", "split_runs", "summary_rows", "synthetic_acquisition", "tag_runs", "tdoa_noise_check",
 ]

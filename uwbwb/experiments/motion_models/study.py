@@ -10,7 +10,7 @@ The pipeline for one tag of one recording (:class:`~uwbwb.types.TagRun`):
 
 1. ranges → pseudo-TDoA to a reference anchor (:class:`~uwbwb.types.TdoaLog`);
 2. range-noise level per anchor from a *calibration* run with truth
-   (:func:`fit_range_sigma`; by default the part of the range error that does
+   (:func:`uwbwb.calibration.fit_range_sigma`; by default the part of the range error that does
    not cancel in a TDoA) → TDoA covariance ``Σ = diag(σ_j²) + σ_ref² 11ᵀ``;
 3. driving-noise calibration: CEP95 of each EKF over a grid of driving
    standard deviations on the calibration run (:func:`calibration_curves`),
@@ -39,16 +39,17 @@ import numpy as np
 import pandas as pd
 
 from ... import geometry, metrics
+from ...calibration import empirical_tdoa_covariance, fit_range_sigma
 from ...filters.ekf import KalmanRun, TdoaEkf
 from ...filters.tdoa_ls import TdoaLsResult, tdoa_least_squares
 from ...models.motion import MOTION_MODELS, make_motion_model
-from ...models.tdoa import TdoaModel, empirical_tdoa_covariance, range_sigma_from_truth
+from ...models.tdoa import TdoaModel
 from ...sim import walk
 from ...types import Recording, TagRun, TdoaLog, Trajectory
 
 __all__ = [
     "MODELS", "METHODS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "DEFAULT_GRIDS",
-    "TagResults", "tag_runs", "synthetic_acquisition", "fit_range_sigma",
+    "TagResults", "tag_runs", "synthetic_acquisition",
     "raw_multilateration", "ranging_summary", "estimate", "calibration_curves", "best_sigmas", "cep95_table",
     "coverage_table", "nis_table", "ranking", "paper_table", "split_runs", "Study", "run_study",
     "tdoa_noise_check", "ekf_name", "run_ekf", "SIGMA_KIND", "summary_rows", "sigma_rows", "record",
@@ -199,41 +200,6 @@ def ranging_summary(runs: Sequence[TagRun], truth: walk.WalkTruth) -> pd.DataFra
                      "NLOS error mean (cm)": 100 * err[ok & nlos].mean() if (ok & nlos).any() else np.nan,
                      "missing ranges (%)": 100 * (~ok).mean()})
     return pd.DataFrame(rows).set_index(["run", "tag"])
-
-
-def fit_range_sigma(run: TagRun, *, method: str = "tdoa", floor_m: float = 0.02) -> np.ndarray:
-    """Range-noise standard deviation per anchor from a run with truth, ``(n_anchors,)``, metres.
-
-    The thesis builds its TDoA covariance from the measurement errors of its
-    acquisitions; three readings of that are offered:
-
-    ``"tdoa"`` (default)
-        RMS of the range errors after removing, at every epoch, their mean over
-        the anchors measured (× ``sqrt(n/(n−1))`` to undo the shrinkage for
-        independent errors). A range error common to all anchors cancels in
-        every TDoA, so this is the part of the error the TDoA filter sees; the
-        rest (per-anchor biases, NLOS excursions) stays in.
-    ``"rms"``
-        RMS of the range errors themselves (common part included).
-    ``"robust"``
-        1.4826·MAD around the median (spread only, biases and outliers excluded).
-
-    Values are floored at ``floor_m`` (range resolution, unmodelled effects).
-    """
-    err = run.ranges.range_m - run.true_range_m()
-    if method == "tdoa":
-        ok = np.isfinite(err)
-        n = ok.sum(axis=1, keepdims=True)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            common = np.where(n >= 2, np.nansum(np.where(ok, err, 0.0), axis=1, keepdims=True) / n, np.nan)
-            shrink = np.where(n >= 2, n / np.maximum(n - 1, 1), np.nan)
-        centred = (err - common) * np.sqrt(shrink)
-        sig = range_sigma_from_truth(centred, np.zeros_like(centred), robust=False)
-    elif method in ("rms", "robust"):
-        sig = range_sigma_from_truth(run.ranges.range_m, run.true_range_m(), robust=method == "robust")
-    else:
-        raise ValueError(f"method must be 'tdoa', 'rms' or 'robust', got {method!r}")
-    return np.maximum(sig, floor_m)
 
 
 def raw_multilateration(run: TagRun, *, sigma_m=None, name: str = "raw") -> Trajectory:

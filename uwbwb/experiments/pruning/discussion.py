@@ -82,7 +82,7 @@ def discussion_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
     lias_dynamic_epochs
         ``{ranges: (epoch_summary, run_coverage)}`` of the dynamic run.
     hanyang
-        :func:`~.study.percentile_by_file` of the Hanyang static files.
+        :func:`uwbwb.calibration.percentile_by_file` of the Hanyang static files.
     """
     f: dict = {"dim": synthetic_dim}
     med = synthetic["stop_median_m"].dropna()

@@ -206,7 +206,7 @@ def plot_hanyang(samples: pd.DataFrame, pct: pd.DataFrame, axes=None, *, q: floa
     samples
         Tidy samples with ``condition, range_error_m`` (:func:`uwbwb.datasets.hanyang.load_static`).
     pct
-        :func:`~uwbwb.experiments.pruning.study.percentile_by_file` of the same samples (may be empty).
+        :func:`uwbwb.calibration.percentile_by_file` of the same samples (may be empty).
     axes
         Three Axes (default: a new 1 × 3 figure).
 

@@ -13,7 +13,7 @@ Everything the notebook computes, grouped by data:
   each site out; :func:`range_error_stats` describes the ranges (bias, long outliers).
 * **LIAS dynamic run**: :func:`straight_segments` cuts the motion-capture track into
   constant-velocity pieces; :func:`run_dynamic_segments` fits ``(P0, v)`` per piece.
-* **Hanyang static**: :func:`percentile_by_file` -- where the 5th percentile of a
+* **Hanyang static**: :func:`uwbwb.calibration.percentile_by_file` -- where the 5th percentile of a
   stationary range sample lands relative to the true range, LOS vs NLOS.
 
 Every estimator of one comparison gets the same geometry (node height known, or not
@@ -40,7 +40,7 @@ __all__ = [
     "ESTIMATORS", "LABELS", "MIN_SEGMENT_RANGES", "POINT", "PAPER_RANKING", "DynamicResult", "StaticResult",
     "SyntheticConfig",
     "SyntheticResult", "TourExplorer", "PieceExplorer", "epoch_summary", "hanyang_table",
-    "headline_rows", "heuristic_summary", "loso_calibrations", "outlier_free_control", "percentile_by_file",
+    "headline_rows", "heuristic_summary", "loso_calibrations", "outlier_free_control",
     "point_fixes",
     "range_error_stats", "rank_heuristics", "run_dynamic_segments", "run_recordings", "run_static_poses",
     "run_synthetic", "run_tour", "segment_ranges", "sensitivity", "straight_segments", "wins_table",
@@ -770,42 +770,6 @@ def run_dynamic_segments(rec: Recording, segments: pd.DataFrame, *, heights_m: d
 
 
 # =========================================================================== Hanyang
-
-
-def percentile_by_file(samples: pd.DataFrame, q: float = 5.0, min_samples: int = 20) -> pd.DataFrame:
-    """Where the ``q``-th percentile of each static file's ranges lands, vs the true range.
-
-    Parameters
-    ----------
-    samples
-        Tidy samples with ``condition, height_m, true_range_m, range_m, file``
-        (:func:`uwbwb.datasets.hanyang.load_static`).
-    q
-        Percentile.
-    min_samples
-        Files with fewer samples are left out (counted in ``attrs["n_skipped"]``):
-        a 5th percentile of fewer than 20 samples is the minimum.
-
-    Returns
-    -------
-    pandas.DataFrame
-        One row per file: ``condition, height_m, true_range_m, n, median_err_m,
-        pq_err_m`` (percentile minus true range), ``iqr_m``, ``frac_over_1m``
-        (fraction of samples more than 1 m long). Possibly empty.
-    """
-    need = {"condition", "height_m", "true_range_m", "range_m", "file"}
-    if need - set(samples.columns):
-        raise ValueError(f"samples lack columns {sorted(need - set(samples.columns))}")
-    err = samples["range_m"] - samples["true_range_m"]
-    g = samples.assign(err=err).groupby(["file", "condition", "height_m", "true_range_m"], sort=False)["err"]
-    out = pd.DataFrame({"n": g.size(), "median_err_m": g.median(), "pq_err_m": g.quantile(q / 100.0),
-                        "iqr_m": g.quantile(0.75) - g.quantile(0.25),
-                        "frac_over_1m": g.apply(lambda e: float(np.mean(e > 1.0)))}).reset_index()
-    keep = out["n"] >= min_samples
-    out = out[keep].reset_index(drop=True)
-    out.attrs["n_skipped"] = int((~keep).sum())
-    out.attrs["q"] = q
-    return out
 
 
 def hanyang_table(pct: pd.DataFrame) -> pd.DataFrame:

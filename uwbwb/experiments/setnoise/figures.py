@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 
 from ... import plotting
-from ...models.setnoise import location_statistics
+from ...calibration import location_statistics
 from ...types import SetFixLog
 from ...sim import setnoise as sim
 from .study import BAND_MPS, BASE_KF, BASE_PF, FILTERS, RAW, SET_KF, SET_KF_POOLED, SET_PF, set_shares

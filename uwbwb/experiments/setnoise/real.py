@@ -17,7 +17,8 @@ import numpy as np
 import pandas as pd
 
 from ... import geometry
-from ...calibration import MountHeight, RangeCalibration, fit_range_calibration, tag_mount_height
+from ...calibration import (MountHeight, RangeCalibration, fit_range_calibration, fit_set_noise_from_fixes,
+                           tag_mount_height)
 from ...datasets.standin import RoomData, load_lias_room
 from ...models.setnoise import SetNoiseModel
 from ...sim import rig
@@ -175,8 +176,8 @@ def real_study(inputs: RoomData, emulation: Emulation = Emulation(), *, range_ca
                                        calibration=cal, name=f"{rec.name}/{tag}")
             logs.append(fixes)
             rows.append({"recording": rec.name, "tag": tag, "role": "calibration", **rep})
-    model = SetNoiseModel.from_fixes(logs)
-    pooled = SetNoiseModel.from_fixes(logs, sigma_rule="pooled")
+    model = fit_set_noise_from_fixes(logs)
+    pooled = fit_set_noise_from_fixes(logs, sigma_rule="pooled")
     tests = []
     for tag in tags:
         fixes, rep = emulate_fixes(inputs.dynamic, tag, emulation, tag_height_m=height.per_tag_m[tag], rng=rng,

@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
+from ...calibration import fit_set_noise_from_fixes
 from ...filters import setnoise as filt
 from ...models.setnoise import SetNoiseModel
 from ...types import SetFixLog
@@ -109,7 +110,7 @@ class SyntheticStudy:
     """The simulated facility with its calibration campaign, models and Table I recordings.
 
     ``model`` follows the paper's calibration rules; ``pooled`` differs only in σ
-    (``sigma_rule="pooled"``, see :meth:`~uwbwb.models.setnoise.SetNoiseModel.fit`).
+    (``sigma_rule="pooled"``, see :func:`uwbwb.calibration.fit_set_noise`).
     ``recordings`` run along the paper's track, which passes through the Fig. 3
     calibration location; ``off_recordings`` are the same five speeds on a track
     away from every calibration location (:data:`OFF_TRACK_XY_M`), drawn after the
@@ -148,8 +149,8 @@ def synthetic_study(config: sim.FacilityConfig = sim.FacilityConfig(), *, rng: n
     """
     facility = sim.make_facility(config, rng=rng)
     calibration = tuple(sim.calibration_campaign(facility, rng=rng))
-    model = SetNoiseModel.from_fixes(calibration)
-    pooled = SetNoiseModel.from_fixes(calibration, sigma_rule="pooled")
+    model = fit_set_noise_from_fixes(calibration)
+    pooled = fit_set_noise_from_fixes(calibration, sigma_rule="pooled")
     recordings = tuple(sim.table1_recordings(facility, rng=rng))
     off = ()
     if off_track_xy_m is not None:
