@@ -257,3 +257,17 @@ def test_typed_reader_agrees_with_the_field_by_field_reader(tmp_path, seed, monk
     monkeypatch.undo()
     with pytest.raises(DataFormatError, match="line 11"):
         tidy.read_ranges_csv(paths["ranges"])
+
+
+@pytest.mark.parametrize("line, problem", [
+    ("0.1,A1,2.5,", "4 fields, the header has 3"),            # an empty extra field
+    ('0.1,"A1,x",2.5', "4 fields, the header has 3"),         # quotes are not quoting: a comma splits
+    ('0.1,"A1",2.5', "anchor '\"A1\"' is not in the anchors file"),
+    ("0.1\r0.2,A1,2.5", "is not a finite number"),           # a lone CR is not a line end
+])
+def test_typed_reader_is_exactly_as_strict_as_the_format(tmp_path, line, problem):
+    path = _write(tmp_path, "ranges.csv", "t_s,anchor_id,range_m\n0,A1,2.5\n" + line + "\n")
+    anchors = tidy.read_anchors_csv(_write(tmp_path, "a.csv", ANCHORS))
+    with pytest.raises(DataFormatError, match=re.escape(problem)) as exc:
+        tidy.read_ranges_csv(path, anchors)
+    assert exc.value.line == 3

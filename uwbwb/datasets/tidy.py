@@ -85,6 +85,7 @@ field, which finds and reports the offending line.
 
 from __future__ import annotations
 
+import csv
 import io
 import math
 import os
@@ -325,11 +326,11 @@ def _fast_table(path: PathLike, data: bytes, start: int, header: tuple[str, ...]
         frame = pd.read_csv(io.BufferedReader(_Tail(data, start)), header=None, names=names, dtype=dtype,
                             engine="c", encoding="utf-8", keep_default_na=False,
                             na_values={c: [""] for c in empty_ok}, skipinitialspace=True, skip_blank_lines=True,
-                            comment="#", index_col=False)
+                            comment="#", index_col=False, quoting=csv.QUOTE_NONE)
     except (ValueError, pd.errors.ParserError):
         return None
-    if len(frame) == 0 or (frame["__extra__"].cat.categories != "").any():
-        return None   # no data, or a line with more fields than the header
+    if len(frame) == 0 or data.count(b",", start) != len(frame) * (len(header) - 1):
+        return None   # no data, or lines with other field counts (or commas in comments): read field by field
     floats = {}
     for c in numeric:
         v = frame[c].to_numpy(float)
