@@ -146,30 +146,37 @@ def order_rows(path: str | os.PathLike, t: np.ndarray, line_no: np.ndarray, *, w
         raise DataFormatError(path, f"{what} time goes back from {_show(t[i - 1])} (line {line_no[i - 1]}) to {_show(t[i])}; "
                                     f"files of this format are written in time order, so it looks spliced or corrupt",
                               line=int(line_no[i]))
-    order = np.argsort(t, kind="stable") if back.size else np.arange(n)
-    moved = order != np.arange(n)
-    if moved.any():
+    if back.size:
+        order = np.argsort(t, kind="stable")
+        moved = order != np.arange(n)
         steps.append(CleaningStep("rows sorted by time", int(moved.sum()),
                                   f"{name}: {what} rows out of time order, sorted (first lines "
                                   f"{lines_text(np.sort(line_no[moved]))})"))
-    # repeats: equal (t, key) pairs; grouped with a stable sort so that the first occurrence is kept
-    ts = t[order]
+        del moved
+        ts = t[order]
+    else:
+        order, ts = np.arange(n), t            # already in order: no copies
     if repeats == "keep":
         return order, steps
+    # repeats: rows with equal (t, key). Time is sorted, so they lie within runs of equal time; with a key
+    # the rows are grouped by (run, key) with a stable sort so that the first occurrence is kept.
     if key is None:
-        group = np.arange(n)
+        group = None
+        rep = np.flatnonzero(ts[1:] == ts[:-1]) + 1
     else:
-        ks = np.asarray(key)[order]
-        group = np.lexsort((ks, ts))      # stable: equal (t, key) keep their time-sorted order
-    gt = ts[group]
-    repeat_g = np.zeros(n, bool)
-    repeat_g[1:] = gt[1:] == gt[:-1]
-    if key is not None:
-        gk = ks[group]
-        repeat_g[1:] &= gk[1:] == gk[:-1]
-    if repeat_g.any():
-        rep = np.flatnonzero(repeat_g)
-        later, earlier = order[group[rep]], order[group[rep - 1]]   # indices into the input rows
+        ks = np.asarray(key, np.int64)
+        ks = ks[order] if back.size else ks
+        run = np.zeros(n, np.int64)
+        np.cumsum(ts[1:] != ts[:-1], out=run[1:])
+        combined = run * (int(ks.max()) + 1 if n else 1) + (ks - int(ks.min()) if n else ks)
+        del run
+        group = np.argsort(combined, kind="stable")
+        combined = combined[group]
+        rep = np.flatnonzero(combined[1:] == combined[:-1]) + 1
+        del combined
+    if rep.size:
+        pos_later, pos_earlier = (rep, rep - 1) if group is None else (group[rep], group[rep - 1])
+        later, earlier = order[pos_later], order[pos_earlier]   # indices into the input rows
         if repeats == "error":
             raise DataFormatError(path, f"repeated {what} time {_show(t[later[0]])} (first on line {line_no[earlier[0]]})",
                                   line=int(line_no[later[0]]))
@@ -185,7 +192,7 @@ def order_rows(path: str | os.PathLike, t: np.ndarray, line_no: np.ndarray, *, w
         steps.append(CleaningStep("repeated rows dropped", int(rep.size),
                                   f"{name}: {what} {detail} dropped (lines {lines_text(np.sort(line_no[later]))})"))
         drop = np.zeros(n, bool)
-        drop[group[rep]] = True
+        drop[pos_later] = True
         order = order[~drop]
     return order, steps
 
