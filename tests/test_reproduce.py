@@ -273,3 +273,20 @@ def test_summary_markdown_formats_values():
     md = rp.summary_markdown([rp.NotebookRun(**{**run.__dict__, "rows": (row, fast)})])
     assert "| nb | CEP50 | 0.1235 (FAST) | m | 0.1 | target | FAST | sim |" in md
     assert md.index("**FAST mode.** 1 of 2 rows come from FAST runs (nb)") < md.index("## Headline numbers")
+
+
+def test_reproduce_says_which_notebooks_get_a_parameter_only_some_declare(tmp_path, monkeypatch):
+    _notebook(tmp_path / "01_a.ipynb", GOOD_PARAMS, "")
+    _notebook(tmp_path / "02_b.ipynb", "FAST = False\nSUMMARY_PATH = None\nTOURS = (1, 2)\n", "")
+    received, lines = {}, []
+
+    def fake_run(source, out_dir, parameters, **kwargs):
+        received[source.stem] = dict(parameters)
+        return rp.NotebookRun(notebook=source.stem, source=source, executed=out_dir / "x.ipynb", html=None,
+                              summary=out_dir / "x.json", seconds=0.0, error=None)
+
+    monkeypatch.setattr(rp, "run_notebook", fake_run)
+    rp.reproduce(notebooks_dir=tmp_path, out=tmp_path / "out", quick=True, text_parameters={"TOURS": "(2,)"},
+                 log=lines.append)
+    assert received == {"01_a": {"FAST": True}, "02_b": {"FAST": True, "TOURS": (2,)}}
+    assert "parameter TOURS goes to 02_b only (the others do not declare it)" in lines

@@ -550,6 +550,11 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
             raise ValueError(f"--quick sets FAST, which {', '.join(lacking)} does not declare in its parameters cell")
     given = ({"FAST": True} if quick else {}) | dict(parameters or {})
     resolved = resolve_parameters(notebooks, given, text=text_parameters)
+    if log:
+        for name in dict(given) | dict(text_parameters or {}):
+            receivers = [nb.stem for nb in notebooks if name in resolved[nb]]
+            if len(receivers) < len(notebooks):
+                log(f"parameter {name} goes to {', '.join(receivers)} only (the others do not declare it)")
     out_dir = Path(REPORTS_DIR if out is None else out).expanduser().resolve()
     out_dir.mkdir(parents=True, exist_ok=True)
 
