@@ -33,13 +33,13 @@ With ``ranges=True`` δ also includes pseudo-range residuals
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numba
 import numpy as np
 from scipy import stats
 
+from . import parallel
 from .models.doppler import DopplerModel
 
 __all__ = ["SearchBox", "FractionEstimate", "GhostSamples", "SamplerResult", "chunk_seeds",
@@ -186,24 +186,15 @@ def _thresholds(thresholds_m) -> np.ndarray:
     return t
 
 
-def _run_chunks(fn, plan, workers: int, progress: bool, desc: str):
-    from tqdm.auto import tqdm
+def _run_chunks(fn, plan, workers: int, progress: bool, desc: str, scheduler=None):
+    """``fn(seed, n)`` for every chunk of ``plan``, results in chunk order (:func:`uwbwb.parallel.imap`)."""
+    tasks = [parallel.Task({"chunk": k, "n": n}, seed=s, size=n) for k, (s, n) in enumerate(plan)]
+    return [r for _, r in parallel.imap(_chunk_task, tasks, shared={"fn": fn}, scheduler=scheduler, workers=workers,
+                                        progress=progress or None, desc=desc, unit="draw")]
 
-    bar = tqdm(total=sum(n for _, n in plan), desc=desc, unit="draw", unit_scale=True, disable=not progress)
-    out = []
-    try:
-        if workers <= 1:
-            for s, n in plan:
-                out.append(fn(s, n))
-                bar.update(n)
-        else:
-            with ThreadPoolExecutor(workers) as ex:
-                for (s, n), r in zip(plan, ex.map(lambda sn: fn(*sn), plan)):
-                    out.append(r)
-                    bar.update(n)
-    finally:
-        bar.close()
-    return out
+
+def _chunk_task(chunk: int, n: int, seed, fn):
+    return fn(seed, n)
 
 
 # ----------------------------------------------------------------------------------- brute force
@@ -265,7 +256,7 @@ def brute_force(model: DopplerModel, ref_pos_m, ref_vel_mps, n_draws: int, *, se
                 thresholds_m=DEFAULT_THRESHOLDS_M, keep_below_m: float | None = 0.08,
                 box: SearchBox = SearchBox(), ranges: bool = False, chunk_size: int = 1 << 23,
                 max_kept_per_chunk: int = 1 << 16, workers: int = 2, confidence: float = 0.95,
-                progress: bool = False) -> SamplerResult:
+                progress: bool = False, scheduler=None) -> SamplerResult:
     """Fraction of the box with ``δ < τ`` for each threshold, by uniform sampling.
 
     Parameters
@@ -288,7 +279,12 @@ def brute_force(model: DopplerModel, ref_pos_m, ref_vel_mps, n_draws: int, *, se
     chunk_size
         Draws per chunk (the unit of seeding and of parallel work).
     workers
-        Threads running chunks (the kernel releases the GIL).
+        Threads running chunks (the kernel releases the GIL) when ``scheduler`` is None.
+    scheduler
+        None (this process), ``"local"``, a Dask scheduler address or a
+        ``distributed.Client``: where the chunks run (:mod:`uwbwb.parallel`). Each
+        chunk sends back its counts and kept samples only; the numbers do not
+        depend on where it ran.
 
     Returns
     -------
@@ -311,7 +307,7 @@ def brute_force(model: DopplerModel, ref_pos_m, ref_vel_mps, n_draws: int, *, se
                                        tau * tau, keep * keep, counts, kept)
         return counts, kept[:n_kept].copy(), n_over
 
-    results = _run_chunks(run, plan, workers, progress, "brute force")
+    results = _run_chunks(run, plan, workers, progress, "brute force", scheduler)
     counts = np.sum([r[0] for r in results], axis=0)
     kept = np.concatenate([r[1] for r in results]) if results else np.empty((0, 7))
     overflow = int(sum(r[2] for r in results))
@@ -372,7 +368,7 @@ def _conditional_chunk(model: DopplerModel, b, rho_ref, ranges, box: SearchBox, 
 def conditional(model: DopplerModel, ref_pos_m, ref_vel_mps, n_positions: int, *, seed,
                 thresholds_m=DEFAULT_THRESHOLDS_M, draws_per_position: int = 8, box: SearchBox = SearchBox(),
                 ranges: bool = False, chunk_size: int = 1 << 15, workers: int = 2, confidence: float = 0.95,
-                progress: bool = False) -> SamplerResult:
+                progress: bool = False, scheduler=None) -> SamplerResult:
     """Fraction of the box with ``δ < τ``, Rao–Blackwellised over the velocity (see module docstring).
 
     Parameters
@@ -380,7 +376,7 @@ def conditional(model: DopplerModel, ref_pos_m, ref_vel_mps, n_positions: int, *
     n_positions
         Number of uniform positions X. Each position whose velocity ellipsoid is not
         empty gets ``draws_per_position`` exact δ evaluations.
-    seed, chunk_size, workers, ranges, box
+    seed, chunk_size, workers, scheduler, ranges, box
         As in :func:`brute_force` (chunks count positions).
 
     Returns
@@ -403,7 +399,7 @@ def conditional(model: DopplerModel, ref_pos_m, ref_vel_mps, n_positions: int, *
                                                  np.random.default_rng(ss), n)
         return p_hat.sum(axis=0), (p_hat ** 2).sum(axis=0), n_eval, kept
 
-    results = _run_chunks(run, plan, workers, progress, "conditional")
+    results = _run_chunks(run, plan, workers, progress, "conditional", scheduler)
     s1 = np.sum([r[0] for r in results], axis=0)
     s2 = np.sum([r[1] for r in results], axis=0)
     kept = np.concatenate([r[3] for r in results])

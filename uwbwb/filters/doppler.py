@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import parallel
 from ..models.doppler import DopplerModel, ReceiverMotion
 from ..types import ChirpFlag, ChirpLog, EstimateStatus, Estimates
 from .ekf import Ekf
@@ -221,65 +222,93 @@ class DopplerPf:
             raise ValueError("room_hi_m must exceed room_lo_m on every axis")
 
     def run(self, log: ChirpLog, *, n_runs: int = 1, rng: np.random.Generator, ranges_m=None,
-            block_runs: int = 100, progress: bool = False) -> PfRuns:
+            block_runs: int = 100, progress: bool | None = False, workers: int = 1, scheduler=None) -> PfRuns:
         """Filter ``log`` ``n_runs`` times with independent particles.
 
         Parameters
         ----------
+        rng
+            Parent generator: block ``j`` of runs draws from child ``j`` of
+            ``rng.spawn(n_blocks)``, so the cloud depends on ``rng`` and
+            ``block_runs`` only, not on where the blocks run.
         ranges_m
             Optional pseudo-range per row of ``log`` (:func:`clock_pseudo_ranges`); NaN = none.
         block_runs
-            Runs filtered together (memory: block × K × 6 floats per array).
+            Runs filtered together, one task of the sweep (memory: block × K × 6 floats per array).
+        workers, scheduler
+            Threads in this process, or a Dask scheduler (``"local"``, an address or a
+            ``distributed.Client``): where the blocks run (:mod:`uwbwb.parallel`).
         """
-        from tqdm.auto import tqdm
-
         rows = _rows(log, self.use_ambiguous)
         if rows.size == 0:
             raise ValueError("the chirp log has no usable ΔP measurement")
-        K = self.n_particles
-        t, b, dp = log.t_s[rows], log.beacon[rows], log.dp_s[rows]
-        rng_r = None if ranges_m is None else np.asarray(ranges_m, float)[rows]
+        if n_runs < 1 or block_runs < 1:
+            raise ValueError(f"n_runs and block_runs must be >= 1, got {n_runs}, {block_runs}")
+        meas = (log.t_s[rows], log.beacon[rows], log.dp_s[rows],
+                None if ranges_m is None else np.asarray(ranges_m, float)[rows])
+        starts = range(0, n_runs, block_runs)
+        tasks = [parallel.Task({"start": s, "n_runs": min(block_runs, n_runs - s)}, seed=ss,
+                               size=min(block_runs, n_runs - s))
+                 for s, ss in zip(starts, parallel.spawn(rng, len(starts)))]
         pos = np.empty((n_runs, rows.size, 3))
         vel = np.empty((n_runs, rows.size, 3))
         ess = np.empty((n_runs, rows.size))
         restarts = np.zeros(n_runs, int)
+        for task, out in parallel.imap(_pf_block, tasks, shared={"pf": self, "meas": meas}, scheduler=scheduler,
+                                       workers=workers, progress=progress, desc=self.name, unit="run"):
+            sl = slice(task.params["start"], task.params["start"] + task.params["n_runs"])
+            pos[sl], vel[sl], ess[sl], restarts[sl] = out
+        return PfRuns(meas[0], pos, vel, ess, self.name, {"rows": rows, "n_particles": self.n_particles,
+                                                          "restarts": restarts})
+
+    def _run_block(self, meas, R: int, rng: np.random.Generator):
+        """``R`` runs over the measurements ``(t, beacon, ΔP, range or None)``: positions, velocities, ESS, restarts."""
+        t, b, dp, rng_r = meas
+        K = self.n_particles
         lo, hi = np.asarray(self.room_lo_m, float), np.asarray(self.room_hi_m, float)
-        for start in tqdm(range(0, n_runs, block_runs), disable=not progress, desc=self.name):
-            R = min(block_runs, n_runs - start)
-            x = self._draw(rng, R, lo, hi)
-            logw = np.full((R, K), -np.log(K))
-            t_prev = t[0]
-            for k in range(rows.size):
-                x = self.motion.propagate(x, t[k] - t_prev, rng=rng)
-                t_prev = t[k]
-                r_k = None
-                if rng_r is not None and np.isfinite(rng_r[k]):
-                    r_k = rng_r[k]
-                inside = np.all((x[..., :3] >= lo) & (x[..., :3] <= hi), axis=-1)
-                lost = ~np.any(inside, axis=-1)
-                if lost.any():                           # the run lost track: start it again
-                    x[lost] = self._draw(rng, int(lost.sum()), lo, hi)
-                    logw[lost] = -np.log(K)
-                    inside[lost] = True
-                    restarts[start:start + R] += lost
-                ll = self.model.log_likelihood(x[..., :3], x[..., 3:], np.int64(b[k]), dp[k], range_m=r_k)
-                if self.outlier_prob > 0:
-                    ll = np.logaddexp(np.log1p(-self.outlier_prob) + ll,
-                                      np.log(self.outlier_prob / (2 * self.outlier_window_s)))
-                logw, _ = normalise_log_weights(np.where(inside, logw + ll, -np.inf))
-                w = np.exp(logw)
-                pos[start:start + R, k] = np.einsum("rk,rkn->rn", w, x[..., :3])
-                vel[start:start + R, k] = np.einsum("rk,rkn->rn", w, x[..., 3:])
-                ess[start:start + R, k] = 1.0 / np.sum(w * w, axis=-1)
-                x, logw, resampled = resample(x, logw, rng=rng, threshold=self.resample_threshold)
-                if self.roughening > 0 and resampled.any():
-                    x = roughen(x, rng=rng, k=self.roughening, rows=resampled)
-        return PfRuns(t, pos, vel, ess, self.name, {"rows": rows, "n_particles": K, "restarts": restarts})
+        pos = np.empty((R, t.size, 3))
+        vel = np.empty((R, t.size, 3))
+        ess = np.empty((R, t.size))
+        restarts = np.zeros(R, int)
+        x = self._draw(rng, R, lo, hi)
+        logw = np.full((R, K), -np.log(K))
+        t_prev = t[0]
+        for k in range(t.size):
+            x = self.motion.propagate(x, t[k] - t_prev, rng=rng)
+            t_prev = t[k]
+            r_k = None
+            if rng_r is not None and np.isfinite(rng_r[k]):
+                r_k = rng_r[k]
+            inside = np.all((x[..., :3] >= lo) & (x[..., :3] <= hi), axis=-1)
+            lost = ~np.any(inside, axis=-1)
+            if lost.any():                           # the run lost track: start it again
+                x[lost] = self._draw(rng, int(lost.sum()), lo, hi)
+                logw[lost] = -np.log(K)
+                inside[lost] = True
+                restarts += lost
+            ll = self.model.log_likelihood(x[..., :3], x[..., 3:], np.int64(b[k]), dp[k], range_m=r_k)
+            if self.outlier_prob > 0:
+                ll = np.logaddexp(np.log1p(-self.outlier_prob) + ll,
+                                  np.log(self.outlier_prob / (2 * self.outlier_window_s)))
+            logw, _ = normalise_log_weights(np.where(inside, logw + ll, -np.inf))
+            w = np.exp(logw)
+            pos[:, k] = np.einsum("rk,rkn->rn", w, x[..., :3])
+            vel[:, k] = np.einsum("rk,rkn->rn", w, x[..., 3:])
+            ess[:, k] = 1.0 / np.sum(w * w, axis=-1)
+            x, logw, resampled = resample(x, logw, rng=rng, threshold=self.resample_threshold)
+            if self.roughening > 0 and resampled.any():
+                x = roughen(x, rng=rng, k=self.roughening, rows=resampled)
+        return pos, vel, ess, restarts
 
     def _draw(self, rng, R, lo, hi):
         K = self.n_particles
         return np.concatenate([rng.uniform(lo, hi, (R, K, 3)),
                                rng.uniform(-self.init_speed_mps, self.init_speed_mps, (R, K, 3))], axis=-1)
+
+
+def _pf_block(start: int, n_runs: int, seed, pf: DopplerPf, meas):
+    """One block of :meth:`DopplerPf.run` (a task of :mod:`uwbwb.parallel`)."""
+    return pf._run_block(meas, n_runs, np.random.default_rng(seed))
 
 
 # ------------------------------------------------------------------------------------ SCAAT MH-EKF

@@ -45,8 +45,6 @@ tested against the generic Kalman steps with :class:`~uwbwb.models.motion.Veloci
 
 from __future__ import annotations
 
-import threading
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,6 +52,7 @@ import pandas as pd
 
 from ..models.motion import VelocityKick
 from ..models.setnoise import SetNoiseModel, log_likelihood
+from .. import parallel
 from ..types import EstimateStatus, Estimates, SetFixLog
 from ..validate import integer, probability
 from . import particle
@@ -285,13 +284,17 @@ class PFSweep:
         Velocity-noise values, shape ``(S,)``, m/s.
     pos_m
         Estimated positions, shape ``(M, n_trials, S, T, 2)``, metres
-        (M filter variants, i.e. noise models).
+        (M filter variants, i.e. noise models); None when the sweep kept only
+        the errors (``keep_positions=False``).
     n_resampled
         Resampling events per run, shape ``(M, n_trials, S)``.
     ess_mean
         Mean ESS over the run's steps, shape ``(M, n_trials, S)``.
     n_particles, ess_fraction, resampler, common_random_numbers, dtype
         The settings used.
+    error_m
+        Mean Euclidean error of each run against the ``truth_m`` given to
+        :func:`pf_sweep`, shape ``(M, n_trials, S)``, metres (None without truth).
     """
 
     t_s: np.ndarray
@@ -304,13 +307,16 @@ class PFSweep:
     resampler: str
     common_random_numbers: bool
     dtype: str
+    error_m: np.ndarray | None = None
 
     @property
     def n_trials(self) -> int:
-        return self.pos_m.shape[1]
+        return self.n_resampled.shape[1]
 
     def mean_error_m(self, truth_m: np.ndarray) -> np.ndarray:
         """Mean Euclidean error of each run against ``truth_m (T, 2)``: shape ``(M, n_trials, S)``."""
+        if self.pos_m is None:
+            raise ValueError("this sweep kept no positions (keep_positions=False): use its error_m")
         return np.linalg.norm(self.pos_m - np.asarray(truth_m, float), axis=-1).mean(axis=-1)
 
 
@@ -321,7 +327,8 @@ def _block_trials(n_rows_per_trial: int, n_particles: int, block_particles: int,
 def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Generator, n_trials: int = 1,
              n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "systematic",
              common_random_numbers: bool = True, dtype=np.float32, block_particles: int = 1 << 17,
-             n_threads: int = 1, progress: bool = False, desc: str = "PF sweep") -> PFSweep:
+             n_threads: int = 1, scheduler=None, truth_m=None, keep_positions: bool = True,
+             progress: bool | None = False, desc: str = "PF sweep") -> PFSweep:
     """Run the PF for every filter variant × trial × σ_d value as one batched computation.
 
     Parameters
@@ -349,12 +356,22 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
         Floating type of the particle arrays (float32 halves memory traffic;
         positions are stored relative to ``x0_m`` to keep full resolution).
     block_particles
-        Particles processed together (whole trials); sized to stay in cache.
+        Particles processed together (whole trials); sized to stay in cache. Each
+        block is one task of the sweep (:mod:`uwbwb.parallel`).
     n_threads
-        Worker threads, each advancing its own blocks of trials (results do not
-        depend on it).
+        Worker threads, each advancing its own blocks of trials, when ``scheduler``
+        is None (results do not depend on it).
+    scheduler
+        None (this process), ``"local"``, a Dask scheduler address or a
+        ``distributed.Client``: where the blocks run (results do not depend on it).
+    truth_m
+        True positions ``(T, 2)``, metres: each block's mean errors are then
+        computed where it runs and returned as :attr:`PFSweep.error_m`.
+    keep_positions
+        False: return no positions (needs ``truth_m``), so only ``M·n_trials·S``
+        errors travel back and are held, not ``M·n_trials·S·T·2`` positions.
     progress
-        Show a ``tqdm`` bar over time steps (× blocks).
+        Show a ``tqdm`` bar over trials (None: only when a cluster is used).
 
     Returns
     -------
@@ -383,47 +400,74 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
     centre = (z[None] - mu - x0).astype(dtype)                       # (M, T, 2)
     half_prec = (0.5 / sd ** 2).astype(dtype)                         # (M, T, 2)
     dt_d = dt.astype(dtype)
-    children = rng.spawn(n_trials)
     b = _block_trials(M * S, K, block_particles, n_trials)
-    blocks = [range(first, min(first + b, n_trials)) for first in range(0, n_trials, b)]
+    seeds = parallel.spawn(rng, n_trials)            # trial i: child i, as rng.spawn(n_trials)[i]
+    tasks = [parallel.Task({"trials": range(first, min(first + b, n_trials))},
+                           seed=tuple(seeds[first:first + b]), size=min(b, n_trials - first))
+             for first in range(0, n_trials, b)]
+    truth = None
+    if truth_m is not None:
+        truth = np.asarray(truth_m, float)
+        if truth.shape != (T, 2):
+            raise ValueError(f"truth_m must have shape ({T}, 2), got {truth.shape}")
+    if truth is None and not keep_positions:
+        raise ValueError("keep_positions=False needs truth_m (the errors are then all that is kept)")
+    inputs = _SweepInputs(centre, half_prec, dt_d, sig_d, x0, truth, K, M, ess_fraction, resampler,
+                          common_random_numbers, dtype.name, keep_positions)
 
-    pos = np.empty((M, n_trials, S, T, 2))
+    pos = np.empty((M, n_trials, S, T, 2)) if keep_positions else None
+    err = np.empty((M, n_trials, S)) if truth is not None else None
     n_res = np.zeros((M, n_trials, S), np.int64)
     ess_sum = np.zeros((M, n_trials, S))
-    bar, lock = None, threading.Lock()
-    if progress:
-        from tqdm.auto import tqdm
-        bar = tqdm(total=len(blocks) * T, desc=desc, unit="step", mininterval=0.5)
-
-    def tick():
-        with lock:
-            bar.update(1)
-
-    def run(trials: range) -> None:
-        blk_pos, blk_res, blk_ess = _sweep_block(
-            [children[i] for i in trials], centre, half_prec, dt_d, sig_d, K, M, ess_fraction, resampler,
-            common_random_numbers, dtype, tick if bar is not None else None)
-        sl = slice(trials.start, trials.stop)
-        pos[:, sl] = np.moveaxis(blk_pos, 0, 1) + x0
-        n_res[:, sl] = np.moveaxis(blk_res, 0, 1)
-        ess_sum[:, sl] = np.moveaxis(blk_ess, 0, 1)
-
-    try:
-        if n_threads > 1 and len(blocks) > 1:
-            # NumPy releases the GIL inside the array operations, so blocks advance in parallel
-            with ThreadPoolExecutor(max_workers=n_threads) as pool:
-                list(pool.map(run, blocks))
-        else:
-            for trials in blocks:
-                run(trials)
-    finally:
-        if bar is not None:
-            bar.close()
+    for task, out in parallel.imap(_sweep_task, tasks, shared={"inputs": inputs}, scheduler=scheduler,
+                                   workers=n_threads, progress=progress, desc=desc, unit="trial"):
+        sl = slice(task.params["trials"].start, task.params["trials"].stop)
+        blk_pos, blk_err, blk_res, blk_ess = out
+        if pos is not None:
+            pos[:, sl] = blk_pos
+        if err is not None:
+            err[:, sl] = blk_err
+        n_res[:, sl] = blk_res
+        ess_sum[:, sl] = blk_ess
     return PFSweep(t, sig_d, pos, n_res, ess_sum / T, K, ess_fraction, resampler, common_random_numbers,
-                   dtype.name)
+                   dtype.name, err)
 
 
-def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampler, crn, dtype, tick):
+@dataclass(frozen=True)
+class _SweepInputs:
+    """What every block of a :func:`pf_sweep` needs (sent once to each worker)."""
+
+    centre: np.ndarray
+    half_prec: np.ndarray
+    dt: np.ndarray
+    sig_d: np.ndarray
+    x0: np.ndarray
+    truth: np.ndarray | None
+    K: int
+    M: int
+    ess_fraction: float
+    resampler: str
+    crn: bool
+    dtype: str
+    keep_positions: bool
+
+
+def _sweep_task(trials: range, seed: tuple, inputs: _SweepInputs):
+    """One block of trials: ``(positions (M, b, S, T, 2) or None, errors (M, b, S) or None, resamplings, ESS sums)``.
+
+    Errors are reduced here, on the worker, so that a sweep scored against the
+    truth sends ``M·b·S`` numbers back instead of every position.
+    """
+    d = inputs
+    rngs = [np.random.default_rng(s) for s in seed]
+    blk_pos, blk_res, blk_ess = _sweep_block(rngs, d.centre, d.half_prec, d.dt, d.sig_d, d.K, d.M, d.ess_fraction,
+                                             d.resampler, d.crn, np.dtype(d.dtype))
+    pos = np.moveaxis(blk_pos, 0, 1) + d.x0                      # (M, b, S, T, 2), float64
+    err = None if d.truth is None else np.linalg.norm(pos - d.truth, axis=-1).mean(axis=-1)
+    return (pos if d.keep_positions else None), err, np.moveaxis(blk_res, 0, 1), np.moveaxis(blk_ess, 0, 1)
+
+
+def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampler, crn, dtype):
     """All steps for one block of trials.
 
     State components are separate ``(b, M, S, K)`` arrays (trial, variant, σ_d,
@@ -490,8 +534,6 @@ def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampl
             state, spare = spare, state
             logw[need] = log_k
             n_res += need
-        if tick is not None:
-            tick()
     return pos, n_res, ess_sum
 
 

@@ -38,7 +38,7 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ... import geometry, metrics
+from ... import geometry, metrics, parallel
 from ...calibration import empirical_tdoa_covariance, fit_range_sigma
 from ...filters.ekf import KalmanRun, TdoaEkf
 from ...filters.tdoa_ls import TdoaLsResult, tdoa_least_squares
@@ -359,7 +359,7 @@ def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: fl
 def calibration_curves(runs: Sequence[TagRun], sigma_m: Mapping[str, np.ndarray], *,
                        gate_prob: float | None, grids: Mapping[str, Sequence[float]] | None = None,
                        models: Sequence[str] = MODELS, ref: int = 0, correlated: bool = True,
-                       progress: bool = True) -> pd.DataFrame:
+                       progress: bool | None = True, workers: int = 1, scheduler=None) -> pd.DataFrame:
     """CEP95 of each EKF over a grid of driving standard deviations (thesis Table 1 procedure).
 
     Parameters
@@ -372,6 +372,10 @@ def calibration_curves(runs: Sequence[TagRun], sigma_m: Mapping[str, np.ndarray]
         χ² gate of the EKFs (None: no gating); required.
     grids
         Driving standard deviations per model (default :data:`DEFAULT_GRIDS`).
+    workers, scheduler
+        Threads in this process, or a Dask scheduler (``"local"``, an address or a
+        ``distributed.Client``): each (run, model) pair is one task of the sweep
+        (:mod:`uwbwb.parallel`); the table does not depend on where it ran.
 
     Each EKF is scored over its own epochs (it has a position at every epoch
     after its first LS fix).
@@ -382,23 +386,30 @@ def calibration_curves(runs: Sequence[TagRun], sigma_m: Mapping[str, np.ndarray]
         One row per (run, model, sigma): ``run, tag, model, sigma, sigma_unit, psd, psd_unit,
         cep95_m, rmse_m``.
     """
-    from tqdm.auto import tqdm
-
-    grids = dict(DEFAULT_GRIDS if grids is None else grids)
-    jobs = [(r, m, s) for r in runs for m in models for s in grids[m]]
+    grids = {m: tuple(map(float, g)) for m, g in dict(DEFAULT_GRIDS if grids is None else grids).items()}
+    tasks = [parallel.Task({"key": r.key, "model": m}, size=len(grids[m])) for r in runs for m in models]
+    shared = {"runs": {r.key: r for r in runs}, "sigma_m": {r.key: sigma_m[r.key] for r in runs}, "grids": grids,
+              "ref": ref, "gate_prob": gate_prob, "correlated": correlated}
     rows = []
-    cache = {}
-    for r, m, s in tqdm(jobs, desc="driving-noise calibration", disable=not progress, leave=False):
-        if r.key not in cache:
-            cache[r.key] = (TdoaModel.for_tag(r, sigma_m[r.key], correlated=correlated), r.tdoa(ref))
-        meas, log = cache[r.key]
-        res = run_ekf(r, m, float(s), meas, gate_prob=gate_prob, tdoa=log)
-        err = _errors(res.to_trajectory(), r).err_m
-        cls = MOTION_MODELS[m]
-        rows.append({"run": r.name, "tag": r.tag, "model": m, "sigma": float(s), "sigma_unit": cls.sigma_unit,
-                     "psd": float(s) ** 2 * r.dt_s, "psd_unit": cls.psd_unit,
-                     "cep95_m": metrics.cep95(err), "rmse_m": metrics.rmse(err)})
+    for _, out in parallel.imap(_curve_task, tasks, shared=shared, workers=workers, scheduler=scheduler,
+                                progress=progress, desc="driving-noise calibration", unit="EKF run"):
+        rows.extend(out)
     return pd.DataFrame(rows)
+
+
+def _curve_task(key: str, model: str, runs, sigma_m, grids, ref, gate_prob, correlated) -> list[dict]:
+    """One run's calibration curve for one motion model (a task of :func:`calibration_curves`)."""
+    r = runs[key]
+    meas, log = TdoaModel.for_tag(r, sigma_m[key], correlated=correlated), r.tdoa(ref)
+    cls = MOTION_MODELS[model]
+    rows = []
+    for s in grids[model]:
+        res = run_ekf(r, model, s, meas, gate_prob=gate_prob, tdoa=log)
+        err = _errors(res.to_trajectory(), r).err_m
+        rows.append({"run": r.name, "tag": r.tag, "model": model, "sigma": s, "sigma_unit": cls.sigma_unit,
+                     "psd": s ** 2 * r.dt_s, "psd_unit": cls.psd_unit,
+                     "cep95_m": metrics.cep95(err), "rmse_m": metrics.rmse(err)})
+    return rows
 
 
 def best_sigmas(curves: pd.DataFrame) -> dict[str, float]:
@@ -471,10 +482,12 @@ class Study:
 
 def run_study(cal_runs: Sequence[TagRun], test_runs: Sequence[TagRun], *, gate_prob: float | None, grids=None,
               models: Sequence[str] = MODELS, ref: int = 0, correlated: bool = True, sigma_method: str = "tdoa",
-              progress: bool = True) -> Study:
+              progress: bool = True, scheduler=None) -> Study:
     """Fit range noise and driving noise on ``cal_runs``, then run every estimator on ``test_runs``.
 
-    ``gate_prob`` (the EKFs' χ² gate, None for none) is required.
+    ``gate_prob`` (the EKFs' χ² gate, None for none) is required. ``scheduler`` says
+    where the driving-noise calibration sweep runs (:func:`calibration_curves`; None:
+    in this process).
 
     A test run takes the range-noise fit of the calibration run with the same tag
     (pooled over those runs by taking the RMS when a tag has several). The driving
@@ -489,7 +502,7 @@ def run_study(cal_runs: Sequence[TagRun], test_runs: Sequence[TagRun], *, gate_p
     if missing:
         raise ValueError(f"test tags {missing} have no calibration run")
     curves = calibration_curves(cal_runs, fits, grids=grids, models=models, ref=ref, gate_prob=gate_prob,
-                                correlated=correlated, progress=progress)
+                                correlated=correlated, progress=progress, scheduler=scheduler)
     best = best_sigmas(curves)
     ests = [estimate(r, sigma_tag[r.tag], best, ref=ref, gate_prob=gate_prob, correlated=correlated, models=models)
             for r in test_runs]

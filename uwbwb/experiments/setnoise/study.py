@@ -71,7 +71,12 @@ class SweepConfig:
         Share process-noise draws between σ_d values and the two filters of a trial
         (see :func:`uwbwb.filters.setnoise.pf_sweep`).
     n_threads
-        Worker threads of the sweep (the numbers do not depend on it).
+        Worker threads of the sweep when no ``scheduler`` is given (the numbers do
+        not depend on it).
+    scheduler
+        None (this process), ``"local"`` or a Dask scheduler address: where the
+        sweep's blocks of trials run (:mod:`uwbwb.parallel`; the numbers do not
+        depend on it).
     """
 
     sigma_d_mps: tuple = SIGMA_D_GRID_MPS
@@ -81,6 +86,7 @@ class SweepConfig:
     resampler: str = "systematic"
     common_random_numbers: bool = True
     n_threads: int = 1
+    scheduler: str | None = None
 
     def __post_init__(self):
         s = np.asarray(self.sigma_d_mps, float)
@@ -226,8 +232,9 @@ def sweep(recordings, model: SetNoiseModel, config: SweepConfig = SweepConfig(),
     """Fig. 9: mean Euclidean error against σ_d for every recording and estimator.
 
     Per recording, baseline and set-noise PF for all trials and σ_d values run as one
-    batched computation (:func:`uwbwb.filters.setnoise.pf_sweep`); the Kalman filters
-    are deterministic and need no trials. With ``pooled`` (a model fitted with
+    batched computation (:func:`uwbwb.filters.setnoise.pf_sweep`), in blocks of
+    trials run where ``config.scheduler`` says, each scored where it runs (only
+    the errors come back); the Kalman filters are deterministic and need no trials. With ``pooled`` (a model fitted with
     ``sigma_rule="pooled"``) its Kalman filter is added as :data:`SET_KF_POOLED`.
 
     Returns
@@ -244,8 +251,9 @@ def sweep(recordings, model: SetNoiseModel, config: SweepConfig = SweepConfig(),
         pf = filt.pf_sweep(log.t_s, log.pos_m, mu, sd, x0, sig, rng=rng, n_trials=config.n_trials,
                            n_particles=config.n_particles, ess_fraction=config.ess_fraction,
                            resampler=config.resampler, common_random_numbers=config.common_random_numbers,
-                           n_threads=config.n_threads, progress=progress, desc=f"{log.name}: PF sweep")
-        err = pf.mean_error_m(log.truth_m)                                  # (2, trials, S)
+                           n_threads=config.n_threads, scheduler=config.scheduler, truth_m=log.truth_m,
+                           keep_positions=False, progress=progress, desc=f"{log.name}: PF sweep")
+        err = pf.error_m                                                    # (2, trials, S)
         kf = filt.kf_sweep(log.t_s, log.pos_m, mu, sd, x0, sig).mean_error_m(log.truth_m)   # (2, S)
         if pooled is not None:
             mu_p, sd_p, _ = pooled.lookup(log.set_id)
