@@ -285,7 +285,7 @@ def _pipelined(fn, tasks, shared, client, workers, desc, bar, max_pending):
         slots = max(sum(client.nthreads().values()), 1)
         names = list(shared)
         if names:
-            scattered = dict(zip(names, client.scatter([shared[k] for k in names], hash=True)))
+            scattered = dict(zip(names, client.scatter([shared[k] for k in names], hash=False)))
         prefix = re.sub(r"[^0-9A-Za-z_]+", "_", desc).strip("_") or "task"
         token = uuid.uuid4().hex[:8]
 
