@@ -19,7 +19,8 @@ from ...filters import eskf
 from ...filters.tdoa_ls import tdoa_least_squares
 from ...models.imu import GRADES, ImuConvention, ImuErrorModel
 from ...models.ins import GRAVITY_MPS2, NavState, dcm_from_euler, dcm_to_quat, quat_to_dcm
-from ...models.tdoa import TdoaModel, range_sigma_from_truth, triangle_outliers
+from ...calibration import range_sigma_from_truth
+from ...models.tdoa import TdoaModel, triangle_outliers
 from ...sim import robot
 from ...types import EstimateStatus, Estimates, ImuLog, Recording, TdoaLog, Trajectory
 
