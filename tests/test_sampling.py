@@ -1,4 +1,5 @@
 import numpy as np
+import pandas as pd
 import pytest
 
 from uwbwb import Anchors
@@ -69,7 +70,7 @@ def test_same_seed_same_fraction_whatever_the_workers(cubic):
     assert a.estimates == b.estimates and a.estimates != c.estimates
     ca = smp.conditional(cubic, *REF, 20_000, seed=4, chunk_size=5_000, workers=1)
     cb = smp.conditional(cubic, *REF, 20_000, seed=4, chunk_size=5_000, workers=2)
-    assert ca.estimates == cb.estimates
+    pd.testing.assert_frame_equal(ca.to_frame(), cb.to_frame())
 
 
 def test_ranging_term_shrinks_the_ghost_set(cubic):
@@ -98,3 +99,24 @@ def test_resampled_ghosts_follow_the_weights():
     r = g.resample(4000, rng=np.random.default_rng(0))
     assert np.mean(r.delta_m == 0.02) == pytest.approx(0.75, abs=0.03)
     assert r.weight.sum() == pytest.approx(4.0)
+
+
+@pytest.mark.parametrize("layout", ["cubic", "lab"])
+def test_ranging_region_holds_every_position_under_the_threshold(layout):
+    model = dm.DopplerModel.for_layout(getattr(dm, f"{layout}_layout")())
+    M, half, volume = smp.ranging_region(model, REF[0], 0.15)
+    rng = np.random.default_rng(0)
+    X = REF[0] + rng.uniform(-1.5, 1.5, (400_000, 3))
+    resid = np.linalg.norm(model.pseudo_range_m(X) - model.pseudo_range_m(REF[0]), axis=1)
+    inside = resid < 0.15
+    assert inside.sum() > 20
+    assert np.all(np.abs((X[inside] - REF[0]) @ M.T) < half)
+    assert volume < 27.0
+
+
+def test_conditional_with_ranges_matches_brute_force_at_a_large_threshold(cubic):
+    b = smp.brute_force(cubic, *REF, 2_000_000, seed=3, thresholds_m=(2.0,), keep_below_m=None, ranges=True,
+                        confidence=0.999)
+    c = smp.conditional(cubic, *REF, 50_000, seed=4, thresholds_m=(2.0,), ranges=True, confidence=0.999)
+    eb, ec = b.estimate(2.0), c.estimate(2.0)
+    assert eb.n_hits > 30 and ec.ci_low < eb.ci_high and eb.ci_low < ec.ci_high, (eb, ec)

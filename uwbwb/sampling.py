@@ -27,7 +27,14 @@ number of draws)`` — not on how many threads (or machines) run the chunks.
 Same seed, same numbers.
 
 With ``ranges=True`` δ also includes pseudo-range residuals
-``‖ρ(X) − ρ(X_ref)‖`` (the ranging term of section 5).
+``‖ρ(X) − ρ(X_ref)‖`` (the ranging term of section 5). The set under ``τ`` then
+lies in a small region around ``X_ref``: with ``d = X − X_ref`` and
+``e_i = ρ_i(X)² − ρ_i(X_ref)² = |d|² + 2 d·(X_ref − T_i)``, every pair of beacons gives
+``e_i − e_j = 2 d·(T_j − T_i)`` (linear in ``d``), and ``|ρ_i − ρ_i,ref| < τ`` bounds
+``|e_i| < τ (2 ρ_i,ref + τ)``. So the set lies in the slab
+``|2 d·(T_j − T_i)| < c_i + c_j`` of every pair; the conditional estimator draws ``X``
+uniformly in the parallelepiped of the three slabs with the smallest volume
+(:func:`ranging_region`) and weights by its share of the position box.
 """
 
 from __future__ import annotations
@@ -43,7 +50,7 @@ from . import parallel
 from .models.doppler import DopplerModel
 
 __all__ = ["SearchBox", "FractionEstimate", "GhostSamples", "SamplerResult", "chunk_seeds",
-           "brute_force", "conditional", "clopper_pearson", "DEFAULT_THRESHOLDS_M"]
+           "brute_force", "conditional", "clopper_pearson", "ranging_region", "DEFAULT_THRESHOLDS_M"]
 
 DEFAULT_THRESHOLDS_M = (0.02, 0.04, 0.06, 0.08, 0.15)
 
@@ -177,6 +184,35 @@ def _reference(model: DopplerModel, ref_pos_m, ref_vel_mps, ranges: bool):
     b = model.v_s_mps * model.delta_p(np.asarray(ref_pos_m, float), np.asarray(ref_vel_mps, float))
     rho = model.pseudo_range_m(np.asarray(ref_pos_m, float)) if ranges else np.zeros(model.n_beacons)
     return b, rho
+
+
+def ranging_region(model: DopplerModel, ref_pos_m, threshold_m: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """A parallelepiped around ``ref_pos_m`` that holds every position with range residual ``< threshold_m``.
+
+    Returns ``(M, half, volume_m3)``: the region is ``{X_ref + d : |M d| < half}``
+    (componentwise), ``M`` (3, 3) the rows ``2 (T_j − T_i)`` of the three beacon pairs
+    whose slabs enclose the smallest volume (see the module docstring).
+    """
+    from itertools import combinations
+
+    X = np.asarray(ref_pos_m, float)
+    T = model.beacons.pos_m
+    c = threshold_m * (2 * np.linalg.norm(X - T, axis=1) + threshold_m)
+    pairs = list(combinations(range(len(T)), 2))
+    rows = np.array([2 * (T[j] - T[i]) for i, j in pairs])
+    half = np.array([c[i] + c[j] for i, j in pairs])
+    best = None
+    for tri in combinations(range(len(pairs)), 3):
+        det = abs(np.linalg.det(rows[list(tri)]))
+        if det < 1e-9:
+            continue
+        vol = 8 * np.prod(half[list(tri)]) / det
+        if best is None or vol < best[0]:
+            best = (vol, tri)
+    if best is None:
+        raise ValueError("the beacons are coplanar: ranges do not bound the position")
+    tri = list(best[1])
+    return rows[tri], half[tri], float(best[0])
 
 
 def _thresholds(thresholds_m) -> np.ndarray:
@@ -322,10 +358,16 @@ def brute_force(model: DopplerModel, ref_pos_m, ref_vel_mps, n_draws: int, *, se
 
 # ----------------------------------------------------------------------------------- conditional
 
-def _conditional_chunk(model: DopplerModel, b, rho_ref, ranges, box: SearchBox, tau, draws, rng, n):
+def _conditional_chunk(model: DopplerModel, b, rho_ref, ranges, box: SearchBox, tau, draws, rng, n, ball):
     T, P, v_s = model.beacons.pos_m, model.period_s, model.v_s_mps
     tau_max = tau[-1]
-    X = rng.uniform(box.pos_lo_m, box.pos_hi_m, (n, 3))
+    if ball is None:
+        X = rng.uniform(box.pos_lo_m, box.pos_hi_m, (n, 3))
+        w_x = 1.0
+    else:                                      # uniform in the parallelepiped that holds the whole set
+        centre, M, half, volume = ball
+        X = centre + np.linalg.solve(M, (rng.uniform(-1.0, 1.0, (n, 3)) * half).T).T
+        w_x = volume / (box.pos_hi_m - box.pos_lo_m) ** 3
     d = X[:, None, :] - T
     rho = np.linalg.norm(d, axis=-1)                                     # (n, nb)
     A = P[:, None] * d / rho[..., None]                                  # (n, nb, 3): L = A V
@@ -338,7 +380,8 @@ def _conditional_chunk(model: DopplerModel, b, rho_ref, ranges, box: SearchBox, 
     v_star = np.linalg.solve(M, c[..., None])[..., 0]
     res2 = np.sum((np.einsum("nbi,ni->nb", A, v_star) - b) ** 2, axis=-1)
     r2 = radius ** 2 - res2
-    active = (rr2 < tau_max ** 2) & (r2 > 0)
+    in_box = np.all((X >= box.pos_lo_m) & (X <= box.pos_hi_m), axis=1)
+    active = (rr2 < tau_max ** 2) & (r2 > 0) & in_box
     p_hat = np.zeros((n, tau.size))
     ia = np.flatnonzero(active)
     if ia.size == 0:
@@ -356,7 +399,7 @@ def _conditional_chunk(model: DopplerModel, b, rho_ref, ranges, box: SearchBox, 
     dp = model.delta_p(Xa, V)
     delta2 = np.sum((v_s * dp - b) ** 2, axis=-1) + rr2[ia, None]
     inside = np.all((V >= box.vel_lo_mps) & (V <= box.vel_hi_mps), axis=-1)
-    weight = vol / box.vel_volume / draws                                # per draw
+    weight = w_x * vol / box.vel_volume / draws                          # per draw
     hits = inside[..., None] & (delta2[..., None] < tau * tau)           # (na, draws, nt)
     p_hat[ia] = weight[:, None] * hits.sum(axis=1)
     keep = hits[..., -1]
@@ -374,7 +417,8 @@ def conditional(model: DopplerModel, ref_pos_m, ref_vel_mps, n_positions: int, *
     Parameters
     ----------
     n_positions
-        Number of uniform positions X. Each position whose velocity ellipsoid is not
+        Number of uniform positions X (in the position box; with ``ranges``, in the
+        region of :func:`ranging_region`). Each position whose velocity ellipsoid is not
         empty gets ``draws_per_position`` exact δ evaluations.
     seed, chunk_size, workers, scheduler, ranges, box
         As in :func:`brute_force` (chunks count positions).
@@ -383,7 +427,7 @@ def conditional(model: DopplerModel, ref_pos_m, ref_vel_mps, n_positions: int, *
     -------
     SamplerResult
         Estimator ``"conditional"``; normal intervals from the standard error of the
-        per-position estimates. Kept samples are every draw with δ below the largest
+        per-position estimates (NaN when fewer than 10 positions contribute). Kept samples are every draw with δ below the largest
         threshold, weighted so that ``sum(weight)`` estimates the fraction.
     """
     tau = _thresholds(thresholds_m)
@@ -393,11 +437,14 @@ def conditional(model: DopplerModel, ref_pos_m, ref_vel_mps, n_positions: int, *
     if np.any(model.v_s_mps * model.period_s <= np.abs(b) + tau[-1]):
         raise ValueError("threshold too large for the linear bound of the conditional estimator")
     plan = chunk_seeds(seed, n_positions, chunk_size)
+    ball = None
+    if ranges:
+        ball = (np.asarray(ref_pos_m, float), *ranging_region(model, ref_pos_m, tau[-1]))
 
     def run(ss, n):
         p_hat, kept, n_eval = _conditional_chunk(model, b, rho, ranges, box, tau, draws_per_position,
-                                                 np.random.default_rng(ss), n)
-        return p_hat.sum(axis=0), (p_hat ** 2).sum(axis=0), n_eval, kept
+                                                 np.random.default_rng(ss), n, ball)
+        return p_hat.sum(axis=0), (p_hat ** 2).sum(axis=0), n_eval, kept, np.count_nonzero(p_hat, axis=0)
 
     results = _run_chunks(run, plan, workers, progress, "conditional", scheduler)
     s1 = np.sum([r[0] for r in results], axis=0)
@@ -407,13 +454,17 @@ def conditional(model: DopplerModel, ref_pos_m, ref_vel_mps, n_positions: int, *
     mean = s1 / n
     var = np.clip(s2 / n - mean ** 2, 0.0, None) * n / max(n - 1, 1)
     half = stats.norm.ppf(0.5 + confidence / 2) * np.sqrt(var / n)
+    contributing = np.sum([r[4] for r in results], axis=0)
+    # the normal interval needs enough contributing positions; below 10 it is not given (NaN)
+    half = np.where(contributing >= 10, half, np.nan)
     n_draws = int(sum(r[2] for r in results))
     hits = [int(np.count_nonzero(kept[:, 6] < t)) for t in tau]
-    estimates = tuple(FractionEstimate(float(t), float(m), float(max(m - h, 0.0)), float(m + h), confidence,
-                                       "conditional", n_draws, n, k)
+    estimates = tuple(FractionEstimate(float(t), float(m), float(max(m - h, 0.0)) if np.isfinite(h) else np.nan,
+                                       float(m + h), confidence, "conditional", n_draws, n, k)
                       for t, m, h, k in zip(tau, mean, half, hits))
     samples = GhostSamples(kept[:, :3], kept[:, 3:6], kept[:, 6], kept[:, 7] / n)
     per_chunk = chunk_size * (model.n_beacons * 3 * 8 * 4 + draws_per_position * 8 * 16)
     peak = min(workers, len(plan)) * per_chunk + kept.nbytes
     return SamplerResult(estimates, samples, len(plan), int(peak), 0,
-                         {"seed": seed, "chunk_size": chunk_size, "ranges": ranges})
+                         {"seed": seed, "chunk_size": chunk_size, "ranges": ranges,
+                          "position region volume (m³)": None if ball is None else ball[3]})

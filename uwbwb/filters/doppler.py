@@ -26,6 +26,7 @@ import numpy as np
 from .. import parallel
 from ..models.doppler import DopplerModel, ReceiverMotion
 from ..types import ChirpFlag, ChirpLog, EstimateStatus, Estimates
+from . import kalman
 from .ekf import Ekf
 from .kalman import Gaussian
 from .particle import normalise_log_weights, resample, roughen
@@ -408,10 +409,8 @@ class ScaatMhEkf:
                 for i in fits:
                     meas = (int(i), float(shift[i]), rr[r] if log.beacon[r] == i else np.nan)
                     lin = self.model.linearise(prior.x, meas)
-                    S = lin.H @ prior.P @ lin.H.T + lin.R
-                    y = lin.innovation
-                    ll = -0.5 * (y @ np.linalg.solve(S, y) + np.linalg.slogdet(2 * np.pi * S)[1])
-                    post, _ = ekf.update(prior, meas, gate=False)
+                    post, inn = kalman.update(prior, lin.z, lin.H, lin.R, h_x=lin.h)   # the EKF step of Ekf.update
+                    ll = -0.5 * (inn.nis + np.linalg.slogdet(2 * np.pi * inn.S)[1])
                     moved = last.copy()
                     moved[i] = t
                     children.append(_Hypothesis(post, float(t), moved,

@@ -1,0 +1,129 @@
+"""Figure builders of notebook 04 (paper 003, Figs 3–6). Each takes ``ax=`` and returns its Axes."""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from ... import sampling as smp
+from ...models import doppler as dm
+from ...plotting import color_for
+
+__all__ = ["ghost_panel", "space_figure", "cuts_figure", "tracks_figure", "clouds_figure"]
+
+_GHOST = "#3182bd"
+
+
+def _ax(ax):
+    return plt.subplots(figsize=(4, 4))[1] if ax is None else ax
+
+
+def ghost_panel(samples: smp.GhostSamples, what: str, *, beacons=None, weak_dir=None, ax=None, title: str = "",
+                lim: float | None = None):
+    """X–Y projection of ghost samples: ``what`` is ``"position"`` or ``"velocity"``.
+
+    The reference pair is the circled dot; beacons are stars (position panels);
+    ``weak_dir`` (3,) draws a line through the reference (the weakest direction of
+    the information matrix, or ``V_ref`` on velocity panels).
+    """
+    ax = _ax(ax)
+    pts = samples.pos_m if what == "position" else samples.vel_mps
+    ref = dm.REFERENCE_POS_M if what == "position" else dm.REFERENCE_VEL_MPS
+    lim = lim if lim is not None else (5.0 if what == "position" else 3.0)
+    ax.plot(pts[:, 0], pts[:, 1], ".", color=_GHOST, markersize=1.5, alpha=0.5, rasterized=True)
+    if beacons is not None:
+        ax.plot(beacons[:, 0], beacons[:, 1], "*", color="#000000", markersize=10, label="beacons")
+    if weak_dir is not None:
+        d = np.asarray(weak_dir, float)[:2]
+        if np.linalg.norm(d) > 0:
+            d = d / np.linalg.norm(d) * 2 * lim
+            ax.plot([ref[0] - d[0], ref[0] + d[0]], [ref[1] - d[1], ref[1] + d[1]], "--", color="#d62728",
+                    linewidth=1.0)
+    ax.plot(ref[0], ref[1], "o", color="#000000", markersize=4)
+    ax.plot(ref[0], ref[1], "o", markerfacecolor="none", markeredgecolor="#000000", markersize=12)
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(-lim, lim)
+    ax.set_aspect("equal")
+    unit = "m" if what == "position" else "m/s"
+    ax.set_xlabel(f"{'x' if what == 'position' else 'vx'} ({unit})")
+    ax.set_ylabel(f"{'y' if what == 'position' else 'vy'} ({unit})")
+    ax.set_title(title, fontsize=9)
+    return ax
+
+
+def space_figure(samples_by_threshold: dict[float, smp.GhostSamples], model: dm.DopplerModel, *, pos_dir=None,
+                 vel_dir=None, suptitle: str = ""):
+    """Figs 3 / 4: one column per threshold, positions on top, velocities below. Returns the Figure."""
+    n = len(samples_by_threshold)
+    fig, axes = plt.subplots(2, n, figsize=(3.3 * n, 6.8), squeeze=False)
+    for j, (tau, s) in enumerate(samples_by_threshold.items()):
+        label = f"({'abcd'[j]}) δ < {100 * tau:g} cm, {len(s)} points"
+        ghost_panel(s, "position", beacons=model.beacons.pos_m, weak_dir=pos_dir, ax=axes[0, j], title=label)
+        ghost_panel(s, "velocity", weak_dir=vel_dir, ax=axes[1, j])
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def cuts_figure(df, *, threshold_cm: float = 6.0, ax=None):
+    """Fig 5: δ (cm) along the line, one curve per fixed velocity, and the threshold line."""
+    ax = _ax(ax)
+    s = df["s (m)"]
+    for col in df.columns[1:]:
+        ax.plot(s, df[col], label=col, linewidth=1.2)
+    ax.axhline(threshold_cm, color="#9e9e9e", linestyle="--", linewidth=1.0, label=f"{threshold_cm:g} cm")
+    ax.set_xlabel("distance along the line from the reference point (m)")
+    ax.set_ylabel("δ (cm)")
+    ax.set_ylim(0, max(4 * threshold_cm, 1.0))
+    ax.legend(fontsize=8)
+    return ax
+
+
+def tracks_figure(study, variant: str = "Doppler", *, n_runs: int = 5, ax=None):
+    """Fig 6(a): the rectangle (clockwise), five PF runs between the two corners, and the MH-EKF."""
+    ax = _ax(ax)
+    t = np.linspace(0, study.track.length_m / study.track.speed_mps, 400)
+    lap = study.track.pos_m(t)
+    ax.plot(lap[:, 0], lap[:, 1], color="#000000", linewidth=1.0, label="truth (clockwise)")
+    runs = study.pf[variant]
+    t0, t1 = study.snapshots_s
+    sel = (runs.t_s >= t0 - 1.5) & (runs.t_s <= t1 + 0.5)
+    for r in range(min(n_runs, runs.n_runs)):
+        ax.plot(runs.pos_m[r, sel, 0], runs.pos_m[r, sel, 1], color=color_for("PF"), linewidth=0.8, alpha=0.8,
+                label="PF runs" if r == 0 else "_nolegend_")
+    kf = study.kf[variant]
+    selk = (kf.t_s >= t0 - 1.5) & (kf.t_s <= t1 + 0.5)
+    ax.plot(kf.pos_m[selk, 0], kf.pos_m[selk, 1], color=color_for("MH-EKF"), linewidth=1.0, label="MH-EKF")
+    b = study.model.beacons.pos_m
+    ax.plot(b[:, 0], b[:, 1], "*", color="#000000", markersize=9, label="beacons")
+    for k, tk in enumerate(study.snapshots_s):
+        p = study.track.pos_m(tk)
+        ax.plot(p[0], p[1], "o", markerfacecolor="none", markeredgecolor="#000000", markersize=10)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"{variant}: tracks between the two corners", fontsize=9)
+    ax.legend(fontsize=7, loc="upper right")
+    return ax
+
+
+def clouds_figure(study, variant: str = "Doppler", *, ax=None):
+    """Fig 6(b): every run's position at the two snapshots (3 s apart), with the truth."""
+    ax = _ax(ax)
+    t = np.linspace(0, study.track.length_m / study.track.speed_mps, 400)
+    lap = study.track.pos_m(t)
+    ax.plot(lap[:, 0], lap[:, 1], color="#000000", linewidth=1.0)
+    colors = ("#3182bd", "#31a354")
+    for k, tk in enumerate(study.snapshots_s):
+        c = study.cloud(variant, k)
+        p = study.track.pos_m(tk)
+        ax.plot(c[:, 0], c[:, 1], ".", color=colors[k], markersize=2, alpha=0.6,
+                label=f"t = {tk:.1f} s ({c.shape[0]} runs)")
+        ax.plot(p[0], p[1], "x", color="#000000", markersize=10, markeredgewidth=2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"{variant}: PF positions at two corners", fontsize=9)
+    ax.legend(fontsize=7, loc="upper right")
+    return ax
