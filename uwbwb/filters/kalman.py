@@ -149,20 +149,68 @@ def update_sequential(state: Gaussian, z: np.ndarray, H: np.ndarray, R: np.ndarr
         raise ValueError(f"update_sequential: z {z.shape}, H {H.shape}, R {R.shape} do not fit state of size "
                          f"{state.x.size}")
     y = z - (H @ state.x if h_x is None else np.asarray(h_x, float).ravel())
-    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(H)) and np.all(np.isfinite(R))):
-        raise ValueError("update_sequential: non-finite values; a missing measurement is left out, not passed as NaN")
-    if np.count_nonzero(R - np.diag(np.diag(R))):
-        L = np.linalg.cholesky(R)
-        y = np.linalg.solve(L, y)
-        H = np.linalg.solve(L, H)
-        r = np.ones(z.size)
-    else:
-        r = np.diag(R).copy()
-    if np.any(r <= 0):
-        raise ValueError(f"update_sequential: R must have positive variances, got {r.tolist()}")
     x, P = state.x.copy(), np.array(state.P, copy=True)
-    nis = _scalar_updates(x, P, np.ascontiguousarray(y), np.ascontiguousarray(H), r)
+    nis = np.empty(z.size)
+    code = _sequential(x, P, np.ascontiguousarray(y), np.ascontiguousarray(H), np.ascontiguousarray(R), nis)
+    if code == 1:
+        raise ValueError("update_sequential: non-finite values; a missing measurement is left out, not passed as NaN")
+    if code == 2:
+        raise ValueError(f"update_sequential: R must be symmetric positive definite, got diagonal {np.diag(R).tolist()}")
     return Gaussian(x, _symmetric(P)), nis
+
+
+@numba.njit(cache=True, nogil=True)
+def _sequential(x, P, y, H, R, nis):
+    """Checks, decorrelation (Cholesky ``R = L Lᵀ``, ``L⁻¹y``, ``L⁻¹H``) and the scalar updates of
+    :func:`update_sequential`, in place. Returns 0, or 1 (non-finite input), 2 (R not positive definite)."""
+    m, n = y.size, x.size
+    for i in range(m):
+        if not np.isfinite(y[i]):
+            return 1
+        for j in range(n):
+            if not np.isfinite(H[i, j]):
+                return 1
+        for j in range(m):
+            if not np.isfinite(R[i, j]) or abs(R[i, j] - R[j, i]) > 1e-12 * (abs(R[i, j]) + abs(R[j, i]) + 1e-300):
+                return 1 if not np.isfinite(R[i, j]) else 2
+    diagonal = True
+    for i in range(m):
+        for j in range(m):
+            if i != j and R[i, j] != 0.0:
+                diagonal = False
+    r = np.empty(m)
+    if diagonal:
+        for i in range(m):
+            if not R[i, i] > 0:
+                return 2
+            r[i] = R[i, i]
+        yw, Hw = y, H
+    else:
+        L = np.zeros((m, m))
+        for i in range(m):
+            for j in range(i + 1):
+                acc = R[i, j]
+                for k in range(j):
+                    acc -= L[i, k] * L[j, k]
+                if i == j:
+                    if not acc > 0:
+                        return 2
+                    L[i, i] = np.sqrt(acc)
+                else:
+                    L[i, j] = acc / L[j, j]
+        yw = y.copy()
+        Hw = H.copy()
+        for i in range(m):                       # forward substitution, L yw = y, L Hw = H
+            for k in range(i):
+                yw[i] -= L[i, k] * yw[k]
+                for j in range(n):
+                    Hw[i, j] -= L[i, k] * Hw[k, j]
+            yw[i] /= L[i, i]
+            for j in range(n):
+                Hw[i, j] /= L[i, i]
+            r[i] = 1.0
+    nis[:] = _scalar_updates(x, P, yw, Hw, r)
+    return 0
 
 
 @numba.njit(cache=True, nogil=True)
