@@ -292,7 +292,10 @@ class Board:
             reasons.append(f"the ranges of the scoring part are less noisy than calibrated "
                            f"(robust σ {ratio:.2f}× the calibration's): the bound's noise model is pessimistic here")
         kind = str(row.bound_kind)
-        if kind.startswith("PCRLB") and "set-noise" not in kind:
+        if "INS" in kind:
+            reasons.append("the UWB/INS bound is driven by the accelerometer noise density fitted on the calibration "
+                           "recording; if that over-states the noise of the scored flight, the bound is too wide")
+        elif kind.startswith("PCRLB") and "set-noise" not in kind:
             model = kind.split()[-1]
             implied = np.nanmedian([d.get(f"sigma_w_{model}", np.nan) for d in diag]) if diag else np.nan
             tuned = self.calibration.params(f"EKF-{model}").get("sigma_w", np.nan)

@@ -26,7 +26,7 @@ windowed NLS, which run on parts of a recording, place their parts on its epochs
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import Mapping, Protocol, Sequence, runtime_checkable
 
 import numpy as np
@@ -44,7 +44,7 @@ from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples, Recording
 from .protocol import Calibration
 
 __all__ = ["Estimator", "BaseEstimator", "RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "SetNoiseFilter",
-           "WindowNls", "UwbInsHook", "default_estimators", "truth_at", "MAX_TRUTH_GAP_S"]
+           "WindowNls", "UwbInsFilter", "default_estimators", "truth_at", "MAX_TRUTH_GAP_S"]
 
 #: Largest truth gap interpolated across when scoring or evaluating a bound, seconds.
 MAX_TRUTH_GAP_S = 0.5
@@ -464,32 +464,106 @@ class WindowNls(BaseEstimator):
 
 # ----------------------------------------------------------------------------- UWB/INS
 
-@dataclass(frozen=True)
-class UwbInsHook(BaseEstimator):
-    """Place of the UWB/INS filters (notebook 05) on the board.
+#: Rest at the start of a flight (levelling) and in-motion heading alignment before the fusion
+#: filters start, seconds (:func:`uwbwb.experiments.uwb_ins.study.compare_iasl`).
+INS_REST_S, INS_ALIGN_S = 2.0, 20.0
 
-    It runs nothing yet: where the recording has no IMU it says so, and where it has one it
-    says what is missing. The loose and tight filters of :mod:`uwbwb.filters.eskf` join by
-    replacing this entry with two adapters implementing :class:`Estimator`: ``tune`` = the
-    IMU calibration on the calibration recording, ``estimate`` = rest levelling, in-motion
-    alignment and the filter run (``FusionRun.to_estimates``, no estimate before the
-    alignment ends), ``bound`` = the posterior CRLB of the linearised error-state model
-    (:func:`uwbwb.bounds.pcrlb` with its ``F``, ``Q`` and the TDoA information).
+
+@dataclass(frozen=True, eq=False)
+class UwbInsFilter(BaseEstimator):
+    """The UWB/INS error-state filters of notebook 05 (``"loose"``: the paper's 6-state filter on
+    TDoA LS fixes; ``"tight"``: the 15-state filter with one update per TDoA), where an IMU exists.
+
+    ``tune`` is notebook 05's IMU calibration on the calibration recording (each filter keeps its own copy)
+    (:func:`~uwbwb.experiments.uwb_ins.study.calibrate_iasl`: sensor axes, accelerometer scale,
+    noise densities); the ranges are the board's calibrated ones with the board's range noise, so
+    the fusion filters get the same UWB information as every other method. ``estimate`` runs
+    notebook 05's start-up (rest levelling, in-motion heading alignment over the first
+    :data:`INS_ALIGN_S` s) and the filters (:func:`~uwbwb.experiments.uwb_ins.study.compare_iasl`);
+    no estimate before the alignment ends. One run gives every fusion filter, so it is kept for the
+    next adapter and its time is charged to the first one run.
+
+    Bound: the posterior CRLB of position and velocity driven by the accelerometer's white noise
+    (a random-force model with PSD = noise density²) with the TDoA information of every epoch —
+    attitude, biases and lever arm taken as known, so it is a lower bound for the full
+    error-state filter, not its exact bound.
     """
 
-    name: str = "UWB/INS"
+    kind: str = "tight"
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def name(self) -> str:
+        return self.kind
 
     def applies(self, rec, tag, cal):
         if rec.imu is None:
             return "needs an IMU (this recording has none)"
-        return ("the UWB/INS filters (uwbwb.filters.eskf) need notebook 05's IMU calibration and in-motion "
-                "alignment, which are not in the package yet")
+        if cal.dim != 3:
+            return "the UWB/INS filters run in 3-D"
+        span = rec.ranges[tag].t_s[-1] - rec.ranges[tag].t_s[0] if len(rec.ranges[tag]) else 0.0
+        if span < INS_REST_S + INS_ALIGN_S + 5.0:
+            return f"needs {INS_REST_S + INS_ALIGN_S + 5.0:.0f} s of data (rest, heading alignment, then scoring)"
+        return None
+
+    def tune(self, rec, tags, cal):
+        from ..experiments.uwb_ins import study
+
+        one = replace(rec, ranges={"tag": rec.ranges[tags[0]]}, truth={"tag": rec.truth[tags[0]]})
+        return {"calibration": study.calibrate_iasl(one, still_s=INS_REST_S)}
+
+    def _imu_calibration(self, cal):
+        try:
+            return cal.params(self.name)["calibration"]
+        except KeyError:
+            raise ValueError(f"{self.name}: no IMU calibration in {cal.source} (its recording has no IMU)") from None
+
+    def _comparison(self, rec, tag, cal):
+        from ..experiments.uwb_ins import study
+
+        key = (rec.label, tag, float(rec.ranges[tag].t_s[0]), len(rec.ranges[tag]), id(cal))
+        if key not in self._cache:
+            real = replace(self._imu_calibration(cal), range_sigma_m=cal.sigma(tag), range_bias_m=0.0)
+            one = replace(rec, ranges={"tag": calibrated_log(rec, tag, cal)}, truth={"tag": rec.truth[tag]}
+                          if tag in rec.truth else {})
+            self._cache.clear()
+            self._cache[key] = study.compare_iasl(one, real, still_s=INS_REST_S, align_s=INS_ALIGN_S)
+        return self._cache[key]
 
     def estimate(self, rec, tag, cal):
-        raise NotImplementedError(self.applies(rec, tag, cal))
+        comp = self._comparison(rec, tag, cal)
+        part = comp.estimates[self.kind]
+        log = rec.ranges[tag]
+        idx = np.searchsorted(log.t_s, part.t_s)
+        T, d = len(log), part.dim
+        pos, status = np.full((T, d), np.nan), np.full(T, _NONE, np.int8)
+        cov = np.full((T, d, d), np.nan)
+        pos[idx], status[idx] = part.pos_m, part.status
+        if part.pos_cov_m2 is not None:
+            cov[idx] = part.pos_cov_m2
+        info = {k: np.zeros(T, np.asarray(v).dtype) if np.issubdtype(np.asarray(v).dtype, np.integer)
+                else np.full(T, np.nan) for k, v in part.info.items()}
+        for k, v in part.info.items():
+            info[k][idx] = v
+        return Estimates(log.t_s, pos, status, self.name, cov, None, info)
 
     def bound(self, rec, tag, cal, est):
-        raise NotImplementedError(self.applies(rec, tag, cal))
+        from ..models.motion import RandomForce
+
+        log = calibrated_log(rec, tag, cal)
+        info, have = _tdoa_information(rec, tag, cal, log)
+        C = np.full((len(log), cal.dim, cal.dim), np.nan)
+        kind = "PCRLB INS (white acc. noise; attitude, biases known)"
+        start = np.flatnonzero(est.has_estimate)
+        if start.size == 0:
+            return bounds.Bound(log.t_s, C, kind)
+        k0 = int(start[0])
+        imu = self._imu_calibration(cal).imu_model
+        motion = RandomForce(psd_m2ps3=float(imu.acc_noise_density) ** 2, dim=cal.dim)
+        P0 = motion.initial_covariance(0.2, 0.3)          # the alignment's initial position/velocity SDs
+        C[k0:] = bounds.tracking_bound(motion, log.t_s[k0:], info[k0:], P0)
+        C[~have] = np.nan
+        return bounds.Bound(log.t_s, C, kind)
 
 
 def default_estimators(*, fast: bool = False, seed: int = 0) -> list[Estimator]:
@@ -503,6 +577,8 @@ def default_estimators(*, fast: bool = False, seed: int = 0) -> list[Estimator]:
         if fast:
             grid = tuple(float(g) for g in EKF_GRIDS[m][::2])
         ekfs.append(TdoaEkfEstimator(m, grid=grid))
+    ins_cache: dict = {}
     return [RawLs(), CalibratedLs(), TdoaLs(), *ekfs,
             SetNoiseFilter("KF", seed=seed), SetNoiseFilter("PF", n_particles=200 if fast else 1000, seed=seed),
-            WindowNls(windows_s=(1.0,) if fast else NLS_WINDOWS_S), UwbInsHook()]
+            WindowNls(windows_s=(1.0,) if fast else NLS_WINDOWS_S),
+            UwbInsFilter("loose", ins_cache), UwbInsFilter("tight", ins_cache)]
