@@ -237,3 +237,18 @@ def test_inputs_are_checked():
     run = robot.simulate(robot.hold(duration_s=1.0), cfg, rng=np.random.default_rng(0))
     with pytest.raises(ValueError, match="TdoaLog"):
         eskf.TightEskf(GRADES["consumer"], eskf.RangeUpdate(np.asarray(cfg.stations_m))).run(run.imu, run.tdoa, run.x0)
+
+
+def test_lever_arm_is_an_explicit_convention_and_its_sign_matters():
+    """Tag 30 cm ahead of the IMU: the right lever arm tracks the tag, the flipped one does not."""
+    cfg = robot.RobotConfig(lever_arm_m=(0.3, 0.0, 0.15), **CLEAN)
+    run = robot.simulate(_short(), cfg, rng=np.random.default_rng(12))
+    C = run.truth.rot
+    np.testing.assert_allclose(run.truth.pos_m - np.einsum("tij,j->ti", C, cfg.lever_arm_m),
+                               np.column_stack([run.motion.state(run.truth.t_s)[0][:, :2],
+                                                np.full(len(run.truth), cfg.tag_height_m - 0.15)]), atol=1e-12)
+    right = _tight(cfg).run(run.imu, run.tdoa, run.x0, heading=run.heading)
+    wrong = eskf.TightEskf(GRADES["consumer"], eskf.TdoaUpdate(cfg.tdoa_model(), 0.1), lever_arm_m=(-0.3, 0.0, 0.15),
+                           height_m=cfg.tag_height_m).run(run.imu, run.tdoa, run.x0, heading=run.heading)
+    rmse = lambda r: np.sqrt(np.mean(_err(run, r) ** 2))  # noqa: E731
+    assert rmse(right) < 0.03 and rmse(wrong) > 2 * rmse(right), (rmse(right), rmse(wrong))
