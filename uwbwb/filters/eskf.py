@@ -41,19 +41,21 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
 from ..models.imu import HeadingLog, ImuErrorModel
-from ..models.ins import (BA_, BG_, N_ERR, P_, TH_, V_, Mechanization, NavState, _dcm, _exp_left, _skew3, _yaw,
+from ..models.ins import (BA_, BG_, N_ERR, P_, TH_, V_, Mechanization, NavState, _dcm, _dcm_nb, _exp_left,
+                          _skew3, _yaw,
                           euler_from_dcm, error_transition, inject, propagate, quat_to_dcm, reset_jacobian,
                           yaw_jacobian)
 from ..models.tdoa import TdoaModel, triangle_outliers
 from ..types import EstimateStatus, Estimates, ImuLog, RangeLog, TdoaLog
 from . import kalman
 from .ekf import Linearisation
-from .kalman import Gaussian
+from .kalman import Gaussian, _sequential
 
 __all__ = ["FusionRun", "HeadingLog", "LooseFilter", "RangeUpdate", "TdoaUpdate", "TightEskf", "dead_reckon",
            "merge_timeline"]
@@ -382,9 +384,11 @@ class TightEskf:
         acc_bias0, gyro_bias0
             Initial bias estimates (default zero).
         reference_step
-            Propagate the covariance with :func:`kalman.predict` at every IMU step (the
-            straightforward form, for benchmarks and tests) instead of once per epoch
-            with the accumulated transition; results are identical up to rounding.
+            Run the straightforward form, step by step in Python (the mechanization and
+            :func:`kalman.predict` at every IMU step, the measurement models and
+            :func:`kalman.update_sequential` at every epoch; for benchmarks and tests) instead
+            of the compiled loop (:func:`_tight_loop`: the accumulated transition once per
+            epoch, same updates); results are identical up to rounding (tested).
         """
         t_ep = (imu.t_s if t_s is None else np.asarray(t_s, float)) if uwb is None else uwb.t_s
         T = t_ep.size
@@ -412,24 +416,21 @@ class TightEskf:
         order = order[ep_idx[order] >= 0]
         ep_at = np.full(t.size, -1)
         ep_at[ep_idx[order]] = order
-        g_n = mech.g_n
+        name = name or (self.name if uwb is not None else "INS-only")
+        if not reference_step:
+            self._run_compiled(t, acc, gyro, ep_at, rows, refs, yaw_meas, p, v, q, ba, bg, P, qrate, gate1, out)
+            out["n_outliers"][:] = n_out_all
+            return FusionRun(t_ep.copy(), name=name, **out)
+        # The reference form, step by step in Python: mechanization and filterpy predict at every
+        # IMU step, then the epoch's update through the measurement models and kalman.update_sequential.
         last = 0
         for i in np.flatnonzero(ep_at >= 0):
-            if reference_step:
-                # the straightforward form: Python mechanization, filterpy predict at every IMU step
-                for j in range(last + 1, i + 1):
-                    dt = t[j] - t[j - 1]
-                    f0, f1 = acc[j - 1] - ba, acc[j] - ba
-                    p, v, q, C0, _ = mech.step(p, v, q, f0, f1, gyro[j - 1] - bg, gyro[j] - bg, dt)
-                    st = kalman.predict(Gaussian(dx, P), error_transition(C0, f0, dt), np.diag(qrate * dt))
-                    dx, P = st.x, st.P
-            else:
-                if i > last:
-                    p, v, q = p.copy(), v.copy(), q.copy()
-                    Phi, Qacc = np.eye(N_ERR), np.zeros((N_ERR, N_ERR))
-                    propagate(p, v, q, ba, bg, t, acc, gyro, last, i, g_n, qrate, Phi, Qacc)
-                    st = kalman.predict(Gaussian(dx, P), Phi, Qacc)
-                    dx, P = st.x, st.P
+            for j in range(last + 1, i + 1):
+                dt = t[j] - t[j - 1]
+                f0, f1 = acc[j - 1] - ba, acc[j] - ba
+                p, v, q, C0, _ = mech.step(p, v, q, f0, f1, gyro[j - 1] - bg, gyro[j] - bg, dt)
+                st = kalman.predict(Gaussian(dx, P), error_transition(C0, f0, dt), np.diag(qrate * dt))
+                dx, P = st.x, st.P
             last = i
             k = ep_at[i]
             C = _dcm(q)
@@ -489,7 +490,41 @@ class TightEskf:
             out["nis"][k], out["dof"][k], out["n_outliers"][k], out["n_gated"][k] = nis, dof, n_out, n_gated
             out["status"][k] = (EstimateStatus.UPDATED if uwb_used else
                                 EstimateStatus.GATED if n_gated else EstimateStatus.PREDICTED)
-        return FusionRun(t_ep.copy(), name=name or (self.name if uwb is not None else "INS-only"), **out)
+        return FusionRun(t_ep.copy(), name=name, **out)
+
+    def _run_compiled(self, t, acc, gyro, ep_at, rows, refs, yaw_meas, p, v, q, ba, bg, P, qrate, gate1, out):
+        """The filter of :meth:`run` as one compiled loop (:func:`_tight_loop`), writing into ``out``."""
+        T = yaw_meas.size
+        kind, anchors, var_m, correlated, bias_m = 0, np.empty((0, 3)), np.empty(0), False, 0.0
+        if rows is not None:
+            if isinstance(self.uwb, TdoaUpdate):
+                kind, model = 1, self.uwb.model
+                anchors, var_m, correlated = model.anchor_pos_m, model.sigma_m ** 2, model.correlated
+                # TdoaModel.epoch refuses a reference without a measurement; so does this path
+                usable = (refs >= 0) & (np.isfinite(rows).sum(axis=1) >= 2)
+                bad = np.flatnonzero(usable & ~np.isfinite(rows[np.arange(T), np.clip(refs, 0, None)]))
+                if bad.size:
+                    raise ValueError(f"TdoaModel.epoch: reference {refs[bad[0]]} is not among the measured anchors "
+                                     f"of epoch {bad[0]}")
+            else:
+                kind, anchors, var_m, bias_m = 2, self.uwb.anchor_pos_m, self.uwb.sigma_m ** 2, self.uwb.bias_m
+        else:
+            rows, refs = np.empty((T, 0)), np.zeros(T, np.int64)
+        tl = np.flatnonzero(ep_at >= 0)
+        code = _tight_loop(
+            t, acc, gyro, tl, ep_at[tl], np.ascontiguousarray(rows, float), np.asarray(refs, np.int64), kind,
+            np.ascontiguousarray(anchors, float), np.ascontiguousarray(var_m, float), correlated, float(bias_m),
+            float(self.r_scale), float(gate1), int(self.max_gated), np.asarray(yaw_meas, float),
+            float(self.imu_model.mag_heading_sigma_rad), self.height_m is not None,
+            float(self.height_m or 0.0), float(self.height_sigma_m), bool(self.feedback), self.lever_arm_m, qrate,
+            self.mechanization.g_n, p.copy(), v.copy(), q.copy(), ba.copy(), bg.copy(), P.copy(), out["pos_m"],
+            out["vel_mps"], out["quat"], out["acc_bias_mps2"], out["gyro_bias_radps"], out["P"], out["pos_cov_m2"],
+            out["nis"], out["dof"], out["n_gated"], out["status"], int(EstimateStatus.UPDATED),
+            int(EstimateStatus.GATED), int(EstimateStatus.PREDICTED))
+        if code == 1:
+            raise ValueError("update_sequential: non-finite values; a missing measurement is left out, not passed as NaN")
+        if code == 2:
+            raise ValueError("update_sequential: R must be symmetric positive definite")
 
 
 def _block_diag(blocks) -> np.ndarray:
@@ -501,6 +536,252 @@ def _block_diag(blocks) -> np.ndarray:
         out[i:i + m, i:i + m] = b
         i += m
     return out
+
+
+# ====================================================================== tight, compiled
+@numba.njit(cache=True, nogil=True)
+def _skew_into(v, S):
+    S[0, 0], S[0, 1], S[0, 2] = 0.0, -v[2], v[1]
+    S[1, 0], S[1, 1], S[1, 2] = v[2], 0.0, -v[0]
+    S[2, 0], S[2, 1], S[2, 2] = -v[1], v[0], 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _exp_left_nb(rv, q):
+    """:func:`~uwbwb.models.ins._exp_left` (``Exp(rv) ⊗ q``, normalised), in place on ``q``."""
+    ang = math.sqrt(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2])
+    k = math.sin(0.5 * ang) / ang if ang > 1e-8 else 0.5 - ang * ang / 48.0
+    rw, rx, ry, rz = math.cos(0.5 * ang), k * rv[0], k * rv[1], k * rv[2]
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    o0 = rw * w - rx * x - ry * y - rz * z
+    o1 = rw * x + rx * w + ry * z - rz * y
+    o2 = rw * y - rx * z + ry * w + rz * x
+    o3 = rw * z + rx * y - ry * x + rz * w
+    nq = math.sqrt(o0 * o0 + o1 * o1 + o2 * o2 + o3 * o3)
+    q[0], q[1], q[2], q[3] = o0 / nq, o1 / nq, o2 / nq, o3 / nq
+
+
+@numba.njit(cache=True, nogil=True)
+def _reset_block(phi):
+    """The attitude block of :func:`~uwbwb.models.ins.reset_jacobian`, ``(3, 3)``."""
+    th = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    S = np.empty((3, 3))
+    _skew_into(phi, S)
+    if th < 1e-6:
+        a, b = 0.5 - th * th / 24.0, 1.0 / 6.0 - th * th / 120.0
+    else:
+        a, b = (1 - math.cos(th)) / th ** 2, (th - math.sin(th)) / th ** 3
+    return np.eye(3) + (a * S + b * (S @ S))
+
+
+@numba.njit(cache=True, nogil=True)
+def _reset_covariance(P, Gt):
+    """``P ← G P Gᵀ`` in place, with ``G`` the identity but for the attitude block ``Gt``."""
+    rows = np.empty((3, 15))
+    for a in range(3):
+        for b in range(15):
+            rows[a, b] = Gt[a, 0] * P[6, b] + Gt[a, 1] * P[7, b] + Gt[a, 2] * P[8, b]
+    P[6:9, :] = rows
+    cols = np.empty((15, 3))
+    for a in range(15):
+        for b in range(3):
+            cols[a, b] = P[a, 6] * Gt[b, 0] + P[a, 7] * Gt[b, 1] + P[a, 8] * Gt[b, 2]
+    P[:, 6:9] = cols
+
+
+@numba.njit(cache=True, nogil=True)
+def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, correlated, bias_m, r_scale, gate1,
+                max_gated, yaw_meas, sig_yaw, use_height, height_m, sig_height, feedback, lever, qrate, g_n,
+                p, v, q, ba, bg, P, pos_o, vel_o, quat_o, ba_o, bg_o, P_o, cov_o, nis_o, dof_o, gated_o, status_o,
+                st_updated, st_gated, st_predicted):
+    """:meth:`TightEskf.run` compiled: the same steps as its reference loop, epoch after epoch.
+
+    Per epoch (timeline index ``tl_idx[e]``, epoch ``ep_of[e]``): :func:`propagate` from the last
+    epoch and one predict ``dx ← Φ dx``, ``P ← Φ P Φᵀ + Q`` (symmetrised); the epoch's TDoAs
+    (``kind`` 1, :meth:`TdoaModel.epoch` with the lever-arm Jacobian) or ranges (``kind`` 2,
+    :meth:`RangeUpdate.linearise`), the χ² gate, the heading and height pseudo-measurements;
+    :func:`~uwbwb.filters.kalman._sequential`; injection and reset. ``p, v, q, ba, bg, P`` are
+    worked on in place; outputs go to row ``ep_of[e]`` of the ``*_o`` arrays. Returns 0, or the
+    error code of ``_sequential``. Tested equal to the reference loop and to the model functions.
+    """
+    n_a = anchors.shape[0]
+    m_max = n_a + 2
+    dx = np.zeros(15)
+    C = np.empty((3, 3))
+    Sl = np.empty((3, 3))
+    Phi = np.empty((15, 15))
+    Qacc = np.empty((15, 15))
+    z = np.empty(m_max)
+    h = np.empty(m_max)
+    H = np.zeros((m_max, 15))
+    Rd = np.empty(m_max)
+    keep = np.empty(m_max, np.bool_)
+    hp = np.empty(3)
+    gated_run = 0
+    last = 0
+    for e in range(tl_idx.size):
+        i, k = tl_idx[e], ep_of[e]
+        if i > last:
+            Phi[:, :] = 0.0
+            Qacc[:, :] = 0.0
+            for j in range(15):
+                Phi[j, j] = 1.0
+            propagate(p, v, q, ba, bg, t, acc, gyro, last, i, g_n, qrate, Phi, Qacc)
+            dx = Phi @ dx
+            P = Phi @ P @ Phi.T + Qacc
+            P = 0.5 * (P + P.T)
+        last = i
+        _dcm_nb(q, C)
+        cl = C @ lever
+        _skew_into(cl, Sl)                      # J_tag = [I, 0, −[C l ×], 0, 0]
+        tag = p + cl
+        # ---- UWB rows (z, h, H) and their noise (diagonal Rd; TDoA adds the reference's variance)
+        m, n_gated, uwb_used, var_ref = 0, 0, 0, 0.0
+        row = rows[k]
+        lin = False
+        if kind == 1:
+            ref = refs[k]
+            n_fin = 0
+            for j in range(n_a):
+                if np.isfinite(row[j]):
+                    n_fin += 1
+            if ref >= 0 and n_fin >= 2:
+                lin = True
+                dr = tag - anchors[ref]
+                rr = math.sqrt(dr[0] * dr[0] + dr[1] * dr[1] + dr[2] * dr[2])
+                ur = dr / max(rr, 1e-12)
+                var_ref = var_m[ref]
+                for j in range(n_a):
+                    if j == ref or not np.isfinite(row[j]):
+                        continue
+                    d = tag - anchors[j]
+                    r = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+                    u = d / max(r, 1e-12)
+                    z[m] = row[j] - row[ref]
+                    h[m] = r - rr
+                    for a in range(3):
+                        hp[a] = u[a] - ur[a]
+                    Rd[m] = var_m[j]
+                    m += 1
+                    _fill_row(H, m - 1, hp, Sl)
+        elif kind == 2:
+            for j in range(n_a):
+                if not np.isfinite(row[j]):
+                    continue
+                lin = True
+                d = tag - anchors[j]
+                r = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+                rm = max(r, 1e-9)
+                for a in range(3):
+                    hp[a] = d[a] / rm
+                z[m] = row[j] - bias_m
+                h[m] = r
+                Rd[m] = var_m[j]
+                m += 1
+                _fill_row(H, m - 1, hp, Sl)
+        off = 0.0                               # R = (diag(Rd) + var_ref 1 1ᵀ) r_scale, or its diagonal
+        if lin:
+            for a in range(m):
+                Rd[a] = (Rd[a] + var_ref) * r_scale
+            if correlated:
+                off = var_ref * r_scale
+            for a in range(m):
+                Hdx = H[a] @ dx
+                y = z[a] - h[a] - Hdx
+                s = H[a] @ P @ H[a] + Rd[a]
+                keep[a] = y * y / s <= gate1 if gated_run < max_gated else True
+                h[a] += Hdx
+            w = 0
+            for a in range(m):                  # the kept rows first, in order
+                if keep[a]:
+                    z[w], h[w], Rd[w] = z[a], h[a], Rd[a]
+                    H[w] = H[a]
+                    w += 1
+            n_gated = m - w
+            uwb_used = w
+            m = w
+            gated_run = gated_run + 1 if (n_gated > 0 and uwb_used == 0) else 0
+        n_uwb = m
+        # ---- heading and height pseudo-measurements
+        if np.isfinite(yaw_meas[k]) and sig_yaw > 0:
+            c0, c1, c2 = C[0, 0], C[1, 0], C[2, 0]
+            den = c0 ** 2 + c1 ** 2
+            H[m] = 0.0
+            H[m, 6], H[m, 7], H[m, 8] = (-c0 * c2 + c1 * 0.0) / den, (-c0 * 0.0 + c1 * -c2) / den, \
+                (-c0 * -c0 + c1 * c1) / den
+            a = yaw_meas[k] - math.atan2(C[1, 0], C[0, 0])
+            z[m] = (a + np.pi) % (2 * np.pi) - np.pi
+            h[m] = H[m] @ dx
+            Rd[m] = sig_yaw ** 2
+            m += 1
+        if use_height:
+            H[m] = 0.0
+            H[m, 2] = 1.0
+            for b in range(3):
+                H[m, 6 + b] = -Sl[2, b]
+            z[m] = height_m
+            h[m] = tag[2] + H[m] @ dx
+            Rd[m] = sig_height ** 2
+            m += 1
+        nis, dof = np.nan, 0
+        if m:
+            R = np.zeros((m, m))
+            for a in range(m):
+                R[a, a] = Rd[a]
+                if a < n_uwb:
+                    for b in range(n_uwb):
+                        if b != a:
+                            R[a, b] = off
+            y = z[:m] - h[:m]
+            nis_parts = np.empty(m)
+            code = _sequential(dx, P, y, H[:m].copy(), R, nis_parts)
+            if code:
+                return code
+            P = 0.5 * (P + P.T)
+            if uwb_used:
+                nis = nis_parts[:uwb_used].sum()
+            dof = uwb_used
+        # ---- closed loop: inject and reset; open loop: report nominal ⊕ δx
+        qo = q.copy()
+        if feedback:
+            p += dx[0:3]
+            v += dx[3:6]
+            _exp_left_nb(dx[6:9], q)
+            ba += dx[9:12]
+            bg += dx[12:15]
+            _reset_covariance(P, _reset_block(dx[6:9]))
+            dx[:] = 0.0
+            qo[:] = q
+        else:
+            _exp_left_nb(dx[6:9], qo)
+        _dcm_nb(qo, C)
+        clo = C @ lever
+        _skew_into(clo, Sl)
+        for a in range(3):
+            pos_o[k, a] = p[a] + dx[a] + clo[a]
+            vel_o[k, a] = v[a] + dx[3 + a]
+            ba_o[k, a] = ba[a] + dx[9 + a]
+            bg_o[k, a] = bg[a] + dx[12 + a]
+        quat_o[k] = qo
+        P_o[k] = P
+        Jo = np.zeros((3, 15))
+        for a in range(3):
+            Jo[a, a] = 1.0
+            for b in range(3):
+                Jo[a, 6 + b] = -Sl[a, b]
+        cov_o[k] = Jo @ P @ Jo.T
+        nis_o[k], dof_o[k], gated_o[k] = nis, dof, n_gated
+        status_o[k] = st_updated if uwb_used else (st_gated if n_gated else st_predicted)
+    return 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill_row(H, a, hp, Sl):
+    """Row ``a`` of ``H = ∂h/∂p · J_tag``: ``hp`` on δp and ``−hp [C l ×]`` on δθ."""
+    H[a] = 0.0
+    for b in range(3):
+        H[a, b] = hp[b]
+        H[a, 6 + b] = -(hp[0] * Sl[0, b] + hp[1] * Sl[1, b] + hp[2] * Sl[2, b])
 
 
 # ====================================================================== loose (the paper's filter)
