@@ -243,3 +243,34 @@ def test_int_slider_dropdown_seed_box():
     assert isinstance(b, widgets.BoundedIntText) and b.value == 7 and b.min == 0
     with pytest.raises(ValueError, match="outside"):
         uww.seed_box(-1)
+
+
+def test_panel_figure_is_reused_and_redraws_the_new_data():
+    import numpy as np
+
+    view = uww.PanelFigure(1, 2, figsize=(6, 3))
+    ymax = {"a": 1.0}
+
+    def render(scale):
+        axes = view.clear()
+        axes[0].plot([0, 1, 2], [0, scale, 2 * scale], label="line")
+        axes[0].axvspan(0.5, 1.0)
+        axes[0].legend()
+        axes[1].plot([0, 1], [0, 1])
+        axes[1].set_ylim(0, ymax["a"])                     # a limit the plotting code sets stays
+        return view.done(), {"scale": scale}
+
+    open_before = set(plt.get_fignums())
+    p = uww.Panel("reuse", {"scale": uww.float_slider("scale", 1.0, 1.0, 10.0, 1.0)}, render)
+    first = p.figure.outputs[0]["data"]["image/png"]
+    ax0, ax1 = view.axes
+    assert len(ax0.lines) == 1 and len(ax0.patches) == 1 and ax0.get_legend() is not None
+    p.set(scale=10.0)
+    assert view.axes[0] is ax0 and len(ax0.lines) == 1 and len(ax0.patches) == 1   # nothing piles up
+    assert ax0.get_ylim()[1] >= 20.0                       # rescaled to the new data
+    assert ax1.get_ylim() == (0.0, 1.0)
+    p.set(scale=1.0)
+    assert ax0.get_ylim()[1] < 5.0                         # and back down: limits follow the data
+    assert p.figure.outputs[0]["data"]["image/png"] == first   # the same picture for the same values
+    assert set(plt.get_fignums()) == open_before
+    np.testing.assert_array_equal(ax0.lines[0].get_ydata(), [0, 1.0, 2.0])

@@ -65,7 +65,7 @@ import ipywidgets as widgets
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
-__all__ = ["Panel", "float_slider", "int_slider", "dropdown", "seed_box", "data_banner"]
+__all__ = ["Panel", "PanelFigure", "float_slider", "int_slider", "dropdown", "seed_box", "data_banner"]
 
 #: Width of a control row; descriptions take their natural width inside it.
 _CONTROL_LAYOUT = {"width": "34em"}
@@ -307,6 +307,64 @@ def _png_output(fig: Figure) -> dict:
             "data": {"image/png": base64.b64encode(buf.getvalue()).decode("ascii"),
                      "text/plain": repr(fig)},
             "metadata": {}}
+
+
+# --------------------------------------------------------------------------- reused figure
+
+class PanelFigure:
+    """One figure for every render of a panel: axes, ticks and layout are built once, the data redrawn.
+
+    A new figure per render pays for its axes, tick labels and ``tight_layout`` every time
+    (most of a panel's drawing time). Instead a render function calls :meth:`clear`, draws
+    into the returned axes with the usual plotting functions, and returns :meth:`done`::
+
+        view = uw.widgets.PanelFigure(1, 2, figsize=(12, 4))
+
+        def render(sigma_m):
+            axes = view.clear()
+            uw.plotting.error_cdf(run(sigma_m), ax=axes[0])
+            ...
+            return view.done(), readout
+
+    :meth:`clear` removes the data artists (lines, patches, collections, texts, images, the
+    legend), turns autoscaling back on and restarts the colour cycle; :meth:`done` rescales to the new data and lays the
+    figure out on its first call only. The figure is not a pyplot figure, so the panel's
+    closing of the figures a render opened leaves it alone.
+
+    Parameters
+    ----------
+    nrows, ncols
+        Grid of axes.
+    figsize
+        Inches, as for :func:`matplotlib.pyplot.subplots`.
+    """
+
+    def __init__(self, nrows: int = 1, ncols: int = 1, *, figsize=(6.4, 4.8)):
+        self.figure = Figure(figsize=figsize)
+        axes = self.figure.subplots(nrows, ncols, squeeze=False)
+        self.axes = axes[0, 0] if axes.size == 1 else (axes.ravel() if 1 in axes.shape else axes)
+        self._laid_out = False
+
+    def clear(self):
+        """Remove the previous render's data; returns the axes (one Axes, a 1-D array, or 2-D)."""
+        for ax in self.figure.axes:
+            for art in (*ax.lines, *ax.patches, *ax.collections, *ax.texts, *ax.images):
+                art.remove()
+            if ax.get_legend() is not None:
+                ax.get_legend().remove()
+            ax.set_autoscale_on(True)
+            ax.set_prop_cycle(None)                  # default colours start over, as on a new axes
+        return self.axes
+
+    def done(self) -> Figure:
+        """Rescale every axes to its new data (limits a plotting function set stay) and return the figure."""
+        for ax in self.figure.axes:
+            ax.relim()
+            ax.autoscale_view()
+        if not self._laid_out:
+            self.figure.tight_layout()
+            self._laid_out = True
+        return self.figure
 
 
 # --------------------------------------------------------------------------- panel
