@@ -126,7 +126,7 @@ def test_range_samples_from_ranges_and_back():
 
 # --------------------------------------------------------------------------- tag runs
 
-def test_tag_run_true_ranges_window_and_decimation():
+def test_tag_run_true_ranges_and_window():
     anchors = Anchors(tuple("ABCD"), np.array([[0, 0, 2.5], [10, 0, 2.5], [10, 8, 2.4], [0, 8, 2.6]]))
     t = np.arange(40) * 0.1
     pos = np.column_stack([2 + 0.5 * t, 3 + 0.2 * t, np.full(t.size, 1.2)])
@@ -137,7 +137,6 @@ def test_tag_run_true_ranges_window_and_decimation():
     cut = run.between(1.0, 2.0, name="part")
     assert cut.name == "part" and len(cut.ranges) == 10
     assert cut.truth.t_s[0] == pytest.approx(1.0 - TagRun.max_truth_gap_s)
-    assert len(run.decimated(5.0).ranges) == 20 and run.decimated(None) is run
     assert run.tdoa(1).ref.tolist() == [1] * 40
     with pytest.raises(ValueError, match="anchors"):
         TagRun("synthetic", "x", "t", RangeLog(t, r[:, :3], anchors.ids[:3], "t"), Trajectory(t, pos), anchors)

@@ -917,19 +917,6 @@ class TagRun:
                        truth=self.truth.between(t_start_s - pad, t_end_s + pad),
                        raw=None if self.raw is None else self.raw.between(t_start_s, t_end_s))
 
-    def decimated(self, rate_hz: float | None) -> "TagRun":
-        """Every ``k``-th epoch so that the rate is at most ``rate_hz`` (None or a lower native rate: unchanged)."""
-        if rate_hz is None:
-            return self
-        k = int(np.floor(1.0 / (rate_hz * self.dt_s) + 1e-9))
-        if k <= 1:
-            return self
-        keep = np.arange(0, len(self.ranges), k)
-        raw = self.raw
-        if raw is not None:
-            raw = raw.select(np.isin(raw.t_s, self.ranges.t_s[keep]))
-        return replace(self, ranges=self.ranges.select(keep), raw=raw)
-
 
 class EstimateStatus(enum.IntEnum):
     """What an estimator did at one epoch (stored as ``int8`` in :attr:`Estimates.status`).

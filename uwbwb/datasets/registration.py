@@ -32,6 +32,7 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 from scipy.optimize import least_squares
 
+from ..calibration import MAD_TO_SIGMA
 from ..errors import DataFormatError
 from ..geometry import linear_multilaterate, yaw_rotation
 from ..types import Anchors, ImuLog, RangeLog, Trajectory
@@ -47,9 +48,6 @@ QUAT_ORDERS = ("wxyz", "xyzw")
 #: Candidate half turns of a motion-capture body frame relative to the tag frame (axis -> diagonal).
 BODY_FLIPS = {"none": (1.0, 1.0, 1.0), "x": (1.0, -1.0, -1.0),
               "y": (-1.0, 1.0, -1.0), "z": (-1.0, -1.0, 1.0)}
-#: Median absolute deviation to standard deviation for Gaussian noise.
-MAD_TO_SIGMA = 1.4826
-
 
 class RegistrationError(ValueError):
     """The data cannot support a clock/frame registration (too little overlap or motion)."""
@@ -434,7 +432,7 @@ def register_truth(ranges: RangeLog, anchors: Anchors, truth: Trajectory, *, fit
     res = sol.fun
     trans, dt, psi, b = _RangeModel.unpack(sol.x, fit_yaw, fit_range_bias)
     rms = float(np.sqrt(np.mean(res ** 2)))
-    sigma = float(1.4826 * np.median(np.abs(res - np.median(res))))
+    sigma = float(MAD_TO_SIGMA * np.median(np.abs(res - np.median(res))))
     names = (["tx_m", "ty_m", "tz_m", "time_offset_s"] + (["yaw_rad"] if fit_yaw else [])
              + (["range_bias_m"] if fit_range_bias else []))
     cov = np.linalg.pinv(sol.jac.T @ sol.jac) * sigma ** 2

@@ -39,6 +39,7 @@ import pandas as pd
 from scipy.stats import chi2
 
 from .. import metrics
+from ..calibration import range_sigma_from_truth
 from ..filters.ekf import nis_consistency
 from ..types import Estimates, Recording
 from .estimators import Estimator, calibrated_log, default_estimators, truth_at
@@ -391,12 +392,11 @@ def _diagnostics(rec: Recording, tag: str, cal: Calibration) -> dict:
     pos = truth_at(rec, tag, log.t_s, 3 if rec.truth[tag].dim == 3 else 2)
     out = {"sigma_ratio": np.nan}
     if pos.shape[1] == 3:
-        res = log.range_m - np.linalg.norm(pos[:, None, :] - rec.anchors.pos_m[None], axis=-1)
-        med = np.nanmedian(res, axis=0)
-        robust = 1.4826 * np.nanmedian(np.abs(res - med), axis=0)
-        ok = np.isfinite(robust)
+        true_r = np.linalg.norm(pos[:, None, :] - rec.anchors.pos_m[None], axis=-1)
+        ok = np.isfinite(log.range_m - true_r).sum(axis=0) >= 2      # anchors with a spread to measure
         if ok.any():
-            out["sigma_ratio"] = float(np.median(robust[ok] / cal.sigma(tag)[ok]))
+            robust = range_sigma_from_truth(log.range_m[:, ok], true_r[:, ok])
+            out["sigma_ratio"] = float(np.median(robust / cal.sigma(tag)[ok]))
     have = np.all(np.isfinite(pos), axis=1)
     if have.sum() > 5:
         t, p = log.t_s[have], pos[have][:, :cal.dim]

@@ -15,6 +15,7 @@ import pandas as pd
 
 from ... import metrics
 from ... import sampling as smp
+from ...calibration import MAD_TO_SIGMA
 from ...filters import doppler as fd
 from ...filters.kalman import Gaussian
 from ...models import doppler as dm
@@ -251,8 +252,8 @@ class TrackStudy:
             along, cross = e @ a, e @ c
             rows.append({"snapshot": ("bottom-left corner", "top-left corner")[k], "t (s)": t,
                          "CEP50 (cm)": 100 * metrics.cep50(np.linalg.norm(e, axis=1)),
-                         "along (cm)": 100 * 1.4826 * np.median(np.abs(along)),
-                         "across (cm)": 100 * 1.4826 * np.median(np.abs(cross))})
+                         "along (cm)": 100 * MAD_TO_SIGMA * np.median(np.abs(along)),
+                         "across (cm)": 100 * MAD_TO_SIGMA * np.median(np.abs(cross))})
         df = pd.DataFrame(rows)
         df["along / across"] = df["along (cm)"] / df["across (cm)"]
         return df

@@ -581,7 +581,7 @@ def range_error_stats(recordings, *, tags=None, stride: int = 10, long_m: float 
     pandas.DataFrame
         One row per ``(anchor, tag)`` with samples: ``n, bias_m, spread_m, frac_long``.
     """
-    from ...calibration import pair_samples
+    from ...calibration import MAD_TO_SIGMA, pair_samples
 
     anchor_ids, tag_ids, true_m, meas_m = pair_samples([r.decimate(int(stride)) for r in recordings])
     err = meas_m - true_m                                                    # (N, n_tags, n_anchors)
@@ -595,7 +595,7 @@ def range_error_stats(recordings, *, tags=None, stride: int = 10, long_m: float 
                 continue
             med = np.median(e)
             rows.append({"anchor": a, "tag": tag, "n": e.size, "bias_m": med,
-                         "spread_m": 1.4826 * np.median(np.abs(e - med)),
+                         "spread_m": MAD_TO_SIGMA * np.median(np.abs(e - med)),
                          "frac_long": float(np.mean(e > med + long_m))})
     return pd.DataFrame(rows)
 

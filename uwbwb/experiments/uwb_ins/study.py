@@ -19,7 +19,7 @@ from ...filters import eskf
 from ...filters.tdoa_ls import tdoa_least_squares
 from ...models.imu import GRADES, ImuConvention, ImuErrorModel
 from ...models.ins import GRAVITY_MPS2, NavState, dcm_from_euler, dcm_to_quat, quat_to_dcm
-from ...calibration import range_sigma_from_truth
+from ...calibration import MAD_TO_SIGMA, range_sigma_from_truth
 from ...models.tdoa import TdoaModel, triangle_outliers
 from ...sim import robot
 from ...types import EstimateStatus, Estimates, ImuLog, Recording, TdoaLog, Trajectory
@@ -320,7 +320,7 @@ def calibrate_iasl(rec: Recording, *, still_s: float = 2.0) -> RealCalibration:
     w_i = np.linalg.norm(imu.gyro_radps[inside], axis=1)
     dt = float(np.median(np.diff(imu.t_s)))
     rf, rw = scale * f_i - f_t, w_i - w_t
-    mad = lambda x: 1.4826 * float(np.median(np.abs(x - np.median(x))))  # noqa: E731
+    mad = lambda x: MAD_TO_SIGMA * float(np.median(np.abs(x - np.median(x))))  # noqa: E731
     acc_nd, gyro_nd = mad(rf) * math.sqrt(dt), mad(rw) * math.sqrt(dt)
     log = rec.ranges["tag"]
     true_r = np.linalg.norm(truth.interp(log.t_s)[:, None, :] - rec.anchors.pos_m, axis=-1)
