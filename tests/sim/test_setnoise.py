@@ -101,3 +101,37 @@ def test_recordings_calibration_and_reproducibility():
     fig3 = [c for c in cal if np.allclose(c.truth_m[0], CFG.fig3_xy_m)][0]
     freq = fig3.set_frequency()
     assert freq["share"].iloc[0] < 0.5 and freq["cum_share"].iloc[4] > 0.75   # cf. Fig. 4: < 45 %, 85.8 %
+
+
+def _emulation_log(n=40):
+    from uwbwb.types import RangeLog
+    anchors = np.array([[0, 0, 3], [8, 0, 3], [8, 6, 3], [0, 6, 3], [4, -2, 3], [10, 3, 3]], float)
+    t = np.arange(n) * 0.1
+    xy = np.column_stack([1 + 0.1 * t, 2 + 0.05 * t])
+    r = np.linalg.norm(np.column_stack([xy, np.full(n, 1.0)])[:, None] - anchors, axis=-1)
+    r[3, :3] = np.nan                                   # 3 ranges left: fewer than a set
+    return RangeLog(t, r, tuple("ABCDEF")), anchors, xy
+
+
+def test_emulated_sets_pick_the_nearest_anchors_and_solve_exactly_without_fading():
+    log, anchors, xy = _emulation_log()
+    em = S.emulate_set_fixes(log, anchors, 1.0, S.SetEmulation(set_size=4, fading_db=0.0),
+                             rng=np.random.default_rng(0), truth_m=xy)
+    assert em.too_few_ranges == 1 and em.fix_failed == 0 and 3 not in em.row
+    np.testing.assert_allclose(em.fixes.pos_m, xy[em.row], atol=1e-6)
+    nearest = np.argsort(log.range_m[0])[:4]
+    assert set(np.flatnonzero(set_mask(em.fixes.set_id[:1], 6)[0])) == set(nearest)
+
+
+def test_emulated_sets_missing_truth_drops_fixes_not_the_random_stream():
+    log, anchors, xy = _emulation_log()
+    emu = S.SetEmulation(set_size=4, fading_db=3.0)
+    full = S.emulate_set_fixes(log, anchors, 1.0, emu, rng=np.random.default_rng(1), truth_m=xy)
+    gap = xy.copy()
+    gap[10:15] = np.nan
+    part = S.emulate_set_fixes(log, anchors, 1.0, emu, rng=np.random.default_rng(1), truth_m=gap)
+    keep = ~np.isin(full.row, np.arange(10, 15))
+    np.testing.assert_array_equal(part.row, full.row[keep])
+    np.testing.assert_array_equal(part.fixes.set_id, full.fixes.set_id[keep])
+    with pytest.raises(ValueError, match="set_size"):
+        S.SetEmulation(set_size=2)

@@ -39,8 +39,8 @@ from ..filters.setnoise import model_noise, run_set_noise_kf, run_set_noise_pf
 from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import VelocityKick, make_motion_model
 from ..models.tdoa import TdoaModel
-from ..sim.setnoise import select_sets
-from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples, Recording, SetFixLog, TdoaLog, set_id_from_mask
+from ..sim.setnoise import SetEmulation, emulate_set_fixes
+from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples, Recording, TdoaLog
 from .protocol import Calibration
 
 __all__ = ["Estimator", "BaseEstimator", "RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "SetNoiseFilter",
@@ -255,39 +255,6 @@ class TdoaEkfEstimator(BaseEstimator):
 
 # ----------------------------------------------------------------------------- set-noise filters
 
-@dataclass(frozen=True)
-class SetEmulation:
-    """Sensor sets emulated on two-way ranges as notebook 01 does: the ``set_size`` anchors with the
-    strongest emulated power (path loss ``−10 n log10 r`` plus fading ``N(0, fading_db)``) form the set;
-    the fix is the 2-D LS position from that set at the tag's calibrated height."""
-
-    set_size: int = 5
-    fading_db: float = 2.5
-    path_loss_exponent: float = 2.0
-
-
-def emulated_fixes(log: RangeLog, anchors, z_m: float, emulation: SetEmulation, *, rng: np.random.Generator,
-                   truth_m: np.ndarray | None = None, name: str = "fixes") -> tuple[SetFixLog, np.ndarray]:
-    """Set fixes of one range log, and the index of each fix's epoch in ``log``.
-
-    ``truth_m`` (``(T, 2)``, calibration only) is attached for fitting the set-noise model;
-    epochs without truth are then left out.
-    """
-    r = log.range_m
-    with np.errstate(divide="ignore", invalid="ignore"):
-        power = -10 * emulation.path_loss_exponent * np.log10(np.where(r > 0, r, np.nan))
-    used = select_sets(power, emulation.set_size, emulation.fading_db, rng=rng)
-    enough = used.sum(axis=1) >= emulation.set_size
-    if truth_m is not None:
-        enough &= np.all(np.isfinite(truth_m), axis=1)
-    res = geometry.multilaterate(np.where(used, r, np.nan)[enough], anchors, dim=2, z_m=z_m,
-                                 min_anchors=emulation.set_size)
-    idx = np.flatnonzero(enough)[res.ok]
-    fixes = SetFixLog(log.t_s[idx], res.pos_m[res.ok], set_id_from_mask(used[idx]), log.anchor_ids,
-                      None if truth_m is None else truth_m[idx], name)
-    return fixes, idx
-
-
 #: σ_d grid (m/s per step) searched by the set-noise KF on the calibration part.
 SIGMA_D_GRID_MPS = (0.02, 0.04, 0.08, 0.15, 0.3, 0.6)
 
@@ -325,8 +292,9 @@ class SetNoiseFilter(BaseEstimator):
     def _fixes(self, rec, tag, cal, truth: bool = False):
         log = calibrated_log(rec, tag, cal)
         t = truth_at(rec, tag, log.t_s, 2) if truth else None
-        return emulated_fixes(log, rec.anchors.pos_m, cal.height(tag), self.emulation, rng=self._rng(rec, tag),
-                              truth_m=t, name=f"{rec.label}/{tag}")
+        em = emulate_set_fixes(log, rec.anchors.pos_m, cal.height(tag), self.emulation, rng=self._rng(rec, tag),
+                               truth_m=t, name=f"{rec.label}/{tag}")
+        return em.fixes, em.row
 
     def tune(self, rec, tags, cal):
         if self.kind != "KF":

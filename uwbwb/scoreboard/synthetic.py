@@ -25,6 +25,7 @@ import pandas as pd
 
 from ..calibration import RangeCalibration
 from ..models.motion import RandomForce
+from ..models.ranging import TwrRangeModel
 from ..types import Anchors, RangeLog, Recording, Trajectory
 from .board import Board, calibrate, score
 from .estimators import CalibratedLs, TdoaEkfEstimator, TdoaLs, default_estimators
@@ -82,7 +83,8 @@ def simulate(config: SyntheticConfig = SyntheticConfig(), *, rng: np.random.Gene
     pos = np.column_stack([x[:, :2], np.full(t.size, config.tag_height_m)])
     anchors = config.anchors()
     true_r = np.linalg.norm(pos[:, None, :] - anchors.pos_m[None], axis=-1)
-    r = np.maximum(true_r + config.sigma_m * rng.standard_normal(true_r.shape), 0.0)
+    unbiased = np.zeros((1, len(anchors)))
+    r = TwrRangeModel(unbiased, unbiased + 1.0, sigma_m=config.sigma_m).sample(true_r, rng=rng)
     log = RangeLog(t, r, anchors.ids, "tag")
     truth = Trajectory(t, pos, np.column_stack([x[:, 2:4], np.zeros(t.size)]), name="truth")
     return Recording("synthetic", name, anchors, {"tag": log}, {"tag": truth},

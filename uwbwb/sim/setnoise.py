@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry import multilaterate
-from ..types import SetFixLog, set_id_from_mask
+from ..types import RangeLog, SetFixLog, set_id_from_mask
 
 #: Paper 000, Table I: recording number → approximate speed (m/s).
 TABLE1_SPEEDS_MPS = (0.11, 0.35, 0.65, 1.00, 1.20)
@@ -333,6 +333,94 @@ def select_sets(power_db: np.ndarray, set_size: int, fading_db: float, *, rng: n
     used = np.zeros(power_db.shape, bool)
     np.put_along_axis(used, top, True, axis=1)
     return used & np.isfinite(faded)
+
+
+@dataclass(frozen=True)
+class SetEmulation:
+    """How sensor sets are emulated on measured two-way ranges (recordings without sensor sets).
+
+    Per epoch, every anchor with a range gets an emulated received power
+    ``−10 n log10(range)`` plus independent fading ``N(0, fading_db)``, and the
+    ``set_size`` strongest anchors form the set (:func:`select_sets`, the rule the
+    simulator uses). The fix is the 2-D least-squares position from that set's ranges
+    at the tag's known height. The fading makes sets switch even for a static tag, as
+    in the paper; ``fading_db = 0`` keeps the shortest ranges.
+
+    Attributes
+    ----------
+    set_size
+        Anchors per fix (paper: sets of ≥ 5 of 8 sensors).
+    fading_db
+        Fading standard deviation, dB.
+    path_loss_exponent
+        ``n``.
+    """
+
+    set_size: int = 5
+    fading_db: float = 2.5
+    path_loss_exponent: float = 2.0
+
+    def __post_init__(self):
+        if self.set_size < 3 or self.fading_db < 0 or self.path_loss_exponent <= 0:
+            raise ValueError("set_size >= 3, fading_db >= 0 and path_loss_exponent > 0 are needed")
+
+
+@dataclass(frozen=True)
+class EmulatedFixes:
+    """What :func:`emulate_set_fixes` made of a range log.
+
+    Attributes
+    ----------
+    fixes
+        The position fixes (:class:`~uwbwb.types.SetFixLog`).
+    row
+        Index of every fix's epoch in the range log, shape ``(n_fixes,)``.
+    too_few_ranges
+        Epochs with fewer than ``set_size`` ranges (no set, no fix).
+    fix_failed
+        Epochs with a set whose 2-D solve failed.
+    """
+
+    fixes: SetFixLog
+    row: np.ndarray
+    too_few_ranges: int
+    fix_failed: int
+
+
+def emulate_set_fixes(log: RangeLog, anchors_m, z_m: float, emulation: SetEmulation = SetEmulation(), *,
+                      rng: np.random.Generator, truth_m: np.ndarray | None = None,
+                      name: str = "fixes") -> EmulatedFixes:
+    """Position fixes of one tag from sensor sets emulated on its ranges (see :class:`SetEmulation`).
+
+    Parameters
+    ----------
+    log
+        The tag's ranges, ``(T, n_anchors)``, metres.
+    anchors_m
+        Anchor positions, shape ``(n_anchors, 3)``, metres.
+    z_m
+        The tag's height, metres (from calibration material, never the scored truth).
+    truth_m
+        Optional true horizontal positions ``(T, 2)`` attached to the fixes (to fit or
+        score the set-noise model); epochs without truth then give no fix. Every
+        epoch draws its fading either way, so the random stream does not depend on it.
+    name
+        Name of the fix log.
+    """
+    r = log.range_m
+    with np.errstate(divide="ignore", invalid="ignore"):
+        power = -10 * emulation.path_loss_exponent * np.log10(np.where(r > 0, r, np.nan))
+    used = select_sets(power, emulation.set_size, emulation.fading_db, rng=rng)
+    enough = used.sum(axis=1) >= emulation.set_size
+    too_few = int((~enough).sum())
+    if truth_m is not None:
+        enough &= np.all(np.isfinite(truth_m), axis=1)
+    res = multilaterate(np.where(used, r, np.nan)[enough], anchors_m, dim=2, z_m=float(z_m),
+                        min_anchors=emulation.set_size)
+    row = np.flatnonzero(enough)[res.ok]
+    fixes = SetFixLog(log.t_s[row], res.pos_m[res.ok], set_id_from_mask(used[row]), log.anchor_ids,
+                      None if truth_m is None else truth_m[row], name)
+    return EmulatedFixes(fixes, row, too_few, int((~res.ok).sum()))
 
 
 def static_fixes(facility: Facility, xy_m, n: int, *, rng: np.random.Generator, name: str | None = None

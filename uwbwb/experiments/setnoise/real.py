@@ -1,6 +1,7 @@
 """The real-range part of notebook 01: sensor sets emulated on ``lias-planar-uwb`` two-way ranges.
 
-LIAS has no sensor sets, so :func:`emulate_fixes` makes them: per epoch the
+LIAS has no sensor sets, so :func:`emulate_fixes` makes them
+(:func:`uwbwb.sim.setnoise.emulate_set_fixes` on every ``decimate``-th epoch): per epoch the
 ``set_size`` anchors with the strongest emulated received power (path loss plus
 fading, the simulator's selection rule) form the set, and the fix is the 2-D
 least-squares position from that set's ranges at the tag's mount height, which
@@ -16,48 +17,33 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
-from ... import geometry
 from ...calibration import (MountHeight, RangeCalibration, fit_range_calibration, fit_set_noise_from_fixes,
                            tag_mount_height)
 from ...datasets.standin import RoomData, load_lias_room
 from ...models.setnoise import SetNoiseModel
 from ...sim import rig
 from ...sim import setnoise as sim
-from ...types import Recording, SetFixLog, set_id_from_mask
+from ...types import Recording, SetFixLog
 
 
 @dataclass(frozen=True)
-class Emulation:
-    """How sensor sets are emulated on real two-way ranges.
-
-    Per epoch, every anchor with a range gets an emulated received power
-    ``−10 n log10(range)`` plus independent fading ``N(0, fading_db)``, and the
-    ``set_size`` strongest anchors form the set (:func:`uwbwb.sim.setnoise.select_sets`,
-    the rule the simulator uses). The fix is the 2-D least-squares position from
-    that set's ranges at the tag's known height. The fading makes sets switch even
-    for a static tag, as in the paper; ``fading_db = 0`` keeps the shortest ranges.
+class Emulation(sim.SetEmulation):
+    """How sensor sets are emulated on LIAS two-way ranges: :class:`uwbwb.sim.setnoise.SetEmulation`
+    (``set_size``, ``fading_db``, ``path_loss_exponent``) on every ``decimate``-th epoch.
 
     Attributes
     ----------
-    set_size
-        Anchors per fix (paper: sets of ≥ 5 of 8 sensors).
-    fading_db
-        Fading standard deviation, dB.
-    path_loss_exponent
-        ``n``.
     decimate
         Keep every ``decimate``-th epoch (LIAS ranges come at ~100 Hz; 10 gives
         about the paper's fix rate).
     """
 
-    set_size: int = 5
-    fading_db: float = 2.5
-    path_loss_exponent: float = 2.0
     decimate: int = 10
 
     def __post_init__(self):
-        if self.set_size < 3 or self.fading_db < 0 or self.decimate < 1 or self.path_loss_exponent <= 0:
-            raise ValueError("set_size >= 3, fading_db >= 0, decimate >= 1 and path_loss_exponent > 0 are needed")
+        super().__post_init__()
+        if self.decimate < 1:
+            raise ValueError(f"decimate must be >= 1, got {self.decimate}")
 
 
 def real_inputs(data_dir=None, recording: str = "fast", static_session: str = "8.14", *, seed: int = 0,
@@ -109,21 +95,13 @@ def emulate_fixes(rec: Recording, tag: str, emulation: Emulation = Emulation(), 
     log = log.select(slice(None, None, emulation.decimate))
     truth_xyz = rec.truth[tag].interp(log.t_s)
     has_truth = np.all(np.isfinite(truth_xyz), axis=1)
-    r = log.range_m[has_truth]
-    with np.errstate(divide="ignore"):
-        power = -10 * emulation.path_loss_exponent * np.log10(np.where(r > 0, r, np.nan))
-    used = sim.select_sets(power, emulation.set_size, emulation.fading_db, rng=rng)
-    enough = used.sum(axis=1) >= emulation.set_size
-    res = geometry.multilaterate(np.where(used, r, np.nan)[enough], rec.anchors.pos_m, dim=2,
-                                 z_m=float(tag_height_m), min_anchors=emulation.set_size)
-    ok = res.ok
-    t = log.t_s[has_truth][enough][ok]
-    fixes = SetFixLog(t, res.pos_m[ok], set_id_from_mask(used[enough][ok]), rec.anchors.ids,
-                      truth_xyz[has_truth][enough][ok, :2], name or f"{rec.name}/{tag}")
+    em = sim.emulate_set_fixes(log.select(has_truth), rec.anchors.pos_m, tag_height_m, emulation, rng=rng,
+                               truth_m=truth_xyz[has_truth][:, :2], name=name or f"{rec.name}/{tag}")
+    fixes = em.fixes
     scored = int(has_truth.sum())
     report = {"epochs": len(rec.ranges[tag]), "kept_after_decimation": len(log),
-              "no_truth": int((~has_truth).sum()), "too_few_ranges": int((~enough).sum()),
-              "fix_failed": int((~ok).sum()), "fixes": len(fixes),
+              "no_truth": int((~has_truth).sum()), "too_few_ranges": em.too_few_ranges,
+              "fix_failed": em.fix_failed, "fixes": len(fixes),
               "coverage": len(fixes) / scored if scored else float("nan")}
     return fixes, report
 
