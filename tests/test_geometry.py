@@ -335,3 +335,62 @@ def test_to_estimates_marks_failed_epochs_and_keeps_covariances(rng):
     assert np.isnan(est.pos_m[2]).all() and est.coverage == pytest.approx(0.8)
     np.testing.assert_allclose(est.pos_cov_m2[0], res.cov_m2[0])
     np.testing.assert_array_equal(est.info["n_used"], res.n_used)
+
+
+# --------------------------------------------------------------------------- point fixes, straight pieces
+
+def test_point_fixes_exact_without_noise_and_nan_where_no_fix():
+    rng = np.random.default_rng(4)
+    xy, z = _tags(rng, 20)
+    z[:] = 1.2
+    truth = np.column_stack([xy, z])
+    r = geo.ranges(truth, ANCHORS)
+    r[5, :6] = np.nan                                          # two ranges: no 2-D fix... nor 3-D
+    P2 = geo.point_fixes(r, ANCHORS, dim=2, z_m=1.2)
+    P3 = geo.point_fixes(r, uw.Anchors(tuple("abcdefgh"), ANCHORS), dim=3)
+    ok = np.arange(20) != 5
+    np.testing.assert_allclose(P2[ok], truth[ok], atol=1e-6)
+    np.testing.assert_allclose(P3[ok], truth[ok], atol=1e-5)
+    assert np.isnan(P2[5]).all() and np.isnan(P3[5]).all()
+    with pytest.raises(ValueError, match="z_m"):
+        geo.point_fixes(r, ANCHORS, dim=2)
+    with pytest.raises(ValueError, match="dim"):
+        geo.point_fixes(r, ANCHORS, dim=1)
+
+
+def _polyline_truth(corners, speed=0.5, rate=50.0, pause_s=3.0):
+    """Walk through corners at constant speed, pausing at each corner."""
+    t, pts, now = [], [], 0.0
+    c = np.asarray(corners, float)
+    for a, b in zip(c[:-1], c[1:]):
+        tt = np.arange(0, pause_s, 1 / rate)
+        t.append(now + tt)
+        pts.append(np.tile(a, (tt.size, 1)))
+        now += pause_s
+        dur = np.linalg.norm(b - a) / speed
+        tt = np.arange(0, dur, 1 / rate)
+        t.append(now + tt)
+        pts.append(a + np.outer(tt / dur, b - a))
+        now += dur
+    t = np.concatenate(t)
+    P = np.vstack(pts)
+    return uw.Trajectory(t, np.column_stack([P, np.full(len(P), 0.97)]), name="truth")
+
+
+def test_straight_segments_find_the_legs_and_skip_the_pauses():
+    corners = [(0, 0), (4, 0), (4, 3), (0, 3)]
+    segs = geo.straight_segments(_polyline_truth(corners), tol_m=0.05)
+    assert len(segs) == 3
+    np.testing.assert_allclose(segs.speed_mps, 0.5, atol=0.02)
+    np.testing.assert_allclose(segs.heading_deg, [0, 90, 180], atol=2)
+    np.testing.assert_allclose(segs.length_m, [4, 3, 4], atol=0.3)
+    assert (segs.max_dev_m <= 0.05).all() and list(segs.segment) == [0, 1, 2]
+
+
+def test_line_fit_recovers_a_constant_velocity_line():
+    t = np.linspace(2.0, 4.0, 21)
+    P = np.column_stack([1.0 + 0.5 * (t - 2.0), -2.0 * (t - 2.0)])
+    c, v, dev = geo.line_fit(t, P)
+    np.testing.assert_allclose(c, [1.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(v, [0.5, -2.0], atol=1e-12)
+    assert dev < 1e-12

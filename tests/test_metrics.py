@@ -197,3 +197,13 @@ def test_summary_from_json_rejects_bad_files(tmp_path):
         p.write_text(text)
         with pytest.raises(ValueError):
             m.Summary.from_json(p)
+
+
+def test_epoch_summary_counts_failures_beside_accuracy():
+    ep = pd.DataFrame({"estimator": ["none"] * 10 + ["point"] * 10,
+                       "err_m": np.r_[np.arange(10.0), np.arange(8.0), np.nan, np.nan]})
+    s = m.epoch_summary(ep)
+    assert list(s.index) == ["none", "point"] and list(m.epoch_summary(ep, order=("point",)).index) == ["point", "none"]
+    assert s.loc["none", "coverage"] == 1.0 and s.loc["point", "coverage"] == 0.8
+    assert s.loc["point", "median_m"] == 3.5 and s.loc["none", "p90_failed_counted_m"] == 8.0
+    assert np.isinf(s.loc["point", "p90_failed_counted_m"])

@@ -25,6 +25,7 @@ import numbers
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 import pandas as pd
@@ -32,7 +33,7 @@ import pandas as pd
 from .types import Trajectory
 
 __all__ = [
-    "ErrorSeries", "Summary", "cep", "cep50", "cep95", "ecdf", "error_stats", "errors_vs_truth",
+    "ErrorSeries", "Summary", "cep", "cep50", "cep95", "ecdf", "epoch_summary", "error_stats", "errors_vs_truth",
     "position_error_m", "rmse",
 ]
 
@@ -285,6 +286,40 @@ def error_stats(err, *, nan: str = "raise") -> dict:
     e, n_nan = _errors(err, nan=nan)
     return {"n": int(e.size), "n_omitted": n_nan, "mean": float(np.mean(e)), "median": float(np.median(e)),
             "rmse": rmse(e), "cep50": cep50(e), "cep95": cep95(e), "max": float(np.max(e))}
+
+
+def epoch_summary(epochs: pd.DataFrame, *, by: str = "estimator", order: Sequence[str] = ()) -> pd.DataFrame:
+    """Coverage beside accuracy per estimator, from an epoch table scored on common epochs.
+
+    Parameters
+    ----------
+    epochs
+        One row per estimator and scored epoch: ``by`` and ``err_m`` (NaN = the
+        estimator produced no position at that epoch), metres.
+    by
+        The column naming the estimator.
+    order
+        Estimators listed first, in this order; the others follow in order of appearance.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Indexed by estimator: ``n_epochs``, ``coverage`` (fraction with a position),
+        ``median_m`` and ``p90_m`` over the covered epochs, and ``p90_failed_counted_m``
+        -- the 90th percentile (inverted CDF) when an epoch without a position counts
+        as an unbounded error (``inf`` below 90 % coverage).
+    """
+    rows = []
+    names = list(dict.fromkeys(epochs[by]))
+    for h in [h for h in order if h in names] + [h for h in names if h not in order]:
+        e = epochs.loc[epochs[by] == h, "err_m"].to_numpy(float)
+        ok = np.isfinite(e)
+        rows.append({by: h, "n_epochs": e.size, "coverage": ok.mean() if e.size else np.nan,
+                     "median_m": np.median(e[ok]) if ok.any() else np.nan,
+                     "p90_m": np.quantile(e[ok], 0.9) if ok.any() else np.nan,
+                     "p90_failed_counted_m": (np.quantile(np.where(ok, e, np.inf), 0.9, method="inverted_cdf")
+                                                 if e.size else np.nan)})
+    return pd.DataFrame(rows).set_index(by)
 
 
 # --------------------------------------------------------------------------- summary table

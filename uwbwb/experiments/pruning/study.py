@@ -11,7 +11,7 @@ Everything the notebook computes, grouped by data:
 * **LIAS static poses**: :func:`run_static_poses` treats each pose file as one
   stationary segment; :func:`loso_calibrations` fits range calibrations leaving
   each site out; :func:`range_error_stats` describes the ranges (bias, long outliers).
-* **LIAS dynamic run**: :func:`straight_segments` cuts the motion-capture track into
+* **LIAS dynamic run**: :func:`uwbwb.geometry.straight_segments` cuts the motion-capture track into
   constant-velocity pieces; :func:`run_dynamic_segments` fits ``(P0, v)`` per piece.
 * **Hanyang static**: :func:`uwbwb.calibration.percentile_by_file` -- where the 5th percentile of a
   stationary range sample lands relative to the true range, LOS vs NLOS.
@@ -32,18 +32,18 @@ import numpy as np
 import pandas as pd
 
 from ...filters.pruning import HEURISTICS, LABELS as HEURISTIC_LABELS, PruningConfig, localize
-from ...geometry import Status, linear_multilaterate, multilaterate
+from ... import metrics
+from ...geometry import line_fit, point_fixes
 from ...sim import tours as tours_mod
-from ...types import RangeLog, RangeSamples, Recording, Trajectory
+from ...types import RangeLog, RangeSamples, Recording
 
 __all__ = [
     "ESTIMATORS", "LABELS", "MIN_SEGMENT_RANGES", "POINT", "PAPER_RANKING", "DynamicResult", "StaticResult",
     "SyntheticConfig",
     "SyntheticResult", "TourExplorer", "PieceExplorer", "epoch_summary", "hanyang_table",
     "headline_rows", "heuristic_summary", "loso_calibrations", "outlier_free_control",
-    "point_fixes",
     "range_error_stats", "rank_heuristics", "run_dynamic_segments", "run_recordings", "run_static_poses",
-    "run_synthetic", "run_tour", "segment_ranges", "sensitivity", "straight_segments", "wins_table",
+    "run_synthetic", "run_tour", "segment_ranges", "sensitivity", "wins_table",
 ]
 
 #: The point-based baseline's name in the tables: one multilateration per packet/epoch.
@@ -61,90 +61,20 @@ MIN_SEGMENT_RANGES = 12
 # =========================================================================== point-based baseline
 
 
-def point_fixes(log: RangeLog, anchors, *, dim: int, z_m: float | None = None) -> np.ndarray:
-    """One position per epoch by nonlinear least squares (the point-based system's output).
-
-    Parameters
-    ----------
-    log
-        Ranges of the epochs to fix.
-    anchors
-        :class:`~uwbwb.Anchors`, metres.
-    dim
-        2: horizontal fix at the node height ``z_m`` (the same height the 2-D NLS
-        gets); 3: free 3-D fix without height information, started from the
-        horizontal linear fix at the same height hint :func:`uwbwb.filters.nls.initial_guess`
-        uses (1 m below the lowest anchor, the side of the anchor plane where nodes are).
-
-    Returns
-    -------
-    numpy.ndarray
-        Positions ``(T, 3)``, metres; NaN rows where no fix exists (too few
-        ranges, degenerate geometry, no convergence).
-    """
-    A = np.asarray(getattr(anchors, "pos_m", anchors), float)
-    R = log.range_m
-    if dim == 2:
-        if z_m is None:
-            raise ValueError("a 2-D point fix needs the node height z_m")
-        res = multilaterate(R, A, dim=2, z_m=z_m)
-        P = np.column_stack([res.pos_m, np.full(len(R), float(z_m))])
-    elif dim == 3:
-        z_hint = float(A[:, 2].min() - 1.0)
-        xy = linear_multilaterate(R, A, dim=2, z_m=z_hint)
-        x0 = np.column_stack([xy, np.full(len(R), z_hint)])
-        bad = ~np.isfinite(x0).all(axis=1)
-        x0[bad] = np.r_[A[:, :2].mean(axis=0), z_hint]
-        res = multilaterate(R, A, dim=3, x0=x0)
-        P = np.array(res.pos_m, float)
-    else:
-        raise ValueError(f"dim must be 2 or 3, got {dim!r}")
-    P[res.status != Status.OK] = np.nan
-    return P
-
-
 # =========================================================================== scoring on common epochs
 
 
-def epoch_summary(epochs: pd.DataFrame, *, by: str = "heuristic") -> pd.DataFrame:
-    """Coverage and accuracy per estimator from an epoch table.
+def epoch_summary(epochs: pd.DataFrame) -> pd.DataFrame:
+    """Coverage beside accuracy per estimator (:func:`uwbwb.metrics.epoch_summary`, :data:`ESTIMATORS` order).
 
-    Parameters
-    ----------
-    epochs
-        One row per estimator and scored epoch: ``by`` and ``err_m`` (NaN = the
-        estimator produced no position at that epoch).
-
-    Returns
-    -------
-    pandas.DataFrame
-        Indexed by estimator (:data:`ESTIMATORS` order): ``n_epochs``, ``coverage``
-        (fraction with a position), ``median_m`` and ``p90_m`` over the covered
-        epochs, and ``p90_failed_counted_m`` -- the 90th percentile (inverted CDF) when an
-        epoch without a position counts as an unbounded error (``inf`` below 90 % coverage).
+    ``epochs`` has one row per estimator (column ``heuristic``) and scored epoch, with
+    ``err_m`` NaN where the estimator produced no position.
     """
-    rows = []
-    names = list(dict.fromkeys(epochs[by]))
-    for h in [h for h in ESTIMATORS if h in names] + [h for h in names if h not in ESTIMATORS]:
-        e = epochs.loc[epochs[by] == h, "err_m"].to_numpy(float)
-        ok = np.isfinite(e)
-        rows.append({by: h, "n_epochs": e.size, "coverage": ok.mean() if e.size else np.nan,
-                     "median_m": np.median(e[ok]) if ok.any() else np.nan,
-                     "p90_m": np.quantile(e[ok], 0.9) if ok.any() else np.nan,
-                     "p90_failed_counted_m": (np.quantile(np.where(ok, e, np.inf), 0.9, method="inverted_cdf")
-                                                 if e.size else np.nan)})
-    return pd.DataFrame(rows).set_index(by)
+    return metrics.epoch_summary(epochs, by="heuristic", order=ESTIMATORS)
 
 
 def _bearing_deg(dxy: np.ndarray) -> np.ndarray:
     return np.rad2deg(np.arctan2(dxy[..., 1], dxy[..., 0]))
-
-
-def _line_fit_dev(t: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    G = np.column_stack([np.ones_like(t), t - t[0]])
-    coef, *_ = np.linalg.lstsq(G, P, rcond=None)
-    dev = np.linalg.norm(P - G @ coef, axis=1).max()
-    return coef[0], coef[1], float(dev)
 
 
 def _heading_err_deg(v_est, v_true) -> float:
@@ -274,7 +204,7 @@ def run_tour(rec: Recording, truth: tours_mod.TourTruth, config: SyntheticConfig
             true_xy, true_v = tours_mod.tour_xy(truth.segments, t_pk)
             true_z = rec.truth[tag].interp(t_pk)[:, 2]
             if config.point_baseline:
-                P = point_fixes(log, rec.anchors, dim=dim, z_m=z_known)
+                P = point_fixes(log.range_m, rec.anchors, dim=dim, z_m=z_known)
                 track.append(_track_rows(rec, tag, seg, seg.kind, POINT, t_pk,
                                          np.linalg.norm(P[:, :2] - true_xy, axis=1), P[:, 2] - true_z))
             samples = RangeSamples.from_ranges(log)
@@ -532,7 +462,7 @@ def run_static_poses(recordings, *, heights_m: dict, tags=None, heuristics=HEURI
             true = rec.truth[tag].pos_m[0]
             ep = {"recording": rec.name, "site": site, "tag": tag, "t_s": log.t_s}
             if point_baseline:
-                P = point_fixes(log, rec.anchors, dim=2, z_m=z)
+                P = point_fixes(log.range_m, rec.anchors, dim=2, z_m=z)
                 epochs.append(pd.DataFrame({**ep, "heuristic": POINT,
                                             "err_m": np.linalg.norm(P[:, :2] - true[:2], axis=1)}))
             samples = RangeSamples.from_ranges(log)
@@ -603,66 +533,6 @@ def range_error_stats(recordings, *, tags=None, stride: int = 10, long_m: float 
 # =========================================================================== LIAS dynamic
 
 
-def straight_segments(truth: Trajectory, *, tol_m: float = 0.10, min_duration_s: float = 2.0,
-                      min_length_m: float = 0.5, rate_hz: float = 10.0) -> pd.DataFrame:
-    """Cut a ground-truth track into constant-velocity pieces (the model of eq. 1).
-
-    Rule: resample the horizontal truth at ``rate_hz``; starting at the first
-    sample, grow a piece for as long as a straight line at constant velocity,
-    ``c + v (t - t_start)`` fitted by least squares, stays within ``tol_m`` of
-    every truth sample in it (maximum deviation); then start the next piece at the
-    first sample it could not take. Pieces shorter than ``min_duration_s`` or
-    covering less than ``min_length_m`` (the trolley standing, turning on the
-    spot, or a tight curve) are dropped. Greedy growth by doubling, then
-    bisection (the deviation grows with the piece in practice).
-
-    Returns
-    -------
-    pandas.DataFrame
-        ``segment, t_start_s, t_end_s, duration_s, length_m, speed_mps,
-        heading_deg, max_dev_m, x0_m, y0_m, vx_mps, vy_mps`` (truth line fit).
-    """
-    if tol_m <= 0 or rate_hz <= 0:
-        raise ValueError("tol_m and rate_hz must be positive")
-    t = np.arange(truth.t_s[0], truth.t_s[-1], 1.0 / rate_hz)
-    P = truth.interp(t)[:, :2]
-    n = t.size
-    rows, i = [], 0
-
-    def ok(i, j):          # samples i..j-1
-        return _line_fit_dev(t[i:j], P[i:j])[2] <= tol_m
-
-    while i < n - 2:
-        j, step = i + 3, 4
-        if not ok(i, j):
-            i += 1
-            continue
-        while j + step <= n and ok(i, j + step):
-            j += step
-            step *= 2
-        lo, hi = j, min(j + step, n + 1)           # ok(i, lo) holds, ok(i, hi) fails (or hi past end)
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if mid <= n and ok(i, mid):
-                lo = mid
-            else:
-                hi = mid
-        j = lo
-        c, v, dev = _line_fit_dev(t[i:j], P[i:j])
-        dur = t[j - 1] - t[i]
-        length = float(np.linalg.norm(v) * dur)
-        if dur >= min_duration_s and length >= min_length_m:
-            rows.append({"t_start_s": t[i], "t_end_s": t[j - 1], "duration_s": dur, "length_m": length,
-                         "speed_mps": float(np.linalg.norm(v)),
-                         "heading_deg": float(np.rad2deg(np.arctan2(v[1], v[0]))), "max_dev_m": dev,
-                         "x0_m": c[0], "y0_m": c[1], "vx_mps": v[0], "vy_mps": v[1]})
-        i = j
-    df = pd.DataFrame(rows, columns=["t_start_s", "t_end_s", "duration_s", "length_m", "speed_mps", "heading_deg",
-                                     "max_dev_m", "x0_m", "y0_m", "vx_mps", "vy_mps"])
-    df.insert(0, "segment", np.arange(len(df)))
-    return df
-
-
 @dataclass(frozen=True)
 class DynamicResult:
     """Output of :func:`run_dynamic_segments`.
@@ -699,7 +569,7 @@ def run_dynamic_segments(rec: Recording, segments: pd.DataFrame, *, heights_m: d
     rec
         Dynamic recording with per-tag truth on the range clock.
     segments
-        Pieces from :func:`straight_segments` (the centroid or one tag's truth).
+        Pieces from :func:`uwbwb.geometry.straight_segments` (the centroid or one tag's truth).
     heights_m, tags, heuristics, config
         As in :func:`run_static_poses` (the 5th percentile does not apply to motion).
     stride
@@ -723,7 +593,7 @@ def run_dynamic_segments(rec: Recording, segments: pd.DataFrame, *, heights_m: d
         n_run = len(full)
         n_fit = 0
         if point_baseline and n_run:
-            P_all = point_fixes(full, rec.anchors, dim=2, z_m=z)
+            P_all = point_fixes(full.range_m, rec.anchors, dim=2, z_m=z)
             cover.setdefault(POINT, [0, 0])
             cover[POINT][0] += int(np.isfinite(P_all[:, 0]).sum())
             cover[POINT][1] += n_run
@@ -743,7 +613,7 @@ def run_dynamic_segments(rec: Recording, segments: pd.DataFrame, *, heights_m: d
                     epochs.append(pd.DataFrame({**ep, "heuristic": h, "err_m": np.nan}))
                 continue
             n_fit += len(log)
-            _, v_true, _ = _line_fit_dev(log.t_s, true)
+            _, v_true, _ = line_fit(log.t_s, true)
             for h in heuristics:
                 res = localize(samples, rec.anchors, h, config, stationary=False, z_m=z)
                 est = res.position_at(log.t_s)[:, :2]
@@ -1011,7 +881,7 @@ class PieceExplorer:
         s = self.segments.iloc[segment]
         log = self.rec.ranges[tag] if ranges == "raw" else self.calibration.apply(self.rec.ranges[tag])
         log = log.between(s.t_start_s, s.t_end_s)
-        fixes = point_fixes(log, self.rec.anchors, dim=2, z_m=self.heights_m[tag])
+        fixes = point_fixes(log.range_m, self.rec.anchors, dim=2, z_m=self.heights_m[tag])
         fig, ax = plt.subplots(figsize=(6.5, 4.8))
         ax.plot(fixes[:, 0], fixes[:, 1], ".", ms=2, color="#9e9e9e", label="per-epoch point fixes")
         truth_piece = self.rec.truth[tag].between(s.t_start_s, s.t_end_s)
