@@ -78,6 +78,10 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
                         "as Python literals). Unknown names and values that do not fit are errors")
     p.add_argument("--timeout", metavar="S", type=_positive_float, default=None,
                    help="execution timeout per cell in seconds (default none)")
+    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                   help="run the notebooks concurrently on a Dask cluster: 'local' (a LocalCluster sized to this "
+                        "machine) or a scheduler address such as tcp://10.0.0.5:8786; each notebook gets it as "
+                        "DASK_SCHEDULER, so its sweeps run there too (needs uwbwb[dask])")
 
     p = sub.add_parser("score", help="every estimator on one recording, against the Cramér–Rao bound",
                        description="Calibrate on one part of a recording (or another recording), score every "
@@ -271,7 +275,8 @@ def cmd_fetch(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 # -- reproduce --------------------------------------------------------------------------------------
 
 def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from .reproduce import RESERVED_PARAMETERS, reproduce, resolve_parameters, select_notebooks
+    from .reproduce import (RESERVED_PARAMETERS, SCHEDULER_PARAMETER, reproduce, resolve_parameters,
+                            select_notebooks)
 
     text = {}
     for key, value in args.parameter:
@@ -286,9 +291,16 @@ def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         resolve_parameters(select_notebooks(only=args.only), text=text)
     except ValueError as exc:
         parser.error(str(exc))
+    if args.scheduler is not None:
+        if SCHEDULER_PARAMETER in text:
+            parser.error(f"-p {SCHEDULER_PARAMETER} and --scheduler: give the cluster once (--scheduler sets it)")
+        try:
+            import distributed  # noqa: F401
+        except ImportError:
+            parser.error("--scheduler needs dask.distributed: pip install 'uwbwb[dask]'")
 
     result = reproduce(quick=args.quick, only=args.only, out=args.out, text_parameters=text,
-                       timeout_s=args.timeout, log=lambda line: print(line, flush=True))
+                       timeout_s=args.timeout, scheduler=args.scheduler, log=lambda line: print(line, flush=True))
     print(f"wrote {result.summary_md} and {result.summary_json}")
     for run in result.failed:
         print(f"FAILED {run.notebook}: {run.error}", file=sys.stderr)

@@ -181,11 +181,11 @@ def describe(scheduler) -> str:
             f"{sum(threads.values())} threads; dashboard: {link}")
 
 
-def shutdown() -> None:
-    """Close the clients (and local clusters) this module started."""
+def shutdown(scheduler: str | None = None) -> None:
+    """Close the clients (and local clusters) this module started: all, or the one for ``scheduler``."""
     with _LOCK:
-        clients = list(_CLIENTS.values())
-        _CLIENTS.clear()
+        keys = list(_CLIENTS) if scheduler is None else [k for k in _CLIENTS if k == scheduler.strip()]
+        clients = [_CLIENTS.pop(k) for k in keys]
     for client in clients:
         cluster = client.cluster
         client.close()

@@ -19,6 +19,11 @@ table: notebook, ok/failed, seconds, first line of the error).
 Parameters passed to every notebook: ``SUMMARY_PATH`` always, ``FAST=True``
 under ``quick``, plus any given explicitly. All notebooks run even if one
 fails; the run is unsuccessful if a notebook failed or wrote no valid summary.
+
+With ``--scheduler ADDRESS`` (or ``local``) the notebooks run concurrently as
+tasks on that Dask cluster, each receiving the cluster as its
+``DASK_SCHEDULER`` parameter so that its sweeps run there too
+(:mod:`uwbwb.parallel`); the outputs and the summary are the same files.
 """
 
 from __future__ import annotations
@@ -44,6 +49,8 @@ REPORTS_DIR = PROJECT_ROOT / "reports"
 KERNEL_NAME = "python3"
 #: Keys of every summary row, in display order.
 SUMMARY_KEYS = Summary.COLUMNS
+#: The notebook parameter that receives the Dask scheduler (``reproduce --scheduler``).
+SCHEDULER_PARAMETER = "DASK_SCHEDULER"
 #: Parameters set by the runner itself; they cannot be overridden.
 RESERVED_PARAMETERS = ("SUMMARY_PATH",)
 
@@ -404,24 +411,39 @@ def run_notebook(source: Path, out_dir: Path, parameters: Mapping[str, Any], *,
     ``parameters`` go to papermill as given (see :func:`resolve_parameters` for
     checking them first).
     """
-    import papermill as pm
-
-    stem = source.stem
-    executed, html, summary = (out_dir / f"{stem}.ipynb", out_dir / f"{stem}.html",
-                               out_dir / f"{stem}.summary.json")
-    for stale in (executed, html, summary):
-        stale.unlink(missing_ok=True)  # a failed run must not show an older run's results
+    executed, html, summary = _outputs(source, out_dir)
     params = {**parameters, "SUMMARY_PATH": str(summary)}
     error = None
     t0 = time.perf_counter()
     try:
-        pm.execute_notebook(str(source), str(executed), parameters=params, kernel_name=kernel_name,
-                            cwd=str(source.parent), progress_bar=False, log_output=False,
-                            execution_timeout=timeout_s)
+        _papermill(source, executed, params, source.parent, timeout_s, kernel_name)
     except Exception as exc:  # any failure of one notebook is reported; the others still run
         error = _first_line(exc)
-    seconds = time.perf_counter() - t0
+    return _finish(source, out_dir, parameters, error, time.perf_counter() - t0)
 
+
+def _outputs(source: Path, out_dir: Path) -> tuple[Path, Path, Path]:
+    """The executed notebook, HTML and summary paths of ``source``, with stale copies removed."""
+    stem = source.stem
+    paths = (out_dir / f"{stem}.ipynb", out_dir / f"{stem}.html", out_dir / f"{stem}.summary.json")
+    for stale in paths:
+        stale.unlink(missing_ok=True)  # a failed run must not show an older run's results
+    return paths
+
+
+def _papermill(source, executed, params, cwd, timeout_s, kernel_name) -> None:
+    import papermill as pm
+
+    pm.execute_notebook(str(source), str(executed), parameters=params, kernel_name=kernel_name,
+                        cwd=str(cwd), progress_bar=False, log_output=False, execution_timeout=timeout_s)
+
+
+def _finish(source: Path, out_dir: Path, parameters: Mapping[str, Any], error: str | None,
+            seconds: float) -> NotebookRun:
+    """Render the executed notebook and read its summary into a :class:`NotebookRun`."""
+    stem = source.stem
+    executed, html, summary = (out_dir / f"{stem}.ipynb", out_dir / f"{stem}.html",
+                               out_dir / f"{stem}.summary.json")
     if executed.is_file():
         try:
             _export_html(executed, html)
@@ -436,6 +458,78 @@ def run_notebook(source: Path, out_dir: Path, parameters: Mapping[str, Any], *,
         error = problem
     return NotebookRun(notebook=stem, source=source, executed=executed, html=html, summary=summary,
                        seconds=seconds, error=error, rows=tuple(rows))
+
+
+def _notebook_task(name: str, text: str, cwd: str, parameters: Mapping[str, Any], timeout_s: float | None,
+                   kernel_name: str) -> tuple[str | None, str | None, str | None, float]:
+    """Execute one notebook where this task runs (a Dask worker) in a scratch folder.
+
+    The notebook's text travels with the task and the executed notebook and its
+    summary travel back, so the worker needs the package and the data, not the
+    output folder. While the kernel runs, the task leaves its worker thread
+    (``distributed.secede``), so the sweeps the notebook itself sends to the same
+    cluster find free threads.
+
+    Returns
+    -------
+    tuple
+        ``(executed notebook text or None, summary text or None, error or None, seconds)``.
+    """
+    import tempfile
+
+    try:
+        from distributed import rejoin, secede
+        secede()
+        seceded = True
+    except (ImportError, ValueError):  # not on a Dask worker
+        seceded = False
+    try:
+        with tempfile.TemporaryDirectory(prefix=f"uwbwb-{name}-") as tmp:
+            source, executed, summary = Path(tmp, f"{name}.ipynb"), Path(tmp, "executed.ipynb"), Path(tmp, "summary.json")
+            source.write_text(text, encoding="utf-8")
+            error = None
+            t0 = time.perf_counter()
+            try:
+                _papermill(source, executed, {**parameters, "SUMMARY_PATH": str(summary)},
+                           cwd if os.path.isdir(cwd) else tmp, timeout_s, kernel_name)
+            except Exception as exc:  # reported in the run's status; the other notebooks still run
+                error = _first_line(exc)
+            seconds = time.perf_counter() - t0
+            read = (lambda p: p.read_text(encoding="utf-8") if p.is_file() else None)
+            return read(executed), read(summary), error, seconds
+    finally:
+        if seceded:
+            rejoin()
+
+
+def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log) -> list[NotebookRun]:
+    """Every notebook a task on the cluster, as many at once as it has threads; runs in notebook order."""
+    from . import parallel
+
+    tasks = [parallel.Task({"name": nb.stem, "text": nb.read_text(encoding="utf-8"), "cwd": str(nb.parent),
+                            "parameters": resolved[nb]}) for nb in notebooks]
+    by_name = {nb.stem: nb for nb in notebooks}
+    runs = []
+    slots = max(sum(client.nthreads().values()), 1)
+    if log:
+        log(f"running {len(notebooks)} notebooks on the Dask cluster at {client.scheduler.address}, "
+            f"up to {slots} at once")
+    for i, (task, out) in enumerate(parallel.imap(
+            _notebook_task, tasks, shared={"timeout_s": timeout_s, "kernel_name": kernel_name}, scheduler=client,
+            progress=False, desc="notebooks", unit="notebook", max_pending=slots), 1):
+        source = by_name[task.params["name"]]
+        executed, _, summary = _outputs(source, out_dir)
+        text, summary_text, error, seconds = out
+        if text is not None:
+            executed.write_text(text, encoding="utf-8")
+        if summary_text is not None:
+            summary.write_text(summary_text, encoding="utf-8")
+        run = _finish(source, out_dir, resolved[source], error, seconds)
+        runs.append(run)
+        if log:
+            log(f"[{i}/{len(notebooks)}] {run.notebook}: {run.status} ({run.seconds:.1f} s)"
+                + (f" — {run.error}" if run.error else ""))
+    return runs
 
 
 def _cell(value: Any) -> str:
@@ -502,7 +596,7 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
               out: str | os.PathLike | None = None, parameters: Mapping[str, Any] | None = None,
               text_parameters: Mapping[str, str] | None = None,
               timeout_s: float | None = None, notebooks_dir: str | os.PathLike | None = None,
-              kernel_name: str = KERNEL_NAME,
+              kernel_name: str = KERNEL_NAME, scheduler=None,
               log: Callable[[str], None] | None = None) -> ReproduceResult:
     """Execute the notebooks and aggregate their summaries.
 
@@ -526,6 +620,14 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         Folder of notebooks; default ``notebooks/`` in the project.
     kernel_name
         Jupyter kernel to execute with.
+    scheduler
+        None: the notebooks run one after the other in this process's machine.
+        ``"local"`` (a :class:`distributed.LocalCluster` sized to the machine), a
+        Dask scheduler address or a ``distributed.Client``: every notebook is a task
+        on that cluster, as many at once as it has worker threads, and receives the
+        cluster's address as :data:`SCHEDULER_PARAMETER`, so its sweeps run there
+        too. The workers need the package and the data (not the output folder:
+        executed notebooks and summaries come back to this process).
     log
         Called with one progress line per notebook (e.g. ``print``).
 
@@ -539,7 +641,9 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     ValueError
         Before any notebook runs: bad selection, a reserved or unknown parameter
         name, a value that does not fit its parameter's declared type, a notebook
-        without ``FAST`` under ``quick``, or a non-positive timeout.
+        without ``FAST`` under ``quick`` or without :data:`SCHEDULER_PARAMETER` under
+        ``scheduler``, the scheduler parameter given as well as ``scheduler``, or a
+        non-positive timeout.
     """
     if timeout_s is not None and not timeout_s > 0:
         raise ValueError(f"timeout must be positive seconds, got {timeout_s!r}")
@@ -549,6 +653,18 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         if lacking:
             raise ValueError(f"--quick sets FAST, which {', '.join(lacking)} does not declare in its parameters cell")
     given = ({"FAST": True} if quick else {}) | dict(parameters or {})
+    client = None
+    if scheduler is not None:
+        if SCHEDULER_PARAMETER in given or SCHEDULER_PARAMETER in (text_parameters or {}):
+            raise ValueError(f"give the cluster once: scheduler={scheduler!r} sets {SCHEDULER_PARAMETER} itself")
+        lacking = [nb.stem for nb in notebooks if SCHEDULER_PARAMETER not in notebook_parameters(nb)]
+        if lacking:
+            raise ValueError(f"--scheduler sets {SCHEDULER_PARAMETER}, which {', '.join(lacking)} does not declare "
+                             f"in its parameters cell")
+        from . import parallel
+
+        client = parallel.connect(scheduler)
+        given[SCHEDULER_PARAMETER] = client.scheduler.address
     resolved = resolve_parameters(notebooks, given, text=text_parameters)
     if log:
         for name in dict(given) | dict(text_parameters or {}):
@@ -559,7 +675,15 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     out_dir.mkdir(parents=True, exist_ok=True)
 
     runs = []
-    for i, source in enumerate(notebooks, 1):
+    if client is not None:
+        try:
+            runs = _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log)
+        finally:
+            if isinstance(scheduler, str) and scheduler.strip() == "local":   # the cluster started for this run
+                from . import parallel
+
+                parallel.shutdown(scheduler)
+    for i, source in enumerate(notebooks if client is None else (), 1):
         if log:
             log(f"[{i}/{len(notebooks)}] {source.stem} ...")
         run = run_notebook(source, out_dir, resolved[source], timeout_s=timeout_s, kernel_name=kernel_name)
