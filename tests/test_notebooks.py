@@ -41,7 +41,7 @@ def test_notebook_committed_clean(path):
     assignments = [ln for ln in cell.source.splitlines() if "=" in ln and not ln.lstrip().startswith("#")]
     assert len(names) == len(assignments), \
         f"{path.name}: papermill reads {sorted(names)} from {len(assignments)} assignment lines (no '=' in comments)"
-    for name in ("FAST", "SEED", "DATA_DIR", "SUMMARY_PATH"):
+    for name in ("FAST", "SEED", "DATA_DIR", "SUMMARY_PATH", "DASK_SCHEDULER"):
         assert name in names, f"{path.name}: parameters cell lacks {name}"
     assert nb.cells[0].cell_type == "markdown", f"{path.name}: first cell must be the citation/overview"
 

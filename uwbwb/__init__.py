@@ -21,7 +21,7 @@ __all__ = [
 ]
 
 _SUBMODULES = {"geometry", "metrics", "plotting", "datasets", "calibration", "models",
-               "filters", "sim", "experiments", "widgets", "cli"}
+               "filters", "sim", "experiments", "widgets", "cli", "parallel"}
 
 
 def __getattr__(name):

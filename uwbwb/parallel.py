@@ -141,13 +141,14 @@ def _distributed():
     return distributed
 
 
-def connect(scheduler):
+def connect(scheduler, *, announce: bool = True):
     """The :class:`distributed.Client` for ``scheduler`` (None for ``None``: run in this process).
 
     ``"local"`` starts a :class:`distributed.LocalCluster` with Dask's defaults for
     this machine (one worker process per few cores); an address connects to that
     scheduler; a ``Client`` is used as given. Clients made here are kept and reused
-    for the same value; the first connection prints the cluster and its dashboard link.
+    for the same value; the first connection prints the cluster and its dashboard
+    link (unless ``announce`` is False).
     """
     if scheduler is None:
         return None
@@ -166,7 +167,8 @@ def connect(scheduler):
             else:
                 client = distributed.Client(key, set_as_default=False)
             _CLIENTS[key] = client
-            print(describe(client), flush=True)
+            if announce:
+                print(describe(client), flush=True)
     return client
 
 
@@ -174,7 +176,7 @@ def describe(scheduler) -> str:
     """One line on where sweeps run: this process, or the cluster with its workers and dashboard link."""
     if scheduler is None:
         return "Sweeps run in this process (no Dask scheduler given)."
-    client = connect(scheduler) if not hasattr(scheduler, "nthreads") else scheduler
+    client = connect(scheduler, announce=False)
     threads = client.nthreads()
     link = client.dashboard_link if getattr(client, "dashboard_link", None) else "none (install bokeh)"
     return (f"Sweeps run on the Dask cluster at {client.scheduler.address}: {len(threads)} workers, "
