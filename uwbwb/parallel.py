@@ -46,7 +46,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["LOCAL", "Task", "TaskError", "spawn", "imap", "connect", "describe", "plan_summary", "shutdown"]
+__all__ = ["LOCAL", "WORKER_ENVIRON", "Task", "TaskError", "spawn", "imap", "connect", "describe", "local_cluster",
+           "plan_summary", "shutdown"]
 
 #: The ``scheduler`` value that starts a :class:`distributed.LocalCluster` sized to the machine.
 LOCAL = "local"
@@ -141,11 +142,28 @@ def _distributed():
     return distributed
 
 
+#: Dask starts worker processes with ``MALLOC_TRIM_THRESHOLD_=65536``, which also turns off glibc's
+#: adaptive mmap threshold: every array above 128 KiB is then mapped and zero-filled anew, and the
+#: particle-filter blocks run about 2× slower than in this process (benchmarks/bench_parallel.py).
+#: Local clusters started here leave glibc's defaults in place; see the README for other clusters.
+WORKER_ENVIRON = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+
+
+def local_cluster(**kwargs):
+    """A :class:`distributed.LocalCluster` (``kwargs`` as there; default: sized to the machine)
+    whose worker processes allocate memory like this process does (:data:`WORKER_ENVIRON`)."""
+    distributed = _distributed()
+    import dask
+
+    with dask.config.set(WORKER_ENVIRON):
+        return distributed.LocalCluster(**kwargs)
+
+
 def connect(scheduler, *, announce: bool = True):
     """The :class:`distributed.Client` for ``scheduler`` (None for ``None``: run in this process).
 
-    ``"local"`` starts a :class:`distributed.LocalCluster` with Dask's defaults for
-    this machine (one worker process per few cores); an address connects to that
+    ``"local"`` starts a :func:`local_cluster` with Dask's defaults for this
+    machine (one worker process per few cores); an address connects to that
     scheduler; a ``Client`` is used as given. Clients made here are kept and reused
     for the same value; the first connection prints the cluster and its dashboard
     link (unless ``announce`` is False).
@@ -163,7 +181,7 @@ def connect(scheduler, *, announce: bool = True):
         client = _CLIENTS.get(key)
         if client is None or client.status not in ("running", "connecting", "newly-created"):
             if key == LOCAL:
-                client = distributed.Client(distributed.LocalCluster(), set_as_default=False)
+                client = distributed.Client(local_cluster(), set_as_default=False)
             else:
                 client = distributed.Client(key, set_as_default=False)
             _CLIENTS[key] = client
@@ -287,7 +305,7 @@ def _pipelined(fn, tasks, shared, client, workers, desc, bar, max_pending):
         slots = max(sum(client.nthreads().values()), 1)
         names = list(shared)
         if names:
-            scattered = dict(zip(names, client.scatter([shared[k] for k in names], hash=False)))
+            scattered = dict(zip(names, client.scatter([shared[k] for k in names], hash=False, broadcast=True)))
         prefix = re.sub(r"[^0-9A-Za-z_]+", "_", desc).strip("_") or "task"
         token = uuid.uuid4().hex[:8]
 
