@@ -61,11 +61,14 @@ def test_spawn_gives_the_generators_children():
     assert par.spawn(ss, 2)[0].spawn_key == (0,) and par.spawn(ss, 2)[0].spawn_key == (2,)   # advances
 
 
-def test_serial_threads_and_cluster_give_identical_numbers(client):
+def test_serial_threads_and_cluster_give_identical_numbers(client, monkeypatch):
     serial = _results()
     np.testing.assert_array_equal(serial, _results(workers=3))
     np.testing.assert_array_equal(serial, _results(scheduler=client, progress=False))
     np.testing.assert_array_equal(serial, _results(scheduler=client, max_pending=1, progress=False))
+    monkeypatch.setattr(par, "EMBED_BYTES", 0)          # shared inputs sent once to every worker instead
+    np.testing.assert_array_equal(serial, _results(scheduler=client, progress=False))
+    np.testing.assert_array_equal(serial, _results(scheduler=client, progress=False))
 
 
 @pytest.mark.parametrize("where", ["serial", "threads", "cluster"])
@@ -103,6 +106,32 @@ def test_results_are_consumed_in_order_with_a_bounded_number_pending():
             state["consumed"] += 1
     assert order == list(range(40))
     assert state["most"] <= 5
+
+
+def _dies_once(i, marker):
+    """Kills its worker process the first time it runs (the marker file remembers)."""
+    import os
+    from pathlib import Path
+
+    if i == 1 and not Path(marker).exists():
+        Path(marker).touch()
+        os._exit(1)
+    return i
+
+
+def test_a_lost_worker_is_retried_not_reported(tmp_path):
+    """A worker process that dies mid-sweep: Dask reruns its task on a fresh worker; the sweep completes."""
+    cluster = par.local_cluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None)
+    client = distributed.Client(cluster, set_as_default=False)
+    try:
+        marker = tmp_path / "died"
+        tasks = [par.Task({"i": i}) for i in range(3)]
+        got = [r for _, r in par.imap(_dies_once, tasks, shared={"marker": str(marker)}, scheduler=client,
+                                      progress=False)]
+    finally:
+        client.close()
+        cluster.close()
+    assert marker.exists() and got == [0, 1, 2]
 
 
 def test_bad_arguments_are_reported():

@@ -27,6 +27,8 @@ naming the task and its params; the tasks not yet finished are cancelled, and no
 partial result is returned. A worker lost mid-sweep is not an error of the task:
 Dask runs its tasks again elsewhere (up to ``distributed.scheduler.allowed-failures``
 times, then the task fails with ``KilledWorker``, reported like any other error).
+Shared inputs up to :data:`EMBED_BYTES` travel with every task, so any task can be
+rerun; larger ones are copied once to every worker.
 
 Size tasks so that the scheduler's overhead (about 1 ms a task) stays negligible:
 :math:`10^5` draws or more, or a whole block of trials, per task.
@@ -222,6 +224,18 @@ def _call(fn: Callable, task: Task, shared: Mapping[str, Any]):
     return fn(**kwargs)
 
 
+#: Shared inputs up to this size (pickled) travel inside every task, so that Dask can rerun any task
+#: on another worker when one is lost; larger ones are sent once to every worker (``scatter``), which
+#: survives the loss of some workers but not of all that hold them.
+EMBED_BYTES = 1 << 20
+
+
+def _pickled_size(obj) -> int:
+    import cloudpickle
+
+    return len(cloudpickle.dumps(obj))
+
+
 def _error(desc: str, index: int, n: int, task: Task, exc: BaseException) -> TaskError:
     text = str(exc).strip().splitlines()
     return TaskError(f"{desc}: task {index + 1} of {n} ({task.label()}) failed: {type(exc).__name__}"
@@ -304,13 +318,15 @@ def _pipelined(fn, tasks, shared, client, workers, desc, bar, max_pending):
         pool = None
         slots = max(sum(client.nthreads().values()), 1)
         names = list(shared)
-        if names:
+        inputs = shared
+        if names and _pickled_size(shared) > EMBED_BYTES:
             scattered = dict(zip(names, client.scatter([shared[k] for k in names], hash=False, broadcast=True)))
+            inputs = scattered
         prefix = re.sub(r"[^0-9A-Za-z_]+", "_", desc).strip("_") or "task"
         token = uuid.uuid4().hex[:8]
 
         def submit(i):
-            return client.submit(_call, fn, tasks[i], scattered, key=f"{prefix}-{token}-{i}", pure=False)
+            return client.submit(_call, fn, tasks[i], inputs, key=f"{prefix}-{token}-{i}", pure=False)
 
     window = max(int(max_pending or 2 * slots + 1), 1)
     done: queue.SimpleQueue = queue.SimpleQueue()       # indices of finished tasks, in completion order

@@ -119,8 +119,13 @@ class SpaceMap:
     seconds: dict = field(default_factory=dict)
 
 
-def map_space(layout: str, cfg: StudyConfig, *, workers: int = 2, progress: bool = False) -> SpaceMap:
-    """Fractions of the 6-D box under each threshold, by both estimators, and with the ranging term."""
+def map_space(layout: str, cfg: StudyConfig, *, workers: int = 2, progress: bool = False,
+              scheduler=None) -> SpaceMap:
+    """Fractions of the 6-D box under each threshold, by both estimators, and with the ranging term.
+
+    The samplers' chunks run in ``workers`` threads, or on the Dask cluster ``scheduler``
+    (:mod:`uwbwb.parallel`; the numbers do not depend on it).
+    """
     import time
 
     model = make_model(layout, cfg)
@@ -128,12 +133,13 @@ def map_space(layout: str, cfg: StudyConfig, *, workers: int = 2, progress: bool
     seeds = np.random.SeedSequence(cfg.seed).spawn(3)
     t0 = time.perf_counter()
     brute = smp.brute_force(model, *ref, cfg.n_brute, seed=seeds[0], keep_below_m=0.15, workers=workers,
-                            progress=progress)
+                            progress=progress, scheduler=scheduler)
     t1 = time.perf_counter()
-    cond = smp.conditional(model, *ref, cfg.n_positions, seed=seeds[1], workers=workers, progress=progress)
+    cond = smp.conditional(model, *ref, cfg.n_positions, seed=seeds[1], workers=workers, progress=progress,
+                           scheduler=scheduler)
     t2 = time.perf_counter()
     rang = smp.conditional(model, *ref, cfg.n_positions, seed=seeds[2], workers=workers, ranges=True,
-                           progress=progress)
+                           progress=progress, scheduler=scheduler)
     t3 = time.perf_counter()
     return SpaceMap(layout, model, brute, cond, rang, {"brute force": t1 - t0, "conditional": t2 - t1,
                                                        "conditional + ranges": t3 - t2})
@@ -281,12 +287,13 @@ def _kf_prior(layout: str) -> Gaussian:
 
 def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs: int | None = None,
                 n_particles: int | None = None, motion: dm.ReceiverMotion = dm.ReceiverMotion(),
-                workers: int = 1, progress: bool = False) -> TrackStudy:
+                workers: int = 1, progress: bool = False, scheduler=None) -> TrackStudy:
     """Simulate one walk of the rectangle (clockwise) and run both filters, with and without ranges.
 
     The walk starts at the top-left corner; after ``cfg.laps_before`` full laps the two
     snapshots are the arrivals at the bottom-left and then the top-left corner, 3 s apart.
-    ``workers`` threads run blocks of 25 PF runs (the numbers do not depend on it).
+    ``workers`` threads, or the Dask cluster ``scheduler``, run blocks of 25 PF runs
+    (the numbers do not depend on it).
     """
     model = make_model(layout, cfg)
     track, apex = sc.rectangle_track()
@@ -304,7 +311,8 @@ def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs:
     pf_out, kf_out = {}, {}
     for variant, r in (("Doppler", None), ("Doppler + ranges", ranges)):
         pf_out[variant] = replace_name(pf.run(log, n_runs=pf_runs or cfg.pf_runs, rng=rng, ranges_m=r,
-                                              block_runs=25, workers=workers, progress=progress),
+                                              block_runs=25, workers=workers, progress=progress,
+                                              scheduler=scheduler),
                                        f"PF ({variant})")
         est = kf.run(log, _kf_prior(layout), ranges_m=r)
         kf_out[variant] = est
