@@ -61,7 +61,7 @@ def test_notebooks_run_as_tasks_and_send_their_sweeps_to_the_same_cluster(tmp_pa
     result = rp.reproduce(notebooks_dir=folder, out=tmp_path / "out", quick=True, scheduler=client, timeout_s=120,
                           log=lines.append)
     assert [r.notebook for r in result.runs] == ["01_a", "02_b", "03_c", "04_broken"]
-    assert [r.ok for r in result.runs] == [True, True, True, False]
+    assert [r.ok for r in result.runs] == [True, True, True, False], [r.error for r in result.runs]
     assert result.runs[3].error.startswith("RuntimeError: deliberate")
     rows = json.loads(result.summary_json.read_text())
     assert [r["value"] for r in rows] == [55, 55, 55]

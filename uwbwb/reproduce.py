@@ -487,19 +487,49 @@ def _notebook_task(name: str, text: str, cwd: str, parameters: Mapping[str, Any]
         with tempfile.TemporaryDirectory(prefix=f"uwbwb-{name}-") as tmp:
             source, executed, summary = Path(tmp, f"{name}.ipynb"), Path(tmp, "executed.ipynb"), Path(tmp, "summary.json")
             source.write_text(text, encoding="utf-8")
-            error = None
             t0 = time.perf_counter()
-            try:
-                _papermill(source, executed, {**parameters, "SUMMARY_PATH": str(summary)},
-                           cwd if os.path.isdir(cwd) else tmp, timeout_s, kernel_name)
-            except Exception as exc:  # reported in the run's status; the other notebooks still run
-                error = _first_line(exc)
+            error = _papermill_in_subprocess(source, executed, {**parameters, "SUMMARY_PATH": str(summary)},
+                                             cwd if os.path.isdir(cwd) else tmp, timeout_s, kernel_name)
             seconds = time.perf_counter() - t0
             read = (lambda p: p.read_text(encoding="utf-8") if p.is_file() else None)
             return read(executed), read(summary), error, seconds
     finally:
         if seceded:
             rejoin()
+
+
+def _papermill_in_subprocess(source, executed, params, cwd, timeout_s, kernel_name) -> str | None:
+    """:func:`_papermill` in a child Python process; the first line of its error, or None.
+
+    Each notebook gets its own process (and event loop): several notebooks run at
+    once in the threads of one worker, which papermill's client cannot share.
+    """
+    import pickle
+    import subprocess
+    import sys
+
+    job = Path(executed).with_suffix(".job")
+    job.write_bytes(pickle.dumps((str(source), str(executed), dict(params), str(cwd), timeout_s, kernel_name)))
+    code = "import sys; from uwbwb.reproduce import _papermill_job; _papermill_job(sys.argv[1])"
+    done = subprocess.run([sys.executable, "-c", code, str(job)], capture_output=True, text=True)
+    failure = job.with_suffix(".error")
+    if failure.is_file():
+        return failure.read_text(encoding="utf-8")
+    if done.returncode != 0:
+        lines = done.stderr.strip().splitlines() or [f"exit status {done.returncode}"]
+        return f"notebook process failed: {lines[-1]}"
+    return None
+
+
+def _papermill_job(job: str) -> None:
+    """Entry point of :func:`_papermill_in_subprocess`'s child: run the pickled job, write the error line if any."""
+    import pickle
+
+    source, executed, params, cwd, timeout_s, kernel_name = pickle.loads(Path(job).read_bytes())
+    try:
+        _papermill(source, executed, params, cwd, timeout_s, kernel_name)
+    except Exception as exc:  # reported by the parent as the run's status
+        Path(job).with_suffix(".error").write_text(_first_line(exc), encoding="utf-8")
 
 
 def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log) -> list[NotebookRun]:
