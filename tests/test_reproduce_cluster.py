@@ -84,14 +84,18 @@ def test_scheduler_needs_the_parameter_in_every_notebook_and_only_once(tmp_path,
 
 
 @pytest.mark.notebook
-def test_cli_reproduce_quickstart_on_a_local_cluster(tmp_path, capsys):
+def test_cli_reproduce_quick_runs_every_notebook_on_a_local_cluster(tmp_path, capsys):
+    """`reproduce --scheduler local --quick`: every notebook of the workbench, concurrently, on one LocalCluster."""
     out = tmp_path / "reports"
-    code = cli.main(["reproduce", "--scheduler", "local", "--quick", "--only", "00", "--out", str(out),
-                     "--timeout", "600"])
+    code = cli.main(["reproduce", "--scheduler", "local", "--quick", "--out", str(out), "--timeout", "900"])
     printed = capsys.readouterr().out
     assert code == 0, printed
     assert "Sweeps run on the Dask cluster at tcp://" in printed and "dashboard" in printed
-    executed = (out / "00_quickstart.ipynb").read_text()
-    assert "Sweeps run on the Dask cluster at tcp://" in executed      # the notebook joined the same cluster
-    assert json.loads((out / "summary.json").read_text())
+    stems = sorted(p.stem for p in NOTEBOOK_DIR.glob("*.ipynb"))
+    for stem in stems:
+        executed = (out / f"{stem}.ipynb").read_text()
+        assert "Sweeps run on the Dask cluster at tcp://" in executed, f"{stem} did not join the cluster"
+    rows = json.loads((out / "summary.json").read_text())
+    assert {r["notebook"] for r in rows} == set(stems)
+    assert {r["mode"] for r in rows} == {"FAST"}
     assert "DASK_SCHEDULER='tcp://" in (out / "summary.md").read_text()
