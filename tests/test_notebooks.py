@@ -64,11 +64,23 @@ def test_notebook_executes_fast(path, tmp_path):
     assert problem is None, f"{path.name}: {problem}"
 
 
+def _run_on(notebook: str, tmp_path, data_dir, **parameters) -> list[dict]:
+    """Execute ``notebook`` in FAST mode on the data tree ``data_dir``; return its published summary rows."""
+    import papermill as pm
+
+    summary = tmp_path / "summary.json"
+    pm.execute_notebook(str(NOTEBOOK_DIR / notebook), str(tmp_path / "out.ipynb"),
+                        parameters={"FAST": True, "DATA_DIR": str(data_dir), "SUMMARY_PATH": str(summary),
+                                    **parameters},
+                        kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
+                        execution_timeout=CELL_TIMEOUT_S)
+    return json.loads(summary.read_text())
+
+
 @pytest.mark.notebook
 def test_quickstart_runs_unchanged_on_another_lias_recording(tmp_path):
     """A recording that is not in ../shared (synthetic, upstream layout, run name 'medium')."""
     import numpy as np
-    import papermill as pm
 
     from tests.fixtures import lias as fx
 
@@ -76,13 +88,7 @@ def test_quickstart_runs_unchanged_on_another_lias_recording(tmp_path):
     rng = np.random.default_rng(11)
     fx.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 20.0, "clock_offset_s": 0.2}},
                  sessions=[fx.session_814(rng)])
-    summary = tmp_path / "summary.json"
-    pm.execute_notebook(str(NOTEBOOK_DIR / "00_quickstart.ipynb"), str(tmp_path / "out.ipynb"),
-                        parameters={"FAST": True, "DATA_DIR": str(data_dir), "RECORDING": "medium",
-                                    "SUMMARY_PATH": str(summary)},
-                        kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
-                        execution_timeout=CELL_TIMEOUT_S)
-    rows = json.loads(summary.read_text())
+    rows = _run_on("00_quickstart.ipynb", tmp_path, data_dir, RECORDING="medium")
     assert {r["data"] for r in rows} == {"lias-planar-uwb/medium"}
 
 
@@ -90,7 +96,6 @@ def test_quickstart_runs_unchanged_on_another_lias_recording(tmp_path):
 def test_set_noise_runs_unchanged_on_another_lias_recording(tmp_path):
     """Notebook 01's real-data section on a recording that is not in ../shared (run name 'medium')."""
     import numpy as np
-    import papermill as pm
 
     from tests.fixtures import lias as fx
 
@@ -98,13 +103,7 @@ def test_set_noise_runs_unchanged_on_another_lias_recording(tmp_path):
     rng = np.random.default_rng(12)
     fx.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 30.0, "clock_offset_s": 0.3}},
                  sessions=[fx.session_814(rng)])
-    summary = tmp_path / "summary.json"
-    pm.execute_notebook(str(NOTEBOOK_DIR / "01_set_noise_pf.ipynb"), str(tmp_path / "out.ipynb"),
-                        parameters={"FAST": True, "DATA_DIR": str(data_dir), "RECORDING": "medium",
-                                    "SUMMARY_PATH": str(summary)},
-                        kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
-                        execution_timeout=CELL_TIMEOUT_S)
-    rows = json.loads(summary.read_text())
+    rows = _run_on("01_set_noise_pf.ipynb", tmp_path, data_dir, RECORDING="medium")
     real = [r for r in rows if r["data"] != "synthetic"]
     assert real and {r["data"] for r in real} == {"lias-planar-uwb/medium"}
     assert {r["mode"] for r in rows} == {"FAST"}
@@ -117,7 +116,6 @@ def test_set_noise_runs_unchanged_on_another_lias_recording(tmp_path):
 def test_pruning_runs_unchanged_on_other_recordings(tmp_path):
     """Notebook 02 on recordings that are not in ../shared: another LIAS run and a Hanyang tree of short files."""
     import numpy as np
-    import papermill as pm
 
     from tests.fixtures import hanyang as hfx
     from tests.fixtures import lias as fx
@@ -127,13 +125,7 @@ def test_pruning_runs_unchanged_on_other_recordings(tmp_path):
     fx.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 40.0, "clock_offset_s": 0.2}},
                  sessions=[fx.session_814(rng, files=((1, 0), (2, 0), (3, 0), (1, 60)))], static_rows=300)
     hfx.write_dataset(data_dir / "hanyang-outdoor-uwb", rng=rng)     # 12 samples a file: too few for a percentile
-    summary = tmp_path / "summary.json"
-    pm.execute_notebook(str(NOTEBOOK_DIR / "02_pruning_nls.ipynb"), str(tmp_path / "out.ipynb"),
-                        parameters={"FAST": True, "DATA_DIR": str(data_dir), "RECORDING": "medium",
-                                    "SUMMARY_PATH": str(summary)},
-                        kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
-                        execution_timeout=CELL_TIMEOUT_S)
-    rows = json.loads(summary.read_text())
+    rows = _run_on("02_pruning_nls.ipynb", tmp_path, data_dir, RECORDING="medium")
     data = {r["data"] for r in rows}
     assert {"synthetic", "lias-planar-uwb/8.14", "lias-planar-uwb/medium"} <= data
     assert "hanyang-outdoor-uwb/static" not in data                   # no file long enough: no rows, no KeyError
@@ -147,7 +139,6 @@ def test_motion_models_runs_unchanged_on_other_recordings(tmp_path):
     Its checks must hold for any recording of these formats; the real-data rows must come from these files.
     """
     import numpy as np
-    import papermill as pm
 
     from tests.fixtures import iasl as fx_iasl
     from tests.fixtures import lias as fx_lias
@@ -157,13 +148,7 @@ def test_motion_models_runs_unchanged_on_other_recordings(tmp_path):
     fx_lias.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 30.0, "clock_offset_s": 0.2}},
                       sessions=[fx_lias.session_814(rng)])
     fx_iasl.write_dataset(data_dir / "iasl-uwb-imu", rng=rng, duration_s=30.0)
-    summary = tmp_path / "summary.json"
-    pm.execute_notebook(str(NOTEBOOK_DIR / "03_ekf_motion_models.ipynb"), str(tmp_path / "out.ipynb"),
-                        parameters={"FAST": True, "DATA_DIR": str(data_dir), "RECORDING": "medium",
-                                    "SUMMARY_PATH": str(summary)},
-                        kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
-                        execution_timeout=CELL_TIMEOUT_S)
-    rows = json.loads(summary.read_text())
+    rows = _run_on("03_ekf_motion_models.ipynb", tmp_path, data_dir, RECORDING="medium")
     assert {r["data"] for r in rows} == {"synthetic", "lias-planar-uwb/medium", "iasl-uwb-imu/scenario2"}
     assert {r["mode"] for r in rows} == {"FAST"} and {r["kind"] for r in rows} == {"reproduced", "target"}
     real = [r for r in rows if r["data"] != "synthetic"]
@@ -175,7 +160,6 @@ def test_scoreboard_runs_unchanged_on_another_lias_recording(tmp_path):
     """Notebook 06 on a generated LIAS tree (run 'medium', biased ranges): the board and its checks
     hold for any recording of the format."""
     import numpy as np
-    import papermill as pm
 
     from tests.fixtures import lias as fx
 
@@ -183,13 +167,7 @@ def test_scoreboard_runs_unchanged_on_another_lias_recording(tmp_path):
     rng = np.random.default_rng(12)
     fx.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 30.0, "clock_offset_s": 0.3}},
                  sessions=[fx.session_814(rng)])
-    summary = tmp_path / "summary.json"
-    pm.execute_notebook(str(NOTEBOOK_DIR / "06_scoreboard.ipynb"), str(tmp_path / "out.ipynb"),
-                        parameters={"FAST": True, "DATA_DIR": str(data_dir), "LIAS_RECORDING": "medium",
-                                    "SUMMARY_PATH": str(summary)},
-                        kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
-                        execution_timeout=CELL_TIMEOUT_S)
-    rows = json.loads(summary.read_text())
+    rows = _run_on("06_scoreboard.ipynb", tmp_path, data_dir, LIAS_RECORDING="medium")
     assert {r["data"] for r in rows} == {"synthetic", "lias-planar-uwb/medium"}
     assert {r["kind"] for r in rows} == {"reproduced"} and {r["mode"] for r in rows} == {"FAST"}
     assert any(r["quantity"] == "efficiency RMSE/bound, EKF-RF" for r in rows)

@@ -193,12 +193,17 @@ def _skew3(v) -> np.ndarray:
     return np.array([[0.0, -c, b], [c, 0.0, -a], [-b, a, 0.0]])
 
 
-def _exp_left(rv, q) -> np.ndarray:
-    """``Exp(rv) ⊗ q`` for one rotation vector and quaternion, normalised (the per-step path)."""
+def _exp_quat(rv) -> tuple[float, float, float, float]:
+    """``Exp(rv)``: the unit quaternion (w, x, y, z) of one rotation vector (series near zero angle)."""
     a, b, c = rv.tolist()
     ang = math.sqrt(a * a + b * b + c * c)
     k = math.sin(0.5 * ang) / ang if ang > 1e-8 else 0.5 - ang * ang / 48.0
-    rw, rx, ry, rz = math.cos(0.5 * ang), k * a, k * b, k * c
+    return math.cos(0.5 * ang), k * a, k * b, k * c
+
+
+def _exp_left(rv, q) -> np.ndarray:
+    """``Exp(rv) ⊗ q`` for one rotation vector and quaternion, normalised (the per-step path)."""
+    rw, rx, ry, rz = _exp_quat(rv)
     w, x, y, z = q.tolist()
     out = np.array([rw * w - rx * x - ry * y - rz * z, rw * x + rx * w + ry * z - rz * y,
                     rw * y - rx * z + ry * w + rz * x, rw * z + rx * y - ry * x + rz * w])
@@ -211,10 +216,7 @@ def _yaw(C) -> float:
 
 def _rotate(q, rv) -> np.ndarray:
     """``q ⊗ Exp(rv)`` for one quaternion and rotation vector, normalised (the per-step path)."""
-    a, b, c = rv.tolist()
-    ang = math.sqrt(a * a + b * b + c * c)
-    k = math.sin(0.5 * ang) / ang if ang > 1e-8 else 0.5 - ang * ang / 48.0
-    rw, rx, ry, rz = math.cos(0.5 * ang), k * a, k * b, k * c
+    rw, rx, ry, rz = _exp_quat(rv)
     w, x, y, z = q.tolist()
     out = np.array([w * rw - x * rx - y * ry - z * rz, w * rx + x * rw + y * rz - z * ry,
                     w * ry - x * rz + y * rw + z * rx, w * rz + x * ry - y * rx + z * rw])
