@@ -46,6 +46,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
+from .. import validate
 from ..models.imu import HeadingLog, ImuErrorModel
 from ..models.ins import (BA_, BG_, N_ERR, P_, TH_, V_, Mechanization, NavState, _dcm, _dcm_nb, _exp_left,
                           _skew3, _yaw,
@@ -809,6 +810,13 @@ class LooseFilter:
         Multipliers on Q and R.
     feedback
         Closed loop (True) or open loop.
+    gate_prob
+        χ² innovation gate on each epoch's UWB update (position, or position + velocity):
+        the update is rejected (status ``GATED``, ``n_gated`` 1) when its NIS against the
+        prior exceeds the ``gate_prob`` quantile of χ²(m), ``m`` the measurement dimension;
+        a rejected fix does not enter the velocity difference. None: no gate.
+    max_gated
+        Consecutive gated epochs after which the next epoch's fix is used ungated.
     """
 
     mechanization: Mechanization = Mechanization()
@@ -824,6 +832,8 @@ class LooseFilter:
     q_scale: float = 1.0
     r_scale: float = 1.0
     feedback: bool = True
+    gate_prob: float | None = None
+    max_gated: int = 25
     name: str = "loose"
 
     def __post_init__(self):
@@ -832,6 +842,9 @@ class LooseFilter:
         if self.vel_window < 1:
             raise ValueError("LooseFilter.vel_window must be >= 1")
         object.__setattr__(self, "lever_arm_m", np.array(self.lever_arm_m, float))
+        if self.gate_prob is not None:
+            validate.probability("LooseFilter.gate_prob", self.gate_prob)
+        validate.integer("LooseFilter.max_gated", self.max_gated, minimum=0)
 
     def matrices(self, T_s: float):
         """``A``, ``Q``, ``R`` of eqs 5–6 for UWB period ``T_s``."""
@@ -878,6 +891,8 @@ class LooseFilter:
         last_t = None
         hist_t, hist_p = [], []
         g_up = -mech.g_n / np.linalg.norm(mech.g_n)
+        gate_m = None if self.gate_prob is None else {m: chi2.ppf(self.gate_prob, m) for m in (d, 2 * d)}
+        gated_run = 0
         for i in range(t.size):
             if i > 0:
                 p, v, q, _, _ = mech.step(p, v, q, acc[i - 1], acc[i], gyro[i - 1], gyro[i], t[i] - t[i - 1])
@@ -912,9 +927,20 @@ class LooseFilter:
                     z, H, Rk = np.concatenate([z_pos, v[:d] - v_uwb]), np.eye(2 * d), R
                 else:
                     z, H, Rk = z_pos, np.eye(2 * d)[:d], R[:d, :d]
-                st, inn = kalman.update(Gaussian(dx, P), z, H, Rk)
-                dx, P = st.x, st.P
-                nis, dof, status = inn.nis, z.size, EstimateStatus.UPDATED
+                if gate_m is not None and gated_run < self.max_gated:
+                    y = z - H @ dx
+                    if y @ np.linalg.solve(H @ P @ H.T + Rk, y) > gate_m[z.size]:
+                        hist_t.pop()
+                        hist_p.pop()
+                        gated_run += 1
+                        z = None
+                        status = EstimateStatus.GATED
+                        out["n_gated"][k] = 1
+                if z is not None:
+                    gated_run = 0
+                    st, inn = kalman.update(Gaussian(dx, P), z, H, Rk)
+                    dx, P = st.x, st.P
+                    nis, dof, status = inn.nis, z.size, EstimateStatus.UPDATED
                 hist_t, hist_p = hist_t[-self.vel_window - 1:], hist_p[-self.vel_window - 1:]
             if self.feedback:
                 p[:d] -= dx[:d]
