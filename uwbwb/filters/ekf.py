@@ -14,16 +14,18 @@ priors *and* posteriors (:class:`KalmanRun`), so the Rauch–Tung–Striebel smo
 and NIS consistency work on any filter built this way; :meth:`KalmanRun.to_estimates`
 gives the package's common result type :class:`~uwbwb.types.Estimates`.
 
-Gating: an epoch whose normalised innovation squared ``NIS = yᵀ S⁻¹ y`` exceeds the
-``gate_prob`` quantile of χ²(m) is rejected (prediction only, status ``GATED``). The
-default ``gate_prob = 0.9999`` rejects one consistent epoch in ten thousand and any
-absurd measurement; ``gate_prob=None`` means *no gate*: every measurement is used, however
-far from the prediction. A filter that has lost the target would reject everything after,
-so after ``max_gated`` consecutive gated epochs the next one is used ungated.
+Gating is a policy injected with ``gate=`` (:mod:`uwbwb.filters.gating`): no gate, χ² per
+epoch, χ² per measurement or anchor dropping, each with its ``max_gated`` release rule. The
+older ``gate_prob=`` / ``max_gated=`` settings still work and stand for
+:class:`~uwbwb.filters.gating.ChiSquareEpoch` (``gate_prob = 0.9999`` by default: an epoch
+whose NIS exceeds the 0.9999 quantile of χ²(m) is rejected, prediction only, status
+``GATED``) or, for ``gate_prob=None``, :class:`~uwbwb.filters.gating.NoGate` (every
+measurement used, however far from the prediction).
 
 :class:`TdoaEkf` is the TDoA filter of notebook 03 (thesis eqs 1–10): this filter with the
-TDoA measurement adapter :class:`TdoaMeasurement`, whose gate can drop single anchors
-before giving up an epoch.
+TDoA measurement adapter :class:`TdoaMeasurement` and, by default, the
+:class:`~uwbwb.filters.gating.AnchorDropping` gate, which drops single anchors before giving
+up an epoch.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from ..models.tdoa import TdoaModel
 from ..types import EstimateStatus, Estimates, TdoaLog, Trajectory
 from ..validate import number, probability
 from . import kalman
+from .gating import AnchorDropping, GatePolicy, UpdateInfo, gate_from_prob, ungated_update
 from .kalman import Gaussian
 from .tdoa_ls import tdoa_least_squares
 
@@ -109,21 +112,28 @@ class TransitionModel(Protocol):
         """Process noise covariance, shape ``(..., n_x, n_x)``."""
 
 
-@dataclass(frozen=True)
-class UpdateInfo:
-    """What one :meth:`Ekf.update` did: ``nis`` (NaN if nothing was measured), ``dof`` (size of
-    the measurement used, 0 if none), the epoch's :class:`~uwbwb.types.EstimateStatus` and
-    ``n_rejected``, the measurement components (e.g. anchors) a gate removed."""
-
-    nis: float
-    dof: int
-    status: EstimateStatus
-    n_rejected: int = 0
+_DEFAULT_GATE = (0.9999, 10)      # Ekf's gate_prob, max_gated defaults
 
 
-def _check_gate(gate_prob, owner: str) -> None:
-    if gate_prob is not None and not (isinstance(gate_prob, (int, float)) and 0 < gate_prob < 1):
-        raise ValueError(f"{owner}.gate_prob must be in (0, 1) or None (no gate), got {gate_prob!r}")
+def _resolve_gate(ekf: "Ekf", owner: str) -> None:
+    """Set ``ekf.gate`` from ``gate_prob``/``max_gated`` (or check the given policy) and mirror it back."""
+    policy = ekf.gate
+    if policy is None:
+        policy = gate_from_prob(ekf.gate_prob, ekf.max_gated, owner)
+    else:
+        if not all(hasattr(policy, a) for a in ("update", "active", "max_gated", "needs_subsets")):
+            raise ValueError(f"{owner}.gate must be a gate policy (uwbwb.filters.gating), got {policy!r}")
+        mirror = (getattr(policy, "prob", None), policy.max_gated)
+        if (ekf.gate_prob, ekf.max_gated) not in (_DEFAULT_GATE, mirror):
+            raise ValueError(f"{owner}: give the gate either as gate= or as gate_prob=/max_gated=, not both "
+                             f"(gate={policy!r}, gate_prob={ekf.gate_prob!r}, max_gated={ekf.max_gated!r})")
+    if policy.needs_subsets and not (hasattr(ekf.measurement, "components")
+                                     and hasattr(ekf.measurement, "linearise_components")):
+        raise ValueError(f"{owner}: the {type(policy).__name__} gate needs a measurement model that can "
+                         f"re-linearise a subset of its components (components(), linearise_components())")
+    object.__setattr__(ekf, "gate", policy)
+    object.__setattr__(ekf, "gate_prob", getattr(policy, "prob", None))
+    object.__setattr__(ekf, "max_gated", policy.max_gated)
 
 
 @dataclass(frozen=True)
@@ -142,8 +152,14 @@ class Ekf:
         State components that are the velocity, or None.
     gate_prob
         χ² gate probability on each epoch's NIS; None = no gate (every measurement used).
+        Stands for :class:`~uwbwb.filters.gating.ChiSquareEpoch` when ``gate`` is not given;
+        otherwise it mirrors the policy's ``prob`` (None if it has none).
     max_gated
-        Consecutive gated epochs after which the next epoch is used ungated.
+        Consecutive gated epochs after which the next epoch is used ungated (mirrors
+        ``gate.max_gated`` when ``gate`` is given).
+    gate
+        Gate policy (:mod:`uwbwb.filters.gating`); default: the one ``gate_prob`` and
+        ``max_gated`` stand for.
     """
 
     transition: TransitionModel
@@ -152,6 +168,7 @@ class Ekf:
     vel_index: tuple[int, ...] | None = None
     gate_prob: float | None = 0.9999
     max_gated: int = 10
+    gate: GatePolicy | None = None
 
     def __post_init__(self):
         n = int(self.transition.n_x)
@@ -165,16 +182,14 @@ class Ekf:
                 raise ValueError(f"Ekf.vel_index must name {len(pos)} of the {n} state components, "
                                  f"got {self.vel_index!r}")
             object.__setattr__(self, "vel_index", vel)
-        _check_gate(self.gate_prob, "Ekf")
-        if not isinstance(self.max_gated, (int, np.integer)) or self.max_gated < 0:
-            raise ValueError(f"Ekf.max_gated must be an integer >= 0, got {self.max_gated!r}")
+        _resolve_gate(self, type(self).__name__)
 
     def predict(self, state: Gaussian, dt_s: float) -> Gaussian:
         """Prior after ``dt_s`` seconds: ``x⁻ = F x``, ``P⁻ = F P Fᵀ + Q``."""
         return kalman.predict(state, self.transition.F(dt_s), self.transition.Q(dt_s))
 
     def update(self, state: Gaussian, measurement, *, gate: bool = True) -> tuple[Gaussian, UpdateInfo]:
-        """Posterior after one epoch's ``measurement`` (Joseph form), or the prior if it is gated.
+        """Posterior after one epoch's ``measurement`` (Joseph form), as the gate policy allows.
 
         Parameters
         ----------
@@ -183,7 +198,13 @@ class Ekf:
         measurement
             The epoch's measurement in the measurement model's own form.
         gate
-            Apply the χ² gate (if ``gate_prob`` is set).
+            Apply the gate policy (False: use every measurement).
+
+        Returns
+        -------
+        posterior, info
+            The prior itself where nothing was measured (``PREDICTED``) or the gate rejected
+            the epoch (``GATED``); ``info.n_rejected`` counts the components the gate removed.
         """
         lin = self.measurement.linearise(state.x, measurement)
         if lin is None or lin.z.size == 0:
@@ -191,10 +212,14 @@ class Ekf:
         if lin.H.shape[1] != state.x.size:
             raise ValueError(f"Ekf.update: the measurement Jacobian has {lin.H.shape[1]} columns, "
                              f"the state {state.x.size} components")
-        post, inn = kalman.update(state, lin.z, lin.H, lin.R, h_x=lin.h)
-        if gate and self.gate_prob is not None and inn.nis > chi2.ppf(self.gate_prob, lin.z.size):
-            return state, UpdateInfo(inn.nis, 0, EstimateStatus.GATED)
-        return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED)
+        if not gate:
+            return ungated_update(state, lin)
+        parts = None
+        if self.gate.needs_subsets:
+            model = self.measurement
+            parts = (model.components(measurement),
+                     lambda keep: model.linearise_components(state.x, measurement, keep))
+        return self.gate.update(state, lin, parts)
 
     def run(self, t_s, measurements: Sequence, x0: Gaussian, *, start: int = 0, name: str = "EKF") -> "KalmanRun":
         """Filter a whole recording.
@@ -241,7 +266,7 @@ class Ekf:
                     state = kalman.predict(state, F_all[k - start - 1], Q_all[k - start - 1])
                     F[k] = F_all[k - start - 1]
                 xm[k], Pm[k] = state.x, state.P
-                state, info = self.update(state, measurements[k], gate=gated < self.max_gated)
+                state, info = self.update(state, measurements[k], gate=self.gate.active(gated))
                 gated = gated + 1 if info.status == EstimateStatus.GATED else 0
                 xp[k], Pp[k], nis[k], dof[k], status[k] = state.x, state.P, info.nis, info.dof, info.status
                 n_rej[k] = info.n_rejected
@@ -456,6 +481,18 @@ class TdoaMeasurement:
             return None
         return self.terms(x, row, int(ref), anchors)
 
+    def components(self, measurement) -> np.ndarray:
+        """The measured anchors of the epoch (sorted indices): what an anchor-dropping gate drops."""
+        return np.flatnonzero(np.isfinite(np.asarray(measurement[0], float)))
+
+    def linearise_components(self, x: np.ndarray, measurement, keep: np.ndarray) -> Linearisation:
+        """Linearisation from anchors ``keep`` only (at least two); if the epoch's reference is
+        not among them, the first of ``keep`` becomes the reference."""
+        row, ref = measurement
+        keep = np.asarray(keep)
+        ref = int(ref) if np.any(keep == int(ref)) else int(keep[0])
+        return self.terms(x, np.asarray(row, float), ref, keep)
+
 
 @dataclass(frozen=True, init=False)
 class TdoaEkf(Ekf):
@@ -472,11 +509,12 @@ class TdoaEkf(Ekf):
     posterior mean (eq. 10). A run keeps priors and posteriors (:class:`KalmanRun`), so
     :meth:`KalmanRun.smooth` and :meth:`KalmanRun.nees` apply.
 
-    Gating overrides the generic one: if the NIS of an epoch exceeds the ``gate_prob``
-    quantile of χ²(m), the anchor whose removal lowers the NIS most is dropped
-    (re-referencing if it was the reference) and the test repeated, until the epoch passes
-    or fewer than ``min_tdoa`` TDoAs remain, in which case the epoch is gated (prediction
-    only). After ``max_skipped`` consecutive gated epochs the next one is used ungated.
+    Gating: by default :class:`~uwbwb.filters.gating.AnchorDropping` — if the NIS of an
+    epoch exceeds the ``gate_prob`` quantile of χ²(m), the anchor whose removal lowers the
+    NIS most is dropped (re-referencing if it was the reference) and the test repeated,
+    until the epoch passes or fewer than ``min_tdoa`` TDoAs remain, in which case the epoch
+    is gated (prediction only). After ``max_skipped`` consecutive gated epochs the next one
+    is used ungated. Any other policy can be given as ``gate=``.
 
     Parameters
     ----------
@@ -496,6 +534,9 @@ class TdoaEkf(Ekf):
         Consecutive epochs the gate may skip before the next one is used ungated.
     init_pos_sigma_m, init_vel_sigma_mps, init_acc_sigma_mps2
         Prior standard deviations at initialisation (per axis).
+    gate
+        Gate policy (:mod:`uwbwb.filters.gating`) instead of the anchor-dropping gate that
+        ``gate_prob``, ``min_tdoa`` and ``max_skipped`` describe.
     """
 
     min_tdoa: int | None = None
@@ -505,19 +546,23 @@ class TdoaEkf(Ekf):
 
     def __init__(self, motion: MotionModel, measurement: TdoaModel, gate_prob: float | None = 0.9999,
                  min_tdoa: int | None = None, max_skipped: int = 10, init_pos_sigma_m: float = 1.0,
-                 init_vel_sigma_mps: float = 1.0, init_acc_sigma_mps2: float = 1.0):
+                 init_vel_sigma_mps: float = 1.0, init_acc_sigma_mps2: float = 1.0, gate: GatePolicy | None = None):
         if min_tdoa is not None and min_tdoa < 1:
             raise ValueError("min_tdoa must be >= 1")
         if not isinstance(max_skipped, (int, np.integer)) or max_skipped < 0:
             raise ValueError("max_skipped must be >= 0")
-        _check_gate(gate_prob, "TdoaEkf")
+        if gate is None:
+            gate = gate_from_prob(gate_prob, max_skipped, "TdoaEkf", kind=AnchorDropping,
+                                  min_rows=min_tdoa if min_tdoa is not None else measurement.dim)
+        elif (gate_prob, max_skipped) != _DEFAULT_GATE:
+            raise ValueError("TdoaEkf: give the gate either as gate= or as gate_prob=/max_skipped=, not both")
         for name, sigma in (("init_pos_sigma_m", init_pos_sigma_m), ("init_vel_sigma_mps", init_vel_sigma_mps),
                             ("init_acc_sigma_mps2", init_acc_sigma_mps2)):
             number(name, sigma, minimum=0.0, strict_minimum=True)
         d = motion.dim
         fields = dict(transition=motion, measurement=TdoaMeasurement(measurement, motion),
                       pos_index=tuple(range(d)), vel_index=tuple(range(d, 2 * d)) if motion.order >= 2 else None,
-                      gate_prob=gate_prob, max_gated=max_skipped, min_tdoa=min_tdoa,
+                      gate_prob=getattr(gate, "prob", None), max_gated=gate.max_gated, gate=gate, min_tdoa=min_tdoa,
                       init_pos_sigma_m=init_pos_sigma_m, init_vel_sigma_mps=init_vel_sigma_mps,
                       init_acc_sigma_mps2=init_acc_sigma_mps2)
         for k, v in fields.items():
@@ -544,43 +589,6 @@ class TdoaEkf(Ekf):
         return Gaussian(m.initial_state(pos_m, vel_mps),
                         m.initial_covariance(self.init_pos_sigma_m, self.init_vel_sigma_mps,
                                              self.init_acc_sigma_mps2))
-
-    def _nis(self, state: Gaussian, row, ref, anchors) -> float:
-        lin = self.measurement.terms(state.x, row, ref, anchors)
-        y = lin.z - lin.h
-        S = lin.H @ state.P @ lin.H.T + lin.R
-        return float(y @ np.linalg.solve(S, y))
-
-    def update(self, state: Gaussian, measurement, *, gate: bool = True) -> tuple[Gaussian, UpdateInfo]:
-        """Posterior after one epoch's ``(tdoa_row_m, ref)`` (eqs 7–9, Joseph form), gating anchor by anchor.
-
-        Returns the prior with status ``GATED`` if the gate left fewer than ``min_tdoa``
-        TDoAs; ``n_rejected`` counts the anchors it removed.
-        """
-        if self.gate_prob is None or not gate:
-            return super().update(state, measurement, gate=False)
-        row, ref = measurement
-        row, ref = np.asarray(row, float), int(ref)
-        anchors = np.flatnonzero(np.isfinite(row))
-        if ref < 0 or anchors.size < 2:
-            return state, UpdateInfo(np.nan, 0, EstimateStatus.PREDICTED)
-        min_tdoa = self.min_tdoa if self.min_tdoa is not None else self.tdoa_model.dim
-        n_rejected = 0
-        while not self._nis(state, row, ref, anchors) <= chi2.ppf(self.gate_prob, anchors.size - 1):
-            if anchors.size - 2 < max(min_tdoa, 1):
-                return state, UpdateInfo(np.nan, 0, EstimateStatus.GATED, n_rejected + anchors.size)
-            trial = []
-            for k in anchors:
-                rest = anchors[anchors != k]
-                trial.append(self._nis(state, row, ref if k != ref else int(rest[0]), rest))
-            drop = anchors[int(np.argmin(trial))]
-            anchors = anchors[anchors != drop]
-            if drop == ref:
-                ref = int(anchors[0])
-            n_rejected += 1
-        lin = self.measurement.terms(state.x, row, ref, anchors)
-        post, inn = kalman.update(state, lin.z, lin.H, lin.R, h_x=lin.h)
-        return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED, n_rejected)
 
     def run(self, log: TdoaLog, *, x0: Gaussian | None = None, name: str | None = None) -> KalmanRun:
         """Filter a whole recording.

@@ -1,0 +1,171 @@
+"""Gate policies: decision rules at their thresholds, release rule, equivalence with the gate_prob settings."""
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from uwbwb.filters import kalman
+from uwbwb.filters.ekf import Ekf, Linearisation, TdoaEkf
+from uwbwb.filters.gating import (AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate, gate_from_prob,
+                                  ungated_update)
+from uwbwb.filters.kalman import Gaussian
+from uwbwb.models.motion import RandomForce, RandomWalk
+from uwbwb.models.tdoa import TdoaModel
+from uwbwb.types import EstimateStatus, TdoaLog, pseudo_tdoa
+
+ANCHORS = np.array([[0.0, 0.0, 3.0], [30.0, 0.0, 0.5], [30.0, 30.0, 3.0], [0.0, 30.0, 0.5],
+                    [15.0, -2.0, 2.0], [15.0, 32.0, 1.0]])
+IDS = tuple(f"a{i}" for i in range(6))
+
+
+class PositionFix:
+    """Linear model: the position of the state, noise ``var_m2`` per axis (NaN = missing epoch)."""
+
+    def __init__(self, motion, var_m2=0.09):
+        self.H, self.var = motion.H_pos, var_m2
+
+    def linearise(self, x, z):
+        z = np.asarray(z, float)
+        if not np.all(np.isfinite(z)):
+            return None
+        return Linearisation(z, self.H @ x, self.H, self.var * np.eye(z.size))
+
+
+def _scalar(z):
+    """Prior N(0, 1), measurement z with noise 1: S = 2, NIS = z² / 2."""
+    return Gaussian([0.0], [[1.0]]), Linearisation([z], [0.0], [[1.0]], [[1.0]])
+
+
+@pytest.mark.parametrize("prob", [0.9, 0.9999])
+def test_chi_square_epoch_rejects_exactly_above_its_quantile(prob):
+    thr = chi2.ppf(prob, 1)
+    gate = ChiSquareEpoch(prob)
+    assert gate.threshold(1) == pytest.approx(thr)
+    below, above = np.sqrt(2 * thr) * (1 - 1e-6), np.sqrt(2 * thr) * (1 + 1e-6)
+    post, info = gate.update(*_scalar(below))
+    assert info.status == EstimateStatus.UPDATED and info.dof == 1 and post.x[0] == pytest.approx(below / 2)
+    prior, lin = _scalar(above)
+    post, info = gate.update(prior, lin)
+    assert info.status == EstimateStatus.GATED and info.dof == 0 and post is prior
+    assert info.nis == pytest.approx(above ** 2 / 2)
+
+
+def test_no_gate_uses_any_measurement():
+    post, info = NoGate().update(*_scalar(1e3))
+    assert info.status == EstimateStatus.UPDATED and post.x[0] == pytest.approx(500.0)
+
+
+def test_per_measurement_gate_drops_only_the_inconsistent_component():
+    motion = RandomForce(0.5, dim=2)
+    prior = Gaussian(np.array([1.0, 2.0, 0.0, 0.0]), np.diag([0.04, 0.04, 1.0, 1.0]))
+    H, R = motion.H_pos, 0.01 * np.eye(2)
+    S_ii = 0.05
+    z = np.array([1.0 + 0.5 * np.sqrt(S_ii), 2.0 + 10 * np.sqrt(S_ii)])     # x fine, y 10 sigma off
+    lin = Linearisation(z, H @ prior.x, H, R)
+    gate = ChiSquarePerMeasurement(0.999)
+    assert gate.keep(lin.innovation, np.full(2, S_ii)).tolist() == [True, False]
+    post, info = gate.update(prior, lin)
+    want, _ = kalman.update(prior, z[:1], H[:1], R[:1, :1], h_x=lin.h[:1])
+    np.testing.assert_array_equal(post.x, want.x)
+    np.testing.assert_array_equal(post.P, want.P)
+    assert info.status == EstimateStatus.UPDATED and info.dof == 1 and info.n_rejected == 1
+    # both off: the epoch is gated; with min_rows=2 one bad row is enough to gate it
+    both = Linearisation(lin.h + 10 * np.sqrt(S_ii), lin.h, H, R)
+    post, info = gate.update(prior, both)
+    assert info.status == EstimateStatus.GATED and info.n_rejected == 2 and post is prior
+    post, info = ChiSquarePerMeasurement(0.999, min_rows=2).update(prior, lin)
+    assert info.status == EstimateStatus.GATED and post is prior
+    # all consistent: the same numbers as no gate
+    ok = Linearisation(lin.h + 0.1, lin.h, H, R)
+    a, b = gate.update(prior, ok), ungated_update(prior, ok)
+    np.testing.assert_array_equal(a[0].x, b[0].x)
+    assert a[1] == b[1]
+
+
+def test_release_rule_flips_at_max_gated():
+    for gate in (NoGate(3), ChiSquareEpoch(0.99, 3), ChiSquarePerMeasurement(0.99, max_gated=3),
+                 AnchorDropping(0.99, max_gated=3)):
+        assert [gate.active(n) for n in range(5)] == [True, True, True, False, False]
+    assert not ChiSquareEpoch(0.99, max_gated=0).active(0)
+
+
+@pytest.mark.parametrize("make", [
+    lambda: ChiSquareEpoch(1.5), lambda: ChiSquareEpoch(0.9, max_gated=-1), lambda: NoGate(max_gated=2.5),
+    lambda: ChiSquarePerMeasurement(0.9, min_rows=0), lambda: AnchorDropping(0.0),
+    lambda: AnchorDropping(0.9, min_rows=True)])
+def test_bad_policy_parameters_are_refused(make):
+    with pytest.raises(ValueError, match="prob|max_gated|min_rows"):
+        make()
+
+
+def _fix_data(rng):
+    motion = RandomForce(0.5, dim=2)
+    t = np.arange(80) * 0.1
+    x = motion.sample_path(motion.initial_state([0.0, 0.0], [1.0, 0.5]), t, rng=rng)
+    z = motion.position(x) + 0.3 * rng.standard_normal((t.size, 2))
+    z[30::15] += 5.0
+    return motion, t, z, Gaussian(x[0], motion.initial_covariance(1.0, 1.0))
+
+
+def test_ekf_gate_prob_is_the_chi_square_epoch_policy(rng):
+    motion, t, z, x0 = _fix_data(rng)
+    fix = PositionFix(motion)
+    for kw, policy in ((dict(gate_prob=0.99, max_gated=2), ChiSquareEpoch(0.99, 2)),
+                       (dict(gate_prob=None, max_gated=4), NoGate(4)), ({}, ChiSquareEpoch())):
+        a = Ekf(motion, fix, pos_index=(0, 1), **kw)
+        b = Ekf(motion, fix, pos_index=(0, 1), gate=policy)
+        assert a.gate == policy and (b.gate_prob, b.max_gated) == (a.gate_prob, a.max_gated)
+        ra, rb = a.run(t, z, x0), b.run(t, z, x0)
+        for f in ("x_post", "P_post", "nis", "dof", "status"):
+            np.testing.assert_array_equal(getattr(ra, f), getattr(rb, f))
+    gated = Ekf(motion, fix, pos_index=(0, 1), gate=ChiSquareEpoch(0.99)).run(t, z, x0)
+    assert (gated.status == EstimateStatus.GATED).sum() >= 4
+    per = Ekf(motion, fix, pos_index=(0, 1), gate=ChiSquarePerMeasurement(0.99)).run(t, z, x0)
+    assert per.n_rejected.sum() >= 8 and set(per.dof[per.n_rejected == 1]) == {1}
+
+
+def test_conflicting_or_unusable_gates_are_refused(rng):
+    motion = RandomForce(0.5, dim=2)
+    fix = PositionFix(motion)
+    with pytest.raises(ValueError, match="not both"):
+        Ekf(motion, fix, pos_index=(0, 1), gate_prob=0.9, gate=NoGate())
+    with pytest.raises(ValueError, match="re-linearise"):
+        Ekf(motion, fix, pos_index=(0, 1), gate=AnchorDropping(0.99))
+    with pytest.raises(ValueError, match="gate policy"):
+        Ekf(motion, fix, pos_index=(0, 1), gate=0.99)
+    with pytest.raises(ValueError, match="gate_prob"):
+        gate_from_prob(2.0, 10, "X")
+
+
+def _tdoa_log(rng):
+    model = TdoaModel(ANCHORS, 0.1, dim=2, z_m=1.0)
+    t = np.arange(0, 8, 0.1)
+    pos = np.column_stack([8 + 0.5 * t, 10 + 0.2 * t])
+    r = model.ranges(pos) + 0.1 * rng.standard_normal((t.size, 6))
+    r[20::7, 3] += 3.0
+    return model, TdoaLog(t, *pseudo_tdoa(r, 0), IDS)
+
+
+def test_tdoa_ekf_settings_are_the_anchor_dropping_policy(rng):
+    model, log = _tdoa_log(rng)
+    a = TdoaEkf(RandomWalk(0.3), model, gate_prob=0.99, min_tdoa=3, max_skipped=4)
+    b = TdoaEkf(RandomWalk(0.3), model, gate=AnchorDropping(0.99, min_rows=3, max_gated=4))
+    assert a.gate == b.gate and b.gate_prob == 0.99 and b.max_gated == 4
+    ra, rb = a.run(log), b.run(log)
+    np.testing.assert_array_equal(ra.x_post, rb.x_post)
+    np.testing.assert_array_equal(ra.n_rejected, rb.n_rejected)
+    assert ra.n_rejected.sum() >= 8
+    assert TdoaEkf(RandomWalk(0.3), model).gate == AnchorDropping(0.9999, min_rows=2, max_gated=10)
+    with pytest.raises(ValueError, match="not both"):
+        TdoaEkf(RandomWalk(0.3), model, gate_prob=0.9, gate=NoGate())
+
+
+def test_tdoa_ekf_runs_with_every_policy(rng):
+    model, log = _tdoa_log(rng)
+    none = TdoaEkf(RandomWalk(0.3), model, gate_prob=None).run(log)
+    runs = {type(g).__name__: TdoaEkf(RandomWalk(0.3), model, gate=g).run(log)
+            for g in (NoGate(), ChiSquareEpoch(0.99), ChiSquarePerMeasurement(0.99), AnchorDropping(0.99))}
+    np.testing.assert_array_equal(runs["NoGate"].x_post, none.x_post)
+    assert (runs["ChiSquareEpoch"].status == EstimateStatus.GATED).sum() > 0
+    assert runs["ChiSquarePerMeasurement"].n_rejected.sum() > 0
+    assert runs["AnchorDropping"].n_rejected.sum() > 0

@@ -1,0 +1,266 @@
+"""Innovation gates as policies injected into a Gaussian filter.
+
+A gate decides, per epoch, which of the measurement's components the update may use. It is
+a small frozen dataclass passed to the filter (``Ekf(..., gate=ChiSquareEpoch(0.9999))``), so
+any filter runs with or without it, and an ablation row "with / without gate" is one argument.
+
+Policies
+--------
+:class:`NoGate`
+    Every measurement is used, however far from the prediction.
+:class:`ChiSquareEpoch`
+    The whole epoch is rejected (status ``GATED``, prediction only) when its normalised
+    innovation squared ``NIS = yᵀ S⁻¹ y`` exceeds the ``prob`` quantile of χ²(m).
+:class:`ChiSquarePerMeasurement`
+    Each component ``i`` is tested on its own, ``y_i² / S_ii`` against the ``prob`` quantile
+    of χ²(1); the rejected rows are removed and the rest update the state (the marginal of a
+    Gaussian measurement, so correlated noise stays correct). The epoch is gated when fewer
+    than ``min_rows`` remain.
+:class:`AnchorDropping`
+    While the epoch fails the χ²(m) test, the component (anchor) whose removal lowers the
+    NIS most is dropped and the measurement re-linearised without it; the epoch is gated when
+    one more drop would leave fewer than ``min_rows`` rows. Needs a measurement model that can
+    re-linearise a subset of its components (:class:`Subsettable`), e.g.
+    :class:`~uwbwb.filters.ekf.TdoaMeasurement`, which re-references the TDoAs when the
+    reference anchor is dropped.
+
+Release rule (every policy): a filter that has lost the target would reject everything
+after, so after ``max_gated`` consecutive *gated* epochs the next one is used ungated
+(:meth:`active` is False for it). Epochs where only some components were dropped do not count.
+
+Adopting a policy in a filter
+-----------------------------
+A filter holds a policy and, per epoch, with prior ``state`` and the epoch's
+linearisation ``lin`` (``z, h, H, R``; :class:`~uwbwb.filters.ekf.Linearisation`)::
+
+    gated_run = 0
+    for each epoch:
+        ...predict...
+        if gate.active(gated_run):
+            post, info = gate.update(state, lin, parts)    # parts = (components, relinearise) or None
+        else:
+            post, info = ungated_update(state, lin)
+        gated_run = gated_run + 1 if info.status == EstimateStatus.GATED else 0
+
+``parts`` is needed only by policies whose ``needs_subsets`` is True (anchor dropping): the
+epoch's component identifiers and a function ``relinearise(keep) -> Linearisation`` (see
+:class:`Subsettable`). A filter that cannot re-linearise passes None and refuses such a
+policy at construction.
+:func:`ungated_update` is the plain Joseph-form update every policy ends in. Filters with
+their own update arithmetic (an error-state filter's sequential updates, a particle
+filter's weights) use the decision part only: :meth:`ChiSquareEpoch.threshold` and
+:meth:`ChiSquarePerMeasurement.keep` take the NIS / per-row statistics the filter already
+computes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Callable, Protocol
+
+import numpy as np
+from scipy.stats import chi2
+
+from ..types import EstimateStatus
+from . import kalman
+from .kalman import Gaussian
+
+__all__ = ["AnchorDropping", "ChiSquareEpoch", "ChiSquarePerMeasurement", "GatePolicy", "NoGate", "Subsettable",
+           "UpdateInfo", "gate_from_prob", "ungated_update"]
+
+
+@dataclass(frozen=True)
+class UpdateInfo:
+    """What one update did: ``nis`` (NaN if nothing was measured), ``dof`` (size of the
+    measurement used, 0 if none), the epoch's :class:`~uwbwb.types.EstimateStatus` and
+    ``n_rejected``, the measurement components (e.g. anchors) a gate removed."""
+
+    nis: float
+    dof: int
+    status: EstimateStatus
+    n_rejected: int = 0
+
+
+class Subsettable(Protocol):
+    """A measurement model that can re-linearise a subset of one epoch's components."""
+
+    def components(self, measurement) -> np.ndarray:
+        """Identifiers of the epoch's usable components (e.g. anchor indices), sorted, shape ``(c,)``."""
+
+    def linearise_components(self, x: np.ndarray, measurement, keep: np.ndarray):
+        """The epoch's :class:`~uwbwb.filters.ekf.Linearisation` from components ``keep`` only."""
+
+
+Parts = tuple[np.ndarray, Callable[[np.ndarray], object]]
+
+
+def ungated_update(state: Gaussian, lin) -> tuple[Gaussian, UpdateInfo]:
+    """Joseph-form update with all of ``lin`` (``z, h, H, R``), status ``UPDATED``."""
+    post, inn = kalman.update(state, lin.z, lin.H, lin.R, h_x=lin.h)
+    return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED)
+
+
+def _epoch_nis(state: Gaussian, lin) -> float:
+    y = lin.z - lin.h
+    S = lin.H @ state.P @ lin.H.T + lin.R
+    return float(y @ np.linalg.solve(S, y))
+
+
+def _check(owner: str, prob, max_gated) -> None:
+    if prob is not None and not (isinstance(prob, (int, float)) and not isinstance(prob, bool) and 0 < prob < 1):
+        raise ValueError(f"{owner}.prob must be in (0, 1), got {prob!r}")
+    if isinstance(max_gated, bool) or not isinstance(max_gated, (int, np.integer)) or max_gated < 0:
+        raise ValueError(f"{owner}.max_gated must be an integer >= 0, got {max_gated!r}")
+
+
+class GatePolicy(Protocol):
+    """What a filter needs from a gate."""
+
+    max_gated: int
+    needs_subsets: bool
+
+    def active(self, n_gated: int) -> bool:
+        """Whether the gate applies after ``n_gated`` consecutive gated epochs."""
+
+    def update(self, state: Gaussian, lin, parts: Parts | None = None) -> tuple[Gaussian, UpdateInfo]:
+        """The gated update of one epoch."""
+
+
+@dataclass(frozen=True)
+class _Release:
+    def active(self, n_gated: int) -> bool:
+        """True while fewer than ``max_gated`` consecutive epochs have been gated."""
+        return n_gated < self.max_gated
+
+
+@dataclass(frozen=True)
+class NoGate(_Release):
+    """No gate: every measurement is used. ``max_gated`` is kept only so that a filter's
+    ``max_gated`` setting survives switching the gate off and on."""
+
+    max_gated: int = 10
+    needs_subsets = False
+
+    def __post_init__(self):
+        _check("NoGate", None, self.max_gated)
+
+    def update(self, state: Gaussian, lin, parts: Parts | None = None) -> tuple[Gaussian, UpdateInfo]:
+        """:func:`ungated_update`."""
+        return ungated_update(state, lin)
+
+
+@dataclass(frozen=True)
+class ChiSquareEpoch(_Release):
+    """Reject the whole epoch when ``NIS > χ²_m⁻¹(prob)`` (``m`` components).
+
+    The default ``prob = 0.9999`` rejects one consistent epoch in ten thousand and any absurd
+    measurement. A NaN NIS is not above the threshold (the epoch is used).
+    """
+
+    prob: float = 0.9999
+    max_gated: int = 10
+    needs_subsets = False
+
+    def __post_init__(self):
+        _check("ChiSquareEpoch", self.prob, self.max_gated)
+
+    def threshold(self, m: int) -> float:
+        """The NIS above which an ``m``-component epoch is rejected."""
+        return float(chi2.ppf(self.prob, m))
+
+    def update(self, state: Gaussian, lin, parts: Parts | None = None) -> tuple[Gaussian, UpdateInfo]:
+        """Posterior, or the prior with status ``GATED`` (its NIS kept, ``dof`` 0)."""
+        post, inn = kalman.update(state, lin.z, lin.H, lin.R, h_x=lin.h)
+        if inn.nis > chi2.ppf(self.prob, lin.z.size):
+            return state, UpdateInfo(inn.nis, 0, EstimateStatus.GATED)
+        return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED)
+
+
+@dataclass(frozen=True)
+class ChiSquarePerMeasurement(_Release):
+    """Reject single components with ``y_i² / S_ii > χ²_1⁻¹(prob)``; update with the rest.
+
+    ``S = H P⁻ Hᵀ + R`` is the innovation covariance of the whole epoch, so each row is
+    tested against its own marginal. The epoch is gated (prediction only) when fewer than
+    ``min_rows`` rows pass; its ``nis`` is then that of the whole epoch and ``n_rejected``
+    the number of rows.
+    """
+
+    prob: float = 0.9999
+    min_rows: int = 1
+    max_gated: int = 10
+    needs_subsets = False
+
+    def __post_init__(self):
+        _check("ChiSquarePerMeasurement", self.prob, self.max_gated)
+        if isinstance(self.min_rows, bool) or not isinstance(self.min_rows, (int, np.integer)) or self.min_rows < 1:
+            raise ValueError(f"ChiSquarePerMeasurement.min_rows must be an integer >= 1, got {self.min_rows!r}")
+
+    def keep(self, y: np.ndarray, S_diag: np.ndarray) -> np.ndarray:
+        """Rows that pass, bool ``(m,)``, from innovations ``y (m,)`` and variances ``S_ii (m,)``."""
+        y, s = np.asarray(y, float), np.asarray(S_diag, float)
+        return y * y / s <= chi2.ppf(self.prob, 1)
+
+    def update(self, state: Gaussian, lin, parts: Parts | None = None) -> tuple[Gaussian, UpdateInfo]:
+        S = lin.H @ state.P @ lin.H.T + lin.R
+        ok = self.keep(lin.z - lin.h, np.diag(S))
+        if ok.all():
+            return ungated_update(state, lin)
+        if ok.sum() < self.min_rows:
+            return state, UpdateInfo(_epoch_nis(state, lin), 0, EstimateStatus.GATED, int(ok.size))
+        rows = np.flatnonzero(ok)
+        part = replace(lin, z=lin.z[rows], h=lin.h[rows], H=lin.H[rows], R=lin.R[np.ix_(rows, rows)])
+        post, info = ungated_update(state, part)
+        return post, replace(info, n_rejected=int(ok.size - rows.size))
+
+
+@dataclass(frozen=True)
+class AnchorDropping(_Release):
+    """Drop the worst component (anchor) until the epoch passes the χ²(m) test.
+
+    While ``NIS > χ²_m⁻¹(prob)`` (a NaN NIS fails too), every single remaining component is
+    tried out and the one whose removal gives the smallest NIS is dropped; the measurement is
+    re-linearised without it (``parts``: the epoch's components and the function that
+    re-linearises a subset of them). When one more drop would leave fewer than
+    ``max(min_rows, 1)`` rows, the epoch is gated and all its remaining components count as
+    rejected. The NIS reported is that of the update finally made.
+    """
+
+    prob: float = 0.9999
+    min_rows: int = 1
+    max_gated: int = 10
+    needs_subsets = True
+
+    def __post_init__(self):
+        _check("AnchorDropping", self.prob, self.max_gated)
+        if isinstance(self.min_rows, bool) or not isinstance(self.min_rows, (int, np.integer)) or self.min_rows < 1:
+            raise ValueError(f"AnchorDropping.min_rows must be an integer >= 1, got {self.min_rows!r}")
+
+    def update(self, state: Gaussian, lin, parts: Parts | None = None) -> tuple[Gaussian, UpdateInfo]:
+        if parts is None:
+            raise ValueError("AnchorDropping needs a measurement model that can re-linearise a subset of its "
+                             "components (components(), linearise_components())")
+        components, subset = parts
+        keep = np.asarray(components)
+        n_rejected = 0
+        while not _epoch_nis(state, lin) <= chi2.ppf(self.prob, lin.z.size):
+            if lin.z.size - 1 < max(self.min_rows, 1):
+                return state, UpdateInfo(np.nan, 0, EstimateStatus.GATED, n_rejected + keep.size)
+            trial = [_epoch_nis(state, subset(keep[keep != k])) for k in keep]
+            keep = keep[keep != keep[int(np.argmin(trial))]]
+            lin = subset(keep)
+            n_rejected += 1
+        post, info = ungated_update(state, lin)
+        return post, replace(info, n_rejected=n_rejected)
+
+
+def gate_from_prob(gate_prob: float | None, max_gated: int, owner: str, *, kind=ChiSquareEpoch, **settings):
+    """The policy a ``gate_prob`` setting stands for: None → :class:`NoGate`, else ``kind(gate_prob, ...)``."""
+    if gate_prob is not None and not (isinstance(gate_prob, (int, float)) and not isinstance(gate_prob, bool)
+                                      and 0 < gate_prob < 1):
+        raise ValueError(f"{owner}.gate_prob must be in (0, 1) or None (no gate), got {gate_prob!r}")
+    if isinstance(max_gated, bool) or not isinstance(max_gated, (int, np.integer)) or max_gated < 0:
+        raise ValueError(f"{owner}.max_gated must be an integer >= 0, got {max_gated!r}")
+    if gate_prob is None:
+        return NoGate(max_gated=max_gated)
+    return kind(prob=gate_prob, max_gated=max_gated, **settings)
