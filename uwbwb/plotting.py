@@ -35,6 +35,8 @@ COLORS: dict[str, str] = {
     "baseline PF": "#e377c2",
     "set-noise PF": "#bcbd22",
     "set-noise KF": "#393b79",
+    "baseline KF": "#a6761d",
+    "set-noise KF (pooled σ)": "#1b9e77",
     "INS": "#e7ba52",
     "ESKF": "#843c39",
     "UWB-only": "#737373",

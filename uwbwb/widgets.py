@@ -55,6 +55,7 @@ import html
 import io
 import math
 import traceback
+from dataclasses import dataclass
 from collections.abc import Callable, Mapping, Sequence
 from decimal import Decimal
 from html.parser import HTMLParser
@@ -65,7 +66,8 @@ import ipywidgets as widgets
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
-__all__ = ["Panel", "PanelFigure", "float_slider", "int_slider", "dropdown", "seed_box", "data_banner"]
+__all__ = ["Panel", "PanelFigure", "float_slider", "int_slider", "dropdown", "seed_box", "data_banner",
+           "ExerciseCheck", "what_you_should_see"]
 
 #: Width of a control row; descriptions take their natural width inside it.
 _CONTROL_LAYOUT = {"width": "34em"}
@@ -111,6 +113,78 @@ def data_banner(dataset: str, found: bool, *, detail: str = "", instead: str = "
         text = (f"Real data {name} is not available on this machine{why}: {html.escape(instead)}. "
                 f"Get it with <code>python -m uwbwb fetch {name}</code> or set DATA_DIR.")
     return HTML(f'<div class="uwbwb-data-banner" style="{_BANNER_STYLE[bool(found)]}">{text}</div>')
+
+
+# --------------------------------------------------------------------------- teaching notes
+
+#: Longest "what you should see" note (characters): about three lines of a notebook.
+SEE_MAX_CHARS = 420
+
+
+def what_you_should_see(text: str):
+    """The short note under a panel or figure that tells a student what to look at.
+
+    Parameters
+    ----------
+    text
+        At most three lines and :data:`SEE_MAX_CHARS` characters of Markdown; numbers in it
+        should be computed from the run (f-strings), not typed in.
+
+    Returns
+    -------
+    IPython.display.Markdown
+        ``**What you should see.** text``, for ``IPython.display.display`` (or as a cell's value).
+
+    Raises
+    ------
+    ValueError
+        Empty text, more than three lines, or longer than :data:`SEE_MAX_CHARS`.
+    """
+    from IPython.display import Markdown
+
+    lines = [ln for ln in str(text).strip().splitlines() if ln.strip()]
+    if not lines:
+        raise ValueError("text: a 'what you should see' note needs some text")
+    if len(lines) > 3 or len(str(text).strip()) > SEE_MAX_CHARS:
+        raise ValueError(f"text: a 'what you should see' note has at most 3 lines and {SEE_MAX_CHARS} characters, "
+                         f"got {len(lines)} lines and {len(str(text).strip())} characters")
+    return Markdown("**What you should see.** " + " ".join(ln.strip() for ln in lines))
+
+
+@dataclass(frozen=True)
+class ExerciseCheck:
+    """Outcome of an exercise's check: the predicted direction, whether it held, and the numbers.
+
+    An exercise asks "change X, predict Y"; the experiment package computes both settings
+    and returns one of these. The notebook's check cell is ``assert check.holds, check``
+    followed by ``check`` (shown as one line of Markdown).
+
+    Attributes
+    ----------
+    claim
+        The direction asserted, e.g. ``"PF error above KF error"``.
+    holds
+        Whether the run shows it.
+    numbers
+        ``{name: value}`` the verdict was computed from, with units in the names.
+    """
+
+    claim: str
+    holds: bool
+    numbers: Mapping[str, float]
+
+    def __post_init__(self):
+        object.__setattr__(self, "holds", bool(self.holds))
+        object.__setattr__(self, "numbers", MappingProxyType(dict(self.numbers)))
+
+    def __str__(self) -> str:
+        nums = ", ".join(f"{k} = {_format_number(float(v))}" for k, v in self.numbers.items())
+        return f"{'holds' if self.holds else 'DOES NOT HOLD'}: {self.claim} ({nums})"
+
+    def _repr_markdown_(self) -> str:
+        nums = ", ".join(f"{html.escape(str(k))} = {_format_number(float(v))}" for k, v in self.numbers.items())
+        mark = "✔ check holds" if self.holds else "✘ check does not hold"
+        return f"**{mark}:** {html.escape(self.claim)} — {nums}"
 
 
 # --------------------------------------------------------------------------- controls

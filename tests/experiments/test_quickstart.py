@@ -83,3 +83,43 @@ def test_headline_rows_carry_kind_and_coverage(compared):
     rows = qs.headline_rows(table)
     assert {r["kind"] for r in rows} == {"reproduced"}
     assert sum(r["quantity"].startswith("coverage") for r in rows) == len(table)
+
+
+# --------------------------------------------------------------------------- exercises and notes
+
+def test_exercise_fewer_anchors(synthetic):
+    rec, tag = synthetic.dynamic, synthetic.dynamic.tags[0]
+    z = synthetic.tag_height.per_tag_m[tag]
+    check = qs.exercises.fewer_anchors(rec, tag, tag_height_m=z)
+    n = check.numbers
+    assert check.holds, check
+    assert n["HDOP, 4 anchors"] > n["HDOP, all anchors"] > 0          # fewer rows in H: never a lower DOP
+    assert n["CEP95 4 anchors (m)"] > n["CEP95 all (m)"]
+    with pytest.raises(ValueError, match="keep"):
+        qs.exercises.fewer_anchors(rec, tag, tag_height_m=z, keep=[0, 1])
+
+
+def test_exercise_noisier_ranges_matches_the_first_order_prediction(synthetic, compared):
+    cal = compared[0]
+    rec, tag = synthetic.dynamic, synthetic.dynamic.tags[0]
+    check = qs.exercises.noisier_ranges(rec, tag, tag_height_m=synthetic.tag_height.per_tag_m[tag], calibration=cal,
+                                        sigma_m=0.2, rng=np.random.default_rng(3))
+    n = check.numbers
+    assert check.holds, check
+    assert n["RMSE after (m)"] == pytest.approx(n["RMSE after, predicted (m)"], rel=0.2)
+    with pytest.raises(ValueError, match="sigma_m"):
+        qs.exercises.noisier_ranges(rec, tag, tag_height_m=1.0, sigma_m=0.0, rng=np.random.default_rng(3))
+
+
+def test_notes_follow_the_numbers(synthetic, compared):
+    from uwbwb.widgets import what_you_should_see
+
+    cal, table, errors = compared
+    tag = synthetic.dynamic.tags[0]
+    note = qs.exercises.explorer_note(errors, tag, 0.0, 20.0)
+    assert "(smaller)" in note                                       # biases dominate the stand-in's raw fixes
+    flipped = {"raw": errors["calibrated"], "calibrated": errors["raw"]}
+    assert "(not smaller)" in qs.exercises.explorer_note(flipped, tag, 0.0, 20.0)
+    cdf = qs.exercises.cdf_note(table)
+    assert f"for {len(synthetic.dynamic.tags)} of {len(synthetic.dynamic.tags)} tags" in cdf
+    what_you_should_see(note), what_you_should_see(cdf)             # both fit the note's limits

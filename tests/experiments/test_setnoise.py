@@ -12,6 +12,7 @@ import pytest  # noqa: E402
 from tests.conftest import real_dataset  # noqa: E402
 from uwbwb.experiments import setnoise as E  # noqa: E402
 from uwbwb.types import set_mask  # noqa: E402
+from uwbwb.widgets import what_you_should_see  # noqa: E402
 from uwbwb.sim import setnoise as S  # noqa: E402
 
 SMALL = dataclasses.replace(S.FacilityConfig(), n_calibration=300, n_legs=2, speeds_mps=(0.35, 1.0))
@@ -367,3 +368,53 @@ def test_discussion_of_the_second_track_and_the_resampler():
     res = text.split("Resampler (interpretation 6).")[1].split("\n")[0]
     assert "one recording (rec2)" in res and "30, 40 and 50 cm/s" in res and "20 trials" in res
     assert "same within Monte Carlo noise" in res and "were not checked" in res
+
+
+# --------------------------------------------------------------------------- exercises and notes
+
+def test_exercise_few_particles_at_small_sigma_d(study):
+    rec = study.recording("rec1")                                   # 0.35 m/s, as the notebook's recording 2
+    check = E.exercises.few_particles(rec, study.model, rng=np.random.default_rng(5))
+    n = check.numbers
+    assert check.holds, check
+    assert n["PF at 2 cm/s (cm)"] > 1.5 * n["KF at 2 cm/s (cm)"]
+    # the verdict follows the numbers: an impossible factor turns it
+    strict = E.exercises.few_particles(rec, study.model, factor=1000.0, rng=np.random.default_rng(5))
+    assert not strict.holds and strict.numbers == check.numbers
+    with pytest.raises(ValueError, match="factor"):
+        E.exercises.few_particles(rec, study.model, factor=0.5, rng=np.random.default_rng(5))
+
+
+def test_exercise_no_resampling(study):
+    rec = study.recording("rec1")
+    check = E.exercises.no_resampling(rec, study.model, rng=np.random.default_rng(6))
+    n = check.numbers
+    assert check.holds, check
+    assert n["never resample (cm)"] > n["resample when ESS < 0.5 K (cm)"]
+    assert n["raw fixes (cm)"] == pytest.approx(100 * E.raw_error_m(rec))
+    again = E.exercises.no_resampling(rec, study.model, rng=np.random.default_rng(6))
+    assert again.numbers == check.numbers                           # same seed, same numbers
+
+
+def test_plot_sweep_marks_points_above_the_axes():
+    df = _sweep_frame({E.RAW: (25, 25), E.SET_PF: (300, 20), E.SET_KF: (40, 19)})
+    fig, ax = plt.subplots()
+    E.plot_sweep(df, "a", ax=ax, names=(E.RAW, E.SET_PF, E.SET_KF), y_max=100)
+    assert ax.get_ylim() == (0, 100)
+    marks = [ln for ln in ax.lines if ln.get_marker() == "^"]
+    assert len(marks) == 1 and marks[0].get_xdata()[0] == pytest.approx(2)
+    assert [t.get_text() for t in ax.texts] == ["300"]
+    colours = {ln.get_label(): ln.get_color() for ln in ax.lines if not ln.get_label().startswith("_")}
+    assert len(set(colours.values())) == 3                          # each estimator its own colour
+
+
+def test_notes_quote_the_numbers():
+    df = _sweep_frame({E.RAW: (25, 25), E.SET_PF: (300, 20), E.SET_KF: (40, 19)})
+    note = E.exercises.sweep_note(df, "a")
+    assert "20.0 cm against 25.0 cm raw" in note and "reaches 300.0 cm" in note and "stays at 40.0 cm" in note
+    readout = {f"{E.RAW} mean error (cm)": 25.0, f"{E.SET_PF} mean error (cm)": 17.0,
+               f"{E.SET_KF} mean error (cm)": 16.0, f"{E.BASE_PF} mean error (cm)": 18.0}
+    assert "lies below the raw" in E.exercises.explorer_note(readout, 6)
+    readout[f"{E.SET_PF} mean error (cm)"] = 30.0
+    assert "does not lie below the raw" in E.exercises.explorer_note(readout, 6)
+    what_you_should_see(E.exercises.explorer_note(readout, 6))       # short enough for the note

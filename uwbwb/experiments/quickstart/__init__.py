@@ -5,10 +5,11 @@ calibration fitted on the static poses, :mod:`.figures` draws the error CDFs and
 :mod:`.discussion` words what the run shows.
 """
 
+from . import exercises
 from .discussion import discussion_markdown
 from .figures import plot_error_cdfs
 from .study import (VARIANTS, QuickstartData, calibrate, compare_calibration, headline_rows, load,
                     multilaterate_tags, tag_errors)
 
-__all__ = ["VARIANTS", "QuickstartData", "calibrate", "compare_calibration", "discussion_markdown",
+__all__ = ["VARIANTS", "exercises", "QuickstartData", "calibrate", "compare_calibration", "discussion_markdown",
            "headline_rows", "load", "multilaterate_tags", "plot_error_cdfs", "tag_errors"]

@@ -7,6 +7,7 @@ builders and :mod:`.discussion` the comparison with the paper written from the
 run's numbers. Everything the notebook uses is importable from here.
 """
 
+from . import exercises
 from .discussion import discussion_markdown
 from .figures import (plot_facility, plot_fixes, plot_pf_kf_gap, plot_set_ellipses, plot_set_frequency,
                       plot_sweep, plot_trace)
@@ -25,7 +26,7 @@ __all__ = [
     "BAND_MPS", "BASE_KF", "BASE_PF", "FACILITY_WIDE", "FILTERS", "INPUT", "LIAS", "OFF_TRACK_XY_M", "PAPER",
     "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "RAW", "REPRODUCED", "SET_KF", "SET_KF_POOLED", "SET_PF",
     "SIGMA_D_GRID_MPS", "TARGET", "Emulation", "RealStudy", "SweepConfig", "SyntheticStudy", "band_sigmas",
-    "band_summary", "best_sigma", "calibration_proximity", "discussion_markdown", "emulate_fixes", "fix_rates_hz",
+    "band_summary", "best_sigma", "calibration_proximity", "discussion_markdown", "emulate_fixes", "exercises", "fix_rates_hz",
     "headline_rows", "mean_over_recordings", "modelled_share", "normalised_residuals", "paper_targets",
     "pf_kf_gap", "plot_facility", "plot_fixes", "plot_pf_kf_gap", "plot_set_ellipses", "plot_set_frequency",
     "plot_sweep", "plot_trace", "range_bias_span_m", "raw_error_m", "real_inputs", "real_study",

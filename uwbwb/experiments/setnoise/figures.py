@@ -142,16 +142,20 @@ def plot_trace(estimates: dict, ax=None, *, index=None, axis: int = 0, unit: str
     return ax
 
 
-def _sweep_style() -> dict:
-    color_for = plotting.color_for
-
-    # Kalman filters dashed in the colour of their family (the baseline KF has no colour of its own)
-    return {BASE_KF: (color_for(BASE_PF), "--"), SET_KF: (color_for(SET_KF), "--"),
-            SET_KF_POOLED: (color_for(SET_KF), ":")}
+def _sweep_style(name: str) -> tuple[str, str]:
+    """Colour and line style of a Fig. 9 curve: each estimator its own colour, Kalman filters dashed."""
+    dash = {BASE_KF: "--", SET_KF: "--", SET_KF_POOLED: ":"}.get(name, "-")
+    return plotting.color_for(name), dash
 
 
-def plot_sweep(df: pd.DataFrame, recording: str, ax=None, *, names=FILTERS, unit: str = "cm", band=BAND_MPS):
-    """Fig. 9 (one recording): mean error against σ_d; PF curves with ±2 standard errors."""
+def plot_sweep(df: pd.DataFrame, recording: str, ax=None, *, names=FILTERS, unit: str = "cm", band=BAND_MPS,
+               y_max=None):
+    """Fig. 9 (one recording): mean error against σ_d; PF curves with ±2 standard errors.
+
+    ``y_max`` (in ``unit``) fixes the top of the axes; points above it are not dropped but drawn
+    as ▲ on the top edge with their value written beside, so a breakdown (the PF at small σ_d)
+    stays visible.
+    """
     ax = _ax(ax)
     s = 100.0 if unit == "cm" else 1.0
     d = df[df["recording"] == recording]
@@ -161,13 +165,21 @@ def plot_sweep(df: pd.DataFrame, recording: str, ax=None, *, names=FILTERS, unit
             continue
         x = g["sigma_d_mps"].to_numpy() * 100
         y = g["mean_error_m"].to_numpy() * s
-        colour, dash = _sweep_style().get(name, (plotting.color_for(name), "-"))
+        colour, dash = _sweep_style(name)
         ax.plot(x, y, color=colour, label=name, linestyle=dash, marker="" if name == RAW else ".")
         e = 2 * g["sem_error_m"].to_numpy() * s
         if np.any(e > 0):
             ax.fill_between(x, y - e, y + e, color=colour, alpha=0.2, linewidth=0)
+        if y_max is not None:
+            for xi, yi in zip(x[y > y_max], y[y > y_max]):
+                ax.plot(xi, 0.97 * y_max, "^", color=colour, markersize=9, clip_on=False,
+                        label="_nolegend_", zorder=5)
+                ax.annotate(f"{yi:.0f}", (xi, 0.97 * y_max), xytext=(4, -10), textcoords="offset points",
+                            color=colour, fontsize="x-small")
     if band is not None:
         ax.axvspan(100 * band[0], 100 * band[1], color="#f0f0f0", zorder=0)
+    if y_max is not None:
+        ax.set_ylim(0, y_max)
     ax.set_xlabel("σ_d (cm/s)")
     ax.set_ylabel(f"mean error ({unit})")
     ax.set_title(recording)

@@ -1,0 +1,145 @@
+"""Exercises of notebook 00 ("change X, predict Y") and the notes under its panel and figures.
+
+Each exercise function runs both settings on the same epochs and returns a
+:class:`uwbwb.widgets.ExerciseCheck`: the direction the student is asked to predict, whether
+this run shows it, and the numbers. The answers, with the reasoning, are in ``TEACHING.md``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ... import geometry, metrics
+from ...calibration import RangeCalibration
+from ...types import Recording
+from ... import validate
+from ...widgets import ExerciseCheck
+
+
+def _errors(rec: Recording, tag: str, range_m: np.ndarray, z_m: float, mask=None) -> metrics.ErrorSeries:
+    """Horizontal errors of per-epoch 2-D fixes from ``range_m`` (anchors outside ``mask`` dropped)."""
+    r = np.asarray(range_m, float)
+    if mask is not None:
+        r = np.where(mask, r, np.nan)
+    fix = geometry.multilaterate(r, rec.anchors.pos_m, dim=2, z_m=z_m)
+    est = fix.to_trajectory(rec.ranges[tag].t_s, name="fix")
+    return metrics.errors_vs_truth(est, rec.truth[tag], horizontal=True)
+
+
+def _common(a: metrics.ErrorSeries, b: metrics.ErrorSeries) -> tuple[np.ndarray, np.ndarray]:
+    """Errors of ``a`` and ``b`` on the epochs both fixed (same times: same range log)."""
+    ok = np.isfinite(a.err_m) & np.isfinite(b.err_m)
+    return a.err_m[ok], b.err_m[ok]
+
+
+def _ranges(rec: Recording, tag: str, calibration: RangeCalibration | None) -> np.ndarray:
+    log = rec.ranges[tag] if calibration is None else calibration.apply(rec.ranges[tag])
+    return log.range_m
+
+
+def fewer_anchors(rec: Recording, tag: str, *, tag_height_m: float, calibration: RangeCalibration | None = None,
+                  keep=slice(None, None, 2)) -> ExerciseCheck:
+    """Exercise: use only some of the anchors (default every second one); predict HDOP and CEP95.
+
+    Removing anchors removes rows from the geometry matrix $H$, so $H^\\top H$ can only lose
+    information and the horizontal DOP along the path can only grow; with the same range errors the
+    fixes should scatter more (CEP95 up). The errors are scored on the epochs both settings fixed.
+
+    Parameters
+    ----------
+    rec, tag
+        The recording and the tag to fix.
+    tag_height_m
+        The tag's mount height, metres (from the static poses).
+    calibration
+        Range calibration applied to both settings, or None for raw ranges.
+    keep
+        Index into the anchors (slice, index list or boolean mask of shape ``(n_anchors,)``).
+
+    Returns
+    -------
+    ExerciseCheck
+        Claim "fewer anchors: median HDOP and CEP95 both higher"; numbers: anchors used, median
+        HDOP along the true path and CEP95 (m) with all and with the kept anchors, coverage of each.
+    """
+    n = len(rec.anchors.pos_m)
+    mask = np.zeros(n, bool)
+    mask[np.arange(n)[keep]] = True
+    if mask.sum() < 3 or mask.all():
+        raise ValueError(f"keep: selects {int(mask.sum())} of {n} anchors; need at least 3 and fewer than all")
+    r = _ranges(rec, tag, calibration)
+    full = _errors(rec, tag, r, tag_height_m)
+    part = _errors(rec, tag, r, tag_height_m, mask)
+    e_full, e_part = _common(full, part)
+    path = rec.truth[tag].pos_m[:, :2]
+    h_full = float(np.median(geometry.gdop(path, rec.anchors.pos_m, z_m=tag_height_m)))
+    h_part = float(np.median(geometry.gdop(path, rec.anchors.pos_m, z_m=tag_height_m, mask=mask)))
+    c_full, c_part = metrics.cep95(e_full), metrics.cep95(e_part)
+    return ExerciseCheck(
+        f"with {int(mask.sum())} of {n} anchors the median HDOP and CEP95 are both higher",
+        h_part > h_full and c_part > c_full,
+        {"HDOP, all anchors": h_full, f"HDOP, {int(mask.sum())} anchors": h_part,
+         "CEP95 all (m)": c_full, f"CEP95 {int(mask.sum())} anchors (m)": c_part,
+         "coverage all (%)": 100 * np.isfinite(full.err_m).mean(),
+         f"coverage {int(mask.sum())} anchors (%)": 100 * np.isfinite(part.err_m).mean()})
+
+
+def noisier_ranges(rec: Recording, tag: str, *, tag_height_m: float, calibration: RangeCalibration | None = None,
+                   sigma_m: float = 0.10, rng: np.random.Generator) -> ExerciseCheck:
+    """Exercise: add independent Gaussian noise of ``sigma_m`` to every range; predict CEP50.
+
+    The fixes' RMS error should grow by about ``sigma_m`` × HDOP (added in quadrature to the
+    error already there), so CEP50 goes up. Scored on the epochs both settings fixed.
+
+    Returns
+    -------
+    ExerciseCheck
+        Claim "CEP50 higher with noisier ranges"; numbers: CEP50 (m) before and after, RMSE (m)
+        before and after, and the first-order prediction of the RMSE after,
+        ``sqrt(rmse_before² + (sigma_m · median HDOP)²)``.
+    """
+    sigma_m = validate.number("sigma_m", sigma_m, minimum=0.0, strict_minimum=True)
+    r = _ranges(rec, tag, calibration)
+    noisy = r + rng.normal(0.0, sigma_m, size=r.shape)
+    before, after = _common(_errors(rec, tag, r, tag_height_m), _errors(rec, tag, noisy, tag_height_m))
+    hdop = float(np.median(geometry.gdop(rec.truth[tag].pos_m[:, :2], rec.anchors.pos_m, z_m=tag_height_m)))
+    rmse_b, rmse_a = metrics.rmse(before), metrics.rmse(after)
+    return ExerciseCheck(
+        f"CEP50 is higher with {100 * sigma_m:.0f} cm of extra range noise",
+        metrics.cep50(after) > metrics.cep50(before),
+        {"CEP50 before (m)": metrics.cep50(before), "CEP50 after (m)": metrics.cep50(after),
+         "RMSE before (m)": rmse_b, "RMSE after (m)": rmse_a,
+         "RMSE after, predicted (m)": float(np.hypot(rmse_b, sigma_m * hdop))})
+
+
+def explorer_note(errors: dict, tag: str, start_s: float, window_s: float) -> str:
+    """"What you should see" under the multilateration panel, from its default window's numbers.
+
+    Parameters
+    ----------
+    errors
+        ``{variant: {tag: ErrorSeries}}`` as returned by :func:`.study.compare_calibration`.
+    tag, start_s, window_s
+        The panel's default tag and window, seconds.
+    """
+    cep = {}
+    for v in ("raw", "calibrated"):
+        e = errors[v][tag]
+        m = (e.t_s >= start_s) & (e.t_s < start_s + window_s) & np.isfinite(e.err_m)
+        cep[v] = metrics.cep50(e.err_m[m]) if m.any() else float("nan")
+    change = ("smaller" if cep["calibrated"] < cep["raw"] else "not smaller")
+    return (f"Coloured dots are single-epoch fixes of tag {tag}, the black line the motion-capture path, triangles the "
+            f"anchors. In the default window ({start_s:g}–{start_s + window_s:g} s) CEP50 is "
+            f"{100 * cep['raw']:.1f} cm on raw ranges and {100 * cep['calibrated']:.1f} cm calibrated ({change}): "
+            "switch *ranges* and watch the cloud's offset from the path.")
+
+
+def cdf_note(table: pd.DataFrame) -> str:
+    """"What you should see" under the error CDFs: which curve lies left, from the table's CEPs."""
+    raw = table[table.variant == "raw"].set_index("tag")
+    cal = table[table.variant == "calibrated"].set_index("tag")
+    better = [t for t in raw.index if cal.loc[t, "cep50_m"] < raw.loc[t, "cep50_m"]]
+    return (f"A curve further left is better. The calibrated curve lies left of the raw one at its median for "
+            f"{len(better)} of {len(raw)} tags (CEP50 {100 * raw.cep50_m.mean():.1f} → "
+            f"{100 * cal.cep50_m.mean():.1f} cm, mean over tags); the tails (CEP95) say how far the worst 5 % reach.")
