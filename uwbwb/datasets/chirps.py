@@ -22,6 +22,25 @@ Header ``t_s,beacon_id,dp_s,flags``::
 * ``flags`` — empty, or names of :class:`~uwbwb.types.ChirpFlag` joined by ``+``
   (``lock``, ``gap``, ``ambiguous``, ``unassigned``).
 
+**Plausibility.** A ΔP must satisfy ``|dp_s| <=`` :data:`MAX_ABS_DP_S` (0.1 s). With
+``ΔP/(P + ΔP) = u·V / v_s`` (eq 1), a shift of 0.1 s on a 0.5 s period needs a radial
+speed of about 57 m/s (a sixth of the speed of sound), far beyond any receiver carried
+or driven indoors; a larger value is a corrupt row or a unit error (milliseconds
+written as seconds), not a measurement. Such a row is an error naming file, line and
+column (not dropped: a unit error would otherwise empty the whole log silently).
+
+**Consistency.** Each row's flags must agree with its fields, else the row is an error
+naming file, line and column (the counts of :meth:`~uwbwb.types.ChirpLog.counts` rely
+on it):
+
+* ``unassigned`` — no ``beacon_id`` and no ``dp_s`` (it fits no beacon); not combined
+  with another flag;
+* ``lock`` — a ``beacon_id`` and no ``dp_s`` (the first chirp of a train has nothing to
+  measure from);
+* ``gap`` — a ``beacon_id`` and a ``dp_s`` (the mean shift over the missed periods);
+* ``ambiguous`` — a ``beacon_id`` (it was assigned to the closest fit);
+* a ``dp_s`` needs a ``beacon_id``.
+
 A log holding only arrival times (``beacon_id``, ``dp_s`` and ``flags`` empty) is
 valid: :func:`uwbwb.filters.doppler.assign_chirps` assigns its chirps to beacons
 by periodicity.
@@ -37,9 +56,31 @@ from ..errors import DataFormatError
 from ..types import ChirpFlag, ChirpLog
 from .tidy import PathLike, _check_identifiers, _csv_table, _numbers, _write
 
-__all__ = ["CHIRPS_HEADER", "read_chirps_csv", "write_chirps_csv"]
+__all__ = ["CHIRPS_HEADER", "MAX_ABS_DP_S", "read_chirps_csv", "write_chirps_csv"]
 
 CHIRPS_HEADER = ("t_s", "beacon_id", "dp_s", "flags")
+#: Largest plausible |ΔP| in seconds (see the module docstring): beyond it a row is an error.
+MAX_ABS_DP_S = 0.1
+
+
+def _contradiction(flags: int, has_beacon: bool, has_dp: bool) -> str | None:
+    """Why a row's flags contradict its beacon and ΔP fields (None when they agree)."""
+    if flags & ChirpFlag.UNASSIGNED:
+        if flags & ~int(ChirpFlag.UNASSIGNED):
+            return "flag 'unassigned' cannot be combined with another flag"
+        if has_beacon:
+            return "flag 'unassigned' on a row with a beacon_id"
+        return None
+    if flags & ChirpFlag.LOCK:
+        if not has_beacon:
+            return "flag 'lock' needs a beacon_id"
+        if has_dp:
+            return "flag 'lock' on a row with a dp_s (the first chirp of a train has no ΔP)"
+    if flags & ChirpFlag.GAP and not (has_beacon and has_dp):
+        return "flag 'gap' needs a beacon_id and a dp_s (the mean shift over the missed periods)"
+    if flags & ChirpFlag.AMBIGUOUS and not has_beacon:
+        return "flag 'ambiguous' needs a beacon_id (the beacon it was assigned to)"
+    return None
 
 
 def read_chirps_csv(path: PathLike, beacon_ids) -> ChirpLog:
@@ -48,7 +89,8 @@ def read_chirps_csv(path: PathLike, beacon_ids) -> ChirpLog:
     Raises
     ------
     DataFormatError
-        Naming the file, line and column of the first problem.
+        Naming the file, line and column of the first problem: a malformed field, a
+        ΔP beyond :data:`MAX_ABS_DP_S`, or flags that contradict the row (module docstring).
     DataNotFoundError
         If the file does not exist.
     """
@@ -61,6 +103,13 @@ def read_chirps_csv(path: PathLike, beacon_ids) -> ChirpLog:
         raise DataFormatError(path, f"t_s must be strictly increasing ({t[i]!r} after {t[i - 1]!r})",
                               line=int(line_no[i]), column="t_s")
     dp = _numbers(path, cols["dp_s"], line_no, "dp_s", allow_empty=True)
+    implausible = np.flatnonzero(np.abs(dp) > MAX_ABS_DP_S)
+    if implausible.size:
+        k = int(implausible[0])
+        raise DataFormatError(path, f"dp_s {dp[k]!r} s is not a plausible period shift: |ΔP| must be at most "
+                                    f"{MAX_ABS_DP_S} s (a corrupt row, or milliseconds written as seconds?); "
+                                    f"{implausible.size} row(s) of the file exceed it",
+                              line=int(line_no[k]), column="dp_s")
     lookup = {b: k for k, b in enumerate(ids)}
     beacon = np.empty(t.size, int)
     for k, text in enumerate(cols["beacon_id"]):
@@ -82,6 +131,9 @@ def read_chirps_csv(path: PathLike, beacon_ids) -> ChirpLog:
                 raise DataFormatError(path, f"unknown flag {part!r}; expected names from {sorted(names)} "
                                             "joined by '+'", line=int(line_no[k]), column="flags")
             flags[k] |= names[part]
+        problem = _contradiction(int(flags[k]), beacon[k] >= 0, bool(np.isfinite(dp[k])))
+        if problem is not None:
+            raise DataFormatError(path, problem, line=int(line_no[k]), column="flags")
     return ChirpLog(t, beacon, dp, flags, ids)
 
 
