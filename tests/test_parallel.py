@@ -88,6 +88,40 @@ def test_a_task_that_raises_fails_the_sweep_naming_its_params(where, client):
     assert got == list(range(7))          # everything before the failure, in order; nothing after it
 
 
+@pytest.mark.parametrize("where", ["serial", "threads", "cluster"])
+@pytest.mark.parametrize("escape", [SystemExit, KeyboardInterrupt])
+def test_a_task_that_exits_fails_the_sweep_naming_its_params(where, escape, client):
+    """``sys.exit()`` or a KeyboardInterrupt inside a task is the task's error, never the sweep's quiet end."""
+    def quitter(i, seed, scale):
+        if i == 4:
+            raise escape(3) if escape is SystemExit else escape("stop at 4")
+        return i
+
+    kw = {"serial": {}, "threads": {"workers": 2}, "cluster": {"scheduler": client, "progress": False}}[where]
+    expected = par.TaskInterrupted if escape is KeyboardInterrupt else par.TaskError
+    text = "SystemExit: exit status 3" if escape is SystemExit else "KeyboardInterrupt: stop at 4"
+    got = []
+    with pytest.raises(expected, match=rf"quitting sweep: task 5 of 12 \(i=4\) failed: {text}$"):
+        for task, r in par.imap(quitter, _tasks(), shared={"scale": 1.0}, desc="quitting sweep", **kw):
+            got.append(r)
+    assert got == [0, 1, 2, 3]
+    if where == "cluster":   # the workers survived: the same cluster still runs a sweep
+        assert [r[0] for _, r in par.imap(_draw, _tasks(3), shared={"scale": 0.0}, scheduler=client,
+                                          progress=False)] == [0.0, 1.0, 2.0]
+
+
+def test_a_task_exit_status_is_not_the_script_exit_status(tmp_path):
+    """A script whose sweep task calls sys.exit(0) exits non-zero with the task named (it used to exit 0)."""
+    script = tmp_path / "sweep.py"
+    script.write_text("import sys\nfrom uwbwb import parallel as p\n"
+                      "def f(i):\n    if i == 2:\n        sys.exit(0)\n    return i\n"
+                      "for _ in p.imap(f, [p.Task({'i': i}) for i in range(5)], workers=2, desc='demo'):\n    pass\n"
+                      "print('finished')\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert done.returncode != 0 and "finished" not in done.stdout
+    assert "TaskError: demo: task 3 of 5 (i=2) failed: SystemExit: exit status 0" in done.stderr
+
+
 def test_results_are_consumed_in_order_with_a_bounded_number_pending():
     lock, state = threading.Lock(), {"started": 0, "consumed": 0, "most": 0}
 
@@ -145,6 +179,96 @@ def test_bad_arguments_are_reported():
         par.connect(42)
     assert "2 tasks, 30 draw in all, 10–20 draw per task" == par.plan_summary(
         [par.Task(size=10), par.Task(size=20)], unit="draw")
+
+
+# --------------------------------------------------------------------------- connecting to a scheduler
+
+class _Server:
+    """A TCP server on 127.0.0.1 that is not Dask: it greets like HTTP, or (``silent``) accepts and says nothing."""
+
+    def __init__(self, silent=False):
+        import socket
+
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(8)
+        self.port = self.sock.getsockname()[1]
+        self.silent, self.conns = silent, []
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self):
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return
+            self.conns.append(conn)
+            if not self.silent:
+                conn.sendall(b"HTTP/1.0 200 OK\r\nContent-Type: text/plain\r\n\r\nhello\n")
+
+    def close(self):
+        for c in self.conns:
+            c.close()
+        self.sock.close()
+
+
+def _free_port():
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.parametrize("case, message", [
+    ("http", r"no Dask scheduler at tcp://127\.0\.0\.1:\d+: something accepts connections there but the Dask "
+             r"handshake failed"),
+    ("silent", r"no Dask scheduler at tcp://127\.0\.0\.1:\d+: something accepts connections there but did not "
+               r"answer as a Dask scheduler within 0\.5 s"),
+    ("refused", r"no Dask scheduler at tcp://127\.0\.0\.1:\d+: connection refused \(nothing listens on port \d+\)"),
+    ("notanaddress", r"scheduler 'notanaddress' is not an address.*expected 'local' or a scheduler address"),
+    ("tcp://127.0.0.1:99999", r"is not an address"),
+    ("foo://host:1", r"unknown protocol 'foo'"),
+])
+def test_an_address_without_a_scheduler_fails_promptly_naming_it(case, message):
+    server = _Server(silent=case == "silent") if case in ("http", "silent") else None
+    address = {"http": f"tcp://127.0.0.1:{server.port if server else 0}",
+               "silent": f"tcp://127.0.0.1:{server.port if server else 0}",
+               "refused": f"tcp://127.0.0.1:{_free_port()}"}.get(case, case)
+    before = set(threading.enumerate())
+    try:
+        with pytest.raises(par.SchedulerUnreachable, match=message):
+            par.connect(address, timeout_s=0.5)
+    finally:
+        if server is not None:
+            server.close()
+    assert address not in par._CLIENTS
+    assert not [t for t in set(threading.enumerate()) - before if t.is_alive() and t.name.startswith("uwbwb")]
+
+
+def test_the_connection_timeout_comes_from_the_argument_the_environment_or_the_default(monkeypatch):
+    monkeypatch.delenv(par.TIMEOUT_ENV, raising=False)
+    assert par.connect_timeout_s() == par.CONNECT_TIMEOUT_S == 5.0
+    assert par.connect_timeout_s(1.5) == 1.5
+    monkeypatch.setenv(par.TIMEOUT_ENV, "0.25")
+    assert par.connect_timeout_s() == 0.25
+    server = _Server(silent=True)
+    try:   # a notebook's DASK_SCHEDULER goes through connect(): the environment bounds the wait
+        with pytest.raises(par.SchedulerUnreachable, match="within 0.25 s"):
+            par.describe(f"tcp://127.0.0.1:{server.port}")
+    finally:
+        server.close()
+    for bad in ("soon", "0", "-1", "inf"):
+        monkeypatch.setenv(par.TIMEOUT_ENV, bad)
+        with pytest.raises(ValueError, match=par.TIMEOUT_ENV):
+            par.connect_timeout_s()
+    with pytest.raises(ValueError, match="timeout_s must be positive"):
+        par.connect_timeout_s(0)
+
+
+def test_a_live_scheduler_passes_the_probe(client):
+    address = client.scheduler.address
+    assert par.probe(address, timeout_s=2.0) == address
 
 
 def test_the_default_path_does_not_import_dask():

@@ -24,11 +24,21 @@ memory held on the client is bounded whatever the number of tasks: reduce on the
 worker (return counts, sums or kept samples, not raw draws) and fold the results
 as they arrive. A task that raises stops the sweep with a :class:`TaskError`
 naming the task and its params; the tasks not yet finished are cancelled, and no
-partial result is returned. A worker lost mid-sweep is not an error of the task:
+partial result is returned. This holds for ``SystemExit`` and ``KeyboardInterrupt``
+raised by a task too (a ``sys.exit()`` deep in a task must not end a script with
+status 0 mid-sweep): they surface as a :class:`TaskError` (a
+:class:`TaskInterrupted`, also a ``KeyboardInterrupt``, for the latter). A worker lost mid-sweep is not an error of the task:
 Dask runs its tasks again elsewhere (up to ``distributed.scheduler.allowed-failures``
 times, then the task fails with ``KilledWorker``, reported like any other error).
 Shared inputs up to :data:`EMBED_BYTES` travel with every task, so any task can be
 rerun; larger ones are copied once to every worker.
+
+A scheduler address is checked before any client is made: within
+:func:`connect_timeout_s` seconds (default :data:`CONNECT_TIMEOUT_S`, or the
+``UWBWB_SCHEDULER_TIMEOUT_S`` environment variable) it must answer as a Dask
+scheduler, else :func:`connect` raises :class:`SchedulerUnreachable` naming the
+address and what was found there (nothing listening, no answer, something that is
+not a Dask scheduler, a malformed address). No thread is left behind.
 
 Size tasks so that the scheduler's overhead (about 1 ms a task) stays negligible:
 :math:`10^5` draws or more, or a whole block of trials, per task.
@@ -36,9 +46,12 @@ Size tasks so that the scheduler's overhead (about 1 ms a task) stays negligible
 
 from __future__ import annotations
 
+import asyncio
+import os
 import queue
 import re
 import reprlib
+import socket
 import threading
 import uuid
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -48,8 +61,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["LOCAL", "WORKER_ENVIRON", "Task", "TaskError", "spawn", "imap", "connect", "describe", "local_cluster",
-           "plan_summary", "shutdown"]
+__all__ = ["LOCAL", "WORKER_ENVIRON", "CONNECT_TIMEOUT_S", "Task", "TaskError", "TaskInterrupted",
+           "SchedulerUnreachable", "spawn", "imap", "connect", "probe", "connect_timeout_s", "check_scheduler_address",
+           "describe", "local_cluster", "plan_summary", "shutdown"]
 
 #: The ``scheduler`` value that starts a :class:`distributed.LocalCluster` sized to the machine.
 LOCAL = "local"
@@ -94,6 +108,23 @@ class Task:
 
 class TaskError(RuntimeError):
     """A task of a sweep raised: the message names the sweep, the task and its params."""
+
+
+class TaskInterrupted(TaskError, KeyboardInterrupt):
+    """A task of a sweep raised ``KeyboardInterrupt``: a :class:`TaskError` naming the task that is
+    also a ``KeyboardInterrupt`` (Ctrl-C during a sweep in this process still reads as one)."""
+
+
+class _TaskExit(RuntimeError):
+    """``SystemExit`` / ``KeyboardInterrupt`` of a task, carried back as an ordinary exception.
+
+    Raised where the task runs (a worker thread or a Dask worker, which would otherwise let
+    them through and stop the worker); its args are ``(type name, text)``.
+    """
+
+    def __str__(self) -> str:
+        kind, text = self.args
+        return text
 
 
 def spawn(seed, n: int) -> list[np.random.SeedSequence]:
@@ -161,7 +192,149 @@ def local_cluster(**kwargs):
         return distributed.LocalCluster(**kwargs)
 
 
-def connect(scheduler, *, announce: bool = True):
+#: Seconds a scheduler address has to answer as a Dask scheduler (see :func:`connect_timeout_s`).
+CONNECT_TIMEOUT_S = 5.0
+#: Environment variable that overrides :data:`CONNECT_TIMEOUT_S` (e.g. in notebooks run by ``reproduce``).
+TIMEOUT_ENV = "UWBWB_SCHEDULER_TIMEOUT_S"
+
+
+class SchedulerUnreachable(ConnectionError):
+    """No Dask scheduler answered at the given address: the message names it and what was found there."""
+
+
+def connect_timeout_s(timeout_s: float | None = None) -> float:
+    """The connection timeout: ``timeout_s``, else ``$UWBWB_SCHEDULER_TIMEOUT_S``, else :data:`CONNECT_TIMEOUT_S`.
+
+    Raises
+    ------
+    ValueError
+        A timeout (given or from the environment) that is not a positive finite number of seconds.
+    """
+    source = "timeout_s"
+    if timeout_s is None:
+        text = os.environ.get(TIMEOUT_ENV, "").strip()
+        if not text:
+            return CONNECT_TIMEOUT_S
+        source = f"${TIMEOUT_ENV}"
+        try:
+            timeout_s = float(text)
+        except ValueError:
+            raise ValueError(f"{source} must be seconds, got {text!r}") from None
+    if isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float)) or not 0 < timeout_s < float("inf"):
+        raise ValueError(f"{source} must be positive seconds, got {timeout_s!r}")
+    return float(timeout_s)
+
+
+def check_scheduler_address(address: str) -> str:
+    """``address`` as ``scheme://host:port`` (``tcp://`` added when no scheme is given).
+
+    Raises
+    ------
+    SchedulerUnreachable
+        Not a scheduler address: an unknown scheme, no host, or no valid port.
+    """
+    _distributed()
+    from distributed.comm import parse_address, parse_host_port
+    from distributed.comm.registry import backends
+
+    text = address.strip()
+    full = text if "://" in text else f"tcp://{text}"
+    expected = f"expected {LOCAL!r} or a scheduler address such as tcp://10.0.0.5:8786"
+    try:
+        scheme, loc = parse_address(full, strict=True)
+    except ValueError:
+        raise SchedulerUnreachable(f"scheduler {address!r} is not an address: {expected}") from None
+    if scheme not in backends:
+        raise SchedulerUnreachable(f"scheduler {address!r}: unknown protocol {scheme!r} "
+                                   f"(known: {', '.join(sorted(backends))}); {expected}")
+    if scheme in ("tcp", "tls", "ws", "wss"):
+        try:
+            host, port = parse_host_port(loc)
+        except (ValueError, TypeError):
+            raise SchedulerUnreachable(f"scheduler {address!r} is not an address (no valid port): {expected}") from None
+        if not host or not 0 < int(port) < 65536:
+            raise SchedulerUnreachable(f"scheduler {address!r} is not an address: {expected}")
+    return full
+
+
+def _probe(address: str, timeout_s: float) -> None:
+    """Check within ``timeout_s`` that a Dask scheduler answers at ``address``; raise
+    :class:`SchedulerUnreachable` saying what was found there otherwise.
+
+    The probe runs its own event loop in a short-lived daemon thread (this thread may already
+    run one, as in a Jupyter kernel), and every step is bounded, so nothing outlives the call.
+    """
+    from distributed.comm import parse_address, parse_host_port
+
+    scheme, loc = parse_address(address, strict=True)
+    if scheme in ("tcp", "ws"):                 # plain sockets: tell "nothing listens" from "no answer"
+        host, port = parse_host_port(loc)
+        try:
+            with socket.create_connection((host, port), timeout=timeout_s):
+                pass
+        except socket.gaierror as exc:
+            raise SchedulerUnreachable(f"no Dask scheduler at {address}: host {host!r} not found ({exc.strerror})") \
+                from None
+        except ConnectionRefusedError:
+            raise SchedulerUnreachable(f"no Dask scheduler at {address}: connection refused "
+                                       f"(nothing listens on port {port})") from None
+        except (TimeoutError, socket.timeout):
+            raise SchedulerUnreachable(f"no Dask scheduler at {address}: no answer within {timeout_s:g} s "
+                                       f"(host down or port filtered?)") from None
+        except OSError as exc:
+            raise SchedulerUnreachable(f"no Dask scheduler at {address}: {exc.strerror or exc}") from None
+
+    outcome: dict[str, Any] = {}
+
+    async def identify():
+        from distributed.comm import connect as comm_connect
+
+        comm = await comm_connect(address, timeout=timeout_s)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    def run():
+        try:
+            outcome["reply"] = asyncio.run(asyncio.wait_for(identify(), timeout_s))
+        except BaseException as exc:  # reported by the caller's thread
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=run, name="uwbwb-scheduler-probe", daemon=True)
+    thread.start()
+    thread.join(timeout_s + 2.0)
+    if thread.is_alive() or isinstance(outcome.get("error"), (asyncio.TimeoutError, TimeoutError)):
+        raise SchedulerUnreachable(f"no Dask scheduler at {address}: something accepts connections there but "
+                                   f"did not answer as a Dask scheduler within {timeout_s:g} s") from None
+    if "error" in outcome:
+        exc = outcome["error"]
+        text = _short.repr((str(exc).strip().splitlines() or [""])[0]).strip("'\"")
+        raise SchedulerUnreachable(f"no Dask scheduler at {address}: something accepts connections there but "
+                                   f"the Dask handshake failed ({type(exc).__name__}: {text})") from None
+    reply = outcome.get("reply")
+    kind = reply.get("type") if isinstance(reply, dict) else None
+    if kind != "Scheduler":
+        found = f"a Dask {kind}" if kind else f"a reply that is not a Dask identity ({_short.repr(reply)})"
+        raise SchedulerUnreachable(f"no Dask scheduler at {address}: found {found}, not a scheduler")
+
+
+def probe(scheduler: str, *, timeout_s: float | None = None) -> str:
+    """Check that a Dask scheduler answers at address ``scheduler`` within the connection timeout,
+    without keeping a connection; returns the address as ``scheme://host:port``.
+
+    Raises
+    ------
+    SchedulerUnreachable
+        As :func:`connect`.
+    """
+    address = check_scheduler_address(scheduler)
+    _probe(address, connect_timeout_s(timeout_s))
+    return address
+
+
+def connect(scheduler, *, announce: bool = True, timeout_s: float | None = None):
     """The :class:`distributed.Client` for ``scheduler`` (None for ``None``: run in this process).
 
     ``"local"`` starts a :func:`local_cluster` with Dask's defaults for this
@@ -169,6 +342,19 @@ def connect(scheduler, *, announce: bool = True):
     scheduler; a ``Client`` is used as given. Clients made here are kept and reused
     for the same value; the first connection prints the cluster and its dashboard
     link (unless ``announce`` is False).
+
+    Parameters
+    ----------
+    timeout_s
+        Seconds the address has to answer as a Dask scheduler; None: :func:`connect_timeout_s`.
+
+    Raises
+    ------
+    ValueError
+        ``scheduler`` of the wrong type, or a bad timeout.
+    SchedulerUnreachable
+        (a ``ConnectionError``) A malformed address, or no Dask scheduler answering there in time;
+        the message names the address and what was found there.
     """
     if scheduler is None:
         return None
@@ -179,13 +365,16 @@ def connect(scheduler, *, announce: bool = True):
         raise ValueError(f"scheduler must be None, {LOCAL!r}, a scheduler address such as "
                          f"'tcp://10.0.0.5:8786', or a distributed.Client; got {scheduler!r}")
     key = scheduler.strip()
+    timeout_s = connect_timeout_s(timeout_s)
     with _LOCK:
         client = _CLIENTS.get(key)
         if client is None or client.status not in ("running", "connecting", "newly-created"):
             if key == LOCAL:
                 client = distributed.Client(local_cluster(), set_as_default=False)
             else:
-                client = distributed.Client(key, set_as_default=False)
+                address = check_scheduler_address(key)
+                _probe(address, timeout_s)
+                client = distributed.Client(address, set_as_default=False, timeout=timeout_s)
             _CLIENTS[key] = client
             if announce:
                 print(describe(client), flush=True)
@@ -224,6 +413,21 @@ def _call(fn: Callable, task: Task, shared: Mapping[str, Any]):
     return fn(**kwargs)
 
 
+def _guarded_call(fn: Callable, task: Task, shared: Mapping[str, Any]):
+    """:func:`_call` where the task runs off this thread: ``SystemExit`` and ``KeyboardInterrupt``
+    come back as :class:`_TaskExit`, an ordinary error (a Dask worker would let them through and die)."""
+    try:
+        return _call(fn, task, shared)
+    except (SystemExit, KeyboardInterrupt) as exc:
+        raise _TaskExit(type(exc).__name__, _exit_text(exc)) from None
+
+
+def _exit_text(exc: BaseException) -> str:
+    if isinstance(exc, SystemExit):
+        return f"exit status {exc.code!r}" if not isinstance(exc.code, str) else exc.code
+    return (str(exc).strip().splitlines() or ["interrupted"])[0]
+
+
 #: Shared inputs up to this size (pickled) travel inside every task, so that Dask can rerun any task
 #: on another worker when one is lost; larger ones are sent once to every worker (``scatter``), which
 #: survives the loss of some workers but not of all that hold them.
@@ -237,9 +441,14 @@ def _pickled_size(obj) -> int:
 
 
 def _error(desc: str, index: int, n: int, task: Task, exc: BaseException) -> TaskError:
-    text = str(exc).strip().splitlines()
-    return TaskError(f"{desc}: task {index + 1} of {n} ({task.label()}) failed: {type(exc).__name__}"
-                     + (f": {text[0]}" if text else ""))
+    if isinstance(exc, _TaskExit):
+        name, text = exc.args
+    elif isinstance(exc, (SystemExit, KeyboardInterrupt)):
+        name, text = type(exc).__name__, _exit_text(exc)
+    else:
+        name, text = type(exc).__name__, (str(exc).strip().splitlines() or [""])[0]
+    kind = TaskInterrupted if name == "KeyboardInterrupt" else TaskError
+    return kind(f"{desc}: task {index + 1} of {n} ({task.label()}) failed: {name}" + (f": {text}" if text else ""))
 
 
 def imap(fn: Callable, tasks: Iterable[Task], *, shared: Mapping[str, Any] | None = None, scheduler=None,
@@ -295,7 +504,7 @@ def imap(fn: Callable, tasks: Iterable[Task], *, shared: Mapping[str, Any] | Non
             for i, task in enumerate(tasks):
                 try:
                     result = _call(fn, task, shared)
-                except Exception as exc:
+                except (Exception, SystemExit, KeyboardInterrupt) as exc:   # a task's exit is its error
                     raise _error(desc, i, len(tasks), task, exc) from exc
                 bar.update(task.size)
                 yield task, result
@@ -313,7 +522,7 @@ def _pipelined(fn, tasks, shared, client, workers, desc, bar, max_pending):
         slots = workers
 
         def submit(i):
-            return pool.submit(_call, fn, tasks[i], shared)
+            return pool.submit(_guarded_call, fn, tasks[i], shared)
     else:
         pool = None
         slots = max(sum(client.nthreads().values()), 1)
@@ -326,7 +535,7 @@ def _pipelined(fn, tasks, shared, client, workers, desc, bar, max_pending):
         token = uuid.uuid4().hex[:8]
 
         def submit(i):
-            return client.submit(_call, fn, tasks[i], inputs, key=f"{prefix}-{token}-{i}", pure=False)
+            return client.submit(_guarded_call, fn, tasks[i], inputs, key=f"{prefix}-{token}-{i}", pure=False)
 
     window = max(int(max_pending or 2 * slots + 1), 1)
     done: queue.SimpleQueue = queue.SimpleQueue()       # indices of finished tasks, in completion order
@@ -345,7 +554,7 @@ def _pipelined(fn, tasks, shared, client, workers, desc, bar, max_pending):
                 fut = pending.pop(i)
                 try:
                     finished[i] = fut.result()
-                except Exception as exc:
+                except (Exception, SystemExit, KeyboardInterrupt) as exc:   # the task's own, re-raised here
                     raise _error(desc, i, n, tasks[i], exc) from exc
                 bar.update(tasks[i].size)
             while next_yield in finished:
