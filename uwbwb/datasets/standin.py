@@ -2,10 +2,16 @@
 
 Notebooks that work on the ``lias-planar-uwb`` room (a dynamic run to test on and
 the static poses of the same room to calibrate with) load it through
-:func:`load_lias_room`. When the dataset or the requested recording is absent,
-the synthetic rig of :mod:`uwbwb.sim.rig` (same structure: eight anchors, three
-tags on a trolley, per-pair range biases) stands in, or nothing does, and the
-result says why; :meth:`RoomData.banner` shows it.
+:func:`load_lias_room`. When the *dataset* is absent, the synthetic rig of
+:mod:`uwbwb.sim.rig` (same structure: eight anchors, three tags on a trolley, per-pair
+range biases) stands in if the caller asked for one, or nothing does, and the result
+says why; :meth:`RoomData.banner` shows it. When the dataset is here but holds no
+recording or session of the requested name, that is an error listing the names it does
+hold (:class:`~uwbwb.errors.DataNotFoundError`): a misspelt name never turns into
+synthetic data.
+
+The data layer sits above the simulators (:mod:`uwbwb.sim`), so the stand-in is built
+here; the banner is drawn by :mod:`uwbwb.widgets`, a layer above (see ``tests/test_layers.py``).
 """
 
 from __future__ import annotations
@@ -16,8 +22,9 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import DataNotFoundError
+from ..sim import rig
 from ..types import Recording
-from .discovery import dataset_available
+from .discovery import dataset_available, find_dataset
 
 __all__ = ["LIAS", "RoomData", "load_lias_room"]
 
@@ -69,16 +76,21 @@ class RoomData:
             raise ValueError(f"{self.dataset}: no data was loaded ({self.reason})")
         return "synthetic" if self.synthetic else self.dynamic.label
 
-    def banner(self, instead: str | None = None):
-        """:func:`uwbwb.widgets.data_banner` for this data (``instead`` overrides the default wording)."""
-        from ..widgets import data_banner
-
+    def banner_args(self, instead: str | None = None) -> dict:
+        """Keyword arguments of :func:`uwbwb.widgets.data_banner` for this data (``instead``
+        overrides the default wording): ``uw.widgets.data_banner(**room.banner_args())``."""
         if self.real:
-            return data_banner(self.dataset, True, detail=self.note)
+            return {"dataset": self.dataset, "found": True, "detail": self.note}
         if instead is None:
             instead = ("every number below comes from the synthetic stand-in, not from real data: " + self.note
                        if self.synthetic else "this section is skipped")
-        return data_banner(self.dataset, False, detail=self.reason, instead=instead)
+        return {"dataset": self.dataset, "found": False, "detail": self.reason, "instead": instead}
+
+    def banner(self, instead: str | None = None):
+        """:func:`uwbwb.widgets.data_banner` of :meth:`banner_args`."""
+        from ..widgets import data_banner      # layer debt (issue 19): notebooks should call data_banner
+
+        return data_banner(**self.banner_args(instead))
 
 
 def load_lias_room(data_dir=None, recording: str = "fast", static_session: str = "8.14", *,
@@ -97,7 +109,7 @@ def load_lias_room(data_dir=None, recording: str = "fast", static_session: str =
     static_yaws
         Load only these nominal yaws of every site (default: all).
     stand_in
-        A :class:`uwbwb.sim.rig.RigConfig`: simulate that rig when the real data is
+        A :class:`uwbwb.sim.rig.RigConfig`: simulate that rig when the dataset is
         absent. None: return no data (``available`` False) instead.
     static_duration_s
         Length of each simulated static pose, seconds.
@@ -109,8 +121,13 @@ def load_lias_room(data_dir=None, recording: str = "fast", static_session: str =
     -------
     RoomData
         The recordings, whether they are synthetic, and why.
+
+    Raises
+    ------
+    DataNotFoundError
+        The dataset is here but has no dynamic run ``recording`` or no static session
+        ``static_session`` (the message lists the names it has).
     """
-    reason = ""
     if dataset_available(LIAS, data_dir):
         from . import lias
 
@@ -119,18 +136,20 @@ def load_lias_room(data_dir=None, recording: str = "fast", static_session: str =
             yaws = (None,) if static_yaws is None else tuple(static_yaws)
             static = tuple(r for yaw in yaws for r in lias.load_static(static_session, data_dir, yaw_deg=yaw))
         except DataNotFoundError as exc:
-            reason = f"{LIAS} is here, but {exc}"
-        else:
-            return RoomData(LIAS, dynamic, static, False, "",
-                            f"dynamic run {recording!r}, {len(static)} static poses of session {static_session}")
-    else:
-        reason = f"{LIAS} was not found in the data folders"
+            table = lias.list_recordings(data_dir)
+            runs = list(table.loc[table["kind"] == "dynamic", "name"])
+            sessions = list(dict.fromkeys(table.loc[table["kind"] == "static", "session"]))
+            raise DataNotFoundError(f"{LIAS} is in {find_dataset(LIAS, data_dir)} but this failed: {exc}. "
+                                    f"Dynamic runs there: {runs}; static sessions: {sessions}. "
+                                    f"(A stand-in replaces only a dataset that is absent, never a wrong name.)"
+                                    ) from exc
+        return RoomData(LIAS, dynamic, static, False, "",
+                        f"dynamic run {recording!r}, {len(static)} static poses of session {static_session}")
+    reason = f"{LIAS} was not found in the data folders"
     if stand_in is None:
         return RoomData(LIAS, None, (), False, reason, "nothing loaded")
     if rng is None:
         raise ValueError("load_lias_room: a stand-in needs rng")
-    from ..sim import rig
-
     dynamic, truth = rig.simulate_dynamic(stand_in, rng=rng)
     static, _ = rig.simulate_static(stand_in, duration_s=static_duration_s, rng=rng, range_model=truth.range_model)
     return RoomData(LIAS, dynamic, tuple(static), True, reason,

@@ -1,0 +1,360 @@
+"""One registry of the recordings the package can load by name.
+
+A recording is named ``"<dataset>/<name>"``, e.g. ``"iasl-uwb-imu/scenario2"``,
+``"lias-planar-uwb/fast"``, ``"lias-planar-uwb/8.14/pos1_deg_0"`` or
+``"hanyang-outdoor-uwb/NLOS/Trajectory_A/Case_1"``; a folder holding ``ranges.csv`` and
+``anchors.csv`` (:mod:`uwbwb.datasets.tidy`) is opened by its path.
+
+* :func:`open` loads one recording. A dataset that is not on this machine raises
+  :class:`~uwbwb.errors.DataNotFoundError` saying where it was looked for; a name that a
+  *present* dataset does not hold raises it too, listing the names that it does hold.
+  Nothing is ever replaced by synthetic data here.
+* :func:`open_pair` loads a calibration and a test recording and refuses to calibrate on
+  the recording it scores.
+* :func:`open_or_standin` is the one place where a stand-in may be used, and only when the
+  caller passes one (a function building it) *and* the dataset is absent; the result says
+  which data it is and why (:class:`Opened`). A wrong name in a present dataset is still an
+  error.
+
+Registering a loader
+--------------------
+A loader module joins with :func:`register` (at import of this module for the built-in
+formats; any other code may register more)::
+
+    register(Source("my-dataset", names=my_names, load=my_load, what="a run folder"))
+
+``names(data_dir)`` lists the names found on disk (``data_dir`` as in
+:mod:`uwbwb.datasets.discovery`, raising :class:`~uwbwb.errors.DataNotFoundError` when the
+dataset is absent); ``load(name, data_dir, **options)`` loads one. Several sources may
+serve one dataset (its static and dynamic parts); a name belongs to the source that lists
+it. The built-in sources are resolved lazily by module path, so a loader module that is
+not installed is simply not offered (:func:`sources` says which are).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from ..errors import DataNotFoundError
+from .discovery import dataset_available, find_dataset
+
+__all__ = ["Opened", "Source", "datasets", "names", "open", "open_or_standin", "open_pair", "register",
+           "sources", "split_name"]
+
+PathLike = str | os.PathLike
+
+
+@dataclass(frozen=True)
+class Source:
+    """Recordings of one dataset (or one part of it) that can be loaded by name.
+
+    Attributes
+    ----------
+    dataset
+        Dataset folder name, as in the manifest.
+    names
+        ``names(data_dir) -> list[str]``: the names present (without the dataset prefix).
+    load
+        ``load(name, data_dir, **options)``: one recording.
+    what
+        What a name means, for messages (``"a dynamic run: fast, medium, ..."``).
+    """
+
+    dataset: str
+    names: Callable[[PathLike | None], list[str]]
+    load: Callable[..., Any]
+    what: str
+
+    def __post_init__(self):
+        if not isinstance(self.dataset, str) or not self.dataset or "/" in self.dataset:
+            raise ValueError(f"Source.dataset must be a folder name without '/', got {self.dataset!r}")
+        if not (callable(self.names) and callable(self.load)):
+            raise ValueError(f"Source {self.dataset!r}: names and load must be callables")
+
+
+@dataclass(frozen=True)
+class _Lazy:
+    """A function named by module path, imported on first call (``None`` when the module is absent)."""
+
+    module: str
+    function: str
+
+    def resolve(self):
+        try:
+            mod = importlib.import_module(self.module)
+        except ModuleNotFoundError as exc:
+            if exc.name == self.module:
+                return None
+            raise
+        return getattr(mod, self.function, None)
+
+    def __call__(self, *args, **kwargs):
+        fn = self.resolve()
+        if fn is None:
+            raise DataNotFoundError(f"the loader {self.module}.{self.function} is not installed")
+        return fn(*args, **kwargs)
+
+
+_SOURCES: list[Source] = []
+
+
+def register(source: Source) -> Source:
+    """Add a source of recordings; returns it. A dataset may have several sources."""
+    if not isinstance(source, Source):
+        raise ValueError(f"register: expected a Source, got {type(source).__name__}")
+    _SOURCES.append(source)
+    return source
+
+
+def sources() -> list[Source]:
+    """The registered sources whose loader is installed."""
+    return [s for s in _SOURCES
+            if not isinstance(s.names, _Lazy) or (s.names.resolve() is not None and s.load.resolve() is not None)]
+
+
+def datasets() -> list[str]:
+    """Names of the datasets that have a registered loader."""
+    return list(dict.fromkeys(s.dataset for s in sources()))
+
+
+def split_name(spec: str) -> tuple[str, str]:
+    """``"dataset/name"`` → ``("dataset", "name")``; a bare dataset gives an empty name."""
+    dataset, _, name = str(spec).strip("/").partition("/")
+    return dataset, name
+
+
+def _sources_of(dataset: str) -> list[Source]:
+    found = [s for s in sources() if s.dataset == dataset]
+    if not found:
+        raise ValueError(f"no loader for a dataset called {dataset!r}; known datasets: {datasets()} "
+                         f"(or give a folder holding ranges.csv and anchors.csv)")
+    return found
+
+
+def names(dataset: str, data_dir: PathLike | None = None) -> list[str]:
+    """Every name of ``dataset`` found on disk, as ``"dataset/name"``.
+
+    Raises
+    ------
+    DataNotFoundError
+        The dataset is not in the data folders (the message says where it was looked for).
+    """
+    find_dataset(dataset, data_dir)
+    out = []
+    for s in _sources_of(dataset):
+        out += [f"{dataset}/{n}" for n in s.names(data_dir)]
+    return out
+
+
+def _tidy_folder(spec: PathLike) -> Path | None:
+    path = Path(spec).expanduser()
+    return path if path.is_dir() and (path / "ranges.csv").is_file() else None
+
+
+def _open_tidy(path: Path):
+    from . import tidy
+
+    anchors, truth = path / "anchors.csv", path / "truth.csv"
+    if not anchors.is_file():
+        raise DataNotFoundError(f"{path}: a tidy recording folder needs ranges.csv and anchors.csv "
+                                f"(and truth.csv to be scored); see uwbwb/datasets/tidy.py")
+    return tidy.load_recording(path / "ranges.csv", anchors, truth if truth.is_file() else None, name=path.name)
+
+
+def open(spec: PathLike, data_dir: PathLike | None = None, **options):  # noqa: A001 (uw.datasets.open)
+    """Load the recording ``spec``: ``"dataset/name"`` or a tidy-CSV folder.
+
+    Parameters
+    ----------
+    spec
+        ``"iasl-uwb-imu/scenario2"``, ``"lias-planar-uwb/fast"``, ... (:func:`names` lists
+        them), or a folder holding ``ranges.csv`` and ``anchors.csv``.
+    data_dir
+        Folder holding dataset folders (None: the package's search order).
+    options
+        Passed to the loader (e.g. ``register=False`` for ``iasl-uwb-imu``).
+
+    Raises
+    ------
+    DataNotFoundError
+        The dataset is absent (where it was looked for), or it is present but holds no
+        recording of that name (the names it holds are listed).
+    ValueError
+        No loader for that dataset, or no name given.
+    """
+    folder = _tidy_folder(spec)
+    if folder is not None:
+        if options:
+            raise ValueError(f"open: a tidy folder takes no loader options, got {sorted(options)}")
+        return _open_tidy(folder)
+    dataset, name = split_name(spec)
+    candidates = _sources_of(dataset)
+    if not name:
+        raise ValueError(f"open: {spec!r} names a dataset but no recording; its names: {names(dataset, data_dir)}")
+    find_dataset(dataset, data_dir)
+    present = []
+    for s in candidates:
+        listed = list(s.names(data_dir))
+        if name in listed:
+            return s.load(name, data_dir, **options)
+        present += listed
+    shown = ", ".join(present) if present else "none"
+    what = "; ".join(s.what for s in candidates)
+    raise DataNotFoundError(f"{dataset} has no recording {name!r} (a name is {what}). "
+                            f"Names found in {find_dataset(dataset, data_dir)}: {shown}")
+
+
+def open_pair(calibration: PathLike, test: PathLike, data_dir: PathLike | None = None, **options):
+    """The calibration recording and the test recording, both by :func:`open`.
+
+    Refuses to calibrate on the recording that is scored (the same name twice), and a
+    pair whose anchor sets share no identifier (a per-pair calibration could not apply).
+
+    Returns
+    -------
+    calibration, test
+    """
+    if str(calibration).strip("/") == str(test).strip("/"):
+        raise ValueError(f"open_pair: the calibration and the test recording are both {str(test)!r}; "
+                         f"calibrate on another recording than the one scored")
+    cal, tst = open(calibration, data_dir, **options), open(test, data_dir, **options)
+    a, b = getattr(cal, "anchors", None), getattr(tst, "anchors", None)
+    if a is not None and b is not None and not set(a.ids) & set(b.ids):
+        raise ValueError(f"open_pair: {calibration!r} has anchors {list(a.ids)}, {test!r} has {list(b.ids)}: "
+                         f"no anchor in common, a range calibration of one cannot apply to the other")
+    return cal, tst
+
+
+@dataclass(frozen=True)
+class Opened:
+    """What :func:`open_or_standin` found: the data, whether it is a stand-in, and why.
+
+    Attributes
+    ----------
+    spec
+        The name that was asked for.
+    data
+        The recording (real or stand-in), or None when the dataset is absent and no
+        stand-in was asked for.
+    synthetic
+        True when the stand-in is used.
+    reason
+        Why: where the real data was found, or why it was not.
+    """
+
+    spec: str
+    data: Any
+    synthetic: bool
+    reason: str
+    details: dict = field(default_factory=dict)
+
+    @property
+    def real(self) -> bool:
+        """Whether the real recording was loaded."""
+        return self.data is not None and not self.synthetic
+
+    @property
+    def available(self) -> bool:
+        """Whether there is anything to run on."""
+        return self.data is not None
+
+    @property
+    def data_label(self) -> str:
+        """The ``data`` field of summary rows: ``synthetic`` or ``dataset/name``."""
+        if self.data is None:
+            raise ValueError(f"{self.spec}: no data was loaded ({self.reason})")
+        return "synthetic" if self.synthetic else self.spec
+
+
+def open_or_standin(spec: str, data_dir: PathLike | None = None, *, stand_in: Callable[[], Any] | None = None,
+                    **options) -> Opened:
+    """The recording ``spec`` if its dataset is here, else the caller's stand-in (if any), and why.
+
+    Parameters
+    ----------
+    spec
+        ``"dataset/name"`` (see :func:`open`).
+    data_dir
+        Folder holding dataset folders (None: the package's search order).
+    stand_in
+        ``stand_in() -> data``, called only when the *dataset* is absent. None: no data
+        (``Opened.available`` False).
+    options
+        Passed to the loader.
+
+    Raises
+    ------
+    DataNotFoundError
+        The dataset is present but holds no recording ``spec`` (never replaced by a stand-in).
+    """
+    dataset, _ = split_name(spec)
+    _sources_of(dataset)
+    if dataset_available(dataset, data_dir):
+        data = open(spec, data_dir, **options)
+        return Opened(str(spec), data, False, f"found in {find_dataset(dataset, data_dir)}")
+    reason = f"{dataset} was not found in the data folders"
+    if stand_in is None:
+        return Opened(str(spec), None, False, reason)
+    return Opened(str(spec), stand_in(), True, reason)
+
+
+# ---------------------------------------------------------------------------------- built-in sources
+
+def _lias_names(data_dir):
+    from . import lias
+
+    return list(lias.list_recordings(data_dir)["name"])
+
+
+def _lias_load(name, data_dir, **options):
+    from . import lias
+
+    if "/" not in name:
+        return lias.load_dynamic(name, data_dir, **options)
+    session, pose = name.split("/", 1)
+    site, yaw = pose[len("pos"):].split("_deg_")
+    return lias.load_static(session, data_dir, site=int(site), yaw_deg=int(yaw), **options)[0]
+
+
+def _iasl_names(data_dir):
+    from . import iasl
+
+    table = iasl.list_recordings(data_dir)
+    return list(table.loc[table["has_uwb"], "name"])
+
+
+def _iasl_load(name, data_dir, **options):
+    from . import iasl
+
+    return iasl.load_scenario(name, data_dir, **options)
+
+
+def _hanyang_static_names(data_dir):
+    from . import hanyang
+
+    try:
+        files = hanyang._scan(hanyang._static_root(data_dir))
+    except DataNotFoundError:
+        return []
+    return ["static"] + [f"static/{c}" for c in dict.fromkeys(files["condition"])] if len(files) else []
+
+
+def _hanyang_static_load(name, data_dir, **options):
+    from . import hanyang
+
+    condition = name.split("/", 1)[1] if "/" in name else None
+    return hanyang.load_static(data_dir, condition=condition, **options)
+
+
+register(Source("lias-planar-uwb", _lias_names, _lias_load,
+                "a dynamic run (fast, medium, ...) or a static pose SESSION/posK_deg_YAW"))
+register(Source("iasl-uwb-imu", _iasl_names, _iasl_load, "a scenario folder (scenario1, scenario2, ...)"))
+register(Source("hanyang-outdoor-uwb", _hanyang_static_names, _hanyang_static_load,
+                "the static sample table: static, static/LOS or static/NLOS"))
+register(Source("hanyang-outdoor-uwb", _Lazy("uwbwb.datasets.hanyang_dynamic", "dynamic_cases"),
+                _Lazy("uwbwb.datasets.hanyang_dynamic", "load_dynamic_case"),
+                "a dynamic case CONDITION/Trajectory_X/Case_N"))
