@@ -198,3 +198,33 @@ def test_bound_aggregate_refuses_nan_epochs():
     assert b.aggregate_m(np.array([True, False, True])) == pytest.approx(np.sqrt((2 + 8) / 2))
     with pytest.raises(ValueError, match="no bound"):
         b.aggregate_m()
+
+
+def test_motion_log_likelihood_picks_the_model_and_noise_that_drew_the_track():
+    """A random-force track (σ_w = 0.5 m/s² at 10 Hz): RF beats RW and RJ, at σ_w within a grid step."""
+    from uwbwb.models.motion import RandomForce, make_motion_model
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 60.0, 0.1)
+    motion = RandomForce(psd_m2ps3=0.5 ** 2 * 0.1, dim=2)
+    x = motion.sample_path(motion.initial_state(np.zeros(2), rng.standard_normal(2)), t, rng=rng)
+    pos = x[:, :2] + 0.005 * rng.standard_normal((t.size, 2))
+    grid = np.geomspace(0.05, 5.0, 21)
+    best = {}
+    for name in ("RW", "RF", "RJ"):
+        ll = bounds.motion_log_likelihood([make_motion_model(name, sigma=s, dt_s=0.1, dim=2) for s in grid],
+                                          t, pos, 0.005, skip=3)
+        best[name] = (grid[int(np.argmax(ll))], ll.max())
+    assert max(best, key=lambda m: best[m][1]) == "RF"
+    assert best["RF"][0] == pytest.approx(0.5, rel=0.3)
+
+
+def test_motion_log_likelihood_checks_its_input():
+    from uwbwb.models.motion import make_motion_model
+
+    m = make_motion_model("RF", sigma=1.0, dt_s=0.1, dim=2)
+    with pytest.raises(ValueError, match="share n_x"):
+        bounds.motion_log_likelihood([m, make_motion_model("RW", sigma=1.0, dt_s=0.1, dim=2)],
+                                     np.arange(3.0), np.zeros((3, 2)), 0.01)
+    with pytest.raises(ValueError, match="sigma_obs_m"):
+        bounds.motion_log_likelihood([m], np.arange(3.0), np.zeros((3, 2)), 0.0)

@@ -1,4 +1,12 @@
-"""Cramér–Rao bounds: what the measurements allow, per epoch and along a track.
+"""Cramér–Rao bounds of the position, per epoch and along a track.
+
+A bound is "what the measurements allow" only under its stated model: the Gaussian range noise
+it is given and, for the posterior bound, the motion model whose random tracks it averages over.
+The scoreboard uses two kinds: each method's *own* bound (its own noise and motion model: a
+consistency check of the method against its assumptions) and one *common* bound per recording
+(:func:`motion_log_likelihood` picks the motion model that best explains the calibration truth;
+the posterior CRLB of that model with all ranges at the measured range noise), against which
+every method is placed.
 
 Three bounds, each computed from the *same* noise model objects the estimators use
 (per-anchor range standard deviations, :class:`~uwbwb.models.tdoa.TdoaModel`, the
@@ -61,7 +69,7 @@ import numpy as np
 from . import geometry
 from .models.tdoa import TdoaModel
 
-__all__ = ["Bound", "crlb", "embed_information", "line_crlb", "pcrlb", "range_information",
+__all__ = ["Bound", "crlb", "embed_information", "line_crlb", "motion_log_likelihood", "pcrlb", "range_information",
            "rmse_bound_m", "tdoa_information", "tracking_bound"]
 
 #: Information matrices whose smallest/largest eigenvalue ratio is at or below this are singular.
@@ -259,6 +267,76 @@ def tracking_bound(motion, t_s, information_pos, P0) -> np.ndarray:
     pos = np.arange(motion.dim)
     full = pcrlb(P0, motion.F(dt), motion.Q(dt), embed_information(info, motion.n_x, pos))
     return full[:, pos[:, None], pos]
+
+
+def motion_log_likelihood(models, t_s, pos_m, sigma_obs_m: float, *, skip: int | None = None) -> np.ndarray:
+    """Gaussian log-likelihood of an observed track under each of a batch of motion models.
+
+    A Kalman filter per model (:mod:`uwbwb.models.motion`: ``F(dt)``, ``Q(dt)``) observes the
+    positions with white noise ``sigma_obs_m`` (the track's own measurement noise, e.g. motion
+    capture) and sums ``log N(ν_k; 0, S_k)`` over its innovations — the prediction-error
+    decomposition of the likelihood. The prior is centred on the first position (σ 1 m, higher
+    derivatives σ 1 unit); the first ``skip`` innovations (default the model order) are left out so
+    that the prior does not decide. Models of the same order and dimension are run as one batch.
+
+    Parameters
+    ----------
+    models
+        Sequence of motion models of equal ``n_x`` and ``dim``.
+    t_s
+        Times, shape ``(T,)``, seconds, strictly increasing.
+    pos_m
+        Observed positions, shape ``(T, dim)``, metres (finite).
+    sigma_obs_m
+        Standard deviation of the observation noise per axis, metres (> 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        Log-likelihood per model, shape ``(len(models),)``.
+    """
+    models = list(models)
+    t = np.asarray(t_s, float)
+    z = np.asarray(pos_m, float)
+    if not models:
+        raise ValueError("motion_log_likelihood: no models")
+    n, d = models[0].n_x, models[0].dim
+    if any(m.n_x != n or m.dim != d for m in models):
+        raise ValueError("motion_log_likelihood: the models must share n_x and dim")
+    if t.ndim != 1 or z.shape != (t.size, d) or not np.all(np.isfinite(z)):
+        raise ValueError(f"motion_log_likelihood: t_s {t.shape} and finite pos_m (T, {d}) expected, got {z.shape}")
+    if t.size > 1 and np.any(np.diff(t) <= 0):
+        raise ValueError("motion_log_likelihood: t_s must be strictly increasing")
+    if not sigma_obs_m > 0:
+        raise ValueError(f"sigma_obs_m must be positive, got {sigma_obs_m!r}")
+    skip = n // d if skip is None else int(skip)
+    dt = np.concatenate([[0.0], np.diff(t)])
+    F = np.stack([m.F(dt) for m in models], axis=1)                # (T, G, n, n)
+    Q = np.stack([m.Q(dt) for m in models], axis=1)
+    G = len(models)
+    H = np.zeros((d, n))
+    H[:, :d] = np.eye(d)
+    R = sigma_obs_m ** 2 * np.eye(d)
+    x = np.zeros((G, n))
+    x[:, :d] = z[0]
+    P = np.broadcast_to(np.eye(n), (G, n, n)).copy()
+    total = np.zeros(G)
+    for k in range(t.size):
+        if k:
+            x = np.einsum("gij,gj->gi", F[k], x)
+            P = F[k] @ P @ np.swapaxes(F[k], -1, -2) + Q[k]
+        nu = z[k] - x[:, :d]
+        S = P[:, :d, :d] + R
+        Sinv = np.linalg.inv(S)
+        if k >= skip:
+            _, logdet = np.linalg.slogdet(S)
+            total -= 0.5 * (np.einsum("gi,gij,gj->g", nu, Sinv, nu) + logdet + d * np.log(2 * np.pi))
+        K = P[:, :, :d] @ Sinv                                       # (G, n, d)
+        x = x + np.einsum("gij,gj->gi", K, nu)
+        IKH = np.eye(n) - K @ H
+        P = IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)     # Joseph form
+        P = 0.5 * (P + np.swapaxes(P, -1, -2))
+    return total
 
 
 def line_crlb(t_s, pos_m, anchor_pos_m, sigma_m, *, t0_s: float | None = None, z_m=None, mask=None) -> np.ndarray:

@@ -11,11 +11,13 @@ Commands
     Execute the notebooks headless; write executed notebooks, HTML and
     ``summary.json`` / ``summary.md`` (default into ``reports/``).
 
-``score TARGET [--out DIR] [--calibrate-on SPEC] [--fraction F] [--tags ...] [--methods ...] [--rate-hz R] [--fast]``
-    Every estimator on one recording (``DATASET/RECORDING`` or a tidy CSV folder) against its
-    Cramér–Rao bound: calibration and tuning on the first ``F`` of the run (or on another
-    recording), scoring on the rest; writes ``scoreboard.csv``, ``scoreboard.md`` and
-    ``scoreboard.png`` into ``--out`` (default ``reports/score/<recording>``).
+``score TARGET [--out DIR] [--calibrate-on SPEC] [--fraction F] [--tags ...] [--methods ...] [--rate-hz R] [--tag-height-m Z] [--truth-offset-s S] [--fast]``
+    Every estimator on one recording (``DATASET/RECORDING`` or a tidy CSV folder) against one
+    common bound and its own Cramér–Rao bound: calibration and tuning on the first ``F`` of the
+    run (or on another recording), scoring on the rest; a recording whose ranges do not fit its
+    anchors and truth is refused with a diagnosis (units, axes, clock offset, anchors); writes
+    ``scoreboard.csv``, ``scoreboard.md`` and ``scoreboard.png`` into ``--out`` (default
+    ``reports/score/<recording>``).
 
 Exit codes: 0 success; 1 failure (``datasets``: a dataset absent or a file
 missing or wrong; ``fetch``: a download failed; ``reproduce``: a notebook failed
@@ -100,6 +102,11 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
     p.add_argument("--data-dir", metavar="DIR", default=None, help="folder holding the datasets")
     p.add_argument("--methods", nargs="+", metavar="NAME", default=None,
                    help="only these methods (names as in the table, e.g. LS EKF-RF 'set-noise KF')")
+    p.add_argument("--tag-height-m", metavar="Z", type=float, default=None,
+                   help="tag height for a 2-D truth.csv (default: fitted from the calibration part's ranges)")
+    p.add_argument("--truth-offset-s", metavar="S", type=float, default=0.0,
+                   help="truth clock offset to remove (truth time = range time + S), e.g. the estimate a refused "
+                        "recording reports")
     p.add_argument("--fast", action="store_true", help="CI-sized tuning grids and particle counts")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     return parser, sub.choices
@@ -330,7 +337,8 @@ def cmd_score(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     else:
         cal, test = split_in_time(rec, args.fraction)
     board = score(test, cal, estimators=estimators, tags=args.tags, rate_hz=args.rate_hz, fast=args.fast,
-                  progress=not args.quiet, label=rec.label)
+                  progress=not args.quiet, label=rec.label, tag_height_m=args.tag_height_m,
+                  truth_offset_s=args.truth_offset_s)
     out = Path(args.out) if args.out else Path("reports") / "score" / rec.name.replace("/", "_")
     paths = board.write(out)
     print(board.markdown())

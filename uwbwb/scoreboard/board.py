@@ -10,12 +10,21 @@
     Horizontal errors over the epochs it covered.
 ``rmse_common_m``
     RMSE over the epochs *every* method on the board covered (the like-for-like figure).
+``common_bound_m``, ``rmse_over_common``, ``rmse_over_common_se``
+    The recording's **common bound** (:mod:`.reference`: the posterior CRLB of the motion
+    model that best fits the calibration truth, with every range at the calibrated noise; the
+    same for every method) aggregated as ``sqrt(mean_k tr C_k)`` over the method's covered
+    epochs, and the method's RMSE over those epochs divided by it, with a block standard error.
+    This is the column to compare methods by (besides the RMSE itself).
 ``bound_m``, ``bound_kind``
-    The method's own Cramér–Rao bound aggregated as ``sqrt(mean_k tr C_k)`` (horizontal
-    block) over the covered epochs where it exists (``n_bound`` of them).
-``efficiency``
-    RMSE over those same epochs divided by ``bound_m``: 1 is as good as the measurements
-    allow; below 1 the method *beats* its bound, which the ``note`` explains from the data.
+    The method's *own* Cramér–Rao bound (its own noise and motion model, its own tuning)
+    aggregated the same way over the covered epochs where it exists (``n_bound`` of them);
+    empty ("—") for a method that has none (e.g. an external method's estimates).
+``rmse_over_bound``, ``rmse_over_bound_se``
+    RMSE over those epochs divided by ``bound_m`` (the textbook *efficiency* is the inverse,
+    bound / RMSE): a consistency check of each method against its own model — near 1 the
+    method does what its model promises; below 1 it *beats* its own bound, which the ``note``
+    explains from the data. Not comparable across methods (a poor model has a loose bound).
 ``nees_mean``, ``nees_dof``, ``nees_ok``
     Mean NEES of the position (methods with a covariance) against its χ² 95 % interval
     (epochs treated as independent: a tracking filter's errors are correlated, so read it
@@ -42,8 +51,11 @@ from .. import metrics
 from ..calibration import range_sigma_from_truth
 from ..filters.ekf import nis_consistency
 from ..types import Estimates, Recording
+from . import checks as _checks
 from .estimators import Estimator, calibrated_log, default_estimators, truth_at
 from .protocol import Calibration, fit_calibration, scored_tags, split_in_time, thin
+from .reference import REFERENCE, common_bound, fit_reference_motion
+from .reference import describe as describe_reference
 
 __all__ = ["Board", "Entry", "calibrate", "score", "score_recording", "TABLE_COLUMNS", "N_BLOCKS"]
 
@@ -51,9 +63,10 @@ __all__ = ["Board", "Entry", "calibrate", "score", "score_recording", "TABLE_COL
 N_BLOCKS = 20
 
 #: Columns of :meth:`Board.table`, in order.
-TABLE_COLUMNS = ("method", "coverage", "n_scored", "rmse_m", "cep50_m", "cep95_m", "rmse_common_m", "bound_m",
-                 "bound_kind", "n_bound", "efficiency", "efficiency_se", "nees_mean", "nees_dof", "nees_ok",
-                 "nis_over_dof", "nis_verdict", "us_per_epoch", "time_ratio", "note")
+TABLE_COLUMNS = ("method", "coverage", "n_scored", "rmse_m", "cep50_m", "cep95_m", "rmse_common_m",
+                 "common_bound_m", "rmse_over_common", "rmse_over_common_se", "bound_m", "bound_kind", "n_bound",
+                 "rmse_over_bound", "rmse_over_bound_se", "nees_mean", "nees_dof", "nees_ok", "nis_over_dof",
+                 "nis_verdict", "us_per_epoch", "time_ratio", "note")
 
 
 @dataclass(frozen=True)
@@ -67,13 +80,15 @@ class Entry:
     estimates
         The method's output (None if it did not apply).
     bound
-        Its bound at the same epochs (None if it did not apply).
+        Its own bound at the same epochs (None if it did not apply or has none).
     truth_pos_m
         True positions at the epochs, ``(T, dim)``; NaN where the truth does not reach.
     seconds
         Wall time of :meth:`Estimator.estimate`.
     skipped
         Why the method did not run here (None if it ran).
+    common
+        The recording's common bound at the same epochs (:mod:`.reference`; None if there is none).
     """
 
     method: str
@@ -83,6 +98,7 @@ class Entry:
     truth_pos_m: np.ndarray | None
     seconds: float = float("nan")
     skipped: str | None = None
+    common: object | None = None
 
     @property
     def error_m(self) -> np.ndarray:
@@ -102,8 +118,13 @@ class Entry:
 
     @property
     def bound_trace_m2(self) -> np.ndarray:
-        """Horizontal trace of the bound per epoch, ``(T,)``, m² (NaN where none)."""
-        return np.trace(self.bound.pos_cov_m2[:, :2, :2], axis1=1, axis2=2)
+        """Horizontal trace of the method's own bound per epoch, ``(T,)``, m² (NaN where none)."""
+        return _trace(self.bound, len(self.estimates))
+
+    @property
+    def common_trace_m2(self) -> np.ndarray:
+        """Horizontal trace of the common bound per epoch, ``(T,)``, m² (NaN where none)."""
+        return _trace(self.common, len(self.estimates))
 
     @property
     def nees(self) -> np.ndarray:
@@ -120,12 +141,23 @@ class Entry:
         return out
 
 
+def _trace(bound, n: int) -> np.ndarray:
+    if bound is None:
+        return np.full(n, np.nan)
+    return np.trace(bound.pos_cov_m2[:, :2, :2], axis1=1, axis2=2)
+
+
 def calibrate(cal_rec: Recording, estimators: Sequence[Estimator], tags: Sequence[str] | None = None, *,
-              rate_hz: float | None = None, dim: int | None = None, progress: bool = False) -> Calibration:
-    """Fit the shared calibration on ``cal_rec``, then let each estimator tune itself on it."""
+              rate_hz: float | None = None, dim: int | None = None, progress: bool = False,
+              tag_height_m: Mapping[str, float] | None = None) -> Calibration:
+    """Fit the shared calibration on ``cal_rec``, the common bound's motion model
+    (:func:`.reference.fit_reference_motion`), then let each estimator tune itself on it."""
     tags = scored_tags(cal_rec, tags)
-    cal = fit_calibration(cal_rec, tags, rate_hz=rate_hz, dim=dim)
+    cal = fit_calibration(cal_rec, tags, rate_hz=rate_hz, dim=dim, tag_height_m=tag_height_m)
     rec = thin(cal_rec, rate_hz)
+    reference = fit_reference_motion(rec, tags, cal)
+    if reference:
+        cal = cal.with_tuned(REFERENCE, reference)
     for est in estimators:
         usable = [t for t in tags if est.applies(rec, t, cal) is None]
         if not usable:
@@ -171,6 +203,9 @@ class Board:
         (used to explain a method that beats its bound).
     fast
         Whether CI-sized settings were used (numbers are then smoke tests).
+    checks
+        What the input checks found and did (:mod:`.checks`: measured vs predicted ranges, the
+        truth clock offset estimate, dropped anchors, a lifted 2-D truth), one line each.
     """
 
     label: str
@@ -180,6 +215,7 @@ class Board:
     methods: tuple[str, ...]
     diagnostics: Mapping[str, Mapping] = field(default_factory=dict)
     fast: bool = False
+    checks: tuple[str, ...] = ()
 
     @property
     def data_label(self) -> str:
@@ -232,14 +268,20 @@ class Board:
         common = np.concatenate([e.error_m[self._common(e.tag)] for e in ents])
         if common.size:
             row["rmse_common_m"] = metrics.rmse(common)
+        ctr = np.concatenate([e.common_trace_m2[e.scored] for e in ents])
+        have = np.isfinite(ctr)
+        if have.any():
+            row["common_bound_m"] = float(np.sqrt(np.mean(ctr[have])))
+            row["rmse_over_common"] = float(np.sqrt(np.mean(err[have] ** 2)) / row["common_bound_m"])
+            row["rmse_over_common_se"] = _block_se_ratio(err[have] ** 2, ctr[have])
         tr = np.concatenate([e.bound_trace_m2[e.scored] for e in ents])
         have = np.isfinite(tr)
-        row["bound_kind"] = ents[0].bound.kind
+        row["bound_kind"] = ents[0].bound.kind if ents[0].bound is not None else ""
         row["n_bound"] = int(have.sum())
         if have.any():
             row["bound_m"] = float(np.sqrt(np.mean(tr[have])))
-            row["efficiency"] = float(np.sqrt(np.mean(err[have] ** 2)) / row["bound_m"])
-            row["efficiency_se"] = _block_se_ratio(err[have] ** 2, tr[have])
+            row["rmse_over_bound"] = float(np.sqrt(np.mean(err[have] ** 2)) / row["bound_m"])
+            row["rmse_over_bound_se"] = _block_se_ratio(err[have] ** 2, tr[have])
         nees = np.concatenate([e.nees[e.scored] for e in ents])
         nees = nees[np.isfinite(nees)]
         if nees.size:
@@ -280,12 +322,12 @@ class Board:
 
     # ------------------------------------------------------------------ findings
     def explain(self, row) -> str:
-        """Why a method's RMSE is below its bound (empty when it is not, beyond sampling error)."""
-        eff, se = row.efficiency, row.efficiency_se
+        """Why a method's RMSE is below its own bound (empty when it is not, beyond sampling error)."""
+        eff, se = row.rmse_over_bound, row.rmse_over_bound_se
         if not np.isfinite(eff) or eff >= 1:
             return ""
         if np.isfinite(se) and eff > 1 - 2 * se:
-            return f"below its bound by {1 - eff:.0%}, within 2 standard errors ({se:.2f}): sampling error"
+            return f"below its own bound by {1 - eff:.0%}, within 2 standard errors ({se:.2f}): sampling error"
         reasons = []
         diag = [d for d in self.diagnostics.values()]
         ratio = np.nanmedian([d["sigma_ratio"] for d in diag]) if diag else np.nan
@@ -315,7 +357,7 @@ class Board:
                            f"{row.nees_dof:.0f}): the noise model over-states the noise")
         if not reasons:
             reasons.append("no diagnostic explains it: check the noise model")
-        return f"BEATS its bound ({eff:.2f} ± {se:.2f}): " + "; ".join(reasons)
+        return f"BEATS its own bound (RMSE/bound {eff:.2f} ± {se:.2f}): " + "; ".join(reasons)
 
     # ------------------------------------------------------------------ output
     def markdown(self) -> str:
@@ -325,25 +367,36 @@ class Board:
                  f"methods run here)", "",
                  f"Calibration and tuning on {self.calibration.source}; scored on {self.part}, "
                  f"tags {', '.join(self.tags)}; {self.calibration.dim}-D, {self.calibration.rate_hz:.3g} Hz. "
-                 "Errors are horizontal; the bound is each method's own Cramér–Rao bound (its kind in the next "
-                 "column) over the same epochs; efficiency = RMSE / bound.", ""]
+                 "Errors are horizontal. *Common bound*: one bound for every method (below); RMSE / common "
+                 "bound is the figure to compare methods by. *Own bound*: each method's Cramér–Rao bound under its "
+                 "own noise and motion model (its kind in the next column); RMSE / own bound checks the method "
+                 "against its own model and is not comparable across methods (the textbook efficiency is its "
+                 "inverse). Both are bounds only under their stated Gaussian noise and motion models.", ""]
+        common = describe_reference(self.calibration)
+        lines += [(common[0].upper() + common[1:] + "." if common else
+                   "No common bound (the calibration has no motion model fitted)."), ""]
         if self.fast:
             lines += ["FAST mode: CI-sized tuning grids and particle counts — smoke-test numbers.", ""]
-        head = ["method", "coverage", "RMSE (m)", "CEP50 (m)", "CEP95 (m)", "RMSE common (m)", "bound (m)",
-                "bound kind", "efficiency", "NEES / dof", "NIS / dof", "µs/epoch", "time × raw LS", "note"]
+        head = ["method", "coverage", "RMSE (m)", "CEP50 (m)", "CEP95 (m)", "RMSE common epochs (m)",
+                "common bound (m)", "RMSE / common bound", "own bound (m)", "own bound kind", "RMSE / own bound",
+                "NEES / dof", "NIS / dof", "µs/epoch", "time × raw LS", "note"]
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
 
         def f(x, fmt=".3f"):
             return "—" if x is None or (isinstance(x, float) and not np.isfinite(x)) else format(x, fmt)
 
         for r in df.itertuples(index=False):
-            eff = f"{r.efficiency:.2f} ± {r.efficiency_se:.2f}" if np.isfinite(r.efficiency_se) else f(r.efficiency, ".2f")
+            eff = (f"{r.rmse_over_bound:.2f} ± {r.rmse_over_bound_se:.2f}" if np.isfinite(r.rmse_over_bound_se)
+                   else f(r.rmse_over_bound, ".2f"))
+            com = (f"{r.rmse_over_common:.2f} ± {r.rmse_over_common_se:.2f}" if np.isfinite(r.rmse_over_common_se)
+                   else f(r.rmse_over_common, ".2f"))
             nees = f"{r.nees_mean:.2f} / {r.nees_dof:.0f}" if np.isfinite(r.nees_mean) else "—"
             nis = f"{r.nis_over_dof:.2f} ({r.nis_verdict})" if np.isfinite(r.nis_over_dof) else "—"
             lines.append("| " + " | ".join([r.method, f(r.coverage, ".1%"), f(r.rmse_m), f(r.cep50_m), f(r.cep95_m),
-                                              f(r.rmse_common_m), f(r.bound_m), r.bound_kind or "—", eff, nees, nis,
+                                              f(r.rmse_common_m), f(r.common_bound_m), com, f(r.bound_m),
+                                              r.bound_kind or "—", eff, nees, nis,
                                               f(r.us_per_epoch, ".0f"), f(r.time_ratio, ".1f"), r.note or ""]) + " |")
-        lines += ["", "```", self.calibration.describe(), "```", ""]
+        lines += ["", "```", self.calibration.describe(), *self.checks, "```", ""]
         return "\n".join(lines)
 
     def write(self, out: str | Path, *, figure: bool = True) -> dict[str, Path]:
@@ -369,14 +422,19 @@ class Board:
         return paths
 
     def to_summary(self, summary, *, methods: Sequence[str] | None = None) -> None:
-        """Record each method's RMSE, bound and efficiency into a :class:`uwbwb.metrics.Summary`."""
+        """Record each method's RMSE, bounds and their ratios into a :class:`uwbwb.metrics.Summary`.
+
+        ``efficiency RMSE/bound`` is RMSE / the method's own bound (quantity name kept for existing
+        summaries; the textbook efficiency is its inverse)."""
         df = self.table().set_index("method")
         for m in (methods or self.methods):
             r = df.loc[m]
             if not np.isfinite(r.rmse_m):
                 continue
             for q, v, u in ((f"RMSE, {m}", r.rmse_m, "m"), (f"bound, {m} ({r.bound_kind})", r.bound_m, "m"),
-                            (f"efficiency RMSE/bound, {m}", r.efficiency, ""), (f"coverage, {m}", r.coverage, "")):
+                            (f"efficiency RMSE/bound, {m}", r.rmse_over_bound, ""),
+                            (f"common bound, {m}", r.common_bound_m, "m"),
+                            (f"RMSE/common bound, {m}", r.rmse_over_common, ""), (f"coverage, {m}", r.coverage, "")):
                 if np.isfinite(v):
                     _add(summary, quantity=q, value=float(v), unit=u, data=self.data_label)
 
@@ -411,7 +469,9 @@ def _diagnostics(rec: Recording, tag: str, cal: Calibration) -> dict:
 def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estimator] | None = None,
           tags: Sequence[str] | None = None, rate_hz: float | None = 10.0, dim: int | None = None,
           calibration: Calibration | None = None, fast: bool = False, progress: bool = False,
-          label: str | None = None) -> Board:
+          label: str | None = None, tag_height_m: float | Mapping[str, float] | None = None,
+          truth_offset_s: float = 0.0, check: bool = True,
+          min_epochs: int = _checks.MIN_SCORED_EPOCHS) -> Board:
     """Calibrate on ``cal_rec`` and score every estimator on ``test_rec``.
 
     Parameters
@@ -432,15 +492,62 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
         CI-sized settings (recorded in the board's mode).
     label
         What the board is about (default ``test_rec.label``; :func:`score_recording` gives the whole run's).
+    tag_height_m
+        Height of the tag(s) for a 2-D truth (one value or per tag); None fits it from the
+        calibration ranges (:func:`.checks.fit_tag_height`). 3-D truth is left as it is.
+    truth_offset_s
+        Known truth clock offset (truth time = range time + offset), removed from both recordings.
+    check
+        Run the input checks of :mod:`.checks` (measured vs predicted ranges with a diagnosis of
+        units, swapped axes, clock offset and anchor mismatches; silent anchors dropped and
+        counted); with ``calibration`` given the anchors are not dropped.
+    min_epochs
+        Fewest scored epochs with truth per tag (fewer is an error).
+
+    Raises
+    ------
+    ValueError
+        A recording that the checks find unscorable, with the diagnosis.
     """
     estimators = list(default_estimators(fast=fast) if estimators is None else estimators)
     names = [e.name for e in estimators]
     if len(set(names)) != len(names):
         raise ValueError(f"estimator names must be unique, got {names}")
     tags = scored_tags(test_rec, tags)
+    scored_tags(cal_rec, tags)
+    notes: list[str] = []
+    if truth_offset_s:
+        cal_rec, test_rec = _checks.shift_truth(cal_rec, truth_offset_s), _checks.shift_truth(test_rec, truth_offset_s)
+        notes.append(f"truth clock shifted by {-truth_offset_s:+.3f} s (given)")
+    if isinstance(tag_height_m, Mapping) or tag_height_m is None:
+        given = tag_height_m
+    else:
+        given = {t: float(tag_height_m) for t in tags}
+    if calibration is not None and given is None:
+        given = {t: h for t, h in calibration.tag_height_m.items()}
+    cal_rec, how = _checks.lift_truth(cal_rec, given)
+    heights = {t: float(cal_rec.truth[t].pos_m[0, 2]) for t in how}
+    test_rec, _ = _checks.lift_truth(test_rec, {**(given or {}), **heights})
+    notes += [f"tag {t}: 2-D truth, {h}" for t, h in how.items()]
+    if check:
+        _checks.check_overlap(thin(cal_rec, rate_hz), tags, min_epochs=_checks.MIN_ANCHOR_SAMPLES,
+                              part="calibration part")
+        if calibration is None:
+            cal_rec, test_rec, dropped = _checks.drop_silent_anchors(cal_rec, test_rec, tags)
+            if dropped:
+                notes.append(f"anchors dropped (fewer than {_checks.MIN_ANCHOR_SAMPLES} ranges on the calibration "
+                             f"part, cannot be calibrated): {', '.join(dropped)}")
+        _checks.check_overlap(thin(test_rec, rate_hz), tags, min_epochs=min_epochs)
+        for part, r in (("calibration part", cal_rec), ("scored part", test_rec)):
+            for tag in tags:
+                c = _checks.check_ranges_against_truth(r, tag)
+                notes.append(f"{part}: {c.describe()}")
     if calibration is None:
-        calibration = calibrate(cal_rec, estimators, tags, rate_hz=rate_hz, dim=dim, progress=progress)
+        known = {**(given or {}), **heights} if (tag_height_m is not None or how) else None
+        calibration = calibrate(cal_rec, estimators, tags, rate_hz=rate_hz, dim=dim, progress=progress,
+                                tag_height_m=known)
     rec = thin(test_rec, rate_hz)
+    commons = {t: common_bound(rec, t, calibration) for t in tags}
     entries = []
     for tag in tags:
         for est in estimators:
@@ -456,11 +563,15 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
             if not np.array_equal(out.t_s, rec.ranges[tag].t_s):
                 raise ValueError(f"{est.name}: estimates must be on the tag's epochs ({len(rec.ranges[tag])}), "
                                  f"got {len(out)}")
-            b = est.bound(rec, tag, calibration, out)
+            try:
+                b = est.bound(rec, tag, calibration, out)
+            except NotImplementedError:
+                b = None                              # e.g. an external method's estimates: no model, no bound
             truth = truth_at(rec, tag, out.t_s, out.dim)
-            entries.append(Entry(est.name, tag, out, b, truth, seconds))
+            entries.append(Entry(est.name, tag, out, b, truth, seconds, common=commons[tag]))
     diag = {t: _diagnostics(rec, t, calibration) for t in tags}
-    return Board(label or test_rec.label, test_rec.label, calibration, tuple(entries), tuple(names), diag, fast)
+    return Board(label or test_rec.label, test_rec.label, calibration, tuple(entries), tuple(names), diag, fast,
+                 tuple(notes))
 
 
 def score_recording(rec: Recording, *, fraction: float = 0.5, **kw) -> Board:

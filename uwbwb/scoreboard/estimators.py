@@ -14,7 +14,9 @@ A method joins the board by implementing :class:`Estimator`:
     only ``cal`` (fitted on other data) and the recording's measurements — never its truth.
 ``bound(rec, tag, cal, est)``
     The Cramér–Rao bound of this method's own measurement and motion model at the
-    estimate's epochs (:class:`uwbwb.bounds.Bound`), evaluated along the truth.
+    estimate's epochs (:class:`uwbwb.bounds.Bound`), evaluated along the truth; None (or
+    ``NotImplementedError``) when the method has no model to bound — the board then shows "—"
+    for its own bound and still places it against the recording's common bound.
 
 The adapters below wrap the existing estimators without changing them. Every method
 but ``raw LS`` uses the calibrated ranges (the calibration is information every method
@@ -44,7 +46,7 @@ from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples, Recording
 from .protocol import Calibration
 
 __all__ = ["Estimator", "BaseEstimator", "RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "SetNoiseFilter",
-           "WindowNls", "UwbInsFilter", "default_estimators", "truth_at", "MAX_TRUTH_GAP_S"]
+           "WindowNls", "UwbInsFilter", "ExternalEstimates", "default_estimators", "truth_at", "MAX_TRUTH_GAP_S"]
 
 #: Largest truth gap interpolated across when scoring or evaluating a bound, seconds.
 MAX_TRUTH_GAP_S = 0.5
@@ -532,6 +534,60 @@ class UwbInsFilter(BaseEstimator):
         C[k0:] = bounds.tracking_bound(motion, log.t_s[k0:], info[k0:], P0)
         C[~have] = np.nan
         return bounds.Bound(log.t_s, C, kind)
+
+
+# ----------------------------------------------------------------------------- outside methods
+
+@dataclass(frozen=True, eq=False)
+class ExternalEstimates(BaseEstimator):
+    """Estimates made outside the workbench (another group's method, a vendor's RTLS output), scored on
+    the board as they are: no tuning (it happened elsewhere, on data the board cannot check), no own
+    bound (shown as "—"), placed against the recording's common bound like every method.
+
+    Parameters
+    ----------
+    name
+        Label on the board; ``" (external)"`` is appended unless already there.
+    tracks
+        Per tag, the outside method's positions (:class:`~uwbwb.types.Trajectory`, 2-D or 3-D, on the
+        recording's clock).
+    max_dt_s
+        An epoch of the tag takes the outside estimate nearest in time within this tolerance
+        (default half the tag's median epoch step); epochs with none have no estimate (coverage).
+    """
+
+    name: str = "external"
+    tracks: Mapping = field(default_factory=dict)
+    max_dt_s: float | None = None
+
+    def __post_init__(self):
+        if not str(self.name).endswith("(external)"):
+            object.__setattr__(self, "name", f"{self.name} (external)")
+
+    external = True
+
+    def applies(self, rec, tag, cal):
+        return None if tag in self.tracks else f"no outside estimates for tag {tag!r}"
+
+    def estimate(self, rec, tag, cal):
+        log, tr = rec.ranges[tag], self.tracks[tag]
+        T, d = len(log), cal.dim
+        pos, status = np.full((T, d), np.nan), np.full(T, _NONE, np.int8)
+        if len(tr) and T:
+            tol = self.max_dt_s if self.max_dt_s is not None else (
+                0.5 * float(np.median(np.diff(log.t_s))) if T > 1 else np.inf)
+            j = np.clip(np.searchsorted(tr.t_s, log.t_s), 1, max(len(tr) - 1, 1)) if len(tr) > 1 else np.zeros(T, int)
+            if len(tr) > 1:
+                j = np.where(np.abs(tr.t_s[j - 1] - log.t_s) <= np.abs(tr.t_s[j] - log.t_s), j - 1, j)
+            ok = np.abs(tr.t_s[j] - log.t_s) <= tol
+            p = tr.pos_m[j[ok]]
+            if p.shape[1] < d:
+                raise ValueError(f"{self.name}: 2-D outside estimates cannot be scored on a 3-D board")
+            pos[ok], status[ok] = p[:, :d], _UP
+        return Estimates(log.t_s, pos, status, self.name)
+
+    def bound(self, rec, tag, cal, est):
+        return None
 
 
 def default_estimators(*, fast: bool = False, seed: int = 0) -> list[Estimator]:

@@ -28,7 +28,8 @@ def error_cdfs(board, ax=None, *, methods: Sequence[str] | None = None, tag: str
 
 
 def rmse_vs_bound(board, ax=None, *, methods: Sequence[str] | None = None, unit: str = "m"):
-    """Bars of each method's RMSE with its own bound as a black tick; efficiency and coverage written above."""
+    """Bars of each method's RMSE with the common bound (grey tick) and its own bound (black tick);
+    RMSE / common bound and coverage written above."""
     scale = 100.0 if unit == "cm" else 1.0
     df = board.table().set_index("method")
     names = [m for m in _methods(board, methods) if np.isfinite(df.loc[m, "rmse_m"])]
@@ -39,17 +40,20 @@ def rmse_vs_bound(board, ax=None, *, methods: Sequence[str] | None = None, unit:
     bound = df.loc[names, "bound_m"].to_numpy(float) * scale
     ax.bar(x, rmse, color=[plotting.color_for(m) for m in names])
     ax.bar([], [], color="white", edgecolor="black", label="RMSE (bar, method's colour)")
-    ax.scatter(x, bound, marker="_", s=900, color="black", zorder=3, label="its Cramér–Rao bound")
-    for xi, r, e, c in zip(x, rmse, df.loc[names, "efficiency"].to_numpy(float),
+    common = df.loc[names, "common_bound_m"].to_numpy(float) * scale
+    ax.scatter(x, common, marker="_", s=900, color="#9e9e9e", linewidths=4, zorder=3,
+               label="common bound (same for all)")
+    ax.scatter(x, bound, marker="_", s=900, color="black", zorder=4, label="its own bound")
+    for xi, r, e, c in zip(x, rmse, df.loc[names, "rmse_over_common"].to_numpy(float),
                            df.loc[names, "coverage"].to_numpy(float)):
         text = (f"×{e:.2f}\n" if np.isfinite(e) else "") + f"{c:.0%}"
         ax.annotate(text, (xi, r), ha="center", va="bottom", fontsize="x-small", xytext=(0, 2),
                     textcoords="offset points")
     ax.set_xticks(x, names, rotation=30, ha="right")
     ax.set_ylabel(f"RMSE ({unit})")
-    top = np.nanmax(np.concatenate([rmse, bound])) if len(names) else 1.0
+    top = np.nanmax(np.concatenate([rmse, bound, common])) if len(names) else 1.0
     ax.set_ylim(0, 1.3 * top)
-    ax.set_title(f"RMSE vs bound (×: efficiency RMSE/bound; %: coverage) — {board.mode}", fontsize="medium")
+    ax.set_title(f"RMSE vs bounds (×: RMSE / common bound; %: coverage) — {board.mode}", fontsize="medium")
     ax.legend(loc="upper right", fontsize="small", framealpha=0.9)
     return ax
 
@@ -66,7 +70,11 @@ def error_over_time(board, method: str, tag: str | None = None, ax=None, *, unit
     t = e.estimates.t_s
     err = np.where(e.scored, e.error_m, np.nan) * scale
     bnd = np.sqrt(e.bound_trace_m2) * scale
-    ax.fill_between(t, 0, bnd, color="#bdbdbd", alpha=0.6, step="mid", label=f"RMSE bound ({e.bound.kind})")
+    if e.bound is not None:
+        ax.fill_between(t, 0, bnd, color="#bdbdbd", alpha=0.6, step="mid", label=f"its own bound ({e.bound.kind})")
+    if e.common is not None:
+        ax.plot(t, np.sqrt(e.common_trace_m2) * scale, color="black", linewidth=0.8, linestyle="--",
+                label=f"common bound ({e.common.kind})")
     ax.plot(t, err, color=plotting.color_for(method), linewidth=0.9, label=f"{method} error")
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"error ({unit})")

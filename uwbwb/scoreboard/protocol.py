@@ -159,7 +159,8 @@ class Calibration:
             h = f", height {self.tag_height_m[tag]:.2f} m" if self.dim == 2 else ""
             lines.append(f"  tag {tag}: range σ {np.min(s):.3f}–{np.max(s):.3f} m (median {np.median(s):.3f}){h}")
         for name, p in self.tuned.items():
-            shown = {k: v for k, v in p.items() if np.ndim(v) == 0 and not hasattr(v, "__dataclass_fields__")}
+            shown = {k: v for k, v in p.items() if np.ndim(v) == 0 and not hasattr(v, "__dataclass_fields__")
+                     and not isinstance(v, Mapping)}
             if shown:
                 lines.append(f"  {name}: " + ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
                                                        for k, v in shown.items()))

@@ -1,0 +1,346 @@
+"""Is this recording scorable? Checks run before any method, with a diagnosis instead of a silent board.
+
+A recording brought by a user (a tidy folder, :mod:`uwbwb.datasets.tidy`) can be wrong in ways
+no loader sees: ranges or anchors in millimetres, a truth clock offset, x and y swapped, anchor
+positions that do not belong to the ranges labelled with them, an anchor that never answers,
+truth that does not cover the scored part, a 2-D truth without the tag height. Each of these
+used to give a board of nonsense (RMSE 315 m), a refusal from deep inside the calibration
+("scale must be positive") or an ``IndexError``. Here the measured ranges are compared with
+the ranges *predicted* from the anchors and the truth, before anything is fitted:
+
+* :func:`lift_truth` — a 2-D truth gets the tag height (given, or :func:`fit_tag_height`: the
+  height at which the predicted ranges fit the measured ones best on the calibration part);
+* :func:`drop_silent_anchors` — an anchor with fewer than ``min_samples`` ranges on the
+  calibration part is dropped from both parts and counted in the recordings' cleaning steps;
+* :func:`check_ranges_against_truth` — the median absolute residual
+  ``|r_measured − ‖p_truth − a‖|`` per anchor, the truth clock offset that minimises it (always
+  estimated and reported), and, where the residuals are gross, which single defect explains
+  them (units, swapped axes, clock offset, mislabelled or misplaced anchors);
+* :func:`check_overlap` — the scored part must hold at least :data:`MIN_SCORED_EPOCHS` epochs
+  with truth for every tag.
+
+The thresholds are in the module constants; they are generous (a UWB range bias is decimetres;
+these defects give metres).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..types import CleaningStep, RangeLog, Recording, Trajectory
+
+__all__ = ["MAX_RESIDUAL_M", "MIN_SCORED_EPOCHS", "MAX_OFFSET_S", "MIN_ANCHOR_SAMPLES", "RangeCheck",
+           "check_overlap", "check_ranges_against_truth", "drop_silent_anchors", "fit_tag_height", "lift_truth",
+           "shift_truth"]
+
+#: Median |measured − predicted| range (over anchors, of the per-anchor medians) above which a recording is refused.
+MAX_RESIDUAL_M = 1.0
+#: Fewest scored epochs with truth per tag: twice the board's 20 blocks of the block standard error.
+MIN_SCORED_EPOCHS = 40
+#: Largest truth clock offset searched, seconds.
+MAX_OFFSET_S = 10.0
+#: Fewest ranges an anchor must give on the calibration part (the range calibration's minimum per pair).
+MIN_ANCHOR_SAMPLES = 30
+#: A defect is named when undoing it brings the residual below :data:`MAX_RESIDUAL_M` and by this factor.
+EXPLAINS_FACTOR = 3.0
+
+
+def _where(rec: Recording) -> str:
+    files = rec.meta.get("source") if isinstance(rec.meta, Mapping) else None
+    if isinstance(files, Mapping):
+        shown = [str(v) for v in files.values() if isinstance(v, (str, Path))]
+        if shown:
+            return f"{rec.label} ({', '.join(shown)})"
+    return rec.label
+
+
+def _units_hint(rec: Recording) -> str:
+    """What the loader's cleaning says when ranges went missing as implausibly long."""
+    huge = [s for s in rec.cleaning if "implausible" in s.name]
+    if not huge:
+        return ""
+    return (" — the loader set ranges above its plausible maximum to missing (" + "; ".join(str(s) for s in huge)
+            + "): are the ranges in millimetres? range_m must be metres")
+
+
+def shift_truth(rec: Recording, offset_s: float) -> Recording:
+    """``rec`` with every truth time stamp moved by ``−offset_s`` (truth that runs ``offset_s`` late)."""
+    if not np.isfinite(offset_s):
+        raise ValueError(f"truth offset must be finite, got {offset_s!r}")
+    if offset_s == 0:
+        return rec
+    truth = {t: replace(tr, t_s=tr.t_s - float(offset_s)) for t, tr in rec.truth.items()}
+    step = CleaningStep("truth clock shifted", sum(len(tr) for tr in truth.values()),
+                        f"truth time stamps moved by {-offset_s:+.3f} s (given)")
+    return replace(rec, truth=truth, cleaning=(*rec.cleaning, step))
+
+
+def _predicted(pos_m: np.ndarray, anchor_pos_m: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(pos_m[:, None, :] - anchor_pos_m[None], axis=-1)
+
+
+def fit_tag_height(rec: Recording, tag: str, *, z_grid_m: np.ndarray | None = None) -> float:
+    """The height at which ranges predicted from a 2-D truth fit the measured ranges best.
+
+    Mean squared residual, each clipped at 1 m² (so that outliers do not decide), over a 1 cm grid
+    from 3 m below the lowest anchor to 3 m above the highest. Refused (``ValueError``) when the fit
+    is ambiguous — another local minimum of the cost (a mirror height when the anchors are nearly
+    coplanar) within 10 % of the best — or the best fit leaves gross residuals.
+    """
+    log, tr = rec.ranges[tag], rec.truth[tag]
+    a = rec.anchors.pos_m
+    inside = (log.t_s >= tr.t_s[0]) & (log.t_s <= tr.t_s[-1])
+    if inside.sum() < MIN_ANCHOR_SAMPLES:
+        raise ValueError(f"{_where(rec)}: only {int(inside.sum())} range epochs of tag {tag!r} lie within its truth; "
+                         f"cannot fit the tag height (give it: --tag-height-m)")
+    idx = np.flatnonzero(inside)[:: max(1, int(inside.sum()) // 2000)]
+    xy = tr.interp(log.t_s[idx])[:, :2]
+    r = log.range_m[idx]
+    z = np.arange(a[:, 2].min() - 3.0, a[:, 2].max() + 3.0, 0.01) if z_grid_m is None else np.asarray(z_grid_m)
+    d2 = np.sum((xy[:, None, :] - a[None, :, :2]) ** 2, axis=-1)                 # (T, n)
+    cost = np.array([np.nanmean(np.minimum((r - np.sqrt(d2 + (zk - a[:, 2]) ** 2)) ** 2, 1.0)) for zk in z])
+    best = int(np.nanargmin(cost))
+    lm = np.flatnonzero((cost[1:-1] < cost[:-2]) & (cost[1:-1] <= cost[2:])) + 1
+    rivals = [k for k in lm if k != best and cost[k] <= 1.1 * cost[best]]
+    med = float(np.nanmedian(np.abs(r - np.sqrt(d2 + (z[best] - a[:, 2]) ** 2))))
+    if med > MAX_RESIDUAL_M:
+        raise ValueError(f"{_where(rec)}: no tag height makes the ranges of tag {tag!r} fit its 2-D truth (best "
+                         f"median |residual| {med:.2f} m at z = {z[best]:.2f} m); check units and frames, "
+                         f"or give the height (--tag-height-m)")
+    if rivals:
+        raise ValueError(f"{_where(rec)}: the tag height of {tag!r} is ambiguous from its ranges (z = {z[best]:.2f} m "
+                         f"and z = {z[rivals[0]]:.2f} m fit alike: the anchors are nearly coplanar); give it "
+                         f"(--tag-height-m)")
+    return float(z[best])
+
+
+def lift_truth(rec: Recording, tag_height_m: Mapping[str, float] | float | None = None,
+               *, fit_on: Recording | None = None) -> tuple[Recording, dict[str, str]]:
+    """``rec`` with every 2-D truth made 3-D at the tag's height.
+
+    Parameters
+    ----------
+    tag_height_m
+        A height for every tag, or per tag; None: fitted (:func:`fit_tag_height`) on ``fit_on``.
+    fit_on
+        The recording whose ranges fit the height (the calibration part; default ``rec``).
+
+    Returns
+    -------
+    (Recording, dict)
+        The recording, and per lifted tag where its height came from.
+    """
+    truth, how = dict(rec.truth), {}
+    for tag, tr in rec.truth.items():
+        if tr.dim == 3:
+            continue
+        if isinstance(tag_height_m, Mapping):
+            h = tag_height_m.get(tag)
+        else:
+            h = tag_height_m
+        if h is None:
+            h = fit_tag_height(fit_on if fit_on is not None else rec, tag)
+            how[tag] = f"height {h:.2f} m fitted from the ranges of {(fit_on or rec).label}"
+        else:
+            if not np.isfinite(h):
+                raise ValueError(f"tag_height_m must be finite, got {h!r}")
+            how[tag] = f"height {float(h):.2f} m given"
+        truth[tag] = Trajectory(tr.t_s, np.column_stack([tr.pos_m, np.full(len(tr), float(h))]), name=tr.name)
+    return (replace(rec, truth=truth) if how else rec), how
+
+
+def drop_silent_anchors(cal: Recording, test: Recording, tags: Sequence[str], *,
+                        min_samples: int = MIN_ANCHOR_SAMPLES) -> tuple[Recording, Recording, tuple[str, ...]]:
+    """Drop anchors that give fewer than ``min_samples`` ranges to any of ``tags`` on ``cal``.
+
+    Such an anchor cannot be calibrated. It is removed from both recordings (their ``cleaning``
+    gets a counted step); a refusal only if fewer than three anchors remain.
+    """
+    n = np.array([np.isfinite(cal.ranges[t].range_m).sum(axis=0) for t in tags])        # (tags, anchors)
+    silent = np.any(n < min_samples, axis=0)
+    if not silent.any():
+        return cal, test, ()
+    ids = tuple(cal.anchors.ids)
+    dropped = tuple(i for i, s in zip(ids, silent) if s)
+    keep = ~silent
+    if keep.sum() < 3:
+        raise ValueError(f"{_where(cal)}: only {int(keep.sum())} anchors give at least {min_samples} ranges on the "
+                         f"calibration part ({', '.join(f'{a}: {int(k)}' for a, k in zip(ids, n.min(axis=0)))}); "
+                         f"at least 3 are needed{_units_hint(cal)}")
+
+    def cut(rec: Recording) -> Recording:
+        counts = {a: int(np.isfinite(log.range_m[:, ids.index(a)]).sum()) for log in rec.ranges.values()
+                  for a in dropped}
+        ranges = {t: RangeLog(log.t_s, log.range_m[:, keep], tuple(np.asarray(ids)[keep]), log.tag_id, log.t0)
+                  for t, log in rec.ranges.items()}
+        detail = ", ".join(f"{a} ({int(n.min(axis=0)[ids.index(a)])} ranges on the calibration part)"
+                           for a in dropped)
+        step = CleaningStep("silent anchors dropped", len(dropped),
+                            f"anchors {detail}: fewer than {min_samples} ranges, cannot be calibrated; "
+                            f"{sum(counts.values())} ranges of them removed here")
+        return replace(rec, anchors=rec.anchors.subset(tuple(np.asarray(ids)[keep])), ranges=ranges,
+                       cleaning=(*rec.cleaning, step))
+
+    return cut(cal), cut(test), dropped
+
+
+def check_overlap(rec: Recording, tags: Sequence[str], *, min_epochs: int = MIN_SCORED_EPOCHS,
+                  part: str = "scored part") -> dict[str, int]:
+    """Range epochs within the truth per tag; ``ValueError`` naming both spans if fewer than ``min_epochs``."""
+    out = {}
+    for tag in tags:
+        log, tr = rec.ranges[tag], rec.truth[tag]
+        n = int(np.sum((log.t_s >= tr.t_s[0]) & (log.t_s <= tr.t_s[-1]))) if len(tr) and len(log) else 0
+        if n < min_epochs:
+            span_r = f"{log.t_s[0]:.2f}–{log.t_s[-1]:.2f} s" if len(log) else "no epochs"
+            span_t = f"{tr.t_s[0]:.2f}–{tr.t_s[-1]:.2f} s" if len(tr) else "no samples"
+            raise ValueError(f"{_where(rec)}: tag {tag!r} has {n} epochs within its truth on the {part} (ranges "
+                             f"{span_r}, truth {span_t}); at least {min_epochs} are needed — the truth does not "
+                             f"cover the {part}, or --fraction leaves too little of it")
+        out[tag] = n
+    return out
+
+
+@dataclass(frozen=True)
+class RangeCheck:
+    """Measured against predicted ranges for one tag (:func:`check_ranges_against_truth`).
+
+    Attributes
+    ----------
+    tag
+        The tag.
+    residual_m
+        Median over anchors of the per-anchor median ``|r_measured − r_predicted|``, metres.
+    per_anchor_m
+        Per anchor id, its median absolute residual, metres.
+    offset_s
+        Truth clock offset that minimises the residual (truth time = range time + offset), seconds.
+    residual_at_offset_m
+        The residual with that offset applied, metres.
+    n_epochs
+        Range epochs compared.
+    """
+
+    tag: str
+    residual_m: float
+    per_anchor_m: Mapping[str, float]
+    offset_s: float
+    residual_at_offset_m: float
+    n_epochs: int
+
+    def describe(self) -> str:
+        return (f"tag {self.tag}: measured vs predicted ranges, median |residual| {self.residual_m:.3f} m over "
+                f"{self.n_epochs} epochs; truth clock offset estimate {self.offset_s:+.2f} s "
+                f"(residual {self.residual_at_offset_m:.3f} m there)")
+
+
+def _cost(r: np.ndarray, pred: np.ndarray) -> float:
+    per = np.nanmedian(np.abs(r - pred), axis=0)
+    return float(np.nanmedian(per)) if np.isfinite(per).any() else float("inf")
+
+
+def _offset(log: RangeLog, tr: Trajectory, a: np.ndarray, idx: np.ndarray, max_offset_s: float) -> tuple[float, float]:
+    """The truth clock offset minimising the residual: 0.1 s grid, then 5 ms around the best."""
+    r = log.range_m[idx]
+    t = log.t_s[idx]
+
+    def cost(tau):
+        ok = (t + tau >= tr.t_s[0]) & (t + tau <= tr.t_s[-1])
+        if ok.sum() < max(10, 0.2 * t.size):
+            return np.inf
+        return _cost(r[ok], _predicted(tr.interp(t[ok] + tau), a))
+
+    coarse = np.arange(-max_offset_s, max_offset_s + 1e-9, 0.1)
+    c = np.array([cost(x) for x in coarse])
+    if not np.isfinite(c).any():
+        return 0.0, float("inf")
+    best = coarse[int(np.argmin(c))]
+    fine = np.arange(best - 0.1, best + 0.1 + 1e-9, 0.005)
+    f = np.array([cost(x) for x in fine])
+    k = int(np.argmin(f))
+    return float(fine[k]), float(f[k])
+
+
+def check_ranges_against_truth(rec: Recording, tag: str, *, max_residual_m: float = MAX_RESIDUAL_M,
+                               max_offset_s: float = MAX_OFFSET_S) -> RangeCheck:
+    """Compare ``tag``'s measured ranges with those predicted from the anchors and its (3-D) truth.
+
+    Returns the :class:`RangeCheck` when the median residual is at most ``max_residual_m``;
+    otherwise raises ``ValueError`` with the diagnosis: which single defect (ranges in mm,
+    anchors in mm, truth in mm, x/y swapped, a truth clock offset, anchors whose ranges fit another
+    anchor's position, anchors that fit nothing) brings the residual down, or the per-anchor
+    residuals when none does.
+    """
+    log, tr = rec.ranges[tag], rec.truth[tag]
+    a = rec.anchors.pos_m
+    where = _where(rec)
+    if tr.dim != 3:
+        raise ValueError(f"{where}: truth of tag {tag!r} is 2-D; lift it to the tag height first (lift_truth)")
+    n_finite = int(np.isfinite(log.range_m).sum())
+    if n_finite < MIN_ANCHOR_SAMPLES:
+        raise ValueError(f"{where}: tag {tag!r} has only {n_finite} valid ranges{_units_hint(rec)}")
+    inside = (log.t_s >= tr.t_s[0]) & (log.t_s <= tr.t_s[-1])
+    ok_offset = True
+    if inside.sum() < 10:
+        ok_offset = False
+    idx = np.flatnonzero(inside)
+    idx = idx[:: max(1, idx.size // 1500)]
+    if ok_offset:
+        pred = _predicted(tr.interp(log.t_s[idx]), a)
+        r = log.range_m[idx]
+        per = np.nanmedian(np.abs(r - pred), axis=0)
+        base = float(np.nanmedian(per))
+    else:
+        per, base = np.full(len(a), np.nan), float("inf")
+    all_idx = np.arange(len(log))[:: max(1, len(log) // 1500)]
+    off, at_off = _offset(log, tr, a, all_idx, max_offset_s)
+    check = RangeCheck(tag, base, dict(zip(rec.anchors.ids, per.tolist())), off, at_off, int(idx.size))
+    if base <= max_residual_m and not np.any(per > max_residual_m):
+        return check
+    if not ok_offset and not np.isfinite(at_off):
+        raise ValueError(f"{where}: the truth of tag {tag!r} ({tr.t_s[0]:.2f}–{tr.t_s[-1]:.2f} s) does not overlap "
+                         f"its ranges ({log.t_s[0]:.2f}–{log.t_s[-1]:.2f} s), even {max_offset_s:g} s apart")
+    # which single defect explains the residuals?
+    r = log.range_m[idx]
+    pos = tr.interp(log.t_s[idx])
+    trials = {
+        "the ranges look like millimetres (range_m must be metres)": (r / 1000.0, _predicted(pos, a)),
+        "the ranges look like centimetres (range_m must be metres)": (r / 100.0, _predicted(pos, a)),
+        "the anchor positions look like millimetres (x_m, y_m, z_m must be metres)": (r, _predicted(pos, a / 1000.0)),
+        "the truth positions look like millimetres (x_m, y_m, z_m must be metres)": (r, _predicted(pos / 1000.0, a)),
+        "x and y of the truth look swapped relative to the anchors": (r, _predicted(pos[:, [1, 0, 2]], a)),
+        "x and y of the anchors look swapped relative to the truth": (r, _predicted(pos, a[:, [1, 0, 2]])),
+    }
+    costs = {k: _cost(*v) for k, v in trials.items()} if base > max_residual_m else {}
+    costs[f"the truth clock is offset: truth time = range time {off:+.2f} s (shift the truth, e.g. "
+          f"--truth-offset-s {off:.2f})"] = at_off
+    best = min(costs, key=costs.get)
+    head = (f"{where}: measured ranges of tag {tag!r} do not fit the ranges predicted from the anchors and the "
+            f"truth (median |residual| {base:.2f} m over {idx.size} epochs, worst anchor {np.nanmax(per):.2f} m; "
+            f"at most {max_residual_m:g} m expected)")
+    if costs[best] <= max_residual_m and costs[best] * EXPLAINS_FACTOR <= base:
+        raise ValueError(f"{head}: {best} — undoing it leaves {costs[best]:.3f} m")
+    # per anchor: do the ranges labelled i fit another anchor's position, or none?
+    ids = rec.anchors.ids
+    bad = [i for i, p in enumerate(per) if not p <= max_residual_m]
+    good = len(per) - len(bad)
+    pred = _predicted(pos, a)
+    lines, matched = [], 0
+    for i in bad:
+        cross = np.nanmedian(np.abs(r[:, [i]] - pred), axis=0)
+        j = int(np.nanargmin(cross)) if np.isfinite(cross).any() else i
+        if j != i and cross[j] <= max_residual_m:
+            matched += 1
+            lines.append(f"the ranges labelled {ids[i]} fit the position of {ids[j]} (residual {cross[j]:.2f} m "
+                         f"vs {per[i]:.2f} m for its own)")
+        else:
+            lines.append(f"the position of {ids[i]} does not fit its ranges (residual {per[i]:.2f} m)")
+    if bad and (matched or good >= 3):
+        raise ValueError(f"{head}: anchors.csv does not match the ranges: " + "; ".join(lines))
+    shown = ", ".join(f"{i}: {p:.2f} m" for i, p in zip(ids, per))
+    raise ValueError(f"{head}; no single unit, axis or clock defect explains it (per anchor: {shown}); check that "
+                     f"anchors, ranges and truth share one frame, metres and one clock")

@@ -1,0 +1,124 @@
+"""One common bound per recording, against which every method is placed.
+
+Each method's *own* bound (:meth:`~.estimators.Estimator.bound`) uses that method's own
+measurement and motion model with its own tuning: RMSE / own bound near 1 says the method
+does what its model promises (a consistency check), but the ratios of two methods are not
+comparable — a method with a poor model has a loose bound and looks "efficient".
+
+The **common bound** is the same for every method on a recording:
+
+* *motion model*: of the random-walk, random-force and random-jerk models
+  (:mod:`uwbwb.models.motion`) with driving noise on the grid :data:`REFERENCE_GRIDS`, the one
+  with the highest likelihood of the **calibration** part's truth at the board's epochs
+  (:func:`uwbwb.bounds.motion_log_likelihood`; the truth observed with white noise
+  :data:`TRUTH_SIGMA_M`, an assumption; one free parameter per model, so the likelihoods are
+  compared directly);
+* *measurements*: every range of the scoring part at the calibrated per-anchor range noise
+  (the robust σ of the calibration residuals), Gaussian, unbiased after the calibration — the
+  range information, which holds all the TDoA information and the common offset besides;
+* *bound*: the posterior CRLB (Tichavský recursion, :func:`uwbwb.bounds.tracking_bound`) of
+  that model along the scoring part's true track, from a prior of 1 m per axis in position and
+  1 unit in each higher derivative at the tag's first epoch, horizontal block.
+
+It is what an unbiased estimator that knows the fitted motion prior and the Gaussian range
+noise could reach on average over the model's tracks — not a bound on this one track (a track
+smoother than its model can be tracked better), and not a bound for a method with other
+information: the UWB/INS filters also use an IMU, so they may legitimately go below it.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .. import bounds
+from ..models.motion import make_motion_model
+from ..types import Recording
+from .estimators import calibrated_log, truth_at
+from .protocol import Calibration
+
+__all__ = ["REFERENCE", "REFERENCE_GRIDS", "TRUTH_SIGMA_M", "common_bound", "fit_reference_motion"]
+
+#: Key of the common bound's motion model in :attr:`Calibration.tuned`.
+REFERENCE = "common bound"
+#: Driving-noise grids (model units m/s, m/s², m/s³) searched for the common bound's motion model.
+REFERENCE_GRIDS = {"RW": np.geomspace(0.01, 10.0, 13), "RF": np.geomspace(0.01, 50.0, 13),
+                   "RJ": np.geomspace(0.01, 500.0, 13)}
+#: Observation noise of the truth assumed when fitting the motion model, metres (an assumption:
+#: motion capture is good to millimetres; a larger value favours smoother models).
+TRUTH_SIGMA_M = 0.005
+
+
+def _truth_runs(rec: Recording, tag: str, cal: Calibration) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Contiguous stretches of truth at the tag's epochs (split at truth gaps), ``(t_s, pos_m)``."""
+    t = rec.ranges[tag].t_s
+    pos = truth_at(rec, tag, t, cal.dim)
+    ok = np.all(np.isfinite(pos), axis=1)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(int), [0]])))
+    return [(t[a:b], pos[a:b]) for a, b in zip(edges[::2], edges[1::2]) if b - a > 5]
+
+
+def fit_reference_motion(rec: Recording, tags: Sequence[str], cal: Calibration,
+                         grids: Mapping[str, Sequence[float]] | None = None) -> dict:
+    """Choose the common bound's motion model on the calibration part ``rec`` (module docstring).
+
+    Returns
+    -------
+    dict
+        ``model`` and ``sigma_w`` chosen; ``loglik_per_epoch`` per model (at its best σ_w) and
+        ``sigma_w_per_model``; ``n_epochs`` used. Empty if no tag has 10 epochs of truth.
+    """
+    grids = REFERENCE_GRIDS if grids is None else grids
+    runs = [r for t in tags for r in _truth_runs(rec, t, cal)]
+    n = sum(r[0].size for r in runs)
+    if n < 10:
+        return {}
+    dt = 1.0 / cal.rate_hz
+    best = {}
+    for name, grid in grids.items():
+        models = [make_motion_model(name, sigma=float(s), dt_s=dt, dim=cal.dim) for s in grid]
+        ll = sum(bounds.motion_log_likelihood(models, t, p, TRUTH_SIGMA_M, skip=3) for t, p in runs)
+        k = int(np.argmax(ll))
+        best[name] = (float(grid[k]), float(ll[k]) / n)
+    model = max(best, key=lambda m: best[m][1])
+    return {"model": model, "sigma_w": best[model][0], "n_epochs": int(n),
+            "loglik_per_epoch": {m: v[1] for m, v in best.items()},
+            "sigma_w_per_model": {m: v[0] for m, v in best.items()}}
+
+
+def describe(cal: Calibration) -> str:
+    """What the common bound is, in one sentence (empty if the calibration has none)."""
+    p = cal.params(REFERENCE)
+    if "model" not in p:
+        return ""
+    unit = {"RW": "m/s", "RF": "m/s²", "RJ": "m/s³"}[p["model"]]
+    others = ", ".join(f"{m} {v:+.2f}" for m, v in p["loglik_per_epoch"].items())
+    return (f"common bound: posterior CRLB of the {p['model']} model, σ_w = {p['sigma_w']:.3g} {unit} (highest "
+            f"likelihood of the calibration truth over {p['n_epochs']} epochs; log-likelihood per epoch {others}), "
+            f"with every range at the calibrated per-anchor range noise")
+
+
+def common_bound(rec: Recording, tag: str, cal: Calibration, t_s: np.ndarray | None = None) -> bounds.Bound | None:
+    """The common bound along ``tag``'s epochs of the scoring part ``rec`` (None if ``cal`` has no model).
+
+    The recursion runs over every epoch of the tag (from the first with truth); epochs without
+    truth carry no information and get NaN.
+    """
+    p = cal.params(REFERENCE)
+    if "model" not in p:
+        return None
+    log = calibrated_log(rec, tag, cal)
+    pos = truth_at(rec, tag, log.t_s, cal.dim)
+    have = np.all(np.isfinite(pos), axis=1)
+    C = np.full((len(log), cal.dim, cal.dim), np.nan)
+    kind = f"PCRLB {p['model']} (common)"
+    if have.any():
+        info = np.zeros((len(log), cal.dim, cal.dim))
+        info[have] = bounds.range_information(pos[have], rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
+                                              mask=np.isfinite(log.range_m[have]))
+        motion = make_motion_model(p["model"], sigma=p["sigma_w"], dt_s=1.0 / cal.rate_hz, dim=cal.dim)
+        k0 = int(np.flatnonzero(have)[0])
+        C[k0:] = bounds.tracking_bound(motion, log.t_s[k0:], info[k0:], motion.initial_covariance(1.0, 1.0, 1.0))
+        C[~have] = np.nan
+    return bounds.Bound(log.t_s, C, kind)
