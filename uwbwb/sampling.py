@@ -48,6 +48,7 @@ from scipy import stats
 
 from . import parallel
 from .models.doppler import DopplerModel
+from .validate import integer, number, probability
 
 __all__ = ["SearchBox", "FractionEstimate", "GhostSamples", "SamplerResult", "chunk_seeds",
            "brute_force", "conditional", "clopper_pearson", "ranging_region", "DEFAULT_THRESHOLDS_M"]
@@ -134,8 +135,9 @@ class GhostSamples:
 class SamplerResult:
     """Fractions per threshold and the kept samples of one sampler run.
 
-    ``peak_bytes`` is the largest memory the sampler itself held at once (buffers
-    of the chunks in flight plus the kept samples), not counting the interpreter.
+    ``peak_bytes`` is a *computed* size, not a measurement: the buffers of the chunks
+    in flight plus the kept samples (a lower bound on what the run held; measure with
+    :mod:`tracemalloc` around the call for the real peak, as notebook 04 does).
     """
 
     estimates: tuple[FractionEstimate, ...]
@@ -216,10 +218,23 @@ def ranging_region(model: DopplerModel, ref_pos_m, threshold_m: float) -> tuple[
 
 
 def _thresholds(thresholds_m) -> np.ndarray:
-    t = np.sort(np.asarray(thresholds_m, float))
-    if t.ndim != 1 or t.size == 0 or np.any(t <= 0):
-        raise ValueError(f"thresholds must be positive, got {thresholds_m!r}")
+    try:
+        t = np.sort(np.asarray(thresholds_m, float))
+    except (TypeError, ValueError):
+        t = np.full(1, np.nan)
+    if t.ndim != 1 or t.size == 0 or not np.all(np.isfinite(t)) or np.any(t <= 0):
+        raise ValueError(f"thresholds_m must be one or more finite values > 0 (m), got {thresholds_m!r}")
     return t
+
+
+def _common(model, n, n_name, chunk_size, workers, confidence):
+    """Checks shared by both samplers (each raises a ValueError naming the parameter)."""
+    if not isinstance(model, DopplerModel):
+        raise ValueError(f"model must be a DopplerModel, got {type(model).__name__}")
+    integer(n_name, n, minimum=1)
+    integer("chunk_size", chunk_size, minimum=1)
+    integer("workers", workers, minimum=1)
+    probability("confidence", confidence)
 
 
 def _run_chunks(fn, plan, workers: int, progress: bool, desc: str, scheduler=None):
@@ -327,8 +342,10 @@ def brute_force(model: DopplerModel, ref_pos_m, ref_vel_mps, n_draws: int, *, se
     SamplerResult
         Estimator ``"brute force"``; Clopper–Pearson intervals.
     """
+    _common(model, n_draws, "n_draws", chunk_size, workers, confidence)
     tau = _thresholds(thresholds_m)
-    keep = 0.0 if keep_below_m is None else float(keep_below_m)
+    keep = 0.0 if keep_below_m is None else number("keep_below_m", keep_below_m, minimum=0.0)
+    max_kept_per_chunk = integer("max_kept_per_chunk", max_kept_per_chunk, minimum=0)
     b, rho = _reference(model, ref_pos_m, ref_vel_mps, ranges)
     T = np.ascontiguousarray(model.beacons.pos_m)
     P = np.ascontiguousarray(model.period_s)
@@ -358,14 +375,14 @@ def brute_force(model: DopplerModel, ref_pos_m, ref_vel_mps, n_draws: int, *, se
 
 # ----------------------------------------------------------------------------------- conditional
 
-def _conditional_chunk(model: DopplerModel, b, rho_ref, ranges, box: SearchBox, tau, draws, rng, n, ball):
+def _conditional_chunk(model: DopplerModel, b, rho_ref, ranges, box: SearchBox, tau, draws, rng, n, region):
     T, P, v_s = model.beacons.pos_m, model.period_s, model.v_s_mps
     tau_max = tau[-1]
-    if ball is None:
+    if region is None:
         X = rng.uniform(box.pos_lo_m, box.pos_hi_m, (n, 3))
         w_x = 1.0
     else:                                      # uniform in the parallelepiped that holds the whole set
-        centre, M, half, volume = ball
+        centre, M, half, volume = region
         X = centre + np.linalg.solve(M, (rng.uniform(-1.0, 1.0, (n, 3)) * half).T).T
         w_x = volume / (box.pos_hi_m - box.pos_lo_m) ** 3
     d = X[:, None, :] - T
@@ -430,20 +447,20 @@ def conditional(model: DopplerModel, ref_pos_m, ref_vel_mps, n_positions: int, *
         per-position estimates (NaN when fewer than 10 positions contribute). Kept samples are every draw with δ below the largest
         threshold, weighted so that ``sum(weight)`` estimates the fraction.
     """
+    _common(model, n_positions, "n_positions", chunk_size, workers, confidence)
     tau = _thresholds(thresholds_m)
-    if draws_per_position < 1:
-        raise ValueError(f"draws_per_position must be >= 1, got {draws_per_position}")
+    integer("draws_per_position", draws_per_position, minimum=1)
     b, rho = _reference(model, ref_pos_m, ref_vel_mps, ranges)
     if np.any(model.v_s_mps * model.period_s <= np.abs(b) + tau[-1]):
         raise ValueError("threshold too large for the linear bound of the conditional estimator")
     plan = chunk_seeds(seed, n_positions, chunk_size)
-    ball = None
+    region = None
     if ranges:
-        ball = (np.asarray(ref_pos_m, float), *ranging_region(model, ref_pos_m, tau[-1]))
+        region = (np.asarray(ref_pos_m, float), *ranging_region(model, ref_pos_m, tau[-1]))
 
     def run(ss, n):
         p_hat, kept, n_eval = _conditional_chunk(model, b, rho, ranges, box, tau, draws_per_position,
-                                                 np.random.default_rng(ss), n, ball)
+                                                 np.random.default_rng(ss), n, region)
         return p_hat.sum(axis=0), (p_hat ** 2).sum(axis=0), n_eval, kept, np.count_nonzero(p_hat, axis=0)
 
     results = _run_chunks(run, plan, workers, progress, "conditional", scheduler)
@@ -467,4 +484,4 @@ def conditional(model: DopplerModel, ref_pos_m, ref_vel_mps, n_positions: int, *
     peak = min(workers, len(plan)) * per_chunk + kept.nbytes
     return SamplerResult(estimates, samples, len(plan), int(peak), 0,
                          {"seed": seed, "chunk_size": chunk_size, "ranges": ranges,
-                          "position region volume (m³)": None if ball is None else ball[3]})
+                          "position region volume (m³)": None if region is None else region[3]})

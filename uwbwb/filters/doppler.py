@@ -10,7 +10,8 @@
 * :class:`ScaatMhEkf` — the Kalman filter of section 4.1: single constraint at a
   time (SCAAT) EKF on eq 1, one hypothesis per plausible source of an ambiguous
   chirp (including noise), pruned by likelihood. Built on
-  :class:`uwbwb.filters.ekf.Ekf`.
+  :class:`uwbwb.filters.ekf.Ekf` with :class:`DopplerMeasurement` (the EKF's view
+  of :class:`~uwbwb.models.doppler.DopplerModel`).
 
 Both filters take the same :class:`~uwbwb.models.doppler.DopplerModel` (eq 1,
 noise) and :class:`~uwbwb.models.doppler.ReceiverMotion`, and return
@@ -26,12 +27,38 @@ import numpy as np
 from .. import parallel
 from ..models.doppler import DopplerModel, ReceiverMotion
 from ..types import ChirpFlag, ChirpLog, EstimateStatus, Estimates
+from ..validate import integer, number, probability
 from . import kalman
-from .ekf import Ekf
+from .ekf import Ekf, Linearisation
 from .kalman import Gaussian
-from .particle import normalise_log_weights, resample, roughen
+from .particle import effective_sample_size, normalise_log_weights, resample, roughen
 
-__all__ = ["assign_chirps", "clock_pseudo_ranges", "DopplerPf", "PfRuns", "ScaatMhEkf"]
+__all__ = ["assign_chirps", "clock_pseudo_ranges", "DopplerMeasurement", "DopplerPf", "PfRuns", "ScaatMhEkf"]
+
+
+def _check_model(owner: str, model) -> None:
+    if not isinstance(model, DopplerModel):
+        raise ValueError(f"{owner}: model must be a DopplerModel, got {type(model).__name__}")
+
+
+def _check_motion(owner: str, motion) -> None:
+    if not isinstance(motion, ReceiverMotion):
+        raise ValueError(f"{owner}: motion must be a ReceiverMotion, got {type(motion).__name__}")
+
+
+def _check_log(owner: str, log) -> None:
+    if not isinstance(log, ChirpLog):
+        raise ValueError(f"{owner}: log must be a ChirpLog, got {type(log).__name__}")
+
+
+def _per_row(name: str, values, n: int) -> np.ndarray:
+    """An optional per-row array of ``log`` (pseudo-ranges): shape ``(n,)``, finite or NaN, ≥ 0."""
+    a = np.asarray(values, float)
+    if a.shape != (n,):
+        raise ValueError(f"{name} must have one value per row of the chirp log, shape ({n},), got {a.shape}")
+    if np.any(np.isinf(a)) or np.any(a[np.isfinite(a)] < 0):
+        raise ValueError(f"{name} must be >= 0 (NaN: none), got an infinite or negative value")
+    return a
 
 
 # ------------------------------------------------------------------------------------ front end
@@ -59,7 +86,12 @@ def assign_chirps(t_s, model: DopplerModel, *, window_s: float = 0.004, max_gap:
     max_gap
         Largest number of periods bridged over missed chirps.
     """
+    _check_model("assign_chirps", model)
+    window_s = number("window_s", window_s, minimum=0.0, strict_minimum=True)
+    max_gap = integer("max_gap", max_gap, minimum=1)
     t_s = np.asarray(t_s, float)
+    if t_s.ndim != 1 or not np.all(np.isfinite(t_s)) or np.any(np.diff(t_s) <= 0):
+        raise ValueError("t_s must be a 1-D array of finite, strictly increasing arrival times")
     P = model.period_s
     n = P.size
     last = np.full(n, np.nan)
@@ -108,7 +140,12 @@ def clock_pseudo_ranges(log: ChirpLog, model: DopplerModel, phase_s) -> np.ndarr
     ``phase_s[i]`` and period ``P_i``) places last before the arrival (flights last
     tens of milliseconds, far less than a period). NaN where the row has no beacon.
     """
+    _check_log("clock_pseudo_ranges", log)
+    _check_model("clock_pseudo_ranges", model)
     phase = np.asarray(phase_s, float)
+    if phase.shape != (model.n_beacons,) or not np.all(np.isfinite(phase)):
+        raise ValueError(f"phase_s must hold one finite phase per beacon, shape ({model.n_beacons},), "
+                         f"got {phase.shape}")
     out = np.full(len(log), np.nan)
     ok = log.beacon >= 0
     i = log.beacon[ok]
@@ -141,6 +178,10 @@ class PfRuns:
         Effective sample size after each update, shape ``(R, T)``.
     name
         Label of the filter.
+    meta
+        ``rows`` (rows of the log used), ``n_particles``, ``restarts`` (per run: times
+        every particle had left the room and the run was started again) and ``tempered``
+        (per run: share of updates that were tempered, :attr:`DopplerPf.temper_ess`).
     """
 
     t_s: np.ndarray
@@ -158,6 +199,11 @@ class PfRuns:
         """Run ``run`` as the common :class:`~uwbwb.types.Estimates` (status UPDATED at every chirp used)."""
         return Estimates(self.t_s, self.pos_m[run], np.full(self.t_s.size, EstimateStatus.UPDATED, np.int8),
                          self.name, vel_mps=self.vel_mps[run], info={"ess": self.ess[run]})
+
+    @property
+    def restarts(self) -> np.ndarray:
+        """Restarts per run, shape ``(R,)`` (zeros when not recorded)."""
+        return np.asarray(self.meta.get("restarts", np.zeros(self.n_runs, int)))
 
     def at(self, t_s: float) -> np.ndarray:
         """Every run's position estimate at the last update at or before ``t_s``, shape ``(R, 3)``."""
@@ -178,24 +224,38 @@ class DopplerPf:
     motion
         Random-acceleration motion of the particles.
     n_particles
-        Particles per run.
+        Particles per run (≥ 2).
     room_lo_m, room_hi_m
-        The room (3 values each): initial positions are uniform in it, and particles
-        that leave it get zero weight (the receiver is known to be inside the room;
-        without this, Doppler ghosts far below the floor attract the particles).
+        The room (3 finite values each, ``hi > lo``): initial positions are uniform in it,
+        and particles that leave it get zero weight (the receiver is known to be inside the
+        room; without this, Doppler ghosts far below the floor attract the particles).
     init_speed_mps
-        Initial velocities are uniform in ``[−init_speed, init_speed]³``.
+        Initial velocities are uniform in ``[−init_speed, init_speed]³`` (> 0).
     resample_threshold
-        Resample when ESS < threshold · K (systematic).
+        Resample when ESS < threshold · K (systematic), in ``[0, 1]``.
     roughening
         Roughening constant applied after each resampling (:func:`~uwbwb.filters.particle.roughen`;
-        0 = none). One ΔP is far narrower than the prior, so without it the first
+        0 = none, ≥ 0). One ΔP is far narrower than the prior, so without it the first
         updates collapse the particles onto a handful of states.
     outlier_prob
-        Probability that a used ΔP is an outlier (a chirp given to the wrong beacon by
-        the front end), uniform over ``±outlier_window_s``: the likelihood is
+        Probability in ``[0, 1)`` that a used ΔP is an outlier (a chirp given to the wrong
+        beacon by the front end), uniform over ``±outlier_window_s``: the likelihood is
         ``(1 − ε) N(ΔP; h, σ²) + ε / (2 · window)``, so one bad chirp cannot wipe out
         every particle.
+    outlier_window_s
+        Half-width of the outlier density (> 0), seconds of ΔP.
+    temper_ess
+        Tempered update, as a fraction of ``K`` in ``[0, 1)`` (0 = off): where the full
+        likelihood would leave fewer than ``temper_ess · K`` effective particles, the
+        update uses ``likelihood^β`` with the largest ``β ≤ 1`` that keeps that many
+        (found by bisection per run). A likelihood far sharper than the cloud's
+        resolution (1.5 cm pseudo-ranges against a room-sized cloud of a thousand
+        particles) would otherwise collapse the cloud onto one wrong particle, after
+        which every measurement lands in the outlier floor and the run never recovers;
+        tempering gives up that update's excess sharpness instead (an approximation
+        on those updates, reported per run in ``PfRuns.meta["tempered"]``). Chosen on
+        recordings other than the scored ones: 0.02 (0.1 already keeps the cloud from
+        ever sharpening with pseudo-ranges).
     use_ambiguous
         Also use chirps flagged ``AMBIGUOUS`` (as assigned by the front end).
 
@@ -213,14 +273,46 @@ class DopplerPf:
     roughening: float = 0.2
     outlier_prob: float = 0.05
     outlier_window_s: float = 0.004
+    temper_ess: float = 0.02
     use_ambiguous: bool = False
     name: str = "PF"
 
     def __post_init__(self):
-        if self.n_particles < 2:
-            raise ValueError(f"n_particles must be >= 2, got {self.n_particles}")
-        if not np.all(np.asarray(self.room_hi_m) > np.asarray(self.room_lo_m)):
+        _check_model("DopplerPf", self.model)
+        _check_motion("DopplerPf", self.motion)
+        object.__setattr__(self, "n_particles", integer("n_particles", self.n_particles, minimum=2))
+        room = []
+        for name in ("room_lo_m", "room_hi_m"):
+            try:
+                v = np.asarray(getattr(self, name), float)
+            except (TypeError, ValueError):
+                v = np.full(1, np.nan)
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ValueError(f"{name} must be three finite values (m), got {getattr(self, name)!r}")
+            room.append(tuple(float(c) for c in v))
+        if not np.all(np.asarray(room[1]) > np.asarray(room[0])):
             raise ValueError("room_hi_m must exceed room_lo_m on every axis")
+        object.__setattr__(self, "room_lo_m", room[0])
+        object.__setattr__(self, "room_hi_m", room[1])
+        object.__setattr__(self, "init_speed_mps",
+                           number("init_speed_mps", self.init_speed_mps, minimum=0.0, strict_minimum=True))
+        object.__setattr__(self, "resample_threshold",
+                           probability("resample_threshold", self.resample_threshold, open_interval=False))
+        object.__setattr__(self, "roughening", number("roughening", self.roughening, minimum=0.0))
+        p = probability("outlier_prob", self.outlier_prob, open_interval=False)
+        if p >= 1.0:
+            raise ValueError(f"outlier_prob must be a number in [0, 1), got {self.outlier_prob!r}")
+        object.__setattr__(self, "outlier_prob", p)
+        object.__setattr__(self, "outlier_window_s",
+                           number("outlier_window_s", self.outlier_window_s, minimum=0.0, strict_minimum=True))
+        t = probability("temper_ess", self.temper_ess, open_interval=False)
+        if t >= 1.0:
+            raise ValueError(f"temper_ess must be a number in [0, 1), got {self.temper_ess!r}")
+        object.__setattr__(self, "temper_ess", t)
+        if not isinstance(self.use_ambiguous, (bool, np.bool_)):
+            raise ValueError(f"use_ambiguous must be True or False, got {self.use_ambiguous!r}")
+        if not isinstance(self.name, str):
+            raise ValueError(f"name must be text, got {self.name!r}")
 
     def run(self, log: ChirpLog, *, n_runs: int = 1, rng: np.random.Generator, ranges_m=None,
             block_runs: int = 100, progress: bool | None = False, workers: int = 1, scheduler=None) -> PfRuns:
@@ -240,13 +332,17 @@ class DopplerPf:
             Threads in this process, or a Dask scheduler (``"local"``, an address or a
             ``distributed.Client``): where the blocks run (:mod:`uwbwb.parallel`).
         """
+        _check_log("DopplerPf.run", log)
+        if not isinstance(rng, np.random.Generator):
+            raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+        n_runs = integer("n_runs", n_runs, minimum=1)
+        block_runs = integer("block_runs", block_runs, minimum=1)
+        workers = integer("workers", workers, minimum=1)
+        ranges_m = None if ranges_m is None else _per_row("ranges_m", ranges_m, len(log))
         rows = _rows(log, self.use_ambiguous)
         if rows.size == 0:
             raise ValueError("the chirp log has no usable ΔP measurement")
-        if n_runs < 1 or block_runs < 1:
-            raise ValueError(f"n_runs and block_runs must be >= 1, got {n_runs}, {block_runs}")
-        meas = (log.t_s[rows], log.beacon[rows], log.dp_s[rows],
-                None if ranges_m is None else np.asarray(ranges_m, float)[rows])
+        meas = (log.t_s[rows], log.beacon[rows], log.dp_s[rows], None if ranges_m is None else ranges_m[rows])
         starts = range(0, n_runs, block_runs)
         tasks = [parallel.Task({"start": s, "n_runs": min(block_runs, n_runs - s)}, seed=ss,
                                size=min(block_runs, n_runs - s))
@@ -255,15 +351,43 @@ class DopplerPf:
         vel = np.empty((n_runs, rows.size, 3))
         ess = np.empty((n_runs, rows.size))
         restarts = np.zeros(n_runs, int)
+        tempered = np.zeros(n_runs)
         for task, out in parallel.imap(_pf_block, tasks, shared={"pf": self, "meas": meas}, scheduler=scheduler,
                                        workers=workers, progress=progress, desc=self.name, unit="run"):
             sl = slice(task.params["start"], task.params["start"] + task.params["n_runs"])
-            pos[sl], vel[sl], ess[sl], restarts[sl] = out
+            pos[sl], vel[sl], ess[sl], restarts[sl], tempered[sl] = out
         return PfRuns(meas[0], pos, vel, ess, self.name, {"rows": rows, "n_particles": self.n_particles,
-                                                          "restarts": restarts})
+                                                          "restarts": restarts, "tempered": tempered})
+
+    def _log_likelihood(self, x, beacon, dp_s, range_m):
+        """Per-particle log-likelihood of one chirp, with the outlier mixture; shape ``x.shape[:-1]``."""
+        ll = self.model.log_likelihood(x[..., :3], x[..., 3:], np.int64(beacon), dp_s, range_m=range_m)
+        if self.outlier_prob > 0:
+            ll = np.logaddexp(np.log1p(-self.outlier_prob) + ll,
+                              np.log(self.outlier_prob / (2 * self.outlier_window_s)))
+        return ll
+
+    def _tempering(self, logw: np.ndarray, ll: np.ndarray) -> np.ndarray:
+        """Per run, the largest ``β ≤ 1`` with ``ESS(logw + β ll) ≥ temper_ess · K`` (1 where the full update
+        keeps that many; 16 bisection steps otherwise). ``logw`` (R, K) may hold −inf; ``ll`` is finite."""
+        R, K = logw.shape
+        beta = np.ones(R)
+        if self.temper_ess <= 0:
+            return beta
+        target = self.temper_ess * K
+        need = effective_sample_size(logw + ll) < target
+        if need.any():
+            lo, hi = np.zeros(int(need.sum())), np.ones(int(need.sum()))
+            lw, l = logw[need], ll[need]
+            for _ in range(16):
+                mid = 0.5 * (lo + hi)
+                ok = effective_sample_size(lw + mid[:, None] * l) >= target
+                lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
+            beta[need] = lo
+        return beta
 
     def _run_block(self, meas, R: int, rng: np.random.Generator):
-        """``R`` runs over the measurements ``(t, beacon, ΔP, range or None)``: positions, velocities, ESS, restarts."""
+        """``R`` runs over ``(t, beacon, ΔP, range or None)``: positions, velocities, ESS, restarts, tempered share."""
         t, b, dp, rng_r = meas
         K = self.n_particles
         lo, hi = np.asarray(self.room_lo_m, float), np.asarray(self.room_hi_m, float)
@@ -271,6 +395,7 @@ class DopplerPf:
         vel = np.empty((R, t.size, 3))
         ess = np.empty((R, t.size))
         restarts = np.zeros(R, int)
+        n_tempered = np.zeros(R)
         x = self._draw(rng, R, lo, hi)
         logw = np.full((R, K), -np.log(K))
         t_prev = t[0]
@@ -287,11 +412,11 @@ class DopplerPf:
                 logw[lost] = -np.log(K)
                 inside[lost] = True
                 restarts += lost
-            ll = self.model.log_likelihood(x[..., :3], x[..., 3:], np.int64(b[k]), dp[k], range_m=r_k)
-            if self.outlier_prob > 0:
-                ll = np.logaddexp(np.log1p(-self.outlier_prob) + ll,
-                                  np.log(self.outlier_prob / (2 * self.outlier_window_s)))
-            logw, _ = normalise_log_weights(np.where(inside, logw + ll, -np.inf))
+            ll = self._log_likelihood(x, b[k], dp[k], r_k)
+            prior = np.where(inside, logw, -np.inf)
+            beta = self._tempering(prior, ll)
+            n_tempered += beta < 1.0
+            logw, _ = normalise_log_weights(prior + beta[:, None] * ll)
             w = np.exp(logw)
             pos[:, k] = np.einsum("rk,rkn->rn", w, x[..., :3])
             vel[:, k] = np.einsum("rk,rkn->rn", w, x[..., 3:])
@@ -299,7 +424,7 @@ class DopplerPf:
             x, logw, resampled = resample(x, logw, rng=rng, threshold=self.resample_threshold)
             if self.roughening > 0 and resampled.any():
                 x = roughen(x, rng=rng, k=self.roughening, rows=resampled)
-        return pos, vel, ess, restarts
+        return pos, vel, ess, restarts, n_tempered / t.size
 
     def _draw(self, rng, R, lo, hi):
         K = self.n_particles
@@ -313,6 +438,26 @@ def _pf_block(start: int, n_runs: int, seed, pf: DopplerPf, meas):
 
 
 # ------------------------------------------------------------------------------------ SCAAT MH-EKF
+
+@dataclass(frozen=True)
+class DopplerMeasurement:
+    """One chirp of :class:`~uwbwb.models.doppler.DopplerModel` as :class:`~uwbwb.filters.ekf.Ekf` sees it.
+
+    ``measurement`` is ``(beacon, dp_s, range_m)``: the beacon index (−1: none), the
+    measured ΔP (NaN: none) and a pseudo-range (NaN: none). The rows, predictions,
+    Jacobians and noise come from :meth:`DopplerModel.measurement_rows` (lagged eq 1).
+    """
+
+    model: DopplerModel
+
+    def __post_init__(self):
+        _check_model("DopplerMeasurement", self.model)
+
+    def linearise(self, x: np.ndarray, measurement) -> Linearisation | None:
+        """:class:`Linearisation` at state ``x = [X, V]`` (6,); None when nothing usable was measured."""
+        rows = self.model.measurement_rows(x, measurement)
+        return None if rows is None else Linearisation(*rows)
+
 
 @dataclass
 class _Hypothesis:
@@ -362,9 +507,25 @@ class ScaatMhEkf:
     prune_ratio: float = 1e-3
     name: str = "MH-EKF"
 
+    def __post_init__(self):
+        _check_model("ScaatMhEkf", self.model)
+        _check_motion("ScaatMhEkf", self.motion)
+        p = probability("p_detect", self.p_detect, open_interval=False)
+        if p <= 0.0:
+            raise ValueError(f"p_detect must be a number in (0, 1], got {self.p_detect!r}")
+        object.__setattr__(self, "p_detect", p)
+        object.__setattr__(self, "spurious_rate_hz", number("spurious_rate_hz", self.spurious_rate_hz, minimum=0.0))
+        object.__setattr__(self, "window_s", number("window_s", self.window_s, minimum=0.0, strict_minimum=True))
+        object.__setattr__(self, "max_gap", integer("max_gap", self.max_gap, minimum=1))
+        object.__setattr__(self, "max_hypotheses", integer("max_hypotheses", self.max_hypotheses, minimum=1))
+        object.__setattr__(self, "prune_ratio", probability("prune_ratio", self.prune_ratio, open_interval=False))
+        if not isinstance(self.name, str):
+            raise ValueError(f"name must be text, got {self.name!r}")
+
     @property
     def ekf(self) -> Ekf:
-        return Ekf(self.motion, self.model, pos_index=(0, 1, 2), vel_index=(3, 4, 5), gate_prob=None)
+        return Ekf(self.motion, DopplerMeasurement(self.model), pos_index=(0, 1, 2), vel_index=(3, 4, 5),
+                   gate_prob=None)
 
     def run(self, log: ChirpLog, x0: Gaussian, *, ranges_m=None) -> Estimates:
         """Filter ``log`` from the prior ``x0`` (at the first detection's time).
@@ -376,10 +537,13 @@ class ScaatMhEkf:
             detection, PREDICTED where it read it as noise. ``info``: ``n_hypotheses``,
             ``beacon`` (the best hypothesis' assignment, −1 for noise).
         """
+        _check_log("ScaatMhEkf.run", log)
+        if not isinstance(x0, Gaussian) or np.shape(x0.x) != (6,):
+            raise ValueError(f"x0 must be a Gaussian over [X, V] (6 components), got {x0!r}")
         ekf = self.ekf
         P = self.model.period_s
         n_b = P.size
-        rr = np.full(len(log), np.nan) if ranges_m is None else np.asarray(ranges_m, float)
+        rr = np.full(len(log), np.nan) if ranges_m is None else _per_row("ranges_m", ranges_m, len(log))
         hyps = [_Hypothesis(x0, float(log.t_s[0]) if len(log) else 0.0, np.full(n_b, np.nan), 0.0)]
         T = len(log)
         pos, vel = np.full((T, 3), np.nan), np.full((T, 3), np.nan)
@@ -408,7 +572,7 @@ class ScaatMhEkf:
                     prior = ekf.predict(h.state, t - h.t_s)
                 for i in fits:
                     meas = (int(i), float(shift[i]), rr[r] if log.beacon[r] == i else np.nan)
-                    lin = self.model.linearise(prior.x, meas)
+                    lin = ekf.measurement.linearise(prior.x, meas)
                     post, inn = kalman.update(prior, lin.z, lin.H, lin.R, h_x=lin.h)   # the EKF step of Ekf.update
                     ll = -0.5 * (inn.nis + np.linalg.slogdet(2 * np.pi * inn.S)[1])
                     moved = last.copy()

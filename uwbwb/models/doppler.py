@@ -25,7 +25,9 @@ measurement, ``‖X − T‖``.
 
 One :class:`DopplerModel` is used by the Monte Carlo sampler
 (:mod:`uwbwb.sampling`), the chirp simulator (:mod:`uwbwb.sim.chirps`) and both
-filters (:mod:`uwbwb.filters.doppler`).
+filters (:mod:`uwbwb.filters.doppler`); the filters wrap its measurement rows
+(:meth:`DopplerModel.measurement_rows`) in their own types, so this module imports
+nothing above the models layer.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..types import Anchors
+from ..validate import integer, number
 
 __all__ = ["speed_of_sound_mps", "DopplerModel", "ReceiverMotion", "cubic_layout", "lab_layout",
            "beacon_periods_s", "REFERENCE_POS_M", "REFERENCE_VEL_MPS", "PAPER_DP_REF_S"]
@@ -48,15 +51,15 @@ PAPER_DP_REF_S = {0: 1.1e-3, 7: -1.2e-3}
 
 def speed_of_sound_mps(temperature_c: float = 20.0) -> float:
     """Speed of sound in dry air, ``331.3 √(1 + θ / 273.15)`` m/s (343.2 m/s at 20 °C)."""
-    if not temperature_c > -273.15:
-        raise ValueError(f"temperature must be above absolute zero, got {temperature_c!r} °C")
+    temperature_c = number("temperature_c", temperature_c, minimum=-273.15, strict_minimum=True)
     return float(331.3 * np.sqrt(1.0 + temperature_c / 273.15))
 
 
 def beacon_periods_s(n: int, first_s: float = 0.501, step_s: float = 0.006) -> np.ndarray:
     """Unique beacon periods ``first + i·step`` (default 501, 507, … ms; mean ≈ 520 ms for 8 beacons)."""
-    if n < 1 or first_s <= 0 or step_s < 0:
-        raise ValueError(f"need n >= 1, first_s > 0, step_s >= 0; got {n}, {first_s}, {step_s}")
+    n = integer("n", n, minimum=1)
+    first_s = number("first_s", first_s, minimum=0.0, strict_minimum=True)
+    step_s = number("step_s", step_s, minimum=0.0)
     return first_s + step_s * np.arange(n)
 
 
@@ -119,6 +122,8 @@ class DopplerModel:
     sigma_model_mps: float = 0.1
 
     def __post_init__(self):
+        if not isinstance(self.beacons, Anchors):
+            raise ValueError(f"beacons must be Anchors, got {type(self.beacons).__name__}")
         P = np.array(self.period_s, float, copy=True)
         if P.shape != (len(self.beacons),):
             raise ValueError(f"period_s must have shape ({len(self.beacons)},), got {P.shape}")
@@ -126,19 +131,12 @@ class DopplerModel:
             raise ValueError(f"periods must be finite and > 0, got {P}")
         if np.unique(P).size != P.size:
             raise ValueError("beacon periods must be distinct (the period identifies the beacon)")
-        if not (np.isfinite(self.v_s_mps) and self.v_s_mps > 0):
-            raise ValueError(f"v_s_mps must be > 0, got {self.v_s_mps!r}")
-        if not (np.isfinite(self.sigma_t_s) and self.sigma_t_s >= 0):
-            raise ValueError(f"sigma_t_s must be >= 0, got {self.sigma_t_s!r}")
-        if not (np.isfinite(self.sigma_model_mps) and self.sigma_model_mps >= 0):
-            raise ValueError(f"sigma_model_mps must be >= 0, got {self.sigma_model_mps!r}")
-        if not 0.0 <= self.lag <= 1.0:
-            raise ValueError(f"lag must be in [0, 1], got {self.lag!r}")
         P.setflags(write=False)
         object.__setattr__(self, "period_s", P)
-        object.__setattr__(self, "v_s_mps", float(self.v_s_mps))
-        object.__setattr__(self, "sigma_t_s", float(self.sigma_t_s))
-        object.__setattr__(self, "lag", float(self.lag))
+        object.__setattr__(self, "v_s_mps", number("v_s_mps", self.v_s_mps, minimum=0.0, strict_minimum=True))
+        object.__setattr__(self, "sigma_t_s", number("sigma_t_s", self.sigma_t_s, minimum=0.0))
+        object.__setattr__(self, "sigma_model_mps", number("sigma_model_mps", self.sigma_model_mps, minimum=0.0))
+        object.__setattr__(self, "lag", number("lag", self.lag, minimum=0.0, maximum=1.0))
 
     @classmethod
     def for_layout(cls, beacons: Anchors, **kwargs) -> "DopplerModel":
@@ -244,20 +242,24 @@ class DopplerModel:
         diff = np.asarray(dp_a_s, float) - np.asarray(dp_b_s, float)
         return self.v_s_mps * np.linalg.norm(diff, axis=-1)
 
-    def linearise(self, x: np.ndarray, measurement):
-        """One chirp's measurement linearised at state ``x = [X, V]`` (6,), for :class:`~uwbwb.filters.ekf.Ekf`.
+    def measurement_rows(self, x: np.ndarray, measurement):
+        """One chirp's measurement rows at state ``x = [X, V]`` (6,): ``(z, h(x), H, R)`` or None.
 
         ``measurement`` is ``(beacon, dp_s, range_m)``: the beacon index (−1: none),
         the measured ΔP (NaN: none) and a pseudo-range (NaN: none). Uses the lagged
-        model (:attr:`lag`). Returns None when nothing usable was measured.
+        model (:attr:`lag`). ``z``, ``h`` have shape ``(m,)``, ``H`` ``(m, 6)``, ``R``
+        ``(m, m)`` with ``m`` ≤ 2; None when nothing usable was measured. The EKF's
+        adapter is :class:`uwbwb.filters.doppler.DopplerMeasurement`.
         """
-        from ..filters.ekf import Linearisation
-
         beacon, dp_s, range_m = measurement
         beacon = int(beacon)
         if beacon < 0:
             return None
+        if beacon >= self.n_beacons:
+            raise ValueError(f"beacon must be -1 or an index below {self.n_beacons}, got {beacon}")
         x = np.asarray(x, float)
+        if x.shape != (6,):
+            raise ValueError(f"x must be a state [X, V] of shape (6,), got {x.shape}")
         z, h, H, R = [], [], [], []
         if np.isfinite(dp_s):
             b = np.array(beacon)
@@ -274,7 +276,7 @@ class DopplerModel:
             R.append(self.sigma_m ** 2)
         if not z:
             return None
-        return Linearisation(np.array(z), np.array(h), np.array(H), np.diag(R))
+        return np.array(z), np.array(h), np.array(H), np.diag(R)
 
     def log_likelihood(self, pos_m, vel_mps, beacon, dp_s, *, range_m=None) -> np.ndarray:
         """Gaussian log-likelihood of one measured ΔP (and optionally a pseudo-range) per row.
@@ -312,9 +314,12 @@ class ReceiverMotion:
     sigma_acc_mps2: tuple[float, float, float] = (2.0, 2.0, 0.2)
 
     def __post_init__(self):
-        s = tuple(float(v) for v in self.sigma_acc_mps2)
+        try:
+            s = tuple(float(v) for v in self.sigma_acc_mps2)
+        except (TypeError, ValueError):
+            s = ()
         if len(s) != 3 or not all(np.isfinite(v) and v >= 0 for v in s):
-            raise ValueError(f"sigma_acc_mps2 must be three values >= 0, got {self.sigma_acc_mps2!r}")
+            raise ValueError(f"sigma_acc_mps2 must be three finite values >= 0 (m/s²), got {self.sigma_acc_mps2!r}")
         object.__setattr__(self, "sigma_acc_mps2", s)
 
     n_x = 6

@@ -1,5 +1,5 @@
-"""Notebook 04 (paper 003): study (what the notebook computes), figures, discussion."""
+"""Notebook 04 (paper 003): study (what the notebook computes), figures, facts + discussion, headlines, panels."""
 
-from . import discussion, figures, study
+from . import discussion, facts, figures, headlines, panels, study
 
-__all__ = ["discussion", "figures", "study"]
+__all__ = ["discussion", "facts", "figures", "headlines", "panels", "study"]

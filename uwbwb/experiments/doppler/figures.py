@@ -51,15 +51,34 @@ def ghost_panel(samples: smp.GhostSamples, what: str, *, beacons=None, weak_dir=
     return ax
 
 
-def space_figure(samples_by_threshold: dict[float, smp.GhostSamples], model: dm.DopplerModel, *, pos_dir=None,
+def space_figure(runs_by_threshold: dict[float, smp.SamplerResult], model: dm.DopplerModel, *, pos_dir=None,
                  vel_dir=None, suptitle: str = ""):
-    """Figs 3 / 4: one column per threshold, positions on top, velocities below. Returns the Figure."""
-    n = len(samples_by_threshold)
-    fig, axes = plt.subplots(2, n, figsize=(3.3 * n, 6.8), squeeze=False)
-    for j, (tau, s) in enumerate(samples_by_threshold.items()):
-        label = f"({'abcd'[j]}) δ < {100 * tau:g} cm, {len(s)} points"
-        ghost_panel(s, "position", beacons=model.beacons.pos_m, weak_dir=pos_dir, ax=axes[0, j], title=label)
+    """Figs 3 / 4: one column per threshold, positions on top, velocities below. Returns the Figure.
+
+    ``runs_by_threshold`` maps each threshold to the conditional-sampler run made for it
+    (:func:`~.study.figure_samples`). Every kept draw under the threshold is drawn once
+    (nothing is resampled); under each panel: the number of distinct samples, of distinct
+    positions (draws of one position share it) and the fraction with its 95 % interval. A
+    panel without samples says so.
+    """
+    from .study import distinct_counts
+
+    n = len(runs_by_threshold)
+    fig, axes = plt.subplots(2, n, figsize=(3.3 * n, 7.2), squeeze=False)
+    for j, (tau, res) in enumerate(runs_by_threshold.items()):
+        s = res.samples.below(tau)
+        n_s, n_p = distinct_counts(s)
+        e = res.estimate(tau)
+        ghost_panel(s, "position", beacons=model.beacons.pos_m, weak_dir=pos_dir, ax=axes[0, j],
+                    title=f"({'abcd'[j]}) δ < {100 * tau:g} cm")
         ghost_panel(s, "velocity", weak_dir=vel_dir, ax=axes[1, j])
+        iv = f" [{100 * e.ci_low:.2g}, {100 * e.ci_high:.2g}]" if np.isfinite(e.ci_low) else " (no interval)"
+        axes[1, j].set_title(f"{n_s} distinct samples, {n_p} positions\nfraction {100 * e.fraction:.2g} %{iv}",
+                             fontsize=8)
+        if n_s == 0:
+            for ax in axes[:, j]:
+                ax.text(0.5, 0.5, "no sample under\nthis threshold", transform=ax.transAxes, ha="center",
+                        va="center", fontsize=9, color="#d62728")
     if suptitle:
         fig.suptitle(suptitle, fontsize=10)
     fig.tight_layout()

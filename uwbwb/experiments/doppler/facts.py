@@ -1,0 +1,228 @@
+"""Notebook 04's results as numbers and computed verdicts (paper 003).
+
+:class:`Results` holds what the notebook computed; :func:`facts` turns it into a flat
+``dict`` of numbers and verdict labels, each label decided by a stated rule on an
+interval (never fixed text). :mod:`.discussion` writes its sentences from these facts
+only and :mod:`.headlines` reads the summary rows from them, so a test can feed numbers
+on either side of each threshold and see the sentence flip.
+
+Rules
+-----
+* ΔP_ref (a deterministic number per reading): the paper prints one decimal in ms, so a
+  value *reproduces the printed number* when it lies within ±0.05 ms of it.
+* Fraction under 15 cm, cubic (the paper: "less than 0.0005 %"): 95 % interval entirely
+  below the bound → ``"below"`` (agrees); entirely above → ``"above"`` (disagrees);
+  otherwise ``"straddles"`` (undecided at this sample size).
+* Fig 6 CEP50 (paper ≈ 25 cm) and the along/across ratio per corner (paper ≈ 0.5):
+  bootstrap 95 % interval of the median over recordings contains the paper's value →
+  ``"consistent"``; else ``"above"`` / ``"below"``; fewer than 3 recordings → ``"no interval"``.
+* MH-EKF vs PF: bootstrap interval of the median per-recording difference of CEP50 excludes 0
+  → one is better; else ``"no significant difference"``.
+* The PF with pseudo-ranges *keeps track* when at least 95 % of its scored epochs are within
+  0.5 m and at most 5 % of its runs restarted.
+* Error floor: the condition whose removal lowers the scored-epoch CEP50 most, in steps
+  noise → model error (exact eq-1 ΔP) → particle count (4×); what is left at the end is
+  attributed to the information in Doppler-only data under the motion prior.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .study import PAPER, READINGS, bootstrap_median
+
+__all__ = ["Results", "facts", "DP_TOLERANCE_MS", "KEEPS_TRACK", "GHOST_ANGLE_DEG"]
+
+#: Half of the last printed digit of the paper's ΔP_ref (ms).
+DP_TOLERANCE_MS = 0.05
+#: (share of scored epochs within 0.5 m, share of runs restarted) for "keeps track".
+KEEPS_TRACK = (0.95, 0.05)
+#: Largest angle (°) between the ghost plane's normal (and the velocity ghosts' axis) and V_ref
+#: for the paper's two observations to count as holding.
+GHOST_ANGLE_DEG = 20.0
+#: Threshold (cm) under which a cut's minimum counts as a ghost (Fig 5 uses 6 cm; Fig 3(d) 8 cm).
+GHOST_CUT_CM = 8.0
+
+
+@dataclass(frozen=True)
+class Results:
+    """Everything notebook 04 computed that its discussion and summary read.
+
+    Attributes
+    ----------
+    fast
+        The notebook's FAST flag (every number then is a smoke test).
+    ref_table
+        :func:`~.study.reference_table`.
+    readings
+        :func:`~.study.period_readings` (fraction under 15 cm per layout and period reading).
+    at15
+        ``{layout: {"conditional" | "brute force" | "ranges": FractionEstimate}}`` at 15 cm.
+    fig_counts
+        ``{layout: {threshold_cm: (distinct samples, distinct positions, FractionEstimate)}}``.
+    geometry, fisher
+        :func:`~.study.ghost_geometry` (cubic, 8 cm), :func:`~.study.fisher_analysis`.
+    cut_minima
+        ``{curve: (s at minimum (m), δ at minimum (cm))}`` of Fig 5.
+    snap, scores, floor
+        :func:`~.study.snapshot_table`, :func:`~.study.filter_scores`, :func:`~.study.error_floor`.
+    peak_traced_mib
+        Measured peak (tracemalloc) of the samplers, MiB (NaN: not measured).
+    seed
+        Seed of the bootstrap intervals.
+    """
+
+    fast: bool
+    ref_table: pd.DataFrame
+    readings: pd.DataFrame
+    at15: dict
+    fig_counts: dict
+    geometry: dict
+    fisher: dict
+    cut_minima: dict
+    snap: pd.DataFrame
+    scores: pd.DataFrame
+    floor: pd.DataFrame
+    peak_traced_mib: float = np.nan
+    seed: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def _interval_verdict(lo: float, hi: float, value: float) -> str:
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return "no interval"
+    if lo <= value <= hi:
+        return "consistent"
+    return "above" if lo > value else "below"
+
+
+def _bound_verdict(lo: float, hi: float, bound: float) -> str:
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return "no interval"
+    if hi < bound:
+        return "below"
+    if lo > bound:
+        return "above"
+    return "straddles"
+
+
+def facts(res: Results) -> dict:
+    """Numbers and verdicts of notebook 04 (see the module docstring for every rule)."""
+    f: dict = {"fast": bool(res.fast), "mode": "FAST" if res.fast else "full"}
+    rng = np.random.default_rng(res.seed)
+
+    # --- ΔP_ref under both readings
+    f["readings"] = list(READINGS)
+    for r in READINGS:
+        for b in (0, 7):
+            v = float(res.ref_table[f"ΔP_ref (ms), {r}"].iloc[b])
+            f[f"dp_ms[{r}][{b}]"] = v
+            f[f"dp_match[{r}][{b}]"] = bool(abs(v - PAPER["dp_ref_ms"][b]) <= DP_TOLERANCE_MS + 1e-12)
+        f[f"P7_ms[{r}]"] = float(res.ref_table[f"P (ms), {r}"].iloc[7])
+        f[f"dp_reproduces[{r}]"] = f[f"dp_match[{r}][0]"] and f[f"dp_match[{r}][7]"]
+
+    # --- fraction under 15 cm under both readings
+    for _, row in res.readings.iterrows():
+        key = f"[{row['layout']}][{row['reading']}]"
+        f[f"frac_pct{key}"] = float(row["fraction (%)"])
+        f[f"frac_lo_pct{key}"] = float(row["95 % low (%)"])
+        f[f"frac_hi_pct{key}"] = float(row["95 % high (%)"])
+        if row["layout"] == "cubic":
+            f[f"frac_verdict{key}"] = _bound_verdict(row["95 % low (%)"], row["95 % high (%)"],
+                                                     PAPER["fraction_15cm_pct"]["cubic"])
+    f["frac_bound_pct"] = PAPER["fraction_15cm_pct"]["cubic"]
+    f["frac_reproduces"] = [r for r in READINGS if f.get(f"frac_verdict[cubic][{r}]") == "below"]
+    f["dp_reproduces"] = [r for r in READINGS if f[f"dp_reproduces[{r}]"]]
+
+    # --- estimators and the lab
+    c, lab = res.at15["cubic"], res.at15["lab"]
+    f["brute_frac_pct"] = 100 * c["brute force"].fraction
+    f["brute_draws"] = int(c["brute force"].n_draws)
+    f["estimators_agree"] = bool(all(
+        e["conditional"].ci_low <= e["brute force"].ci_high and e["brute force"].ci_low <= e["conditional"].ci_high
+        for e in res.at15.values()))
+    f["lab_frac_pct"] = 100 * lab["conditional"].fraction
+    f["lab_paper_pct"] = PAPER["fraction_15cm_pct"]["lab"]
+    f["lab_over_cubic"] = float(lab["conditional"].fraction / c["conditional"].fraction)
+    f["lab_over_cubic_paper"] = PAPER["fraction_15cm_pct"]["lab"] / PAPER["fraction_15cm_pct"]["cubic"]
+    f["lab_same_order"] = bool(abs(np.log10(f["lab_over_cubic"] / f["lab_over_cubic_paper"])) < 0.5)
+    f["ranges_frac_pct"] = {k: 100 * v["ranges"].fraction for k, v in res.at15.items()}
+
+    # --- Figs 3-4
+    f["fig_counts"] = {layout: {t: (int(n), int(p)) for t, (n, p, _) in d.items()} for layout, d in res.fig_counts.items()}
+    f["fig_empty_panels"] = [(layout, t) for layout, d in res.fig_counts.items() for t, (n, _, _) in d.items() if n == 0]
+
+    # --- ghost geometry, information matrix, cuts
+    g = res.geometry
+    f["plane_angle_deg"] = float(g["angle(position plane normal, V) (°)"])
+    f["vel_axis_angle_deg"] = float(g["angle(velocity main axis, V) (°)"])
+    f["plane_ratio"] = float(g["position plane normal: spread ratio"])
+    f["ghost_shape_holds"] = bool(f["plane_angle_deg"] < GHOST_ANGLE_DEG and f["vel_axis_angle_deg"] < GHOST_ANGLE_DEG)
+    weak = res.fisher["weak"][0]
+    f["weak_pos_angle_deg"] = float(weak["angle(position part, V) (°)"])
+    f["weak_vel_angle_deg"] = float(weak["angle(velocity part, ±V) (°)"])
+    f["cut_min_cm"] = {k: float(v[1]) for k, v in res.cut_minima.items()}
+    f["cut_is_ghost"] = {k: bool(v[1] < GHOST_CUT_CM) for k, v in res.cut_minima.items()}
+    f["ghost_cut_cm"] = GHOST_CUT_CM
+
+    # --- Fig 6 over recordings
+    snap = res.snap
+    per_rec = snap.groupby(["variant", "recording"])[["CEP50 (cm)", "offset (cm)", "run-to-run CEP50 (cm)"]].mean()
+    for variant in ("Doppler", "Doppler + ranges"):
+        if variant not in per_rec.index.get_level_values(0):
+            continue
+        d = per_rec.loc[variant]
+        for q, key in (("CEP50 (cm)", "cep50"), ("offset (cm)", "offset"), ("run-to-run CEP50 (cm)", "spread")):
+            med, lo, hi = bootstrap_median(d[q].to_numpy(), rng=rng)
+            f[f"{key}_cm[{variant}]"] = (med, lo, hi, float(d[q].min()), float(d[q].max()))
+    f["n_recordings"] = int(snap["recording"].nunique())
+    f["pf_runs_first"] = int(snap.loc[snap["recording"] == 0, "runs"].iloc[0])
+    med, lo, hi = f["cep50_cm[Doppler]"][:3]
+    f["cep50_verdict"] = _interval_verdict(lo, hi, PAPER["cep50_cm"])
+    f["offset_dominates"] = bool(f["offset_cm[Doppler]"][0] > f["spread_cm[Doppler]"][0])
+    f["corners"] = {}
+    for corner, d in snap[snap["variant"] == "Doppler"].groupby("corner", sort=False):
+        m, lo, hi = bootstrap_median(d["along / across"].to_numpy(), rng=rng)
+        f["corners"][corner] = (m, lo, hi, float(d["along / across"].min()), float(d["along / across"].max()),
+                                _interval_verdict(lo, hi, PAPER["along_over_cross"]))
+    f["ratio_reproduced"] = bool(f["corners"]) and all(v[5] == "consistent" for v in f["corners"].values())
+
+    # --- filters: accuracy, restarts, coverage
+    sc = res.scores
+    for variant, d in sc.groupby("variant"):
+        diff = (d["MH-EKF CEP50 (cm)"] - d["PF CEP50 (cm)"]).to_numpy()
+        m, lo, hi = bootstrap_median(diff, rng=rng)
+        f[f"kf_minus_pf_cm[{variant}]"] = (m, lo, hi)
+        f[f"kf_vs_pf[{variant}]"] = ("no interval" if not np.isfinite(lo) else "PF better" if lo > 0 else
+                                     "MH-EKF better" if hi < 0 else "no significant difference")
+        runs = d["PF runs"].sum()
+        f[f"pf_cep50_cm[{variant}]"] = float(d["PF CEP50 (cm)"].median())
+        f[f"kf_cep50_cm[{variant}]"] = float(d["MH-EKF CEP50 (cm)"].median())
+        f[f"pf_cep95_cm[{variant}]"] = float(d["PF CEP95 (cm)"].median())
+        f[f"kf_cep95_cm[{variant}]"] = float(d["MH-EKF CEP95 (cm)"].median())
+        f[f"pf_restarted_share[{variant}]"] = float(d["PF runs restarted"].sum() / runs)
+        f[f"pf_restarted_runs[{variant}]"] = (int(d["PF runs restarted"].sum()), int(runs))
+        f[f"pf_in_track[{variant}]"] = float(np.average(d["PF in track"], weights=d["PF runs"] * d["epochs"]))
+        f[f"kf_in_track[{variant}]"] = float(np.average(d["MH-EKF in track"], weights=d["epochs"]))
+        f[f"pf_coverage[{variant}]"] = float(d["PF coverage"].min())
+        f[f"kf_coverage[{variant}]"] = float(d["MH-EKF coverage"].min())
+        f[f"pf_tempered[{variant}]"] = float(d["PF tempered updates"].mean())
+        f[f"pf_keeps_track[{variant}]"] = bool(f[f"pf_in_track[{variant}]"] >= KEEPS_TRACK[0]
+                                              and f[f"pf_restarted_share[{variant}]"] <= KEEPS_TRACK[1])
+
+    # --- the zero-noise floor
+    fl = res.floor["CEP50, scored epochs (cm)"]
+    steps = {"timing noise, misses and spurious chirps": fl.iloc[0] - fl.iloc[1],
+             "reading a period-averaged ΔP as one state (model error)": fl.iloc[1] - fl.iloc[2],
+             "the particle count": fl.iloc[2] - fl.iloc[3]}
+    f["floor_cm"] = {k: float(v) for k, v in fl.items()}
+    f["floor_steps_cm"] = {k: float(v) for k, v in steps.items()}
+    f["floor_left_cm"] = float(fl.iloc[3])
+    f["floor_main_cause"] = max(steps, key=steps.get)
+    f["floor_left_dominates"] = bool(fl.iloc[3] > max(steps.values()))
+
+    f["peak_traced_mib"] = float(res.peak_traced_mib)
+    return f

@@ -1,0 +1,111 @@
+"""Notebook 04's summary rows, declared as data, and its checks (read from :func:`.facts.facts`).
+
+Each :class:`Headline` names the quantity, its unit, its kind (*reproduced*, *target* or
+*input*), the paper's value where one is comparable, and how to read it from the facts.
+The lab layout is a *reconstruction* and its row says so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .study import PAPER, READINGS
+
+__all__ = ["Headline", "HEADLINES", "rows", "publish", "checks"]
+
+
+@dataclass(frozen=True)
+class Headline:
+    quantity: str
+    unit: str
+    kind: str
+    read: Callable[[dict], float]
+    paper: float | None = None
+
+
+def _headlines() -> tuple[Headline, ...]:
+    out = []
+    for r in READINGS:
+        for b in (0, 7):
+            out.append(Headline(f"ΔP_ref beacon {b} ({r})", "ms", "reproduced",
+                                lambda f, r=r, b=b: f[f"dp_ms[{r}][{b}]"], PAPER["dp_ref_ms"][b]))
+        for layout in ("cubic", "lab"):
+            note = "" if layout == "cubic" else ", reconstruction of the layout"
+            paper = PAPER["fraction_15cm_pct"][layout]
+            out.append(Headline(f"fraction δ < 15 cm, {layout} layout{note} ({r})", "%", "reproduced",
+                                lambda f, k=f"[{layout}][{r}]": f["frac_pct" + k], paper))
+            for end in ("low", "high"):
+                out.append(Headline(f"fraction δ < 15 cm, {layout} layout{note} ({r}), 95 % interval {end}", "%",
+                                    "reproduced", lambda f, k=f"[{layout}][{r}]", e=end: f[f"frac_{e[:2]}_pct" + k]))
+    out.append(Headline("fraction δ < 15 cm, cubic layout (brute force, per-beacon periods)", "%", "reproduced",
+                        lambda f: f["brute_frac_pct"]))
+    for layout in ("cubic", "lab"):
+        out.append(Headline(f"fraction δ < 15 cm with pseudo-ranges, {layout} layout", "%", "reproduced",
+                            lambda f, l=layout: f["ranges_frac_pct"][l]))
+    for v, tag in (("Doppler", ""), ("Doppler + ranges", " with ranges")):
+        for key, name, paper in (("cep50", "median over recordings", PAPER["cep50_cm"] if not tag else None),
+                                 ("offset", "shared offset, median over recordings", None),
+                                 ("spread", "run-to-run CEP50, median over recordings", None)):
+            out.append(Headline(f"PF snapshot CEP50{tag}, {name}" if key == "cep50" else f"PF snapshot {name}{tag}",
+                                "cm", "reproduced", lambda f, k=f"{key}_cm[{v}]": f[k][0], paper))
+        out.append(Headline(f"PF CEP50, scored epochs{tag}, median over recordings", "cm", "reproduced",
+                            lambda f, v=v: f[f"pf_cep50_cm[{v}]"]))
+        out.append(Headline(f"MH-EKF CEP50, scored epochs{tag}, median over recordings", "cm", "reproduced",
+                            lambda f, v=v: f[f"kf_cep50_cm[{v}]"]))
+        out.append(Headline(f"PF CEP95, scored epochs{tag}, median over recordings", "cm", "reproduced",
+                            lambda f, v=v: f[f"pf_cep95_cm[{v}]"]))
+        out.append(Headline(f"PF share of runs restarted{tag}", "", "reproduced",
+                            lambda f, v=v: f[f"pf_restarted_share[{v}]"]))
+        out.append(Headline(f"PF share of scored epochs within 0.5 m{tag}", "", "reproduced",
+                            lambda f, v=v: f[f"pf_in_track[{v}]"]))
+    for corner in ("bottom-left", "top-left"):
+        out.append(Headline(f"PF along/across-track ratio, {corner} corner, median over recordings", "", "reproduced",
+                            lambda f, c=corner: f["corners"][c][0] if c in f["corners"] else np.nan,
+                            PAPER["along_over_cross"]))
+    out.append(Headline("PF CEP50 with zero noise and exact eq-1 ΔP (error floor)", "cm", "reproduced",
+                        lambda f: f["floor_cm"]["zero noise, exact eq-1 ΔP"]))
+    out.append(Headline("number of simulated recordings", "", "input", lambda f: f["n_recordings"]))
+    return tuple(out)
+
+
+HEADLINES = _headlines()
+
+
+def rows(f: dict) -> list[dict]:
+    """The summary rows: ``quantity, value, unit, paper_value, kind`` (data: synthetic)."""
+    return [{"quantity": h.quantity, "value": float(h.read(f)), "unit": h.unit, "paper_value": h.paper,
+             "kind": h.kind, "data": "synthetic"} for h in HEADLINES]
+
+
+def publish(f: dict, summary, path=None, *, sigma_range_m: float) -> None:
+    """Add every headline row to ``summary`` (:class:`uwbwb.metrics.Summary`), plus the simulator's timing jitter
+    (an *input*: the paper's 1–2 cm), and publish it to ``path``."""
+    for row in rows(f):
+        summary.add(**row)
+    summary.add(quantity="timing jitter of one chirp (simulator setting)", value=100 * sigma_range_m, unit="cm",
+                paper_value=None, data="synthetic", kind="input")
+    summary.publish(path)
+
+
+def checks(f: dict, *, fast: bool) -> list[str]:
+    """What must hold whatever the mode (looser under FAST); returns the failures (empty: all hold)."""
+    fail = []
+    if not abs(f[f"dp_ms[{list(READINGS)[1]}][0]"] - 1.06) < 0.01:
+        fail.append("eq 1 at P = 500 ms must give ΔP_ref(beacon 0) ≈ 1.06 ms")
+    if not f["estimators_agree"]:
+        fail.append("brute force and conditional disagree beyond their intervals")
+    if f["fig_empty_panels"]:
+        fail.append(f"empty figure panels: {f['fig_empty_panels']}")
+    if not all(f["ranges_frac_pct"][k] < 0.01 * f[f"frac_pct[{k}][{list(READINGS)[0]}]"] for k in ("cubic", "lab")):
+        fail.append("the ranging term must shrink the fraction under 15 cm a hundredfold")
+    if not (f["cut_min_cm"].get("V = V_ref", np.inf) < 1e-4):
+        fail.append("the cut with V_ref must reach δ = 0 at the reference")
+    limit = 100 if fast else 60
+    if not 0 < f["cep50_cm[Doppler]"][0] < limit:
+        fail.append(f"PF snapshot CEP50 outside (0, {limit}) cm")
+    if not f["cep50_cm[Doppler + ranges]"][0] < f["cep50_cm[Doppler]"][0]:
+        fail.append("pseudo-ranges must lower the PF's snapshot CEP50")
+    return fail
