@@ -1,0 +1,19 @@
+"""The Hanyang outdoor dynamic runs: the dataset authors' LS/ESKF reproduced and put on our board.
+
+``study`` reproduces the authors' RMSEs with the package's metric code, scores every method of the
+board on each case (tuned on another case) beside the authors' estimates (*external* rows), and
+tests the static part's range model on the dynamic runs; ``facts`` turns the numbers into the
+sentences the notebooks print.
+"""
+
+from .study import (AUTHORS_TAG_HEIGHT_M, AUTHORS_Z_LIMIT_M, FAST_SPAN_S, N_BLOCKS, WINDOW_RULES, AuthorsEstimator,
+                    CaseComparison, PrunedNls, RangeEkfEstimator, RangeMeasurement, StaticModelLs, StaticRangeModel, authors_errors, authors_window,
+                    block_bootstrap_ratio, board_epochs, case_board, compare_cases, load_pair, ratio_table,
+                    read_rmsd_results, reproduce_authors, static_model_effect, static_range_model,
+                    study_estimators, tuning_case)
+
+__all__ = ["AUTHORS_TAG_HEIGHT_M", "AUTHORS_Z_LIMIT_M", "FAST_SPAN_S", "N_BLOCKS", "WINDOW_RULES", "AuthorsEstimator",
+           "CaseComparison", "PrunedNls", "RangeEkfEstimator", "RangeMeasurement", "StaticModelLs", "StaticRangeModel", "authors_errors", "authors_window",
+           "block_bootstrap_ratio", "board_epochs", "case_board", "compare_cases", "load_pair", "ratio_table",
+           "read_rmsd_results", "reproduce_authors", "static_model_effect", "static_range_model",
+           "study_estimators", "tuning_case"]

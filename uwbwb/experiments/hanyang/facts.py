@@ -1,0 +1,129 @@
+"""Verdicts of the Hanyang study, computed from its tables: ``*_facts`` return the numbers and the rule,
+``*_sentence`` write them out. The thresholds are the rules below, never tuned to a run.
+
+* Reproduction (:func:`reproduction_facts`): the authors' numbers are *reproduced* when every
+  recomputed RMSE is within :data:`REPRO_TOL_M` of their ``RMSD_results.txt``.
+* Ours vs theirs per case (:func:`ratio_facts`): ``better`` when the 95 % block-bootstrap interval
+  of RMSE(ours) / RMSE(their LS) lies below 1, ``worse`` when above 1, else ``not significant``.
+* Static range model (:func:`static_facts`): ``helps`` on a case when the interval of
+  RMSE(LS on statically corrected ranges) / RMSE(raw LS) lies below 1, ``hurts`` above 1, else
+  ``no clear effect``; the answer to "does it help?" is *yes* only if it helps on every case scored.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["REPRO_TOL_M", "interval_verdict", "ratio_facts", "ratio_sentence", "reproduction_facts",
+           "reproduction_sentence", "static_facts", "static_sentence", "summary_rows"]
+
+#: Largest difference between our recomputation and the authors' published RMSE called agreement, m.
+REPRO_TOL_M = 0.01
+
+
+def interval_verdict(lo: float, hi: float, low: str, high: str, neither: str) -> str:
+    """``low`` if the interval lies below 1, ``high`` if above, ``neither`` otherwise (or ``"no interval"``)."""
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return "no interval"
+    if hi < 1.0:
+        return low
+    if lo > 1.0:
+        return high
+    return neither
+
+
+def reproduction_facts(repro: pd.DataFrame, tol_m: float = REPRO_TOL_M) -> dict:
+    """Largest |ours − published| over the rows that have a published value, and the verdict."""
+    have = repro[np.isfinite(repro["published_m"])]
+    worst = float(np.max(np.abs(have["diff_m"]))) if len(have) else float("nan")
+    return {"n_rows": int(len(repro)), "n_published": int(len(have)), "max_abs_diff_m": worst, "tol_m": tol_m,
+            "n_cases": int(repro["data"].nunique()) if len(repro) else 0,
+            "agree": bool(len(have)) and bool(worst <= tol_m)}
+
+
+def reproduction_sentence(f: dict) -> str:
+    if not f["n_published"]:
+        return "No RMSD_results.txt to compare with: the authors' numbers are recomputed but not checked."
+    verb = "agree with" if f["agree"] else "DISAGREE with"
+    return (f"Recomputed with the workbench's metric code, the authors' RMSE and RMSE_2d on {f['n_cases']} case(s) "
+            f"{verb} their RMSD_results.txt: largest difference {f['max_abs_diff_m'] * 100:.2g} cm "
+            f"(rule: within {f['tol_m'] * 100:.0f} cm).")
+
+
+def ratio_facts(ratios: pd.DataFrame) -> dict:
+    """Per case, our best ranges-only method against the authors' LS, and the spread across cases."""
+    best = ratios[ratios["best"]] if len(ratios) else ratios
+    cases = []
+    for r in best.itertuples(index=False):
+        cases.append({"case": r.case, "method": r.method, "ratio": float(r.ratio), "lo": float(r.ratio_lo),
+                      "hi": float(r.ratio_hi), "ours_m": float(r.rmse_2d_m), "theirs_m": float(r.authors_ls_rmse_2d_m),
+                      "verdict": interval_verdict(r.ratio_lo, r.ratio_hi, "better", "worse", "not significant")})
+    ratio = np.array([c["ratio"] for c in cases])
+    return {"cases": cases, "n_cases": len(cases),
+            "mean_ratio": float(np.mean(ratio)) if ratio.size else float("nan"),
+            "sd_ratio": float(np.std(ratio, ddof=1)) if ratio.size > 1 else float("nan"),
+            "min_ratio": float(np.min(ratio)) if ratio.size else float("nan"),
+            "max_ratio": float(np.max(ratio)) if ratio.size else float("nan"),
+            "n_better": sum(c["verdict"] == "better" for c in cases),
+            "n_worse": sum(c["verdict"] == "worse" for c in cases)}
+
+
+def ratio_sentence(f: dict) -> str:
+    if not f["n_cases"]:
+        return "No case had both our methods and the authors' LS on common epochs."
+    per = "; ".join(f"{c['case']}: {c['method']} {c['ours_m']:.2f} m vs their LS {c['theirs_m']:.2f} m, ratio "
+                    f"{c['ratio']:.2f} [{c['lo']:.2f}, {c['hi']:.2f}] — {c['verdict']}" for c in f["cases"])
+    spread = (f", sd {f['sd_ratio']:.2f}" if np.isfinite(f["sd_ratio"]) else "")
+    return (f"Our best ranges-only method (picked on the scored case: optimistic) against the authors' LS, "
+            f"RMSE_2d on the common epochs — {per}. Across {f['n_cases']} case(s) the ratio ours/theirs is "
+            f"{f['mean_ratio']:.2f} on average{spread} (range {f['min_ratio']:.2f}–{f['max_ratio']:.2f}); "
+            f"better on {f['n_better']}, worse on {f['n_worse']}, not distinguishable on "
+            f"{f['n_cases'] - f['n_better'] - f['n_worse']}.")
+
+
+def static_facts(effect: pd.DataFrame) -> dict:
+    """Per case and static model: the ratio to raw LS, its interval and verdict; the yes/no answer."""
+    rows = []
+    for r in effect.itertuples(index=False):
+        rows.append({"case": r.case, "method": r.method, "ratio": float(r.ratio_vs_raw_ls),
+                     "lo": float(r.ratio_vs_raw_ls_lo), "hi": float(r.ratio_vs_raw_ls_hi),
+                     "verdict": interval_verdict(r.ratio_vs_raw_ls_lo, r.ratio_vs_raw_ls_hi, "helps", "hurts",
+                                                 "no clear effect")})
+    helps = [r["verdict"] == "helps" for r in rows]
+    return {"rows": rows, "n": len(rows), "n_helps": int(sum(helps)),
+            "n_hurts": sum(r["verdict"] == "hurts" for r in rows),
+            "answer": "yes" if rows and all(helps) else "no"}
+
+
+def static_sentence(f: dict) -> str:
+    if not f["n"]:
+        return "The static range model was not applied (no static files, or no case scored)."
+    per = "; ".join(f"{r['case']}, {r['method']}: ×{r['ratio']:.3f} [{r['lo']:.3f}, {r['hi']:.3f}] ({r['verdict']})"
+                    for r in f["rows"])
+    return (f"Does calibrating the dynamic ranges with the static bias-vs-distance help? **{f['answer']}**. "
+            f"RMSE_2d of LS on statically corrected ranges relative to raw LS — {per}. It helps on {f['n_helps']} "
+            f"and hurts on {f['n_hurts']} of {f['n']} (case, model) pairs.")
+
+
+def summary_rows(comparison, summary) -> None:
+    """Headline numbers into a :class:`uwbwb.metrics.Summary`, one ``data=hanyang-outdoor-uwb/<case>`` per case:
+    the authors' published LS/ESKF RMSE_2d (*input*), our recomputation (*reproduced*), our best ranges-only
+    method's RMSE_2d, the authors' LS on the same epochs and the ratio (*reproduced*)."""
+    repro = comparison.reproduction
+    for r in repro.itertuples(index=False):
+        if r.metric != "RMSE 2-D":
+            continue
+        if np.isfinite(r.published_m):
+            summary.add(quantity=f"authors {r.method} RMSE_2d, published", value=r.published_m, unit="m",
+                        data=r.data, kind="input")
+        summary.add(quantity=f"authors {r.method} RMSE_2d, recomputed (their definition)", value=r.reproduced_m,
+                    unit="m", data=r.data, kind="reproduced",
+                    paper_value=r.published_m if np.isfinite(r.published_m) else None)
+    best = comparison.ratios[comparison.ratios["best"]] if len(comparison.ratios) else comparison.ratios
+    for r in best.itertuples(index=False):
+        summary.add(quantity="RMSE_2d, best ranges-only method of ours (common epochs)", value=r.rmse_2d_m,
+                    unit="m", data=r.data, kind="reproduced")
+        summary.add(quantity="RMSE_2d, authors LS (common epochs)", value=r.authors_ls_rmse_2d_m, unit="m",
+                    data=r.data, kind="reproduced")
+        summary.add(quantity="RMSE_2d ratio ours/authors LS", value=r.ratio, unit="", data=r.data, kind="reproduced")
