@@ -7,7 +7,7 @@ Commands
     counts, and the recordings its loader lists.
 ``fetch NAME [--dest DIR] [--base-url URL]``
     Download a dataset from upstream with checksum verification (resumable).
-``reproduce [--quick] [--only NB ...] [--out DIR] [-p KEY VALUE ...] [--timeout S]``
+``reproduce [--quick] [--only NB ...] [--out DIR] [-p KEY VALUE ...] [--timeout S] [--scheduler ADDRESS] [--scheduler-timeout S]``
     Execute the notebooks headless; write executed notebooks, HTML and
     ``summary.json`` / ``summary.md`` (default into ``reports/``).
 
@@ -69,21 +69,28 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
                        description="Execute notebooks/*.ipynb with papermill; write <stem>.ipynb, "
                                    "<stem>.html, <stem>.summary.json and the aggregated "
                                    "summary.json / summary.md into the output folder.")
-    p.add_argument("--quick", action="store_true", help="pass FAST=True (small, CI-sized experiments)")
+    p.add_argument("--quick", action="store_true",
+                   help="pass FAST=True (small, CI-sized experiments); refused with -p FAST False or with a -p value "
+                        "that a notebook's FAST mode would replace or lower")
     p.add_argument("--only", nargs="+", action="extend", metavar="NB", default=None,
                    help="run only notebooks whose stem starts with NB (e.g. 00 or 00_quickstart)")
     p.add_argument("--out", metavar="DIR", default=None, help="output folder (default reports/)")
     p.add_argument("-p", "--parameter", nargs=2, action="append", metavar=("KEY", "VALUE"), default=[],
                    help="notebook parameter, given to every selected notebook that declares it; "
-                        "VALUE takes the type of the parameter's default in the notebook's parameters "
-                        "cell (text stays text: -p STATIC_SESSION 8.20; True/False; numbers; tuples "
-                        "as Python literals). Unknown names and values that do not fit are errors")
+                        "VALUE is checked against the notebook's specification of NAME (type, range, what None "
+                        "means; uwbwb/notebook_params.py) and reaches the notebook with that type (text stays "
+                        "text: -p STATIC_SESSION 8.20; True/False; numbers and tuples as Python literals: "
+                        "-p SIGMA_D_CMPS '(2.5, 4)'). Unknown names and values that do not fit are errors")
     p.add_argument("--timeout", metavar="S", type=_positive_float, default=None,
                    help="execution timeout per cell in seconds (default none)")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="run the notebooks concurrently on a Dask cluster: 'local' (a LocalCluster sized to this "
                         "machine) or a scheduler address such as tcp://10.0.0.5:8786; each notebook gets it as "
                         "DASK_SCHEDULER, so its sweeps run there too (needs uwbwb[dask])")
+    p.add_argument("--scheduler-timeout", metavar="S", type=_positive_float, default=None,
+                   help="seconds a scheduler address (--scheduler or -p DASK_SCHEDULER) has to answer as a Dask "
+                        "scheduler before the command stops with an error (default 5, or $UWBWB_SCHEDULER_TIMEOUT_S); "
+                        "the notebooks' own connections use it too")
 
     p = sub.add_parser("score", help="every estimator on one recording, against the Cramér–Rao bound",
                        description="Calibrate on one part of a recording (or another recording), score every "
@@ -295,7 +302,7 @@ def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
             parser.error(f"-p {key} given twice")
         text[key] = value
     try:  # every problem with the selection or the parameters is reported before any notebook runs
-        resolve_parameters(select_notebooks(only=args.only), text=text)
+        resolve_parameters(select_notebooks(only=args.only), text=text, quick=args.quick)
     except ValueError as exc:
         parser.error(str(exc))
     if args.scheduler is not None:
@@ -307,7 +314,8 @@ def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
             parser.error("--scheduler needs dask.distributed: pip install 'uwbwb[dask]'")
 
     result = reproduce(quick=args.quick, only=args.only, out=args.out, text_parameters=text,
-                       timeout_s=args.timeout, scheduler=args.scheduler, log=lambda line: print(line, flush=True))
+                       timeout_s=args.timeout, scheduler=args.scheduler, scheduler_timeout_s=args.scheduler_timeout,
+                       log=lambda line: print(line, flush=True))
     print(f"wrote {result.summary_md} and {result.summary_json}")
     for run in result.failed:
         print(f"FAILED {run.notebook}: {run.error}", file=sys.stderr)

@@ -17,8 +17,18 @@ Then it aggregates all summaries into ``summary.json`` (one list of rows) and
 table: notebook, ok/failed, seconds, first line of the error).
 
 Parameters passed to every notebook: ``SUMMARY_PATH`` always, ``FAST=True``
-under ``quick``, plus any given explicitly. All notebooks run even if one
-fails; the run is unsuccessful if a notebook failed or wrote no valid summary.
+under ``quick``, plus any given explicitly. Each value is checked against the
+notebook's parameter specification (:mod:`uwbwb.notebook_params`: type, range,
+what None means) before any notebook runs, and reaches the notebook with the
+type the specification gives it: the runner writes the injected parameters cell
+itself, as Python literals (papermill would write a tuple as a string). An
+explicit value that the notebook's FAST mode would replace or lower is refused
+under ``FAST=True``, as is ``FAST=False`` given with ``quick``. All notebooks
+run even if one fails; the run is unsuccessful if a notebook failed or wrote no
+valid summary.
+
+Kernels are started on IPC transport (local sockets, no TCP ports), so that
+jupyter_client's warning about unencrypted TCP never reaches the output.
 
 With ``--scheduler ADDRESS`` (or ``local``) the notebooks run concurrently as
 tasks on that Dask cluster, each receiving the cluster as its
@@ -38,8 +48,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
+from . import notebook_params
 from .datasets.discovery import PROJECT_ROOT
 from .metrics import Summary
+from .notebook_params import Spec
 
 #: Notebooks run by default.
 NOTEBOOKS_DIR = PROJECT_ROOT / "notebooks"
@@ -144,20 +156,27 @@ def notebook_parameters(notebook: str | os.PathLike) -> dict[str, Any]:
     ``NAME = <literal>`` assignment. A default that is not a literal (an
     expression) is returned as None, i.e. it takes any literal.
 
+    The notebook is read as plain JSON (nbformat's import costs seconds, and every
+    problem with the parameters must be reported before any of that).
+
     Raises
     ------
     ValueError
-        The notebook has no such cell, several, or a cell that is not valid Python.
+        The notebook is not notebook JSON, has no such cell, several, or a cell that is not valid Python.
     """
-    import nbformat
-
     path = Path(notebook)
-    nb = nbformat.read(path, as_version=4)
-    cells = [c for c in nb.cells if c.cell_type == "code" and "parameters" in c.metadata.get("tags", [])]
+    try:
+        nb = json.loads(path.read_text(encoding="utf-8"))
+        cells = [c for c in nb["cells"] if c.get("cell_type") == "code"
+                 and "parameters" in (c.get("metadata") or {}).get("tags", [])]
+    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, AttributeError) as exc:
+        raise ValueError(f"{path.name}: not a Jupyter notebook ({type(exc).__name__}: {exc})") from None
     if len(cells) != 1:
         raise ValueError(f"{path.name}: expected exactly one code cell tagged 'parameters', found {len(cells)}")
+    source = cells[0].get("source", "")
+    source = "".join(source) if isinstance(source, list) else str(source)
     try:
-        tree = ast.parse(cells[0].source)
+        tree = ast.parse(source)
     except SyntaxError as exc:
         raise ValueError(f"{path.name}: parameters cell, line {exc.lineno}: {exc.msg}") from None
     declared = {}
@@ -175,97 +194,41 @@ def notebook_parameters(notebook: str | os.PathLike) -> dict[str, Any]:
     return declared
 
 
-def _kind(default: Any) -> str:
-    """Name of the type a parameter's values must have, from its default."""
-    if default is None:
-        return "literal"
-    if isinstance(default, bool):
-        return "bool"
-    if isinstance(default, int):
-        return "int"
-    if isinstance(default, float):
-        return "float"
-    if isinstance(default, str):
-        return "str"
-    if isinstance(default, (tuple, list)):
-        return type(default).__name__
-    return type(default).__name__
+def parameter_specs(notebook: str | os.PathLike) -> dict[str, Spec]:
+    """The :class:`~uwbwb.notebook_params.Spec` of every parameter a notebook declares.
+
+    From :data:`uwbwb.notebook_params.SPECS` for the project's notebooks (by stem); inferred
+    from each default for other notebooks (:func:`uwbwb.notebook_params.infer`).
+    """
+    path = Path(notebook)
+    return notebook_params.specs_for(path.stem, notebook_parameters(path))
 
 
-def _fits(value: Any, default: Any) -> Any:
-    """``value`` converted to the declared type of ``default``, or ``_MISSING`` if it does not fit."""
-    kind = _kind(default)
-    if kind == "literal":
-        return value
-    if kind == "bool":
-        return value if isinstance(value, bool) else _MISSING
-    if kind == "int":
-        return value if isinstance(value, int) and not isinstance(value, bool) else _MISSING
-    if kind == "float":
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-        return float(value) if ok else _MISSING
-    if kind == "str":
-        return value if isinstance(value, str) else _MISSING
-    if kind in ("tuple", "list"):
-        if not isinstance(value, (tuple, list)):
-            return _MISSING
-        element_defaults = {type(d) for d in default}
-        if len(element_defaults) == 1 and default:     # a homogeneous default: elements must fit it too
-            converted = [_fits(v, default[0]) for v in value]
-            if any(v is _MISSING for v in converted):
-                return _MISSING
-            value = converted
-        return type(default)(value)
-    return value if isinstance(value, type(default)) else _MISSING
+def parse_parameter_value(text: str, default: Any = None, *, name: str = "value", spec: Spec | None = None) -> Any:
+    """A ``-p NAME VALUE`` value, checked and typed by the parameter's spec.
 
-
-def _expected(name: str, default: Any) -> str:
-    kind = _kind(default)
-    example = {"bool": "True or False", "int": "an integer", "float": "a number", "str": "text",
-               "literal": "a Python literal or text"}.get(kind, f"a {kind}")
-    if kind in ("tuple", "list"):
-        example += f" like {default!r}"
-    return f"{example} (the default of {name} is {default!r})"
-
-
-def parse_parameter_value(text: str, default: Any = None, *, name: str = "value") -> Any:
-    """A ``-p NAME VALUE`` value typed by the parameter's declared default.
-
-    ``default`` a string: the text exactly as typed (``"8.20"`` stays ``"8.20"``).
-    A bool: ``True``/``False`` (also lower case). An int, float, tuple or list:
-    the text read as a Python literal that fits that type (an int is accepted for
-    a float; a tuple's elements must fit the default's elements when those share
-    one type). None (or a default that is not a literal): any Python literal,
-    else the text.
+    ``spec`` defaults to the one inferred from ``default``
+    (:func:`uwbwb.notebook_params.infer`): a string default keeps the text exactly as
+    typed (``"8.20"`` stays ``"8.20"``); a bool takes ``True``/``False`` (also lower
+    case); an int, float or tuple reads the text as a Python literal of that type (an
+    int is accepted for a float, an integral float such as ``1e9`` for an int; a tuple's
+    elements must fit the default's elements when those share one type); None: any
+    Python literal, else the text. See :meth:`uwbwb.notebook_params.Spec.parse`.
 
     Raises
     ------
     ValueError
-        A value that does not fit, naming the parameter and what was expected.
+        A value that does not fit, naming the parameter, what was expected and the default.
     """
-    kind = _kind(default)
-    if kind == "str":
-        return text
-    if kind == "bool":
-        if text.strip() in ("True", "true"):
-            return True
-        if text.strip() in ("False", "false"):
-            return False
-        raise ValueError(f"-p {name} {text}: expected {_expected(name, default)}")
+    spec = notebook_params.infer(default) if spec is None else spec
     try:
-        value = ast.literal_eval(text.strip())
-    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
-        if kind == "literal":
-            return text
-        raise ValueError(f"-p {name} {text}: expected {_expected(name, default)}") from None
-    fitted = _fits(value, default)
-    if fitted is _MISSING:
-        raise ValueError(f"-p {name} {text}: expected {_expected(name, default)}")
-    return fitted
+        return spec.parse(text, name)
+    except ValueError as exc:
+        raise ValueError(f"{exc} (the default of {name} is {default!r})") from None
 
 
 def resolve_parameters(notebooks: Iterable[str | os.PathLike], parameters: Mapping[str, Any] | None = None,
-                       *, text: Mapping[str, str] | None = None) -> dict[Path, dict[str, Any]]:
+                       *, text: Mapping[str, str] | None = None, quick: bool = False) -> dict[Path, dict[str, Any]]:
     """The parameters each notebook will receive, checked against what it declares.
 
     Parameters
@@ -273,25 +236,31 @@ def resolve_parameters(notebooks: Iterable[str | os.PathLike], parameters: Mappi
     notebooks
         The selected notebooks.
     parameters
-        Python values (e.g. ``{"FAST": True, "N_TRIALS": 5}``): each must fit the
-        type of the declared default (see :func:`parse_parameter_value`).
+        Python values (e.g. ``{"FAST": True, "N_TRIALS": 5}``): each must satisfy the
+        notebook's spec (see :func:`parameter_specs`).
     text
-        Values as typed on the command line (``-p NAME VALUE``): typed by each
-        notebook's declared default. A name in both wins from ``text``.
+        Values as typed on the command line (``-p NAME VALUE``): parsed by each
+        notebook's spec (see :func:`parse_parameter_value`). A name in both wins from ``text``.
+    quick
+        Every notebook runs with ``FAST=True`` (``--quick``); an explicit ``FAST=False`` is refused.
 
     Returns
     -------
     dict
-        Notebook path → ``{name: value}`` for the names that notebook declares.
+        Notebook path → ``{name: value}`` for the names that notebook declares, each
+        value of the type its spec gives.
 
     Raises
     ------
     ValueError
-        A reserved name, a name that no selected notebook declares (the message
-        lists the valid names), or a value that does not fit its declared type.
+        A reserved name, a name that no selected notebook declares (the message lists
+        the valid names), a value that does not satisfy its spec, ``FAST=False`` with
+        ``quick``, or (when the notebook will run with ``FAST=True``) an explicit value
+        that its FAST mode replaces or lowers (see :func:`uwbwb.notebook_params.fast_conflict`).
     """
     notebooks = [Path(nb) for nb in notebooks]
-    given = dict(parameters or {}) | dict(text or {})
+    parameters, text = dict(parameters or {}), dict(text or {})
+    given = parameters | text
     reserved = sorted(set(given) & set(RESERVED_PARAMETERS))
     if reserved:
         raise ValueError(f"parameter(s) {', '.join(reserved)} are set by the runner and cannot be passed")
@@ -304,22 +273,79 @@ def resolve_parameters(notebooks: Iterable[str | os.PathLike], parameters: Mappi
                          f"valid names: {', '.join(valid)}")
     resolved = {}
     for nb, defaults in declared.items():
+        specs = notebook_params.specs_for(nb.stem, defaults)
         params = {}
-        for name, value in given.items():
+        for name in given:
             if name not in defaults:
                 continue
-            if text is not None and name in text:
-                try:
-                    params[name] = parse_parameter_value(text[name], defaults[name], name=name)
-                except ValueError as exc:
-                    raise ValueError(f"{nb.stem}: {exc}") from None
-            else:
-                fitted = _fits(value, defaults[name])
-                if fitted is _MISSING:
-                    raise ValueError(f"{nb.stem}: parameter {name}={value!r}: expected {_expected(name, defaults[name])}")
-                params[name] = fitted
+            try:
+                if name in text:
+                    params[name] = parse_parameter_value(text[name], defaults[name], name=name, spec=specs[name])
+                else:
+                    try:
+                        params[name] = specs[name].validate(parameters[name], name)
+                    except ValueError as exc:
+                        raise ValueError(f"parameter {exc} (the default of {name} is {defaults[name]!r})") from None
+            except ValueError as exc:
+                raise ValueError(f"{nb.stem}: {exc}") from None
+        if quick and "FAST" in defaults:
+            if params.get("FAST", True) is not True:
+                raise ValueError(f"--quick sets FAST=True, but FAST={params['FAST']!r} was given too: "
+                                 f"drop --quick or the FAST value")
+            params = {"FAST": True} | params
+        if params.get("FAST", defaults.get("FAST")) is True:
+            for name, value in params.items():
+                problem = notebook_params.fast_conflict(nb.stem, name, value, specs[name])
+                if problem is not None:
+                    raise ValueError(problem)
         resolved[nb] = params
     return resolved
+
+
+#: Tag papermill gives the cell of injected parameters (kept, so that tools reading executed notebooks find it).
+INJECTED_TAG = "injected-parameters"
+
+
+def injected_source(parameters: Mapping[str, Any]) -> str:
+    """The injected parameters cell: one ``NAME = <Python literal>`` line per parameter.
+
+    Every value is written as its ``repr``, which must read back as the same value of
+    the same type (papermill itself would turn a tuple into a string).
+
+    Raises
+    ------
+    ValueError
+        A value whose ``repr`` is not a Python literal giving it back (a non-finite
+        float, an object), naming the parameter.
+    """
+    lines = ["# Parameters (injected by python -m uwbwb reproduce)"]
+    for name, value in parameters.items():
+        if not name.isidentifier():
+            raise ValueError(f"parameter name {name!r} is not a Python identifier")
+        literal = repr(value)
+        try:
+            back = ast.literal_eval(literal)
+        except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+            back = _MISSING
+        if back is _MISSING or type(back) is not type(value) or back != value:
+            raise ValueError(f"parameter {name}={literal[:60]}: not a Python literal that reads back as itself")
+        lines.append(f"{name} = {literal}")
+    return "\n".join(lines) + "\n"
+
+
+def parameterized(nb, parameters: Mapping[str, Any]):
+    """``nb`` (a notebook node, changed in place and returned) with the injected parameters cell
+    right after its ``parameters`` cell (replacing an injected cell already there)."""
+    import nbformat
+
+    cells = [c for c in nb.cells if INJECTED_TAG not in c.metadata.get("tags", [])]
+    where = next((i + 1 for i, c in enumerate(cells) if "parameters" in c.metadata.get("tags", [])), 0)
+    cell = nbformat.v4.new_code_cell(injected_source(parameters))
+    cell.metadata["tags"] = [INJECTED_TAG]
+    nb.cells = cells[:where] + [cell] + cells[where:]
+    meta = nb.metadata.setdefault("papermill", {})
+    meta["parameters"] = json.loads(json.dumps(dict(parameters)))     # JSON record (tuples as lists)
+    return nb
 
 
 def select_notebooks(notebooks_dir: str | os.PathLike | None = None,
@@ -405,18 +431,20 @@ def _export_html(executed: Path, html: Path) -> None:
 
 
 def run_notebook(source: Path, out_dir: Path, parameters: Mapping[str, Any], *,
-                 timeout_s: float | None = None, kernel_name: str = KERNEL_NAME) -> NotebookRun:
+                 timeout_s: float | None = None, kernel_name: str = KERNEL_NAME,
+                 kernel_env: Mapping[str, str] | None = None) -> NotebookRun:
     """Execute one notebook into ``out_dir`` and read its summary (see :func:`reproduce`).
 
-    ``parameters`` go to papermill as given (see :func:`resolve_parameters` for
-    checking them first).
+    ``parameters`` go to the notebook's injected cell as given (see
+    :func:`resolve_parameters` for checking them first); ``kernel_env`` is added to
+    the kernel's environment.
     """
     executed, html, summary = _outputs(source, out_dir)
     params = {**parameters, "SUMMARY_PATH": str(summary)}
     error = None
     t0 = time.perf_counter()
     try:
-        _papermill(source, executed, params, source.parent, timeout_s, kernel_name)
+        _papermill(source, executed, params, source.parent, timeout_s, kernel_name, kernel_env)
     except Exception as exc:  # any failure of one notebook is reported; the others still run
         error = _first_line(exc)
     return _finish(source, out_dir, parameters, error, time.perf_counter() - t0)
@@ -431,11 +459,56 @@ def _outputs(source: Path, out_dir: Path) -> tuple[Path, Path, Path]:
     return paths
 
 
-def _papermill(source, executed, params, cwd, timeout_s, kernel_name) -> None:
+def _papermill(source, executed, params, cwd, timeout_s, kernel_name, kernel_env=None) -> None:
+    """Execute ``source`` into ``executed`` with ``params`` in an injected cell (:func:`parameterized`),
+    on a kernel over IPC transport (:func:`_kernel_manager_class`) with ``kernel_env`` added to its environment."""
+    import tempfile
+
+    import nbformat
     import papermill as pm
 
-    pm.execute_notebook(str(source), str(executed), parameters=params, kernel_name=kernel_name,
-                        cwd=str(cwd), progress_bar=False, log_output=False, execution_timeout=timeout_s)
+    nb = parameterized(nbformat.read(str(source), as_version=4), params)
+    with tempfile.TemporaryDirectory(prefix="uwbwb-nb-") as tmp:
+        prepared = Path(tmp, Path(source).name)
+        nbformat.write(nb, str(prepared))
+        try:
+            pm.execute_notebook(str(prepared), str(executed), parameters=None, kernel_name=kernel_name,
+                                cwd=str(cwd), progress_bar=False, log_output=False, execution_timeout=timeout_s,
+                                kernel_manager_class=_kernel_manager_class(kernel_env))
+        finally:
+            if Path(executed).is_file():   # the record names the notebook, not the scratch copy
+                out = nbformat.read(str(executed), as_version=4)
+                out.metadata.setdefault("papermill", {})["input_path"] = str(source)
+                nbformat.write(out, str(executed))
+
+
+def _kernel_manager_class(env: Mapping[str, str] | None = None):
+    """A jupyter_client kernel manager on IPC transport (Unix sockets in Jupyter's private runtime
+    folder, removed at shutdown): no TCP port is opened, so ipykernel has no unencrypted-TCP warning
+    to print. ``env`` is added to the kernel's environment."""
+    import uuid
+
+    from jupyter_client.connect import jupyter_runtime_dir
+    from jupyter_client.manager import AsyncKernelManager
+    from traitlets import CaselessStrEnum, default
+
+    extra = dict(env or {})
+
+    class IpcKernelManager(AsyncKernelManager):
+        transport = CaselessStrEnum(["tcp", "ipc"], default_value="ipc", config=True)
+
+        @default("ip")
+        def _ipc_path(self):
+            runtime = Path(jupyter_runtime_dir())
+            runtime.mkdir(mode=0o700, parents=True, exist_ok=True)
+            return str(runtime / f"uwbwb-{uuid.uuid4().hex[:12]}-ipc")
+
+        async def start_kernel(self, **kw):
+            if extra:
+                kw["env"] = {**kw.get("env", os.environ), **extra}
+            return await super().start_kernel(**kw)
+
+    return IpcKernelManager
 
 
 def _finish(source: Path, out_dir: Path, parameters: Mapping[str, Any], error: str | None,
@@ -461,7 +534,8 @@ def _finish(source: Path, out_dir: Path, parameters: Mapping[str, Any], error: s
 
 
 def _notebook_task(name: str, text: str, cwd: str, parameters: Mapping[str, Any], timeout_s: float | None,
-                   kernel_name: str) -> tuple[str | None, str | None, str | None, float]:
+                   kernel_name: str, kernel_env: Mapping[str, str] | None = None
+                   ) -> tuple[str | None, str | None, str | None, float]:
     """Execute one notebook where this task runs (a Dask worker) in a scratch folder.
 
     The notebook's text travels with the task and the executed notebook and its
@@ -489,7 +563,7 @@ def _notebook_task(name: str, text: str, cwd: str, parameters: Mapping[str, Any]
             source.write_text(text, encoding="utf-8")
             t0 = time.perf_counter()
             error = _papermill_in_subprocess(source, executed, {**parameters, "SUMMARY_PATH": str(summary)},
-                                             cwd if os.path.isdir(cwd) else tmp, timeout_s, kernel_name)
+                                             cwd if os.path.isdir(cwd) else tmp, timeout_s, kernel_name, kernel_env)
             seconds = time.perf_counter() - t0
             read = (lambda p: p.read_text(encoding="utf-8") if p.is_file() else None)
             return read(executed), read(summary), error, seconds
@@ -498,7 +572,7 @@ def _notebook_task(name: str, text: str, cwd: str, parameters: Mapping[str, Any]
             rejoin()
 
 
-def _papermill_in_subprocess(source, executed, params, cwd, timeout_s, kernel_name) -> str | None:
+def _papermill_in_subprocess(source, executed, params, cwd, timeout_s, kernel_name, kernel_env=None) -> str | None:
     """:func:`_papermill` in a child Python process; the first line of its error, or None.
 
     Each notebook gets its own process (and event loop): several notebooks run at
@@ -509,7 +583,8 @@ def _papermill_in_subprocess(source, executed, params, cwd, timeout_s, kernel_na
     import sys
 
     job = Path(executed).with_suffix(".job")
-    job.write_bytes(pickle.dumps((str(source), str(executed), dict(params), str(cwd), timeout_s, kernel_name)))
+    job.write_bytes(pickle.dumps((str(source), str(executed), dict(params), str(cwd), timeout_s, kernel_name,
+                                  dict(kernel_env or {}))))
     code = "import sys; from uwbwb.reproduce import _papermill_job; _papermill_job(sys.argv[1])"
     done = subprocess.run([sys.executable, "-c", code, str(job)], capture_output=True, text=True)
     failure = job.with_suffix(".error")
@@ -525,14 +600,15 @@ def _papermill_job(job: str) -> None:
     """Entry point of :func:`_papermill_in_subprocess`'s child: run the pickled job, write the error line if any."""
     import pickle
 
-    source, executed, params, cwd, timeout_s, kernel_name = pickle.loads(Path(job).read_bytes())
+    source, executed, params, cwd, timeout_s, kernel_name, kernel_env = pickle.loads(Path(job).read_bytes())
     try:
-        _papermill(source, executed, params, cwd, timeout_s, kernel_name)
+        _papermill(source, executed, params, cwd, timeout_s, kernel_name, kernel_env)
     except Exception as exc:  # reported by the parent as the run's status
         Path(job).with_suffix(".error").write_text(_first_line(exc), encoding="utf-8")
 
 
-def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log) -> list[NotebookRun]:
+def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log,
+                    kernel_env=None) -> list[NotebookRun]:
     """Every notebook a task on the cluster, as many at once as it has threads; runs in notebook order."""
     from . import parallel
 
@@ -545,7 +621,8 @@ def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name
         log(f"running {len(notebooks)} notebooks on the Dask cluster at {client.scheduler.address}, "
             f"up to {slots} at once")
     for i, (task, out) in enumerate(parallel.imap(
-            _notebook_task, tasks, shared={"timeout_s": timeout_s, "kernel_name": kernel_name}, scheduler=client,
+            _notebook_task, tasks, shared={"timeout_s": timeout_s, "kernel_name": kernel_name,
+                                           "kernel_env": kernel_env}, scheduler=client,
             progress=False, desc="notebooks", unit="notebook", max_pending=slots), 1):
         source = by_name[task.params["name"]]
         executed, _, summary = _outputs(source, out_dir)
@@ -626,21 +703,23 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
               out: str | os.PathLike | None = None, parameters: Mapping[str, Any] | None = None,
               text_parameters: Mapping[str, str] | None = None,
               timeout_s: float | None = None, notebooks_dir: str | os.PathLike | None = None,
-              kernel_name: str = KERNEL_NAME, scheduler=None,
+              kernel_name: str = KERNEL_NAME, scheduler=None, scheduler_timeout_s: float | None = None,
               log: Callable[[str], None] | None = None) -> ReproduceResult:
     """Execute the notebooks and aggregate their summaries.
 
     Parameters
     ----------
     quick
-        Pass ``FAST=True`` (the CI setting: smaller experiments, looser checks).
+        Pass ``FAST=True`` (the CI setting: smaller experiments, looser checks). An
+        explicit ``FAST=False``, or an explicit value that a notebook's FAST mode would
+        replace or lower, is refused (see :func:`resolve_parameters`).
     only
         Notebook selection, see :func:`select_notebooks`.
     out
         Output folder; default ``reports/`` in the project.
     parameters
-        Extra notebook parameters as Python values (they override ``FAST``);
-        each goes to the selected notebooks that declare it.
+        Extra notebook parameters as Python values, checked by each notebook's spec
+        (:func:`parameter_specs`); each goes to the selected notebooks that declare it.
     text_parameters
         Extra notebook parameters as typed on the command line, typed by each
         notebook's declared default (see :func:`resolve_parameters`).
@@ -658,6 +737,11 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         cluster's address as :data:`SCHEDULER_PARAMETER`, so its sweeps run there
         too. The workers need the package and the data (not the output folder:
         executed notebooks and summaries come back to this process).
+    scheduler_timeout_s
+        Seconds a scheduler address (``scheduler``, or a ``DASK_SCHEDULER`` value given
+        as a parameter) has to answer as a Dask scheduler, checked before any notebook
+        runs; also passed to the kernels (``$UWBWB_SCHEDULER_TIMEOUT_S``) for the
+        notebooks' own connections. None: :func:`uwbwb.parallel.connect_timeout_s`.
     log
         Called with one progress line per notebook (e.g. ``print``).
 
@@ -670,10 +754,13 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     ------
     ValueError
         Before any notebook runs: bad selection, a reserved or unknown parameter
-        name, a value that does not fit its parameter's declared type, a notebook
-        without ``FAST`` under ``quick`` or without :data:`SCHEDULER_PARAMETER` under
-        ``scheduler``, the scheduler parameter given as well as ``scheduler``, or a
-        non-positive timeout.
+        name, a value its spec refuses, an explicit value that ``FAST=True`` would
+        replace or lower, a notebook without ``FAST`` under ``quick`` or without
+        :data:`SCHEDULER_PARAMETER` under ``scheduler``, the scheduler parameter given
+        as well as ``scheduler``, or a non-positive timeout.
+    uwbwb.parallel.SchedulerUnreachable
+        (a ``ConnectionError``) Before any notebook runs: no Dask scheduler answered
+        in time at the address given (the message names it and what was found there).
     """
     if timeout_s is not None and not timeout_s > 0:
         raise ValueError(f"timeout must be positive seconds, got {timeout_s!r}")
@@ -682,7 +769,12 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         lacking = [nb.stem for nb in notebooks if "FAST" not in notebook_parameters(nb)]
         if lacking:
             raise ValueError(f"--quick sets FAST, which {', '.join(lacking)} does not declare in its parameters cell")
-    given = ({"FAST": True} if quick else {}) | dict(parameters or {})
+    given = dict(parameters or {})
+    kernel_env = {}
+    if scheduler_timeout_s is not None:
+        from .parallel import TIMEOUT_ENV, connect_timeout_s
+
+        kernel_env[TIMEOUT_ENV] = repr(connect_timeout_s(scheduler_timeout_s))
     client = None
     if scheduler is not None:
         if SCHEDULER_PARAMETER in given or SCHEDULER_PARAMETER in (text_parameters or {}):
@@ -693,11 +785,19 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
                              f"in its parameters cell")
         from . import parallel
 
-        client = parallel.connect(scheduler)
+        resolve_parameters(notebooks, given, text=text_parameters, quick=quick)   # bad values first
+        client = parallel.connect(scheduler, timeout_s=scheduler_timeout_s)
         given[SCHEDULER_PARAMETER] = client.scheduler.address
-    resolved = resolve_parameters(notebooks, given, text=text_parameters)
+    resolved = resolve_parameters(notebooks, given, text=text_parameters, quick=quick)
+    addresses = {params[SCHEDULER_PARAMETER] for params in resolved.values()
+                 if params.get(SCHEDULER_PARAMETER) not in (None, "local")}
+    if client is None and addresses:      # a cluster given as a parameter: check it answers before any notebook runs
+        from . import parallel
+
+        for address in sorted(addresses):
+            parallel.probe(address, timeout_s=scheduler_timeout_s)
     if log:
-        for name in dict(given) | dict(text_parameters or {}):
+        for name in ({"FAST": True} if quick else {}) | dict(given) | dict(text_parameters or {}):
             receivers = [nb.stem for nb in notebooks if name in resolved[nb]]
             if len(receivers) < len(notebooks):
                 log(f"parameter {name} goes to {', '.join(receivers)} only (the others do not declare it)")
@@ -707,7 +807,7 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     runs = []
     if client is not None:
         try:
-            runs = _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log)
+            runs = _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env)
         finally:
             if isinstance(scheduler, str) and scheduler.strip() == "local":   # the cluster started for this run
                 from . import parallel
@@ -716,7 +816,8 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     for i, source in enumerate(notebooks if client is None else (), 1):
         if log:
             log(f"[{i}/{len(notebooks)}] {source.stem} ...")
-        run = run_notebook(source, out_dir, resolved[source], timeout_s=timeout_s, kernel_name=kernel_name)
+        run = run_notebook(source, out_dir, resolved[source], timeout_s=timeout_s, kernel_name=kernel_name,
+                           kernel_env=kernel_env)
         runs.append(run)
         if log:
             log(f"[{i}/{len(notebooks)}] {run.notebook}: {run.status} ({run.seconds:.1f} s)"
