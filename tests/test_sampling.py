@@ -120,3 +120,34 @@ def test_conditional_with_ranges_matches_brute_force_at_a_large_threshold(cubic)
     c = smp.conditional(cubic, *REF, 50_000, seed=4, thresholds_m=(2.0,), ranges=True, confidence=0.999)
     eb, ec = b.estimate(2.0), c.estimate(2.0)
     assert eb.n_hits > 30 and ec.ci_low < eb.ci_high and eb.ci_low < ec.ci_high, (eb, ec)
+
+
+@pytest.mark.parametrize("kwargs, name", [({"n_draws": 0}, "n_draws"), ({"chunk_size": 0}, "chunk_size"),
+                                          ({"workers": 0}, "workers"), ({"confidence": 1.0}, "confidence"),
+                                          ({"thresholds_m": (0.1, np.nan)}, "thresholds_m"),
+                                          ({"keep_below_m": -1.0}, "keep_below_m"),
+                                          ({"max_kept_per_chunk": -1}, "max_kept_per_chunk")])
+def test_brute_force_names_a_bad_parameter(cubic, kwargs, name):
+    args = {"n_draws": 1000, **kwargs}
+    n = args.pop("n_draws")
+    with pytest.raises(ValueError, match=name):
+        smp.brute_force(cubic, *REF, n, seed=0, **args)
+
+
+@pytest.mark.parametrize("kwargs, name", [({"n_positions": 0}, "n_positions"), ({"draws_per_position": 0},
+                                          "draws_per_position"), ({"thresholds_m": ()}, "thresholds_m"),
+                                          ({"workers": 1.5}, "workers")])
+def test_conditional_names_a_bad_parameter(cubic, kwargs, name):
+    args = {"n_positions": 1000, **kwargs}
+    n = args.pop("n_positions")
+    with pytest.raises(ValueError, match=name):
+        smp.conditional(cubic, *REF, n, seed=0, **args)
+
+
+def test_a_run_sized_for_a_small_threshold_finds_samples_a_large_one_misses(cubic):
+    """The conditional sampler draws velocities in the largest threshold's ellipsoid: sized for 15 cm it holds
+    (almost) nothing under 3 cm, sized for 3 cm it holds many, and both estimate the same fraction."""
+    wide = smp.conditional(cubic, *REF, 100_000, seed=1, thresholds_m=(0.03, 0.15))
+    narrow = smp.conditional(cubic, *REF, 100_000, seed=1, thresholds_m=(0.03,))
+    assert len(narrow.samples) > 5 * max(len(wide.samples.below(0.03)), 1)
+    assert narrow.estimate(0.03).fraction > 0 and narrow.estimate(0.03).n_hits == len(narrow.samples)

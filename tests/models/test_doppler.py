@@ -60,14 +60,30 @@ def test_jacobian_matches_finite_differences(model, instantaneous):
     np.testing.assert_allclose(one, J[3])
 
 
-def test_linearise_gives_doppler_and_range_rows(model):
+def test_measurement_rows_give_doppler_and_range_rows(model):
     x = np.array([0.1, 0.2, 0.3, 0.5, -0.2, 0.0])
-    lin = model.linearise(x, (2, 1e-4, np.nan))
-    assert lin.z.shape == (1,) and lin.H.shape == (1, 6)
-    lin = model.linearise(x, (2, 1e-4, 3.0))
-    assert lin.z.shape == (2,) and lin.H.shape == (2, 6)
-    assert lin.h[1] == pytest.approx(np.linalg.norm(x[:3] - model.beacons.pos_m[2]))
-    assert model.linearise(x, (-1, np.nan, np.nan)) is None
+    z, h, H, R = model.measurement_rows(x, (2, 1e-4, np.nan))
+    assert z.shape == (1,) and H.shape == (1, 6) and R.shape == (1, 1)
+    assert h[0] == pytest.approx(model.delta_p(x[:3], x[3:], np.array(2), instantaneous=False))
+    assert R[0, 0] == pytest.approx(model.sigma_dp_s(np.array(2)) ** 2)
+    z, h, H, R = model.measurement_rows(x, (2, 1e-4, 3.0))
+    assert z.shape == (2,) and H.shape == (2, 6)
+    assert h[1] == pytest.approx(np.linalg.norm(x[:3] - model.beacons.pos_m[2]))
+    assert R[1, 1] == pytest.approx(model.sigma_m ** 2)
+    assert model.measurement_rows(x, (-1, np.nan, np.nan)) is None
+    assert model.measurement_rows(x, (2, np.nan, np.nan)) is None
+    with pytest.raises(ValueError, match="beacon"):
+        model.measurement_rows(x, (8, 1e-4, np.nan))
+
+
+def test_the_model_module_imports_nothing_from_the_filters():
+    import ast
+    import inspect
+
+    tree = ast.parse(inspect.getsource(dm))
+    names = [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    names += [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    assert not [n for n in names if "filters" in n], names
 
 
 def test_distance_multiplies_by_the_speed_of_sound(model):
@@ -81,6 +97,17 @@ def test_invalid_models_are_rejected():
         dm.DopplerModel(dm.cubic_layout(), np.ones(3))
     with pytest.raises(ValueError, match="lag"):
         dm.DopplerModel.for_layout(dm.cubic_layout(), lag=2.0)
+    for name, value in (("v_s_mps", 0.0), ("sigma_t_s", -1e-5), ("sigma_model_mps", np.nan), ("lag", np.inf)):
+        with pytest.raises(ValueError, match=name):
+            dm.DopplerModel.for_layout(dm.cubic_layout(), **{name: value})
+    with pytest.raises(ValueError, match="beacons"):
+        dm.DopplerModel(np.zeros((8, 3)), dm.beacon_periods_s(8))
+    with pytest.raises(ValueError, match="step_s"):
+        dm.beacon_periods_s(8, step_s=-0.001)
+    with pytest.raises(ValueError, match="sigma_acc_mps2"):
+        dm.ReceiverMotion(None)
+    with pytest.raises(ValueError, match="sigma_acc_mps2"):
+        dm.ReceiverMotion((1.0, -1.0, 0.0))
 
 
 def test_receiver_motion_matches_its_covariance():

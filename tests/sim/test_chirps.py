@@ -73,3 +73,14 @@ def test_rectangle_is_walked_clockwise_with_corners_three_seconds_apart():
     np.testing.assert_allclose(np.linalg.norm(track.vel(np.linspace(0, 20, 50)), axis=1), track.speed_mps)
     p = track.pos_m(t_bl)
     assert p[0] < -1.3 and p[1] < -0.8
+
+
+@pytest.mark.parametrize("kwargs, name", [({"p_miss": 1.0}, "p_miss"), ({"p_miss": -0.1}, "p_miss"),
+                                          ({"spurious_rate_hz": -1.0}, "spurious_rate_hz"),
+                                          ({"chirp_s": np.nan}, "chirp_s"), ({"phase_s": np.zeros(3)}, "phase_s")])
+def test_bad_simulator_parameters_are_named(model, kwargs, name):
+    track, _ = sc.rectangle_track()
+    with pytest.raises(ValueError, match=name):
+        sc.simulate_chirps(model, track, 2.0, rng=np.random.default_rng(0), **kwargs)
+    with pytest.raises(ValueError, match="duration_s"):
+        sc.simulate_chirps(model, track, -1.0, rng=np.random.default_rng(0))

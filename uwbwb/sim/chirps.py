@@ -29,6 +29,7 @@ import numpy as np
 
 from ..models.doppler import DopplerModel
 from ..types import Trajectory
+from ..validate import number, probability
 
 __all__ = ["LineTrack", "LoopTrack", "rectangle_track", "ChirpRecording", "simulate_chirps"]
 
@@ -216,10 +217,18 @@ def simulate_chirps(model: DopplerModel, track, duration_s: float, *, rng: np.ra
     phase_s
         Emission phases, shape ``(n,)``; default uniform in ``[0, P_i)``.
     """
-    if duration_s <= 0 or not 0 <= p_miss < 1 or spurious_rate_hz < 0 or chirp_s < 0:
-        raise ValueError("need duration_s > 0, 0 <= p_miss < 1, spurious_rate_hz >= 0, chirp_s >= 0")
+    if not isinstance(model, DopplerModel):
+        raise ValueError(f"model must be a DopplerModel, got {type(model).__name__}")
+    duration_s = number("duration_s", duration_s, minimum=0.0, strict_minimum=True)
+    p_miss = probability("p_miss", p_miss, open_interval=False)
+    if p_miss >= 1.0:
+        raise ValueError(f"p_miss must be a number in [0, 1), got {p_miss!r}")
+    spurious_rate_hz = number("spurious_rate_hz", spurious_rate_hz, minimum=0.0)
+    chirp_s = number("chirp_s", chirp_s, minimum=0.0)
     P = model.period_s
     phase = rng.uniform(0.0, P) if phase_s is None else np.asarray(phase_s, float)
+    if phase.shape != P.shape or not np.all(np.isfinite(phase)):
+        raise ValueError(f"phase_s must hold one finite phase per beacon, shape {P.shape}, got {phase.shape}")
     beacons, emits = [], []
     for i, (p, ph) in enumerate(zip(P, phase)):
         t_e = ph + p * np.arange(int(np.ceil((duration_s - ph) / p)) + 1)
