@@ -288,8 +288,10 @@ def _probe(address: str, timeout_s: float) -> None:
 
     async def identify():
         from distributed.comm import connect as comm_connect
+        from distributed.security import Security
 
-        comm = await comm_connect(address, timeout=timeout_s)
+        # the connection arguments a Client would use (TLS settings from the Dask configuration)
+        comm = await comm_connect(address, timeout=timeout_s, **Security().get_connection_args("client"))
         try:
             await comm.write({"op": "identity", "reply": True})
             return await comm.read()
