@@ -17,3 +17,7 @@ __all__ = ["AUTHORS_TAG_HEIGHT_M", "AUTHORS_Z_LIMIT_M", "FAST_SPAN_S", "N_BLOCKS
            "block_bootstrap_ratio", "board_epochs", "case_board", "compare_cases", "load_pair", "ratio_table",
            "read_rmsd_results", "reproduce_authors", "static_model_effect", "static_range_model",
            "study_estimators", "tuning_case"]
+from . import facts
+from .sections import Section, ablation, motion_section, pruning_section, scoreboard_section
+
+__all__ += ["Section", "ablation", "facts", "motion_section", "pruning_section", "scoreboard_section"]

@@ -46,7 +46,7 @@ from ...filters.pruning import LABELS as PRUNING_LABELS
 from ...filters.pruning import PruningConfig, localize
 from ...scoreboard import Board, score
 from ...models.motion import MotionModel, make_motion_model
-from ...scoreboard.estimators import (EKF_GRIDS, NLS_WINDOWS_S, BaseEstimator, TdoaEkfEstimator, WindowNls,
+from ...scoreboard.estimators import (EKF_GRIDS, NLS_WINDOWS_S, BaseEstimator, TdoaEkfEstimator, WindowNls, _range_bound,
                                       _errors_rmse, calibrated_log, default_estimators, truth_at)
 from ...scoreboard.protocol import between
 from ...types import EstimateStatus, Estimates, Recording, Trajectory

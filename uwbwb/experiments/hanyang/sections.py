@@ -1,0 +1,284 @@
+"""What the notebooks show of the Hanyang dynamic runs: one function per notebook section.
+
+Each takes the case(s) by parameter, runs on any tree of the upstream layout, returns a
+:class:`Section` (its tables, a Markdown text computed from them, the boards) and records the
+headline numbers into the notebook's :class:`~uwbwb.metrics.Summary` with
+``data = hanyang-outdoor-uwb/<case>``. A dataset or dynamic part that is absent gives a
+section with ``absent`` set (the notebook prints it); a case *name* that a present dataset does
+not hold is an error.
+
+* :func:`scoreboard_section` (notebook 06): the authors' numbers reproduced, a board per case
+  (their LS/ESKF as external rows), the summary ours / theirs across cases, the static range
+  model's effect;
+* :func:`pruning_section` (notebook 02): NLS with and without the pruning heuristics of paper 001
+  on one case (NLOS is the point), each against plain NLS with a bootstrap interval;
+* :func:`motion_section` (notebook 03): the RW/RF/RJ motion models on ranges (and the TDoA EKF of
+  notebook 03, which the 4-anchor cluster defeats), each against raw LS.
+"""
+
+from __future__ import annotations
+
+import os
+import zlib
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from ... import metrics
+from ...datasets import dataset_available, hanyang_dynamic
+from ...errors import DataNotFoundError
+from ...scoreboard import Board
+from ...scoreboard.estimators import EKF_GRIDS, NLS_WINDOWS_S, RawLs, TdoaEkfEstimator, WindowNls
+from . import facts, study
+
+__all__ = ["Section", "ablation", "motion_section", "pruning_section", "scoreboard_section"]
+
+PathLike = str | os.PathLike
+NAME = hanyang_dynamic.NAME
+
+
+@dataclass(frozen=True)
+class Section:
+    """One notebook section's results.
+
+    Attributes
+    ----------
+    absent
+        Why the section did not run (dataset or dynamic part absent), else None.
+    markdown
+        Text and tables computed from the run (what the notebook displays).
+    tables
+        The tables, by name.
+    boards
+        Per case, its board.
+    facts
+        The numbers behind the sentences.
+    rows
+        Headline numbers for the notebook's summary (keyword arguments of
+        :meth:`~uwbwb.metrics.Summary.add`); :meth:`record` adds them.
+    """
+
+    absent: str | None = None
+    markdown: str = ""
+    tables: Mapping[str, pd.DataFrame] = field(default_factory=dict)
+    boards: Mapping[str, Board] = field(default_factory=dict)
+    facts: Mapping[str, object] = field(default_factory=dict)
+    rows: tuple[dict, ...] = ()
+
+    def record(self, summary) -> None:
+        """Add :attr:`rows` to a :class:`~uwbwb.metrics.Summary` (nothing when the section did not run)."""
+        for row in self.rows:
+            summary.add(**row)
+
+
+class _Rows:
+    """Collects summary rows (and adds them to a summary at once when one is given)."""
+
+    def __init__(self, summary=None):
+        self.summary, self.rows = summary, []
+
+    def add(self, **row) -> None:
+        self.rows.append(row)
+        if self.summary is not None:
+            self.summary.add(**row)
+
+
+def _cases(data_dir, wanted: Sequence[str] | None) -> tuple[list[str], list[str] | None, str | None]:
+    """``(available, chosen, absent_reason)``; a wanted name that is not present raises."""
+    if not dataset_available(NAME, data_dir):
+        return [], None, f"{NAME} was not found (set DATA_DIR or fetch it): section skipped"
+    available = hanyang_dynamic.dynamic_cases(data_dir)
+    if not available:
+        return [], None, f"{NAME} has no Dynamic_measurements cases here: section skipped"
+    if len(available) < 2:
+        return available, None, (f"{NAME} holds one dynamic case only ({available[0]}): every board is tuned on "
+                                 f"another case, so the section is skipped")
+    if wanted is None:
+        return available, None, None
+    missing = [c for c in wanted if c not in available]
+    if missing:
+        raise DataNotFoundError(f"{NAME} has no dynamic case {missing}; cases present: {available}")
+    return available, list(wanted), None
+
+
+def _md(df: pd.DataFrame, digits: int = 3) -> str:
+    """A DataFrame as a Markdown table (numbers rounded)."""
+    def cell(v):
+        if isinstance(v, (float, np.floating)):
+            return "—" if not np.isfinite(v) else f"{v:.{digits}f}"
+        return str(v)
+    head = "| " + " | ".join(map(str, df.columns)) + " |"
+    rule = "|" + "---|" * len(df.columns)
+    return "\n".join([head, rule] + ["| " + " | ".join(cell(v) for v in row) + " |"
+                                     for row in df.itertuples(index=False)])
+
+
+def ablation(board: Board, pairs: Sequence[tuple[str, str]], *, low: str, high: str, neither: str,
+             seed: int = 0) -> pd.DataFrame:
+    """RMSE_2d of ``method`` vs ``reference`` on the board's common epochs, the ratio, its block-bootstrap
+    interval and the verdict (``low`` below 1, ``high`` above, ``neither`` otherwise)."""
+    _, errs = study._common_errors(board)
+    cov = board.table().set_index("method")["coverage"]
+    rows = []
+    for m, ref in pairs:
+        if m not in errs or ref not in errs or not errs[m].size:
+            continue
+        rng = np.random.default_rng([seed, zlib.crc32(f"{board.label}/{m}/{ref}".encode())])
+        lo, hi = study.block_bootstrap_ratio(errs[m], errs[ref], rng=rng)
+        r_m, r_ref = metrics.rmse(errs[m]), metrics.rmse(errs[ref])
+        rows.append({"method": m, "coverage": float(cov[m]), "reference": ref, "n_common": int(errs[m].size),
+                     "rmse_2d_m": r_m, "reference_rmse_2d_m": r_ref, "ratio": r_m / r_ref, "ratio_lo": lo,
+                     "ratio_hi": hi, "verdict": facts.interval_verdict(lo, hi, low, high, neither)})
+    return pd.DataFrame(rows)
+
+
+def _board_text(board: Board) -> str:
+    df = board.table()
+    cols = [c for c in ("method", "coverage", "n_scored", "rmse_m", "cep95_m", "rmse_common_m", "bound_m") if c in df]
+    return (f"**{board.label}** — tuned on {board.calibration.source}; scored on {board.part} "
+            f"({board.mode}; horizontal errors, m; coverage = share of scored epochs with a position)\n\n"
+            + _md(df[cols]))
+
+
+# --------------------------------------------------------------------------------------------
+# notebook 06
+# --------------------------------------------------------------------------------------------
+
+def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | None = None, *, fast: bool,
+                       summary=None, seed: int = 0, progress: bool = False) -> Section:
+    """Notebook 06's Hanyang section: reproduction, boards, ours / theirs across cases, static model.
+
+    ``cases`` None: every case present (FAST: the first only). Each board is tuned on
+    :func:`~.study.tuning_case`. Checks (raise AssertionError): the recomputed authors' numbers agree
+    with ``RMSD_results.txt`` within :data:`~.facts.REPRO_TOL_M` where it exists; every board's
+    coverage lies in [0, 1]; the external rows were scored.
+    """
+    available, chosen, absent = _cases(data_dir, cases)
+    if absent:
+        return Section(absent=absent)
+    chosen = chosen or available
+    if fast:
+        chosen = chosen[:1]
+    comp = study.compare_cases(chosen, data_dir, fast=fast, seed=seed, progress=progress)
+    repro_f = facts.reproduction_facts(comp.reproduction)
+    assert repro_f["n_published"] == 0 or repro_f["agree"], facts.reproduction_sentence(repro_f)
+    for case, b in comp.boards.items():
+        df = b.table().set_index("method")
+        assert df["coverage"].between(0, 1).all(), case
+        assert df.loc[study.AuthorsEstimator("LS").name, "n_scored"] > 0, f"{case}: the authors' LS was not scored"
+    ratio_f = facts.ratio_facts(comp.ratios)
+    effect = study.static_model_effect(comp.boards, seed=seed)
+    static_f = facts.static_facts(effect)
+    rows = _Rows(summary)
+    facts.summary_rows(comp, rows)
+    mode = "FAST (smoke-test numbers: one case, a 30 s part)" if fast else "full"
+    text = [f"### Hanyang outdoor dynamic runs ({mode})", "",
+            "**Their numbers first** (*input*: RMSD_results.txt; *reproduced*: the package's metric code on their "
+            "LS.csv / ESKF.csv with their window, epochs, |z| < 0.5 m filter and 2-D/3-D definitions).", "",
+            _md(comp.reproduction[["data", "method", "metric", "published_m", "reproduced_m", "diff_m", "n_epochs"]],
+                digits=4), "", facts.reproduction_sentence(repro_f), "",
+            "**Boards** (our protocol: the range epochs inside the authors' window, every method on the same "
+            "epochs, tuned on another case; the authors' LS and ESKF as *external* rows; their ESKF also had the "
+            "robot's IMU).", ""]
+    for case, b in comp.boards.items():
+        text += [_board_text(b), ""]
+    text += ["**Ours vs theirs** (RMSE_2d on the epochs every method covered; 95 % block-bootstrap interval of "
+             "the ratio).", "",
+             _md(comp.ratios[["case", "tuned_on", "method", "best", "coverage", "rmse_2d_m", "authors_ls_rmse_2d_m",
+                              "ratio", "ratio_lo", "ratio_hi", "authors_ls_published_2d_m"]]) if len(comp.ratios)
+             else "(no ratio)", "", facts.ratio_sentence(ratio_f), "",
+             "**Static range model on the dynamic runs**: " + "; ".join(m.describe() for m in comp.static_models),
+             "", facts.static_sentence(static_f)]
+    return Section(None, "\n".join(text), {"reproduction": comp.reproduction, "ratios": comp.ratios,
+                                           "static_effect": effect}, dict(comp.boards),
+                   {"reproduction": repro_f, "ratios": ratio_f, "static": static_f, "tuning": dict(comp.tuning)},
+                   tuple(rows.rows))
+
+
+# --------------------------------------------------------------------------------------------
+# notebooks 02 and 03: one case
+# --------------------------------------------------------------------------------------------
+
+def _one_case(case: str | None, data_dir, prefer: str) -> tuple[str | None, str | None, list[str]]:
+    available, chosen, absent = _cases(data_dir, None if case is None else [case])
+    if absent:
+        return None, absent, available
+    if chosen:
+        return chosen[0], None, available
+    pick = [c for c in available if c.startswith(prefer + "/")]
+    return (pick or available)[0], None, available
+
+
+def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *, fast: bool, summary=None,
+                    seed: int = 0) -> Section:
+    """Notebook 02's Hanyang section: NLS with the pruning heuristics on one case (default the first NLOS
+    case), tuned (window length, range calibration, tag height) on :func:`~.study.tuning_case`.
+
+    Rows: raw LS, NLS (no pruning), NLS with residual pruning, NLS with the robust mean, the authors' LS
+    (external); each pruned NLS against plain NLS on the common epochs with a block-bootstrap interval.
+    """
+    case, absent, available = _one_case(case, data_dir, "NLOS")
+    if absent:
+        return Section(absent=absent)
+    tune = study.tuning_case(case, available)
+    windows = (1.0,) if fast else NLS_WINDOWS_S
+    est = [RawLs(), WindowNls(windows_s=windows), study.PrunedNls(windows_s=windows, heuristic="residual"),
+           study.PrunedNls(windows_s=windows, heuristic="robust_mean"), study.AuthorsEstimator("LS")]
+    board = study.case_board(case, tune, data_dir, fast=fast, estimators=est)
+    pairs = [("NLS residual pruning", "NLS"), ("NLS robust mean", "NLS"), ("NLS", "raw LS"),
+             ("NLS residual pruning", "authors LS (external)"), ("NLS robust mean", "authors LS (external)")]
+    table = ablation(board, pairs, low="better", high="worse", neither="not significant", seed=seed)
+    rows = _Rows(summary)
+    for r in table.itertuples(index=False):
+        rows.add(quantity=f"RMSE_2d ratio {r.method} / {r.reference}", value=r.ratio, unit="", data=board.label,
+                 kind="reproduced")
+    for r in board.table().itertuples(index=False):
+        if np.isfinite(r.rmse_m):
+            rows.add(quantity=f"RMSE_2d, {r.method}", value=r.rmse_m, unit="m", data=board.label, kind="reproduced")
+    lines = [f"{r.method} vs {r.reference}: ×{r.ratio:.2f} [{r.ratio_lo:.2f}, {r.ratio_hi:.2f}] — {r.verdict}"
+             for r in table.itertuples(index=False)]
+    cond = hanyang_dynamic._case_fields(case)["condition"] or "unknown condition"
+    text = [f"### Pruning on a Hanyang dynamic run: {case} ({cond}; {'FAST: a 30 s part' if fast else 'full'})", "",
+            _board_text(board), "", _md(table), "",
+            "Pruning against plain NLS on the same epochs (95 % block-bootstrap interval of the RMSE ratio): "
+            + "; ".join(lines) + "."]
+    return Section(None, "\n".join(text), {"ablation": table}, {case: board}, {"case": case, "tuned_on": tune},
+                   tuple(rows.rows))
+
+
+def motion_section(case: str | None = None, data_dir: PathLike | None = None, *, fast: bool, summary=None,
+                   seed: int = 0) -> Section:
+    """Notebook 03's Hanyang section: the motion models on one case (default the first LOS case), tuned on
+    :func:`~.study.tuning_case`: EKF-RW/RF/RJ on the ranges, the TDoA EKF-RF of notebook 03, raw LS and the
+    authors' ESKF (external, IMU-aided); each EKF against raw LS with a block-bootstrap interval."""
+    case, absent, available = _one_case(case, data_dir, "LOS")
+    if absent:
+        return Section(absent=absent)
+    tune = study.tuning_case(case, available)
+    coarse = {m: tuple(float(g) for g in EKF_GRIDS[m][::2]) for m in EKF_GRIDS}
+    est = [RawLs(), TdoaEkfEstimator("RF", grid=coarse["RF"]),
+           *[study.RangeEkfEstimator(m, grid=coarse[m] if fast else None) for m in ("RW", "RF", "RJ")],
+           study.AuthorsEstimator("ESKF")]
+    board = study.case_board(case, tune, data_dir, fast=fast, estimators=est)
+    names = [e.name for e in est[1:5]]
+    table = ablation(board, [(m, "raw LS") for m in names], low="better", high="worse", neither="not significant",
+                     seed=seed)
+    sigma = {m: board.calibration.params(m).get("sigma_w", np.nan) for m in names}
+    table["sigma_w"] = [sigma.get(m, np.nan) for m in table["method"]]
+    rows = _Rows(summary)
+    for r in table.itertuples(index=False):
+        rows.add(quantity=f"RMSE_2d, {r.method}", value=r.rmse_2d_m, unit="m", data=board.label, kind="reproduced")
+        rows.add(quantity=f"RMSE_2d ratio {r.method} / raw LS", value=r.ratio, unit="", data=board.label,
+                 kind="reproduced")
+    lines = [f"{r.method} (σ_w {r.sigma_w:.3g}) ×{r.ratio:.2f} [{r.ratio_lo:.2f}, {r.ratio_hi:.2f}] — {r.verdict}"
+             for r in table.itertuples(index=False)]
+    text = [f"### Motion models on a Hanyang dynamic run: {case} ({'FAST: a 30 s part' if fast else 'full'})", "",
+            _board_text(board), "", _md(table), "",
+            "Each filter against raw LS on the same epochs (95 % block-bootstrap interval of the RMSE ratio; σ_w "
+            "tuned on the other case, in the model's unit m/s, m/s², m/s³): " + "; ".join(lines) + ". The TDoA "
+            "filter of notebook 03 uses range *differences*: from a 2 m anchor cluster they carry almost no "
+            "information about a tag tens of metres away, which the ranges themselves do."]
+    return Section(None, "\n".join(text), {"models": table}, {case: board}, {"case": case, "tuned_on": tune},
+                   tuple(rows.rows))
