@@ -1,28 +1,71 @@
+from dataclasses import fields, replace
+
+import matplotlib
 import numpy as np
 import pandas as pd
 import pytest
 
 from uwbwb import sampling as smp
-from uwbwb.experiments.doppler import discussion, study
+from uwbwb.experiments.doppler import discussion, facts, figures, headlines, study
 from uwbwb.models import doppler as dm
+
+matplotlib.use("Agg")
+
+R_MODEL, R_500 = study.READINGS
 
 
 @pytest.fixture(scope="module")
 def cfg():
-    return study.StudyConfig.for_mode(True, 0, n_brute=200_000, n_positions=20_000, pf_runs=3, n_particles=300)
+    return study.StudyConfig.for_mode(True, 0, n_brute=200_000, n_positions=20_000, pf_runs=3, n_particles=300,
+                                      n_recordings=2, compare_runs=2, n_fig_positions=40_000)
 
 
-def test_fast_mode_only_shrinks_sizes():
+# ------------------------------------------------------------------ configuration and eq 1
+
+SIZES = {"fast", "n_brute", "n_positions", "pf_runs", "n_particles", "n_recordings", "compare_runs", "laps_before",
+         "n_fig_positions"}
+
+
+def test_fast_mode_changes_only_the_sizes_and_shrinks_them():
     full, fast = study.StudyConfig.for_mode(False), study.StudyConfig.for_mode(True)
-    assert full.n_brute >= 1_000_000_000 and full.pf_runs == 1000
-    assert fast.n_brute < full.n_brute and fast.sigma_range_m == full.sigma_range_m
-    assert fast.p_miss == full.p_miss and fast.temperature_c == full.temperature_c
+    for f in fields(study.StudyConfig):
+        a, b = getattr(full, f.name), getattr(fast, f.name)
+        if f.name in SIZES - {"fast"}:
+            assert b <= a, f.name
+        elif f.name != "fast":
+            assert a == b, f"FAST changed {f.name}, which is not a size"
+    assert full.n_recordings >= 10 and fast.n_recordings >= 3       # Fig 6 is a distribution over recordings
 
 
-def test_reference_table_reports_eq1_beside_the_paper(cfg):
-    t = study.reference_table(study.make_model("cubic", cfg))
-    assert t["ΔP_ref (ms), P = 500 ms"].iloc[0] == pytest.approx(1.06, abs=0.01)
-    assert t["paper (ms)"].iloc[7] == -1.2 and np.isnan(t["paper (ms)"].iloc[3])
+def test_reference_table_is_eq1_under_both_readings(cfg):
+    """Independent closed form: ΔP = P r / (1 − r), r = u·V / v_s, for every beacon and both period readings."""
+    t = study.reference_table(cfg)
+    X, V = dm.REFERENCE_POS_M, dm.REFERENCE_VEL_MPS
+    T = dm.cubic_layout().pos_m
+    u = (X - T) / np.linalg.norm(X - T, axis=1)[:, None]
+    r = u @ V / dm.speed_of_sound_mps(cfg.temperature_c)
+    for reading, P in ((R_MODEL, 0.501 + 0.006 * np.arange(8)), (R_500, np.full(8, 0.5))):
+        np.testing.assert_allclose(t[f"ΔP_ref (ms), {reading}"], 1e3 * P * r / (1 - r), rtol=1e-6)
+    assert t[f"ΔP_ref (ms), {R_MODEL}"].iloc[7] == pytest.approx(-1.17, abs=0.01)
+    assert t[f"ΔP_ref (ms), {R_500}"].iloc[7] == pytest.approx(-1.08, abs=0.01)
+
+
+def test_fisher_weakest_direction_is_the_least_informative_one(cfg):
+    model = study.make_model("cubic", cfg)
+    f = study.fisher_analysis(model)
+    w = f["weak"][0]
+    d = np.concatenate([w["position part"], w["velocity part"]])
+    J = f["J"]
+    assert np.linalg.norm(J @ d) == pytest.approx(f["singular_values"][-1], rel=1e-9)
+    rng = np.random.default_rng(0)
+    r = rng.normal(size=(500, 6))
+    r /= np.linalg.norm(r, axis=1, keepdims=True)
+    assert np.linalg.norm(r @ J.T, axis=1).min() > f["singular_values"][-1]
+    # J is the Jacobian of v_s ΔP: a small step along d changes δ by s_min · ε
+    eps = 1e-4
+    X, V = dm.REFERENCE_POS_M + eps * d[:3], dm.REFERENCE_VEL_MPS + eps * d[3:]
+    delta = model.distance_m(model.delta_p(X, V), model.delta_p(dm.REFERENCE_POS_M, dm.REFERENCE_VEL_MPS))
+    assert delta == pytest.approx(eps * f["singular_values"][-1], rel=1e-3)
 
 
 def test_cut_with_the_reference_velocity_reaches_zero_at_the_reference(cfg):
@@ -45,30 +88,197 @@ def test_ghost_geometry_finds_a_plane_and_an_axis():
     assert g["angle(position plane normal, V) (°)"] < 2 and g["angle(velocity main axis, V) (°)"] < 5
 
 
-def test_fisher_weakest_direction_is_a_unit_vector(cfg):
-    f = study.fisher_analysis(study.make_model("cubic", cfg))
-    assert f["J"].shape == (8, 6) and np.all(np.diff(f["singular_values"]) <= 0)
-    w = f["weak"][0]
-    assert np.linalg.norm(np.concatenate([w["position part"], w["velocity part"]])) == pytest.approx(1.0)
+def test_distinct_counts_do_not_count_resampled_copies():
+    g = smp.GhostSamples(np.array([[0, 0, 0], [1, 0, 0.0]]), np.array([[0, 0, 0], [0, 1, 0.0]]),
+                         np.array([0.01, 0.02]), np.array([1.0, 3.0]))
+    assert study.distinct_counts(g.resample(4000, rng=np.random.default_rng(0))) == (2, 2)
+    same_x = smp.GhostSamples(np.zeros((3, 3)), np.eye(3), np.full(3, 0.01), np.ones(3))
+    assert study.distinct_counts(same_x) == (3, 1)
 
+
+def test_bootstrap_median_interval_covers_and_needs_three_values():
+    rng = np.random.default_rng(0)
+    m, lo, hi = study.bootstrap_median(rng.normal(10.0, 1.0, 40), rng=rng)
+    assert lo < 10.0 < hi and lo < m < hi
+    assert np.isnan(study.bootstrap_median([1.0, 2.0], rng=rng)[1])
+
+
+# ------------------------------------------------------------------ facts and sentences on both sides of each rule
+
+def _results(**change) -> facts.Results:
+    """A hand-made Results whose numbers the tests set (no sampler, no filter)."""
+    ref = pd.DataFrame({f"ΔP_ref (ms), {R_MODEL}": [1.06] + [0.0] * 6 + [-1.17],
+                        f"P (ms), {R_MODEL}": 501 + 6 * np.arange(8.0),
+                        f"ΔP_ref (ms), {R_500}": [1.06] + [0.0] * 6 + [-1.08], f"P (ms), {R_500}": np.full(8, 500.0)})
+    frac = change.pop("frac", {R_MODEL: (4.97e-4, 4.94e-4, 4.99e-4), R_500: (6.3e-4, 6.2e-4, 6.4e-4)})
+    readings = pd.DataFrame([{"layout": lay, "reading": r, "fraction (%)": frac[r][0] * (7 if lay == "lab" else 1),
+                              "95 % low (%)": frac[r][1] * (7 if lay == "lab" else 1),
+                              "95 % high (%)": frac[r][2] * (7 if lay == "lab" else 1)}
+                             for lay in ("cubic", "lab") for r in (R_MODEL, R_500)])
+
+    def est(p, lo, hi, name="conditional"):
+        return smp.FractionEstimate(0.15, p, lo, hi, 0.95, name, 1000, 1000, 10)
+
+    at15 = {lay: {"conditional": est(4.97e-6 * k, 4.94e-6 * k, 4.99e-6 * k),
+                  "brute force": est(5e-6 * k, 4e-6 * k, 6e-6 * k, "brute force"), "ranges": est(1e-12, 0, 2e-12)}
+            for lay, k in (("cubic", 1), ("lab", 7))}
+    cep = change.pop("cep", [24.0, 26.0, 25.0, 23.0, 27.0])
+    ratio = change.pop("ratio", {"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [1.8, 1.9, 2.0, 1.7, 1.6]})
+    offset = change.pop("offset", 20.0)
+    snap = pd.DataFrame([{"recording": k, "variant": v, "corner": c, "runs": 10,
+                          "CEP50 (cm)": cep[k] / (5 if v != "Doppler" else 1), "offset (cm)": offset,
+                          "run-to-run CEP50 (cm)": 10.0, "along / across": ratio[c][k]}
+                         for k in range(len(cep)) for v in ("Doppler", "Doppler + ranges") for c in ratio])
+    in_track = change.pop("in_track", 0.99)
+    restarted = change.pop("restarted", 0)
+    kf_minus_pf = change.pop("kf_minus_pf", [5.0, 6.0, 4.0, 5.5, 4.5])
+    scores = pd.DataFrame([{"recording": k, "variant": v, "epochs": 100, "PF runs": 10, "PF CEP50 (cm)": 20.0,
+                            "MH-EKF CEP50 (cm)": 20.0 + kf_minus_pf[k], "PF CEP95 (cm)": 50.0,
+                            "MH-EKF CEP95 (cm)": 50.0, "PF coverage": 1.0, "MH-EKF coverage": 1.0,
+                            "PF in track": in_track, "MH-EKF in track": 1.0, "PF restarts": restarted,
+                            "PF runs restarted": restarted, "MH-EKF restarts": 0, "PF tempered updates": 0.01}
+                           for k in range(5) for v in ("Doppler", "Doppler + ranges")])
+    floor = pd.DataFrame({"CEP50, scored epochs (cm)": change.pop("floor", [40.0, 38.0, 30.0, 27.0])},
+                         index=[c[0] for c in study.FLOOR_CONDITIONS])
+    angles = change.pop("angles", (4.0, 5.0))
+    base = dict(fast=False, ref_table=ref, readings=readings, at15=at15,
+                fig_counts={"cubic": {0.02: (300, 40, None)}, "lab": {0.04: (500, 60, None)}},
+                geometry={"angle(position plane normal, V) (°)": angles[0], "angle(velocity main axis, V) (°)": angles[1],
+                          "position plane normal: spread ratio": 0.02},
+                fisher={"weak": [{"angle(position part, V) (°)": 90.0, "angle(velocity part, ±V) (°)": 10.0}]},
+                cut_minima=change.pop("cut_minima", {"V = V_ref": (0.0, 0.0), "V = 0.8 V_ref": (0.4, 13.5)}),
+                snap=snap, scores=scores, floor=floor, peak_traced_mib=12.0)
+    base.update(change)
+    return facts.Results(**base)
+
+
+def _text(**change) -> tuple[dict, str]:
+    f = facts.facts(_results(**change))
+    return f, discussion.discussion_markdown(f)
+
+
+def test_dp_verdict_names_the_reading_that_reproduces_the_printed_values():
+    f, text = _text()
+    assert f["dp_reproduces"] == [R_MODEL] and f"The printed numbers follow from {R_MODEL}." in text
+    ref = _results().ref_table.copy()
+    ref.loc[ref.index[7], f"ΔP_ref (ms), {R_500}"] = -1.16          # inside ±0.05 ms of −1.2
+    ref.loc[ref.index[7], f"ΔP_ref (ms), {R_MODEL}"] = -1.26        # outside
+    f = facts.facts(replace(_results(), ref_table=ref))
+    assert f["dp_reproduces"] == [R_500]
+    assert f"The printed numbers follow from {R_500}." in discussion.discussion_markdown(f)
+
+
+@pytest.mark.parametrize("interval, verdict, words", [((4.94e-4, 4.99e-4), "below", "agrees"),
+                                                      ((4.90e-4, 5.10e-4), "straddles", "undecided"),
+                                                      ((5.01e-4, 5.20e-4), "above", "disagrees")])
+def test_fraction_verdict_follows_the_interval(interval, verdict, words):
+    f, text = _text(frac={R_MODEL: (sum(interval) / 2, *interval), R_500: (6.3e-4, 6.2e-4, 6.4e-4)})
+    assert f[f"frac_verdict[cubic][{R_MODEL}]"] == verdict
+    assert f"— {discussion._FRAC_WORDS[verdict]}" in text and words in discussion._FRAC_WORDS[verdict]
+    assert f["frac_verdict[cubic][500 ms for all]"] == "above"
+
+
+def test_cep50_verdict_follows_the_bootstrap_interval():
+    f, text = _text()
+    assert f["cep50_verdict"] == "consistent" and "consistent with the paper's ≈ 25 cm" in text
+    f, text = _text(cep=[40.0, 42.0, 39.0, 41.0, 43.0])
+    assert f["cep50_verdict"] == "above" and "larger than the paper's ≈ 25 cm" in text
+    f, text = _text(cep=[40.0, 42.0])
+    assert f["cep50_verdict"] == "no interval"
+
+
+def test_offset_or_spread_is_named_from_the_numbers():
+    assert "mostly the offset every run" in _text(offset=20.0)[1]
+    assert "mostly run-to-run spread" in _text(offset=5.0)[1]
+
+
+def test_ratio_verdict_per_corner():
+    f, text = _text()
+    assert f["corners"]["bottom-left"][5] == "consistent" and f["corners"]["top-left"][5] == "above"
+    assert "Not reproduced" in text
+    f, text = _text(ratio={"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [0.5, 0.45, 0.55, 0.5, 0.6]})
+    assert f["ratio_reproduced"] and "Reproduced at every corner." in text
+
+
+def test_keeps_track_verdict_flips_at_both_thresholds():
+    assert _text(in_track=0.96)[0]["pf_keeps_track[Doppler + ranges]"]
+    f, text = _text(in_track=0.94)
+    assert not f["pf_keeps_track[Doppler + ranges]"] and "**loses track**" in text
+    assert not _text(restarted=1)[0]["pf_keeps_track[Doppler]"]     # 5 of 50 runs = 10 % > 5 %
+
+
+def test_filter_comparison_verdict_follows_the_interval_of_differences():
+    assert _text()[0]["kf_vs_pf[Doppler]"] == "PF better"
+    assert _text(kf_minus_pf=[-5.0, -6.0, -4.0, -5.5, -4.5])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
+    f, text = _text(kf_minus_pf=[-5.0, 6.0, -4.0, 5.5, 0.5])
+    assert f["kf_vs_pf[Doppler]"] == "no significant difference" and "no significant difference" in text
+
+
+def test_floor_explanation_is_read_from_the_measured_steps():
+    f, text = _text()
+    assert f["floor_left_dominates"] and "the floor is the information Doppler-only data carry" in text
+    f, text = _text(floor=[40.0, 38.0, 10.0, 8.0])
+    assert not f["floor_left_dominates"] and f["floor_main_cause"].startswith("reading a period-averaged")
+    assert "The largest step is reading a period-averaged" in text
+
+
+def test_ghost_rules_flip():
+    assert "the paper's two observations hold" in _text()[1]
+    assert "do **not** both hold" in _text(angles=(25.0, 5.0))[1]
+    f, text = _text()
+    assert "V = 0.8 V_ref: minimum 13.5 cm (not a ghost)" in text
+    f, text = _text(cut_minima={"V = V_ref": (0.0, 0.0), "V = 0.8 V_ref": (0.4, 5.0)})
+    assert "V = 0.8 V_ref: minimum 5.0 cm (a ghost)" in text
+
+
+def test_fast_mode_is_announced_and_lab_row_says_reconstruction():
+    assert _text(fast=True)[1].startswith("> **FAST mode")
+    assert not _text()[1].startswith("> **FAST mode")
+    rows = headlines.rows(facts.facts(_results()))
+    lab = [r for r in rows if "lab layout" in r["quantity"] and "pseudo" not in r["quantity"]]
+    assert lab and all("reconstruction" in r["quantity"] for r in lab)
+    assert len({r["quantity"] for r in rows}) == len(rows)
+    assert {r["kind"] for r in rows} <= {"reproduced", "target", "input"}
+
+
+def test_checks_report_what_fails():
+    f = facts.facts(_results())
+    assert headlines.checks(f, fast=False) == []
+    bad = dict(f, fig_empty_panels=[("cubic", 0.02)], estimators_agree=False)
+    fails = headlines.checks(bad, fast=False)
+    assert any("empty" in m for m in fails) and any("disagree" in m for m in fails)
+
+
+# ------------------------------------------------------------------ the study end to end, small
 
 def test_small_study_end_to_end(cfg):
     maps = {k: study.map_space(k, cfg, workers=1) for k in ("cubic", "lab")}
-    table = study.fraction_table(maps)
-    assert set(table["estimator"]) == {"brute force", "conditional", "conditional + ranges"}
-    assert table.loc[(table["δ < (cm)"] == 15) & (table["estimator"] == "conditional"), "paper (%)"].notna().all()
-    track = study.track_study("lab", cfg)
-    t_a, t_b = track.snapshots_s
-    assert t_b - t_a == pytest.approx(3.0, abs=1e-3)
-    assert track.cloud("Doppler", 0).shape == (3, 3)
-    scores = study.filter_scores([track])
-    assert list(scores["variant"]) == ["Doppler", "Doppler + ranges"] and (scores["epochs"] > 50).all()
-    heads = {v: track.headline(v) for v in track.pf}
-    at15 = {k: {"conditional": m.conditional.estimate(0.15), "brute force": m.brute.estimate(0.15),
-                "ranges": m.ranging.estimate(0.15)} for k, m in maps.items()}
-    text = discussion.discussion_markdown(
-        fast=True, dp_ref_ms={"model": (1.06, -1.17), "P=0.5": (1.06, -1.08), "P7_ms": 543.0}, fractions=at15,
-        geometry=study.ghost_geometry(maps["cubic"].conditional.samples),
-        fisher=study.fisher_analysis(maps["cubic"].model), headline=heads, scores=scores,
-        brute_small={"n": 200_000, "hits_4cm": 0, "hits_6cm": 0})
-    assert text.startswith("> **FAST mode") and "0.0186 %" in text
+    assert all(np.isfinite(m.peak_traced_bytes) and m.peak_traced_bytes > 1e5 for m in maps.values())
+    fig_runs = {k: study.figure_samples(k, cfg, workers=1) for k in maps}
+    for layout, runs in fig_runs.items():
+        assert [round(100 * t) for t in runs] == list(study.PAPER["thresholds_cm"][layout])
+        assert all(len(r.estimates) == 1 for r in runs.values())
+        fig = figures.space_figure(runs, maps[layout].model)
+        titles = [ax.get_title() for ax in fig.axes]
+        for t, r in runs.items():
+            n = study.distinct_counts(r.samples.below(t))[0]
+            assert any(title.startswith(f"{n} distinct samples") for title in titles)
+    readings = study.period_readings(cfg, maps)
+    assert readings.loc[readings["reading"] == R_MODEL, "fraction (%)"].tolist() == [
+        100 * maps[k].conditional.estimate(0.15).fraction for k in ("cubic", "lab")]
+    # the fraction falls with the period (≈ P⁻⁶): 500 ms for all gives more than 501 + 6i ms
+    both = readings[readings["layout"] == "cubic"].set_index("reading")["fraction (%)"]
+    assert both[R_500] > both[R_MODEL]
+    tracks = study.track_studies("lab", cfg)
+    assert len(tracks) == 2 and tracks[0].pf["Doppler"].n_runs == 3 and tracks[1].pf["Doppler"].n_runs == 2
+    t_a, t_b = tracks[0].snapshots_s
+    snap = study.snapshot_table(tracks)
+    assert set(snap["corner"]) == {"bottom-left", "top-left"} and len(snap) == 2 * 2 * 2
+    # the error about the truth is the offset and the spread about the cloud's centre combined
+    assert np.all(snap["CEP50 (cm)"] <= snap["offset (cm)"] + snap["run-to-run CEP50 (cm)"] + 1e-9)
+    scores = study.filter_scores(tracks)
+    assert (scores["epochs"] > 50).all() and (scores["PF coverage"] == 1).all()
+    assert {"PF restarts", "MH-EKF restarts", "PF in track", "MH-EKF in track"} <= set(scores.columns)
+    floor = study.error_floor("lab", replace(cfg, n_particles=100))
+    assert list(floor.index) == [c[0] for c in study.FLOOR_CONDITIONS]
+    assert floor["particles"].tolist() == [100, 100, 100, 400]

@@ -67,7 +67,6 @@ def _headlines() -> tuple[Headline, ...]:
                             PAPER["along_over_cross"]))
     out.append(Headline("PF CEP50 with zero noise and exact eq-1 ΔP (error floor)", "cm", "reproduced",
                         lambda f: f["floor_cm"]["zero noise, exact eq-1 ΔP"]))
-    out.append(Headline("number of simulated recordings", "", "input", lambda f: f["n_recordings"]))
     return tuple(out)
 
 
