@@ -119,7 +119,7 @@ def _samples(spec: nbp.Spec, default) -> list[str]:
 _TYPED = [(path, name, text) for path in NOTEBOOKS
           for name, default in rp.notebook_parameters(path).items()
           if name not in rp.RESERVED_PARAMETERS and (default is None or isinstance(default, (tuple, list)))
-          for text in _samples((nbp.COMMON | nbp.SPECS[path.stem])[name], default)]
+          for text in _samples(nbp.specs_for(path.stem, {name: default})[name], default)]
 _TYPED += [(rp.NOTEBOOKS_DIR / "01_set_noise_pf.ipynb", "SIGMA_D_CMPS", "(2.5, 4)"),
            (rp.NOTEBOOKS_DIR / "01_set_noise_pf.ipynb", "SIGMA_D_CMPS", "(2, 4)"),
            (rp.NOTEBOOKS_DIR / "04_doppler_beacons.ipynb", "N_BRUTE", "1e7")]
@@ -131,7 +131,7 @@ def test_a_value_reaches_the_notebook_with_the_type_of_its_spec(path, name, text
     params = rp.resolve_parameters([path], text={name: text})[path]
     namespace: dict = {}
     exec(_parameters_cell(path).source + "\n" + rp.injected_source(params), namespace)
-    spec = (nbp.COMMON | nbp.SPECS[path.stem])[name]
+    spec = nbp.specs_for(path.stem, {name: None})[name]
     got = namespace[name]
     assert got == spec.parse(text, name)
     if got is None:

@@ -332,6 +332,7 @@ SPECS: dict[str, dict[str, Spec]] = {
         "STATIC_STRIDE": integer(lo=1, fast="uses every 100th static epoch"),
         "DYNAMIC_STRIDE": integer(lo=1, fast="uses every 20th dynamic epoch"),
         "LIAS_TAGS": seq(text(), fast="uses tag t0 only"),
+        "HANYANG_CASE": text(none="the first NLOS case of hanyang-outdoor-uwb"),
     },
     "03_ekf_motion_models": {
         "RECORDING": _RECORDING,
@@ -339,6 +340,7 @@ SPECS: dict[str, dict[str, Spec]] = {
         "LIAS_TAGS": seq(text(), none="every tag of the run"),
         "IASL_CAL_SCENARIO": _RECORDING,
         "IASL_SCENARIO": _RECORDING,
+        "HANYANG_CASE": text(none="the first LOS case of hanyang-outdoor-uwb"),
         "SIM_DURATION_S": real(lo=0, lo_open=True, hi=86400.0, fast_cap=60.0),
         "RATE_HZ": real(lo=0, lo_open=True, hi=1000.0),
         "GRID_POINTS": integer(lo=2, hi=1000, fast_cap=5),
