@@ -1,22 +1,28 @@
-"""Throughput of the Doppler solution-space samplers against a chunked-NumPy reference.
+"""Throughput of the Doppler solution-space samplers against chunked-NumPy references.
 
-All three estimate the fraction of the 6-D box (X ∈ [−5, 5]³ m, V ∈ [−3, 3]³ m/s)
-whose δ = v_s ‖ΔP_ref − ΔP(X, V)‖ is under 15 cm, for the cubic layout and the
-reference pair of paper 003, section 3:
+All estimate the fraction of the 6-D box (X ∈ [−5, 5]³ m, V ∈ [−3, 3]³ m/s) whose
+δ = v_s ‖ΔP_ref − ΔP(X, V)‖ is under 15 cm, for the cubic layout and the reference pair
+of paper 003, section 3:
 
-* **reference** — a straightforward chunked NumPy implementation: draw 10⁶ pairs,
-  evaluate eq 1 for all 8 beacons with array operations, count;
-* **brute force** — :func:`uwbwb.sampling.brute_force`: the same uniform draws
-  (the same stream as NumPy), compiled, each draw abandoned as soon as its partial
-  δ exceeds the threshold, chunks on ``--workers`` threads;
-* **conditional** — :func:`uwbwb.sampling.conditional`: uniform positions, the
-  velocity handled per position through its δ-ellipsoid.
+* **reference (as before)** — chunked NumPy through the model's methods
+  (``delta_p`` then ``distance_m``), chunks of 10⁶ draws;
+* **reference (plain eq 1)** — chunked NumPy that evaluates eq 1 directly on
+  ``(n, beacons, 3)`` arrays and compares δ² with τ² (no square root, no model
+  overhead), chunks of 2¹⁶ draws: the faster NumPy reading, one thread like the first;
+* **brute force** — :func:`uwbwb.sampling.brute_force`: the same uniform draws (the same
+  stream as NumPy), compiled; timed with 1 thread and with ``--workers`` threads, each with
+  its early exit (a draw abandoned once its partial δ exceeds the threshold) and without it
+  (a second threshold of 10⁹ m keeps every beacon evaluated);
+* **conditional** — :func:`uwbwb.sampling.conditional`: uniform positions, the velocity
+  handled per position through its δ-ellipsoid.
 
-Printed: draws per second of each (timed in this process, after compilation),
-the ratio brute force / reference (target ≥ 9, i.e. 10⁹ draws in ≤ 2 min where
-the reference does ~0.9 M/s), the projected time for 10⁹ draws, and for the
-conditional estimator the number of positions and exact δ evaluations it needs
-to reach the relative interval half-width that 10⁹ brute-force draws would give.
+Printed: draws per second of each (timed in this process, after compilation) and three
+ratios side by side — the figure reported so far (brute force on ``--workers`` threads
+with early exit over the model-method reference on one), the like-for-like ratio (brute
+force on one thread *without* early exit over the plain-eq-1 reference on one thread), and
+the factors that separate them (early exit, threads, reference) — plus the projected time
+for 10⁹ draws (target ≤ 2 min) and, for the conditional estimator, the positions and exact
+δ evaluations it needs for the relative interval half-width of 10⁹ brute-force draws.
 
 Run:  python benchmarks/bench_doppler_sampler.py [--draws N] [--workers W]
 """
@@ -35,7 +41,7 @@ TAU_M = 0.15
 
 
 def reference_fraction(model, ref_pos, ref_vel, n, *, seed, chunk=1_000_000):
-    """Chunked NumPy: draw, evaluate eq 1 for every beacon, count δ < τ."""
+    """Chunked NumPy through the model's methods: draw, ``delta_p`` for every beacon, ``distance_m``, count δ < τ."""
     rng = np.random.default_rng(seed)
     b = model.delta_p(ref_pos, ref_vel)
     hits = 0
@@ -47,37 +53,65 @@ def reference_fraction(model, ref_pos, ref_vel, n, *, seed, chunk=1_000_000):
     return hits / n
 
 
+def reference_plain(model, ref_pos, ref_vel, n, *, seed, chunk=1 << 16):
+    """Chunked NumPy, eq 1 written out: ``g_i = v_s P_i r_i / (1 − r_i) − b_i``, count ``Σ g² < τ²``."""
+    rng = np.random.default_rng(seed)
+    T, P, v_s = model.beacons.pos_m, model.period_s, model.v_s_mps
+    b = v_s * model.delta_p(ref_pos, ref_vel)
+    hits = 0
+    for start in range(0, n, chunk):
+        m = min(chunk, n - start)
+        u = rng.random((m, 6))
+        X, V = -5 + 10 * u[:, :3], -3 + 6 * u[:, 3:]
+        d = X[:, None, :] - T
+        r = np.einsum("nbk,nk->nb", d, V) / (np.sqrt(np.einsum("nbk,nbk->nb", d, d)) * v_s)
+        g = (v_s * P) * r / (1.0 - r) - b
+        hits += int(np.count_nonzero(np.einsum("nb,nb->n", g, g) < TAU_M * TAU_M))
+    return hits / n
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=float, default=2e7, help="draws for the compiled brute force")
-    ap.add_argument("--reference-draws", type=float, default=3e6, help="draws for the NumPy reference")
+    ap.add_argument("--reference-draws", type=float, default=3e6, help="draws for the NumPy references")
     ap.add_argument("--positions", type=float, default=5e5, help="positions for the conditional estimator")
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
     model = dm.DopplerModel.for_layout(dm.cubic_layout())
     ref = (dm.REFERENCE_POS_M, dm.REFERENCE_VEL_MPS)
+    n_ref, n_bf = int(args.reference_draws), int(args.draws)
 
     smp.brute_force(model, *ref, 10_000, seed=0, workers=1)           # compile outside the timing
-    t = time.perf_counter()
-    reference_fraction(model, *ref, int(args.reference_draws), seed=0)
-    rate_ref = args.reference_draws / (time.perf_counter() - t)
-    t = time.perf_counter()
-    brute = smp.brute_force(model, *ref, int(args.draws), seed=1, thresholds_m=(TAU_M,), keep_below_m=None,
-                            workers=args.workers)
-    rate_bf = args.draws / (time.perf_counter() - t)
+    rate = {}
+    rate["reference (as before)"] = n_ref / _time(lambda: reference_fraction(model, *ref, n_ref, seed=0))
+    rate["reference (plain eq 1)"] = n_ref / _time(lambda: reference_plain(model, *ref, n_ref, seed=0))
+    for w in sorted({1, args.workers}):
+        for early, th in (("early exit", (TAU_M,)), ("no early exit", (TAU_M, 1e9))):
+            rate[f"brute force, {w} thread(s), {early}"] = n_bf / _time(
+                lambda: smp.brute_force(model, *ref, n_bf, seed=1, thresholds_m=th, keep_below_m=None, workers=w))
     t = time.perf_counter()
     cond = smp.conditional(model, *ref, int(args.positions), seed=2, thresholds_m=(TAU_M,), workers=args.workers)
     t_cond = time.perf_counter() - t
-    rate_ref_again = args.reference_draws / _time(lambda: reference_fraction(model, *ref, int(args.reference_draws),
-                                                                             seed=3))
+    rate["reference (as before), again"] = n_ref / _time(lambda: reference_fraction(model, *ref, n_ref, seed=3))
+    rate["reference (plain eq 1), again"] = n_ref / _time(lambda: reference_plain(model, *ref, n_ref, seed=3))
 
+    for k, v in rate.items():
+        print(f"{k:45s} {v / 1e6:8.2f} M draws/s")
+    old_ref = min(rate["reference (as before)"], rate["reference (as before), again"])
+    new_ref = max(rate["reference (plain eq 1)"], rate["reference (plain eq 1), again"])
+    w = args.workers
+    current = rate[f"brute force, {w} thread(s), early exit"] / old_ref
+    like = rate["brute force, 1 thread(s), no early exit"] / new_ref
+    print(f"ratio as reported so far ({w} threads + early exit / model-method reference, 1 thread): {current:.1f}")
+    print(f"ratio like for like (1 thread, no early exit / plain-eq-1 reference, 1 thread):     {like:.1f}")
+    print(f"  factors: early exit x{rate['brute force, 1 thread(s), early exit'] / rate['brute force, 1 thread(s), no early exit']:.2f}, "
+          f"threads x{rate[f'brute force, {w} thread(s), early exit'] / rate['brute force, 1 thread(s), early exit']:.2f}, "
+          f"faster reference x{new_ref / old_ref:.2f}")
+    best = rate[f"brute force, {w} thread(s), early exit"]
+    print(f"projected 1e9 draws: brute force {1e9 / best:.0f} s ({w} threads, early exit; target <= 120 s), "
+          f"plain-eq-1 reference {1e9 / new_ref:.0f} s (on this machine, under its current load)")
+    brute = smp.brute_force(model, *ref, n_bf, seed=1, thresholds_m=(TAU_M,), keep_below_m=None, workers=w)
     e_b, e_c = brute.estimate(TAU_M), cond.estimate(TAU_M)
-    print(f"reference (chunked NumPy): {rate_ref / 1e6:.2f} M draws/s (again at the end: {rate_ref_again / 1e6:.2f})")
-    print(f"brute force (compiled, {args.workers} workers): {rate_bf / 1e6:.2f} M draws/s")
-    ratio = rate_bf / min(rate_ref, rate_ref_again), rate_bf / max(rate_ref, rate_ref_again)
-    print(f"ratio brute force / reference: {ratio[1]:.1f} to {ratio[0]:.1f}  (target >= 9)")
-    print(f"projected 1e9 draws: brute force {1e9 / rate_bf:.0f} s, reference {1e9 / rate_ref:.0f} s "
-          "(on this machine, under its current load)")
     print(f"fraction δ < 15 cm: brute force {e_b}")
     print(f"                    conditional {e_c}  [{t_cond:.1f} s]")
     # relative half-width of 1e9 brute-force draws at this fraction: z sqrt((1 − p) / (p n))

@@ -56,9 +56,9 @@ class StudyConfig:
     n_positions
         Positions of the conditional estimator per layout.
     pf_runs, n_particles
-        Independent particle-filter runs over the one recording (Fig 6: 1000) and particles
-        per run (the paper does not say; 1000 runs × 1000 particles over the ~30 s walk take
-        about half an hour on two busy cores).
+        Independent particle-filter runs over the first recording (the paper's Fig 6: 1000;
+        full mode here 200, which with 10 recordings keeps the notebook within minutes on
+        two cores) and particles per run (the paper does not say).
     n_recordings
         Independent simulated recordings for Fig 6 and the filter comparison (≥ 10 in
         full mode); the first gets ``pf_runs`` PF runs, the others ``compare_runs``.
@@ -76,10 +76,10 @@ class StudyConfig:
     seed: int = 0
     n_brute: int = 1_000_000_000
     n_positions: int = 2_000_000
-    pf_runs: int = 1000
+    pf_runs: int = 200
     n_particles: int = 1000
     n_recordings: int = 10
-    compare_runs: int = 50
+    compare_runs: int = 25
     n_fig_positions: int = 4_000_000
     temperature_c: float = 20.0
     sigma_range_m: float = 0.015
