@@ -173,3 +173,88 @@ def test_case_board_scores_ours_and_theirs_on_the_same_epochs(tree):
     assert ratios["best"].sum() == 1 and (ratios["ratio"] > 0).all()
     with pytest.raises(ValueError, match="not allowed"):
         study.case_board(case, case, data, fast=True, estimators=est)
+
+
+# ------------------------------------------------------------------ notebook sections
+
+def test_sections_say_why_they_did_not_run(tmp_path):
+    from uwbwb.errors import DataNotFoundError
+    from uwbwb.experiments.hanyang import sections
+
+    assert "not found" in sections.scoreboard_section(None, tmp_path, fast=True).absent
+    root = tmp_path / "hanyang-outdoor-uwb"
+    fx.write_dataset(root, rng=np.random.default_rng(1))
+    assert "no Dynamic_measurements" in sections.pruning_section(None, tmp_path, fast=True).absent
+    fx.write_dynamic_tree(root, rng=np.random.default_rng(1), cases=fx.DYNAMIC_CASES[:1], speed_mps=8.0)
+    assert "one dynamic case" in sections.motion_section(None, tmp_path, fast=True).absent
+    fx.write_dynamic_tree(root, rng=np.random.default_rng(1), cases=fx.DYNAMIC_CASES[1:2], speed_mps=8.0)
+    with pytest.raises(DataNotFoundError, match="LOS/Trajectory_B/Case_4"):
+        sections.pruning_section("NLOS/Trajectory_A/Case_9", tmp_path, fast=True)
+
+
+def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
+    import uwbwb as uw
+    from uwbwb.experiments.hanyang import sections
+
+    data, cases = tree
+    summary = uw.metrics.Summary("06_scoreboard", fast=True)
+    sec = sections.scoreboard_section(None, data, fast=True, summary=summary)
+    assert sec.absent is None and list(sec.boards) == [cases[0].name]           # FAST: one case
+    assert sec.facts["reproduction"]["agree"] and "agree with" in sec.markdown
+    assert {r["data"] for r in summary.frame().to_dict("records")} == {f"hanyang-outdoor-uwb/{cases[0].name}"}
+    kinds = dict(zip(summary.frame()["quantity"], summary.frame()["kind"]))
+    assert kinds["authors LS RMSE_2d, published"] == "input"
+    assert kinds["RMSE_2d ratio ours/authors LS"] == "reproduced"
+    assert sec.facts["tuning"][cases[0].name] != cases[0].name
+    prune = sections.pruning_section(None, data, fast=True)
+    assert prune.facts["case"].startswith("NLOS/") and {"NLS residual pruning", "NLS robust mean"} <= set(
+        prune.tables["ablation"]["method"])
+    s2 = uw.metrics.Summary("02_pruning_nls", fast=True)
+    prune.record(s2)
+    assert len(s2) == len(prune.rows) > 0 and {r["data"] for r in prune.rows} == {f"hanyang-outdoor-uwb/{prune.facts['case']}"}
+    motion = sections.motion_section(cases[1].name, data, fast=True)
+    assert set(motion.tables["models"]["method"]) == {"EKF-RF", "EKF-RW ranges", "EKF-RF ranges", "EKF-RJ ranges"}
+    assert motion.facts["tuned_on"] == cases[0].name
+
+
+# ------------------------------------------------------------------ notebooks on generated trees
+
+def _hanyang_tree(data_dir, rng):
+    fx.write_dataset(data_dir / "hanyang-outdoor-uwb", rng=rng, distances_m=(2, 4, 10, 20))
+    return fx.write_dynamic_tree(data_dir / "hanyang-outdoor-uwb", rng=rng, speed_mps=4.0)
+
+
+@pytest.mark.notebook
+def test_pruning_notebook_runs_on_a_generated_dynamic_case(tmp_path):
+    """Notebook 02's Hanyang section on a case that is not in ../shared (chosen by HANYANG_CASE)."""
+    from tests.fixtures import lias as fx_lias
+    from tests.test_notebooks import _run_on
+
+    data_dir = tmp_path / "data"
+    rng = np.random.default_rng(21)
+    fx_lias.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 40.0, "clock_offset_s": 0.2}},
+                      sessions=[fx_lias.session_814(rng, files=((1, 0), (2, 0), (3, 0), (1, 60)))], static_rows=300)
+    cases = _hanyang_tree(data_dir, rng)
+    rows = _run_on("02_pruning_nls.ipynb", tmp_path, data_dir, RECORDING="medium", HANYANG_CASE=cases[3].name)
+    hy = [r for r in rows if r["data"] == f"hanyang-outdoor-uwb/{cases[3].name}"]
+    assert any(r["quantity"] == "RMSE_2d ratio NLS residual pruning / NLS" for r in hy)
+    assert {r["kind"] for r in hy} == {"reproduced"} and {r["mode"] for r in hy} == {"FAST"}
+
+
+@pytest.mark.notebook
+def test_motion_models_notebook_runs_on_a_generated_dynamic_case(tmp_path):
+    """Notebook 03's Hanyang section on a case that is not in ../shared (chosen by HANYANG_CASE)."""
+    from tests.fixtures import iasl as fx_iasl
+    from tests.fixtures import lias as fx_lias
+    from tests.test_notebooks import _run_on
+
+    data_dir = tmp_path / "data"
+    rng = np.random.default_rng(22)
+    fx_lias.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 30.0, "clock_offset_s": 0.2}},
+                      sessions=[fx_lias.session_814(rng)])
+    fx_iasl.write_dataset(data_dir / "iasl-uwb-imu", rng=rng, duration_s=30.0)
+    cases = _hanyang_tree(data_dir, rng)
+    rows = _run_on("03_ekf_motion_models.ipynb", tmp_path, data_dir, RECORDING="medium", HANYANG_CASE=cases[1].name)
+    hy = [r for r in rows if r["data"].startswith("hanyang-outdoor-uwb/")]
+    assert {r["data"] for r in hy} == {f"hanyang-outdoor-uwb/{cases[1].name}"}
+    assert any(r["quantity"] == "RMSE_2d ratio EKF-RW ranges / raw LS" for r in hy)
