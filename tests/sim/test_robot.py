@@ -52,3 +52,46 @@ def test_config_is_checked():
         robot.RobotConfig(imu_rate_hz=10.0)
     with pytest.raises(ValueError, match="too short"):
         robot.broken_line(((0, 0), (0.1, 0)))
+
+
+def test_gauss_markov_bias_has_its_sigma_and_correlation_time():
+    b = robot.gauss_markov(20000, 4, sigma=0.05, tau_s=30.0, dt_s=0.02, rng=np.random.default_rng(2))
+    assert b.shape == (20000, 4)
+    assert np.std(b[0]) < 0.2                                  # starts stationary, not at zero
+    lag = 50                                                   # 1 s: correlation exp(-1/30)
+    x, y = b[:-lag].ravel(), b[lag:].ravel()
+    assert np.corrcoef(x, y)[0, 1] == pytest.approx(np.exp(-1 / 30), abs=0.02)
+    long = robot.gauss_markov(200000, 1, sigma=0.05, tau_s=1.0, dt_s=0.02, rng=np.random.default_rng(3))
+    assert np.std(long) == pytest.approx(0.05, rel=0.05)
+
+
+def test_range_bias_is_added_only_when_asked_and_leaves_the_other_draws_alone():
+    motion = robot.hold(duration_s=20.0)
+    plain = robot.simulate(motion, robot.RobotConfig(outlier_rate=0.0), rng=np.random.default_rng(5))
+    biased = robot.simulate(motion, robot.RobotConfig(outlier_rate=0.0, range_bias_sigma_m=0.05),
+                            rng=np.random.default_rng(5))
+    np.testing.assert_array_equal(plain.imu.acc_mps2, biased.imu.acc_mps2)
+    d = biased.ranges.range_m - plain.ranges.range_m           # the bias itself: smooth, ~5 cm
+    ok = np.isfinite(d)
+    assert 0.01 < np.nanstd(d) < 0.15 and np.nanmax(np.abs(np.diff(np.where(ok, d, 0), axis=0)[ok[1:] & ok[:-1]])) < 0.02
+    with pytest.raises(ValueError, match="range_bias_tau_s"):
+        robot.RobotConfig(range_bias_tau_s=0.0)
+    with pytest.raises(ValueError, match="outlier_excess_m"):
+        robot.RobotConfig(outlier_excess_m=(2.0, 1.0))
+
+
+def test_mismatch_changes_the_world_not_the_model():
+    from uwbwb.sim import mismatch
+
+    model = robot.RobotConfig()
+    assert mismatch.case("matched").matched and mismatch.case("matched").world(model) == model
+    w = mismatch.case("IMU 10× worse").world(model)
+    assert w.imu.acc_noise_density == pytest.approx(10 * model.imu.acc_noise_density)
+    assert w.imu.mag_heading_sigma_rad == model.imu.mag_heading_sigma_rad
+    assert mismatch.case("UWB σ 2×").world(model).sigma_toa_m == pytest.approx(2 * model.sigma_toa_m)
+    gm = mismatch.case("range bias GM 5 cm, 30 s").world(model)
+    assert (gm.range_bias_sigma_m, gm.range_bias_tau_s) == (0.05, 30.0)
+    assert mismatch.case("multipath up to 12 m").world(model).outlier_excess_m == (0.3, 12.0)
+    assert not any(c.matched for c in mismatch.CASES[1:])
+    with pytest.raises(ValueError, match="unknown mismatch case 'nope'"):
+        mismatch.case("nope")

@@ -18,8 +18,11 @@ same :class:`~uwbwb.models.imu.ImuErrorModel` the tight filter uses for its proc
 noise, the TDoAs from the same :class:`~uwbwb.models.tdoa.TdoaModel` its updates use.
 
 Degradations for the tight-vs-loose comparison: an **outage** during which only
-``outage_keep`` stations are heard (one TDoA: no position fix possible) and an
-**NLOS-biased station** (a constant excess on one station for a while).
+``outage_keep`` stations are heard (one TDoA: no position fix possible), an
+**NLOS-biased station** (a constant excess on one station for a while) and a
+**time-correlated range bias** per station (first-order Gauss–Markov, ``range_bias_sigma_m``,
+``range_bias_tau_s``; off by default), which no filter of notebook 05 models.
+The mismatch cases of notebook 05 (simulator ≠ filter model) are in :mod:`uwbwb.sim.mismatch`.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from ..models.tdoa import TdoaModel
 from ..types import Anchors, ImuLog, RangeLog, TdoaLog, Trajectory
 
 __all__ = ["PAPER_WAYPOINTS_M", "PAPER_STATIC_M", "RobotConfig", "RobotMotion", "RobotRun", "broken_line",
-           "hold", "simulate"]
+           "gauss_markov", "hold", "simulate"]
 
 #: The dynamic test's broken line (paper 004, Sec. 4.2), m.
 PAPER_WAYPOINTS_M = ((2.0, 1.0), (3.0, 1.0), (3.0, 2.0), (4.0, 2.0), (4.0, 3.0), (5.0, 3.0))
@@ -173,6 +176,8 @@ class RobotConfig:
     nlos_bias_m: float = 0.4
     nlos_start_s: float = 0.0
     nlos_s: float = 0.0
+    range_bias_sigma_m: float = 0.0
+    range_bias_tau_s: float = 30.0
 
     def __post_init__(self):
         a = np.asarray(self.stations_m, float)
@@ -182,9 +187,15 @@ class RobotConfig:
             raise ValueError("RobotConfig.reference must index a station")
         if not (self.imu_rate_hz >= self.uwb_rate_hz > 0):
             raise ValueError("RobotConfig: need imu_rate_hz >= uwb_rate_hz > 0")
-        for name in ("sigma_toa_m", "outlier_rate", "p_missing", "outage_s", "nlos_s"):
+        for name in ("sigma_toa_m", "outlier_rate", "p_missing", "outage_s", "nlos_s", "range_bias_sigma_m"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"RobotConfig.{name} must be >= 0")
+        if not self.range_bias_tau_s > 0:
+            raise ValueError(f"RobotConfig.range_bias_tau_s must be > 0, got {self.range_bias_tau_s!r}")
+        lo, hi = self.outlier_excess_m
+        if not 0 <= lo <= hi:
+            raise ValueError(f"RobotConfig.outlier_excess_m must be (low, high) with 0 <= low <= high, "
+                             f"got {self.outlier_excess_m!r}")
 
     @property
     def anchors(self) -> Anchors:
@@ -243,6 +254,23 @@ def ideal_imu(motion: RobotMotion, t_s, mechanization: Mechanization = Mechaniza
     return f_b, w_b, (pos, vel, dcm_to_quat(C)), C
 
 
+def gauss_markov(n_steps: int, n_series: int, *, sigma: float, tau_s: float, dt_s: float,
+                 rng: np.random.Generator) -> np.ndarray:
+    """Stationary first-order Gauss–Markov sequences, shape ``(n_steps, n_series)``.
+
+    ``b[k+1] = a b[k] + √(1 − a²) σ w[k]``, ``a = exp(−dt/τ)``, ``b[0] ~ N(0, σ²)``: every
+    sample has SD ``sigma``, the correlation between samples ``Δt`` apart is ``exp(−Δt/τ)``.
+    """
+    a = math.exp(-dt_s / tau_s)
+    w = rng.normal(0.0, sigma, (n_steps, n_series))
+    w[1:] *= math.sqrt(1 - a * a)
+    b = np.empty_like(w)
+    b[0] = w[0]
+    for k in range(1, n_steps):            # n_steps ~ 10³: a plain recursion is fast enough
+        b[k] = a * b[k - 1] + w[k]
+    return b
+
+
 def simulate(motion: RobotMotion, config: RobotConfig = RobotConfig(), *, rng: np.random.Generator,
              mechanization: Mechanization = Mechanization()) -> RobotRun:
     """Simulate IMU, magnetometer and TDoA logs for ``motion`` (module docstring)."""
@@ -273,6 +301,9 @@ def simulate(motion: RobotMotion, config: RobotConfig = RobotConfig(), *, rng: n
         r[nlos, cfg.nlos_station] += cfg.nlos_bias_m
     missing = rng.random(r.shape) < cfg.p_missing
     missing[:, cfg.reference] = False
+    if cfg.range_bias_sigma_m > 0:         # drawn only when asked: the other draws keep their order
+        r = r + gauss_markov(t_uwb.size, n, sigma=cfg.range_bias_sigma_m, tau_s=cfg.range_bias_tau_s,
+                             dt_s=1.0 / cfg.uwb_rate_hz, rng=rng)
     outage = np.zeros(t_uwb.size, bool)
     if cfg.outage_start_s is not None and cfg.outage_s > 0:
         outage = (t_uwb >= cfg.outage_start_s) & (t_uwb < cfg.outage_start_s + cfg.outage_s)

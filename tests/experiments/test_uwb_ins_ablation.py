@@ -1,0 +1,210 @@
+"""Notebook 05's ablation: the LS residual test, scoring on equal terms, paired ratio intervals,
+parameters refused up front, eq-4 thresholds, and verdict sentences that flip with the numbers."""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from uwbwb.experiments.uwb_ins import ablation as ab
+from uwbwb.experiments.uwb_ins import facts, headlines
+from uwbwb.models.tdoa import TdoaModel, triangle_outliers
+from uwbwb.sim import robot
+from uwbwb.types import EstimateStatus, Estimates, TdoaLog
+
+
+# ---------------------------------------------------------------- LS residual test
+def _ls_case(excess_m):
+    cfg = robot.RobotConfig()
+    a = np.asarray(cfg.stations_m, float)
+    model = TdoaModel(a, cfg.sigma_toa_m, dim=2, z_m=cfg.tag_height_m)
+    truth = np.array([[3.5, 2.0], [2.0, 1.0], [5.0, 3.0]])
+    r = model.ranges(truth)
+    r[0, 2] += excess_m                                        # epoch 0: one bad station
+    r[2, 3] = np.nan                                           # epoch 2: three stations, no redundancy
+    d = r - r[:, :1]
+    log = TdoaLog(np.arange(3) * 0.02, d, np.zeros(3, int), ("a", "b", "c", "d"))
+    # the fix a bad TDoA pulls somewhere: any position with a large weighted residual will do
+    pos = truth.copy()
+    fixes = Estimates(log.t_s, pos, np.full(3, EstimateStatus.UPDATED, np.int8), "LS")
+    return fixes, log, model
+
+
+def test_ls_gate_rejects_an_epoch_whose_residuals_fail_chi2_and_keeps_untestable_ones():
+    fixes, log, model = _ls_case(1.0)
+    out, n = ab.ls_gate(fixes, log, model, 0.999)
+    assert n == 1 and not out.has_estimate[0] and out.has_estimate[1] and out.has_estimate[2]
+    clean, n0 = ab.ls_gate(*_ls_case(0.0), 0.999)
+    assert n0 == 0 and clean.has_estimate.all()
+
+
+def test_ls_gate_residual_sum_equals_the_dense_form():
+    """Sherman–Morrison WSSR == eᵀΣ⁻¹e with the model's reference-correlated Σ, at the threshold."""
+    fixes, log, model = _ls_case(0.2)
+    z, h, _, R, _ = model.epoch(log.tdoa_m[0], fixes.pos_m[0], 0)
+    wssr = float((z - h) @ np.linalg.solve(R, z - h))
+    from scipy.stats import chi2
+    p_just_fails = chi2.cdf(wssr, 1) - 1e-6
+    p_just_passes = chi2.cdf(wssr, 1) + 1e-6
+    assert ab.ls_gate(fixes, log, model, p_just_fails)[1] == 1
+    assert ab.ls_gate(fixes, log, model, p_just_passes)[1] == 0
+
+
+# ---------------------------------------------------------------- runs on equal terms
+@pytest.fixture(scope="module")
+def small_cfg():
+    return ab.AblationConfig(seeds=2, grid=(1.0,), static_s=3.0, legs=2, outage_s=2.0, recovery_s=1.0,
+                             cases=("matched", "UWB σ 2×"), mismatch_seeds=1, mismatch_static=False)
+
+
+@pytest.fixture(scope="module")
+def one_seed(small_cfg):
+    return ab.score_seed("matched", 1, {r: 1.0 for r in ab.ROWS}, small_cfg)
+
+
+def test_every_row_is_scored_with_coverage_and_the_outage_leaves_no_fix(one_seed):
+    s = pd.DataFrame(one_seed["scores"]).T
+    assert list(s.index) == list(ab.ROWS) and set(ab.METRICS) <= set(s.columns)
+    assert (s.loc[["LS", "LS + gate"], "outage_cov"] == 0).all()
+    filt = [r for r in ab.ROWS if not r.startswith("LS")]
+    assert (s.loc[filt, ["static_cov", "dyn_cov", "outage_cov"]] == 1.0).all().all()
+    assert s.loc["LS + gate", "static_cov"] < 1.0                  # the residual test removed epochs
+    assert s.loc["tight + gate", "dyn_rmse"] < s.loc["tight", "dyn_rmse"]
+
+
+def test_same_seed_same_numbers_and_cases_share_draws(small_cfg):
+    a = ab.score_seed("matched", 4, {}, small_cfg, rows=("LS",), scenarios=("dynamic",))
+    b = ab.score_seed("matched", 4, {}, small_cfg, rows=("LS",), scenarios=("dynamic",))
+    assert a == b
+    w = ab.simulate("dynamic", ab.mm.case("UWB σ 2×").world(small_cfg.model), small_cfg, 4)
+    m = ab.simulate("dynamic", small_cfg.model, small_cfg, 4)
+    np.testing.assert_array_equal(w.imu.acc_mps2, m.imu.acc_mps2)   # paired: only the UWB noise differs
+    assert not np.allclose(np.nan_to_num(w.tdoa.tdoa_m), np.nan_to_num(m.tdoa.tdoa_m))
+
+
+# ---------------------------------------------------------------- intervals
+def test_ratio_ci_is_the_paired_geometric_mean_with_a_t_interval():
+    b = np.array([1.0, 2.0, 3.0, 4.0])
+    r = ab.ratio_ci(2 * b, b)
+    assert r["ratio"] == pytest.approx(2.0) and r["lo"] == pytest.approx(2.0) and r["n"] == 4
+    rng = np.random.default_rng(0)
+    d = rng.normal(0.3, 0.1, 8)
+    r = ab.ratio_ci(np.exp(d), np.ones(8))
+    from scipy import stats
+    h = stats.t.ppf(0.975, 7) * d.std(ddof=1) / math.sqrt(8)
+    assert r["lo"] == pytest.approx(math.exp(d.mean() - h)) and r["hi"] == pytest.approx(math.exp(d.mean() + h))
+    one = ab.ratio_ci([2.0, np.nan], [1.0, 1.0])
+    assert one["n"] == 1 and math.isnan(one["lo"])
+
+
+# ---------------------------------------------------------------- parameters refused up front
+def test_an_outage_longer_than_the_run_is_refused_naming_the_parameter():
+    kw = dict(static_s=20.0, outlier_rate=0.02, gate_prob=0.999, nlos_bias_m=0.4, loose_window=5, seeds=10)
+    ab.check_parameters(outage_s=5.0, **kw)
+    with pytest.raises(ValueError, match=r"OUTAGE_S = 30 s cannot hold.*at most 18\.7 s"):
+        ab.check_parameters(outage_s=30.0, **kw)
+    with pytest.raises(ValueError, match="OUTAGE_S"):
+        ab.check_parameters(outage_s=-1.0, **kw)
+    with pytest.raises(ValueError, match="SEEDS"):
+        ab.check_parameters(outage_s=5.0, **{**kw, "seeds": 1})
+    with pytest.raises(ValueError, match="outage_s"):
+        ab.AblationConfig(legs=2, outage_s=5.0)
+    # FAST drives as many legs as the outage and its recovery need
+    nb = dict(seeds=10, gate_prob=0.999, outlier_c_m=0.1, grade="consumer", outlier_rate=0.02, loose_window=5,
+              static_s=60.0)
+    assert ab.notebook_config(fast=True, outage_s=5.0, **nb).legs == 3
+    assert ab.notebook_config(fast=True, outage_s=13.0, **nb).legs == 5
+    assert ab.legs_for_outage(2.0) == 2
+
+
+# ---------------------------------------------------------------- eq. 4
+def test_eq4_thresholds_are_where_the_test_starts_to_fire():
+    cfg = robot.RobotConfig()
+    a = np.asarray(cfg.stations_m, float)
+    p = np.array([3.5, 2.0, cfg.tag_height_m])
+    th = ab.eq4_thresholds(cfg, p, 0.1)
+    assert len(th) == 3 and th.notna().all().all()
+    e = float(th.loc["BS2 − BS1", "min excess on the station (m)"])
+    r = np.linalg.norm(p - a, axis=1)
+    for excess, fires in ((e - 0.01, False), (e + 0.01, True)):
+        d = (r - r[0])[None].copy()
+        d[0, 1] += excess
+        assert triangle_outliers(d, 0, a, 0.1)[0, 1] == fires
+    assert th.iloc[:, 1:].to_numpy().min() > 4.0                     # inert for the 0.3–4 m multipath
+
+
+# ---------------------------------------------------------------- verdicts flip with the numbers
+def _fake(ratios: dict, *, case_ratios: dict | None = None, fast=False, nis=None, counts=None, seeds=6):
+    """An AblationResult whose rows have the given paired ratios against "tight + gate" (per metric,
+    with a small seed-to-seed spread) — enough to drive facts, sentences and checks."""
+    cfg = ab.AblationConfig(seeds=seeds, mismatch_seeds=seeds, cases=("matched", "UWB σ 2×", "IMU 10× worse",
+                                                                         "multipath up to 12 m"))
+    rng = np.random.default_rng(1)
+    recs = []
+    for case in cfg.cases:
+        rr = ratios if case == "matched" else (case_ratios or {}).get(case, ratios)
+        for k in range(seeds):
+            base = 0.01 * math.exp(rng.normal(0, 0.05))
+            for r in ab.ROWS:
+                row = {"case": case, "seed": k + 1, "method": r}
+                for m in ab.METRICS:
+                    row[m] = base * rr.get(r, 1.0) * math.exp(rng.normal(0, 0.02))
+                row.update(static_cov=1.0, dyn_cov=1.0, outage_cov=0.0 if r.startswith("LS") else 1.0)
+                if r.startswith("LS"):
+                    row["outage_max"] = row["outage_rmse"] = np.nan
+                n = (nis or {}).get(case, 1.0)
+                row["nis"] = np.nan if r.startswith("LS") else n
+                if case == "IMU 10× worse" and r == "loose + gate":
+                    row["outage_max"] *= 3
+                recs.append(row)
+    counts = counts or {c: {"eq4": 5 if c == "multipath up to 12 m" else 0, "injected": 100,
+                            "eq4_on_injected": 5 if c == "multipath up to 12 m" else 0} for c in cfg.cases}
+    return ab.AblationResult(cfg, fast, pd.DataFrame(), {}, pd.DataFrame(recs), counts)
+
+
+GOOD = {"LS": 30.0, "LS + gate": 5.0, "EKF": 20.0, "EKF + gate": 1.5, "loose": 15.0, "loose + gate": 1.4}
+
+
+def test_ingredient_and_outage_sentences_flip_at_ratio_one():
+    f = facts.facts(_fake(GOOD))
+    s = facts.ingredient_sentence("tight vs loose", f["ladder"]["tight vs loose (gated)"]["dyn_rmse"])
+    assert "helps" in s and "1.4× lower" in s
+    assert "1.5× smaller than the gated IMU-free EKF" in facts.outage_sentence(f)
+    flat = facts.facts(_fake({**GOOD, "loose + gate": 1.0, "EKF + gate": 1.0}))
+    s = facts.ingredient_sentence("tight vs loose", flat["ladder"]["tight vs loose (gated)"]["dyn_rmse"])
+    assert "not significant" in s
+    assert "not significantly different from the gated loose filter" in facts.outage_sentence(flat)
+    worse = facts.facts(_fake({**GOOD, "loose + gate": 0.7, "EKF + gate": 0.7}))
+    s = facts.ingredient_sentence("tight vs loose", worse["ladder"]["tight vs loose (gated)"]["dyn_rmse"])
+    assert "hurts" in s and "higher" in s
+    assert "*larger* than the gated loose filter" in facts.outage_sentence(worse)
+    assert facts.verdict(np.nan, np.nan) == "undetermined"
+
+
+def test_survival_sentence_says_where_the_outage_advantage_is_kept_or_lost():
+    lost = {**GOOD, "EKF + gate": 1.0}
+    f = facts.facts(_fake(GOOD, case_ratios={"UWB σ 2×": lost}))
+    s = facts.survival_sentence(f, "EKF + gate")
+    assert "It is lost (interval reaches 1 or lies below) with UWB σ 2×" in s
+    assert "survives (interval above 1) with IMU 10× worse, multipath up to 12 m" in s
+    assert f["survival"]["UWB σ 2×"]["EKF + gate"]["share"] == pytest.approx(0.0, abs=0.1)
+    none = facts.facts(_fake({**GOOD, "EKF + gate": 0.8}))
+    assert "nothing to survive" in facts.survival_sentence(none, "EKF + gate")
+    md = facts.summary_markdown(f)
+    assert md.startswith("*full run: 6 scoring seeds") and "Eq. 4 removed 0 of 100" in md
+
+
+def test_checks_pass_on_a_sound_result_and_fail_on_each_defect():
+    good = _fake(GOOD, nis={"UWB σ 2×": 3.0})
+    assert headlines.checks(good) == []
+    assert any("doubled UWB noise" in m for m in headlines.checks(_fake(GOOD)))
+    assert any("NIS" in m for m in headlines.checks(_fake(GOOD, nis={"matched": 3.0, "UWB σ 2×": 6.0})))
+    bad_eq4 = {c: {"eq4": 3, "injected": 100, "eq4_on_injected": 0} for c in good.config.cases}
+    msgs = headlines.checks(_fake(GOOD, nis={"UWB σ 2×": 3.0}, counts=bad_eq4))
+    assert any("clean TDoAs" in m for m in msgs) and any("never fired" in m for m in msgs)
+    no_ls_gain = {**GOOD, "LS + gate": 25.0}
+    assert any("LS residual test" in m for m in headlines.checks(_fake(no_ls_gain, nis={"UWB σ 2×": 3.0})))
+    rows = headlines.ablation_rows(good)
+    assert all(r["kind"] == "reproduced" and r["data"] == "synthetic" for r in rows)
+    assert len({r["quantity"] for r in rows}) == len(rows)

@@ -1,0 +1,552 @@
+"""What each ingredient of notebook 05's fusion adds: an ablation on equal terms, over seeds,
+with model mismatch as a second axis.
+
+Rows (:data:`ROWS`): UWB-only LS, UWB-only EKF (notebook 03's :class:`~uwbwb.filters.ekf.TdoaEkf`,
+random-force motion, no IMU), the paper's loose filter (eqs 5–7) and the tight filter, each with
+and without a χ² gate of the same probability:
+
+* **LS + gate**: the weighted residual sum of squares of each fix is tested against the
+  ``gate_prob`` quantile of χ²(m − 2) (``m`` TDoAs, 2 coordinates) and a failing epoch is
+  rejected (no fix). With four stations an epoch has one redundant TDoA: the test can detect
+  a bad TDoA but not say which one, so it rejects the epoch; an epoch without redundancy
+  (m = 2) cannot be tested and is kept.
+* **EKF + gate**: the filter's own per-epoch gate (drops the anchor that lowers the NIS most).
+* **loose + gate**: its χ² gate on each epoch's UWB fix (position + velocity).
+* **tight + gate**: its χ² gate on each TDoA.
+
+Every row gets the same TDoAs (after the same eq-4 test), the same known tag height, the same
+start (state, epoch) and is scored on the same epochs with coverage beside accuracy. The IMU rows
+also get the magnetometer heading. **Tuning**: each filter has one process-noise knob — the
+variance multiplier ``q_scale`` of the loose and the tight filter, the random-force spectral
+density ``q = EKF_Q0 · knob`` of the EKF — chosen from the same grid (:attr:`AblationConfig.grid`)
+by the lowest RMSE on a *tuning seed* that is never scored (static run + dynamic run outside the
+outage and recovery). LS has no knob (no grid). The filters are tuned once on the matched world
+and keep their knob in every mismatch case: a mismatch row tests the design on a world it was
+not built for.
+
+Scenarios per seed: a static run and a dynamic run (the paper's broken line) with a UWB outage
+from :data:`~.study.OUTAGE_START_S`: only BS1 and BS2 heard, one TDoA per epoch. The dynamic
+score leaves out the outage and the ``recovery_s`` after it; the outage is scored on its own
+(max and RMSE), the recovery by its max error.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from ... import parallel
+from ...filters import eskf
+from ...filters.ekf import TdoaEkf
+from ...models.imu import GRADES
+from ...models.ins import quat_to_dcm
+from ...models.motion import RandomForce
+from ...models.tdoa import TdoaModel, triangle_outliers
+from ...sim import mismatch as mm
+from ...sim import robot
+from ...types import EstimateStatus, Estimates
+from ...validate import integer, number, probability
+from .study import OUTAGE_START_S, _after, _ls_estimates, initial_state, screened_tdoa
+
+__all__ = ["BASES", "ROWS", "METRICS", "LADDER", "EKF_Q0", "RECOVERY_S", "AblationConfig", "AblationResult",
+           "check_outage", "check_parameters", "notebook_config", "legs_for_outage", "simulate", "ls_gate",
+           "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci", "ladder_table", "mismatch_table",
+           "eq4_thresholds"]
+
+#: The four estimators, without and with the gate.
+BASES = ("LS", "EKF", "loose", "tight")
+ROWS = tuple(f"{b}{s}" for b in BASES for s in ("", " + gate"))
+#: Nominal random-force spectral density of the IMU-free EKF, m²/s³ (an assumption: ~0.3 m/s²
+#: acceleration over ~1 s ramps); the tuning grid multiplies it.
+EKF_Q0 = 0.1
+#: Seconds after an outage scored as "recovery" (not as "dynamic").
+RECOVERY_S = 5.0
+#: Scores per row and seed (m; coverage as a fraction of the scored epochs).
+METRICS = ("static_rmse", "static_cov", "dyn_rmse", "dyn_cov", "outage_max", "outage_rmse", "outage_cov",
+           "recovery_max", "nis")
+_TUNED = tuple(r for r in ROWS if not r.startswith("LS"))
+
+
+@dataclass(frozen=True)
+class AblationConfig:
+    """Sizes and settings of the ablation (FAST: :meth:`fast`).
+
+    Attributes
+    ----------
+    seeds
+        Scoring seeds (``base_seed + 1 … + seeds``); the tuning seed is ``base_seed + 1000``.
+    grid
+        Process-noise multipliers tried for every tuned filter (same grid, same effort).
+    gate_prob
+        χ² probability of every gate.
+    outlier_c_m
+        ``C`` of eq. 4 (every row gets the same screened TDoAs); None: no eq-4 test.
+    static_s
+        Length of the static run, s.
+    legs
+        Legs of the broken line driven in the dynamic run (1–5).
+    outage_s
+        Outage length in the dynamic run, s (from :data:`~.study.OUTAGE_START_S`).
+    recovery_s
+        Epochs this long after the outage are scored as "recovery", not as "dynamic".
+    grade
+        IMU grade of the filters' model (:data:`uwbwb.models.imu.GRADES`).
+    cases
+        Mismatch cases (names of :data:`uwbwb.sim.mismatch.CASES`); the first must be "matched".
+    mismatch_seeds
+        Scoring seeds per mismatch case (the first ``mismatch_seeds`` of ``seeds``).
+    mismatch_static
+        Whether mismatch cases also run the static scenario.
+    loose_window
+        Epochs of the loose filter's UWB velocity difference.
+    outlier_rate
+        Base multipath rate of the matched world (per station and epoch).
+    """
+
+    seeds: int = 10
+    grid: tuple = (0.1, 0.316, 1.0, 3.16, 10.0)
+    gate_prob: float = 0.999
+    outlier_c_m: float | None = 0.1
+    static_s: float = 60.0
+    legs: int = 5
+    outage_s: float = 5.0
+    recovery_s: float = RECOVERY_S
+    grade: str = "consumer"
+    cases: tuple = tuple(c.name for c in mm.CASES)
+    mismatch_seeds: int = 10
+    mismatch_static: bool = True
+    loose_window: int = 5
+    outlier_rate: float = 0.02
+
+    def __post_init__(self):
+        integer("seeds", self.seeds, minimum=1)
+        integer("mismatch_seeds", self.mismatch_seeds, minimum=1)
+        integer("legs", self.legs, minimum=1, maximum=len(robot.PAPER_WAYPOINTS_M) - 1)
+        probability("gate_prob", self.gate_prob)
+        number("static_s", self.static_s, minimum=1.0)
+        number("recovery_s", self.recovery_s, minimum=0.0)
+        number("outlier_rate", self.outlier_rate, minimum=0.0, maximum=1.0)
+        if len(self.grid) < 1 or not all(g > 0 for g in self.grid):
+            raise ValueError(f"grid must hold positive multipliers, got {self.grid!r}")
+        if self.grade not in GRADES:
+            raise ValueError(f"grade must be one of {list(GRADES)}, got {self.grade!r}")
+        for c in self.cases:
+            mm.case(c)
+        if not self.cases or self.cases[0] != "matched":
+            raise ValueError(f"cases must start with 'matched', got {self.cases!r}")
+        check_outage(self.outage_s, self.recovery_s, robot.broken_line(robot.PAPER_WAYPOINTS_M[: self.legs + 1]),
+                     name="outage_s")
+
+    @classmethod
+    def fast(cls, **kw) -> "AblationConfig":
+        """FAST (smoke-test) sizes: 2 seeds, a 3-point grid, a 10 s static run, 3 legs, mismatch
+        cases on 1 seed and the dynamic run only."""
+        base = dict(seeds=2, grid=(0.1, 1.0, 10.0), static_s=10.0, legs=3, mismatch_seeds=1, mismatch_static=False)
+        base.update(kw)
+        return cls(**base)
+
+    @property
+    def model(self) -> robot.RobotConfig:
+        """The filters' model (the matched world)."""
+        return robot.RobotConfig(imu=GRADES[self.grade], outlier_rate=self.outlier_rate)
+
+
+def check_outage(outage_s: float, recovery_s: float, motion: robot.RobotMotion, *, name: str = "OUTAGE_S") -> None:
+    """Refuse an outage that cannot hold in ``motion``: it must start after the filters start and
+    end, with ``recovery_s`` after it, before the run ends.
+
+    Raises ``ValueError`` naming the parameter ``name``.
+    """
+    number(name, outage_s, minimum=0.0, strict_minimum=True)
+    end = OUTAGE_START_S + outage_s + recovery_s
+    if end > motion.duration_s:
+        raise ValueError(f"{name} = {outage_s:g} s cannot hold: the outage starts at {OUTAGE_START_S:g} s and the "
+                         f"run lasts {motion.duration_s:.1f} s, so with {recovery_s:g} s of recovery scored after it "
+                         f"{name} must be at most {motion.duration_s - OUTAGE_START_S - recovery_s:.1f} s")
+
+
+def check_parameters(*, outage_s: float, static_s: float, outlier_rate: float, gate_prob: float,
+                     nlos_bias_m: float, loose_window: int, seeds: int) -> None:
+    """Notebook 05's parameters, checked before anything runs: a ``ValueError`` names the parameter.
+
+    ``OUTAGE_S`` must fit, with :data:`RECOVERY_S` of recovery scored after it, in the paper's
+    broken line from :data:`~.study.OUTAGE_START_S` (:func:`check_outage`).
+    """
+    number("STATIC_S", static_s, minimum=1.0)
+    number("OUTLIER_RATE", outlier_rate, minimum=0.0, maximum=1.0)
+    probability("GATE_PROB", gate_prob)
+    number("NLOS_BIAS_M", nlos_bias_m, minimum=0.0)
+    integer("LOOSE_WINDOW", loose_window, minimum=1)
+    integer("SEEDS", seeds, minimum=2)
+    check_outage(outage_s, RECOVERY_S, robot.broken_line(), name="OUTAGE_S")
+
+
+def notebook_config(*, fast: bool, seeds: int, outage_s: float, gate_prob: float, outlier_c_m: float | None,
+                    grade: str, outlier_rate: float, loose_window: int, static_s: float) -> AblationConfig:
+    """The ablation of notebook 05 for its parameters: full sizes, or :meth:`AblationConfig.fast`
+    (whose dynamic run drives at least three legs, more if ``outage_s`` needs them)."""
+    common = dict(outage_s=outage_s, gate_prob=gate_prob, outlier_c_m=outlier_c_m, grade=grade,
+                  outlier_rate=outlier_rate, loose_window=loose_window)
+    if fast:
+        return AblationConfig.fast(legs=max(3, legs_for_outage(outage_s, after_s=RECOVERY_S)),
+                                   static_s=min(static_s, 10.0), **common)
+    return AblationConfig(seeds=seeds, mismatch_seeds=seeds, static_s=static_s, **common)
+
+
+def legs_for_outage(outage_s: float, *, after_s: float = 1.0) -> int:
+    """Fewest legs of the broken line whose run holds an outage of ``outage_s`` from
+    :data:`~.study.OUTAGE_START_S` and ``after_s`` after it (ValueError naming ``OUTAGE_S`` if none)."""
+    n = len(robot.PAPER_WAYPOINTS_M) - 1
+    for legs in range(1, n + 1):
+        if OUTAGE_START_S + outage_s + after_s <= robot.broken_line(robot.PAPER_WAYPOINTS_M[: legs + 1]).duration_s:
+            return legs
+    check_outage(outage_s, after_s, robot.broken_line(), name="OUTAGE_S")
+    return n
+
+
+def mismatch_table(res: "AblationResult", metric: str = "outage_max") -> pd.DataFrame:
+    """Mean of ``metric`` over seeds, one row per case, one column per row of the ablation (m)."""
+    t = res.scores.groupby(["case", "method"])[metric].mean().unstack("method")
+    cols = [r for r in ROWS if r in t.columns and (r == "LS" or r.endswith("+ gate"))]
+    return t.loc[[c for c in res.config.cases if c in t.index], cols]
+
+
+def simulate(scenario: str, world: robot.RobotConfig, cfg: AblationConfig, seed: int) -> robot.RobotRun:
+    """The ``"static"`` or ``"dynamic"`` (with outage) run of scoring/tuning seed ``seed`` in ``world``.
+
+    The random stream depends on the seed and the scenario only, so the mismatch cases of one seed
+    share their draws (paired comparisons across cases).
+    """
+    if scenario == "static":
+        motion = robot.hold(duration_s=cfg.static_s)
+        world = replace(world, outage_start_s=None, outage_s=0.0)
+    else:
+        motion = robot.broken_line(robot.PAPER_WAYPOINTS_M[: cfg.legs + 1])
+        world = replace(world, outage_start_s=OUTAGE_START_S, outage_s=cfg.outage_s)
+    return robot.simulate(motion, world, rng=np.random.default_rng([seed, 0 if scenario == "static" else 1]))
+
+
+def ls_gate(fixes: Estimates, tdoa, model: TdoaModel, gate_prob: float) -> tuple[Estimates, int]:
+    """LS fixes whose weighted residuals fail the χ²(m − dim) test at ``gate_prob`` removed.
+
+    The residual sum ``eᵀΣ⁻¹e`` uses the model's reference-correlated covariance
+    ``Σ = diag(σ_j²) + σ_ref² 11ᵀ`` (inverted by Sherman–Morrison). Epochs with ``m <= dim``
+    TDoAs have no redundancy and are kept untested. Returns the gated fixes (status
+    ``NO_ESTIMATE`` where rejected) and the number of rejected epochs.
+    """
+    ok = fixes.has_estimate
+    T, n = tdoa.tdoa_m.shape
+    pos = np.where(ok[:, None], fixes.pos_m, 0.0)
+    ref = np.clip(tdoa.ref, 0, None)
+    e = tdoa.tdoa_m - model.h(pos, ref)
+    meas = np.isfinite(e)
+    meas[np.arange(T), ref] = False
+    e = np.where(meas, e, 0.0)
+    w = np.where(meas, 1.0 / model.sigma_m ** 2, 0.0)
+    s1, s2 = (w * e * e).sum(axis=1), (w * e).sum(axis=1)
+    wssr = s1 - s2 ** 2 / (1.0 / model.sigma_m[ref] ** 2 + w.sum(axis=1))
+    dof = meas.sum(axis=1) - model.dim
+    thr = np.full(T, np.inf)
+    thr[dof >= 1] = stats.chi2.ppf(gate_prob, dof[dof >= 1])
+    bad = ok & (tdoa.ref >= 0) & (wssr > thr)
+    status = np.where(bad, EstimateStatus.NO_ESTIMATE, fixes.status).astype(np.int8)
+    p = np.where(bad[:, None], np.nan, fixes.pos_m)
+    cov = None if fixes.pos_cov_m2 is None else np.where(bad[:, None, None], np.nan, fixes.pos_cov_m2)
+    return Estimates(fixes.t_s, p, status, fixes.name + " + gate", cov), int(bad.sum())
+
+
+def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[str, float], cfg: AblationConfig,
+                rows: Sequence[str] = ROWS) -> tuple[dict, int, dict]:
+    """Every row of ``rows`` on one run, with the filters' ``model`` (not the run's world).
+
+    Returns ``(positions, k0, counts)``: row → horizontal tag position ``(T, 2)`` (NaN where the
+    row has no estimate), the first scored epoch, and counts (``eq4`` TDoAs removed by eq. 4,
+    ``injected`` multipath TDoAs, ``gated`` per row, ``nis``: the filters' mean NIS per degree of
+    freedom over the run, NaN for LS).
+    """
+    anchors = np.asarray(model.stations_m, float)
+    screened, n_eq4 = screened_tdoa(run.tdoa, anchors, cfg.outlier_c_m)
+    m2 = TdoaModel(anchors, model.sigma_toa_m, dim=2, z_m=model.tag_height_m)
+    fixes = _ls_estimates(screened, m2, "LS")
+    yaw0 = float(run.heading.yaw_rad[int(np.flatnonzero(fixes.has_estimate)[0])])
+    x0, k0 = initial_state(fixes, height_m=model.tag_height_m, lever_m=model.lever_arm_m, yaw_rad=yaw0)
+    imu = _after(run.imu, run.truth.t_s[k0])
+    tag0 = x0.pos_m + quat_to_dcm(x0.quat) @ np.asarray(model.lever_arm_m, float)
+    gate = cfg.gate_prob
+    out, gated, nis = {}, {}, {}
+    for row in rows:
+        g = gate if row.endswith("+ gate") else None
+        base = row.split(" ")[0]
+        if base == "LS":
+            est, gated[row] = ls_gate(fixes, screened, m2, gate) if g else (fixes, 0)
+            pos = est.pos_m
+        elif base == "EKF":
+            ekf = TdoaEkf(RandomForce(EKF_Q0 * knobs[row], dim=2), m2, gate_prob=g)
+            kr = ekf.run(screened.select(slice(k0, None)), x0=ekf.init(tag0[:2]))
+            pos = np.full((len(run.truth), 2), np.nan)
+            pos[k0:] = np.where(kr.started[:, None], kr.pos_m, np.nan)
+            gated[row] = 0 if kr.n_rejected is None else int(kr.n_rejected.sum())
+            nis[row] = kr.nis_consistency()["mean_nis_over_dof"]
+        elif base == "loose":
+            f = eskf.LooseFilter(height_m=model.tag_height_m, lever_arm_m=model.lever_arm_m, q_scale=knobs[row],
+                                 vel_window=cfg.loose_window, sigma_r_pos_m=2 * model.sigma_toa_m, gate_prob=g)
+            fr = f.run(imu, fixes, x0, heading=run.heading)
+            pos = fr.to_estimates(dim=2).pos_m
+            gated[row] = int(fr.n_gated.sum())
+            nis[row] = fr.nis_consistency()["mean_nis_over_dof"]
+        elif base == "tight":
+            f = eskf.TightEskf(model.imu, eskf.TdoaUpdate(model.tdoa_model(), cfg.outlier_c_m),
+                               lever_arm_m=model.lever_arm_m, gate_prob=g, q_scale=knobs[row],
+                               height_m=model.tag_height_m)
+            fr = f.run(imu, run.tdoa, x0, heading=run.heading)
+            pos = fr.to_estimates(dim=2).pos_m
+            gated[row] = int(fr.n_gated.sum())
+            nis[row] = fr.nis_consistency()["mean_nis_over_dof"]
+        else:
+            raise ValueError(f"unknown row {row!r}; known: {ROWS}")
+        pos = np.array(pos, float)
+        pos[:k0] = np.nan
+        out[row] = pos
+    ref = run.tdoa.ref
+    bad = run.outlier | run.outlier[np.arange(len(ref)), np.clip(ref, 0, None)][:, None]
+    bad &= np.isfinite(run.tdoa.tdoa_m)
+    bad[np.arange(len(ref)), ref] = False
+    counts = {"eq4": int(n_eq4.sum()), "injected": int(bad.sum()), "gated": gated, "nis": nis,
+              "eq4_on_injected": int((triangle_outliers(run.tdoa.tdoa_m, ref, anchors, cfg.outlier_c_m) & bad).sum())
+              if cfg.outlier_c_m is not None else 0}
+    return out, k0, counts
+
+
+def _masks(run: robot.RobotRun, k0: int, recovery_s: float) -> dict:
+    T = len(run.truth)
+    scored = np.arange(T) >= k0
+    if not run.outage.any():
+        return {"all": scored}
+    t = run.truth.t_s
+    t_end = t[run.outage][-1]
+    rec = (t > t_end) & (t <= t_end + recovery_s)
+    return {"all": scored & ~run.outage & ~rec, "outage": scored & run.outage, "recovery": scored & rec}
+
+
+def _scores(pos: np.ndarray, truth_m: np.ndarray, sel: np.ndarray) -> tuple[float, float, float, float]:
+    e = np.linalg.norm(pos[sel] - truth_m[sel], axis=1)
+    ok = np.isfinite(e)
+    if not ok.any():
+        return np.nan, np.nan, 0.0, np.nan
+    return float(np.sqrt(np.mean(e[ok] ** 2))), float(e[ok].max()), float(ok.mean()), float(np.sum(e[ok] ** 2))
+
+
+def score_seed(case: str, seed: int, knobs: Mapping[str, float], cfg: AblationConfig,
+               rows: Sequence[str] = ROWS, scenarios: Sequence[str] = ("static", "dynamic")) -> dict:
+    """Scores (:data:`METRICS`) of every row on the runs of one (mismatch case, seed).
+
+    Returns ``{"scores": {row: {metric: value}}, "counts": {scenario: counts}}``.
+    """
+    model = cfg.model
+    world = mm.case(case).world(model)
+    scores = {r: {m: np.nan for m in METRICS} for r in rows}
+    counts = {}
+    for scen in scenarios:
+        run = simulate(scen, world, cfg, seed)
+        pos, k0, counts[scen] = run_methods(run, model, knobs, cfg, rows)
+        masks = _masks(run, k0, cfg.recovery_s)
+        truth = run.truth.pos_m[:, :2]
+        for r in rows:
+            rmse, mx, cov, _ = _scores(pos[r], truth, masks["all"])
+            s = scores[r]
+            if scen == "static":
+                s["static_rmse"], s["static_cov"] = rmse, cov
+            else:
+                s["dyn_rmse"], s["dyn_cov"] = rmse, cov
+                o_rmse, o_max, o_cov, _ = _scores(pos[r], truth, masks["outage"])
+                s["outage_rmse"], s["outage_max"], s["outage_cov"] = o_rmse, o_max, o_cov
+                s["recovery_max"] = _scores(pos[r], truth, masks["recovery"])[1]
+                s["nis"] = counts[scen]["nis"].get(r, np.nan)
+    return {"scores": scores, "counts": counts}
+
+
+def _tune_task(row: str, knob: float, cfg: AblationConfig, seed: int) -> float:
+    """Sum of squared errors and count over the tuning seed's scored epochs (no outage, no recovery)."""
+    sse = n = 0.0
+    for scen in ("static", "dynamic"):
+        run = simulate(scen, cfg.model, cfg, seed)
+        pos, k0, _ = run_methods(run, cfg.model, {row: knob}, cfg, (row,))
+        sel = _masks(run, k0, cfg.recovery_s)["all"]
+        e = np.linalg.norm(pos[row][sel] - run.truth.pos_m[sel, :2], axis=1)
+        ok = np.isfinite(e)
+        sse, n = sse + float(np.sum(e[ok] ** 2)), n + int(ok.sum())
+    return math.sqrt(sse / n) if n else np.inf
+
+
+def tune(cfg: AblationConfig, *, tuning_seed: int, scheduler=None, workers: int = 1) -> pd.DataFrame:
+    """RMSE on the tuning seed for every tuned row × grid value (rows: rows, columns: grid).
+
+    The knob of each row is the grid value with the lowest RMSE (``.idxmin(axis=1)``).
+    """
+    tasks = [parallel.Task({"row": r, "knob": float(g)}) for r in _TUNED for g in cfg.grid]
+    res = {(t.params["row"], t.params["knob"]): v for t, v in parallel.imap(
+        _tune_task_shared, tasks, shared={"cfg": cfg, "tuning_seed": tuning_seed}, scheduler=scheduler,
+        workers=workers, desc="ablation tuning", unit="run")}
+    return pd.DataFrame({g: {r: res[(r, float(g))] for r in _TUNED} for g in cfg.grid})
+
+
+def _tune_task_shared(*, row, knob, cfg, tuning_seed):
+    return _tune_task(row, knob, cfg, tuning_seed)
+
+
+def _score_task(*, case, run_seed, knobs, cfg, rows, scenarios):
+    return score_seed(case, run_seed, knobs, cfg, rows, scenarios)
+
+
+@dataclass(frozen=True)
+class AblationResult:
+    """Scores of the ablation.
+
+    Attributes
+    ----------
+    config
+        The :class:`AblationConfig` used.
+    fast
+        True for a FAST (smoke-test) run.
+    tuning
+        RMSE on the tuning seed per tuned row × grid value (m).
+    knobs
+        Row → chosen process-noise multiplier.
+    scores
+        Long table: one row per (case, seed, method) with the :data:`METRICS`.
+    counts
+        ``{case: {"eq4": .., "injected": .., "eq4_on_injected": ..}}`` summed over seeds and scenarios.
+    """
+
+    config: AblationConfig
+    fast: bool
+    tuning: pd.DataFrame
+    knobs: dict
+    scores: pd.DataFrame
+    counts: dict = field(default_factory=dict)
+
+    def case(self, name: str = "matched") -> pd.DataFrame:
+        """Scores of one case, indexed by (seed, method)."""
+        return self.scores[self.scores["case"] == name].set_index(["seed", "method"]).drop(columns="case")
+
+    def table(self, name: str = "matched") -> pd.DataFrame:
+        """Mean over seeds of every metric per method (rows in :data:`ROWS` order), with the seed count."""
+        c = self.case(name)
+        t = c.groupby(level="method").mean()
+        order = [r for r in ROWS if r in t.index]
+        t = t.loc[order]
+        t["seeds"] = c.groupby(level="method").size().loc[order]
+        return t
+
+    def ratio(self, num: str, den: str, metric: str, case: str = "matched", prob: float = 0.95) -> dict:
+        """:func:`ratio_ci` of ``num / den`` on ``metric`` over the case's seeds (paired)."""
+        c = self.case(case)[metric].unstack("method")
+        return ratio_ci(c[num].to_numpy(), c[den].to_numpy(), prob=prob)
+
+
+#: The ingredient ladder: (what it measures, without, with).
+LADDER = (
+    ("outlier handling (gate), LS", "LS", "LS + gate"),
+    ("outlier handling (gate), EKF", "EKF", "EKF + gate"),
+    ("outlier handling (gate), loose", "loose", "loose + gate"),
+    ("outlier handling (gate), tight", "tight", "tight + gate"),
+    ("temporal filtering (LS → EKF, gated)", "LS + gate", "EKF + gate"),
+    ("IMU, loosely (EKF → loose, gated)", "EKF + gate", "loose + gate"),
+    ("IMU, tightly (EKF → tight, gated)", "EKF + gate", "tight + gate"),
+    ("tight vs loose (gated)", "loose + gate", "tight + gate"),
+)
+
+
+def ratio_ci(a, b, *, prob: float = 0.95) -> dict:
+    """Geometric-mean ratio ``a / b`` over paired seeds with a Student-t interval on the log ratios.
+
+    Returns ``{"ratio", "lo", "hi", "n"}``; with fewer than two finite pairs the interval is NaN.
+    A ratio > 1 means ``b`` has the smaller error (the ingredient helps).
+    """
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    ok = np.isfinite(a) & np.isfinite(b) & (a > 0) & (b > 0)
+    d = np.log(a[ok] / b[ok])
+    n = int(d.size)
+    if n == 0:
+        return {"ratio": np.nan, "lo": np.nan, "hi": np.nan, "n": 0}
+    m = float(d.mean())
+    if n < 2:
+        return {"ratio": math.exp(m), "lo": np.nan, "hi": np.nan, "n": n}
+    h = float(stats.t.ppf(0.5 + prob / 2, n - 1) * d.std(ddof=1) / math.sqrt(n))
+    return {"ratio": math.exp(m), "lo": math.exp(m - h), "hi": math.exp(m + h), "n": n}
+
+
+def ladder_table(res: AblationResult, case: str = "matched",
+                 metrics: Sequence[str] = ("static_rmse", "dyn_rmse", "outage_max")) -> pd.DataFrame:
+    """Ratio (without / with the ingredient) and its 95 % interval for every step of :data:`LADDER`."""
+    rows = {}
+    for what, a, b in LADDER:
+        row = {}
+        for m in metrics:
+            r = res.ratio(a, b, m, case)
+            row[(m, "ratio")], row[(m, "lo")], row[(m, "hi")] = r["ratio"], r["lo"], r["hi"]
+        rows[what] = row
+    t = pd.DataFrame(rows).T
+    t.columns = pd.MultiIndex.from_tuples(t.columns)
+    return t
+
+
+def run_ablation(cfg: AblationConfig, *, base_seed: int = 0, fast: bool = False, scheduler=None,
+                 workers: int = 1) -> AblationResult:
+    """Tune every filter on the tuning seed, then score every row on every seed and mismatch case.
+
+    Cases other than "matched" run the gated rows and LS (``mismatch_seeds`` seeds; the static run
+    only if ``mismatch_static``). Work is sent through :func:`uwbwb.parallel.imap` (``scheduler``,
+    ``workers``); results do not depend on how it runs.
+    """
+    tuning = tune(cfg, tuning_seed=base_seed + 1000, scheduler=scheduler, workers=workers)
+    knobs = {r: float(tuning.loc[r].idxmin()) for r in tuning.index}
+    mis_rows = ("LS",) + tuple(r for r in ROWS if r.endswith("+ gate"))
+    tasks = []
+    for case in cfg.cases:
+        matched = case == "matched"
+        n = cfg.seeds if matched else min(cfg.mismatch_seeds, cfg.seeds)
+        scen = ("static", "dynamic") if matched or cfg.mismatch_static else ("dynamic",)
+        for k in range(n):
+            tasks.append(parallel.Task({"case": case, "run_seed": base_seed + 1 + k,
+                                        "rows": ROWS if matched else mis_rows, "scenarios": scen}))
+    recs, counts = [], {}
+    for task, out in parallel.imap(_score_task, tasks, shared={"knobs": knobs, "cfg": cfg},
+                                   scheduler=scheduler, workers=workers, desc="ablation", unit="seed"):
+        case, seed = task.params["case"], task.params["run_seed"]
+        for r, s in out["scores"].items():
+            recs.append({"case": case, "seed": seed, "method": r, **s})
+        c = counts.setdefault(case, {"eq4": 0, "injected": 0, "eq4_on_injected": 0})
+        for sc in out["counts"].values():
+            for k in c:
+                c[k] += sc[k]
+    return AblationResult(cfg, fast, tuning, knobs, pd.DataFrame(recs), counts)
+
+
+def eq4_thresholds(model: robot.RobotConfig, pos_m: np.ndarray, c_m: float) -> pd.DataFrame:
+    """The smallest multipath excess that makes eq. 4 fire, per TDoA pair, over positions ``pos_m``.
+
+    Eq. 4 flags ``|r_j − r_ref| > ‖a_j − a_ref‖ − C``. An excess ``e ≥ 0`` on station ``j`` raises
+    ``r_j − r_ref`` and fires once ``e > ‖a_j − a_ref‖ − C − (r_j − r_ref)``; an excess on the
+    reference lowers it and fires once ``e > ‖a_j − a_ref‖ − C + (r_j − r_ref)``. Returns per pair
+    the baseline and the minimum over the positions of either threshold (m).
+    """
+    a = np.asarray(model.stations_m, float)
+    p = np.atleast_2d(np.asarray(pos_m, float))
+    r = np.linalg.norm(p[:, None, :] - a[None], axis=-1)
+    ref = model.reference
+    rows = {}
+    for j in range(len(a)):
+        if j == ref:
+            continue
+        base = float(np.linalg.norm(a[j] - a[ref]))
+        d = r[:, j] - r[:, ref]
+        rows[f"BS{j + 1} − BS{ref + 1}"] = {"baseline (m)": base,
+                                            "min excess on the station (m)": float(np.min(base - c_m - d)),
+                                            "min excess on the reference (m)": float(np.min(base - c_m + d))}
+    return pd.DataFrame(rows).T

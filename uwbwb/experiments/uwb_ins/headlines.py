@@ -1,0 +1,104 @@
+"""Notebook 05's headline numbers (declared as data) and its checks.
+
+:func:`ablation_rows` gives the reproduction-summary rows of the ablation; :func:`checks`
+returns the failed checks (an empty list when all pass). Every check is one a wrong
+implementation would fail: a NIS that does not see doubled noise, an eq-4 test that flags
+clean TDoAs or never fires, a mismatch that is not applied, an outage that leaves a fix, a
+residual test that removes nothing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .ablation import LADDER, ROWS, AblationResult
+
+__all__ = ["ERROR_RANGE_ASSUMPTION", "ablation_rows", "checks"]
+
+#: What the synthetic error ranges follow from (named in their summary rows).
+ERROR_RANGE_ASSUMPTION = "follows from assumed noise: 3 cm arrival-time σ, 2 % multipath, consumer IMU"
+_GATED = ("EKF + gate", "loose + gate", "tight + gate")
+
+
+def ablation_rows(res: AblationResult) -> list[dict]:
+    """Summary rows (keyword arguments of :meth:`uwbwb.metrics.Summary.add`) of the ablation:
+    mean scores per row (matched), the ladder ratios on the dynamic RMSE and the outage, the
+    outage ratio of tight coupling under each mismatch case, and the eq-4 counts."""
+    cfg = res.config
+    n = cfg.seeds
+    out = []
+    t = res.table("matched")
+    for r in ROWS:
+        for m, what in (("static_rmse", "static RMSE"), ("dyn_rmse", "dynamic RMSE"),
+                        ("outage_max", f"max error in the {cfg.outage_s:g} s outage")):
+            v = t.loc[r, m]
+            if np.isfinite(v):
+                out.append(dict(quantity=f"ablation: {what}, {r} (mean of {n} seeds, matched model)", value=v,
+                                unit="m", data="synthetic", kind="reproduced"))
+    for what, a, b in LADDER:
+        for m, label in (("dyn_rmse", "dynamic RMSE"), ("outage_max", "outage max error")):
+            r = res.ratio(a, b, m)
+            if np.isfinite(r["ratio"]):
+                out.append(dict(quantity=f"ablation ratio {a} / {b}, {label} ({what}; geometric mean of {r['n']} "
+                                         f"seeds)", value=r["ratio"], unit="", data="synthetic", kind="reproduced"))
+    for case in cfg.cases[1:]:
+        for other in ("EKF + gate", "loose + gate"):
+            r = res.ratio(other, "tight + gate", "outage_max", case)
+            if np.isfinite(r["ratio"]):
+                out.append(dict(quantity=f"mismatch '{case}': outage max error {other} / tight + gate "
+                                         f"({r['n']} seeds)", value=r["ratio"], unit="", data="synthetic",
+                                kind="reproduced"))
+    for case, c in res.counts.items():
+        out.append(dict(quantity=f"ablation '{case}': injected multipath TDoAs removed by eq. 4",
+                        value=c["eq4_on_injected"], unit="", data="synthetic", kind="reproduced"))
+        out.append(dict(quantity=f"ablation '{case}': TDoAs carrying injected multipath", value=c["injected"],
+                        unit="", data="synthetic", kind="reproduced"))
+    return out
+
+
+def checks(res: AblationResult) -> list[str]:
+    """The ablation's checks; returns the messages of those that fail.
+
+    1. Outage: no LS fix in it; every filter covers every scored epoch.
+    2. NIS: the matched gated EKF and tight filter are consistent (mean NIS per dof within
+       0.6–1.6, FAST 0.5–2); with the world's UWB σ doubled it rises by ≥ 1.5×.
+    3. Eq. 4 never removes a clean TDoA, and it fires where excesses reach 12 m.
+    4. The mismatch is applied: coasting through the outage with a 10× worse IMU, the loose
+       filter's max error grows.
+    5. The LS residual test lowers LS's static and dynamic RMSE by ≥ 1.5× (mean over seeds).
+    """
+    fails = []
+    t = res.table("matched")
+    if not (t.loc[["LS", "LS + gate"], "outage_cov"] == 0).all():
+        fails.append("outage: LS has fixes during the outage (the simulator must leave one TDoA per epoch)")
+    filt = [r for r in ROWS if not r.startswith("LS")]
+    cov = t.loc[filt, ["static_cov", "dyn_cov", "outage_cov"]]
+    if not (cov >= 1.0 - 1e-12).all().all():
+        fails.append(f"coverage: a filter misses scored epochs:\n{cov}")
+    lo, hi = (0.5, 2.0) if res.fast else (0.6, 1.6)
+    for r in ("EKF + gate", "tight + gate"):
+        v = t.loc[r, "nis"]
+        if not lo < v < hi:
+            fails.append(f"NIS: {r} mean NIS/dof {v:.2f} outside ({lo}, {hi}) in the matched world")
+    if "UWB σ 2×" in res.config.cases:
+        s2 = res.table("UWB σ 2×")
+        for r in ("EKF + gate", "tight + gate"):
+            if not s2.loc[r, "nis"] >= 1.5 * t.loc[r, "nis"]:
+                fails.append(f"NIS: {r} does not see the doubled UWB noise ({s2.loc[r, 'nis']:.2f} vs "
+                             f"{t.loc[r, 'nis']:.2f} matched)")
+    for case, c in res.counts.items():
+        if c["eq4"] != c["eq4_on_injected"]:
+            fails.append(f"eq. 4 removed {c['eq4'] - c['eq4_on_injected']} clean TDoAs in '{case}'")
+    wide = res.counts.get("multipath up to 12 m")
+    if wide is not None and wide["eq4_on_injected"] == 0:
+        fails.append("eq. 4 never fired although multipath excesses reach 12 m")
+    if "IMU 10× worse" in res.config.cases:
+        m = res.case("matched")["outage_max"].unstack("method")["loose + gate"]
+        w = res.case("IMU 10× worse")["outage_max"].unstack("method")["loose + gate"]
+        common = w.index.intersection(m.index)
+        if not (w.loc[common] > m.loc[common]).all():
+            fails.append("mismatch: a 10× worse IMU does not worsen the loose filter's coasting through the outage")
+    for m in ("static_rmse", "dyn_rmse"):
+        if not t.loc["LS", m] >= 1.5 * t.loc["LS + gate", m]:
+            fails.append(f"LS residual test: {m} {t.loc['LS', m]:.3f} → {t.loc['LS + gate', m]:.3f} m, less than 1.5×")
+    return fails
