@@ -158,6 +158,17 @@ def test_the_injected_cell_refuses_values_that_are_not_literals():
             rp.injected_source({"X": bad})
 
 
+def test_the_injected_cell_follows_the_parameters_cell_and_replaces_an_earlier_one():
+    nb = nbformat.v4.new_notebook()
+    cell = nbformat.v4.new_code_cell("A = 1")
+    cell.metadata["tags"] = ["parameters"]
+    nb.cells = [nbformat.v4.new_markdown_cell("# t"), cell, nbformat.v4.new_code_cell("print(A)")]
+    rp.parameterized(nb, {"A": (1, 2), "B": {1, 2}})
+    rp.parameterized(nb, {"A": 3})
+    assert [c.source.splitlines()[-1] for c in nb.cells] == ["# t", "A = 1", "A = 3", "print(A)"]
+    assert nb.cells[2].metadata["tags"] == [rp.INJECTED_TAG] and nb.metadata.papermill["parameters"] == {"A": 3}
+
+
 # --------------------------------------------------------------------------- what each parameter accepts (item 2)
 
 @pytest.fixture

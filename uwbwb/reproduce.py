@@ -344,7 +344,7 @@ def parameterized(nb, parameters: Mapping[str, Any]):
     cell.metadata["tags"] = [INJECTED_TAG]
     nb.cells = cells[:where] + [cell] + cells[where:]
     meta = nb.metadata.setdefault("papermill", {})
-    meta["parameters"] = json.loads(json.dumps(dict(parameters)))     # JSON record (tuples as lists)
+    meta["parameters"] = json.loads(json.dumps(dict(parameters), default=repr))   # JSON record (tuples as lists)
     return nb
 
 
