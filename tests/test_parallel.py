@@ -224,7 +224,7 @@ def _free_port():
     ("http", r"no Dask scheduler at tcp://127\.0\.0\.1:\d+: something accepts connections there but the Dask "
              r"handshake failed"),
     ("silent", r"no Dask scheduler at tcp://127\.0\.0\.1:\d+: something accepts connections there but did not "
-               r"answer as a Dask scheduler within 0\.5 s"),
+               r"answer as a Dask scheduler within 1 s"),
     ("refused", r"no Dask scheduler at tcp://127\.0\.0\.1:\d+: connection refused \(nothing listens on port \d+\)"),
     ("notanaddress", r"scheduler 'notanaddress' is not an address.*expected 'local' or a scheduler address"),
     ("tcp://127.0.0.1:99999", r"is not an address"),
@@ -238,7 +238,7 @@ def test_an_address_without_a_scheduler_fails_promptly_naming_it(case, message):
     before = set(threading.enumerate())
     try:
         with pytest.raises(par.SchedulerUnreachable, match=message):
-            par.connect(address, timeout_s=0.5)
+            par.connect(address, timeout_s=1.0)
     finally:
         if server is not None:
             server.close()
