@@ -165,3 +165,12 @@ def test_real_cases_load_with_a_consistent_clock_offset():
         assert abs(np.diff(m["registration"].half_offsets_s)[0]) < 0.1
         assert 0.8 < m["tag_height_fit_m"] < 1.3
         assert set(hd.authors_estimates(rec)) == {"LS", "ESKF"}
+
+
+def test_the_registry_opens_a_case_by_name(tree, loaded):
+    from uwbwb.datasets import registry
+
+    data, cases = tree
+    rec = registry.open(f"hanyang-outdoor-uwb/{cases[2].name}", data)
+    assert rec.label == loaded[cases[2].name].label
+    assert set(registry.names("hanyang-outdoor-uwb", data)) >= {f"hanyang-outdoor-uwb/{c.name}" for c in cases}
