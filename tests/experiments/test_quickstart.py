@@ -123,3 +123,11 @@ def test_notes_follow_the_numbers(synthetic, compared):
     cdf = qs.exercises.cdf_note(table)
     assert f"for {len(synthetic.dynamic.tags)} of {len(synthetic.dynamic.tags)} tags" in cdf
     what_you_should_see(note), what_you_should_see(cdf)             # both fit the note's limits
+
+
+def test_plan_note_words_the_geometry(synthetic):
+    rec, tag = synthetic.dynamic, synthetic.dynamic.tags[0]
+    note = qs.exercises.plan_note(rec, tag, tag_height_m=1.0)
+    assert f"the {len(rec.anchors.pos_m)} anchors" in note and "good geometry" in note   # tag inside the ring
+    far = dataclasses.replace(rec, anchors=dataclasses.replace(rec.anchors, pos_m=rec.anchors.pos_m * [0.05, 0.05, 1] + [20, 20, 0]))
+    assert "weak geometry" in qs.exercises.plan_note(far, tag, tag_height_m=1.0)   # anchors bunched far away
