@@ -349,3 +349,18 @@ def test_reproduce_prints_no_kernel_transport_warning_and_tuples_arrive_as_tuple
     injected = [c for c in executed.cells if "injected-parameters" in c.metadata.get("tags", [])]
     assert len(injected) == 1 and "TOURS = (1, 2)" in injected[0].source
     assert executed.metadata.papermill["input_path"] == str(folder / "01_tiny.ipynb")
+
+
+def test_the_scheduler_timeout_reaches_the_kernels(monkeypatch, tmp_path):
+    seen = {}
+
+    def fake_run(source, out_dir, parameters, **kwargs):
+        seen[source.stem] = kwargs.get("kernel_env")
+        return rp.NotebookRun(notebook=source.stem, source=source, executed=out_dir / "x.ipynb", html=None,
+                              summary=out_dir / "x.json", seconds=0.0, error=None)
+
+    monkeypatch.setattr(rp, "run_notebook", fake_run)
+    rp.reproduce(only=["00"], out=tmp_path, scheduler_timeout_s=2.5)
+    assert list(seen.values()) == [{"UWBWB_SCHEDULER_TIMEOUT_S": "2.5"}]
+    with pytest.raises(ValueError, match="timeout_s must be positive"):
+        rp.reproduce(only=["00"], out=tmp_path, scheduler_timeout_s=-1)
