@@ -316,9 +316,10 @@ def test_reproduce_with_a_bad_scheduler_exits_promptly_with_one_line(case, tmp_p
 
 TINY_PARAMS = "FAST = False\nSEED = 0\nDATA_DIR = None\nSUMMARY_PATH = None\nTOURS = (1, 2, 3)\nTAGS = None\n"
 TINY_BODY = """\
-import json
+import json, os
+timeout = os.environ.get("UWBWB_SCHEDULER_TIMEOUT_S")
 rows = [{"notebook": "01_tiny", "quantity": "tours", "value": len(TOURS), "unit": "",
-         "paper_value": None, "data": f"{type(TOURS).__name__} {type(TAGS).__name__}", "kind": "reproduced",
+         "paper_value": None, "data": f"{type(TOURS).__name__} {type(TAGS).__name__} {timeout}", "kind": "reproduced",
          "mode": "FAST" if FAST else "full"}]
 with open(SUMMARY_PATH, "w") as fh:
     json.dump(rows, fh)
@@ -338,13 +339,13 @@ def test_reproduce_prints_no_kernel_transport_warning_and_tuples_arrive_as_tuple
     monkeypatch.setattr(rp, "NOTEBOOKS_DIR", folder)
     out = tmp_path / "out"
     code = cli.main(["reproduce", "--quick", "--out", str(out), "-p", "TOURS", "(1, 2)", "-p", "TAGS", "('a', 'b')",
-                     "--timeout", "120"])
+                     "--timeout", "120", "--scheduler-timeout", "2.5"])
     printed = capfd.readouterr()
     assert code == 0, printed
     assert "without encryption" not in printed.out + printed.err
     assert "WARNING" not in printed.err
     (row,) = json.loads((out / "summary.json").read_text())
-    assert row["value"] == 2 and row["data"] == "tuple tuple"
+    assert row["value"] == 2 and row["data"] == "tuple tuple 2.5"     # typed values; the timeout reached the kernel
     executed = nbformat.read(out / "01_tiny.ipynb", as_version=4)
     injected = [c for c in executed.cells if "injected-parameters" in c.metadata.get("tags", [])]
     assert len(injected) == 1 and "TOURS = (1, 2)" in injected[0].source
