@@ -46,7 +46,7 @@ from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples, Recording
 from .protocol import Calibration
 
 __all__ = ["Estimator", "BaseEstimator", "RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "SetNoiseFilter",
-           "WindowNls", "UwbInsFilter", "ExternalEstimates", "default_estimators", "truth_at", "MAX_TRUTH_GAP_S"]
+           "WindowNls", "UwbInsFilter", "ExternalEstimates", "INS_GRID", "default_estimators", "truth_at", "MAX_TRUTH_GAP_S"]
 
 #: Largest truth gap interpolated across when scoring or evaluating a bound, seconds.
 MAX_TRUTH_GAP_S = 0.5
@@ -437,6 +437,10 @@ class WindowNls(BaseEstimator):
 #: Rest at the start of a flight (levelling) and in-motion heading alignment before the fusion
 #: filters start, seconds (:func:`uwbwb.experiments.uwb_ins.study.compare_iasl`).
 INS_REST_S, INS_ALIGN_S = 2.0, 20.0
+#: ``(q_scale, r_scale)`` pairs the UWB/INS filters search on the calibration part: multipliers on the
+#: IMU process-noise and the UWB measurement-noise variances, nine as the EKFs' nine σ_w values
+#: (FAST: every other pair, five, as the EKFs' FAST grids).
+INS_GRID = tuple((q, r) for q in (1.0, 30.0, 1000.0) for r in (1.0, 3.0, 10.0))
 
 
 @dataclass(frozen=True, eq=False)
@@ -446,8 +450,10 @@ class UwbInsFilter(BaseEstimator):
 
     ``tune`` is notebook 05's IMU calibration on the calibration recording (each filter keeps its own copy)
     (:func:`~uwbwb.experiments.uwb_ins.study.calibrate_iasl`: sensor axes, accelerometer scale,
-    noise densities); the ranges are the board's calibrated ones with the board's range noise, so
-    the fusion filters get the same UWB information as every other method. ``estimate`` runs
+    noise densities), then, with the same effort as the EKFs' driving-noise search, the
+    ``(q_scale, r_scale)`` pair of :data:`INS_GRID` (``grid``) that minimises the filter's horizontal
+    RMSE on the calibration part; the ranges are the board's calibrated ones with the board's range
+    noise, so the fusion filters get the same UWB information as every other method. ``estimate`` runs
     notebook 05's start-up (rest levelling, in-motion heading alignment over the first
     :data:`INS_ALIGN_S` s) and the filters (:func:`~uwbwb.experiments.uwb_ins.study.compare_iasl`);
     no estimate before the alignment ends. One run gives every fusion filter, so it is kept for the
@@ -461,6 +467,7 @@ class UwbInsFilter(BaseEstimator):
 
     kind: str = "tight"
     _cache: dict = field(default_factory=dict, repr=False)
+    grid: tuple[tuple[float, float], ...] = INS_GRID
 
     @property
     def name(self) -> str:
@@ -480,7 +487,19 @@ class UwbInsFilter(BaseEstimator):
         from ..experiments.uwb_ins import study
 
         one = replace(rec, ranges={"tag": rec.ranges[tags[0]]}, truth={"tag": rec.truth[tags[0]]})
-        return {"calibration": study.calibrate_iasl(one, still_s=INS_REST_S)}
+        store = self._cache.setdefault("imu", {})          # one IMU calibration for both adapters
+        ikey = (rec.label, tags[0], float(rec.ranges[tags[0]].t_s[0]), len(rec.ranges[tags[0]]))
+        if ikey not in store:
+            store[ikey] = study.calibrate_iasl(one, still_s=INS_REST_S)
+        imu_cal = store[ikey]
+        cal_ins = cal.with_tuned(self.name, {"calibration": imu_cal})
+        cost = []
+        for q, r in self.grid:
+            comp = self._comparison(rec, tags[0], cal_ins, (q, r))
+            cost.append(_errors_rmse(self._placed(comp, rec, tags[0]), rec, tags[0], cal.dim))
+        best = int(np.argmin(cost))
+        return {"calibration": imu_cal, "q_scale": float(self.grid[best][0]), "r_scale": float(self.grid[best][1]),
+                "grid": tuple(self.grid), "grid_rmse_m": tuple(float(c) for c in cost)}
 
     def _imu_calibration(self, cal):
         try:
@@ -488,20 +507,31 @@ class UwbInsFilter(BaseEstimator):
         except KeyError:
             raise ValueError(f"{self.name}: no IMU calibration in {cal.source} (its recording has no IMU)") from None
 
-    def _comparison(self, rec, tag, cal):
+    def _comparison(self, rec, tag, cal, scales=None):
+        """One run of every fusion filter (cached for the other adapter: the last few runs are kept)."""
         from ..experiments.uwb_ins import study
 
-        key = (rec.label, tag, float(rec.ranges[tag].t_s[0]), len(rec.ranges[tag]), id(cal))
+        if scales is None:
+            p = cal.params(self.name)
+            scales = (float(p.get("q_scale", 1.0)), float(p.get("r_scale", 1.0)))
+        imu_cal = self._imu_calibration(cal)
+        key = (rec.label, tag, float(rec.ranges[tag].t_s[0]), len(rec.ranges[tag]), id(imu_cal), tuple(scales))
         if key not in self._cache:
-            real = replace(self._imu_calibration(cal), range_sigma_m=cal.sigma(tag), range_bias_m=0.0)
+            real = replace(imu_cal, range_sigma_m=cal.sigma(tag), range_bias_m=0.0)
             one = replace(rec, ranges={"tag": calibrated_log(rec, tag, cal)}, truth={"tag": rec.truth[tag]}
                           if tag in rec.truth else {})
-            self._cache.clear()
-            self._cache[key] = study.compare_iasl(one, real, still_s=INS_REST_S, align_s=INS_ALIGN_S)
+            runs = [k for k in self._cache if k != "imu"]
+            while len(runs) >= len(self.grid) + 2:             # bounded: one grid's runs and the scored ones
+                self._cache.pop(runs.pop(0))
+            settings = study.FusionSettings(q_scale=float(scales[0]), r_scale=float(scales[1]))
+            self._cache[key] = study.compare_iasl(one, real, settings, still_s=INS_REST_S, align_s=INS_ALIGN_S)
         return self._cache[key]
 
     def estimate(self, rec, tag, cal):
-        comp = self._comparison(rec, tag, cal)
+        return self._placed(self._comparison(rec, tag, cal), rec, tag)
+
+    def _placed(self, comp, rec, tag):
+        """The filter's part of a comparison placed on ``tag``'s epochs (no estimate before the alignment ends)."""
         part = comp.estimates[self.kind]
         log = rec.ranges[tag]
         idx = np.searchsorted(log.t_s, part.t_s)
@@ -602,7 +632,8 @@ def default_estimators(*, fast: bool = False, seed: int = 0) -> list[Estimator]:
             grid = tuple(float(g) for g in EKF_GRIDS[m][::2])
         ekfs.append(TdoaEkfEstimator(m, grid=grid))
     ins_cache: dict = {}
+    ins_grid = INS_GRID[::2] if fast else INS_GRID
     return [RawLs(), CalibratedLs(), TdoaLs(), *ekfs,
             SetNoiseFilter("KF", seed=seed), SetNoiseFilter("PF", n_particles=200 if fast else 1000, seed=seed),
             WindowNls(windows_s=(1.0,) if fast else NLS_WINDOWS_S),
-            UwbInsFilter("loose", ins_cache), UwbInsFilter("tight", ins_cache)]
+            UwbInsFilter("loose", ins_cache, ins_grid), UwbInsFilter("tight", ins_cache, ins_grid)]

@@ -20,10 +20,12 @@ The **common bound** is the same for every method on a recording:
   that model along the scoring part's true track, from a prior of 1 m per axis in position and
   1 unit in each higher derivative at the tag's first epoch, horizontal block.
 
-It is what an unbiased estimator that knows the fitted motion prior and the Gaussian range
-noise could reach on average over the model's tracks — not a bound on this one track (a track
-smoother than its model can be tracked better), and not a bound for a method with other
-information: the UWB/INS filters also use an IMU, so they may legitimately go below it.
+It is what a *causal* unbiased estimator (a filter: epochs up to the current one) that knows the
+fitted motion prior and the Gaussian range noise could reach on average over the model's tracks —
+not a bound on this one track (a track smoother than its model can be tracked better), not a
+bound for a smoother (the windowed NLS fits each window to later ranges as well), and not a bound
+for a method with other information: the UWB/INS filters also use an IMU. Those may legitimately
+go below it.
 """
 
 from __future__ import annotations

@@ -146,9 +146,10 @@ def monte_carlo(n_runs: int, config: SyntheticConfig = SyntheticConfig(), *, see
 
 
 def efficiency_summary(mc: pd.DataFrame) -> pd.DataFrame:
-    """Per method: RMSE and bound over all runs, efficiency and its Monte Carlo standard error.
+    """Per method: RMSE and own bound over all runs, their ratio and its Monte Carlo standard error.
 
-    ``efficiency = sqrt(Σ mse / Σ bound)`` over runs; its standard error by the delta method
+    ``efficiency = sqrt(Σ mse / Σ bound)`` over runs — RMSE / bound, the inverse of the textbook
+    efficiency (column name kept for existing callers); its standard error by the delta method
     from the spread of the per-run ratios ``mse / bound``. ``z = (efficiency − 1) / se``.
     """
     rows = []
