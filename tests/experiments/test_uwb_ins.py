@@ -90,6 +90,17 @@ def test_real_data_path_runs_on_any_scenario_by_name(tmp_path, names):
     assert comp.label.endswith(names[1])
     assert t.loc["tight", "coverage"] > 0.99 and np.isfinite(t.loc["tight", "RMSE (m)"])
     assert t.loc["tight", "RMSE (m)"] < 2 * t.loc["UWB-only", "RMSE (m)"] + 0.05
+    # the gated IMU-free EKF runs beside them, and the real-data table scores everyone on common epochs
+    from uwbwb.experiments.uwb_ins import realdata
+
+    assert t.loc["EKF + gate", "coverage"] > 0.99
+    e = realdata.error_table(comp)
+    assert {"vertical RMSE (m)", "3-D RMSE (m)"} <= set(e.columns) and (e["common epochs"] > 100).all()
+    d = realdata.difference_table(comp, realdata.PAIRS, rng=np.random.default_rng(0))
+    assert list(d.index) == [f"{a} − {b}" for a, b in realdata.PAIRS] and d["hi (mm)"].notna().all()
+    c = realdata.consistency_table(comp)
+    assert {"tight", "loose", "EKF + gate", "UWB-only"} <= set(c.index)
+    assert len({r["quantity"] for r in realdata.summary_rows(comp, cal_label=names[0])}) > 10
 
 
 @pytest.mark.realdata

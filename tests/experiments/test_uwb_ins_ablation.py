@@ -208,3 +208,46 @@ def test_checks_pass_on_a_sound_result_and_fail_on_each_defect():
     rows = headlines.ablation_rows(good)
     assert all(r["kind"] == "reproduced" and r["data"] == "synthetic" for r in rows)
     assert len({r["quantity"] for r in rows}) == len(rows)
+
+
+# ---------------------------------------------------------------- real-data table pieces
+def test_block_bootstrap_difference_and_its_verdict_flip_with_the_interval():
+    from uwbwb.experiments.uwb_ins import realdata
+
+    rng = np.random.default_rng(3)
+    base = np.abs(rng.normal(0, 0.05, 2000))
+    same = realdata.block_bootstrap_difference(base, base * np.exp(rng.normal(0, 0.01, 2000)),
+                                               rng=np.random.default_rng(0))
+    better = realdata.block_bootstrap_difference(0.8 * base, base, rng=np.random.default_rng(0))
+    worse = realdata.block_bootstrap_difference(1.2 * base, base, rng=np.random.default_rng(0))
+    assert better["diff_m"] == pytest.approx(-0.2 * np.sqrt(np.mean(base ** 2)))
+    assert better["hi_m"] < 0 < worse["lo_m"] and same["lo_m"] < 0 < same["hi_m"]
+    assert "tight beats loose" in realdata.difference_verdict("tight", "loose", better)
+    assert "worse than" in realdata.difference_verdict("tight", "loose", worse)
+    assert "no significant difference" in realdata.difference_verdict("tight", "loose", same)
+    short = realdata.block_bootstrap_difference(base[:10], base[:10], rng=np.random.default_rng(0))
+    assert np.isnan(short["lo_m"]) and "too few" in realdata.difference_verdict("a", "b", short)
+    with pytest.raises(ValueError, match="same length"):
+        realdata.block_bootstrap_difference(base, base[:-1], rng=np.random.default_rng(0))
+
+
+def test_consistency_table_nees_is_chi2_for_honest_covariances_and_scales_with_them():
+    from uwbwb.experiments.uwb_ins import realdata, study
+    from uwbwb.types import Trajectory
+
+    rng = np.random.default_rng(4)
+    T = 4000
+    truth = Trajectory(np.arange(T) * 0.02, np.zeros((T, 3)), name="truth")
+    P = np.tile(np.diag([0.01, 0.04, 0.09]), (T, 1, 1))
+    e = rng.normal(0, 1, (T, 3)) * np.sqrt([0.01, 0.04, 0.09])
+    st = np.full(T, EstimateStatus.UPDATED, np.int8)
+    est = {"honest": Estimates(truth.t_s, e, st, "honest", P),
+           "over-confident": Estimates(truth.t_s, e, st, "over-confident", P / 4)}
+    comp = study.Comparison("test", truth, est, {}, {"scored": np.ones(T, bool)}, {}, 3)
+    c = realdata.consistency_table(comp)
+    assert c.loc["honest", "mean NEES"] == pytest.approx(3.0, rel=0.05)
+    assert c.loc["honest", "inside own 95% ellipse"] == pytest.approx(0.95, abs=0.01)
+    assert c.loc["over-confident", "covariance inflation for mean NEES = dof"] == pytest.approx(4.0, rel=0.05)
+    t = realdata.error_table(comp)
+    assert t.loc["honest", "vertical RMSE (m)"] == pytest.approx(0.3, rel=0.05)
+    assert t.loc["honest", "3-D RMSE (m)"] == pytest.approx(np.sqrt(0.14), rel=0.05)

@@ -13,22 +13,27 @@ def _f(x, nd=2):
     return "—" if x is None or not np.isfinite(x) else f"{x:.{nd}f}"
 
 
-def _real_verdict(label: str, r: dict) -> str:
-    """One sentence: each filter's RMSE change against UWB alone, and whether tight beats loose."""
+def _real_verdict(label: str, r: dict, differences: list[str] | None = None) -> str:
+    """One sentence: each filter's RMSE change against UWB alone, and whether tight beats loose —
+    from the block-bootstrap verdicts ``differences`` when given (see :mod:`.realdata`), else by the
+    bare RMSE comparison (no interval; said so)."""
     uwb, tight, loose = r.get("UWB-only"), r.get("tight"), r.get("loose")
     parts = []
     for name, v in (("tight", tight), ("loose", loose), ("tight (ranges)", r.get("tight (ranges)"))):
         if v is not None and uwb:
             word = "lowers" if v < uwb else "raises"
             parts.append(f"{name} {word} the RMSE by {abs(1 - v / uwb) * 100:.0f} %")
-    verdict = ("tight beats loose" if tight is not None and loose is not None and tight < loose
-               else "tight does **not** beat loose")
-    return f"On {label}, against UWB alone " + ", ".join(parts) + f"; {verdict} here."
+    if differences:
+        return (f"On {label}, against UWB alone " + ", ".join(parts) + ". On common epochs: "
+                + "; ".join(differences) + ".")
+    verdict = ("tight has the lower RMSE than loose" if tight is not None and loose is not None and tight < loose
+               else "tight does **not** have a lower RMSE than loose")
+    return f"On {label}, against UWB alone " + ", ".join(parts) + f"; {verdict} here (no interval)."
 
 
 def discussion_markdown(static: dict, dynamic: dict, rmse: dict, outage: dict, rejected: dict,
                         real: dict | None, fast: bool, *, clean: dict | None = None,
-                        clean_ranges: dict | None = None) -> str:
+                        clean_ranges: dict | None = None, real_differences: dict | None = None) -> str:
     """Markdown discussion.
 
     Parameters
@@ -46,6 +51,8 @@ def discussion_markdown(static: dict, dynamic: dict, rmse: dict, outage: dict, r
     clean, clean_ranges
         The no-multipath ablation: ``{case: {method: RMSE}}`` and the loose filter's
         :func:`~.study.error_ranges` per case (optional).
+    real_differences
+        ``{label: [verdict sentence, ...]}`` from :func:`.realdata.difference_table` (optional).
     """
     st, dy = static["tight"], dynamic["tight"]
     sl, dl = static["loose"], dynamic["loose"]
@@ -95,7 +102,7 @@ def discussion_markdown(static: dict, dynamic: dict, rmse: dict, outage: dict, r
     if real:
         lines += ["", "**Real data (iasl-uwb-imu).** RMSE (m): " + "; ".join(
             f"{lab}: " + ", ".join(f"{m} {_f(v, 3)}" for m, v in r.items()) for lab, r in real.items())
-            + ". " + " ".join(_real_verdict(lab, r) for lab, r in real.items())
+            + ". " + " ".join(_real_verdict(lab, r, (real_differences or {}).get(lab)) for lab, r in real.items())
             + " The UM7 log runs at ~19 Hz with whole-second stamps (spread evenly, up to ~25 ms of timing "
             "error per sample), the drone vibrates and there is no magnetometer, so the INS bridges little; the "
             "8-anchor, 50 Hz UWB dominates and the gains are modest."]
