@@ -135,7 +135,7 @@ def test_eq4_thresholds_are_where_the_test_starts_to_fire():
 
 
 # ---------------------------------------------------------------- verdicts flip with the numbers
-def _fake(ratios: dict, *, case_ratios: dict | None = None, fast=False, nis=None, counts=None, seeds=6):
+def _fake(ratios: dict, *, case_ratios: dict | None = None, fast=False, nis=None, counts=None, seeds=6, imu10=3.0):
     """An AblationResult whose rows have the given paired ratios against "tight + gate" (per metric,
     with a small seed-to-seed spread) — enough to drive facts, sentences and checks."""
     cfg = ab.AblationConfig(seeds=seeds, mismatch_seeds=seeds, cases=("matched", "UWB σ 2×", "IMU 10× worse",
@@ -156,7 +156,7 @@ def _fake(ratios: dict, *, case_ratios: dict | None = None, fast=False, nis=None
                 n = (nis or {}).get(case, 1.0)
                 row["nis"] = np.nan if r.startswith("LS") else n
                 if case == "IMU 10× worse" and r == "loose + gate":
-                    row["outage_max"] *= 3
+                    row["outage_max"] *= imu10
                 recs.append(row)
     counts = counts or {c: {"eq4": 5 if c == "multipath up to 12 m" else 0, "injected": 100,
                             "eq4_on_injected": 5 if c == "multipath up to 12 m" else 0} for c in cfg.cases}
@@ -203,6 +203,7 @@ def test_checks_pass_on_a_sound_result_and_fail_on_each_defect():
     bad_eq4 = {c: {"eq4": 3, "injected": 100, "eq4_on_injected": 0} for c in good.config.cases}
     msgs = headlines.checks(_fake(GOOD, nis={"UWB σ 2×": 3.0}, counts=bad_eq4))
     assert any("clean TDoAs" in m for m in msgs) and any("never fired" in m for m in msgs)
+    assert any("10× worse IMU" in m for m in headlines.checks(_fake(GOOD, nis={"UWB σ 2×": 3.0}, imu10=0.8)))
     no_ls_gain = {**GOOD, "LS + gate": 25.0}
     assert any("LS residual test" in m for m in headlines.checks(_fake(no_ls_gain, nis={"UWB σ 2×": 3.0})))
     rows = headlines.ablation_rows(good)
