@@ -102,7 +102,8 @@ def placement_sentence(f: dict) -> str:
     se = f" ± {f['se']:.2f}" if np.isfinite(f["se"]) else ""
     head = f"{f['method']}: RMSE / common bound {f['ratio']:.2f}{se}"
     if f["where"] == "above":
-        return head + " — above the common bound by more than 2 standard errors: room to improve under this model."
+        return head + (" — above the common bound by more than 2 standard errors: room to improve under the bound's "
+                       "model, or errors that its unbiased Gaussian range noise leaves out (biases, multipath).")
     if f["where"] == "below":
         return head + (" — below the common bound by more than 2 standard errors: it uses information the bound "
                        "does not (an IMU, or later ranges: a smoother), or the track is smoother than the fitted "
