@@ -56,6 +56,7 @@ computes.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import Callable, Protocol
 
 import numpy as np
@@ -92,6 +93,12 @@ class Subsettable(Protocol):
 
 
 Parts = tuple[np.ndarray, Callable[[np.ndarray], object]]
+
+
+@lru_cache(maxsize=1024)
+def _chi2_ppf(prob: float, dof: int):
+    """``χ²_dof⁻¹(prob)``, cached: scipy's quantile costs about a millisecond a call, the filters ask per epoch."""
+    return chi2.ppf(prob, dof)
 
 
 def ungated_update(state: Gaussian, lin) -> tuple[Gaussian, UpdateInfo]:
@@ -166,12 +173,12 @@ class ChiSquareEpoch(_Release):
 
     def threshold(self, m: int) -> float:
         """The NIS above which an ``m``-component epoch is rejected."""
-        return float(chi2.ppf(self.prob, m))
+        return float(_chi2_ppf(self.prob, int(m)))
 
     def update(self, state: Gaussian, lin, parts: Parts | None = None) -> tuple[Gaussian, UpdateInfo]:
         """Posterior, or the prior with status ``GATED`` (its NIS kept, ``dof`` 0)."""
         post, inn = kalman.update(state, lin.z, lin.H, lin.R, h_x=lin.h)
-        if inn.nis > chi2.ppf(self.prob, lin.z.size):
+        if inn.nis > _chi2_ppf(self.prob, lin.z.size):
             return state, UpdateInfo(inn.nis, 0, EstimateStatus.GATED)
         return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED)
 
@@ -199,7 +206,7 @@ class ChiSquarePerMeasurement(_Release):
     def keep(self, y: np.ndarray, S_diag: np.ndarray) -> np.ndarray:
         """Rows that pass, bool ``(m,)``, from innovations ``y (m,)`` and variances ``S_ii (m,)``."""
         y, s = np.asarray(y, float), np.asarray(S_diag, float)
-        return y * y / s <= chi2.ppf(self.prob, 1)
+        return y * y / s <= _chi2_ppf(self.prob, 1)
 
     def update(self, state: Gaussian, lin, parts: Parts | None = None) -> tuple[Gaussian, UpdateInfo]:
         S = lin.H @ state.P @ lin.H.T + lin.R
@@ -243,7 +250,7 @@ class AnchorDropping(_Release):
         components, subset = parts
         keep = np.asarray(components)
         n_rejected = 0
-        while not _epoch_nis(state, lin) <= chi2.ppf(self.prob, lin.z.size):
+        while not _epoch_nis(state, lin) <= _chi2_ppf(self.prob, lin.z.size):
             if lin.z.size - 1 < max(self.min_rows, 1):
                 return state, UpdateInfo(np.nan, 0, EstimateStatus.GATED, n_rejected + keep.size)
             trial = [_epoch_nis(state, subset(keep[keep != k])) for k in keep]
