@@ -1,0 +1,143 @@
+"""Every estimator of the package, from one registry, held to the same contract.
+
+For each method and each fixture tree (a generated ``lias-planar-uwb`` room and a generated
+``iasl-uwb-imu`` flight, opened through :func:`uwbwb.datasets.open`):
+
+* it returns :class:`~uwbwb.types.Estimates` on the scored recording's epochs, every status a
+  valid :class:`~uwbwb.types.EstimateStatus`, positions NaN exactly where there is no estimate,
+  and at least some estimates;
+* the same seed gives the same numbers (a second run, bit for bit);
+* moving the scoring truth changes nothing (estimators see measurements and the calibration,
+  never the truth of what they are scored on).
+
+The registry is the scoreboard's (:func:`uwbwb.scoreboard.estimators.default_estimators`, every
+method wrapped into one interface) plus the TDoA EKF under each gate policy of
+:mod:`uwbwb.filters.gating`. A new method joins by being added there (or to :data:`EXTRA`).
+Methods that do not apply to a recording (the UWB/INS filters without an IMU, the planar
+set-noise filters in 3-D) must say why, and every method must run on at least one tree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from tests.fixtures import iasl as fx_iasl
+from tests.fixtures import lias as fx_lias
+from uwbwb import datasets
+from uwbwb.filters.ekf import TdoaEkf
+from uwbwb.filters.gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate
+from uwbwb.models.motion import RandomForce
+from uwbwb.scoreboard.board import calibrate
+from uwbwb.scoreboard.estimators import (BaseEstimator, TdoaEkfEstimator, _tdoa_model, calibrated_log,
+                                         default_estimators)
+from uwbwb.scoreboard.protocol import between, scored_tags, split_in_time, thin
+from uwbwb.types import EstimateStatus, Estimates, TdoaLog, pseudo_tdoa
+
+RATE_HZ = 10.0
+SEED = 7
+
+
+class GatedTdoaEkf(BaseEstimator):
+    """The TDoA EKF (random force) on calibrated ranges with a given gate policy."""
+
+    def __init__(self, gate):
+        self.gate = gate
+        self.name = f"EKF-RF {type(gate).__name__}"
+
+    def estimate(self, rec, tag, cal):
+        log = calibrated_log(rec, tag, cal)
+        d, ref = pseudo_tdoa(log.range_m, 0)
+        model = _tdoa_model(rec, tag, cal)
+        return TdoaEkf(RandomForce(0.5, dim=cal.dim), model, gate=self.gate).run(
+            TdoaLog(log.t_s, d, ref, rec.anchors.ids)).to_estimates()
+
+
+#: Methods beside the scoreboard's: the TDoA EKF under every gate policy.
+EXTRA = (GatedTdoaEkf(NoGate()), GatedTdoaEkf(ChiSquareEpoch(0.9999)),
+         GatedTdoaEkf(ChiSquarePerMeasurement(0.9999)), GatedTdoaEkf(AnchorDropping(0.9999, min_rows=2)))
+
+
+def registry():
+    """The scoreboard's methods (FAST sizes; each EKF tuned over one driving-noise value, since tuning is not
+    what this test is about and costs a filter run per grid value) and :data:`EXTRA`."""
+    methods = []
+    for e in default_estimators(fast=True, seed=SEED):
+        if isinstance(e, TdoaEkfEstimator):
+            e = replace(e, grid=(e.grid[len(e.grid) // 2],))
+        methods.append(e)
+    return [*methods, *EXTRA]
+
+
+NAMES = [e.name for e in registry()]
+
+
+def _moved(rec, offset_m):
+    """The recording with every truth trajectory moved by ``offset_m`` (measurements untouched)."""
+    truth = {t: replace(tr, pos_m=tr.pos_m + np.asarray(offset_m)[: tr.pos_m.shape[1]]) for t, tr in rec.truth.items()}
+    return replace(rec, truth=truth)
+
+
+@pytest.fixture(scope="module")
+def trees(tmp_path_factory):
+    """``{tree: (scored recording, tag, calibration)}`` for the two fixture trees."""
+    root = tmp_path_factory.mktemp("data")
+    rng = np.random.default_rng(20)
+    fx_lias.make_tree(root, rng=rng, dynamic={"fast": {"duration_s": 10.0, "clock_offset_s": 0.1}},
+                      sessions=[fx_lias.session_814(rng, files=((1, 0),))], static_rows=24)
+    fx_iasl.write_dataset(root / "iasl-uwb-imu", rng=rng, duration_s=32.0)
+    out = {}
+    lias = datasets.open("lias-planar-uwb/fast", root)
+    cal_part, test = split_in_time(lias, 0.5)
+    out["lias"] = (cal_part, test)
+    cal_rec, test = datasets.open_pair("iasl-uwb-imu/scenario1", "iasl-uwb-imu/scenario2", root)
+    out["iasl"] = (cal_rec, test)
+    ready = {}
+    for key, (cal_rec, test) in out.items():
+        tag = scored_tags(test)[0]
+        cal_rec = between(cal_rec, -np.inf, np.inf)
+        cal = calibrate(cal_rec, registry(), [tag], rate_hz=RATE_HZ)
+        ready[key] = (thin(test, RATE_HZ), tag, cal)
+    return ready
+
+
+def _same(a: Estimates, b: Estimates) -> bool:
+    arrays = [(a.t_s, b.t_s), (a.pos_m, b.pos_m), (a.status, b.status)]
+    if a.pos_cov_m2 is not None or b.pos_cov_m2 is not None:
+        arrays.append((a.pos_cov_m2, b.pos_cov_m2))
+    return all(x is not None and y is not None and x.shape == y.shape and x.tobytes() == y.tobytes()
+               for x, y in arrays)
+
+
+@pytest.mark.parametrize("tree", ["lias", "iasl"])
+@pytest.mark.parametrize("name", NAMES)
+def test_estimator_contract(trees, tree, name):
+    rec, tag, cal = trees[tree]
+    method = next(e for e in registry() if e.name == name)
+    why = method.applies(rec, tag, cal)
+    if why is not None:
+        assert isinstance(why, str) and why
+        pytest.skip(f"{name} does not apply to the {tree} tree: {why}")
+    est = method.estimate(rec, tag, cal)
+    assert isinstance(est, Estimates)
+    assert set(np.unique(est.status)) <= {int(s) for s in EstimateStatus}
+    no = est.status == EstimateStatus.NO_ESTIMATE
+    assert np.all(np.isnan(est.pos_m[no])) and np.all(np.isfinite(est.pos_m[~no]))
+    assert est.has_estimate.sum() > 0, f"{name} gave no estimate on the {tree} tree"
+    assert est.t_s[0] >= rec.ranges[tag].t_s[0] - 1e-9 and est.t_s[-1] <= rec.ranges[tag].t_s[-1] + 1e-9
+    again = next(e for e in registry() if e.name == name).estimate(rec, tag, cal)
+    assert _same(est, again), f"{name}: the same seed gave different numbers"
+    moved = method.estimate(_moved(rec, [0.7, -0.4, 0.2]), tag, cal)
+    assert _same(est, moved), f"{name}: moving the scoring truth changed the estimates"
+
+
+def test_every_method_runs_on_some_tree(trees):
+    ran = {e.name: [k for k, (rec, tag, cal) in trees.items() if e.applies(rec, tag, cal) is None]
+           for e in registry()}
+    assert all(ran.values()), {n: k for n, k in ran.items() if not k}
+
+
+def test_registry_names_are_unique():
+    assert len(NAMES) == len(set(NAMES))
