@@ -23,7 +23,7 @@ def cfg():
 # ------------------------------------------------------------------ configuration and eq 1
 
 SIZES = {"fast", "n_brute", "n_positions", "pf_runs", "n_particles", "n_recordings", "compare_runs", "laps_before",
-         "n_fig_positions"}
+         "n_fig_positions", "floor_runs"}
 
 
 def test_fast_mode_changes_only_the_sizes_and_shrinks_them():
@@ -247,6 +247,7 @@ def test_checks_report_what_fails():
     bad = dict(f, fig_empty_panels=[("cubic", 0.02)], estimators_agree=False)
     fails = headlines.checks(bad, fast=False)
     assert any("empty" in m for m in fails) and any("disagree" in m for m in fails)
+    assert not any("empty" in m for m in headlines.checks(bad, fast=True))     # FAST reports it, the figure says so
 
 
 # ------------------------------------------------------------------ the study end to end, small
@@ -279,6 +280,6 @@ def test_small_study_end_to_end(cfg):
     scores = study.filter_scores(tracks)
     assert (scores["epochs"] > 50).all() and (scores["PF coverage"] == 1).all()
     assert {"PF restarts", "MH-EKF restarts", "PF in track", "MH-EKF in track"} <= set(scores.columns)
-    floor = study.error_floor("lab", replace(cfg, n_particles=100))
+    floor = study.error_floor("lab", replace(cfg, n_particles=100, floor_runs=2))
     assert list(floor.index) == [c[0] for c in study.FLOOR_CONDITIONS]
-    assert floor["particles"].tolist() == [100, 100, 100, 400]
+    assert floor["particles"].tolist() == [100, 100, 100, 400] and (floor["runs"] == 2).all()

@@ -111,7 +111,7 @@ def discussion_markdown(f: dict) -> str:
     steps = "; ".join(f"{k}: {v:+.0f} cm" for k, v in f["floor_steps_cm"].items())
     lines.append(f"* **The error floor, measured** (one recording, CEP50 over the scored epochs): "
                  + ", ".join(f"{k} {v:.0f} cm" for k, v in fl.items())
-                 + f". Share removed by each step — {steps}. "
+                 + f". What removing each lowered the CEP50 by (negative: removing it did not lower it) — {steps}. "
                  + (f"What is left with exact ΔP and {names[-1].split(', ')[-1]} ({f['floor_left_cm']:.0f} cm) is "
                     "larger than any step: the floor is the information Doppler-only data carry under this motion "
                     "prior (the ghost set ⟂ V), not noise." if f["floor_left_dominates"] else

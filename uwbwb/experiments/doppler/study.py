@@ -64,6 +64,8 @@ class StudyConfig:
         full mode); the first gets ``pf_runs`` PF runs, the others ``compare_runs``.
     n_fig_positions
         Positions of the conditional sampler run *per threshold* for Figs 3–4.
+    floor_runs
+        PF runs per condition of :func:`error_floor`.
     temperature_c
         Air temperature setting the speed of sound.
     sigma_range_m
@@ -81,6 +83,7 @@ class StudyConfig:
     n_recordings: int = 10
     compare_runs: int = 25
     n_fig_positions: int = 4_000_000
+    floor_runs: int = 25
     temperature_c: float = 20.0
     sigma_range_m: float = 0.015
     p_miss: float = 0.05
@@ -89,8 +92,9 @@ class StudyConfig:
 
     @classmethod
     def for_mode(cls, fast: bool, seed: int = 0, **changes) -> "StudyConfig":
-        base = cls(fast=True, seed=seed, n_brute=20_000_000, n_positions=100_000, pf_runs=16, n_particles=800,
-                   n_recordings=3, compare_runs=4, laps_before=0, n_fig_positions=200_000) if fast else cls(seed=seed)
+        base = cls(fast=True, seed=seed, n_brute=20_000_000, n_positions=100_000, pf_runs=8, n_particles=800,
+                   n_recordings=3, compare_runs=3, laps_before=0, n_fig_positions=200_000,
+                   floor_runs=2) if fast else cls(seed=seed)
         return replace(base, **changes)
 
 
@@ -558,11 +562,11 @@ def error_floor(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, workers:
     eq 1 at the true state (removes the model error of reading a period-averaged ΔP as one
     state); and that with four times the particles (the particle count's share). Each row:
     snapshot CEP50 (both corners pooled), offset and run-to-run CEP50 (mean of the corners),
-    CEP50 over all scored epochs, ``cfg.compare_runs`` runs.
+    CEP50 over all scored epochs, ``cfg.floor_runs`` runs.
     """
     rows = []
     for label, noise, exact, factor in FLOOR_CONDITIONS:
-        st = track_study(layout, cfg, seed_offset=seed_offset, pf_runs=cfg.compare_runs, noise=noise, exact_dp=exact,
+        st = track_study(layout, cfg, seed_offset=seed_offset, pf_runs=cfg.floor_runs, noise=noise, exact_dp=exact,
                          n_particles=factor * cfg.n_particles, variants=("Doppler",), kf=False, workers=workers,
                          scheduler=scheduler)
         snap = st.snapshot_errors("Doppler")
