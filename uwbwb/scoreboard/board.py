@@ -340,7 +340,8 @@ class Board:
                            "recording; if that over-states the noise of the scored flight, the bound is too wide")
         elif kind.startswith("PCRLB") and "set-noise" not in kind:
             model = kind.split()[-1]
-            implied = np.nanmedian([d.get(f"sigma_w_{model}", np.nan) for d in diag]) if diag else np.nan
+            vals = np.array([d.get(f"sigma_w_{model}", np.nan) for d in diag], float)
+            implied = float(np.nanmedian(vals)) if np.isfinite(vals).any() else np.nan
             tuned = self.calibration.params(f"EKF-{model}").get("sigma_w", np.nan)
             if np.isfinite(implied) and implied < tuned:
                 reasons.append(f"the true track is smoother than the {model} prior: driving-noise σ from the "
