@@ -144,9 +144,11 @@ class AblationConfig:
 
     @classmethod
     def fast(cls, **kw) -> "AblationConfig":
-        """FAST (smoke-test) sizes: 2 seeds, a 3-point grid, a 10 s static run, 3 legs, mismatch
-        cases on 1 seed and the dynamic run only."""
-        base = dict(seeds=2, grid=(0.1, 1.0, 10.0), static_s=10.0, legs=3, mismatch_seeds=1, mismatch_static=False)
+        """FAST (smoke-test) sizes: 2 seeds, a 3-point grid, a 10 s static run, 3 legs, and three
+        mismatch cases (those the checks read: IMU 10×, UWB σ 2×, multipath up to 12 m) on 1 seed and
+        the dynamic run only."""
+        base = dict(seeds=2, grid=(0.1, 1.0, 10.0), static_s=10.0, legs=3, mismatch_seeds=1, mismatch_static=False,
+                    cases=("matched", "IMU 10× worse", "UWB σ 2×", "multipath up to 12 m"))
         base.update(kw)
         return cls(**base)
 
