@@ -392,6 +392,7 @@ def test_exercise_no_resampling(study):
     assert check.holds, check
     assert n["never resample (cm)"] > n["resample when ESS < 0.5 K (cm)"]
     assert n["raw fixes (cm)"] == pytest.approx(100 * E.raw_error_m(rec))
+    assert 1 <= n["ESS at the last fix, never resample"] < 0.1 * 200       # the weights have degenerated
     again = E.exercises.no_resampling(rec, study.model, rng=np.random.default_rng(6))
     assert again.numbers == check.numbers                           # same seed, same numbers
 

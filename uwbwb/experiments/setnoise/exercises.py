@@ -66,7 +66,8 @@ def no_resampling(log: SetFixLog, model: SetNoiseModel, *, sigma_d_mps: float = 
     -------
     ExerciseCheck
         Claim "without resampling the PF error is higher, and above the raw fixes' error"; numbers:
-        mean error (cm) with ESS threshold 0.5·K and 0, and of the raw fixes.
+        mean error (cm) with ESS threshold 0.5·K and 0, and of the raw fixes; the median ESS over the fixes
+        and the ESS at the last fix of one run that never resamples (:func:`~uwbwb.filters.setnoise.reference_pf`).
     """
     sigma_d_mps = validate.number("sigma_d_mps", sigma_d_mps, minimum=0.0, strict_minimum=True)
     mu, sd, _ = model.lookup(log.set_id)
@@ -77,12 +78,15 @@ def no_resampling(log: SetFixLog, model: SetNoiseModel, *, sigma_d_mps: float = 
                            n_trials=n_trials, n_particles=n_particles, ess_fraction=fraction)
         err[fraction] = float(pf.mean_error_m(log.truth_m).mean())
     raw = raw_error_m(log)
+    one = filt.reference_pf(log.t_s, log.pos_m, mu, sd, log.truth_m[0], sigma_d_mps, rng=np.random.default_rng(seed),
+                            n_particles=n_particles, ess_fraction=0.0)     # one run, step by step, for its ESS
     return ExerciseCheck(
         f"K = {n_particles}, σ_d = {100 * sigma_d_mps:g} cm/s on {log.name}: without resampling the set-noise PF error is higher, "
         "and above the raw fixes'",
         err[0.0] > err[0.5] and err[0.0] > raw,
         {"resample when ESS < 0.5 K (cm)": 100 * err[0.5], "never resample (cm)": 100 * err[0.0],
-         "raw fixes (cm)": 100 * raw})
+         "raw fixes (cm)": 100 * raw, "median ESS, never resample": float(np.median(one.ess)),
+         "ESS at the last fix, never resample": float(one.ess[-1])})
 
 
 def explorer_note(errors_cm: Mapping[str, float], sigma_d_cmps: float) -> str:

@@ -1,0 +1,210 @@
+"""The teaching path: glossary coverage, glossary links, teaching fronts and checked exercises.
+
+A notebook listed in :data:`TAUGHT` must link every glossary acronym at its first use, open with a
+short teaching front (objectives, prerequisites, run times) and carry at least two exercises, each
+followed by a check cell. Every acronym in any notebook's Markdown must have a glossary entry.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import nbformat
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOK_DIR = ROOT / "notebooks"
+GLOSSARY = NOTEBOOK_DIR / "GLOSSARY.md"
+NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
+
+#: Notebooks that are part of the lab route (TEACHING.md); add a stem here once its front, links and
+#: exercises are in place.
+TAUGHT = ("00_quickstart", "01_set_noise_pf")
+
+#: Capitalised tokens that are names, not acronyms: datasets, labs, conferences, devices, software,
+#: degrees, Roman numerals of paper sections.
+NOT_ACRONYMS = frozenset({
+    "LIAS", "IASL", "LIPS", "ICRA", "EUSIPCO", "IEEE", "MATLAB", "NumPy", "SciPy", "MSc", "PhD", "McCarthy",
+    "T4F", "DWM1000", "DWM1001", "UM7", "BS1", "BS2", "BS3", "II", "III", "IV", "VI", "VII", "HTML", "JSON",
+})
+
+#: Terms the issue asks the glossary to define (acronyms and workbench words).
+REQUIRED = ("NLOS", "LOS", "TDoA", "TWR", "NEES", "NIS", "SCAAT", "PCRLB", "CRLB", "ESKF", "EKF", "PF", "KF",
+            "GDOP", "CEP", "ESS", "RMSE", "INS", "IMU", "UWB", "FAST", "coverage", "common epochs", "target",
+            "input", "reproduced", "full mode")
+
+_ANCHOR = re.compile(r'<a id="([^"]+)"></a>\s*\n###\s+(.+)')
+_TOKEN = re.compile(r"(?<![A-Za-z0-9_\\/#.-])([A-Z][A-Za-z0-9]*[A-Z][A-Za-z0-9]*)(?![A-Za-z0-9_])")
+_LINK = re.compile(r"\[([^\]]*)\]\(([^)\s]*)\)")
+
+
+def glossary() -> dict[str, str]:
+    """``{term: anchor id}`` of every glossary entry (``<a id="..."></a>`` then ``### term``)."""
+    return {term.strip(): anchor for anchor, term in _ANCHOR.findall(GLOSSARY.read_text(encoding="utf-8"))}
+
+
+def acronyms(entries: dict[str, str]) -> dict[str, str]:
+    """The entries that are acronyms (two or more capitals), ``{acronym: anchor id}``."""
+    return {t: a for t, a in entries.items() if _TOKEN.fullmatch(t)}
+
+
+def _blank(match: re.Match) -> str:
+    return " " * len(match.group())
+
+
+def prose(markdown: str) -> str:
+    """``markdown`` with math, code spans, HTML tags and link targets blanked (positions kept)."""
+    s = re.sub(r"\$\$.*?\$\$", _blank, markdown, flags=re.S)
+    s = re.sub(r"\$[^$\n]*\$", _blank, s)
+    s = re.sub(r"```.*?```", _blank, s, flags=re.S)
+    s = re.sub(r"`[^`]*`", _blank, s)
+    s = re.sub(r"<[^>\n]*>", _blank, s)
+    return re.sub(r"\]\([^)\s]*\)", lambda m: "]" + " " * (len(m.group()) - 1), s)
+
+
+def canonical(token: str, known) -> str | None:
+    """The glossary acronym a token stands for: itself, without a plural ``s``, or without a number
+    suffix (CEP95 → CEP); None if none is known."""
+    for cand in (token, token[:-1] if token.endswith("s") else None, re.sub(r"\d+$", "", token)):
+        if cand and cand in known:
+            return cand
+    return None
+
+
+def markdown_cells(path: Path) -> list[str]:
+    return [c.source for c in nbformat.read(path, as_version=4).cells if c.cell_type == "markdown"]
+
+
+def first_uses(cells: list[str], known) -> dict[str, tuple[int, int, str]]:
+    """``{acronym: (cell index, position, token)}`` of each glossary acronym's first use in prose."""
+    out = {}
+    for i, text in enumerate(cells):
+        for m in _TOKEN.finditer(prose(text)):
+            acr = canonical(m.group(1), known)
+            if acr is not None and acr not in out:
+                out[acr] = (i, m.start(), m.group(1))
+    return out
+
+
+def linked_at(text: str, pos: int, anchor: str) -> bool:
+    """Whether position ``pos`` of ``text`` lies in the text of a link to ``GLOSSARY.md#anchor``."""
+    return any(m.start(1) <= pos < m.end(1) and m.group(2) == f"GLOSSARY.md#{anchor}" for m in _LINK.finditer(text))
+
+
+def unlinked(path: Path) -> list[str]:
+    """Glossary acronyms whose first use in ``path`` is not a link to their entry."""
+    known = acronyms(glossary())
+    cells = markdown_cells(path)
+    return [f"{tok} (markdown cell {i})" for acr, (i, pos, tok) in first_uses(cells, known).items()
+            if not linked_at(cells[i], pos, known[acr])]
+
+
+# --------------------------------------------------------------------------- glossary
+
+def test_glossary_defines_the_required_terms():
+    entries = glossary()
+    missing = [t for t in REQUIRED if t not in entries]
+    assert not missing, f"{GLOSSARY.name} lacks entries for {missing}"
+    ids = list(entries.values())
+    assert len(ids) == len(set(ids)), "glossary anchors must be unique"
+    text = GLOSSARY.read_text(encoding="utf-8")
+    for anchor, term in _ANCHOR.findall(text):
+        body = text.split(f'<a id="{anchor}"></a>', 1)[1].split("<a id=", 1)[0]
+        assert len(body.split()) > 6, f"glossary entry {term!r} has no definition"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+def test_every_acronym_in_a_notebook_has_a_glossary_entry(path):
+    known = acronyms(glossary())
+    tokens = {m.group(1) for text in markdown_cells(path) for m in _TOKEN.finditer(prose(text))}
+    missing = sorted(t for t in tokens if t not in NOT_ACRONYMS and canonical(t, known) is None)
+    assert not missing, (f"{path.name} uses {missing} without an entry in notebooks/GLOSSARY.md "
+                         "(add one, or add a proper name to NOT_ACRONYMS in this test)")
+
+
+def test_glossary_links_resolve():
+    ids = set(glossary().values())
+    text = GLOSSARY.read_text(encoding="utf-8")
+    bad = [t for _, t in _LINK.findall(text) if t.startswith("#") and t[1:] not in ids]
+    for stem in TAUGHT:
+        bad += [t for text in markdown_cells(NOTEBOOK_DIR / f"{stem}.ipynb") for _, t in _LINK.findall(text)
+                if t.startswith("GLOSSARY.md#") and t.split("#", 1)[1] not in ids]
+    assert not bad, f"links to missing glossary entries: {bad}"
+
+
+@pytest.mark.parametrize("stem", TAUGHT)
+def test_taught_notebook_links_each_acronym_at_first_use(stem):
+    bad = unlinked(NOTEBOOK_DIR / f"{stem}.ipynb")
+    assert not bad, f"{stem}: first use not linked to notebooks/GLOSSARY.md: {bad}"
+
+
+def test_the_link_check_can_fail():
+    known = {"PF": "pf", "KF": "kf"}
+    cells = ["A $\\mathrm{PF}$ and `PF` are not uses. The [PF](GLOSSARY.md#pf) is; so are KFs.",
+             "Later [KF](GLOSSARY.md#kf)."]
+    uses = first_uses(cells, known)
+    assert uses["PF"][0] == 0 and linked_at(cells[0], uses["PF"][1], "pf")
+    assert uses["KF"][2] == "KFs" and not linked_at(cells[0], uses["KF"][1], "kf")
+    assert canonical("CEP95", {"CEP"}) == "CEP" and canonical("LIAS", {"CEP"}) is None
+
+
+# --------------------------------------------------------------------------- fronts and exercises
+
+@pytest.mark.parametrize("stem", TAUGHT)
+def test_taught_notebook_opens_with_a_teaching_front(stem):
+    cells = nbformat.read(NOTEBOOK_DIR / f"{stem}.ipynb", as_version=4).cells
+    front = cells[0].source
+    words = len(re.sub(r"\]\([^)]*\)", "]", front).split())
+    assert words <= 170, f"{stem}: teaching front has {words} words (about 150 at most)"
+    for needed in ("You will learn", "Prerequisites", "Run time", "FAST", "full"):
+        assert needed in front, f"{stem}: teaching front lacks {needed!r}"
+    objectives = re.findall(r"^\s*\d+\.\s", front, flags=re.M)
+    assert 3 <= len(objectives) <= 5, f"{stem}: {len(objectives)} learning objectives (want 3-5)"
+    assert any(c.cell_type == "markdown" and c.source.lstrip().startswith("## Reproduction notes") for c in cells), \
+        f"{stem}: no 'Reproduction notes' section"
+
+
+@pytest.mark.parametrize("stem", TAUGHT)
+def test_taught_notebook_has_checked_exercises(stem):
+    cells = nbformat.read(NOTEBOOK_DIR / f"{stem}.ipynb", as_version=4).cells
+    exercises = [i for i, c in enumerate(cells) if c.cell_type == "markdown" and "**Exercise" in c.source]
+    assert len(exercises) >= 2, f"{stem}: {len(exercises)} exercises (want at least 2)"
+    for i in exercises:
+        assert re.search(r"[Pp]redict", cells[i].source), f"{stem}: exercise in cell {i} asks no prediction"
+        nxt = cells[i + 1]
+        assert nxt.cell_type == "code" and re.search(r"^assert \w+\.holds", nxt.source, flags=re.M), \
+            f"{stem}: exercise in cell {i} is not followed by a check cell asserting it"
+        assert len(nxt.source.strip().splitlines()) <= 4, f"{stem}: check cell {i + 1} is more than a line or two"
+
+
+@pytest.mark.parametrize("stem", TAUGHT)
+def test_taught_notebook_panels_say_what_to_see(stem):
+    cells = nbformat.read(NOTEBOOK_DIR / f"{stem}.ipynb", as_version=4).cells
+    for i, c in enumerate(cells):
+        if c.cell_type == "code" and "uw.widgets.Panel(" in c.source:
+            after = cells[i + 1] if i + 1 < len(cells) else None
+            assert after is not None and "what_you_should_see" in after.source, \
+                f"{stem}: panel in cell {i} has no 'what you should see' note after it"
+
+
+# --------------------------------------------------------------------------- helpers of uwbwb.widgets
+
+def test_what_you_should_see_limits():
+    from uwbwb.widgets import SEE_MAX_CHARS, what_you_should_see
+
+    assert what_you_should_see("one\ntwo").data == "**What you should see.** one two"
+    for bad in ("", "a\nb\nc\nd", "x" * (SEE_MAX_CHARS + 1)):
+        with pytest.raises(ValueError, match="text"):
+            what_you_should_see(bad)
+
+
+def test_exercise_check_shows_its_verdict():
+    from uwbwb.widgets import ExerciseCheck
+
+    ok = ExerciseCheck("A above B", True, {"A (cm)": 2.0, "B (cm)": 1.0})
+    assert str(ok).startswith("holds: A above B") and "✔" in ok._repr_markdown_()
+    no = ExerciseCheck("A above B", False, {"A (cm)": 1.0, "B (cm)": 2.0})
+    assert "DOES NOT HOLD" in str(no) and "✘" in no._repr_markdown_()
+    with pytest.raises(TypeError):
+        no.numbers["A (cm)"] = 3.0                                   # frozen numbers
