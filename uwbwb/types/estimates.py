@@ -1,0 +1,171 @@
+"""The result type every estimator returns, and its per-epoch status."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+import pandas as pd
+
+from ._base import _check_time, _frozen_array
+from .containers import Trajectory
+
+
+class EstimateStatus(enum.IntEnum):
+    """What an estimator did at one epoch (stored as ``int8`` in :attr:`Estimates.status`).
+
+    ``UPDATED``
+        The epoch's measurements were used: a filter update, or a snapshot fix was computed.
+    ``PREDICTED``
+        A filter coasted: nothing usable was measured at this epoch (prediction only).
+    ``GATED``
+        A filter coasted: the epoch's measurements were rejected by its innovation gate.
+    ``NO_ESTIMATE``
+        Nothing to report: before initialisation, too few measurements, degenerate
+        geometry or no convergence. ``pos_m`` is NaN there.
+    """
+
+    UPDATED = 0
+    PREDICTED = 1
+    GATED = 2
+    NO_ESTIMATE = 3
+
+    @property
+    def label(self) -> str:
+        """Lower-case name used in tables, e.g. ``"no_estimate"``."""
+        return self.name.lower()
+
+
+@dataclass(frozen=True)
+class Estimates:
+    """Per-epoch estimates of one method on one recording — the type every estimator returns.
+
+    Snapshot methods (multilateration, TDoA LS) and tracking filters (EKF, PF, error-state
+    filters) all report through this one shape, so metrics, plots and the scoreboard treat
+    them alike: accuracy on :attr:`has_estimate` epochs, :attr:`coverage` beside it.
+
+    Attributes
+    ----------
+    t_s
+        Epoch times, shape ``(T,)``, seconds, strictly increasing.
+    pos_m
+        Estimated positions, shape ``(T, dim)``, metres; NaN exactly where ``status`` is
+        ``NO_ESTIMATE``.
+    status
+        :class:`EstimateStatus` per epoch, shape ``(T,)``.
+    name
+        Label in legends and tables (e.g. ``"LS"``, ``"EKF-RF"``).
+    pos_cov_m2
+        Position covariances, shape ``(T, dim, dim)``, m², or None if the method has none.
+    vel_mps
+        Velocity estimates, shape ``(T, dim)``, m/s, or None.
+    info
+        Extra per-epoch columns, each shape ``(T,)`` (e.g. ``nis``, ``dof``, ``n_rejected``).
+    """
+
+    t_s: np.ndarray
+    pos_m: np.ndarray
+    status: np.ndarray
+    name: str = "estimate"
+    pos_cov_m2: np.ndarray | None = None
+    vel_mps: np.ndarray | None = None
+    info: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self):
+        t = _frozen_array("Estimates.t_s", self.t_s, ndim=1)
+        p = _frozen_array("Estimates.pos_m", self.pos_m, ndim=2)
+        T = t.size
+        if p.shape[0] != T or p.shape[1] not in (2, 3):
+            raise ValueError(f"Estimates.pos_m must have shape ({T}, 2|3), got {p.shape}")
+        _check_time(t, "Estimates")
+        st = np.array(self.status, copy=True)
+        if st.shape != (T,) or not np.issubdtype(st.dtype, np.integer):
+            raise ValueError(f"Estimates.status must be integer codes of shape ({T},), got {st.dtype} {st.shape}")
+        codes = {int(s) for s in EstimateStatus}
+        bad = ~np.isin(st, list(codes))
+        if bad.any():
+            raise ValueError(f"Estimates.status has unknown codes {sorted(set(st[bad].tolist()))}; "
+                             f"known: {[s.label for s in EstimateStatus]}")
+        st = st.astype(np.int8)
+        st.setflags(write=False)
+        none = st == EstimateStatus.NO_ESTIMATE
+        finite = np.all(np.isfinite(p), axis=1)
+        if np.any(finite == none):
+            k = int(np.flatnonzero(finite == none)[0])
+            raise ValueError(f"Estimates.pos_m must be finite exactly where status is not NO_ESTIMATE; "
+                             f"epoch {k} has status {EstimateStatus(st[k]).label} and position {p[k].tolist()}")
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(self, "pos_m", p)
+        object.__setattr__(self, "status", st)
+        object.__setattr__(self, "name", str(self.name))
+        d = p.shape[1]
+        if self.pos_cov_m2 is not None:
+            c = _frozen_array("Estimates.pos_cov_m2", self.pos_cov_m2, ndim=3)
+            if c.shape != (T, d, d):
+                raise ValueError(f"Estimates.pos_cov_m2 must have shape ({T}, {d}, {d}), got {c.shape}")
+            object.__setattr__(self, "pos_cov_m2", c)
+        if self.vel_mps is not None:
+            v = _frozen_array("Estimates.vel_mps", self.vel_mps, ndim=2)
+            if v.shape != p.shape:
+                raise ValueError(f"Estimates.vel_mps must have shape {p.shape}, got {v.shape}")
+            object.__setattr__(self, "vel_mps", v)
+        info = {}
+        for key, col in dict(self.info).items():
+            a = np.array(col, copy=True)
+            if a.shape != (T,):
+                raise ValueError(f"Estimates.info[{key!r}] must have shape ({T},), got {a.shape}")
+            a.setflags(write=False)
+            info[str(key)] = a
+        object.__setattr__(self, "info", info)
+
+    def __len__(self) -> int:
+        return self.t_s.size
+
+    @property
+    def dim(self) -> int:
+        return self.pos_m.shape[1]
+
+    @property
+    def has_estimate(self) -> np.ndarray:
+        """Epochs with a position, bool ``(T,)``."""
+        return self.status != EstimateStatus.NO_ESTIMATE
+
+    @property
+    def coverage(self) -> float:
+        """Share of epochs with a position (NaN for an empty series)."""
+        return float(self.has_estimate.mean()) if len(self) else float("nan")
+
+    def status_counts(self) -> dict[str, int]:
+        """Number of epochs per status label (all labels present, zeros included)."""
+        return {s.label: int(np.count_nonzero(self.status == s)) for s in EstimateStatus}
+
+    def select(self, mask_or_index) -> "Estimates":
+        """Epochs selected by a boolean mask or an index array (time order kept)."""
+        idx = np.arange(len(self))[mask_or_index]
+        pick = (lambda a: None if a is None else a[idx])
+        return Estimates(self.t_s[idx], self.pos_m[idx], self.status[idx], self.name,
+                         pick(self.pos_cov_m2), pick(self.vel_mps), {k: v[idx] for k, v in self.info.items()})
+
+    def to_trajectory(self, name: str | None = None) -> Trajectory:
+        """The epochs with a position, as a :class:`Trajectory`."""
+        ok = self.has_estimate
+        return Trajectory(self.t_s[ok], self.pos_m[ok], None if self.vel_mps is None else self.vel_mps[ok],
+                          name=name or self.name)
+
+    def to_frame(self) -> pd.DataFrame:
+        """Table ``t_s, x_m, y_m[, z_m][, vx_mps ..][, sd_x_m ..], status`` (label) and the ``info`` columns."""
+        axes = "xyz"[: self.dim]
+        cols = {"t_s": self.t_s}
+        cols.update({f"{a}_m": self.pos_m[:, k] for k, a in enumerate(axes)})
+        if self.vel_mps is not None:
+            cols.update({f"v{a}_mps": self.vel_mps[:, k] for k, a in enumerate(axes)})
+        if self.pos_cov_m2 is not None:
+            sd = np.sqrt(np.diagonal(self.pos_cov_m2, axis1=1, axis2=2))
+            cols.update({f"sd_{a}_m": sd[:, k] for k, a in enumerate(axes)})
+        labels = np.array([s.label for s in EstimateStatus])
+        cols["status"] = labels[self.status]
+        cols.update(self.info)
+        return pd.DataFrame(cols)
+
