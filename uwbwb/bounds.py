@@ -144,7 +144,7 @@ def tdoa_information(pos_m, model: TdoaModel, *, mask=None) -> np.ndarray:
         Shape ``(..., dim, dim)``, m⁻² (module docstring). The bound always uses the
         correlated covariance, since that is how pseudo-TDoAs formed from ranges are
         distributed; a model with ``correlated=False`` leaves information unused, which
-        shows up as an efficiency above one, not as a different bound.
+        shows up as an RMSE / bound above one, not as a different bound.
     """
     u = model.unit_vectors(pos_m)                                       # (..., n, dim)
     w = _mask(mask, u.shape[:-1]) / model.sigma_m ** 2                  # (..., n)
