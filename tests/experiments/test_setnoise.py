@@ -404,7 +404,7 @@ def test_plot_sweep_marks_points_above_the_axes():
     assert ax.get_ylim() == (0, 100)
     marks = [ln for ln in ax.lines if ln.get_marker() == "^"]
     assert len(marks) == 1 and marks[0].get_xdata()[0] == pytest.approx(2)
-    assert [t.get_text() for t in ax.texts] == ["300"]
+    assert [t.get_text() for t in ax.texts] == ["off the axes:\n▲ set-noise PF: up to 300 cm (σ_d ≤ 2 cm/s)"]
     colours = {ln.get_label(): ln.get_color() for ln in ax.lines if not ln.get_label().startswith("_")}
     assert len(set(colours.values())) == 3                          # each estimator its own colour
 

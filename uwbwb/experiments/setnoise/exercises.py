@@ -115,4 +115,4 @@ def sweep_note(df: pd.DataFrame, recording: str, band=BAND_MPS) -> str:
     raw = 100 * float(by[RAW]["mean_error_m"].mean())
     return (f"In the grey band ({100 * band[0]:g}–{100 * band[1]:g} cm/s) the set-noise PF averages "
             f"{in_band(by[SET_PF]):.1f} cm against {raw:.1f} cm raw ({recording}). At σ_d = {100 * lo:g} cm/s the PF "
-            f"reaches {pf_lo:.1f} cm while the exact KF stays at {kf_lo:.1f} cm (▲: off the axes, value written).")
+            f"reaches {pf_lo:.1f} cm while the exact KF stays at {kf_lo:.1f} cm (▲: off the axes; the box gives the values).")

@@ -153,12 +153,13 @@ def plot_sweep(df: pd.DataFrame, recording: str, ax=None, *, names=FILTERS, unit
     """Fig. 9 (one recording): mean error against σ_d; PF curves with ±2 standard errors.
 
     ``y_max`` (in ``unit``) fixes the top of the axes; points above it are not dropped but drawn
-    as ▲ on the top edge with their value written beside, so a breakdown (the PF at small σ_d)
-    stays visible.
+    as ▲ on the top edge, and a box in the upper right says, per curve, how high they go and at
+    which σ_d, so a breakdown (the PF at small σ_d) stays visible.
     """
     ax = _ax(ax)
     s = 100.0 if unit == "cm" else 1.0
     d = df[df["recording"] == recording]
+    off = []                                     # curves with points above y_max: what the box says
     for name in names:
         g = d[d["filter"] == name].sort_values("sigma_d_mps")
         if g.empty:
@@ -170,16 +171,17 @@ def plot_sweep(df: pd.DataFrame, recording: str, ax=None, *, names=FILTERS, unit
         e = 2 * g["sem_error_m"].to_numpy() * s
         if np.any(e > 0):
             ax.fill_between(x, y - e, y + e, color=colour, alpha=0.2, linewidth=0)
-        if y_max is not None:
-            for xi, yi in zip(x[y > y_max], y[y > y_max]):
-                ax.plot(xi, 0.97 * y_max, "^", color=colour, markersize=9, clip_on=False,
-                        label="_nolegend_", zorder=5)
-                ax.annotate(f"{yi:.0f}", (xi, 0.97 * y_max), xytext=(4, -10), textcoords="offset points",
-                            color=colour, fontsize="x-small")
+        if y_max is not None and np.any(y > y_max):
+            ax.plot(x[y > y_max], np.full(np.count_nonzero(y > y_max), 0.97 * y_max), "^", color=colour,
+                    markersize=8, clip_on=False, label="_nolegend_", zorder=5)
+            off.append(f"▲ {name}: up to {y[y > y_max].max():.0f} {unit} (σ_d ≤ {x[y > y_max].max():g} cm/s)")
     if band is not None:
         ax.axvspan(100 * band[0], 100 * band[1], color="#f0f0f0", zorder=0)
     if y_max is not None:
         ax.set_ylim(0, y_max)
+    if off:
+        ax.text(0.98, 0.95, "off the axes:\n" + "\n".join(off), transform=ax.transAxes, ha="right", va="top",
+                fontsize="x-small", bbox=dict(facecolor="white", edgecolor="#bdbdbd", alpha=0.9))
     ax.set_xlabel("σ_d (cm/s)")
     ax.set_ylabel(f"mean error ({unit})")
     ax.set_title(recording)
