@@ -34,7 +34,7 @@ def test_fast_mode_changes_only_the_sizes_and_shrinks_them():
             assert b <= a, f.name
         elif f.name != "fast":
             assert a == b, f"FAST changed {f.name}, which is not a size"
-    assert full.n_recordings >= 10 and fast.n_recordings >= 3       # Fig 6 is a distribution over recordings
+    assert full.n_recordings >= 10 and fast.n_recordings >= 2       # Fig 6 is a distribution over recordings
 
 
 def test_reference_table_is_eq1_under_both_readings(cfg):

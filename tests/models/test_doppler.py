@@ -118,3 +118,7 @@ def test_receiver_motion_matches_its_covariance():
     np.testing.assert_allclose(np.cov(x1.T), mot.Q(0.1), atol=5e-3 * np.abs(mot.Q(0.1)).max() + 1e-12, rtol=0.03)
     x = np.array([0, 0, 0, 1.0, 2.0, 0.5])
     np.testing.assert_allclose(mot.propagate(x, 0.5, rng=None), mot.F(0.5) @ x)
+    # the one-step path equals the broadcast one, bit for bit
+    for dt in (0.0, 0.07, 0.5):
+        np.testing.assert_array_equal(mot.F(dt), mot.F(np.array([dt]))[0])
+        np.testing.assert_array_equal(mot.Q(dt), mot.Q(np.array([dt]))[0])

@@ -326,6 +326,10 @@ class ReceiverMotion:
 
     def F(self, dt_s) -> np.ndarray:
         """Transition over ``dt_s``, shape ``(..., 6, 6)``."""
+        if np.ndim(dt_s) == 0:                       # one step (the EKF's case): no broadcasting
+            F = np.eye(6)
+            F[0, 3] = F[1, 4] = F[2, 5] = float(dt_s)
+            return F
         dt = np.asarray(dt_s, float)[..., None, None]
         eye = np.eye(3)
         top = np.concatenate([np.broadcast_to(eye, dt.shape[:-2] + (3, 3)), dt * eye], axis=-1)
@@ -335,8 +339,14 @@ class ReceiverMotion:
 
     def Q(self, dt_s) -> np.ndarray:
         """Process noise ``G diag(σ²) Gᵀ`` with ``G = [dt²/2 I; dt I]``, shape ``(..., 6, 6)``."""
-        dt = np.asarray(dt_s, float)[..., None, None]
         s2 = np.diag(np.square(self.sigma_acc_mps2))
+        if np.ndim(dt_s) == 0:                       # one step: the same blocks without broadcasting
+            dt = float(dt_s)
+            Q = np.empty((6, 6))
+            Q[:3, :3], Q[:3, 3:] = dt ** 4 / 4 * s2, dt ** 3 / 2 * s2
+            Q[3:, :3], Q[3:, 3:] = dt ** 3 / 2 * s2, dt ** 2 * s2
+            return Q
+        dt = np.asarray(dt_s, float)[..., None, None]
         return np.concatenate([np.concatenate([dt ** 4 / 4 * s2, dt ** 3 / 2 * s2], axis=-1),
                                np.concatenate([dt ** 3 / 2 * s2, dt ** 2 * s2], axis=-1)], axis=-2)
 

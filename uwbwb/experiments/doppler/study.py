@@ -93,7 +93,7 @@ class StudyConfig:
     @classmethod
     def for_mode(cls, fast: bool, seed: int = 0, **changes) -> "StudyConfig":
         base = cls(fast=True, seed=seed, n_brute=20_000_000, n_positions=100_000, pf_runs=8, n_particles=800,
-                   n_recordings=3, compare_runs=3, laps_before=0, n_fig_positions=200_000,
+                   n_recordings=2, compare_runs=3, laps_before=0, n_fig_positions=100_000,
                    floor_runs=2) if fast else cls(seed=seed)
         return replace(base, **changes)
 
