@@ -113,11 +113,17 @@ def _epoch_nis(state: Gaussian, lin) -> float:
     return float(y @ np.linalg.solve(S, y))
 
 
-def _check(owner: str, prob, max_gated) -> None:
+def _is_int(value, minimum: int) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, np.integer)) and value >= minimum
+
+
+def _check(owner: str, prob, max_gated, min_rows=None) -> None:
     if prob is not None and not (isinstance(prob, (int, float)) and not isinstance(prob, bool) and 0 < prob < 1):
         raise ValueError(f"{owner}.prob must be in (0, 1), got {prob!r}")
-    if isinstance(max_gated, bool) or not isinstance(max_gated, (int, np.integer)) or max_gated < 0:
+    if not _is_int(max_gated, 0):
         raise ValueError(f"{owner}.max_gated must be an integer >= 0, got {max_gated!r}")
+    if min_rows is not None and not _is_int(min_rows, 1):
+        raise ValueError(f"{owner}.min_rows must be an integer >= 1, got {min_rows!r}")
 
 
 class GatePolicy(Protocol):
@@ -199,9 +205,7 @@ class ChiSquarePerMeasurement(_Release):
     needs_subsets = False
 
     def __post_init__(self):
-        _check("ChiSquarePerMeasurement", self.prob, self.max_gated)
-        if isinstance(self.min_rows, bool) or not isinstance(self.min_rows, (int, np.integer)) or self.min_rows < 1:
-            raise ValueError(f"ChiSquarePerMeasurement.min_rows must be an integer >= 1, got {self.min_rows!r}")
+        _check("ChiSquarePerMeasurement", self.prob, self.max_gated, self.min_rows)
 
     def keep(self, y: np.ndarray, S_diag: np.ndarray) -> np.ndarray:
         """Rows that pass, bool ``(m,)``, from innovations ``y (m,)`` and variances ``S_ii (m,)``."""
@@ -239,9 +243,7 @@ class AnchorDropping(_Release):
     needs_subsets = True
 
     def __post_init__(self):
-        _check("AnchorDropping", self.prob, self.max_gated)
-        if isinstance(self.min_rows, bool) or not isinstance(self.min_rows, (int, np.integer)) or self.min_rows < 1:
-            raise ValueError(f"AnchorDropping.min_rows must be an integer >= 1, got {self.min_rows!r}")
+        _check("AnchorDropping", self.prob, self.max_gated, self.min_rows)
 
     def update(self, state: Gaussian, lin, parts: Parts | None = None) -> tuple[Gaussian, UpdateInfo]:
         if parts is None:
@@ -266,7 +268,7 @@ def gate_from_prob(gate_prob: float | None, max_gated: int, owner: str, *, kind=
     if gate_prob is not None and not (isinstance(gate_prob, (int, float)) and not isinstance(gate_prob, bool)
                                       and 0 < gate_prob < 1):
         raise ValueError(f"{owner}.gate_prob must be in (0, 1) or None (no gate), got {gate_prob!r}")
-    if isinstance(max_gated, bool) or not isinstance(max_gated, (int, np.integer)) or max_gated < 0:
+    if not _is_int(max_gated, 0):
         raise ValueError(f"{owner}.max_gated must be an integer >= 0, got {max_gated!r}")
     if gate_prob is None:
         return NoGate(max_gated=max_gated)
