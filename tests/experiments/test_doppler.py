@@ -198,6 +198,8 @@ def test_ratio_verdict_per_corner():
     assert "Not reproduced" in text
     f, text = _text(ratio={"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [0.5, 0.45, 0.55, 0.5, 0.6]})
     assert f["ratio_reproduced"] and "Reproduced at every corner." in text
+    f, text = _text(cep=[24.0, 26.0], ratio={"bottom-left": [0.4, 0.5], "top-left": [1.8, 1.9]})
+    assert f["ratio_verdict"] == "no interval" and "No verdict: fewer than 3 recordings" in text
 
 
 def test_keeps_track_verdict_flips_at_both_thresholds():

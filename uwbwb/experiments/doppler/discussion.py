@@ -118,9 +118,10 @@ def discussion_markdown(f: dict) -> str:
                     f"The largest step is {f['floor_main_cause']}."))
     corners = "; ".join(f"{c}: {_iv(v, unit='', fmt='.2f')} — {_RATIO_WORDS[v[5]]}" for c, v in f["corners"].items())
     lines.append(f"* **Along / across-track error ratio per corner** (paper ≈ {PAPER['along_over_cross']}): {corners}. "
-                 + ("Reproduced at every corner." if f["ratio_reproduced"] else
-                    "Not reproduced: the ratio depends on the corner, so the paper's \"half\" is one corner of one "
-                    "recording."))
+                 + {"reproduced": "Reproduced at every corner.",
+                    "not reproduced": "Not reproduced: the ratio depends on the corner, so the paper's \"half\" is "
+                                      "one corner of one recording.",
+                    "no interval": "No verdict: fewer than 3 recordings give no interval."}[f["ratio_verdict"]])
 
     # filters
     for v in ("Doppler", "Doppler + ranges"):

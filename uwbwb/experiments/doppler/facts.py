@@ -189,6 +189,9 @@ def facts(res: Results) -> dict:
         f["corners"][corner] = (m, lo, hi, float(d["along / across"].min()), float(d["along / across"].max()),
                                 _interval_verdict(lo, hi, PAPER["along_over_cross"]))
     f["ratio_reproduced"] = bool(f["corners"]) and all(v[5] == "consistent" for v in f["corners"].values())
+    verdicts = {v[5] for v in f["corners"].values()}
+    f["ratio_verdict"] = ("no interval" if not verdicts or "no interval" in verdicts else
+                          "reproduced" if f["ratio_reproduced"] else "not reproduced")
 
     # --- filters: accuracy, restarts, coverage
     sc = res.scores
