@@ -8,6 +8,7 @@ import pytest
 from uwbwb import widgets
 from uwbwb.calibration import tag_mount_height
 from uwbwb.datasets import load_lias_room
+from uwbwb.errors import DataNotFoundError
 from uwbwb.sim import rig
 from uwbwb.types import Anchors, RangeLog, Recording, Trajectory
 from tests.fixtures import lias as fx
@@ -121,8 +122,8 @@ def test_another_lias_recording_loads_and_a_missing_one_says_why(tmp_path):
     only = load_lias_room(tmp_path, "medium", "8.14", static_yaws=[first])
     assert {r.meta["nominal_yaw_deg"] for r in only.static} == {first}
     assert "found" in room.banner().data
-    missing = load_lias_room(tmp_path, "fast", "8.14")
-    assert not missing.available and "is here, but" in missing.reason
+    with pytest.raises(DataNotFoundError, match="medium"):
+        load_lias_room(tmp_path, "fast", "8.14")
 
 
 def test_banner_escapes_its_text():

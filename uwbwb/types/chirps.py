@@ -78,6 +78,17 @@ class ChirpLog:
             raise ValueError("ChirpLog.dp_s contains infinite values (use NaN for none)")
         if np.any(np.isfinite(dp) & (b < 0)):
             raise ValueError("ChirpLog: a row with a ΔP must be assigned to a beacon")
+        def has(flag):
+            return (fl & int(flag)) != 0
+        # the flags must agree with the fields they describe (the file format's rules, datasets.chirps)
+        if np.any(has(ChirpFlag.UNASSIGNED) & ((b >= 0) | (fl != int(ChirpFlag.UNASSIGNED)))):
+            raise ValueError("ChirpLog: an 'unassigned' row has no beacon and no other flag")
+        if np.any(has(ChirpFlag.LOCK) & ((b < 0) | np.isfinite(dp))):
+            raise ValueError("ChirpLog: a 'lock' row has a beacon and no ΔP")
+        if np.any(has(ChirpFlag.GAP) & ~np.isfinite(dp)):
+            raise ValueError("ChirpLog: a 'gap' row has a ΔP")
+        if np.any(has(ChirpFlag.AMBIGUOUS) & (b < 0)):
+            raise ValueError("ChirpLog: an 'ambiguous' row has a beacon")
         if np.any(fl & ~np.int8(sum(ChirpFlag))):
             raise ValueError("ChirpLog.flags has unknown bits")
         object.__setattr__(self, "t_s", t)
