@@ -113,4 +113,4 @@ def test_real_iasl_calibration_transfers():
     comp = study.compare_iasl(iasl.load_scenario("scenario2"), cal, duration_s=20.0, align_s=15.0)
     t = comp.table()
     assert t.loc["tight", "RMSE (m)"] < 1.2 * t.loc["UWB-only", "RMSE (m)"]
-    assert t.loc["INS-only", "RMSE (m)"] > 1.0
+    assert t.loc["EKF + gate", "coverage"] > 0.99             # the gated IMU-free EKF scores beside them
