@@ -182,9 +182,9 @@ class ExerciseCheck:
         return f"{'holds' if self.holds else 'DOES NOT HOLD'}: {self.claim} ({nums})"
 
     def _repr_markdown_(self) -> str:
-        nums = ", ".join(f"{html.escape(str(k))} = {_format_number(float(v))}" for k, v in self.numbers.items())
+        nums = ", ".join(f"{k} = {_format_number(float(v))}" for k, v in self.numbers.items())
         mark = "✔ check holds" if self.holds else "✘ check does not hold"
-        return f"**{mark}:** {html.escape(self.claim)} — {nums}"
+        return f"**{mark}:** {self.claim} — {nums}"
 
 
 # --------------------------------------------------------------------------- controls
