@@ -350,9 +350,9 @@ SPECS: dict[str, dict[str, Spec]] = {
     "04_doppler_beacons": {
         "N_BRUTE": integer(lo=1, none="1e9 draws (full), 2e7 (FAST)"),
         "N_POSITIONS": integer(lo=1, none="2e6 positions (full), 1e5 (FAST)"),
-        "PF_RUNS": integer(lo=1, none="1000 runs (full), 16 (FAST)"),
+        "PF_RUNS": integer(lo=1, none="200 runs on the first recording (full), 8 (FAST)"),
         "N_PARTICLES": integer(lo=1, none="1000 particles (full), 800 (FAST)"),
-        "N_RECORDINGS": integer(lo=1, none="5 recordings (full), 1 (FAST)"),
+        "N_RECORDINGS": integer(lo=1, none="10 recordings (full), 2 (FAST)"),
         "TEMPERATURE_C": real(lo=-50.0, hi=60.0),
         "SIGMA_RANGE_M": real(lo=0, lo_open=True, hi=10.0),
         "WORKERS": integer(lo=1, hi=1024),
