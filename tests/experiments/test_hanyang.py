@@ -125,11 +125,48 @@ def test_block_bootstrap_ratio_brackets_the_truth():
     assert a == study.block_bootstrap_ratio(e, 1.1 * e, rng=np.random.default_rng(3))
 
 
+def _ar1(n, phi, rng):
+    x = np.zeros(n)
+    w = rng.normal(0, 1, n)
+    for k in range(1, n):
+        x[k] = phi * x[k - 1] + w[k]
+    return x
+
+
+def test_block_length_follows_the_autocorrelation_of_the_paired_difference():
+    rng = np.random.default_rng(4)
+    t = 0.1 * np.arange(3000)
+    base = np.full(t.size, 2.0)
+    white = np.sqrt(np.maximum(base ** 2 + _ar1(t.size, 0.0, rng), 0))
+    slow = np.sqrt(np.maximum(base ** 2 + _ar1(t.size, 0.95, rng), 0))
+    b_white, b_slow = study.block_length_s(white, base, t), study.block_length_s(slow, base, t)
+    # AR(1) with φ: the autocorrelation falls below 0.05 at lag ln 0.05 / ln φ ≈ 58 for φ = 0.95
+    assert b_white <= 0.4 and 8.0 < b_slow < 16.0
+    iv = study.ratio_interval(slow, base, t, rng=np.random.default_rng(1))
+    assert iv["block_s"] == b_slow and iv["n_blocks"] == pytest.approx(300.0 / b_slow, abs=1.5)
+
+
+def test_too_few_independent_blocks_give_no_interval_and_no_verdict():
+    rng = np.random.default_rng(5)
+    t = 0.1 * np.arange(200)
+    e = np.abs(rng.normal(0, 1, 200))
+    few = study.ratio_interval(0.5 * e, e, t, rng=np.random.default_rng(1), block_s=2.5)        # 8 blocks
+    enough = study.ratio_interval(0.5 * e, e, t, rng=np.random.default_rng(1), block_s=2.0)     # 10 blocks
+    assert few["n_blocks"] == 8 and np.isnan(few["lo"]) and enough["n_blocks"] == 10 and enough["hi"] < 1
+    base = {"case": "X", "method": "EKF", "best": True, "ratio": 0.8, "rmse_2d_m": 0.5, "authors_ls_rmse_2d_m": 0.6,
+            "coverage": 0.9, "coverage_authors_ls": 1.0, "n": 100, "block_s": 2.0, "ratio_lo": 0.7, "ratio_hi": 0.9}
+    for n_blocks, verdict in ((study.MIN_BLOCKS - 1, facts.NO_VERDICT), (study.MIN_BLOCKS, "better")):
+        f = facts.ratio_facts(pd.DataFrame([{**base, "n_blocks": n_blocks}]))
+        assert f["cases"][0]["verdict"].startswith(verdict) and verdict in facts.ratio_sentence(f)
+        assert f["n_no_verdict"] == (verdict == facts.NO_VERDICT)
+
+
 @pytest.mark.parametrize("lo, hi, verdict", [(0.7, 0.95, "better"), (0.9, 1.1, "not significant"),
                                              (1.02, 1.3, "worse"), (np.nan, np.nan, "no interval")])
 def test_ratio_verdict_flips_at_one(lo, hi, verdict):
     ratios = pd.DataFrame([{"case": "X", "method": "EKF", "best": True, "ratio": (lo + hi) / 2 if np.isfinite(lo) else 1.0,
-                            "ratio_lo": lo, "ratio_hi": hi, "rmse_2d_m": 0.5, "authors_ls_rmse_2d_m": 0.6}])
+                            "ratio_lo": lo, "ratio_hi": hi, "rmse_2d_m": 0.5, "authors_ls_rmse_2d_m": 0.6,
+                            "coverage": 0.9, "coverage_authors_ls": 1.0, "n": 100, "n_blocks": 20, "block_s": 1.0}])
     f = facts.ratio_facts(ratios)
     assert f["cases"][0]["verdict"] == verdict
     assert verdict in facts.ratio_sentence(f)
@@ -201,10 +238,17 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     sec = sections.scoreboard_section(None, data, fast=True, summary=summary)
     assert sec.absent is None and list(sec.boards) == [cases[0].name]           # FAST: one case
     assert sec.facts["reproduction"]["agree"] and "agree with" in sec.markdown
-    assert {r["data"] for r in summary.frame().to_dict("records")} == {f"hanyang-outdoor-uwb/{cases[0].name}"}
+    label = f"hanyang-outdoor-uwb/{cases[0].name}"
+    assert {r["data"] for r in summary.frame().to_dict("records")} == {label, label + facts.EXTERNAL}
     kinds = dict(zip(summary.frame()["quantity"], summary.frame()["kind"]))
     assert kinds["authors LS RMSE_2d, published"] == "input"
+    # numbers of the authors' estimates are never "reproduced", and their data label says external
+    for r in summary.frame().to_dict("records"):
+        assert (r["kind"] == "input") == r["data"].endswith(facts.EXTERNAL), r
+    assert kinds["authors LS RMSE_2d, recomputed (their definition)"] == "input"
     assert kinds["RMSE_2d ratio ours (best on the scored case) / authors LS"] == "reproduced"
+    assert kinds["RMSE_2d ratio ours (picked on the tuning case) / authors LS"] == "reproduced"
+    assert "both covered" in sec.markdown and "jump" in sec.markdown
     assert sec.facts["tuning"][cases[0].name] != cases[0].name
     prune = sections.pruning_section(None, data, fast=True)
     assert prune.facts["case"].startswith("NLOS/") and {"NLS residual pruning", "NLS robust mean"} <= set(
@@ -260,27 +304,76 @@ def test_motion_models_notebook_runs_on_a_generated_dynamic_case(tmp_path):
     assert any(r["quantity"] == "RMSE_2d ratio EKF-RW ranges / raw LS" for r in hy)
 
 
-def test_the_fair_pick_is_the_best_method_of_the_tuning_case_board():
+def _fake_board(label, errors, has):
+    """A board-like object whose entries have the given horizontal errors and coverage masks."""
     from types import SimpleNamespace
 
-    # two cases tuned on each other: the pick for X is what won on Y, and the reverse
-    errs = {"X": {"A": np.full(50, 1.0), "B": np.full(50, 2.0), "authors LS (external)": np.full(50, 1.5)},
-            "Y": {"A": np.full(50, 3.0), "B": np.full(50, 1.0), "authors LS (external)": np.full(50, 2.0)}}
-    import uwbwb.experiments.hanyang.study as st
+    from uwbwb.scoreboard.board import Entry
 
-    boards = {c: SimpleNamespace(label=f"d/{c}", calibration=SimpleNamespace(source=f"d/{'Y' if c == 'X' else 'X'}"),
-                                 table=lambda: pd.DataFrame({"method": ["A", "B", "authors LS (external)"],
-                                                             "coverage": [1.0, 1.0, 1.0]}))
-              for c in errs}
-    orig = st._common_errors
-    st._common_errors = lambda b, tag="tag": (None, errs[b.label[2:]])
-    try:
-        t = st.ratio_table(boards, pd.DataFrame(columns=["data", "method", "metric", "published_m", "reproduced_m"]),
-                           tuning={"X": "Y", "Y": "X"})
-    finally:
-        st._common_errors = orig
-    pick = t[t["chosen"]].set_index("case")["method"].to_dict()
-    best = t[t["best"]].set_index("case")["method"].to_dict()
-    assert pick == {"X": "B", "Y": "A"} and best == {"X": "A", "Y": "B"}
-    f = facts.ratio_facts(t, "chosen")
-    assert f["pick"] == "chosen" and "tuning case" in facts.ratio_sentence(f)
+    ents = []
+    for m, err in errors.items():
+        n = err.size
+        pos = np.where(has[m][:, None], np.column_stack([err, np.zeros(n)]), np.nan)
+        status = np.where(has[m], int(EstimateStatus.UPDATED), int(EstimateStatus.NO_ESTIMATE)).astype(np.int8)
+        ents.append(Entry(m, "tag", Estimates(0.1 * np.arange(n), pos, status, m), None, np.zeros((n, 2))))
+    return SimpleNamespace(label=label, calibration=SimpleNamespace(source="d/T"),
+                           ran=lambda tag=None: ents)
+
+
+def test_ratio_is_on_the_pairs_epochs_whatever_else_is_on_the_board():
+    n = 400
+    t = np.arange(n)
+    errs = {"A": np.where(t < 200, 1.0, 3.0), "authors LS (external)": np.full(n, 2.0), "C": np.ones(n)}
+    has = {"A": np.ones(n, bool), "authors LS (external)": np.ones(n, bool), "C": t < 200}
+    repro = pd.DataFrame(columns=["data", "method", "metric", "published_m", "reproduced_m"])
+    with_c = study.ratio_table({"X": _fake_board("d/X", errs, has)}, repro).set_index("method")
+    del errs["C"], has["C"]
+    without_c = study.ratio_table({"X": _fake_board("d/X", errs, has)}, repro).set_index("method")
+    # A on its own epochs with the authors' LS: sqrt((200·1 + 200·9)/400) = sqrt(5), whether C is there or not
+    for t_ in (with_c, without_c):
+        assert t_.loc["A", "rmse_2d_m"] == pytest.approx(np.sqrt(5.0)) and t_.loc["A", "n"] == n
+        assert t_.loc["A", "ratio"] == pytest.approx(np.sqrt(5.0) / 2.0)
+    assert with_c.loc["C", "n"] == 200 and with_c.loc["C", "coverage"] == pytest.approx(0.5)
+    assert with_c.loc["C", "coverage_authors_ls"] == pytest.approx(1.0)
+    # held: C keeps its last position (error 1) on the 200 epochs it has none
+    assert with_c.loc["C", "held_n"] == n and with_c.loc["C", "held_n_filled"] == 200
+    assert with_c.loc["C", "held_ratio"] == pytest.approx(0.5)
+    assert with_c["best"].sum() == 1 and with_c.loc["C", "best"]
+
+
+def test_the_fair_pick_is_made_on_the_tuning_case_alone(tree, tmp_path):
+    """Perturbing the scored case's reference inside its window changes neither our estimates nor the pick."""
+    import shutil
+
+    data, cases = tree
+    case, tune = cases[2].name, cases[3].name
+    est = [e for e in study.study_estimators(fast=True) if e.name in ("raw LS", "LS")] + [study.AuthorsEstimator("LS")]
+
+    def run(d):
+        board = study.case_board(case, tune, d, fast=True, estimators=est)
+        pick, pick_board = study.pick_on_tuning_case(tune, d, fast=True, estimators=est)
+        return board, pick, pick_board
+
+    b0, p0, pb0 = run(data)
+    other = tmp_path / "data"
+    shutil.copytree(data, other)
+    path = other / "hanyang-outdoor-uwb" / "Dynamic_measurements" / case / "trajectory.csv"
+    df = pd.read_csv(path)
+    ref = hd.load_dynamic_case(case, data, register=False).truth["tag"]
+    assert len(ref) == len(df)
+    t0, t1 = study.authors_window(ref, "A")
+    inside = (ref.t_s > t0 + 0.4 * (t1 - t0)) & (ref.t_s < t0 + 0.6 * (t1 - t0))
+    assert inside.sum() > 10
+    df.loc[inside, "x"] += 0.7
+    df.to_csv(path, index=False, float_format="%.17g")
+    b1, p1, pb1 = run(other)
+    assert p0 == p1 and p0 in ("raw LS", "LS")
+    assert pb0.label == pb1.label and tune in pb0.calibration.source
+    for m in ("raw LS", "LS"):
+        e0, e1 = b0.entry(m, "tag").estimates, b1.entry(m, "tag").estimates
+        both, i0, i1 = np.intersect1d(e0.t_s, e1.t_s, return_indices=True)
+        assert both.size > 0.9 * e0.t_s.size
+        np.testing.assert_array_equal(e0.pos_m[i0], e1.pos_m[i1])
+    # the truth did change: the scores on the scored case differ
+    r0, r1 = (b.table().set_index("method").loc["raw LS", "rmse_m"] for b in (b0, b1))
+    assert r0 != pytest.approx(r1, abs=1e-6)

@@ -3,8 +3,10 @@
 
 * Reproduction (:func:`reproduction_facts`): the authors' numbers are *reproduced* when every
   recomputed RMSE is within :data:`REPRO_TOL_M` of their ``RMSD_results.txt``.
-* Ours vs theirs per case (:func:`ratio_facts`): ``better`` when the 95 % block-bootstrap interval
-  of RMSE(ours) / RMSE(their LS) lies below 1, ``worse`` when above 1, else ``not significant``.
+* Ours vs theirs per case (:func:`ratio_facts`), on the epochs both covered: ``better`` when the 95 %
+  block-bootstrap interval of RMSE(ours) / RMSE(their LS) lies below 1, ``worse`` when above 1, else
+  ``not significant``; with fewer than :data:`~.study.MIN_BLOCKS` independent blocks (block length from
+  the autocorrelation of the paired difference, :func:`~.study.block_length_s`) no verdict is given.
 * Static range model (:func:`static_facts`): ``helps`` on a case when the interval of
   RMSE(LS on statically corrected ranges) / RMSE(raw LS) lies below 1, ``hurts`` above 1, else
   ``no clear effect``; the answer to "does it help?" is *yes* only if it helps on every case scored.
@@ -15,7 +17,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-__all__ = ["REPRO_TOL_M", "interval_verdict", "ratio_facts", "ratio_sentence", "reproduction_facts",
+from .study import MIN_BLOCKS
+
+__all__ = ["NO_VERDICT", "REPRO_TOL_M", "interval_verdict", "pair_verdict", "ratio_facts", "ratio_sentence", "reproduction_facts",
            "reproduction_sentence", "static_facts", "static_sentence", "summary_rows"]
 
 #: Largest difference between our recomputation and the authors' published RMSE called agreement, m.
@@ -31,6 +35,17 @@ def interval_verdict(lo: float, hi: float, low: str, high: str, neither: str) ->
     if lo > 1.0:
         return high
     return neither
+
+
+NO_VERDICT = "no verdict: too few independent blocks"
+
+
+def pair_verdict(lo: float, hi: float, n_blocks: int, low: str, high: str, neither: str,
+                 min_blocks: int = MIN_BLOCKS) -> str:
+    """:func:`interval_verdict`, refused (:data:`NO_VERDICT`) with fewer than ``min_blocks`` blocks."""
+    if not n_blocks >= min_blocks:
+        return f"{NO_VERDICT} ({int(n_blocks)} < {min_blocks})"
+    return interval_verdict(lo, hi, low, high, neither)
 
 
 def reproduction_facts(repro: pd.DataFrame, tol_m: float = REPRO_TOL_M) -> dict:
@@ -59,7 +74,9 @@ def ratio_facts(ratios: pd.DataFrame, pick: str = "best") -> dict:
     for r in best.itertuples(index=False):
         cases.append({"case": r.case, "method": r.method, "ratio": float(r.ratio), "lo": float(r.ratio_lo),
                       "hi": float(r.ratio_hi), "ours_m": float(r.rmse_2d_m), "theirs_m": float(r.authors_ls_rmse_2d_m),
-                      "verdict": interval_verdict(r.ratio_lo, r.ratio_hi, "better", "worse", "not significant")})
+                      "coverage": float(r.coverage), "coverage_theirs": float(r.coverage_authors_ls),
+                      "n": int(r.n), "n_blocks": int(r.n_blocks), "block_s": float(r.block_s),
+                      "verdict": pair_verdict(r.ratio_lo, r.ratio_hi, r.n_blocks, "better", "worse", "not significant")})
     ratio = np.array([c["ratio"] for c in cases])
     return {"pick": pick, "cases": cases, "n_cases": len(cases),
             "mean_ratio": float(np.mean(ratio)) if ratio.size else float("nan"),
@@ -67,25 +84,29 @@ def ratio_facts(ratios: pd.DataFrame, pick: str = "best") -> dict:
             "min_ratio": float(np.min(ratio)) if ratio.size else float("nan"),
             "max_ratio": float(np.max(ratio)) if ratio.size else float("nan"),
             "n_better": sum(c["verdict"] == "better" for c in cases),
-            "n_worse": sum(c["verdict"] == "worse" for c in cases)}
+            "n_worse": sum(c["verdict"] == "worse" for c in cases),
+            "n_no_verdict": sum(c["verdict"].startswith(NO_VERDICT) for c in cases)}
 
 
 _PICKS = {"best": "Our best ranges-only method (picked on the scored case itself: optimistic)",
-          "chosen": "Our ranges-only method picked on the tuning case (the one best on that case's board: no "
-                    "look at the scored case)"}
+          "chosen": "Our ranges-only method picked on the tuning case alone (tuned on the first half of its "
+                    "window, picked by the lowest ratio to the authors' LS on the second half: nothing of the "
+                    "scored case enters the pick)"}
 
 
 def ratio_sentence(f: dict) -> str:
     if not f["n_cases"]:
         return (f"{_PICKS[f['pick']]}: no case to report (the pick needs the board of the tuning case too)"
                 if f["pick"] == "chosen" else "No case had both our methods and the authors' LS on common epochs.")
-    per = "; ".join(f"{c['case']}: {c['method']} {c['ours_m']:.2f} m vs their LS {c['theirs_m']:.2f} m, ratio "
-                    f"{c['ratio']:.2f} [{c['lo']:.2f}, {c['hi']:.2f}] — {c['verdict']}" for c in f["cases"])
+    per = "; ".join(f"{c['case']}: {c['method']} {c['ours_m']:.2f} m vs their LS {c['theirs_m']:.2f} m on the "
+                    f"{c['n']} epochs both covered (coverage ours {c['coverage']:.0%}, theirs {c['coverage_theirs']:.0%}), "
+                    f"ratio {c['ratio']:.2f} [{c['lo']:.2f}, {c['hi']:.2f}] ({c['n_blocks']} blocks of "
+                    f"{c['block_s']:.1f} s) — {c['verdict']}" for c in f["cases"])
     spread = (f", sd {f['sd_ratio']:.2f}" if np.isfinite(f["sd_ratio"]) else "")
-    return (f"{_PICKS[f['pick']]} against the authors' LS, RMSE_2d on the common epochs — {per}. Across {f['n_cases']} case(s) the ratio ours/theirs is "
-            f"{f['mean_ratio']:.2f} on average{spread} (range {f['min_ratio']:.2f}–{f['max_ratio']:.2f}); "
-            f"better on {f['n_better']}, worse on {f['n_worse']}, not distinguishable on "
-            f"{f['n_cases'] - f['n_better'] - f['n_worse']}.")
+    return (f"{_PICKS[f['pick']]} against the authors' LS, RMSE_2d — {per}. Across {f['n_cases']} case(s) the ratio "
+            f"ours/theirs is {f['mean_ratio']:.2f} on average{spread} (range {f['min_ratio']:.2f}–{f['max_ratio']:.2f}); "
+            f"better on {f['n_better']}, worse on {f['n_worse']}, no verdict on {f['n_no_verdict']}, not "
+            f"distinguishable on {f['n_cases'] - f['n_better'] - f['n_worse'] - f['n_no_verdict']}.")
 
 
 def static_facts(effect: pd.DataFrame) -> dict:
@@ -94,8 +115,9 @@ def static_facts(effect: pd.DataFrame) -> dict:
     for r in effect.itertuples(index=False):
         rows.append({"case": r.case, "method": r.method, "ratio": float(r.ratio_vs_raw_ls),
                      "lo": float(r.ratio_vs_raw_ls_lo), "hi": float(r.ratio_vs_raw_ls_hi),
-                     "verdict": interval_verdict(r.ratio_vs_raw_ls_lo, r.ratio_vs_raw_ls_hi, "helps", "hurts",
-                                                 "no clear effect")})
+                     "verdict": pair_verdict(r.ratio_vs_raw_ls_lo, r.ratio_vs_raw_ls_hi,
+                                             getattr(r, "ratio_vs_raw_ls_n_blocks", MIN_BLOCKS), "helps", "hurts",
+                                             "no clear effect")})
     helps = [r["verdict"] == "helps" for r in rows]
     return {"rows": rows, "n": len(rows), "n_helps": int(sum(helps)),
             "n_hurts": sum(r["verdict"] == "hurts" for r in rows),
@@ -112,29 +134,39 @@ def static_sentence(f: dict) -> str:
             f"and hurts on {f['n_hurts']} of {f['n']} (case, model) pairs.")
 
 
+#: Data label suffix of rows that are numbers of the authors' estimates (their LS.csv / ESKF.csv): *external*.
+EXTERNAL = " (external: authors' estimates)"
+
+
 def summary_rows(comparison, summary) -> None:
-    """Headline numbers into a :class:`uwbwb.metrics.Summary`, one ``data=hanyang-outdoor-uwb/<case>`` per case:
-    the authors' published LS/ESKF RMSE_2d (*input*), our recomputation (*reproduced*), our best ranges-only
-    method's RMSE_2d, the authors' LS on the same epochs and the ratio (*reproduced*)."""
+    """Headline numbers into a :class:`uwbwb.metrics.Summary`, ``data=hanyang-outdoor-uwb/<case>`` per case.
+
+    Numbers of the authors' estimates — published, recomputed by our metric code, and their LS on a pair's
+    epochs — are kind ``input`` (they are not the output of a method of ours) with the data label
+    ``hanyang-outdoor-uwb/<case>`` + :data:`EXTERNAL`. Our method's RMSE_2d and the ratio ours / theirs
+    are ``reproduced``."""
     repro = comparison.reproduction
     for r in repro.itertuples(index=False):
         if r.metric != "RMSE 2-D":
             continue
         if np.isfinite(r.published_m):
             summary.add(quantity=f"authors {r.method} RMSE_2d, published", value=r.published_m, unit="m",
-                        data=r.data, kind="input")
+                        data=r.data + EXTERNAL, kind="input")
         summary.add(quantity=f"authors {r.method} RMSE_2d, recomputed (their definition)", value=r.reproduced_m,
-                    unit="m", data=r.data, kind="reproduced",
+                    unit="m", data=r.data + EXTERNAL, kind="input",
                     paper_value=r.published_m if np.isfinite(r.published_m) else None)
     ratios = comparison.ratios
+    theirs_added = set()
     for pick, what in (("best", "best on the scored case"), ("chosen", "picked on the tuning case")):
         if not len(ratios) or pick not in ratios:
             continue
         for r in ratios[ratios[pick].astype(bool)].itertuples(index=False):
-            summary.add(quantity=f"RMSE_2d, our ranges-only method {what} ({r.method}, common epochs)",
+            on = f"epochs of {r.method} ∩ authors LS"
+            summary.add(quantity=f"RMSE_2d, our ranges-only method {what} ({r.method}, {on})",
                         value=r.rmse_2d_m, unit="m", data=r.data, kind="reproduced")
+            if (r.data, on) not in theirs_added:
+                theirs_added.add((r.data, on))
+                summary.add(quantity=f"RMSE_2d, authors LS ({on})", value=r.authors_ls_rmse_2d_m, unit="m",
+                            data=r.data + EXTERNAL, kind="input")
             summary.add(quantity=f"RMSE_2d ratio ours ({what}) / authors LS", value=r.ratio, unit="", data=r.data,
                         kind="reproduced")
-    for r in ratios.drop_duplicates("data").itertuples(index=False):
-        summary.add(quantity="RMSE_2d, authors LS (common epochs)", value=r.authors_ls_rmse_2d_m, unit="m",
-                    data=r.data, kind="reproduced")

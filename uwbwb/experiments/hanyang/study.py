@@ -11,9 +11,22 @@ Three steps, each a function the notebooks call:
    tuning fitted on *another* case (:func:`tuning_case`: same condition, the other trajectory
    shape), the authors' LS and ESKF as rows marked *external* (:class:`AuthorsEstimator`), all
    on the same epochs (the range epochs inside the authors' window).
-3. :func:`compare_cases` runs the boards of several cases and gives, per case, the authors' LS
-   RMSE_2d, our best ranges-only method's and the ratio with a block-bootstrap interval
-   (:func:`ratio_table`); :mod:`.facts` turns them into sentences.
+3. :func:`compare_cases` runs the boards of several cases and gives, per case and method of ours,
+   its RMSE_2d and the authors' LS's on the epochs *that pair* covered (:func:`pair_errors`; both
+   coverages beside; not the board's all-method common epochs, which depend on what else is on the
+   board), the ratio with a block-bootstrap interval whose block length comes from the data
+   (:func:`ratio_interval`, :func:`block_length_s`; no verdict with fewer than :data:`MIN_BLOCKS`
+   blocks), and a full-coverage variant with ours holding its last position (:func:`held_errors`;
+   :func:`ratio_table`). The method set against theirs is picked on the tuning case alone
+   (:func:`pick_on_tuning_case`); :mod:`.facts` turns them into sentences.
+
+Front ends differ, so outlier handling is *not* equal between their LS and ours: the authors' LS
+(``Technical_validation/``) rejects a per-anchor range that jumps by more than 0.5 m from that
+anchor's previous accepted range (up to 4 consecutive rejections, then accepts), holds each anchor's
+latest range for up to 0.3 s, solves in 3-D warm-started from its previous solution and outputs on a
+10 Hz timer; our LS/NLS solve each epoch's ranges independently (no jump gate, no hold, no warm
+start), in 2-D at the calibrated height. The filters and pruned NLS have their own gates. Their
+output stamps also lag the reference (``meta["authors_lag_s"]``); that latency is left in.
 
 :func:`static_range_model` fits the static part's bias vs distance and
 :class:`StaticModelLs` applies it to the dynamic ranges (does it help? :func:`static_model_effect`).
@@ -52,8 +65,9 @@ from ...scoreboard.protocol import between
 from ...types import EstimateStatus, Estimates, Recording, Trajectory
 
 __all__ = ["AUTHORS_TAG_HEIGHT_M", "AUTHORS_Z_LIMIT_M", "AuthorsEstimator", "CaseComparison", "FAST_SPAN_S",
-           "N_BLOCKS", "PrunedNls", "RangeEkfEstimator", "RangeMeasurement", "StaticModelLs", "StaticRangeModel", "WINDOW_RULES", "authors_errors",
-           "authors_window", "board_epochs", "case_board", "compare_cases", "load_pair", "ratio_table",
+           "ACF_LEVEL", "BLOCK_LAG_FACTOR", "MIN_BLOCKS", "PrunedNls", "RangeEkfEstimator", "RangeMeasurement", "StaticModelLs", "StaticRangeModel", "WINDOW_RULES", "authors_errors",
+           "authors_window", "block_bootstrap_ratio", "block_length_s", "board_epochs", "case_board", "compare_cases",
+           "held_errors", "load_pair", "pair_errors", "pick_on_tuning_case", "ratio_interval", "ratio_table",
            "read_rmsd_results", "reproduce_authors", "static_model_effect", "static_range_model", "tuning_case"]
 
 PathLike = str | os.PathLike
@@ -69,8 +83,12 @@ WINDOW_RULES = {"A": {"start": lambda x, y: (x > 49.3) & (y > -5), "end": lambda
                 "B": {"start": lambda x, y: (x < 8.6) & (y < -7), "end": lambda x, y: (x > 8.6) & (y < -7)}}
 #: FAST mode scores this many seconds of the window (and tunes on as many of the other case).
 FAST_SPAN_S = 30.0
-#: Contiguous blocks of the block bootstrap (errors are correlated in time).
-N_BLOCKS = 20
+#: Block bootstrap: a block is BLOCK_LAG_FACTOR × the lag (s) at which the autocorrelation of the paired
+#: difference e_ours² − e_theirs² first falls below ACF_LEVEL (an assumption: below it, epochs count as
+#: independent); with fewer than MIN_BLOCKS blocks no interval and no verdict is given.
+ACF_LEVEL = 0.05
+BLOCK_LAG_FACTOR = 2.0
+MIN_BLOCKS = 10
 #: Gap between two of the authors' outputs beyond which nothing is interpolated, seconds.
 AUTHORS_MAX_GAP_S = 0.5
 
@@ -539,29 +557,109 @@ def _external(name: str) -> bool:
     return "external" in name
 
 
-def _common_errors(board: Board, tag: str = "tag") -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Epochs every method covered, and each method's errors there (time order)."""
-    common = board._common(tag)
-    return common, {e.method: e.error_m[common] for e in board.ran(tag)}
+def pair_errors(board: Board, method: str, reference: str, tag: str = "tag") -> dict | None:
+    """Errors of ``method`` and ``reference`` on the epochs *both* covered (and the truth reaches).
+
+    Unlike the board's common epochs, these do not depend on which other methods are on the board.
+    Returns None if either did not run. Keys: ``t_s`` ``(N,)``, ``err_m``, ``err_ref_m`` ``(N,)``,
+    ``coverage`` and ``coverage_ref`` (each one's share of the scoring epochs with a position) and
+    ``n_scoring``.
+    """
+    ran = {e.method: e for e in board.ran(tag)}
+    if method not in ran or reference not in ran:
+        return None
+    a, b = ran[method], ran[reference]
+    both = a.scored & b.scored
+    n = int(a.scoring.sum())
+    return {"t_s": a.estimates.t_s[both], "err_m": a.error_m[both], "err_ref_m": b.error_m[both],
+            "coverage": float(a.scored.sum() / n) if n else float("nan"),
+            "coverage_ref": float(b.scored.sum() / n) if n else float("nan"), "n_scoring": n}
 
 
-def block_bootstrap_ratio(err_a: np.ndarray, err_b: np.ndarray, *, rng: np.random.Generator,
-                          n_boot: int = 2000, n_blocks: int = N_BLOCKS, level: float = 0.95) -> tuple[float, float]:
-    """Interval of ``RMSE(err_a) / RMSE(err_b)`` on paired epochs by a block bootstrap of ``n_blocks``
-    contiguous blocks (the errors are correlated in time). NaN when there are fewer than
-    ``2·n_blocks`` epochs."""
-    n = err_a.size
-    if n != err_b.size:
-        raise ValueError(f"paired errors must have the same length, got {n} and {err_b.size}")
-    if n < 2 * n_blocks:
-        return float("nan"), float("nan")
-    edges = np.linspace(0, n, n_blocks + 1).astype(int)
-    sa = np.array([np.sum(err_a[a:b] ** 2) for a, b in zip(edges[:-1], edges[1:])])
-    sb = np.array([np.sum(err_b[a:b] ** 2) for a, b in zip(edges[:-1], edges[1:])])
-    pick = rng.integers(0, n_blocks, (n_boot, n_blocks))
+def held_errors(board: Board, method: str, reference: str, tag: str = "tag") -> dict | None:
+    """Errors of ``method`` on every epoch ``reference`` covered, ``method`` *holding its last position*
+    where it has none (NaN before its first position); ``reference``'s errors there. None if either
+    did not run. Keys as :func:`pair_errors` (``n_held``: epochs filled by holding)."""
+    ran = {e.method: e for e in board.ran(tag)}
+    if method not in ran or reference not in ran:
+        return None
+    a, b = ran[method], ran[reference]
+    has = a.estimates.has_estimate
+    last = np.maximum.accumulate(np.where(has, np.arange(has.size), -1))
+    pos = np.where((last >= 0)[:, None], a.estimates.pos_m[np.maximum(last, 0)], np.nan)
+    d = pos[:, :2] - a.truth_pos_m[:, :2]
+    err = np.sqrt(np.sum(d * d, axis=1))
+    keep = b.scored & np.isfinite(err)
+    n = int(a.scoring.sum())
+    return {"t_s": a.estimates.t_s[keep], "err_m": err[keep], "err_ref_m": b.error_m[keep],
+            "coverage": float(keep.sum() / n) if n else float("nan"),
+            "coverage_ref": float(b.scored.sum() / n) if n else float("nan"), "n_scoring": n,
+            "n_held": int((keep & ~a.scored).sum())}
+
+
+def block_length_s(err_a: np.ndarray, err_b: np.ndarray, t_s: np.ndarray, *, acf_level: float = ACF_LEVEL) -> float:
+    """Block length of the bootstrap, seconds: :data:`BLOCK_LAG_FACTOR` × the first lag at which the
+    autocorrelation of the paired difference ``err_a² − err_b²`` falls below ``acf_level``.
+
+    The autocorrelation is taken over the sequence of paired epochs (gaps ignored) and the lag turned
+    into seconds with their median spacing; at least two spacings. NaN with fewer than 3 epochs.
+    """
+    t = np.asarray(t_s, float)
+    if t.size < 3:
+        return float("nan")
+    d = np.asarray(err_a, float) ** 2 - np.asarray(err_b, float) ** 2
+    d = d - d.mean()
+    dt = float(np.median(np.diff(t)))
+    var = float(np.dot(d, d))
+    if var <= 0:
+        return BLOCK_LAG_FACTOR * dt
+    f = np.fft.rfft(d, 2 * d.size)
+    acf = np.fft.irfft(f * np.conj(f))[: d.size] / var
+    below = np.flatnonzero(acf < acf_level)
+    lag = int(below[0]) if below.size else d.size
+    return BLOCK_LAG_FACTOR * max(lag, 1) * dt
+
+
+def ratio_interval(err_a: np.ndarray, err_b: np.ndarray, t_s: np.ndarray, *, rng: np.random.Generator,
+                   n_boot: int = 2000, level: float = 0.95, block_s: float | None = None,
+                   min_blocks: int = MIN_BLOCKS) -> dict:
+    """Interval of ``RMSE(err_a) / RMSE(err_b)`` on paired epochs by a block bootstrap.
+
+    The epochs at ``t_s`` (seconds, ``(N,)``) are cut into contiguous blocks of ``block_s`` seconds
+    (default :func:`block_length_s`, derived from the data); the blocks are resampled with replacement.
+    With fewer than ``min_blocks`` non-empty blocks there are too few independent pieces for an
+    interval: ``lo``/``hi`` are NaN and the verdict is refused.
+
+    Returns
+    -------
+    dict
+        ``lo``, ``hi``, ``block_s``, ``n_blocks``.
+    """
+    err_a, err_b, t = np.asarray(err_a, float), np.asarray(err_b, float), np.asarray(t_s, float)
+    if not (err_a.size == err_b.size == t.size):
+        raise ValueError(f"paired errors and times must have the same length, got {err_a.size}, {err_b.size}, {t.size}")
+    bl = block_length_s(err_a, err_b, t) if block_s is None else float(block_s)
+    if not np.isfinite(bl) or t.size == 0:
+        return {"lo": float("nan"), "hi": float("nan"), "block_s": bl, "n_blocks": 0}
+    ids = np.floor((t - t[0]) / bl).astype(int)
+    _, ids = np.unique(ids, return_inverse=True)
+    nb = int(ids.max()) + 1
+    if nb < min_blocks:
+        return {"lo": float("nan"), "hi": float("nan"), "block_s": bl, "n_blocks": nb}
+    sa = np.bincount(ids, err_a ** 2, nb)
+    sb = np.bincount(ids, err_b ** 2, nb)
+    pick = rng.integers(0, nb, (n_boot, nb))
     ratio = np.sqrt(sa[pick].sum(axis=1) / sb[pick].sum(axis=1))
     lo, hi = np.quantile(ratio, [(1 - level) / 2, (1 + level) / 2])
-    return float(lo), float(hi)
+    return {"lo": float(lo), "hi": float(hi), "block_s": bl, "n_blocks": nb}
+
+
+def block_bootstrap_ratio(err_a: np.ndarray, err_b: np.ndarray, *, rng: np.random.Generator, t_s=None,
+                          n_boot: int = 2000, level: float = 0.95) -> tuple[float, float]:
+    """``(lo, hi)`` of :func:`ratio_interval` (``t_s`` None: one epoch per 0.1 s, the runs' rate)."""
+    t = 0.1 * np.arange(np.asarray(err_a).size) if t_s is None else t_s
+    r = ratio_interval(err_a, err_b, t, rng=rng, n_boot=n_boot, level=level)
+    return r["lo"], r["hi"]
 
 
 @dataclass(frozen=True)
@@ -574,59 +672,107 @@ class CaseComparison:
     ratios: pd.DataFrame
     fast: bool
     static_models: tuple = ()
+    picks: Mapping[str, str | None] = field(default_factory=dict)
 
     @property
     def mode(self) -> str:
         return "FAST" if self.fast else "full"
 
 
-def _best_of_ours(board: Board) -> str | None:
-    """Our method with the lowest RMSE on the board's common epochs (None if none ran)."""
-    _, errs = _common_errors(board)
-    ours = {m: e for m, e in errs.items() if not _external(m) and e.size}
-    return min(ours, key=lambda m: metrics.rmse(ours[m])) if ours else None
+THEIRS = "authors LS (external)"
 
 
-def ratio_table(boards: Mapping[str, Board], reproduction: pd.DataFrame, *, tuning: Mapping[str, str] | None = None,
+def _ours(board: Board) -> list[str]:
+    return [e.method for e in board.ran("tag") if not _external(e.method)]
+
+
+def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bool = False,
+                        estimators: Sequence | None = None, static_models: Sequence[StaticRangeModel] = (),
+                        progress: bool = False) -> tuple[str | None, Board]:
+    """Our ranges-only method to set against the authors' LS, picked on the tuning case alone.
+
+    The authors' window of ``tune`` (FAST: its first :data:`FAST_SPAN_S` s) is split in time: its
+    first half calibrates and tunes every method (:func:`~uwbwb.scoreboard.score`), its second half
+    scores them beside the authors' LS; the pick is the method with the lowest RMSE_2d ratio to the
+    authors' LS on the epochs both covered (:func:`pair_errors`). Nothing of the scored case enters
+    (its tag height, ranges and truth are not read). Returns ``(method or None, board)``.
+    """
+    rec = hanyang_dynamic.load_dynamic_case(tune, data_dir)
+    c0, c1 = board_epochs(rec)
+    if fast:
+        c1 = min(c1, c0 + FAST_SPAN_S)
+    mid = 0.5 * (c0 + c1)
+    first = between(rec, c0, mid, f"{rec.name} [authors' window, first half]")
+    second = between(rec, mid, c1, f"{rec.name} [authors' window, second half]")
+    est = study_estimators(fast=fast, static_models=static_models) if estimators is None else list(estimators)
+    est = [e for e in est if not isinstance(e, AuthorsEstimator) or e.method == "LS"]
+    if not any(isinstance(e, AuthorsEstimator) for e in est):
+        est.append(AuthorsEstimator("LS"))
+    board = score(second, first, estimators=est, rate_hz=None, dim=2, fast=fast, progress=progress,
+                  label=f"{rec.label} [pick: tuned on first half, scored on second]")
+    score_of = {}
+    for m in _ours(board):
+        p = pair_errors(board, m, THEIRS)
+        if p is not None and p["err_m"].size:
+            score_of[m] = metrics.rmse(p["err_m"]) / metrics.rmse(p["err_ref_m"])
+    return (min(score_of, key=score_of.get) if score_of else None), board
+
+
+def _ratio_cols(prefix: str, p: dict | None, case: str, m: str, seed: int) -> dict:
+    if p is None or not p["err_m"].size:
+        return {}
+    rng = np.random.default_rng([seed, zlib.crc32(f"{case}/{m}/{prefix}".encode())])
+    iv = ratio_interval(p["err_m"], p["err_ref_m"], p["t_s"], rng=rng)
+    r_ours, r_theirs = metrics.rmse(p["err_m"]), metrics.rmse(p["err_ref_m"])
+    return {f"{prefix}n": int(p["err_m"].size), f"{prefix}rmse_2d_m": r_ours,
+            f"{prefix}authors_ls_rmse_2d_m": r_theirs, f"{prefix}ratio": r_ours / r_theirs,
+            f"{prefix}ratio_lo": iv["lo"], f"{prefix}ratio_hi": iv["hi"], f"{prefix}block_s": iv["block_s"],
+            f"{prefix}n_blocks": iv["n_blocks"]}
+
+
+def ratio_table(boards: Mapping[str, Board], reproduction: pd.DataFrame, *, picks: Mapping[str, str | None] | None = None,
                 seed: int = 0) -> pd.DataFrame:
-    """Per case and our ranges-only method: its RMSE_2d and the authors' LS's on the common epochs, the
-    ratio ours / theirs and its 95 % block-bootstrap interval.
+    """Per case and our ranges-only method: RMSE_2d of ours and of the authors' LS on the epochs *that
+    pair* covered (both have a position; independent of the other methods on the board), the ratio
+    ours / theirs and its 95 % block-bootstrap interval (:func:`ratio_interval`: block length from the
+    data, ``n_blocks`` beside it), with both coverages (``coverage``: ours, ``coverage_authors_ls``:
+    theirs, each over the scoring epochs). Columns ``held_*``: the same on *every* epoch the authors'
+    LS covered, ours holding its last position where it has none (full-coverage variant).
 
-    Two picks of "our best": ``best`` marks the lowest RMSE on the scored case itself (an optimistic pick,
-    made after seeing the scores); ``chosen`` marks the method that was best on the board of the case this
-    one was tuned on (``tuning[case]``, when that board is in ``boards``) — a pick made without the scored
-    case, the fair one to compare with the authors."""
-    chosen_by = {case: _best_of_ours(boards[t]) for case, t in (tuning or {}).items() if t in boards}
+    Two picks: ``best`` marks the lowest ratio on the scored case itself (optimistic: made after seeing
+    the scores); ``chosen`` marks ``picks[case]`` (:func:`pick_on_tuning_case`: made on the tuning case
+    alone), the fair one to compare with the authors."""
     rows = []
     for case, board in boards.items():
-        _, errs = _common_errors(board)
-        theirs_name = AuthorsEstimator("LS").name
-        if theirs_name not in errs:
-            continue
-        theirs = errs[theirs_name]
         pub = reproduction[(reproduction["data"] == board.label) & (reproduction["method"] == "LS")
                            & (reproduction["metric"] == "RMSE 2-D")]
-        ours = {m: e for m, e in errs.items() if not _external(m)}
-        best = min(ours, key=lambda m: metrics.rmse(ours[m])) if ours and theirs.size else None
-        for m, e in ours.items():
-            if not e.size:
+        case_rows = []
+        for m in _ours(board):
+            p = pair_errors(board, m, THEIRS)
+            if p is None or not p["err_m"].size:
                 continue
-            rng = np.random.default_rng([seed, zlib.crc32(f"{case}/{m}".encode())])
-            lo, hi = block_bootstrap_ratio(e, theirs, rng=rng)
-            r_ours, r_theirs = metrics.rmse(e), metrics.rmse(theirs)
-            rows.append({"data": board.label, "case": case, "tuned_on": board.calibration.source, "method": m,
-                         "best": m == best, "chosen": m == chosen_by.get(case), "n_common": int(e.size),
-                         "coverage": float(board.table().set_index("method").loc[m, "coverage"]),
-                         "rmse_2d_m": r_ours, "authors_ls_rmse_2d_m": r_theirs, "ratio": r_ours / r_theirs,
-                         "ratio_lo": lo, "ratio_hi": hi,
-                         "authors_ls_published_2d_m": float(pub["published_m"].iloc[0]) if len(pub) else np.nan,
-                         "authors_ls_reproduced_2d_m": float(pub["reproduced_m"].iloc[0]) if len(pub) else np.nan})
+            row = {"data": board.label, "case": case, "tuned_on": board.calibration.source, "method": m,
+                   "epochs": f"{m} ∩ authors LS", "coverage": p["coverage"], "coverage_authors_ls": p["coverage_ref"],
+                   "n_scoring": p["n_scoring"]}
+            row.update(_ratio_cols("", p, case, m, seed))
+            h = held_errors(board, m, THEIRS)
+            row.update(_ratio_cols("held_", h, case, m, seed))
+            row["held_n_filled"] = h["n_held"] if h is not None else 0
+            row.update(authors_ls_published_2d_m=float(pub["published_m"].iloc[0]) if len(pub) else np.nan,
+                       authors_ls_reproduced_2d_m=float(pub["reproduced_m"].iloc[0]) if len(pub) else np.nan)
+            case_rows.append(row)
+        if case_rows:
+            best = min(case_rows, key=lambda r: r["ratio"])["method"]
+            for r in case_rows:
+                r["best"], r["chosen"] = r["method"] == best, r["method"] == (picks or {}).get(case)
+        rows += case_rows
     return pd.DataFrame(rows)
 
 
 def compare_cases(cases: Sequence[str] | None = None, data_dir: PathLike | None = None, *, fast: bool = False,
                   static: bool = True, seed: int = 0, progress: bool = False) -> CaseComparison:
-    """Reproduction and board of every case (default: all present), each tuned on :func:`tuning_case`."""
+    """Reproduction and board of every case (default: all present), each tuned on :func:`tuning_case`,
+    and per tuning case the pick of :func:`pick_on_tuning_case`."""
     available = hanyang_dynamic.dynamic_cases(data_dir)
     cases = list(available if cases is None else cases)
     if not cases:
@@ -639,31 +785,37 @@ def compare_cases(cases: Sequence[str] | None = None, data_dir: PathLike | None 
             except (DataNotFoundError, ValueError):
                 pass
     repro = pd.concat([reproduce_authors(c, data_dir) for c in cases], ignore_index=True)
-    boards, tuning = {}, {}
+    boards, tuning, pick_of_tune, picks = {}, {}, {}, {}
     for c in cases:
         tuning[c] = tuning_case(c, available)
         boards[c] = case_board(c, tuning[c], data_dir, fast=fast, static_models=models, progress=progress)
-    return CaseComparison(boards, tuning, repro, ratio_table(boards, repro, tuning=tuning, seed=seed), fast,
-                          tuple(models))
+        if tuning[c] not in pick_of_tune:
+            pick_of_tune[tuning[c]] = pick_on_tuning_case(tuning[c], data_dir, fast=fast, static_models=models,
+                                                          progress=progress)[0]
+        picks[c] = pick_of_tune[tuning[c]]
+    return CaseComparison(boards, tuning, repro, ratio_table(boards, repro, picks=picks, seed=seed), fast,
+                          tuple(models), picks)
 
 
 def static_model_effect(boards: Mapping[str, Board], *, seed: int = 0) -> pd.DataFrame:
     """Per case and static model: RMSE_2d of ``LS static <cond> model`` vs ``raw LS`` (the same solver
-    on uncorrected ranges) and vs ``LS`` (per-pair calibration from the tuning case), on the common
-    epochs, with block-bootstrap intervals of the ratios."""
+    on uncorrected ranges) and vs ``LS`` (per-pair calibration from the tuning case), each pair on the
+    epochs both covered, with block-bootstrap intervals of the ratios (``*_n_blocks`` beside them)."""
     rows = []
     for case, board in boards.items():
-        _, errs = _common_errors(board)
-        for m in [m for m in errs if m.startswith("LS static")]:
-            row = {"data": board.label, "case": case, "method": m, "rmse_2d_m": metrics.rmse(errs[m])}
+        for m in [m for m in _ours(board) if m.startswith("LS static")]:
+            row = {"data": board.label, "case": case, "method": m}
             for ref in ("raw LS", "LS"):
-                if ref not in errs:
+                p = pair_errors(board, m, ref)
+                if p is None or not p["err_m"].size:
                     continue
                 rng = np.random.default_rng([seed, zlib.crc32(f"{case}/{m}/{ref}".encode())])
-                lo, hi = block_bootstrap_ratio(errs[m], errs[ref], rng=rng)
+                iv = ratio_interval(p["err_m"], p["err_ref_m"], p["t_s"], rng=rng)
                 key = ref.replace(" ", "_").lower()
-                row.update({f"{key}_rmse_2d_m": metrics.rmse(errs[ref]),
-                            f"ratio_vs_{key}": metrics.rmse(errs[m]) / metrics.rmse(errs[ref]),
-                            f"ratio_vs_{key}_lo": lo, f"ratio_vs_{key}_hi": hi})
+                row.setdefault("rmse_2d_m", metrics.rmse(p["err_m"]))
+                row.update({f"{key}_rmse_2d_m": metrics.rmse(p["err_ref_m"]),
+                            f"ratio_vs_{key}": metrics.rmse(p["err_m"]) / metrics.rmse(p["err_ref_m"]),
+                            f"ratio_vs_{key}_lo": iv["lo"], f"ratio_vs_{key}_hi": iv["hi"],
+                            f"ratio_vs_{key}_n_blocks": iv["n_blocks"]})
             rows.append(row)
     return pd.DataFrame(rows)
