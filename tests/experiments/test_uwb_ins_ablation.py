@@ -184,10 +184,11 @@ def test_ingredient_and_outage_sentences_flip_at_ratio_one():
 
 def test_survival_sentence_says_where_the_outage_advantage_is_kept_or_lost():
     lost = {**GOOD, "EKF + gate": 1.0}
-    f = facts.facts(_fake(GOOD, case_ratios={"UWB σ 2×": lost}))
+    f = facts.facts(_fake(GOOD, case_ratios={"UWB σ 2×": lost, "IMU 10× worse": {**GOOD, "EKF + gate": 0.7}}))
     s = facts.survival_sentence(f, "EKF + gate")
-    assert "It is lost (interval reaches 1 or lies below) with UWB σ 2×" in s
-    assert "survives (interval above 1) with IMU 10× worse, multipath up to 12 m" in s
+    assert "Not significant (interval includes 1) with UWB σ 2×" in s
+    assert "Reversed (interval below 1: tight is worse) with IMU 10× worse" in s
+    assert "survives (interval above 1) with multipath up to 12 m" in s
     assert f["survival"]["UWB σ 2×"]["EKF + gate"]["share"] == pytest.approx(0.0, abs=0.1)
     none = facts.facts(_fake({**GOOD, "EKF + gate": 0.8}))
     assert "nothing to survive" in facts.survival_sentence(none, "EKF + gate")

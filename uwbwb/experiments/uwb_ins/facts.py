@@ -7,7 +7,8 @@ Rules
   seeds) lies above 1, **hurts** when it lies below 1, and is **not significant** otherwise;
   with one seed there is no interval and the verdict is **undetermined**.
 * Tight coupling's outage advantage over a method **survives** a mismatch case when the ratio
-  (that method's max outage error / tight's) has its interval above 1 in that case; its
+  (that method's max outage error / tight's) has its interval above 1 in that case, is **not
+  significant** when the interval includes 1 and **reversed** when it lies below 1; its
   *share kept* is ``log(ratio_case) / log(ratio_matched)`` (1: all of it, 0: none, < 0: reversed).
 """
 
@@ -127,7 +128,8 @@ def survival_sentence(f: dict, versus: str = "EKF + gate") -> str:
         return (f"In the matched case tight coupling has no outage advantage over {versus} "
                 f"({r0['ratio']:.2f}×), so there is nothing to survive mismatch.")
     kept = [c for c, v in f["survival"].items() if v[versus]["verdict"] == "helps"]
-    lost = [c for c, v in f["survival"].items() if v[versus]["verdict"] in ("not significant", "hurts")]
+    unsure = [c for c, v in f["survival"].items() if v[versus]["verdict"] == "not significant"]
+    lost = [c for c, v in f["survival"].items() if v[versus]["verdict"] == "hurts"]
     und = [c for c, v in f["survival"].items() if v[versus]["verdict"] == "undetermined"]
     shares = ", ".join(f"{c} {v[versus]['share'] * 100:.0f} %" for c, v in f["survival"].items()
                        if np.isfinite(v[versus]["share"]))
@@ -136,8 +138,10 @@ def survival_sentence(f: dict, versus: str = "EKF + gate") -> str:
             f"ratio) is: {shares or 'not measurable'}.")
     if kept:
         text += f" It survives (interval above 1) with {', '.join(kept)}."
+    if unsure:
+        text += f" Not significant (interval includes 1) with {', '.join(unsure)}."
     if lost:
-        text += f" It is lost (interval reaches 1 or lies below) with {', '.join(lost)}."
+        text += f" Reversed (interval below 1: tight is worse) with {', '.join(lost)}."
     if und:
         text += f" Undetermined ({f['mismatch_seeds']} seed, no interval): {', '.join(und)}."
     return text
