@@ -253,3 +253,20 @@ def test_consistency_table_nees_is_chi2_for_honest_covariances_and_scales_with_t
     t = realdata.error_table(comp)
     assert t.loc["honest", "vertical RMSE (m)"] == pytest.approx(0.3, rel=0.05)
     assert t.loc["honest", "3-D RMSE (m)"] == pytest.approx(np.sqrt(0.14), rel=0.05)
+
+
+def test_outage_spec_of_reproduce_is_the_longest_outage_the_run_holds():
+    """``reproduce`` refuses OUTAGE_S up front with the same bound the study applies."""
+    import math
+
+    from uwbwb.experiments.uwb_ins import ablation
+    from uwbwb.experiments.uwb_ins.study import OUTAGE_START_S
+    from uwbwb.notebook_params import SPECS
+    from uwbwb.sim import robot
+
+    longest = robot.broken_line().duration_s - OUTAGE_START_S - ablation.RECOVERY_S
+    hi = SPECS["05_uwb_ins_fusion"]["OUTAGE_S"].hi
+    assert hi == math.floor(longest * 10) / 10
+    ablation.check_outage(hi, ablation.RECOVERY_S, robot.broken_line())
+    with pytest.raises(ValueError, match="OUTAGE_S"):
+        ablation.check_outage(longest + 0.1, ablation.RECOVERY_S, robot.broken_line())

@@ -4,9 +4,10 @@
 facility, notebook 01), :mod:`.tours` (ceiling anchors and walking tours,
 notebook 02), :mod:`.walk` (office walk and AGV runs, notebook 03), :mod:`.chirps`
 (ultrasonic beacon chirps heard by a moving receiver, notebook 04), :mod:`.robot` (mobile
-robot with IMU and TDoA tag, notebook 05).
+robot with IMU and TDoA tag, notebook 05), :mod:`.mismatch` (worlds that differ from
+the filters' noise model, notebook 05).
 """
 
-from . import chirps, rig, robot, setnoise, tours, walk
+from . import chirps, mismatch, rig, robot, setnoise, tours, walk
 
-__all__ = ["chirps", "rig", "robot", "setnoise", "tours", "walk"]
+__all__ = ["chirps", "mismatch", "rig", "robot", "setnoise", "tours", "walk"]
