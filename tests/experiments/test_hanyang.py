@@ -125,6 +125,21 @@ def test_block_bootstrap_ratio_brackets_the_truth():
     assert a == study.block_bootstrap_ratio(e, 1.1 * e, rng=np.random.default_rng(3))
 
 
+def test_authors_front_end_gates_jumps_and_holds_ranges():
+    t = 0.1 * np.arange(12)
+    r = np.full((12, 2), np.nan)
+    r[:, 0] = [10.0, 10.1, 13.0, 13.0, 13.0, 13.0, 13.0, 13.1, np.nan, np.nan, np.nan, np.nan]
+    r[::3, 1] = 5.0
+    out, rep = study.authors_front_end(t, r)
+    # four jumps rejected (held at 10.1 within 0.3 s), the fifth accepted and kept
+    np.testing.assert_allclose(out[:, 0], [10.0, 10.1, 10.1, 10.1, 10.1, np.nan, 13.0, 13.1, 13.1, 13.1, 13.1, np.nan])
+    np.testing.assert_allclose(out[:, 1], np.where(np.arange(12) < 12, 5.0, np.nan))
+    assert rep["n_rejected"].sum() == 4 and rep["n_rejected"][2:6].tolist() == [1, 1, 1, 1]
+    assert rep["n_held"].sum() == 3 + 3 + 8
+    out2, rep2 = study.authors_front_end(t, r, jump_m=5.0)
+    assert rep2["n_rejected"].sum() == 0 and out2[2, 0] == 13.0
+
+
 def _ar1(n, phi, rng):
     x = np.zeros(n)
     w = rng.normal(0, 1, n)
@@ -249,6 +264,11 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     assert kinds["RMSE_2d ratio ours (best on the scored case) / authors LS"] == "reproduced"
     assert kinds["RMSE_2d ratio ours (picked on the tuning case) / authors LS"] == "reproduced"
     assert "both covered" in sec.markdown and "jump" in sec.markdown
+    methods = set(sec.tables["ratios"]["method"])
+    assert "raw LS, authors' front end (jump gate + hold)" in methods
+    assert not any("external" in m for m in methods)
+    assert any(m.startswith("authors LS, latency removed") for m in sec.boards[cases[0].name].methods)
+    assert np.isfinite(sec.tables["ratios"]["nolat_ratio"]).all()
     assert sec.facts["tuning"][cases[0].name] != cases[0].name
     prune = sections.pruning_section(None, data, fast=True)
     assert prune.facts["case"].startswith("NLOS/") and {"NLS residual pruning", "NLS robust mean"} <= set(

@@ -65,8 +65,8 @@ from ...scoreboard.protocol import between
 from ...types import EstimateStatus, Estimates, Recording, Trajectory
 
 __all__ = ["AUTHORS_TAG_HEIGHT_M", "AUTHORS_Z_LIMIT_M", "AuthorsEstimator", "CaseComparison", "FAST_SPAN_S",
-           "ACF_LEVEL", "BLOCK_LAG_FACTOR", "MIN_BLOCKS", "PrunedNls", "RangeEkfEstimator", "RangeMeasurement", "StaticModelLs", "StaticRangeModel", "WINDOW_RULES", "authors_errors",
-           "authors_window", "block_bootstrap_ratio", "block_length_s", "board_epochs", "case_board", "compare_cases",
+           "ACF_LEVEL", "AUTHORS_HOLD_S", "AUTHORS_JUMP_M", "AUTHORS_MAX_REJECTS", "AuthorsFrontEndLs", "BLOCK_LAG_FACTOR", "MIN_BLOCKS", "PrunedNls", "RangeEkfEstimator", "RangeMeasurement", "StaticModelLs", "StaticRangeModel", "WINDOW_RULES", "authors_errors",
+           "authors_front_end", "authors_window", "block_bootstrap_ratio", "block_length_s", "board_epochs", "case_board", "compare_cases",
            "held_errors", "load_pair", "pair_errors", "pick_on_tuning_case", "ratio_interval", "ratio_table",
            "read_rmsd_results", "reproduce_authors", "static_model_effect", "static_range_model", "tuning_case"]
 
@@ -221,14 +221,18 @@ class AuthorsEstimator(BaseEstimator):
     Nothing is run or tuned: their published positions are placed on the board's epochs by
     linear interpolation between their two neighbouring outputs (none beyond their first/last
     output or across a gap over :data:`AUTHORS_MAX_GAP_S`), on their own stamps (the loader's
-    ``authors_lag_s`` is their latency: not corrected). Their ESKF also used the robot's IMU.
-    No bound (kind ``"none (external)"``).
+    ``authors_lag_s`` is their latency: not corrected) moved by ``shift_s`` (0 by default; a sensitivity
+    row sets it to the lag measured on the *tuning* case, which removes their output latency).
+    Their ESKF also used the robot's IMU. No bound (kind ``"none (external)"``).
     """
 
     method: str = "LS"
+    shift_s: float = 0.0
 
     @property
     def name(self) -> str:
+        if self.shift_s:
+            return f"authors {self.method}, latency removed ({self.shift_s:+.2f} s, tuning case) (external)"
         return f"authors {self.method} (external{', +IMU' if self.method == 'ESKF' else ''})"
 
     def applies(self, rec, tag, cal):
@@ -238,6 +242,7 @@ class AuthorsEstimator(BaseEstimator):
 
     def estimate(self, rec, tag, cal):
         src = rec.meta["authors_estimates"][self.method].to_trajectory()
+        src = Trajectory(src.t_s + self.shift_s, src.pos_m) if self.shift_s else src
         t = rec.ranges[tag].t_s
         d = cal.dim
         pos = np.column_stack([np.interp(t, src.t_s, src.pos_m[:, k]) for k in range(d)])
@@ -470,6 +475,82 @@ class StaticModelLs(BaseEstimator):
         return _range_bound(rec, tag, cal, rec.ranges[tag])
 
 
+#: *Input* (the authors' LS front end, ``Technical_validation/``): a range differing from its anchor's
+#: previous accepted range by more than this is rejected ...
+AUTHORS_JUMP_M = 0.5
+#: ... at most this many times in a row (the next one is accepted) ...
+AUTHORS_MAX_REJECTS = 4
+#: ... and each anchor's latest accepted range is used for up to this long, seconds.
+AUTHORS_HOLD_S = 0.3
+
+
+def authors_front_end(t_s: np.ndarray, range_m: np.ndarray, *, jump_m: float = AUTHORS_JUMP_M,
+                      max_rejects: int = AUTHORS_MAX_REJECTS, hold_s: float = AUTHORS_HOLD_S
+                      ) -> tuple[np.ndarray, dict]:
+    """The authors' LS range front end applied to a range log: per anchor, a jump gate and a hold.
+
+    Per anchor, a measured range whose difference from that anchor's previous accepted range exceeds
+    ``jump_m`` is rejected, up to ``max_rejects`` in a row (the next is accepted and becomes the
+    reference); at each epoch an anchor without a fresh accepted range uses its latest accepted one if
+    it is at most ``hold_s`` old.
+
+    Parameters
+    ----------
+    t_s
+        Epoch times, ``(T,)``, seconds.
+    range_m
+        Ranges, ``(T, n_anchors)``, metres; NaN = not measured.
+
+    Returns
+    -------
+    ranges, report
+        The ranges the solver sees, ``(T, n_anchors)`` (NaN: none), and per epoch ``(T,)`` the number of
+        anchors whose range was rejected (``n_rejected``) and filled by holding (``n_held``).
+    """
+    t = np.asarray(t_s, float)
+    r = np.asarray(range_m, float)
+    out = np.full_like(r, np.nan)
+    n_rej, n_held = np.zeros(t.size, int), np.zeros(t.size, int)
+    for k in range(r.shape[1]):
+        prev, rejects, last_t = np.nan, 0, -np.inf
+        for i in range(t.size):
+            d = r[i, k]
+            if np.isfinite(d):
+                if np.isfinite(prev) and abs(d - prev) > jump_m:
+                    rejects += 1
+                    if rejects <= max_rejects:
+                        n_rej[i] += 1
+                        d = np.nan
+                else:
+                    rejects = 0
+            if np.isfinite(d):
+                prev, last_t, out[i, k] = d, t[i], d
+            elif np.isfinite(prev) and t[i] - last_t <= hold_s + 1e-9:       # 1 ns: the stamps' resolution
+                out[i, k] = prev
+                n_held[i] += 1
+    return out, {"n_rejected": n_rej, "n_held": n_held}
+
+
+@dataclass(frozen=True)
+class AuthorsFrontEndLs(BaseEstimator):
+    """``raw LS`` (per-epoch unweighted multilateration, no calibration, 2-D at the calibrated height) on the
+    ranges after the authors' LS front end (:func:`authors_front_end`: jump gate and hold), so that outlier
+    handling matches theirs. Their warm-started 3-D solve and 10 Hz output timer are not copied.
+    Bound: the CRLB of the ranges (as ``raw LS``)."""
+
+    name: str = "raw LS, authors' front end (jump gate + hold)"
+
+    def estimate(self, rec, tag, cal):
+        log = rec.ranges[tag]
+        r, report = authors_front_end(log.t_s, log.range_m)
+        res = geometry.multilaterate(r, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag))
+        est = res.to_estimates(log.t_s, self.name)
+        return replace(est, info={**est.info, **report})
+
+    def bound(self, rec, tag, cal, est):
+        return _range_bound(rec, tag, cal, rec.ranges[tag])
+
+
 # --------------------------------------------------------------------------------------------
 # 3. boards
 # --------------------------------------------------------------------------------------------
@@ -513,7 +594,8 @@ def study_estimators(*, fast: bool = False, static_models: Sequence[StaticRangeM
     """The board of this study: every ranges-only method of the package (the UWB/INS filters need an
     IMU this dataset does not provide), the EKFs RW/RF/RJ on ranges (:class:`RangeEkfEstimator`),
     NLS with residual pruning and with the robust mean, LS on
-    ranges corrected by each static model, then the authors' LS and ESKF (*external*)."""
+    ranges corrected by each static model, raw LS behind the authors' front end (:class:`AuthorsFrontEndLs`),
+    then the authors' LS and ESKF (*external*)."""
     coarse = {m: tuple(float(g) for g in EKF_GRIDS[m][::2]) for m in EKF_GRIDS}
     # the TDoA EKFs get the coarse grid in both modes: range differences from a 2 m anchor cluster do not
     # locate a tag tens of metres away (they diverge on every setting), and each setting costs a full run
@@ -523,7 +605,8 @@ def study_estimators(*, fast: bool = False, static_models: Sequence[StaticRangeM
     ekfs = [RangeEkfEstimator(m, grid=coarse[m] if fast else None) for m in ("RW", "RF", "RJ")]
     return [*base, *ekfs, PrunedNls(windows_s=windows, heuristic="residual"),
             PrunedNls(windows_s=windows, heuristic="robust_mean"),
-            *[StaticModelLs(m) for m in static_models], AuthorsEstimator("LS"), AuthorsEstimator("ESKF")]
+            *[StaticModelLs(m) for m in static_models], AuthorsFrontEndLs(), AuthorsEstimator("LS"),
+            AuthorsEstimator("ESKF")]
 
 
 def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: bool = False,
@@ -533,7 +616,9 @@ def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: 
 
     Scored epochs: the range epochs inside the authors' window of ``case`` (FAST: its first
     :data:`FAST_SPAN_S` s, and the tuning case cut to as many seconds of its own window).
-    Every method runs in 2-D at the tag height of the tuning case, at the native ~10 Hz.
+    Every method runs in 2-D at the tag height of the tuning case, at the native ~10 Hz. With the
+    default estimators a sensitivity row is added: the authors' LS with its output latency removed, the
+    lag measured on the tuning case (``authors_lag_s``).
     """
     if case == tune:
         raise ValueError(f"{case}: tuning on the scored case is not allowed; give another case")
@@ -544,7 +629,13 @@ def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: 
         t1, c1 = min(t1, t0 + FAST_SPAN_S), min(c1, c0 + FAST_SPAN_S)
     test = between(test_rec, t0, t1, f"{test_rec.name} [authors' window{' , FAST part' if fast else ''}]")
     cal = between(cal_rec, c0, c1, f"{cal_rec.name} [authors' window]") if fast else cal_rec
-    est = study_estimators(fast=fast, static_models=static_models) if estimators is None else list(estimators)
+    if estimators is None:
+        est = study_estimators(fast=fast, static_models=static_models)
+        lag = cal_rec.meta.get("authors_lag_s", {}).get("LS")
+        if lag:                                                 # sensitivity: their latency, measured on the tuning case
+            est.append(AuthorsEstimator("LS", shift_s=float(lag)))
+    else:
+        est = list(estimators)
     return score(test, cal, estimators=est, rate_hz=None, dim=2, fast=fast, progress=progress,
                  label=test_rec.label)
 
@@ -737,7 +828,8 @@ def ratio_table(boards: Mapping[str, Board], reproduction: pd.DataFrame, *, pick
     ours / theirs and its 95 % block-bootstrap interval (:func:`ratio_interval`: block length from the
     data, ``n_blocks`` beside it), with both coverages (``coverage``: ours, ``coverage_authors_ls``:
     theirs, each over the scoring epochs). Columns ``held_*``: the same on *every* epoch the authors'
-    LS covered, ours holding its last position where it has none (full-coverage variant).
+    LS covered, ours holding its last position where it has none (full-coverage variant). Columns
+    ``nolat_*`` (when the board has it): against the authors' LS with its latency removed (sensitivity).
 
     Two picks: ``best`` marks the lowest ratio on the scored case itself (optimistic: made after seeing
     the scores); ``chosen`` marks ``picks[case]`` (:func:`pick_on_tuning_case`: made on the tuning case
@@ -755,6 +847,9 @@ def ratio_table(boards: Mapping[str, Board], reproduction: pd.DataFrame, *, pick
                    "epochs": f"{m} ∩ authors LS", "coverage": p["coverage"], "coverage_authors_ls": p["coverage_ref"],
                    "n_scoring": p["n_scoring"]}
             row.update(_ratio_cols("", p, case, m, seed))
+            nolat = [n for n in (e.method for e in board.ran("tag")) if n.startswith("authors LS, latency removed")]
+            if nolat:
+                row.update(_ratio_cols("nolat_", pair_errors(board, m, nolat[0]), case, m, seed))
             h = held_errors(board, m, THEIRS)
             row.update(_ratio_cols("held_", h, case, m, seed))
             row["held_n_filled"] = h["n_held"] if h is not None else 0
