@@ -62,6 +62,20 @@ __all__ = ["FusionRun", "HeadingLog", "LooseFilter", "RangeUpdate", "TdoaUpdate"
            "merge_timeline"]
 
 _DEG = math.pi / 180.0
+_ITER_TOL_M = 1e-4           # an iterated update stops when the position moves less than this, m
+HEADING_KNOWN_RAD = 10 * _DEG  # an initial yaw σ at most this is a known heading: the gate is engaged at once
+LOST_BUILD_S = 1.0           # lost lock: the time over which the position error is assumed to have built up, s
+
+
+def _lever(name: str, value) -> np.ndarray:
+    """A lever arm: 3 finite numbers, m, body frame."""
+    try:
+        lever = np.array(value, float)
+    except (TypeError, ValueError):
+        lever = np.array([np.nan])
+    if lever.shape != (3,) or not np.all(np.isfinite(lever)):
+        raise ValueError(f"{name} must be 3 finite numbers (m, body frame), got {value!r}")
+    return lever
 
 
 # ====================================================================== inputs
@@ -310,7 +324,30 @@ class TightEskf:
     gate_prob
         Per-measurement χ²(1) gate probability; None: no gate.
     max_gated
-        Consecutive epochs with every UWB measurement gated after which the next epoch is used ungated.
+        Lost lock: after this many consecutive epochs in which the gate rejected at least half of
+        the UWB measurements (outliers are a minority; a majority rejected means the prior is
+        wrong), the filter admits the lost lock: it inflates ``P`` (:meth:`lost_lock_variance`)
+        and uses the next epoch ungated, so that it re-acquires. Closed loop only: open loop
+        linearises at the uncorrected nominal, where an inflated update metres away makes
+        things worse, so it keeps its gate throughout.
+    iterate_sigma_m
+        Prior tag-position σ (``√trace``), m, above which the UWB update is iterated (IEKF:
+        relinearised at the updated position until it moves less than 0.1 mm, at most
+        ``max_iter`` linearisations). Off by default (``inf``): the iteration is undamped, and
+        with outliers let through after a lost lock it was seen to diverge (hundreds of metres
+        on the outlier-laden twin-test data with ``gate_prob=0.6``), so it is an option to
+        study, not a default.
+    max_iter
+        Most linearisations of one iterated update.
+    gate_yaw_sigma_rad
+        Start-up: with an initial yaw σ above :data:`HEADING_KNOWN_RAD` (10°; an in-motion heading
+        alignment), the gate engages (once, for the rest of the run) only when the heading is
+        resolved: the prior yaw σ is at most this and ``max_gated`` consecutive epochs have passed
+        in which the gate would have rejected fewer than half of the UWB measurements. With a
+        known initial heading it is engaged from the first epoch. Before that every
+        measurement is used: during an in-motion heading alignment (yaw σ tens of degrees) the
+        innovations are large because the attitude is wrong, not because the measurements are,
+        and a gate would lock the filter out.
     q_scale, r_scale
         Multipliers on the process-noise and UWB measurement variances.
     feedback
@@ -326,24 +363,48 @@ class TightEskf:
     mechanization: Mechanization = Mechanization()
     lever_arm_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
     gate_prob: float | None = 0.999
-    max_gated: int = 25
+    max_gated: int = 5
     q_scale: float = 1.0
     r_scale: float = 1.0
     feedback: bool = True
     height_m: float | None = None
     height_sigma_m: float = 0.01
     init_sigma: tuple[float, float, float, float] = (0.3, 0.1, 2 * _DEG, 5 * _DEG)
+    iterate_sigma_m: float = math.inf
+    max_iter: int = 10
+    gate_yaw_sigma_rad: float = 3 * _DEG
     name: str = "tight"
 
     def __post_init__(self):
-        lever = np.array(self.lever_arm_m, float)
-        if lever.shape != (3,):
-            raise ValueError(f"TightEskf.lever_arm_m must be 3 numbers (m, body frame), got {self.lever_arm_m!r}")
-        object.__setattr__(self, "lever_arm_m", lever)
-        if self.gate_prob is not None and not 0 < self.gate_prob < 1:
-            raise ValueError(f"TightEskf.gate_prob must be in (0, 1) or None, got {self.gate_prob!r}")
-        if not (self.q_scale > 0 and self.r_scale > 0):
-            raise ValueError("TightEskf.q_scale and r_scale must be positive")
+        if not isinstance(self.imu_model, ImuErrorModel):
+            raise ValueError(f"TightEskf.imu_model must be an ImuErrorModel, got {self.imu_model!r}")
+        if not isinstance(self.uwb, (TdoaUpdate, RangeUpdate)):
+            raise ValueError(f"TightEskf.uwb must be a TdoaUpdate or a RangeUpdate, got {type(self.uwb).__name__}")
+        if not isinstance(self.mechanization, Mechanization):
+            raise ValueError(f"TightEskf.mechanization must be a Mechanization, got {self.mechanization!r}")
+        object.__setattr__(self, "lever_arm_m", _lever("TightEskf.lever_arm_m", self.lever_arm_m))
+        if self.gate_prob is not None:
+            validate.probability("TightEskf.gate_prob", self.gate_prob)
+        validate.integer("TightEskf.max_gated", self.max_gated, minimum=1)
+        validate.number("TightEskf.gate_yaw_sigma_rad", self.gate_yaw_sigma_rad, minimum=0.0, strict_minimum=True,
+                        maximum=math.pi)
+        validate.number("TightEskf.q_scale", self.q_scale, minimum=0.0, strict_minimum=True)
+        validate.number("TightEskf.r_scale", self.r_scale, minimum=0.0, strict_minimum=True)
+        validate.choice("TightEskf.feedback", self.feedback, (True, False))
+        if self.height_m is not None:
+            validate.number("TightEskf.height_m", self.height_m)
+        validate.number("TightEskf.height_sigma_m", self.height_sigma_m, minimum=0.0, strict_minimum=True)
+        init = tuple(self.init_sigma) if isinstance(self.init_sigma, (tuple, list, np.ndarray)) else ()
+        if len(init) != 4:
+            raise ValueError(f"TightEskf.init_sigma must be 4 SDs (position m, velocity m/s, roll/pitch rad, "
+                             f"yaw rad), got {self.init_sigma!r}")
+        for what, v, hi in zip(("position", "velocity", "roll/pitch", "yaw"), init, (None, None, math.pi, math.pi)):
+            validate.number(f"TightEskf.init_sigma ({what})", v, minimum=0.0, strict_minimum=True, maximum=hi)
+        object.__setattr__(self, "init_sigma", tuple(float(v) for v in init))
+        validate.number("TightEskf.iterate_sigma_m", self.iterate_sigma_m, minimum=0.0, allow_inf=True)
+        validate.integer("TightEskf.max_iter", self.max_iter, minimum=1)
+        if not isinstance(self.name, str):
+            raise ValueError(f"TightEskf.name must be a string, got {self.name!r}")
 
     # ---------------------------------------------------------------- noise
     def initial_covariance(self) -> np.ndarray:
@@ -352,6 +413,21 @@ class TightEskf:
         d = np.concatenate([[sp] * 3, [sv] * 3, [stilt, stilt, syaw], [max(m.acc_bias_sigma_mps2, 1e-6)] * 3,
                             [max(m.gyro_bias_sigma_radps, 1e-8)] * 3])
         return np.diag(d ** 2)
+
+    def lost_lock_variance(self, innovation_ms_m2: float = 0.0) -> np.ndarray:
+        """What a lost lock adds to the diagonal of ``P`` before the ungated epoch, ``(15,)``.
+
+        Position: the initial variance plus the mean squared UWB innovation of the epoch
+        (``innovation_ms_m2``, m²: how far off the measurements say the filter is); velocity: the
+        initial variance plus that over ``(1 s)²`` (an assumption: the error built up over about a
+        second); attitude and biases: nothing (an attitude error shows as velocity error; adding
+        yaw variance would restart the heading alignment).
+        """
+        d = np.diag(self.initial_covariance()).copy()
+        d[TH_] = d[BA_] = d[BG_] = 0.0
+        d[P_] += innovation_ms_m2
+        d[V_] += innovation_ms_m2 / LOST_BUILD_S ** 2
+        return d
 
     def process_noise_rate(self) -> np.ndarray:
         """Diagonal of ``G Q_c Gᵀ`` per second (isotropic noises: no attitude dependence), ``(15,)``."""
@@ -411,7 +487,8 @@ class TightEskf:
         qrate = self.process_noise_rate()
         gate1 = chi2.ppf(self.gate_prob, 1) if self.gate_prob is not None else np.inf
         sig_yaw = self.imu_model.mag_heading_sigma_rad
-        gated_run = 0
+        gated_run, clean_run = 0, 0
+        engaged = bool(P[8, 8] <= HEADING_KNOWN_RAD ** 2)
         # epochs sorted by their place on the time line (several epochs never share one: t is a union)
         order = np.argsort(ep_idx, kind="stable")
         order = order[ep_idx[order] >= 0]
@@ -440,19 +517,27 @@ class TightEskf:
             parts = []                                   # (z, h, H, R) blocks used this epoch
             n_gated, n_out = 0, int(n_out_all[k])
             uwb_used = 0
+            keep = None
             if rows is not None:
                 lin = self.uwb.linearise(tag, J_tag, rows[k], int(refs[k]))
                 if lin is not None:
-                    R = lin.R * self.r_scale
                     y = lin.z - lin.h - lin.H @ dx
+                    if gated_run >= self.max_gated:         # lock lost: admit it, then re-acquire ungated
+                        P = P + np.diag(self.lost_lock_variance(float(np.mean(y * y))))
+                    R = lin.R * self.r_scale
                     s = np.einsum("ij,jk,ik->i", lin.H, P, lin.H) + np.diag(R)
-                    keep = y * y / s <= gate1 if gated_run < self.max_gated else np.ones(y.size, bool)
+                    test = y * y / s <= gate1
+                    keep = test if engaged and gated_run < self.max_gated else np.ones(y.size, bool)
+                    if not engaged:                       # start-up: is the heading resolved?
+                        clean_run = clean_run + 1 if 2 * int((~test).sum()) < y.size else 0
+                        engaged = clean_run >= self.max_gated and P[8, 8] <= self.gate_yaw_sigma_rad ** 2
                     n_gated = int((~keep).sum())
                     if keep.any():
                         parts.append((lin.z[keep], lin.h[keep] + lin.H[keep] @ dx, lin.H[keep],
                                       R[np.ix_(keep, keep)]))
                         uwb_used = int(keep.sum())
-                    gated_run = gated_run + 1 if (n_gated and not uwb_used) else 0
+                    lost = n_gated >= uwb_used and self.feedback
+                    gated_run = gated_run + 1 if (n_gated and lost) else 0
             if np.isfinite(yaw_meas[k]) and sig_yaw > 0:
                 Hy = np.zeros(N_ERR)
                 Hy[TH_] = yaw_jacobian(C)
@@ -468,9 +553,20 @@ class TightEskf:
                 H = np.vstack([a[2] for a in parts])
                 R = _block_diag([a[3] for a in parts])
                 st, nis_parts = kalman.update_sequential(Gaussian(dx, P), z, H, R, h_x=h)
-                dx, P = st.x, st.P
                 nis = float(nis_parts[:uwb_used].sum()) if uwb_used else np.nan
                 dof = uwb_used
+                if uwb_used and np.sqrt(np.trace(J_tag @ P @ J_tag.T)) > self.iterate_sigma_m:
+                    # iterated update (IEKF): relinearise the UWB rows at the updated tag position
+                    for _ in range(self.max_iter - 1):
+                        d = st.x
+                        li = self.uwb.linearise(tag + d[P_] + J_tag[:, TH_] @ d[TH_], J_tag, rows[k], int(refs[k]))
+                        zi, hi, Hi = li.z[keep], li.h[keep], li.H[keep]
+                        h[:uwb_used] = hi + Hi @ (dx - d)     # y_i = z − h(x_i) − H_i (dx − δx_i) − H_i dx
+                        H[:uwb_used] = Hi
+                        st, _ = kalman.update_sequential(Gaussian(dx, P), z, H, R, h_x=h)
+                        if np.max(np.abs(st.x[P_] - d[P_])) < _ITER_TOL_M:
+                            break
+                dx, P = st.x, st.P
             if self.feedback:
                 p, v, q, ba, bg = inject(p, v, q, ba, bg, dx)
                 Gt = reset_jacobian(dx[TH_])[TH_, TH_]       # G P Gᵀ: G differs from I only there
@@ -515,7 +611,8 @@ class TightEskf:
         code = _tight_loop(
             t, acc, gyro, tl, ep_at[tl], np.ascontiguousarray(rows, float), np.asarray(refs, np.int64), kind,
             np.ascontiguousarray(anchors, float), np.ascontiguousarray(var_m, float), correlated, float(bias_m),
-            float(self.r_scale), float(gate1), int(self.max_gated), np.asarray(yaw_meas, float),
+            float(self.r_scale), float(gate1), int(self.max_gated), float(self.gate_yaw_sigma_rad) ** 2, HEADING_KNOWN_RAD ** 2,
+            self.lost_lock_variance(), float(self.iterate_sigma_m), int(self.max_iter), _ITER_TOL_M, np.asarray(yaw_meas, float),
             float(self.imu_model.mag_heading_sigma_rad), self.height_m is not None,
             float(self.height_m or 0.0), float(self.height_sigma_m), bool(self.feedback), self.lever_arm_m, qrate,
             self.mechanization.g_n, p.copy(), v.copy(), q.copy(), ba.copy(), bg.copy(), P.copy(), out["pos_m"],
@@ -592,16 +689,17 @@ def _reset_covariance(P, Gt):
 
 @numba.njit(cache=True, nogil=True)
 def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, correlated, bias_m, r_scale, gate1,
-                max_gated, yaw_meas, sig_yaw, use_height, height_m, sig_height, feedback, lever, qrate, g_n,
-                p, v, q, ba, bg, P, pos_o, vel_o, quat_o, ba_o, bg_o, P_o, cov_o, nis_o, dof_o, gated_o, status_o,
-                st_updated, st_gated, st_predicted):
+                max_gated, gate_yaw_var, heading_known_var, p_lost, iterate_sigma_m, max_iter, iter_tol, yaw_meas, sig_yaw, use_height, height_m,
+                sig_height, feedback, lever, qrate, g_n, p, v, q, ba, bg, P, pos_o, vel_o, quat_o, ba_o, bg_o, P_o,
+                cov_o, nis_o, dof_o, gated_o, status_o, st_updated, st_gated, st_predicted):
     """:meth:`TightEskf.run` compiled: the same steps as its reference loop, epoch after epoch.
 
     Per epoch (timeline index ``tl_idx[e]``, epoch ``ep_of[e]``): :func:`propagate` from the last
     epoch and one predict ``dx ← Φ dx``, ``P ← Φ P Φᵀ + Q`` (symmetrised); the epoch's TDoAs
     (``kind`` 1, :meth:`TdoaModel.epoch` with the lever-arm Jacobian) or ranges (``kind`` 2,
-    :meth:`RangeUpdate.linearise`), the χ² gate, the heading and height pseudo-measurements;
-    :func:`~uwbwb.filters.kalman._sequential`; injection and reset. ``p, v, q, ba, bg, P`` are
+    :meth:`RangeUpdate.linearise`, both :func:`_uwb_rows`), the lost-lock inflation ``P += diag(p_lost)``,
+    the χ² gate, the heading and height pseudo-measurements; :func:`~uwbwb.filters.kalman._sequential`,
+    iterated (relinearised UWB rows) while the prior tag σ exceeds ``iterate_sigma_m``; injection and reset. ``p, v, q, ba, bg, P`` are
     worked on in place; outputs go to row ``ep_of[e]`` of the ``*_o`` arrays. Returns 0, or the
     error code of ``_sequential``. Tested equal to the reference loop and to the model functions.
     """
@@ -618,7 +716,12 @@ def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, c
     Rd = np.empty(m_max)
     keep = np.empty(m_max, np.bool_)
     hp = np.empty(3)
-    gated_run = 0
+    z2 = np.empty(m_max)
+    h2 = np.empty(m_max)
+    H2 = np.zeros((m_max, 15))
+    Rd2 = np.empty(m_max)
+    gated_run, clean_run = 0, 0
+    engaged = P[8, 8] <= heading_known_var
     last = 0
     for e in range(tl_idx.size):
         i, k = tl_idx[e], ep_of[e]
@@ -637,61 +740,42 @@ def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, c
         _skew_into(cl, Sl)                      # J_tag = [I, 0, −[C l ×], 0, 0]
         tag = p + cl
         # ---- UWB rows (z, h, H) and their noise (diagonal Rd; TDoA adds the reference's variance)
-        m, n_gated, uwb_used, var_ref = 0, 0, 0, 0.0
+        n_gated, uwb_used = 0, 0
         row = rows[k]
-        lin = False
-        if kind == 1:
-            ref = refs[k]
-            n_fin = 0
-            for j in range(n_a):
-                if np.isfinite(row[j]):
-                    n_fin += 1
-            if ref >= 0 and n_fin >= 2:
-                lin = True
-                dr = tag - anchors[ref]
-                rr = math.sqrt(dr[0] * dr[0] + dr[1] * dr[1] + dr[2] * dr[2])
-                ur = dr / max(rr, 1e-12)
-                var_ref = var_m[ref]
-                for j in range(n_a):
-                    if j == ref or not np.isfinite(row[j]):
-                        continue
-                    d = tag - anchors[j]
-                    r = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-                    u = d / max(r, 1e-12)
-                    z[m] = row[j] - row[ref]
-                    h[m] = r - rr
-                    for a in range(3):
-                        hp[a] = u[a] - ur[a]
-                    Rd[m] = var_m[j]
-                    m += 1
-                    _fill_row(H, m - 1, hp, Sl)
-        elif kind == 2:
-            for j in range(n_a):
-                if not np.isfinite(row[j]):
-                    continue
-                lin = True
-                d = tag - anchors[j]
-                r = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-                rm = max(r, 1e-9)
-                for a in range(3):
-                    hp[a] = d[a] / rm
-                z[m] = row[j] - bias_m
-                h[m] = r
-                Rd[m] = var_m[j]
-                m += 1
-                _fill_row(H, m - 1, hp, Sl)
+        m, lin, var_ref = _uwb_rows(kind, row, refs[k], anchors, var_m, bias_m, tag, Sl, z, h, H, Rd, hp)
+        m_lin = m
         off = 0.0                               # R = (diag(Rd) + var_ref 1 1ᵀ) r_scale, or its diagonal
         if lin:
+            if gated_run >= max_gated:          # lock lost: admit it, then re-acquire ungated
+                ms = 0.0
+                for a in range(m):
+                    ya = z[a] - h[a] - H[a] @ dx
+                    ms += ya * ya
+                ms /= m
+                for a in range(15):
+                    if a < 3:
+                        P[a, a] += p_lost[a] + ms
+                    elif a < 6:
+                        P[a, a] += p_lost[a] + ms / LOST_BUILD_S ** 2
+                    else:
+                        P[a, a] += p_lost[a]
             for a in range(m):
                 Rd[a] = (Rd[a] + var_ref) * r_scale
             if correlated:
                 off = var_ref * r_scale
+            n_fail = 0
             for a in range(m):
                 Hdx = H[a] @ dx
                 y = z[a] - h[a] - Hdx
                 s = H[a] @ P @ H[a] + Rd[a]
-                keep[a] = y * y / s <= gate1 if gated_run < max_gated else True
+                test = y * y / s <= gate1
+                keep[a] = test if (engaged and gated_run < max_gated) else True
+                if not test:
+                    n_fail += 1
                 h[a] += Hdx
+            if not engaged:                     # start-up: is the heading resolved?
+                clean_run = clean_run + 1 if 2 * n_fail < m else 0
+                engaged = clean_run >= max_gated and P[8, 8] <= gate_yaw_var
             w = 0
             for a in range(m):                  # the kept rows first, in order
                 if keep[a]:
@@ -701,7 +785,8 @@ def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, c
             n_gated = m - w
             uwb_used = w
             m = w
-            gated_run = gated_run + 1 if (n_gated > 0 and uwb_used == 0) else 0
+            lost = n_gated >= uwb_used and feedback
+            gated_run = gated_run + 1 if (n_gated > 0 and lost) else 0
         n_uwb = m
         # ---- heading and height pseudo-measurements
         if np.isfinite(yaw_meas[k]) and sig_yaw > 0:
@@ -735,9 +820,41 @@ def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, c
                             R[a, b] = off
             y = z[:m] - h[:m]
             nis_parts = np.empty(m)
+            iterate = False
+            if uwb_used:
+                Jt = np.zeros((3, 15))
+                for a in range(3):
+                    Jt[a, a] = 1.0
+                    for b in range(3):
+                        Jt[a, 6 + b] = -Sl[a, b]
+                iterate = math.sqrt(np.trace(Jt @ P @ Jt.T)) > iterate_sigma_m
+            dx0, P0 = dx.copy(), P.copy()
             code = _sequential(dx, P, y, H[:m].copy(), R, nis_parts)
             if code:
                 return code
+            if iterate:                         # iterated update (IEKF): relinearise the UWB rows
+                nis_it = np.empty(m)
+                for _ in range(max_iter - 1):
+                    d = dx.copy()
+                    tag_i = tag + d[0:3] - Sl @ d[6:9]
+                    _uwb_rows(kind, row, refs[k], anchors, var_m, bias_m, tag_i, Sl, z2, h2, H2, Rd2, hp)
+                    w = 0
+                    for a in range(m_lin):
+                        if keep[a]:
+                            h[w] = h2[a] + H2[a] @ (dx0 - d)
+                            H[w] = H2[a]
+                            w += 1
+                    y = z[:m] - h[:m]
+                    dx[:] = dx0
+                    P[:, :] = P0
+                    code = _sequential(dx, P, y, H[:m].copy(), R, nis_it)
+                    if code:
+                        return code
+                    step = 0.0
+                    for a in range(3):
+                        step = max(step, abs(dx[a] - d[a]))
+                    if step < iter_tol:
+                        break
             P = 0.5 * (P + P.T)
             if uwb_used:
                 nis = nis_parts[:uwb_used].sum()
@@ -774,6 +891,56 @@ def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, c
         nis_o[k], dof_o[k], gated_o[k] = nis, dof, n_gated
         status_o[k] = st_updated if uwb_used else (st_gated if n_gated else st_predicted)
     return 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _uwb_rows(kind, row, ref, anchors, var_m, bias_m, tag, Sl, z, h, H, Rd, hp):
+    """One epoch's UWB rows at tag position ``tag``: ``z``, ``h``, ``H`` (with the lever-arm
+    columns from ``Sl = [C l ×]``) and the per-row variance ``Rd`` (without the reference's);
+    TDoAs (``kind`` 1, :meth:`TdoaModel.epoch`) or ranges (``kind`` 2, :meth:`RangeUpdate.linearise`).
+    Returns ``(m, linearised, var_ref)``."""
+    n_a = anchors.shape[0]
+    m, lin, var_ref = 0, False, 0.0
+    if kind == 1:
+        n_fin = 0
+        for j in range(n_a):
+            if np.isfinite(row[j]):
+                n_fin += 1
+        if ref >= 0 and n_fin >= 2:
+            lin = True
+            dr = tag - anchors[ref]
+            rr = math.sqrt(dr[0] * dr[0] + dr[1] * dr[1] + dr[2] * dr[2])
+            ur = dr / max(rr, 1e-12)
+            var_ref = var_m[ref]
+            for j in range(n_a):
+                if j == ref or not np.isfinite(row[j]):
+                    continue
+                d = tag - anchors[j]
+                r = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+                u = d / max(r, 1e-12)
+                z[m] = row[j] - row[ref]
+                h[m] = r - rr
+                for a in range(3):
+                    hp[a] = u[a] - ur[a]
+                Rd[m] = var_m[j]
+                m += 1
+                _fill_row(H, m - 1, hp, Sl)
+    elif kind == 2:
+        for j in range(n_a):
+            if not np.isfinite(row[j]):
+                continue
+            lin = True
+            d = tag - anchors[j]
+            r = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            rm = max(r, 1e-9)
+            for a in range(3):
+                hp[a] = d[a] / rm
+            z[m] = row[j] - bias_m
+            h[m] = r
+            Rd[m] = var_m[j]
+            m += 1
+            _fill_row(H, m - 1, hp, Sl)
+    return m, lin, var_ref
 
 
 @numba.njit(cache=True, nogil=True)
