@@ -364,3 +364,40 @@ def test_loose_gate_rejects_a_gross_fix_and_none_is_todays_filter():
     for kw in (dict(gate_prob=1.0), dict(gate_prob=0.0), dict(max_gated=-1), dict(max_gated=2.5)):
         with pytest.raises(ValueError, match="LooseFilter." + next(iter(kw))):
             replace(base, **kw)
+
+
+BAD_TIGHT = [("imu_model", None), ("uwb", None), ("lever_arm_m", (0.0, np.nan, 0.1)), ("lever_arm_m", (0, 0)),
+             ("gate_prob", 1.5), ("max_gated", 0), ("max_gated", 2.5), ("q_scale", -1.0), ("r_scale", np.nan),
+             ("height_sigma_m", 0.0), ("height_m", np.inf), ("init_sigma", (0.3, 0.1, 0.0, 0.1)),
+             ("init_sigma", (0.3, -0.1, 0.1, 0.1)), ("init_sigma", (0.3, 0.1)), ("iterate_sigma_m", -1.0),
+             ("max_iter", 0), ("gate_yaw_sigma_rad", 0.0), ("feedback", "yes")]
+BAD_LOOSE = [("dim", 4), ("vel_window", 0), ("q_pos_m_rts", -0.01), ("q_vel_mps_rts", np.nan),
+             ("sigma_r_pos_m", 0.0), ("sigma_r_vel_mps", -1.0), ("attitude_tau_s", 0.0), ("attitude_tau_s", -2.0),
+             ("lever_arm_m", (np.nan, 0, 0)), ("q_scale", 0.0), ("r_scale", -1.0), ("gate_prob", 0.0),
+             ("max_gated", -1), ("height_m", np.nan)]
+
+
+@pytest.mark.parametrize("name,value", BAD_TIGHT, ids=[f"{n}={v!r}" for n, v in BAD_TIGHT])
+def test_tight_parameters_are_validated_by_name(name, value):
+    cfg = robot.RobotConfig()
+    good = dict(imu_model=GRADES["consumer"], uwb=eskf.TdoaUpdate(cfg.tdoa_model()))
+    with pytest.raises(ValueError, match=f"TightEskf.{name}"):
+        eskf.TightEskf(**{**good, name: value})
+
+
+@pytest.mark.parametrize("name,value", BAD_LOOSE, ids=[f"{n}={v!r}" for n, v in BAD_LOOSE])
+def test_loose_parameters_are_validated_by_name(name, value):
+    with pytest.raises(ValueError, match=f"LooseFilter.{name}"):
+        eskf.LooseFilter(**{name: value})
+
+
+def test_update_models_are_validated():
+    a = np.asarray(robot.RobotConfig().stations_m, float)
+    with pytest.raises(ValueError, match="RangeUpdate.sigma_m"):
+        eskf.RangeUpdate(a, np.inf)
+    with pytest.raises(ValueError, match="RangeUpdate.bias_m"):
+        eskf.RangeUpdate(a, 0.1, bias_m=np.nan)
+    with pytest.raises(ValueError, match="TdoaUpdate.outlier_c_m"):
+        eskf.TdoaUpdate(TdoaModel(a, 0.1, dim=3), -0.1)
+    with pytest.raises(ValueError, match="TdoaUpdate.model"):
+        eskf.TdoaUpdate(None)

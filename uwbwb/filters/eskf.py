@@ -124,6 +124,10 @@ class TdoaUpdate:
     outlier_c_m: float | None = 0.1
 
     def __post_init__(self):
+        if not isinstance(self.model, TdoaModel):
+            raise ValueError(f"TdoaUpdate.model must be a TdoaModel, got {type(self.model).__name__}")
+        if self.outlier_c_m is not None:
+            validate.number("TdoaUpdate.outlier_c_m", self.outlier_c_m, minimum=0.0, strict_minimum=True)
         if self.model.dim != 3:
             raise ValueError("TdoaUpdate needs a 3-D TdoaModel (the INS state is 3-D; a known height is a "
                              "separate pseudo-measurement)")
@@ -169,8 +173,11 @@ class RangeUpdate:
         if a.ndim != 2 or a.shape[1] != 3:
             raise ValueError(f"RangeUpdate.anchor_pos_m must be (n, 3), got {a.shape}")
         s = np.broadcast_to(np.array(self.sigma_m, float), (a.shape[0],)).copy()
-        if np.any(~(s > 0)):
-            raise ValueError("RangeUpdate.sigma_m must be positive")
+        if not np.all(np.isfinite(a)):
+            raise ValueError("RangeUpdate.anchor_pos_m must be finite")
+        if np.any(~(s > 0)) or not np.all(np.isfinite(s)):
+            raise ValueError(f"RangeUpdate.sigma_m must be positive and finite, got {self.sigma_m!r}")
+        validate.number("RangeUpdate.bias_m", self.bias_m)
         object.__setattr__(self, "anchor_pos_m", a)
         object.__setattr__(self, "sigma_m", s)
 
@@ -1004,11 +1011,18 @@ class LooseFilter:
     name: str = "loose"
 
     def __post_init__(self):
-        if self.dim not in (2, 3):
-            raise ValueError(f"LooseFilter.dim must be 2 or 3, got {self.dim!r}")
-        if self.vel_window < 1:
-            raise ValueError("LooseFilter.vel_window must be >= 1")
-        object.__setattr__(self, "lever_arm_m", np.array(self.lever_arm_m, float))
+        if not isinstance(self.mechanization, Mechanization):
+            raise ValueError(f"LooseFilter.mechanization must be a Mechanization, got {self.mechanization!r}")
+        validate.choice("LooseFilter.dim", self.dim, (2, 3))
+        validate.integer("LooseFilter.vel_window", self.vel_window, minimum=1)
+        for name in ("q_pos_m_rts", "q_vel_mps_rts"):
+            validate.number(f"LooseFilter.{name}", getattr(self, name), minimum=0.0)
+        for name in ("sigma_r_pos_m", "sigma_r_vel_mps", "attitude_tau_s", "q_scale", "r_scale"):
+            validate.number(f"LooseFilter.{name}", getattr(self, name), minimum=0.0, strict_minimum=True)
+        if self.height_m is not None:
+            validate.number("LooseFilter.height_m", self.height_m)
+        validate.choice("LooseFilter.feedback", self.feedback, (True, False))
+        object.__setattr__(self, "lever_arm_m", _lever("LooseFilter.lever_arm_m", self.lever_arm_m))
         if self.gate_prob is not None:
             validate.probability("LooseFilter.gate_prob", self.gate_prob)
         validate.integer("LooseFilter.max_gated", self.max_gated, minimum=0)
