@@ -65,9 +65,9 @@ from ...scoreboard.protocol import between
 from ...types import EstimateStatus, Estimates, Recording, Trajectory
 
 __all__ = ["AUTHORS_TAG_HEIGHT_M", "AUTHORS_Z_LIMIT_M", "AuthorsEstimator", "CaseComparison", "FAST_SPAN_S",
-           "ACF_LEVEL", "AUTHORS_HOLD_S", "AUTHORS_JUMP_M", "AUTHORS_MAX_REJECTS", "AuthorsFrontEndLs", "BLOCK_LAG_FACTOR", "MIN_BLOCKS", "PrunedNls", "RangeEkfEstimator", "RangeMeasurement", "StaticModelLs", "StaticRangeModel", "WINDOW_RULES", "authors_errors",
+           "ACF_LEVEL", "AUTHORS_HOLD_S", "AUTHORS_JUMP_M", "AUTHORS_MAX_REJECTS", "AuthorsFrontEndLs", "BLOCK_LAG_FACTOR", "MIN_BLOCKS", "OFFSET_CHECK_S", "PrunedNls", "RangeEkfEstimator", "RangeMeasurement", "StaticModelLs", "StaticRangeModel", "WINDOW_RULES", "authors_errors",
            "authors_front_end", "authors_window", "block_bootstrap_ratio", "block_length_s", "board_epochs", "case_board", "compare_cases",
-           "held_errors", "load_pair", "pair_errors", "pick_on_tuning_case", "ratio_interval", "ratio_table",
+           "held_errors", "load_pair", "offset_ratio", "pair_errors", "pick_on_tuning_case", "ratio_interval", "ratio_table",
            "read_rmsd_results", "reproduce_authors", "static_model_effect", "static_range_model", "tuning_case"]
 
 PathLike = str | os.PathLike
@@ -89,6 +89,9 @@ FAST_SPAN_S = 30.0
 ACF_LEVEL = 0.05
 BLOCK_LAG_FACTOR = 2.0
 MIN_BLOCKS = 10
+#: Changes of the reference's clock offset under which the ratio ours / theirs is recomputed, seconds (the
+#: loader's registration and the board's own clock check differ by about this much on the real cases).
+OFFSET_CHECK_S = (-0.1, 0.1)
 #: Gap between two of the authors' outputs beyond which nothing is interpolated, seconds.
 AUTHORS_MAX_GAP_S = 0.5
 
@@ -688,6 +691,29 @@ def held_errors(board: Board, method: str, reference: str, tag: str = "tag") -> 
             "n_held": int((keep & ~a.scored).sum())}
 
 
+def offset_ratio(board: Board, method: str, reference: str, delta_s: float, tag: str = "tag") -> float:
+    """RMSE_2d ratio ``method`` / ``reference`` on the epochs both covered, with the reference track's clock
+    offset changed by ``delta_s`` (truth'(t) = truth(t − delta_s), interpolated linearly between the board's
+    epochs; epochs it does not reach are left out). A sensitivity check of the registration."""
+    ran = {e.method: e for e in board.ran(tag)}
+    if method not in ran or reference not in ran:
+        return float("nan")
+    a, b = ran[method], ran[reference]
+    t = a.estimates.t_s
+    have = a.scoring
+    if have.sum() < 2:
+        return float("nan")
+    tq = t - delta_s
+    inside = (tq >= t[have][0]) & (tq <= t[have][-1])
+    truth = np.column_stack([np.interp(tq, t[have], a.truth_pos_m[have, k]) for k in range(2)])
+    both = a.scored & b.scored & inside
+    if not both.any():
+        return float("nan")
+    ea = np.hypot(*(a.estimates.pos_m[both, :2] - truth[both]).T)
+    eb = np.hypot(*(b.estimates.pos_m[both, :2] - truth[both]).T)
+    return metrics.rmse(ea) / metrics.rmse(eb)
+
+
 def block_length_s(err_a: np.ndarray, err_b: np.ndarray, t_s: np.ndarray, *, acf_level: float = ACF_LEVEL) -> float:
     """Block length of the bootstrap, seconds: :data:`BLOCK_LAG_FACTOR` × the first lag at which the
     autocorrelation of the paired difference ``err_a² − err_b²`` falls below ``acf_level``.
@@ -830,6 +856,7 @@ def ratio_table(boards: Mapping[str, Board], reproduction: pd.DataFrame, *, pick
     theirs, each over the scoring epochs). Columns ``held_*``: the same on *every* epoch the authors'
     LS covered, ours holding its last position where it has none (full-coverage variant). Columns
     ``nolat_*`` (when the board has it): against the authors' LS with its latency removed (sensitivity).
+    ``ratio_dt±0.1s``: the ratio with the reference's clock offset changed by ±0.1 s (:func:`offset_ratio`).
 
     Two picks: ``best`` marks the lowest ratio on the scored case itself (optimistic: made after seeing
     the scores); ``chosen`` marks ``picks[case]`` (:func:`pick_on_tuning_case`: made on the tuning case
@@ -850,6 +877,8 @@ def ratio_table(boards: Mapping[str, Board], reproduction: pd.DataFrame, *, pick
             nolat = [n for n in (e.method for e in board.ran("tag")) if n.startswith("authors LS, latency removed")]
             if nolat:
                 row.update(_ratio_cols("nolat_", pair_errors(board, m, nolat[0]), case, m, seed))
+            for d in OFFSET_CHECK_S:
+                row[f"ratio_dt{d:+.1f}s"] = offset_ratio(board, m, THEIRS, d)
             h = held_errors(board, m, THEIRS)
             row.update(_ratio_cols("held_", h, case, m, seed))
             row["held_n_filled"] = h["n_held"] if h is not None else 0
