@@ -269,6 +269,7 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     assert not any("external" in m for m in methods)
     assert any(m.startswith("authors LS, latency removed") for m in sec.boards[cases[0].name].methods)
     assert np.isfinite(sec.tables["ratios"]["nolat_ratio"]).all()
+    assert "moved by −0.1 / +0.1 s" in sec.markdown and "latency removed" in sec.markdown
     assert sec.facts["tuning"][cases[0].name] != cases[0].name
     prune = sections.pruning_section(None, data, fast=True)
     assert prune.facts["case"].startswith("NLOS/") and {"NLS residual pruning", "NLS robust mean"} <= set(

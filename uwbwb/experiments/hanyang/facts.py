@@ -20,7 +20,7 @@ import pandas as pd
 from .study import MIN_BLOCKS
 
 __all__ = ["NO_VERDICT", "REPRO_TOL_M", "interval_verdict", "pair_verdict", "ratio_facts", "ratio_sentence", "reproduction_facts",
-           "reproduction_sentence", "static_facts", "static_sentence", "summary_rows"]
+           "reproduction_sentence", "sensitivity_sentence", "static_facts", "static_sentence", "summary_rows"]
 
 #: Largest difference between our recomputation and the authors' published RMSE called agreement, m.
 REPRO_TOL_M = 0.01
@@ -107,6 +107,25 @@ def ratio_sentence(f: dict) -> str:
             f"ours/theirs is {f['mean_ratio']:.2f} on average{spread} (range {f['min_ratio']:.2f}–{f['max_ratio']:.2f}); "
             f"better on {f['n_better']}, worse on {f['n_worse']}, no verdict on {f['n_no_verdict']}, not "
             f"distinguishable on {f['n_cases'] - f['n_better'] - f['n_worse'] - f['n_no_verdict']}.")
+
+
+def sensitivity_sentence(ratios: pd.DataFrame, pick: str = "chosen") -> str:
+    """How the ratio of the ``pick`` rows moves with the reference clock offset changed by ±0.1 s and against
+    the authors' LS with its latency removed (columns of :func:`~.study.ratio_table`, where present)."""
+    rows = ratios[ratios[pick].astype(bool)] if len(ratios) and pick in ratios else ratios.iloc[:0]
+    if not len(rows):
+        return "No sensitivity check to report."
+    parts = []
+    for r in rows.to_dict("records"):
+        bits = [f"{r['ratio']:.2f} as scored"]
+        if np.isfinite(r.get("ratio_dt-0.1s", np.nan)) and np.isfinite(r.get("ratio_dt+0.1s", np.nan)):
+            bits.append(f"{r['ratio_dt-0.1s']:.2f} / {r['ratio_dt+0.1s']:.2f} with the reference clock offset "
+                        f"moved by −0.1 / +0.1 s")
+        if np.isfinite(r.get("nolat_ratio", np.nan)):
+            bits.append(f"{r['nolat_ratio']:.2f} against their LS with its output latency removed")
+        parts.append(f"{r['case']} ({r['method']}): " + ", ".join(bits))
+    return ("Sensitivity of the ratio ours/theirs (the loader's clock registration and the board's own clock "
+            "check differ by about 0.1 s) — " + "; ".join(parts) + ".")
 
 
 def static_facts(effect: pd.DataFrame) -> dict:

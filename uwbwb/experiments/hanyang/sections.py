@@ -207,6 +207,7 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
                                                                        "ratio_dt-0.1s", "ratio_dt+0.1s") if c in comp.ratios]])
              if len(comp.ratios)
              else "(no ratio)", "", facts.ratio_sentence(chosen_f), "", facts.ratio_sentence(ratio_f), "",
+             facts.sensitivity_sentence(comp.ratios), "",
              "**Static range model on the dynamic runs**: " + "; ".join(m.describe() for m in comp.static_models),
              "", facts.static_sentence(static_f)]
     return Section(None, "\n".join(text), {"reproduction": comp.reproduction, "ratios": comp.ratios,
