@@ -131,7 +131,19 @@ def test_eq4_thresholds_are_where_the_test_starts_to_fire():
         d = (r - r[0])[None].copy()
         d[0, 1] += excess
         assert triangle_outliers(d, 0, a, 0.1)[0, 1] == fires
-    assert th.iloc[:, 1:].to_numpy().min() > 4.0                     # inert for the 0.3–4 m multipath
+    # over the ablation's path the smallest threshold is where the matched 0.3–4 m multipath can fire
+    cfg_ab = ab.AblationConfig.fast()
+    path = ab.eq4_path(cfg_ab)
+    over = ab.eq4_thresholds(cfg, path, 0.1).iloc[:, 1:]
+    per_point = np.array([ab.eq4_thresholds(cfg, q, 0.1).iloc[:, 1:].to_numpy().min() for q in path])
+    assert over.to_numpy().min() == pytest.approx(per_point.min())           # the minimum over the path
+    assert over.to_numpy().min() < cfg.outlier_excess_m[1]      # somewhere on it the 0.3–4 m multipath can fire
+    g = facts.facts(_fake(GOOD))["eq4_geometry"]
+    assert g["min_m"] == pytest.approx(over.to_numpy().min())
+    s = facts.eq4_sentence({"eq4": {}, "eq4_geometry": {**g, "min_m": 3.0, "excess_m": (0.3, 4.0)}})
+    assert "above 3.00 m" in s and "can fire on the largest" in s
+    s = facts.eq4_sentence({"eq4": {}, "eq4_geometry": {**g, "min_m": 5.0, "excess_m": (0.3, 4.0)}})
+    assert "cannot fire there" in s
 
 
 # ---------------------------------------------------------------- verdicts flip with the numbers
@@ -194,6 +206,47 @@ def test_survival_sentence_says_where_the_outage_advantage_is_kept_or_lost():
     assert "nothing to survive" in facts.survival_sentence(none, "EKF + gate")
     md = facts.summary_markdown(f)
     assert md.startswith("*full run: 6 scoring seeds") and "Eq. 4 removed 0 of 100" in md
+
+
+def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
+    f = facts.facts(_fake(GOOD))
+    assert f["diverged"] == {c: [] for c in ("UWB σ 2×", "IMU 10× worse", "multipath up to 12 m")}
+    assert "No gated row diverged" in facts.diverged_sentence(f)
+    bad = _fake(GOOD, nis={"UWB σ 2×": 3.0})
+    sc = bad.scores
+    hit = (sc["case"] == "IMU 10× worse") & (sc["method"] == "tight + gate")
+    sc.loc[hit, "dyn_rmse"] *= 50.0
+    sc.loc[hit, "recovery_max"] *= 9.0                     # below the factor: not named for this metric
+    f = facts.facts(bad)
+    d = f["diverged"]["IMU 10× worse"]
+    assert [(x["row"], x["metric"]) for x in d] == [("tight + gate", "dyn_rmse")]
+    s = facts.diverged_sentence(f)
+    assert "**Diverged**" in s and "tight + gate with IMU 10× worse (dynamic RMSE" in s
+    assert "Diverged" in facts.summary_markdown(f)
+    assert headlines.checks(bad) == []                      # mismatch divergence is reported, not a check
+    rows = headlines.ablation_rows(bad)
+    q = [r for r in rows if r["quantity"].startswith("mismatch 'IMU 10× worse': dynamic RMSE, tight + gate")]
+    assert len(q) == 1 and q[0]["value"] > 0.1
+    m = (sc["case"] == "matched") & (sc["method"] == "EKF + gate") & (sc["seed"] == 2)
+    sc.loc[m, "recovery_max"] = 0.6
+    assert any("recovery: EKF + gate" in x and "seed 2" in x for x in headlines.checks(bad))
+
+
+def test_knobs_break_near_ties_upwards_flag_the_edge_and_name_blowups():
+    t = pd.DataFrame({0.1: {"a": 1.00, "b": 2.0, "c": 1.0}, 1.0: {"a": 1.01, "b": 1.0, "c": 1.5},
+                      10.0: {"a": 1.5, "b": 2.0, "c": 50.0}})
+    k = ab.choose_knobs(t)
+    assert k.loc["a", "knob"] == 1.0 and not k.loc["a", "edge"]          # 1 % worse at the larger Q wins
+    assert k.loc["b", "knob"] == 1.0 and not k.loc["b", "edge"]
+    assert k.loc["c", "knob"] == 0.1 and k.loc["c", "edge"] and k.loc["c", "blowups"] == (10.0,)
+    res = _fake(GOOD)
+    res = ab.AblationResult(res.config, True, t, {}, res.scores, res.counts)
+    s = facts.tuning_sentence(facts.facts(res))
+    assert "FAST" in s and "c 0.1 (grid edge)" in s and "**Blew up**" in s and "c at 10" in s
+    t.loc["c", 10.0] = 5.0
+    res = ab.AblationResult(res.config, False, t, {}, res.scores, res.counts)
+    assert "No grid entry exceeds 10×" in facts.tuning_sentence(facts.facts(res))
+    assert ab.FULL_GRID[0] == 0.01 and ab.FULL_GRID[-1] == 100.0 and len(ab.FULL_GRID) == 9
 
 
 def test_checks_pass_on_a_sound_result_and_fail_on_each_defect():

@@ -20,7 +20,9 @@ also get the magnetometer heading. **Tuning**: each filter has one process-noise
 variance multiplier ``q_scale`` of the loose and the tight filter, the random-force spectral
 density ``q = EKF_Q0 · knob`` of the EKF — chosen from the same grid (:attr:`AblationConfig.grid`)
 by the lowest RMSE on a *tuning seed* that is never scored (static run + dynamic run outside the
-outage and recovery). LS has no knob (no grid). The filters are tuned once on the matched world
+outage and recovery); RMSEs within :data:`TIE_REL` of the lowest count as a tie, broken towards
+the larger knob (the less over-confident filter). A knob on the grid's edge is flagged
+(:func:`choose_knobs`): its optimum may lie outside the grid. LS has no knob (no grid). The filters are tuned once on the matched world
 and keep their knob in every mismatch case: a mismatch row tests the design on a world it was
 not built for.
 
@@ -56,7 +58,7 @@ from .study import OUTAGE_START_S, _after, _ls_estimates, initial_state, screene
 __all__ = ["BASES", "ROWS", "METRICS", "LADDER", "EKF_Q0", "RECOVERY_S", "AblationConfig", "AblationResult",
            "check_outage", "check_parameters", "notebook_config", "legs_for_outage", "simulate", "ls_gate",
            "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci", "ladder_table", "mismatch_table",
-           "eq4_thresholds"]
+           "eq4_thresholds", "eq4_path", "choose_knobs", "TIE_REL", "FULL_GRID", "FAST_GRID"]
 
 #: The four estimators, without and with the gate.
 BASES = ("LS", "EKF", "loose", "tight")
@@ -64,6 +66,12 @@ ROWS = tuple(f"{b}{s}" for b in BASES for s in ("", " + gate"))
 #: Nominal random-force spectral density of the IMU-free EKF, m²/s³ (an assumption: ~0.3 m/s²
 #: acceleration over ~1 s ramps); the tuning grid multiplies it.
 EKF_Q0 = 0.1
+#: Tuning RMSEs within this fraction of the lowest are a tie (broken towards the larger knob).
+TIE_REL = 0.02
+#: Process-noise multipliers of the full run: 0.01–100 in half-decade steps.
+FULL_GRID = tuple(float(round(10 ** (k / 2), 4)) for k in range(-4, 5))
+#: FAST grid: three decades only (a smoke test; edge knobs are flagged, not resolved).
+FAST_GRID = (0.1, 1.0, 10.0)
 #: Seconds after an outage scored as "recovery" (not as "dynamic").
 RECOVERY_S = 5.0
 #: Scores per row and seed (m; coverage as a fraction of the scored epochs).
@@ -109,7 +117,7 @@ class AblationConfig:
     """
 
     seeds: int = 10
-    grid: tuple = (0.1, 0.316, 1.0, 3.16, 10.0)
+    grid: tuple = FULL_GRID
     gate_prob: float = 0.999
     outlier_c_m: float | None = 0.1
     static_s: float = 60.0
@@ -144,10 +152,10 @@ class AblationConfig:
 
     @classmethod
     def fast(cls, **kw) -> "AblationConfig":
-        """FAST (smoke-test) sizes: 2 seeds, a 3-point grid, a 10 s static run, 3 legs, and three
+        """FAST (smoke-test) sizes: 2 seeds, a 3-point grid (:data:`FAST_GRID`, not the full 9), a 10 s static run, 3 legs, and three
         mismatch cases (those the checks read: IMU 10×, UWB σ 2×, multipath up to 12 m) on 1 seed and
         the dynamic run only."""
-        base = dict(seeds=2, grid=(0.1, 1.0, 10.0), static_s=10.0, legs=3, mismatch_seeds=1, mismatch_static=False,
+        base = dict(seeds=2, grid=FAST_GRID, static_s=10.0, legs=3, mismatch_seeds=1, mismatch_static=False,
                     cases=("matched", "IMU 10× worse", "UWB σ 2×", "multipath up to 12 m"))
         base.update(kw)
         return cls(**base)
@@ -388,13 +396,35 @@ def _tune_task(row: str, knob: float, cfg: AblationConfig, seed: int) -> float:
 def tune(cfg: AblationConfig, *, tuning_seed: int, scheduler=None, workers: int = 1) -> pd.DataFrame:
     """RMSE on the tuning seed for every tuned row × grid value (rows: rows, columns: grid).
 
-    The knob of each row is the grid value with the lowest RMSE (``.idxmin(axis=1)``).
+    The knob of each row is chosen by :func:`choose_knobs`.
     """
     tasks = [parallel.Task({"row": r, "knob": float(g)}) for r in _TUNED for g in cfg.grid]
     res = {(t.params["row"], t.params["knob"]): v for t, v in parallel.imap(
         _tune_task_shared, tasks, shared={"cfg": cfg, "tuning_seed": tuning_seed}, scheduler=scheduler,
         workers=workers, desc="ablation tuning", unit="run")}
     return pd.DataFrame({g: {r: res[(r, float(g))] for r in _TUNED} for g in cfg.grid})
+
+
+def choose_knobs(tuning: pd.DataFrame, *, tie_rel: float = TIE_REL) -> pd.DataFrame:
+    """Knob per tuned row from its tuning RMSEs (rows: rows, columns: grid values).
+
+    The knob is the largest grid value whose RMSE is within ``tie_rel`` of the row's lowest (a
+    near-tie goes to the larger process noise). Returns per row ``knob``, ``rmse`` (m), ``edge``
+    (the knob is the grid's smallest or largest value: the optimum may lie outside) and
+    ``blowups``: the grid values whose RMSE exceeds 10× the row's lowest (a filter that fails
+    there, not a tuning trade-off).
+    """
+    grid = np.asarray(tuning.columns, float)
+    out = {}
+    for r in tuning.index:
+        v = tuning.loc[r].to_numpy(float)
+        best = np.nanmin(v)
+        ok = np.flatnonzero(v <= best * (1 + tie_rel))
+        k = int(ok[np.argmax(grid[ok])])
+        out[r] = {"knob": float(grid[k]), "rmse": float(v[k]),
+                  "edge": bool(len(grid) > 1 and grid[k] in (grid.min(), grid.max())),
+                  "blowups": tuple(float(g) for g, x in zip(grid, v) if not x <= 10 * best)}
+    return pd.DataFrame(out).T
 
 
 def _tune_task_shared(*, row, knob, cfg, tuning_seed):
@@ -445,9 +475,13 @@ class AblationResult:
         t["seeds"] = c.groupby(level="method").size().loc[order]
         return t
 
-    def ratio(self, num: str, den: str, metric: str, case: str = "matched", prob: float = 0.95) -> dict:
-        """:func:`ratio_ci` of ``num / den`` on ``metric`` over the case's seeds (paired)."""
+    def ratio(self, num: str, den: str, metric: str, case: str = "matched", prob: float = 0.95,
+              seeds=None) -> dict:
+        """:func:`ratio_ci` of ``num / den`` on ``metric`` over the case's seeds (paired; only
+        ``seeds`` if given)."""
         c = self.case(case)[metric].unstack("method")
+        if seeds is not None:
+            c = c.loc[c.index.intersection(pd.Index(seeds))]
         return ratio_ci(c[num].to_numpy(), c[den].to_numpy(), prob=prob)
 
 
@@ -507,7 +541,7 @@ def run_ablation(cfg: AblationConfig, *, base_seed: int = 0, fast: bool = False,
     ``workers``); results do not depend on how it runs.
     """
     tuning = tune(cfg, tuning_seed=base_seed + 1000, scheduler=scheduler, workers=workers)
-    knobs = {r: float(tuning.loc[r].idxmin()) for r in tuning.index}
+    knobs = {r: float(k) for r, k in choose_knobs(tuning)["knob"].items()}
     mis_rows = ("LS",) + tuple(r for r in ROWS if r.endswith("+ gate"))
     tasks = []
     for case in cfg.cases:
@@ -528,6 +562,16 @@ def run_ablation(cfg: AblationConfig, *, base_seed: int = 0, fast: bool = False,
             for k in c:
                 c[k] += sc[k]
     return AblationResult(cfg, fast, tuning, knobs, pd.DataFrame(recs), counts)
+
+
+def eq4_path(cfg: AblationConfig) -> np.ndarray:
+    """Tag positions ``(P, 3)`` of the ablation's runs (m): its dynamic path every 0.1 s and the
+    static point, at the tag height — where :func:`eq4_thresholds` is evaluated."""
+    motion = robot.broken_line(robot.PAPER_WAYPOINTS_M[: cfg.legs + 1])
+    path = motion.state(np.arange(0.0, motion.duration_s, 0.1))[0]
+    h = cfg.model.tag_height_m
+    path = np.column_stack([path[:, :2], np.full(len(path), h)])
+    return np.vstack([path, [*robot.PAPER_STATIC_M, h]])
 
 
 def eq4_thresholds(model: robot.RobotConfig, pos_m: np.ndarray, c_m: float) -> pd.DataFrame:

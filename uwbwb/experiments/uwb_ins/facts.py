@@ -9,7 +9,16 @@ Rules
 * Tight coupling's outage advantage over a method **survives** a mismatch case when the ratio
   (that method's max outage error / tight's) has its interval above 1 in that case, is **not
   significant** when the interval includes 1 and **reversed** when it lies below 1; its
-  *share kept* is ``log(ratio_case) / log(ratio_matched)`` (1: all of it, 0: none, < 0: reversed).
+  *share kept* is ``log(ratio_case) / log(ratio_matched)`` (1: all of it, 0: none, < 0: reversed),
+  both ratios over the same seeds (the case's).
+* A row **diverged** in a mismatch case when its dynamic RMSE or its max error in the recovery
+  after the outage (mean over the case's seeds) exceeds :data:`DIVERGED_FACTOR` × its matched
+  value on the same seeds: a failure, not a degradation, and named as such.
+* A tuning-grid entry **blew up** when its RMSE exceeds 10× the row's lowest on the grid
+  (:func:`~.ablation.choose_knobs`): the filter fails at that knob.
+* Eq. 4 **can fire** in the matched world when the smallest excess that trips it anywhere on the
+  ablation's path (:func:`~.ablation.eq4_thresholds`) lies below the largest excess the matched
+  simulator draws.
 """
 
 from __future__ import annotations
@@ -18,10 +27,13 @@ import math
 
 import numpy as np
 
-from .ablation import LADDER, AblationResult
+from .ablation import LADDER, AblationResult, choose_knobs, eq4_path, eq4_thresholds
 
-__all__ = ["verdict", "facts", "ingredient_sentence", "outage_sentence", "survival_sentence", "eq4_sentence",
-           "summary_markdown"]
+__all__ = ["DIVERGED_FACTOR", "verdict", "facts", "ingredient_sentence", "outage_sentence", "survival_sentence",
+           "diverged_sentence", "tuning_sentence", "eq4_sentence", "summary_markdown"]
+
+#: A mismatch row whose dynamic RMSE or recovery max exceeds this many times its matched value diverged.
+DIVERGED_FACTOR = 10.0
 
 _METRIC_WORDS = {"static_rmse": "static RMSE", "dyn_rmse": "dynamic RMSE", "outage_max": "max error in the outage"}
 
@@ -37,9 +49,25 @@ def verdict(lo: float, hi: float) -> str:
     return "not significant"
 
 
-def _ratio(res: AblationResult, a: str, b: str, metric: str, case: str = "matched") -> dict:
-    r = res.ratio(a, b, metric, case)
+def _ratio(res: AblationResult, a: str, b: str, metric: str, case: str = "matched", seeds=None) -> dict:
+    r = res.ratio(a, b, metric, case, seeds=seeds)
     return {**r, "verdict": verdict(r["lo"], r["hi"])}
+
+
+def _diverged(res: AblationResult, case: str) -> list[dict]:
+    """Rows of ``case`` whose dyn RMSE or recovery max exceeds DIVERGED_FACTOR × matched (same seeds)."""
+    c, m = res.case(case), res.case("matched")
+    out = []
+    for row in c.index.get_level_values("method").unique():
+        if row not in m.index.get_level_values("method"):
+            continue
+        cs = c.xs(row, level="method")
+        ms = m.xs(row, level="method").reindex(cs.index)
+        for metric in ("dyn_rmse", "recovery_max"):
+            v, v0 = float(cs[metric].mean()), float(ms[metric].mean())
+            if np.isfinite(v) and np.isfinite(v0) and v > DIVERGED_FACTOR * v0:
+                out.append({"row": str(row), "metric": metric, "value": v, "matched": v0})
+    return out
 
 
 def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
@@ -49,13 +77,25 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
     (step → metric → ratio/lo/hi/n/verdict), ``outage`` (versus "loose + gate" and "EKF + gate":
     the matched ratio of max outage errors and its verdict), ``survival`` (case → versus →
     ratio/lo/hi/verdict/share), ``winners`` (case → metric → best gated row) and ``eq4``
-    (counts per case).
+    (counts per case, and ``eq4_geometry``: the smallest excess that fires eq. 4 on the path, its
+    pair and side, and the matched world's excess range), ``diverged`` (case → list of
+    row/metric/value/matched) and ``tuning`` (row → knob/rmse/edge/blowups; empty without a
+    tuning table).
     """
     cfg = res.config
     f = {"mode": "FAST" if res.fast else "full", "seeds": cfg.seeds,
          "mismatch_seeds": min(cfg.mismatch_seeds, cfg.seeds),
          "outage_s": cfg.outage_s if outage_s is None else outage_s, "ladder": {}, "outage": {},
-         "survival": {}, "winners": {}, "eq4": dict(res.counts)}
+         "survival": {}, "winners": {}, "eq4": dict(res.counts), "diverged": {},
+         "tuning": ({} if res.tuning.empty else
+                    {r: dict(v) for r, v in choose_knobs(res.tuning).to_dict("index").items()}),
+         "grid": tuple(float(g) for g in cfg.grid)}
+    if cfg.outlier_c_m is not None:
+        th = eq4_thresholds(cfg.model, eq4_path(cfg), cfg.outlier_c_m).iloc[:, 1:]
+        pair, side = th.stack().idxmin()
+        f["eq4_geometry"] = {"min_m": float(th.to_numpy().min()), "pair": str(pair),
+                             "side": "reference" if "reference" in side else "station",
+                             "excess_m": tuple(float(x) for x in cfg.model.outlier_excess_m)}
     for what, a, b in LADDER:
         f["ladder"][what] = {m: _ratio(res, a, b, m) for m in _METRIC_WORDS}
     for other in ("loose + gate", "EKF + gate"):
@@ -68,10 +108,12 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
                               for m in ("static_rmse", "dyn_rmse", "outage_max")}
         if case == "matched":
             continue
+        f["diverged"][case] = _diverged(res, case)
         f["survival"][case] = {}
+        seeds = res.case(case).index.get_level_values("seed").unique()
         for other in ("loose + gate", "EKF + gate"):
             r = _ratio(res, other, "tight + gate", "outage_max", case)
-            r0 = f["outage"][other]["ratio"]
+            r0 = _ratio(res, other, "tight + gate", "outage_max", "matched", seeds=seeds)["ratio"]
             r["share"] = (math.log(r["ratio"]) / math.log(r0)
                           if np.isfinite(r["ratio"]) and np.isfinite(r0) and r0 > 1 else np.nan)
             f["survival"][case][other] = r
@@ -147,10 +189,56 @@ def survival_sentence(f: dict, versus: str = "EKF + gate") -> str:
     return text
 
 
+_WHAT = {"dyn_rmse": "dynamic RMSE", "recovery_max": "max error in the recovery after the outage"}
+
+
+def diverged_sentence(f: dict) -> str:
+    """Names every mismatch row that diverged (:data:`DIVERGED_FACTOR` × its matched value)."""
+    parts = [f"{d['row']} with {case} ({_WHAT[d['metric']]} {d['value']:.3g} m against {d['matched']:.3g} m "
+             f"matched)" for case, ds in f["diverged"].items() for d in ds]
+    k = f"{DIVERGED_FACTOR:g}×"
+    if not parts:
+        return (f"No gated row diverged under mismatch (none has a dynamic RMSE or recovery max above {k} its "
+                f"matched value).")
+    return (f"**Diverged** (dynamic RMSE or recovery max above {k} the matched value, same seeds): "
+            + "; ".join(parts) + ". These are filter failures, not degradations; ratios and shares involving "
+                                 "them measure the failure.")
+
+
+def tuning_sentence(f: dict) -> str:
+    """The chosen knobs, those on the grid's edge, and grid entries where a filter blew up."""
+    t = f["tuning"]
+    if not t:
+        return "No tuning table."
+    grid = f["grid"]
+    text = (f"Knobs from a {len(grid)}-point grid {grid[0]:g}–{grid[-1]:g}"
+            + (" (FAST: fewer points than the full run's 9)" if f["mode"] == "FAST" else "") + ": "
+            + ", ".join(f"{r} {v['knob']:g}" + (" (grid edge)" if v["edge"] else "") for r, v in t.items()) + ".")
+    edge = [r for r, v in t.items() if v["edge"]]
+    if edge:
+        text += f" On the grid's edge (the optimum may lie outside it): {', '.join(edge)}."
+    blow = [(r, v["blowups"]) for r, v in t.items() if len(v["blowups"])]
+    if blow:
+        text += (" **Blew up** (tuning RMSE above 10× the row's lowest — the filter fails there, not a trade-off): "
+                 + "; ".join(f"{r} at {', '.join(f'{g:g}' for g in b)}" for r, b in blow) + ".")
+    else:
+        text += " No grid entry exceeds 10× its row's lowest RMSE."
+    return text
+
+
 def eq4_sentence(f: dict, *, wide_case: str = "multipath up to 12 m") -> str:
-    """How often eq. 4 fired on injected multipath, in the matched world and where excesses reach 12 m."""
+    """Where eq. 4 can fire on the ablation's path, and how often it fired on injected multipath,
+    in the matched world and where excesses reach 12 m."""
     m = f["eq4"].get("matched", {})
-    text = (f"Eq. 4 removed {m.get('eq4_on_injected', 0)} of {m.get('injected', 0)} TDoAs carrying injected "
+    text = ""
+    g = f.get("eq4_geometry")
+    if g:
+        lo, hi = g["excess_m"]
+        text = (f"On the ablation's path eq. 4 fires for excesses above {g['min_m']:.2f} m at the least (pair "
+                f"{g['pair']}, excess on the {g['side']}); the matched world draws {lo:g}–{hi:g} m, so ")
+        text += ("eq. 4 can fire on the largest of them. " if g["min_m"] < hi else
+                 "eq. 4 cannot fire there. ")
+    text += (f"Eq. 4 removed {m.get('eq4_on_injected', 0)} of {m.get('injected', 0)} TDoAs carrying injected "
             f"multipath in the matched runs ({m.get('eq4', 0)} TDoAs in all)")
     w = f["eq4"].get(wide_case)
     if w:
@@ -167,5 +255,5 @@ def summary_markdown(f: dict) -> str:
         lines.append("- " + ingredient_sentence(step, r["dyn_rmse"], "dyn_rmse"))
     lines += ["", "**Headline.** " + outage_sentence(f), "",
               survival_sentence(f, "EKF + gate") + " " + survival_sentence(f, "loose + gate"), "",
-              eq4_sentence(f)]
+              diverged_sentence(f), "", tuning_sentence(f), "", eq4_sentence(f)]
     return "\n".join(lines)

@@ -13,11 +13,13 @@ import numpy as np
 
 from .ablation import LADDER, ROWS, AblationResult
 
-__all__ = ["ERROR_RANGE_ASSUMPTION", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
+__all__ = ["ERROR_RANGE_ASSUMPTION", "RECOVERY_MAX_M", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
 
 #: What the synthetic error ranges follow from (named in their summary rows).
 ERROR_RANGE_ASSUMPTION = "follows from assumed noise: 3 cm arrival-time σ, 2 % multipath, consumer IMU"
 _GATED = ("EKF + gate", "loose + gate", "tight + gate")
+#: Largest max error (m) a gated filter may have in the recovery after the outage, matched world.
+RECOVERY_MAX_M = 0.5
 
 
 def ablation_rows(res: AblationResult) -> list[dict]:
@@ -42,6 +44,13 @@ def ablation_rows(res: AblationResult) -> list[dict]:
                 out.append(dict(quantity=f"ablation ratio {a} / {b}, {label} ({what}; geometric mean of {r['n']} "
                                          f"seeds)", value=r["ratio"], unit="", data="synthetic", kind="reproduced"))
     for case in cfg.cases[1:]:
+        t = res.table(case)
+        for r in t.index:
+            for m, what in (("dyn_rmse", "dynamic RMSE"), ("recovery_max", "max error in the recovery")):
+                v = t.loc[r, m]
+                if np.isfinite(v):
+                    out.append(dict(quantity=f"mismatch '{case}': {what}, {r} (mean of {int(t.loc[r, 'seeds'])} "
+                                             f"seeds)", value=v, unit="m", data="synthetic", kind="reproduced"))
         for other in ("EKF + gate", "loose + gate"):
             r = res.ratio(other, "tight + gate", "outage_max", case)
             if np.isfinite(r["ratio"]):
@@ -66,6 +75,9 @@ def checks(res: AblationResult) -> list[str]:
     4. The mismatch is applied: coasting through the outage with a 10× worse IMU, the loose
        filter's max error grows (geometric mean of the paired seeds' ratios > 1).
     5. The LS residual test lowers LS's static and dynamic RMSE by ≥ 1.5× (mean over seeds).
+    6. Re-acquisition: in the matched world every gated filter's max error in the recovery after
+       the outage is below :data:`RECOVERY_MAX_M` on every seed (a filter that diverges after the
+       outage fails it however good its mean is).
     """
     fails = []
     t = res.table("matched")
@@ -100,6 +112,14 @@ def checks(res: AblationResult) -> list[str]:
         if not r > 1:
             fails.append(f"mismatch: a 10× worse IMU does not worsen the loose filter's coasting through the outage "
                          f"(paired ratio {r:.2f})")
+    rec = res.case("matched")["recovery_max"].unstack("method")
+    for r in _GATED:
+        if r in rec.columns:
+            bad = rec[r][~(rec[r] < RECOVERY_MAX_M)]
+            if len(bad):
+                fails.append(f"recovery: {r} has a max error of " + ", ".join(f"{v:.3g} m (seed {k})"
+                                                                           for k, v in bad.items())
+                             + f" after the outage in the matched world (must stay below {RECOVERY_MAX_M:g} m)")
     for m in ("static_rmse", "dyn_rmse"):
         if not t.loc["LS", m] >= 1.5 * t.loc["LS + gate", m]:
             fails.append(f"LS residual test: {m} {t.loc['LS', m]:.3f} → {t.loc['LS + gate', m]:.3f} m, less than 1.5×")
