@@ -10,8 +10,8 @@ import pytest
 from uwbwb.scoreboard import calibrate, score
 from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, ExternalEstimates
-from uwbwb.scoreboard.verdicts import (difference_facts, difference_sentence, placement_facts,
-                                       placement_sentence)
+from uwbwb.scoreboard.verdicts import (BLOCK_LAG_FACTOR, MIN_BLOCKS, block_length, difference_facts,
+                                       difference_sentence, placement_facts, placement_sentence)
 from uwbwb.types import Trajectory
 
 
@@ -56,3 +56,56 @@ def test_difference_facts_on_a_board_follow_the_errors(offset_m, verdict):
     assert f["n_epochs"] == len(b.entry("LS", "tag").estimates)
     assert f["verdict"] == verdict and f["lo_m"] <= f["diff_m"] <= f["hi_m"]
     assert f["diff_m"] == pytest.approx(f["rmse_a_m"] - f["rmse_b_m"])
+
+
+def test_placement_without_a_standard_error_gives_no_verdict():
+    """Fewer than MIN_BLOCKS blocks leave the standard error NaN: no above/on/below."""
+    s = placement_sentence(placement_facts(SimpleNamespace(method="M", rmse_over_common=3.0,
+                                                           rmse_over_common_se=float("nan"))))
+    assert "no verdict" in s and "above" not in s
+
+
+def test_block_length_follows_the_autocorrelation():
+    rng = np.random.default_rng(1)
+    white = rng.normal(size=2000)
+    ar = np.zeros(2000)
+    for k in range(1, ar.size):
+        ar[k] = 0.95 * ar[k - 1] + rng.normal()
+    assert block_length(white) == BLOCK_LAG_FACTOR
+    # AR(1) with φ = 0.95: ACF φ^k < 0.05 from k ≈ 59
+    assert 30 * BLOCK_LAG_FACTOR < block_length(ar) < 120 * BLOCK_LAG_FACTOR
+
+
+def _fake_board(err_a, err_b):
+    n = err_a.size
+    ent = {m: SimpleNamespace(skipped=None, scored=np.ones(n, bool), error_m=e) for m, e in (("A", err_a), ("B", err_b))}
+    return SimpleNamespace(tags=("t",), mode="FAST", entry=lambda m, tag: ent[m])
+
+
+@pytest.mark.parametrize("n, verdict", [(2 * (MIN_BLOCKS - 1), "none"), (400, "a")])
+def test_difference_verdict_needs_min_blocks(n, verdict):
+    """The same clear difference (A 3 cm, B 10 cm, white errors: blocks of 2) has no verdict with fewer
+    than MIN_BLOCKS blocks and a verdict with enough."""
+    rng = np.random.default_rng(2)
+    a, b = np.abs(rng.normal(0.03, 0.005, n)), np.abs(rng.normal(0.10, 0.005, n))
+    f = difference_facts(_fake_board(a, b), "A", "B", rng=np.random.default_rng(0))
+    assert f["verdict"] == verdict
+    assert (f["n_blocks"] >= MIN_BLOCKS) == (verdict != "none")
+    assert ("no verdict" in difference_sentence(f)) == (verdict == "none")
+
+
+def test_external_rows_are_inputs_in_the_summary(tmp_path):
+    """An outside method's numbers are not reproduced here: kind ``input``, data marked external."""
+    from uwbwb.metrics import Summary
+
+    b = _board(0.005)
+    assert b.external == ("shifted truth (external)",)
+    s = Summary("06_scoreboard", fast=True)
+    b.to_summary(s)
+    df = s.frame()
+    ext = df[df["quantity"].str.contains("(external)", regex=False)]
+    own = df[~df["quantity"].str.contains("(external)", regex=False)]
+    assert len(ext) and set(ext["kind"]) == {"input"} and ext["data"].str.endswith("(external estimates)").all()
+    assert len(own) and set(own["kind"]) == {"reproduced"} and not own["data"].str.contains("external").any()
+    csv = b.write(tmp_path, figure=False)["csv"].read_text()
+    assert "shifted truth (external)" in csv and ",input" in csv and ",reproduced" in csv

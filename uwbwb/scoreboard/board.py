@@ -15,7 +15,10 @@
     model that best fits the calibration truth, with every range at the calibrated noise; the
     same for every method) aggregated as ``sqrt(mean_k tr C_k)`` over the method's covered
     epochs, and the method's RMSE over those epochs divided by it, with a block standard error.
-    This is the column to compare methods by (besides the RMSE itself).
+    Each method's own covered epochs: a method that skips the hard epochs is placed on easier ones.
+``common_bound_common_m``, ``rmse_common_over_common``
+    The same on the epochs *every* method covered: one bound and one set of epochs for all, so this
+    is the column to rank methods by (it orders them as ``rmse_common_m`` does); the coverage beside it.
 ``bound_m``, ``bound_kind``
     The method's *own* Cramér–Rao bound (its own noise and motion model, its own tuning)
     aggregated the same way over the covered epochs where it exists (``n_bound`` of them);
@@ -34,6 +37,9 @@
 ``us_per_epoch``, ``time_ratio``
     Compute time per epoch (this machine, this run) and its ratio to ``raw LS``'s in the
     same run.
+``grid_edge``
+    Whether the method's tuning pick on the calibration part lies on the edge of its grid (a wider
+    grid might do better: its tuning effort fell short); None for a method that tunes nothing.
 """
 
 from __future__ import annotations
@@ -56,17 +62,16 @@ from .estimators import Estimator, calibrated_log, default_estimators, truth_at
 from .protocol import Calibration, fit_calibration, scored_tags, split_in_time, thin
 from .reference import REFERENCE, common_bound, fit_reference_motion
 from .reference import describe as describe_reference
+from .verdicts import MIN_BLOCKS, block_se_ratio
 
-__all__ = ["Board", "Entry", "calibrate", "score", "score_recording", "TABLE_COLUMNS", "N_BLOCKS"]
-
-#: Contiguous blocks used for the standard error of a mean squared error (errors are correlated in time).
-N_BLOCKS = 20
+__all__ = ["Board", "Entry", "calibrate", "score", "score_recording", "TABLE_COLUMNS", "MIN_BLOCKS"]
 
 #: Columns of :meth:`Board.table`, in order.
 TABLE_COLUMNS = ("method", "coverage", "n_scored", "rmse_m", "cep50_m", "cep95_m", "rmse_common_m",
-                 "common_bound_m", "rmse_over_common", "rmse_over_common_se", "bound_m", "bound_kind", "n_bound",
+                 "common_bound_m", "rmse_over_common", "rmse_over_common_se", "common_bound_common_m",
+                 "rmse_common_over_common", "bound_m", "bound_kind", "n_bound",
                  "rmse_over_bound", "rmse_over_bound_se", "nees_mean", "nees_dof", "nees_ok", "nis_over_dof",
-                 "nis_verdict", "us_per_epoch", "time_ratio", "note")
+                 "nis_verdict", "us_per_epoch", "time_ratio", "grid_edge", "note")
 
 
 @dataclass(frozen=True)
@@ -141,6 +146,18 @@ class Entry:
         return out
 
 
+def _se(ents: list[Entry], trace: str) -> float:
+    """Block standard error of RMSE / bound over the entries' scored epochs with that bound
+    (:func:`.verdicts.block_se_ratio`: the board's one block rule, blocks cut per tag)."""
+    sq, tr = [], []
+    for e in ents:
+        t = getattr(e, trace)[e.scored]
+        have = np.isfinite(t)
+        sq.append(e.error_m[e.scored][have] ** 2)
+        tr.append(t[have])
+    return block_se_ratio(sq, tr)[0]
+
+
 def _trace(bound, n: int) -> np.ndarray:
     if bound is None:
         return np.full(n, np.nan)
@@ -170,18 +187,6 @@ def calibrate(cal_rec: Recording, estimators: Sequence[Estimator], tags: Sequenc
     return cal
 
 
-def _block_se_ratio(sq_err: np.ndarray, trace: np.ndarray) -> float:
-    """Standard error of ``sqrt(mean sq_err / mean trace)`` from :data:`N_BLOCKS` contiguous blocks."""
-    n = sq_err.size
-    if n < 2 * N_BLOCKS:
-        return float("nan")
-    edges = np.linspace(0, n, N_BLOCKS + 1).astype(int)
-    ratios = np.array([np.mean(sq_err[a:b]) / np.mean(trace[a:b]) for a, b in zip(edges[:-1], edges[1:])])
-    r = np.mean(sq_err) / np.mean(trace)
-    se_r = np.std(ratios, ddof=1) / np.sqrt(N_BLOCKS)
-    return float(se_r / (2 * np.sqrt(r))) if r > 0 else float("nan")
-
-
 @dataclass(frozen=True)
 class Board:
     """The scoreboard of one recording (see the module docstring for the columns).
@@ -206,6 +211,9 @@ class Board:
     checks
         What the input checks found and did (:mod:`.checks`: measured vs predicted ranges, the
         truth clock offset estimate, dropped anchors, a lifted 2-D truth), one line each.
+    external
+        Methods whose estimates were made outside the workbench (:class:`~.estimators.ExternalEstimates`):
+        their numbers are *inputs* scored here, not reproduced.
     """
 
     label: str
@@ -216,6 +224,7 @@ class Board:
     diagnostics: Mapping[str, Mapping] = field(default_factory=dict)
     fast: bool = False
     checks: tuple[str, ...] = ()
+    external: tuple[str, ...] = ()
 
     @property
     def data_label(self) -> str:
@@ -253,7 +262,8 @@ class Board:
 
     def _row(self, method: str, ents: list[Entry], skipped: list[Entry]) -> dict:
         row = {c: np.nan for c in TABLE_COLUMNS}
-        row.update(method=method, note="", bound_kind="", nis_verdict="", nees_ok=None)
+        row.update(method=method, note="", bound_kind="", nis_verdict="", nees_ok=None,
+                   grid_edge=self.calibration.params(method).get("grid_edge"))
         if not ents:
             row["note"] = "not run: " + "; ".join(sorted({e.skipped for e in skipped}))
             row["coverage"] = 0.0
@@ -268,12 +278,16 @@ class Board:
         common = np.concatenate([e.error_m[self._common(e.tag)] for e in ents])
         if common.size:
             row["rmse_common_m"] = metrics.rmse(common)
+            cc = np.concatenate([e.common_trace_m2[self._common(e.tag)] for e in ents])
+            if np.isfinite(cc).all():
+                row["common_bound_common_m"] = float(np.sqrt(np.mean(cc)))
+                row["rmse_common_over_common"] = row["rmse_common_m"] / row["common_bound_common_m"]
         ctr = np.concatenate([e.common_trace_m2[e.scored] for e in ents])
         have = np.isfinite(ctr)
         if have.any():
             row["common_bound_m"] = float(np.sqrt(np.mean(ctr[have])))
             row["rmse_over_common"] = float(np.sqrt(np.mean(err[have] ** 2)) / row["common_bound_m"])
-            row["rmse_over_common_se"] = _block_se_ratio(err[have] ** 2, ctr[have])
+            row["rmse_over_common_se"] = _se(ents, "common_trace_m2")
         tr = np.concatenate([e.bound_trace_m2[e.scored] for e in ents])
         have = np.isfinite(tr)
         row["bound_kind"] = ents[0].bound.kind if ents[0].bound is not None else ""
@@ -281,7 +295,7 @@ class Board:
         if have.any():
             row["bound_m"] = float(np.sqrt(np.mean(tr[have])))
             row["rmse_over_bound"] = float(np.sqrt(np.mean(err[have] ** 2)) / row["bound_m"])
-            row["rmse_over_bound_se"] = _block_se_ratio(err[have] ** 2, tr[have])
+            row["rmse_over_bound_se"] = _se(ents, "bound_trace_m2")
         nees = np.concatenate([e.nees[e.scored] for e in ents])
         nees = nees[np.isfinite(nees)]
         if nees.size:
@@ -368,8 +382,10 @@ class Board:
                  f"methods run here)", "",
                  f"Calibration and tuning on {self.calibration.source}; scored on {self.part}, "
                  f"tags {', '.join(self.tags)}; {self.calibration.dim}-D, {self.calibration.rate_hz:.3g} Hz. "
-                 "Errors are horizontal. *Common bound*: one bound for every method (below); RMSE / common "
-                 "bound is the figure to compare methods by. *Own bound*: each method's Cramér–Rao bound under its "
+                 "Errors are horizontal. *Common bound*: one bound for every method (below). RMSE / common "
+                 "bound on the common epochs (those every method covered) is the figure to rank methods by: one "
+                 "bound on one set of epochs; RMSE / common bound on a method's own epochs places it with its "
+                 "coverage (a method that skips hard epochs is placed on easier ones). *Own bound*: each method's Cramér–Rao bound under its "
                  "own noise and motion model (its kind in the next column); RMSE / own bound checks the method "
                  "against its own model and is not comparable across methods (the textbook efficiency is its "
                  "inverse). Both are bounds only under their stated Gaussian noise and motion models.", ""]
@@ -379,8 +395,8 @@ class Board:
         if self.fast:
             lines += ["FAST mode: CI-sized tuning grids and particle counts — smoke-test numbers.", ""]
         head = ["method", "coverage", "RMSE (m)", "CEP50 (m)", "CEP95 (m)", "RMSE common epochs (m)",
-                "common bound (m)", "RMSE / common bound", "own bound (m)", "own bound kind", "RMSE / own bound",
-                "NEES / dof", "NIS / dof", "µs/epoch", "time × raw LS", "note"]
+                "common bound (m)", "RMSE / common bound", "RMSE / common bound, common epochs", "own bound (m)", "own bound kind", "RMSE / own bound",
+                "NEES / dof", "NIS / dof", "µs/epoch", "time × raw LS", "tuning pick", "note"]
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
 
         def f(x, fmt=".3f"):
@@ -394,9 +410,11 @@ class Board:
             nees = f"{r.nees_mean:.2f} / {r.nees_dof:.0f}" if np.isfinite(r.nees_mean) else "—"
             nis = f"{r.nis_over_dof:.2f} ({r.nis_verdict})" if np.isfinite(r.nis_over_dof) else "—"
             lines.append("| " + " | ".join([r.method, f(r.coverage, ".1%"), f(r.rmse_m), f(r.cep50_m), f(r.cep95_m),
-                                              f(r.rmse_common_m), f(r.common_bound_m), com, f(r.bound_m),
+                                              f(r.rmse_common_m), f(r.common_bound_m), com,
+                                              f(r.rmse_common_over_common, ".2f"), f(r.bound_m),
                                               r.bound_kind or "—", eff, nees, nis,
-                                              f(r.us_per_epoch, ".0f"), f(r.time_ratio, ".1f"), r.note or ""]) + " |")
+                                              f(r.us_per_epoch, ".0f"), f(r.time_ratio, ".1f"),
+                                              _pick(r.grid_edge), r.note or ""]) + " |")
         lines += ["", "```", self.calibration.describe(), *self.checks, "```", ""]
         return "\n".join(lines)
 
@@ -408,7 +426,7 @@ class Board:
         df = self.table()
         df.insert(0, "data", self.label)
         df["mode"] = self.mode
-        df["kind"] = "reproduced"
+        df["kind"] = ["input" if m in self.external else "reproduced" for m in df["method"]]
         df.to_csv(paths["csv"], index=False, lineterminator="\n")
         paths["md"].write_text(self.markdown(), encoding="utf-8")
         if figure:
@@ -426,7 +444,9 @@ class Board:
         """Record each method's RMSE, bounds and their ratios into a :class:`uwbwb.metrics.Summary`.
 
         ``efficiency RMSE/bound`` is RMSE / the method's own bound (quantity name kept for existing
-        summaries; the textbook efficiency is its inverse)."""
+        summaries; the textbook efficiency is its inverse). Rows of a method run here are
+        *reproduced*; rows of an external method (:attr:`external`) are *input* (estimates made
+        elsewhere), with the data label marked ``(external estimates)``."""
         df = self.table().set_index("method")
         for m in (methods or self.methods):
             r = df.loc[m]
@@ -437,12 +457,23 @@ class Board:
                             (f"common bound, {m}", r.common_bound_m, "m"),
                             (f"RMSE/common bound, {m}", r.rmse_over_common, ""), (f"coverage, {m}", r.coverage, "")):
                 if np.isfinite(v):
-                    _add(summary, quantity=q, value=float(v), unit=u, data=self.data_label)
+                    _add(summary, quantity=q, value=float(v), unit=u, data=self.data_label,
+                         external=m in self.external, label=self.label)
 
 
-def _add(summary, **row) -> None:
-    """A board's numbers are *reproduced*: they come out of the methods run here."""
-    summary.add(kind="reproduced", **row)
+def _pick(edge) -> str:
+    if edge is None or (isinstance(edge, float) and not np.isfinite(edge)):
+        return "—"
+    return "on the grid's edge" if edge else "inside the grid"
+
+
+def _add(summary, *, external: bool, label: str, **row) -> None:
+    """A board's numbers are *reproduced* (they come out of the methods run here), except those of an
+    external method: *input*, with ``data`` marked ``(external estimates)``."""
+    if external:
+        summary.add(kind="input", **{**row, "data": f"{label} (external estimates)"})
+    else:
+        summary.add(kind="reproduced", **row)
 
 
 def _diagnostics(rec: Recording, tag: str, cal: Calibration) -> dict:
@@ -571,8 +602,9 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
             truth = truth_at(rec, tag, out.t_s, out.dim)
             entries.append(Entry(est.name, tag, out, b, truth, seconds, common=commons[tag]))
     diag = {t: _diagnostics(rec, t, calibration) for t in tags}
+    external = tuple(e.name for e in estimators if getattr(e, "external", False))
     return Board(label or test_rec.label, test_rec.label, calibration, tuple(entries), tuple(names), diag, fast,
-                 tuple(notes))
+                 tuple(notes), external)
 
 
 def score_recording(rec: Recording, *, fraction: float = 0.5, **kw) -> Board:

@@ -4,32 +4,89 @@ Two kinds of statement, each a ``facts`` function returning the numbers and the 
 ``sentence`` template over them (tests feed values on both sides of each threshold):
 
 * :func:`difference_facts` / :func:`difference_sentence` — method A against method B: the
-  difference of their RMSEs on the epochs *both* covered, with a 95 % moving-block bootstrap
-  interval (blocks of ``ceil(sqrt(n))`` consecutive epochs per tag, so that the correlation of a
-  tracking filter's errors is kept). The verdict is "A more accurate" / "B more accurate" when the
-  interval excludes 0, else "no significant difference".
+  difference of their RMSEs on the epochs *both* covered, with a 95 % block-bootstrap interval
+  (blocks from :func:`block_ids`, so that the correlation of a tracking filter's errors is kept).
+  The verdict is "A more accurate" / "B more accurate" when the interval excludes 0, else "no
+  significant difference"; with fewer than :data:`MIN_BLOCKS` blocks no interval and no verdict.
 * :func:`placement_facts` / :func:`placement_sentence` — a method against the recording's common
   bound (:mod:`.reference`): RMSE / common bound with its block standard error; "above the
   bound" when ``ratio − 2 se > 1``, "below the bound" when ``ratio + 2 se < 1`` (with what that
-  means), else "on the bound".
+  means), else "on the bound"; no placement when the standard error could not be formed (fewer
+  than :data:`MIN_BLOCKS` blocks).
+
+One block rule serves both (and :meth:`uwbwb.scoreboard.Board.table`'s standard errors): a block is
+:data:`BLOCK_LAG_FACTOR` × the first lag (epochs) at which the autocorrelation of the series
+(the paired difference ``e_a² − e_b²``, or the squared error for a placement) falls below
+:data:`ACF_LEVEL` — an assumption: beyond it, epochs count as independent — cut per tag.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["N_BOOT", "difference_facts", "difference_sentence", "placement_facts", "placement_sentence"]
+__all__ = ["ACF_LEVEL", "BLOCK_LAG_FACTOR", "MIN_BLOCKS", "N_BOOT", "block_ids", "block_length", "block_se_ratio",
+           "difference_facts", "difference_sentence", "placement_facts", "placement_sentence"]
 
 #: Bootstrap resamples of a difference.
 N_BOOT = 2000
 
 
-def _block_resample(n: int, rng: np.random.Generator, n_boot: int) -> np.ndarray:
-    """Indices ``(n_boot, n)`` of moving-block resamples of ``n`` consecutive epochs."""
-    L = max(1, int(np.ceil(np.sqrt(n))))
-    k = int(np.ceil(n / L))
-    starts = rng.integers(0, n - L + 1, size=(n_boot, k))
-    return (starts[:, :, None] + np.arange(L)).reshape(n_boot, -1)[:, :n]
+#: A block is BLOCK_LAG_FACTOR × the first lag at which the autocorrelation falls below ACF_LEVEL
+#: (an assumption: beyond it, epochs count as independent).
+ACF_LEVEL = 0.05
+BLOCK_LAG_FACTOR = 2
+#: Fewest blocks for an interval, a standard error or a verdict.
+MIN_BLOCKS = 10
+
+
+def block_length(x: np.ndarray, *, acf_level: float = ACF_LEVEL) -> int:
+    """Block length in epochs: :data:`BLOCK_LAG_FACTOR` × the first lag at which the autocorrelation of
+    ``x`` (``(n,)``, consecutive epochs) falls below ``acf_level``; at least :data:`BLOCK_LAG_FACTOR`."""
+    d = np.asarray(x, float)
+    d = d - d.mean() if d.size else d
+    var = float(np.dot(d, d))
+    if d.size < 3 or var <= 0:
+        return BLOCK_LAG_FACTOR
+    f = np.fft.rfft(d, 2 * d.size)
+    acf = np.fft.irfft(f * np.conj(f))[: d.size] / var
+    below = np.flatnonzero(acf < acf_level)
+    lag = int(below[0]) if below.size else d.size
+    return BLOCK_LAG_FACTOR * max(lag, 1)
+
+
+def block_ids(series: list[np.ndarray]) -> tuple[np.ndarray, int]:
+    """Block of every epoch of the concatenated ``series`` (one array per tag, consecutive epochs).
+
+    Each series is cut into contiguous blocks of :func:`block_length` epochs (its own rule; a
+    trailing piece shorter than a block joins the block before it). Returns the block index per
+    epoch ``(sum n,)`` and the number of blocks."""
+    ids, nb = [], 0
+    for x in series:
+        n = len(x)
+        if n == 0:
+            continue
+        L = block_length(x)
+        k = max(1, n // L)
+        ids.append(nb + np.minimum(np.arange(n) // L, k - 1))
+        nb += k
+    return (np.concatenate(ids) if ids else np.zeros(0, int)), nb
+
+
+def block_se_ratio(sq_err: list[np.ndarray], trace: list[np.ndarray]) -> tuple[float, int]:
+    """Standard error of ``sqrt(mean sq_err / mean trace)`` (per tag ``(n,)`` arrays) from the blocks of
+    :func:`block_ids` over the squared errors; NaN with fewer than :data:`MIN_BLOCKS` blocks.
+
+    Returns ``(se, n_blocks)``."""
+    ids, nb = block_ids(sq_err)
+    if nb < MIN_BLOCKS:
+        return float("nan"), nb
+    e, t = np.concatenate(sq_err), np.concatenate(trace)
+    se_b, tr_b = np.bincount(ids, e, nb), np.bincount(ids, t, nb)
+    r2 = e.sum() / t.sum()
+    # linearised ratio of sums: var(r²) from the block residuals, then d sqrt(r²) = d r² / (2 r)
+    resid = (se_b - r2 * tr_b) / t.sum()
+    var_r2 = nb / (nb - 1) * np.sum(resid ** 2)
+    return (float(np.sqrt(var_r2) / (2 * np.sqrt(r2))) if r2 > 0 else float("nan")), nb
 
 
 def difference_facts(board, a: str, b: str, *, n_boot: int = N_BOOT, rng: np.random.Generator) -> dict:
@@ -38,8 +95,9 @@ def difference_facts(board, a: str, b: str, *, n_boot: int = N_BOOT, rng: np.ran
     Returns
     -------
     dict
-        ``a, b, n_epochs, rmse_a_m, rmse_b_m, diff_m, lo_m, hi_m, verdict`` (``"a"``, ``"b"`` or
-        ``"none"``: which is more accurate, by the rule that the interval excludes 0), ``mode``.
+        ``a, b, n_epochs, n_blocks, rmse_a_m, rmse_b_m, diff_m, lo_m, hi_m, verdict`` (``"a"``,
+        ``"b"`` or ``"none"``: which is more accurate, by the rule that the interval excludes 0; no
+        interval and ``"none"`` with fewer than :data:`MIN_BLOCKS` blocks), ``mode``.
     """
     sa, sb, boot_a, boot_b = [], [], [], []
     for tag in board.tags:
@@ -51,29 +109,34 @@ def difference_facts(board, a: str, b: str, *, n_boot: int = N_BOOT, rng: np.ran
             continue
         sa.append(ea.error_m[both] ** 2)
         sb.append(eb.error_m[both] ** 2)
-    out = {"a": a, "b": b, "mode": board.mode, "n_epochs": int(sum(x.size for x in sa))}
+    out = {"a": a, "b": b, "mode": board.mode, "n_epochs": int(sum(x.size for x in sa)), "n_blocks": 0}
     if out["n_epochs"] < 2:
         return {**out, "rmse_a_m": np.nan, "rmse_b_m": np.nan, "diff_m": np.nan, "lo_m": np.nan, "hi_m": np.nan,
                 "verdict": "none"}
-    # resample each tag's epochs by blocks, pool the tags
-    tot_a = np.zeros(n_boot)
-    tot_b = np.zeros(n_boot)
-    for xa, xb in zip(sa, sb):
-        idx = _block_resample(xa.size, rng, n_boot)
-        tot_a += xa[idx].sum(axis=1)
-        tot_b += xb[idx].sum(axis=1)
-    n = out["n_epochs"]
-    d = np.sqrt(tot_a / n) - np.sqrt(tot_b / n)
-    rmse_a, rmse_b = float(np.sqrt(np.concatenate(sa).mean())), float(np.sqrt(np.concatenate(sb).mean()))
+    xa, xb = np.concatenate(sa), np.concatenate(sb)
+    rmse_a, rmse_b = float(np.sqrt(xa.mean())), float(np.sqrt(xb.mean()))
+    out.update(rmse_a_m=rmse_a, rmse_b_m=rmse_b, diff_m=rmse_a - rmse_b)
+    ids, nb = block_ids([p - q for p, q in zip(sa, sb)])
+    out["n_blocks"] = nb
+    if nb < MIN_BLOCKS:
+        return {**out, "lo_m": np.nan, "hi_m": np.nan, "verdict": "none"}
+    # resample the blocks of every tag (pooled) with replacement
+    ba, bb, bn = np.bincount(ids, xa, nb), np.bincount(ids, xb, nb), np.bincount(ids, minlength=nb)
+    pick = rng.integers(0, nb, (n_boot, nb))
+    n = bn[pick].sum(axis=1)
+    d = np.sqrt(ba[pick].sum(axis=1) / n) - np.sqrt(bb[pick].sum(axis=1) / n)
     lo, hi = (float(v) for v in np.percentile(d, [2.5, 97.5]))
-    return {**out, "rmse_a_m": rmse_a, "rmse_b_m": rmse_b, "diff_m": rmse_a - rmse_b, "lo_m": lo, "hi_m": hi,
-            "verdict": "a" if hi < 0 else ("b" if lo > 0 else "none")}
+    return {**out, "lo_m": lo, "hi_m": hi, "verdict": "a" if hi < 0 else ("b" if lo > 0 else "none")}
 
 
 def difference_sentence(f: dict) -> str:
     """One sentence from :func:`difference_facts`."""
     if f["n_epochs"] < 2:
         return f"{f['a']} vs {f['b']}: no epochs that both covered ({f['mode']})."
+    if f.get("n_blocks", MIN_BLOCKS) < MIN_BLOCKS:
+        return (f"{f['a']} − {f['b']}: RMSE {f['rmse_a_m']:.3f} vs {f['rmse_b_m']:.3f} m on the {f['n_epochs']} "
+                f"epochs both covered, only {f['n_blocks']} independent blocks (fewer than {MIN_BLOCKS}): "
+                f"no interval and no verdict ({f['mode']}).")
     head = (f"{f['a']} − {f['b']}: RMSE {f['rmse_a_m']:.3f} vs {f['rmse_b_m']:.3f} m on the {f['n_epochs']} epochs "
             f"both covered, difference {1000 * f['diff_m']:+.1f} mm, 95 % block-bootstrap interval "
             f"[{1000 * f['lo_m']:+.1f}, {1000 * f['hi_m']:+.1f}] mm ({f['mode']})")
@@ -89,9 +152,10 @@ def placement_facts(row) -> dict:
     r, se = float(row.rmse_over_common), float(row.rmse_over_common_se)
     if not np.isfinite(r):
         where = "none"
+    elif not np.isfinite(se):
+        where = "few blocks"                     # fewer than MIN_BLOCKS blocks: no standard error, no verdict
     else:
-        s = se if np.isfinite(se) else 0.0
-        where = "above" if r - 2 * s > 1 else ("below" if r + 2 * s < 1 else "on")
+        where = "above" if r - 2 * se > 1 else ("below" if r + 2 * se < 1 else "on")
     return {"method": row.method, "ratio": r, "se": se, "where": where}
 
 
@@ -99,8 +163,10 @@ def placement_sentence(f: dict) -> str:
     """One sentence from :func:`placement_facts`."""
     if f["where"] == "none":
         return f"{f['method']}: no common bound on its epochs."
-    se = f" ± {f['se']:.2f}" if np.isfinite(f["se"]) else ""
-    head = f"{f['method']}: RMSE / common bound {f['ratio']:.2f}{se}"
+    if f["where"] == "few blocks":
+        return (f"{f['method']}: RMSE / common bound {f['ratio']:.2f}, from fewer than {MIN_BLOCKS} independent "
+                "blocks: no standard error and no verdict.")
+    head = f"{f['method']}: RMSE / common bound {f['ratio']:.2f} ± {f['se']:.2f}"
     if f["where"] == "above":
         return head + (" — above the common bound by more than 2 standard errors: room to improve under the bound's "
                        "model, or errors that its unbiased Gaussian range noise leaves out (biases, multipath).")
