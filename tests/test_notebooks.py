@@ -157,17 +157,27 @@ def test_motion_models_runs_unchanged_on_other_recordings(tmp_path):
 
 @pytest.mark.notebook
 def test_scoreboard_runs_unchanged_on_another_lias_recording(tmp_path):
-    """Notebook 06 on a generated LIAS tree (run 'medium', biased ranges): the board and its checks
-    hold for any recording of the format."""
+    """Notebook 06 on generated trees: a LIAS run 'medium' (biased ranges) and a Hanyang dynamic tree
+    whose case names differ from upstream's: the boards and their checks hold for any recording of
+    these formats, and the Hanyang rows come from the case chosen by parameter."""
     import numpy as np
 
+    from tests.fixtures import hanyang as hfx
     from tests.fixtures import lias as fx
 
     data_dir = tmp_path / "data"
     rng = np.random.default_rng(12)
     fx.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 30.0, "clock_offset_s": 0.3}},
                  sessions=[fx.session_814(rng)])
-    rows = _run_on("06_scoreboard.ipynb", tmp_path, data_dir, LIAS_RECORDING="medium")
-    assert {r["data"] for r in rows} == {"synthetic", "lias-planar-uwb/medium"}
-    assert {r["kind"] for r in rows} == {"reproduced"} and {r["mode"] for r in rows} == {"FAST"}
+    cases = hfx.write_dynamic_tree(data_dir / "hanyang-outdoor-uwb", rng=rng, speed_mps=4.0)
+    chosen = cases[-1].name
+    rows = _run_on("06_scoreboard.ipynb", tmp_path, data_dir, LIAS_RECORDING="medium", HANYANG_CASES=[chosen])
+    ours = f"hanyang-outdoor-uwb/{chosen}"
+    assert {r["data"] for r in rows} == {"synthetic", "lias-planar-uwb/medium", ours,
+                                         f"{ours} (external: authors' estimates)"}
+    assert {r["mode"] for r in rows} == {"FAST"}
+    assert {r["kind"] for r in rows if not r["data"].startswith("hanyang")} == {"reproduced"}
+    assert {r["kind"] for r in rows if "(external" in r["data"]} == {"input"}
     assert any(r["quantity"] == "efficiency RMSE/bound, EKF-RF" for r in rows)
+    assert any(r["quantity"].startswith("authors LS RMSE_2d, recomputed") for r in rows
+               if r["data"].startswith(ours))
