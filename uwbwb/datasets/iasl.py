@@ -29,6 +29,13 @@ Quirks handled (each one tested)
 * ``imu.csv`` stamps are whole Unix seconds with ~20 rows per stamp; they are
   spread over their second (rule in :func:`spread_whole_seconds`) — a counted
   cleaning step.
+* ``imu.csv`` samples are checked (:mod:`uwbwb.datasets.imu_checks`): a median
+  ``|f|`` outside 9.81 ± 2 m/s² (mg? g?) or a gyro whose rates do not follow the
+  tilt of the specific force in rad/s (deg/s?) is an error with the measured
+  evidence; a sample beyond the MEMS full scale (16 g, 2000 °/s) is dropped and
+  counted; a gap longer than 5 nominal intervals is an error (``imu_gaps="warn"``
+  keeps it, warns and lists it in ``meta["imu_gaps_s"]``). The UM7 axes are z-down
+  (f_z ≈ −10.3 at rest): measured in ``meta["imu_evidence"]``, not a defect.
 * ``gt.csv`` rows whose 12 values are all zero are motion-capture dropouts:
   removed and counted.
 * Ranges follow the package's range rule (:mod:`uwbwb.datasets.cleaning`): a
@@ -102,6 +109,7 @@ from ..errors import DataFormatError, DataNotFoundError
 from ..types import Anchors, CleaningStep, ImuLog, RangeLog, Recording, Trajectory, _natural_key
 from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 from .discovery import find_dataset
+from .imu_checks import ImuChecks, check_imu_samples
 from .registration import ImuAlignment, Registration, RegistrationError, align_imu, register_truth
 from .tidy import _decode_lines, _numbers, _read_bytes
 
@@ -406,21 +414,31 @@ class ImuFile:
         stamps were already distinct.
     cleaning
         Steps taken while reading.
+    checks
+        Units, spikes and gaps as checked (:func:`~uwbwb.datasets.imu_checks.check_imu_samples`):
+        the measured gravity magnitude, z sign and gyro rate scale, and any gaps kept.
     """
 
     imu: ImuLog
     unix_time0_s: float
     rate_hz: float
     cleaning: tuple[CleaningStep, ...] = ()
+    checks: ImuChecks | None = None
 
 
-def read_imu(path: PathLike) -> ImuFile:
+def read_imu(path: PathLike, *, gaps: str = "error", max_gap_s: float | None = None) -> ImuFile:
     """Read ``imu.csv`` (tab-separated; header optional).
 
     Whole-second stamps that repeat are spread over their second with
     :func:`spread_whole_seconds` (a counted cleaning step); stamps that are
     already strictly increasing are used as they are; repeated stamps that are
-    not whole seconds are an error.
+    not whole seconds are an error. Then the samples are checked
+    (:func:`~uwbwb.datasets.imu_checks.check_imu_samples`): accelerations not in
+    m/s² or gyro rates in deg/s are errors with the evidence; samples beyond the
+    MEMS full scale (16 g, 2000 °/s) are dropped and counted; gaps longer than
+    ``max_gap_s`` (default 5 nominal intervals) are an error, or with
+    ``gaps="warn"`` a warning listing them (kept in :attr:`ImuFile.checks`).
+    Non-finite values are parse errors naming line and column.
     """
     values, line_no = _read_tab(path, "IMU", lambda n: IMU_COLUMNS if n == len(IMU_COLUMNS) else None,
                                 "Time, Linear acceleration X/Y/Z, Angular velocity X/Y/Z")
@@ -443,8 +461,11 @@ def read_imu(path: PathLike) -> ImuFile:
         t = stamp - t0
     if np.any(np.diff(t) <= 0):
         raise DataFormatError(path, "IMU time stamps too large to resolve within a second")
-    imu = ImuLog(t, values[:, 1:4], values[:, 4:7])
-    return ImuFile(imu, t0, rate, tuple(steps))
+    checks = check_imu_samples(path, t, values[:, 1:4], values[:, 4:7], line_no, gaps=gaps, max_gap_s=max_gap_s)
+    steps += checks.steps
+    keep = checks.keep
+    imu = ImuLog(t[keep], values[keep, 1:4], values[keep, 4:7])
+    return ImuFile(imu, t0, rate, tuple(steps), checks)
 
 
 @dataclass(frozen=True)
@@ -490,7 +511,8 @@ def read_gt(path: PathLike) -> GtFile:
 
 def load_scenario(scenario: str = "scenario1", data_dir: PathLike | None = None, *, register: bool = True,
                   fit_yaw: bool = False, fit_range_bias: bool = True,
-                  max_offset_s: float | None = None, max_range_m: float = MAX_RANGE_M) -> Recording:
+                  max_offset_s: float | None = None, max_range_m: float = MAX_RANGE_M,
+                  imu_gaps: str = "error") -> Recording:
     """One scenario as a :class:`~uwbwb.Recording` on the UWB clock and in the anchor frame.
 
     Parameters
@@ -508,6 +530,10 @@ def load_scenario(scenario: str = "scenario1", data_dir: PathLike | None = None,
         Passed to :func:`register_truth`.
     max_range_m
         Ranges above this become NaN (counted; see :func:`read_uwb`).
+    imu_gaps
+        ``"error"`` (default) or ``"warn"``: what a gap in ``imu.csv`` longer than
+        5 nominal intervals is (see :func:`read_imu`); kept gaps are listed in
+        ``meta["imu_gaps_s"]`` on the IMU's own clock.
 
     Returns
     -------
@@ -542,7 +568,7 @@ def load_scenario(scenario: str = "scenario1", data_dir: PathLike | None = None,
     anchors = read_anchors(yaml_path)
     uwb = read_uwb(folder / UWB_FILE, anchors.ids, max_range_m=max_range_m)
     imu_path, gt_path = folder / IMU_FILE, folder / GT_FILE
-    imu = read_imu(imu_path) if imu_path.is_file() else None
+    imu = read_imu(imu_path, gaps=imu_gaps) if imu_path.is_file() else None
     gt = read_gt(gt_path) if gt_path.is_file() else None
     if register and gt is None:
         raise DataNotFoundError(f"{gt_path} not found: registration needs ground truth "
@@ -554,6 +580,8 @@ def load_scenario(scenario: str = "scenario1", data_dir: PathLike | None = None,
         "uwb_local_time0_ms": uwb.local_time0_ms,
         "imu_unix_time0_s": None if imu is None else imu.unix_time0_s,
         "imu_noise": {k: config[k] for k in ("stdV", "stdW") if k in config},
+        "imu_evidence": None if imu is None else imu.checks.evidence,
+        "imu_gaps_s": None if imu is None else imu.checks.gaps_s,
         "device_estimate": uwb.device,
         "registered": bool(register),
     }

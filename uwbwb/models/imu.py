@@ -30,7 +30,9 @@ import numpy as np
 from ..types import ImuLog
 from .ins import GRAVITY_MPS2
 
-__all__ = ["GRADES", "HeadingLog", "ImuConvention", "ImuErrorModel", "ImuErrors"]
+__all__ = ["ACC_FULL_SCALE_MPS2", "GRADES", "GRAVITY_TOLERANCE_MPS2", "GYRO_FULL_SCALE_RADPS", "HeadingLog",
+           "ImuConvention", "ImuErrorModel", "ImuErrors", "ImuEvidence", "MAX_SPIKE_FRACTION", "RATE_SCALE_DEG_LIMIT",
+           "check_body_imu", "imu_evidence", "unit_problem"]
 
 _DEG = np.pi / 180.0
 
@@ -181,11 +183,21 @@ class ImuConvention:
         object.__setattr__(self, "R_body_sensor", R)
         object.__setattr__(self, "lever_arm_m", lever)
 
-    def to_body(self, imu: ImuLog) -> ImuLog:
-        """Body-frame SI samples from a log recorded in this convention."""
+    def to_body(self, imu: ImuLog, *, check: bool = True) -> ImuLog:
+        """Body-frame SI samples from a log recorded in this convention.
+
+        With ``check`` (default) the result goes through :func:`check_body_imu` (finite, within
+        full scale, |f| ≈ g, z up, gyro in rad/s): a convention that does not fit the log is a
+        ``ValueError`` with the evidence, never a silently wrong log. ``check=False`` only
+        converts (for unit tests of the arithmetic).
+        """
         acc = np.asarray(imu.acc_mps2) * (self.g_mps2 if self.acc_unit == "g" else 1.0) * self.acc_scale
         gyro = np.asarray(imu.gyro_radps) * (_DEG if self.gyro_unit == "deg/s" else 1.0)
-        return ImuLog(imu.t_s, acc @ self.R_body_sensor.T, gyro @ self.R_body_sensor.T)
+        with np.errstate(invalid="ignore"):            # a non-finite sample is reported by the check
+            body = ImuLog(imu.t_s, acc @ self.R_body_sensor.T, gyro @ self.R_body_sensor.T)
+        if check:
+            check_body_imu(body, source=f"ImuConvention.to_body ({self.acc_unit}, {self.gyro_unit})")
+        return body
 
 
 @dataclass(frozen=True)
@@ -212,3 +224,188 @@ class HeadingLog:
                      k - 1, np.minimum(k, self.t_s.size - 1))
         half = 0.5 * (np.median(np.diff(self.t_s)) if self.t_s.size > 1 else np.inf)
         return np.where(np.abs(self.t_s[k] - t_s) <= half + 1e-9, self.yaw_rad[k], np.nan)
+
+
+# ====================================================================== plausibility of a log
+#: Widest full-scale ranges of common MEMS IMUs (data-sheet values, an assumption): ±16 g and ±2000 °/s.
+#: A sample beyond them cannot have been measured: it is a transmission or parsing fault.
+ACC_FULL_SCALE_MPS2 = 16.0 * GRAVITY_MPS2
+GYRO_FULL_SCALE_RADPS = 2000.0 * _DEG
+#: |median specific force| of a log that mostly rests or hovers lies within g ± this, m/s²: flight
+#: accelerations of a few m/s² average out, and scale errors of a consumer part are a few per cent.
+GRAVITY_TOLERANCE_MPS2 = 2.0
+#: More samples than this fraction beyond full scale is a unit problem (mg, deg/s), not spikes.
+MAX_SPIKE_FRACTION = 0.01
+#: The gyro is taken to be in deg/s when the rate scale ``k`` (:func:`imu_evidence`) is confidently below
+#: this: the geometric mean of 1 (rad/s) and π/180 (deg/s).
+RATE_SCALE_DEG_LIMIT = float(np.sqrt(_DEG))
+
+
+@dataclass(frozen=True)
+class ImuEvidence:
+    """What a log says about its own units and axes (see :func:`imu_evidence`).
+
+    Attributes
+    ----------
+    gravity_mps2
+        Median specific-force magnitude, in the log's accelerometer unit.
+    median_fz
+        Median z specific force (positive: gravity reaction along +z, a z-up frame).
+    rate_scale, rate_scale_se
+        Least-squares ``k`` in ``du/dt ≈ −k ω × u`` (``u`` = specific-force direction) and its
+        standard error; ``k ≈ 1`` for rad/s, ≈ π/180 for deg/s; NaN when the log does not tilt
+        enough to tell (fewer than 20 samples).
+    """
+
+    gravity_mps2: float
+    median_fz: float
+    rate_scale: float
+    rate_scale_se: float
+
+    @property
+    def gyro_looks_deg(self) -> bool:
+        """``k + 3 σ_k`` below :data:`RATE_SCALE_DEG_LIMIT`."""
+        return bool(np.isfinite(self.rate_scale) and self.rate_scale + 3 * self.rate_scale_se < RATE_SCALE_DEG_LIMIT)
+
+    @property
+    def gravity_ok(self) -> bool:
+        """|median |f| − g| within :data:`GRAVITY_TOLERANCE_MPS2`."""
+        return abs(self.gravity_mps2 - GRAVITY_MPS2) <= GRAVITY_TOLERANCE_MPS2
+
+    def unit_guess(self) -> str:
+        """What unit the accelerometer magnitude suggests, in words."""
+        g = self.gravity_mps2
+        if abs(g - 1000.0) < 200.0:
+            return "looks like mg"
+        if abs(g - 1.0) < 0.2:
+            return "looks like g"
+        return "unit unknown"
+
+
+def imu_evidence(t_s, acc, gyro) -> ImuEvidence:
+    """Units and axes as the samples themselves show them.
+
+    * gravity: the median of ``|f|``. A log that rests or hovers most of the time reads g there
+      (9.81 m/s², 1 g or ~1000 mg).
+    * z sign: the median of ``f_z``; a z-up frame reads about +g at rest, a z-down one −g.
+    * gyro scale: the accelerometer direction ``u = f/|f|`` is, at low dynamics, gravity seen from
+      the body, fixed in the world, so ``du/dt = −ω × u``. The least-squares factor ``k`` between
+      the measured ``du/dt`` (central differences) and ``−ω × u`` is ≈ 1 when ω is in rad/s and ≈
+      π/180 ≈ 0.017 when it is in deg/s (on the i-ASL flights k = 1.6–2.5 in rad/s, the flight's
+      own accelerations inflating it; the same data read as deg/s give 0.028–0.044). Only tilt
+      rates enter (a yaw about gravity leaves ``u`` alone).
+
+    Parameters
+    ----------
+    t_s
+        Times, shape ``(T,)``, s, strictly increasing.
+    acc, gyro
+        Samples, shape ``(T, 3)``, finite, in the log's own units.
+    """
+    t, a, w = np.asarray(t_s, float), np.asarray(acc, float), np.asarray(gyro, float)
+    mag = np.linalg.norm(a, axis=1)
+    g = float(np.median(mag)) if mag.size else np.nan
+    fz = float(np.median(a[:, 2])) if mag.size else np.nan
+    k = se = np.nan
+    ok = mag > 0
+    if ok.sum() >= 20:
+        t, a, w, mag = t[ok], a[ok], w[ok], mag[ok]
+        u = a / mag[:, None]
+        du = np.gradient(u, t, axis=0)
+        p = -np.cross(w, u)
+        pp = float((p * p).sum())
+        if pp > 0:
+            k = float((du * p).sum() / pp)
+            r = du - k * p
+            se = float(np.sqrt((r * r).sum() / max(r.size - 1, 1) / pp))
+    return ImuEvidence(g, fz, k, se)
+
+
+def unit_problem(t_s, acc, gyro) -> tuple[str | None, ImuEvidence, np.ndarray]:
+    """The unit rules shared by :func:`check_body_imu` and the loaders' checks.
+
+    * Accelerations not in m/s²: more than :data:`MAX_SPIKE_FRACTION` of the samples have an
+      accelerometer component beyond :data:`ACC_FULL_SCALE_MPS2`, or the median ``|f|`` of the
+      others lies outside g ± :data:`GRAVITY_TOLERANCE_MPS2`.
+    * Gyro rates in deg/s: more than :data:`MAX_SPIKE_FRACTION` of the samples beyond
+      :data:`GYRO_FULL_SCALE_RADPS` while the rate scale (on all samples within the accelerometer
+      full scale) is not that of rad/s, or :attr:`ImuEvidence.gyro_looks_deg`.
+
+    Returns
+    -------
+    problem : str or None
+        What is wrong, with the evidence, in words (None: nothing).
+    evidence : ImuEvidence
+        On the samples within both full scales.
+    spike : numpy.ndarray
+        Samples beyond either full scale, shape ``(T,)``.
+    """
+    t, a, w = np.asarray(t_s, float), np.asarray(acc, float), np.asarray(gyro, float)
+    acc_over = (np.abs(a) > ACC_FULL_SCALE_MPS2).any(axis=1)
+    gyro_over = (np.abs(w) > GYRO_FULL_SCALE_RADPS).any(axis=1)
+    spike = acc_over | gyro_over
+    ev = imu_evidence(t[~spike], a[~spike], w[~spike])
+    if t.size == 0:
+        return None, ev, spike
+    if acc_over.mean() > MAX_SPIKE_FRACTION or not ev.gravity_ok:
+        g = imu_evidence(t, a, w)
+        return (f"accelerations not in m/s² (mg? g?): median |f| = {g.gravity_mps2:.4g}, expected "
+                f"{GRAVITY_MPS2:.2f} ± {GRAVITY_TOLERANCE_MPS2:g} ({g.unit_guess()}); {int(acc_over.sum())} of "
+                f"{t.size} samples beyond the full scale 16 g"), ev, spike
+    wide = ev if gyro_over.mean() <= MAX_SPIKE_FRACTION else imu_evidence(t[~acc_over], a[~acc_over], w[~acc_over])
+    if wide.gyro_looks_deg or (gyro_over.mean() > MAX_SPIKE_FRACTION and not wide.rate_scale > RATE_SCALE_DEG_LIMIT):
+        return (f"gyro rates look like deg/s, not rad/s: the tilt of the specific force follows "
+                f"{wide.rate_scale:.3g} ± {wide.rate_scale_se:.2g} × ω (≈ 1 for rad/s, π/180 = 0.0175 for "
+                f"deg/s); "
+                f"median |ω| = {float(np.median(np.linalg.norm(w, axis=1))):.3g}, {int(gyro_over.sum())} of "
+                f"{t.size} samples beyond 2000 °/s"), wide, spike
+    if gyro_over.mean() > MAX_SPIKE_FRACTION:
+        return (f"{int(gyro_over.sum())} of {t.size} gyro samples beyond 2000 °/s although the rate scale "
+                f"({wide.rate_scale:.3g}) says rad/s: not spikes, the gyro scale is wrong"), ev, spike
+    return None, ev, spike
+
+
+def check_body_imu(imu: ImuLog, *, source: str = "IMU log") -> ImuEvidence:
+    """Refuse a log that cannot be body-frame SI samples (what the INS and the ESKF integrate).
+
+    Raises ``ValueError`` naming ``source``, in this order, for: a sample that is not finite; a
+    median ``|f|`` outside g ± :data:`GRAVITY_TOLERANCE_MPS2`, or more than
+    :data:`MAX_SPIKE_FRACTION` of the samples beyond full scale (accelerations not in m/s²); a gyro
+    whose rate scale says deg/s (:attr:`ImuEvidence.gyro_looks_deg`); a negative median ``f_z`` (a
+    z-down frame: gravity's reaction must point along +z); any remaining sample beyond
+    :data:`ACC_FULL_SCALE_MPS2` / :data:`GYRO_FULL_SCALE_RADPS` (a spike a loader should have
+    dropped and counted). The unit evidence is taken on the samples within full scale. The rate
+    scale is judged only on logs of at least 20 samples. Returns the evidence.
+    """
+    a, w = np.asarray(imu.acc_mps2, float), np.asarray(imu.gyro_radps, float)
+    for name, x in (("specific force", a), ("angular rate", w)):
+        bad = ~np.isfinite(x).all(axis=1)
+        if bad.any():
+            i = np.flatnonzero(bad)
+            raise ValueError(f"{source}: {i.size} {name} sample(s) not finite (first at t = {imu.t_s[i[0]]:g} s)")
+    problem, ev, spike = unit_problem(imu.t_s, a, w)
+    if a.shape[0] == 0:
+        return ev
+    if problem is not None:
+        raise ValueError(f"{source}: {problem}" + ("; give ImuConvention(gyro_unit='deg/s')" if "deg/s" in problem
+                                                   else ""))
+    if ev.median_fz < 0:
+        raise ValueError(f"{source}: z-down frame: median f_z = {ev.median_fz:.3g} m/s², a z-up body reads +g "
+                         "at rest (ImuConvention(R_body_sensor=diag(1, -1, -1)) turns a z-down sensor)")
+    if spike.any():
+        i = np.flatnonzero(spike)
+        raise ValueError(f"{source}: {i.size} sample(s) beyond the full scale (16 g = {ACC_FULL_SCALE_MPS2:.4g} m/s², "
+                         f"2000 °/s = {GYRO_FULL_SCALE_RADPS:.4g} rad/s), first at t = {imu.t_s[i[0]]:g} s: spikes; "
+                         "drop them (counted) before integrating")
+    return ev
+    if not ev.gravity_ok:
+        raise ValueError(f"{source}: accelerations not in m/s² (mg? g?): median |f| = {ev.gravity_mps2:.4g}, "
+                         f"expected {GRAVITY_MPS2:.2f} ± {GRAVITY_TOLERANCE_MPS2:g} ({ev.unit_guess()})")
+    if ev.median_fz < 0:
+        raise ValueError(f"{source}: z-down frame: median f_z = {ev.median_fz:.3g} m/s², a z-up body reads +g "
+                         "at rest (ImuConvention(R_body_sensor=diag(1, -1, -1)) turns a z-down sensor)")
+    if ev.gyro_looks_deg:
+        raise ValueError(f"{source}: gyro rates look like deg/s: the tilt of the specific force follows "
+                         f"{ev.rate_scale:.3g} ± {ev.rate_scale_se:.2g} × ω (≈ 1 for rad/s, π/180 = 0.0175 for "
+                         "deg/s); give ImuConvention(gyro_unit='deg/s')")
+    return ev

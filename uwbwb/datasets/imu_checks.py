@@ -1,0 +1,146 @@
+"""Checks of an IMU file's samples: units, spikes and gaps, each reported.
+
+Loaders call :func:`check_imu_samples` after parsing and time-ordering an IMU file. The rules:
+
+* **Units** (an error naming the file; rules in :func:`~uwbwb.models.imu.unit_problem`): the
+  median specific-force magnitude must lie within g ± 2 m/s² (a log in mg or g fails, with the
+  measured magnitude); the gyro rate scale fitted from the tilt of the specific force
+  (:func:`~uwbwb.models.imu.imu_evidence`) must not say deg/s. More than
+  :data:`~uwbwb.models.imu.MAX_SPIKE_FRACTION` (1 %) of the samples beyond full scale is a unit
+  error too, not spikes.
+* **Spikes** (dropped, counted with their lines): a sample with a component beyond the MEMS
+  full scale (:data:`~uwbwb.models.imu.ACC_FULL_SCALE_MPS2`, 16 g;
+  :data:`~uwbwb.models.imu.GYRO_FULL_SCALE_RADPS`, 2000 °/s) cannot have been measured.
+* **Gaps**: a time step longer than :data:`MAX_GAP_SAMPLES` nominal intervals (median step).
+  Filters fed such a log interpolate linearly across the gap
+  (:func:`uwbwb.filters.eskf.merge_timeline`), inventing motion, so by default this is an
+  error listing the gaps; ``gaps="warn"`` keeps the log and warns with the same list.
+* Non-finite numbers never get this far: the parsers refuse them, naming line and column.
+
+The axis sign (z up or down at rest) is a property of the format, not a defect: it is measured
+(:attr:`ImuChecks.evidence`) and left to the convention (:class:`~uwbwb.models.imu.ImuConvention`),
+whose :meth:`~uwbwb.models.imu.ImuConvention.to_body` refuses a z-down *body* frame.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataFormatError
+from ..models.imu import ACC_FULL_SCALE_MPS2, GYRO_FULL_SCALE_RADPS, MAX_SPIKE_FRACTION, ImuEvidence, unit_problem
+from ..types import CleaningStep
+from .cleaning import lines_text
+
+__all__ = ["GAP_POLICIES", "ImuChecks", "ImuGapWarning", "MAX_GAP_SAMPLES", "MAX_SPIKE_FRACTION", "check_imu_samples"]
+
+#: Longest step between IMU samples, in nominal intervals, that a filter may bridge by linear
+#: interpolation (an assumption: a few samples at 20–200 Hz is well below the time over which a
+#: consumer IMU's attitude and velocity change appreciably while flying).
+MAX_GAP_SAMPLES = 5
+GAP_POLICIES = ("error", "warn")
+
+
+class ImuGapWarning(UserWarning):
+    """An IMU log kept although it has gaps longer than a filter should bridge."""
+
+
+@dataclass(frozen=True)
+class ImuChecks:
+    """Outcome of :func:`check_imu_samples`.
+
+    Attributes
+    ----------
+    keep
+        Boolean mask of the samples kept, shape ``(T,)``.
+    steps
+        Cleaning steps (``"IMU spikes dropped"`` when any).
+    gaps_s
+        ``(start, end)`` times of each gap longer than the limit, shape ``(G, 2)``, s, on the kept samples.
+    max_gap_s
+        The limit used, s.
+    evidence
+        Units and axes as measured (:class:`~uwbwb.models.imu.ImuEvidence`), on the kept samples.
+    """
+
+    keep: np.ndarray
+    steps: tuple[CleaningStep, ...]
+    gaps_s: np.ndarray
+    max_gap_s: float
+    evidence: ImuEvidence
+
+
+def check_imu_samples(path: str | os.PathLike, t_s, acc, gyro, line_no, *, gaps: str = "error",
+                      max_gap_s: float | None = None) -> ImuChecks:
+    """Apply the module's rules to one IMU file's samples (time-ordered, finite).
+
+    Parameters
+    ----------
+    path
+        The file, for messages.
+    t_s
+        Sample times, shape ``(T,)``, s, strictly increasing.
+    acc, gyro
+        Accelerometer (m/s² expected) and gyro (rad/s expected) samples, shape ``(T, 3)``.
+    line_no
+        1-based file line of each sample, shape ``(T,)``.
+    gaps
+        ``"error"`` (default) or ``"warn"`` for gaps longer than ``max_gap_s``.
+    max_gap_s
+        Longest allowed step, s; default :data:`MAX_GAP_SAMPLES` × the median step.
+
+    Returns
+    -------
+    ImuChecks
+
+    Raises
+    ------
+    DataFormatError
+        Accelerations not in m/s², gyro rates in deg/s, too many samples beyond full scale,
+        or (``gaps="error"``) a gap longer than the limit; the message gives the evidence.
+    ValueError
+        An unknown ``gaps`` policy or a non-positive ``max_gap_s``.
+    """
+    if gaps not in GAP_POLICIES:
+        raise ValueError(f"gaps must be one of {GAP_POLICIES}, got {gaps!r}")
+    if max_gap_s is not None and not (isinstance(max_gap_s, (int, float)) and max_gap_s > 0):
+        raise ValueError(f"max_gap_s must be a positive number of seconds, got {max_gap_s!r}")
+    name = Path(path).name
+    t, a, w = np.asarray(t_s, float), np.asarray(acc, float), np.asarray(gyro, float)
+    line_no = np.asarray(line_no)
+    problem, ev, spike = unit_problem(t, a, w)
+    if problem is not None:
+        raise DataFormatError(path, problem, column="Angular velocity" if "gyro" in problem else "Linear acceleration")
+    steps: list[CleaningStep] = []
+    if spike.any():
+        mag = np.maximum(np.abs(a[spike]).max(axis=1) / ACC_FULL_SCALE_MPS2, np.abs(w[spike]).max(axis=1)
+                         / GYRO_FULL_SCALE_RADPS)
+        steps.append(CleaningStep("IMU spikes dropped", int(spike.sum()),
+                                  f"{name}: samples beyond the MEMS full scale "
+                                  f"(16 g = {ACC_FULL_SCALE_MPS2:.4g} m/s², "
+                                  f"2000 °/s = {GYRO_FULL_SCALE_RADPS:.4g} rad/s; up to {mag.max():.3g}× it) dropped "
+                                  f"(lines {lines_text(line_no[spike])})"))
+    keep = ~spike
+    tk = t[keep]
+    dt = np.diff(tk)
+    if max_gap_s is not None:
+        limit = float(max_gap_s)
+    else:
+        limit = MAX_GAP_SAMPLES * float(np.median(dt)) if dt.size else np.inf
+    big = np.flatnonzero(dt > limit)
+    gaps_s = np.column_stack([tk[big], tk[big + 1]]) if big.size else np.zeros((0, 2))
+    if big.size:
+        lk = line_no[keep]
+        shown = ", ".join(f"{s:.3f}–{e:.3f} s (line {int(lk[i + 1])})" for (s, e), i in zip(gaps_s[:5], big[:5]))
+        more = ", ..." if big.size > 5 else ""
+        text = (f"{big.size} gap(s) between IMU samples longer than {limit:.3g} s ({MAX_GAP_SAMPLES} nominal "
+                f"intervals unless given), longest {float(dt[big].max()):.3g} s: {shown}{more}; a filter would "
+                f"bridge them by linear interpolation")
+        if gaps == "error":
+            raise DataFormatError(path, text + " (load with imu_gaps='warn' to keep the log)", line=int(lk[big[0] + 1]))
+        warnings.warn(f"{path}: {text}", ImuGapWarning, stacklevel=3)
+    return ImuChecks(keep, tuple(steps), gaps_s, limit, ev)
