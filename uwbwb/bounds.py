@@ -1,12 +1,15 @@
 """Cramér–Rao bounds of the position, per epoch and along a track.
 
 A bound is "what the measurements allow" only under its stated model: the Gaussian range noise
-it is given and, for the posterior bound, the motion model whose random tracks it averages over.
+it is given and, for the posterior bound, the motion model's driving noise as the prior; the
+measurement information is evaluated along the one realised true track (not averaged over the
+model's random tracks). A posterior bound holds for causal estimators; a smoother, or a method with
+other information (an IMU), may go below it.
 The scoreboard uses two kinds: each method's *own* bound (its own noise and motion model: a
 consistency check of the method against its assumptions) and one *common* bound per recording
 (:func:`motion_log_likelihood` picks the motion model that best explains the calibration truth;
-the posterior CRLB of that model with all ranges at the measured range noise), against which
-every method is placed.
+the posterior CRLB of that model with all ranges at the measured robust range noise, treated as
+Gaussian — an assumption), against which every method is placed.
 
 Three bounds, each computed from the *same* noise model objects the estimators use
 (per-anchor range standard deviations, :class:`~uwbwb.models.tdoa.TdoaModel`, the

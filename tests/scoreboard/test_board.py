@@ -11,7 +11,7 @@ import pytest
 
 from uwbwb import cli
 from uwbwb.datasets import tidy
-from uwbwb.scoreboard import Estimator, calibrate, default_estimators, score, split_in_time
+from uwbwb.scoreboard import Estimator, calibrate, default_estimators, score, split_in_time, thin
 from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, TdoaEkfEstimator, TdoaLs
 from uwbwb.types import Trajectory
@@ -64,6 +64,28 @@ def test_estimators_never_read_the_scoring_truth():
         a, b = est.estimate(test, "tag", cal), est.estimate(moved, "tag", cal)
         np.testing.assert_array_equal(a.pos_m, b.pos_m, err_msg=est.name)
         np.testing.assert_array_equal(a.status, b.status, err_msg=est.name)
+
+
+def test_uwb_ins_estimators_never_read_the_scoring_truth(tmp_path):
+    """The fusion filters on a generated i-ASL flight (an IMU): moving the scored flight's truth far away
+    changes no estimate (a fresh cache for each run, so nothing is reused between them)."""
+    from tests.fixtures import iasl as fx
+    from uwbwb.datasets import iasl
+    from uwbwb.scoreboard.estimators import INS_GRID, UwbInsFilter
+
+    fx.write_dataset(tmp_path / "iasl-uwb-imu", rng=np.random.default_rng(12), duration_s=30.0)
+    cal_rec, test = iasl.load_scenario("scenario1", tmp_path), iasl.load_scenario("scenario2", tmp_path)
+    tr = test.truth["tag"]
+    moved = replace(test, truth={"tag": Trajectory(tr.t_s, tr.pos_m + [50.0, -20.0, 0.0], name="truth")})
+    ests = [UwbInsFilter(k, {}, INS_GRID[:1]) for k in ("loose", "tight")]
+    cal = calibrate(cal_rec, ests, rate_hz=10.0)
+    for kind, est in zip(("loose", "tight"), ests):
+        rec = thin(test, 10.0)
+        a = est.estimate(rec, "tag", cal)
+        b = UwbInsFilter(kind, {}, INS_GRID[:1]).estimate(thin(moved, 10.0), "tag", cal)
+        assert a.has_estimate.any(), kind
+        np.testing.assert_array_equal(a.pos_m, b.pos_m, err_msg=kind)
+        np.testing.assert_array_equal(a.status, b.status, err_msg=kind)
 
 
 def test_a_method_below_its_bound_is_explained():
@@ -285,6 +307,26 @@ def test_an_external_method_without_a_bound_is_scored():
     assert np.isfinite(row.common_bound_m) and row.rmse_over_common > 1
     line = next(x for x in b.markdown().splitlines() if x.startswith("| vendor RTLS"))
     assert "| — |" in line
+
+
+def test_common_epoch_ratio_ranks_on_one_bound_and_tuning_picks_say_if_on_the_edge():
+    """On the epochs every method covered the common bound is one number for all, so the ratio orders
+    the methods as their RMSE there does; a pick at a grid's end is flagged, one inside is not."""
+    from uwbwb.scoreboard.estimators import on_grid_edge
+
+    assert on_grid_edge(0, 5) and on_grid_edge(4, 5) and not on_grid_edge(2, 5) and on_grid_edge(0, 1)
+    cfg = syn.SyntheticConfig(duration_s=10.0)
+    rec = syn.simulate(cfg, rng=np.random.default_rng(21))
+    ests = [CalibratedLs(), TdoaEkfEstimator("RF", grid=(1e-3, 1.0, 1e3)), TdoaEkfEstimator("RW", grid=(1e3, 1e4))]
+    b = score(rec, rec, estimators=ests, rate_hz=None, calibration=calibrate(rec, ests, rate_hz=None, dim=2))
+    df = b.table().set_index("method")
+    assert df["common_bound_common_m"].nunique() == 1
+    np.testing.assert_allclose(df["rmse_common_over_common"], df["rmse_common_m"] / df["common_bound_common_m"])
+    assert df.loc["EKF-RF", "grid_edge"] is False or df.loc["EKF-RF", "grid_edge"] == False  # noqa: E712
+    assert b.calibration.params("EKF-RF")["sigma_w"] == 1.0
+    assert bool(df.loc["EKF-RW", "grid_edge"]) and df.loc["LS", "grid_edge"] is None
+    md = b.markdown()
+    assert "on the grid's edge" in md and "inside the grid" in md and "common epochs" in md
 
 
 def test_the_common_bound_is_one_yardstick_fitted_on_the_calibration_truth():

@@ -12,8 +12,9 @@
     RMSE over the epochs *every* method on the board covered (the like-for-like figure).
 ``common_bound_m``, ``rmse_over_common``, ``rmse_over_common_se``
     The recording's **common bound** (:mod:`.reference`: the posterior CRLB of the motion
-    model that best fits the calibration truth, with every range at the calibrated noise; the
-    same for every method) aggregated as ``sqrt(mean_k tr C_k)`` over the method's covered
+    model that best fits the calibration truth, with every range at the calibrated robust noise
+    treated as Gaussian, evaluated along the one realised true track; the same for every method;
+    it bounds causal estimators only — a smoother or a method with an IMU may go below it) aggregated as ``sqrt(mean_k tr C_k)`` over the method's covered
     epochs, and the method's RMSE over those epochs divided by it, with a block standard error.
     Each method's own covered epochs: a method that skips the hard epochs is placed on easier ones.
 ``common_bound_common_m``, ``rmse_common_over_common``
@@ -359,11 +360,11 @@ class Board:
             tuned = self.calibration.params(f"EKF-{model}").get("sigma_w", np.nan)
             if np.isfinite(implied) and implied < tuned:
                 reasons.append(f"the true track is smoother than the {model} prior: driving-noise σ from the "
-                               f"truth {implied:.3g} vs tuned {tuned:.3g}, so the PCRLB (an average over the "
-                               f"model's random tracks) is no bound for this track")
+                               f"truth {implied:.3g} vs tuned {tuned:.3g}, so the PCRLB (its prior's driving "
+                               f"noise, evaluated along this track) over-states what this track allows")
             else:
                 reasons.append(f"the {model} prior (tuned σ_w {tuned:.3g}) misdescribes this track; the PCRLB "
-                               f"is an average over the model's random tracks")
+                               f"holds for tracks drawn from that prior")
         if "set-noise" in kind:
             reasons.append("the per-set noise was fitted on the calibration part; where the scoring part's fixes "
                            "are less spread than that, the bound given the fixes is pessimistic")

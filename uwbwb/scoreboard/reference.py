@@ -14,18 +14,21 @@ The **common bound** is the same for every method on a recording:
   :data:`TRUTH_SIGMA_M`, an assumption; one free parameter per model, so the likelihoods are
   compared directly);
 * *measurements*: every range of the scoring part at the calibrated per-anchor range noise
-  (the robust σ of the calibration residuals), Gaussian, unbiased after the calibration — the
-  range information, which holds all the TDoA information and the common offset besides;
+  (the robust σ — 1.4826 × the median absolute deviation — of the calibration residuals), **treated
+  as Gaussian** and unbiased after the calibration (an assumption: real range errors have heavier
+  tails and biases that the MAD σ leaves out) — the range information, which holds all the TDoA
+  information and the common offset besides;
 * *bound*: the posterior CRLB (Tichavský recursion, :func:`uwbwb.bounds.tracking_bound`) of
-  that model along the scoring part's true track, from a prior of 1 m per axis in position and
-  1 unit in each higher derivative at the tag's first epoch, horizontal block.
+  that model, with the range information **evaluated along the one realised true track** of the
+  scoring part (the range Jacobians at the true positions; not averaged over the model's random
+  tracks), from a prior of 1 m per axis in position and 1 unit in each higher derivative at the
+  tag's first epoch, horizontal block.
 
-It is what a *causal* unbiased estimator (a filter: epochs up to the current one) that knows the
-fitted motion prior and the Gaussian range noise could reach on average over the model's tracks —
-not a bound on this one track (a track smoother than its model can be tracked better), not a
-bound for a smoother (the windowed NLS fits each window to later ranges as well), and not a bound
-for a method with other information: the UWB/INS filters also use an IMU. Those may legitimately
-go below it.
+It bounds **causal** estimators only (filters: epochs up to the current one) that know the fitted
+motion prior and the Gaussian range noise. A smoother (the windowed NLS fits each window to later
+ranges as well) and a method with other information (the UWB/INS filters also use an IMU) may
+legitimately go below it; so may any method on a track smoother than the fitted prior, or where the
+ranges are less noisy than the calibration's MAD σ.
 """
 
 from __future__ import annotations
@@ -98,7 +101,9 @@ def describe(cal: Calibration) -> str:
     others = ", ".join(f"{m} {v:+.2f}" for m, v in p["loglik_per_epoch"].items())
     return (f"common bound: posterior CRLB of the {p['model']} model, σ_w = {p['sigma_w']:.3g} {unit} (highest "
             f"likelihood of the calibration truth over {p['n_epochs']} epochs; log-likelihood per epoch {others}), "
-            f"with every range at the calibrated per-anchor range noise")
+            f"with every range at the calibrated per-anchor range noise (the robust MAD σ, treated as Gaussian: an "
+            f"assumption), evaluated along the one realised true track of the scored part. It bounds causal "
+            f"estimators (filters) only: smoothers such as the windowed NLS and methods with an IMU may go below it")
 
 
 def common_bound(rec: Recording, tag: str, cal: Calibration, t_s: np.ndarray | None = None) -> bounds.Bound | None:
