@@ -160,8 +160,9 @@ def _fake(ratios: dict, *, case_ratios: dict | None = None, fast=False, nis=None
             base = 0.01 * math.exp(rng.normal(0, 0.05))
             for r in ab.ROWS:
                 row = {"case": case, "seed": k + 1, "method": r}
-                for m in ab.METRICS:
-                    row[m] = base * rr.get(r, 1.0) * math.exp(rng.normal(0, 0.02))
+                noise = np.random.default_rng([1, cfg.cases.index(case), k, sum(map(ord, r))]).normal(0, 0.02, 99)
+                for i, m in enumerate(ab.METRICS):
+                    row[m] = base * rr.get(r, 1.0) * math.exp(noise[i])
                 row.update(static_cov=1.0, dyn_cov=1.0, outage_cov=0.0 if r.startswith("LS") else 1.0)
                 if r.startswith("LS"):
                     row["outage_max"] = row["outage_rmse"] = np.nan
@@ -247,6 +248,39 @@ def test_knobs_break_near_ties_upwards_flag_the_edge_and_name_blowups():
     res = ab.AblationResult(res.config, False, t, {}, res.scores, res.counts)
     assert "No grid entry exceeds 10×" in facts.tuning_sentence(facts.facts(res))
     assert ab.FULL_GRID[0] == 0.01 and ab.FULL_GRID[-1] == 100.0 and len(ab.FULL_GRID) == 9
+
+
+def test_ladder_ratios_use_the_epochs_both_rows_cover_and_show_each_coverage():
+    res = _fake(GOOD)
+    step = "temporal filtering (LS → EKF, gated)"
+    prs = [{"case": "matched", "seed": k + 1, "step": step, "metric": "dyn_rmse", "num": 2.0, "den": 1.0,
+            "both_cov": 0.8} for k in range(res.config.seeds)]
+    res = ab.AblationResult(res.config, False, res.tuning, {}, res.scores, res.counts, pd.DataFrame(prs))
+    r = ab.pair_rmse(res, step, "dyn_rmse")
+    assert r["ratio"] == pytest.approx(2.0) and r["both_cov"] == pytest.approx(0.8) and r["n"] == 6
+    res.scores.loc[res.scores["method"] == "LS + gate", "dyn_cov"] = 0.8
+    t = ab.ladder_table(res, metrics=("dyn_rmse",))
+    assert t.loc[step, ("dyn_rmse", "ratio")] == pytest.approx(2.0)
+    assert t.loc[step, ("dyn_rmse", "cov without")] == pytest.approx(0.8)
+    assert t.loc[step, ("dyn_rmse", "cov with")] == 1.0 and t.loc[step, ("dyn_rmse", "cov both")] == pytest.approx(0.8)
+    s = facts.ingredient_sentence(step, facts.facts(res)["ladder"][step]["dyn_rmse"])
+    assert "2.0× lower dynamic RMSE (on the 80 % of epochs both rows cover)" in s
+    # the EKF → tight step compares equal gates: the per-TDoA χ² gate with the tight filter's release
+    (_, a, b), = [x for x in ab.LADDER if x[0].startswith("IMU, tightly")]
+    g = ab.gate_table(res.config)
+    assert a == ab.EKF_TDOA_GATE and b == "tight + gate"
+    assert g.loc[a, "max_gated"] == g.loc[b, "max_gated"] == 5 and g.loc["EKF + gate", "max_gated"] == 10
+
+
+def test_a_matched_failure_to_reacquire_is_named():
+    res = _fake(GOOD)
+    assert "Every gated filter re-acquired" in facts.matched_failure_sentence(facts.facts(res))
+    m = (res.scores["case"] == "matched") & (res.scores["method"] == ab.EKF_TDOA_GATE) & (res.scores["seed"] == 3)
+    res.scores.loc[m, "recovery_max"] = 35.0
+    f = facts.facts(res)
+    assert list(f["matched_failures"]) == [ab.EKF_TDOA_GATE] and f["matched_failures"][ab.EKF_TDOA_GATE][3] == 35.0
+    s = facts.matched_failure_sentence(f)
+    assert "Failed to re-acquire" in s and f"{ab.EKF_TDOA_GATE} (" in s and "seed 3: 35 m" in s
 
 
 def test_checks_pass_on_a_sound_result_and_fail_on_each_defect():

@@ -10,7 +10,11 @@ and without a χ² gate of the same probability:
   rejected (no fix). With four stations an epoch has one redundant TDoA: the test can detect
   a bad TDoA but not say which one, so it rejects the epoch; an epoch without redundancy
   (m = 2) cannot be tested and is kept.
-* **EKF + gate**: the filter's own per-epoch gate (drops the anchor that lowers the NIS most).
+* **EKF + gate**: the filter's own per-epoch gate (drops the anchor that lowers the NIS most;
+  released after 10 gated epochs).
+* **EKF (per-TDoA) + gate**: the same EKF with the tight filter's kind of gate — a χ²(1) test on
+  each TDoA, released after 5 gated epochs (:class:`~uwbwb.filters.gating.ChiSquarePerMeasurement`)
+  — so that the step EKF → tight changes the IMU only (:data:`LADDER`).
 * **loose + gate**: its χ² gate on each epoch's UWB fix (position + velocity).
 * **tight + gate**: its χ² gate on each TDoA.
 
@@ -45,6 +49,7 @@ from scipy import stats
 from ... import parallel
 from ...filters import eskf
 from ...filters.ekf import TdoaEkf
+from ...filters.gating import ChiSquarePerMeasurement
 from ...models.imu import GRADES
 from ...models.ins import quat_to_dcm
 from ...models.motion import RandomForce
@@ -55,14 +60,17 @@ from ...types import EstimateStatus, Estimates
 from ...validate import integer, number, probability
 from .study import OUTAGE_START_S, _after, _ls_estimates, initial_state, screened_tdoa
 
-__all__ = ["BASES", "ROWS", "METRICS", "LADDER", "EKF_Q0", "RECOVERY_S", "AblationConfig", "AblationResult",
+__all__ = ["BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "pair_rmse", "METRICS", "LADDER", "EKF_Q0", "RECOVERY_S", "AblationConfig", "AblationResult",
            "check_outage", "check_parameters", "notebook_config", "legs_for_outage", "simulate", "ls_gate",
            "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci", "ladder_table", "mismatch_table",
-           "eq4_thresholds", "eq4_path", "choose_knobs", "TIE_REL", "FULL_GRID", "FAST_GRID"]
+           "eq4_thresholds", "eq4_path", "choose_knobs", "TIE_REL", "RECOVERY_MAX_M", "FULL_GRID", "FAST_GRID"]
 
-#: The four estimators, without and with the gate.
+#: The four estimators, without and with the gate; the EKF also with the tight filter's per-TDoA gate.
 BASES = ("LS", "EKF", "loose", "tight")
-ROWS = tuple(f"{b}{s}" for b in BASES for s in ("", " + gate"))
+EKF_TDOA_GATE = "EKF (per-TDoA) + gate"
+ROWS = tuple(x for b in BASES for x in (b, f"{b} + gate") + ((EKF_TDOA_GATE,) if b == "EKF" else ()))
+#: Release rule of the EKF's per-TDoA gate: the tight filter's ``max_gated``.
+EKF_TDOA_MAX_GATED = 5
 #: Nominal random-force spectral density of the IMU-free EKF, m²/s³ (an assumption: ~0.3 m/s²
 #: acceleration over ~1 s ramps); the tuning grid multiplies it.
 EKF_Q0 = 0.1
@@ -72,6 +80,8 @@ TIE_REL = 0.02
 FULL_GRID = tuple(float(round(10 ** (k / 2), 4)) for k in range(-4, 5))
 #: FAST grid: three decades only (a smoke test; edge knobs are flagged, not resolved).
 FAST_GRID = (0.1, 1.0, 10.0)
+#: Largest max error (m) a gated filter may have in the recovery after the outage, matched world.
+RECOVERY_MAX_M = 0.5
 #: Seconds after an outage scored as "recovery" (not as "dynamic").
 RECOVERY_S = 5.0
 #: Scores per row and seed (m; coverage as a fraction of the scored epochs).
@@ -219,6 +229,26 @@ def legs_for_outage(outage_s: float, *, after_s: float = 1.0) -> int:
     return n
 
 
+def gate_table(cfg: AblationConfig) -> pd.DataFrame:
+    """Kind and release rule (``max_gated``: consecutive gated epochs before the next is used
+    ungated) of every gated row, read off the filters as :func:`run_methods` builds them."""
+    m = cfg.model
+    m2 = TdoaModel(np.asarray(m.stations_m, float), m.sigma_toa_m, dim=2, z_m=m.tag_height_m)
+    ekf = TdoaEkf(RandomForce(EKF_Q0, dim=2), m2, gate_prob=cfg.gate_prob)
+    ekf_t = TdoaEkf(RandomForce(EKF_Q0, dim=2), m2,
+                    gate=ChiSquarePerMeasurement(cfg.gate_prob, max_gated=EKF_TDOA_MAX_GATED))
+    loose = eskf.LooseFilter(height_m=m.tag_height_m, lever_arm_m=m.lever_arm_m, gate_prob=cfg.gate_prob)
+    tight = eskf.TightEskf(m.imu, eskf.TdoaUpdate(m.tdoa_model(), cfg.outlier_c_m), lever_arm_m=m.lever_arm_m,
+                           gate_prob=cfg.gate_prob, height_m=m.tag_height_m)
+    rows = {"LS + gate": ("χ²(m − 2) on the fix's weighted residuals; the epoch is dropped", pd.NA),
+            "EKF + gate": ("anchor dropping, χ²(m) per epoch", ekf.max_gated),
+            EKF_TDOA_GATE: ("χ²(1) per TDoA", ekf_t.max_gated),
+            "loose + gate": ("χ²(4) on the fix (position + velocity)", loose.max_gated),
+            "tight + gate": ("χ²(1) per TDoA, engaged after heading alignment", tight.max_gated)}
+    return pd.DataFrame({"gate": {r: v[0] for r, v in rows.items()},
+                         "max_gated": pd.Series({r: v[1] for r, v in rows.items()}, dtype="Int64")})
+
+
 def mismatch_table(res: "AblationResult", metric: str = "outage_max") -> pd.DataFrame:
     """Mean of ``metric`` over seeds, one row per case, one column per row of the ablation (m)."""
     t = res.scores.groupby(["case", "method"])[metric].mean().unstack("method")
@@ -296,7 +326,11 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
             est, gated[row] = ls_gate(fixes, screened, m2, gate) if g else (fixes, 0)
             pos = est.pos_m
         elif base == "EKF":
-            ekf = TdoaEkf(RandomForce(EKF_Q0 * knobs[row], dim=2), m2, gate_prob=g)
+            if row == EKF_TDOA_GATE:
+                ekf = TdoaEkf(RandomForce(EKF_Q0 * knobs[row], dim=2), m2,
+                              gate=ChiSquarePerMeasurement(g, max_gated=EKF_TDOA_MAX_GATED))
+            else:
+                ekf = TdoaEkf(RandomForce(EKF_Q0 * knobs[row], dim=2), m2, gate_prob=g)
             kr = ekf.run(screened.select(slice(k0, None)), x0=ekf.init(tag0[:2]))
             pos = np.full((len(run.truth), 2), np.nan)
             pos[k0:] = np.where(kr.started[:, None], kr.pos_m, np.nan)
@@ -360,12 +394,22 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, float], cfg: AblationCo
     model = cfg.model
     world = mm.case(case).world(model)
     scores = {r: {m: np.nan for m in METRICS} for r in rows}
-    counts = {}
+    counts, pairs = {}, {}
     for scen in scenarios:
         run = simulate(scen, world, cfg, seed)
         pos, k0, counts[scen] = run_methods(run, model, knobs, cfg, rows)
         masks = _masks(run, k0, cfg.recovery_s)
         truth = run.truth.pos_m[:, :2]
+        for what, a, b in LADDER:
+            if a in pos and b in pos:
+                p = pairs.setdefault(what, {})
+                for key, sel, i in (("static_rmse" if scen == "static" else "dyn_rmse", masks["all"], 0),
+                                    ("outage_max", masks.get("outage"), 1)):
+                    if sel is None:
+                        continue
+                    both = sel & np.isfinite(pos[a]).all(axis=1) & np.isfinite(pos[b]).all(axis=1)
+                    p[key] = (_scores(pos[a], truth, both)[i], _scores(pos[b], truth, both)[i],
+                              float(both.sum() / max(sel.sum(), 1)))
         for r in rows:
             rmse, mx, cov, _ = _scores(pos[r], truth, masks["all"])
             s = scores[r]
@@ -377,7 +421,7 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, float], cfg: AblationCo
                 s["outage_rmse"], s["outage_max"], s["outage_cov"] = o_rmse, o_max, o_cov
                 s["recovery_max"] = _scores(pos[r], truth, masks["recovery"])[1]
                 s["nis"] = counts[scen]["nis"].get(r, np.nan)
-    return {"scores": scores, "counts": counts}
+    return {"scores": scores, "counts": counts, "pairs": pairs}
 
 
 def _tune_task(row: str, knob: float, cfg: AblationConfig, seed: int) -> float:
@@ -453,6 +497,11 @@ class AblationResult:
         Long table: one row per (case, seed, method) with the :data:`METRICS`.
     counts
         ``{case: {"eq4": .., "injected": .., "eq4_on_injected": ..}}`` summed over seeds and scenarios.
+    pairs
+        Long table of the :data:`LADDER` steps scored on the epochs *both* rows cover: one row per
+        (case, seed, step, metric) with ``num``, ``den`` (the without / with row's score there) and
+        ``both_cov`` (share of the scored epochs both rows cover). Empty: ratios fall back to the
+        per-row scores.
     """
 
     config: AblationConfig
@@ -461,6 +510,7 @@ class AblationResult:
     knobs: dict
     scores: pd.DataFrame
     counts: dict = field(default_factory=dict)
+    pairs: pd.DataFrame = field(default_factory=pd.DataFrame)
 
     def case(self, name: str = "matched") -> pd.DataFrame:
         """Scores of one case, indexed by (seed, method)."""
@@ -492,8 +542,9 @@ LADDER = (
     ("outlier handling (gate), loose", "loose", "loose + gate"),
     ("outlier handling (gate), tight", "tight", "tight + gate"),
     ("temporal filtering (LS → EKF, gated)", "LS + gate", "EKF + gate"),
-    ("IMU, loosely (EKF → loose, gated)", "EKF + gate", "loose + gate"),
-    ("IMU, tightly (EKF → tight, gated)", "EKF + gate", "tight + gate"),
+    ("gate kind, EKF (anchor dropping, release 10 → per-TDoA χ², release 5)", "EKF + gate", EKF_TDOA_GATE),
+    ("IMU, loosely (EKF → loose, gated; gates differ)", "EKF + gate", "loose + gate"),
+    ("IMU, tightly (EKF → tight, both per-TDoA χ², release 5)", EKF_TDOA_GATE, "tight + gate"),
     ("tight vs loose (gated)", "loose + gate", "tight + gate"),
 )
 
@@ -517,15 +568,34 @@ def ratio_ci(a, b, *, prob: float = 0.95) -> dict:
     return {"ratio": math.exp(m), "lo": math.exp(m - h), "hi": math.exp(m + h), "n": n}
 
 
+def pair_rmse(res: AblationResult, step: str, metric: str, case: str = "matched", prob: float = 0.95) -> dict:
+    """:func:`ratio_ci` of a :data:`LADDER` step (without / with) on ``metric``, both rows scored on
+    the epochs both cover (``res.pairs``), with ``both_cov`` (mean share of the scored epochs both
+    cover). Without a pairs table, the per-row scores (:meth:`AblationResult.ratio`)."""
+    _, a, b = next(x for x in LADDER if x[0] == step)
+    p = res.pairs
+    if p.empty:
+        return {**res.ratio(a, b, metric, case, prob), "both_cov": np.nan}
+    p = p[(p["case"] == case) & (p["step"] == step) & (p["metric"] == metric)]
+    r = ratio_ci(p["num"].to_numpy(), p["den"].to_numpy(), prob=prob)
+    return {**r, "both_cov": float(p["both_cov"].mean()) if len(p) else np.nan}
+
+
 def ladder_table(res: AblationResult, case: str = "matched",
                  metrics: Sequence[str] = ("static_rmse", "dyn_rmse", "outage_max")) -> pd.DataFrame:
-    """Ratio (without / with the ingredient) and its 95 % interval for every step of :data:`LADDER`."""
+    """Ratio (without / with the ingredient) and its 95 % interval for every step of :data:`LADDER`,
+    each scored on the epochs both rows cover (:func:`pair_rmse`), with each row's own coverage
+    (``cov without``, ``cov with``: mean over seeds) and the share both cover (``cov both``)."""
+    t = res.table(case)
     rows = {}
     for what, a, b in LADDER:
         row = {}
         for m in metrics:
-            r = res.ratio(a, b, m, case)
+            r = pair_rmse(res, what, m, case)
             row[(m, "ratio")], row[(m, "lo")], row[(m, "hi")] = r["ratio"], r["lo"], r["hi"]
+            cov = {"static_rmse": "static_cov", "dyn_rmse": "dyn_cov", "outage_max": "outage_cov"}[m]
+            row[(m, "cov without")], row[(m, "cov with")] = t.loc[a, cov], t.loc[b, cov]
+            row[(m, "cov both")] = r["both_cov"]
         rows[what] = row
     t = pd.DataFrame(rows).T
     t.columns = pd.MultiIndex.from_tuples(t.columns)
@@ -551,17 +621,21 @@ def run_ablation(cfg: AblationConfig, *, base_seed: int = 0, fast: bool = False,
         for k in range(n):
             tasks.append(parallel.Task({"case": case, "run_seed": base_seed + 1 + k,
                                         "rows": ROWS if matched else mis_rows, "scenarios": scen}))
-    recs, counts = [], {}
+    recs, counts, prs = [], {}, []
     for task, out in parallel.imap(_score_task, tasks, shared={"knobs": knobs, "cfg": cfg},
                                    scheduler=scheduler, workers=workers, desc="ablation", unit="seed"):
         case, seed = task.params["case"], task.params["run_seed"]
         for r, s in out["scores"].items():
             recs.append({"case": case, "seed": seed, "method": r, **s})
+        for step, p in out["pairs"].items():
+            for metric, (num, den, both) in p.items():
+                prs.append({"case": case, "seed": seed, "step": step, "metric": metric, "num": num, "den": den,
+                            "both_cov": both})
         c = counts.setdefault(case, {"eq4": 0, "injected": 0, "eq4_on_injected": 0})
         for sc in out["counts"].values():
             for k in c:
                 c[k] += sc[k]
-    return AblationResult(cfg, fast, tuning, knobs, pd.DataFrame(recs), counts)
+    return AblationResult(cfg, fast, tuning, knobs, pd.DataFrame(recs), counts, pd.DataFrame(prs))
 
 
 def eq4_path(cfg: AblationConfig) -> np.ndarray:

@@ -27,14 +27,17 @@ import math
 
 import numpy as np
 
-from .ablation import LADDER, AblationResult, choose_knobs, eq4_path, eq4_thresholds
+from .ablation import (EKF_TDOA_GATE, LADDER, RECOVERY_MAX_M, AblationResult, choose_knobs, eq4_path, eq4_thresholds,
+                       pair_rmse)
 
 __all__ = ["DIVERGED_FACTOR", "verdict", "facts", "ingredient_sentence", "outage_sentence", "survival_sentence",
-           "diverged_sentence", "tuning_sentence", "eq4_sentence", "summary_markdown"]
+           "diverged_sentence", "matched_failure_sentence", "tuning_sentence", "eq4_sentence", "summary_markdown"]
 
 #: A mismatch row whose dynamic RMSE or recovery max exceeds this many times its matched value diverged.
 DIVERGED_FACTOR = 10.0
 
+#: The rows tight coupling's outage advantage is measured against.
+_VERSUS = ("loose + gate", "EKF + gate", EKF_TDOA_GATE)
 _METRIC_WORDS = {"static_rmse": "static RMSE", "dyn_rmse": "dynamic RMSE", "outage_max": "max error in the outage"}
 
 
@@ -52,6 +55,13 @@ def verdict(lo: float, hi: float) -> str:
 def _ratio(res: AblationResult, a: str, b: str, metric: str, case: str = "matched", seeds=None) -> dict:
     r = res.ratio(a, b, metric, case, seeds=seeds)
     return {**r, "verdict": verdict(r["lo"], r["hi"])}
+
+
+def _matched_failures(res: AblationResult, limit_m: float) -> dict:
+    """Gated rows whose recovery max reaches ``limit_m`` on some matched seed: row → per-seed maxima."""
+    rec = res.case("matched")["recovery_max"].unstack("method")
+    return {str(r): {int(k): float(v) for k, v in rec[r].items()} for r in rec.columns
+            if r.endswith("+ gate") and not r.startswith("LS") and not (rec[r] < limit_m).all()}
 
 
 def _diverged(res: AblationResult, case: str) -> list[dict]:
@@ -89,7 +99,8 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
          "survival": {}, "winners": {}, "eq4": dict(res.counts), "diverged": {},
          "tuning": ({} if res.tuning.empty else
                     {r: dict(v) for r, v in choose_knobs(res.tuning).to_dict("index").items()}),
-         "grid": tuple(float(g) for g in cfg.grid)}
+         "grid": tuple(float(g) for g in cfg.grid),
+         "matched_failures": _matched_failures(res, RECOVERY_MAX_M), "recovery_max_m": RECOVERY_MAX_M}
     if cfg.outlier_c_m is not None:
         th = eq4_thresholds(cfg.model, eq4_path(cfg), cfg.outlier_c_m).iloc[:, 1:]
         pair, side = th.stack().idxmin()
@@ -97,10 +108,13 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
                              "side": "reference" if "reference" in side else "station",
                              "excess_m": tuple(float(x) for x in cfg.model.outlier_excess_m)}
     for what, a, b in LADDER:
-        f["ladder"][what] = {m: _ratio(res, a, b, m) for m in _METRIC_WORDS}
-    for other in ("loose + gate", "EKF + gate"):
+        f["ladder"][what] = {}
+        for m in _METRIC_WORDS:
+            r = pair_rmse(res, what, m)
+            f["ladder"][what][m] = {**r, "verdict": verdict(r["lo"], r["hi"])}
+    for other in _VERSUS:
         f["outage"][other] = _ratio(res, other, "tight + gate", "outage_max")
-    gated = [r for r in ("LS + gate", "EKF + gate", "loose + gate", "tight + gate")]
+    gated = [r for r in ("LS + gate", "EKF + gate", EKF_TDOA_GATE, "loose + gate", "tight + gate")]
     for case in cfg.cases:
         t = res.table(case)
         rows = [r for r in gated if r in t.index]
@@ -111,7 +125,7 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
         f["diverged"][case] = _diverged(res, case)
         f["survival"][case] = {}
         seeds = res.case(case).index.get_level_values("seed").unique()
-        for other in ("loose + gate", "EKF + gate"):
+        for other in _VERSUS:
             r = _ratio(res, other, "tight + gate", "outage_max", case)
             r0 = _ratio(res, other, "tight + gate", "outage_max", "matched", seeds=seeds)["ratio"]
             r["share"] = (math.log(r["ratio"]) / math.log(r0)
@@ -130,6 +144,9 @@ def ingredient_sentence(step: str, r: dict, metric: str = "dyn_rmse") -> str:
     """One ladder step in words, e.g. ``"temporal filtering … helps: 3.1× lower dynamic RMSE (95 % CI …)"``."""
     v, x = r["verdict"], r["ratio"]
     what = _METRIC_WORDS[metric]
+    bc = r.get("both_cov", np.nan)
+    if np.isfinite(bc) and bc < 1:
+        what += f" (on the {bc * 100:.0f} % of epochs both rows cover)"
     if not np.isfinite(x):
         return f"{step}: not measurable on the {what} (a row has no estimate there)."
     size = f"{x:.1f}× lower {what}" if x >= 1 else f"{1 / x:.1f}× higher {what}"
@@ -146,7 +163,8 @@ def outage_sentence(f: dict) -> str:
     """The headline: tight coupling's single-TDoA update through the outage, against the gated
     loose filter and the gated IMU-free EKF."""
     parts = []
-    for other, label in (("loose + gate", "the gated loose filter"), ("EKF + gate", "the gated IMU-free EKF")):
+    for other, label in (("loose + gate", "the gated loose filter"), ("EKF + gate", "the gated IMU-free EKF"),
+                         (EKF_TDOA_GATE, "the IMU-free EKF with the same per-TDoA gate")):
         r = f["outage"][other]
         x = r["ratio"]
         if not np.isfinite(x):
@@ -190,6 +208,19 @@ def survival_sentence(f: dict, versus: str = "EKF + gate") -> str:
 
 
 _WHAT = {"dyn_rmse": "dynamic RMSE", "recovery_max": "max error in the recovery after the outage"}
+
+
+def matched_failure_sentence(f: dict) -> str:
+    """Names every gated filter that failed to re-acquire after the outage in the matched world."""
+    fl = f.get("matched_failures", {})
+    lim = f.get("recovery_max_m", RECOVERY_MAX_M)
+    if not fl:
+        return (f"Every gated filter re-acquired after the outage in the matched world (recovery max below "
+                f"{lim:g} m on every seed).")
+    return (f"**Failed to re-acquire after the outage in the matched world** (recovery max ≥ {lim:g} m): "
+            + "; ".join(f"{r} (" + ", ".join(f"seed {k}: {v:.3g} m" for k, v in s.items()) + ")"
+                        for r, s in fl.items())
+            + ". A filter defect, not a tuning result: every ratio involving it measures the failure.")
 
 
 def diverged_sentence(f: dict) -> str:
@@ -253,7 +284,7 @@ def summary_markdown(f: dict) -> str:
     lines = [f"*{f['mode']} run: {f['seeds']} scoring seeds; mismatch cases on {f['mismatch_seeds']}.*", ""]
     for step, r in f["ladder"].items():
         lines.append("- " + ingredient_sentence(step, r["dyn_rmse"], "dyn_rmse"))
-    lines += ["", "**Headline.** " + outage_sentence(f), "",
-              survival_sentence(f, "EKF + gate") + " " + survival_sentence(f, "loose + gate"), "",
+    lines += ["", matched_failure_sentence(f), "", "**Headline.** " + outage_sentence(f), "",
+              " ".join(survival_sentence(f, v) for v in ("EKF + gate", EKF_TDOA_GATE, "loose + gate")), "",
               diverged_sentence(f), "", tuning_sentence(f), "", eq4_sentence(f)]
     return "\n".join(lines)

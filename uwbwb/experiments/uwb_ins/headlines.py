@@ -11,15 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .ablation import LADDER, ROWS, AblationResult
+from .ablation import EKF_TDOA_GATE, LADDER, RECOVERY_MAX_M, ROWS, AblationResult
 
 __all__ = ["ERROR_RANGE_ASSUMPTION", "RECOVERY_MAX_M", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
 
 #: What the synthetic error ranges follow from (named in their summary rows).
 ERROR_RANGE_ASSUMPTION = "follows from assumed noise: 3 cm arrival-time σ, 2 % multipath, consumer IMU"
 _GATED = ("EKF + gate", "loose + gate", "tight + gate")
-#: Largest max error (m) a gated filter may have in the recovery after the outage, matched world.
-RECOVERY_MAX_M = 0.5
 
 
 def ablation_rows(res: AblationResult) -> list[dict]:
@@ -51,7 +49,7 @@ def ablation_rows(res: AblationResult) -> list[dict]:
                 if np.isfinite(v):
                     out.append(dict(quantity=f"mismatch '{case}': {what}, {r} (mean of {int(t.loc[r, 'seeds'])} "
                                              f"seeds)", value=v, unit="m", data="synthetic", kind="reproduced"))
-        for other in ("EKF + gate", "loose + gate"):
+        for other in ("EKF + gate", EKF_TDOA_GATE, "loose + gate"):
             r = res.ratio(other, "tight + gate", "outage_max", case)
             if np.isfinite(r["ratio"]):
                 out.append(dict(quantity=f"mismatch '{case}': outage max error {other} / tight + gate "
@@ -77,7 +75,9 @@ def checks(res: AblationResult) -> list[str]:
     5. The LS residual test lowers LS's static and dynamic RMSE by ≥ 1.5× (mean over seeds).
     6. Re-acquisition: in the matched world every gated filter's max error in the recovery after
        the outage is below :data:`RECOVERY_MAX_M` on every seed (a filter that diverges after the
-       outage fails it however good its mean is).
+       outage fails it however good its mean is). The EKF with the tight filter's per-TDoA gate
+       (:data:`~.ablation.EKF_TDOA_GATE`) is a diagnostic row, not one of the designs: its failure
+       to re-acquire is named in the notebook (:func:`~.facts.matched_failure_sentence`), not asserted.
     """
     fails = []
     t = res.table("matched")
