@@ -14,9 +14,11 @@
     The recording's **common bound** (:mod:`.reference`: the posterior CRLB of the motion
     model that best fits the calibration truth, with every range at the calibrated robust noise
     treated as Gaussian, evaluated along the one realised true track; the same for every method;
-    it bounds causal estimators only — a smoother or a method with an IMU may go below it) aggregated as ``sqrt(mean_k tr C_k)`` over the method's covered
-    epochs, and the method's RMSE over those epochs divided by it, with a block standard error.
-    Each method's own covered epochs: a method that skips the hard epochs is placed on easier ones.
+    it bounds causal estimators only — a smoother or a method with an IMU may go below it)
+    aggregated as ``sqrt(mean_k tr C_k)`` over the method's covered epochs, and the method's RMSE
+    over those epochs divided by it, with a block standard error (:func:`.verdicts.block_se_ratio`:
+    the board's one block rule; NaN with fewer than :data:`MIN_BLOCKS` blocks). These are each
+    method's own covered epochs: a method that skips the hard epochs is placed on easier ones.
 ``common_bound_common_m``, ``rmse_common_over_common``
     The same on the epochs *every* method covered: one bound and one set of epochs for all, so this
     is the column to rank methods by (it orders them as ``rmse_common_m`` does); the coverage beside it.
