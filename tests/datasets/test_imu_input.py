@@ -142,6 +142,17 @@ def test_rate_scale_tells_rad_from_deg_whatever_the_motion():
     assert imu_evidence(t, acc, gyro / DEG).gyro_looks_deg and not imu_evidence(t, acc, gyro).gyro_looks_deg
 
 
+def test_a_log_at_rest_makes_no_claim_about_the_gyro_unit():
+    # no tilt: the fit has nothing to explain, however many samples (no false "deg/s")
+    rng = np.random.default_rng(3)
+    t = np.arange(200_000) * 0.01
+    acc = np.array([0.0, 0.0, GRAVITY_MPS2]) + rng.normal(0, 0.02, (t.size, 3))
+    gyro = rng.normal(0, 0.01, (t.size, 3))
+    ev = imu_evidence(t, acc, gyro)
+    assert ev.rate_scale_se < 0.05 and not ev.gyro_looks_deg
+    check_body_imu(ImuLog(t, acc, gyro))
+
+
 # --- accelerations in mg (or g) --------------------------------------------------------------
 
 @pytest.mark.parametrize("factor, guess", [(1000.0 / GRAVITY_MPS2, "mg"), (1.0 / GRAVITY_MPS2, "looks like g")])
@@ -191,7 +202,9 @@ def test_gap_kept_on_request_is_warned_and_listed(tree, tmp_path):
     assert not np.any((rec.imu.t_s > gap[0]) & (rec.imu.t_s < gap[1]))
 
 
-def test_gap_policy_and_limit_are_validated():
+def test_gap_policy_and_limit_are_validated(tree):
+    with pytest.raises(ValueError, match="gaps must be one of"):
+        iasl.load_scenario("scenario1", data_dir=tree, register=False, imu_gaps="ignore")
     t = np.arange(50) * 0.05
     acc = np.tile([0.0, 0.0, GRAVITY_MPS2], (50, 1))
     with pytest.raises(ValueError, match="gaps must be one of"):

@@ -264,8 +264,13 @@ class ImuEvidence:
 
     @property
     def gyro_looks_deg(self) -> bool:
-        """``k + 3 σ_k`` below :data:`RATE_SCALE_DEG_LIMIT`."""
-        return bool(np.isfinite(self.rate_scale) and self.rate_scale + 3 * self.rate_scale_se < RATE_SCALE_DEG_LIMIT)
+        """``k + 3 σ_k`` below :data:`RATE_SCALE_DEG_LIMIT` and ``k − 3 σ_k`` above 0.
+
+        The second condition asks that the gyro explain the tilt at all: a log at rest (no tilt,
+        ``k ≈ 0 ± σ_k`` however long it is) makes no claim either way.
+        """
+        k, se = self.rate_scale, self.rate_scale_se
+        return bool(np.isfinite(k) and k + 3 * se < RATE_SCALE_DEG_LIMIT and k - 3 * se > 0)
 
     @property
     def gravity_ok(self) -> bool:
