@@ -41,7 +41,9 @@ class SyntheticConfig:
     Attributes
     ----------
     duration_s, rate_hz
-        Length and epoch rate of a run.
+        Length and epoch rate of a run. The track is a free random-force walk from the hall's centre
+        (no walls): at ``init_vel_sigma_mps`` 1 m/s it may leave the anchors' hull after about 15 s, so
+        runs much longer than that score positions outside the hall (poor TDoA geometry).
     sigma_m
         Range noise standard deviation (every anchor), metres.
     psd_m2ps3
