@@ -202,6 +202,21 @@ def test_gap_kept_on_request_is_warned_and_listed(tree, tmp_path):
     assert not np.any((rec.imu.t_s > gap[0]) & (rec.imu.t_s < gap[1]))
 
 
+def test_rows_missing_inside_a_second_are_a_gap_too(tree, tmp_path):
+    def thin(v):
+        sec = np.unique(v[:, 0])
+        inside = np.flatnonzero(v[:, 0] == sec[8])
+        return np.delete(v, inside[3:13], axis=0)          # 10 of ~19 rows of one second lost
+    path = _edited(tree, tmp_path, thin)
+    with pytest.raises(DataFormatError, match=r"1 whole second\(s\) hold fewer than") as exc:
+        iasl.read_imu(path)
+    assert str(path) in str(exc.value) and exc.value.line is not None
+    with pytest.warns(ImuGapWarning, match="samples lost inside a second"):
+        imu = iasl.read_imu(path, gaps="warn")
+    (gap,) = imu.checks.gaps_s
+    assert gap[1] - gap[0] == 1.0
+
+
 def test_gap_policy_and_limit_are_validated(tree):
     with pytest.raises(ValueError, match="gaps must be one of"):
         iasl.load_scenario("scenario1", data_dir=tree, register=False, imu_gaps="ignore")

@@ -97,7 +97,7 @@ from __future__ import annotations
 
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -109,7 +109,7 @@ from ..errors import DataFormatError, DataNotFoundError
 from ..types import Anchors, CleaningStep, ImuLog, RangeLog, Recording, Trajectory, _natural_key
 from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 from .discovery import find_dataset
-from .imu_checks import ImuChecks, check_imu_samples
+from .imu_checks import ImuChecks, check_imu_samples, check_second_counts
 from .registration import ImuAlignment, Registration, RegistrationError, align_imu, register_truth
 from .tidy import _decode_lines, _numbers, _read_bytes
 
@@ -436,8 +436,10 @@ def read_imu(path: PathLike, *, gaps: str = "error", max_gap_s: float | None = N
     (:func:`~uwbwb.datasets.imu_checks.check_imu_samples`): accelerations not in
     m/s² or gyro rates in deg/s are errors with the evidence; samples beyond the
     MEMS full scale (16 g, 2000 °/s) are dropped and counted; gaps longer than
-    ``max_gap_s`` (default 5 nominal intervals) are an error, or with
-    ``gaps="warn"`` a warning listing them (kept in :attr:`ImuFile.checks`).
+    ``max_gap_s`` (default 5 nominal intervals), and interior whole seconds
+    holding more than 5 rows fewer than the nominal rate
+    (:func:`~uwbwb.datasets.imu_checks.check_second_counts`), are an error, or
+    with ``gaps="warn"`` a warning listing them (kept in :attr:`ImuFile.checks`).
     Non-finite values are parse errors naming line and column.
     """
     values, line_no = _read_tab(path, "IMU", lambda n: IMU_COLUMNS if n == len(IMU_COLUMNS) else None,
@@ -447,6 +449,7 @@ def read_imu(path: PathLike, *, gaps: str = "error", max_gap_s: float | None = N
     stamp = values[:, 0]
     t0 = float(np.floor(stamp[0]))
     rate = np.nan
+    hidden = np.zeros((0, 2))
     if np.any(np.diff(stamp) == 0):
         frac = np.flatnonzero(stamp != np.round(stamp))
         if frac.size:
@@ -454,6 +457,7 @@ def read_imu(path: PathLike, *, gaps: str = "error", max_gap_s: float | None = N
             raise DataFormatError(path, f"time stamps repeat but {float(stamp[i])!r} is not a whole second",
                                   line=int(line_no[i]), column="Time")
         t, rate = spread_whole_seconds(stamp - t0)
+        hidden = check_second_counts(path, stamp, line_no, rate, t0_s=t0, gaps=gaps)
         steps.append(CleaningStep("spread whole-second IMU stamps", int(stamp.size),
                                   f"{Path(path).name}: rows of each Unix second spread evenly over it, "
                                   f"nominal {rate:g} rows/s (rule: uwbwb.datasets.iasl.spread_whole_seconds)"))
@@ -463,6 +467,9 @@ def read_imu(path: PathLike, *, gaps: str = "error", max_gap_s: float | None = N
         raise DataFormatError(path, "IMU time stamps too large to resolve within a second")
     checks = check_imu_samples(path, t, values[:, 1:4], values[:, 4:7], line_no, gaps=gaps, max_gap_s=max_gap_s)
     steps += checks.steps
+    if hidden.size:
+        gaps_s = np.concatenate([checks.gaps_s, hidden])
+        checks = replace(checks, gaps_s=gaps_s[np.argsort(gaps_s[:, 0], kind="stable")])
     keep = checks.keep
     imu = ImuLog(t[keep], values[keep, 1:4], values[keep, 4:7])
     return ImuFile(imu, t0, rate, tuple(steps), checks)

@@ -15,6 +15,8 @@ Loaders call :func:`check_imu_samples` after parsing and time-ordering an IMU fi
   Filters fed such a log interpolate linearly across the gap
   (:func:`uwbwb.filters.eskf.merge_timeline`), inventing motion, so by default this is an
   error listing the gaps; ``gaps="warn"`` keeps the log and warns with the same list.
+  Whole-second stamps hide gaps inside a second; :func:`check_second_counts` finds seconds
+  with rows missing, under the same policy.
 * Non-finite numbers never get this far: the parsers refuse them, naming line and column.
 
 The axis sign (z up or down at rest) is a property of the format, not a defect: it is measured
@@ -36,7 +38,8 @@ from ..models.imu import ACC_FULL_SCALE_MPS2, GYRO_FULL_SCALE_RADPS, MAX_SPIKE_F
 from ..types import CleaningStep
 from .cleaning import lines_text
 
-__all__ = ["GAP_POLICIES", "ImuChecks", "ImuGapWarning", "MAX_GAP_SAMPLES", "MAX_SPIKE_FRACTION", "check_imu_samples"]
+__all__ = ["GAP_POLICIES", "ImuChecks", "ImuGapWarning", "MAX_GAP_SAMPLES", "MAX_SPIKE_FRACTION", "check_imu_samples",
+           "check_second_counts"]
 
 #: Longest step between IMU samples, in nominal intervals, that a filter may bridge by linear
 #: interpolation (an assumption: a few samples at 20–200 Hz is well below the time over which a
@@ -144,3 +147,59 @@ def check_imu_samples(path: str | os.PathLike, t_s, acc, gyro, line_no, *, gaps:
             raise DataFormatError(path, text + " (load with imu_gaps='warn' to keep the log)", line=int(lk[big[0] + 1]))
         warnings.warn(f"{path}: {text}", ImuGapWarning, stacklevel=3)
     return ImuChecks(keep, tuple(steps), gaps_s, limit, ev)
+
+
+def check_second_counts(path: str | os.PathLike, stamp_s, line_no, rate_hz: float, *, t0_s: float = 0.0,
+                        gaps: str = "error") -> np.ndarray:
+    """Gaps hidden inside whole-second stamps: interior seconds with rows missing.
+
+    Rows that share a whole-second stamp are spread evenly over it
+    (:func:`uwbwb.datasets.iasl.spread_whole_seconds`), so rows missing inside a second leave
+    no time gap: the survivors are stretched over the second. An interior second (not the
+    first or last) holding fewer than ``rate_hz − MAX_GAP_SAMPLES`` rows has lost more samples
+    than a filter should bridge; where in the second they were lost is unknown.
+
+    Parameters
+    ----------
+    path
+        The file, for messages.
+    stamp_s
+        Whole-second stamps, non-decreasing, shape ``(T,)``, s.
+    line_no
+        1-based file line of each row, shape ``(T,)``.
+    rate_hz
+        Nominal rows per second (median over interior seconds).
+    t0_s
+        Subtracted from the stamps for the returned times.
+    gaps
+        ``"error"`` or ``"warn"`` (:data:`GAP_POLICIES`).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(start, end)`` of each short second, shape ``(G, 2)``, s after ``t0_s``.
+
+    Raises
+    ------
+    DataFormatError
+        With ``gaps="error"``, when any second is short (the first one's line named).
+    """
+    if gaps not in GAP_POLICIES:
+        raise ValueError(f"gaps must be one of {GAP_POLICIES}, got {gaps!r}")
+    stamp_s = np.asarray(stamp_s, float)
+    sec, start, count = np.unique(stamp_s, return_index=True, return_counts=True)
+    if sec.size < 3 or not np.isfinite(rate_hz):
+        return np.zeros((0, 2))
+    short = np.flatnonzero(count[1:-1] < rate_hz - MAX_GAP_SAMPLES) + 1
+    if not short.size:
+        return np.zeros((0, 2))
+    lines = np.asarray(line_no)[start[short]]
+    shown = ", ".join(f"{sec[k] - t0_s:g} s: {int(count[k])} rows" for k in short[:5]) + (", ..." if short.size > 5
+                                                                                          else "")
+    text = (f"{short.size} whole second(s) hold fewer than {rate_hz - MAX_GAP_SAMPLES:g} rows (nominal "
+            f"{rate_hz:g}/s; {shown}; first lines {lines_text(lines)}): samples lost inside a second, where "
+            f"unknown; spreading the rest over it would stretch time")
+    if gaps == "error":
+        raise DataFormatError(path, text + " (load with imu_gaps='warn' to keep the log)", line=int(lines[0]))
+    warnings.warn(f"{path}: {text}", ImuGapWarning, stacklevel=3)
+    return np.column_stack([sec[short] - t0_s, sec[short] + 1 - t0_s])
