@@ -357,3 +357,11 @@ def test_outage_spec_of_reproduce_is_the_longest_outage_the_run_holds():
     ablation.check_outage(hi, ablation.RECOVERY_S, robot.broken_line())
     with pytest.raises(ValueError, match="OUTAGE_S"):
         ablation.check_outage(longest + 0.1, ablation.RECOVERY_S, robot.broken_line())
+
+
+def test_error_range_assumption_is_read_off_the_simulated_world():
+    from uwbwb.models.imu import GRADES
+
+    assert "3 cm arrival-time σ, 2 % multipath of 0.3–4 m, consumer IMU" in headlines.ERROR_RANGE_ASSUMPTION
+    w = robot.RobotConfig(imu=GRADES["tactical"], outlier_rate=0.05, sigma_toa_m=0.05)
+    assert headlines.error_range_assumption(w).endswith("5 cm arrival-time σ, 5 % multipath of 0.3–4 m, tactical IMU")

@@ -11,12 +11,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...models.imu import GRADES
+from ...sim import robot
 from .ablation import EKF_TDOA_GATE, LADDER, RECOVERY_MAX_M, ROWS, AblationResult
 
-__all__ = ["ERROR_RANGE_ASSUMPTION", "RECOVERY_MAX_M", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
+__all__ = ["ERROR_RANGE_ASSUMPTION", "error_range_assumption", "RECOVERY_MAX_M", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
 
-#: What the synthetic error ranges follow from (named in their summary rows).
-ERROR_RANGE_ASSUMPTION = "follows from assumed noise: 3 cm arrival-time σ, 2 % multipath, consumer IMU"
+def error_range_assumption(world: robot.RobotConfig) -> str:
+    """What the synthetic error ranges follow from, read off the simulated world ``world``."""
+    grade = next((g for g, m in GRADES.items() if m == world.imu), "custom")
+    lo, hi = world.outlier_excess_m
+    return (f"follows from assumed noise: {world.sigma_toa_m * 100:g} cm arrival-time σ, "
+            f"{world.outlier_rate * 100:g} % multipath of {lo:g}–{hi:g} m, {grade} IMU")
+
+
+#: What the synthetic error ranges follow from in the default world (named in their summary rows).
+ERROR_RANGE_ASSUMPTION = error_range_assumption(robot.RobotConfig())
 _GATED = ("EKF + gate", "loose + gate", "tight + gate")
 
 
@@ -126,10 +136,12 @@ def checks(res: AblationResult) -> list[str]:
     return fails
 
 
-def comparison_rows(comps, static_ranges: dict, dyn_ranges: dict, *, outage_s: float, paper: dict) -> list[dict]:
+def comparison_rows(comps, static_ranges: dict, dyn_ranges: dict, *, outage_s: float, paper: dict,
+                    world: robot.RobotConfig | None = None) -> list[dict]:
     """Summary rows of the paper re-creation: RMSE per method and run, the outage maxima, the
     outlier counts, and the paper's error ranges beside ours — labelled as following from the
-    assumed noise (:data:`ERROR_RANGE_ASSUMPTION`), since the paper gives none of it."""
+    assumed noise of ``world`` (:func:`error_range_assumption`; None: the default world,
+    :data:`ERROR_RANGE_ASSUMPTION`), since the paper gives none of it."""
     out = []
     for comp in comps:
         t = comp.table()
@@ -146,7 +158,7 @@ def comparison_rows(comps, static_ranges: dict, dyn_ranges: dict, *, outage_s: f
                  data="synthetic", kind="reproduced"),
             dict(quantity=f"TDoAs rejected by the tight filter's gate ({degraded.label} run)", value=rej["gated"],
                  unit="", data="synthetic", kind="reproduced")]
-    a = ERROR_RANGE_ASSUMPTION
+    a = ERROR_RANGE_ASSUMPTION if world is None else error_range_assumption(world)
     for name, r in static_ranges.items():
         for key, q, pv in (("E_min", "static E error min", paper["static_E_m"][0]),
                            ("E_max", "static E error max", paper["static_E_m"][1]),
