@@ -229,6 +229,8 @@ class AuthorsEstimator(BaseEstimator):
     Their ESKF also used the robot's IMU. No bound (kind ``"none (external)"``).
     """
 
+    #: read by the board: rows of outside estimates go to the summary as *input*, not *reproduced*
+    external = True
     method: str = "LS"
     shift_s: float = 0.0
 
