@@ -124,9 +124,9 @@ def _results(**change) -> facts.Results:
             for lay, k in (("cubic", 1), ("lab", 7))}
     cep = change.pop("cep", [24.0, 26.0, 25.0, 23.0, 27.0])
     ratio = change.pop("ratio", {"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [1.8, 1.9, 2.0, 1.7, 1.6]})
-    offset = change.pop("offset", 20.0)
+    offset = np.broadcast_to(change.pop("offset", 20.0), (len(cep),))
     snap = pd.DataFrame([{"recording": k, "variant": v, "corner": c, "runs": 10,
-                          "CEP50 (cm)": cep[k] / (5 if v != "Doppler" else 1), "offset (cm)": offset,
+                          "CEP50 (cm)": cep[k] / (5 if v != "Doppler" else 1), "offset (cm)": offset[k],
                           "run-to-run CEP50 (cm)": 10.0, "along / across": ratio[c][k]}
                          for k in range(len(cep)) for v in ("Doppler", "Doppler + ranges") for c in ratio])
     in_track = change.pop("in_track", 0.99)
@@ -138,8 +138,8 @@ def _results(**change) -> facts.Results:
                             "PF in track": in_track, "MH-EKF in track": 1.0, "PF restarts": restarted,
                             "PF runs restarted": restarted, "MH-EKF restarts": 0, "PF tempered updates": 0.01}
                            for k in range(5) for v in ("Doppler", "Doppler + ranges")])
-    floor = pd.DataFrame({"CEP50, scored epochs (cm)": change.pop("floor", [40.0, 38.0, 30.0, 27.0])},
-                         index=[c[0] for c in study.FLOOR_CONDITIONS])
+    floor = pd.DataFrame({"CEP50, scored epochs (cm)": change.pop("floor", [40.0, 38.0, 30.0, 27.0]),
+                          "particles": [1000, 1000, 1000, 4000]}, index=[c[0] for c in study.FLOOR_CONDITIONS])
     angles = change.pop("angles", (4.0, 5.0))
     base = dict(fast=False, ref_table=ref, readings=readings, at15=at15,
                 fig_counts={"cubic": {0.02: (300, 40, None)}, "lab": {0.04: (500, 60, None)}},
@@ -178,18 +178,27 @@ def test_fraction_verdict_follows_the_interval(interval, verdict, words):
     assert f["frac_verdict[cubic][500 ms for all]"] == "above"
 
 
-def test_cep50_verdict_follows_the_bootstrap_interval():
+def test_cep50_verdict_judges_one_recording_against_the_spread_of_recordings():
     f, text = _text()
     assert f["cep50_verdict"] == "consistent" and "consistent with the paper's ≈ 25 cm" in text
+    assert "at K = 1000 particles" in text
+    # the median's interval excludes 25 cm, yet a single recording of 25 cm is inside the spread
+    f, text = _text(cep=[20.0, 21.0, 22.0, 23.0, 21.5, 22.5, 20.5, 21.0, 26.0],
+                    ratio={"bottom-left": [0.5] * 9, "top-left": [1.8] * 9})
+    assert f["cep50_verdict"] == "consistent" and f["cep50_median_verdict"] == "below"
+    assert "consistent with the paper's ≈ 25 cm" in text and "median recording lies below 25 cm" in text
     f, text = _text(cep=[40.0, 42.0, 39.0, 41.0, 43.0])
     assert f["cep50_verdict"] == "above" and "larger than the paper's ≈ 25 cm" in text
     f, text = _text(cep=[40.0, 42.0])
     assert f["cep50_verdict"] == "no interval"
 
 
-def test_offset_or_spread_is_named_from_the_numbers():
-    assert "mostly the offset every run" in _text(offset=20.0)[1]
-    assert "mostly run-to-run spread" in _text(offset=5.0)[1]
+@pytest.mark.parametrize("offset, label, words", [(20.0, "offset", "mostly the offset every run"),
+                                                  (5.0, "spread", "mostly run-to-run spread"),
+                                                  ([5.0, 15.0, 8.0, 12.0, 10.0], "comparable", "comparable")])
+def test_offset_or_spread_is_decided_on_the_interval_of_the_per_recording_share(offset, label, words):
+    f, text = _text(offset=offset)
+    assert f["offset_or_spread"] == label and words in text
 
 
 def test_ratio_verdict_per_corner():
@@ -197,9 +206,18 @@ def test_ratio_verdict_per_corner():
     assert f["corners"]["bottom-left"][5] == "consistent" and f["corners"]["top-left"][5] == "above"
     assert "Not reproduced" in text
     f, text = _text(ratio={"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [0.5, 0.45, 0.55, 0.5, 0.6]})
-    assert f["ratio_reproduced"] and "Reproduced at every corner." in text
+    assert f["ratio_reproduced"] and "Consistent at every corner." in text
     f, text = _text(cep=[24.0, 26.0], ratio={"bottom-left": [0.4, 0.5], "top-left": [1.8, 1.9]})
     assert f["ratio_verdict"] == "no interval" and "No verdict: fewer than 3 recordings" in text
+
+
+def test_corner_dependence_is_decided_on_the_paired_difference():
+    f, text = _text()          # top-left ≈ 1.8 against bottom-left ≈ 0.5 in every recording
+    assert f["corner_dependence"] == "depends" and "The ratio depends on the corner" in text
+    # overlapping medians (0.76 vs 0.82) whose paired differences straddle 0
+    f, text = _text(ratio={"bottom-left": [0.6, 0.9, 0.76, 0.7, 1.0], "top-left": [0.82, 0.7, 0.9, 0.85, 0.75]})
+    assert f["corner_dependence"] == "same" and "depends on the corner" not in text
+    assert "Both corners ≈" in text and "recordings spread 0.60–1.00" in text
 
 
 def test_keeps_track_verdict_flips_at_both_thresholds():
@@ -215,11 +233,36 @@ def test_filter_comparison_verdict_follows_the_interval_of_differences():
     assert _text(kf_minus_pf=[-5.0, -6.0, -4.0, -5.5, -4.5])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
     f, text = _text(kf_minus_pf=[-5.0, 6.0, -4.0, 5.5, 0.5])
     assert f["kf_vs_pf[Doppler]"] == "no significant difference" and "no significant difference" in text
+    f, text = _text(kf_minus_pf=[-0.2, -0.3, -0.1, -0.25, -0.15])      # all negative, but under 5 mm
+    assert f["kf_vs_pf[Doppler]"] == "equal within 5 mm" and "equal within 5 mm" in text
+    assert _text(kf_minus_pf=[-0.6, -0.7, -0.55, -0.65, -0.8])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
+
+
+def test_prior_sentence_states_what_each_filter_is_told(cfg):
+    text = _text()[1]
+    assert "same room prior" not in text
+    f, text = _text(filter_settings=study.filter_settings("lab", cfg))
+    assert "hard constraint" in text and "5 % uniform outlier share" in text and "non-ambiguous" in text
+    assert "p_d 0.95 and 0.5 Hz of clutter" in text and "Gaussian" in text
+
+
+def test_coverage_is_low_for_an_overconfident_posterior():
+    rng = np.random.default_rng(3)
+    err = rng.normal(0.0, 0.1, (4000, 2))
+    honest = study.in_region_95(err, np.broadcast_to(0.01 * np.eye(2), (4000, 2, 2)))
+    assert 0.93 < honest.mean() < 0.97
+    collapsed = study.in_region_95(err, np.broadcast_to(1e-6 * np.eye(2), (4000, 2, 2)))
+    assert collapsed.mean() < 0.01
+    assert not study.in_region_95(err[:1], np.zeros((1, 2, 2)))[0]          # singular: covers nothing
+    assert not study.in_region_95(err[:1], np.full((1, 2, 2), np.nan))[0]
 
 
 def test_floor_explanation_is_read_from_the_measured_steps():
-    f, text = _text()
-    assert f["floor_left_dominates"] and "the floor is the information Doppler-only data carry" in text
+    f, text = _text()           # 4× particles still lowered it by 3 cm
+    assert not f["particles_converged"] and "particle count has **not converged**" in text
+    assert "the floor is the information" not in text
+    f, text = _text(floor=[40.0, 38.0, 30.0, 29.5])
+    assert f["particles_converged"] and "the floor is the information Doppler-only data carry" in text
     f, text = _text(floor=[40.0, 38.0, 10.0, 8.0])
     assert not f["floor_left_dominates"] and f["floor_main_cause"].startswith("reading a period-averaged")
     assert "The largest step is reading a period-averaged" in text
@@ -281,7 +324,9 @@ def test_small_study_end_to_end(cfg):
     # the error about the truth is the offset and the spread about the cloud's centre combined
     assert np.all(snap["CEP50 (cm)"] <= snap["offset (cm)"] + snap["run-to-run CEP50 (cm)"] + 1e-9)
     scores = study.filter_scores(tracks)
-    assert (scores["epochs"] > 50).all() and (scores["PF coverage"] == 1).all()
+    assert (scores["epochs"] > 50).all() and (scores["PF with an estimate"] == 1).all()
+    assert scores[["PF coverage", "MH-EKF coverage"]].apply(lambda c: c.between(0, 1)).all().all()
+    assert tracks[0].pf["Doppler"].meta["pos_cov_m2"].shape == tracks[0].pf["Doppler"].pos_m.shape + (3,)
     assert {"PF restarts", "MH-EKF restarts", "PF in track", "MH-EKF in track"} <= set(scores.columns)
     floor = study.error_floor("lab", replace(cfg, n_particles=100, floor_runs=2))
     assert list(floor.index) == [c[0] for c in study.FLOOR_CONDITIONS]

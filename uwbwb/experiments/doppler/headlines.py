@@ -45,27 +45,30 @@ def _headlines() -> tuple[Headline, ...]:
     for layout in ("cubic", "lab"):
         out.append(Headline(f"fraction δ < 15 cm with pseudo-ranges, {layout} layout", "%", "reproduced",
                             lambda f, l=layout: f["ranges_frac_pct"][l]))
+    lab = ", reconstructed lab"
     for v, tag in (("Doppler", ""), ("Doppler + ranges", " with ranges")):
         for key, name, paper in (("cep50", "median over recordings", PAPER["cep50_cm"] if not tag else None),
                                  ("offset", "shared offset, median over recordings", None),
                                  ("spread", "run-to-run CEP50, median over recordings", None)):
-            out.append(Headline(f"PF snapshot CEP50{tag}, {name}" if key == "cep50" else f"PF snapshot {name}{tag}",
-                                "cm", "reproduced", lambda f, k=f"{key}_cm[{v}]": f[k][0], paper))
-        out.append(Headline(f"PF CEP50, scored epochs{tag}, median over recordings", "cm", "reproduced",
-                            lambda f, v=v: f[f"pf_cep50_cm[{v}]"]))
-        out.append(Headline(f"MH-EKF CEP50, scored epochs{tag}, median over recordings", "cm", "reproduced",
-                            lambda f, v=v: f[f"kf_cep50_cm[{v}]"]))
-        out.append(Headline(f"PF CEP95, scored epochs{tag}, median over recordings", "cm", "reproduced",
+            out.append(Headline(f"PF snapshot CEP50{tag}{lab}, {name}" if key == "cep50" else
+                                f"PF snapshot {name}{tag}{lab}", "cm", "reproduced",
+                                lambda f, k=f"{key}_cm[{v}]": f[k][0], paper))
+        for flt, key in (("PF", "pf"), ("MH-EKF", "kf")):
+            out.append(Headline(f"{flt} CEP50, scored epochs{tag}{lab}, median over recordings", "cm", "reproduced",
+                                lambda f, v=v, k=key: f[f"{k}_cep50_cm[{v}]"]))
+            out.append(Headline(f"{flt} coverage of its own 95 % region, scored epochs{tag}{lab}", "", "reproduced",
+                                lambda f, v=v, k=key: f[f"{k}_coverage[{v}]"]))
+        out.append(Headline(f"PF CEP95, scored epochs{tag}{lab}, median over recordings", "cm", "reproduced",
                             lambda f, v=v: f[f"pf_cep95_cm[{v}]"]))
-        out.append(Headline(f"PF share of runs restarted{tag}", "", "reproduced",
+        out.append(Headline(f"PF share of runs restarted{tag}{lab}", "", "reproduced",
                             lambda f, v=v: f[f"pf_restarted_share[{v}]"]))
-        out.append(Headline(f"PF share of scored epochs within 0.5 m{tag}", "", "reproduced",
+        out.append(Headline(f"PF share of scored epochs within 0.5 m{tag}{lab}", "", "reproduced",
                             lambda f, v=v: f[f"pf_in_track[{v}]"]))
     for corner in ("bottom-left", "top-left"):
-        out.append(Headline(f"PF along/across-track ratio, {corner} corner, median over recordings", "", "reproduced",
-                            lambda f, c=corner: f["corners"][c][0] if c in f["corners"] else np.nan,
+        out.append(Headline(f"PF along/across-track ratio, {corner} corner{lab}, median over recordings", "",
+                            "reproduced", lambda f, c=corner: f["corners"][c][0] if c in f["corners"] else np.nan,
                             PAPER["along_over_cross"]))
-    out.append(Headline("PF CEP50 with zero noise and exact eq-1 ΔP (error floor)", "cm", "reproduced",
+    out.append(Headline("PF CEP50 with zero noise and exact eq-1 ΔP (error floor), reconstructed lab", "cm", "reproduced",
                         lambda f: f["floor_cm"]["zero noise, exact eq-1 ΔP"]))
     return tuple(out)
 

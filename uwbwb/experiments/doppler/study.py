@@ -23,7 +23,7 @@ from ...sim import chirps as sc
 
 __all__ = ["PAPER", "StudyConfig", "LAYOUTS", "ROOMS", "READINGS", "make_model", "reference_table", "SpaceMap",
            "map_space", "period_readings", "figure_samples", "fraction_table", "band_direction", "cuts",
-           "fisher_analysis", "ghost_geometry", "TrackStudy", "track_study", "track_studies", "snapshot_table",
+           "fisher_analysis", "ghost_geometry", "TrackStudy", "make_filters", "filter_settings", "in_region_95", "track_study", "track_studies", "snapshot_table",
            "fig6_summary", "corner_ratios", "filter_scores", "error_floor", "bootstrap_median"]
 
 #: Numbers quoted by the paper (inputs, never targets of a tuning).
@@ -394,6 +394,39 @@ def kf_prior(layout: str) -> Gaussian:
 _kf_prior = kf_prior
 
 
+def make_filters(layout: str, cfg: StudyConfig, model: dm.DopplerModel, motion: dm.ReceiverMotion = dm.ReceiverMotion(),
+                 *, n_particles: int | None = None) -> tuple[fd.DopplerPf, fd.ScaatMhEkf]:
+    """The particle filter and the MH-EKF of :func:`track_study`, as configured for ``layout`` and ``cfg``."""
+    lo, hi = ROOMS[layout]
+    pf = fd.DopplerPf(model, motion, n_particles=n_particles or cfg.n_particles, room_lo_m=lo, room_hi_m=hi)
+    mh = fd.ScaatMhEkf(model, motion, p_detect=1 - cfg.p_miss, spurious_rate_hz=max(cfg.spurious_rate_hz, 1e-3))
+    return pf, mh
+
+
+def filter_settings(layout: str, cfg: StudyConfig) -> dict:
+    """What differs in the information and outlier handling the two filters get (read from :func:`make_filters`)."""
+    pf, mh = make_filters(layout, cfg, make_model(layout, cfg))
+    return {"pf_outlier": pf.outlier_prob, "pf_use_ambiguous": pf.use_ambiguous, "pf_temper_ess": pf.temper_ess,
+            "pf_particles": pf.n_particles, "kf_p_detect": mh.p_detect, "kf_clutter_hz": mh.spurious_rate_hz}
+
+
+def in_region_95(err_m: np.ndarray, cov_m2: np.ndarray) -> np.ndarray:
+    """Whether each error lies in the filter's own 95 % region: ``eᵀ Σ⁻¹ e ≤ χ²_d(0.95)``.
+
+    ``err_m`` shape ``(..., d)`` (estimate − truth), ``cov_m2`` shape ``(..., d, d)``. A
+    singular or non-finite covariance covers nothing (returns False there).
+    """
+    from scipy.stats import chi2
+
+    err_m, cov_m2 = np.asarray(err_m, float), np.asarray(cov_m2, float)
+    d = err_m.shape[-1]
+    ok = np.all(np.isfinite(cov_m2), axis=(-2, -1)) & np.all(np.isfinite(err_m), axis=-1)
+    ok &= np.linalg.det(np.where(ok[..., None, None], cov_m2, np.eye(d))) > 1e-300
+    safe = np.where(ok[..., None, None], cov_m2, np.eye(d))
+    m2 = np.einsum("...i,...i->...", err_m, np.linalg.solve(safe, np.where(ok[..., None], err_m, 0.0)[..., None])[..., 0])
+    return ok & (m2 <= chi2.ppf(0.95, d))
+
+
 def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs: int | None = None,
                 n_particles: int | None = None, motion: dm.ReceiverMotion = dm.ReceiverMotion(),
                 noise: bool = True, exact_dp: bool = False, variants=("Doppler", "Doppler + ranges"),
@@ -426,9 +459,7 @@ def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs:
         dp[ok] = model.delta_p(track.pos_m(log.t_s[ok]), track.vel(log.t_s[ok]), log.beacon[ok], instantaneous=False)
         log = replace(log, dp_s=dp)
     ranges = fd.clock_pseudo_ranges(log, model, rec.phase_s)
-    lo, hi = ROOMS[layout]
-    pf = fd.DopplerPf(model, motion, n_particles=n_particles or cfg.n_particles, room_lo_m=lo, room_hi_m=hi)
-    mh = fd.ScaatMhEkf(model, motion, p_detect=1 - cfg.p_miss, spurious_rate_hz=max(cfg.spurious_rate_hz, 1e-3))
+    pf, mh = make_filters(layout, cfg, model, motion, n_particles=n_particles)
     pf_out, kf_out = {}, {}
     for variant in variants:
         r = ranges if variant == "Doppler + ranges" else None
@@ -515,7 +546,10 @@ def filter_scores(studies: list[TrackStudy], *, lost_m: float = 0.5) -> pd.DataF
     """PF and MH-EKF on the same epochs (PF update times after ``t_score_s``), per recording and variant.
 
     CEP50/CEP95 pool all PF runs; the MH-EKF is deterministic (one run). Beside accuracy:
-    ``coverage`` (share of scored epochs with an estimate), ``in track`` (share of scored
+    ``coverage`` (share of scored epochs whose horizontal truth lies in the filter's own
+    95 % region, :func:`in_region_95` on the x–y block of its position covariance: the
+    MH-EKF's ``pos_cov_m2``, the PF run's weighted particle covariance), ``with an
+    estimate`` (share of scored epochs with a finite estimate), ``in track`` (share of scored
     epochs with horizontal error under ``lost_m``) and, for the PF, its restarts (runs
     whose particles had all left the room) and the share of tempered updates. The MH-EKF
     has no restart mechanism (its column is 0 by construction).
@@ -536,8 +570,12 @@ def filter_scores(studies: list[TrackStudy], *, lost_m: float = 0.5) -> pd.DataF
             rows.append({"recording": k, "variant": variant, "epochs": int(keep.sum()), "PF runs": runs.n_runs,
                          "PF CEP50 (cm)": 100 * metrics.cep50(e_pf), "MH-EKF CEP50 (cm)": 100 * metrics.cep50(e_kf),
                          "PF CEP95 (cm)": 100 * metrics.cep95(e_pf), "MH-EKF CEP95 (cm)": 100 * metrics.cep95(e_kf),
-                         "PF coverage": float(np.mean(np.all(np.isfinite(runs.pos_m[:, keep]), axis=-1))),
-                         "MH-EKF coverage": float(np.mean(np.all(np.isfinite(kf.pos_m[idx]), axis=-1))),
+                         "PF coverage": float(np.mean(in_region_95(
+                             runs.pos_m[:, keep, :2] - truth, runs.meta["pos_cov_m2"][:, keep, :2, :2]))),
+                         "MH-EKF coverage": float(np.mean(in_region_95(
+                             kf.pos_m[idx, :2] - truth, kf.pos_cov_m2[idx, :2, :2]))),
+                         "PF with an estimate": float(np.mean(np.all(np.isfinite(runs.pos_m[:, keep]), axis=-1))),
+                         "MH-EKF with an estimate": float(np.mean(np.all(np.isfinite(kf.pos_m[idx]), axis=-1))),
                          "PF in track": float(np.mean(e_pf < lost_m)), "MH-EKF in track": float(np.mean(e_kf < lost_m)),
                          "PF restarts": int(runs.restarts.sum()), "PF runs restarted": int(np.count_nonzero(runs.restarts)),
                          "MH-EKF restarts": 0,
