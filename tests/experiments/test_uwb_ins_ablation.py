@@ -281,6 +281,10 @@ def test_a_matched_failure_to_reacquire_is_named():
     assert list(f["matched_failures"]) == [ab.EKF_TDOA_GATE] and f["matched_failures"][ab.EKF_TDOA_GATE][3] == 35.0
     s = facts.matched_failure_sentence(f)
     assert "Failed to re-acquire" in s and f"{ab.EKF_TDOA_GATE} (" in s and "seed 3: 35 m" in s
+    md = facts.summary_markdown(f)
+    tight_line = next(x for x in md.splitlines() if x.startswith("- IMU, tightly"))
+    assert "failed to re-acquire after the outage: this ratio measures that failure" in tight_line
+    assert "failed to re-acquire" not in next(x for x in md.splitlines() if x.startswith("- tight vs loose"))
 
 
 def test_checks_pass_on_a_sound_result_and_fail_on_each_defect():

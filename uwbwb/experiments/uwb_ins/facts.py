@@ -282,8 +282,13 @@ def summary_markdown(f: dict) -> str:
     """The ablation's verdicts as markdown (one line per ladder step on the dynamic RMSE and the
     outage, then the headline, the survival and the eq-4 sentences)."""
     lines = [f"*{f['mode']} run: {f['seeds']} scoring seeds; mismatch cases on {f['mismatch_seeds']}.*", ""]
+    failed = f.get("matched_failures", {})
+    rows = {what: (a, b) for what, a, b in LADDER}
     for step, r in f["ladder"].items():
-        lines.append("- " + ingredient_sentence(step, r["dyn_rmse"], "dyn_rmse"))
+        bad = [x for x in rows.get(step, ()) if x in failed]
+        note = (f" *({', '.join(bad)} failed to re-acquire after the outage: this ratio measures that failure.)*"
+                if bad else "")
+        lines.append("- " + ingredient_sentence(step, r["dyn_rmse"], "dyn_rmse") + note)
     lines += ["", matched_failure_sentence(f), "", "**Headline.** " + outage_sentence(f), "",
               " ".join(survival_sentence(f, v) for v in ("EKF + gate", EKF_TDOA_GATE, "loose + gate")), "",
               diverged_sentence(f), "", tuning_sentence(f), "", eq4_sentence(f)]
