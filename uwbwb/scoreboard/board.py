@@ -381,8 +381,10 @@ class Board:
     def markdown(self) -> str:
         """The table as Markdown (the bound in its own column), with a header saying what it is."""
         df = self.table()
-        lines = [f"# Scoreboard: {self.label} ({self.mode} mode; numbers are *reproduced*: they come out of the "
-                 f"methods run here)", "",
+        kinds = ("numbers are *reproduced*: they come out of the methods run here"
+                 + (f"; rows of {', '.join(self.external)} are *input*: outside estimates scored here"
+                    if self.external else ""))
+        lines = [f"# Scoreboard: {self.label} ({self.mode} mode; {kinds})", "",
                  f"Calibration and tuning on {self.calibration.source}; scored on {self.part}, "
                  f"tags {', '.join(self.tags)}; {self.calibration.dim}-D, {self.calibration.rate_hz:.3g} Hz. "
                  "Errors are horizontal. *Common bound*: one bound for every method (below). RMSE / common "
