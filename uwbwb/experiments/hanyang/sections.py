@@ -151,7 +151,8 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
                        summary=None, seed: int = 0, progress: bool = False) -> Section:
     """Notebook 06's Hanyang section: reproduction, boards, ours / theirs across cases, static model.
 
-    ``cases`` None: every case present (FAST: the first only). Each board is tuned on
+    ``cases`` None: every case present (FAST: the first only); named cases run as named, FAST
+    included. Each board is tuned on
     :func:`~.study.tuning_case`. Checks (raise AssertionError): the recomputed authors' numbers agree
     with ``RMSD_results.txt`` within :data:`~.facts.REPRO_TOL_M` where it exists; every board's
     coverage lies in [0, 1]; the external rows were scored.
@@ -159,9 +160,8 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
     available, chosen, absent = _cases(data_dir, cases)
     if absent:
         return Section(absent=absent)
-    chosen = chosen or available
-    if fast:
-        chosen = chosen[:1]
+    if not chosen:                   # none named: every case present (FAST: the first); named cases run as named
+        chosen = available[:1] if fast else available
     comp = study.compare_cases(chosen, data_dir, fast=fast, seed=seed, progress=progress)
     repro_f = facts.reproduction_facts(comp.reproduction)
     assert repro_f["n_published"] == 0 or repro_f["agree"], facts.reproduction_sentence(repro_f)
