@@ -429,7 +429,7 @@ class DopplerPf:
             pos[:, k] = np.einsum("rk,rkn->rn", w, x[..., :3])
             vel[:, k] = np.einsum("rk,rkn->rn", w, x[..., 3:])
             d = x[..., :3] - pos[:, k, None, :]
-            cov[:, k] = np.einsum("rk,rki,rkj->rij", w, d, d)
+            cov[:, k] = np.swapaxes(d * w[..., None], 1, 2) @ d
             ess[:, k] = 1.0 / np.sum(w * w, axis=-1)
             x, logw, resampled = resample(x, logw, rng=rng, threshold=self.resample_threshold)
             if self.roughening > 0 and resampled.any():
