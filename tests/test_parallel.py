@@ -110,6 +110,27 @@ def test_a_task_that_exits_fails_the_sweep_naming_its_params(where, escape, clie
                                           progress=False)] == [0.0, 1.0, 2.0]
 
 
+@pytest.mark.parametrize("escape", [ValueError, SystemExit])
+def test_a_failure_is_raised_in_its_turn_after_every_earlier_result(escape):
+    """A task that fails before an earlier, slower one has finished: the earlier result still comes
+    first, then the error (never a sweep cut short by a race between workers)."""
+    release = threading.Event()
+
+    def uneven(i, seed):
+        if i == 3:
+            release.wait(5.0)            # still running when task 4 fails
+        if i == 4:
+            release.set()
+            raise escape(1)
+        return i
+
+    got = []
+    with pytest.raises(par.TaskError, match=r"task 5 of 12 \(i=4\) failed"):
+        for _, r in par.imap(uneven, _tasks(), workers=2, desc="uneven sweep"):
+            got.append(r)
+    assert got == [0, 1, 2, 3]
+
+
 def test_a_task_exit_status_is_not_the_script_exit_status(tmp_path):
     """A script whose sweep task calls sys.exit(0) exits non-zero with the task named (it used to exit 0)."""
     script = tmp_path / "sweep.py"

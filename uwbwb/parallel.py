@@ -555,12 +555,15 @@ def _pipelined(fn, tasks, shared, client, workers, desc, bar, max_pending):
                 i = done.get()
                 fut = pending.pop(i)
                 try:
-                    finished[i] = fut.result()
-                except (Exception, SystemExit, KeyboardInterrupt) as exc:   # the task's own, re-raised here
-                    raise _error(desc, i, n, tasks[i], exc) from exc
-                bar.update(tasks[i].size)
+                    finished[i] = (fut.result(), None)
+                    bar.update(tasks[i].size)
+                except (Exception, SystemExit, KeyboardInterrupt) as exc:   # the task's own, raised in its turn
+                    finished[i] = (None, exc)
             while next_yield in finished:
-                yield tasks[next_yield], finished.pop(next_yield)
+                result, exc = finished.pop(next_yield)
+                if exc is not None:     # every result before the failed task has been yielded, none after
+                    raise _error(desc, next_yield, n, tasks[next_yield], exc) from exc
+                yield tasks[next_yield], result
                 next_yield += 1
     finally:
         for fut in pending.values():
