@@ -134,12 +134,14 @@ def test_pruning_runs_unchanged_on_other_recordings(tmp_path):
 
 @pytest.mark.notebook
 def test_motion_models_runs_unchanged_on_other_recordings(tmp_path):
-    """Notebook 03 on recordings that are not in ../shared: a LIAS run 'medium' and the IASL fixture scenarios.
+    """Notebook 03 on recordings that are not in ../shared: a LIAS run 'medium', the IASL fixture scenarios and a
+    Hanyang dynamic tree whose case (chosen by HANYANG_CASE) is not an upstream name.
 
     Its checks must hold for any recording of these formats; the real-data rows must come from these files.
     """
     import numpy as np
 
+    from tests.fixtures import hanyang as hfx
     from tests.fixtures import iasl as fx_iasl
     from tests.fixtures import lias as fx_lias
 
@@ -148,8 +150,13 @@ def test_motion_models_runs_unchanged_on_other_recordings(tmp_path):
     fx_lias.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 30.0, "clock_offset_s": 0.2}},
                       sessions=[fx_lias.session_814(rng)])
     fx_iasl.write_dataset(data_dir / "iasl-uwb-imu", rng=rng, duration_s=30.0)
-    rows = _run_on("03_ekf_motion_models.ipynb", tmp_path, data_dir, RECORDING="medium")
-    assert {r["data"] for r in rows} == {"synthetic", "lias-planar-uwb/medium", "iasl-uwb-imu/scenario2"}
+    hfx.write_dataset(data_dir / "hanyang-outdoor-uwb", rng=rng, distances_m=(2, 4, 10, 20))
+    case = hfx.write_dynamic_tree(data_dir / "hanyang-outdoor-uwb", rng=rng, speed_mps=4.0)[1].name
+    rows = _run_on("03_ekf_motion_models.ipynb", tmp_path, data_dir, RECORDING="medium", HANYANG_CASE=case)
+    assert {r["data"] for r in rows} == {"synthetic", "lias-planar-uwb/medium", "iasl-uwb-imu/scenario2",
+                                         f"hanyang-outdoor-uwb/{case}"}
+    assert any(r["quantity"] == "RMSE_2d ratio EKF-RW ranges / raw LS" for r in rows
+               if r["data"] == f"hanyang-outdoor-uwb/{case}")
     assert {r["mode"] for r in rows} == {"FAST"} and {r["kind"] for r in rows} == {"reproduced", "target"}
     real = [r for r in rows if r["data"] != "synthetic"]
     assert real and all(r["kind"] == "reproduced" and r["paper_value"] is None for r in real)

@@ -306,25 +306,6 @@ def test_pruning_notebook_runs_on_a_generated_dynamic_case(tmp_path):
     assert {r["kind"] for r in hy} == {"reproduced"} and {r["mode"] for r in hy} == {"FAST"}
 
 
-@pytest.mark.notebook
-def test_motion_models_notebook_runs_on_a_generated_dynamic_case(tmp_path):
-    """Notebook 03's Hanyang section on a case that is not in ../shared (chosen by HANYANG_CASE)."""
-    from tests.fixtures import iasl as fx_iasl
-    from tests.fixtures import lias as fx_lias
-    from tests.test_notebooks import _run_on
-
-    data_dir = tmp_path / "data"
-    rng = np.random.default_rng(22)
-    fx_lias.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 30.0, "clock_offset_s": 0.2}},
-                      sessions=[fx_lias.session_814(rng)])
-    fx_iasl.write_dataset(data_dir / "iasl-uwb-imu", rng=rng, duration_s=30.0)
-    cases = _hanyang_tree(data_dir, rng)
-    rows = _run_on("03_ekf_motion_models.ipynb", tmp_path, data_dir, RECORDING="medium", HANYANG_CASE=cases[1].name)
-    hy = [r for r in rows if r["data"].startswith("hanyang-outdoor-uwb/")]
-    assert {r["data"] for r in hy} == {f"hanyang-outdoor-uwb/{cases[1].name}"}
-    assert any(r["quantity"] == "RMSE_2d ratio EKF-RW ranges / raw LS" for r in hy)
-
-
 def _fake_board(label, errors, has):
     """A board-like object whose entries have the given horizontal errors and coverage masks."""
     from types import SimpleNamespace
