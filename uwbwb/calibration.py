@@ -626,12 +626,8 @@ def fit_set_noise(error_m: np.ndarray, set_id: np.ndarray, location: np.ndarray,
 
     Parameters
     ----------
-    error_m
-        Fix minus true position, shape ``(N, 2)``, metres.
-    set_id
-        Set of each fix, shape ``(N,)``.
-    location
-        Calibration location of each fix, shape ``(N,)`` (any hashable labels).
+    error_m, set_id, location
+        As in :func:`location_statistics` (locations: any hashable labels).
     min_count
         The per-location gate (must be ≥ 2 so that σ exists).
     min_sigma_m

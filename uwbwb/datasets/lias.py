@@ -349,12 +349,12 @@ def read_mocap_csv(path: str | os.PathLike, *, return_cleaning: bool = False):
         CSV with header ``time,x,y,z,rotation,,,`` and rows: time stamp, centroid x, y, z
         (m), four quaternion components.
     return_cleaning
-        Also return the list of :class:`~uwbwb.types.CleaningStep` taken.
+        As in :func:`read_uwb_csv`.
 
     Returns
     -------
     t_s : ndarray, shape (T,)
-        Seconds since ``t0``, strictly increasing.
+        As in :func:`read_uwb_csv`.
     pos_m : ndarray, shape (T, 3)
         Trolley centroid in the anchor frame, metres.
     quat : ndarray, shape (T, 4)

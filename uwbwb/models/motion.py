@@ -40,7 +40,7 @@ whatever its length, after the position has moved with the old velocity.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, make_dataclass, replace
 from math import factorial
 from typing import ClassVar
 
@@ -87,13 +87,35 @@ def _per_axis(block: np.ndarray, dim: int) -> np.ndarray:
     return full.reshape(block.shape[:-2] + (n * dim, n * dim))
 
 
+#: Abbreviation and white-driven quantity of the model of each order (thesis eqs 11–18).
+_KINDS = {1: ("RW", "velocity"), 2: ("RF", "acceleration"), 3: ("RJ", "jerk")}
+_SUPERSCRIPT = {1: "", 2: "²", 3: "³", 5: "⁵"}
+
+
+def _describe(order: int) -> tuple[str, str, str, str, str]:
+    """``(abbreviation, driven, psd_field, psd_unit, sigma_unit)`` of the model of ``order``.
+
+    The PSD ``q`` of the white ``order``-th derivative has unit m²/s^(2·order − 1); its
+    standard deviation over a step, m/s^order.
+    """
+    p = 2 * order - 1
+    return (*_KINDS[order], "psd_m2ps" + (str(p) if p > 1 else ""), "m²/s" + _SUPERSCRIPT[p],
+            "m/s" + _SUPERSCRIPT[order])
+
+
 class MotionModel:
     """Common behaviour of the white-noise-driven kinematic models.
 
     Subclasses are frozen dataclasses with one PSD field (named with its unit)
     and ``dim``. Class attributes describe the model: ``order`` (number of
     derivative blocks in the state), ``abbreviation`` ("RW", "RF", "RJ"),
-    ``driven`` (the quantity that is white), ``psd_unit`` and ``sigma_unit``.
+    ``driven`` (the quantity that is white), ``psd_unit`` and ``sigma_unit``, all
+    derived from ``order`` when the subclass is defined.
+
+    Attributes
+    ----------
+    dim
+        Number of position coordinates (2 or 3).
     """
 
     order: ClassVar[int]
@@ -103,6 +125,14 @@ class MotionModel:
     psd_unit: ClassVar[str]
     sigma_unit: ClassVar[str]
     dim: int
+
+    def __init_subclass__(cls, **kwargs):
+        """Describe a subclass from its ``order``: name, driven quantity, PSD field and units."""
+        super().__init_subclass__(**kwargs)
+        cls.abbreviation, cls.driven, cls.psd_field, cls.psd_unit, cls.sigma_unit = _describe(cls.order)
+
+    def __post_init__(self):
+        self._validate()
 
     def _validate(self):
         if self.dim not in (2, 3):
@@ -246,82 +276,20 @@ class MotionModel:
         return x
 
 
-@dataclass(frozen=True)
-class RandomWalk(MotionModel):
-    """Random walk (RW): position state, white velocity (thesis eqs 11–12).
-
-    Attributes
-    ----------
-    psd_m2ps
-        Spectral density ``q`` of the white velocity, m²/s. ``Q = q dt``.
-    dim
-        Number of position coordinates (2 or 3).
-    """
-
-    psd_m2ps: float = 0.07
-    dim: int = 2
-
-    order: ClassVar[int] = 1
-    abbreviation: ClassVar[str] = "RW"
-    driven: ClassVar[str] = "velocity"
-    psd_field: ClassVar[str] = "psd_m2ps"
-    psd_unit: ClassVar[str] = "m²/s"
-    sigma_unit: ClassVar[str] = "m/s"
-
-    def __post_init__(self):
-        self._validate()
+def _kinematic_model(name: str, order: int, default_psd: float, summary: str) -> type[MotionModel]:
+    """The frozen dataclass of one order: its PSD field (named by :meth:`MotionModel.__init_subclass__`) and ``dim``."""
+    cls = make_dataclass(name, [(_describe(order)[2], float, field(default=default_psd)), ("dim", int, field(default=2))],
+                         bases=(MotionModel,), namespace={"order": order, "__module__": __name__}, frozen=True)
+    cls.__doc__ = (f"{summary}\n\n    ``{cls.psd_field}`` is the spectral density ``q`` of the white {cls.driven}, "
+                   f"{cls.psd_unit}; ``Q`` follows :func:`noise_1d`.\n    ")
+    return cls
 
 
-@dataclass(frozen=True)
-class RandomForce(MotionModel):
-    """Random force (RF): constant velocity with white acceleration (thesis eqs 13–14).
-
-    Attributes
-    ----------
-    psd_m2ps3
-        Spectral density ``q`` of the white acceleration, m²/s³.
-    dim
-        Number of position coordinates (2 or 3).
-    """
-
-    psd_m2ps3: float = 0.1
-    dim: int = 2
-
-    order: ClassVar[int] = 2
-    abbreviation: ClassVar[str] = "RF"
-    driven: ClassVar[str] = "acceleration"
-    psd_field: ClassVar[str] = "psd_m2ps3"
-    psd_unit: ClassVar[str] = "m²/s³"
-    sigma_unit: ClassVar[str] = "m/s²"
-
-    def __post_init__(self):
-        self._validate()
-
-
-@dataclass(frozen=True)
-class RandomJerk(MotionModel):
-    """Random jerk (RJ): constant acceleration with white jerk (thesis eqs 15–18).
-
-    Attributes
-    ----------
-    psd_m2ps5
-        Spectral density ``q`` of the white jerk, m²/s⁵.
-    dim
-        Number of position coordinates (2 or 3).
-    """
-
-    psd_m2ps5: float = 0.1
-    dim: int = 2
-
-    order: ClassVar[int] = 3
-    abbreviation: ClassVar[str] = "RJ"
-    driven: ClassVar[str] = "jerk"
-    psd_field: ClassVar[str] = "psd_m2ps5"
-    psd_unit: ClassVar[str] = "m²/s⁵"
-    sigma_unit: ClassVar[str] = "m/s³"
-
-    def __post_init__(self):
-        self._validate()
+RandomWalk = _kinematic_model("RandomWalk", 1, 0.07, "Random walk (RW): position state, white velocity (thesis eqs 11–12).")
+RandomForce = _kinematic_model("RandomForce", 2, 0.1,
+                               "Random force (RF): constant velocity with white acceleration (thesis eqs 13–14).")
+RandomJerk = _kinematic_model("RandomJerk", 3, 0.1,
+                              "Random jerk (RJ): constant acceleration with white jerk (thesis eqs 15–18).")
 
 
 #: The three models by their abbreviation.
