@@ -47,8 +47,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 DEBT: dict[tuple[str, str, str], str] = {
     ("uwbwb.datasets.standin", "widgets", "upward"): "issue 19: notebooks call uw.widgets.data_banner(**room.banner_args())",
     ("uwbwb.datasets.standin", "widgets", "local"): "issue 19: notebooks call uw.widgets.data_banner(**room.banner_args())",
-    ("uwbwb.scoreboard.estimators", "experiments", "upward"): "issue 19 item 7: IMU calibration/alignment move to the core",
-    ("uwbwb.scoreboard.estimators", "experiments", "local"): "issue 19 item 7: IMU calibration/alignment move to the core",
     ("uwbwb.scoreboard.estimators", "models", "local"): "issue 19: declare the import at the top",
     ("uwbwb.scoreboard.sources", "datasets", "local"): "issue 19 item 6: the scoreboard opens recordings through uw.datasets.open",
     ("uwbwb.calibration", "types", "local"): "issue 19: declare the import at the top",

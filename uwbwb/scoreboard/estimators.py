@@ -35,6 +35,7 @@ import numpy as np
 
 from .. import bounds, geometry, metrics
 from ..calibration import fit_set_noise_from_fixes
+from ..filters import alignment, imu_calibration
 from ..filters.ekf import TdoaEkf
 from ..filters.nls import fit_trajectory
 from ..filters.setnoise import model_noise, run_set_noise_kf, run_set_noise_pf
@@ -494,14 +495,12 @@ class UwbInsFilter(BaseEstimator):
         return None
 
     def tune(self, rec, tags, cal):
-        from ..experiments.uwb_ins import study
-
         # the IMU is one device: its calibration is fitted once, with the first tag's ranges and truth
         one = replace(rec, ranges={"tag": rec.ranges[tags[0]]}, truth={"tag": rec.truth[tags[0]]})
         store = self._cache.setdefault("imu", {})          # one IMU calibration for both adapters
         ikey = (rec.label, tags[0], float(rec.ranges[tags[0]].t_s[0]), len(rec.ranges[tags[0]]))
         if ikey not in store:
-            store[ikey] = study.calibrate_iasl(one, still_s=INS_REST_S)
+            store[ikey] = imu_calibration.calibrate_iasl(one, still_s=INS_REST_S)
         imu_cal = store[ikey]
         cal_ins = cal.with_tuned(self.name, {"calibration": imu_cal})
         self._cache["n_tags"] = max(len(tags), self._cache.get("n_tags", 1))
@@ -523,8 +522,6 @@ class UwbInsFilter(BaseEstimator):
 
     def _comparison(self, rec, tag, cal, scales=None):
         """One run of every fusion filter (cached for the other adapter: the last few runs are kept)."""
-        from ..experiments.uwb_ins import study
-
         if scales is None:
             p = cal.params(self.name)
             scales = (float(p.get("q_scale", 1.0)), float(p.get("r_scale", 1.0)))
@@ -540,8 +537,8 @@ class UwbInsFilter(BaseEstimator):
             keep = len(self.grid) * self._cache.get("n_tags", 1) + 2
             while len(runs) >= keep:                            # bounded: one grid's runs per tag and the scored ones
                 self._cache.pop(runs.pop(0))
-            settings = study.FusionSettings(q_scale=float(scales[0]), r_scale=float(scales[1]))
-            self._cache[key] = study.compare_iasl(one, real, settings, still_s=INS_REST_S, align_s=INS_ALIGN_S)
+            settings = alignment.FusionSettings(q_scale=float(scales[0]), r_scale=float(scales[1]))
+            self._cache[key] = alignment.compare_iasl(one, real, settings, still_s=INS_REST_S, align_s=INS_ALIGN_S)
         return self._cache[key]
 
     def estimate(self, rec, tag, cal):

@@ -58,7 +58,7 @@ from ...sim import mismatch as mm
 from ...sim import robot
 from ...types import EstimateStatus, Estimates
 from ...validate import integer, number, probability
-from .study import OUTAGE_START_S, _after, _ls_estimates, initial_state, screened_tdoa
+from .study import OUTAGE_START_S, imu_after, initial_state, ls_estimates, screened_tdoa
 
 __all__ = ["BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "pair_rmse", "METRICS", "LADDER", "EKF_Q0", "RECOVERY_S", "AblationConfig", "AblationResult",
            "check_outage", "check_parameters", "notebook_config", "legs_for_outage", "simulate", "ls_gate",
@@ -312,10 +312,10 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
     anchors = np.asarray(model.stations_m, float)
     screened, n_eq4 = screened_tdoa(run.tdoa, anchors, cfg.outlier_c_m)
     m2 = TdoaModel(anchors, model.sigma_toa_m, dim=2, z_m=model.tag_height_m)
-    fixes = _ls_estimates(screened, m2, "LS")
+    fixes = ls_estimates(screened, m2, "LS")
     yaw0 = float(run.heading.yaw_rad[int(np.flatnonzero(fixes.has_estimate)[0])])
     x0, k0 = initial_state(fixes, height_m=model.tag_height_m, lever_m=model.lever_arm_m, yaw_rad=yaw0)
-    imu = _after(run.imu, run.truth.t_s[k0])
+    imu = imu_after(run.imu, run.truth.t_s[k0])
     tag0 = x0.pos_m + quat_to_dcm(x0.quat) @ np.asarray(model.lever_arm_m, float)
     gate = cfg.gate_prob
     out, gated, nis = {}, {}, {}
