@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import zlib
 from dataclasses import dataclass
-from typing import Iterable, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
@@ -41,11 +41,15 @@ import pandas as pd
 from ... import geometry, metrics, parallel
 from ...calibration import empirical_tdoa_covariance, fit_range_sigma
 from ...filters.ekf import KalmanRun, TdoaEkf
-from ...filters.tdoa_ls import TdoaLsResult, tdoa_least_squares
+from ...filters.tdoa_ls import tdoa_least_squares
 from ...models.motion import MOTION_MODELS, make_motion_model
 from ...models.tdoa import TdoaModel
 from ...sim import walk
 from ...types import Recording, TagRun, TdoaLog, Trajectory
+
+from .headlines import SIGMA_KIND, record, sigma_rows, summary_rows
+from .results import (METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, _errors,
+                      cep95_table, coverage_table, ekf_name, nis_table, paper_table, ranking)
 
 __all__ = [
     "MODELS", "METHODS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "DEFAULT_GRIDS",
@@ -55,46 +59,10 @@ __all__ = [
     "tdoa_noise_check", "ekf_name", "run_ekf", "SIGMA_KIND", "summary_rows", "sigma_rows", "record",
 ]
 
-#: Motion models in the thesis' order.
-MODELS = ("RW", "RF", "RJ")
-
-#: Every estimator of a :class:`TagResults`, in table order.
-METHODS = ("raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ")
-
-#: Thesis Table 1: driving-process standard deviation per model and scenario (m/s, m/s², m/s³).
-#: The AGV row prints "1 m/" for RW; read as 1 m/s.
-PAPER_SIGMA = {"office": {"RW": 0.83, "RF": 1.0, "RJ": 1.0}, "agv": {"RW": 1.0, "RF": 1.0, "RJ": 1.0}}
-
-#: Thesis Tables 2 (office) and 4 (AGV): CEP95 (m) of EKF (random walk), LS and the raw T4F output.
-PAPER_METHODS_CEP95 = {
-    ("office", "tag1"): {"EKF-RW": 0.41, "LS": 1.02, "raw": 1.23},
-    ("office", "tag2"): {"EKF-RW": 0.48, "LS": 1.02, "raw": 2.03},
-    ("agv1", "tag1"): {"EKF-RW": 0.41, "LS": 0.77, "raw": 1.03},
-    ("agv1", "tag2"): {"EKF-RW": 0.44, "LS": 0.76, "raw": 0.61},
-    ("agv2", "tag1"): {"EKF-RW": 0.35, "LS": 0.37, "raw": 0.46},
-    ("agv2", "tag2"): {"EKF-RW": 0.34, "LS": 0.45, "raw": 0.60},
-}
-
-#: Thesis Tables 3 (office) and 5 (AGV): CEP95 (m) per motion model. Table 5 labels its rows
-#: "Acq 1 Tag 1, Acq 1 Tag 2, Acq 1 Tag 1, Acq 1 Tag 2"; we read them in order as acquisitions
-#: 1 and 2 (the third label repeats a row name; its values differ from the first row).
-PAPER_MODELS_CEP95 = {
-    ("office", "tag1"): {"EKF-RW": 0.41, "EKF-RF": 0.77, "EKF-RJ": 1.03},
-    ("office", "tag2"): {"EKF-RW": 0.48, "EKF-RF": 1.13, "EKF-RJ": 1.14},
-    ("agv1", "tag1"): {"EKF-RW": 0.13, "EKF-RF": 0.25, "EKF-RJ": 0.33},
-    ("agv1", "tag2"): {"EKF-RW": 0.44, "EKF-RF": 0.60, "EKF-RJ": 0.58},
-    ("agv2", "tag1"): {"EKF-RW": 0.44, "EKF-RF": 0.60, "EKF-RJ": 0.59},
-    ("agv2", "tag2"): {"EKF-RW": 0.34, "EKF-RF": 0.34, "EKF-RJ": 0.28},
-}
 
 #: Default calibration grids of the driving standard deviation (model units), log-spaced.
 DEFAULT_GRIDS = {"RW": np.geomspace(0.05, 5.0, 11), "RF": np.geomspace(0.05, 20.0, 11),
                  "RJ": np.geomspace(0.05, 100.0, 11)}
-
-
-def ekf_name(model: str) -> str:
-    """Estimator label of the EKF with ``model`` (``"EKF-RW"`` ...), as in :data:`uwbwb.plotting.COLORS`."""
-    return f"EKF-{model}"
 
 
 # --------------------------------------------------------------------------- inputs
@@ -208,108 +176,6 @@ def raw_multilateration(run: TagRun, *, sigma_m=None, name: str = "raw") -> Traj
     res = geometry.multilaterate(run.ranges.range_m, run.anchors.pos_m, dim=run.dim, sigma_m=sigma_m, **kw)
     return res.to_trajectory(run.ranges.t_s, name=name)
 
-
-@dataclass(frozen=True)
-class TagResults:
-    """Every estimator's output for one :class:`TagRun`.
-
-    Attributes
-    ----------
-    run
-        The input.
-    trajectories
-        Name → trajectory (``"raw"``, ``"LS"``, ``"EKF-RW"``, ...); an estimator leaves
-        out the epochs where it has no position (LS: too few anchors or no
-        convergence; EKF: before its first LS fix).
-    errors
-        Name → horizontal errors against truth over that estimator's own epochs
-        (:class:`~uwbwb.metrics.ErrorSeries`).
-    ekf
-        Model → EKF result.
-    ls
-        The LS result (per-epoch status included).
-    sigmas
-        Model → driving standard deviation used.
-    gate_prob
-        The EKFs' χ² gate (None: every measurement used).
-    n_epochs
-        Epochs in the run (the denominator of coverage).
-
-    Notes
-    -----
-    Scoring. Estimators cover different epochs: LS fails at an epoch with too
-    few anchors where the EKF coasts on its prediction. CEP95 over each one's own
-    epochs would score LS on the easy epochs only, so the tables score every
-    estimator on the *common* epochs (those where all of them have a position
-    and truth exists, :meth:`common_errors`) and give each one's coverage
-    (:meth:`coverage`) beside it.
-    """
-
-    run: TagRun
-    trajectories: dict
-    errors: dict
-    ekf: dict
-    ls: TdoaLsResult
-    sigmas: dict
-    gate_prob: float | None
-    n_epochs: int
-
-    def common_t_s(self, names: Sequence[str] | None = None) -> np.ndarray:
-        """Epoch times scored by every estimator in ``names`` (default: all), seconds."""
-        names = list(self.errors) if names is None else list(names)
-        t = None
-        for n in names:
-            e = self.errors[n]
-            tn = e.t_s[np.isfinite(e.err_m)]
-            t = tn if t is None else np.intersect1d(t, tn)
-        return np.asarray(t, float)
-
-    def common_errors(self, names: Sequence[str] | None = None) -> dict[str, np.ndarray]:
-        """Name → horizontal errors (m) at :meth:`common_t_s`, the same epochs for every estimator."""
-        names = list(self.errors) if names is None else list(names)
-        t = self.common_t_s(names)
-        if t.size == 0:
-            cov = {k: f"{100 * v:.0f} %" for k, v in self.coverage_own().items()}
-            raise ValueError(f"{self.run.key}: no epoch where every estimator of {names} has a position and truth "
-                             f"exists (coverage {cov}); nothing can be scored on common epochs")
-        return {n: self.errors[n].err_m[np.isin(self.errors[n].t_s, t)] for n in names}
-
-    def cep95(self, *, common: bool = True) -> dict[str, float]:
-        """Name → CEP95 (m), on the common epochs (default) or on each estimator's own."""
-        if common:
-            return {k: metrics.cep95(e) for k, e in self.common_errors().items()}
-        return {k: metrics.cep95(e.err_m) for k, e in self.errors.items()}
-
-    def coverage_own(self) -> dict[str, float]:
-        """Name → fraction of the run's epochs with a position."""
-        return {k: len(t) / self.n_epochs for k, t in self.trajectories.items()}
-
-    def coverage(self) -> dict[str, float]:
-        """:meth:`coverage_own`, and ``"common"``: the share of epochs the tables score."""
-        return {**self.coverage_own(), "common": self.common_t_s().size / self.n_epochs}
-
-    def nis(self, prob: float = 0.95) -> pd.DataFrame:
-        """NIS consistency per EKF (:meth:`uwbwb.filters.ekf.KalmanRun.nis_consistency`).
-
-        Under right noise models the NIS summed over the ``n`` updates is χ² with
-        ``sum_dof`` degrees of freedom; the verdict compares it with the central
-        ``prob`` interval of that χ² (``mean_lo``, ``mean_hi``: the interval divided
-        by ``sum_dof``, around a mean NIS per degree of freedom of 1).
-        *Over-confident*: errors larger than the filter's covariance says.
-        """
-        rows = []
-        for m, r in self.ekf.items():
-            c = r.nis_consistency(prob)
-            dof = max(c["sum_dof"], 1)
-            rows.append({"model": m, "n": c["n"], "mean_nis_over_dof": c["mean_nis_over_dof"],
-                         "mean_lo": c["sum_lo"] / dof, "mean_hi": c["sum_hi"] / dof,
-                         "fraction_inside": c["fraction_inside"], "verdict": c["verdict"],
-                         "n_rejected": int(r.n_rejected.sum())})
-        return pd.DataFrame(rows).set_index("model")
-
-
-def _errors(traj: Trajectory, run: TagRun) -> metrics.ErrorSeries:
-    return metrics.errors_vs_truth(traj, run.truth, horizontal=True, max_gap_s=TagRun.max_truth_gap_s)
 
 
 def run_ekf(run: TagRun, model: str, sigma: float, measurement: TdoaModel, *, gate_prob: float | None,
@@ -509,51 +375,6 @@ def run_study(cal_runs: Sequence[TagRun], test_runs: Sequence[TagRun], *, gate_p
     return Study(curves, best, sigma_tag, ests)
 
 
-def cep95_table(results: Iterable[TagResults], methods: Sequence[str] = METHODS, *,
-                common: bool = True) -> pd.DataFrame:
-    """CEP95 (m) per run/tag (rows) and method (columns).
-
-    ``common=True`` (default): every method on the epochs where all of a run's
-    estimators have a position (:meth:`TagResults.common_errors`); False: each
-    method over its own epochs (see :func:`coverage_table` for how many).
-    """
-    rows = []
-    for res in results:
-        c = res.cep95(common=common)
-        rows.append({"run": res.run.name, "tag": res.run.tag, **{m: c[m] for m in methods}})
-    return pd.DataFrame(rows).set_index(["run", "tag"])
-
-
-def coverage_table(results: Iterable[TagResults], methods: Sequence[str] = METHODS) -> pd.DataFrame:
-    """Coverage (%) per run/tag and method, and ``common``: the share of epochs the CEP95 tables score."""
-    rows = []
-    for res in results:
-        c = res.coverage()
-        rows.append({"run": res.run.name, "tag": res.run.tag, **{m: 100 * c[m] for m in (*methods, "common")}})
-    return pd.DataFrame(rows).set_index(["run", "tag"])
-
-
-def nis_table(results: Iterable[TagResults], prob: float = 0.95) -> pd.DataFrame:
-    """:meth:`TagResults.nis` of several runs, rows ``(run/tag, model)``."""
-    return pd.concat({res.run.key: res.nis(prob) for res in results}, names=["run/tag"])
-
-
-def ranking(table: pd.DataFrame, models: Sequence[str] = MODELS) -> pd.Series:
-    """Order of the motion models by CEP95 per row, e.g. ``"RW < RF < RJ"``."""
-    cols = [ekf_name(m) for m in models]
-
-    def order(row):
-        ranked = sorted(zip(row[cols], models))
-        return " < ".join(m for _, m in ranked)
-
-    return table.apply(order, axis=1).rename("ranking")
-
-
-def paper_table(paper: Mapping, keys: Sequence[tuple[str, str]], methods: Sequence[str]) -> pd.DataFrame:
-    """The thesis' CEP95 values for ``keys`` (scenario, tag) in the layout of :func:`cep95_table`."""
-    rows = [{"run": k[0], "tag": k[1], **{m: paper.get(k, {}).get(m, np.nan) for m in methods}} for k in keys]
-    return pd.DataFrame(rows).set_index(["run", "tag"])
-
 
 def tdoa_noise_check(run: TagRun, sigma_m, *, ref: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Empirical covariance of the TDoA errors of ``run`` next to the model's ``diag(σ_j²) + σ_ref² 11ᵀ``.
@@ -567,71 +388,3 @@ def tdoa_noise_check(run: TagRun, sigma_m, *, ref: int = 0) -> tuple[np.ndarray,
     empirical = empirical_tdoa_covariance(log.tdoa_m, true_tdoa, ref)
     others = np.delete(np.arange(len(run.anchors)), ref)
     return empirical, TdoaModel.for_tag(run, sigma_m).covariance(others, ref)
-
-
-# --------------------------------------------------------------------------- summary rows
-
-
-#: Kind of each calibrated driving σ in the summary. The simulated targets move at a speed
-#: chosen equal to the thesis' random-walk σ (0.83 m/s walking, 1 m/s AGV; the thesis gives no
-#: speeds), so the calibrated RW σ lands near the thesis' value by construction: a *target*.
-SIGMA_KIND = {"RW": "target", "RF": "reproduced", "RJ": "reproduced"}
-
-
-def sigma_rows(best: Mapping[str, float], scenario: str) -> list[dict]:
-    """Summary rows of the calibrated driving σ of one synthetic scenario (``"office"``/``"agv"``), with kind."""
-    return [{"quantity": f"driving sigma {m} ({scenario})", "value": float(best[m]),
-             "unit": MOTION_MODELS[m].sigma_unit, "data": "synthetic", "paper_value": PAPER_SIGMA[scenario][m],
-             "kind": SIGMA_KIND[m]} for m in MODELS if m in best]
-
-
-def summary_rows(results: Iterable[TagResults], *, data: str, label: str = "{run} {tag} {method}",
-                 paper: bool = False) -> list[dict]:
-    """Headline rows of test results: CEP95 on common epochs, coverage, mean NIS/dof (all *reproduced*).
-
-    Parameters
-    ----------
-    results
-        Test results.
-    data
-        Summary ``data`` label (``"synthetic"`` or ``"dataset/recording"``).
-    label
-        Format of the quantity's name with fields ``run``, ``tag``, ``method``.
-    paper
-        Attach the thesis' CEP95 (Tables 2–5) where ``(run, tag)`` is one of its rows;
-        for the AGV runs the random-walk EKF also gets a row against Table 5, which
-        disagrees with Table 4 on acquisition 1 tag 1.
-    """
-    rows = []
-    for res in results:
-        key = (res.run.name, res.run.tag)
-        c, cov = res.cep95(), res.coverage()
-        nis = res.nis()["mean_nis_over_dof"]
-
-        def name(method):
-            return label.format(run=res.run.name, tag=res.run.tag, method=method)
-
-        for meth in c:
-            pv = None
-            if paper:
-                pv = PAPER_METHODS_CEP95.get(key, {}).get(meth, PAPER_MODELS_CEP95.get(key, {}).get(meth))
-            rows.append({"quantity": f"CEP95 {name(meth)}", "value": c[meth], "unit": "m", "data": data,
-                         "paper_value": pv, "kind": "reproduced"})
-        if paper and key[0].startswith("agv") and key in PAPER_MODELS_CEP95:
-            rows.append({"quantity": f"CEP95 {name('EKF-RW')} (vs thesis Table 5)", "value": c["EKF-RW"],
-                         "unit": "m", "data": data, "paper_value": PAPER_MODELS_CEP95[key]["EKF-RW"],
-                         "kind": "reproduced"})
-        for meth in c:
-            rows.append({"quantity": f"coverage {name(meth)}", "value": 100 * cov[meth], "unit": "%", "data": data,
-                         "paper_value": None, "kind": "reproduced"})
-        for m, v in nis.items():
-            if np.isfinite(v):
-                rows.append({"quantity": f"mean NIS/dof {name(ekf_name(m))}", "value": float(v), "unit": "",
-                             "data": data, "paper_value": None, "kind": "reproduced"})
-    return rows
-
-
-def record(summary: metrics.Summary, rows: Iterable[dict]) -> None:
-    """Add :func:`summary_rows` / :func:`sigma_rows` rows to a :class:`~uwbwb.metrics.Summary`."""
-    for r in rows:
-        summary.add(**r)
