@@ -326,7 +326,7 @@ def test_small_study_end_to_end(cfg):
     scores = study.filter_scores(tracks)
     assert (scores["epochs"] > 50).all() and (scores["PF with an estimate"] == 1).all()
     assert scores[["PF coverage", "MH-EKF coverage"]].apply(lambda c: c.between(0, 1)).all().all()
-    assert tracks[0].pf["Doppler"].meta["pos_cov_m2"].shape == tracks[0].pf["Doppler"].pos_m.shape + (3,)
+    assert tracks[0].pf["Doppler"].pos_cov_m2.shape == tracks[0].pf["Doppler"].pos_m.shape + (3,)
     assert {"PF restarts", "MH-EKF restarts", "PF in track", "MH-EKF in track"} <= set(scores.columns)
     floor = study.error_floor("lab", replace(cfg, n_particles=100, floor_runs=2))
     assert list(floor.index) == [c[0] for c in study.FLOOR_CONDITIONS]

@@ -211,3 +211,24 @@ def test_pf_with_pseudo_ranges_keeps_track_where_the_untempered_one_restarts():
     assert out[0.0][1] > 0.5                                # lost runs without tempering
     assert out[0.02][1] < 0.2 and out[0.02][0] <= 1        # on track with it
     assert np.all(out[0.0][2] == 0) and np.all(out[0.02][2] > 0)
+
+
+def test_pf_runs_are_estimates_batched_along_a_run_axis(lab, clean):
+    log = fd.assign_chirps(clean.t_s, lab).between(0, 3)
+    runs = fd.DopplerPf(lab, n_particles=60).run(log, n_runs=3, rng=np.random.default_rng(4))
+    R, T = runs.pos_m.shape[:2]
+    assert (R, T) == (3, runs.t_s.size) and runs.status.shape == (R, T) and runs.pos_cov_m2.shape == (R, T, 3, 3)
+    assert np.all(runs.status == EstimateStatus.UPDATED) and runs.ess is runs.info["ess"]
+    each = runs.to_estimates()
+    assert len(each) == R
+    for r, est in enumerate(each):
+        np.testing.assert_array_equal(est.pos_m, runs.pos_m[r])
+        np.testing.assert_array_equal(est.pos_cov_m2, runs.pos_cov_m2[r])
+        np.testing.assert_array_equal(est.vel_mps, runs.vel_mps[r])
+        np.testing.assert_array_equal(est.info["ess"], runs.ess[r])
+    with pytest.raises(ValueError, match="status"):
+        fd.PfRuns(runs.t_s, runs.pos_m, runs.status[:, :-1])
+    with pytest.raises(ValueError, match="info"):
+        fd.PfRuns(runs.t_s, runs.pos_m, runs.status, info={"ess": runs.ess[0]})
+    with pytest.raises(ValueError, match="pos_m"):
+        fd.PfRuns(runs.t_s, runs.pos_m[0], runs.status)

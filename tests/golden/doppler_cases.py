@@ -60,7 +60,7 @@ def recording():
 def pf_arrays(runs) -> dict[str, np.ndarray]:
     """The stored arrays of one :meth:`DopplerPf.run` result."""
     return {"t_s": runs.t_s, "pos_m": runs.pos_m, "vel_mps": runs.vel_mps, "ess": runs.ess,
-            "pos_cov_m2": runs.meta["pos_cov_m2"], "restarts": runs.meta["restarts"],
+            "pos_cov_m2": runs.pos_cov_m2, "restarts": runs.meta["restarts"],
             "tempered": runs.meta["tempered"], "rows": runs.meta["rows"]}
 
 

@@ -33,41 +33,83 @@ def _rows(log: ChirpLog, use_ambiguous: bool) -> np.ndarray:
 
 @dataclass(frozen=True)
 class PfRuns:
-    """Several independent particle-filter runs over one chirp log.
+    """``R`` independent particle-filter runs over one chirp log: :class:`~uwbwb.types.Estimates`
+    batched along a leading run axis.
+
+    The fields are those of :class:`~uwbwb.types.Estimates` with a run axis first (every run
+    shares the update times); :meth:`estimates` gives one run as an ``Estimates`` and
+    :meth:`to_estimates` all of them.
 
     Attributes
     ----------
     t_s
-        Update times (the chirps used), shape ``(T,)``.
-    pos_m, vel_mps
-        Weighted-mean estimates, shape ``(R, T, 3)``.
-    ess
-        Effective sample size after each update, shape ``(R, T)``.
+        Update times (the chirps used), shape ``(T,)``, seconds.
+    pos_m
+        Weighted-mean positions, shape ``(R, T, 3)``, metres.
+    status
+        :class:`~uwbwb.types.EstimateStatus` per run and update, shape ``(R, T)``
+        (``UPDATED`` at every chirp used).
     name
         Label of the filter.
+    pos_cov_m2
+        Weighted covariance of the particles' positions after each update, shape
+        ``(R, T, 3, 3)``, m²: the filter's own uncertainty.
+    vel_mps
+        Weighted-mean velocities, shape ``(R, T, 3)``, m/s.
+    info
+        Per-run, per-update columns, each shape ``(R, T)``: ``ess`` (effective sample size
+        after each update).
     meta
-        ``rows`` (rows of the log used), ``n_particles``, ``restarts`` (per run: times
-        every particle had left the room and the run was started again) and ``tempered``
-        (per run: share of updates that were tempered, :attr:`DopplerPf.temper_ess`) and
-        ``pos_cov_m2`` (weighted covariance of the particles' positions after each
-        update, shape ``(R, T, 3, 3)``, m²: the filter's own uncertainty).
+        Per-run and per-log values: ``rows`` (rows of the log used, ``(T,)``),
+        ``n_particles``, ``restarts`` (per run, ``(R,)``: times every particle had left the
+        room and the run was started again) and ``tempered`` (per run, ``(R,)``: share of
+        updates that were tempered, :attr:`DopplerPf.temper_ess`).
     """
 
     t_s: np.ndarray
     pos_m: np.ndarray
-    vel_mps: np.ndarray
-    ess: np.ndarray
+    status: np.ndarray
     name: str = "PF"
+    pos_cov_m2: np.ndarray | None = None
+    vel_mps: np.ndarray | None = None
+    info: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        t = np.asarray(self.t_s, float)
+        p = np.asarray(self.pos_m, float)
+        if t.ndim != 1 or p.ndim != 3 or p.shape[1:] != (t.size, 3):
+            raise ValueError(f"PfRuns: t_s (T,) and pos_m (R, T, 3) expected, got {t.shape} and {p.shape}")
+        lead = p.shape[:2]
+        st = np.asarray(self.status)
+        if st.shape != lead:
+            raise ValueError(f"PfRuns.status must have shape {lead}, got {st.shape}")
+        for name, shape in (("pos_cov_m2", lead + (3, 3)), ("vel_mps", lead + (3,))):
+            a = getattr(self, name)
+            if a is not None and np.shape(a) != shape:
+                raise ValueError(f"PfRuns.{name} must have shape {shape}, got {np.shape(a)}")
+        for key, col in dict(self.info).items():
+            if np.shape(col) != lead:
+                raise ValueError(f"PfRuns.info[{key!r}] must have shape {lead}, got {np.shape(col)}")
 
     @property
     def n_runs(self) -> int:
         return self.pos_m.shape[0]
 
+    @property
+    def ess(self) -> np.ndarray:
+        """Effective sample size after each update, shape ``(R, T)`` (``info["ess"]``)."""
+        return self.info["ess"]
+
     def estimates(self, run: int = 0) -> Estimates:
-        """Run ``run`` as the common :class:`~uwbwb.types.Estimates` (status UPDATED at every chirp used)."""
-        return Estimates(self.t_s, self.pos_m[run], np.full(self.t_s.size, EstimateStatus.UPDATED, np.int8),
-                         self.name, vel_mps=self.vel_mps[run], info={"ess": self.ess[run]})
+        """Run ``run`` as the common :class:`~uwbwb.types.Estimates`."""
+        pick = (lambda a: None if a is None else a[run])
+        return Estimates(self.t_s, self.pos_m[run], self.status[run], self.name, pick(self.pos_cov_m2),
+                         pick(self.vel_mps), {k: v[run] for k, v in self.info.items()})
+
+    def to_estimates(self) -> list[Estimates]:
+        """Every run as :class:`~uwbwb.types.Estimates`, in run order."""
+        return [self.estimates(r) for r in range(self.n_runs)]
 
     @property
     def restarts(self) -> np.ndarray:
@@ -228,9 +270,9 @@ class DopplerPf:
                                        workers=workers, progress=progress, desc=self.name, unit="run"):
             sl = slice(task.params["start"], task.params["start"] + task.params["n_runs"])
             pos[sl], vel[sl], ess[sl], restarts[sl], tempered[sl], cov[sl] = out
-        return PfRuns(meas[0], pos, vel, ess, self.name, {"rows": rows, "n_particles": self.n_particles,
-                                                          "restarts": restarts, "tempered": tempered,
-                                                          "pos_cov_m2": cov})
+        status = np.full((n_runs, rows.size), EstimateStatus.UPDATED, np.int8)
+        return PfRuns(meas[0], pos, status, self.name, cov, vel, {"ess": ess},
+                      {"rows": rows, "n_particles": self.n_particles, "restarts": restarts, "tempered": tempered})
 
     def _log_likelihood(self, x, beacon, dp_s, range_m):
         """Per-particle log-likelihood of one chirp, with the outlier mixture; shape ``x.shape[:-1]``."""

@@ -571,7 +571,7 @@ def filter_scores(studies: list[TrackStudy], *, lost_m: float = 0.5) -> pd.DataF
                          "PF CEP50 (cm)": 100 * metrics.cep50(e_pf), "MH-EKF CEP50 (cm)": 100 * metrics.cep50(e_kf),
                          "PF CEP95 (cm)": 100 * metrics.cep95(e_pf), "MH-EKF CEP95 (cm)": 100 * metrics.cep95(e_kf),
                          "PF coverage": float(np.mean(in_region_95(
-                             runs.pos_m[:, keep, :2] - truth, runs.meta["pos_cov_m2"][:, keep, :2, :2]))),
+                             runs.pos_m[:, keep, :2] - truth, runs.pos_cov_m2[:, keep, :2, :2]))),
                          "MH-EKF coverage": float(np.mean(in_region_95(
                              kf.pos_m[idx, :2] - truth, kf.pos_cov_m2[idx, :2, :2]))),
                          "PF with an estimate": float(np.mean(np.all(np.isfinite(runs.pos_m[:, keep]), axis=-1))),
