@@ -115,7 +115,7 @@ def _bad_case(tmp_path, edit):
 
 
 @pytest.mark.parametrize("edit, line, match", [
-    (lambda ls: ls[:4] + [ls[4] + ",1"] + ls[5:], 5, "10 fields"),
+    (lambda ls: ls[:4] + [ls[4] + ",1"] + ls[5:], 5, "10 comma-separated fields"),
     (lambda ls: ls[:3] + [ls[3].replace(ls[3].split(",")[6], "abc")] + ls[4:], 4, "field.distanceFromTag"),
     (lambda ls: ls[:3] + [ls[3].replace(",5,", ",9,", 1)] + ls[4:], 4, "this file is anchor 5"),
     (lambda ls: ls[:6] + [ls[6].replace(",-0.87,", ",-0.97,", 1)] + ls[7:], 7, "must not move"),
@@ -135,7 +135,7 @@ def test_bad_reference_and_estimate_files(tmp_path):
                               shape="B", speed_mps=8.0)
     ls = (c.folder / "LS.csv").read_text().splitlines()
     (c.folder / "LS.csv").write_text("\n".join(ls[:5] + [ls[5] + ",0"] + ls[6:]) + "\n")
-    with pytest.raises(DataFormatError, match="5 fields") as err:
+    with pytest.raises(DataFormatError, match="5 comma-separated fields") as err:
         hd.load_dynamic_case(c.folder)
     assert err.value.path.name == "LS.csv" and err.value.line == 6
     (c.folder / "LS.csv").write_text("\n".join(ls) + "\n")

@@ -260,8 +260,8 @@ def test_typed_reader_agrees_with_the_field_by_field_reader(tmp_path, seed, monk
 
 
 @pytest.mark.parametrize("line, problem", [
-    ("0.1,A1,2.5,", "4 fields, the header has 3"),            # an empty extra field
-    ('0.1,"A1,x",2.5', "4 fields, the header has 3"),         # quotes are not quoting: a comma splits
+    ("0.1,A1,2.5,", "4 comma-separated fields, expected 3"),  # an empty extra field
+    ('0.1,"A1,x",2.5', "4 comma-separated fields, expected 3"),         # quotes are not quoting: a comma splits
     ('0.1,"A1",2.5', "anchor '\"A1\"' is not in the anchors file"),
     ("0.1\r0.2,A1,2.5", "is not a finite number"),           # a lone CR is not a line end
 ])

@@ -257,19 +257,17 @@ def check_ranges(path: str | os.PathLike, range_m: np.ndarray, line_no: np.ndarr
         raise DataFormatError(path, f"negative range {flat[i, j]:g} m: two-way ranging cannot give one",
                               line=int(line_no[i]), column=col)
     steps: list[CleaningStep] = []
+
+    def to_missing(mask, step: str, what: str):
+        """Set the masked ranges to NaN and record the step naming the lines."""
+        if mask.any():
+            rows = np.flatnonzero(mask.any(axis=1))
+            steps.append(CleaningStep(step, int(mask.sum()),
+                                      f"{name}: {what} set to NaN (lines {lines_text(line_no[rows])})"))
+            flat[mask] = np.nan
+
     if zero_is_missing:
-        zero = check_flat & (flat == 0)
-        if zero.any():
-            rows = np.flatnonzero(zero.any(axis=1))
-            steps.append(CleaningStep("zero ranges -> missing", int(zero.sum()),
-                                      f"{name}: the format's 'no range' value 0 set to NaN "
-                                      f"(lines {lines_text(line_no[rows])})"))
-            flat[zero] = np.nan
-    huge = check_flat & (flat > max_range_m)
-    if huge.any():
-        rows = np.flatnonzero(huge.any(axis=1))
-        steps.append(CleaningStep("implausible ranges -> missing", int(huge.sum()),
-                                  f"{name}: ranges above {max_range_m:g} m (device failure values) set to NaN "
-                                  f"(lines {lines_text(line_no[rows])})"))
-        flat[huge] = np.nan
+        to_missing(check_flat & (flat == 0), "zero ranges -> missing", "the format's 'no range' value 0")
+    to_missing(check_flat & (flat > max_range_m), "implausible ranges -> missing",
+               f"ranges above {max_range_m:g} m (device failure values)")
     return flat.reshape(r.shape), steps

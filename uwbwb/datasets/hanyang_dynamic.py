@@ -101,7 +101,7 @@ from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 from .discovery import find_dataset
 from .hanyang import NAME
 from .registration import Registration, RegistrationError, register_truth
-from .tidy import _decode_lines, _numbers, _read_bytes
+from .tidy import _decode_lines, _numbers, _read_bytes, _split_rows
 
 __all__ = ["ANCHOR_COLUMNS", "AUTHORS_FILES", "AnchorFile", "DYNAMIC_DIR", "ESTIMATE_COLUMNS", "MAX_OFFSET_S",
            "TRAJECTORY_COLUMNS", "TRIM", "authors_estimates", "case_dir", "dynamic_cases", "group_epochs",
@@ -146,14 +146,7 @@ def _read_table(path: PathLike, header: tuple[str, ...], what: str
     body = [(i, ln) for i, ln in enumerate(lines[1:], start=2)]
     blank = [i for i, ln in body if not ln.replace(",", "").strip()]
     body = [(i, ln) for i, ln in body if ln.replace(",", "").strip()]
-    if not body:
-        raise DataFormatError(path, f"{what} file has a header but no data lines", line=1)
-    fields = [ln.split(",") for _, ln in body]
-    line_no = np.array([i for i, _ in body], dtype=int)
-    for (i, _), f in zip(body, fields):
-        if len(f) != len(header):
-            raise DataFormatError(path, f"{len(f)} fields, the header has {len(header)} ({','.join(header)})",
-                                  line=i)
+    fields, line_no = _split_rows(path, body, ",", header, what=what, header_line=1)
     steps = [CleaningStep("empty lines", len(blank), f"{name}: lines without a value removed "
                                                      f"(lines {', '.join(map(str, blank[:5]))})")] if blank else []
     return {c: [f[k] for f in fields] for k, c in enumerate(header)}, line_no, steps

@@ -111,7 +111,7 @@ from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 from .discovery import find_dataset
 from .imu_checks import ImuChecks, check_imu_samples, check_second_counts
 from .registration import ImuAlignment, Registration, RegistrationError, align_imu, register_truth
-from .tidy import _decode_lines, _numbers, _read_bytes
+from .tidy import _decode_lines, _numbers, _read_bytes, _split_rows
 
 NAME = "iasl-uwb-imu"
 UWB_FILE, IMU_FILE, GT_FILE = "uwb.csv", "imu.csv", "gt.csv"
@@ -275,13 +275,7 @@ def _read_tab(path: PathLike, what: str, columns: Callable[[int], tuple[str, ...
             raise DataFormatError(path, f"header {first!r} does not name the {what} columns: {expected}",
                                   line=first_line)
         numbered = numbered[1:]
-        if not numbered:
-            raise DataFormatError(path, f"{what} file has a header but no data rows", line=first_line)
-    fields = [ln.split("\t") for _, ln in numbered]
-    line_no = np.array([n for n, _ in numbered], dtype=int)
-    for n, f in zip(line_no, fields):
-        if len(f) != len(names):
-            raise DataFormatError(path, f"{len(f)} tab-separated fields, expected {len(names)}", line=int(n))
+    fields, line_no = _split_rows(path, numbered, "\t", names, what=what, header_line=first_line)
     values = np.column_stack([_numbers(path, [f[k] for f in fields], line_no, name)
                               for k, name in enumerate(names)])
     return values, line_no

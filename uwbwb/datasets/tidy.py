@@ -216,6 +216,28 @@ def _identifiers(path: PathLike, values: Sequence[str], line_no: np.ndarray, col
     return out
 
 
+def _split_rows(path: PathLike, numbered: Sequence[tuple[int, str]], sep: str, names: Sequence[str], *,
+                what: str, header_line: int) -> tuple[list[list[str]], np.ndarray]:
+    """Fields and 1-based line numbers of the data lines ``(line_no, text)`` after a header.
+
+    Raises
+    ------
+    DataFormatError
+        No data line after the header at ``header_line``, or a line whose number of
+        ``sep``-separated fields is not ``len(names)``.
+    """
+    if not numbered:
+        raise DataFormatError(path, f"{what} file has a header but no data lines", line=header_line)
+    fields = [ln.split(sep) for _, ln in numbered]
+    line_no = np.array([n for n, _ in numbered], dtype=int)
+    kind = {",": "comma", "\t": "tab"}.get(sep, repr(sep))
+    for n, f in zip(line_no, fields):
+        if len(f) != len(names):
+            raise DataFormatError(path, f"{len(f)} {kind}-separated fields, expected {len(names)} "
+                                        f"({', '.join(names)})", line=int(n))
+    return fields, line_no
+
+
 def _csv_table(path: PathLike, headers: Sequence[tuple[str, ...]], what: str
                ) -> tuple[tuple[str, ...], dict[str, list[str]], np.ndarray]:
     """Header, columns of field texts and 1-based line numbers of a tidy CSV file.
@@ -235,15 +257,7 @@ def _csv_table(path: PathLike, headers: Sequence[tuple[str, ...]], what: str
         expected = " or ".join(repr(",".join(h)) for h in headers)
         raise DataFormatError(path, f"header {header_text!r} is not a {what} header; expected {expected}",
                               line=header_line)
-    body = numbered[1:]
-    if not body:
-        raise DataFormatError(path, f"{what} file has a header but no data lines", line=header_line)
-    fields = [ln.split(",") for _, ln in body]
-    line_no = np.array([n for n, _ in body], dtype=int)
-    for (n, _), f in zip(body, fields):
-        if len(f) != len(header):
-            raise DataFormatError(path, f"{len(f)} fields, the header has {len(header)} "
-                                        f"({','.join(header)})", line=n)
+    fields, line_no = _split_rows(path, numbered[1:], ",", header, what=what, header_line=header_line)
     columns = {name: [f[k] for f in fields] for k, name in enumerate(header)}
     return header, columns, line_no
 
