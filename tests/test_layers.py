@@ -39,6 +39,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("experiments",),
     ("notebook_params",),
     ("reproduce",),
+    ("classroom",),
     ("cli",),
     ("__main__",),
 )
