@@ -331,3 +331,68 @@ def test_small_study_end_to_end(cfg):
     floor = study.error_floor("lab", replace(cfg, n_particles=100, floor_runs=2))
     assert list(floor.index) == [c[0] for c in study.FLOOR_CONDITIONS]
     assert floor["particles"].tolist() == [100, 100, 100, 400] and (floor["runs"] == 2).all()
+
+
+# ------------------------------------------------------------------ exercises and panel notes
+
+def test_slower_receiver_exercise_holds_and_can_fail():
+    from uwbwb.experiments.doppler import exercises
+
+    cfg = study.StudyConfig.for_mode(True, 0)
+    check = exercises.slower_receiver(cfg, n_positions=3000)
+    assert check.holds, check
+    faster = exercises.slower_receiver(cfg, speed_scale=2.0, n_positions=3000)     # faster: fewer ghosts
+    assert not faster.holds, faster
+    with pytest.raises(ValueError, match="speed_scale"):
+        exercises.slower_receiver(cfg, speed_scale=0.0)
+
+
+def test_ranging_verdict_flips_at_its_factor():
+    from uwbwb.experiments.doppler import exercises
+
+    assert exercises.ranging_verdict(30.0, 5.9) and not exercises.ranging_verdict(30.0, 6.1)
+    assert not exercises.ranging_verdict(np.nan, 1.0) and not exercises.ranging_verdict(30.0, 0.0)
+    assert exercises.ranging_verdict(30.0, 9.0, factor=3.0)
+
+
+def test_pseudo_ranges_exercise_holds_on_a_fresh_walk():
+    from uwbwb.experiments.doppler import exercises
+
+    check = exercises.pseudo_ranges(study.StudyConfig.for_mode(True, 0))
+    assert check.holds, check
+    assert check.numbers["ratio"] > 5
+
+
+def test_filter_panel_draws_labelled_axes_with_beacons_and_its_note_quotes_its_numbers():
+    from uwbwb.experiments.doppler import exercises, panels
+    from uwbwb.widgets import what_you_should_see
+
+    cfg = replace(study.StudyConfig.for_mode(True, 0), n_particles=200)
+    track = study.track_study("lab", cfg, pf_runs=1, kf=False, variants=("Doppler",))
+    panel = panels.filter_panel(track, cfg)
+    values = {**panel.values, "n_particles": 200}
+    est = panels.filter_run(track, cfg, "PF", 200, 2.0, False)
+    assert panels.filter_run(track, cfg, "PF", 200, 2.0, False) is est             # cached
+    fig, readout = panel._render_fn(**values)
+    assert readout == panels.filter_readout(track, est) and readout["epochs"] > 10
+    left, right = fig.axes
+    assert (left.get_xlabel(), left.get_ylabel()) == ("x (m)", "y (m)") and left.get_title()
+    assert any(line.get_label() == "beacons" for line in left.get_lines())
+    assert right.get_xlabel() == "t (s)" and "(cm)" in right.get_ylabel() and right.get_title()
+    note = exercises.filter_note(track, cfg, values)
+    assert f"{readout['CEP50 after the start-up (cm)']:.0f} cm on Doppler alone" in note
+    what_you_should_see(note)                                                      # within the note's limits
+
+
+def test_space_panel_titles_and_note():
+    from uwbwb.experiments.doppler import exercises, panels
+    from uwbwb.widgets import what_you_should_see
+
+    cfg = study.StudyConfig.for_mode(True, 0)
+    panel = panels.space_panel(cfg)
+    values = {**panel.values, "n_positions": 10_000}
+    fig, readout = panel._render_fn(**values)
+    assert all(ax.get_title() and "(m" in ax.get_xlabel() and "(m" in ax.get_ylabel() for ax in fig.axes)
+    note = exercises.space_note(cfg, values)
+    assert f"{readout['fraction under threshold (%)']:.2g} %" in note
+    what_you_should_see(note)
