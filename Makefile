@@ -8,7 +8,7 @@ LAB_PORT ?= 8888
 # JupyterLab refuses to start as root unless told; containers and CI machines often run as root.
 LAB_ROOT := $(if $(filter 0,$(shell id -u)),--allow-root,)
 
-.PHONY: lab test reproduce bench env clean
+.PHONY: lab test reproduce class bench env clean
 
 $(STAMP): environment.txt pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -31,6 +31,12 @@ test: $(STAMP)
 ## Headless main job: execute every notebook, write reports/ with summary.json + summary.md.
 reproduce: $(STAMP)
 	$(PY) -m uwbwb reproduce $(REPRODUCE_ARGS)
+
+## Class mode: every notebook with CLASS=True and FAST=True into class/: executed notebooks with the research
+## cells folded, HTML handouts without them; prints run times and class-limit violations.
+## CLASS_ARGS="--only 00 01 --kernel python3" picks notebooks and the kernel.
+class: $(STAMP)
+	$(PY) -m uwbwb.classroom $(CLASS_ARGS)
 
 bench: $(STAMP)
 	@for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
