@@ -69,7 +69,7 @@ from typing import Sequence
 
 import numpy as np
 
-from . import geometry
+from .models.ranging import range_jacobian
 from .models.tdoa import TdoaModel
 
 __all__ = ["Bound", "crlb", "embed_information", "line_crlb", "motion_log_likelihood", "pcrlb", "range_information",
@@ -123,7 +123,7 @@ def range_information(pos_m, anchor_pos_m, sigma_m, *, z_m=None, mask=None) -> n
     numpy.ndarray
         ``Σ_i u_i u_iᵀ / σ_i²`` over the measured anchors, shape ``(..., dim, dim)``, m⁻².
     """
-    u = geometry.range_jacobian(pos_m, anchor_pos_m, z_m=z_m)            # (..., n, dim)
+    u = range_jacobian(pos_m, anchor_pos_m, z_m=z_m)                     # (..., n, dim)
     w = _mask(mask, u.shape[:-1]) / _sigma_per_anchor(sigma_m, u.shape[-2]) ** 2
     return np.einsum("...n,...ni,...nj->...ij", w, u, u)
 

@@ -42,6 +42,7 @@ import numpy as np
 import pandas as pd
 
 from .models.setnoise import SetNoiseModel
+from .models.ranging import ranges
 from .types import RangeLog, Recording, TagRun
 from .validate import integer, number
 
@@ -218,7 +219,7 @@ def true_ranges(rec: Recording, tag: str) -> np.ndarray:
     if truth.dim != 3:
         raise ValueError(f"{rec.label}: truth of tag {tag!r} is {truth.dim}-D; range calibration needs 3-D positions")
     pos = truth.interp(log.t_s)
-    return np.linalg.norm(pos[:, None, :] - rec.anchors.pos_m[None], axis=-1)
+    return ranges(pos, rec.anchors.pos_m)
 
 
 def pair_samples(recordings: Iterable[Recording]):

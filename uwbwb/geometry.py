@@ -29,6 +29,9 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 from .errors import GeometryError
+from .models.ranging import TINY_RANGE_M as _TINY_RANGE_M
+from .models.ranging import anchor_positions as _as_anchors
+from .models.ranging import range_jacobian, ranges
 from .types import EstimateStatus, Estimates, Trajectory
 
 __all__ = [
@@ -43,7 +46,6 @@ __all__ = [
 RCOND = 1e-10
 
 _MAX_HALVINGS = 30
-_TINY_RANGE_M = 1e-12
 
 
 class Status(enum.IntEnum):
@@ -74,86 +76,6 @@ class Status(enum.IntEnum):
 
 
 # --------------------------------------------------------------------------- ranges and frames
-
-
-def _as_anchors(anchor_pos_m) -> np.ndarray:
-    A = np.asarray(getattr(anchor_pos_m, "pos_m", anchor_pos_m), dtype=float)
-    if A.ndim != 2 or A.shape[1] not in (2, 3) or A.shape[0] == 0:
-        raise ValueError(f"anchor_pos_m must have shape (n_anchors, 3) or (n_anchors, 2), got {A.shape}")
-    if not np.all(np.isfinite(A)):
-        raise ValueError("anchor_pos_m contains non-finite values")
-    return A
-
-
-def _full_position(pos_m, A: np.ndarray, z_m) -> np.ndarray:
-    """Tag positions with the same number of coordinates as the anchors."""
-    pos = np.asarray(pos_m, dtype=float)
-    if pos.ndim == 0 or pos.shape[-1] not in (2, 3):
-        raise ValueError(f"pos_m must have shape (..., 2) or (..., 3), got {pos.shape}")
-    k, ka = pos.shape[-1], A.shape[1]
-    if k == ka:
-        if z_m is not None:
-            raise ValueError("z_m is only used with 2-D positions and 3-D anchors")
-        return pos
-    if k == 2 and ka == 3:
-        if z_m is None:
-            raise ValueError("2-D positions with 3-D anchors need the tag height z_m")
-        z = np.asarray(z_m, dtype=float)
-        try:
-            z = np.broadcast_to(z, pos.shape[:-1])
-        except ValueError:
-            raise ValueError(f"z_m of shape {z.shape} does not match positions of shape {pos.shape}") from None
-        return np.concatenate([pos, z[..., None]], axis=-1)
-    raise ValueError(f"3-D positions need 3-D anchors, got anchors of shape {A.shape}")
-
-
-def ranges(pos_m, anchor_pos_m, *, z_m=None) -> np.ndarray:
-    """Euclidean tag--anchor distances.
-
-    Parameters
-    ----------
-    pos_m
-        Tag positions, shape ``(..., 3)``, or ``(..., 2)`` together with ``z_m``, metres.
-    anchor_pos_m
-        Anchor positions, shape ``(n_anchors, 3)`` (or ``(n_anchors, 2)`` with
-        2-D positions and no ``z_m``), metres; an :class:`~uwbwb.Anchors` works too.
-    z_m
-        Tag height for 2-D positions, scalar or broadcastable to ``pos_m.shape[:-1]``, metres.
-
-    Returns
-    -------
-    numpy.ndarray
-        Ranges, shape ``(..., n_anchors)``, metres.
-    """
-    A = _as_anchors(anchor_pos_m)
-    p = _full_position(pos_m, A, z_m)
-    return np.linalg.norm(p[..., None, :] - A, axis=-1)
-
-
-def range_jacobian(pos_m, anchor_pos_m, *, z_m=None) -> np.ndarray:
-    """Derivative of :func:`ranges` with respect to the given position coordinates.
-
-    Row ``i`` is the unit vector from anchor ``i`` to the tag, restricted to the
-    coordinates in ``pos_m`` (for 2-D positions with a known height it is the
-    horizontal part of the 3-D unit vector, so its norm is below one).
-
-    Parameters
-    ----------
-    pos_m, anchor_pos_m, z_m
-        As in :func:`ranges`.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``d r_i / d p_k``, shape ``(..., n_anchors, k)`` with ``k = pos_m.shape[-1]``.
-        Rows for a tag exactly on an anchor are zero.
-    """
-    A = _as_anchors(anchor_pos_m)
-    p = _full_position(pos_m, A, z_m)
-    k = np.shape(pos_m)[-1]
-    diff = p[..., None, :] - A
-    r = np.maximum(np.linalg.norm(diff, axis=-1), _TINY_RANGE_M)
-    return diff[..., :k] / r[..., None]
 
 
 def yaw_rotation(yaw_rad) -> np.ndarray:

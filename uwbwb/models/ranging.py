@@ -1,4 +1,9 @@
-"""Two-way-ranging measurement models, shared by simulators, calibration and estimators.
+"""Two-way-ranging measurement models, shared by simulators, calibration, bounds and estimators.
+
+The one definition of the two-way range and its Jacobian: :func:`ranges` (``r_i = ‖p − a_i‖``)
+and :func:`range_jacobian` (``∂r_i/∂p = (p − a_i)ᵀ / r_i``, the unit vector from anchor ``i`` to
+the tag). :mod:`uwbwb.geometry` re-exports both; :mod:`uwbwb.bounds`, the simulators,
+:func:`uwbwb.calibration.true_ranges` and :class:`~uwbwb.models.tdoa.TdoaModel` call them.
 
 :class:`TwrRangeModel`: a measured range relates to the true anchor–tag distance by a
 per-pair affine distortion plus noise::
@@ -18,6 +23,104 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 from scipy.stats import norm
+
+
+#: Floor on a range in the Jacobian's denominator (a tag exactly on an anchor), metres.
+TINY_RANGE_M = 1e-12
+
+
+def anchor_positions(anchor_pos_m) -> np.ndarray:
+    """Anchor positions as a checked float array ``(n_anchors, 2 | 3)``; an :class:`~uwbwb.Anchors` works too."""
+    A = np.asarray(getattr(anchor_pos_m, "pos_m", anchor_pos_m), dtype=float)
+    if A.ndim != 2 or A.shape[1] not in (2, 3) or A.shape[0] == 0:
+        raise ValueError(f"anchor_pos_m must have shape (n_anchors, 3) or (n_anchors, 2), got {A.shape}")
+    if not np.all(np.isfinite(A)):
+        raise ValueError("anchor_pos_m contains non-finite values")
+    return A
+
+
+def tag_positions(pos_m, A: np.ndarray, z_m) -> np.ndarray:
+    """Tag positions with the same number of coordinates as the anchors ``A`` (``z_m`` appended to 2-D ones)."""
+    pos = np.asarray(pos_m, dtype=float)
+    if pos.ndim == 0 or pos.shape[-1] not in (2, 3):
+        raise ValueError(f"pos_m must have shape (..., 2) or (..., 3), got {pos.shape}")
+    k, ka = pos.shape[-1], A.shape[1]
+    if k == ka:
+        if z_m is not None:
+            raise ValueError("z_m is only used with 2-D positions and 3-D anchors")
+        return pos
+    if k == 2 and ka == 3:
+        if z_m is None:
+            raise ValueError("2-D positions with 3-D anchors need the tag height z_m")
+        z = np.asarray(z_m, dtype=float)
+        try:
+            z = np.broadcast_to(z, pos.shape[:-1])
+        except ValueError:
+            raise ValueError(f"z_m of shape {z.shape} does not match positions of shape {pos.shape}") from None
+        return np.concatenate([pos, z[..., None]], axis=-1)
+    raise ValueError(f"3-D positions need 3-D anchors, got anchors of shape {A.shape}")
+
+
+def predict_ranges(p: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """Two-way ranges ``‖p − a_i‖`` without input checks (the kernel of :func:`ranges`).
+
+    ``p`` has shape ``(..., d)`` and ``A`` ``(n_anchors, d)`` with the same ``d``; returns ``(..., n_anchors)``.
+    """
+    return np.linalg.norm(p[..., None, :] - A, axis=-1)
+
+
+def predict_jacobian(p: np.ndarray, A: np.ndarray, k: int) -> np.ndarray:
+    """``∂r_i/∂p`` over the first ``k`` coordinates without input checks (the kernel of :func:`range_jacobian`).
+
+    ``p`` ``(..., d)``, ``A`` ``(n_anchors, d)``; returns ``(..., n_anchors, k)``, zero rows for a tag on an anchor.
+    """
+    diff = p[..., None, :] - A
+    r = np.maximum(np.linalg.norm(diff, axis=-1), TINY_RANGE_M)
+    return diff[..., :k] / r[..., None]
+
+
+def ranges(pos_m, anchor_pos_m, *, z_m=None) -> np.ndarray:
+    """Euclidean tag--anchor distances: the noise-free two-way range.
+
+    Parameters
+    ----------
+    pos_m
+        Tag positions, shape ``(..., 3)``, or ``(..., 2)`` together with ``z_m``, metres.
+    anchor_pos_m
+        Anchor positions, shape ``(n_anchors, 3)`` (or ``(n_anchors, 2)`` with
+        2-D positions and no ``z_m``), metres; an :class:`~uwbwb.Anchors` works too.
+    z_m
+        Tag height for 2-D positions, scalar or broadcastable to ``pos_m.shape[:-1]``, metres.
+
+    Returns
+    -------
+    numpy.ndarray
+        Ranges, shape ``(..., n_anchors)``, metres.
+    """
+    A = anchor_positions(anchor_pos_m)
+    return predict_ranges(tag_positions(pos_m, A, z_m), A)
+
+
+def range_jacobian(pos_m, anchor_pos_m, *, z_m=None) -> np.ndarray:
+    """Derivative of :func:`ranges` with respect to the given position coordinates.
+
+    Row ``i`` is the unit vector from anchor ``i`` to the tag, restricted to the
+    coordinates in ``pos_m`` (for 2-D positions with a known height it is the
+    horizontal part of the 3-D unit vector, so its norm is below one).
+
+    Parameters
+    ----------
+    pos_m, anchor_pos_m, z_m
+        As in :func:`ranges`.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``d r_i / d p_k``, shape ``(..., n_anchors, k)`` with ``k = pos_m.shape[-1]``.
+        Rows for a tag exactly on an anchor are zero.
+    """
+    A = anchor_positions(anchor_pos_m)
+    return predict_jacobian(tag_positions(pos_m, A, z_m), A, np.shape(pos_m)[-1])
 
 
 def rigid_points(centroid_m: np.ndarray, yaw_rad: np.ndarray, offsets_m: np.ndarray) -> np.ndarray:

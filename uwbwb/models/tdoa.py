@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..types import TagRun
+from .ranging import predict_jacobian, predict_ranges
 
 __all__ = ["TdoaModel", "triangle_outliers"]
 
@@ -92,24 +93,26 @@ class TdoaModel:
         return self.anchor_pos_m.shape[0]
 
     # ------------------------------------------------------------ geometry
-    def _offsets(self, pos_m) -> np.ndarray:
-        """``p − a_i`` with the fixed height appended in 2-D, shape ``(..., n_anchors, 3)``."""
+    def _position(self, pos_m) -> np.ndarray:
+        """Positions with the fixed height appended in 2-D, shape ``(..., 3)``."""
         p = np.asarray(pos_m, float)
         if p.shape[-1] != self.dim:
             raise ValueError(f"TdoaModel: positions must have {self.dim} coordinates, got shape {p.shape}")
         if self.dim == 2:
             p = np.concatenate([p, np.full(p.shape[:-1] + (1,), self.z_m)], axis=-1)
-        return p[..., None, :] - self.anchor_pos_m
+        return p
+
+    def _offsets(self, pos_m) -> np.ndarray:
+        """``p − a_i`` with the fixed height appended in 2-D, shape ``(..., n_anchors, 3)``."""
+        return self._position(pos_m)[..., None, :] - self.anchor_pos_m
 
     def ranges(self, pos_m) -> np.ndarray:
-        """True ranges to every anchor, shape ``(..., n_anchors)``, metres."""
-        return np.linalg.norm(self._offsets(pos_m), axis=-1)
+        """True ranges to every anchor, shape ``(..., n_anchors)``, metres (:func:`~uwbwb.models.ranging.ranges`)."""
+        return predict_ranges(self._position(pos_m), self.anchor_pos_m)
 
     def unit_vectors(self, pos_m) -> np.ndarray:
-        """``∂r_i/∂p``, shape ``(..., n_anchors, dim)`` (the estimated coordinates only)."""
-        d = self._offsets(pos_m)
-        r = np.linalg.norm(d, axis=-1, keepdims=True)
-        return (d / np.maximum(r, 1e-12))[..., : self.dim]
+        """``∂r_i/∂p``, shape ``(..., n_anchors, dim)`` (the estimated coordinates only; :func:`~uwbwb.models.ranging.range_jacobian`)."""
+        return predict_jacobian(self._position(pos_m), self.anchor_pos_m, self.dim)
 
     def h(self, pos_m, ref) -> np.ndarray:
         """Predicted TDoAs ``r_j − r_ref`` for every anchor, shape ``(..., n_anchors)`` (0 at ``ref``).

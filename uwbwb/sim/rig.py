@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..geometry import yaw_rotation
+from ..models import ranging
 from ..models.ranging import TwrRangeModel, rigid_points
 from ..types import Anchors, RangeLog, Recording, Trajectory
 
@@ -102,7 +103,7 @@ def _recording(config, name, t_s, centroid_m, yaw_rad, model, *, rng, meta) -> R
     anchors = config.anchors
     offsets = np.asarray(config.tag_offsets_m, float)
     tags_m = rigid_points(centroid_m, yaw_rad, offsets)                    # (T, n_tags, 3)
-    true_range = np.linalg.norm(tags_m[:, :, None, :] - anchors.pos_m[None, None], axis=-1)
+    true_range = ranging.ranges(tags_m, anchors.pos_m)                       # (T, n_tags, n_anchors)
     meas = model.sample(true_range, rng=rng)                                 # (T, n_tags, n_anchors)
     rot = yaw_rotation(yaw_rad)
     ranges, truth = {}, {}

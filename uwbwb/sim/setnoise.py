@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry import multilaterate
+from ..models.ranging import ranges
 from ..types import RangeLog, SetFixLog, set_id_from_mask
 
 #: Paper 000, Table I: recording number → approximate speed (m/s).
@@ -219,7 +220,7 @@ class Facility:
 
     def true_ranges_m(self, pos_m) -> np.ndarray:
         """3-D tag–sensor distances for tag positions ``(N, 2)`` at the tag height: ``(N, n_sensors)``."""
-        return np.linalg.norm(self._tag_xyz(pos_m)[:, None, :] - self.sensor_xyz_m[None], axis=-1)
+        return ranges(self._tag_xyz(pos_m), self.sensor_xyz_m)
 
     def wall_crossings(self, pos_m) -> tuple[np.ndarray, np.ndarray]:
         """Walls between tag and each sensor (plan view).

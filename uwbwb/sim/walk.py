@@ -51,6 +51,7 @@ import numpy as np
 
 from .. import geometry
 from ..models.motion import RandomForce
+from ..models import ranging
 from ..types import Anchors, RangeLog, Recording, Trajectory
 
 __all__ = ["Obstacle", "TagMount", "WalkScenario", "WalkTruth", "office", "agv", "SCENARIOS", "scenario",
@@ -455,7 +456,7 @@ def simulate_walk(config: WalkScenario, *, rng: np.random.Generator) -> tuple[Re
     for j, mount in enumerate(config.tags):
         t_s = np.arange(j / (n_tags * config.rate_hz), t_ref[-1], 1.0 / config.rate_hz)
         tag_m, psi = _tag_positions(config, mount, t_s, t_ref, states)
-        true_r = np.linalg.norm(tag_m[:, None, :] - A[None], axis=-1)           # (T, n)
+        true_r = ranging.ranges(tag_m, A)                                         # (T, n)
         bias = _crossings(tag_m, A, config.obstacles)
         if mount.body_shadow:
             to_anchor = A[None, :, :2] - tag_m[:, None, :2]
