@@ -304,10 +304,12 @@ _COUNT = integer(lo=1)
 #: Per notebook stem: every parameter of its ``parameters`` cell beyond :data:`COMMON`.
 SPECS: dict[str, dict[str, Spec]] = {
     "00_quickstart": {
+        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "RECORDING": _RECORDING,
         "STATIC_SESSION": _RECORDING,
     },
     "01_set_noise_pf": {
+        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "RECORDING": _RECORDING,
         "STATIC_SESSION": _RECORDING,
         "N_TRIALS": integer(lo=1, fast="runs its own CI-sized sweep (SweepConfig.fast())"),
@@ -321,6 +323,7 @@ SPECS: dict[str, dict[str, Spec]] = {
         "FADING_DB": real(lo=0, hi=100),
     },
     "02_pruning_nls": {
+        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "STATIC_SESSION": _RECORDING,
         "RECORDING": _RECORDING,
         "TOURS": seq(integer(choices=(1, 2, 3)), fast="runs tour 2 only"),
@@ -375,6 +378,7 @@ SPECS: dict[str, dict[str, Spec]] = {
         "SEEDS": integer(lo=2, hi=100_000, fast="scores the ablation on 2 seeds (AblationConfig.fast)"),
     },
     "06_scoreboard": {
+        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "LIAS_RECORDING": _RECORDING,
         "IASL_CAL_SCENARIO": _RECORDING,
         "IASL_SCENARIO": _RECORDING,
