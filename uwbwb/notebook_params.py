@@ -338,6 +338,7 @@ SPECS: dict[str, dict[str, Spec]] = {
         "HANYANG_CASE": text(none="the first NLOS case of hanyang-outdoor-uwb"),
     },
     "03_ekf_motion_models": {
+        "CLASS": flag(),     # a lecturer's run: FAST sizes, 40 s walks, 4 grid points, short output (``make class``)
         "RECORDING": _RECORDING,
         "STATIC_SESSION": _RECORDING,
         "LIAS_TAGS": seq(text(), none="every tag of the run"),
