@@ -4,7 +4,8 @@
 
 from __future__ import annotations
 
-from typing import Iterable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -12,7 +13,11 @@ from ... import metrics
 from ...models.motion import MOTION_MODELS
 from .results import MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, ekf_name
 
-__all__ = ["SIGMA_KIND", "record", "sigma_rows", "summary_rows"]
+if TYPE_CHECKING:
+    from .study import Study
+
+__all__ = ["LS_MARGIN", "Results", "SIGMA_KIND", "SYNTHETIC_LS_MARGIN", "checks", "headline_rows", "record", "sigma_rows",
+           "summary_rows"]
 
 #: Kind of each calibrated driving σ in the summary. The simulated targets move at a speed
 #: chosen equal to the thesis' random-walk σ (0.83 m/s walking, 1 m/s AGV; the thesis gives no
@@ -77,3 +82,81 @@ def record(summary: metrics.Summary, rows: Iterable[dict]) -> None:
     """Add :func:`summary_rows` / :func:`sigma_rows` rows to a :class:`~uwbwb.metrics.Summary`."""
     for r in rows:
         summary.add(**r)
+
+
+@dataclass(frozen=True)
+class Results:
+    """Everything notebook 03 scores, for :func:`headline_rows` and :func:`checks`.
+
+    Attributes
+    ----------
+    synthetic
+        ``{"office": Study, "agv": Study}``: the synthetic re-creation (thesis values beside).
+    real
+        ``(data label, variant, Study)`` per real-data study, e.g.
+        ``("lias-planar-uwb/fast", "calibrated ranges", study)``.
+    """
+
+    synthetic: Mapping[str, "Study"]
+    real: Sequence[tuple[str, str, "Study"]] = ()
+
+
+def headline_rows(results: Results) -> list[dict]:
+    """Every summary row of notebook 03's studies, in the summary's order (synthetic first), each with kind.
+
+    Synthetic scenarios: the calibrated driving σ (:func:`sigma_rows`; RW a *target*) and the test
+    results against the thesis' tables; real studies: the test results, named
+    ``"{tag} {method} (<variant>, test part {run})"``.
+    """
+    rows = []
+    for scen, study in results.synthetic.items():
+        rows += sigma_rows(study.best, scen)
+        rows += summary_rows(study.results, data="synthetic", paper=True)
+    for label, variant, study in results.real:
+        rows += summary_rows(study.results, data=label, label="{tag} {method} (" + variant + ", test part {run})")
+    return rows
+
+
+#: Margin by which the best calibrated EKF may exceed LS's CEP95 on any test run: a short calibration
+#: part can pick a σ that transfers badly (20 %); on the synthetic runs, where the simulator sets the
+#: conditions, 10 %.
+LS_MARGIN, SYNTHETIC_LS_MARGIN = 1.2, 1.1
+
+
+def checks(results: Results, fast: bool) -> list[str]:
+    """What the method must do on any recording of these formats; none asserts a thesis number.
+
+    Every test run: CEP95 finite and positive for every estimator; every EKF covers at least the
+    epochs LS covers (it starts at the first LS fix and predicts through every later epoch); every
+    EKF made an update; the best EKF within :data:`LS_MARGIN` of LS (the grid's largest driving σ
+    makes an EKF nearly the per-epoch fix). Synthetic only: EKF-RW beats the untracked 4-anchor
+    device output, and the best EKF is within :data:`SYNTHETIC_LS_MARGIN` of LS. ``fast`` does not
+    loosen any of these (the margins already allow for short runs).
+
+    Returns
+    -------
+    list of str
+        One message per failed check (empty: all hold).
+    """
+    models = [ekf_name(m) for m in MODELS]
+    problems = []
+    studies = [("synthetic", s) for s in results.synthetic.values()] + [(lab, s) for lab, _, s in results.real]
+    for label, study in studies:
+        for res in study.results:
+            key, c, cov = f"{label} {res.run.key}", res.cep95(), res.coverage()
+            if not all(np.isfinite(v) and v > 0 for v in c.values()):
+                problems.append(f"{key}: CEP95 not finite and positive {c}")
+            if min(cov[m] for m in models) < cov["LS"] - 1e-12:
+                problems.append(f"{key}: an EKF covers fewer epochs than LS {cov}")
+            if not (res.nis()["n"] > 0).all():
+                problems.append(f"{key}: an EKF made no update")
+            if min(c[m] for m in models) > LS_MARGIN * c["LS"]:
+                problems.append(f"{key}: the best EKF is clearly worse than LS {c}")
+    for study in results.synthetic.values():
+        for res in study.results:
+            c = res.cep95()
+            if not c["EKF-RW"] < c["raw"]:
+                problems.append(f"{res.run.key}: EKF-RW should beat the untracked 4-anchor device output {c}")
+            if min(c[m] for m in models) > SYNTHETIC_LS_MARGIN * c["LS"]:
+                problems.append(f"{res.run.key}: the best EKF should not lose to LS {c}")
+    return problems

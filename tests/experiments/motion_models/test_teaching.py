@@ -1,0 +1,145 @@
+"""Notebook 03's exercises, panel back end, headline rows/checks and the σ_w tuning-criterion sentence."""
+
+import matplotlib
+import numpy as np
+import pandas as pd
+import pytest
+
+from uwbwb.calibration import fit_range_sigma
+from uwbwb.experiments import motion_models as mm
+from uwbwb.experiments.motion_models import exercises, facts, headlines, panels
+
+matplotlib.use("Agg")
+
+SIGMAS = {"RW": 0.83, "RF": 1.0, "RJ": 1.0}
+
+
+@pytest.fixture(scope="module")
+def fitted(office_runs):
+    cal, test = office_runs
+    return test[0], fit_range_sigma(cal[0])
+
+
+@pytest.fixture(scope="module")
+def small_study(office_runs):
+    cal, test = office_runs
+    grids = {m: (0.3, 3.0) for m in mm.MODELS}
+    return mm.run_study(cal, test, grids=grids, gate_prob=None, progress=False)
+
+
+# --------------------------------------------------------------------------- exercises
+
+def test_reference_anchor_exercise_correlated_sigma_is_invariant(fitted):
+    run, sigma_m = fitted
+    check = exercises.reference_anchor(run, sigma_m, SIGMAS, refs=(0, 2), window_s=15.0)
+    n = check.numbers
+    assert check.holds
+    assert n["LS spread, correlated Σ (cm)"] < 1e-6 and n["EKF-RW spread, correlated Σ (cm)"] < 1e-6
+    assert n["LS spread, diagonal Σ (cm)"] > 0.1                       # the diagonal shortcut depends on it
+    with pytest.raises(ValueError, match="refs"):
+        exercises.reference_anchor(run, sigma_m, SIGMAS, refs=(1, 1))
+    with pytest.raises(ValueError, match="refs"):
+        exercises.reference_anchor(run, sigma_m, SIGMAS, refs=(0, 99))
+
+
+def test_overconfident_exercise_raises_cep95_and_nis(fitted):
+    run, sigma_m = fitted
+    check = exercises.overconfident_driving_noise(run, sigma_m, SIGMAS, factor=0.01, window_s=15.0)
+    n = check.numbers
+    assert check.holds and n["CEP95 small (m)"] > n["CEP95 calibrated (m)"]
+    assert n["mean NIS/dof small"] > n["mean NIS/dof calibrated"]
+    assert n["σ_w small"] == pytest.approx(0.01 * SIGMAS["RF"])
+    same = exercises.overconfident_driving_noise(run, sigma_m, SIGMAS, factor=1.0, window_s=15.0)
+    assert not same.holds                                               # no change: the claim must fail
+    with pytest.raises(ValueError, match="factor"):
+        exercises.overconfident_driving_noise(run, sigma_m, SIGMAS, factor=0.0)
+
+
+def test_explorer_note_follows_the_readout():
+    readout = {"run / tag": "office/tag1", "CEP95 EKF-RW (m)": 0.40, "CEP95 LS (m)": 0.50, "mean NIS / dof": 0.8,
+               "NIS verdict": "consistent"}
+    assert "is below LS's (0.50 m)" in exercises.explorer_note(readout, "RW")
+    assert "is not below" in exercises.explorer_note({**readout, "CEP95 EKF-RW (m)": 0.6}, "RW")
+
+
+# --------------------------------------------------------------------------- panel back end
+
+def test_explorer_offers_only_what_the_data_has(small_study):
+    ex = panels.Explorer([small_study], window_s=10.0)
+    assert ex.choices == ["office/tag1", "office/tag2"]
+    assert ex.max_ref == len(small_study.results[0].run.anchors) - 1 == 5
+    fig, readout = ex.render("office/tag1", "RF", 1.0, 5, 0.0, True)
+    assert set(readout) >= {"CEP95 EKF-RF (m)", "CEP95 LS (m)", "NIS verdict"}
+    assert all(ax.get_xlabel() and ax.get_ylabel() and ax.get_title() for ax in fig.axes)
+    assert ex.estimate("office/tag1", "RF", 1.0, 5, 0.0, True) is ex.estimate("office/tag1", "RF", 1.0, 5, 0.0, True)
+    for bad in ({"key": "office/tag3"}, {"ref": 6}, {"model": "CV"}):
+        args = {"key": "office/tag1", "model": "RW", "sigma": 1.0, "ref": 0, "gate": 0.0, "correlated": True, **bad}
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            ex.estimate(**args)
+    with pytest.raises(ValueError, match="studies"):
+        panels.Explorer([])
+
+
+# --------------------------------------------------------------------------- headlines
+
+def test_headline_rows_and_checks(small_study):
+    results = mm.Results(synthetic={"office": small_study}, real=[("lias-planar-uwb/x", "raw ranges", small_study)])
+    rows = mm.headline_rows(results)
+    assert rows[0]["quantity"] == "driving sigma RW (office)" and rows[0]["kind"] == "target"
+    assert {r["data"] for r in rows} == {"synthetic", "lias-planar-uwb/x"}
+    real = [r for r in rows if r["data"] != "synthetic"]
+    assert all(r["paper_value"] is None for r in real)
+    assert any(r["quantity"] == "CEP95 tag1 LS (raw ranges, test part office)" for r in real)
+    assert {r["kind"] for r in rows} == {"target", "reproduced"}
+    assert mm.checks(results, fast=True) == []
+
+
+def test_checks_report_a_failure(small_study):
+    from dataclasses import replace
+
+    res = small_study.results[0]
+    ls = res.errors["LS"]
+    worse = {k: (replace(v, err_m=10 * v.err_m) if k.startswith("EKF") else v) for k, v in res.errors.items()}
+    bad = replace(small_study, results=[replace(res, errors=worse)])
+    problems = headlines.checks(mm.Results(synthetic={"office": bad}), fast=True)
+    assert any("clearly worse than LS" in p for p in problems) and ls is res.errors["LS"]
+
+
+# --------------------------------------------------------------------------- σ_w tuning criterion
+
+def _curves(cep, rmse, grid=(0.1, 0.3, 1.0, 3.0)):
+    rows = [{"run": "r", "tag": "t", "model": "RJ", "sigma": s, "cep95_m": c, "rmse_m": e}
+            for s, c, e in zip(grid, cep, rmse)]
+    return pd.DataFrame(rows)
+
+
+def test_tuning_criterion_facts_and_sentence_flip():
+    flat = facts.tuning_criterion_facts(_curves([0.20, 0.1001, 0.1000, 0.12], [0.08, 0.0500, 0.0501, 0.06]), "RJ")
+    assert flat["by_cep95"] == 1.0 and flat["by_rmse"] == 0.3 and flat["adjacent"] and flat["flat"]
+    assert not flat["same"]
+    text = facts.tuning_criterion_sentence(flat, "d/x")
+    assert "CEP95 picks 1 m/s³ and RMSE picks 0.3 m/s³, neighbouring points" in text and "minimum is flat" in text
+    steep = facts.tuning_criterion_facts(_curves([0.20, 0.15, 0.10, 0.12], [0.08, 0.05, 0.07, 0.06]), "RJ")
+    assert not steep["flat"] and "choice of criterion matters" in facts.tuning_criterion_sentence(steep, "d/x")
+    far = facts.tuning_criterion_facts(_curves([0.20, 0.15, 0.12, 0.10], [0.08, 0.05, 0.07, 0.06]), "RJ")
+    assert not far["adjacent"] and "different points" in facts.tuning_criterion_sentence(far, "d/x")
+    same = facts.tuning_criterion_facts(_curves([0.2, 0.1, 0.15, 0.2], [0.2, 0.1, 0.15, 0.2]), "RJ")
+    assert same["same"] and "both criteria pick 0.3" in facts.tuning_criterion_sentence(same, "d/x")
+    with pytest.raises(ValueError, match="model"):
+        facts.tuning_criterion_facts(_curves([0.1] * 4, [0.1] * 4), "RW")
+
+
+def test_tuning_criterion_on_a_real_sweep(small_study):
+    f = facts.tuning_criterion_facts(small_study.curves, "RF")
+    assert f["by_cep95"] == small_study.best["RF"] and f["n_grid"] == 2
+    assert f["by_rmse"] in set(small_study.curves["sigma"])
+
+
+# --------------------------------------------------------------------------- real-data sections
+
+def test_real_sections_without_data_are_skipped_not_replaced(tmp_path):
+    lias = mm.real.lias_section(tmp_path, "fast", "8.14", tags=None, rate_hz=10.0, fast=True, grids=None, ref=0,
+                                gate_prob=None)
+    assert lias.studies == {} and lias.label == "" and lias.banner is not None
+    iasl = mm.real.iasl_section(tmp_path, "scenario1", "scenario2", rate_hz=10.0, grids=None, ref=0, gate_prob=None)
+    assert iasl.study is None and iasl.banner is not None

@@ -1,0 +1,133 @@
+"""Exercises of notebook 03 ("change X, predict Y") and the note under its panel.
+
+Each exercise runs both settings on the same window of the same test run and returns a
+:class:`uwbwb.widgets.ExerciseCheck`: the direction the student is asked to predict, whether this
+run shows it, and the numbers. The answers, with the reasoning, are in ``TEACHING.md``.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ... import validate
+from ...types import TagRun
+from ...widgets import ExerciseCheck
+from .results import ekf_name
+from .study import estimate
+
+__all__ = ["WINDOW_S", "explorer_note", "overconfident_driving_noise", "reference_anchor", "window"]
+
+#: Seconds of a test run the exercises and the panel filter (from its first epoch): short enough
+#: that a check takes about a second.
+WINDOW_S = 30.0
+
+
+def window(run: TagRun, window_s: float = WINDOW_S) -> TagRun:
+    """The first ``window_s`` seconds of ``run``."""
+    window_s = validate.number("window_s", window_s, minimum=0.0, strict_minimum=True)
+    t0 = float(run.ranges.t_s[0])
+    return run.between(t0, t0 + window_s)
+
+
+def _spread_cm(values: Sequence[float]) -> float:
+    return 100.0 * (max(values) - min(values))
+
+
+def reference_anchor(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, refs: Sequence[int] = (0, 2),
+                     model: str = "RW", window_s: float = WINDOW_S) -> ExerciseCheck:
+    """Exercise: use the diagonal TDoA covariance and change the reference anchor; predict CEP95.
+
+    With the reference-correlated covariance ``Σ = diag(σ_j²) + σ_ref² 11ᵀ`` every choice of
+    reference carries the same information (the ranges up to their common offset), so LS and the
+    EKF give the same positions whatever the reference. The diagonal shortcut drops the
+    correlation and weights the TDoAs as if independent; which anchor's noise is counted in every
+    TDoA then depends on the reference, and so do the positions. The check runs LS and the EKF with
+    ``model`` for every reference, both covariances, no gate,
+    and compares the spread (largest − smallest CEP95) over the references ``refs`` (anchor indices;
+    two keep the check to a few seconds).
+
+    Parameters
+    ----------
+    run
+        A test run (its first ``window_s`` seconds are used).
+    sigma_m
+        Range-noise standard deviation per anchor (from the calibration run), metres, ``(n_anchors,)``.
+    sigmas
+        Driving standard deviation per model (model units); ``sigmas[model]`` is used.
+
+    Returns
+    -------
+    ExerciseCheck
+        Claim "the CEP95 of LS and of the EKF spread more over the reference anchors with the diagonal
+        covariance than with the correlated one"; numbers: the spreads (cm) and the correlated CEP95s (m).
+    """
+    part = window(run, window_s)
+    refs = [validate.integer("refs", r, minimum=0, maximum=len(part.anchors) - 1) for r in refs]
+    if len(set(refs)) < 2:
+        raise ValueError(f"refs must name at least two different anchors, got {refs!r}")
+    name = ekf_name(model)
+    cep = {}
+    for correlated in (True, False):
+        for ref in refs:
+            c = estimate(part, sigma_m, {model: sigmas[model]}, ref=ref, gate_prob=None, correlated=correlated,
+                         models=(model,)).cep95()
+            cep[correlated, ref] = (c["LS"], c[name])
+    spread = {(corr, k): _spread_cm([cep[corr, r][k] for r in refs]) for corr in (True, False) for k in (0, 1)}
+    holds = spread[False, 0] > spread[True, 0] and spread[False, 1] > spread[True, 1]
+    return ExerciseCheck(
+        f"{part.key}, first {window_s:g} s, reference anchor {' vs '.join(map(str, refs))}: with the diagonal Σ the "
+        f"CEP95 of LS and {name} spread more over the reference anchor than with the correlated Σ",
+        holds,
+        {"LS spread, correlated Σ (cm)": spread[True, 0], "LS spread, diagonal Σ (cm)": spread[False, 0],
+         f"{name} spread, correlated Σ (cm)": spread[True, 1], f"{name} spread, diagonal Σ (cm)": spread[False, 1],
+         f"LS CEP95, correlated Σ (m)": cep[True, refs[0]][0], f"{name} CEP95, correlated Σ (m)": cep[True, refs[0]][1]})
+
+
+def overconfident_driving_noise(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, model: str = "RF",
+                                factor: float = 0.01, ref: int = 0, window_s: float = WINDOW_S) -> ExerciseCheck:
+    """Exercise: divide the calibrated driving noise by ``1/factor``; predict CEP95 and the NIS.
+
+    A driving noise far below what the target does tells the EKF that it moves almost exactly as
+    the model predicts. The filter trusts its prediction, lags behind every turn, and its
+    innovations come out much larger than its covariance claims: CEP95 rises and the mean NIS per
+    degree of freedom rises above the calibrated filter's (over-confidence).
+
+    Parameters
+    ----------
+    run, sigma_m, sigmas
+        As :func:`reference_anchor`; ``sigmas[model]`` is the calibrated value.
+    factor
+        Multiplier on the calibrated driving standard deviation (0 < factor < 1).
+
+    Returns
+    -------
+    ExerciseCheck
+        Claim "CEP95 and mean NIS/dof both higher with the smaller driving noise"; numbers: both at
+        both settings and the two σ values.
+    """
+    factor = validate.number("factor", factor, minimum=0.0, maximum=1.0, strict_minimum=True)
+    part = window(run, window_s)
+    name = ekf_name(model)
+    out = {}
+    for label, s in (("calibrated", float(sigmas[model])), ("small", factor * float(sigmas[model]))):
+        est = estimate(part, sigma_m, {model: s}, ref=ref, gate_prob=None, models=(model,))
+        out[label] = (s, est.cep95()[name], float(est.nis().loc[model, "mean_nis_over_dof"]))
+    cal, small = out["calibrated"], out["small"]
+    return ExerciseCheck(
+        f"{part.key}, first {window_s:g} s: {name} with σ_w × {factor:g} has a higher CEP95 and a higher mean NIS/dof",
+        small[1] > cal[1] and small[2] > cal[2],
+        {"σ_w calibrated": cal[0], "σ_w small": small[0], "CEP95 calibrated (m)": cal[1], "CEP95 small (m)": small[1],
+         "mean NIS/dof calibrated": cal[2], "mean NIS/dof small": small[2]})
+
+
+def explorer_note(readout: Mapping[str, float], model: str) -> str:
+    """"What you should see" under the explorer panel, from its default readout (:meth:`.panels.Explorer.render`)."""
+    name = ekf_name(model)
+    ekf, ls = float(readout[f"CEP95 {name} (m)"]), float(readout["CEP95 LS (m)"])
+    order = "below" if ekf < ls else "not below"
+    nis = float(readout["mean NIS / dof"])
+    return (f"On {readout['run / tag']} the {name} path (CEP95 {ekf:.2f} m) is smoother than the LS fixes and its CEP95 "
+            f"is {order} LS's ({ls:.2f} m); mean NIS/dof {nis:.2f} ({readout['NIS verdict']}). "
+            "Switch to the diagonal Σ and move the reference anchor: the numbers change; with the correlated Σ they do not.")
