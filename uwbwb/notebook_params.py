@@ -352,6 +352,7 @@ SPECS: dict[str, dict[str, Spec]] = {
         "GATE_PROB": real(lo=0, hi=1, lo_open=True, hi_open=True, none="no gate"),
     },
     "04_doppler_beacons": {
+        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "N_BRUTE": integer(lo=1, none="1e9 draws (full), 2e7 (FAST)"),
         "N_POSITIONS": integer(lo=1, none="2e6 positions (full), 1e5 (FAST)"),
         "PF_RUNS": integer(lo=1, none="200 runs on the first recording (full), 8 (FAST)"),
