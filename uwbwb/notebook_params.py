@@ -363,6 +363,7 @@ SPECS: dict[str, dict[str, Spec]] = {
         "WORKERS": integer(lo=1, hi=1024),
     },
     "05_uwb_ins_fusion": {
+        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "IASL_CAL_SCENARIO": _RECORDING,
         "IASL_SCENARIO": _RECORDING,
         "GRADE": text(choices=("consumer", "industrial", "tactical")),
