@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ...sim import tours as tours_mod
-from .study import LABELS, PAPER_RANKING, POINT
+from .scoring import LABELS, PAPER_RANKING, POINT
 
 __all__ = ["discussion_facts", "discussion_markdown"]
 

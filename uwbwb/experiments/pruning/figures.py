@@ -4,13 +4,14 @@ for multi-panel ones."""
 from __future__ import annotations
 
 import matplotlib.pyplot as plt
+from matplotlib.ticker import MaxNLocator
 import numpy as np
 import pandas as pd
 
 from ...models.ranging import NlosRangeModel
 from ...plotting import color_for, floor_plan
 from ...sim import tours as tours_mod
-from .study import ESTIMATORS, LABELS, POINT
+from .scoring import ESTIMATORS, LABELS, POINT
 
 __all__ = ["HEURISTIC_MARKERS", "error_cdf_by_heuristic", "heuristic_color", "plot_coverage",
            "plot_error_cdf_percentile", "plot_error_histogram", "plot_hanyang", "plot_polar_errors",
@@ -83,7 +84,7 @@ def plot_error_cdf_percentile(errors_m, ax=None, *, q: float = 5.0, label: str =
     ax.axhline(q / 100.0, color="#bdbdbd", ls="--", lw=0.8)
     ax.axvline(0.0, color="#000000", lw=0.5)
     ax.set_xlabel("range error (m)")
-    ax.set_ylabel("CDF")
+    ax.set_ylabel("CDF (fraction of ranges)")
     ax.legend(fontsize="small", loc="lower right")
     return ax
 
@@ -116,6 +117,10 @@ def plot_polar_errors(stops: pd.DataFrame, *, by: str = "label", ncols: int = 5,
                       title=None) -> plt.Figure:
     """Fig. 8: one polar chart per stationary point, error direction and size per heuristic.
 
+    The radius is the horizontal error (m, the tick labels carry the unit); the angle is the
+    direction of the error vector estimate − truth, 0° along +x, counter-clockwise (as
+    :func:`.scoring.bearing_deg`). Both are written under the charts.
+
     Parameters
     ----------
     stops
@@ -127,7 +132,7 @@ def plot_polar_errors(stops: pd.DataFrame, *, by: str = "label", ncols: int = 5,
     """
     groups = list(dict.fromkeys(stops[by]))
     nrows = int(np.ceil(len(groups) / ncols))
-    fig = plt.figure(figsize=(3.0 * min(ncols, len(groups)), 3.1 * nrows + 0.4))
+    fig = plt.figure(figsize=(3.2 * min(ncols, len(groups)), 3.2 * nrows + 1.2))
     rmax = rmax_m or float(stops["err_m"].max()) * 1.05
     for k, g in enumerate(groups):
         ax = fig.add_subplot(nrows, min(ncols, len(groups)), k + 1, projection="polar")
@@ -136,14 +141,25 @@ def plot_polar_errors(stops: pd.DataFrame, *, by: str = "label", ncols: int = 5,
             s = sub[sub.heuristic == h]
             ax.plot(np.deg2rad(s.bearing_deg), s.err_m, linestyle="none", marker=HEURISTIC_MARKERS[h],
                     ms=9 if h == "residual" else 6, color=heuristic_color(h), label=LABELS[h], alpha=0.8)
+        ax.set_theta_zero_location("E")
+        ax.set_theta_direction(1)
         ax.set_rlim(0, rmax)
+        ax.yaxis.set_major_locator(MaxNLocator(3))
+        ax.yaxis.set_major_formatter(lambda r, _: f"{r:g} m")
         ax.set_title(f"{by} {g}" if by != "label" else str(g), fontsize="small")
+        ax.set_xlabel("error direction (°)", fontsize="x-small")
+        ax.set_ylabel("horizontal error (m)", fontsize="x-small", labelpad=24)
         ax.tick_params(labelsize="x-small")
     handles, labels = fig.axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize="small")
+    h_in = fig.get_figheight()
+    fig.text(0.5, 0.45 / h_in, "radius: horizontal error (m); angle: direction of estimate − truth, 0° = +x, "
+             "counter-clockwise", ha="center", fontsize="small")
     if title:
         fig.suptitle(title)
-    fig.tight_layout(rect=(0, 0.06, 1, 0.97))
+    # fixed margins in inches (a tight layout of polar axes costs a full extra draw)
+    fig.subplots_adjust(left=0.6 / fig.get_figwidth(), right=1 - 0.35 / fig.get_figwidth(), bottom=1.05 / h_in,
+                        top=1 - 0.75 / h_in, wspace=0.55, hspace=0.55)
     return fig
 
 
@@ -196,7 +212,6 @@ def error_cdf_by_heuristic(errors: pd.DataFrame, column: str = "err_m") -> dict:
             for h in ESTIMATORS if h in set(errors.heuristic)}
 
 
-
 def plot_hanyang(samples: pd.DataFrame, pct: pd.DataFrame, axes=None, *, q: float = 5.0) -> np.ndarray:
     """Hanyang static files: error histograms (Fig 4 analogue), CDFs with the ``q``-th percentile (Fig 5
     analogue), and the per-file median and percentile errors against the true range.
@@ -218,21 +233,28 @@ def plot_hanyang(samples: pd.DataFrame, pct: pd.DataFrame, axes=None, *, q: floa
     if axes is None:
         _, axes = plt.subplots(1, 3, figsize=(15, 4))
     axes = np.asarray(axes).ravel()
+    err = samples["range_error_m"].dropna()
+    lo, hi = (np.percentile(err, [0.5, 99.5]) if len(err) else (-1.0, 1.0))
+    pad = 0.1 * max(hi - lo, 0.1)
+    lim = (lo - pad, hi + pad)                         # the data's range (0.5-99.5 %), not a fixed span
     for cond, color in (("LOS", "#2ca02c"), ("NLOS", "#d62728")):
         e = samples.loc[samples.condition == cond, "range_error_m"].dropna()
         if e.empty:
             continue
-        axes[0].hist(e.clip(-1, 2), bins=150, density=True, alpha=0.5, color=color, label=f"{cond} (n={len(e)})")
+        axes[0].hist(e.clip(*lim), bins=np.linspace(*lim, 121), density=True, alpha=0.5, color=color,
+                     label=f"{cond} (n={len(e)})")
         plot_error_cdf_percentile(e, ax=axes[1], label=cond, color=color, q=q)
         p = pct[pct.condition == cond].groupby("true_range_m")[["median_err_m", "pq_err_m"]].median() \
             if len(pct) else pd.DataFrame()
         if len(p):
             axes[2].plot(p.index, p.median_err_m, "-", color=color, label=f"{cond} median")
             axes[2].plot(p.index, p.pq_err_m, "--", color=color, label=f"{cond} {q:g}th percentile")
-    axes[0].set_xlabel("range error (m, clipped to [-1, 2])")
-    axes[0].set_title("Fig 4 analogue")
-    axes[1].set_xlim(-0.5, 1.5)
-    axes[1].set_title("Fig 5 analogue")
+    axes[0].set_xlim(*lim)
+    axes[0].set_xlabel("range error (m), outer 1 % piled at the edges")
+    axes[0].set_ylabel("density (1/m)")
+    axes[0].set_title("Fig 4 analogue: range error")
+    axes[1].set_xlim(*lim)
+    axes[1].set_title(f"Fig 5 analogue: CDF and {q:g}th percentile")
     axes[2].axhline(0, color="#000000", lw=0.5)
     axes[2].set_xlabel("true range (m)")
     axes[2].set_ylabel("error (m)")

@@ -1,0 +1,226 @@
+"""Notebook 02's sections, headlines, panels, notes and exercises (uwbwb.experiments.pruning)."""
+
+from __future__ import annotations
+
+import dataclasses
+import tempfile
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+import pytest  # noqa: E402
+
+import uwbwb as uw  # noqa: E402
+from uwbwb import calibration  # noqa: E402
+from uwbwb.experiments import pruning as ex  # noqa: E402
+from uwbwb.experiments.pruning import exercises, headlines, panels  # noqa: E402
+from uwbwb.filters.pruning import PruningConfig  # noqa: E402
+from uwbwb.sim import rig, tours  # noqa: E402
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    yield
+    plt.close("all")
+
+
+def _small():
+    return ex.SyntheticConfig(tours=(2,), paces=("fast",), tags=("H",),
+                              pruning=PruningConfig(dim=2, res_dropout=0.02, rm_dropout=0.05))
+
+
+# --------------------------------------------------------------------------- sections
+
+
+@pytest.fixture(scope="module")
+def room():
+    data = uw.datasets.load_lias_room(tempfile.mkdtemp(), "fast", "8.14", stand_in=rig.RigConfig(duration_s=15.0),
+                                      static_duration_s=3.0, rng=np.random.default_rng(0))
+    static = [dataclasses.replace(r, meta={**r.meta, "site": i % 2}) for i, r in enumerate(data.static[:6])]
+    return data.dynamic, static
+
+
+def test_lias_sections_run_the_same_comparison_as_the_runs_they_call(room):
+    dynamic, static = room
+    cfg = PruningConfig(dim=2)
+    st = ex.lias_static(static, label="lias-planar-uwb/x", tags=("t0",), config=cfg, stride=50)
+    assert list(st.runs) == ["raw", "calibrated (LOSO)"] and st.heights_m == pytest.approx({"t0": 0.97}, abs=0.01)
+    direct = ex.run_static_poses(static, heights_m=st.heights_m, tags=("t0",), config=cfg, stride=50)
+    pd.testing.assert_frame_equal(st.table.loc["raw"], ex.heuristic_summary(direct.poses))
+    assert set(st.epochs["raw"].n_epochs) == {st.epochs["raw"].n_epochs.iloc[0]}     # same epochs for all
+    assert "sites ['0', '1']" in st.report() and "bias" in st.range_markdown()
+    raw_only = ex.lias_static(static, label="x", tags=("t0",), config=cfg, stride=50, loso=False)
+    assert list(raw_only.runs) == ["raw"] and "raw ranges only" in raw_only.report()
+    dy = ex.lias_dynamic(dynamic, raw_only, tags=("t0",), config=cfg, stride=20, calibrated=False)
+    assert dy.calibration is None and list(dy.runs) == ["raw"] and "not asked for" in dy.report()
+    assert set(dy.table.index.get_level_values(0)) == {"raw"}
+    assert "run_coverage" in dy.coverage_table() and dy.label == dynamic.label
+    with pytest.raises(ValueError, match="recordings"):
+        ex.lias_static([], label="x", tags=("t0",), config=cfg, stride=50)
+    with pytest.raises(ValueError, match="stride"):
+        ex.lias_static(static, label="x", tags=("t0",), config=cfg, stride=0)
+
+
+# --------------------------------------------------------------------------- headlines
+
+
+def _results(*, converged=True, same_walks=True, pruning_wins=True, control_ok=True, lias_same=True):
+    stops = pd.DataFrame({"heuristic": ["none", "residual"], "converged": [True, converged], "err_m": [1.0, 0.5]})
+    moves = pd.DataFrame({"heuristic": ["none", "residual"], "converged": [True, converged]})
+    n = 3 if same_walks else 2
+    track = pd.DataFrame({"kind": "move", "heuristic": ["none"] * 3 + ["residual"] * n, "err_m": 0.3})
+    syn = ex.SyntheticResult(stops, moves, track, {})
+    table = pd.DataFrame({"stop_median_m": [1.0, 0.5, 0.8] if pruning_wins else [1.0, 1.5, 1.2]},
+                         index=pd.Index(["none", "residual", "percentile"], name="heuristic"))
+    control = pd.DataFrame({"all_median_m": [0.2, 0.22 if control_ok else 0.4, 0.3],
+                            "stop_median_m": [0.2, 0.2, 0.5 if control_ok else 0.1]},
+                           index=pd.Index(["none", "residual", "percentile"], name="heuristic"))
+    epochs = pd.DataFrame({"n_epochs": [10, 10 if lias_same else 9]}, index=["none", "point"])
+    lias = ex.LiasStatic("x", [], None, pd.DataFrame(), {"raw": None}, pd.DataFrame(), {"raw": epochs})
+    return headlines.Results(syn, table, 2, None, control, lias_static=lias)
+
+
+def test_checks_pass_and_each_one_can_fail():
+    assert headlines.checks(_results(), fast=True) == []
+    for kw, words in (({"converged": False}, "converges"), ({"same_walks": False}, "same walk packets"),
+                      ({"pruning_wins": False}, "beats plain NLS"), ({"control_ok": False}, "outlier-free"),
+                      ({"lias_same": False}, "LIAS static")):
+        fail = headlines.checks(_results(**kw), fast=False)
+        assert fail and any(words in f for f in fail), (kw, fail)
+    assert len(headlines.checks(_results(control_ok=False), fast=True)) == 2      # residual and percentile
+
+
+def test_rows_of_results_are_the_headline_rows():
+    syn_table = pd.DataFrame({"stop_median_m": [1.2, 0.5, 0.6, 0.4], "all_p90_m": [3.0, 2.0, 2.5, np.nan]},
+                             index=pd.Index(["none", "percentile", "robust_mean", "residual"], name="heuristic"))
+    res = headlines.Results(ex.SyntheticResult(pd.DataFrame(), pd.DataFrame(), pd.DataFrame(), {}), syn_table, 2,
+                            syn_table, syn_table)
+    rows = headlines.rows(res)
+    assert rows == ex.headline_rows(synthetic=syn_table, synthetic_dim=2, synthetic_3d=syn_table)
+    assert {r["kind"] for r in rows} == {"reproduced"}
+    s = uw.metrics.Summary("02_pruning_nls", fast=True)
+    headlines.add_rows(res, s)
+    assert len(s) == len(rows)
+    three_d = dataclasses.replace(res, synthetic_dim=3)
+    assert not any("(3-D, no height)" in r["quantity"] and "known" in r["quantity"] for r in headlines.rows(three_d))
+    assert len(headlines.rows(three_d)) < len(rows)                  # no second geometry when the first is 3-D
+
+
+# --------------------------------------------------------------------------- panels and notes
+
+
+class _StubTour:
+    """Stands in for TourExplorer.rows: the median stop error per heuristic."""
+
+    def __init__(self, err):
+        self.err = err
+
+    def rows(self, tour, pace, node, heuristic, *rest):
+        st = pd.DataFrame({"err_m": [self.err[heuristic]] * 3})
+        return st, pd.DataFrame()
+
+
+VALUES = {"heuristic": "residual", "res_retention": 0.9, "res_dropout_pct": 0.5, "rm_retention": 0.5,
+          "rm_dropout_pct": 1.0, "tour": 2, "pace": "fast", "node": "H"}
+
+
+def test_tour_note_quotes_the_readout_and_flips_with_it():
+    good = panels.tour_note(_StubTour({"residual": 0.4, "none": 1.1}), VALUES)
+    assert "0.40 m" in good and "1.10 m" in good and ", below plain" in good
+    bad = panels.tour_note(_StubTour({"residual": 1.3, "none": 1.1}), VALUES)
+    assert "not below" in bad
+    uw.widgets.what_you_should_see(good)                                # within the note's limits
+
+
+def test_piece_note_says_when_a_piece_has_no_fit():
+    class Stub:
+        def __init__(self, frame):
+            self.frame = frame
+
+        def piece(self, *args):
+            return self.frame
+
+    values = {"segment": 3, "tag": "t0", "heuristic": "residual", "res_retention": 0.9, "rm_retention": 0.5,
+              "dropout_pct": 0.5, "ranges": "raw"}
+    assert "too few ranges" in panels.piece_note(Stub(pd.DataFrame()), values)
+    note = panels.piece_note(Stub(pd.DataFrame({"mean_err_m": [0.123], "speed_ratio": [0.98]})), values)
+    assert "Piece 3" in note and "0.12 m" in note and "0.98" in note
+    uw.widgets.what_you_should_see(note)
+
+
+def test_polar_note_names_the_worst_stop_and_the_best_heuristic():
+    stops = pd.DataFrame({"heuristic": ["none", "none", "residual", "residual", "percentile", "percentile"],
+                          "label": ["K0", "K1"] * 3, "coverage": [4, 1] * 3,
+                          "err_m": [0.3, 1.5, 0.2, 0.4, 0.5, 0.6]})
+    note = panels.polar_note(stops)
+    assert "K1 (1.50 m, covered by 1 anchors)" in note and "0.30 m for residual pruning" in note
+    uw.widgets.what_you_should_see(note)
+
+
+def test_panels_offer_only_what_the_run_has():
+    cfg = dataclasses.replace(_small(), heuristics=("none", "residual"))
+    xp = ex.TourExplorer(ex.SyntheticResult(pd.DataFrame(), pd.DataFrame(), pd.DataFrame(), {}), cfg, seed=0)
+    p = panels.tour_panel(xp, res_retention=0.9, rm_retention=0.5)
+    opts = {k: c.options for k, c in p.controls.items() if hasattr(c, "options")}
+    assert [v for _, v in opts["heuristic"]] == ["none", "residual"]             # the run's heuristics only
+    assert [v for _, v in opts["node"]] == ["L", "H"] and [v for _, v in opts["pace"]] == ["slow", "fast"]
+
+
+# --------------------------------------------------------------------------- exercises
+
+
+@pytest.fixture(scope="module")
+def tour2():
+    return tours.simulate_tour(tours.TourConfig(tour=2, pace="fast"), rng=np.random.default_rng(0))
+
+
+def test_pruning_off_raises_the_stop_error_and_equals_plain_nls(tour2):
+    cfg = dataclasses.replace(_small(), pruning=PruningConfig(dim=2))
+    check = exercises.pruning_off(*tour2, cfg, node="H", retention=1.0)
+    assert check.holds, check
+    n = dict(check.numbers)
+    assert n["retention 1 (m)"] == pytest.approx(n["plain NLS (m)"])          # nothing pruned: plain NLS
+    same = exercises.pruning_off(*tour2, cfg, node="H", retention=0.9)
+    assert not same.holds                                                  # no change: the check cannot hold
+    with pytest.raises(ValueError, match="retention"):
+        exercises.pruning_off(*tour2, cfg, retention=0.0)
+
+
+def test_without_nlos_the_fifth_percentile_loses_to_plain_nls():
+    check = exercises.no_nlos(dataclasses.replace(_small(), pruning=PruningConfig(dim=2)), seed=0)
+    assert check.holds, check
+    n = dict(check.numbers)
+    assert n["without NLOS, 5th percentile (m)"] > n["without NLOS, plain NLS (m)"]
+    assert n["with NLOS, 5th percentile (m)"] < n["with NLOS, plain NLS (m)"]
+    with pytest.raises(ValueError, match="seed"):
+        exercises.no_nlos(_small(), seed=-1)
+
+
+# --------------------------------------------------------------------------- figures
+
+
+def test_polar_charts_state_their_unit_and_angle_convention():
+    stops = pd.DataFrame({"heuristic": ["none", "residual"] * 2, "label": ["K0", "K0", "K1", "K1"],
+                          "err_m": [0.5, 0.2, 1.0, 0.3], "bearing_deg": [0.0, 90.0, 180.0, -90.0]})
+    fig = ex.plot_polar_errors(stops)
+    for ax in fig.axes:
+        assert ax.get_title() and "(m)" in ax.get_ylabel() and "°" in ax.get_xlabel()
+        assert ax.get_theta_offset() == 0.0 and ax.get_theta_direction() == 1     # 0° = +x, counter-clockwise
+        assert ax.yaxis.get_major_formatter()(0.5, 0).endswith(" m")
+    assert any("counter-clockwise" in t.get_text() for t in fig.texts)
+
+
+def test_hanyang_histogram_spans_the_data_and_has_a_y_label():
+    rng = np.random.default_rng(0)
+    e = np.r_[rng.normal(0.2, 0.05, 400), rng.normal(0.3, 0.05, 400)]
+    samples = pd.DataFrame({"condition": ["LOS"] * 400 + ["NLOS"] * 400, "range_error_m": e, "height_m": 1.0,
+                            "true_range_m": 10.0, "range_m": 10.0 + e, "file": ["a"] * 400 + ["b"] * 400})
+    axes = ex.plot_hanyang(samples, calibration.percentile_by_file(samples))
+    lo, hi = axes[0].get_xlim()
+    assert hi - lo < 1.5 * (e.max() - e.min()) and lo < np.percentile(e, 1) and hi > np.percentile(e, 99)
+    for ax in axes:
+        assert ax.get_title() and "(m)" in ax.get_xlabel() and ax.get_ylabel()

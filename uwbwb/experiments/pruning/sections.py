@@ -1,0 +1,206 @@
+"""Notebook 02's real-data sections as one call each: the LIAS static poses and the LIAS dynamic run.
+
+:func:`lias_static` localises every static pose (raw ranges, and with a leave-one-site-out range
+calibration when the session has two sites or more) at the tags' mount height from the same
+poses; :func:`lias_dynamic` cuts the dynamic run into straight pieces and fits each (raw ranges,
+and calibrated from the static poses of the same room when the anchors match). Each returns a
+frozen record of everything the notebook's tables, figures, checks and discussion read, with a
+short printed report.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ... import validate
+from ...calibration import fit_range_calibration, tag_mount_height
+from ...filters.pruning import PruningConfig
+from ...geometry import straight_segments
+from ...types import Recording
+from .real import DynamicResult, run_dynamic_segments, run_static_poses
+from .scoring import epoch_summary, heuristic_summary
+from .study import loso_calibrations, range_error_stats
+
+__all__ = ["LiasDynamic", "LiasStatic", "lias_dynamic", "lias_static"]
+
+
+@dataclass(frozen=True)
+class LiasStatic:
+    """Notebook 02's LIAS static section (see :func:`lias_static`).
+
+    Attributes
+    ----------
+    label
+        ``"lias-planar-uwb/<session>"``.
+    recordings
+        The static poses (one stationary segment each).
+    mount
+        :class:`uwbwb.calibration.MountHeight` of the tags, from these poses.
+    range_stats
+        :func:`.study.range_error_stats` of the poses' ranges.
+    runs
+        ``{"raw": StaticResult, "calibrated (LOSO)": StaticResult}`` (the second only with two sites or more).
+    table
+        :func:`.scoring.heuristic_summary` per run, concatenated (outer index: the run's name).
+    epochs
+        ``{run name: epoch_summary}``: every estimator on the same epochs, coverage beside accuracy.
+    """
+
+    label: str
+    recordings: list = field(repr=False)
+    mount: object
+    range_stats: pd.DataFrame = field(repr=False)
+    runs: dict = field(repr=False)
+    table: pd.DataFrame = field(repr=False)
+    epochs: dict = field(repr=False)
+
+    @property
+    def heights_m(self) -> dict:
+        """``{tag: mount height (m)}`` every estimator solves at."""
+        return self.mount.per_tag_m
+
+    def report(self) -> str:
+        """Three lines: poses and sites, mount heights and their source, why the geometry is 2-D."""
+        recs, tag = self.recordings, next(iter(self.heights_m))
+        pose_s = [np.ptp(r.ranges[tag].t_s) for r in recs]
+        a = recs[0].anchors.pos_m
+        s = self.mount.range_slope
+        lines = [f"{len(recs)} poses of {self.label}, sites {sorted({str(r.meta.get('site')) for r in recs})}, "
+                 f"{np.median(pose_s):.0f} s each (median)",
+                 f"mount heights {', '.join(f'{t} {z:.3f} m' for t, z in self.heights_m.items())}: {self.mount.source}",
+                 f"anchor heights {a[:, 2].min():.3f}-{a[:, 2].max():.3f} m; largest |dz|/range {s:.3f}: a height "
+                 f"error dz changes a range by at most {s:.3f}·dz — unobservable, so 2-D"]
+        if "calibrated (LOSO)" not in self.runs:
+            lines.append("raw ranges only: no leave-one-site-out calibration (one site, or not asked for)")
+        return "\n".join(lines)
+
+    def range_markdown(self) -> str:
+        """One sentence on the poses' range errors (bias, spread, long outliers), from :attr:`range_stats`."""
+        r = self.range_stats
+        return (f"Range errors against the pose tables, per anchor–tag pair (median over pairs): bias "
+                f"{r.bias_m.median():.3f} m (10th–90th percentile {r.bias_m.quantile(0.1):.3f}–"
+                f"{r.bias_m.quantile(0.9):.3f} m), spread {r.spread_m.median():.3f} m; "
+                f"{np.average(r.frac_long, weights=r.n):.2%} of ranges more than 0.5 m above their pair's median.")
+
+
+def lias_static(recordings, *, label: str, tags, config: PruningConfig, stride: int, loso: bool = True,
+                progress: bool = False) -> LiasStatic:
+    """Localise every LIAS static pose, raw and with a leave-one-site-out range calibration.
+
+    Parameters
+    ----------
+    recordings
+        Static poses of one session (:func:`uwbwb.datasets.load_lias_room`'s ``static``).
+    label
+        Data label of the rows, e.g. ``"lias-planar-uwb/8.14"``.
+    tags
+        Tags to localise.
+    config
+        Solver/heuristic parameters (2-D: every estimator at the mount height from the same poses,
+        :func:`uwbwb.calibration.tag_mount_height`).
+    stride
+        Every ``stride``-th range epoch of a pose.
+    loso
+        Also run with the leave-one-site-out calibration (needs two sites or more; False: raw only).
+    progress
+        ``tqdm`` bars over the poses.
+    """
+    recs = list(recordings)
+    if not recs:
+        raise ValueError("recordings: lias_static needs at least one static pose")
+    stride = validate.integer("stride", stride, minimum=1)
+    tags = tuple(tags)
+    mount = tag_mount_height(recs, tags=tags)
+    kw = dict(heights_m=mount.per_tag_m, tags=tags, config=config, stride=stride, progress=progress)
+    runs = {"raw": run_static_poses(recs, **kw)}
+    if loso and len({r.meta.get("site") for r in recs}) >= 2:
+        runs["calibrated (LOSO)"] = run_static_poses(recs, calibrations=loso_calibrations(recs, stride=10), **kw)
+    return LiasStatic(label, recs, mount, range_error_stats(recs, tags=tags), runs,
+                      pd.concat({k: heuristic_summary(v.poses) for k, v in runs.items()}),
+                      {k: epoch_summary(v.epochs) for k, v in runs.items()})
+
+
+@dataclass(frozen=True)
+class LiasDynamic:
+    """Notebook 02's LIAS dynamic section (see :func:`lias_dynamic`).
+
+    Attributes
+    ----------
+    recording
+        The dynamic run.
+    segments
+        Its straight pieces (:func:`uwbwb.geometry.straight_segments` of the first tag's truth).
+    calibration
+        Range calibration fitted on the static poses of the same room (None: anchors differ).
+    runs
+        ``{"raw": DynamicResult, "calibrated": DynamicResult}``, runs with at least one fitted piece only.
+    table
+        Per run and heuristic, the median over pieces of ``start_err_m, mean_err_m, vel_err_mps,
+        speed_ratio`` (None without a run).
+    epochs
+        ``{run name: (epoch_summary, run_coverage)}``.
+    """
+
+    recording: Recording = field(repr=False)
+    segments: pd.DataFrame = field(repr=False)
+    calibration: object = field(repr=False)
+    runs: dict = field(repr=False)
+    table: pd.DataFrame | None = field(repr=False)
+    epochs: dict = field(repr=False)
+
+    @property
+    def label(self) -> str:
+        return self.recording.label
+
+    def report(self) -> str:
+        """Two lines: the straight pieces (how much of the run they cover) and the calibration used."""
+        segs, tr = self.segments, self.recording.truth[next(iter(self.recording.truth))]
+        first = f"{len(segs)} straight pieces covering {segs.duration_s.sum():.0f} s of {np.ptp(tr.t_s):.0f} s"
+        if len(segs):
+            first += (f"; median {segs.duration_s.median():.1f} s, {segs.length_m.median():.2f} m, "
+                      f"{segs.speed_mps.median():.2f} m/s")
+        return first + "\ncalibration from the static poses: " + (
+            "yes" if self.calibration is not None else "no (anchors differ, or not asked for)")
+
+    def coverage_table(self) -> pd.DataFrame:
+        """Epoch summaries of every run with the run coverage beside them."""
+        return pd.concat({k: e.assign(run_coverage=c) for k, (e, c) in self.epochs.items()})
+
+
+def lias_dynamic(recording: Recording, static: LiasStatic, *, tags, config: PruningConfig, stride: int,
+                 calibrated: bool = True) -> LiasDynamic:
+    """Fit every straight piece of a LIAS dynamic run, raw and calibrated from the static poses.
+
+    Parameters
+    ----------
+    recording
+        The dynamic run (truth used for the pieces and the scoring only).
+    static
+        :func:`lias_static` of the same room: the mount heights, and the poses a range calibration
+        is fitted on when their anchors are the run's (a different recording, so not circular).
+    tags, config, stride
+        As in :func:`.real.run_dynamic_segments`; the pieces are cut from the first tag's truth.
+    calibrated
+        Also run with the static poses' calibration (when the anchors match; False: raw only).
+    """
+    tags = tuple(tags)
+    stride = validate.integer("stride", stride, minimum=1)
+    segs = straight_segments(recording.truth[tags[0]])
+    first = static.recordings[0].anchors
+    same_room = recording.anchors.ids == first.ids and np.allclose(recording.anchors.pos_m, first.pos_m)
+    cal = fit_range_calibration([r.decimate(10) for r in static.recordings]) if same_room and calibrated else None
+    runs: dict[str, DynamicResult] = {}
+    if len(segs):
+        kw = dict(heights_m=static.heights_m, tags=tags, config=config, stride=stride)
+        runs["raw"] = run_dynamic_segments(recording, segs, **kw)
+        if cal is not None:
+            runs["calibrated"] = run_dynamic_segments(recording, segs, calibration=cal, **kw)
+    runs = {k: v for k, v in runs.items() if len(v.pieces)}
+    cols = ["start_err_m", "mean_err_m", "vel_err_mps", "speed_ratio"]
+    table = pd.concat({k: v.pieces.groupby("heuristic")[cols].median() for k, v in runs.items()}) if runs else None
+    epochs = {k: (epoch_summary(v.epochs), v.run_coverage) for k, v in runs.items()}
+    return LiasDynamic(recording, segs, cal, runs, table, epochs)
+
