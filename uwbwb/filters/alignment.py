@@ -24,7 +24,8 @@ from .imu_calibration import RealCalibration
 from .tdoa_ls import tdoa_least_squares
 
 __all__ = ["FusionSettings", "screened_tdoa", "ls_estimates", "Comparison", "initial_state", "imu_after",
-           "level_attitude", "IASL_EKF_PSD_M2PS3", "compare_iasl"]
+           "level_attitude", "IASL_EKF_PSD_M2PS3", "AlignedStart", "align_iasl", "loose_filter", "compare_iasl",
+           "scored_truth"]
 
 
 @dataclass(frozen=True)
@@ -183,9 +184,105 @@ def level_attitude(imu: ImuLog, t0: float, still_s: float, *, max_rate_radps: fl
 IASL_EKF_PSD_M2PS3 = 1.0
 
 
+@dataclass(frozen=True)
+class AlignedStart:
+    """The common start of every UWB/INS filter on one recording (:func:`align_iasl`).
+
+    Attributes
+    ----------
+    log, tdoa, screened
+        The ranges (cut to the run's length), their TDoAs against the reference anchor, and the
+        TDoAs after the eq-4 screen.
+    n_eq4
+        TDoAs removed by eq. 4 per epoch, shape ``(T,)``.
+    model
+        The 3-D TDoA model with the calibrated range noise.
+    fixes
+        UWB-only TDoA least-squares fixes on the screened TDoAs.
+    k0, x0
+        Epoch index where every filter starts (the end of the alignment window) and the state there.
+    imu
+        IMU samples in the body frame from the epoch ``k0`` on.
+    gyro_bias0_radps
+        Gyro bias from the rest interval (zeros when not at rest).
+    alignment
+        The alignment filter's run; ``meta``: rest, roll, pitch, yaw after alignment, start time.
+    """
+
+    log: object
+    tdoa: TdoaLog
+    screened: TdoaLog
+    n_eq4: np.ndarray
+    model: TdoaModel
+    fixes: Estimates
+    k0: int
+    x0: NavState
+    imu: ImuLog
+    gyro_bias0_radps: np.ndarray
+    alignment: object
+    meta: dict
+
+    @property
+    def after(self) -> np.ndarray:
+        """Epochs from the start ``k0`` on (the scored ones), boolean ``(T,)``."""
+        return np.arange(len(self.log)) >= self.k0
+
+
+def align_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings = FusionSettings(), *,
+               ref_anchor: int = 0, still_s: float = 2.0, align_s: float = 20.0,
+               duration_s: float | None = None) -> AlignedStart:
+    """Steps 1–2 of :func:`compare_iasl` (rest, then in-motion heading alignment): the state and
+    epoch every filter starts from, and the screened TDoAs and fixes they share."""
+    if rec.imu is None:
+        raise ValueError(f"{rec.label}: no IMU log")
+    log = rec.ranges["tag"]
+    t_start = max(log.t_s[0], rec.imu.t_s[0])
+    t_align = t_start + still_s + align_s
+    if duration_s is not None:
+        log = log.between(log.t_s[0], t_align + duration_s)
+    imu = cal.convention.to_body(rec.imu)
+    anchors = rec.anchors.pos_m
+    tdoa = TdoaLog.from_ranges(log, ref_anchor)
+    screened, n_eq4 = screened_tdoa(tdoa, anchors, settings.outlier_c_m)
+    m3 = TdoaModel(anchors, cal.range_sigma_m, dim=3)
+    fixes = ls_estimates(screened, m3)
+    roll, pitch, bg0, at_rest = level_attitude(imu, t_start, still_s)
+    tilt_sigma = (2.0 if at_rest else 10.0) * math.pi / 180
+    ranges_update = eskf.RangeUpdate(anchors, cal.range_sigma_m, cal.range_bias_m)
+    x_a, k_a = initial_state(fixes, height_m=None, lever_m=np.zeros(3), yaw_rad=0.0, roll_rad=roll,
+                             pitch_rad=pitch, t0_s=t_start, rest_s=still_s)
+    aligner = eskf.TightEskf(cal.imu_model, ranges_update, init_sigma=(0.2, 0.3, tilt_sigma, math.pi / 3),
+                             name="alignment", **_common(settings))
+    win = np.flatnonzero((log.t_s >= log.t_s[k_a]) & (log.t_s <= t_align))
+    al = aligner.run(imu_after(imu, log.t_s[k_a]), log.select(win), x_a, gyro_bias0=bg0)
+    k0 = int(win[-1])
+    x0 = NavState(al.pos_m[-1], al.vel_mps[-1], al.quat[-1])
+    meta = {"at_rest": at_rest, "roll0_deg": math.degrees(roll), "pitch0_deg": math.degrees(pitch),
+            "yaw_after_alignment_deg": math.degrees(float(al.euler_rad[-1, 2])), "gyro_bias0_radps": bg0,
+            "start_s": float(log.t_s[k0]), "alignment": al}
+    return AlignedStart(log, tdoa, screened, n_eq4, m3, fixes, k0, x0, imu_after(imu, log.t_s[k0]), bg0, al, meta)
+
+
+def _common(settings: FusionSettings) -> dict:
+    return dict(gate_prob=settings.gate_prob, q_scale=settings.q_scale, r_scale=settings.r_scale,
+                feedback=settings.feedback)
+
+
+def loose_filter(cal: RealCalibration, settings: FusionSettings = FusionSettings(), *,
+                 loose_scales: tuple[float, float] = (1.0, 1.0)) -> eskf.LooseFilter:
+    """The real-data loose filter: position σ twice the median calibrated range σ, velocity σ
+    0.5 m/s, velocity random walk 0.3 m/s/√s (the unit of its grid), times ``settings``' scales
+    and ``loose_scales`` (its own ``(q, r)`` multipliers, e.g. tuned on the calibration recording)."""
+    return eskf.LooseFilter(dim=3, q_scale=settings.q_scale * loose_scales[0],
+                            r_scale=settings.r_scale * loose_scales[1], feedback=settings.feedback,
+                            vel_window=settings.loose_window, sigma_r_pos_m=2 * float(np.median(cal.range_sigma_m)),
+                            sigma_r_vel_mps=0.5, q_vel_mps_rts=0.3)
+
+
 def compare_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings = FusionSettings(), *,
                  ref_anchor: int = 0, still_s: float = 2.0, align_s: float = 20.0,
-                 duration_s: float | None = None, ekf_psd_m2ps3: float = IASL_EKF_PSD_M2PS3) -> Comparison:
+                 duration_s: float | None = None, ekf_psd_m2ps3: float = IASL_EKF_PSD_M2PS3,
+                 loose_scales: tuple[float, float] = (1.0, 1.0)) -> Comparison:
     """UWB-only (3-D TDoA LS), the gated IMU-free TDoA EKF of notebook 03 (random force,
     ``ekf_psd_m2ps3``, the same χ² probability as the tight filter's gate), INS-only, loose
     (6 states), tight on TDoA and tight on ranges, on one ``iasl-uwb-imu`` recording, using only
@@ -202,60 +299,39 @@ def compare_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings 
        attitude) starts **every** filter. Scoring starts there, for every method.
 
     The tag's lever arm from the IMU is unknown and taken as zero (an assumption); so are the
-    accelerometer biases (zero at start).
+    accelerometer biases (zero at start). ``loose_scales`` multiplies the loose filter's Q and R
+    only (:func:`loose_filter`).
     """
-    if rec.imu is None:
-        raise ValueError(f"{rec.label}: no IMU log")
-    log = rec.ranges["tag"]
-    t_start = max(log.t_s[0], rec.imu.t_s[0])
-    t_align = t_start + still_s + align_s
-    if duration_s is not None:
-        log = log.between(log.t_s[0], t_align + duration_s)
-    imu = cal.convention.to_body(rec.imu)
-    anchors = rec.anchors.pos_m
-    tdoa = TdoaLog.from_ranges(log, ref_anchor)
-    screened, n_eq4 = screened_tdoa(tdoa, anchors, settings.outlier_c_m)
-    m3 = TdoaModel(anchors, cal.range_sigma_m, dim=3)
-    fixes = ls_estimates(screened, m3)
-    roll, pitch, bg0, at_rest = level_attitude(imu, t_start, still_s)
-    tilt_sigma = (2.0 if at_rest else 10.0) * math.pi / 180
-    common = dict(gate_prob=settings.gate_prob, q_scale=settings.q_scale, r_scale=settings.r_scale,
-                  feedback=settings.feedback)
-    ranges_update = eskf.RangeUpdate(anchors, cal.range_sigma_m, cal.range_bias_m)
-    # 2. alignment
-    x_a, k_a = initial_state(fixes, height_m=None, lever_m=np.zeros(3), yaw_rad=0.0, roll_rad=roll,
-                             pitch_rad=pitch, t0_s=t_start, rest_s=still_s)
-    aligner = eskf.TightEskf(cal.imu_model, ranges_update, init_sigma=(0.2, 0.3, tilt_sigma, math.pi / 3),
-                             name="alignment", **common)
-    win = np.flatnonzero((log.t_s >= log.t_s[k_a]) & (log.t_s <= t_align))
-    al = aligner.run(imu_after(imu, log.t_s[k_a]), log.select(win), x_a, gyro_bias0=bg0)
-    k0 = int(win[-1])
-    x0 = NavState(al.pos_m[-1], al.vel_mps[-1], al.quat[-1])
-    imu_run = imu_after(imu, log.t_s[k0])
+    a = align_iasl(rec, cal, settings, ref_anchor=ref_anchor, still_s=still_s, align_s=align_s,
+                   duration_s=duration_s)
+    log, tdoa, m3, x0, imu_run, bg0 = a.log, a.tdoa, a.model, a.x0, a.imu, a.gyro_bias0_radps
+    common = _common(settings)
+    ranges_update = eskf.RangeUpdate(rec.anchors.pos_m, cal.range_sigma_m, cal.range_bias_m)
     # 3. the comparison, all from x0 at epoch k0
     tight = eskf.TightEskf(cal.imu_model, eskf.TdoaUpdate(m3, settings.outlier_c_m), **common)
     tight_r = eskf.TightEskf(cal.imu_model, ranges_update, name="tight (ranges)", **common)
-    loose = eskf.LooseFilter(dim=3, q_scale=settings.q_scale, r_scale=settings.r_scale, feedback=settings.feedback,
-                             vel_window=settings.loose_window, sigma_r_pos_m=2 * float(np.median(cal.range_sigma_m)),
-                             sigma_r_vel_mps=0.5, q_vel_mps_rts=0.3)
-    after = np.arange(len(log)) >= k0
+    loose = loose_filter(cal, settings, loose_scales=loose_scales)
+    after = a.after
     sub = log.select(after)
     ekf = TdoaEkf(RandomForce(ekf_psd_m2ps3, dim=3), m3, gate_prob=settings.gate_prob)
-    ekf_run = ekf.run(screened.select(after), x0=ekf.init(x0.pos_m, x0.vel_mps))
+    ekf_run = ekf.run(a.screened.select(after), x0=ekf.init(x0.pos_m, x0.vel_mps))
     runs = {"tight": tight.run(imu_run, tdoa.select(after), x0, gyro_bias0=bg0),
             "tight (ranges)": tight_r.run(imu_run, sub, x0, gyro_bias0=bg0),
-            "loose": loose.run(imu_run, fixes.select(after), x0),
+            "loose": loose.run(imu_run, a.fixes.select(after), x0),
             "INS-only": eskf.dead_reckon(imu_run, x0, sub.t_s, gyro_bias=bg0)}
-    est = {"UWB-only": fixes.select(after), "EKF + gate": replace(ekf_run.to_estimates(), name="EKF + gate")}
+    est = {"UWB-only": a.fixes.select(after), "EKF + gate": replace(ekf_run.to_estimates(), name="EKF + gate")}
     est.update({k: v.to_estimates(dim=3, name=k) for k, v in runs.items()})
     runs["EKF + gate"] = ekf_run
-    pos = rec.truth["tag"].interp(sub.t_s)
+    truth, have = scored_truth(rec, sub.t_s)
+    rejected = {"eq4": int(a.n_eq4[after].sum()), "gated": int(runs["tight"].n_gated.sum()),
+                "tdoas": int(tdoa.n_tdoa[after].sum())}
+    return Comparison(rec.label, truth, est, runs, {"scored": have}, rejected, 2, dict(a.meta))
+
+
+def scored_truth(rec: Recording, t_s: np.ndarray) -> tuple[Trajectory, np.ndarray]:
+    """The tag's truth at ``t_s`` and where it exists (``(T,)`` bool); positions without truth are
+    set to 0 and must be read through that mask (figures and tables do)."""
+    pos = rec.truth["tag"].interp(t_s)
     have = np.all(np.isfinite(pos), axis=1)
     pos[~have] = 0.0
-    truth = Trajectory(sub.t_s, pos, name="truth")
-    rejected = {"eq4": int(n_eq4[after].sum()), "gated": int(runs["tight"].n_gated.sum()),
-                "tdoas": int(tdoa.n_tdoa[after].sum())}
-    meta = {"at_rest": at_rest, "roll0_deg": math.degrees(roll), "pitch0_deg": math.degrees(pitch),
-            "yaw_after_alignment_deg": math.degrees(float(al.euler_rad[-1, 2])), "gyro_bias0_radps": bg0,
-            "start_s": float(log.t_s[k0]), "alignment": al}
-    return Comparison(rec.label, truth, est, runs, {"scored": have}, rejected, 2, meta)
+    return Trajectory(t_s, pos, name="truth"), have

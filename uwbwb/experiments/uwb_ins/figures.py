@@ -47,35 +47,81 @@ def static_traces(comp: Comparison, names=("UWB-only", "loose", "tight"), axes=N
     return axes
 
 
-def track(comp: Comparison, names=("UWB-only", "loose", "tight"), ax=None, *, anchors_m=None):
-    """Fig. 7: the horizontal track of each method against truth."""
+def _truth_xy(comp: Comparison) -> np.ndarray:
+    """Truth positions with NaN where the epoch is not scored (e.g. no motion-capture sample)."""
+    p = comp.truth.pos_m[:, :2].astype(float)
+    return np.where(comp.masks.get("scored", np.ones(len(p), bool))[:, None], p, np.nan)
+
+
+def track(comp: Comparison, names=("UWB-only", "loose", "tight"), ax=None, *, anchors_m=None, margin_m: float = 0.5):
+    """Fig. 7: the horizontal track of each method against truth (drawn only where it exists).
+
+    The axes hold the truth, the anchors and every method but UWB-only; UWB-only fixes
+    outside them (multipath spikes) are counted in a note instead of stretching the axes.
+    """
     ax = _axes(ax)
+    truth = _truth_xy(comp)
+    keep = [truth]
     for name in names:
         p = comp.estimates[name].pos_m
         ax.plot(p[:, 0], p[:, 1], color=color_for(name), lw=0.8 if name != "UWB-only" else 0.4,
-                alpha=1.0 if name != "UWB-only" else 0.5, label=name)
-    ax.plot(comp.truth.pos_m[:, 0], comp.truth.pos_m[:, 1], "k--", lw=1, label="truth")
+                alpha=1.0 if name != "UWB-only" else 0.5, label=name, zorder=1 if name == "UWB-only" else 2)
+        if name != "UWB-only":
+            keep.append(p[:, :2])
+    ax.plot(truth[:, 0], truth[:, 1], "k--", lw=1, label="truth", zorder=3)
     if anchors_m is not None:
         a = np.asarray(anchors_m)
-        ax.plot(a[:, 0], a[:, 1], "k^", ms=8, label="stations")
+        ax.plot(a[:, 0], a[:, 1], "k^", ms=8, label="anchors")
+        keep.append(a[:, :2])
+    pts = np.vstack(keep)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if len(pts):
+        lo, hi = pts.min(axis=0) - margin_m, pts.max(axis=0) + margin_m
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        if "UWB-only" in names:
+            u = comp.estimates["UWB-only"].pos_m[:, :2]
+            out = int(np.sum(np.any((u < lo) | (u > hi), axis=1) & np.all(np.isfinite(u), axis=1)))
+            if out:
+                ax.text(0.01, 0.01, f"{out} UWB-only fixes outside the axes", transform=ax.transAxes, fontsize=8)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
+    ax.set_title(f"{comp.label}: horizontal track")
     ax.legend(fontsize=8)
     return ax
 
 
 def error_vs_time(comp: Comparison, names=("UWB-only", "loose", "tight"), ax=None, *, ylim_m: float | None = 0.5):
-    """Fig. 8: horizontal error against time (degradation windows shaded)."""
+    """Fig. 8: horizontal error against time (degradation windows shaded).
+
+    UWB-only is drawn thin and beneath the filters so that its multipath spikes do not hide
+    them; the y axis stops at ``ylim_m`` (None: 1.2 × the largest error of the other methods) and
+    the UWB-only epochs above it are counted in a note.
+    """
     ax = _axes(ax)
     _shade(comp, ax)
     t = comp.truth.t_s
+    scored = comp.masks.get("scored", np.ones(len(t), bool))
+    others = [comp.errors(n)[scored] for n in names if n != "UWB-only"]
+    top = ylim_m
+    if top is None:
+        finite = [e[np.isfinite(e)] for e in others]
+        top = 1.2 * max((float(e.max()) for e in finite if e.size), default=1.0)
     for name in names:
-        ax.plot(t, comp.errors(name), color=color_for(name), lw=0.8, label=name)
-    if ylim_m:
-        ax.set_ylim(0, ylim_m)
+        e = np.where(scored, comp.errors(name), np.nan)
+        uwb = name == "UWB-only"
+        ax.plot(t, e, color=color_for(name), lw=0.5 if uwb else 0.9, alpha=0.5 if uwb else 1.0, label=name,
+                zorder=1 if uwb else 2)
+        if uwb:
+            above = int(np.sum(e > top))
+            if above:
+                ax.text(0.01, 0.97, f"UWB-only: {above} epochs above {top:.2g} m (max {np.nanmax(e):.2g} m)",
+                        transform=ax.transAxes, fontsize=8, va="top")
+    ax.set_ylim(0, top)
     ax.set_xlabel("t (s)")
     ax.set_ylabel("horizontal error (m)")
+    ax.set_title(f"{comp.label}: horizontal error")
     ax.legend(fontsize=8, loc="upper right")
     return ax
 
@@ -91,6 +137,7 @@ def attitude(comp: Comparison, name: str = "tight", ax=None, *, yaw_true_rad=Non
         ax.plot(t, np.degrees(yaw_true_rad), "k--", lw=1, label="true yaw")
     ax.set_xlabel("t (s)")
     ax.set_ylabel("angle (°)")
+    ax.set_title(f"{comp.label}: attitude of {name}")
     ax.legend(fontsize=8)
     return ax
 
@@ -109,6 +156,8 @@ def bias_estimates(comp: Comparison, name: str = "tight", axes=None, *, true_acc
             axes[1].plot(t, np.degrees(true_gyro[:, k]), color=c, ls="--", lw=0.8)
     axes[0].set_ylabel("accelerometer bias (m/s²)")
     axes[1].set_ylabel("gyro bias (°/s)")
+    axes[0].set_title(f"{comp.label}: accelerometer bias of {name}")
+    axes[1].set_title(f"{comp.label}: gyro bias of {name}")
     for ax in axes:
         ax.set_xlabel("t (s)")
         ax.legend(fontsize=8)

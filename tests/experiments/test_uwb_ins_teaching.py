@@ -1,0 +1,98 @@
+"""Notebook 05's teaching pieces and real-data protocol helpers: exercises (the claim and its flip),
+the panel back end, the loose-filter tuning, the covariance inflation and the board reconciliation."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tests.fixtures import iasl as fx
+from uwbwb.experiments.uwb_ins import exercises, panels, realtune, study
+from uwbwb.types import Estimates, Trajectory
+
+
+def test_outage_exercise_holds_and_its_claim_can_fail():
+    check = exercises.outage_loose_vs_tight(seed=0, outage_s=3.0)
+    loose, tight = check.numbers["loose max in outage (m)"], check.numbers["tight max in outage (m)"]
+    assert check.holds == (loose > 2.0 * tight) and check.holds
+    strict = exercises.outage_loose_vs_tight(seed=0, outage_s=3.0, factor=loose / tight * 1.01)
+    assert not strict.holds
+    with pytest.raises(ValueError, match="outage_s"):
+        exercises.outage_loose_vs_tight(seed=0, outage_s=0.0)
+
+
+def test_gate_exercise_compares_the_same_run_with_and_without_the_gate():
+    check = exercises.gate_off(seed=0, outlier_rate=0.1, duration_s=4.0)
+    with_gate, without = check.numbers["tight RMSE with gate (m)"], check.numbers["tight RMSE without gate (m)"]
+    assert check.holds == (without > with_gate) and check.holds
+    clean = exercises.gate_off(seed=0, outlier_rate=0.0, duration_s=4.0)     # nothing to gate: no big difference
+    assert clean.numbers["tight RMSE without gate (m)"] < 2 * clean.numbers["tight RMSE with gate (m)"] + 0.01
+
+
+def test_panel_offers_the_notebooks_outage_and_says_what_to_see():
+    panel = panels.build_panel(seed=0, grade="consumer", outlier_rate=0.02, outage_s=5.0, outlier_c_m=0.1,
+                               gate_prob=0.999, loose_window=5, stations_m=np.zeros((4, 3)))
+    assert panel.controls["outage_s"].max == 5.0 and panel.values["outage_s"] == 5.0
+    note = panels.panel_note(panel)
+    assert "outage" in note and "RMSE" in note
+    comp = panels.panel_comparison("dynamic", "consumer", 1.0, 1.0, 0.1, 0.02, 5.0, True, "tight", **panel.fixed)
+    assert "max tight in outage (m)" in panels.readout(comp, "tight")
+    with pytest.raises(ValueError, match="OUTAGE_S"):
+        panels.build_panel(seed=0, grade="consumer", outlier_rate=0.02, outage_s=40.0, outlier_c_m=0.1,
+                           gate_prob=0.999, loose_window=5, stations_m=np.zeros((4, 3)))
+
+
+def _fake(nees_scale: float, nis: float, n: int = 400, seed: int = 0) -> study.Comparison:
+    """A comparison whose "tight" errors are drawn with covariance ``nees_scale`` × its reported one."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.02
+    P = np.tile(np.eye(3) * 1e-4, (n, 1, 1))
+    e = rng.normal(size=(n, 3)) * np.sqrt(1e-4 * nees_scale)
+    truth = Trajectory(t, np.zeros((n, 3)), name="truth")
+    est = Estimates(t, e, np.full(n, 1, np.int8), "tight", P, info={"nis": np.full(n, nis), "dof": np.ones(n)})
+    return study.Comparison("fake", truth, {"tight": est}, {}, {"scored": np.ones(n, bool)})
+
+
+def test_inflation_is_fitted_on_one_comparison_and_applied_on_the_other():
+    f = realtune.nees_inflation(_fake(20.0, 2.0, seed=1), _fake(20.0, 2.0, seed=2))
+    assert f["k"] == pytest.approx(20.0, rel=0.15) and f["nees_test"] == pytest.approx(60.0, rel=0.15)
+    assert f["nees_test_scaled"] == pytest.approx(3.0, rel=0.2) and f["inside_test_scaled"] > 0.85 > f["inside_test"]
+    text = realtune.inflation_sentence(f, cal_label="a", test_label="b")
+    assert "propagated covariance" in text and "consistent within 10 points" in text
+    # innovations as over-confident as the state: the other explanation
+    g = dict(f, nis_dof_test=f["nees_test"] / 3)
+    assert "innovations are over-confident too" in realtune.inflation_sentence(g, cal_label="a", test_label="b")
+    # a scale that does not transfer is said so
+    h = realtune.nees_inflation(_fake(2.0, 1.0, seed=1), _fake(40.0, 1.0, seed=2))
+    assert "does not transfer" in realtune.inflation_sentence(h, cal_label="a", test_label="b")
+
+
+def test_reconcile_sentence_quotes_both_ends_and_the_largest_step():
+    steps = pd.DataFrame({"tight horizontal RMSE (m)": [0.054, 0.055, 0.047, 0.050], "epochs": [10, 2, 2, 2]},
+                         index=["1 · nb", "2 · + rate", "3 · + ranges", "4 · + tuning"])
+    s = realtune.reconcile_sentence(steps, test_label="s2")
+    assert "notebook 05 0.054 m, board protocol 0.050 m" in s and 'largest step is "+ ranges"' in s
+    steps["tight horizontal RMSE (m)"] = [0.054, 0.100, 0.090, 0.050]
+    assert 'largest step is "+ rate"' in realtune.reconcile_sentence(steps, test_label="s2")
+
+
+def test_loose_tuning_picks_the_lowest_rmse_and_flags_the_edge(tmp_path):
+    from uwbwb.datasets import iasl
+
+    root = tmp_path / "iasl-uwb-imu"
+    root.mkdir()
+    (root / "uwb.yaml").write_text(fx.YAML_TEXT)
+    fx.write_scenario(root / "flight_a", rng=np.random.default_rng(8), duration_s=30.0)
+    rec = iasl.load_scenario("flight_a", tmp_path)
+    cal = study.calibrate_iasl(rec)
+    tun = realtune.tune_loose(rec, cal, still_s=1.0, align_s=10.0, grid=((0.1, 1.0), (1.0, 1.0), (10.0, 1.0)))
+    col = tun.table["horizontal RMSE (m)"]
+    assert (tun.q, tun.r) == col.idxmin() and tun.r_edge                 # a one-value knob is on its edge
+    assert tun.q_edge == (tun.q in (0.1, 10.0))
+    assert "used unchanged on the scored scenario" in tun.sentence("flight_a")
+    comp = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, loose_scales=(tun.q, tun.r))
+    base = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0)
+    np.testing.assert_array_equal(comp.estimates["tight"].pos_m, base.estimates["tight"].pos_m)   # loose only
+    rows = realtune.summary_rows(tun, {"k": 2.0, "nees_test_scaled": 3.0}, data="x", cal_label="flight_a")
+    assert [r["value"] for r in rows] == [tun.q, tun.r, 2.0, 3.0]
+    with pytest.raises(ValueError, match="grid"):
+        realtune.tune_loose(rec, cal, grid=())

@@ -1,0 +1,59 @@
+"""Exercises of notebook 05 ("change X, predict Y") on the panel's short synthetic runs.
+
+Each runs both settings on the same simulated run and returns a
+:class:`uwbwb.widgets.ExerciseCheck` (the direction to predict, whether this run shows it, the
+numbers). The answers, with the reasoning, are in ``TEACHING.md``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ... import validate
+from ...widgets import ExerciseCheck
+from . import study
+from .ablation import legs_for_outage
+
+__all__ = ["outage_loose_vs_tight", "gate_off"]
+
+
+def outage_loose_vs_tight(*, seed: int, outage_s: float = 5.0, grade: str = "consumer",
+                          outlier_rate: float = 0.02, factor: float = 2.0) -> ExerciseCheck:
+    """Exercise: an outage of ``outage_s`` (only BS1 and BS2 heard: one TDoA per epoch, no fix);
+    predict which filter's maximum error in the outage is larger, loose or tight.
+
+    The loose filter needs a position fix, so through the outage it runs on the INS alone and
+    drifts; the tight filter still updates with the single TDoA of each epoch. Claim: the loose
+    filter's maximum error in the outage exceeds ``factor`` × the tight one's.
+    """
+    outage_s = validate.number("outage_s", outage_s, minimum=0.0, strict_minimum=True)
+    factor = validate.number("factor", factor, minimum=1.0)
+    run = study.simulate_case("dynamic", seed=seed, grade=grade, outlier_rate=outlier_rate, outage_s=outage_s,
+                              legs=legs_for_outage(outage_s))
+    comp = study.compare_synthetic(run, study.FusionSettings(), label="outage", methods=("UWB-only", "loose", "tight"))
+    t = comp.table("outage")
+    loose, tight = float(t.loc["loose", "max (m)"]), float(t.loc["tight", "max (m)"])
+    return ExerciseCheck(f"{outage_s:g} s outage: loose max error more than {factor:g}× tight's",
+                         loose > factor * tight, {"loose max in outage (m)": loose, "tight max in outage (m)": tight})
+
+
+def gate_off(*, seed: int, outlier_rate: float = 0.1, duration_s: float = 8.0, gate_prob: float = 0.999,
+             grade: str = "consumer") -> ExerciseCheck:
+    """Exercise: switch the tight filter's χ² gate off at multipath rate ``outlier_rate``; predict its RMSE.
+
+    Eq. 4 is left on, but in this room it fires only on excesses of metres; the multipath excess
+    is drawn at 0.3–4 m, so the gate is what removes the biased TDoAs. Without it every biased
+    TDoA pulls the estimate. Claim: the RMSE without the gate is higher than with it (static run
+    of ``duration_s`` seconds, the same simulated run for both).
+    """
+    outlier_rate = validate.number("outlier_rate", outlier_rate, minimum=0.0, maximum=1.0)
+    duration_s = validate.number("duration_s", duration_s, minimum=1.0)
+    run = study.simulate_case("static", seed=seed, grade=grade, outlier_rate=outlier_rate, static_s=duration_s)
+    rmse = {}
+    for g in (gate_prob, None):
+        comp = study.compare_synthetic(run, study.FusionSettings(gate_prob=g), label="static",
+                                       methods=("UWB-only", "tight"))
+        rmse[g] = float(comp.table().loc["tight", "RMSE (m)"])
+    return ExerciseCheck(f"multipath rate {outlier_rate:g}: tight RMSE higher without the χ² gate",
+                         rmse[None] > rmse[gate_prob] and np.isfinite(rmse[None]),
+                         {"tight RMSE with gate (m)": rmse[gate_prob], "tight RMSE without gate (m)": rmse[None]})
