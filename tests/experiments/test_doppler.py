@@ -396,3 +396,11 @@ def test_space_panel_titles_and_note():
     note = exercises.space_note(cfg, values)
     assert f"{readout['fraction under threshold (%)']:.2g} %" in note
     what_you_should_see(note)
+
+
+def test_class_sizes_are_fast_sizes_or_smaller():
+    fast, lecture = study.StudyConfig.for_mode(True, 3), study.StudyConfig.for_class(3, temperature_c=10.0)
+    assert lecture.fast and lecture.seed == 3 and lecture.temperature_c == 10.0
+    for name in ("n_brute", "n_positions", "n_fig_positions", "pf_runs", "compare_runs", "floor_runs", "n_particles",
+                 "n_recordings"):
+        assert getattr(lecture, name) <= getattr(fast, name), name

@@ -97,6 +97,14 @@ class StudyConfig:
                    floor_runs=2) if fast else cls(seed=seed)
         return replace(base, **changes)
 
+    @classmethod
+    def for_class(cls, seed: int = 0, **changes) -> "StudyConfig":
+        """A lecturer's run (notebook parameter ``CLASS``): FAST sizes, with fewer sampler draws and PF runs
+        (5e6 brute-force draws, 3e4 conditional positions, 4 + 2 PF runs, 1 run per error-floor condition) so that
+        Run All stays near a minute and a half on two shared cores. Smoke-test numbers, like FAST's."""
+        return replace(cls.for_mode(True, seed), n_brute=5_000_000, n_positions=30_000, n_fig_positions=30_000,
+                       pf_runs=4, compare_runs=2, floor_runs=1, **changes)
+
 
 def make_model(layout: str, cfg: StudyConfig, reading: str = "per-beacon 501 + 6i ms", **changes) -> dm.DopplerModel:
     """The layout's :class:`DopplerModel` under a period ``reading`` (:data:`READINGS`), v_s at ``cfg.temperature_c``.
