@@ -102,6 +102,18 @@ def test_a_long_text_table_counts_as_a_table_not_as_prose():
     assert classroom.class_limits(nb) == ["cell 1: text table of 30 rows (limit 25)"]
 
 
+# ------------------------------------------------------------------ code rules
+
+def test_code_rules():
+    long = "\n".join(f"x{i} = {i}" for i in range(21))
+    nb = _notebook(_md("front"), _code("import uwbwb as uw\nuw.metrics.cep50(e)"), _code(long),
+                   _code("def f(x):\n    return x"), _code("study._kf_prior(x)\nobj.__class__"),
+                   _code("def render(v):\n    return v\n" + long + "\npanel = uw.widgets.Panel('p', {}, render)"))
+    assert classroom.code_rules(nb) == ["cell 2: 21 lines of code (limit 20)",
+                                        "cell 3: defines a function (move it into the experiment package)",
+                                        "cell 4: private name '_kf_prior'"]   # the last, widget cell may do both
+
+
 # ------------------------------------------------------------------ figure audit rule
 
 def _problems(ax):
@@ -146,7 +158,7 @@ def test_shared_and_categorical_axes():
     assert _problems(ax) == ["y label 'fixes' has no unit"]   # a categorical x needs no unit, the counts do
     _, ax = plt.subplots()
     ax.bar(range(2), [3, 1])
-    ax.set_xticks(range(2), ["{1,2,3}", "{2,3,4}"])               # fixed ticks labelled with words
+    ax.set_xticks(range(2), ["54321", "{2,3,4}"])                  # fixed ticks labelled with set names
     ax.set(title="sets", xlabel="sensor set", ylabel="number of fixes")
     assert _problems(ax) == []
     ax.set_xticks(range(2), ["0", "1"])                           # fixed ticks labelled with numbers

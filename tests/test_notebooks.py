@@ -1,4 +1,5 @@
-"""Every notebook runs end to end (FAST mode) and is committed clean."""
+"""Every notebook runs end to end (FAST and class mode) and is committed clean; the executed notebook
+passes the figure audit and the class limits of :mod:`uwbwb.classroom`."""
 
 from __future__ import annotations
 
@@ -14,6 +15,10 @@ NOTEBOOK_DIR = Path(__file__).resolve().parents[1] / "notebooks"
 NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
 #: Hard limit per notebook in FAST mode (seconds of kernel time per cell).
 CELL_TIMEOUT_S = 600
+#: Notebooks whose figure audit and class limits are enforced (the audits run on every notebook and
+#: their findings are reported as warnings for the others). Add a notebook's stem here once it has
+#: ``CLASS = False`` in its parameters cell, its research cells tagged and both audits pass.
+AUDITED = ("00_quickstart", "01_set_noise_pf", "02_pruning_nls", "05_uwb_ins_fusion")
 
 
 def _ids(paths):
@@ -46,22 +51,61 @@ def test_notebook_committed_clean(path):
     assert nb.cells[0].cell_type == "markdown", f"{path.name}: first cell must be the citation/overview"
 
 
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=_ids(NOTEBOOKS))
+def test_notebook_code_rules(path):
+    """Code cells of at most 20 lines and no ``def`` outside the final widget cell, no private names
+    (enforced for :data:`AUDITED`, a warning for the others)."""
+    import warnings
+
+    from uwbwb.classroom import code_rules
+
+    problems = code_rules(nbformat.read(path, as_version=4))
+    if path.stem in AUDITED:
+        assert not problems, f"{path.name}: " + "; ".join(problems)
+    elif problems:
+        warnings.warn(f"not yet audited ({path.stem} is not in AUDITED): " + "; ".join(problems), stacklevel=1)
+
+
 @pytest.mark.notebook
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=_ids(NOTEBOOKS))
 def test_notebook_executes_fast(path, tmp_path):
-    """Execute with papermill in FAST mode; any error fails, and a summary must be written."""
+    """Execute with papermill in FAST mode, and in class mode where the notebook has ``CLASS``; any
+    error fails, a summary must be written, and the figure audit and class limits must hold
+    (enforced for the stems in :data:`AUDITED`, reported as warnings for the others)."""
+    import warnings
+
     import papermill as pm
 
+    from uwbwb import classroom
+    from uwbwb.reproduce import notebook_parameters
+
     summary = tmp_path / f"{path.stem}.summary.json"
-    out = tmp_path / path.name
+    figures = tmp_path / f"{path.stem}.figures.json"
+    prepared, out = tmp_path / "prepared" / path.name, tmp_path / path.name
+    prepared.parent.mkdir()
+    nb = nbformat.read(path, as_version=4)
+    nb.cells.insert(0, classroom.hook_cell(figures))     # records every Axes while the notebook runs
+    nbformat.write(nb, prepared)
+    parameters = {"FAST": True, "SUMMARY_PATH": str(summary)}
+    if "CLASS" in notebook_parameters(path):
+        parameters["CLASS"] = True
     try:
-        pm.execute_notebook(str(path), str(out), parameters={"FAST": True, "SUMMARY_PATH": str(summary)},
+        pm.execute_notebook(str(prepared), str(out), parameters=parameters,
                             kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
                             execution_timeout=CELL_TIMEOUT_S)
     except pm.PapermillExecutionError as exc:
         pytest.fail(f"{path.name} failed in cell {exc.exec_count}: {exc.ename}: {exc.evalue}")
     rows, problem = read_summary(summary, path.stem, "FAST")   # keys, kind, and every row marked FAST
     assert problem is None, f"{path.name}: {problem}"
+    executed = nbformat.read(out, as_version=4)
+    found = {"figure audit": classroom.figure_audit(json.loads(figures.read_text()), executed),
+             "class limits": classroom.class_limits(executed)}
+    report = "; ".join(f"{path.name} {what}: " + "; ".join(p) for what, p in found.items() if p)
+    if path.stem in AUDITED:
+        assert "CLASS" in parameters, f"{path.name}: audited notebooks need CLASS in their parameters cell"
+        assert not report, report
+    elif report:
+        warnings.warn(f"not yet audited ({path.stem} is not in AUDITED): {report}", stacklevel=1)
 
 
 def _run_on(notebook: str, tmp_path, data_dir, **parameters) -> list[dict]:

@@ -22,6 +22,10 @@ Class limits (:func:`class_limits`), among the cells *not* tagged ``research``:
 * printed output over :data:`MAX_OUTPUT_WORDS` words in one cell: stdout, Markdown outputs and
   plain-text results that are not tables.
 
+Code rules (:func:`code_rules`, issue 19): every code cell at most :data:`MAX_CODE_LINES` lines and
+without a ``def``, except the final widget cell (the last cell that builds a panel); no private package
+name (``module._name``) in any cell.
+
 Figure audit (:func:`axes_problems`, :func:`figure_audit`). Every Axes a notebook draws through
 pyplot is recorded while it runs (:func:`install_figure_recorder`, a ``figure.hooks`` entry plus a
 ``post_run_cell`` callback, so the audit rides on an execution that happens anyway) and must have
@@ -52,8 +56,9 @@ from pathlib import Path
 
 from . import reproduce
 
-__all__ = ["AUDIT_HOOK_TAG", "DIMENSIONLESS", "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS", "MAX_OUTPUT_WORDS",
-           "MAX_TABLE_ROWS", "RESEARCH_TAG", "axes_problems", "axes_record", "class_limits", "figure_audit",
+__all__ = ["AUDIT_HOOK_TAG", "DIMENSIONLESS", "MAX_CODE_LINES", "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS",
+           "MAX_OUTPUT_WORDS", "MAX_TABLE_ROWS", "RESEARCH_TAG", "axes_problems", "axes_record", "class_limits",
+           "code_rules", "figure_audit",
            "fold_research", "handout_html", "hook_cell", "image_count", "install_figure_recorder", "main",
            "record_figure", "run_class", "source_indices"]
 
@@ -76,7 +81,6 @@ CLASS_DIR = Path(__file__).resolve().parents[1] / "class"
 _UNIT = re.compile(r"[\[(][^\[\]()]{1,20}[\])]")
 _DIMLESS = re.compile(r"\b(" + "|".join(DIMENSIONLESS) + r")s?\b", re.IGNORECASE)
 _PANEL = re.compile(r"^\s*\(?[a-zA-Z]\)\s*")
-_NUMBER = re.compile(r"[-+\u2212]?[\d.,]+(e[-+\u2212]?\d+)?\s*%?|\$.*\$", re.IGNORECASE)
 _WIDGET_MIME = "application/vnd.jupyter.widget-view+json"
 
 
@@ -180,6 +184,33 @@ def _looks_tabular(lines: list[str]) -> bool:
     return all(len(re.split(r"\s{2,}", ln.strip())) >= 2 for ln in lines if ln.strip())
 
 
+# ---------------------------------------------------------------- code rules
+
+#: Most lines of a notebook code cell (the final widget cell excepted).
+MAX_CODE_LINES = 20
+_PRIVATE = re.compile(r"(?<![\w.])(?:uw|[a-z]\w*)\.(_[a-z]\w*)")
+
+
+def code_rules(nb) -> list[str]:
+    """Code-rule violations of a notebook (issue 19), one sentence each naming the cell: a code cell over
+    :data:`MAX_CODE_LINES` lines or with a ``def`` (both allowed in the last cell that builds a panel, the
+    final widget cell), and a private package name (``module._name``) anywhere."""
+    code = [(k, nb.cells[i]) for i, k in source_indices(nb).items() if nb.cells[i].cell_type == "code"]
+    widget = max((k for k, c in code if "Panel(" in c.source or ".panel(" in c.source
+                  or "explorer(" in c.source), default=None)
+    problems = []
+    for k, cell in code:
+        lines = [ln for ln in cell.source.splitlines()]
+        if k != widget and len(lines) > MAX_CODE_LINES:
+            problems.append(f"cell {k}: {len(lines)} lines of code (limit {MAX_CODE_LINES})")
+        if k != widget and re.search(r"^\s*(async\s+)?def\s", cell.source, flags=re.M):
+            problems.append(f"cell {k}: defines a function (move it into the experiment package)")
+        for name in sorted(set(_PRIVATE.findall(cell.source))):
+            if not name.startswith("__"):
+                problems.append(f"cell {k}: private name {name!r}")
+    return problems
+
+
 # ---------------------------------------------------------------- figure audit
 
 def _has_unit(label: str) -> bool:
@@ -195,8 +226,17 @@ def _categorical(axis) -> bool:
         return True
     if not isinstance(axis.get_major_locator(), mticker.FixedLocator):
         return False
-    texts = [t.get_text().strip() for t in axis.get_ticklabels()]      # fixed ticks labelled with words
-    return any(t and not _NUMBER.fullmatch(t) for t in texts)
+    # fixed ticks whose labels are not their positions (set names, "54321" for sensors 5, 4, 3, 2, 1)
+    labels = [(t.get_text().strip().replace("\u2212", "-"), t.get_position()[0 if axis.axis_name == "x" else 1])
+              for t in axis.get_ticklabels()]
+    return any(text and not _same_number(text, loc) for text, loc in labels)
+
+
+def _same_number(text: str, value: float) -> bool:
+    try:
+        return abs(float(text.rstrip("%").strip()) - float(value)) <= 1e-9 * max(1.0, abs(float(value)))
+    except ValueError:
+        return False
 
 
 def _shared_label(ax, which: str) -> str:

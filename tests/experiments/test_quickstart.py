@@ -131,3 +131,21 @@ def test_plan_note_words_the_geometry(synthetic):
     assert f"the {len(rec.anchors.pos_m)} anchors" in note and "good geometry" in note   # tag inside the ring
     far = dataclasses.replace(rec, anchors=dataclasses.replace(rec.anchors, pos_m=rec.anchors.pos_m * [0.05, 0.05, 1] + [20, 20, 0]))
     assert "weak geometry" in qs.exercises.plan_note(far, tag, tag_height_m=1.0)   # anchors bunched far away
+
+
+def test_explorer_panel_draws_a_window_and_its_readout(synthetic, compared):
+    from uwbwb.classroom import axes_problems, axes_record
+
+    cal = compared[0]
+    ex = qs.panels.Explorer(synthetic, cal)
+    tag = synthetic.dynamic.tags[0]
+    fig, readout = ex.render(tag, "calibrated", 0.0, 20.0)
+    est, err = ex.track(tag, "calibrated")
+    inside = err.err_m[(err.t_s >= 0.0) & (err.t_s < 20.0)]
+    assert readout["fixes in window"] == inside.size > 0
+    assert readout["CEP95 (m)"] >= readout["CEP50 (m)"] > 0
+    assert all(axes_problems(axes_record(ax)) == [] for ax in fig.axes)
+    fig, readout = ex.render(tag, "raw", ex.span_s + 10.0, 5.0)         # a window past the end: a note says so
+    assert readout == {"fixes in window": 0} and "no fix" in fig.axes[0].texts[-1].get_text()
+    panel = qs.panels.explorer(synthetic, cal)
+    assert set(panel.values) == {"tag", "variant", "start_s", "window_s"}

@@ -419,3 +419,52 @@ def test_notes_quote_the_numbers():
     readout[f"{E.SET_PF} mean error (cm)"] = 30.0
     assert "does not lie below the raw" in E.exercises.explorer_note(readout, 6)
     what_you_should_see(E.exercises.explorer_note(readout, 6))       # short enough for the note
+
+
+# --------------------------------------------------------------------------- panel, summary rows, checks
+
+def test_explorer_offers_every_recording_and_reads_out_its_errors(study, rig_inputs):
+    from uwbwb.classroom import axes_problems, axes_record
+
+    real = E.real_study(rig_inputs, E.Emulation(decimate=8), tags=("t0",), rng=np.random.default_rng(0))
+    logs = E.panels.explorer_logs(study, real, data_label="synthetic", variant="calibrated")
+    assert len(logs) == len(study.recordings) + len(study.off_recordings) + 1
+    assert list(logs)[0] == "rec1 (35 cm/s, synthetic)" and logs[list(logs)[-1]][1] is real.model
+    ex = E.panels.Explorer(logs)
+    panel = ex.panel(n_particles=100, seed=3)
+    assert panel.values["recording"] == list(logs)[1] and panel.values["n_particles"] == 100
+    values = dict(panel.values, recording=list(logs)[0])
+    errors = ex.readout(values)
+    log = logs[list(logs)[0]][0]
+    assert errors[f"{E.RAW} mean error (cm)"] == pytest.approx(100 * E.raw_error_m(log))
+    assert ex.readout(values) is errors                                   # cached per setting
+    fig, shown = ex.render(**values)
+    assert shown is errors and all(axes_problems(axes_record(ax)) == [] for ax in fig.axes)
+
+
+def test_real_rows_and_checks():
+    bands = {}
+    for variant, raw in (("calibrated", 10.0), ("raw", 14.0)):
+        bands[variant] = pd.DataFrame({"error_cm": [raw, 9.0, 9.5, 9.2, 9.1, 9.0],
+                                       "improvement_pct": [0.0, 10.0, 5.0, 8.0, 9.0, 10.0]},
+                                      index=pd.Index(E.FILTERS, name="filter"))
+    real_band = pd.concat(bands)
+
+    class Cov:
+        def coverage(self):
+            return pd.DataFrame({"coverage": [0.9, 0.8]}, index=["calibration", "test"])
+
+    studies = {"calibrated": Cov(), "raw": Cov()}
+    rows = E.headlines.real_rows(real_band, studies, "lias-planar-uwb/fast")
+    assert len(rows) == 2 * 6 and {r["kind"] for r in rows} == {E.REPRODUCED}
+    assert rows[0]["value"] == 10.0 and rows[1]["value"] == pytest.approx(80.0) and rows[6]["value"] == 14.0
+    imp = pd.DataFrame({"improvement_pct": [5.0, 6.0, 4.0]}, index=[E.SET_PF, E.SET_KF, E.BASE_KF])
+    band_table = pd.DataFrame({E.SET_PF: [12.0], E.SET_KF: [11.0]}, index=["mean"])
+    gap = pd.DataFrame({"rms_gap_m": [0.10, 0.02]})
+    kw = dict(shares={"n_sets": 5, "top1_share": 0.4}, improvement=imp, off_improvement=imp, band_table=band_table,
+              gap=gap, resampler={"diff_cm": 0.1, "se_diff_cm": 0.2}, real_band=real_band, studies=studies)
+    E.headlines.checks(**kw, fast=True)
+    with pytest.raises(AssertionError, match="differ by 1.00 cm"):          # 1 cm apart: fine in FAST only
+        E.headlines.checks(**kw, fast=False)
+    with pytest.raises(AssertionError, match="approach the KF"):
+        E.headlines.checks(**dict(kw, gap=pd.DataFrame({"rms_gap_m": [0.10, 0.09]})), fast=True)

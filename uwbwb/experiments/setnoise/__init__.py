@@ -3,11 +3,12 @@
 :mod:`.study` is the synthetic re-creation (facility, calibration, Table I, the
 Fig. 9 sweep, the resampler check, summary rows with their kind), :mod:`.real`
 the sets emulated on ``lias-planar-uwb`` ranges, :mod:`.figures` the figure
-builders and :mod:`.discussion` the comparison with the paper written from the
-run's numbers. Everything the notebook uses is importable from here.
+builders, :mod:`.discussion` the comparison with the paper written from the
+run's numbers, :mod:`.headlines` the real-data summary rows and the checks, and
+:mod:`.panels` the widget's back end. Everything the notebook uses is importable from here.
 """
 
-from . import exercises
+from . import exercises, headlines, panels
 from .discussion import discussion_markdown
 from .figures import (plot_facility, plot_fixes, plot_pf_kf_gap, plot_set_ellipses, plot_set_frequency,
                       plot_sweep, plot_trace)
@@ -27,7 +28,7 @@ __all__ = [
     "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "RAW", "REPRODUCED", "SET_KF", "SET_KF_POOLED", "SET_PF",
     "SIGMA_D_GRID_MPS", "TARGET", "Emulation", "RealStudy", "SweepConfig", "SyntheticStudy", "band_sigmas",
     "band_summary", "best_sigma", "calibration_proximity", "discussion_markdown", "emulate_fixes", "exercises", "fix_rates_hz",
-    "headline_rows", "mean_over_recordings", "modelled_share", "normalised_residuals", "paper_targets",
+    "headline_rows", "headlines", "mean_over_recordings", "modelled_share", "normalised_residuals", "panels", "paper_targets",
     "pf_kf_gap", "plot_facility", "plot_fixes", "plot_pf_kf_gap", "plot_set_ellipses", "plot_set_frequency",
     "plot_sweep", "plot_trace", "range_bias_span_m", "raw_error_m", "real_inputs", "real_study",
     "resampler_check", "residual_table", "set_shares", "sweep", "synthetic_study", "table1", "trace",

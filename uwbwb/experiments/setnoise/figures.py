@@ -88,7 +88,8 @@ def plot_set_frequency(log: SetFixLog, ax=None, *, n_bars: int = 12):
     ax.bar(range(len(fr)), fr["count"], color=colours[:len(fr)])
     ax.set_xticks(range(len(fr)))
     ax.set_xticklabels(fr["label"], rotation=60, fontsize="small")
-    ax.set_ylabel("fixes")
+    ax.set_xlabel("sensor set (sensors in descending order)")
+    ax.set_ylabel("number of fixes")
     sh = set_shares(log)
     ax.set_title(f"top set {100 * sh['top1_share']:.1f} %, top five {100 * sh['top5_share']:.1f} % "
                  f"of {len(log)} ({sh['n_sets']} sets)")
@@ -196,7 +197,7 @@ def plot_pf_kf_gap(df: pd.DataFrame, ax=None, *, unit: str = "cm"):
     g = df["rms_gap_m"].to_numpy() * s
     ax.loglog(K, g, "o-", color="#bcbd22", label="set-noise PF − set-noise KF (RMS)")
     ax.loglog(K, g[0] * np.sqrt(K[0] / K), ":", color="#636363", label="∝ 1/√K")
-    ax.set_xlabel("particles K")
+    ax.set_xlabel("number of particles K")
     ax.set_ylabel(f"RMS gap ({unit})")
     ax.legend(fontsize="small")
     return ax
