@@ -224,3 +224,15 @@ def test_hanyang_histogram_spans_the_data_and_has_a_y_label():
     assert hi - lo < 1.5 * (e.max() - e.min()) and lo < np.percentile(e, 1) and hi > np.percentile(e, 99)
     for ax in axes:
         assert ax.get_title() and "(m)" in ax.get_xlabel() and ax.get_ylabel()
+
+
+def test_robust_mean_cloud_draws_the_anchors_when_given(tour2):
+    from uwbwb.filters.pruning import localize
+
+    rec, truth = tour2
+    stop = [s for s in truth.segments if s.kind == "stop"][0]
+    log = ex.segment_ranges(rec.ranges["H"], stop, period_s=rec.meta["config"].period_s)
+    r = localize(log, rec.anchors, "robust_mean", PruningConfig(dim=2), stationary=True, z_m=2.0)
+    ax = ex.plot_robust_mean_cloud(r, truth_xy=stop.start_xy_m, anchors=rec.anchors)
+    assert "anchors" in [ln.get_label() for ln in ax.lines]
+    assert "anchors" not in [ln.get_label() for ln in ex.plot_robust_mean_cloud(r).lines]

@@ -89,13 +89,16 @@ def plot_error_cdf_percentile(errors_m, ax=None, *, q: float = 5.0, label: str =
     return ax
 
 
-def plot_robust_mean_cloud(result, truth_xy=None, ax=None):
+def plot_robust_mean_cloud(result, truth_xy=None, ax=None, *, anchors=None):
     """Fig. 6: the pooled k-tuple cloud, the retained cluster and the centroid's path.
 
-    ``result`` is a :class:`~uwbwb.filters.pruning.LocalizationResult` of the robust mean.
+    ``result`` is a :class:`~uwbwb.filters.pruning.LocalizationResult` of the robust mean;
+    ``anchors`` (optional) are drawn with :func:`uwbwb.plotting.floor_plan`.
     """
     cloud, rm = result.detail
     ax = ax if ax is not None else plt.subplots()[1]
+    if anchors is not None:
+        floor_plan(anchors, ax)
     P = cloud.pos_m
     ax.plot(P[~rm.kept, 0], P[~rm.kept, 1], ".", ms=2, color="#bdbdbd")
     ax.plot(P[rm.kept, 0], P[rm.kept, 1], ".", ms=2, color="#31a354")
