@@ -142,3 +142,101 @@ def test_tag_run_true_ranges_and_window():
         TagRun("synthetic", "x", "t", RangeLog(t, r[:, :3], anchors.ids[:3], "t"), Trajectory(t, pos), anchors)
     with pytest.raises(ValueError, match="dim"):
         TagRun("synthetic", "x", "t", RangeLog(t, r, anchors.ids, "t"), Trajectory(t, pos), anchors, dim=4)
+
+
+# --------------------------------------------------------------------------- the array-record base
+
+def _chirps(t_s):
+    from uwbwb.types import ChirpFlag, ChirpLog
+    n = len(t_s)
+    return ChirpLog(t_s, np.zeros(n, int), np.full(n, 1e-6), np.full(n, int(ChirpFlag.GAP), np.int8), ("b0",))
+
+
+def test_between_keeps_the_start_and_leaves_out_the_end_for_every_container():
+    from uwbwb.types import Estimates, ImuLog
+    t = np.arange(6) * 1.0                                          # 0 .. 5 s
+    logs = [RangeLog(t, np.ones((6, 2)), ("a", "b")), Trajectory(t, np.zeros((6, 2))),
+            ImuLog(t, np.zeros((6, 3)), np.zeros((6, 3))), TdoaLog.from_ranges(RangeLog(t, np.ones((6, 2)), ("a", "b"))),
+            Estimates(t, np.zeros((6, 2)), np.zeros(6, int), info={"nis": t}), _chirps(t),
+            SetFixLog(t, np.zeros((6, 2)), np.ones(6, int), ("s0",)), RangeSamples(t, np.zeros(6, int), t, ("a",))]
+    for log in logs:
+        first, second = log.between(1.0, 3.0), log.between(3.0, 5.0)
+        np.testing.assert_array_equal(first.t_s, [1.0, 2.0], err_msg=type(log).__name__)
+        np.testing.assert_array_equal(second.t_s, [3.0, 4.0], err_msg=type(log).__name__)
+        assert type(first) is type(log)
+
+
+def test_chirp_log_between_now_leaves_out_the_end_time():
+    # ChirpLog.between used to keep a chirp exactly at the end time (t <= t_end); it follows the
+    # containers' one rule now, so back-to-back windows never count a chirp twice.
+    log = _chirps([0.5, 1.0, 2.0, 3.0])
+    assert len(log.between(0.0, 3.0)) == 3
+    assert len(log.between(0.0, 3.0)) + len(log.between(3.0, 4.0)) == len(log)
+
+
+def test_select_keeps_optional_fields_and_info_columns_and_freezes_them():
+    from uwbwb.types import Estimates, ImuLog
+    t = np.arange(4) * 0.5
+    est = Estimates(t, np.ones((4, 2)), np.zeros(4, int), "e", np.tile(np.eye(2), (4, 1, 1)), np.zeros((4, 2)),
+                    {"nis": t * 2})
+    part = est.select(np.array([True, False, True, False]))
+    np.testing.assert_array_equal(part.info["nis"], [0.0, 2.0])
+    assert part.pos_cov_m2.shape == (2, 2, 2) and part.vel_mps.shape == (2, 2) and part.name == "e"
+    assert not part.pos_m.flags.writeable and not part.info["nis"].flags.writeable
+    imu = ImuLog(t, np.arange(12.0).reshape(4, 3), np.zeros((4, 3)))
+    np.testing.assert_array_equal(imu.select(slice(1, 3)).acc_mps2, [[3, 4, 5], [6, 7, 8]])
+    assert list(imu.to_frame().columns) == ["t_s", "acc_x_mps2", "acc_y_mps2", "acc_z_mps2",
+                                            "gyro_x_radps", "gyro_y_radps", "gyro_z_radps"]
+    pd_frame = imu.to_frame()
+    back = ImuLog.from_frame(pd_frame)
+    np.testing.assert_array_equal(back.acc_mps2, imu.acc_mps2)
+    np.testing.assert_array_equal(imu.shifted(1.0).t_s, t + 1.0)
+
+
+def _recording():
+    from uwbwb.types import Anchors, ImuLog, Recording
+    anchors = Anchors(("a", "b"), np.array([[0.0, 0.0, 2.0], [5.0, 0.0, 2.0]]))
+    t = np.arange(0.0, 4.0, 0.1)
+    ranges = {"tag": RangeLog(t, np.ones((t.size, 2)), anchors.ids, "tag")}
+    tt = np.r_[np.arange(0.0, 2.01, 0.25), 3.5, 3.75, 4.0]         # a 1.5 s gap between 2.0 and 3.5
+    truth = {"tag": Trajectory(tt, np.column_stack([tt, 2 * tt, np.ones(tt.size)]))}
+    imu = ImuLog(np.arange(0.0, 4.0, 0.01), np.zeros((400, 3)), np.zeros((400, 3)))
+    return Recording("synthetic", "r", anchors, ranges, truth, imu)
+
+
+def test_recording_truth_at_follows_the_one_gap_rule():
+    from uwbwb.types import MAX_TRUTH_GAP_S
+    rec = _recording()
+    pos = rec.truth_at("tag", [0.5, 2.0, 2.5, 3.5, 4.5], dim=2)
+    np.testing.assert_allclose(pos[0], [0.5, 1.0])
+    np.testing.assert_allclose(pos[1], [2.0, 4.0])               # on a sample: kept although a gap follows
+    assert np.all(np.isnan(pos[2])) and 3.5 - 2.0 > MAX_TRUTH_GAP_S
+    np.testing.assert_allclose(pos[3], [3.5, 7.0])
+    assert np.all(np.isnan(pos[4]))                              # outside the span
+    assert rec.truth_at("tag", [0.5]).shape == (1, 3)
+    with pytest.raises(KeyError, match="no truth"):
+        rec.truth_at("other", [0.5])
+
+
+def test_recording_between_cuts_ranges_and_imu_and_pads_truth():
+    from uwbwb.types import MAX_TRUTH_GAP_S
+    rec = _recording()
+    part = rec.between(1.0, 2.0, name="part")
+    t = part.ranges["tag"].t_s
+    assert part.name == "part" and t[0] >= 1.0 and t[-1] < 2.0 and len(t) in (9, 10, 11)
+    assert part.imu.t_s[0] >= 1.0 and part.imu.t_s[-1] < 2.0
+    np.testing.assert_array_equal(part.truth["tag"].t_s, np.arange(0.5, 2.01, 0.25))
+    assert part.truth["tag"].t_s[0] >= 1.0 - MAX_TRUTH_GAP_S
+
+
+def test_recording_decimate_by_step_or_rate():
+    rec = _recording()                                           # ranges at 10 Hz
+    assert rec.range_rate_hz() == pytest.approx(10.0)
+    by_rate = rec.decimate(rate_hz=2.5)
+    by_step = rec.decimate(4)
+    np.testing.assert_array_equal(by_rate.ranges["tag"].t_s, by_step.ranges["tag"].t_s)
+    assert by_rate.meta["decimated"] == 4
+    assert rec.decimate(rate_hz=50.0) is rec                     # faster than the data: step 1
+    for bad in (dict(), dict(step=2, rate_hz=1.0), dict(rate_hz=0.0), dict(rate_hz=True)):
+        with pytest.raises(ValueError):
+            rec.decimate(**bad)

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
 
-from ._base import _check_time, _frozen_array
+from ._base import ArrayRecord, _check_time, _frozen_array
 
 
 class ChirpFlag(enum.IntFlag):
@@ -34,7 +35,7 @@ class ChirpFlag(enum.IntFlag):
 
 
 @dataclass(frozen=True)
-class ChirpLog:
+class ChirpLog(ArrayRecord):
     """Chirps detected by one ultrasonic receiver, one row per detection (paper 003).
 
     Attributes
@@ -58,6 +59,8 @@ class ChirpLog:
     dp_s: np.ndarray
     flags: np.ndarray
     beacon_ids: tuple[str, ...]
+
+    _rows: ClassVar[tuple[str, ...]] = ("t_s", "beacon", "dp_s", "flags")
 
     def __post_init__(self):
         t = _frozen_array("ChirpLog.t_s", self.t_s, ndim=1)
@@ -91,14 +94,7 @@ class ChirpLog:
             raise ValueError("ChirpLog: an 'ambiguous' row has a beacon")
         if np.any(fl & ~np.int8(sum(ChirpFlag))):
             raise ValueError("ChirpLog.flags has unknown bits")
-        object.__setattr__(self, "t_s", t)
-        object.__setattr__(self, "beacon", b)
-        object.__setattr__(self, "dp_s", dp)
-        object.__setattr__(self, "flags", fl)
-        object.__setattr__(self, "beacon_ids", ids)
-
-    def __len__(self) -> int:
-        return self.t_s.size
+        self._set(t_s=t, beacon=b, dp_s=dp, flags=fl, beacon_ids=ids)
 
     def has(self, flag: ChirpFlag) -> np.ndarray:
         """Rows with ``flag`` set, bool ``(N,)``."""
@@ -108,13 +104,6 @@ class ChirpLog:
     def measured(self) -> np.ndarray:
         """Rows that carry a ΔP, bool ``(N,)``."""
         return np.isfinite(self.dp_s)
-
-    def select(self, mask_or_index) -> "ChirpLog":
-        idx = np.arange(len(self))[mask_or_index]
-        return ChirpLog(self.t_s[idx], self.beacon[idx], self.dp_s[idx], self.flags[idx], self.beacon_ids)
-
-    def between(self, t_start_s: float, t_end_s: float) -> "ChirpLog":
-        return self.select((self.t_s >= t_start_s) & (self.t_s <= t_end_s))
 
     def counts(self) -> dict[str, int]:
         """Rows in total, with a ΔP, and per flag."""

@@ -3,11 +3,20 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
 
-from ._base import _check_time, _frozen_array, _natural_key
+from ._base import ArrayRecord, _check_time, _frozen_array, _natural_key
+
+
+def _optional_rows(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
+    """A frozen copy of an optional per-row field, checked against ``shape``."""
+    a = _frozen_array(name, value, ndim=len(shape))
+    if a.shape != tuple(shape):
+        raise ValueError(f"{name} must have shape {tuple(shape)}, got {a.shape}")
+    return a
 
 
 @dataclass(frozen=True)
@@ -85,7 +94,7 @@ class Anchors:
 
 
 @dataclass(frozen=True)
-class RangeLog:
+class RangeLog(ArrayRecord):
     """Ranges from one tag to a set of anchors, one row per epoch.
 
     Attributes
@@ -108,6 +117,8 @@ class RangeLog:
     tag_id: str = "tag"
     t0: object = None
 
+    _rows: ClassVar[tuple[str, ...]] = ("t_s", "range_m")
+
     def __post_init__(self):
         t = _frozen_array("RangeLog.t_s", self.t_s, ndim=1)
         r = _frozen_array("RangeLog.range_m", self.range_m, ndim=2)
@@ -119,30 +130,11 @@ class RangeLog:
             raise ValueError("RangeLog.range_m contains infinite values (use NaN for missing)")
         if np.any(r < 0):
             raise ValueError("RangeLog.range_m contains negative ranges")
-        object.__setattr__(self, "t_s", t)
-        object.__setattr__(self, "range_m", r)
-        object.__setattr__(self, "anchor_ids", ids)
-        object.__setattr__(self, "tag_id", str(self.tag_id))
-
-    def __len__(self) -> int:
-        return self.t_s.size
+        self._set(t_s=t, range_m=r, anchor_ids=ids, tag_id=str(self.tag_id))
 
     @property
     def n_anchors(self) -> int:
         return len(self.anchor_ids)
-
-    def select(self, mask_or_index) -> "RangeLog":
-        """Rows selected by a boolean mask or an index array (time order kept)."""
-        idx = np.arange(len(self))[mask_or_index]
-        return RangeLog(self.t_s[idx], self.range_m[idx], self.anchor_ids, self.tag_id, self.t0)
-
-    def between(self, t_start_s: float, t_end_s: float) -> "RangeLog":
-        """Rows with ``t_start_s <= t_s < t_end_s``."""
-        return self.select((self.t_s >= t_start_s) & (self.t_s < t_end_s))
-
-    def shifted(self, dt_s: float) -> "RangeLog":
-        """The same log with ``dt_s`` added to every time stamp."""
-        return RangeLog(self.t_s + dt_s, self.range_m, self.anchor_ids, self.tag_id, self.t0)
 
     def to_frame(self) -> pd.DataFrame:
         """Tidy table ``t_s, anchor_id, range_m`` (missing ranges omitted), sorted by time."""
@@ -181,7 +173,7 @@ class RangeLog:
 
 
 @dataclass(frozen=True)
-class Trajectory:
+class Trajectory(ArrayRecord):
     """A sampled trajectory: ground truth or an estimate.
 
     Attributes
@@ -204,43 +196,24 @@ class Trajectory:
     rot: np.ndarray | None = None
     name: str = "trajectory"
 
+    _rows: ClassVar[tuple[str, ...]] = ("t_s", "pos_m", "vel_mps", "rot")
+    _columns: ClassVar[tuple[tuple[str, str], ...]] = (("pos_m", "{a}_m"), ("vel_mps", "v{a}_mps"), ("rot", "r{i}{j}"))
+
     def __post_init__(self):
         t = _frozen_array("Trajectory.t_s", self.t_s, ndim=1)
         p = _frozen_array("Trajectory.pos_m", self.pos_m, ndim=2)
         if p.shape[0] != t.size or p.shape[1] not in (2, 3):
             raise ValueError(f"Trajectory.pos_m must have shape ({t.size}, 2|3), got {p.shape}")
         _check_time(t, "Trajectory")
-        object.__setattr__(self, "t_s", t)
-        object.__setattr__(self, "pos_m", p)
+        self._set(t_s=t, pos_m=p)
         if self.vel_mps is not None:
-            v = _frozen_array("Trajectory.vel_mps", self.vel_mps, ndim=2)
-            if v.shape != p.shape:
-                raise ValueError(f"Trajectory.vel_mps must have shape {p.shape}, got {v.shape}")
-            object.__setattr__(self, "vel_mps", v)
+            self._set(vel_mps=_optional_rows("Trajectory.vel_mps", self.vel_mps, p.shape))
         if self.rot is not None:
-            R = _frozen_array("Trajectory.rot", self.rot, ndim=3)
-            if R.shape != (t.size, 3, 3):
-                raise ValueError(f"Trajectory.rot must have shape ({t.size}, 3, 3), got {R.shape}")
-            object.__setattr__(self, "rot", R)
-
-    def __len__(self) -> int:
-        return self.t_s.size
+            self._set(rot=_optional_rows("Trajectory.rot", self.rot, (t.size, 3, 3)))
 
     @property
     def dim(self) -> int:
         return self.pos_m.shape[1]
-
-    def select(self, mask_or_index) -> "Trajectory":
-        idx = np.arange(len(self))[mask_or_index]
-        return Trajectory(self.t_s[idx], self.pos_m[idx],
-                          None if self.vel_mps is None else self.vel_mps[idx],
-                          None if self.rot is None else self.rot[idx], self.name)
-
-    def between(self, t_start_s: float, t_end_s: float) -> "Trajectory":
-        return self.select((self.t_s >= t_start_s) & (self.t_s < t_end_s))
-
-    def shifted(self, dt_s: float) -> "Trajectory":
-        return Trajectory(self.t_s + dt_s, self.pos_m, self.vel_mps, self.rot, self.name)
 
     def interp(self, t_s: np.ndarray) -> np.ndarray:
         """Linearly interpolated positions at ``t_s``, shape ``(len(t_s), dim)``.
@@ -251,17 +224,6 @@ class Trajectory:
         out = np.column_stack([np.interp(t_s, self.t_s, self.pos_m[:, k]) for k in range(self.dim)])
         out[(t_s < self.t_s[0]) | (t_s > self.t_s[-1])] = np.nan
         return out
-
-    def to_frame(self) -> pd.DataFrame:
-        """Tidy table ``t_s, x_m, y_m[, z_m][, vx_mps, ...][, r00 .. r22]``."""
-        axes = "xyz"[: self.dim]
-        cols = {"t_s": self.t_s}
-        cols.update({f"{a}_m": self.pos_m[:, k] for k, a in enumerate(axes)})
-        if self.vel_mps is not None:
-            cols.update({f"v{a}_mps": self.vel_mps[:, k] for k, a in enumerate(axes)})
-        if self.rot is not None:
-            cols.update({f"r{i}{j}": self.rot[:, i, j] for i in range(3) for j in range(3)})
-        return pd.DataFrame(cols)
 
     @classmethod
     def from_frame(cls, df: pd.DataFrame, name: str = "trajectory") -> "Trajectory":
@@ -275,7 +237,7 @@ class Trajectory:
 
 
 @dataclass(frozen=True)
-class ImuLog:
+class ImuLog(ArrayRecord):
     """Inertial measurements in the sensor frame.
 
     Attributes
@@ -292,6 +254,9 @@ class ImuLog:
     acc_mps2: np.ndarray
     gyro_radps: np.ndarray
 
+    _rows: ClassVar[tuple[str, ...]] = ("t_s", "acc_mps2", "gyro_radps")
+    _columns: ClassVar[tuple[tuple[str, str], ...]] = (("acc_mps2", "acc_{a}_mps2"), ("gyro_radps", "gyro_{a}_radps"))
+
     def __post_init__(self):
         t = _frozen_array("ImuLog.t_s", self.t_s, ndim=1)
         a = _frozen_array("ImuLog.acc_mps2", self.acc_mps2, ndim=2)
@@ -300,18 +265,7 @@ class ImuLog:
             if x.shape != (t.size, 3):
                 raise ValueError(f"ImuLog.{name} must have shape ({t.size}, 3), got {x.shape}")
         _check_time(t, "ImuLog")
-        object.__setattr__(self, "t_s", t)
-        object.__setattr__(self, "acc_mps2", a)
-        object.__setattr__(self, "gyro_radps", g)
-
-    def __len__(self) -> int:
-        return self.t_s.size
-
-    def to_frame(self) -> pd.DataFrame:
-        cols = {"t_s": self.t_s}
-        cols.update({f"acc_{a}_mps2": self.acc_mps2[:, k] for k, a in enumerate("xyz")})
-        cols.update({f"gyro_{a}_radps": self.gyro_radps[:, k] for k, a in enumerate("xyz")})
-        return pd.DataFrame(cols)
+        self._set(t_s=t, acc_mps2=a, gyro_radps=g)
 
     @classmethod
     def from_frame(cls, df: pd.DataFrame) -> "ImuLog":

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import ClassVar, Mapping
 
 import numpy as np
 import pandas as pd
 
-from ._base import _check_time, _frozen_array
-from .containers import Trajectory
+from ._base import ArrayRecord, _check_time, _frozen_array
+from .containers import Trajectory, _optional_rows
 
 
 class EstimateStatus(enum.IntEnum):
@@ -39,7 +39,7 @@ class EstimateStatus(enum.IntEnum):
 
 
 @dataclass(frozen=True)
-class Estimates:
+class Estimates(ArrayRecord):
     """Per-epoch estimates of one method on one recording — the type every estimator returns.
 
     Snapshot methods (multilateration, TDoA LS) and tracking filters (EKF, PF, error-state
@@ -73,6 +73,10 @@ class Estimates:
     vel_mps: np.ndarray | None = None
     info: Mapping[str, np.ndarray] = field(default_factory=dict)
 
+    _rows: ClassVar[tuple[str, ...]] = ("t_s", "pos_m", "status", "pos_cov_m2", "vel_mps")
+    _row_maps: ClassVar[tuple[str, ...]] = ("info",)
+    _columns: ClassVar[tuple[tuple[str, str], ...]] = (("pos_m", "{a}_m"), ("vel_mps", "v{a}_mps"))
+
     def __post_init__(self):
         t = _frozen_array("Estimates.t_s", self.t_s, ndim=1)
         p = _frozen_array("Estimates.pos_m", self.pos_m, ndim=2)
@@ -96,21 +100,12 @@ class Estimates:
             k = int(np.flatnonzero(finite == none)[0])
             raise ValueError(f"Estimates.pos_m must be finite exactly where status is not NO_ESTIMATE; "
                              f"epoch {k} has status {EstimateStatus(st[k]).label} and position {p[k].tolist()}")
-        object.__setattr__(self, "t_s", t)
-        object.__setattr__(self, "pos_m", p)
-        object.__setattr__(self, "status", st)
-        object.__setattr__(self, "name", str(self.name))
+        self._set(t_s=t, pos_m=p, status=st, name=str(self.name))
         d = p.shape[1]
         if self.pos_cov_m2 is not None:
-            c = _frozen_array("Estimates.pos_cov_m2", self.pos_cov_m2, ndim=3)
-            if c.shape != (T, d, d):
-                raise ValueError(f"Estimates.pos_cov_m2 must have shape ({T}, {d}, {d}), got {c.shape}")
-            object.__setattr__(self, "pos_cov_m2", c)
+            self._set(pos_cov_m2=_optional_rows("Estimates.pos_cov_m2", self.pos_cov_m2, (T, d, d)))
         if self.vel_mps is not None:
-            v = _frozen_array("Estimates.vel_mps", self.vel_mps, ndim=2)
-            if v.shape != p.shape:
-                raise ValueError(f"Estimates.vel_mps must have shape {p.shape}, got {v.shape}")
-            object.__setattr__(self, "vel_mps", v)
+            self._set(vel_mps=_optional_rows("Estimates.vel_mps", self.vel_mps, p.shape))
         info = {}
         for key, col in dict(self.info).items():
             a = np.array(col, copy=True)
@@ -118,10 +113,7 @@ class Estimates:
                 raise ValueError(f"Estimates.info[{key!r}] must have shape ({T},), got {a.shape}")
             a.setflags(write=False)
             info[str(key)] = a
-        object.__setattr__(self, "info", info)
-
-    def __len__(self) -> int:
-        return self.t_s.size
+        self._set(info=info)
 
     @property
     def dim(self) -> int:
@@ -141,13 +133,6 @@ class Estimates:
         """Number of epochs per status label (all labels present, zeros included)."""
         return {s.label: int(np.count_nonzero(self.status == s)) for s in EstimateStatus}
 
-    def select(self, mask_or_index) -> "Estimates":
-        """Epochs selected by a boolean mask or an index array (time order kept)."""
-        idx = np.arange(len(self))[mask_or_index]
-        pick = (lambda a: None if a is None else a[idx])
-        return Estimates(self.t_s[idx], self.pos_m[idx], self.status[idx], self.name,
-                         pick(self.pos_cov_m2), pick(self.vel_mps), {k: v[idx] for k, v in self.info.items()})
-
     def to_trajectory(self, name: str | None = None) -> Trajectory:
         """The epochs with a position, as a :class:`Trajectory`."""
         ok = self.has_estimate
@@ -157,10 +142,7 @@ class Estimates:
     def to_frame(self) -> pd.DataFrame:
         """Table ``t_s, x_m, y_m[, z_m][, vx_mps ..][, sd_x_m ..], status`` (label) and the ``info`` columns."""
         axes = "xyz"[: self.dim]
-        cols = {"t_s": self.t_s}
-        cols.update({f"{a}_m": self.pos_m[:, k] for k, a in enumerate(axes)})
-        if self.vel_mps is not None:
-            cols.update({f"v{a}_mps": self.vel_mps[:, k] for k, a in enumerate(axes)})
+        cols = self._wide_columns()
         if self.pos_cov_m2 is not None:
             sd = np.sqrt(np.diagonal(self.pos_cov_m2, axis1=1, axis2=2))
             cols.update({f"sd_{a}_m": sd[:, k] for k, a in enumerate(axes)})

@@ -1,12 +1,21 @@
-"""One recording: anchors, ranges per tag, truth, IMU, cleaning steps and metadata."""
+"""One recording: anchors, ranges per tag, truth, IMU, cleaning steps and metadata.
+
+**The truth rule.** Truth is compared with an estimate by linear interpolation of the tag's
+:class:`Trajectory` at the estimate's times (:meth:`Recording.truth_at`). A time outside the
+truth's span, or between two truth samples more than :data:`MAX_TRUTH_GAP_S` apart (a
+motion-capture dropout) and not on a sample, has no truth (NaN). A time window
+(:meth:`Recording.between`) keeps truth :data:`MAX_TRUTH_GAP_S` beyond each end, so that the
+window's first and last epochs can still be interpolated.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 import numpy as np
 
+from ._base import MAX_TRUTH_GAP_S
 from .containers import Anchors, CleaningStep, ImuLog, RangeLog, Trajectory
 
 
@@ -63,7 +72,54 @@ class Recording:
         """``dataset/name``, as used in the ``data`` column of summaries."""
         return f"{self.dataset}/{self.name}"
 
-    def decimate(self, step: int) -> "Recording":
+    def between(self, t_start_s: float, t_end_s: float, name: str | None = None) -> "Recording":
+        """The epochs ``t_start_s <= t < t_end_s`` of every tag (the containers' time-window rule).
+
+        Ranges and the IMU log are cut to the window; truth keeps :data:`MAX_TRUTH_GAP_S`
+        beyond each end (module docstring). ``name`` renames the part (default: unchanged).
+        """
+        ranges = {t: log.between(t_start_s, t_end_s) for t, log in self.ranges.items()}
+        truth = {t: tr.between(t_start_s - MAX_TRUTH_GAP_S, t_end_s + MAX_TRUTH_GAP_S)
+                 for t, tr in self.truth.items()}
+        imu = None if self.imu is None else self.imu.between(t_start_s, t_end_s)
+        return replace(self, name=name or self.name, ranges=ranges, truth=truth, imu=imu)
+
+    def truth_at(self, tag: str, t_s, dim: int | None = None) -> np.ndarray:
+        """True positions of ``tag`` at ``t_s`` by the truth rule (module docstring).
+
+        Parameters
+        ----------
+        tag
+            A tag with truth.
+        t_s
+            Times, shape ``(T,)``, seconds.
+        dim
+            Coordinates returned (2: horizontal); default all of the truth's.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape ``(T, dim)``, metres; NaN where there is no truth.
+        """
+        if tag not in self.truth:
+            raise KeyError(f"{self.label}: tag {tag!r} has no truth; tags with truth: {sorted(self.truth)}")
+        tr = self.truth[tag]
+        t_s = np.asarray(t_s, float)
+        pos = tr.interp(t_s)[:, : (tr.dim if dim is None else dim)]
+        if len(tr) > 1:
+            i = np.clip(np.searchsorted(tr.t_s, t_s, side="right"), 1, len(tr) - 1)
+            exact = np.isin(t_s, tr.t_s)
+            pos[~exact & (tr.t_s[i] - tr.t_s[i - 1] > MAX_TRUTH_GAP_S)] = np.nan
+        return pos
+
+    def range_rate_hz(self) -> float:
+        """Range epoch rate: one over the median epoch step of all tags' logs pooled, Hz."""
+        steps = np.concatenate([np.diff(log.t_s) for log in self.ranges.values()] or [np.array([])])
+        if steps.size == 0:
+            raise ValueError(f"{self.label}: no tag has two range epochs; the range rate is undefined")
+        return float(1.0 / np.median(steps))
+
+    def decimate(self, step: int | None = None, *, rate_hz: float | None = None) -> "Recording":
         """Every ``step``-th range epoch of every tag: the one thinning rule of the package.
 
         Ranges keep epochs ``0, step, 2·step, …`` of each tag. A tag's truth that is
@@ -77,12 +133,24 @@ class Recording:
         ----------
         step
             Positive integer; 1 returns the recording unchanged.
+        rate_hz
+            Instead of ``step``: the wanted range rate, Hz; the step is
+            ``max(1, round(range_rate_hz() / rate_hz))`` (:meth:`range_rate_hz`).
 
         Raises
         ------
         ValueError
-            If ``step`` is not a positive integer.
+            If ``step`` is not a positive integer, ``rate_hz`` not a positive number, or
+            both or neither are given.
         """
+        if (step is None) == (rate_hz is None):
+            raise ValueError(f"{self.label}: decimate takes either step or rate_hz, got step={step!r}, "
+                             f"rate_hz={rate_hz!r}")
+        if rate_hz is not None:
+            if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float, np.integer, np.floating)) \
+                    or not np.isfinite(rate_hz) or rate_hz <= 0:
+                raise ValueError(f"{self.label}: rate_hz must be a positive number of hertz, got {rate_hz!r}")
+            step = max(1, int(round(self.range_rate_hz() / float(rate_hz))))
         if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 1:
             raise ValueError(f"{self.label}: decimation step must be a positive integer, got {step!r}")
         step = int(step)

@@ -8,6 +8,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
+from ._base import MAX_TRUTH_GAP_S, ArrayRecord
 from .containers import Anchors, RangeLog, Trajectory
 from .tdoa import TdoaLog
 
@@ -15,7 +16,7 @@ from .tdoa import TdoaLog
 # ====================================================================== unrolled range samples
 
 @dataclass(frozen=True)
-class RangeSamples:
+class RangeSamples(ArrayRecord):
     """Ranges unrolled to one entry per measurement (the ``D`` of Zupanec et al. eq. 1).
 
     Attributes
@@ -35,6 +36,8 @@ class RangeSamples:
     range_m: np.ndarray
     anchor_ids: tuple[str, ...]
 
+    _rows: ClassVar[tuple[str, ...]] = ("t_s", "anchor_index", "range_m")
+
     def __post_init__(self):
         t = np.array(self.t_s, float)
         k = np.array(self.anchor_index, np.intp)
@@ -53,18 +56,7 @@ class RangeSamples:
             raise ValueError("RangeSamples.t_s must be non-decreasing")
         for a in (t, k, r):
             a.setflags(write=False)
-        object.__setattr__(self, "t_s", t)
-        object.__setattr__(self, "anchor_index", k)
-        object.__setattr__(self, "range_m", r)
-        object.__setattr__(self, "anchor_ids", ids)
-
-    def __len__(self) -> int:
-        return self.t_s.size
-
-    def select(self, mask_or_index) -> "RangeSamples":
-        """The samples selected by a boolean mask or an increasing index array."""
-        idx = np.arange(len(self))[mask_or_index]
-        return RangeSamples(self.t_s[idx], self.anchor_index[idx], self.range_m[idx], self.anchor_ids)
+        self._set(t_s=t, anchor_index=k, range_m=r, anchor_ids=ids)
 
     def to_matrix(self) -> tuple[np.ndarray, np.ndarray]:
         """Back to epochs: unique times ``(T,)`` and ranges ``(T, n_anchors)`` (NaN = none).
@@ -155,7 +147,7 @@ class TagRun:
     raw: Trajectory | None = field(default=None, repr=False)
 
     #: Largest truth sampling gap interpolated across when computing errors, seconds.
-    max_truth_gap_s: ClassVar[float] = 0.5
+    max_truth_gap_s: ClassVar[float] = MAX_TRUTH_GAP_S
 
     def __post_init__(self):
         if self.dim not in (2, 3):

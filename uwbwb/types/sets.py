@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
+
+from ._base import ArrayRecord
 
 
 # ====================================================================== sensor-set fixes (paper 000)
@@ -72,7 +75,7 @@ def parse_set_label(label: str) -> int:
 
 
 @dataclass(frozen=True, eq=False)
-class SetFixLog:
+class SetFixLog(ArrayRecord):
     """Position fixes, each computed from a sensor set (Banerjee et al., paper 000: the observations ``Z`` of eq. 5).
 
     Attributes
@@ -98,6 +101,8 @@ class SetFixLog:
     truth_m: np.ndarray | None = None
     name: str = "fixes"
 
+    _rows: ClassVar[tuple[str, ...]] = ("t_s", "pos_m", "set_id", "truth_m")
+
     def __post_init__(self):
         t = np.array(self.t_s, float)
         p = np.array(self.pos_m, float)
@@ -118,13 +123,9 @@ class SetFixLog:
             if g.shape != p.shape:
                 raise ValueError(f"SetFixLog.truth_m must have shape {p.shape}, got {g.shape}")
             arrays.append(("truth_m", g))
-        for name, arr in arrays:
+        for _, arr in arrays:
             arr.setflags(write=False)
-            object.__setattr__(self, name, arr)
-        object.__setattr__(self, "sensor_ids", ids)
-
-    def __len__(self) -> int:
-        return self.t_s.size
+        self._set(**dict(arrays), sensor_ids=ids)
 
     @property
     def error_m(self) -> np.ndarray:
@@ -146,11 +147,6 @@ class SetFixLog:
         share = counts / counts.sum()
         return pd.DataFrame({"set_id": uniq, "label": [set_label(s, self.sensor_ids) for s in uniq],
                              "count": counts, "share": share, "cum_share": np.cumsum(share)})
-
-    def select(self, mask_or_index) -> "SetFixLog":
-        idx = np.arange(len(self))[mask_or_index]
-        return SetFixLog(self.t_s[idx], self.pos_m[idx], self.set_id[idx], self.sensor_ids,
-                         None if self.truth_m is None else self.truth_m[idx], self.name)
 
     def to_frame(self) -> pd.DataFrame:
         """Tidy table ``t_s, x_m, y_m, set_id, set_label[, true_x_m, true_y_m]``."""

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
 
+from ._base import ArrayRecord
 from .containers import RangeLog
 
 
@@ -58,7 +60,7 @@ def pseudo_tdoa(range_m: np.ndarray, ref: int = 0, *, fallback: str = "nearest")
 
 
 @dataclass(frozen=True)
-class TdoaLog:
+class TdoaLog(ArrayRecord):
     """TDoAs (range differences) of one tag, one row per epoch.
 
     Attributes
@@ -83,6 +85,8 @@ class TdoaLog:
     anchor_ids: tuple[str, ...]
     tag_id: str = "tag"
 
+    _rows: ClassVar[tuple[str, ...]] = ("t_s", "tdoa_m", "ref")
+
     def __post_init__(self):
         t = np.array(self.t_s, float)
         d = np.array(self.tdoa_m, float)
@@ -103,11 +107,9 @@ class TdoaLog:
             raise ValueError("TdoaLog: tdoa_m must be exactly 0 in each epoch's reference column")
         if np.any(np.isfinite(d[has]).sum(axis=1) < 2):
             raise ValueError("TdoaLog: an epoch with a reference needs at least one other anchor")
-        for name, arr in (("t_s", t), ("tdoa_m", d), ("ref", ref)):
+        for arr in (t, d, ref):
             arr.setflags(write=False)
-            object.__setattr__(self, name, arr)
-        object.__setattr__(self, "anchor_ids", ids)
-        object.__setattr__(self, "tag_id", str(self.tag_id))
+        self._set(t_s=t, tdoa_m=d, ref=ref, anchor_ids=ids, tag_id=str(self.tag_id))
 
     @classmethod
     def from_ranges(cls, log: RangeLog, ref: int | str = 0, *, fallback: str = "nearest") -> "TdoaLog":
@@ -119,9 +121,6 @@ class TdoaLog:
         tdoa, ref_idx = pseudo_tdoa(log.range_m, k, fallback=fallback)
         return cls(log.t_s, tdoa, ref_idx, log.anchor_ids, log.tag_id)
 
-    def __len__(self) -> int:
-        return self.t_s.size
-
     @property
     def n_anchors(self) -> int:
         return len(self.anchor_ids)
@@ -130,14 +129,6 @@ class TdoaLog:
     def n_tdoa(self) -> np.ndarray:
         """Number of TDoAs per epoch (anchors measured − 1, or 0), shape ``(T,)``."""
         return np.maximum(np.isfinite(self.tdoa_m).sum(axis=1) - 1, 0)
-
-    def select(self, mask_or_index) -> "TdoaLog":
-        idx = np.arange(len(self))[mask_or_index]
-        return TdoaLog(self.t_s[idx], self.tdoa_m[idx], self.ref[idx], self.anchor_ids, self.tag_id)
-
-    def between(self, t_start_s: float, t_end_s: float) -> "TdoaLog":
-        """Epochs with ``t_start_s <= t_s < t_end_s``."""
-        return self.select((self.t_s >= t_start_s) & (self.t_s < t_end_s))
 
     def to_frame(self) -> pd.DataFrame:
         """Tidy table ``t_s, anchor_id, ref_id, tdoa_m`` (reference and missing entries omitted)."""
