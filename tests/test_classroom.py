@@ -193,6 +193,8 @@ def test_figure_audit_maps_cells_and_counts_images():
     assert problems == ["cell 2, figure 0, axes 0 ('untitled'): no title or panel label",
                         "cell 2, figure 0, axes 0 ('untitled'): no x label",
                         "cell 2, figure 0, axes 0 ('untitled'): no y label"]
+    assert classroom.figure_audit([], nb) == [
+        "the recorder saw none of the figures (was rcParams['figure.hooks'] reset?): nothing audited"]
     nb.cells[-1].outputs = []
     assert classroom.figure_audit([], nb) == ["no image output: the HTML report would hold no figure"]
 

@@ -15,9 +15,10 @@ NOTEBOOK_DIR = Path(__file__).resolve().parents[1] / "notebooks"
 NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
 #: Hard limit per notebook in FAST mode (seconds of kernel time per cell).
 CELL_TIMEOUT_S = 600
-#: Notebooks whose figure audit and class limits are enforced (the audits run on every notebook and
-#: their findings are reported as warnings for the others). Add a notebook's stem here once it has
-#: ``CLASS = False`` in its parameters cell, its research cells tagged and both audits pass.
+#: Notebooks whose figure audit, class limits and code rules (:mod:`uwbwb.classroom`) are enforced (the
+#: audits run on every notebook and their findings are reported as warnings for the others). Add a
+#: notebook's stem here once it has ``CLASS = False`` in its parameters cell, its research cells tagged
+#: and the audits pass.
 AUDITED = ("00_quickstart", "01_set_noise_pf", "02_pruning_nls", "05_uwb_ins_fusion")
 
 

@@ -330,10 +330,14 @@ def install_figure_recorder(path) -> None:
 
     One entry per figure: the execution count of the cell that drew it and :func:`axes_record` of
     each Axes, taken when the cell has finished (so a figure's later titles and labels count).
+    Figures made without pyplot (``matplotlib.figure.Figure(...)``, e.g. a widget's
+    :class:`uwbwb.widgets.PanelFigure`) are not seen.
     """
     import matplotlib as mpl
     from IPython import get_ipython
 
+    if _RECORD_PATH:
+        raise RuntimeError(f"the figure recorder is already installed (writing {_RECORD_PATH[0]})")
     _RECORD_PATH[:] = [Path(path)]
     Path(path).write_text("[]")
     hook = f"{__name__}:record_figure"
@@ -378,6 +382,8 @@ def figure_audit(records: Sequence[dict], nb) -> list[str]:
                 problems.append(f"cell {cell}, figure {fig['figure']}, axes {j} ({name!r}): {p}")
     if image_count(nb) == 0:
         problems.append("no image output: the HTML report would hold no figure")
+    elif not records:
+        problems.append("the recorder saw none of the figures (was rcParams['figure.hooks'] reset?): nothing audited")
     return problems
 
 
