@@ -20,7 +20,14 @@ from uwbwb import notebook_params as nbp
 from uwbwb import reproduce as rp
 from uwbwb.datasets.discovery import PROJECT_ROOT
 
-NOTEBOOKS = sorted(rp.NOTEBOOKS_DIR.glob("*.ipynb"))
+NOTEBOOKS_DIR = PROJECT_ROOT / "notebooks"
+NOTEBOOKS = sorted(NOTEBOOKS_DIR.glob("*.ipynb"))
+
+
+@pytest.fixture(autouse=True)
+def _in_the_project(monkeypatch):
+    """The command line finds notebooks/ in the working directory: run these from the project root."""
+    monkeypatch.chdir(PROJECT_ROOT)
 
 
 def _parameters_cell(path: Path):
@@ -120,9 +127,9 @@ _TYPED = [(path, name, text) for path in NOTEBOOKS
           for name, default in rp.notebook_parameters(path).items()
           if name not in rp.RESERVED_PARAMETERS and (default is None or isinstance(default, (tuple, list)))
           for text in _samples(nbp.specs_for(path.stem, {name: default})[name], default)]
-_TYPED += [(rp.NOTEBOOKS_DIR / "01_set_noise_pf.ipynb", "SIGMA_D_CMPS", "(2.5, 4)"),
-           (rp.NOTEBOOKS_DIR / "01_set_noise_pf.ipynb", "SIGMA_D_CMPS", "(2, 4)"),
-           (rp.NOTEBOOKS_DIR / "04_doppler_beacons.ipynb", "N_BRUTE", "1e7")]
+_TYPED += [(NOTEBOOKS_DIR / "01_set_noise_pf.ipynb", "SIGMA_D_CMPS", "(2.5, 4)"),
+           (NOTEBOOKS_DIR / "01_set_noise_pf.ipynb", "SIGMA_D_CMPS", "(2, 4)"),
+           (NOTEBOOKS_DIR / "04_doppler_beacons.ipynb", "N_BRUTE", "1e7")]
 
 
 @pytest.mark.parametrize("path, name, text", _TYPED, ids=[f"{p.stem[:2]}-{n}-{t}" for p, n, t in _TYPED])
@@ -144,7 +151,7 @@ def test_a_value_reaches_the_notebook_with_the_type_of_its_spec(path, name, text
 
 
 def test_sigma_d_accepts_non_integer_speeds_and_they_arrive_as_a_tuple_of_floats():
-    path = rp.NOTEBOOKS_DIR / "01_set_noise_pf.ipynb"
+    path = NOTEBOOKS_DIR / "01_set_noise_pf.ipynb"
     params = rp.resolve_parameters([path], text={"SIGMA_D_CMPS": "(2.5, 4)"})[path]
     assert params == {"SIGMA_D_CMPS": (2.5, 4.0)}
     assert "SIGMA_D_CMPS = (2.5, 4.0)" in rp.injected_source(params)

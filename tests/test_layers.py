@@ -48,15 +48,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 DEBT: dict[tuple[str, str, str], str] = {
     ("uwbwb.datasets.standin", "widgets", "upward"): "issue 19: notebooks call uw.widgets.data_banner(**room.banner_args())",
     ("uwbwb.datasets.standin", "widgets", "local"): "issue 19: notebooks call uw.widgets.data_banner(**room.banner_args())",
-    ("uwbwb.scoreboard.estimators", "models", "local"): "issue 19: declare the import at the top",
-    ("uwbwb.scoreboard.sources", "datasets", "local"): "issue 19 item 6: the scoreboard opens recordings through uw.datasets.open",
     ("uwbwb.calibration", "types", "local"): "issue 19: declare the import at the top",
     ("uwbwb.experiments.pruning.study", "calibration", "local"): "issue 19: declare the import at the top",
-    ("uwbwb.cli", "datasets", "local"): "issue 19 item 8: CLI as its own module with paths injected",
-    ("uwbwb.cli", "errors", "local"): "issue 19 item 8: CLI as its own module with paths injected",
-    ("uwbwb.cli", "reproduce", "local"): "issue 19 item 8: CLI as its own module with paths injected",
-    ("uwbwb.cli", "scoreboard", "local"): "issue 19 item 8: CLI as its own module with paths injected",
-    ("uwbwb.reproduce", "parallel", "local"): "issue 19 item 8: reproduce as its own module with paths injected",
     ("uwbwb.notebook_params", "parallel", "local"): "issue 19 item 8: reproduce as its own module with paths injected",
 }
 

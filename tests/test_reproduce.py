@@ -12,6 +12,8 @@ import pytest
 from uwbwb import cli
 from uwbwb import reproduce as rp
 
+PROJECT = Path(__file__).resolve().parents[1]
+
 GOOD_PARAMS = 'FAST = False\nSEED = 0\nDATA_DIR = None\nSUMMARY_PATH = None\nN = 1\nLABEL = "default"\n'
 GOOD_BODY = """\
 import json
@@ -184,11 +186,12 @@ def test_the_readme_example_reaches_notebook_02_as_the_string_typed(monkeypatch,
                               summary=out_dir / "x.json", seconds=0.0, error=None)
 
     monkeypatch.setattr(rp, "run_notebook", fake_run)
+    monkeypatch.chdir(PROJECT)                  # the default notebook folder is notebooks/ in the working directory
     argv = "reproduce --only 02 -p STATIC_SESSION 8.20".split() + ["--out", str(tmp_path)]
     assert cli.main(argv) == 0
     (stem,) = received
     assert stem.startswith("02") and received[stem] == {"STATIC_SESSION": "8.20"}
-    assert rp.notebook_parameters(rp.NOTEBOOKS_DIR / f"{stem}.ipynb")["STATIC_SESSION"] == "8.14"
+    assert rp.notebook_parameters(PROJECT / "notebooks" / f"{stem}.ipynb")["STATIC_SESSION"] == "8.14"
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -290,3 +293,27 @@ def test_reproduce_says_which_notebooks_get_a_parameter_only_some_declare(tmp_pa
                  log=lines.append)
     assert received == {"01_a": {"FAST": True}, "02_b": {"FAST": True, "TOURS": (2,)}}
     assert "parameter TOURS goes to 02_b only (the others do not declare it)" in lines
+
+
+def test_folders_are_arguments_with_defaults_in_the_working_directory_not_the_package(tmp_path, monkeypatch):
+    """Installed as a wheel, the package holds no notebooks: the folders come from the caller."""
+    (tmp_path / "notebooks").mkdir()
+    _notebook(tmp_path / "notebooks" / "01_good.ipynb", GOOD_PARAMS, GOOD_BODY)
+    monkeypatch.chdir(tmp_path)
+    assert [p.name for p in rp.select_notebooks()] == ["01_good.ipynb"]
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    _notebook(elsewhere / "07_other.ipynb", GOOD_PARAMS, GOOD_BODY)
+    assert [p.name for p in rp.select_notebooks(elsewhere)] == ["07_other.ipynb"]
+    received = {}
+
+    def fake_run(source, out_dir, parameters, **kwargs):
+        received[source.name] = out_dir
+        return rp.NotebookRun(notebook=source.stem, source=source, executed=out_dir / "x.ipynb", html=None,
+                              summary=out_dir / "x.json", seconds=0.0, error=None)
+
+    monkeypatch.setattr(rp, "run_notebook", fake_run)
+    assert cli.main(["reproduce"], notebooks_dir=elsewhere, reports_dir=tmp_path / "mine") == 0
+    assert received == {"07_other.ipynb": (tmp_path / "mine").resolve()}
+    tooling = [*Path(rp.__file__).parent.glob("*.py"), Path(cli.__file__)]
+    assert not [p.name for p in tooling if "__file__" in p.read_text(encoding="utf-8")]

@@ -1,4 +1,4 @@
-"""``uwbwb score`` targets: a Hanyang dynamic case by folder or by registry name."""
+"""``uwbwb score`` targets: a Hanyang dynamic case by folder or by registry name; a wrong name lists the names present."""
 
 from __future__ import annotations
 
@@ -20,5 +20,5 @@ def test_a_case_folder_and_its_name_load_the_same_recording(tmp_path):
     np.testing.assert_array_equal(by_folder.ranges["tag"].range_m, by_name.ranges["tag"].range_m)
     assert set(by_name.meta["authors_estimates"]) == {"LS", "ESKF"}
     assert "hanyang-outdoor-uwb" in LOADERS
-    with pytest.raises(DataNotFoundError, match="cases available"):
+    with pytest.raises(DataNotFoundError, match="has no recording .LOS/Trajectory_A/Case_9.*Names found.*LOS/Trajectory_A/Case_2"):
         load_target("hanyang-outdoor-uwb/LOS/Trajectory_A/Case_9", data)

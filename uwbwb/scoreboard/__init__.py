@@ -2,8 +2,11 @@
 Cramér–Rao bounds (notebook 06 and ``python -m uwbwb score``).
 
 * :mod:`.protocol` — the fair protocol: calibration part / scoring part, one shared calibration;
-* :mod:`.estimators` — the estimator interface and the adapters of every method;
+* :mod:`.interface` — the estimator interface and the pieces every adapter shares;
+* :mod:`.estimators` — the adapters of every method (LS, TDoA, EKFs, UWB/INS, external estimates);
+* :mod:`.setnoise_nls` — the set-noise filters and the windowed trajectory NLS as adapters;
 * :mod:`.board` — scoring, the table, Markdown/CSV output;
+* :mod:`.explain` — why a method beats its own bound (the scoring part's diagnostics);
 * :mod:`.figures` — error CDFs, RMSE vs bound, error over time with the bound's band;
 * :mod:`.synthetic` — a run whose truth and noise are known exactly;
 * :mod:`.sources` — recordings named on the command line;

@@ -18,7 +18,9 @@ A method joins the board by implementing :class:`Estimator`:
     ``NotImplementedError``) when the method has no model to bound — the board then shows "—"
     for its own bound and still places it against the recording's common bound.
 
-The adapters below wrap the existing estimators without changing them. Every method
+The interface and the helpers every adapter shares are in :mod:`.interface`; the set-noise filters
+and the windowed NLS in :mod:`.setnoise_nls` (re-exported here). The adapters wrap the existing
+estimators without changing them. Every method
 but ``raw LS`` uses the calibrated ranges (the calibration is information every method
 is given; ``raw LS`` shows what it is worth). Estimators return the package's common
 result type through their results' ``to_estimates()``; the set-noise filters and the
@@ -27,124 +29,24 @@ windowed NLS, which run on parts of a recording, place their parts on its epochs
 
 from __future__ import annotations
 
-import zlib
 from dataclasses import dataclass, field, replace
-from typing import Mapping, Protocol, Sequence, runtime_checkable
+from typing import Mapping
 
 import numpy as np
 
-from .. import bounds, geometry, metrics
-from ..calibration import fit_set_noise_from_fixes
+from .. import bounds, geometry
 from ..filters import alignment, imu_calibration
 from ..filters.ekf import TdoaEkf
-from ..filters.nls import fit_trajectory
-from ..filters.setnoise import model_noise, run_set_noise_kf, run_set_noise_pf
 from ..filters.tdoa_ls import tdoa_least_squares
-from ..models.motion import VelocityKick, make_motion_model
-from ..models.tdoa import TdoaModel
-from ..sim.setnoise import SetEmulation, emulate_set_fixes
-from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples, Recording, TdoaLog, Trajectory
+from ..models.motion import RandomForce, make_motion_model
+from ..types import Estimates, TdoaLog, Trajectory
+from .interface import (_NONE, _UP, MAX_TRUTH_GAP_S, BaseEstimator, Estimator, _errors_rmse,  # noqa: F401 (re-exported)
+                        _range_bound, _tdoa_information, _tdoa_model, calibrated_log, on_grid_edge, truth_at)
 from .protocol import Calibration
+from .setnoise_nls import NLS_WINDOWS_S, SIGMA_D_GRID_MPS, SetNoiseFilter, WindowNls  # noqa: F401 (re-exported)
 
 __all__ = ["Estimator", "BaseEstimator", "RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "SetNoiseFilter",
            "WindowNls", "UwbInsFilter", "ExternalEstimates", "INS_GRID", "default_estimators", "truth_at", "MAX_TRUTH_GAP_S"]
-
-#: Largest truth gap interpolated across when scoring or evaluating a bound, seconds.
-MAX_TRUTH_GAP_S = 0.5
-
-_UP, _NONE = int(EstimateStatus.UPDATED), int(EstimateStatus.NO_ESTIMATE)
-
-
-@runtime_checkable
-class Estimator(Protocol):
-    """What the board needs from a method (module docstring)."""
-
-    name: str
-
-    def applies(self, rec: Recording, tag: str, cal: Calibration) -> str | None: ...
-
-    def tune(self, rec: Recording, tags: Sequence[str], cal: Calibration) -> Mapping: ...
-
-    def estimate(self, rec: Recording, tag: str, cal: Calibration) -> Estimates: ...
-
-    def bound(self, rec: Recording, tag: str, cal: Calibration, est: Estimates) -> bounds.Bound: ...
-
-
-class BaseEstimator:
-    """Defaults: applies everywhere, tunes nothing."""
-
-    name = "estimator"
-
-    def applies(self, rec: Recording, tag: str, cal: Calibration) -> str | None:
-        return None
-
-    def tune(self, rec: Recording, tags: Sequence[str], cal: Calibration) -> Mapping:
-        return {}
-
-    def __repr__(self) -> str:
-        return f"{type(self).__name__}({self.name!r})"
-
-
-# ----------------------------------------------------------------------------- shared pieces
-
-def calibrated_log(rec: Recording, tag: str, cal: Calibration) -> RangeLog:
-    """``tag``'s ranges with the calibration's per-pair bias/scale removed."""
-    return cal.range_calibration.apply(rec.ranges[tag])
-
-
-def truth_at(rec: Recording, tag: str, t_s: np.ndarray, dim: int) -> np.ndarray:
-    """True positions ``(T, dim)`` at ``t_s``; NaN outside the truth or in gaps over :data:`MAX_TRUTH_GAP_S`."""
-    tr = rec.truth[tag]
-    t_s = np.asarray(t_s, float)
-    pos = tr.interp(t_s)[:, :dim]
-    if len(tr) > 1:
-        i = np.clip(np.searchsorted(tr.t_s, t_s, side="right"), 1, len(tr) - 1)
-        exact = np.isin(t_s, tr.t_s)
-        pos[~exact & (tr.t_s[i] - tr.t_s[i - 1] > MAX_TRUTH_GAP_S)] = np.nan
-    return pos
-
-
-def _range_bound(rec, tag, cal, log: RangeLog, kind="CRLB ranges") -> bounds.Bound:
-    pos = truth_at(rec, tag, log.t_s, cal.dim)
-    have = np.all(np.isfinite(pos), axis=1)
-    C = np.full((len(log), cal.dim, cal.dim), np.nan)
-    if have.any():
-        info = bounds.range_information(pos[have], rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
-                                        mask=np.isfinite(log.range_m[have]))
-        C[have] = bounds.crlb(info)
-    return bounds.Bound(log.t_s, C, kind)
-
-
-def _tdoa_model(rec, tag, cal) -> TdoaModel:
-    return TdoaModel(rec.anchors.pos_m, cal.sigma(tag), dim=cal.dim, z_m=cal.height(tag) or 0.0)
-
-
-def _tdoa_information(rec, tag, cal, log: RangeLog) -> tuple[np.ndarray, np.ndarray]:
-    """TDoA information ``(T, dim, dim)`` at the true positions, and where truth exists ``(T,)``."""
-    pos = truth_at(rec, tag, log.t_s, cal.dim)
-    have = np.all(np.isfinite(pos), axis=1)
-    info = np.zeros((len(log), cal.dim, cal.dim))
-    if have.any():
-        mask = np.isfinite(log.range_m[have])
-        info[have] = np.where((mask.sum(axis=1) >= 2)[:, None, None],
-                              bounds.tdoa_information(pos[have], _tdoa_model(rec, tag, cal), mask=mask), 0.0)
-    return info, have
-
-
-def _errors_rmse(est: Estimates, rec: Recording, tag: str, dim: int) -> float:
-    """RMSE (horizontal) of ``est`` against ``rec``'s truth: what tuning on the calibration part minimises."""
-    tr = est.to_trajectory()
-    if len(tr) == 0:
-        return float("inf")
-    e = metrics.errors_vs_truth(tr, rec.truth[tag], horizontal=True, max_gap_s=MAX_TRUTH_GAP_S)
-    return metrics.rmse(e.err_m) if len(e) else float("inf")
-
-
-def on_grid_edge(best: int, n: int) -> bool:
-    """Whether a tuning pick (index ``best`` of ``n`` ordered grid values) is on the grid's edge, where a
-    wider grid might do better (a one-value grid tunes nothing: always on its edge)."""
-    return n < 2 or best in (0, n - 1)
-
 
 # ----------------------------------------------------------------------------- snapshot methods
 
@@ -260,184 +162,6 @@ class TdoaEkfEstimator(BaseEstimator):
         C[k0:] = bounds.tracking_bound(ekf.motion, log.t_s[k0:], info[k0:], P0)
         C[~have] = np.nan                     # no truth there: the bound is not evaluated
         return bounds.Bound(log.t_s, C, kind)
-
-
-# ----------------------------------------------------------------------------- set-noise filters
-
-#: σ_d grid (m/s per step) searched by the set-noise KF on the calibration part.
-SIGMA_D_GRID_MPS = (0.02, 0.04, 0.08, 0.15, 0.3, 0.6)
-
-
-@dataclass(frozen=True)
-class SetNoiseFilter(BaseEstimator):
-    """The set-noise Kalman filter or particle filter of notebook 01 on emulated sensor sets.
-
-    ``tune`` emulates fixes on the calibration part, fits the per-set noise model on them
-    (one location per tag) and picks σ_d minimising the KF's RMSE there; the PF uses the
-    same σ_d and model. Both start at the first fix (the paper starts at the known true
-    position; that would use the truth). 2-D only. Bound: the posterior CRLB of the same
-    constant-velocity model given the fixes and their per-set σ.
-    """
-
-    kind: str = "KF"
-    n_particles: int = 1000
-    emulation: SetEmulation = SetEmulation()
-    seed: int = 0
-
-    @property
-    def name(self) -> str:
-        return f"set-noise {self.kind}"
-
-    def applies(self, rec, tag, cal):
-        if cal.dim != 2:
-            return "the set-noise filters are planar (state x, ẋ, y, ẏ)"
-        if len(rec.anchors) < self.emulation.set_size:
-            return f"needs at least {self.emulation.set_size} anchors to emulate sets"
-        return None
-
-    def _rng(self, rec, tag) -> np.random.Generator:
-        return np.random.default_rng([self.seed, zlib.crc32(f"{rec.label}/{tag}/{self.name}".encode())])
-
-    def _fixes(self, rec, tag, cal, truth: bool = False):
-        log = calibrated_log(rec, tag, cal)
-        t = truth_at(rec, tag, log.t_s, 2) if truth else None
-        em = emulate_set_fixes(log, rec.anchors.pos_m, cal.height(tag), self.emulation, rng=self._rng(rec, tag),
-                               truth_m=t, name=f"{rec.label}/{tag}")
-        return em.fixes, em.row
-
-    def tune(self, rec, tags, cal):
-        if self.kind != "KF":
-            return {}                                 # the PF takes the KF's tuning (see estimate)
-        fixes = [self._fixes(rec, t, cal, truth=True)[0] for t in tags]
-        model = fit_set_noise_from_fixes(fixes)
-        cost = []
-        for s in SIGMA_D_GRID_MPS:
-            errs = []
-            for f in fixes:
-                run = run_set_noise_kf(f, model, f.pos_m[0], s)
-                errs.append(np.sum((run.pos_m - f.truth_m) ** 2, axis=1))
-            cost.append(float(np.sqrt(np.mean(np.concatenate(errs)))))
-        best = int(np.argmin(cost))
-        return {"sigma_d_mps": float(SIGMA_D_GRID_MPS[best]), "model": model, "n_sets": len(model),
-                "grid_rmse_m": tuple(cost), "grid_edge": on_grid_edge(best, len(SIGMA_D_GRID_MPS))}
-
-    def _params(self, cal):
-        p = cal.params("set-noise KF")
-        if "model" not in p:
-            raise ValueError("the set-noise filters need the set-noise KF's tuning (include 'set-noise KF' in the board)")
-        return p
-
-    def estimate(self, rec, tag, cal):
-        p = self._params(cal)
-        log = rec.ranges[tag]
-        fixes, idx = self._fixes(rec, tag, cal)
-        T = len(log)
-        pos = np.full((T, 2), np.nan)
-        status = np.full(T, _NONE, np.int8)
-        cov = np.full((T, 2, 2), np.nan) if self.kind == "KF" else None
-        info = {"nis": np.full(T, np.nan), "dof": np.zeros(T, int)}
-        if len(fixes):
-            if self.kind == "KF":
-                run = run_set_noise_kf(fixes, p["model"], fixes.pos_m[0], p["sigma_d_mps"], name=self.name)
-                cov[idx] = run.meta["cov"][:, :2, :2]
-                info["nis"][idx], info["dof"][idx] = run.meta["nis"], 2
-            else:
-                run = run_set_noise_pf(fixes, p["model"], fixes.pos_m[0], p["sigma_d_mps"], rng=self._rng(rec, tag),
-                                       n_particles=self.n_particles, name=self.name)
-            pos[idx] = run.pos_m
-            status[idx] = _UP
-        return Estimates(log.t_s, pos, status, self.name, cov, None, info)
-
-    def bound(self, rec, tag, cal, est):
-        p = self._params(cal)
-        fixes, idx = self._fixes(rec, tag, cal)
-        C = np.full((len(est), 2, 2), np.nan)
-        kind = "PCRLB set-noise CV (given the fixes)"
-        if len(fixes) == 0:
-            return bounds.Bound(est.t_s, C, kind)
-        _, sd = model_noise(fixes, p["model"])
-        dt = np.diff(fixes.t_s, prepend=fixes.t_s[0])
-        motion, axis_major = VelocityKick(p["sigma_d_mps"]), [0, 2, 1, 3]     # state x, ẋ, y, ẏ here
-        F = motion.F(dt)[:, axis_major][:, :, axis_major]
-        Q = motion.Q(dt)[:, axis_major][:, :, axis_major]
-        info = np.zeros((len(fixes), 4, 4))
-        info[:, 0, 0], info[:, 2, 2] = 1 / sd[:, 0] ** 2, 1 / sd[:, 1] ** 2
-        P0 = np.diag([1e4, 1.0, 1e4, 1.0])       # position from the first fix, velocity ~ 1 m/s
-        full = bounds.pcrlb(P0, F, Q, info)
-        C[idx] = full[:, [0, 2]][:, :, [0, 2]]
-        have = np.all(np.isfinite(truth_at(rec, tag, est.t_s, 2)), axis=1)
-        C[~have] = np.nan
-        return bounds.Bound(est.t_s, C, kind)
-
-
-# ----------------------------------------------------------------------------- trajectory NLS
-
-#: Window lengths (s) the windowed NLS tries on the calibration part.
-NLS_WINDOWS_S = (0.5, 1.0, 2.0)
-
-
-@dataclass(frozen=True)
-class WindowNls(BaseEstimator):
-    """Trajectory NLS of notebook 02 (:func:`uwbwb.filters.nls.fit_trajectory`, eq. 1: a
-    constant-velocity line ``P0 + v (t − t0)`` fitted to all ranges of a segment) on
-    consecutive fixed-length windows, so that no truth is needed to cut segments. ``tune``
-    picks the window length on the calibration part. Bound: the CRLB of the same line fit
-    per window (:func:`uwbwb.bounds.line_crlb`).
-    """
-
-    name: str = "NLS"
-    windows_s: tuple[float, ...] = NLS_WINDOWS_S
-
-    def _windows(self, log: RangeLog, w: float) -> np.ndarray:
-        return np.floor((log.t_s - log.t_s[0]) / w).astype(int) if len(log) else np.zeros(0, int)
-
-    def _run(self, rec, tag, cal, w) -> Estimates:
-        log = calibrated_log(rec, tag, cal)
-        T, d = len(log), cal.dim
-        pos, cov = np.full((T, d), np.nan), np.full((T, d, d), np.nan)
-        status = np.full(T, _NONE, np.int8)
-        win = self._windows(log, w)
-        for k in np.unique(win):
-            idx = np.flatnonzero(win == k)
-            part = log.select(idx)
-            samples = RangeSamples.from_ranges(part)
-            if idx.size < 3 or len(samples) < 2 * d + 2:
-                continue
-            try:
-                fit = fit_trajectory(samples, rec.anchors, dim=d, z_m=cal.height(tag))
-            except ValueError:
-                continue
-            if not fit.converged:
-                continue
-            tau = part.t_s - fit.t0_s
-            pos[idx] = fit.position_at(part.t_s)[:, :d]
-            A = np.concatenate([np.broadcast_to(np.eye(d), (idx.size, d, d)), tau[:, None, None] * np.eye(d)], axis=-1)
-            cov[idx] = np.einsum("kij,jl,kml->kim", A, fit.cov, A)
-            status[idx] = _UP
-        return Estimates(log.t_s, pos, status, self.name, cov, None, {"window": win})
-
-    def tune(self, rec, tags, cal):
-        cost = [np.mean([_errors_rmse(self._run(rec, t, cal, w), rec, t, cal.dim) for t in tags])
-                for w in self.windows_s]
-        best = int(np.argmin(cost))
-        return {"window_s": float(self.windows_s[best]), "grid_rmse_m": tuple(float(c) for c in cost),
-                "grid_edge": on_grid_edge(best, len(self.windows_s))}
-
-    def estimate(self, rec, tag, cal):
-        return self._run(rec, tag, cal, cal.params(self.name)["window_s"])
-
-    def bound(self, rec, tag, cal, est):
-        log = calibrated_log(rec, tag, cal)
-        pos = truth_at(rec, tag, log.t_s, cal.dim)
-        C = np.full((len(log), cal.dim, cal.dim), np.nan)
-        win = np.asarray(est.info["window"])
-        for k in np.unique(win):
-            idx = np.flatnonzero((win == k) & est.has_estimate)
-            if idx.size < 2 or not np.all(np.isfinite(pos[idx])):
-                continue
-            C[idx] = bounds.line_crlb(log.t_s[idx], pos[idx], rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
-                                      mask=np.isfinite(log.range_m[idx]))
-        return bounds.Bound(log.t_s, C, "CRLB line fit per window")
 
 
 # ----------------------------------------------------------------------------- UWB/INS
@@ -562,8 +286,6 @@ class UwbInsFilter(BaseEstimator):
         return Estimates(log.t_s, pos, status, self.name, cov, None, info)
 
     def bound(self, rec, tag, cal, est):
-        from ..models.motion import RandomForce
-
         log = calibrated_log(rec, tag, cal)
         info, have = _tdoa_information(rec, tag, cal, log)
         C = np.full((len(log), cal.dim, cal.dim), np.nan)

@@ -19,6 +19,10 @@ Commands
     ``scoreboard.csv``, ``scoreboard.md`` and ``scoreboard.png`` into ``--out`` (default
     ``reports/score/<recording>``).
 
+The notebook and report folders are arguments of :func:`main` (defaults ``notebooks/`` and
+``reports/`` in the working directory), the data folder the commands' ``--data-dir``; nothing is
+found relative to the installed package, so the command line also works from a wheel.
+
 Exit codes: 0 success; 1 failure (``datasets``: a dataset absent or a file
 missing or wrong; ``fetch``: a download failed; ``reproduce``: a notebook failed
 or wrote no summary); 2 bad arguments.
@@ -31,6 +35,12 @@ import importlib
 import sys
 from pathlib import Path
 from typing import Sequence
+
+from .. import reproduce as rp
+from ..datasets.discovery import data_dirs, find_dataset
+from ..datasets.fetch import FetchError, fetch
+from ..datasets.manifest import dataset_files, load_datasets_info, load_manifest, verify
+from ..errors import DataNotFoundError
 
 #: Recordings listed per dataset before "... and N more" (``--all`` lists every one).
 MAX_RECORDINGS_SHOWN = 12
@@ -137,9 +147,6 @@ def _indent(text: str, prefix: str = "    ") -> str:
 
 def _locate(name: str, data_dir: str | None) -> tuple[Path | None, str]:
     """Dataset root (or None) and a line saying where it was found or where it was looked for."""
-    from .datasets.discovery import data_dirs, find_dataset
-    from .errors import DataNotFoundError
-
     candidates = data_dirs(data_dir)
     if data_dir is not None:
         candidates = candidates[:1]
@@ -154,8 +161,6 @@ def _locate(name: str, data_dir: str | None) -> tuple[Path | None, str]:
 
 def _checksum_lines(name: str, root: Path, manifest, verify_checksums: bool) -> tuple[list[str], int]:
     """Lines on the files' state, and the number of files not ok."""
-    from .datasets.manifest import dataset_files, verify
-
     if verify_checksums:
         report = verify(name, root, manifest=manifest)
         counts = report["status"].value_counts()
@@ -229,8 +234,6 @@ def _recording_lines(info, root: Path, show_all: bool) -> list[str]:
 
 
 def cmd_datasets(args: argparse.Namespace) -> int:
-    from .datasets.manifest import load_datasets_info, load_manifest
-
     manifest = load_manifest()
     infos = load_datasets_info()
     names = list(dict.fromkeys(manifest["dataset"]))
@@ -259,9 +262,6 @@ def cmd_datasets(args: argparse.Namespace) -> int:
 # -- fetch ------------------------------------------------------------------------------------------
 
 def cmd_fetch(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from .datasets.fetch import FetchError, fetch
-    from .datasets.manifest import load_datasets_info, load_manifest
-
     manifest = load_manifest()
     known = list(dict.fromkeys(manifest["dataset"]))
     if args.name not in known:
@@ -288,74 +288,49 @@ def cmd_fetch(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 # -- reproduce --------------------------------------------------------------------------------------
 
-def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from .reproduce import (RESERVED_PARAMETERS, SCHEDULER_PARAMETER, reproduce, resolve_parameters,
-                            select_notebooks)
-
+def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser, *,
+                  notebooks_dir: str | Path | None = None, reports_dir: str | Path | None = None) -> int:
     text = {}
     for key, value in args.parameter:
         if not key.isidentifier():
             parser.error(f"-p {key}: parameter names must be Python identifiers")
-        if key in RESERVED_PARAMETERS:
+        if key in rp.RESERVED_PARAMETERS:
             parser.error(f"-p {key}: set by the runner (one summary file per notebook in --out)")
         if key in text:
             parser.error(f"-p {key} given twice")
         text[key] = value
     try:  # every problem with the selection or the parameters is reported before any notebook runs
-        resolve_parameters(select_notebooks(only=args.only), text=text, quick=args.quick)
+        rp.resolve_parameters(rp.select_notebooks(notebooks_dir, only=args.only), text=text, quick=args.quick)
     except ValueError as exc:
         parser.error(str(exc))
     if args.scheduler is not None:
-        if SCHEDULER_PARAMETER in text:
-            parser.error(f"-p {SCHEDULER_PARAMETER} and --scheduler: give the cluster once (--scheduler sets it)")
+        if rp.SCHEDULER_PARAMETER in text:
+            parser.error(f"-p {rp.SCHEDULER_PARAMETER} and --scheduler: give the cluster once (--scheduler sets it)")
         try:
             import distributed  # noqa: F401
         except ImportError:
             parser.error("--scheduler needs dask.distributed: pip install 'uwbwb[dask]'")
 
-    result = reproduce(quick=args.quick, only=args.only, out=args.out, text_parameters=text,
-                       timeout_s=args.timeout, scheduler=args.scheduler, scheduler_timeout_s=args.scheduler_timeout,
-                       log=lambda line: print(line, flush=True))
+    result = rp.reproduce(quick=args.quick, only=args.only, out=args.out or reports_dir, text_parameters=text,
+                          notebooks_dir=notebooks_dir,
+                          timeout_s=args.timeout, scheduler=args.scheduler,
+                          scheduler_timeout_s=args.scheduler_timeout, log=lambda line: print(line, flush=True))
     print(f"wrote {result.summary_md} and {result.summary_json}")
     for run in result.failed:
         print(f"FAILED {run.notebook}: {run.error}", file=sys.stderr)
     return result.exit_code
 
 
-# -- score ----------------------------------------------------------------------------------------
+def main(argv: Sequence[str] | None = None, *, notebooks_dir: str | Path | None = None,
+         reports_dir: str | Path | None = None) -> int:
+    """Run the command line; returns the exit code (2 for bad arguments).
 
-def cmd_score(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from .scoreboard import default_estimators, score, split_in_time
-    from .scoreboard.sources import load_target
-
-    if not 0 < args.fraction < 1:
-        parser.error(f"--fraction must be in (0, 1), got {args.fraction}")
-    estimators = default_estimators(fast=args.fast)
-    if args.methods is not None:
-        known = [e.name for e in estimators]
-        unknown = [m for m in args.methods if m not in known]
-        if unknown:
-            parser.error(f"--methods: unknown {unknown}; choose from {known}")
-        if "set-noise PF" in args.methods and "set-noise KF" not in args.methods:
-            args.methods.append("set-noise KF")        # the PF takes the KF's tuning
-        estimators = [e for e in estimators if e.name in args.methods]
-    rec = load_target(args.target, args.data_dir)
-    if args.calibrate_on is not None:
-        cal, test = load_target(args.calibrate_on, args.data_dir), rec
-    else:
-        cal, test = split_in_time(rec, args.fraction)
-    board = score(test, cal, estimators=estimators, tags=args.tags, rate_hz=args.rate_hz, fast=args.fast,
-                  progress=not args.quiet, label=rec.label, tag_height_m=args.tag_height_m,
-                  truth_offset_s=args.truth_offset_s)
-    out = Path(args.out) if args.out else Path("reports") / "score" / rec.name.replace("/", "_")
-    paths = board.write(out)
-    print(board.markdown())
-    print("wrote " + ", ".join(str(p) for p in paths.values()))
-    return 0
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit code (2 for bad arguments)."""
+    ``notebooks_dir`` (default :data:`uwbwb.reproduce.NOTEBOOKS_DIR`, ``notebooks/`` in the working
+    directory) is where ``reproduce`` finds the notebooks; ``reports_dir`` (default ``reports/`` in the
+    working directory) is where ``reproduce`` and ``score`` write when no ``--out`` is given. Nothing
+    is looked up relative to the installed package. The data folder is each command's ``--data-dir``
+    (``reproduce``: ``-p DATA_DIR DIR``), default the search order of :mod:`uwbwb.datasets.discovery`.
+    """
     parser, commands = _build_parser()
     try:
         args = parser.parse_args(argv)
@@ -367,8 +342,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "fetch":
             return cmd_fetch(args, commands["fetch"])
         if args.command == "score":
-            return cmd_score(args, commands["score"])
-        return cmd_reproduce(args, commands["reproduce"])
+            from .score import cmd_score      # the scoreboard's imports cost seconds: only for this command
+
+            return cmd_score(args, commands["score"], reports_dir=reports_dir)
+        return cmd_reproduce(args, commands["reproduce"], notebooks_dir=notebooks_dir, reports_dir=reports_dir)
     except SystemExit as exc:  # argparse reports bad arguments by exiting with status 2
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except (OSError, ValueError) as exc:

@@ -1,0 +1,234 @@
+"""Execute the notebooks headless and collect their headline numbers.
+
+``python -m uwbwb reproduce`` (or :func:`reproduce`) runs every notebook in
+``notebooks/`` of the working directory (sorted by name) with papermill on the ``python3`` kernel and
+writes, for each notebook ``<stem>``, into the output folder (default
+``reports/``):
+
+* ``<stem>.ipynb`` — the executed notebook (also when it failed: the failing
+  cell holds the traceback);
+* ``<stem>.html`` — the same, rendered with nbconvert;
+* ``<stem>.summary.json`` — the headline numbers the notebook published to its
+  ``SUMMARY_PATH`` parameter (``uw.metrics.Summary.publish``): a JSON list of
+  rows with keys ``notebook, quantity, value, unit, paper_value, data``.
+
+Then it aggregates all summaries into ``summary.json`` (one list of rows) and
+``summary.md`` (a table of the numbers next to the paper's values, and a status
+table: notebook, ok/failed, seconds, first line of the error).
+
+Parameters passed to every notebook: ``SUMMARY_PATH`` always, ``FAST=True``
+under ``quick``, plus any given explicitly. Each value is checked against the
+notebook's parameter specification (:mod:`uwbwb.notebook_params`: type, range,
+what None means) before any notebook runs, and reaches the notebook with the
+type the specification gives it: the runner writes the injected parameters cell
+itself, as Python literals (papermill would write a tuple as a string). An
+explicit value that the notebook's FAST mode would replace or lower is refused
+under ``FAST=True``, as is ``FAST=False`` given with ``quick``. All notebooks
+run even if one fails; the run is unsuccessful if a notebook failed or wrote no
+valid summary.
+
+Kernels are started on IPC transport (local sockets, no TCP ports), so that
+jupyter_client's warning about unencrypted TCP never reaches the output.
+
+With ``--scheduler ADDRESS`` (or ``local``) the notebooks run concurrently as
+tasks on that Dask cluster, each receiving the cluster as its
+``DASK_SCHEDULER`` parameter so that its sweeps run there too
+(:mod:`uwbwb.parallel`); the outputs and the summary are the same files.
+
+Where things are
+----------------
+The notebook folder, the output folder and the data folder are arguments, never computed from
+where the package is installed (it also works installed as a wheel): ``notebooks_dir`` (default
+:data:`NOTEBOOKS_DIR`, ``notebooks/`` in the working directory), ``out`` (default
+:data:`REPORTS_DIR`, ``reports/`` in the working directory) and the notebooks' own ``DATA_DIR``
+parameter (``-p DATA_DIR DIR``; default: the search order of :mod:`uwbwb.datasets.discovery`).
+
+Modules: :mod:`.params` (what a notebook declares; checking and typing values), :mod:`.running`
+(papermill, the kernel, the cluster, reading summaries), :mod:`.report` (``summary.md``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping
+
+from .. import parallel
+from .params import (INJECTED_TAG, RESERVED_PARAMETERS, SCHEDULER_PARAMETER, injected_source,  # noqa: F401
+                     notebook_parameters, parameter_specs, parameterized, parse_parameter_value, resolve_parameters)
+from .report import FAST_MARK, summary_markdown  # noqa: F401
+from .running import (KERNEL_NAME, SUMMARY_KEYS, NotebookRun, ReproduceResult, _run_on_cluster,  # noqa: F401
+                      read_summary, run_notebook)
+
+__all__ = ["FAST_MARK", "INJECTED_TAG", "KERNEL_NAME", "NOTEBOOKS_DIR", "NotebookRun", "REPORTS_DIR",
+           "RESERVED_PARAMETERS", "ReproduceResult", "SCHEDULER_PARAMETER", "SUMMARY_KEYS", "injected_source",
+           "notebook_parameters", "parameter_specs", "parameterized", "parse_parameter_value", "read_summary",
+           "reproduce", "resolve_parameters", "run_notebook", "select_notebooks", "summary_markdown"]
+
+#: Notebooks run by default: ``notebooks/`` in the working directory (the project root, where
+#: ``make reproduce`` and ``python -m uwbwb reproduce`` are run).
+NOTEBOOKS_DIR = Path("notebooks")
+#: Default output folder: ``reports/`` in the working directory.
+REPORTS_DIR = Path("reports")
+
+
+def select_notebooks(notebooks_dir: str | os.PathLike | None = None,
+                     only: Iterable[str] | None = None) -> list[Path]:
+    """Notebooks to run, sorted by file name.
+
+    Parameters
+    ----------
+    notebooks_dir
+        Folder of ``*.ipynb`` files; default :data:`NOTEBOOKS_DIR` (``notebooks/`` in the working directory).
+    only
+        Keep notebooks whose file name or stem equals, or whose stem starts
+        with, one of these (``"00"``, ``"00_quickstart"``, ``"00_quickstart.ipynb"``).
+
+    Raises
+    ------
+    ValueError
+        No notebooks in the folder, or an ``only`` pattern that matches none.
+    """
+    notebooks_dir = Path(NOTEBOOKS_DIR if notebooks_dir is None else notebooks_dir)
+    found = sorted(notebooks_dir.expanduser().resolve().glob("*.ipynb"))
+    if not found:
+        raise ValueError(f"no notebooks (*.ipynb) in {notebooks_dir}")
+    if only is None:
+        return found
+    patterns = list(only)
+    unmatched = [p for p in patterns if not any(_matches(nb, p) for nb in found)]
+    if unmatched:
+        raise ValueError(f"no notebook matches {', '.join(map(repr, unmatched))}; "
+                         f"available: {', '.join(nb.stem for nb in found)}")
+    return [nb for nb in found if any(_matches(nb, p) for p in patterns)]
+
+
+def _matches(notebook: Path, pattern: str) -> bool:
+    pattern = pattern.removesuffix(".ipynb")
+    return bool(pattern) and notebook.stem.startswith(pattern)
+
+
+def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
+              out: str | os.PathLike | None = None, parameters: Mapping[str, Any] | None = None,
+              text_parameters: Mapping[str, str] | None = None,
+              timeout_s: float | None = None, notebooks_dir: str | os.PathLike | None = None,
+              kernel_name: str = KERNEL_NAME, scheduler=None, scheduler_timeout_s: float | None = None,
+              log: Callable[[str], None] | None = None) -> ReproduceResult:
+    """Execute the notebooks and aggregate their summaries.
+
+    Parameters
+    ----------
+    quick
+        Pass ``FAST=True`` (the CI setting: smaller experiments, looser checks). An
+        explicit ``FAST=False``, or an explicit value that a notebook's FAST mode would
+        replace or lower, is refused (see :func:`resolve_parameters`).
+    only
+        Notebook selection, see :func:`select_notebooks`.
+    out
+        Output folder; default :data:`REPORTS_DIR` (``reports/`` in the working directory).
+    parameters
+        Extra notebook parameters as Python values, checked by each notebook's spec
+        (:func:`parameter_specs`); each goes to the selected notebooks that declare it.
+    text_parameters
+        Extra notebook parameters as typed on the command line, typed by each
+        notebook's declared default (see :func:`resolve_parameters`).
+    timeout_s
+        Execution timeout per cell, in seconds (None: no limit).
+    notebooks_dir
+        Folder of notebooks; default :data:`NOTEBOOKS_DIR` (``notebooks/`` in the working directory).
+    kernel_name
+        Jupyter kernel to execute with.
+    scheduler
+        None: the notebooks run one after the other in this process's machine.
+        ``"local"`` (a :class:`distributed.LocalCluster` sized to the machine), a
+        Dask scheduler address or a ``distributed.Client``: every notebook is a task
+        on that cluster, as many at once as it has worker threads, and receives the
+        cluster's address as :data:`SCHEDULER_PARAMETER`, so its sweeps run there
+        too. The workers need the package and the data (not the output folder:
+        executed notebooks and summaries come back to this process).
+    scheduler_timeout_s
+        Seconds a scheduler address (``scheduler``, or a ``DASK_SCHEDULER`` value given
+        as a parameter) has to answer as a Dask scheduler, checked before any notebook
+        runs; also passed to the kernels (``$UWBWB_SCHEDULER_TIMEOUT_S``) for the
+        notebooks' own connections. None: :func:`uwbwb.parallel.connect_timeout_s`.
+    log
+        Called with one progress line per notebook (e.g. ``print``).
+
+    Returns
+    -------
+    ReproduceResult
+        ``exit_code`` is non-zero when a notebook failed or wrote no valid summary.
+
+    Raises
+    ------
+    ValueError
+        Before any notebook runs: bad selection, a reserved or unknown parameter
+        name, a value its spec refuses, an explicit value that ``FAST=True`` would
+        replace or lower, a notebook without ``FAST`` under ``quick`` or without
+        :data:`SCHEDULER_PARAMETER` under ``scheduler``, the scheduler parameter given
+        as well as ``scheduler``, or a non-positive timeout.
+    uwbwb.parallel.SchedulerUnreachable
+        (a ``ConnectionError``) Before any notebook runs: no Dask scheduler answered
+        in time at the address given (the message names it and what was found there).
+    """
+    if timeout_s is not None and not timeout_s > 0:
+        raise ValueError(f"timeout must be positive seconds, got {timeout_s!r}")
+    notebooks = select_notebooks(notebooks_dir, only)
+    if quick:
+        lacking = [nb.stem for nb in notebooks if "FAST" not in notebook_parameters(nb)]
+        if lacking:
+            raise ValueError(f"--quick sets FAST, which {', '.join(lacking)} does not declare in its parameters cell")
+    given = dict(parameters or {})
+    kernel_env = {}
+    if scheduler_timeout_s is not None:
+        kernel_env[parallel.TIMEOUT_ENV] = repr(parallel.connect_timeout_s(scheduler_timeout_s))
+    client = None
+    if scheduler is not None:
+        if SCHEDULER_PARAMETER in given or SCHEDULER_PARAMETER in (text_parameters or {}):
+            raise ValueError(f"give the cluster once: scheduler={scheduler!r} sets {SCHEDULER_PARAMETER} itself")
+        lacking = [nb.stem for nb in notebooks if SCHEDULER_PARAMETER not in notebook_parameters(nb)]
+        if lacking:
+            raise ValueError(f"--scheduler sets {SCHEDULER_PARAMETER}, which {', '.join(lacking)} does not declare "
+                             f"in its parameters cell")
+        resolve_parameters(notebooks, given, text=text_parameters, quick=quick)   # bad values first
+        client = parallel.connect(scheduler, timeout_s=scheduler_timeout_s)
+        given[SCHEDULER_PARAMETER] = client.scheduler.address
+    resolved = resolve_parameters(notebooks, given, text=text_parameters, quick=quick)
+    addresses = {params[SCHEDULER_PARAMETER] for params in resolved.values()
+                 if params.get(SCHEDULER_PARAMETER) not in (None, "local")}
+    if client is None and addresses:      # a cluster given as a parameter: check it answers before any notebook runs
+        for address in sorted(addresses):
+            parallel.probe(address, timeout_s=scheduler_timeout_s)
+    if log:
+        for name in ({"FAST": True} if quick else {}) | dict(given) | dict(text_parameters or {}):
+            receivers = [nb.stem for nb in notebooks if name in resolved[nb]]
+            if len(receivers) < len(notebooks):
+                log(f"parameter {name} goes to {', '.join(receivers)} only (the others do not declare it)")
+    out_dir = Path(REPORTS_DIR if out is None else out).expanduser().resolve()
+    out_dir.mkdir(parents=True, exist_ok=True)
+
+    runs = []
+    if client is not None:
+        try:
+            runs = _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env)
+        finally:
+            if isinstance(scheduler, str) and scheduler.strip() == "local":   # the cluster started for this run
+                parallel.shutdown(scheduler)
+    for i, source in enumerate(notebooks if client is None else (), 1):
+        if log:
+            log(f"[{i}/{len(notebooks)}] {source.stem} ...")
+        run = run_notebook(source, out_dir, resolved[source], timeout_s=timeout_s, kernel_name=kernel_name,
+                           kernel_env=kernel_env)
+        runs.append(run)
+        if log:
+            log(f"[{i}/{len(notebooks)}] {run.notebook}: {run.status} ({run.seconds:.1f} s)"
+                + (f" — {run.error}" if run.error else ""))
+
+    summary_json, summary_md = out_dir / "summary.json", out_dir / "summary.md"
+    result = ReproduceResult(runs=tuple(runs), out_dir=out_dir, summary_json=summary_json,
+                             summary_md=summary_md)
+    summary_json.write_text(json.dumps(result.rows, indent=2, allow_nan=True) + "\n", encoding="utf-8")
+    shown = {name: value for params in resolved.values() for name, value in params.items()}
+    summary_md.write_text(summary_markdown(runs, shown), encoding="utf-8")
+    return result
