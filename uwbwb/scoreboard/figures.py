@@ -50,6 +50,7 @@ def rmse_vs_bound(board, ax=None, *, methods: Sequence[str] | None = None, unit:
         ax.annotate(text, (xi, r), ha="center", va="bottom", fontsize="x-small", xytext=(0, 2),
                     textcoords="offset points")
     ax.set_xticks(x, names, rotation=30, ha="right")
+    ax.set_xlabel("method")
     ax.set_ylabel(f"RMSE ({unit})")
     top = np.nanmax(np.concatenate([rmse, bound, common])) if len(names) else 1.0
     ax.set_ylim(0, 1.3 * top)

@@ -1,0 +1,107 @@
+"""Notebook 06's teaching pieces: the exercises' checks, the class-size outputs and the computed notes."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from uwbwb.scoreboard import exercises as sbx
+from uwbwb.scoreboard import synthetic as syn
+from uwbwb.scoreboard import teaching as sbt
+from uwbwb.scoreboard.estimators import CalibratedLs, RawLs, TdoaEkfEstimator
+
+CONFIG = syn.SyntheticConfig()
+
+
+@pytest.fixture(scope="module")
+def board():
+    ests = [RawLs(), CalibratedLs(), TdoaEkfEstimator("RJ", grid=(0.05, 0.5, 5.0)), TdoaEkfEstimator("RF", grid=(1.0,))]
+    return syn.synthetic_board(CONFIG, seed=1, estimators=ests, fast=True)
+
+
+def test_doubling_the_range_noise_doubles_the_ls_bound_and_rmse():
+    check = sbx.noisier_ranges(CONFIG, factor=2.0, n_runs=2, seed=3)
+    assert check.holds, check
+    assert check.numbers["bound ratio"] == pytest.approx(2.0, rel=0.01)
+
+
+def test_the_noise_check_fails_when_the_claim_is_wrong():
+    # factor 1: nothing changes, so "the bound grows ×1" holds; a claimed ×2 on unchanged ranges would not —
+    # the check compares the measured ratio with the factor it claims
+    same = sbx.noisier_ranges(CONFIG, factor=1.0, n_runs=2, seed=3)
+    assert same.holds and same.numbers["bound ratio"] == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="factor"):
+        sbx.noisier_ranges(CONFIG, factor=0.0)
+
+
+def test_a_lower_rate_raises_the_filter_bound_and_not_the_snapshot_bound():
+    check = sbx.lower_rate(CONFIG, rate_hz=4.0, n_runs=2, seed=4)
+    assert check.holds, check
+    n = check.numbers
+    assert n["EKF-RF bound at 4 Hz (cm)"] > 1.1 * n["EKF-RF bound at 10 Hz (cm)"]
+    assert n["LS bound at 4 Hz (cm)"] == pytest.approx(n["LS bound at 10 Hz (cm)"], rel=0.1)
+
+
+def test_the_rate_check_refuses_a_rate_that_is_not_lower():
+    with pytest.raises(ValueError, match="rate_hz"):
+        sbx.lower_rate(CONFIG, rate_hz=20.0)
+    with pytest.raises(ValueError, match="n_runs"):
+        sbx.lower_rate(CONFIG, n_runs=1)
+
+
+def test_short_table_keeps_the_main_columns_of_the_methods_that_ran(board):
+    t = sbt.short_table(board)
+    assert list(t.index) == ["raw LS", "LS", "EKF-RJ", "EKF-RF"]
+    assert tuple(t.columns) == sbt.SHORT_COLUMNS[1:]
+    np.testing.assert_allclose(t["rmse_m"], board.table().set_index("method").loc[t.index, "rmse_m"], atol=5e-4)
+
+
+def test_short_findings_are_shorter_and_name_the_most_accurate_method(board):
+    full = sbt.findings_markdown({"synthetic": board}, rng=np.random.default_rng(0))
+    short = sbt.findings_markdown({"synthetic": board}, rng=np.random.default_rng(0), short=True)
+    best = board.table().set_index("method")["rmse_m"].idxmin()
+    assert f"lowest RMSE {best}" in short and f"lowest RMSE {best}" in full
+    assert len(short.split()) < len(full.split()) and len(short.split()) <= 200
+
+
+def test_panel_note_quotes_the_board(board):
+    df = board.table().set_index("method")
+    best = df["rmse_m"].idxmin()
+    note = sbt.panel_note(board)
+    assert f"{best}, RMSE {df.loc[best, 'rmse_m']:.3f} m" in note and len(note.splitlines()) <= 3
+    above = int((df["rmse_over_common"] > 1).sum())
+    assert f"{above} of {len(df)} methods stand above it" in note
+    assert f"best LS, {df.loc['LS', 'rmse_m']:.3f} m" in note or f"best raw LS, {df.loc['raw LS', 'rmse_m']:.3f} m" in note
+
+
+def test_sigma_w_note_reads_the_tuning_record(board):
+    p = board.calibration.params("EKF-RJ")
+    note = sbt.sigma_w_note(board, "RJ")
+    assert f"σ_w to {p['sigma_w']:.3g} m/s³" in note and "CEP95" in note and "RMSE" in note
+    assert f"of {len(p['grid'])} on a log grid" in note
+    flat = replace(board.calibration, tuned={**board.calibration.tuned,
+                                             "EKF-RJ": {**p, "grid_rmse_m": (0.100, 0.101, 0.300)}})
+    assert "2 of the 3 values (0.05 to 0.5 m/s³) are within 5%" in sbt.sigma_w_note(replace(board, calibration=flat), "RJ")
+    steep = replace(board.calibration, tuned={**board.calibration.tuned,
+                                              "EKF-RJ": {**p, "grid_rmse_m": (0.100, 0.200, 0.300)}})
+    assert "no other grid value is within 5%" in sbt.sigma_w_note(replace(board, calibration=steep), "RJ")
+    assert sbt.sigma_w_note(board, "RW") == ""            # no EKF-RW on this board
+
+
+def test_panel_offers_only_the_tags_the_boards_have(board):
+    panel = sbt.panel({"synthetic": board})
+    assert len(panel.controls["tag_index"].options) == len(board.tags) == 1
+    panel.set(methods="per-epoch fixes (LS family)")
+    assert "methods shown" in panel.readout_text
+
+
+def test_figure_note_counts_epochs_under_the_band(board):
+    mc_eff = syn.efficiency_summary(syn.monte_carlo(2, CONFIG, seed=2))
+    note = sbt.figure_note(board, mc_eff)
+    e = board.entry("EKF-RF", "tag")
+    band = np.sqrt(e.bound_trace_m2)
+    ok = e.scored & np.isfinite(band)
+    assert f"at {np.mean(e.error_m[ok] <= band[ok]):.0%} of the epochs" in note
+    assert "EKF-RF" in note.splitlines()[0] and len(note.splitlines()) <= 3
