@@ -5,7 +5,8 @@ in one layer are independent (none imports another). Imports inside functions ma
 units at all: a dependency is declared at the top of the module, where it can be seen.
 
 The order is the one the tree has (derived from its imports, issue 19): containers below the
-models, the models below the estimators and simulators, data access above them (a stand-in is
+models, the models below geometry (its range functions are the TWR model's) and below the
+estimators and simulators, data access above them (a stand-in is
 built from the simulators), presentation (plotting, widgets) above the data, the scoreboard (a
 harness any experiment may use) above the core, one experiment package per notebook above it,
 and the tooling (parameter typing, reproduce, CLI) last.
@@ -30,7 +31,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "uwbwb"
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors", "validate", "parallel"),
     ("types",),
-    ("geometry", "metrics", "models"),
+    ("models",),
+    ("geometry", "metrics"),
     ("bounds", "calibration", "sampling", "sim"),
     ("filters",),
     ("datasets",),
@@ -48,7 +50,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 DEBT: dict[tuple[str, str, str], str] = {
     ("uwbwb.datasets.standin", "widgets", "upward"): "issue 19: notebooks call uw.widgets.data_banner(**room.banner_args())",
     ("uwbwb.datasets.standin", "widgets", "local"): "issue 19: notebooks call uw.widgets.data_banner(**room.banner_args())",
-    ("uwbwb.calibration", "types", "local"): "issue 19: declare the import at the top",
     ("uwbwb.experiments.pruning.study", "calibration", "local"): "issue 19: declare the import at the top",
     ("uwbwb.notebook_params", "parallel", "local"): "issue 19 item 8: reproduce as its own module with paths injected",
 }

@@ -1,52 +1,4 @@
-"""Interactive panels for the notebooks: controls, a readout and a figure.
-
-Every notebook ends with one or more :class:`Panel`\\ s. A panel is a set of
-named controls and a ``render`` function that recomputes the experiment from
-the control values and returns what to show::
-
-    import functools
-    import uwbwb as uw
-
-    @functools.lru_cache(maxsize=32)          # values are hashable: cache per setting
-    def run(sigma_m, n_anchors, seed):
-        cfg = dataclasses.replace(BASE_CONFIG, sigma_m=sigma_m, n_anchors=n_anchors)
-        return uw.experiments.paper.run(cfg, rng=np.random.default_rng(seed))
-
-    def render(sigma_m, n_anchors, seed):
-        result = run(sigma_m, n_anchors, seed)
-        fig, ax = plt.subplots()
-        uw.plotting.error_cdf(result, ax=ax)
-        return fig, {"RMSE (cm)": 100 * result.rmse_m}
-
-    panel = uw.widgets.Panel("Error CDF", {
-        "sigma_m": uw.widgets.float_slider("σ", 0.1, 0.01, 1.0, 0.01, unit="m"),
-        "n_anchors": uw.widgets.int_slider("anchors", 4, 3, 8),
-        "seed": uw.widgets.seed_box(0),
-    }, render)
-    panel                                      # or panel.show()
-
-``render`` may return a matplotlib ``Figure``, a readout (headline numbers), or
-a tuple ``(figure, readout)``. A readout is a ``str`` (shown as plain,
-pre-formatted text), a mapping ``{name: value}`` (shown as a two-column table,
-floats with 4 significant digits) or any object with ``_repr_html_`` such as
-``IPython.display.HTML`` or a small ``pandas.DataFrame``.
-
-The panel renders once when it is created, so it also works headless (papermill,
-tests); an exception from that first render propagates, so a notebook whose
-panel cannot draw fails like any other cell. Afterwards every control change
-re-renders. Exceptions from those renders do not disappear into the kernel log:
-the panel shows them in an element with CSS class ``uwbwb-error`` (panel title
-and the exception's last traceback line, the full traceback folded below) and
-keeps the exception in :attr:`Panel.last_error`.
-
-Figures are converted to PNG and closed immediately, and so is every other
-pyplot figure the render function opened, so panels never leak open figures.
-
-DOM classes, for styling and for the browser test: the panel is a ``VBox`` with
-class ``uwbwb-panel``; inside it ``uwbwb-title``, ``uwbwb-controls``,
-``uwbwb-error`` (only while an error is shown), ``uwbwb-readout`` (an ``HTML``)
-and ``uwbwb-figure`` (an ``Output``).
-"""
+"""Interactive panels: controls, readouts, a reused figure and the :class:`Panel` (see :mod:`uwbwb.widgets`)."""
 
 from __future__ import annotations
 
@@ -55,7 +7,6 @@ import html
 import io
 import math
 import traceback
-from dataclasses import dataclass
 from collections.abc import Callable, Mapping, Sequence
 from decimal import Decimal
 from html.parser import HTMLParser
@@ -66,125 +17,10 @@ import ipywidgets as widgets
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
-__all__ = ["Panel", "PanelFigure", "float_slider", "int_slider", "dropdown", "seed_box", "data_banner",
-           "ExerciseCheck", "what_you_should_see"]
 
 #: Width of a control row; descriptions take their natural width inside it.
 _CONTROL_LAYOUT = {"width": "34em"}
 _CONTROL_STYLE = {"description_width": "initial"}
-
-
-# --------------------------------------------------------------------------- data banner
-
-_BANNER_STYLE = {
-    True: "background:#e3f1e3;border:1px solid #4a8;padding:6px",
-    False: "background:#fde2e1;border:2px solid #c0392b;padding:8px;font-weight:bold",
-}
-
-
-def data_banner(dataset: str, found: bool, *, detail: str = "", instead: str = "this section is skipped"):
-    """The one banner every notebook shows about its real data, for ``IPython.display.display``.
-
-    Parameters
-    ----------
-    dataset
-        Dataset name, e.g. ``"lias-planar-uwb"``.
-    found
-        Whether the real data was found and is used: a quiet green line; otherwise a
-        conspicuous red box that says what happens instead and how to get the data.
-    detail
-        What was used (when found) or why it is missing (when not), one sentence.
-    instead
-        When not found: what the notebook does instead (``"this section is skipped"``,
-        ``"a synthetic stand-in is shown"``, ...).
-
-    Returns
-    -------
-    IPython.display.HTML
-        Its text is escaped; the element carries CSS class ``uwbwb-data-banner``.
-    """
-    from IPython.display import HTML
-
-    name = html.escape(dataset)
-    if found:
-        text = f"Real data <b>{name}</b> found" + (f": {html.escape(detail)}" if detail else ".")
-    else:
-        why = f" ({html.escape(detail)})" if detail else ""
-        text = (f"Real data {name} is not available on this machine{why}: {html.escape(instead)}. "
-                f"Get it with <code>python -m uwbwb fetch {name}</code> or set DATA_DIR.")
-    return HTML(f'<div class="uwbwb-data-banner" style="{_BANNER_STYLE[bool(found)]}">{text}</div>')
-
-
-# --------------------------------------------------------------------------- teaching notes
-
-#: Longest "what you should see" note (characters): about three lines of a notebook.
-SEE_MAX_CHARS = 420
-
-
-def what_you_should_see(text: str):
-    """The short note under a panel or figure that tells a student what to look at.
-
-    Parameters
-    ----------
-    text
-        At most three lines and :data:`SEE_MAX_CHARS` characters of Markdown; numbers in it
-        should be computed from the run (f-strings), not typed in.
-
-    Returns
-    -------
-    IPython.display.Markdown
-        ``**What you should see.** text``, for ``IPython.display.display`` (or as a cell's value).
-
-    Raises
-    ------
-    ValueError
-        Empty text, more than three lines, or longer than :data:`SEE_MAX_CHARS`.
-    """
-    from IPython.display import Markdown
-
-    lines = [ln for ln in str(text).strip().splitlines() if ln.strip()]
-    if not lines:
-        raise ValueError("text: a 'what you should see' note needs some text")
-    if len(lines) > 3 or len(str(text).strip()) > SEE_MAX_CHARS:
-        raise ValueError(f"text: a 'what you should see' note has at most 3 lines and {SEE_MAX_CHARS} characters, "
-                         f"got {len(lines)} lines and {len(str(text).strip())} characters")
-    return Markdown("**What you should see.** " + " ".join(ln.strip() for ln in lines))
-
-
-@dataclass(frozen=True)
-class ExerciseCheck:
-    """Outcome of an exercise's check: the predicted direction, whether it held, and the numbers.
-
-    An exercise asks "change X, predict Y"; the experiment package computes both settings
-    and returns one of these. The notebook's check cell is ``assert check.holds, check``
-    followed by ``check`` (shown as one line of Markdown).
-
-    Attributes
-    ----------
-    claim
-        The direction asserted, e.g. ``"PF error above KF error"``.
-    holds
-        Whether the run shows it.
-    numbers
-        ``{name: value}`` the verdict was computed from, with units in the names.
-    """
-
-    claim: str
-    holds: bool
-    numbers: Mapping[str, float]
-
-    def __post_init__(self):
-        object.__setattr__(self, "holds", bool(self.holds))
-        object.__setattr__(self, "numbers", MappingProxyType(dict(self.numbers)))
-
-    def __str__(self) -> str:
-        nums = ", ".join(f"{k} = {_format_number(float(v))}" for k, v in self.numbers.items())
-        return f"{'holds' if self.holds else 'DOES NOT HOLD'}: {self.claim} ({nums})"
-
-    def _repr_markdown_(self) -> str:
-        nums = ", ".join(f"{k} = {_format_number(float(v))}" for k, v in self.numbers.items())
-        mark = "✔ check holds" if self.holds else "✘ check does not hold"
-        return f"**{mark}:** {self.claim} — {nums}"
 
 
 # --------------------------------------------------------------------------- controls

@@ -1,46 +1,6 @@
-"""Set-noise particle filter, its set-blind baseline, and the exact set-noise Kalman filter (paper 000).
+"""The set-noise particle filter (paper 000): inputs, steps, one run, and the batched sweep over trials and σ_d.
 
-Model (paper 000, eqs. 2–6). Motion: :class:`uwbwb.models.motion.VelocityKick`, state
-``[x, y, ẋ, ẏ]`` (m, m/s); between fixes ``T`` seconds apart (eq. 3)::
-
-    x ← x + T ẋ,   ẋ ← ẋ + N(0, σ_d)      (same for y)
-
-so σ_d (m/s) is the standard deviation of the velocity change *per step*.
-A fix ``(x̃, ỹ)`` taken with sensor set ``s`` is ``x̃ = x + N(μx_s, σx_s)``, ``ỹ = y + N(μy_s, σy_s)``
-(eq. 6), with ``(μ, σ)`` from a :class:`uwbwb.models.setnoise.SetNoiseModel`.
-
-Filters
--------
-* **Set-noise PF** (eqs. 7–12): K particles start at the known position with zero
-  velocity and equal weights; each fix multiplies the weights by eq. 9 with the
-  observed set's ``(μ, σ)``; weights are normalised (eq. 10); the output is the
-  weighted mean (eq. 11); when ``ESS = K/(1+CV) < 0.5·K`` (eq. 12) the particles
-  are resampled. The paper writes "ESS < 0.5"; we read it as a fraction of K.
-  Resampling is systematic by default; ``resampler="multinomial"`` is the paper's
-  "select with replacement" (same expectation, more variance, O(K log K)).
-* **Baseline PF**: the same filter fed the facility-wide model for every fix
-  (:meth:`~uwbwb.models.setnoise.SetNoiseModel.facility_only`).
-* **Set-noise KF**: given the observed sets the model is linear-Gaussian, so a
-  Kalman filter with the set's bias and variance is the exact posterior the PF
-  approximates. With the known start (``P₀ = 0``) both filters share the prior.
-
-Timing: the prior holds at the first fix (step 0 is an update only); every later
-fix is preceded by one prediction over the actual interval ``T = t_k − t_{k−1}``.
-
-The PF equations are implemented at three levels:
-
-* :func:`pf_init`, :func:`pf_predict`, :func:`pf_update`, :func:`pf_estimate`,
-  :func:`pf_resample` — the textbook steps on ``(..., K, 4)`` particles, the prediction
-  being the motion model's own :meth:`~uwbwb.models.motion.VelocityKick.step`;
-* :func:`reference_pf` — one filter run written with those steps (the readable
-  reference, and the "per-trial loop" of ``benchmarks/bench_setnoise_pf.py``);
-* :func:`pf_sweep` — the Monte Carlo sweep: filter variants × trials × σ_d values
-  as leading array axes, processed in cache-sized blocks with in-place updates (eq. 3
-  written out per state component; tested to reproduce :func:`reference_pf`).
-
-The Kalman filter (:func:`kf_sweep`) runs the same model in closed form per axis; it is
-tested against the generic Kalman steps with :class:`~uwbwb.models.motion.VelocityKick`'s
-``F`` and ``Q``.
+See :mod:`uwbwb.filters.setnoise` for the model.
 """
 
 from __future__ import annotations
@@ -50,12 +10,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..models.motion import VelocityKick
-from ..models.setnoise import SetNoiseModel, log_likelihood
-from .. import parallel
-from ..types import EstimateStatus, Estimates, SetFixLog
-from ..validate import integer, probability
-from . import particle
+from ...models.motion import VelocityKick
+from ...models.setnoise import SetNoiseModel, log_likelihood
+from ... import parallel
+from ...types import EstimateStatus, Estimates, SetFixLog
+from ...validate import integer, probability
+from .. import particle
 
 #: State layout of the set-noise filters (that of a 2-D :class:`~uwbwb.models.motion.VelocityKick`).
 STATE = VelocityKick(dim=2).state_labels
@@ -581,112 +541,3 @@ class _Rows:
         flat = self.identity.copy()
         flat.reshape(-1, K)[rows] = idx + (rows * K)[:, None]
         return flat
-
-
-# --------------------------------------------------------------------------- Kalman filter
-
-
-@dataclass(frozen=True)
-class KFSweep:
-    """Set-noise Kalman filter for several σ_d values (and noise-model variants).
-
-    Attributes
-    ----------
-    t_s
-        Shape ``(T,)``.
-    sigma_d_mps
-        Shape ``(S,)``.
-    state
-        Posterior means ``(..., S, T, 4)``.
-    cov
-        Posterior covariances ``(..., S, T, 4, 4)`` (x and y blocks; cross terms are zero).
-    nis
-        Normalised innovation squared per fix, ``(..., S, T)`` (χ² with 2 dof if the model holds).
-    """
-
-    t_s: np.ndarray
-    sigma_d_mps: np.ndarray
-    state: np.ndarray
-    cov: np.ndarray
-    nis: np.ndarray
-
-    @property
-    def pos_m(self) -> np.ndarray:
-        return self.state[..., :2]
-
-    def mean_error_m(self, truth_m) -> np.ndarray:
-        """Mean Euclidean error against ``truth_m (T, 2)``, shape ``(..., S)``."""
-        return np.linalg.norm(self.pos_m - np.asarray(truth_m, float), axis=-1).mean(axis=-1)
-
-
-def kf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps) -> KFSweep:
-    """Exact set-noise Kalman filter, vectorised over σ_d values (and leading model axes).
-
-    Per axis the state ``(p, v)`` evolves by eq. 3 and the fix observes ``p + μ``
-    with variance ``σ²``; the x and y axes decouple (diagonal noise), so each is a
-    2-state filter run in closed form with the Joseph-form update
-    ``P⁺ = (I − KH) P (I − KH)ᵀ + K R Kᵀ``. It is checked against
-    :mod:`uwbwb.filters.kalman` (the filterpy edge) in the tests.
-
-    Parameters
-    ----------
-    t_s, z_m, x0_m
-        As for :func:`reference_pf`.
-    mu_m, sigma_m
-        Shape ``(..., T, 2)``.
-    sigma_d_mps
-        Scalar or ``(S,)``, m/s.
-
-    Returns
-    -------
-    KFSweep
-    """
-    t, dt = _times(t_s)
-    T = t.size
-    z, mu, sd = _noise_arrays(z_m, mu_m, sigma_m, T)
-    sig_d = np.atleast_1d(np.asarray(sigma_d_mps, float))
-    if sig_d.ndim != 1 or not np.all(np.isfinite(sig_d) & (sig_d >= 0)):
-        raise ValueError(f"sigma_d_mps must be a finite non-negative scalar or 1-D array, got {sigma_d_mps!r}")
-    lead = mu.shape[:-2]
-    S = sig_d.size
-    bshape = lead + (S, 2)                                  # batch: models..., σ_d, axis
-    q = np.broadcast_to(sig_d[:, None] ** 2, bshape)
-    zc = np.broadcast_to((z - mu)[..., None, :, :], lead + (S, T, 2))   # bias-corrected fixes
-    r = np.broadcast_to((sd ** 2)[..., None, :, :], lead + (S, T, 2))
-    p = np.broadcast_to(np.asarray(x0_m, float), bshape).copy()
-    v = np.zeros(bshape)
-    P00, P01, P11 = np.zeros(bshape), np.zeros(bshape), np.zeros(bshape)
-    state = np.empty(lead + (S, T, 4))
-    cov = np.zeros(lead + (S, T, 4, 4))
-    nis = np.zeros(lead + (S, T))
-    for k in range(T):
-        if k:
-            h = dt[k]
-            p = p + h * v
-            P00, P01, P11 = P00 + 2 * h * P01 + h * h * P11, P01 + h * P11, P11 + q
-        rk = r[..., k, :]
-        innov = zc[..., k, :] - p
-        Sk = P00 + rk
-        K0, K1 = P00 / Sk, P01 / Sk
-        p, v = p + K0 * innov, v + K1 * innov
-        a = 1.0 - K0
-        P00, P01, P11 = (a * a * P00 + K0 * K0 * rk,
-                         a * (P01 - K1 * P00) + K0 * K1 * rk,
-                         P11 - 2 * K1 * P01 + K1 * K1 * P00 + K1 * K1 * rk)
-        nis[..., k] = np.sum(innov * innov / Sk, axis=-1)
-        state[..., k, :2], state[..., k, 2:] = p, v
-        for ax in (0, 1):
-            i, j = ax, ax + 2                               # position and velocity of this axis
-            cov[..., k, i, i], cov[..., k, i, j] = P00[..., ax], P01[..., ax]
-            cov[..., k, j, i], cov[..., k, j, j] = P01[..., ax], P11[..., ax]
-    return KFSweep(t, sig_d, state, cov, nis)
-
-
-def run_set_noise_kf(fixes: SetFixLog, model: SetNoiseModel, x0_m, sigma_d_mps: float,
-                     name: str = "set-noise KF") -> FilterRun:
-    """The set-noise Kalman filter on one recording (see :func:`kf_sweep`)."""
-    mu, sd = model_noise(fixes, model)
-    res = kf_sweep(fixes.t_s, fixes.pos_m, mu, sd, x0_m, sigma_d_mps)
-    n = len(fixes)
-    return FilterRun(res.t_s, res.state[0], np.full(n, np.nan), np.zeros(n, bool), name,
-                     {"sigma_d_mps": sigma_d_mps, "cov": res.cov[0], "nis": res.nis[0]})
