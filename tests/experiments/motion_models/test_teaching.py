@@ -124,7 +124,8 @@ def test_tuning_criterion_facts_and_sentence_flip():
     far = facts.tuning_criterion_facts(_curves([0.20, 0.15, 0.12, 0.10], [0.08, 0.05, 0.07, 0.06]), "RJ")
     assert not far["adjacent"] and "different points" in facts.tuning_criterion_sentence(far, "d/x")
     same = facts.tuning_criterion_facts(_curves([0.2, 0.1, 0.15, 0.2], [0.2, 0.1, 0.15, 0.2]), "RJ")
-    assert same["same"] and "both criteria pick 0.3" in facts.tuning_criterion_sentence(same, "d/x")
+    assert same["same"] and "both criteria pick 0.3 m/s³: the criterion makes no difference" in \
+        facts.tuning_criterion_sentence(same, "d/x")
     with pytest.raises(ValueError, match="model"):
         facts.tuning_criterion_facts(_curves([0.1] * 4, [0.1] * 4), "RW")
 

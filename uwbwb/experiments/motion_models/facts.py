@@ -66,9 +66,9 @@ def tuning_criterion_sentence(f: dict, data: str) -> str:
     head = (f"**Why notebook 06 can report another σ_w for EKF-{m} on {data}.** This notebook keeps the σ_w with the "
             f"lowest mean CEP95 over the tags; the scoreboard (06) keeps the one with the lowest mean RMSE. ")
     if f["same"]:
-        return head + (f"On this sweep ({f['n_grid']} grid points) both criteria pick {f['by_cep95']:.3g} {u}, so the "
-                       "criterion cannot explain a difference here; look at the other settings (χ² gate, range "
-                       "calibration, grid).")
+        return head + (f"On this sweep's {f['n_grid']}-point grid both criteria pick {f['by_cep95']:.3g} {u}: the "
+                       "criterion makes no difference here (where the minimum is flat a finer grid can separate them); "
+                       "the other settings that differ between the notebooks are the χ² gate and the range calibration.")
     a, b = f["by_cep95"], f["by_rmse"]
     where = "neighbouring points" if f["adjacent"] else "different points"
     verdict = ("the minimum is flat: either value is as good, and the criterion alone moves the pick"

@@ -47,6 +47,8 @@ def covariance_figure(empirical: np.ndarray, model: np.ndarray, labels: Sequence
         ax.set_xticks(range(len(labels)), labels)
         ax.set_yticks(range(len(labels)), labels)
         ax.set_title(name, fontsize="medium")
+        ax.set_xlabel("anchor of the TDoA")
+        ax.set_ylabel("anchor of the TDoA")
     fig.colorbar(im, ax=axes, label="cm²", shrink=0.85)
     if title:
         fig.suptitle(title)
