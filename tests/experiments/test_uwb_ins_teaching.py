@@ -96,3 +96,32 @@ def test_loose_tuning_picks_the_lowest_rmse_and_flags_the_edge(tmp_path):
     assert [r["value"] for r in rows] == [tun.q, tun.r, 2.0, 3.0]
     with pytest.raises(ValueError, match="grid"):
         realtune.tune_loose(rec, cal, grid=())
+
+
+def test_figures_draw_truth_only_where_it_exists_and_keep_uwb_spikes_off_the_axes():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from uwbwb.experiments.uwb_ins import figures
+
+    n = 50
+    t = np.arange(n) * 0.1
+    truth = np.column_stack([np.linspace(1, 3, n), np.full(n, 2.0)])
+    scored = np.arange(n) >= 5
+    truth[~scored] = 0.0                                     # as compare_iasl stores epochs without truth
+    uwb = truth + 0.005
+    uwb[20] = [40.0, -30.0]                                  # one multipath spike
+    est = {"UWB-only": Estimates(t, uwb, np.ones(n, np.int8), "UWB-only"),
+           "tight": Estimates(t, truth + 0.01, np.ones(n, np.int8), "tight")}
+    comp = study.Comparison("c", Trajectory(t, truth, name="truth"), est, {}, {"scored": scored})
+    fig, (a, b) = plt.subplots(1, 2)
+    figures.track(comp, ("UWB-only", "tight"), ax=a)
+    line = next(ln for ln in a.lines if ln.get_label() == "truth")
+    assert np.isnan(line.get_xdata()[:5]).all() and a.get_xlim()[1] < 10      # no segment from (0, 0); spike off
+    assert any("1 UWB-only fixes outside" in x.get_text() for x in a.texts)
+    figures.error_vs_time(comp, ("UWB-only", "tight"), ax=b, ylim_m=None)
+    assert b.get_ylim()[1] < 1.0 and any("UWB-only: 1 epochs above" in x.get_text() for x in b.texts)
+    assert a.get_title() and b.get_title()
+    plt.close(fig)
