@@ -19,8 +19,8 @@ CELL_TIMEOUT_S = 600
 #: audits run on every notebook and their findings are reported as warnings for the others). Add a
 #: notebook's stem here once it has ``CLASS = False`` in its parameters cell, its research cells tagged
 #: and the audits pass.
-AUDITED = ("00_quickstart", "01_set_noise_pf", "02_pruning_nls", "03_ekf_motion_models", "05_uwb_ins_fusion",
-           "06_scoreboard")
+AUDITED = ("00_quickstart", "01_set_noise_pf", "02_pruning_nls", "03_ekf_motion_models", "04_doppler_beacons",
+           "05_uwb_ins_fusion", "06_scoreboard")
 
 
 def _ids(paths):
