@@ -128,6 +128,6 @@ def explorer_note(readout: Mapping[str, float], model: str) -> str:
     ekf, ls = float(readout[f"CEP95 {name} (m)"]), float(readout["CEP95 LS (m)"])
     order = "below" if ekf < ls else "not below"
     nis = float(readout["mean NIS / dof"])
-    return (f"On {readout['run / tag']} the {name} path (CEP95 {ekf:.2f} m) is smoother than the LS fixes and its CEP95 "
-            f"is {order} LS's ({ls:.2f} m); mean NIS/dof {nis:.2f} ({readout['NIS verdict']}). "
+    return (f"On {readout['run / tag']} the {name}'s CEP95 ({ekf:.2f} m) is {order} LS's ({ls:.2f} m) (compare the paths on the left); "
+            f"mean NIS/dof {nis:.2f} ({readout['NIS verdict']}). "
             "Switch to the diagonal Σ and move the reference anchor: the numbers change; with the correlated Σ they do not.")
