@@ -59,3 +59,23 @@ def test_bad_shapes_are_rejected():
         NlosRangeModel(los, ANCHORS, np.full(6, 7.0))
     with pytest.raises(ValueError, match="pos_m must have shape"):
         _model(rng=rng).sample(np.zeros((3, 2, 5, 3)), rng=rng)
+
+
+def test_one_two_way_range_model_serves_geometry_the_tdoa_model_and_the_bounds():
+    from uwbwb import bounds, geometry
+    from uwbwb.models import ranging
+    from uwbwb.models.tdoa import TdoaModel
+    assert geometry.ranges is ranging.ranges and geometry.range_jacobian is ranging.range_jacobian
+    rng = np.random.default_rng(3)
+    A = rng.uniform(0.0, 10.0, (5, 3))
+    p = rng.uniform(0.0, 10.0, (7, 2))
+    model = TdoaModel(A, 0.1, dim=2, z_m=1.2)
+    np.testing.assert_array_equal(model.ranges(p), ranging.ranges(p, A, z_m=1.2))
+    np.testing.assert_array_equal(model.unit_vectors(p), ranging.range_jacobian(p, A, z_m=1.2))
+    J = ranging.range_jacobian(p, A, z_m=1.2)
+    np.testing.assert_allclose(bounds.range_information(p, A, 0.1, z_m=1.2),
+                               np.einsum("tni,tnj->tij", J, J) / 0.1 ** 2, rtol=1e-12)
+    # the Jacobian is the derivative of the prediction
+    h = 1e-6
+    fd = (ranging.ranges(p + [h, 0.0], A, z_m=1.2) - ranging.ranges(p - [h, 0.0], A, z_m=1.2)) / (2 * h)
+    np.testing.assert_allclose(J[..., 0], fd, atol=1e-8)
