@@ -54,7 +54,8 @@ import numpy as np
 
 from ..errors import DataFormatError
 from ..types import ChirpFlag, ChirpLog
-from .tidy import PathLike, _check_identifiers, _csv_table, _numbers, _write
+from .text import PathLike, _csv_table, _numbers
+from .tidy import _check_identifiers, _write
 
 __all__ = ["CHIRPS_HEADER", "MAX_ABS_DP_S", "read_chirps_csv", "write_chirps_csv"]
 

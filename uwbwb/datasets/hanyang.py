@@ -67,7 +67,7 @@ from ..errors import DataFormatError, DataNotFoundError
 from ..types import CleaningStep, _natural_key
 from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 from .discovery import find_dataset
-from .tidy import _decode_lines, _numbers, _read_bytes
+from .text import _decode_lines, _numbers, _read_bytes
 
 NAME = "hanyang-outdoor-uwb"
 STATIC_DIR = "Static_measurements"

@@ -101,7 +101,7 @@ from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 from .discovery import find_dataset
 from .hanyang import NAME
 from .registration import Registration, RegistrationError, register_truth
-from .tidy import _decode_lines, _numbers, _read_bytes, _split_rows
+from .text import _decode_lines, _numbers, _read_bytes, _split_rows
 
 __all__ = ["ANCHOR_COLUMNS", "AUTHORS_FILES", "AnchorFile", "DYNAMIC_DIR", "ESTIMATE_COLUMNS", "MAX_OFFSET_S",
            "TRAJECTORY_COLUMNS", "TRIM", "authors_estimates", "case_dir", "dynamic_cases", "group_epochs",

@@ -48,7 +48,7 @@ import pandas as pd
 from ..errors import DataFormatError
 from ..types import Anchors, CleaningStep, RangeLog, Recording, Trajectory, _natural_key
 from .cleaning import MAX_RANGE_M, check_ranges, order_rows
-from .tidy import _decode_lines, _read_bytes
+from .text import _decode_lines, _read_bytes
 
 __all__ = ["HEADER", "PacketLog", "load_recording", "read_packets", "write_packets"]
 
