@@ -33,7 +33,11 @@ state, the error reset to zero and ``P ← G P Gᵀ``
 runs open loop and the error state carries the whole correction (output = nominal ⊕ δx).
 
 Time: the IMU samples and the UWB epochs are merged into one time line; IMU values at
-a UWB epoch are interpolated linearly, so each update happens at its own time stamp.
+a UWB epoch are interpolated linearly between neighbouring samples, so each update happens at
+its own time stamp. Across an IMU gap (longer than ``max_imu_gap_s``) the tight filter
+interpolates nothing: it coasts (velocity and attitude held, covariance grown by an assumed
+motion, :func:`~uwbwb.models.ins.coast_transition`), keeps updating with UWB, and lists the gaps
+in ``FusionRun.meta["imu_gaps_s"]``.
 """
 
 from __future__ import annotations
@@ -49,7 +53,7 @@ from scipy.stats import chi2
 from .. import validate
 from ..models.imu import HeadingLog, ImuErrorModel
 from ..models.ins import (BA_, BG_, N_ERR, P_, TH_, V_, Mechanization, NavState, _dcm, _dcm_nb, _exp_left,
-                          _skew3, _yaw,
+                          _skew3, _yaw, coast, coast_transition,
                           euler_from_dcm, error_transition, inject, propagate, quat_to_dcm, reset_jacobian,
                           yaw_jacobian)
 from ..models.tdoa import TdoaModel, triangle_outliers
@@ -60,12 +64,13 @@ from .kalman import Gaussian, _sequential
 from .tdoa_ls import tdoa_least_squares
 
 __all__ = ["FusionRun", "HeadingLog", "LooseFilter", "RangeUpdate", "TdoaUpdate", "TightEskf", "dead_reckon",
-           "merge_timeline"]
+           "imu_gaps", "merge_timeline"]
 
 _DEG = math.pi / 180.0
 _ITER_TOL_M = 1e-4           # an iterated update stops when the position moves less than this, m
 HEADING_KNOWN_RAD = 10 * _DEG  # an initial yaw σ at most this is a known heading: the gate is engaged at once
 LOST_BUILD_S = 1.0           # lost lock: the time over which the position error is assumed to have built up, s
+MAX_IMU_GAP_STEPS = 5        # an IMU step longer than this many median steps is a gap (the loader's rule)
 SNAPSHOT_RMS_SIGMAS = 3.0    # a snapshot fix is consistent when its TDoA residual RMS is at most this many TDoA σ
 
 
@@ -99,6 +104,27 @@ def merge_timeline(imu: ImuLog, t_epoch_s: np.ndarray):
     idx = np.full(te.size, -1)
     idx[inside] = np.searchsorted(t, te[inside])
     return t, acc, gyro, idx
+
+
+def imu_gaps(imu_t_s: np.ndarray, t_s: np.ndarray, max_gap_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The IMU gaps on a merged time line.
+
+    Returns
+    -------
+    coast (N,), gaps_s (G, 2)
+        ``coast[i]``: the step ``t_s[i−1] → t_s[i]`` lies inside an interval between IMU samples
+        longer than ``max_gap_s`` (no sample measured the motion there); the ``(start, end)``
+        times of those intervals, s.
+    """
+    ti = np.asarray(imu_t_s, float)
+    step = np.diff(ti)
+    big = np.flatnonzero(step > max_gap_s)
+    gaps = np.column_stack([ti[big], ti[big + 1]]) if big.size else np.zeros((0, 2))
+    t = np.asarray(t_s, float)
+    coast = np.zeros(t.size, bool)
+    for a, b in gaps:
+        coast[1:] |= (t[1:] > a) & (t[1:] <= b)
+    return coast, gaps
 
 
 # ====================================================================== measurement models
@@ -387,6 +413,16 @@ class TightEskf:
         Known tag height (a ground robot) used as a pseudo-measurement at every epoch; None: not used.
     init_sigma
         Initial error SDs: position m, velocity m/s, roll/pitch rad, yaw rad.
+    max_imu_gap_s
+        An interval between IMU samples longer than this is a gap: the filter coasts across it
+        (:func:`~uwbwb.models.ins.coast_transition`: velocity and attitude held, no IMU value
+        interpolated or invented, the covariance grown by the assumed motion below) and keeps
+        updating at the UWB epochs inside it; the gaps are listed in ``FusionRun.meta["imu_gaps_s"]``.
+        None: :data:`MAX_IMU_GAP_STEPS` (5) median IMU steps, the loader's rule
+        (:mod:`uwbwb.datasets.imu_checks`).
+    coast_acc_sigma_mps2, coast_rate_sigma_radps
+        Assumptions for a coast: the unknown acceleration and rotation rate, as white noise of
+        PSD ``σ² · 1 s`` (1 m/s² and 0.2 rad/s: a walking person or a slow drone).
     """
 
     imu_model: ImuErrorModel
@@ -404,6 +440,9 @@ class TightEskf:
     iterate_sigma_m: float = 1.0
     max_iter: int = 10
     gate_yaw_sigma_rad: float = 3 * _DEG
+    max_imu_gap_s: float | None = None
+    coast_acc_sigma_mps2: float = 1.0
+    coast_rate_sigma_radps: float = 0.2
     name: str = "tight"
 
     def __post_init__(self):
@@ -434,6 +473,10 @@ class TightEskf:
         object.__setattr__(self, "init_sigma", tuple(float(v) for v in init))
         validate.number("TightEskf.iterate_sigma_m", self.iterate_sigma_m, minimum=0.0, allow_inf=True)
         validate.integer("TightEskf.max_iter", self.max_iter, minimum=1)
+        if self.max_imu_gap_s is not None:
+            validate.number("TightEskf.max_imu_gap_s", self.max_imu_gap_s, minimum=0.0, strict_minimum=True)
+        validate.number("TightEskf.coast_acc_sigma_mps2", self.coast_acc_sigma_mps2, minimum=0.0)
+        validate.number("TightEskf.coast_rate_sigma_radps", self.coast_rate_sigma_radps, minimum=0.0)
         if not isinstance(self.name, str):
             raise ValueError(f"TightEskf.name must be a string, got {self.name!r}")
 
@@ -510,6 +553,12 @@ class TightEskf:
         if rows is not None and isinstance(self.uwb, TdoaUpdate) and math.isfinite(self.iterate_sigma_m):
             fix_tag = self.uwb.snapshot(t_ep, rows, refs)
         t, acc, gyro, ep_idx = merge_timeline(imu, t_ep)
+        max_gap = (MAX_IMU_GAP_STEPS * float(np.median(np.diff(imu.t_s))) if self.max_imu_gap_s is None
+                   else self.max_imu_gap_s) if imu.t_s.size > 1 else math.inf
+        coasting, gaps_s = imu_gaps(imu.t_s, t, max_gap)
+        inside = coasting & ~np.isin(t, imu.t_s)        # epochs inside a gap: nothing measured there,
+        acc[inside], gyro[inside] = np.nan, np.nan      # so no IMU value is invented
+        meta = {"imu_gaps_s": gaps_s}
         yaw_meas = heading.at(t_ep) if heading is not None else np.full(T, np.nan)
         out = _empty(T, N_ERR)
         mech, lever = self.mechanization, self.lever_arm_m
@@ -531,15 +580,21 @@ class TightEskf:
         name = name or (self.name if uwb is not None else "INS-only")
         if not reference_step:
             self._run_compiled(t, acc, gyro, ep_at, rows, refs, yaw_meas, p, v, q, ba, bg, P, qrate, gate1, out,
-                               fix_tag)
+                               fix_tag, coasting)
             out["n_outliers"][:] = n_out_all
-            return FusionRun(t_ep.copy(), name=name, **out)
+            return FusionRun(t_ep.copy(), name=name, meta=meta, **out)
         # The reference form, step by step in Python: mechanization and filterpy predict at every
         # IMU step, then the epoch's update through the measurement models and kalman.update_sequential.
         last = 0
         for i in np.flatnonzero(ep_at >= 0):
             for j in range(last + 1, i + 1):
                 dt = t[j] - t[j - 1]
+                if coasting[j]:                           # inside an IMU gap: coast
+                    p = p + v * dt
+                    F, Q = coast_transition(dt, qrate, self.coast_acc_sigma_mps2, self.coast_rate_sigma_radps)
+                    st = kalman.predict(Gaussian(dx, P), F, Q)
+                    dx, P = st.x, st.P
+                    continue
                 f0, f1 = acc[j - 1] - ba, acc[j] - ba
                 p, v, q, C0, _ = mech.step(p, v, q, f0, f1, gyro[j - 1] - bg, gyro[j] - bg, dt)
                 st = kalman.predict(Gaussian(dx, P), error_transition(C0, f0, dt), np.diag(qrate * dt))
@@ -626,7 +681,7 @@ class TightEskf:
             out["nis"][k], out["dof"][k], out["n_outliers"][k], out["n_gated"][k] = nis, dof, n_out, n_gated
             out["status"][k] = (EstimateStatus.UPDATED if uwb_used else
                                 EstimateStatus.GATED if n_gated else EstimateStatus.PREDICTED)
-        return FusionRun(t_ep.copy(), name=name, **out)
+        return FusionRun(t_ep.copy(), name=name, meta=meta, **out)
 
     def run_reference(self, imu: ImuLog, uwb: TdoaLog | RangeLog | None, x0: NavState, *,
                       t_s: np.ndarray | None = None, heading: HeadingLog | None = None, acc_bias0=None,
@@ -639,7 +694,7 @@ class TightEskf:
                         name=name, reference_step=True)
 
     def _run_compiled(self, t, acc, gyro, ep_at, rows, refs, yaw_meas, p, v, q, ba, bg, P, qrate, gate1, out,
-                      fix_tag):
+                      fix_tag, coasting):
         """The filter of :meth:`run` as one compiled loop (:func:`_tight_loop`), writing into ``out``."""
         T = yaw_meas.size
         kind, anchors, var_m, correlated, bias_m = 0, np.empty((0, 3)), np.empty(0), False, 0.0
@@ -663,7 +718,8 @@ class TightEskf:
             np.ascontiguousarray(anchors, float), np.ascontiguousarray(var_m, float), correlated, float(bias_m),
             float(self.r_scale), float(gate1), int(self.max_gated), float(self.gate_yaw_sigma_rad) ** 2, HEADING_KNOWN_RAD ** 2,
             self.lost_lock_variance(), float(self.iterate_sigma_m), int(self.max_iter), _ITER_TOL_M,
-            np.ascontiguousarray(fix_tag, float), np.asarray(yaw_meas, float),
+            np.ascontiguousarray(fix_tag, float), np.ascontiguousarray(coasting, np.bool_),
+            float(self.coast_acc_sigma_mps2) ** 2, float(self.coast_rate_sigma_radps) ** 2, np.asarray(yaw_meas, float),
             float(self.imu_model.mag_heading_sigma_rad), self.height_m is not None,
             float(self.height_m or 0.0), float(self.height_sigma_m), bool(self.feedback), self.lever_arm_m, qrate,
             self.mechanization.g_n, p.copy(), v.copy(), q.copy(), ba.copy(), bg.copy(), P.copy(), out["pos_m"],
@@ -740,7 +796,8 @@ def _reset_covariance(P, Gt):
 
 @numba.njit(cache=True, nogil=True)
 def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, correlated, bias_m, r_scale, gate1,
-                max_gated, gate_yaw_var, heading_known_var, p_lost, iterate_sigma_m, max_iter, iter_tol, fix_tag, yaw_meas, sig_yaw,
+                max_gated, gate_yaw_var, heading_known_var, p_lost, iterate_sigma_m, max_iter, iter_tol, fix_tag, coasting,
+                coast_acc_var, coast_rate_var, yaw_meas, sig_yaw,
                 use_height, height_m,
                 sig_height, feedback, lever, qrate, g_n, p, v, q, ba, bg, P, pos_o, vel_o, quat_o, ba_o, bg_o, P_o,
                 cov_o, nis_o, dof_o, gated_o, status_o, st_updated, st_gated, st_predicted):
@@ -782,7 +839,16 @@ def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, c
             Qacc[:, :] = 0.0
             for j in range(15):
                 Phi[j, j] = 1.0
-            propagate(p, v, q, ba, bg, t, acc, gyro, last, i, g_n, qrate, Phi, Qacc)
+            j0 = last                           # runs of IMU steps and of coast steps (IMU gaps)
+            while j0 < i:
+                j1 = j0 + 1
+                while j1 < i and coasting[j1 + 1] == coasting[j0 + 1]:
+                    j1 += 1
+                if coasting[j0 + 1]:
+                    coast(p, v, t, j0, j1, qrate, coast_acc_var, coast_rate_var, Phi, Qacc)
+                else:
+                    propagate(p, v, q, ba, bg, t, acc, gyro, j0, j1, g_n, qrate, Phi, Qacc)
+                j0 = j1
             dx = Phi @ dx
             P = Phi @ P @ Phi.T + Qacc
             P = 0.5 * (P + P.T)

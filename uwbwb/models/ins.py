@@ -59,7 +59,7 @@ import numpy as np
 __all__ = [
     "GRAVITY_MPS2", "N_ERR", "Mechanization", "NavState", "dcm_from_euler", "dcm_to_quat", "euler_from_dcm",
     "error_transition", "inject", "quat_convert", "quat_from_rotvec", "quat_multiply", "quat_to_dcm",
-    "quat_to_rotvec", "reset_jacobian", "skew", "yaw_jacobian", "propagate",
+    "quat_to_rotvec", "reset_jacobian", "skew", "yaw_jacobian", "propagate", "coast", "coast_transition",
 ]
 
 #: Standard gravity, m/s².
@@ -455,3 +455,49 @@ def propagate(pos, vel, quat, b_a, b_g, t, acc, gyro, i0, i1, g_n, qrate, Phi, Q
         Qacc[:, :] = F @ Qacc @ F.T
         for j in range(15):
             Qacc[j, j] += qrate[j] * dt
+
+
+def coast_transition(dt_s: float, qrate, acc_sigma_mps2: float, rate_sigma_radps: float):
+    """Error transition and process noise of one step **without IMU samples** (a coast across an
+    IMU gap), ``(F, Q)`` each ``(15, 15)``.
+
+    Nothing measured the motion, so the nominal state keeps its velocity and attitude
+    (``p += v Δt``) and the covariance says what that can cost: ``F = I`` but ``δp += δv Δt``;
+    ``Q = diag(qrate) Δt`` plus an unknown navigation-frame acceleration of PSD
+    ``acc_sigma_mps2² · 1 s`` (white-noise acceleration: ``σ²Δt³/3``, ``σ²Δt²/2``, ``σ²Δt`` in the
+    position/velocity blocks) and an unknown rotation of PSD ``rate_sigma_radps² · 1 s`` on
+    ``δθ``. Both σ are assumptions of the caller (:class:`~uwbwb.filters.eskf.TightEskf`).
+    """
+    F = np.eye(N_ERR)
+    F[P_, V_] = dt_s * np.eye(3)
+    a2 = acc_sigma_mps2 ** 2
+    Q = np.diag(np.asarray(qrate, float) * dt_s)
+    Q[P_, P_] += a2 * dt_s ** 3 / 3 * np.eye(3)
+    Q[P_, V_] += a2 * dt_s ** 2 / 2 * np.eye(3)
+    Q[V_, P_] += a2 * dt_s ** 2 / 2 * np.eye(3)
+    Q[V_, V_] += a2 * dt_s * np.eye(3)
+    Q[TH_, TH_] += rate_sigma_radps ** 2 * dt_s * np.eye(3)
+    return F, Q
+
+
+@numba.njit(cache=True, nogil=True)
+def coast(pos, vel, t, i0, i1, qrate, acc_var, rate_var, Phi, Qacc):
+    """:func:`coast_transition` over the steps ``i0 → i1`` (compiled): ``pos += vel Δt`` in place,
+    ``Phi ← F Phi``, ``Qacc ← F Qacc Fᵀ + Q`` per step (``acc_var``, ``rate_var``: the σ² of the
+    assumed acceleration and rotation PSDs)."""
+    F = np.eye(15)
+    for i in range(i0 + 1, i1 + 1):
+        dt = t[i] - t[i - 1]
+        for a in range(3):
+            pos[a] += vel[a] * dt
+            F[a, 3 + a] = dt
+        Phi[:, :] = F @ Phi
+        Qacc[:, :] = F @ Qacc @ F.T
+        for j in range(15):
+            Qacc[j, j] += qrate[j] * dt
+        for a in range(3):
+            Qacc[a, a] += acc_var * dt ** 3 / 3
+            Qacc[a, 3 + a] += acc_var * dt ** 2 / 2
+            Qacc[3 + a, a] += acc_var * dt ** 2 / 2
+            Qacc[3 + a, 3 + a] += acc_var * dt
+            Qacc[6 + a, 6 + a] += rate_var * dt
