@@ -1,0 +1,70 @@
+"""Constants, the lever-arm check and the time line (IMU samples, UWB epochs, IMU gaps) of the UWB/INS filters."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...types import ImuLog
+
+
+_DEG = math.pi / 180.0
+_ITER_TOL_M = 1e-4           # an iterated update stops when the position moves less than this, m
+HEADING_KNOWN_RAD = 10 * _DEG  # an initial yaw σ at most this is a known heading: the gate is engaged at once
+LOST_BUILD_S = 1.0           # lost lock: the time over which the position error is assumed to have built up, s
+MAX_IMU_GAP_STEPS = 5        # an IMU step longer than this many median steps is a gap (the loader's rule)
+SNAPSHOT_RMS_SIGMAS = 3.0    # a snapshot fix is consistent when its TDoA residual RMS is at most this many TDoA σ
+
+
+def _lever(name: str, value) -> np.ndarray:
+    """A lever arm: 3 finite numbers, m, body frame."""
+    try:
+        lever = np.array(value, float)
+    except (TypeError, ValueError):
+        lever = np.array([np.nan])
+    if lever.shape != (3,) or not np.all(np.isfinite(lever)):
+        raise ValueError(f"{name} must be 3 finite numbers (m, body frame), got {value!r}")
+    return lever
+
+
+# ====================================================================== inputs
+def merge_timeline(imu: ImuLog, t_epoch_s: np.ndarray):
+    """IMU samples and UWB epochs on one time line.
+
+    Returns
+    -------
+    t_s (N,), acc_mps2 (N, 3), gyro_radps (N, 3), epoch_idx (E,)
+        The union of the IMU times and the epochs inside the IMU span, the IMU values
+        there (linear interpolation at epochs between samples), and each epoch's index
+        in ``t_s`` (−1 for epochs outside the IMU span).
+    """
+    te = np.asarray(t_epoch_s, float)
+    inside = (te >= imu.t_s[0]) & (te <= imu.t_s[-1])
+    t = np.union1d(imu.t_s, te[inside])
+    acc = np.column_stack([np.interp(t, imu.t_s, imu.acc_mps2[:, j]) for j in range(3)])
+    gyro = np.column_stack([np.interp(t, imu.t_s, imu.gyro_radps[:, j]) for j in range(3)])
+    idx = np.full(te.size, -1)
+    idx[inside] = np.searchsorted(t, te[inside])
+    return t, acc, gyro, idx
+
+
+def imu_gaps(imu_t_s: np.ndarray, t_s: np.ndarray, max_gap_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The IMU gaps on a merged time line.
+
+    Returns
+    -------
+    coast (N,), gaps_s (G, 2)
+        ``coast[i]``: the step ``t_s[i−1] → t_s[i]`` lies inside an interval between IMU samples
+        longer than ``max_gap_s`` (no sample measured the motion there); the ``(start, end)``
+        times of those intervals, s.
+    """
+    ti = np.asarray(imu_t_s, float)
+    step = np.diff(ti)
+    big = np.flatnonzero(step > max_gap_s)
+    gaps = np.column_stack([ti[big], ti[big + 1]]) if big.size else np.zeros((0, 2))
+    t = np.asarray(t_s, float)
+    coast = np.zeros(t.size, bool)
+    for a, b in gaps:
+        coast[1:] |= (t[1:] > a) & (t[1:] <= b)
+    return coast, gaps

@@ -1,0 +1,344 @@
+"""Compiled kernels of the tight filter. Declared twins: :func:`_tight_loop` must equal
+:meth:`~.tight.TightEskf.run_reference` to rounding; :func:`_exp_left_nb`, :func:`_reset_block`,
+:func:`_skew_into` equal their :mod:`uwbwb.models.ins` definitions (tests/filters/test_eskf.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ...models.ins import _dcm_nb, coast, propagate
+from ..kalman import _sequential
+from .common import LOST_BUILD_S
+
+
+# ====================================================================== tight, compiled
+@numba.njit(cache=True, nogil=True)
+def _skew_into(v, S):
+    S[0, 0], S[0, 1], S[0, 2] = 0.0, -v[2], v[1]
+    S[1, 0], S[1, 1], S[1, 2] = v[2], 0.0, -v[0]
+    S[2, 0], S[2, 1], S[2, 2] = -v[1], v[0], 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _exp_left_nb(rv, q):
+    """:func:`~uwbwb.models.ins._exp_left` (``Exp(rv) ⊗ q``, normalised), in place on ``q``."""
+    ang = math.sqrt(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2])
+    k = math.sin(0.5 * ang) / ang if ang > 1e-8 else 0.5 - ang * ang / 48.0
+    rw, rx, ry, rz = math.cos(0.5 * ang), k * rv[0], k * rv[1], k * rv[2]
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    o0 = rw * w - rx * x - ry * y - rz * z
+    o1 = rw * x + rx * w + ry * z - rz * y
+    o2 = rw * y - rx * z + ry * w + rz * x
+    o3 = rw * z + rx * y - ry * x + rz * w
+    nq = math.sqrt(o0 * o0 + o1 * o1 + o2 * o2 + o3 * o3)
+    q[0], q[1], q[2], q[3] = o0 / nq, o1 / nq, o2 / nq, o3 / nq
+
+
+@numba.njit(cache=True, nogil=True)
+def _reset_block(phi):
+    """The attitude block of :func:`~uwbwb.models.ins.reset_jacobian`, ``(3, 3)``."""
+    th = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    S = np.empty((3, 3))
+    _skew_into(phi, S)
+    if th < 1e-6:
+        a, b = 0.5 - th * th / 24.0, 1.0 / 6.0 - th * th / 120.0
+    else:
+        a, b = (1 - math.cos(th)) / th ** 2, (th - math.sin(th)) / th ** 3
+    return np.eye(3) + (a * S + b * (S @ S))
+
+
+@numba.njit(cache=True, nogil=True)
+def _reset_covariance(P, Gt):
+    """``P ← G P Gᵀ`` in place, with ``G`` the identity but for the attitude block ``Gt``."""
+    rows = np.empty((3, 15))
+    for a in range(3):
+        for b in range(15):
+            rows[a, b] = Gt[a, 0] * P[6, b] + Gt[a, 1] * P[7, b] + Gt[a, 2] * P[8, b]
+    P[6:9, :] = rows
+    cols = np.empty((15, 3))
+    for a in range(15):
+        for b in range(3):
+            cols[a, b] = P[a, 6] * Gt[b, 0] + P[a, 7] * Gt[b, 1] + P[a, 8] * Gt[b, 2]
+    P[:, 6:9] = cols
+
+
+@numba.njit(cache=True, nogil=True)
+def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, correlated, bias_m, r_scale, gate1,
+                max_gated, gate_yaw_var, heading_known_var, p_lost, iterate_sigma_m, max_iter, iter_tol, fix_tag, coasting,
+                coast_acc_var, coast_rate_var, yaw_meas, sig_yaw,
+                use_height, height_m,
+                sig_height, feedback, lever, qrate, g_n, p, v, q, ba, bg, P, pos_o, vel_o, quat_o, ba_o, bg_o, P_o,
+                cov_o, nis_o, dof_o, gated_o, status_o, st_updated, st_gated, st_predicted):
+    """:meth:`TightEskf.run` compiled: the same steps as its reference loop, epoch after epoch.
+
+    Per epoch (timeline index ``tl_idx[e]``, epoch ``ep_of[e]``): :func:`propagate` from the last
+    epoch and one predict ``dx ← Φ dx``, ``P ← Φ P Φᵀ + Q`` (symmetrised); the epoch's TDoAs
+    (``kind`` 1, :meth:`TdoaModel.epoch` with the lever-arm Jacobian) or ranges (``kind`` 2,
+    :meth:`RangeUpdate.linearise`, both :func:`_uwb_rows`), the lost-lock inflation ``P += diag(p_lost)``,
+    the χ² gate, the heading and height pseudo-measurements; :func:`~uwbwb.filters.kalman._sequential`,
+    iterated (relinearised UWB rows) while the prior tag σ exceeds ``iterate_sigma_m``; injection and reset. ``p, v, q, ba, bg, P`` are
+    worked on in place; outputs go to row ``ep_of[e]`` of the ``*_o`` arrays. Returns 0, or the
+    error code of ``_sequential``. Tested equal to the reference loop and to the model functions.
+    """
+    n_a = anchors.shape[0]
+    m_max = n_a + 2
+    dx = np.zeros(15)
+    C = np.empty((3, 3))
+    Sl = np.empty((3, 3))
+    Phi = np.empty((15, 15))
+    Qacc = np.empty((15, 15))
+    z = np.empty(m_max)
+    h = np.empty(m_max)
+    H = np.zeros((m_max, 15))
+    Rd = np.empty(m_max)
+    keep = np.empty(m_max, np.bool_)
+    hp = np.empty(3)
+    z2 = np.empty(m_max)
+    h2 = np.empty(m_max)
+    H2 = np.zeros((m_max, 15))
+    Rd2 = np.empty(m_max)
+    gated_run, clean_run = 0, 0
+    engaged = P[8, 8] <= heading_known_var
+    last = 0
+    for e in range(tl_idx.size):
+        i, k = tl_idx[e], ep_of[e]
+        if i > last:
+            Phi[:, :] = 0.0
+            Qacc[:, :] = 0.0
+            for j in range(15):
+                Phi[j, j] = 1.0
+            j0 = last                           # runs of IMU steps and of coast steps (IMU gaps)
+            while j0 < i:
+                j1 = j0 + 1
+                while j1 < i and coasting[j1 + 1] == coasting[j0 + 1]:
+                    j1 += 1
+                if coasting[j0 + 1]:
+                    coast(p, v, t, j0, j1, qrate, coast_acc_var, coast_rate_var, Phi, Qacc)
+                else:
+                    propagate(p, v, q, ba, bg, t, acc, gyro, j0, j1, g_n, qrate, Phi, Qacc)
+                j0 = j1
+            dx = Phi @ dx
+            P = Phi @ P @ Phi.T + Qacc
+            P = 0.5 * (P + P.T)
+        last = i
+        _dcm_nb(q, C)
+        cl = C @ lever
+        _skew_into(cl, Sl)                      # J_tag = [I, 0, −[C l ×], 0, 0]
+        tag = p + cl
+        Jt = np.zeros((3, 15))
+        for a in range(3):
+            Jt[a, a] = 1.0
+            for b in range(3):
+                Jt[a, 6 + b] = -Sl[a, b]
+        far = math.sqrt(np.trace(Jt @ P @ Jt.T)) > iterate_sigma_m   # the propagated prior, before any lost-lock inflation
+        # ---- UWB rows (z, h, H) and their noise (diagonal Rd; TDoA adds the reference's variance)
+        n_gated, uwb_used = 0, 0
+        row = rows[k]
+        m, lin, var_ref = _uwb_rows(kind, row, refs[k], anchors, var_m, bias_m, tag, Sl, z, h, H, Rd, hp)
+        m_lin = m
+        off = 0.0                               # R = (diag(Rd) + var_ref 1 1ᵀ) r_scale, or its diagonal
+        if lin:
+            if gated_run >= max_gated:          # lock lost: admit it, then re-acquire ungated
+                ms = 0.0
+                for a in range(m):
+                    ya = z[a] - h[a] - H[a] @ dx
+                    ms += ya * ya
+                ms /= m
+                for a in range(15):
+                    if a < 3:
+                        P[a, a] += p_lost[a] + ms
+                    elif a < 6:
+                        P[a, a] += p_lost[a] + ms / LOST_BUILD_S ** 2
+                    else:
+                        P[a, a] += p_lost[a]
+            for a in range(m):
+                Rd[a] = (Rd[a] + var_ref) * r_scale
+            if correlated:
+                off = var_ref * r_scale
+            n_fail = 0
+            for a in range(m):
+                Hdx = H[a] @ dx
+                y = z[a] - h[a] - Hdx
+                s = H[a] @ P @ H[a] + Rd[a]
+                test = y * y / s <= gate1
+                keep[a] = test if (engaged and gated_run < max_gated) else True
+                if not test:
+                    n_fail += 1
+                h[a] += Hdx
+            if not engaged:                     # start-up: is the heading resolved?
+                clean_run = clean_run + 1 if 2 * n_fail < m else 0
+                engaged = clean_run >= max_gated and P[8, 8] <= gate_yaw_var
+            w = 0
+            for a in range(m):                  # the kept rows first, in order
+                if keep[a]:
+                    z[w], h[w], Rd[w] = z[a], h[a], Rd[a]
+                    H[w] = H[a]
+                    w += 1
+            n_gated = m - w
+            uwb_used = w
+            m = w
+            lost = n_gated >= uwb_used and feedback
+            gated_run = gated_run + 1 if (n_gated > 0 and lost) else 0
+        n_uwb = m
+        # ---- heading and height pseudo-measurements
+        if np.isfinite(yaw_meas[k]) and sig_yaw > 0:
+            c0, c1, c2 = C[0, 0], C[1, 0], C[2, 0]
+            den = c0 ** 2 + c1 ** 2
+            H[m] = 0.0
+            H[m, 6], H[m, 7], H[m, 8] = (-c0 * c2 + c1 * 0.0) / den, (-c0 * 0.0 + c1 * -c2) / den, \
+                (-c0 * -c0 + c1 * c1) / den
+            a = yaw_meas[k] - math.atan2(C[1, 0], C[0, 0])
+            z[m] = (a + np.pi) % (2 * np.pi) - np.pi
+            h[m] = H[m] @ dx
+            Rd[m] = sig_yaw ** 2
+            m += 1
+        if use_height:
+            H[m] = 0.0
+            H[m, 2] = 1.0
+            for b in range(3):
+                H[m, 6 + b] = -Sl[2, b]
+            z[m] = height_m
+            h[m] = tag[2] + H[m] @ dx
+            Rd[m] = sig_height ** 2
+            m += 1
+        nis, dof = np.nan, 0
+        if m:
+            R = np.zeros((m, m))
+            for a in range(m):
+                R[a, a] = Rd[a]
+                if a < n_uwb:
+                    for b in range(n_uwb):
+                        if b != a:
+                            R[a, b] = off
+            y = z[:m] - h[:m]
+            nis_parts = np.empty(m)
+            iterate = uwb_used > 0 and far
+            dx0, P0 = dx.copy(), P.copy()
+            code = _sequential(dx, P, y, H[:m].copy(), R, nis_parts)
+            if code:
+                return code
+            if iterate:                         # iterated update (IEKF): relinearise the UWB rows
+                nis_it = np.empty(m)
+                for it in range(max_iter - 1):
+                    d = dx.copy()
+                    if it == 0 and np.isfinite(fix_tag[k, 0]):   # start at the snapshot fix
+                        d[:] = dx0
+                        for a in range(3):
+                            d[a] = fix_tag[k, a] - tag[a] + Sl[a, 0] * dx0[6] + Sl[a, 1] * dx0[7] + Sl[a, 2] * dx0[8]
+                    tag_i = tag + d[0:3] - Sl @ d[6:9]
+                    _uwb_rows(kind, row, refs[k], anchors, var_m, bias_m, tag_i, Sl, z2, h2, H2, Rd2, hp)
+                    w = 0
+                    for a in range(m_lin):
+                        if keep[a]:
+                            h[w] = h2[a] + H2[a] @ (dx0 - d)
+                            H[w] = H2[a]
+                            w += 1
+                    y = z[:m] - h[:m]
+                    dx[:] = dx0
+                    P[:, :] = P0
+                    code = _sequential(dx, P, y, H[:m].copy(), R, nis_it)
+                    if code:
+                        return code
+                    step = 0.0
+                    for a in range(3):
+                        step = max(step, abs(dx[a] - d[a]))
+                    if step < iter_tol:
+                        break
+            P = 0.5 * (P + P.T)
+            if uwb_used:
+                nis = nis_parts[:uwb_used].sum()
+            dof = uwb_used
+        # ---- closed loop: inject and reset; open loop: report nominal ⊕ δx
+        qo = q.copy()
+        if feedback:
+            p += dx[0:3]
+            v += dx[3:6]
+            _exp_left_nb(dx[6:9], q)
+            ba += dx[9:12]
+            bg += dx[12:15]
+            _reset_covariance(P, _reset_block(dx[6:9]))
+            dx[:] = 0.0
+            qo[:] = q
+        else:
+            _exp_left_nb(dx[6:9], qo)
+        _dcm_nb(qo, C)
+        clo = C @ lever
+        _skew_into(clo, Sl)
+        for a in range(3):
+            pos_o[k, a] = p[a] + dx[a] + clo[a]
+            vel_o[k, a] = v[a] + dx[3 + a]
+            ba_o[k, a] = ba[a] + dx[9 + a]
+            bg_o[k, a] = bg[a] + dx[12 + a]
+        quat_o[k] = qo
+        P_o[k] = P
+        Jo = np.zeros((3, 15))
+        for a in range(3):
+            Jo[a, a] = 1.0
+            for b in range(3):
+                Jo[a, 6 + b] = -Sl[a, b]
+        cov_o[k] = Jo @ P @ Jo.T
+        nis_o[k], dof_o[k], gated_o[k] = nis, dof, n_gated
+        status_o[k] = st_updated if uwb_used else (st_gated if n_gated else st_predicted)
+    return 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _uwb_rows(kind, row, ref, anchors, var_m, bias_m, tag, Sl, z, h, H, Rd, hp):
+    """One epoch's UWB rows at tag position ``tag``: ``z``, ``h``, ``H`` (with the lever-arm
+    columns from ``Sl = [C l ×]``) and the per-row variance ``Rd`` (without the reference's);
+    TDoAs (``kind`` 1, :meth:`TdoaModel.epoch`) or ranges (``kind`` 2, :meth:`RangeUpdate.linearise`).
+    Returns ``(m, linearised, var_ref)``."""
+    n_a = anchors.shape[0]
+    m, lin, var_ref = 0, False, 0.0
+    if kind == 1:
+        n_fin = 0
+        for j in range(n_a):
+            if np.isfinite(row[j]):
+                n_fin += 1
+        if ref >= 0 and n_fin >= 2:
+            lin = True
+            dr = tag - anchors[ref]
+            rr = math.sqrt(dr[0] * dr[0] + dr[1] * dr[1] + dr[2] * dr[2])
+            ur = dr / max(rr, 1e-12)
+            var_ref = var_m[ref]
+            for j in range(n_a):
+                if j == ref or not np.isfinite(row[j]):
+                    continue
+                d = tag - anchors[j]
+                r = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+                u = d / max(r, 1e-12)
+                z[m] = row[j] - row[ref]
+                h[m] = r - rr
+                for a in range(3):
+                    hp[a] = u[a] - ur[a]
+                Rd[m] = var_m[j]
+                m += 1
+                _fill_row(H, m - 1, hp, Sl)
+    elif kind == 2:
+        for j in range(n_a):
+            if not np.isfinite(row[j]):
+                continue
+            lin = True
+            d = tag - anchors[j]
+            r = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            rm = max(r, 1e-9)
+            for a in range(3):
+                hp[a] = d[a] / rm
+            z[m] = row[j] - bias_m
+            h[m] = r
+            Rd[m] = var_m[j]
+            m += 1
+            _fill_row(H, m - 1, hp, Sl)
+    return m, lin, var_ref
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill_row(H, a, hp, Sl):
+    """Row ``a`` of ``H = ∂h/∂p · J_tag``: ``hp`` on δp and ``−hp [C l ×]`` on δθ."""
+    H[a] = 0.0
+    for b in range(3):
+        H[a, b] = hp[b]
+        H[a, 6 + b] = -(hp[0] * Sl[0, b] + hp[1] * Sl[1, b] + hp[2] * Sl[2, b])

@@ -1,0 +1,202 @@
+"""The paper's loosely coupled filter, eqs 5–7 (:class:`LooseFilter`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2
+
+from ... import validate
+from ...models.imu import HeadingLog
+from ...models.ins import Mechanization, NavState, _dcm, _exp_left, _yaw
+from ...types import Estimates, EstimateStatus, ImuLog
+from .. import kalman
+from ..kalman import Gaussian
+from .common import _lever, merge_timeline
+from .result import FusionRun, _empty, _wrap
+
+
+# ====================================================================== loose (the paper's filter)
+@dataclass(frozen=True)
+class LooseFilter:
+    """The paper's loosely coupled filter, eqs 5–7 (module docstring).
+
+    Attributes
+    ----------
+    dim
+        2: the paper's 4 states (E, N); 3: 6 states with the vertical pair.
+    q_pos_m_rts, q_vel_mps_rts
+        Process noise densities of ``W_P`` and ``W_V`` (eq. 5): over a UWB step ``T`` their
+        variances are ``q² T`` (m/√s and m/s/√s).
+    sigma_r_pos_m, sigma_r_vel_mps
+        Measurement noise SDs of the UWB position and differenced velocity (eq. 6).
+    vel_window
+        Epochs spanned by the backward difference giving ``V_uwb``.
+    attitude_tau_s
+        Time constant of the complementary attitude correction (levelling; heading where
+        a magnetometer heading is given).
+    height_m
+        For ``dim=2``: the known tag height the INS vertical channel is held at.
+    q_scale, r_scale
+        Multipliers on Q and R.
+    feedback
+        Closed loop (True) or open loop.
+    gate_prob
+        χ² innovation gate on each epoch's UWB update (position, or position + velocity):
+        the update is rejected (status ``GATED``, ``n_gated`` 1) when its NIS against the
+        prior exceeds the ``gate_prob`` quantile of χ²(m), ``m`` the measurement dimension;
+        a rejected fix does not enter the velocity difference. None: no gate.
+    max_gated
+        Consecutive gated epochs after which the next epoch's fix is used ungated.
+    """
+
+    mechanization: Mechanization = Mechanization()
+    dim: int = 2
+    q_pos_m_rts: float = 0.01
+    q_vel_mps_rts: float = 0.05
+    sigma_r_pos_m: float = 0.05
+    sigma_r_vel_mps: float = 0.15
+    vel_window: int = 5
+    attitude_tau_s: float = 2.0
+    height_m: float | None = None
+    lever_arm_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    q_scale: float = 1.0
+    r_scale: float = 1.0
+    feedback: bool = True
+    gate_prob: float | None = None
+    max_gated: int = 25
+    name: str = "loose"
+
+    def __post_init__(self):
+        if not isinstance(self.mechanization, Mechanization):
+            raise ValueError(f"LooseFilter.mechanization must be a Mechanization, got {self.mechanization!r}")
+        validate.choice("LooseFilter.dim", self.dim, (2, 3))
+        validate.integer("LooseFilter.vel_window", self.vel_window, minimum=1)
+        for name in ("q_pos_m_rts", "q_vel_mps_rts"):
+            validate.number(f"LooseFilter.{name}", getattr(self, name), minimum=0.0)
+        for name in ("sigma_r_pos_m", "sigma_r_vel_mps", "attitude_tau_s", "q_scale", "r_scale"):
+            validate.number(f"LooseFilter.{name}", getattr(self, name), minimum=0.0, strict_minimum=True)
+        if self.height_m is not None:
+            validate.number("LooseFilter.height_m", self.height_m)
+        validate.choice("LooseFilter.feedback", self.feedback, (True, False))
+        object.__setattr__(self, "lever_arm_m", _lever("LooseFilter.lever_arm_m", self.lever_arm_m))
+        if self.gate_prob is not None:
+            validate.probability("LooseFilter.gate_prob", self.gate_prob)
+        validate.integer("LooseFilter.max_gated", self.max_gated, minimum=0)
+
+    def matrices(self, T_s: float):
+        """``A``, ``Q``, ``R`` of eqs 5–6 for UWB period ``T_s``."""
+        d = self.dim
+        A = np.eye(2 * d)
+        A[:d, d:] = T_s * np.eye(d)
+        Q = np.diag([self.q_pos_m_rts ** 2] * d + [self.q_vel_mps_rts ** 2] * d) * (T_s * self.q_scale)
+        R = np.diag([self.sigma_r_pos_m ** 2] * d + [self.sigma_r_vel_mps ** 2] * d) * self.r_scale
+        return A, Q, R
+
+    def run(self, imu: ImuLog, fixes: Estimates, x0: NavState, *, heading: HeadingLog | None = None,
+            name: str | None = None) -> FusionRun:
+        """Filter a recording.
+
+        Parameters
+        ----------
+        imu
+            Body-frame SI samples.
+        fixes
+            UWB position fixes at the UWB epochs (e.g. TDoA LS after the eq-4 test); epochs
+            without a fix (``NO_ESTIMATE``) are prediction only.
+        x0
+            Navigation state at the first IMU sample.
+        heading
+            Magnetometer headings (used by the attitude correction).
+        """
+        d = self.dim
+        t_ep = fixes.t_s
+        T = t_ep.size
+        t, acc, gyro, ep_idx = merge_timeline(imu, t_ep)
+        yaw_meas = heading.at(t_ep) if heading is not None else np.full(T, np.nan)
+        fix = np.full((T, 3), np.nan)
+        fix[:, :fixes.dim] = fixes.pos_m
+        has = fixes.has_estimate & np.all(np.isfinite(fixes.pos_m), axis=1)
+        out = _empty(T, 2 * d)
+        mech, lever = self.mechanization, self.lever_arm_m
+        p, v, q = x0.pos_m.copy(), x0.vel_mps.copy(), x0.quat.copy()
+        dx = np.zeros(2 * d)
+        _, _, R = self.matrices(1.0)
+        P = np.diag([self.sigma_r_pos_m ** 2] * d + [self.sigma_r_vel_mps ** 2] * d)
+        ep_at = np.full(t.size, -1)
+        ok = ep_idx >= 0
+        ep_at[ep_idx[ok]] = np.flatnonzero(ok)
+        last_t = None
+        hist_t, hist_p = [], []
+        g_up = -mech.g_n / np.linalg.norm(mech.g_n)
+        gate_m = None if self.gate_prob is None else {m: chi2.ppf(self.gate_prob, m) for m in (d, 2 * d)}
+        gated_run = 0
+        for i in range(t.size):
+            if i > 0:
+                p, v, q, _, _ = mech.step(p, v, q, acc[i - 1], acc[i], gyro[i - 1], gyro[i], t[i] - t[i - 1])
+                if d == 2 and self.height_m is not None:
+                    p[2], v[2] = self.height_m - (_dcm(q) @ lever)[2], 0.0
+            k = ep_at[i]
+            if k < 0:
+                continue
+            T_s = 0.0 if last_t is None else t[i] - last_t
+            last_t = t[i]
+            # attitude: complementary levelling (+ heading), the paper's gyro + magnetometer AHRS
+            C = _dcm(q)
+            gain = min(1.0, T_s / self.attitude_tau_s) if T_s > 0 else 0.0
+            if gain > 0:
+                fn = C @ acc[i]
+                corr = gain * np.cross(fn / max(math.sqrt(fn @ fn), 1e-9), g_up)
+                if np.isfinite(yaw_meas[k]):
+                    corr[2] += gain * _wrap(yaw_meas[k] - _yaw(C))
+                q = _exp_left(corr, q)
+            A, Q, _ = self.matrices(T_s)
+            st = kalman.predict(Gaussian(dx, P), A, Q)
+            dx, P = st.x, st.P
+            C = _dcm(q)
+            tag = p + C @ lever
+            nis, dof, status = np.nan, 0, EstimateStatus.PREDICTED
+            if has[k]:
+                hist_t.append(t_ep[k])
+                hist_p.append(fix[k, :d].copy())
+                z_pos = tag[:d] - fix[k, :d]
+                if len(hist_t) > self.vel_window and t_ep[k] - hist_t[-1 - self.vel_window] < 1.0:
+                    v_uwb = (hist_p[-1] - hist_p[-1 - self.vel_window]) / (t_ep[k] - hist_t[-1 - self.vel_window])
+                    z, H, Rk = np.concatenate([z_pos, v[:d] - v_uwb]), np.eye(2 * d), R
+                else:
+                    z, H, Rk = z_pos, np.eye(2 * d)[:d], R[:d, :d]
+                if gate_m is not None and gated_run < self.max_gated:
+                    y = z - H @ dx
+                    if y @ np.linalg.solve(H @ P @ H.T + Rk, y) > gate_m[z.size]:
+                        hist_t.pop()
+                        hist_p.pop()
+                        gated_run += 1
+                        z = None
+                        status = EstimateStatus.GATED
+                        out["n_gated"][k] = 1
+                if z is not None:
+                    gated_run = 0
+                    st, inn = kalman.update(Gaussian(dx, P), z, H, Rk)
+                    dx, P = st.x, st.P
+                    nis, dof, status = inn.nis, z.size, EstimateStatus.UPDATED
+                hist_t, hist_p = hist_t[-self.vel_window - 1:], hist_p[-self.vel_window - 1:]
+            if self.feedback:
+                p[:d] -= dx[:d]
+                v[:d] -= dx[d:]
+                dx = np.zeros(2 * d)
+                po, vo = p.copy(), v.copy()
+            else:
+                po, vo = p.copy(), v.copy()
+                po[:d] -= dx[:d]
+                vo[:d] -= dx[d:]
+            out["pos_m"][k] = po + C @ lever
+            out["vel_mps"][k], out["quat"][k] = vo, q
+            out["acc_bias_mps2"][k] = out["gyro_bias_radps"][k] = 0.0
+            out["P"][k] = P
+            cov = np.full((3, 3), np.nan)
+            cov[:d, :d] = P[:d, :d]
+            out["pos_cov_m2"][k] = cov
+            out["nis"][k], out["dof"][k], out["status"][k] = nis, dof, status
+        return FusionRun(t_ep.copy(), name=name or self.name, **out)

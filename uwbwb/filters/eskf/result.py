@@ -1,0 +1,130 @@
+"""The fusion result (:class:`FusionRun`) and INS-only dead reckoning."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.stats import chi2
+
+from ...models.ins import N_ERR, Mechanization, NavState, euler_from_dcm, quat_to_dcm
+from ...types import EstimateStatus, Estimates, ImuLog
+from .common import merge_timeline
+
+
+# ====================================================================== result
+@dataclass(frozen=True)
+class FusionRun:
+    """One fusion run at the UWB epochs.
+
+    Attributes
+    ----------
+    t_s
+        Epoch times ``(T,)``, s.
+    pos_m, vel_mps
+        Tag position and IMU velocity ``(T, 3)`` (corrected output); NaN before the start.
+    quat
+        Attitude ``(T, 4)`` ``[w, x, y, z]`` body → navigation.
+    acc_bias_mps2, gyro_bias_radps
+        Estimated IMU biases ``(T, 3)`` (zero for filters that do not estimate them).
+    P
+        Error covariance after each epoch ``(T, n, n)`` (15 for the tight filter, 4/6 loose).
+    pos_cov_m2
+        Tag position covariance ``(T, 3, 3)`` (NaN in the vertical of a 2-D loose filter).
+    nis, dof
+        Sum of the epoch's update NIS and the number of scalar updates used.
+    n_outliers, n_gated
+        Per epoch: TDoAs (or fixes) rejected by the eq-4 test, and by the χ² gate.
+    status
+        :class:`~uwbwb.types.EstimateStatus` codes ``(T,)``.
+    name
+        Label.
+    """
+
+    t_s: np.ndarray
+    pos_m: np.ndarray
+    vel_mps: np.ndarray
+    quat: np.ndarray
+    acc_bias_mps2: np.ndarray
+    gyro_bias_radps: np.ndarray
+    P: np.ndarray
+    pos_cov_m2: np.ndarray
+    nis: np.ndarray
+    dof: np.ndarray
+    n_outliers: np.ndarray
+    n_gated: np.ndarray
+    status: np.ndarray
+    name: str = "fusion"
+    meta: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return self.t_s.size
+
+    @property
+    def euler_rad(self) -> np.ndarray:
+        """Roll, pitch, yaw ``(T, 3)``, rad."""
+        out = np.full((len(self), 3), np.nan)
+        ok = np.all(np.isfinite(self.quat), axis=1)
+        out[ok] = euler_from_dcm(quat_to_dcm(self.quat[ok]))
+        return out
+
+    def to_estimates(self, dim: int = 3, name: str | None = None) -> Estimates:
+        """The common result type (positions in ``dim`` coordinates)."""
+        status = self.status.copy()
+        pos = self.pos_m[:, :dim].copy()
+        pos[status == EstimateStatus.NO_ESTIMATE] = np.nan
+        return Estimates(self.t_s, pos, status, name or self.name, self.pos_cov_m2[:, :dim, :dim],
+                         self.vel_mps[:, :dim], {"nis": self.nis, "dof": self.dof, "n_outliers": self.n_outliers,
+                                                 "n_gated": self.n_gated})
+
+    def nis_consistency(self, prob: float = 0.95) -> dict[str, float]:
+        """Mean NIS per degree of freedom and the two-sided χ² bounds of the NIS sum."""
+        up = self.dof > 0
+        total = int(self.dof[up].sum())
+        if total == 0:
+            return {"n": 0, "mean_nis_over_dof": np.nan, "sum_lo": np.nan, "sum_hi": np.nan, "sum_nis": np.nan}
+        a = (1 - prob) / 2
+        s = float(self.nis[up].sum())
+        return {"n": int(up.sum()), "mean_nis_over_dof": s / total, "sum_nis": s, "sum_dof": total,
+                "sum_lo": float(chi2.ppf(a, total)), "sum_hi": float(chi2.ppf(1 - a, total))}
+
+    def to_frame(self) -> pd.DataFrame:
+        eul = np.degrees(self.euler_rad)
+        cols = {"t_s": self.t_s}
+        cols.update({f"{a}_m": self.pos_m[:, k] for k, a in enumerate("xyz")})
+        cols.update({f"v{a}_mps": self.vel_mps[:, k] for k, a in enumerate("xyz")})
+        cols.update({f"{a}_deg": eul[:, k] for k, a in enumerate(("roll", "pitch", "yaw"))})
+        cols.update(nis=self.nis, dof=self.dof, n_outliers=self.n_outliers, n_gated=self.n_gated,
+                    status=[EstimateStatus(s).label for s in self.status])
+        return pd.DataFrame(cols)
+
+
+def _empty(T: int, n: int):
+    nan = lambda *s: np.full((T,) + s, np.nan)  # noqa: E731
+    return dict(pos_m=nan(3), vel_mps=nan(3), quat=nan(4), acc_bias_mps2=nan(3), gyro_bias_radps=nan(3),
+                P=nan(n, n), pos_cov_m2=nan(3, 3), nis=nan(), dof=np.zeros(T, int), n_outliers=np.zeros(T, int),
+                n_gated=np.zeros(T, int), status=np.full(T, EstimateStatus.NO_ESTIMATE, np.int8))
+
+
+def _wrap(a):
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def dead_reckon(imu: ImuLog, x0: NavState, t_s: np.ndarray, *, mechanization: Mechanization = Mechanization(),
+                lever_arm_m=(0.0, 0.0, 0.0), acc_bias=None, gyro_bias=None, name: str = "INS-only") -> FusionRun:
+    """INS alone: the mechanization from ``x0`` with constant bias corrections, no aiding at all,
+    reported at ``t_s`` (status ``PREDICTED``; no covariance)."""
+    t_ep = np.asarray(t_s, float)
+    t, acc, gyro, idx = merge_timeline(imu, t_ep)
+    ba = np.zeros(3) if acc_bias is None else np.asarray(acc_bias, float)
+    bg = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, float)
+    p, v, q = mechanization.integrate(t, acc - ba, gyro - bg, x0)
+    out = _empty(t_ep.size, N_ERR)
+    ok = idx >= 0
+    C = quat_to_dcm(q[idx[ok]])
+    out["pos_m"][ok] = p[idx[ok]] + C @ np.asarray(lever_arm_m, float)
+    out["vel_mps"][ok], out["quat"][ok] = v[idx[ok]], q[idx[ok]]
+    out["acc_bias_mps2"][ok], out["gyro_bias_radps"][ok] = ba, bg
+    out["status"][ok] = EstimateStatus.PREDICTED
+    return FusionRun(t_ep.copy(), name=name, **out)
