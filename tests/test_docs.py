@@ -38,7 +38,7 @@ def _modules():
             if len(rel.parts) > 2:
                 yield "experiments", rel.parts[1]
         elif rel.stem != "__init__":
-            yield rel.parts[0], rel.stem
+            yield "/".join(rel.parts[:-1]), rel.stem        # a sub-package's module: ("filters/ekf", "core")
 
 
 def _word(word: str, text: str) -> bool:
@@ -55,7 +55,8 @@ def test_readme_package_layout_lists_every_module():
             else:
                 ok = f"{stem}.py" in entries
         else:
-            ok = f"{package}/" in entries and _word(stem, entries[f"{package}/"])
+            top = package.split("/")[0]             # a sub-package's modules are listed in its package's entry
+            ok = f"{top}/" in entries and _word(stem, entries[f"{top}/"])
         if not ok:
             missing.append(f"{package}/{stem}" if package else f"{stem}.py")
     assert not missing, f"README's package layout does not list: {missing}"
@@ -77,7 +78,10 @@ def test_the_checks_see_a_missing_module(tmp_path, monkeypatch):
     fake = tmp_path / "uwbwb"
     (fake / "filters").mkdir(parents=True)
     (fake / "filters" / "brand_new.py").write_text("")
+    (fake / "filters" / "deep").mkdir()
+    (fake / "filters" / "deep" / "nested_new.py").write_text("")
     monkeypatch.setattr(sys.modules[__name__], "PACKAGE", fake)
-    assert ("filters", "brand_new") in set(_modules())
+    assert {("filters", "brand_new"), ("filters/deep", "nested_new")} <= set(_modules())
     entries = _layout()
     assert not _word("brand_new", entries["filters/"])
+    assert not _word("nested_new", entries["filters/"])
