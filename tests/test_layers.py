@@ -48,8 +48,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 
 #: Known violations: (importing module, imported unit, "upward" | "sibling" | "local") -> issue.
 DEBT: dict[tuple[str, str, str], str] = {
-    ("uwbwb.datasets.standin", "widgets", "upward"): "issue 19: notebooks call uw.widgets.data_banner(**room.banner_args())",
-    ("uwbwb.datasets.standin", "widgets", "local"): "issue 19: notebooks call uw.widgets.data_banner(**room.banner_args())",
     ("uwbwb.experiments.pruning.study", "calibration", "local"): "issue 19: declare the import at the top",
     ("uwbwb.notebook_params", "parallel", "local"): "issue 19 item 8: reproduce as its own module with paths injected",
 }

@@ -5,6 +5,8 @@ import dataclasses
 import numpy as np
 import pytest
 
+from uwbwb.widgets import data_banner
+
 from uwbwb import widgets
 from uwbwb.calibration import tag_mount_height
 from uwbwb.datasets import load_lias_room
@@ -93,14 +95,14 @@ def test_absent_lias_gives_the_stand_in_with_the_reason(tmp_path):
     assert room.data_label == "synthetic"
     assert "not found" in room.reason
     assert len(room.static) == 30 and room.dynamic.dataset == "synthetic"
-    html = room.banner().data
+    html = data_banner(**room.banner_args()).data
     assert "not available" in html and "synthetic stand-in" in html
 
 
 def test_absent_lias_without_stand_in_gives_nothing(tmp_path):
     room = load_lias_room(tmp_path)
     assert not room.available and room.dynamic is None
-    assert "skipped" in room.banner().data
+    assert "skipped" in data_banner(**room.banner_args()).data
     with pytest.raises(ValueError, match="no data"):
         room.data_label
 
@@ -121,7 +123,7 @@ def test_another_lias_recording_loads_and_a_missing_one_says_why(tmp_path):
     first = sorted(yaws)[0]
     only = load_lias_room(tmp_path, "medium", "8.14", static_yaws=[first])
     assert {r.meta["nominal_yaw_deg"] for r in only.static} == {first}
-    assert "found" in room.banner().data
+    assert "found" in data_banner(**room.banner_args()).data
     with pytest.raises(DataNotFoundError, match="medium"):
         load_lias_room(tmp_path, "fast", "8.14")
 

@@ -3,6 +3,8 @@ import dataclasses
 import numpy as np
 import pytest
 
+from uwbwb.widgets import data_banner
+
 from uwbwb.experiments import quickstart as qs
 from uwbwb.types import Trajectory
 
@@ -21,7 +23,7 @@ def compared(synthetic):
 def test_absent_data_gives_a_labelled_synthetic_stand_in(synthetic):
     assert synthetic.synthetic and synthetic.data_label == "synthetic"
     assert "not found" in synthetic.room.reason
-    assert "synthetic stand-in" in synthetic.room.banner().data
+    assert "synthetic stand-in" in data_banner(**synthetic.room.banner_args()).data
     assert len(synthetic.static) == 30
     assert all(r.meta["decimated"] == 10 for r in synthetic.static)          # FAST thins the static poses
 

@@ -12,7 +12,7 @@ import pytest  # noqa: E402
 from tests.conftest import real_dataset  # noqa: E402
 from uwbwb.experiments import setnoise as E  # noqa: E402
 from uwbwb.types import set_mask  # noqa: E402
-from uwbwb.widgets import what_you_should_see  # noqa: E402
+from uwbwb.widgets import data_banner, what_you_should_see  # noqa: E402
 from uwbwb.sim import setnoise as S  # noqa: E402
 
 SMALL = dataclasses.replace(S.FacilityConfig(), n_calibration=300, n_legs=2, speeds_mps=(0.35, 1.0))
@@ -141,7 +141,7 @@ def rig_inputs(tmp_path_factory):
 def test_real_inputs_fall_back_to_the_rig(rig_inputs):
     assert rig_inputs.synthetic and rig_inputs.data_label == "synthetic"
     assert "not found" in rig_inputs.reason and "synthetic rig" in rig_inputs.note
-    assert "synthetic stand-in" in rig_inputs.banner().data
+    assert "synthetic stand-in" in data_banner(**rig_inputs.banner_args()).data
 
 
 def test_emulated_sets(rig_inputs):

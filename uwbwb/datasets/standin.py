@@ -5,13 +5,13 @@ the static poses of the same room to calibrate with) load it through
 :func:`load_lias_room`. When the *dataset* is absent, the synthetic rig of
 :mod:`uwbwb.sim.rig` (same structure: eight anchors, three tags on a trolley, per-pair
 range biases) stands in if the caller asked for one, or nothing does, and the result
-says why; :meth:`RoomData.banner` shows it. When the dataset is here but holds no
+says why; ``uw.widgets.data_banner(**room.banner_args())`` shows it. When the dataset is here but holds no
 recording or session of the requested name, that is an error listing the names it does
 hold (:class:`~uwbwb.errors.DataNotFoundError`): a misspelt name never turns into
 synthetic data.
 
 The data layer sits above the simulators (:mod:`uwbwb.sim`), so the stand-in is built
-here; the banner is drawn by :mod:`uwbwb.widgets`, a layer above (see ``tests/test_layers.py``).
+here; the banner is drawn by :mod:`uwbwb.widgets`, a layer above, from :meth:`RoomData.banner_args`.
 """
 
 from __future__ import annotations
@@ -85,12 +85,6 @@ class RoomData:
             instead = ("every number below comes from the synthetic stand-in, not from real data: " + self.note
                        if self.synthetic else "this section is skipped")
         return {"dataset": self.dataset, "found": False, "detail": self.reason, "instead": instead}
-
-    def banner(self, instead: str | None = None):
-        """:func:`uwbwb.widgets.data_banner` of :meth:`banner_args`."""
-        from ..widgets import data_banner      # layer debt (issue 19): notebooks should call data_banner
-
-        return data_banner(**self.banner_args(instead))
 
 
 def load_lias_room(data_dir=None, recording: str = "fast", static_session: str = "8.14", *,

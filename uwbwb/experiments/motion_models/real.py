@@ -57,7 +57,7 @@ def lias_section(data_dir, recording: str, static_session: str, *, tags: Sequenc
     """
     room = datasets.load_lias_room(data_dir, recording, static_session)
     if not room.real:
-        return LiasSection(room.banner())
+        return LiasSection(widgets.data_banner(**room.banner_args()))
     rec, static = room.dynamic, list(room.static)
     if fast:   # every 20th epoch, keeping at least 100 per static recording (short files are used whole)
         static = [r.decimate(max(1, min(20, min(len(log) for log in r.ranges.values()) // 100))) for r in static]
@@ -74,7 +74,7 @@ def lias_section(data_dir, recording: str, static_session: str, *, tags: Sequenc
           f"range calibration fitted on {len(static)} static recordings of session {static_session}, "
           f"per-pair biases {bias.min():+.2f} to {bias.max():+.2f} m (median {np.median(bias):+.2f} m); "
           f"calibration part `{cal_runs[0].name}`, test part `{test_runs[0].name}`, {rate_hz:g} Hz.")
-    return LiasSection(room.banner(), studies, rec.label, md, rec.cleaning_report())
+    return LiasSection(widgets.data_banner(**room.banner_args()), studies, rec.label, md, rec.cleaning_report())
 
 
 @dataclass(frozen=True)
