@@ -48,8 +48,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 
 #: Known violations: (importing module, imported unit, "upward" | "sibling" | "local") -> issue.
 DEBT: dict[tuple[str, str, str], str] = {
-    ("uwbwb.experiments.pruning.study", "calibration", "local"): "issue 19: declare the import at the top",
-    ("uwbwb.notebook_params", "parallel", "local"): "issue 19 item 8: reproduce as its own module with paths injected",
 }
 
 RANK = {unit: i for i, layer in enumerate(LAYERS) for unit in layer}

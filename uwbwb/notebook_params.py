@@ -30,6 +30,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from .parallel import check_scheduler_address
+
 __all__ = ["COMMON", "INT_MAX", "SPECS", "Spec", "fast_conflict", "flag", "infer", "integer", "real", "seq",
            "specs_for", "text"]
 
@@ -280,8 +282,6 @@ def _scheduler_address(value: str, name: str) -> None:
     if value.strip() == "local":
         return
     try:
-        from .parallel import check_scheduler_address
-
         check_scheduler_address(value)
     except ImportError as exc:
         raise ValueError(f"{name}={value!r} needs dask.distributed: {exc}") from None

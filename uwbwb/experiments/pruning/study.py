@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ...calibration import MAD_TO_SIGMA, fit_range_calibration, pair_samples
 from ...filters.pruning import HEURISTICS, PruningConfig, localize
 from ...geometry import point_fixes
 from ...sim import tours as tours_mod
@@ -307,7 +308,6 @@ def loso_calibrations(recordings, *, stride: int = 1, **fit_kw) -> dict:
     uses the truth of ``s``. ``stride`` thins the poses first (:meth:`~uwbwb.Recording.decimate`);
     ``fit_kw`` go to the fit. Returns ``{site: RangeCalibration}``.
     """
-    from ...calibration import fit_range_calibration
 
     recordings = [r.decimate(stride) for r in recordings]
     sites = sorted({r.meta["site"] for r in recordings})
@@ -330,7 +330,6 @@ def range_error_stats(recordings, *, tags=None, stride: int = 10, long_m: float 
     pandas.DataFrame
         One row per ``(anchor, tag)`` with samples: ``n, bias_m, spread_m, frac_long``.
     """
-    from ...calibration import MAD_TO_SIGMA, pair_samples
 
     anchor_ids, tag_ids, true_m, meas_m = pair_samples([r.decimate(int(stride)) for r in recordings])
     err = meas_m - true_m                                                    # (N, n_tags, n_anchors)
