@@ -246,6 +246,10 @@ def test_values_inside_their_spec_are_passed_typed(only, name, text, expected, n
     (["--quick", "--only", "03", "-p", "SIM_DURATION_S", "100"],
      "SIM_DURATION_S=100.0 would not be used: with FAST=True the notebook lowers SIM_DURATION_S to 60"),
     (["--quick", "--only", "05", "-p", "REAL_DURATION_S", "None"], "lowers REAL_DURATION_S to 20"),
+    # class mode sets its own lecture sizes: below FAST's cap is still not what a CLASS run uses
+    (["--only", "03", "-p", "CLASS", "True", "-p", "SIM_DURATION_S", "50"],
+     "SIM_DURATION_S=50.0 would not be used: with CLASS=True the notebook picks its own lecture sizes"),
+    (["--only", "02", "-p", "CLASS", "True", "-p", "TOURS", "(1,)"], "with CLASS=True"),
 ])
 def test_quick_never_drops_an_explicit_value(argv, message, no_run, capsys, tmp_path):
     assert cli.main(["reproduce", "--out", str(tmp_path / "out"), *argv]) == 2
@@ -257,6 +261,7 @@ def test_quick_never_drops_an_explicit_value(argv, message, no_run, capsys, tmp_
     (["--quick", "--only", "04", "-p", "N_BRUTE", "1000"], "N_BRUTE", 1000),                # FAST uses it as given
     (["--quick", "--only", "00", "-p", "FAST", "True"], "FAST", True),
     (["--only", "02", "-p", "TOURS", "(1, 2)"], "TOURS", (1, 2)),                           # full mode runs them
+    (["--only", "04", "-p", "CLASS", "True", "-p", "N_BRUTE", "1000"], "N_BRUTE", 1000),    # class mode uses it too
 ])
 def test_explicit_values_that_hold_under_fast_are_passed(argv, name, expected, no_run, tmp_path):
     assert cli.main(["reproduce", "--out", str(tmp_path), *argv]) == 0

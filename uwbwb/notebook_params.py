@@ -32,7 +32,7 @@ from typing import Any
 
 from .parallel import check_scheduler_address
 
-__all__ = ["COMMON", "INT_MAX", "SPECS", "Spec", "fast_conflict", "flag", "infer", "integer", "real", "seq",
+__all__ = ["COMMON", "INT_MAX", "SPECS", "Spec", "class_conflict", "fast_conflict", "flag", "infer", "integer", "real", "seq",
            "specs_for", "text"]
 
 #: Largest integer a count may take (the int64 range NumPy sizes and seeds live in).
@@ -155,6 +155,7 @@ class Spec:
         stripped = text.strip()
         if self.none is not None and stripped == "None":
             return None
+
         try:
             if self.kind == "str":
                 value = text
@@ -414,4 +415,16 @@ def fast_conflict(stem: str, name: str, value: Any, spec: Spec) -> str | None:
     if spec.fast_cap is not None and (value is None or value > spec.fast_cap):
         return (f"{stem}: {name}={value!r} would not be used: with FAST=True the notebook lowers {name} to "
                 f"{_fmt(spec.fast_cap)}. Run without --quick / FAST=True, or give at most {_fmt(spec.fast_cap)}")
+    return None
+
+
+def class_conflict(stem: str, name: str, value: Any, spec: Spec) -> str | None:
+    """Why an explicit ``name=value`` cannot hold when notebook ``stem`` runs with ``CLASS=True`` (None if it can).
+
+    Class mode runs at FAST sizes or smaller ones of its own (e.g. shorter walks, a coarser grid), so every
+    parameter that FAST replaces or caps is set by the notebook there: an explicit value is refused.
+    """
+    if spec.fast is not None or spec.fast_cap is not None:
+        return (f"{stem}: {name}={value!r} would not be used: with CLASS=True the notebook picks its own "
+                f"lecture sizes for {name} (FAST's or smaller). Run without CLASS=True to use it, or drop -p {name}")
     return None
