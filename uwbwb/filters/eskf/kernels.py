@@ -65,14 +65,24 @@ def _reset_covariance(P, Gt):
     P[:, 6:9] = cols
 
 
+#: Names of the entries of :func:`_tight_loop`'s ``scalars`` (float64) and ``ints`` (int64) arrays.
+SCALARS = ("bias_m", "r_scale", "gate1", "gate_yaw_var", "heading_known_var", "iterate_sigma_m", "iter_tol",
+           "coast_acc_var", "coast_rate_var", "sig_yaw", "height_m", "sig_height")
+INTS = ("kind", "correlated", "max_gated", "max_iter", "use_height", "feedback", "st_updated", "st_gated",
+        "st_predicted")
+
+
 @numba.njit(cache=True, nogil=True)
-def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, correlated, bias_m, r_scale, gate1,
-                max_gated, gate_yaw_var, heading_known_var, p_lost, iterate_sigma_m, max_iter, iter_tol, fix_tag, coasting,
-                coast_acc_var, coast_rate_var, yaw_meas, sig_yaw,
-                use_height, height_m,
-                sig_height, feedback, lever, qrate, g_n, p, v, q, ba, bg, P, pos_o, vel_o, quat_o, ba_o, bg_o, P_o,
-                cov_o, nis_o, dof_o, gated_o, status_o, st_updated, st_gated, st_predicted):
+def _tight_loop(timeline, epochs, scalars, ints, vectors, nav, P, outputs):
     """:meth:`TightEskf.run` compiled: the same steps as its reference loop, epoch after epoch.
+    Its declared twin is :meth:`~.tight.TightEskf.run_reference` (equal to rounding, tested).
+
+    Arguments, bundled: ``timeline = (t, acc, gyro, tl_idx, ep_of, coasting)`` (the merged time
+    line, the timeline index and epoch of each epoch in order, the IMU-gap steps); ``epochs =
+    (rows, refs, fix_tag, yaw_meas)`` (per UWB epoch); ``scalars`` and ``ints``: the settings named
+    by :data:`SCALARS` and :data:`INTS`; ``vectors = (anchors, var_m, p_lost, lever, qrate, g_n)``;
+    ``nav = (p, v, q, ba, bg)`` and ``P`` (worked on in place); ``outputs = (pos_o, vel_o, quat_o,
+    ba_o, bg_o, P_o, cov_o, nis_o, dof_o, gated_o, status_o)``.
 
     Per epoch (timeline index ``tl_idx[e]``, epoch ``ep_of[e]``): :func:`propagate` from the last
     epoch and one predict ``dx ← Φ dx``, ``P ← Φ P Φᵀ + Q`` (symmetrised); the epoch's TDoAs
@@ -83,6 +93,16 @@ def _tight_loop(t, acc, gyro, tl_idx, ep_of, rows, refs, kind, anchors, var_m, c
     worked on in place; outputs go to row ``ep_of[e]`` of the ``*_o`` arrays. Returns 0, or the
     error code of ``_sequential``. Tested equal to the reference loop and to the model functions.
     """
+    t, acc, gyro, tl_idx, ep_of, coasting = timeline
+    rows, refs, fix_tag, yaw_meas = epochs
+    anchors, var_m, p_lost, lever, qrate, g_n = vectors
+    p, v, q, ba, bg = nav
+    pos_o, vel_o, quat_o, ba_o, bg_o, P_o, cov_o, nis_o, dof_o, gated_o, status_o = outputs
+    bias_m, r_scale, gate1, gate_yaw_var = scalars[0], scalars[1], scalars[2], scalars[3]
+    heading_known_var, iterate_sigma_m, iter_tol, coast_acc_var = scalars[4], scalars[5], scalars[6], scalars[7]
+    coast_rate_var, sig_yaw, height_m, sig_height = scalars[8], scalars[9], scalars[10], scalars[11]
+    kind, correlated, max_gated, max_iter = ints[0], ints[1] != 0, ints[2], ints[3]
+    use_height, feedback, st_updated, st_gated, st_predicted = ints[4] != 0, ints[5] != 0, ints[6], ints[7], ints[8]
     n_a = anchors.shape[0]
     m_max = n_a + 2
     dx = np.zeros(15)

@@ -18,7 +18,7 @@ from .. import kalman
 from ..kalman import Gaussian
 from .common import (_DEG, _ITER_TOL_M, HEADING_KNOWN_RAD, LOST_BUILD_S, MAX_IMU_GAP_STEPS, _lever, imu_gaps,
                      merge_timeline)
-from .kernels import _tight_loop
+from .kernels import INTS, SCALARS, _tight_loop
 from .result import FusionRun, _empty, _wrap
 from .updates import RangeUpdate, TdoaUpdate, _tag_jacobian
 
@@ -382,19 +382,25 @@ class TightEskf:
         else:
             rows, refs = np.empty((T, 0)), np.zeros(T, np.int64)
         tl = np.flatnonzero(ep_at >= 0)
+        named = dict(bias_m=bias_m, r_scale=self.r_scale, gate1=gate1, gate_yaw_var=float(self.gate_yaw_sigma_rad) ** 2,
+                     heading_known_var=HEADING_KNOWN_RAD ** 2, iterate_sigma_m=self.iterate_sigma_m, iter_tol=_ITER_TOL_M,
+                     coast_acc_var=float(self.coast_acc_sigma_mps2) ** 2,
+                     coast_rate_var=float(self.coast_rate_sigma_radps) ** 2,
+                     sig_yaw=self.imu_model.mag_heading_sigma_rad, height_m=float(self.height_m or 0.0),
+                     sig_height=self.height_sigma_m, kind=kind, correlated=correlated, max_gated=self.max_gated,
+                     max_iter=self.max_iter, use_height=self.height_m is not None, feedback=bool(self.feedback),
+                     st_updated=EstimateStatus.UPDATED, st_gated=EstimateStatus.GATED,
+                     st_predicted=EstimateStatus.PREDICTED)
         code = _tight_loop(
-            t, acc, gyro, tl, ep_at[tl], np.ascontiguousarray(rows, float), np.asarray(refs, np.int64), kind,
-            np.ascontiguousarray(anchors, float), np.ascontiguousarray(var_m, float), correlated, float(bias_m),
-            float(self.r_scale), float(gate1), int(self.max_gated), float(self.gate_yaw_sigma_rad) ** 2, HEADING_KNOWN_RAD ** 2,
-            self.lost_lock_variance(), float(self.iterate_sigma_m), int(self.max_iter), _ITER_TOL_M,
-            np.ascontiguousarray(fix_tag, float), np.ascontiguousarray(coasting, np.bool_),
-            float(self.coast_acc_sigma_mps2) ** 2, float(self.coast_rate_sigma_radps) ** 2, np.asarray(yaw_meas, float),
-            float(self.imu_model.mag_heading_sigma_rad), self.height_m is not None,
-            float(self.height_m or 0.0), float(self.height_sigma_m), bool(self.feedback), self.lever_arm_m, qrate,
-            self.mechanization.g_n, p.copy(), v.copy(), q.copy(), ba.copy(), bg.copy(), P.copy(), out["pos_m"],
-            out["vel_mps"], out["quat"], out["acc_bias_mps2"], out["gyro_bias_radps"], out["P"], out["pos_cov_m2"],
-            out["nis"], out["dof"], out["n_gated"], out["status"], int(EstimateStatus.UPDATED),
-            int(EstimateStatus.GATED), int(EstimateStatus.PREDICTED))
+            (t, acc, gyro, tl, ep_at[tl], np.ascontiguousarray(coasting, np.bool_)),
+            (np.ascontiguousarray(rows, float), np.asarray(refs, np.int64), np.ascontiguousarray(fix_tag, float),
+             np.asarray(yaw_meas, float)),
+            np.array([float(named[n]) for n in SCALARS]), np.array([int(named[n]) for n in INTS], np.int64),
+            (np.ascontiguousarray(anchors, float), np.ascontiguousarray(var_m, float), self.lost_lock_variance(),
+             self.lever_arm_m, qrate, self.mechanization.g_n),
+            (p.copy(), v.copy(), q.copy(), ba.copy(), bg.copy()), P.copy(),
+            (out["pos_m"], out["vel_mps"], out["quat"], out["acc_bias_mps2"], out["gyro_bias_radps"], out["P"],
+             out["pos_cov_m2"], out["nis"], out["dof"], out["n_gated"], out["status"]))
         if code == 1:
             raise ValueError("update_sequential: non-finite values; a missing measurement is left out, not passed as NaN")
         if code == 2:
