@@ -15,13 +15,10 @@ import numpy as np
 
 from .. import bounds, metrics
 from ..models.tdoa import TdoaModel
-from ..types import EstimateStatus, Estimates, RangeLog, Recording
+from ..types import MAX_TRUTH_GAP_S, EstimateStatus, Estimates, RangeLog, Recording
 from .protocol import Calibration
 
 __all__ = ["Estimator", "BaseEstimator", "MAX_TRUTH_GAP_S", "calibrated_log", "truth_at", "on_grid_edge"]
-
-#: Largest truth gap interpolated across when scoring or evaluating a bound, seconds.
-MAX_TRUTH_GAP_S = 0.5
 
 _UP, _NONE = int(EstimateStatus.UPDATED), int(EstimateStatus.NO_ESTIMATE)
 
@@ -64,15 +61,9 @@ def calibrated_log(rec: Recording, tag: str, cal: Calibration) -> RangeLog:
 
 
 def truth_at(rec: Recording, tag: str, t_s: np.ndarray, dim: int) -> np.ndarray:
-    """True positions ``(T, dim)`` at ``t_s``; NaN outside the truth or in gaps over :data:`MAX_TRUTH_GAP_S`."""
-    tr = rec.truth[tag]
-    t_s = np.asarray(t_s, float)
-    pos = tr.interp(t_s)[:, :dim]
-    if len(tr) > 1:
-        i = np.clip(np.searchsorted(tr.t_s, t_s, side="right"), 1, len(tr) - 1)
-        exact = np.isin(t_s, tr.t_s)
-        pos[~exact & (tr.t_s[i] - tr.t_s[i - 1] > MAX_TRUTH_GAP_S)] = np.nan
-    return pos
+    """True positions ``(T, dim)`` at ``t_s`` by the one truth rule (:meth:`uwbwb.types.Recording.truth_at`:
+    NaN outside the truth or in gaps over :data:`~uwbwb.types.MAX_TRUTH_GAP_S`)."""
+    return rec.truth_at(tag, t_s, dim)
 
 
 def _range_bound(rec, tag, cal, log: RangeLog, kind="CRLB ranges") -> bounds.Bound:

@@ -28,15 +28,16 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..calibration import RangeCalibration, fit_range_calibration
-from ..types import Recording
+from ..types import MAX_TRUTH_GAP_S, Recording
 
 __all__ = ["Calibration", "between", "PLANAR_SPREAD_M", "TRUTH_PAD_S", "fit_calibration", "scored_tags", "split_in_time",
            "thin"]
 
 #: Calibration truth whose height (5th–95th percentile) spans less than this is a planar problem.
 PLANAR_SPREAD_M = 0.15
-#: Truth kept beyond each cut so that interpolation at the part's first/last epoch works, seconds.
-TRUTH_PAD_S = 0.5
+#: Truth kept beyond each cut so that interpolation at the part's first/last epoch works, seconds (the one
+#: truth-gap constant of :mod:`uwbwb.types`).
+TRUTH_PAD_S = MAX_TRUTH_GAP_S
 
 
 def scored_tags(rec: Recording, tags: Sequence[str] | None = None) -> tuple[str, ...]:
@@ -53,14 +54,9 @@ def scored_tags(rec: Recording, tags: Sequence[str] | None = None) -> tuple[str,
 
 
 def between(rec: Recording, t0: float, t1: float, name: str | None = None) -> Recording:
-    """The epochs ``t0 <= t < t1`` of every tag (truth padded by :data:`TRUTH_PAD_S`, IMU cut alike)."""
-    ranges = {t: log.between(t0, t1) for t, log in rec.ranges.items()}
-    truth = {t: tr.between(t0 - TRUTH_PAD_S, t1 + TRUTH_PAD_S) for t, tr in rec.truth.items()}
-    imu = rec.imu
-    if imu is not None:
-        keep = (imu.t_s >= t0) & (imu.t_s < t1)
-        imu = type(imu)(imu.t_s[keep], imu.acc_mps2[keep], imu.gyro_radps[keep])
-    return replace(rec, name=name or rec.name, ranges=ranges, truth=truth, imu=imu)
+    """The epochs ``t0 <= t < t1`` of every tag (truth padded by :data:`TRUTH_PAD_S`, IMU cut alike):
+    :meth:`uwbwb.types.Recording.between`."""
+    return rec.between(t0, t1, name)
 
 
 def split_in_time(rec: Recording, fraction: float = 0.5) -> tuple[Recording, Recording]:
