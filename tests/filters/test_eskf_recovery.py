@@ -149,3 +149,22 @@ def test_filters_reacquire_after_a_30_s_outage_with_an_honest_covariance(outage_
     if mode == "empty":
         assert min(drift) > 5.0                   # the outage matters: the INS alone drifts metres
         assert np.median(inside) > 0.9 and min(inside) > 0.5, inside
+
+
+def test_snapshot_fixes_are_consistent_ones_and_a_screened_out_epoch_has_none():
+    """The snapshot an iterated update starts from: the epoch's own TDoA LS fix where it converged
+    with residuals of the noise's size; NaN where the eq-4 test left only the reference or a
+    TDoA is off by metres."""
+    from uwbwb.models.tdoa import TdoaModel
+
+    anchors = fx.ANCHORS_M
+    model = TdoaModel(anchors, 0.03, dim=3)
+    upd = eskf.TdoaUpdate(model, None)
+    tag = np.array([[4.0, 3.0, 1.0]] * 3)
+    r = np.linalg.norm(tag[:, None, :] - anchors, axis=-1)
+    d = r - r[:, :1]
+    d[1, 3] += 2.0                        # an outlier: inconsistent
+    d[2, 1:] = np.nan                     # only the reference left
+    fix = upd.snapshot(np.arange(3.0), d, np.zeros(3, int))
+    np.testing.assert_allclose(fix[0], tag[0], atol=1e-6)
+    assert np.isnan(fix[1:]).all()

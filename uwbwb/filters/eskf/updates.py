@@ -66,9 +66,12 @@ class TdoaUpdate:
 
         :class:`TightEskf` starts its iterated update there when the prior is far off (after an
         outage), instead of linearising at a prior metres away."""
-        d = np.asarray(tdoa_m, float)
+        d = np.array(tdoa_m, float)
+        r = np.array(ref, int)
+        lone = (r >= 0) & (np.isfinite(d).sum(axis=1) < 2)   # the eq-4 test left the reference alone
+        d[lone], r[lone] = np.nan, -1
         ids = tuple(str(j) for j in range(d.shape[1]))
-        ls = tdoa_least_squares(TdoaLog(np.asarray(t_s, float), d, np.asarray(ref, int), ids), self.model)
+        ls = tdoa_least_squares(TdoaLog(np.asarray(t_s, float), d, r, ids), self.model)
         limit = SNAPSHOT_RMS_SIGMAS * math.sqrt(2.0) * float(np.median(self.model.sigma_m))
         good = (ls.status == 0) & (ls.residual_rms_m <= limit) & np.all(np.isfinite(ls.pos_m), axis=1)
         return np.where(good[:, None], ls.pos_m, np.nan)
