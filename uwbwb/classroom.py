@@ -441,7 +441,7 @@ def run_class(notebooks: Iterable[Path], out_dir: Path, *, kernel_name: str = re
         try:
             pm.execute_notebook(str(source), str(executed), parameters=params, kernel_name=kernel_name,
                                 cwd=str(source.parent), progress_bar=False, log_output=False,
-                                execution_timeout=timeout_s)
+                                execution_timeout=timeout_s, kernel_manager_class=reproduce.ipc_kernel_manager())
         except Exception as exc:  # reported per notebook; the others still run
             error = f"{type(exc).__name__}: {str(exc).strip().splitlines()[-1] if str(exc).strip() else ''}"
         seconds = time.perf_counter() - t0

@@ -59,10 +59,11 @@ from .params import (INJECTED_TAG, RESERVED_PARAMETERS, SCHEDULER_PARAMETER, inj
                      notebook_parameters, parameter_specs, parameterized, parse_parameter_value, resolve_parameters)
 from .report import FAST_MARK, summary_markdown  # noqa: F401
 from .running import (KERNEL_NAME, SUMMARY_KEYS, NotebookRun, ReproduceResult, _run_on_cluster,  # noqa: F401
-                      read_summary, run_notebook)
+                      ipc_kernel_manager, read_summary, run_notebook)
 
 __all__ = ["FAST_MARK", "INJECTED_TAG", "KERNEL_NAME", "NOTEBOOKS_DIR", "NotebookRun", "REPORTS_DIR",
            "RESERVED_PARAMETERS", "ReproduceResult", "SCHEDULER_PARAMETER", "SUMMARY_KEYS", "injected_source",
+           "ipc_kernel_manager",
            "notebook_parameters", "parameter_specs", "parameterized", "parse_parameter_value", "read_summary",
            "reproduce", "resolve_parameters", "run_notebook", "select_notebooks", "summary_markdown"]
 

@@ -19,7 +19,8 @@ from .. import parallel
 from ..metrics import Summary
 from .params import notebook_parameters, parameterized
 
-__all__ = ["KERNEL_NAME", "NotebookRun", "ReproduceResult", "SUMMARY_KEYS", "read_summary", "run_notebook"]
+__all__ = ["KERNEL_NAME", "NotebookRun", "ReproduceResult", "SUMMARY_KEYS", "ipc_kernel_manager", "read_summary",
+           "run_notebook"]
 
 
 #: Kernel the notebooks are executed with.
@@ -185,7 +186,7 @@ def _outputs(source: Path, out_dir: Path) -> tuple[Path, Path, Path]:
 
 def _papermill(source, executed, params, cwd, timeout_s, kernel_name, kernel_env=None) -> None:
     """Execute ``source`` into ``executed`` with ``params`` in an injected cell (:func:`parameterized`),
-    on a kernel over IPC transport (:func:`_kernel_manager_class`) with ``kernel_env`` added to its environment."""
+    on a kernel over IPC transport (:func:`ipc_kernel_manager`) with ``kernel_env`` added to its environment."""
     import tempfile
 
     import nbformat
@@ -198,7 +199,7 @@ def _papermill(source, executed, params, cwd, timeout_s, kernel_name, kernel_env
         try:
             pm.execute_notebook(str(prepared), str(executed), parameters=None, kernel_name=kernel_name,
                                 cwd=str(cwd), progress_bar=False, log_output=False, execution_timeout=timeout_s,
-                                kernel_manager_class=_kernel_manager_class(kernel_env))
+                                kernel_manager_class=ipc_kernel_manager(kernel_env))
         finally:
             if Path(executed).is_file():   # the record names the notebook, not the scratch copy
                 out = nbformat.read(str(executed), as_version=4)
@@ -206,7 +207,7 @@ def _papermill(source, executed, params, cwd, timeout_s, kernel_name, kernel_env
                 nbformat.write(out, str(executed))
 
 
-def _kernel_manager_class(env: Mapping[str, str] | None = None):
+def ipc_kernel_manager(env: Mapping[str, str] | None = None):
     """A jupyter_client kernel manager on IPC transport (Unix sockets in Jupyter's private runtime
     folder, removed at shutdown): no TCP port is opened, so ipykernel has no unencrypted-TCP warning
     to print. ``env`` is added to the kernel's environment."""
