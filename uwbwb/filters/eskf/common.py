@@ -68,3 +68,25 @@ def imu_gaps(imu_t_s: np.ndarray, t_s: np.ndarray, max_gap_s: float) -> tuple[np
     for a, b in gaps:
         coast[1:] |= (t[1:] > a) & (t[1:] <= b)
     return coast, gaps
+
+
+def gap_timeline(imu: ImuLog, t_epoch_s: np.ndarray, max_imu_gap_s: float | None):
+    """:func:`merge_timeline` with the IMU gaps marked (the rule every UWB/INS filter and
+    :func:`~uwbwb.filters.eskf.dead_reckon` use).
+
+    A step between IMU samples longer than ``max_imu_gap_s`` (None: :data:`MAX_IMU_GAP_STEPS`
+    median IMU steps, the loader's rule) is a gap (:func:`imu_gaps`); the IMU values at time-line
+    points inside a gap are NaN, not interpolated: nothing measured the motion there.
+
+    Returns
+    -------
+    t_s (N,), acc_mps2 (N, 3), gyro_radps (N, 3), epoch_idx (E,), coast (N,), gaps_s (G, 2)
+        As :func:`merge_timeline` and :func:`imu_gaps`.
+    """
+    t, acc, gyro, ep_idx = merge_timeline(imu, t_epoch_s)
+    max_gap = (MAX_IMU_GAP_STEPS * float(np.median(np.diff(imu.t_s))) if max_imu_gap_s is None
+               else max_imu_gap_s) if imu.t_s.size > 1 else math.inf
+    coasting, gaps_s = imu_gaps(imu.t_s, t, max_gap)
+    inside = coasting & ~np.isin(t, imu.t_s)
+    acc[inside], gyro[inside] = np.nan, np.nan
+    return t, acc, gyro, ep_idx, coasting, gaps_s

@@ -16,8 +16,7 @@ from ...models.ins import (BA_, BG_, N_ERR, P_, TH_, V_, Mechanization, NavState
 from ...types import EstimateStatus, ImuLog, RangeLog, TdoaLog
 from .. import kalman
 from ..kalman import Gaussian
-from .common import (_DEG, _ITER_TOL_M, HEADING_KNOWN_RAD, LOST_BUILD_S, MAX_IMU_GAP_STEPS, _lever, imu_gaps,
-                     merge_timeline)
+from .common import _DEG, _ITER_TOL_M, HEADING_KNOWN_RAD, LOST_BUILD_S, _lever, gap_timeline
 from .kernels import INTS, SCALARS, _tight_loop
 from .result import FusionRun, _empty, _wrap
 from .updates import RangeUpdate, TdoaUpdate, _tag_jacobian
@@ -221,12 +220,8 @@ class TightEskf:
         fix_tag = np.full((T, 3), np.nan)       # first linearisation point of an iterated update
         if rows is not None and isinstance(self.uwb, TdoaUpdate) and math.isfinite(self.iterate_sigma_m):
             fix_tag = self.uwb.snapshot(t_ep, rows, refs)
-        t, acc, gyro, ep_idx = merge_timeline(imu, t_ep)
-        max_gap = (MAX_IMU_GAP_STEPS * float(np.median(np.diff(imu.t_s))) if self.max_imu_gap_s is None
-                   else self.max_imu_gap_s) if imu.t_s.size > 1 else math.inf
-        coasting, gaps_s = imu_gaps(imu.t_s, t, max_gap)
-        inside = coasting & ~np.isin(t, imu.t_s)        # epochs inside a gap: nothing measured there,
-        acc[inside], gyro[inside] = np.nan, np.nan      # so no IMU value is invented
+        # epochs inside an IMU gap: nothing measured there, so no IMU value is invented (NaN)
+        t, acc, gyro, ep_idx, coasting, gaps_s = gap_timeline(imu, t_ep, self.max_imu_gap_s)
         meta = {"imu_gaps_s": gaps_s}
         yaw_meas = heading.at(t_ep) if heading is not None else np.full(T, np.nan)
         out = _empty(T, N_ERR)
