@@ -10,11 +10,11 @@ from scipy.stats import chi2
 
 from ... import validate
 from ...models.imu import HeadingLog
-from ...models.ins import Mechanization, NavState, _dcm, _exp_left, _yaw
+from ...models.ins import N_ERR, Mechanization, NavState, _dcm, _exp_left, _yaw, coast
 from ...types import Estimates, EstimateStatus, ImuLog
 from .. import kalman
 from ..kalman import Gaussian
-from .common import _lever, merge_timeline
+from .common import _lever, gap_timeline
 from .result import FusionRun, _empty, _wrap
 
 
@@ -50,6 +50,18 @@ class LooseFilter:
         a rejected fix does not enter the velocity difference. None: no gate.
     max_gated
         Consecutive gated epochs after which the next epoch's fix is used ungated.
+    max_imu_gap_s
+        An interval between IMU samples longer than this is a gap: the INS coasts across it
+        (:func:`~uwbwb.models.ins.coast`, as :class:`~uwbwb.filters.eskf.TightEskf` does: velocity
+        and attitude held, no IMU value interpolated or invented, no levelling at the epochs
+        inside it), the covariance grows by the assumed acceleration below, the UWB updates
+        continue, and the gaps are listed in ``FusionRun.meta["imu_gaps_s"]``. None:
+        :data:`~uwbwb.filters.eskf.MAX_IMU_GAP_STEPS` (5) median IMU steps, the loader's rule.
+    coast_acc_sigma_mps2
+        Assumption for a coast: the unknown acceleration as white noise of PSD ``σ² · 1 s``
+        (1 m/s², as the tight filter; the position/velocity blocks of
+        :func:`~uwbwb.models.ins.coast_transition`). The loose error state has no attitude, so the
+        tight filter's assumed rotation rate has nothing to act on here.
     """
 
     mechanization: Mechanization = Mechanization()
@@ -67,6 +79,8 @@ class LooseFilter:
     feedback: bool = True
     gate_prob: float | None = None
     max_gated: int = 25
+    max_imu_gap_s: float | None = None
+    coast_acc_sigma_mps2: float = 1.0
     name: str = "loose"
 
     def __post_init__(self):
@@ -85,6 +99,9 @@ class LooseFilter:
         if self.gate_prob is not None:
             validate.probability("LooseFilter.gate_prob", self.gate_prob)
         validate.integer("LooseFilter.max_gated", self.max_gated, minimum=0)
+        if self.max_imu_gap_s is not None:
+            validate.number("LooseFilter.max_imu_gap_s", self.max_imu_gap_s, minimum=0.0, strict_minimum=True)
+        validate.number("LooseFilter.coast_acc_sigma_mps2", self.coast_acc_sigma_mps2, minimum=0.0)
 
     def matrices(self, T_s: float):
         """``A``, ``Q``, ``R`` of eqs 5–6 for UWB period ``T_s``."""
@@ -114,7 +131,7 @@ class LooseFilter:
         d = self.dim
         t_ep = fixes.t_s
         T = t_ep.size
-        t, acc, gyro, ep_idx = merge_timeline(imu, t_ep)
+        t, acc, gyro, ep_idx, coasting, gaps_s = gap_timeline(imu, t_ep, self.max_imu_gap_s)
         yaw_meas = heading.at(t_ep) if heading is not None else np.full(T, np.nan)
         fix = np.full((T, 3), np.nan)
         fix[:, :fixes.dim] = fixes.pos_m
@@ -133,9 +150,22 @@ class LooseFilter:
         g_up = -mech.g_n / np.linalg.norm(mech.g_n)
         gate_m = None if self.gate_prob is None else {m: chi2.ppf(self.gate_prob, m) for m in (d, 2 * d)}
         gated_run = 0
+        # coast across IMU gaps: the 15-state accumulators of models.ins.coast since the last epoch,
+        # whose position/velocity block is the extra process noise of the assumed acceleration
+        blk = np.r_[0:d, 3:3 + d]
+        no_q, acc_var = np.zeros(N_ERR), float(self.coast_acc_sigma_mps2) ** 2
+        Phi_c, Q_c = np.eye(N_ERR), np.zeros((N_ERR, N_ERR))
+        coasted = False
         for i in range(t.size):
-            if i > 0:
+            if i > 0 and coasting[i]:                    # inside an IMU gap: nothing measured the motion
+                coast(p, v, t, i - 1, i, no_q, acc_var, 0.0, Phi_c, Q_c)
+                coasted = True
+            elif i > 0:
                 p, v, q, _, _ = mech.step(p, v, q, acc[i - 1], acc[i], gyro[i - 1], gyro[i], t[i] - t[i - 1])
+                if coasted:                              # carry the coast noise to the epoch (F of a step)
+                    dt = t[i] - t[i - 1]
+                    Q_c[:3, :] += dt * Q_c[3:6, :]
+                    Q_c[:, :3] += dt * Q_c[:, 3:6]
                 if d == 2 and self.height_m is not None:
                     p[2], v[2] = self.height_m - (_dcm(q) @ lever)[2], 0.0
             k = ep_at[i]
@@ -148,11 +178,15 @@ class LooseFilter:
             gain = min(1.0, T_s / self.attitude_tau_s) if T_s > 0 else 0.0
             if gain > 0:
                 fn = C @ acc[i]
-                corr = gain * np.cross(fn / max(math.sqrt(fn @ fn), 1e-9), g_up)
+                corr = (gain * np.cross(fn / max(math.sqrt(fn @ fn), 1e-9), g_up) if np.all(np.isfinite(fn))
+                        else np.zeros(3))                # inside an IMU gap: no specific force to level with
                 if np.isfinite(yaw_meas[k]):
                     corr[2] += gain * _wrap(yaw_meas[k] - _yaw(C))
                 q = _exp_left(corr, q)
             A, Q, _ = self.matrices(T_s)
+            if coasted:
+                Q = Q + Q_c[np.ix_(blk, blk)]
+                Phi_c, Q_c, coasted = np.eye(N_ERR), np.zeros((N_ERR, N_ERR)), False
             st = kalman.predict(Gaussian(dx, P), A, Q)
             dx, P = st.x, st.P
             C = _dcm(q)
@@ -199,4 +233,4 @@ class LooseFilter:
             cov[:d, :d] = P[:d, :d]
             out["pos_cov_m2"][k] = cov
             out["nis"][k], out["dof"][k], out["status"][k] = nis, dof, status
-        return FusionRun(t_ep.copy(), name=name or self.name, **out)
+        return FusionRun(t_ep.copy(), name=name or self.name, meta={"imu_gaps_s": gaps_s}, **out)
