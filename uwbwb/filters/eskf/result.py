@@ -8,9 +8,10 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
-from ...models.ins import N_ERR, Mechanization, NavState, euler_from_dcm, quat_to_dcm
+from ... import validate
+from ...models.ins import N_ERR, Mechanization, NavState, coast, euler_from_dcm, quat_to_dcm
 from ...types import EstimateStatus, Estimates, ImuLog
-from .common import merge_timeline
+from .common import gap_timeline
 
 
 # ====================================================================== result
@@ -112,14 +113,42 @@ def _wrap(a):
 
 
 def dead_reckon(imu: ImuLog, x0: NavState, t_s: np.ndarray, *, mechanization: Mechanization = Mechanization(),
-                lever_arm_m=(0.0, 0.0, 0.0), acc_bias=None, gyro_bias=None, name: str = "INS-only") -> FusionRun:
+                lever_arm_m=(0.0, 0.0, 0.0), acc_bias=None, gyro_bias=None, max_imu_gap_s: float | None = None,
+                name: str = "INS-only") -> FusionRun:
     """INS alone: the mechanization from ``x0`` with constant bias corrections, no aiding at all,
-    reported at ``t_s`` (status ``PREDICTED``; no covariance)."""
+    reported at ``t_s`` (status ``PREDICTED``; no covariance).
+
+    Across an IMU gap (a step between samples longer than ``max_imu_gap_s``; None:
+    :data:`~uwbwb.filters.eskf.MAX_IMU_GAP_STEPS` median steps, the rule of the filters) nothing
+    is interpolated: the INS coasts as the filters do (:func:`~uwbwb.models.ins.coast`: velocity
+    and attitude held, ``p += v Δt``) and goes on from there when the samples return. The gaps are
+    listed in ``meta["imu_gaps_s"]`` ``(G, 2)`` s, and ``meta["imu_coasted"]`` ``(T,)`` marks the
+    epochs whose state went through one (from the first gap on: with no aiding, a coast's error
+    stays in every later position). Coasting rather than stopping keeps INS-only scored on the
+    same epochs, under the same assumption, as the filters it is compared with.
+    """
     t_ep = np.asarray(t_s, float)
-    t, acc, gyro, idx = merge_timeline(imu, t_ep)
+    if max_imu_gap_s is not None:
+        validate.number("dead_reckon.max_imu_gap_s", max_imu_gap_s, minimum=0.0, strict_minimum=True)
+    t, acc, gyro, idx, coasting, gaps_s = gap_timeline(imu, t_ep, max_imu_gap_s)
     ba = np.zeros(3) if acc_bias is None else np.asarray(acc_bias, float)
     bg = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, float)
-    p, v, q = mechanization.integrate(t, acc - ba, gyro - bg, x0)
+    if not coasting.any():
+        p, v, q = mechanization.integrate(t, acc - ba, gyro - bg, x0)
+    else:
+        p, v, q = np.empty((t.size, 3)), np.empty((t.size, 3)), np.empty((t.size, 4))
+        p[0], v[0], q[0] = x0.pos_m, x0.vel_mps, x0.quat
+        edge = np.flatnonzero(np.diff(coasting[1:].astype(np.int8))) + 1   # last step of each run
+        no_q, dummy_phi, dummy_q = np.zeros(N_ERR), np.eye(N_ERR), np.zeros((N_ERR, N_ERR))
+        for j0, j1 in zip(np.r_[0, edge], np.r_[edge, t.size - 1]):       # steps j0 → j1, one kind
+            if coasting[j1]:
+                for j in range(j0 + 1, j1 + 1):
+                    p[j], v[j], q[j] = p[j - 1], v[j - 1], q[j - 1]
+                    coast(p[j], v[j], t, j - 1, j, no_q, 0.0, 0.0, dummy_phi, dummy_q)
+            else:
+                x = NavState(p[j0], v[j0], q[j0])
+                p[j0:j1 + 1], v[j0:j1 + 1], q[j0:j1 + 1] = mechanization.integrate(
+                    t[j0:j1 + 1], acc[j0:j1 + 1] - ba, gyro[j0:j1 + 1] - bg, x)
     out = _empty(t_ep.size, N_ERR)
     ok = idx >= 0
     C = quat_to_dcm(q[idx[ok]])
@@ -127,4 +156,7 @@ def dead_reckon(imu: ImuLog, x0: NavState, t_s: np.ndarray, *, mechanization: Me
     out["vel_mps"][ok], out["quat"][ok] = v[idx[ok]], q[idx[ok]]
     out["acc_bias_mps2"][ok], out["gyro_bias_radps"][ok] = ba, bg
     out["status"][ok] = EstimateStatus.PREDICTED
-    return FusionRun(t_ep.copy(), name=name, **out)
+    coasted = np.zeros(t_ep.size, bool)
+    if gaps_s.size:
+        coasted[ok] = t_ep[ok] > gaps_s[0, 0]
+    return FusionRun(t_ep.copy(), name=name, meta={"imu_gaps_s": gaps_s, "imu_coasted": coasted}, **out)
