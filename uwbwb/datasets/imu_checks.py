@@ -12,9 +12,12 @@ Loaders call :func:`check_imu_samples` after parsing and time-ordering an IMU fi
   full scale (:data:`~uwbwb.models.imu.ACC_FULL_SCALE_MPS2`, 16 g;
   :data:`~uwbwb.models.imu.GYRO_FULL_SCALE_RADPS`, 2000 °/s) cannot have been measured.
 * **Gaps**: a time step longer than :data:`MAX_GAP_SAMPLES` nominal intervals (median step).
-  Filters fed such a log interpolate linearly across the gap
-  (:func:`uwbwb.filters.eskf.merge_timeline`), inventing motion, so by default this is an
-  error listing the gaps; ``gaps="warn"`` keeps the log and warns with the same list.
+  No filter interpolates across such a gap: the UWB/INS filters and INS alone
+  (:class:`~uwbwb.filters.eskf.TightEskf`, :class:`~uwbwb.filters.eskf.LooseFilter`,
+  :func:`~uwbwb.filters.eskf.dead_reckon`, same rule) coast across it with velocity and attitude
+  held and list it in their result's ``meta["imu_gaps_s"]``, but nothing measured the motion
+  there, so by default this is an error listing the gaps; ``gaps="warn"`` keeps the log and warns
+  with the same list.
   Whole-second stamps hide gaps inside a second; :func:`check_second_counts` finds seconds
   with rows missing, under the same policy.
 * Non-finite numbers never get this far: the parsers refuse them, naming line and column.
@@ -41,9 +44,10 @@ from .cleaning import lines_text
 __all__ = ["GAP_POLICIES", "ImuChecks", "ImuGapWarning", "MAX_GAP_SAMPLES", "MAX_SPIKE_FRACTION", "check_imu_samples",
            "check_second_counts"]
 
-#: Longest step between IMU samples, in nominal intervals, that a filter may bridge by linear
-#: interpolation (an assumption: a few samples at 20–200 Hz is well below the time over which a
-#: consumer IMU's attitude and velocity change appreciably while flying).
+#: Longest step between IMU samples, in nominal intervals, that is not a gap: the filters
+#: interpolate linearly within such a step and coast across a longer one (an assumption: a few
+#: samples at 20–200 Hz is well below the time over which a consumer IMU's attitude and velocity
+#: change appreciably while flying).
 MAX_GAP_SAMPLES = 5
 GAP_POLICIES = ("error", "warn")
 
@@ -141,8 +145,8 @@ def check_imu_samples(path: str | os.PathLike, t_s, acc, gyro, line_no, *, gaps:
         shown = ", ".join(f"{s:.3f}–{e:.3f} s (line {int(lk[i + 1])})" for (s, e), i in zip(gaps_s[:5], big[:5]))
         more = ", ..." if big.size > 5 else ""
         text = (f"{big.size} gap(s) between IMU samples longer than {limit:.3g} s ({MAX_GAP_SAMPLES} nominal "
-                f"intervals unless given), longest {float(dt[big].max()):.3g} s: {shown}{more}; a filter would "
-                f"bridge them by linear interpolation")
+                f"intervals unless given), longest {float(dt[big].max()):.3g} s: {shown}{more}; the filters "
+                f"coast across them (velocity and attitude held, nothing measured there)")
         if gaps == "error":
             raise DataFormatError(path, text + " (load with imu_gaps='warn' to keep the log)", line=int(lk[big[0] + 1]))
         warnings.warn(f"{path}: {text}", ImuGapWarning, stacklevel=3)

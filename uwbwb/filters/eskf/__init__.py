@@ -34,10 +34,12 @@ runs open loop and the error state carries the whole correction (output = nomina
 
 Time: the IMU samples and the UWB epochs are merged into one time line; IMU values at
 a UWB epoch are interpolated linearly between neighbouring samples, so each update happens at
-its own time stamp. Across an IMU gap (longer than ``max_imu_gap_s``) the tight filter
-interpolates nothing: it coasts (velocity and attitude held, covariance grown by an assumed
-motion, :func:`~uwbwb.models.ins.coast_transition`), keeps updating with UWB, and lists the gaps
-in ``FusionRun.meta["imu_gaps_s"]``.
+its own time stamp. Across an IMU gap (longer than ``max_imu_gap_s``; :func:`gap_timeline`) no
+filter interpolates: each coasts (velocity and attitude held, covariance grown by an assumed
+motion, :func:`~uwbwb.models.ins.coast_transition` / :func:`~uwbwb.models.ins.coast`; the loose
+filter grows its position/velocity block only), keeps updating with UWB, and lists the gaps in
+``FusionRun.meta["imu_gaps_s"]``; :func:`dead_reckon` holds velocity and attitude the same way
+and also marks the epochs after the first gap (``meta["imu_coasted"]``).
 
 Modules: :mod:`.common` (constants, the time line and IMU gaps), :mod:`.updates` (TDoA and range
 measurement models), :mod:`.result` (:class:`FusionRun`, :func:`dead_reckon`), :mod:`.tight`
@@ -46,7 +48,8 @@ measurement models), :mod:`.result` (:class:`FusionRun`, :func:`dead_reckon`), :
 (:class:`LooseFilter`). Every public name is importable from ``uwbwb.filters.eskf``.
 """
 
-from .common import HEADING_KNOWN_RAD, LOST_BUILD_S, MAX_IMU_GAP_STEPS, SNAPSHOT_RMS_SIGMAS, imu_gaps, merge_timeline
+from .common import (HEADING_KNOWN_RAD, LOST_BUILD_S, MAX_IMU_GAP_STEPS, SNAPSHOT_RMS_SIGMAS, gap_timeline, imu_gaps,
+                     merge_timeline)
 from .kernels import _exp_left_nb, _fill_row, _reset_block, _reset_covariance, _skew_into, _tight_loop, _uwb_rows
 from .loose import LooseFilter
 from .result import FusionRun, dead_reckon
