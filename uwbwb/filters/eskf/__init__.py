@@ -57,4 +57,4 @@ from .tight import HeadingLog, TightEskf
 from .updates import RangeUpdate, TdoaUpdate, _tag_jacobian
 
 __all__ = ["FusionRun", "HeadingLog", "LooseFilter", "RangeUpdate", "TdoaUpdate", "TightEskf", "dead_reckon",
-           "imu_gaps", "merge_timeline"]
+           "gap_timeline", "imu_gaps", "merge_timeline"]
