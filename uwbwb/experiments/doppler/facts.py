@@ -80,7 +80,7 @@ class Results:
     fig_counts
         ``{layout: {threshold_cm: (distinct samples, distinct positions, FractionEstimate)}}``.
     geometry, fisher
-        :func:`~.study.ghost_geometry` (cubic, 8 cm), :func:`~.study.fisher_analysis`.
+        :func:`~.ghosts.ghost_geometry` (cubic, 8 cm), :func:`~.ghosts.fisher_analysis`.
     cut_minima
         ``{curve: (s at minimum (m), δ at minimum (cm))}`` of Fig 5.
     snap, scores, floor
