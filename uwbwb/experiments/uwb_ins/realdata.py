@@ -4,7 +4,7 @@ epochs, block-bootstrap intervals on the differences between methods, and consis
 Every method of a :class:`~.study.Comparison` from :func:`~.study.compare_iasl` is scored on the
 **common epochs**: those where the truth exists and every method has an estimate. The errors of
 one method are correlated in time, so an interval on a difference resamples contiguous blocks
-of epochs (a moving-block bootstrap), never single epochs.
+of epochs (a block bootstrap over non-overlapping blocks), never single epochs.
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ def error_table(comp: Comparison, methods=None) -> pd.DataFrame:
 
 def block_bootstrap_difference(err_a: np.ndarray, err_b: np.ndarray, *, rng: np.random.Generator,
                                n_boot: int = 2000, n_blocks: int = N_BLOCKS, level: float = 0.95) -> dict:
-    """``RMSE(a) − RMSE(b)`` on paired epochs and its moving-block bootstrap interval.
+    """``RMSE(a) − RMSE(b)`` on paired epochs and its block-bootstrap interval (non-overlapping blocks).
 
     Parameters
     ----------

@@ -3,7 +3,9 @@ the calibration scenario, the covariance inflation that makes the tight filter c
 (fitted on the calibration scenario, applied on the scored one), and the steps from notebook
 05's protocol to the board's (notebook 06) for "tight on the scored scenario".
 
-Nothing here reads the scored scenario's truth except to score.
+Nothing here reads the scored scenario's truth except to score; the loader's IMU clock offset, however, is
+estimated against each scenario's own motion-capture attitude (see :mod:`uwbwb.datasets.registration`), the
+scored scenario's included — notebook 05 states it.
 """
 
 from __future__ import annotations
@@ -162,7 +164,8 @@ def inflation_sentence(f: dict, method: str = "tight", *, cal_label: str, test_l
             f"where NEES was {f['nees_cal']:.1f}) gives on `{test_label}` a mean NEES of {f['nees_test_scaled']:.1f} "
             f"and {f['inside_test_scaled']:.0%} inside the {f['prob']:.0%} ellipse — "
             + ("consistent within 10 points." if ok else "still not consistent within 10 points: the scale does not transfer.")
-            )
+            + " The scale is applied to the reported covariance after the run: the filter itself, and its χ² gate, "
+            "still use the unscaled, over-confident one.")
 
 
 def _tight_rmse(comp) -> tuple[float, int]:
