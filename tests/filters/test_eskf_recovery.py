@@ -53,6 +53,47 @@ def test_in_motion_heading_alignment_does_not_lock_the_filters_out(iasl_flights,
     assert not bad, bad
 
 
+def _alignment_gating(data, cal, seeds, rates):
+    """Per alignment run (the tight range filter from yaw 0 ± 60°): ranges gated up to and including
+    the first epoch whose yaw σ is at most the gate's ``gate_yaw_sigma_rad`` (the heading resolved),
+    and after it."""
+    from uwbwb.datasets import iasl
+    from uwbwb.filters.alignment import align_iasl
+    from uwbwb.scoreboard.protocol import thin
+
+    out = {}
+    for s in seeds:
+        for rate_hz in rates:
+            al = align_iasl(thin(iasl.load_scenario(f"flight{s}", data), rate_hz), cal, still_s=1.0,
+                            align_s=10.0).alignment
+            resolved = np.flatnonzero(np.sqrt(al.P[:, 8, 8]) <= eskf.TightEskf.gate_yaw_sigma_rad)
+            assert resolved.size, (s, rate_hz)
+            k = resolved[0]
+            out[(s, rate_hz)] = (int(al.n_gated[:k + 1].sum()), int(al.n_gated[k + 1:].sum()))
+    return out
+
+
+def test_start_up_gate_is_released_until_the_heading_is_resolved_then_engages(iasl_flights):
+    """During the in-motion heading alignment no range is gated until the yaw σ is down to the gate's
+    3°; after that the gate rejects some (every run: 2–42 ranges). The next test shows this check
+    failing without the start-up rule."""
+    gated = _alignment_gating(*iasl_flights, range(3), (5.0, 10.0, None))
+    assert all(before == 0 for before, _ in gated.values()), gated
+    assert all(after > 0 for _, after in gated.values()), gated
+
+
+def test_without_the_start_up_rule_ranges_are_gated_before_the_heading_is_resolved(iasl_flights, monkeypatch):
+    """Negative control of the test above: with the gate engaged from the first epoch (every initial
+    yaw σ counted as a known heading), ranges are gated while the heading is still unresolved on
+    4 of these 6 runs (1–4 ranges each; none at 5 Hz), so the check above fails."""
+    from uwbwb.filters.eskf import tight
+
+    monkeypatch.setattr(tight, "HEADING_KNOWN_RAD", 10.0)
+    gated = _alignment_gating(*iasl_flights, range(3), (10.0, None))
+    early = {k: before for k, (before, _) in gated.items() if before}
+    assert len(early) >= 3, gated
+
+
 OUTAGE_S = 30.0
 
 
