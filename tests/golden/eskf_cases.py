@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.golden.ekf_cases import fingerprint
+from tests.golden.ekf_cases import digest, fingerprint
 from uwbwb.filters import eskf
 from uwbwb.filters.tdoa_ls import tdoa_least_squares
 from uwbwb.models.imu import GRADES
@@ -159,16 +159,6 @@ def arrays(cases: dict[str, eskf.FusionRun]) -> dict[str, np.ndarray]:
                 a = a[::STRIDE]
             out[f"{name}/{f}"] = a
     return out
-
-
-def digest(flat: dict[str, np.ndarray]) -> str:
-    """SHA-256 over every array's name, dtype, shape and bytes, in name order."""
-    h = hashlib.sha256()
-    for key in sorted(flat):
-        a = np.ascontiguousarray(flat[key])
-        h.update(f"{key}|{a.dtype.str}|{a.shape}|".encode())
-        h.update(a.tobytes())
-    return h.hexdigest()
 
 
 def write(path: Path = GOLDEN) -> None:

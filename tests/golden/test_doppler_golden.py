@@ -5,10 +5,9 @@ numerical change is a separate commit that rewrites it (``python -m tests.golden
 and says why.
 """
 
-import numpy as np
 import pytest
 
-from tests.golden import doppler_cases
+from tests.golden import assert_digest, assert_reproduces, doppler_cases
 
 
 @pytest.fixture(scope="module")
@@ -17,23 +16,11 @@ def recomputed():
 
 
 def test_golden_file_is_what_its_digest_says():
-    stored = np.load(doppler_cases.GOLDEN)
-    flat = {k: stored[k] for k in stored.files if k != "__fingerprint__"}
-    assert doppler_cases.digest(flat) == doppler_cases.DIGEST.read_text().split()[0]
+    assert_digest(doppler_cases)
 
 
 def test_every_doppler_configuration_reproduces_the_golden_outputs_exactly(recomputed):
-    stored = np.load(doppler_cases.GOLDEN)
-    assert sorted(recomputed) == sorted(k for k in stored.files if k != "__fingerprint__")
-    same_platform = str(stored["__fingerprint__"]) == doppler_cases.fingerprint()
-    for key, value in recomputed.items():
-        want = stored[key]
-        assert value.dtype == want.dtype and value.shape == want.shape, key
-        if same_platform:
-            assert value.tobytes() == want.tobytes(), f"{key} differs from the golden output"
-        else:
-            np.testing.assert_array_equal(np.isnan(value), np.isnan(want), err_msg=key)
-            np.testing.assert_allclose(value, want, rtol=1e-9, atol=1e-12, err_msg=key)
+    assert_reproduces(recomputed, doppler_cases)
 
 
 def test_golden_cases_exercise_every_path(recomputed):

@@ -4,10 +4,9 @@ The golden file was written before the gate became an injected policy; an intend
 change is a separate commit that rewrites it (``python -m tests.golden.ekf_cases``) and says why.
 """
 
-import numpy as np
 import pytest
 
-from tests.golden import ekf_cases
+from tests.golden import assert_digest, assert_reproduces, ekf_cases
 
 
 @pytest.fixture(scope="module")
@@ -16,25 +15,11 @@ def recomputed():
 
 
 def test_golden_file_is_what_its_digest_says():
-    stored = np.load(ekf_cases.GOLDEN)
-    flat = {k: stored[k] for k in stored.files if k != "__fingerprint__"}
-    assert ekf_cases.digest(flat) == ekf_cases.DIGEST.read_text().split()[0]
+    assert_digest(ekf_cases)
 
 
 def test_every_ekf_configuration_reproduces_the_golden_outputs_exactly(recomputed):
-    stored = np.load(ekf_cases.GOLDEN)
-    assert sorted(recomputed) == sorted(k for k in stored.files if k != "__fingerprint__")
-    same_platform = str(stored["__fingerprint__"]) == ekf_cases.fingerprint()
-    for key, value in recomputed.items():
-        want = stored[key]
-        assert value.dtype == want.dtype and value.shape == want.shape, key
-        if same_platform:
-            # bit for bit, NaNs in the same places
-            assert value.tobytes() == want.tobytes(), f"{key} differs from the golden output"
-        else:
-            # another numpy/BLAS may round the last bits differently; the structure must still agree
-            np.testing.assert_array_equal(np.isnan(value), np.isnan(want), err_msg=key)
-            np.testing.assert_allclose(value, want, rtol=1e-9, atol=1e-12, err_msg=key)
+    assert_reproduces(recomputed, ekf_cases)
 
 
 def test_golden_cases_exercise_every_gate_path(recomputed):
