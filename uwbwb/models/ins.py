@@ -193,20 +193,32 @@ def _skew3(v) -> np.ndarray:
     return np.array([[0.0, -c, b], [c, 0.0, -a], [-b, a, 0.0]])
 
 
-def _exp_quat(rv) -> tuple[float, float, float, float]:
-    """``Exp(rv)``: the unit quaternion (w, x, y, z) of one rotation vector (series near zero angle)."""
-    a, b, c = rv.tolist()
+def _exp_quat3(a, b, c):
+    """``Exp([a, b, c])``: the unit quaternion (w, x, y, z) of one rotation vector (series near zero
+    angle). Plain scalar arithmetic: the per-step path calls it, and compiled it is
+    :func:`_exp_quat3_nb`."""
     ang = math.sqrt(a * a + b * b + c * c)
     k = math.sin(0.5 * ang) / ang if ang > 1e-8 else 0.5 - ang * ang / 48.0
     return math.cos(0.5 * ang), k * a, k * b, k * c
 
 
+def _qmul(a, b):
+    """Hamilton product ``a ⊗ b`` of two (w, x, y, z) tuples, not normalised. Plain scalar
+    arithmetic: the per-step path calls it, and compiled it is :func:`_qmul_nb`."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
+
+
+def _exp_quat(rv) -> tuple[float, float, float, float]:
+    """``Exp(rv)``: the unit quaternion (w, x, y, z) of one rotation vector (:func:`_exp_quat3`)."""
+    return _exp_quat3(*rv.tolist())
+
+
 def _exp_left(rv, q) -> np.ndarray:
     """``Exp(rv) ⊗ q`` for one rotation vector and quaternion, normalised (the per-step path)."""
-    rw, rx, ry, rz = _exp_quat(rv)
-    w, x, y, z = q.tolist()
-    out = np.array([rw * w - rx * x - ry * y - rz * z, rw * x + rx * w + ry * z - rz * y,
-                    rw * y - rx * z + ry * w + rz * x, rw * z + rx * y - ry * x + rz * w])
+    out = np.array(_qmul(_exp_quat(rv), q.tolist()))
     return out / math.sqrt(out @ out)
 
 
@@ -216,10 +228,7 @@ def _yaw(C) -> float:
 
 def _rotate(q, rv) -> np.ndarray:
     """``q ⊗ Exp(rv)`` for one quaternion and rotation vector, normalised (the per-step path)."""
-    rw, rx, ry, rz = _exp_quat(rv)
-    w, x, y, z = q.tolist()
-    out = np.array([w * rw - x * rx - y * ry - z * rz, w * rx + x * rw + y * rz - z * ry,
-                    w * ry - x * rz + y * rw + z * rx, w * rz + x * ry - y * rx + z * rw])
+    out = np.array(_qmul(q.tolist(), _exp_quat(rv)))
     return out / math.sqrt(out @ out)
 
 
@@ -386,6 +395,23 @@ def reset_jacobian(dtheta_rad) -> np.ndarray:
 
 # --------------------------------------------------------------------------- compiled propagation
 
+_exp_quat3_nb = numba.njit(cache=True, nogil=True)(_exp_quat3)
+_qmul_nb = numba.njit(cache=True, nogil=True)(_qmul)
+
+
+@numba.njit(cache=True, nogil=True)
+def _unit_into(o, q):
+    """Write the 4-tuple ``o`` normalised into ``q`` (compiled; scalar norm)."""
+    nq = math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2] + o[3] * o[3])
+    q[0], q[1], q[2], q[3] = o[0] / nq, o[1] / nq, o[2] / nq, o[3] / nq
+
+
+@numba.njit(cache=True, nogil=True)
+def _exp_left_nb(rv, q):
+    """:func:`_exp_left` (``Exp(rv) ⊗ q``, normalised), compiled, in place on ``q``."""
+    _unit_into(_qmul_nb(_exp_quat3_nb(rv[0], rv[1], rv[2]), (q[0], q[1], q[2], q[3])), q)
+
+
 @numba.njit(cache=True, nogil=True)
 def _dcm_nb(q, C):
     w, x, y, z = q[0], q[1], q[2], q[3]
@@ -418,16 +444,7 @@ def propagate(pos, vel, quat, b_a, b_g, t, acc, gyro, i0, i1, g_n, qrate, Phi, Q
         f1 = acc[i] - b_a
         rv = 0.5 * (gyro[i - 1] + gyro[i] - 2.0 * b_g) * dt
         _dcm_nb(quat, C0)
-        ang = math.sqrt(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2])
-        k = math.sin(0.5 * ang) / ang if ang > 1e-8 else 0.5 - ang * ang / 48.0
-        rw, rx, ry, rz = math.cos(0.5 * ang), k * rv[0], k * rv[1], k * rv[2]
-        w, x, y, z = quat[0], quat[1], quat[2], quat[3]
-        q0 = w * rw - x * rx - y * ry - z * rz
-        q1 = w * rx + x * rw + y * rz - z * ry
-        q2 = w * ry - x * rz + y * rw + z * rx
-        q3 = w * rz + x * ry - y * rx + z * rw
-        nq = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
-        quat[0], quat[1], quat[2], quat[3] = q0 / nq, q1 / nq, q2 / nq, q3 / nq
+        _unit_into(_qmul_nb((quat[0], quat[1], quat[2], quat[3]), _exp_quat3_nb(rv[0], rv[1], rv[2])), quat)
         _dcm_nb(quat, C1)
         cf0 = C0 @ f0
         v1 = vel + 0.5 * dt * (cf0 + C1 @ f1) + g_n * dt

@@ -1,6 +1,8 @@
 """Compiled kernels of the tight filter. Declared twins: :func:`_tight_loop` must equal
-:meth:`~.tight.TightEskf.run_reference` to rounding; :func:`_exp_left_nb`, :func:`_reset_block`,
-:func:`_skew_into` equal their :mod:`uwbwb.models.ins` definitions (tests/filters/test_eskf.py)."""
+:meth:`~.tight.TightEskf.run_reference` to rounding; :func:`_reset_block`, :func:`_skew_into`
+equal their :mod:`uwbwb.models.ins` definitions (tests/filters/test_eskf.py). The attitude
+injection :func:`~uwbwb.models.ins._exp_left_nb` is not a twin: it is compiled from the scalar
+quaternion code the per-step path runs."""
 
 from __future__ import annotations
 
@@ -9,7 +11,7 @@ import math
 import numba
 import numpy as np
 
-from ...models.ins import _dcm_nb, coast, propagate
+from ...models.ins import _dcm_nb, _exp_left_nb, coast, propagate
 from ..kalman import _sequential
 from .common import LOST_BUILD_S
 
@@ -20,21 +22,6 @@ def _skew_into(v, S):
     S[0, 0], S[0, 1], S[0, 2] = 0.0, -v[2], v[1]
     S[1, 0], S[1, 1], S[1, 2] = v[2], 0.0, -v[0]
     S[2, 0], S[2, 1], S[2, 2] = -v[1], v[0], 0.0
-
-
-@numba.njit(cache=True, nogil=True)
-def _exp_left_nb(rv, q):
-    """:func:`~uwbwb.models.ins._exp_left` (``Exp(rv) ⊗ q``, normalised), in place on ``q``."""
-    ang = math.sqrt(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2])
-    k = math.sin(0.5 * ang) / ang if ang > 1e-8 else 0.5 - ang * ang / 48.0
-    rw, rx, ry, rz = math.cos(0.5 * ang), k * rv[0], k * rv[1], k * rv[2]
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    o0 = rw * w - rx * x - ry * y - rz * z
-    o1 = rw * x + rx * w + ry * z - rz * y
-    o2 = rw * y - rx * z + ry * w + rz * x
-    o3 = rw * z + rx * y - ry * x + rz * w
-    nq = math.sqrt(o0 * o0 + o1 * o1 + o2 * o2 + o3 * o3)
-    q[0], q[1], q[2], q[3] = o0 / nq, o1 / nq, o2 / nq, o3 / nq
 
 
 @numba.njit(cache=True, nogil=True)
