@@ -18,6 +18,24 @@ def _ax(ax):
     return plt.subplots(figsize=(4, 4))[1] if ax is None else ax
 
 
+def _lap(ax, study, label=None):
+    """One lap of the study's track in the truth colour (the base of Fig 6 a and b)."""
+    t = np.linspace(0, study.track.length_m / study.track.speed_mps, 400)
+    lap = study.track.pos_m(t)
+    ax.plot(lap[:, 0], lap[:, 1], color="#000000", linewidth=1.0, label=label)
+    return ax
+
+
+def _plan(ax, title: str):
+    """Finish a Fig 6 plan view: equal axes in metres, the title, the legend."""
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7, loc="upper right")
+    return ax
+
+
 def ghost_panel(samples: smp.GhostSamples, what: str, *, beacons=None, weak_dir=None, ax=None, title: str = "",
                 lim: float | None = None):
     """X–Y projection of ghost samples: ``what`` is ``"position"`` or ``"velocity"``.
@@ -101,10 +119,7 @@ def cuts_figure(df, *, threshold_cm: float = 6.0, ax=None):
 
 def tracks_figure(study, variant: str = "Doppler", *, n_runs: int = 5, ax=None):
     """Fig 6(a): the rectangle (clockwise), five PF runs between the two corners, and the MH-EKF."""
-    ax = _ax(ax)
-    t = np.linspace(0, study.track.length_m / study.track.speed_mps, 400)
-    lap = study.track.pos_m(t)
-    ax.plot(lap[:, 0], lap[:, 1], color="#000000", linewidth=1.0, label="truth (clockwise)")
+    ax = _lap(_ax(ax), study, label="truth (clockwise)")
     runs = study.pf[variant]
     t0, t1 = study.snapshots_s
     sel = (runs.t_s >= t0 - 1.5) & (runs.t_s <= t1 + 0.5)
@@ -119,20 +134,12 @@ def tracks_figure(study, variant: str = "Doppler", *, n_runs: int = 5, ax=None):
     for k, tk in enumerate(study.snapshots_s):
         p = study.track.pos_m(tk)
         ax.plot(p[0], p[1], "o", markerfacecolor="none", markeredgecolor="#000000", markersize=10)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_title(f"{variant}: tracks between the two corners", fontsize=9)
-    ax.legend(fontsize=7, loc="upper right")
-    return ax
+    return _plan(ax, f"{variant}: tracks between the two corners")
 
 
 def clouds_figure(study, variant: str = "Doppler", *, ax=None):
     """Fig 6(b): every run's position at the two snapshots (3 s apart), with the truth."""
-    ax = _ax(ax)
-    t = np.linspace(0, study.track.length_m / study.track.speed_mps, 400)
-    lap = study.track.pos_m(t)
-    ax.plot(lap[:, 0], lap[:, 1], color="#000000", linewidth=1.0)
+    ax = _lap(_ax(ax), study)
     colors = ("#3182bd", "#31a354")
     for k, tk in enumerate(study.snapshots_s):
         c = study.cloud(variant, k)
@@ -140,9 +147,4 @@ def clouds_figure(study, variant: str = "Doppler", *, ax=None):
         ax.plot(c[:, 0], c[:, 1], ".", color=colors[k], markersize=2, alpha=0.6,
                 label=f"t = {tk:.1f} s ({c.shape[0]} runs)")
         ax.plot(p[0], p[1], "x", color="#000000", markersize=10, markeredgewidth=2)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_title(f"{variant}: PF positions at two corners", fontsize=9)
-    ax.legend(fontsize=7, loc="upper right")
-    return ax
+    return _plan(ax, f"{variant}: PF positions at two corners")
