@@ -1,0 +1,515 @@
+"""The declared twins: every compiled (numba) or hand-vectorised kernel of the package beside the
+readable Python definition it must equal.
+
+A fast kernel is only as trustworthy as the comparison that holds it to its definition. Each
+:class:`Twin` names the kernel, says how to run the fast implementation and the definition on the
+same input, builds that input (small, deterministic: fixed seeds, no files), and gives the
+tolerance per output: :data:`BIT` (bit for bit) where the two compute the same floating-point
+operations in the same order, otherwise the tolerance the kernel's own exactness test has always
+used (``held_by`` names that test; nothing here is looser). ``covers`` lists the compiled
+functions the comparison runs, so a test can say which compiled kernel has no twin yet.
+
+``tests/test_kernel_twins.py`` runs every entry of :data:`TWINS`. To add a kernel: write its
+definition (the plain loop or the model functions it must equal), add one ``Twin(...)`` to
+:func:`_registry`, and run that test.
+
+The registry sits in ``filters/`` because it is the lowest layer that sees every kernel's unit
+(the rotation primitives of ``models/ins.py``, the Doppler sampler of ``sampling.py`` and the
+filters' own kernels); it is imported by the tests only, never by ``import uwbwb``.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, NamedTuple
+
+import numpy as np
+
+from .. import sampling
+from ..models import doppler as doppler_model
+from ..models import ins
+from ..models.imu import GRADES
+from ..models.motion import VelocityKick
+from ..models.setnoise import SetNoiseModel
+from ..models.tdoa import TdoaModel
+from ..sim import robot
+from . import kalman, particle
+from .ekf import Ekf, Linearisation
+from .eskf import TdoaUpdate, TightEskf, _tag_jacobian
+from .eskf import kernels as eskf_kernels
+from .gating import NoGate
+from .setnoise import kf_sweep, pf_sweep, reference_pf
+
+__all__ = ["BIT", "Tol", "Twin", "TWINS"]
+
+
+class Tol(NamedTuple):
+    """``|fast − definition| <= atol + rtol·|definition|`` elementwise (NaN only where the other is NaN)."""
+
+    rtol: float = 0.0
+    atol: float = 0.0
+
+    @property
+    def bit_identical(self) -> bool:
+        return self.rtol == 0.0 and self.atol == 0.0
+
+
+#: Bit for bit: same values, same NaN positions.
+BIT = Tol()
+
+
+@dataclass(frozen=True)
+class Twin:
+    """A fast kernel and the Python definition it must equal.
+
+    Attributes
+    ----------
+    name
+        ``<where>.<kernel>`` with the case in brackets when one kernel has several entries.
+    fast, definition
+        ``f(inputs) -> {output: array}``; both return the same outputs.
+    inputs
+        ``() -> inputs``: small and deterministic. Each side gets its own deep copy (kernels that
+        work in place or draw from a generator cannot disturb the other side).
+    tolerance
+        ``{output: Tol}``, one per output.
+    held_by
+        The existing test that holds this kernel (directly, or as a step of the loop it belongs to);
+        an output that is not bit for bit today keeps that test's tolerance.
+    covers
+        Qualified names of the compiled functions the fast side runs.
+    exercised
+        ``f(definition outputs) -> str | None``: why the comparison would be vacuous (e.g. no
+        resampling happened), or None when it exercises what it is meant to.
+    """
+
+    name: str
+    fast: Callable[[Any], Mapping[str, np.ndarray]]
+    definition: Callable[[Any], Mapping[str, np.ndarray]]
+    inputs: Callable[[], Any]
+    tolerance: Mapping[str, Tol]
+    held_by: str
+    covers: tuple[str, ...] = ()
+    exercised: Callable[[Mapping[str, np.ndarray]], str | None] = field(default=lambda out: None)
+
+    def outputs(self) -> tuple[dict, dict]:
+        """``(fast outputs, definition outputs)`` on one build of the inputs."""
+        args = self.inputs()
+        return dict(self.fast(copy.deepcopy(args))), dict(self.definition(copy.deepcopy(args)))
+
+    def mismatches(self, fast: Mapping | None = None, definition: Mapping | None = None) -> list[str]:
+        """What differs beyond the tolerance (empty: the twins agree); runs both sides unless given."""
+        if fast is None or definition is None:
+            fast, definition = self.outputs()
+        out = []
+        if set(fast) != set(definition) or set(fast) != set(self.tolerance):
+            return [f"{self.name}: outputs {sorted(fast)} (fast), {sorted(definition)} (definition), "
+                    f"tolerances for {sorted(self.tolerance)}"]
+        for key, tol in self.tolerance.items():
+            a, b = np.asarray(fast[key]), np.asarray(definition[key])
+            if a.shape != b.shape:
+                out.append(f"{self.name}: {key} has shape {a.shape} (fast), {b.shape} (definition)")
+                continue
+            try:
+                if tol.bit_identical:
+                    np.testing.assert_array_equal(a, b, strict=True)
+                else:
+                    np.testing.assert_allclose(a, b, rtol=tol.rtol, atol=tol.atol)
+            except AssertionError as exc:
+                out.append(f"{self.name}: {key} differs beyond {tol}:{exc}")
+        why = self.exercised(definition)
+        if why:
+            out.append(f"{self.name}: the comparison is vacuous: {why}")
+        return out
+
+
+# ============================================================================ definitions
+
+def _run_outputs(res, floats, ints) -> dict:
+    return {**{f: getattr(res, f) for f in floats}, **{f: getattr(res, f) for f in ints}}
+
+
+# ---------------------------------------------------------------- the tight ESKF
+_FUSION_FLOATS = ("pos_m", "vel_mps", "quat", "acc_bias_mps2", "gyro_bias_radps", "P", "pos_cov_m2", "nis")
+_FUSION_INTS = ("dof", "n_outliers", "n_gated", "status")
+
+
+def _tight_inputs():
+    """The closed-loop TDoA case of tests/filters/test_eskf.py: two legs with a turn, 10 % multipath,
+    20 % missing TDoAs, heading, non-zero initial biases."""
+    cfg = robot.RobotConfig(outlier_rate=0.1, outlier_excess_m=(0.3, 3.0), p_missing=0.2)
+    run = robot.simulate(robot.broken_line(((2.0, 1.0), (3.2, 1.0), (3.2, 1.9)), turn_s=1.5, pause_s=0.5), cfg,
+                         rng=np.random.default_rng(11))
+    filt = TightEskf(uwb=TdoaUpdate(cfg.tdoa_model(sigma_m=max(cfg.sigma_toa_m, 0.01)), 0.1),
+                     lever_arm_m=cfg.lever_arm_m, height_m=cfg.tag_height_m, imu_model=GRADES["consumer"])
+    kw = dict(heading=run.heading, acc_bias0=np.array([0.02, -0.01, 0.03]), gyro_bias0=np.array([1e-3, -2e-3, 5e-4]))
+    return filt, run.imu, run.tdoa, run.x0, kw
+
+
+def _tight_fast(a):
+    filt, imu, uwb, x0, kw = a
+    return _run_outputs(filt.run(imu, uwb, x0, **kw), _FUSION_FLOATS, _FUSION_INTS)
+
+
+def _tight_definition(a):
+    filt, imu, uwb, x0, kw = a
+    return _run_outputs(filt.run_reference(imu, uwb, x0, **kw), _FUSION_FLOATS, _FUSION_INTS)
+
+
+def _tight_exercised(out):
+    if not np.any(out["status"] == 1) or not np.any(out["n_outliers"] + out["n_gated"] > 0):
+        return "no epoch updated, or none screened or gated"
+    return None
+
+
+# ---------------------------------------------------------------- rotation and reset primitives
+def _rotation_inputs():
+    """Rotation vectors of three sizes (series branch, small, large), unit quaternions, covariances."""
+    rng = np.random.default_rng(3)
+    cases = []
+    for scale in (1e-9, 1e-3, 0.5):
+        q = rng.standard_normal(4)
+        cases.append((scale * rng.standard_normal(3), q / np.linalg.norm(q), np.cov(rng.standard_normal((15, 40)))))
+    return cases
+
+
+def _per_case(fn):
+    def run(cases):
+        outs = [fn(*c) for c in cases]
+        return {k: np.stack([o[k] for o in outs]) for k in outs[0]}
+    return run
+
+
+def _exp_left_fast(rv, q, P):
+    q2 = q.copy()
+    ins._exp_left_nb(rv, q2)
+    return {"quat": q2}
+
+
+def _reset_block_fast(rv, q, P):
+    return {"G_theta": eskf_kernels._reset_block(rv)}
+
+
+def _reset_cov_fast(rv, q, P):
+    P2 = P.copy()
+    eskf_kernels._reset_covariance(P2, ins.reset_jacobian(rv)[6:9, 6:9])
+    return {"P": P2}
+
+
+def _reset_cov_definition(rv, q, P):
+    G = ins.reset_jacobian(rv)
+    return {"P": G @ P @ G.T}
+
+
+def _skew_fast(rv, q, P):
+    S = np.empty((3, 3))
+    eskf_kernels._skew_into(rv, S)
+    return {"S": S}
+
+
+def _dcm_fast(rv, q, P):
+    C = np.empty((3, 3))
+    ins._dcm_nb(q, C)
+    return {"C": C}
+
+
+def _rows_inputs():
+    """A TDoA epoch with one missing anchor, lever arm and attitude (tests/filters/test_eskf.py)."""
+    anchors = np.array([[0, 0, 2.4], [7, 0, 2.2], [7, 5, 2.4], [0, 5, 2.2]], float)
+    lever, C = np.array([0.1, -0.05, 0.2]), ins.dcm_from_euler(0.05, -0.1, 0.8)
+    upd = TdoaUpdate(TdoaModel(anchors, [0.05, 0.1, 0.07, 0.2], dim=3), None)
+    return upd, np.array([3.0, 2.0, 0.3]), lever, C, np.array([0.5, 0.0, np.nan, -0.3]), 1
+
+
+def _rows_fast(a):
+    upd, p, lever, C, row, ref = a
+    tag = p + C @ lever
+    S = np.empty((3, 3))
+    eskf_kernels._skew_into(C @ lever, S)
+    u = upd.model.unit_vectors(tag)
+    used = [j for j in range(row.size) if j != ref and np.isfinite(row[j])]
+    H = np.empty((len(used), 15))
+    for i, j in enumerate(used):
+        eskf_kernels._fill_row(H, i, u[j] - u[ref], S)
+    return {"H": H}
+
+
+def _rows_definition(a):
+    upd, p, lever, C, row, ref = a
+    return {"H": upd.linearise(p + C @ lever, _tag_jacobian(C, lever), row, ref).H}
+
+
+# ---------------------------------------------------------------- strapdown propagation
+def _imu_inputs():
+    """50 IMU samples at ~100 Hz (jittered) of a turning, accelerating body, with biases."""
+    rng = np.random.default_rng(5)
+    n = 50
+    t = np.cumsum(np.r_[0.0, rng.uniform(0.009, 0.011, n - 1)])
+    acc = np.array([0.3, -0.2, 9.81]) + 0.2 * rng.standard_normal((n, 3))
+    gyro = np.array([0.01, -0.02, 0.4]) + 0.05 * rng.standard_normal((n, 3))
+    q = ins.dcm_to_quat(ins.dcm_from_euler(0.02, -0.03, 0.7))
+    qrate = np.r_[np.zeros(3), np.full(3, 1e-3), np.full(3, 1e-5), np.full(3, 1e-6), np.full(3, 1e-8)]
+    return dict(pos=np.array([1.0, 2.0, 0.3]), vel=np.array([0.4, -0.1, 0.0]), quat=q,
+                b_a=np.array([0.02, -0.01, 0.03]), b_g=np.array([1e-3, -2e-3, 5e-4]), t=t, acc=acc, gyro=gyro,
+                qrate=qrate, Phi=np.eye(15), Qacc=np.diag(np.full(15, 1e-4)), acc_var=0.25, rate_var=0.01)
+
+
+def _propagate_fast(a):
+    g_n = ins.Mechanization().g_n
+    ins.propagate(a["pos"], a["vel"], a["quat"], a["b_a"], a["b_g"], a["t"], a["acc"], a["gyro"], 0, a["t"].size - 1,
+                  g_n, a["qrate"], a["Phi"], a["Qacc"])
+    return {k: a[k] for k in ("pos", "vel", "quat", "Phi", "Qacc")}
+
+
+def _propagate_definition(a):
+    """:meth:`Mechanization.step` and :func:`error_transition` per IMU step, ``Phi ← F Phi``,
+    ``Qacc ← F Qacc Fᵀ + diag(qrate) Δt``."""
+    mech = ins.Mechanization()
+    p, v, q, Phi, Qacc = a["pos"], a["vel"], a["quat"], a["Phi"], a["Qacc"]
+    f, w = a["acc"] - a["b_a"], a["gyro"] - a["b_g"]
+    for i in range(1, a["t"].size):
+        dt = a["t"][i] - a["t"][i - 1]
+        p, v, q, C0, _ = mech.step(p, v, q, f[i - 1], f[i], w[i - 1], w[i], dt)
+        F = ins.error_transition(C0, f[i - 1], dt)
+        Phi = F @ Phi
+        Qacc = F @ Qacc @ F.T + np.diag(a["qrate"] * dt)
+    return {"pos": p, "vel": v, "quat": q, "Phi": Phi, "Qacc": Qacc}
+
+
+def _coast_fast(a):
+    ins.coast(a["pos"], a["vel"], a["t"], 0, a["t"].size - 1, a["qrate"], a["acc_var"], a["rate_var"], a["Phi"],
+              a["Qacc"])
+    return {k: a[k] for k in ("pos", "Phi", "Qacc")}
+
+
+def _coast_definition(a):
+    """:func:`coast_transition` per step: ``p += v Δt``, ``Phi ← F Phi``, ``Qacc ← F Qacc Fᵀ + Q``."""
+    p, Phi, Qacc = a["pos"], a["Phi"], a["Qacc"]
+    for i in range(1, a["t"].size):
+        dt = a["t"][i] - a["t"][i - 1]
+        F, Q = ins.coast_transition(dt, a["qrate"], np.sqrt(a["acc_var"]), np.sqrt(a["rate_var"]))
+        p = p + a["vel"] * dt
+        Phi = F @ Phi
+        Qacc = F @ Qacc @ F.T + Q
+    return {"pos": p, "Phi": Phi, "Qacc": Qacc}
+
+
+# ---------------------------------------------------------------- sequential Kalman update
+def _sequential_inputs(correlated: bool):
+    def build():
+        rng = np.random.default_rng(4)
+        n, m = 7, 4
+        A = rng.normal(size=(n, n))
+        state = kalman.Gaussian(rng.normal(size=n), A @ A.T + np.eye(n))
+        H = rng.normal(size=(m, n))
+        R = np.diag(rng.uniform(0.1, 1.0, m)) + (0.3 if correlated else 0.0)
+        return state, rng.normal(size=m), H, R, rng.normal(size=m)
+    return build
+
+
+def _sequential_fast(a):
+    state, z, H, R, h = a
+    post, parts = kalman.update_sequential(state, z, H, R, h_x=h)
+    return {"x": post.x, "P": post.P, "nis": parts.sum()}
+
+
+def _sequential_definition(a):
+    state, z, H, R, h = a
+    post, inn = kalman.update(state, z, H, R, h_x=h)
+    return {"x": post.x, "P": post.P, "nis": inn.nis}
+
+
+# ---------------------------------------------------------------- set-noise KF and PF
+def _setnoise_case(T: int, seed: int = 1):
+    """The two-set straight-line case of tests/filters/test_setnoise.py: ``(t, z, mu, sd, truth)``."""
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.09, 0.12, T))
+    truth = np.column_stack([1.0 + 0.35 * (t - t[0]), np.full(T, 2.0)])
+    model = SetNoiseModel([3, 5], [[0.08, -0.03], [-0.05, 0.06]], [[0.10, 0.08], [0.15, 0.12]], [50, 50],
+                          [0.0, 0.0], [0.2, 0.2], 100)
+    sets = rng.choice([3, 5], T)
+    z = model.sample(truth, sets, rng=rng)
+    mu, sd, _ = model.lookup(sets)
+    return t, z, mu, sd, truth
+
+
+def _kf_inputs():
+    return (*_setnoise_case(25), np.array([0.05, 0.3]))
+
+
+def _kf_fast(a):
+    t, z, mu, sd, truth, sig = a
+    res = kf_sweep(t, z, mu, sd, truth[0], sig)
+    return {"state": res.state, "cov": res.cov, "nis": res.nis}
+
+
+@dataclass(frozen=True)
+class _BiasedFix:
+    """A set-noise position fix as an :class:`~uwbwb.filters.ekf.Ekf` measurement model: per epoch
+    ``(z − μ, H_pos x, H_pos, diag σ²)`` (paper 000, eq. 4 with the set's bias removed)."""
+
+    H: np.ndarray
+
+    def linearise(self, x, meas):
+        z, mu, sd = meas
+        return Linearisation(z - mu, self.H @ x, self.H, np.diag(sd ** 2))
+
+
+def _kf_definition(a):
+    """The generic EKF (:class:`~uwbwb.filters.ekf.Ekf`, no gate: ``kalman.predict`` / ``kalman.update``
+    step by step) from the known start (``P₀ = 0``), once per σ_d."""
+    t, z, mu, sd, truth, sig = a
+    state, cov, nis = [], [], []
+    for s in sig:
+        motion = VelocityKick(float(s))
+        ekf = Ekf(motion, _BiasedFix(motion.H_pos), pos_index=(0, 1), vel_index=(2, 3), gate=NoGate())
+        run = ekf.run(t, list(zip(z, mu, sd)), kalman.Gaussian(motion.initial_state(truth[0]), np.zeros((4, 4))))
+        state.append(run.x_post)
+        cov.append(run.P_post)
+        nis.append(run.nis)
+    return {"state": np.stack(state), "cov": np.stack(cov), "nis": np.stack(nis)}
+
+
+def _pf_inputs(resampler: str):
+    def build():
+        return (*_setnoise_case(40), resampler)
+    return build
+
+
+def _pf_fast(a):
+    t, z, mu, sd, truth, resampler = a
+    sw = pf_sweep(t, z, mu, sd, truth[0], 0.2, rng=np.random.default_rng(7), n_particles=300, resampler=resampler,
+                  dtype=np.float64)
+    return {"pos_m": sw.pos_m[0, 0, 0], "n_resampled": sw.n_resampled[0, 0, 0], "ess_mean": sw.ess_mean[0, 0, 0]}
+
+
+def _pf_definition(a):
+    t, z, mu, sd, truth, resampler = a
+    ref = reference_pf(t, z, mu, sd, truth[0], 0.2, rng=np.random.default_rng(7).spawn(1)[0], n_particles=300,
+                       resampler=resampler)
+    return {"pos_m": ref.pos_m, "n_resampled": ref.resampled.sum(), "ess_mean": ref.ess.mean()}
+
+
+def _pf_exercised(out):
+    return None if out["n_resampled"] > 3 else "fewer than 4 resampling steps"
+
+
+# ---------------------------------------------------------------- particle resampling, batched
+def _indices_inputs(method: str):
+    def build():
+        rng = np.random.default_rng(1)
+        w = rng.random((3, 2, 40)) ** 4
+        w /= w.sum(-1, keepdims=True)
+        u = rng.random((3, 2) if method == "systematic" else (3, 2, 40))
+        return (particle.systematic_indices if method == "systematic" else particle.multinomial_indices), w, u
+    return build
+
+
+def _indices_fast(a):
+    f, w, u = a
+    return {"indices": f(w, u)}
+
+
+def _indices_definition(a):
+    """One row at a time."""
+    f, w, u = a
+    return {"indices": np.stack([np.stack([f(w[i, j], u[i, j]) for j in range(w.shape[1])])
+                                 for i in range(w.shape[0])])}
+
+
+# ---------------------------------------------------------------- Doppler space sampling (eq. 1)
+def _brute_inputs():
+    model = doppler_model.DopplerModel.for_layout(doppler_model.cubic_layout())
+    return dict(model=model, ref=(doppler_model.REFERENCE_POS_M, doppler_model.REFERENCE_VEL_MPS), n=100_000, seed=5,
+                chunk_size=40_000, thresholds_m=(0.5, 1.0, 3.0), keep_below_m=1.0)
+
+
+def _brute_fast(a):
+    res = sampling.brute_force(a["model"], *a["ref"], a["n"], seed=a["seed"], chunk_size=a["chunk_size"],
+                               thresholds_m=a["thresholds_m"], keep_below_m=a["keep_below_m"], workers=1)
+    return {"counts": np.array([e.n_hits for e in res.estimates]), "delta_m": res.samples.delta_m}
+
+
+def _brute_definition(a):
+    """Chunk by chunk with NumPy: the chunk's generator draws X then V (six uniforms a row), δ by
+    :meth:`DopplerModel.distance_m` of eq. 1, counted under each threshold and kept under ``keep_below_m``."""
+    m = a["model"]
+    box = sampling.SearchBox()
+    counts, kept = np.zeros(len(a["thresholds_m"]), np.int64), []
+    for ss, n in sampling.chunk_seeds(a["seed"], a["n"], a["chunk_size"]):
+        u = np.random.default_rng(ss).random((n, 6))
+        X = box.pos_lo_m + (box.pos_hi_m - box.pos_lo_m) * u[:, :3]
+        V = box.vel_lo_mps + (box.vel_hi_mps - box.vel_lo_mps) * u[:, 3:]
+        d = m.distance_m(m.delta_p(X, V), m.delta_p(*a["ref"]))
+        counts += [np.count_nonzero(d < t) for t in a["thresholds_m"]]
+        kept.append(d[d < a["keep_below_m"]])
+    return {"counts": counts, "delta_m": np.concatenate(kept)}
+
+
+def _brute_exercised(out):
+    return None if out["counts"].min() > 0 else "a threshold with no hit"
+
+
+# ============================================================================ the registry
+_ESKF = "uwbwb.filters.eskf.kernels."
+_INS = "uwbwb.models.ins."
+_TIGHT_TEST = "tests/filters/test_eskf.py::test_compiled_run_equals_the_reference_loop"
+_PIECES_TEST = "tests/filters/test_eskf.py::test_compiled_pieces_equal_the_model_functions"
+
+
+def _registry() -> tuple[Twin, ...]:
+    tight_tol = {**{f: Tol(1e-9, 1e-10) for f in _FUSION_FLOATS}, **{f: BIT for f in _FUSION_INTS}}
+    twins = [
+        Twin("eskf._tight_loop", _tight_fast, _tight_definition, _tight_inputs, tight_tol, _TIGHT_TEST,
+             (_ESKF + "_tight_loop", _ESKF + "_uwb_rows", _INS + "propagate", "uwbwb.filters.kalman._sequential",
+              "uwbwb.filters.kalman._scalar_updates"), _tight_exercised),
+        Twin("ins._exp_left_nb", _per_case(_exp_left_fast),
+             _per_case(lambda rv, q, P: {"quat": ins._exp_left(rv, q)}), _rotation_inputs,
+             {"quat": BIT}, _PIECES_TEST,
+             (_INS + "_exp_left_nb", _INS + "_unit_into", _INS + "_exp_quat3_nb", _INS + "_qmul_nb")),
+        Twin("eskf._reset_block", _per_case(_reset_block_fast),
+             _per_case(lambda rv, q, P: {"G_theta": ins.reset_jacobian(rv)[6:9, 6:9]}), _rotation_inputs,
+             {"G_theta": Tol(0.0, 1e-15)}, _PIECES_TEST, (_ESKF + "_reset_block", _ESKF + "_skew_into")),
+        Twin("eskf._reset_covariance", _per_case(_reset_cov_fast), _per_case(_reset_cov_definition), _rotation_inputs,
+             {"P": Tol(0.0, 1e-14)}, _PIECES_TEST, (_ESKF + "_reset_covariance",)),
+        Twin("eskf._fill_row", _rows_fast, _rows_definition, _rows_inputs, {"H": Tol(0.0, 1e-15)}, _PIECES_TEST,
+             (_ESKF + "_fill_row", _ESKF + "_skew_into")),
+        Twin("eskf._skew_into", _per_case(_skew_fast), _per_case(lambda rv, q, P: {"S": ins.skew(rv)}),
+             _rotation_inputs, {"S": BIT}, _PIECES_TEST, (_ESKF + "_skew_into",)),
+        Twin("ins._dcm_nb", _per_case(_dcm_fast), _per_case(lambda rv, q, P: {"C": ins._dcm(q)}), _rotation_inputs,
+             {"C": BIT}, _TIGHT_TEST, (_INS + "_dcm_nb",)),
+        Twin("ins.propagate", _propagate_fast, _propagate_definition, _imu_inputs,
+             {k: BIT for k in ("pos", "vel", "quat", "Phi", "Qacc")}, _TIGHT_TEST,
+             (_INS + "propagate", _INS + "_dcm_nb", _INS + "_exp_quat3_nb", _INS + "_qmul_nb", _INS + "_unit_into")),
+        Twin("ins.coast", _coast_fast, _coast_definition, _imu_inputs,
+             {"pos": BIT, "Phi": BIT, "Qacc": Tol(1e-9, 1e-10)}, _TIGHT_TEST, (_INS + "coast",)),
+    ]
+    for kind, correlated in (("diagonal R", False), ("correlated R", True)):
+        twins.append(Twin(f"kalman.update_sequential[{kind}]", _sequential_fast, _sequential_definition,
+                          _sequential_inputs(correlated),
+                          {"x": Tol(0.0, 1e-10), "P": Tol(0.0, 1e-10), "nis": Tol(1e-10, 0.0)},
+                          "tests/filters/test_kalman.py::test_sequential_update_equals_the_batch_update",
+                          ("uwbwb.filters.kalman._sequential", "uwbwb.filters.kalman._scalar_updates")))
+    twins.append(Twin("setnoise.kf_sweep", _kf_fast, _kf_definition, _kf_inputs,
+                      {"state": Tol(0.0, 1e-12), "cov": Tol(0.0, 1e-12), "nis": Tol(0.0, 1e-9)},
+                      "tests/filters/test_setnoise.py::test_kf_sweep_matches_the_filterpy_edge_step_by_step"))
+    for resampler in ("multinomial", "systematic"):
+        twins.append(Twin(f"setnoise.pf_sweep[{resampler}]", _pf_fast, _pf_definition, _pf_inputs(resampler),
+                          {"pos_m": Tol(0.0, 1e-9), "n_resampled": BIT, "ess_mean": Tol(1e-6, 1e-12)},
+                          "tests/filters/test_setnoise.py::test_sweep_reproduces_the_reference_filter",
+                          exercised=_pf_exercised))
+    for method in ("systematic", "multinomial"):
+        twins.append(Twin(f"particle.{method}_indices[batched]", _indices_fast, _indices_definition,
+                          _indices_inputs(method), {"indices": BIT},
+                          "tests/filters/test_particle.py::test_batched_indices_equal_row_by_row"))
+    twins.append(Twin("sampling._brute_kernel", _brute_fast, _brute_definition, _brute_inputs,
+                      {"counts": BIT, "delta_m": Tol(1e-9, 0.0)},
+                      "tests/test_sampling.py::test_kernel_counts_equal_numpy_on_the_same_stream",
+                      ("uwbwb.sampling._brute_kernel",), _brute_exercised))
+    return tuple(twins)
+
+
+#: Every declared twin, by name.
+TWINS: dict[str, Twin] = {t.name: t for t in _registry()}
+
