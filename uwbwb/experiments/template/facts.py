@@ -1,0 +1,121 @@
+"""The template's numbers and computed verdicts: :func:`facts` turns :class:`~.study.Results` into a
+flat ``dict``; :func:`sentence` words it (a template over those numbers, never fixed text).
+
+Rules
+-----
+* Accuracy is the RMSE on the epochs **both** methods cover (common epochs); each method's coverage
+  (share of all epochs with an estimate) stands beside it.
+* EKF vs LS: ``ΔRMSE = RMSE(EKF-RF) − RMSE(LS)`` on the common epochs, with a 95 % block-bootstrap
+  interval (:data:`N_BLOCKS` non-overlapping blocks of consecutive epochs, drawn with replacement,
+  the two methods' errors kept paired). Interval entirely below 0 → ``"better"``; entirely above 0
+  → ``"worse"``; otherwise ``"no significant difference"``; fewer than ``2 · N_BLOCKS`` common
+  epochs → ``"no interval"``.
+* NIS: the EKF's mean NIS per degree of freedom over its updates inside :data:`NIS_BAND` →
+  ``"consistent"``, else ``"inconsistent"``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .study import Results
+
+__all__ = ["LEVEL", "N_BLOCKS", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "rmse_difference", "sentence",
+           "verdict"]
+
+#: Blocks of consecutive epochs of the bootstrap (errors of a filter are correlated in time).
+N_BLOCKS = 10
+#: Bootstrap replicates.
+N_BOOT = 2000
+#: Level of the interval.
+LEVEL = 0.95
+#: Mean NIS/dof band of a consistent filter.
+NIS_BAND = (0.5, 2.0)
+
+
+def rmse_difference(err_a, err_b, *, rng: np.random.Generator, n_boot: int = N_BOOT, n_blocks: int = N_BLOCKS,
+                    level: float = LEVEL) -> dict:
+    """``RMSE(a) − RMSE(b)`` of paired errors (same epochs, time order) and its block-bootstrap interval.
+
+    Returns ``{"diff_m", "lo_m", "hi_m", "n"}``; the interval is NaN with fewer than ``2 · n_blocks`` epochs.
+    """
+    a, b = np.asarray(err_a, float), np.asarray(err_b, float)
+    if a.shape != b.shape or a.ndim != 1:
+        raise ValueError(f"paired errors must be 1-D of one length, got {a.shape} and {b.shape}")
+    n = a.size
+    diff = float(np.sqrt(np.mean(a ** 2)) - np.sqrt(np.mean(b ** 2))) if n else np.nan
+    if n < 2 * n_blocks:
+        return {"diff_m": diff, "lo_m": np.nan, "hi_m": np.nan, "n": n}
+    edges = np.linspace(0, n, n_blocks + 1).astype(int)
+    sa, sb = np.add.reduceat(a ** 2, edges[:-1]), np.add.reduceat(b ** 2, edges[:-1])
+    count = np.diff(edges)
+    pick = rng.integers(0, n_blocks, (n_boot, n_blocks))
+    N = count[pick].sum(axis=1)
+    d = np.sqrt(sa[pick].sum(axis=1) / N) - np.sqrt(sb[pick].sum(axis=1) / N)
+    lo, hi = np.quantile(d, [(1 - level) / 2, (1 + level) / 2])
+    return {"diff_m": diff, "lo_m": float(lo), "hi_m": float(hi), "n": n}
+
+
+def verdict(lo_m: float, hi_m: float) -> str:
+    """The EKF against LS from the interval of ΔRMSE (module docstring)."""
+    if not (np.isfinite(lo_m) and np.isfinite(hi_m)):
+        return "no interval"
+    if hi_m < 0:
+        return "better"
+    if lo_m > 0:
+        return "worse"
+    return "no significant difference"
+
+
+def nis_verdict(mean_nis_per_dof: float) -> str:
+    lo, hi = NIS_BAND
+    return "consistent" if lo <= mean_nis_per_dof <= hi else "inconsistent"
+
+
+def facts(res: Results) -> dict:
+    """The numbers and verdicts of one study.
+
+    Returns
+    -------
+    dict
+        ``fast``, ``seed``, ``n_epochs``, ``n_common``, ``coverage[<method>]`` (0–1), ``rmse_m[<method>]``
+        (common epochs), ``diff_m``, ``lo_m``, ``hi_m`` (ΔRMSE EKF-RF − LS and its interval), ``verdict``,
+        ``nis_per_dof`` (mean over the EKF's updates), ``nis_verdict``, ``sigma_range_m``, ``driving_sigma_mps2``.
+    """
+    err = res.errors_m
+    common = np.logical_and.reduce([np.isfinite(e) for e in err.values()])
+    f = {"fast": res.fast, "seed": res.seed, "n_epochs": int(res.t_s.size), "n_common": int(common.sum()),
+         "sigma_range_m": res.config.sigma_range_m, "driving_sigma_mps2": res.config.driving_sigma_mps2}
+    for m, e in err.items():
+        f[f"coverage[{m}]"] = float(np.isfinite(e).mean())
+        f[f"rmse_m[{m}]"] = float(np.sqrt(np.mean(e[common] ** 2))) if common.any() else np.nan
+    d = rmse_difference(err["EKF-RF"][common], err["LS"][common], rng=np.random.default_rng(res.seed))
+    f.update(diff_m=d["diff_m"], lo_m=d["lo_m"], hi_m=d["hi_m"], verdict=verdict(d["lo_m"], d["hi_m"]))
+    nis = res.nis_per_dof[np.isfinite(res.nis_per_dof)]
+    f["nis_per_dof"] = float(nis.mean()) if nis.size else np.nan
+    f["nis_verdict"] = nis_verdict(f["nis_per_dof"])
+    return f
+
+
+_PHRASE = {"better": "the EKF is more accurate than LS",
+           "worse": "the EKF is less accurate than LS",
+           "no significant difference": "the two do not differ significantly",
+           "no interval": "there are too few common epochs to tell"}
+
+
+def sentence(f: dict) -> str:
+    """One paragraph from :func:`facts` (every number and verdict read from ``f``)."""
+    cm = 100.0
+    text = (f"On {f['n_common']} common epochs (coverage LS {f['coverage[LS]'] * 100:.0f} %, EKF-RF "
+            f"{f['coverage[EKF-RF]'] * 100:.0f} %) the EKF-RF's RMSE is {f['rmse_m[EKF-RF]'] * cm:.1f} cm against "
+            f"{f['rmse_m[LS]'] * cm:.1f} cm for LS: ΔRMSE {f['diff_m'] * cm:+.1f} cm")
+    if f["verdict"] != "no interval":
+        text += f", {LEVEL * 100:g} % block-bootstrap interval [{f['lo_m'] * cm:+.1f}, {f['hi_m'] * cm:+.1f}] cm"
+    text += f", so {_PHRASE[f['verdict']]}. "
+    lo, hi = NIS_BAND
+    text += (f"Its mean NIS per degree of freedom is {f['nis_per_dof']:.2f}, "
+             + ("inside" if f["nis_verdict"] == "consistent" else "outside")
+             + f" [{lo:g}, {hi:g}]: its covariance is {f['nis_verdict']} with its innovations.")
+    if f["fast"]:
+        text += " (FAST: a short walk; the numbers are a smoke test.)"
+    return text
