@@ -27,3 +27,14 @@ def test_number_probability_choice():
     assert validate.choice("m", "a", ("a", "b")) == "a"
     with pytest.raises(ValueError, match="m must be one of 'a', 'b', got 'c'"):
         validate.choice("m", "c", ("a", "b"))
+
+
+def test_points():
+    src = [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]]
+    arr = validate.points("anchors", src, minimum=2)
+    assert arr.dtype == float and arr.shape == (2, 3)
+    arr[0, 0] = 5.0                      # a new array: the caller's value is not touched
+    assert src[0][0] == 0.0
+    for bad in ([[0.0, 1.0]], [[0.0, 0.0, 1.0]], [1.0, 2.0, 3.0], "abc", [[0.0, 1.0, 2.0], [1.0]]):
+        with pytest.raises(ValueError, match=r"^anchors must be an \(n >= 2, 3\) array of points"):
+            validate.points("anchors", bad, minimum=2)

@@ -22,7 +22,9 @@ import math
 import numbers
 from typing import Any, Iterable
 
-__all__ = ["choice", "integer", "number", "probability"]
+import numpy as np
+
+__all__ = ["choice", "integer", "number", "points", "probability"]
 
 
 def integer(name: str, value: Any, *, minimum: int | None = None, maximum: int | None = None) -> int:
@@ -75,6 +77,17 @@ def choice(name: str, value: Any, options: Iterable) -> Any:
     if not any(value == o and type(value) is type(o) for o in options):
         raise ValueError(f"{name} must be one of {', '.join(map(repr, options))}, got {value!r}")
     return value
+
+
+def points(name: str, value: Any, *, minimum: int = 1) -> np.ndarray:
+    """Points in space (anchors, stations): a new float array of shape ``(n, 3)``, ``n >= minimum``, metres."""
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an (n >= {minimum}, 3) array of points, got {value!r}") from None
+    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] < minimum:
+        raise ValueError(f"{name} must be an (n >= {minimum}, 3) array of points, got shape {arr.shape}")
+    return arr
 
 
 def _bounds(minimum, maximum) -> str:

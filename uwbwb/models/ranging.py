@@ -24,6 +24,8 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.stats import norm
 
+from .. import validate
+
 
 #: Floor on a range in the Jacobian's denominator (a tag exactly on an anchor), metres.
 TINY_RANGE_M = 1e-12
@@ -147,6 +149,13 @@ def rigid_points(centroid_m: np.ndarray, yaw_rad: np.ndarray, offsets_m: np.ndar
     return np.stack([x, y, z], axis=-1)
 
 
+def _set_frozen(model, **arrays: np.ndarray) -> None:
+    """Store checked arrays on a frozen model, read-only (they are its parameters, shared by reference)."""
+    for name, arr in arrays.items():
+        arr.setflags(write=False)
+        object.__setattr__(model, name, arr)
+
+
 @dataclass(frozen=True)
 class TwrRangeModel:
     """Per anchor–tag affine range distortion with Gaussian noise and outliers.
@@ -183,10 +192,7 @@ class TwrRangeModel:
             raise ValueError("scale must be positive")
         if self.sigma_m < 0 or not 0 <= self.outlier_prob <= 1 or self.resolution_m < 0:
             raise ValueError("sigma_m, resolution_m must be >= 0 and outlier_prob in [0, 1]")
-        for arr in (b, s):
-            arr.setflags(write=False)
-        object.__setattr__(self, "bias_m", b)
-        object.__setattr__(self, "scale", s)
+        _set_frozen(self, bias_m=b, scale=s)
 
     def distort(self, range_true_m: np.ndarray) -> np.ndarray:
         """Noise-free distorted ranges, ``scale * true + bias``; input ``(T, n_tags, n_anchors)``."""
@@ -253,16 +259,13 @@ class NlosRangeModel:
     nlos_dwell_s: float = 3.0
 
     def __post_init__(self):
-        A = np.array(self.anchor_pos_m, float)
+        A = validate.points("anchor_pos_m", self.anchor_pos_m)
         R = np.array(self.coverage_m, float)
-        if A.ndim != 2 or A.shape[1] != 3 or R.shape != (A.shape[0],):
-            raise ValueError(f"anchor_pos_m must be (n, 3) and coverage_m (n,), got {A.shape}, {R.shape}")
+        if R.shape != (A.shape[0],):
+            raise ValueError(f"coverage_m must have one radius per anchor, shape ({A.shape[0]},), got {R.shape}")
         if self.los.bias_m.shape[1] != A.shape[0]:
             raise ValueError("the LOS model must have one column per anchor")
-        for a in (A, R):
-            a.setflags(write=False)
-        object.__setattr__(self, "anchor_pos_m", A)
-        object.__setattr__(self, "coverage_m", R)
+        _set_frozen(self, anchor_pos_m=A, coverage_m=R)
 
     def _outside_dist(self, d_xy_m: np.ndarray) -> np.ndarray:
         return 1.0 / (1.0 + np.exp(-(d_xy_m - self.coverage_m) / (self.edge_m / 4)))

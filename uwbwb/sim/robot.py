@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import validate
 from ..models.imu import GRADES, HeadingLog, ImuErrorModel
 from ..models.ins import Mechanization, NavState, dcm_from_euler, dcm_to_quat
 from ..models.tdoa import TdoaModel
@@ -180,9 +181,7 @@ class RobotConfig:
     range_bias_tau_s: float = 30.0
 
     def __post_init__(self):
-        a = np.asarray(self.stations_m, float)
-        if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 3:
-            raise ValueError(f"RobotConfig.stations_m must be (n >= 3, 3), got {a.shape}")
+        a = validate.points("RobotConfig.stations_m", self.stations_m, minimum=3)
         if not 0 <= self.reference < a.shape[0]:
             raise ValueError("RobotConfig.reference must index a station")
         if not (self.imu_rate_hz >= self.uwb_rate_hz > 0):

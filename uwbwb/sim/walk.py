@@ -49,7 +49,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .. import geometry
+from .. import geometry, validate
 from ..models.motion import RandomForce
 from ..models import ranging
 from ..types import Anchors, RangeLog, Recording, Trajectory
@@ -177,10 +177,8 @@ class WalkScenario:
     sim_rate_hz: float = 100.0
 
     def __post_init__(self):
-        a = np.asarray(self.anchor_pos_m, float)
+        validate.points(f"{self.name}: anchor_pos_m", self.anchor_pos_m, minimum=4)
         w = np.asarray(self.waypoints_m, float)
-        if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 4:
-            raise ValueError(f"{self.name}: anchor_pos_m must be (n_anchors >= 4, 3), got {a.shape}")
         if w.ndim != 2 or w.shape[1] != 2 or w.shape[0] < 3:
             raise ValueError(f"{self.name}: waypoints_m must be (n >= 3, 2), got {w.shape}")
         if np.any(np.linalg.norm(w - np.roll(w, -1, axis=0), axis=1) < 1e-6):
