@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import validate
 from ..types import TagRun
 from .ranging import predict_jacobian, predict_ranges
 
@@ -66,9 +67,7 @@ class TdoaModel:
     correlated: bool = True
 
     def __post_init__(self):
-        a = np.array(self.anchor_pos_m, float)
-        if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 3:
-            raise ValueError(f"TdoaModel.anchor_pos_m must be (n_anchors >= 3, 3), got {a.shape}")
+        a = validate.points("TdoaModel.anchor_pos_m", self.anchor_pos_m, minimum=3)
         if self.dim not in (2, 3):
             raise ValueError(f"TdoaModel.dim must be 2 or 3, got {self.dim!r}")
         s = np.broadcast_to(np.array(self.sigma_m, float), (a.shape[0],)).copy()
