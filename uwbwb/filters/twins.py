@@ -14,8 +14,9 @@ definition (the plain loop or the model functions it must equal), add one ``Twin
 :func:`_registry`, and run that test.
 
 The registry sits in ``filters/`` because it is the lowest layer that sees every kernel's unit
-(the rotation primitives of ``models/ins.py``, the Doppler sampler of ``sampling.py`` and the
-filters' own kernels); it is imported by the tests only, never by ``import uwbwb``.
+(the rotation primitives and block-written transition of ``models/ins.py``, the batched
+multilateration of ``geometry/``, the Doppler sampler of ``sampling.py`` and the filters' own
+kernels); it is imported by the tests only, never by ``import uwbwb``.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from typing import Any, Callable, Mapping, NamedTuple
 
 import numpy as np
 
-from .. import sampling
+from .. import geometry, sampling
 from ..models import doppler as doppler_model
 from ..models import ins
 from ..models.imu import GRADES
@@ -451,6 +452,47 @@ def _brute_exercised(out):
     return None if out["counts"].min() > 0 else "a threshold with no hit"
 
 
+# ---------------------------------------------------------------- error transition, written out by blocks
+def _transition_inputs():
+    return ins.dcm_from_euler(0.2, -0.3, 1.0), np.array([0.5, -0.2, 9.6]), 0.05
+
+
+def _transition_definition(a):
+    """``F = I + A Δt + ½ (A Δt)²`` with ``A`` = :func:`~uwbwb.models.ins.error_dynamics`."""
+    C, f, dt = a
+    Adt = ins.error_dynamics(C, f) * dt
+    return {"F": np.eye(ins.N_ERR) + Adt + 0.5 * Adt @ Adt}
+
+
+# ---------------------------------------------------------------- multilateration, batched Gauss-Newton
+def _multilateration_inputs(dim: int):
+    """60 tags in a 10 m × 8 m room with eight anchors at mixed heights, 10 cm range noise and 20 %
+    of the ranges missing (tests/test_geometry.py)."""
+    def build():
+        rng = np.random.default_rng(2)
+        anchors = np.array([[0.0, 0.0, 2.5], [10.0, 0.0, 2.4], [10.0, 8.0, 2.6], [0.0, 8.0, 2.5],
+                            [5.0, -1.0, 1.0], [11.0, 4.0, 0.5], [5.0, 9.0, 2.0], [-1.0, 4.0, 1.5]])
+        T = 60
+        xy, z = np.column_stack([rng.uniform(1, 9, T), rng.uniform(1, 7, T)]), rng.uniform(0.5, 1.5, T)
+        kw = {"z_m": z} if dim == 2 else {}
+        truth = xy if dim == 2 else np.column_stack([xy, z])
+        r = geometry.ranges(truth, anchors, **kw)
+        r = r + 0.1 * rng.standard_normal(r.shape)
+        drop = rng.random(r.shape) < 0.2
+        drop[:, :dim + 1] = False
+        r[drop] = np.nan
+        return r, anchors, dim, kw
+    return build
+
+
+def _multilaterate(method: str):
+    def run(a):
+        r, anchors, dim, kw = a
+        res = geometry.multilaterate(r, anchors, dim=dim, method=method, **kw)
+        return {"pos_m": res.pos_m, "cov_m2": res.cov_m2, "ok": res.ok}
+    return run
+
+
 # ============================================================================ the registry
 _ESKF = "uwbwb.filters.eskf.kernels."
 _INS = "uwbwb.models.ins."
@@ -507,6 +549,15 @@ def _registry() -> tuple[Twin, ...]:
                       {"counts": BIT, "delta_m": Tol(1e-9, 0.0)},
                       "tests/test_sampling.py::test_kernel_counts_equal_numpy_on_the_same_stream",
                       ("uwbwb.sampling._brute_kernel",), _brute_exercised))
+    twins.append(Twin("ins.error_transition", lambda a: {"F": ins.error_transition(*a)}, _transition_definition,
+                      _transition_inputs, {"F": Tol(0.0, 1e-14)},
+                      "tests/models/test_ins.py::test_block_transition_equals_the_matrix_series"))
+    for dim in (2, 3):
+        twins.append(Twin(f"geometry.multilaterate[gauss-newton, {dim}-D]", _multilaterate("gauss-newton"),
+                          _multilaterate("least_squares"), _multilateration_inputs(dim),
+                          {"pos_m": Tol(0.0, 1e-6), "cov_m2": Tol(1e-4, 1e-12), "ok": BIT},
+                          "tests/test_geometry.py::test_gauss_newton_and_least_squares_agree",
+                          exercised=lambda out: None if out["ok"].all() else "an epoch without a fix"))
     return tuple(twins)
 
 
