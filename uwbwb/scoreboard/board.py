@@ -36,7 +36,7 @@
     (epochs treated as independent: a tracking filter's errors are correlated, so read it
     as indicative).
 ``nis_over_dof``, ``nis_verdict``
-    NIS per degree of freedom and the χ² verdict (:func:`uwbwb.filters.ekf.nis_consistency`).
+    NIS per degree of freedom and the χ² verdict (:func:`uwbwb.metrics.nis_consistency`, which also gives ``nees_ok``).
 ``us_per_epoch``, ``time_ratio``
     Compute time per epoch (this machine, this run) and its ratio to ``raw LS``'s in the
     same run.
@@ -54,10 +54,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
 
 from .. import metrics
-from ..filters.ekf import nis_consistency
 from ..types import Estimates, Recording
 from . import checks as _checks
 from .estimators import Estimator, default_estimators, truth_at
@@ -141,12 +139,9 @@ class Entry:
         out = np.full(len(est), np.nan)
         if est.pos_cov_m2 is None:
             return out
-        e = est.pos_m - self.truth_pos_m
         ok = self.scored & np.all(np.isfinite(est.pos_cov_m2.reshape(len(est), -1)), axis=1)
         ok[ok] = np.linalg.eigvalsh(est.pos_cov_m2[ok])[:, 0] > 0      # a zero covariance has no NEES
-        if ok.any():
-            out[ok] = np.einsum("ti,ti->t", e[ok], np.linalg.solve(est.pos_cov_m2[ok], e[ok][..., None])[..., 0])
-        return out
+        return metrics.nees(est.pos_m - self.truth_pos_m, est.pos_cov_m2, ok)
 
 
 def _se(ents: list[Entry], trace: str) -> float:
@@ -303,12 +298,12 @@ class Board:
         nees = nees[np.isfinite(nees)]
         if nees.size:
             d = ents[0].estimates.dim
-            lo, hi = chi2.ppf([0.025, 0.975], nees.size * d) / nees.size
-            row.update(nees_mean=float(nees.mean()), nees_dof=d, nees_ok=bool(lo <= nees.mean() <= hi))
+            c = metrics.nis_consistency(nees, np.full(nees.size, d))      # the same χ² test as the NIS
+            row.update(nees_mean=float(nees.mean()), nees_dof=d, nees_ok=c["verdict"] == "consistent")
         if "nis" in ents[0].estimates.info:
             nis = np.concatenate([e.estimates.info["nis"][e.scored] for e in ents])
             dof = np.concatenate([np.asarray(e.estimates.info["dof"])[e.scored] for e in ents])
-            c = nis_consistency(nis, dof)
+            c = metrics.nis_consistency(nis, dof)
             row.update(nis_over_dof=c["mean_nis_over_dof"], nis_verdict=c["verdict"])
         epochs = sum(len(e.estimates) for e in ents)
         row["us_per_epoch"] = 1e6 * sum(e.seconds for e in ents) / epochs if epochs else np.nan

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from ... import metrics
 from .study import Comparison
 
 __all__ = ["N_BLOCKS", "PAIRS", "summary_rows", "common_epochs", "error_table", "block_bootstrap_difference", "difference_table",
@@ -147,15 +148,13 @@ def consistency_table(comp: Comparison, methods=None, *, prob: float = 0.95) -> 
         if not ok.any():
             continue
         dof = e.shape[1]
-        nees = np.einsum("ti,ti->t", e[ok], np.linalg.solve(P[ok], e[ok][..., None])[..., 0])
+        nees = metrics.nees(e, P, ok)[ok]
         row = {"dof": dof, "mean NEES": float(nees.mean()),
                f"inside own {prob:.0%} ellipse": float(np.mean(nees <= stats.chi2.ppf(prob, dof))),
                "covariance inflation for mean NEES = dof": float(nees.mean() / dof)}
         nis, ndof = est.info.get("nis"), est.info.get("dof")
         if nis is not None and ndof is not None:
-            nis, ndof = np.asarray(nis, float), np.asarray(ndof, float)
-            good = np.isfinite(nis) & (ndof > 0)
-            row["mean NIS / dof"] = float(nis[good].sum() / ndof[good].sum()) if good.any() else np.nan
+            row["mean NIS / dof"] = metrics.nis_consistency(nis, ndof, prob)["mean_nis_over_dof"]
         rows[m] = row
     return pd.DataFrame(rows).T
 

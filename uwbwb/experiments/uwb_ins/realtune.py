@@ -105,9 +105,7 @@ def tune_loose(rec: Recording, cal: RealCalibration, settings: FusionSettings = 
 def _nees(comp, method: str) -> np.ndarray:
     sel = common_epochs(comp)
     est = comp.estimates[method]
-    e = est.pos_m[sel] - comp.truth.pos_m[sel, : est.dim]
-    P = est.pos_cov_m2[sel]
-    return np.einsum("ti,ti->t", e, np.linalg.solve(P, e[..., None])[..., 0])
+    return metrics.nees(est.pos_m[sel] - comp.truth.pos_m[sel, : est.dim], est.pos_cov_m2[sel])
 
 
 def nees_inflation(comp_cal, comp_test, method: str = "tight", *, prob: float = 0.95) -> dict:
@@ -129,9 +127,7 @@ def nees_inflation(comp_cal, comp_test, method: str = "tight", *, prob: float = 
 
     def nis(comp):
         info = comp.estimates[method].info
-        v, d = np.asarray(info.get("nis", []), float), np.asarray(info.get("dof", []), float)
-        good = np.isfinite(v) & (d > 0) if v.size else np.zeros(0, bool)
-        return float(v[good].sum() / d[good].sum()) if good.any() else np.nan
+        return metrics.nis_consistency(info.get("nis", []), info.get("dof", []), prob)["mean_nis_over_dof"]
 
     return {"dof": dof, "k": k, "nees_cal": float(n_cal.mean()), "nees_test": float(n_test.mean()),
             "nees_test_scaled": float(n_test.mean() / k), "inside_test": float(np.mean(n_test <= lim)),

@@ -7,10 +7,9 @@ from typing import Any, Protocol, Sequence
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
 
+from ...metrics import nees as _nees, nis_consistency
 from ...types import EstimateStatus, Estimates, Trajectory
-from ...validate import probability
 from .. import kalman
 from ..gating import GatePolicy, UpdateInfo, gate_from_prob, ungated_update
 from ..kalman import Gaussian
@@ -339,15 +338,10 @@ class KalmanRun:
         x_true = np.asarray(x_true, float)
         if x_true.shape != (len(self), idx.size):
             raise ValueError(f"KalmanRun.nees: x_true must have shape ({len(self)}, {idx.size}), got {x_true.shape}")
-        e = self.x_post[:, idx] - x_true
-        P = self.P_post[:, idx[:, None], idx]
-        out = np.full(len(self), np.nan)
-        ok = self.started & np.all(np.isfinite(e), axis=1)
-        out[ok] = np.einsum("ti,ti->t", e[ok], np.linalg.solve(P[ok], e[ok][..., None])[..., 0])
-        return out
+        return _nees(self.x_post[:, idx] - x_true, self.P_post[:, idx[:, None], idx], self.started)
 
     def nis_consistency(self, prob: float = 0.95) -> dict:
-        """χ² consistency of the NIS over the updated epochs (see :func:`nis_consistency`)."""
+        """χ² consistency of the NIS over the updated epochs (:func:`uwbwb.metrics.nis_consistency`)."""
         up = self.status == EstimateStatus.UPDATED
         return nis_consistency(self.nis[up], self.dof[up], prob)
 
@@ -365,35 +359,3 @@ class KalmanRun:
     def to_frame(self) -> pd.DataFrame:
         """Table of :meth:`to_estimates` (``t_s``, positions, velocities, SDs, ``status``, ``nis, dof, n_rejected``)."""
         return self.to_estimates().to_frame()
-
-
-def nis_consistency(nis: np.ndarray, dof: np.ndarray, prob: float = 0.95) -> dict:
-    """χ² test of a filter's NIS over its updates.
-
-    Under correct models the sum of the NIS over ``n`` updates is χ²(Σ dof). The verdict
-    compares that sum with its central ``prob`` interval: above it the filter is
-    *over-confident* (its covariances are too small for its errors), below it
-    *under-confident*.
-
-    Returns
-    -------
-    dict
-        ``n`` updates, ``mean_nis_over_dof`` (≈ 1 when consistent), ``fraction_inside``
-        (share of single updates inside their own central ``prob`` interval),
-        ``sum_nis``, ``sum_dof``, the interval ``sum_lo``/``sum_hi`` and ``verdict``
-        (``"consistent"``, ``"over-confident"``, ``"under-confident"`` or ``"no updates"``).
-    """
-    probability("prob", prob)
-    nis, dof = np.asarray(nis, float), np.asarray(dof, int)
-    ok = (dof > 0) & np.isfinite(nis)
-    if not ok.any():
-        return {"n": 0, "mean_nis_over_dof": np.nan, "fraction_inside": np.nan, "sum_nis": np.nan,
-                "sum_dof": 0, "sum_lo": np.nan, "sum_hi": np.nan, "verdict": "no updates"}
-    nis, dof = nis[ok], dof[ok]
-    a = (1 - prob) / 2
-    inside = (nis >= chi2.ppf(a, dof)) & (nis <= chi2.ppf(1 - a, dof))
-    total = int(dof.sum())
-    lo, hi, s = float(chi2.ppf(a, total)), float(chi2.ppf(1 - a, total)), float(nis.sum())
-    verdict = "over-confident" if s > hi else "under-confident" if s < lo else "consistent"
-    return {"n": int(ok.sum()), "mean_nis_over_dof": s / total, "fraction_inside": float(inside.mean()),
-            "sum_nis": s, "sum_dof": total, "sum_lo": lo, "sum_hi": hi, "verdict": verdict}

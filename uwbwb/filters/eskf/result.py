@@ -6,9 +6,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
 
 from ... import validate
+from ...metrics import nis_consistency
 from ...models.ins import N_ERR, Mechanization, NavState, coast, euler_from_dcm, quat_to_dcm
 from ...types import EstimateStatus, Estimates, ImuLog
 from .common import gap_timeline
@@ -79,16 +79,10 @@ class FusionRun:
                          self.vel_mps[:, :dim], {"nis": self.nis, "dof": self.dof, "n_outliers": self.n_outliers,
                                                  "n_gated": self.n_gated})
 
-    def nis_consistency(self, prob: float = 0.95) -> dict[str, float]:
-        """Mean NIS per degree of freedom and the two-sided χ² bounds of the NIS sum."""
-        up = self.dof > 0
-        total = int(self.dof[up].sum())
-        if total == 0:
-            return {"n": 0, "mean_nis_over_dof": np.nan, "sum_lo": np.nan, "sum_hi": np.nan, "sum_nis": np.nan}
-        a = (1 - prob) / 2
-        s = float(self.nis[up].sum())
-        return {"n": int(up.sum()), "mean_nis_over_dof": s / total, "sum_nis": s, "sum_dof": total,
-                "sum_lo": float(chi2.ppf(a, total)), "sum_hi": float(chi2.ppf(1 - a, total))}
+    def nis_consistency(self, prob: float = 0.95) -> dict:
+        """χ² consistency of the NIS over the epochs with updates (:func:`uwbwb.metrics.nis_consistency`:
+        the keys of every run type)."""
+        return nis_consistency(self.nis, self.dof, prob)
 
     def to_frame(self) -> pd.DataFrame:
         eul = np.degrees(self.euler_rad)
