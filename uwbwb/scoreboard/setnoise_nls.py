@@ -100,8 +100,8 @@ class SetNoiseFilter(BaseEstimator):
         if len(fixes):
             if self.kind == "KF":
                 run = run_set_noise_kf(fixes, p["model"], fixes.pos_m[0], p["sigma_d_mps"], name=self.name)
-                cov[idx] = run.meta["cov"][:, :2, :2]
-                info["nis"][idx], info["dof"][idx] = run.meta["nis"], 2
+                cov[idx] = run.cov[:, :2, :2]
+                info["nis"][idx], info["dof"][idx] = run.nis, run.dof
             else:
                 run = run_set_noise_pf(fixes, p["model"], fixes.pos_m[0], p["sigma_d_mps"], rng=self._rng(rec, tag),
                                        n_particles=self.n_particles, name=self.name)

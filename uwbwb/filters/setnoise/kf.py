@@ -117,4 +117,4 @@ def run_set_noise_kf(fixes: SetFixLog, model: SetNoiseModel, x0_m, sigma_d_mps: 
     res = kf_sweep(fixes.t_s, fixes.pos_m, mu, sd, x0_m, sigma_d_mps)
     n = len(fixes)
     return FilterRun(res.t_s, res.state[0], np.full(n, np.nan), np.zeros(n, bool), name,
-                     {"sigma_d_mps": sigma_d_mps, "cov": res.cov[0], "nis": res.nis[0]})
+                     {"sigma_d_mps": sigma_d_mps}, cov=res.cov[0], nis=res.nis[0])

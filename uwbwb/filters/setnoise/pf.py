@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ...metrics import nis_consistency
 from ...models.motion import VelocityKick
 from ...models.setnoise import SetNoiseModel, log_likelihood
 from ... import parallel
@@ -130,6 +131,15 @@ class FilterRun:
         Whether the particles were resampled at each step, shape ``(T,)``.
     name
         Label (e.g. ``"set-noise PF"``).
+    meta
+        Settings of the run (``n_particles``, ``sigma_d_mps``, ...). For older callers it also
+        holds ``"cov"`` and ``"nis"`` when the run has them (the same arrays as the fields).
+    cov
+        Posterior covariance of the state after each fix, shape ``(T, 4, 4)``; None for a
+        particle filter (the Kalman filter has one).
+    nis
+        Normalised innovation squared of each fix, shape ``(T,)`` (2 dof: χ²(2) if the model
+        holds); None for a particle filter.
     """
 
     t_s: np.ndarray
@@ -138,11 +148,40 @@ class FilterRun:
     resampled: np.ndarray
     name: str = "filter"
     meta: dict = field(default_factory=dict, compare=False)
+    cov: np.ndarray | None = field(default=None, compare=False)
+    nis: np.ndarray | None = field(default=None, compare=False)
+
+    def __post_init__(self):
+        meta = dict(self.meta)
+        for key in ("cov", "nis"):                       # one value, read as a field or from meta
+            if getattr(self, key) is None and meta.get(key) is not None:
+                object.__setattr__(self, key, meta[key])
+            elif getattr(self, key) is not None:
+                meta[key] = getattr(self, key)
+        if (self.cov is None) != (self.nis is None):
+            raise ValueError("FilterRun: cov and nis come together (a Kalman filter) or not at all (a PF)")
+        T = np.shape(self.t_s)[0]
+        if self.cov is not None and (np.shape(self.cov) != (T, 4, 4) or np.shape(self.nis) != (T,)):
+            raise ValueError(f"FilterRun: cov must have shape ({T}, 4, 4) and nis ({T},), "
+                             f"got {np.shape(self.cov)} and {np.shape(self.nis)}")
+        object.__setattr__(self, "meta", meta)
 
     @property
     def pos_m(self) -> np.ndarray:
         """Estimated positions, shape ``(T, 2)``, metres."""
         return self.state[:, :2]
+
+    @property
+    def dof(self) -> np.ndarray | None:
+        """Size of each fix's innovation (2) where the run has a NIS, else None."""
+        return None if self.nis is None else np.full(self.t_s.size, 2)
+
+    def nis_consistency(self, prob: float = 0.95) -> dict:
+        """χ² consistency of the Kalman filter's NIS over its fixes (:func:`uwbwb.metrics.nis_consistency`);
+        a particle filter has none (``"no updates"``)."""
+        if self.nis is None:
+            return nis_consistency(np.zeros(0), np.zeros(0, int), prob)
+        return nis_consistency(self.nis, self.dof, prob)
 
     def to_estimates(self) -> Estimates:
         """The common result type: every fix ``UPDATED``, with velocities; the Kalman filter's
@@ -150,12 +189,11 @@ class FilterRun:
         ``resampled`` in ``info``."""
         T = self.t_s.size
         status = np.full(T, EstimateStatus.UPDATED, np.int8)
-        cov = self.meta.get("cov")
-        if cov is not None:
-            cov = np.asarray(cov)[:, :2, :2]
-            info = {"nis": np.asarray(self.meta["nis"]), "dof": np.full(T, 2)}
+        if self.cov is not None:
+            cov = np.asarray(self.cov)[:, :2, :2]
+            info = {"nis": np.asarray(self.nis), "dof": self.dof}
         else:
-            info = {"ess": self.ess, "resampled": self.resampled}
+            cov, info = None, {"ess": self.ess, "resampled": self.resampled}
         return Estimates(self.t_s, self.pos_m, status, self.name, cov, self.state[:, 2:], info)
 
     def to_frame(self) -> pd.DataFrame:
