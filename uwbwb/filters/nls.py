@@ -181,6 +181,8 @@ class TrajectoryFit:
         How the fit was set up.
     theta0
         Initial guess, in the order of ``theta`` (paper parameters).
+    name
+        Label of the fitted line.
     """
 
     p0_m: np.ndarray
@@ -201,6 +203,7 @@ class TrajectoryFit:
     dim: int
     static: bool
     theta0: np.ndarray = field(repr=False)
+    name: str = "NLS"
 
     @property
     def theta(self) -> np.ndarray:
@@ -216,20 +219,25 @@ class TrajectoryFit:
         """``P0 + v (t - t0)``, shape ``(..., 3)``, metres."""
         return self.p0_m + np.multiply.outer(np.asarray(t_s, float) - self.t0_s, self.vel_mps)
 
-    def to_trajectory(self, t_s=None, name: str = "NLS") -> Trajectory:
-        """The fitted straight line sampled at ``t_s`` (default: its start and end)."""
+    def _epochs(self, t_s) -> np.ndarray:
         t = np.array([self.t0_s, self.t_end_s] if t_s is None else t_s, float)
         if t.size == 2 and t[0] == t[1]:
             t = t[:1]
-        vel = np.broadcast_to(self.vel_mps, (t.size, 3))
-        return Trajectory(t, self.position_at(t), vel, name=name)
+        return t
 
-    def to_estimates(self, t_s, name: str = "NLS") -> Estimates:
-        """The common result type at epochs ``t_s`` ``(T,)``: the fitted line's positions and
-        velocity, and the position covariance propagated from :attr:`cov`
-        (``A cov Aᵀ`` with ``A = [I, (t − t0) I]``). All epochs are ``UPDATED`` if the
-        solver converged, else ``NO_ESTIMATE``."""
-        t = np.asarray(t_s, float)
+    def to_trajectory(self, t_s=None, name: str | None = None) -> Trajectory:
+        """The fitted straight line sampled at ``t_s`` (default: its start and end)."""
+        t = self._epochs(t_s)
+        vel = np.broadcast_to(self.vel_mps, (t.size, 3))
+        return Trajectory(t, self.position_at(t), vel, name=name or self.name)
+
+    def to_estimates(self, t_s=None, name: str | None = None) -> Estimates:
+        """The common result type at epochs ``t_s`` ``(T,)`` (default: the segment's start and end,
+        as :meth:`to_trajectory`): the fitted line's positions and velocity, and the position
+        covariance propagated from :attr:`cov` (``A cov Aᵀ`` with ``A = [I, (t − t0) I]``). All
+        epochs are ``UPDATED`` if the solver converged, else ``NO_ESTIMATE``. Labelled :attr:`name`
+        unless ``name`` is given."""
+        t, name = self._epochs(t_s), name or self.name
         d, T = self.dim, t.size
         if not self.converged:
             return Estimates(t, np.full((T, d), np.nan), np.full(T, EstimateStatus.NO_ESTIMATE, np.int8), name)

@@ -42,7 +42,7 @@ import numpy as np
 
 from ..geometry import Status, multilaterate
 from ..models.track import LinearTrackRanges, anchor_array
-from ..types import RangeLog, RangeSamples
+from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples
 from ..validate import integer, number
 from .nls import TrajectoryFit, fit_trajectory
 
@@ -438,6 +438,20 @@ class LocalizationResult:
     @property
     def label(self) -> str:
         return LABELS[self.heuristic]
+
+    def to_estimates(self, t_s=None, name: str | None = None) -> Estimates:
+        """The common result type at epochs ``t_s`` (default: the segment's start and end), labelled
+        :attr:`label`: the resolution routine's line and covariance
+        (:meth:`TrajectoryFit.to_estimates`), or for ``"robust_mean"`` the 3-D point without a
+        covariance."""
+        t = np.array([self.t0_s, self.t_end_s] if t_s is None else t_s, float)
+        if t.size == 2 and t[0] == t[1]:
+            t = t[:1]
+        name = name or self.label
+        if self.fit is not None:
+            return self.fit.to_estimates(t, name)
+        return Estimates(t, self.position_at(t), np.full(t.size, EstimateStatus.UPDATED, np.int8), name, None,
+                         np.broadcast_to(self.vel_mps, (t.size, 3)))
 
 
 def localize(ranges: RangeLog | RangeSamples, anchors, heuristic: str = "residual",

@@ -56,6 +56,8 @@ class TdoaLsResult:
     status
         Codes per epoch, shape ``(T,)``: 0 ok, 1 too few anchors, 2 degenerate
         geometry, 3 not converged (see :data:`STATUS`).
+    name
+        Label of the fixes.
     """
 
     t_s: np.ndarray
@@ -65,6 +67,7 @@ class TdoaLsResult:
     n_iter: np.ndarray
     residual_rms_m: np.ndarray
     status: np.ndarray
+    name: str = "LS"
 
     @property
     def ok(self) -> np.ndarray:
@@ -86,16 +89,17 @@ class TdoaLsResult:
                     status=[STATUS[int(s)] for s in self.status])
         return pd.DataFrame(cols)
 
-    def to_trajectory(self, name: str = "LS") -> Trajectory:
+    def to_trajectory(self, name: str | None = None) -> Trajectory:
         """The valid fixes as a :class:`~uwbwb.types.Trajectory` (failed epochs left out)."""
-        return Trajectory(self.t_s[self.ok], self.pos_m[self.ok], name=name)
+        return Trajectory(self.t_s[self.ok], self.pos_m[self.ok], name=name or self.name)
 
-    def to_estimates(self, name: str = "LS") -> Estimates:
+    def to_estimates(self, name: str | None = None) -> Estimates:
         """The common result type: valid fixes ``UPDATED`` (with covariance), failed epochs
-        ``NO_ESTIMATE``; ``info`` holds ``n_tdoa``, ``n_iter`` and ``residual_rms_m``."""
+        ``NO_ESTIMATE``; ``info`` holds ``n_tdoa``, ``n_iter`` and ``residual_rms_m``. Labelled
+        :attr:`name` (``name`` given here, the older call, takes its place)."""
         ok = self.ok
         status = np.where(ok, EstimateStatus.UPDATED, EstimateStatus.NO_ESTIMATE).astype(np.int8)
-        return Estimates(self.t_s, np.where(ok[:, None], self.pos_m, np.nan), status, name,
+        return Estimates(self.t_s, np.where(ok[:, None], self.pos_m, np.nan), status, name or self.name,
                          np.where(ok[:, None, None], self.cov_m2, np.nan), None,
                          {"n_tdoa": self.n_tdoa, "n_iter": self.n_iter, "residual_rms_m": self.residual_rms_m})
 
@@ -116,7 +120,7 @@ def _weights(log: TdoaLog, model: TdoaModel, used: np.ndarray) -> np.ndarray:
 
 
 def tdoa_least_squares(log: TdoaLog, model: TdoaModel, *, x0_m: np.ndarray | None = None, max_iter: int = 20,
-                       tol_m: float = 1e-4, max_halvings: int = 6) -> TdoaLsResult:
+                       tol_m: float = 1e-4, max_halvings: int = 6, name: str = "LS") -> TdoaLsResult:
     """Gauss–Newton TDoA fix for every epoch of ``log`` (vectorised over epochs).
 
     Parameters
@@ -134,6 +138,8 @@ def tdoa_least_squares(log: TdoaLog, model: TdoaModel, *, x0_m: np.ndarray | Non
         Convergence threshold on the step length, metres.
     max_halvings
         Step halvings tried when a full step increases the cost.
+    name
+        Label of the result (its ``to_estimates()`` and ``to_trajectory()``).
 
     Returns
     -------
@@ -218,4 +224,4 @@ def tdoa_least_squares(log: TdoaLog, model: TdoaModel, *, x0_m: np.ndarray | Non
         pos[idx] = p[idx]
     rms = np.full(T, np.nan)
     rms[ok] = np.sqrt(np.sum(r[ok] ** 2, axis=1) / n_tdoa[ok])
-    return TdoaLsResult(log.t_s.copy(), pos, cov, n_tdoa, n_iter, rms, status)
+    return TdoaLsResult(log.t_s.copy(), pos, cov, n_tdoa, n_iter, rms, status, name)

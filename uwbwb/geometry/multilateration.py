@@ -83,6 +83,11 @@ class MultilaterationResult:
         True when ``sigma_m`` was estimated from the residuals.
     method
         ``"gauss-newton"`` or ``"least_squares"``.
+    t_s
+        Epoch times ``(T,)``, seconds, when given to :func:`multilaterate` (then
+        :meth:`to_estimates`, :meth:`to_trajectory` and :meth:`to_frame` need no argument).
+    name
+        Label of the fixes in legends and tables.
     """
 
     pos_m: np.ndarray
@@ -94,6 +99,8 @@ class MultilaterationResult:
     sigma_m: float | np.ndarray
     sigma_estimated: bool
     method: str
+    t_s: np.ndarray | None = None
+    name: str = "LS"
 
     def __post_init__(self):
         pos = np.array(self.pos_m, dtype=float)
@@ -110,6 +117,12 @@ class MultilaterationResult:
             object.__setattr__(self, name, arr)
         for name in ("pos_m", *expected):
             getattr(self, name).setflags(write=False)
+        if self.t_s is not None:
+            t = np.array(self.t_s, dtype=float)
+            if t.shape != (T,):
+                raise ValueError(f"t_s must have shape ({T},), got {t.shape}")
+            t.setflags(write=False)
+            object.__setattr__(self, "t_s", t)
         if isinstance(self.sigma_m, np.ndarray):
             s = np.array(self.sigma_m, dtype=float)
             s.setflags(write=False)
@@ -137,8 +150,8 @@ class MultilaterationResult:
         """Number of epochs per status label (all labels present, zeros included)."""
         return {s.label: int(np.count_nonzero(self.status == s)) for s in Status}
 
-    def to_trajectory(self, t_s, name: str = "LS") -> Trajectory:
-        """The OK epochs as a :class:`~uwbwb.Trajectory`.
+    def to_trajectory(self, t_s=None, name: str | None = None) -> Trajectory:
+        """The OK epochs as a :class:`~uwbwb.Trajectory` (at :attr:`t_s` unless given, labelled :attr:`name`).
 
         Epochs without a position (status other than OK) are left out, so the
         trajectory is shorter than the input by ``len(self) - self.ok.sum()``;
@@ -146,19 +159,22 @@ class MultilaterationResult:
         """
         t = self._check_t(t_s)
         ok = self.ok
-        return Trajectory(t[ok], self.pos_m[ok], name=name)
+        return Trajectory(t[ok], self.pos_m[ok], name=name or self.name)
 
-    def to_estimates(self, t_s, name: str = "LS") -> Estimates:
+    def to_estimates(self, t_s=None, name: str | None = None) -> Estimates:
         """The common result type: OK epochs ``UPDATED`` with position and covariance, the others
-        ``NO_ESTIMATE``; ``info`` holds ``n_used``, ``gdop`` and ``residual_rms_m``."""
+        ``NO_ESTIMATE``; ``info`` holds ``n_used``, ``gdop`` and ``residual_rms_m``.
+
+        The epochs are :attr:`t_s` and the label :attr:`name`; ``t_s`` and ``name`` given here
+        (the older call) take their place."""
         t = self._check_t(t_s)
         ok = self.ok
         status = np.where(ok, EstimateStatus.UPDATED, EstimateStatus.NO_ESTIMATE).astype(np.int8)
-        return Estimates(t, np.where(ok[:, None], self.pos_m, np.nan), status, name,
+        return Estimates(t, np.where(ok[:, None], self.pos_m, np.nan), status, name or self.name,
                          np.where(ok[:, None, None], self.cov_m2, np.nan), None,
                          {"n_used": self.n_used, "gdop": self.gdop, "residual_rms_m": self.residual_rms_m})
 
-    def to_frame(self, t_s) -> pd.DataFrame:
+    def to_frame(self, t_s=None) -> pd.DataFrame:
         """One row per epoch (all epochs, NaN where not OK).
 
         Columns: ``t_s, x_m, y_m[, z_m], var_x_m2, var_y_m2[, var_z_m2], cov_xy_m2[, cov_xz_m2,
@@ -177,13 +193,18 @@ class MultilaterationResult:
         return pd.DataFrame(cols)
 
     def _check_t(self, t_s) -> np.ndarray:
+        if t_s is None:
+            if self.t_s is None:
+                raise ValueError("this result has no epoch times: pass t_s to multilaterate (or here)")
+            return self.t_s
         t = np.asarray(t_s, dtype=float)
         if t.shape != (len(self),):
             raise ValueError(f"t_s must have shape ({len(self)},), got {t.shape}")
         return t
 
 
-def _finish(p: _Problem, x: np.ndarray, status: np.ndarray, method: str, sigma_m) -> MultilaterationResult:
+def _finish(p: _Problem, x: np.ndarray, status: np.ndarray, method: str, sigma_m, t_s=None,
+            name: str = "LS") -> MultilaterationResult:
     T, d = x.shape
     n_used = p.n_used
     idx = np.flatnonzero((status == Status.OK) | (status == Status.NOT_CONVERGED))
@@ -215,7 +236,7 @@ def _finish(p: _Problem, x: np.ndarray, status: np.ndarray, method: str, sigma_m
     cov[k] = cov_local[ok_local]
     gd[k] = np.sqrt(np.trace(H_inv[ok_local], axis1=1, axis2=2))
     rms[k] = np.sqrt(rss[ok_local] / n_used[k])
-    return MultilaterationResult(pos, cov, gd, n_used, rms, status, sigma, p.sigma is None, method)
+    return MultilaterationResult(pos, cov, gd, n_used, rms, status, sigma, p.sigma is None, method, t_s, name)
 
 
 # --------------------------------------------------------------------------- public solvers
@@ -259,7 +280,7 @@ def linear_multilaterate(range_m, anchor_pos_m, *, dim: int = 2, z_m=None) -> np
 def multilaterate(range_m, anchor_pos_m, *, dim: int = 2, z_m=None, x0=None,
                   method: str = "gauss-newton", sigma_m=None, min_anchors: int | None = None,
                   max_iter: int = 50, tol_m: float = 1e-9, loss: str = "linear",
-                  f_scale: float = 1.0) -> MultilaterationResult:
+                  f_scale: float = 1.0, t_s=None, name: str = "LS") -> MultilaterationResult:
     """Nonlinear least-squares position fix for every epoch at once.
 
     Minimises ``sum_i w_i (r_i - |p - a_i|)^2`` over the ranges present at each
@@ -307,6 +328,10 @@ def multilaterate(range_m, anchor_pos_m, *, dim: int = 2, z_m=None, x0=None,
         Robust loss for ``method="least_squares"`` (see scipy); ``f_scale`` is in
         metres without ``sigma_m`` and in standard deviations with it (residuals
         are divided by ``sigma_m``). Only ``loss="linear"`` is allowed with Gauss--Newton.
+    t_s
+        Epoch times ``(T,)``, seconds, kept in the result (so ``to_estimates()`` needs no argument).
+    name
+        Label of the result.
 
     Returns
     -------
@@ -348,7 +373,7 @@ def multilaterate(range_m, anchor_pos_m, *, dim: int = 2, z_m=None, x0=None,
     else:
         x, converged = _least_squares(p, x_init, run, int(max_iter), float(tol_m), loss, f_scale)
     status[run & ~converged] = Status.NOT_CONVERGED
-    return _finish(p, x, status, method, sigma_m)
+    return _finish(p, x, status, method, sigma_m, t_s, name)
 
 
 def multilaterate_one(range_m, anchor_pos_m, *, dim: int = 2, z_m=None, x0=None,

@@ -59,8 +59,9 @@ class RawLs(BaseEstimator):
 
     def estimate(self, rec, tag, cal):
         log = rec.ranges[tag]
-        res = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag))
-        return res.to_estimates(log.t_s, self.name)
+        res = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag), t_s=log.t_s,
+                                     name=self.name)
+        return res.to_estimates()
 
     def bound(self, rec, tag, cal, est):
         return _range_bound(rec, tag, cal, rec.ranges[tag])
@@ -75,8 +76,8 @@ class CalibratedLs(BaseEstimator):
     def estimate(self, rec, tag, cal):
         log = calibrated_log(rec, tag, cal)
         res = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag),
-                                     sigma_m=cal.sigma(tag))
-        return res.to_estimates(log.t_s, self.name)
+                                     sigma_m=cal.sigma(tag), t_s=log.t_s, name=self.name)
+        return res.to_estimates()
 
     def bound(self, rec, tag, cal, est):
         return _range_bound(rec, tag, cal, calibrated_log(rec, tag, cal))
@@ -92,8 +93,8 @@ class TdoaLs(BaseEstimator):
 
     def estimate(self, rec, tag, cal):
         log = calibrated_log(rec, tag, cal)
-        res = tdoa_least_squares(TdoaLog.from_ranges(log, self.ref), _tdoa_model(rec, tag, cal))
-        return res.to_estimates(self.name)
+        res = tdoa_least_squares(TdoaLog.from_ranges(log, self.ref), _tdoa_model(rec, tag, cal), name=self.name)
+        return res.to_estimates()
 
     def bound(self, rec, tag, cal, est):
         log = calibrated_log(rec, tag, cal)

@@ -271,8 +271,9 @@ class AuthorsFrontEndLs(BaseEstimator):
     def estimate(self, rec, tag, cal):
         log = rec.ranges[tag]
         r, report = authors_front_end(log.t_s, log.range_m)
-        res = geometry.multilaterate(r, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag))
-        est = res.to_estimates(log.t_s, self.name)
+        res = geometry.multilaterate(r, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag), t_s=log.t_s,
+                                     name=self.name)
+        est = res.to_estimates()
         return replace(est, info={**est.info, **report})
 
     def bound(self, rec, tag, cal, est):

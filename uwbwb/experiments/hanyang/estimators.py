@@ -241,8 +241,9 @@ class StaticModelLs(BaseEstimator):
     def estimate(self, rec, tag, cal):
         log = rec.ranges[tag]
         r = self.model.correct(log.range_m)
-        res = geometry.multilaterate(np.maximum(r, 0.0), rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag))
-        return res.to_estimates(log.t_s, self.name)
+        res = geometry.multilaterate(np.maximum(r, 0.0), rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag),
+                                     t_s=log.t_s, name=self.name)
+        return res.to_estimates()
 
     def bound(self, rec, tag, cal, est):
         return _range_bound(rec, tag, cal, rec.ranges[tag])
