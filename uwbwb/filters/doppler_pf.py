@@ -3,8 +3,8 @@
 :class:`DopplerPf` moves particles with their velocity plus random acceleration and weights them
 by one ΔP at a time as chirps arrive, vectorised over particles *and* independent runs, on the
 particle primitives of :mod:`uwbwb.filters.particle` (log-weights normalised with log-sum-exp, ESS,
-systematic resampling and roughening with an injected ``rng``). :class:`PfRuns` holds ``R`` runs as
-:class:`~uwbwb.types.Estimates` fields batched along a leading run axis. Re-exported by
+systematic resampling and roughening with an injected ``rng``). :class:`PfRuns` holds ``R`` runs as an
+:class:`~uwbwb.types.EstimatesBatch` (the ``Estimates`` fields batched along a leading run axis). Re-exported by
 :mod:`uwbwb.filters.doppler`.
 """
 
@@ -16,7 +16,7 @@ import numpy as np
 
 from .. import parallel
 from ..models.doppler import DopplerModel, ReceiverMotion
-from ..types import ChirpFlag, ChirpLog, EstimateStatus, Estimates
+from ..types import ChirpFlag, ChirpLog, EstimateStatus, EstimatesBatch
 from ..validate import integer, number, probability
 from .doppler_frontend import _check_log, _check_model, _check_motion, _per_row
 from .particle import effective_sample_size, normalise_log_weights, resample, roughen
@@ -32,13 +32,12 @@ def _rows(log: ChirpLog, use_ambiguous: bool) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class PfRuns:
-    """``R`` independent particle-filter runs over one chirp log: :class:`~uwbwb.types.Estimates`
-    batched along a leading run axis.
+class PfRuns(EstimatesBatch):
+    """``R`` independent particle-filter runs over one chirp log: an
+    :class:`~uwbwb.types.EstimatesBatch` with one batch axis (the run) and 3-D positions.
 
-    The fields are those of :class:`~uwbwb.types.Estimates` with a run axis first (every run
-    shares the update times); :meth:`estimates` gives one run as an ``Estimates`` and
-    :meth:`to_estimates` all of them.
+    Every run shares the update times; :meth:`estimates` gives one run as an
+    :class:`~uwbwb.types.Estimates`, :meth:`to_estimates` the plain batch (iterate it for every run).
 
     Attributes
     ----------
@@ -66,31 +65,14 @@ class PfRuns:
         updates that were tempered, :attr:`DopplerPf.temper_ess`).
     """
 
-    t_s: np.ndarray
-    pos_m: np.ndarray
-    status: np.ndarray
     name: str = "PF"
-    pos_cov_m2: np.ndarray | None = None
-    vel_mps: np.ndarray | None = None
-    info: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        t = np.asarray(self.t_s, float)
         p = np.asarray(self.pos_m, float)
-        if t.ndim != 1 or p.ndim != 3 or p.shape[1:] != (t.size, 3):
-            raise ValueError(f"PfRuns: t_s (T,) and pos_m (R, T, 3) expected, got {t.shape} and {p.shape}")
-        lead = p.shape[:2]
-        st = np.asarray(self.status)
-        if st.shape != lead:
-            raise ValueError(f"PfRuns.status must have shape {lead}, got {st.shape}")
-        for name, shape in (("pos_cov_m2", lead + (3, 3)), ("vel_mps", lead + (3,))):
-            a = getattr(self, name)
-            if a is not None and np.shape(a) != shape:
-                raise ValueError(f"PfRuns.{name} must have shape {shape}, got {np.shape(a)}")
-        for key, col in dict(self.info).items():
-            if np.shape(col) != lead:
-                raise ValueError(f"PfRuns.info[{key!r}] must have shape {lead}, got {np.shape(col)}")
+        if np.ndim(self.t_s) != 1 or p.ndim != 3 or p.shape[1:] != (np.size(self.t_s), 3):
+            raise ValueError(f"PfRuns: t_s (T,) and pos_m (R, T, 3) expected, got {np.shape(self.t_s)} and {p.shape}")
+        super().__post_init__()
 
     @property
     def n_runs(self) -> int:
@@ -100,16 +82,6 @@ class PfRuns:
     def ess(self) -> np.ndarray:
         """Effective sample size after each update, shape ``(R, T)`` (``info["ess"]``)."""
         return self.info["ess"]
-
-    def estimates(self, run: int = 0) -> Estimates:
-        """Run ``run`` as the common :class:`~uwbwb.types.Estimates`."""
-        pick = (lambda a: None if a is None else a[run])
-        return Estimates(self.t_s, self.pos_m[run], self.status[run], self.name, pick(self.pos_cov_m2),
-                         pick(self.vel_mps), {k: v[run] for k, v in self.info.items()})
-
-    def to_estimates(self) -> list[Estimates]:
-        """Every run as :class:`~uwbwb.types.Estimates`, in run order."""
-        return [self.estimates(r) for r in range(self.n_runs)]
 
     @property
     def restarts(self) -> np.ndarray:

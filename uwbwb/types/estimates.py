@@ -1,10 +1,11 @@
-"""The result type every estimator returns, and its per-epoch status."""
+"""The result type every estimator returns (:class:`Estimates`), the same fields batched over runs or
+parameter values (:class:`EstimatesBatch`), and the per-epoch status."""
 
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
-from typing import ClassVar, Mapping
+from dataclasses import dataclass, field, fields
+from typing import ClassVar, Iterator, Mapping
 
 import numpy as np
 import pandas as pd
@@ -39,7 +40,20 @@ class EstimateStatus(enum.IntEnum):
 
 
 @dataclass(frozen=True)
-class Estimates(ArrayRecord):
+class _EstimateFields:
+    """The fields of the result family, declared once (:class:`Estimates`, :class:`EstimatesBatch`)."""
+
+    t_s: np.ndarray
+    pos_m: np.ndarray
+    status: np.ndarray
+    name: str = "estimate"
+    pos_cov_m2: np.ndarray | None = None
+    vel_mps: np.ndarray | None = None
+    info: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Estimates(_EstimateFields, ArrayRecord):
     """Per-epoch estimates of one method on one recording — the type every estimator returns.
 
     Snapshot methods (multilateration, TDoA LS) and tracking filters (EKF, PF, error-state
@@ -64,14 +78,6 @@ class Estimates(ArrayRecord):
     info
         Extra per-epoch columns, each shape ``(T,)`` (e.g. ``nis``, ``dof``, ``n_rejected``).
     """
-
-    t_s: np.ndarray
-    pos_m: np.ndarray
-    status: np.ndarray
-    name: str = "estimate"
-    pos_cov_m2: np.ndarray | None = None
-    vel_mps: np.ndarray | None = None
-    info: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     _rows: ClassVar[tuple[str, ...]] = ("t_s", "pos_m", "status", "pos_cov_m2", "vel_mps")
     _row_maps: ClassVar[tuple[str, ...]] = ("info",)
@@ -151,3 +157,72 @@ class Estimates(ArrayRecord):
         cols.update(self.info)
         return pd.DataFrame(cols)
 
+
+
+@dataclass(frozen=True)
+class EstimatesBatch(_EstimateFields):
+    """:class:`Estimates` of many runs that share their epochs, batched along leading axes.
+
+    A Monte Carlo sweep (trials, parameter values, filter variants) keeps its arrays batched;
+    its ``to_estimates()`` gives this, and ``batch[i]`` (or iterating) gives each member as an
+    :class:`Estimates`, in C order of the batch axes.
+
+    Attributes
+    ----------
+    t_s
+        Epoch times shared by every member, shape ``(T,)``, seconds.
+    pos_m
+        Positions, shape ``(*batch, T, dim)``, metres.
+    status
+        :class:`EstimateStatus` codes, shape ``(*batch, T)``.
+    name, pos_cov_m2, vel_mps, info
+        As for :class:`Estimates`, with the batch axes first: ``(*batch, T, dim, dim)``,
+        ``(*batch, T, dim)``, each ``info`` column ``(*batch, T)``.
+    """
+
+    def __post_init__(self):
+        t, p, st = np.asarray(self.t_s), np.asarray(self.pos_m), np.asarray(self.status)
+        if t.ndim != 1 or p.ndim < 2 or p.shape[-2:] != (t.size, p.shape[-1]) or p.shape[-1] not in (2, 3):
+            raise ValueError(f"{type(self).__name__}: t_s (T,) and pos_m (..., T, 2|3) expected, "
+                             f"got {t.shape} and {p.shape}")
+        lead = p.shape[:-1]
+        if st.shape != lead:
+            raise ValueError(f"{type(self).__name__}.status must have shape {lead}, got {st.shape}")
+        d = p.shape[-1]
+        for name, shape in (("pos_cov_m2", lead + (d, d)), ("vel_mps", lead + (d,))):
+            a = getattr(self, name)
+            if a is not None and np.shape(a) != shape:
+                raise ValueError(f"{type(self).__name__}.{name} must have shape {shape}, got {np.shape(a)}")
+        for key, col in dict(self.info).items():
+            if np.shape(col) != lead:
+                raise ValueError(f"{type(self).__name__}.info[{key!r}] must have shape {lead}, got {np.shape(col)}")
+
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        """Shape of the batch axes (``pos_m.shape[:-2]``)."""
+        return np.shape(self.pos_m)[:-2]
+
+    @property
+    def dim(self) -> int:
+        return np.shape(self.pos_m)[-1]
+
+    def __len__(self) -> int:
+        """Number of members (the product of :attr:`batch_shape`)."""
+        return int(np.prod(self.batch_shape, dtype=int))
+
+    def estimates(self, index=0) -> Estimates:
+        """One member as :class:`Estimates`: ``index`` is a flat member number or a tuple over the batch axes."""
+        idx = np.unravel_index(index, self.batch_shape) if np.ndim(index) == 0 else tuple(index)
+        pick = (lambda a: None if a is None else np.asarray(a)[idx])
+        return Estimates(self.t_s, pick(self.pos_m), pick(self.status), self.name, pick(self.pos_cov_m2),
+                         pick(self.vel_mps), {k: pick(v) for k, v in self.info.items()})
+
+    def __getitem__(self, index) -> Estimates:
+        return self.estimates(index)
+
+    def __iter__(self) -> Iterator[Estimates]:
+        return (self.estimates(i) for i in range(len(self)))
+
+    def to_estimates(self) -> "EstimatesBatch":
+        """The batch itself as a plain :class:`EstimatesBatch` (what a sweep's ``to_estimates()`` returns)."""
+        return EstimatesBatch(**{f.name: getattr(self, f.name) for f in fields(EstimatesBatch)})

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...models.setnoise import SetNoiseModel
-from ...types import SetFixLog
+from ...types import EstimateStatus, EstimatesBatch, SetFixLog
 from .pf import FilterRun, _noise_arrays, _times, model_noise
 
 
@@ -30,6 +30,8 @@ class KFSweep:
         Posterior covariances ``(..., S, T, 4, 4)`` (x and y blocks; cross terms are zero).
     nis
         Normalised innovation squared per fix, ``(..., S, T)`` (χ² with 2 dof if the model holds).
+    name
+        Label of the filter.
     """
 
     t_s: np.ndarray
@@ -37,10 +39,19 @@ class KFSweep:
     state: np.ndarray
     cov: np.ndarray
     nis: np.ndarray
+    name: str = "set-noise KF"
 
     @property
     def pos_m(self) -> np.ndarray:
         return self.state[..., :2]
+
+    def to_estimates(self) -> EstimatesBatch:
+        """Every run as :class:`~uwbwb.types.Estimates` fields batched over ``(..., S)``: every fix
+        ``UPDATED``, with velocities, position covariances and ``nis``/``dof`` (2 per fix) in ``info``
+        (``batch[i]`` is run ``i`` as the :class:`FilterRun` of :func:`run_set_noise_kf` reports it)."""
+        lead = self.nis.shape
+        return EstimatesBatch(self.t_s, self.pos_m, np.full(lead, EstimateStatus.UPDATED, np.int8), self.name,
+                              self.cov[..., :2, :2], self.state[..., 2:], {"nis": self.nis, "dof": np.full(lead, 2)})
 
     def mean_error_m(self, truth_m) -> np.ndarray:
         """Mean Euclidean error against ``truth_m (T, 2)``, shape ``(..., S)``."""

@@ -14,7 +14,7 @@ from ...metrics import nis_consistency
 from ...models.motion import VelocityKick
 from ...models.setnoise import SetNoiseModel, log_likelihood
 from ... import parallel
-from ...types import EstimateStatus, Estimates, SetFixLog
+from ...types import EstimateStatus, Estimates, EstimatesBatch, SetFixLog
 from ...validate import integer, probability
 from .. import particle
 
@@ -310,6 +310,14 @@ class PFSweep:
     @property
     def n_trials(self) -> int:
         return self.n_resampled.shape[1]
+
+    def to_estimates(self) -> EstimatesBatch:
+        """Every run's positions as :class:`~uwbwb.types.Estimates` fields batched over
+        ``(M, n_trials, S)`` (every fix ``UPDATED``; a PF sweep keeps no covariance or velocity)."""
+        if self.pos_m is None:
+            raise ValueError("this sweep kept no positions (keep_positions=False): use its error_m")
+        return EstimatesBatch(self.t_s, self.pos_m, np.full(self.pos_m.shape[:-1], EstimateStatus.UPDATED, np.int8),
+                              "PF")
 
     def mean_error_m(self, truth_m: np.ndarray) -> np.ndarray:
         """Mean Euclidean error of each run against ``truth_m (T, 2)``: shape ``(M, n_trials, S)``."""
