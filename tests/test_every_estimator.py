@@ -141,3 +141,57 @@ def test_every_method_runs_on_some_tree(trees):
 
 def test_registry_names_are_unique():
     assert len(NAMES) == len(set(NAMES))
+
+
+def test_every_result_type_gives_the_common_result_with_no_argument():
+    """One result family: every run or result turns into :class:`Estimates` with ``to_estimates()``
+    (sweeps into an ``EstimatesBatch`` of them), and every run type's NIS consistency has the keys
+    of :func:`uwbwb.metrics.nis_consistency`."""
+    from uwbwb import metrics
+    from uwbwb.filters import doppler_pf, nls, pruning, tdoa_ls
+    from uwbwb.filters.eskf.result import FusionRun, _empty
+    from uwbwb.filters.setnoise import kf as setnoise_kf
+    from uwbwb.filters.setnoise import pf as setnoise_pf
+    from uwbwb.geometry import multilaterate
+    from uwbwb.models.tdoa import TdoaModel
+    from uwbwb.types import EstimatesBatch, RangeLog
+
+    rng = np.random.default_rng(3)
+    T, t = 12, np.arange(12) * 0.2
+    anchors = np.array([[0, 0, 0.5], [10, 0, 2.5], [0, 10, 2.0], [10, 10, 0.2], [5, -3, 3.0]])
+    truth = np.column_stack([np.linspace(2, 5, T), np.linspace(3, 4, T), np.full(T, 1.0)])
+    r = np.linalg.norm(truth[:, None] - anchors[None], axis=-1) + rng.normal(0, 0.02, (T, 5))
+    ids = tuple("abcde")
+    log = RangeLog(t, r, ids)
+    tdoa = TdoaLog(t, *pseudo_tdoa(r, 0), ids)
+    model = TdoaModel(anchors, sigma_m=0.05, dim=3)
+    sw = setnoise_kf.kf_sweep(t, truth[:, :2], np.zeros((T, 2)), np.full((T, 2), 0.1), truth[0, :2], [0.1, 0.3])
+    kf_run = setnoise_pf.FilterRun(t, sw.state[0], np.full(T, np.nan), np.zeros(T, bool), "KF", cov=sw.cov[0],
+                                   nis=sw.nis[0])
+    singles = {
+        "multilateration": multilaterate(r, anchors, dim=3, t_s=t, name="ML"),
+        "TDoA LS": tdoa_ls.tdoa_least_squares(tdoa, model, name="TDoA"),
+        "NLS line": nls.fit_trajectory(log, anchors, dim=3),
+        "pruning": pruning.localize(log, anchors, "none", stationary=False),
+        "KalmanRun": TdoaEkf(RandomForce(0.5, dim=3), model).run(tdoa),
+        "FusionRun": FusionRun(t, name="fusion", **_empty(T, 15)),
+        "FilterRun (PF)": setnoise_pf.reference_pf(t, truth[:, :2], np.zeros((T, 2)), np.full((T, 2), 0.1),
+                                                   truth[0, :2], 0.2, rng=rng, n_particles=50),
+        "FilterRun (KF)": kf_run,
+    }
+    for what, res in singles.items():
+        est = res.to_estimates()
+        assert type(est) is Estimates and est.has_estimate.any() or what == "FusionRun", what
+    pf_sw = setnoise_pf.pf_sweep(t, truth[:, :2], np.zeros((T, 2)), np.full((T, 2), 0.1), truth[0, :2], [0.1, 0.3],
+                                 rng=rng, n_trials=2, n_particles=20)
+    runs = doppler_pf.PfRuns(t, np.repeat(truth[None], 3, axis=0), np.zeros((3, T), np.int8))
+    for what, res, n in (("KFSweep", sw, 2), ("PFSweep", pf_sw, 4), ("PfRuns", runs, 3)):
+        batch = res.to_estimates()
+        assert type(batch) is EstimatesBatch and len(batch) == n, what
+        assert all(type(e) is Estimates and len(e) == T for e in batch), what
+    np.testing.assert_array_equal(sw.to_estimates()[0].pos_cov_m2, kf_run.to_estimates().pos_cov_m2)
+    keys = set(metrics.nis_consistency([1.0], [1]))
+    for what in ("KalmanRun", "FusionRun", "FilterRun (PF)", "FilterRun (KF)"):
+        assert set(singles[what].nis_consistency()) == keys, what
+    assert singles["FilterRun (KF)"].nis_consistency()["n"] == T
+    assert singles["FilterRun (PF)"].nis_consistency()["verdict"] == "no updates"

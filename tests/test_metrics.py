@@ -207,3 +207,28 @@ def test_epoch_summary_counts_failures_beside_accuracy():
     assert s.loc["none", "coverage"] == 1.0 and s.loc["point", "coverage"] == 0.8
     assert s.loc["point", "median_m"] == 3.5 and s.loc["none", "p90_failed_counted_m"] == 8.0
     assert np.isinf(s.loc["point", "p90_failed_counted_m"])
+
+
+def test_nees_is_the_quadratic_form_where_evaluated():
+    e = np.array([[1.0, 2.0], [0.5, -1.0], [np.nan, 0.0], [1.0, 1.0]])
+    P = np.stack([np.diag([1.0, 4.0]), np.array([[2.0, 0.5], [0.5, 1.0]]), np.eye(2), np.eye(2)])
+    out = m.nees(e, P, where=[True, True, True, False])
+    assert out[0] == pytest.approx(2.0)
+    assert out[1] == pytest.approx(e[1] @ np.linalg.solve(P[1], e[1]))
+    assert np.isnan(out[2]) and np.isnan(out[3])                 # non-finite error; left out
+    assert m.nees(np.zeros((0, 3)), np.zeros((0, 3, 3))).shape == (0,)
+    with pytest.raises(ValueError, match="nees"):
+        m.nees(e, P[:, :1, :1])
+
+
+def test_nis_consistency_is_one_function_with_one_set_of_keys():
+    from uwbwb.filters.ekf import nis_consistency
+    assert nis_consistency is m.nis_consistency                  # the old import path still works
+    rng = np.random.default_rng(0)
+    dof = rng.integers(1, 4, 2000)
+    c = m.nis_consistency(rng.chisquare(dof), dof)
+    assert c["verdict"] == "consistent" and 0.93 < c["fraction_inside"] < 0.97 and c["n"] == 2000
+    assert m.nis_consistency(3 * rng.chisquare(dof), dof)["verdict"] == "over-confident"
+    assert m.nis_consistency(rng.chisquare(dof) / 3, dof)["verdict"] == "under-confident"
+    none = m.nis_consistency([np.nan, 1.0], [2, 0])                  # nothing used: no updates
+    assert none["verdict"] == "no updates" and set(none) == set(c)

@@ -240,3 +240,23 @@ def test_recording_decimate_by_step_or_rate():
     for bad in (dict(), dict(step=2, rate_hz=1.0), dict(rate_hz=0.0), dict(rate_hz=True)):
         with pytest.raises(ValueError):
             rec.decimate(**bad)
+
+
+def test_estimates_batch_members_are_estimates_in_batch_order():
+    from uwbwb.types import Estimates, EstimatesBatch
+    t = np.arange(4) * 0.1
+    pos = np.arange(2 * 3 * 4 * 2, dtype=float).reshape(2, 3, 4, 2)
+    st = np.zeros((2, 3, 4), np.int8)
+    b = EstimatesBatch(t, pos, st, "sweep", np.broadcast_to(np.eye(2), (2, 3, 4, 2, 2)), None,
+                       {"nis": np.ones((2, 3, 4))})
+    assert len(b) == 6 and b.batch_shape == (2, 3) and b.dim == 2
+    members = list(b)
+    assert all(isinstance(e, Estimates) and e.name == "sweep" for e in members)
+    np.testing.assert_array_equal(members[4].pos_m, pos[1, 1])      # C order of the batch axes
+    np.testing.assert_array_equal(b[(1, 2)].pos_m, pos[1, 2])
+    assert b[0].info["nis"].shape == (4,) and b[0].pos_cov_m2.shape == (4, 2, 2) and b[0].vel_mps is None
+    assert type(b.to_estimates()) is EstimatesBatch
+    for bad, what in ((dict(status=st[..., :-1]), "status"), (dict(info={"nis": np.ones(4)}), "info"),
+                      (dict(vel_mps=np.zeros((2, 3, 4, 3))), "vel_mps"), (dict(pos_m=pos[..., :1]), "pos_m")):
+        with pytest.raises(ValueError, match=what):
+            EstimatesBatch(**{**dict(t_s=t, pos_m=pos, status=st), **bad})

@@ -192,3 +192,24 @@ def test_filter_runs_give_the_common_result_type():
     assert est.info["dof"].tolist() == [2] * t.size
     pf = F.run_set_noise_pf(fixes, model, truth[0], 0.2, rng=np.random.default_rng(0), n_particles=200).to_estimates()
     assert pf.pos_cov_m2 is None and set(pf.info) == {"ess", "resampled"} and pf.coverage == 1.0
+
+
+def test_kf_run_keeps_covariance_and_nis_as_fields_and_meta_reads_them():
+    t, z, mu, sd, truth = _case(T=30)
+    fixes = SetFixLog(t, z, np.where(mu[:, 0] > 0, 3, 5), tuple("01234567"), truth, "rec")
+    model = SetNoiseModel([3, 5], [[0.08, -0.03], [-0.05, 0.06]], [[0.10, 0.08], [0.15, 0.12]], [50, 50],
+                          [0.0, 0.0], [0.2, 0.2], 100)
+    kf = F.run_set_noise_kf(fixes, model, truth[0], 0.2)
+    sweep = F.kf_sweep(t, z, *F.model_noise(fixes, model), truth[0], 0.2)
+    np.testing.assert_array_equal(kf.cov, sweep.cov[0])
+    np.testing.assert_array_equal(kf.nis, sweep.nis[0])
+    assert kf.meta["cov"] is kf.cov and kf.meta["nis"] is kf.nis and kf.dof.tolist() == [2] * t.size
+    assert kf.nis_consistency()["n"] == t.size and kf.nis_consistency()["sum_dof"] == 2 * t.size
+    old = F.FilterRun(kf.t_s, kf.state, kf.ess, kf.resampled, "old", {"cov": kf.cov, "nis": kf.nis})
+    assert old.cov is kf.cov and old.nis is kf.nis                       # an older caller's meta still works
+    pf = F.run_set_noise_pf(fixes, model, truth[0], 0.2, rng=np.random.default_rng(0), n_particles=50)
+    assert pf.cov is None and pf.nis is None and pf.dof is None and "cov" not in pf.meta
+    with pytest.raises(ValueError, match="together"):
+        F.FilterRun(kf.t_s, kf.state, kf.ess, kf.resampled, cov=kf.cov)
+    with pytest.raises(ValueError, match="shape"):
+        F.FilterRun(kf.t_s, kf.state, kf.ess, kf.resampled, cov=kf.cov[:, :2, :2], nis=kf.nis)

@@ -30,8 +30,6 @@ class KFSweep:
         Posterior covariances ``(..., S, T, 4, 4)`` (x and y blocks; cross terms are zero).
     nis
         Normalised innovation squared per fix, ``(..., S, T)`` (χ² with 2 dof if the model holds).
-    name
-        Label of the filter.
     """
 
     t_s: np.ndarray
@@ -39,7 +37,6 @@ class KFSweep:
     state: np.ndarray
     cov: np.ndarray
     nis: np.ndarray
-    name: str = "set-noise KF"
 
     @property
     def pos_m(self) -> np.ndarray:
@@ -50,7 +47,7 @@ class KFSweep:
         ``UPDATED``, with velocities, position covariances and ``nis``/``dof`` (2 per fix) in ``info``
         (``batch[i]`` is run ``i`` as the :class:`FilterRun` of :func:`run_set_noise_kf` reports it)."""
         lead = self.nis.shape
-        return EstimatesBatch(self.t_s, self.pos_m, np.full(lead, EstimateStatus.UPDATED, np.int8), self.name,
+        return EstimatesBatch(self.t_s, self.pos_m, np.full(lead, EstimateStatus.UPDATED, np.int8), "set-noise KF",
                               self.cov[..., :2, :2], self.state[..., 2:], {"nis": self.nis, "dof": np.full(lead, 2)})
 
     def mean_error_m(self, truth_m) -> np.ndarray:
