@@ -229,8 +229,11 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     q = [r for r in rows if r["quantity"].startswith("mismatch 'IMU 10× worse': dynamic RMSE, tight + gate")]
     assert len(q) == 1 and q[0]["value"] > 0.1
     m = (sc["case"] == "matched") & (sc["method"] == "EKF + gate") & (sc["seed"] == 2)
-    sc.loc[m, "recovery_max"] = 0.6
-    assert any("recovery: EKF + gate" in x and "seed 2" in x for x in headlines.checks(bad))
+    sc.loc[m, "recovery_max"] = 0.8                        # drift found on UWB's return, re-acquired in 1.8 s
+    sc.loc[m, "reacq_s"] = 1.8
+    assert not any("recovery" in x for x in headlines.checks(bad))
+    sc.loc[m, "reacq_s"] = 5.2                              # past the 5 s deadline
+    assert any("recovery: EKF + gate" in x and "5.2 s (seed 2)" in x for x in headlines.checks(bad))
 
 
 def test_knobs_break_near_ties_upwards_flag_the_edge_and_name_blowups():
@@ -276,11 +279,11 @@ def test_a_matched_failure_to_reacquire_is_named():
     res = _fake(GOOD)
     assert "Every gated filter re-acquired" in facts.matched_failure_sentence(facts.facts(res))
     m = (res.scores["case"] == "matched") & (res.scores["method"] == ab.EKF_TDOA_GATE) & (res.scores["seed"] == 3)
-    res.scores.loc[m, "recovery_max"] = 35.0
+    res.scores.loc[m, "reacq_s"] = math.inf
     f = facts.facts(res)
-    assert list(f["matched_failures"]) == [ab.EKF_TDOA_GATE] and f["matched_failures"][ab.EKF_TDOA_GATE][3] == 35.0
+    assert list(f["matched_failures"]) == [ab.EKF_TDOA_GATE] and f["matched_failures"][ab.EKF_TDOA_GATE][3] == math.inf
     s = facts.matched_failure_sentence(f)
-    assert "Failed to re-acquire" in s and f"{ab.EKF_TDOA_GATE} (" in s and "seed 3: 35 m" in s
+    assert "Failed to re-acquire" in s and f"{ab.EKF_TDOA_GATE} (seed 3: never)" in s
     md = facts.summary_markdown(f)
     tight_line = next(x for x in md.splitlines() if x.startswith("- IMU, tightly"))
     assert "failed to re-acquire after the outage: this ratio measures that failure" in tight_line
@@ -369,3 +372,17 @@ def test_error_range_assumption_is_read_off_the_simulated_world():
     assert "3 cm arrival-time σ, 2 % multipath of 0.3–4 m, consumer IMU" in headlines.ERROR_RANGE_ASSUMPTION
     w = robot.RobotConfig(imu=GRADES["tactical"], outlier_rate=0.05, sigma_toa_m=0.05)
     assert headlines.error_range_assumption(w).endswith("5 cm arrival-time σ, 5 % multipath of 0.3–4 m, tactical IMU")
+
+
+def test_reacquisition_time_is_the_start_of_the_last_stretch_below_the_limit():
+    t = np.arange(0.0, 12.0, 0.5)                           # outage ends at t = 3 s; UWB returns at 3.5 s
+    e = np.full(t.size, 0.1)
+    assert ab.reacquisition_s(t, e, 3.0) == 0.0
+    e[(t > 3.0) & (t < 5.0)] = 0.8                          # drift found on the return, gone at 5 s
+    assert ab.reacquisition_s(t, e, 3.0) == pytest.approx(1.5)
+    e[t == 9.0] = np.nan                                    # a missing estimate later counts as not re-acquired
+    assert ab.reacquisition_s(t, e, 3.0) == pytest.approx(6.0)
+    e[-1] = 0.5                                             # at the limit on the last epoch: never
+    assert ab.reacquisition_s(t, e, 3.0) == math.inf
+    assert math.isnan(ab.reacquisition_s(t, e, 20.0))       # nothing after the outage
+    assert ab.reacquisition_s(t, np.full(t.size, 0.3), 3.0, limit_m=0.2) == math.inf

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from .ablation import (EKF_TDOA_GATE, LADDER, RECOVERY_MAX_M, AblationResult, choose_knobs, eq4_path, eq4_thresholds,
+from .ablation import (EKF_TDOA_GATE, LADDER, RECOVERY_MAX_M, RECOVERY_S, AblationResult, choose_knobs, eq4_path, eq4_thresholds,
                        pair_rmse)
 
 __all__ = ["DIVERGED_FACTOR", "verdict", "facts", "ingredient_sentence", "outage_sentence", "survival_sentence",
@@ -57,11 +57,27 @@ def _ratio(res: AblationResult, a: str, b: str, metric: str, case: str = "matche
     return {**r, "verdict": verdict(r["lo"], r["hi"])}
 
 
-def _matched_failures(res: AblationResult, limit_m: float) -> dict:
-    """Gated rows whose recovery max reaches ``limit_m`` on some matched seed: row → per-seed maxima."""
-    rec = res.case("matched")["recovery_max"].unstack("method")
-    return {str(r): {int(k): float(v) for k, v in rec[r].items()} for r in rec.columns
-            if r.endswith("+ gate") and not r.startswith("LS") and not (rec[r] < limit_m).all()}
+def _gated(rows) -> list:
+    return [r for r in rows if r.endswith("+ gate") and not r.startswith("LS")]
+
+
+def _matched_failures(res: AblationResult) -> dict:
+    """Gated rows that did not re-acquire (:func:`~.ablation.reacquisition_s`) within the recovery
+    time on some matched seed: row → per-seed re-acquisition times (s)."""
+    rec = res.case("matched")["reacq_s"].unstack("method")
+    lim = res.config.recovery_s
+    return {str(r): {int(k): float(v) for k, v in rec[r].items()} for r in _gated(rec.columns)
+            if not (rec[r] <= lim).all()}
+
+
+def _slowest_reacquisition(res: AblationResult) -> dict:
+    """The slowest matched re-acquisition among the gated rows: row, seed, seconds (empty if none)."""
+    rec = res.case("matched")["reacq_s"].unstack("method")[_gated(res.case("matched").index.unique("method"))]
+    st = rec.stack()
+    if st.empty or not np.isfinite(st.to_numpy(float)).any():
+        return {}
+    (seed, row), v = st.idxmax(), float(st.max())
+    return {"row": str(row), "seed": int(seed), "s": v}
 
 
 def _diverged(res: AblationResult, case: str) -> list[dict]:
@@ -100,7 +116,8 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
          "tuning": ({} if res.tuning.empty else
                     {r: dict(v) for r, v in choose_knobs(res.tuning).to_dict("index").items()}),
          "grid": tuple(float(g) for g in cfg.grid),
-         "matched_failures": _matched_failures(res, RECOVERY_MAX_M), "recovery_max_m": RECOVERY_MAX_M}
+         "matched_failures": _matched_failures(res), "recovery_max_m": RECOVERY_MAX_M,
+         "recovery_s": cfg.recovery_s, "slowest_reacq": _slowest_reacquisition(res)}
     if cfg.outlier_c_m is not None:
         th = eq4_thresholds(cfg.model, eq4_path(cfg), cfg.outlier_c_m).iloc[:, 1:]
         pair, side = th.stack().idxmin()
@@ -213,12 +230,15 @@ _WHAT = {"dyn_rmse": "dynamic RMSE", "recovery_max": "max error in the recovery 
 def matched_failure_sentence(f: dict) -> str:
     """Names every gated filter that failed to re-acquire after the outage in the matched world."""
     fl = f.get("matched_failures", {})
-    lim = f.get("recovery_max_m", RECOVERY_MAX_M)
+    lim, dl = f.get("recovery_max_m", RECOVERY_MAX_M), f.get("recovery_s", RECOVERY_S)
+    rule = f"error below {lim:g} m, for good, within {dl:g} s of UWB's return"
     if not fl:
-        return (f"Every gated filter re-acquired after the outage in the matched world (recovery max below "
-                f"{lim:g} m on every seed).")
-    return (f"**Failed to re-acquire after the outage in the matched world** (recovery max ≥ {lim:g} m): "
-            + "; ".join(f"{r} (" + ", ".join(f"seed {k}: {v:.3g} m" for k, v in s.items()) + ")"
+        slow = f.get("slowest_reacq") or {}
+        worst = (f" The slowest took {slow['s']:.2f} s ({slow['row']}, seed {slow['seed']})." if slow else "")
+        return f"Every gated filter re-acquired after the outage in the matched world ({rule}, on every seed).{worst}"
+    return (f"**Failed to re-acquire after the outage in the matched world** ({rule}): "
+            + "; ".join(f"{r} (" + ", ".join(f"seed {k}: " + ("never" if not np.isfinite(v) else f"{v:.3g} s")
+                                             for k, v in s.items() if not v <= dl) + ")"
                         for r, s in fl.items())
             + ". A filter defect, not a tuning result: every ratio involving it measures the failure.")
 

@@ -45,6 +45,12 @@ def ablation_rows(res: AblationResult) -> list[dict]:
             if np.isfinite(v):
                 out.append(dict(quantity=f"ablation: {what}, {r} (mean of {n} seeds, matched model)", value=v,
                                 unit="m", data="synthetic", kind="reproduced"))
+    rec = res.case("matched")["reacq_s"].unstack("method")
+    for r in _GATED:
+        if r in rec.columns and np.isfinite(rec[r].to_numpy(float)).all():   # a failure is the check's, not a row
+            out.append(dict(quantity=f"ablation: slowest re-acquisition after the outage, {r} (time to stay below "
+                                     f"{RECOVERY_MAX_M:g} m; worst of {n} seeds, matched model)",
+                            value=float(rec[r].max()), unit="s", data="synthetic", kind="reproduced"))
     for what, a, b in LADDER:
         for m, label in (("dyn_rmse", "dynamic RMSE"), ("outage_max", "outage max error")):
             r = res.ratio(a, b, m)
@@ -83,9 +89,11 @@ def checks(res: AblationResult) -> list[str]:
     4. The mismatch is applied: coasting through the outage with a 10× worse IMU, the loose
        filter's max error grows (geometric mean of the paired seeds' ratios > 1).
     5. The LS residual test lowers LS's static and dynamic RMSE by ≥ 1.5× (mean over seeds).
-    6. Re-acquisition: in the matched world every gated filter's max error in the recovery after
-       the outage is below :data:`RECOVERY_MAX_M` on every seed (a filter that diverges after the
-       outage fails it however good its mean is). The EKF with the tight filter's per-TDoA gate
+    6. Re-acquisition: in the matched world every gated filter gets below :data:`RECOVERY_MAX_M`
+       within :data:`~.ablation.RECOVERY_S` of UWB's return after the outage and stays below it to
+       the end of the run (:func:`~.ablation.reacquisition_s`), on every seed: a filter that
+       diverges after the outage fails it however good its mean is. The error UWB finds on its
+       return (the outage's drift) is the outage's own score, not this check's. The EKF with the tight filter's per-TDoA gate
        (:data:`~.ablation.EKF_TDOA_GATE`) is a diagnostic row, not one of the designs: its failure
        to re-acquire is named in the notebook (:func:`~.facts.matched_failure_sentence`), not asserted.
     """
@@ -122,14 +130,15 @@ def checks(res: AblationResult) -> list[str]:
         if not r > 1:
             fails.append(f"mismatch: a 10× worse IMU does not worsen the loose filter's coasting through the outage "
                          f"(paired ratio {r:.2f})")
-    rec = res.case("matched")["recovery_max"].unstack("method")
+    rec = res.case("matched")["reacq_s"].unstack("method")
+    deadline = res.config.recovery_s
     for r in _GATED:
         if r in rec.columns:
-            bad = rec[r][~(rec[r] < RECOVERY_MAX_M)]
+            bad = rec[r][~(rec[r] <= deadline)]
             if len(bad):
-                fails.append(f"recovery: {r} has a max error of " + ", ".join(f"{v:.3g} m (seed {k})"
-                                                                           for k, v in bad.items())
-                             + f" after the outage in the matched world (must stay below {RECOVERY_MAX_M:g} m)")
+                fails.append(f"recovery: {r} needs " + ", ".join(f"{v:.3g} s (seed {k})" for k, v in bad.items())
+                             + f" after UWB's return to get below {RECOVERY_MAX_M:g} m for good in the matched "
+                               f"world (must within {deadline:g} s)")
     for m in ("static_rmse", "dyn_rmse"):
         if not t.loc["LS", m] >= 1.5 * t.loc["LS + gate", m]:
             fails.append(f"LS residual test: {m} {t.loc['LS', m]:.3f} → {t.loc['LS + gate', m]:.3f} m, less than 1.5×")
