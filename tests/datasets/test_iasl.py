@@ -280,6 +280,68 @@ def test_registered_recording_is_consistent(loaded):
     assert rec.meta["imu_noise"]["stdV"] == pytest.approx(0.0015387262937311438)
 
 
+def _bursty_flight(offset_s: float, seed: int):
+    """Ranges (10 Hz, 3 cm noise, six anchors) and an IMU on its own clock (``t_uwb = t_imu +
+    offset_s``, 100 Hz) of a non-periodic flight: vertical and horizontal acceleration bursts."""
+    from scipy.ndimage import gaussian_filter1d
+
+    from uwbwb.types import Anchors, ImuLog, RangeLog
+
+    rng = np.random.default_rng(seed)
+    anchors = Anchors(tuple("abcdef"), np.array([[0, 0, 0.2], [8, 0, 2.5], [8, 6, 0.3], [0, 6, 2.6],
+                                                 [4, -1, 1.5], [4, 7, 0.1]], float))
+    dt, T = 0.01, 6000
+    acc = gaussian_filter1d(rng.normal(0, 1.0, (T, 3)) * (rng.random((T, 1)) < 0.05), 15, axis=0) * 8
+    acc -= acc.mean(axis=0)
+    vel = np.cumsum(acc, axis=0) * dt
+    vel -= gaussian_filter1d(vel, 300, axis=0)                  # stay in the room
+    pos = np.array([4.0, 3.0, 1.3]) + np.cumsum(vel, axis=0) * dt
+    acc = np.gradient(np.gradient(pos, dt, axis=0), dt, axis=0)
+    t = np.arange(T) * dt
+    f = acc + [0, 0, 9.80665] + rng.normal(0, 0.05, (T, 3))
+    imu = ImuLog(t - offset_s, f, np.zeros((T, 3)))
+    k = np.arange(0, T, 10)
+    r = np.linalg.norm(pos[k, None] - anchors.pos_m[None], axis=2) + rng.normal(0, 0.03, (k.size, 6))
+    return imu, RangeLog(t[k], r, anchors.ids), anchors
+
+
+@pytest.mark.parametrize("offset_s", [-0.43, 0.27, 1.9])
+def test_imu_clock_from_the_ranges_alone_recovers_a_known_offset(offset_s):
+    from uwbwb.datasets.registration import align_imu_to_ranges
+
+    imu, ranges, anchors = _bursty_flight(offset_s, seed=int(100 * abs(offset_s)))
+    al = align_imu_to_ranges(imu, ranges, anchors)
+    # precision, not bias: 3 cm ranges differentiated twice; −34…+62 ms over four such flights
+    assert al.offset_s == pytest.approx(offset_s, abs=0.08)
+    assert "no motion capture" in al.method and al.gyro_axes_corr is None
+
+
+def test_imu_clock_from_ranges_in_the_loader_uses_no_truth_and_refuses_periodic_motion(synthetic):
+    """The fixture flights are sums of sines: the specific-force correlation has near-equal peaks
+    seconds apart, and the loader says so instead of returning one of them."""
+    base, _ = synthetic
+    with pytest.raises(DataFormatError, match="ambiguous"):
+        iasl.load_scenario("scenario1", data_dir=base, imu_clock="ranges")
+    with pytest.raises(DataFormatError, match="imu.csv"):
+        iasl.load_scenario("scenario1", data_dir=base, register=False, imu_clock="ranges")
+    assert iasl.load_scenario("scenario1", data_dir=base, register=False).meta.get("imu_alignment") is None
+    with pytest.raises(ValueError, match="imu_clock must be"):
+        iasl.load_scenario("scenario1", data_dir=base, imu_clock="mocap")
+
+
+def test_imu_clock_from_ranges_refuses_what_it_cannot_estimate():
+    from uwbwb.datasets.registration import RegistrationError, align_imu_to_ranges
+    from uwbwb.types import Anchors, ImuLog, RangeLog
+
+    anchors = Anchors(("a", "b", "c", "d"), np.array([[0, 0, 0], [5, 0, 0], [0, 5, 0], [0, 0, 3.0]]))
+    t = np.arange(0, 10, 0.1)
+    imu = ImuLog(np.arange(0, 10, 0.01), np.tile([0, 0, 9.8], (1000, 1)), np.zeros((1000, 3)))
+    with pytest.raises(RegistrationError, match="converged 3-D fixes"):
+        align_imu_to_ranges(imu, RangeLog(t, np.full((t.size, 4), np.nan), anchors.ids), anchors)
+    with pytest.raises(ValueError, match="smooth_s"):
+        align_imu_to_ranges(imu, RangeLog(t, np.full((t.size, 4), np.nan), anchors.ids), anchors, smooth_s=0)
+
+
 # --- scenario loader -------------------------------------------------------------------------
 
 def test_load_scenario_unregistered_keeps_raw_clocks(synthetic):

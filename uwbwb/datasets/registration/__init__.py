@@ -16,6 +16,8 @@ loader answers the same question the same way:
   nonlinear least squares on every range. Used by the ``iasl-uwb-imu`` loader.
 * :func:`align_imu` — IMU clock offset, by correlating the gyro magnitude with
   the rotation rate of the registered truth.
+* :func:`align_imu_to_ranges` — the same offset without motion capture, by
+  correlating the specific-force magnitude with that of the tag's own UWB fixes.
 
 All raise :class:`RegistrationError` (or a :class:`~uwbwb.errors.DataFormatError`
 naming the file) when the data cannot support an estimate; none of them
@@ -25,15 +27,15 @@ Modules
 -------
 :mod:`.clock` (quaternions, frame conventions, :func:`residual_spread`,
 :func:`fit_clock_offset_and_convention`, :class:`RegistrationError`), :mod:`.truth`
-(:func:`register_truth`, :class:`Registration`) and :mod:`.imu` (:func:`align_imu`,
+(:func:`register_truth`, :class:`Registration`) and :mod:`.imu` (:func:`align_imu`, :func:`align_imu_to_ranges`,
 :class:`ImuAlignment`); every name importable from here.
 """
 
 from .clock import (BODY_FLIPS, GRAVITY_MPS2, QUAT_ORDERS, ClockFrameFit, RegistrationError, body_points,
                     fit_clock_offset_and_convention, frame_rotation, quaternion_to_rot, residual_spread)
-from .imu import ImuAlignment, align_imu
+from .imu import ImuAlignment, align_imu, align_imu_to_ranges
 from .truth import Registration, register_truth
 
 __all__ = ["BODY_FLIPS", "GRAVITY_MPS2", "QUAT_ORDERS", "ClockFrameFit", "ImuAlignment", "Registration",
-           "RegistrationError", "align_imu", "body_points", "fit_clock_offset_and_convention", "frame_rotation",
+           "RegistrationError", "align_imu", "align_imu_to_ranges", "body_points", "fit_clock_offset_and_convention", "frame_rotation",
            "quaternion_to_rot", "register_truth", "residual_spread"]
