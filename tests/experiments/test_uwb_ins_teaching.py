@@ -75,8 +75,9 @@ def test_reconcile_sentence_quotes_both_ends_and_the_largest_step():
     assert 'largest step is "+ rate"' in realtune.reconcile_sentence(steps, test_label="s2")
 
 
-def test_loose_tuning_picks_the_lowest_rmse_and_flags_the_edge(tmp_path):
+def test_every_filter_is_tuned_by_one_procedure_and_its_scales_touch_only_itself(tmp_path):
     from uwbwb.datasets import iasl
+    from uwbwb.experiments.uwb_ins import realfair
 
     root = tmp_path / "iasl-uwb-imu"
     root.mkdir()
@@ -84,18 +85,52 @@ def test_loose_tuning_picks_the_lowest_rmse_and_flags_the_edge(tmp_path):
     fx.write_scenario(root / "flight_a", rng=np.random.default_rng(8), duration_s=30.0)
     rec = iasl.load_scenario("flight_a", tmp_path)
     cal = study.calibrate_iasl(rec)
-    tun = realtune.tune_loose(rec, cal, still_s=1.0, align_s=10.0, grid=((0.1, 1.0), (1.0, 1.0), (10.0, 1.0)))
-    col = tun.table["horizontal RMSE (m)"]
-    assert (tun.q, tun.r) == col.idxmin() and tun.r_edge                 # a one-value knob is on its edge
-    assert tun.q_edge == (tun.q in (0.1, 10.0))
-    assert "used unchanged on the scored scenario" in tun.sentence("flight_a")
-    comp = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, loose_scales=(tun.q, tun.r))
+    grid = ((0.1, 1.0), (1.0, 1.0), (10.0, 1.0))
+    tun = realfair.tune_scales(rec, cal, still_s=1.0, align_s=10.0, grid=grid)
+    assert set(tun) == set(realfair.TUNED)
+    for name, t in tun.items():
+        col = t.table["horizontal RMSE (m)"]
+        assert t.scales == col.idxmin() and t.r_edge                   # a one-value knob is on its edge
+        assert t.q_edge == (t.q in (0.1, 10.0)) and len(col) == 3
+    table = realfair.tuning_table(tun)
+    assert list(table.index) == list(realfair.TUNED) and (table["RMSE picked (m)"] <= table["RMSE at Q × 1, R × 1 (m)"]).all()
     base = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0)
-    np.testing.assert_array_equal(comp.estimates["tight"].pos_m, base.estimates["tight"].pos_m)   # loose only
-    rows = realtune.summary_rows(tun, {"k": 2.0, "nees_test_scaled": 3.0}, data="x", cal_label="flight_a")
-    assert [r["value"] for r in rows] == [tun.q, tun.r, 2.0, 3.0]
+    for name in realfair.TUNED:                                        # (q, r) moves that filter and no other
+        comp = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={name: (10.0, 3.0)})
+        for other in base.estimates:
+            same = np.array_equal(comp.estimates[other].pos_m, base.estimates[other].pos_m, equal_nan=True)
+            assert same == (other != name), (name, other)
+    one = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={n: (1.0, 1.0) for n in realfair.TUNED})
+    for other in base.estimates:                                      # (1, 1) is the untuned filter, bit for bit
+        np.testing.assert_array_equal(one.estimates[other].pos_m, base.estimates[other].pos_m)
+    rows = realfair.summary_rows(tun, None, data="x", cal_label="flight_a", grid_points=3)
+    assert [r["value"] for r in rows[:2]] == [tun["EKF + gate"].q, tun["EKF + gate"].r]
+    assert all("tuning output" in r["quantity"] for r in rows)
+    assert realtune.summary_rows({"k": 2.0, "nees_test_scaled": 3.0}, data="x", cal_label="a")[0]["value"] == 2.0
     with pytest.raises(ValueError, match="grid"):
-        realtune.tune_loose(rec, cal, grid=())
+        realfair.tune_scales(rec, cal, grid=())
+    with pytest.raises(ValueError, match="unknown filters"):
+        study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={"UWB-only": (1.0, 1.0)})
+
+
+def test_the_clock_sentence_follows_the_numbers():
+    from uwbwb.experiments.uwb_ins import realfair
+
+    def res(tight_mm, loose_mm):
+        t = pd.DataFrame({"motion-capture clock (m)": [0.06, 0.05, 0.055, 30.0],
+                          "ranges clock (m)": [0.06, 0.05 + tight_mm / 1e3, 0.055 + loose_mm / 1e3, 31.0]},
+                         index=["UWB-only", "tight", "loose", "INS-only"])
+        t["change (mm)"] = (t["ranges clock (m)"] - t["motion-capture clock (m)"]) * 1e3
+        return {"offsets": {"truth_s": -0.44, "ranges_s": -0.48, "peak": 0.8, "rival": 0.6}, "table": t}
+
+    s = realfair.clock_sentence(res(-0.3, -0.2), scenario="s2")
+    assert "-40 ms from the motion-capture one" in s and "does not flatter them" in s and "tight -0.3 mm" in s
+    s = realfair.clock_sentence(res(0.1, 2.5), scenario="s2")
+    assert "flatters them by at most 2.50 mm" in s and "(largest: loose)" in s
+    s = realfair.clock_sentence({"error": "ambiguous peaks"}, scenario="s2")
+    assert "not estimated" in s and "ambiguous peaks" in s
+    rows = realfair.summary_rows({}, res(0.1, 2.5), data="x", cal_label="c", grid_points=16)
+    assert [r["unit"] for r in rows] == ["ms", "mm", "mm"] and rows[0]["value"] == pytest.approx(-40.0)
 
 
 def test_figures_draw_truth_only_where_it_exists_and_keep_uwb_spikes_off_the_axes():

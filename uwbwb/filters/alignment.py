@@ -25,6 +25,7 @@ from .tdoa_ls import tdoa_least_squares
 
 __all__ = ["FusionSettings", "screened_tdoa", "ls_estimates", "Comparison", "initial_state", "imu_after",
            "level_attitude", "IASL_EKF_PSD_M2PS3", "AlignedStart", "align_iasl", "loose_filter", "compare_iasl",
+           "TUNABLE", "run_fusion_filter",
            "scored_truth"]
 
 
@@ -279,10 +280,51 @@ def loose_filter(cal: RealCalibration, settings: FusionSettings = FusionSettings
                             sigma_r_vel_mps=0.5, q_vel_mps_rts=0.3)
 
 
+#: The filters of :func:`compare_iasl` that have process/measurement-noise knobs (:func:`run_fusion_filter`).
+TUNABLE = ("EKF + gate", "loose", "tight", "tight (ranges)")
+
+
+def run_fusion_filter(name: str, a: AlignedStart, rec: Recording, cal: RealCalibration,
+                      settings: FusionSettings = FusionSettings(), *, scales: tuple[float, float] = (1.0, 1.0),
+                      ekf_psd_m2ps3: float = IASL_EKF_PSD_M2PS3):
+    """One filter of :func:`compare_iasl` from the aligned start ``a``; returns ``(run, Estimates)``.
+
+    ``name`` is one of :data:`TUNABLE`. ``scales = (q, r)`` multiply that filter's process and
+    measurement noise only (on top of ``settings``' common scales): the tight filters' ``q_scale``
+    and ``r_scale``, the loose filter's Q and R (:func:`loose_filter`), the EKF's random-force
+    spectral density and its TDoA variance. ``(1, 1)`` is the untuned filter.
+    """
+    q, r = scales
+    after = a.after
+    if name in ("tight", "tight (ranges)"):
+        common = _common(settings)
+        if (q, r) != (1.0, 1.0):
+            common.update(q_scale=settings.q_scale * q, r_scale=settings.r_scale * r)
+        if name == "tight":
+            f = eskf.TightEskf(cal.imu_model, eskf.TdoaUpdate(a.model, settings.outlier_c_m), **common)
+            meas = a.tdoa.select(after)
+        else:
+            f = eskf.TightEskf(cal.imu_model, eskf.RangeUpdate(rec.anchors.pos_m, cal.range_sigma_m, cal.range_bias_m),
+                               name=name, **common)
+            meas = a.log.select(after)
+        run = f.run(a.imu, meas, a.x0, gyro_bias0=a.gyro_bias0_radps)
+        return run, run.to_estimates(dim=3, name=name)
+    if name == "loose":
+        run = loose_filter(cal, settings, loose_scales=scales).run(a.imu, a.fixes.select(after), a.x0)
+        return run, run.to_estimates(dim=3, name=name)
+    if name == "EKF + gate":
+        model = a.model if r == 1.0 else TdoaModel(rec.anchors.pos_m, np.asarray(cal.range_sigma_m) * math.sqrt(r), dim=3)
+        ekf = TdoaEkf(RandomForce(ekf_psd_m2ps3 if q == 1.0 else ekf_psd_m2ps3 * q, dim=3), model,
+                      gate_prob=settings.gate_prob)
+        run = ekf.run(a.screened.select(after), x0=ekf.init(a.x0.pos_m, a.x0.vel_mps))
+        return run, replace(run.to_estimates(), name=name)
+    raise ValueError(f"name must be one of {TUNABLE}, got {name!r}")
+
+
 def compare_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings = FusionSettings(), *,
                  ref_anchor: int = 0, still_s: float = 2.0, align_s: float = 20.0,
                  duration_s: float | None = None, ekf_psd_m2ps3: float = IASL_EKF_PSD_M2PS3,
-                 loose_scales: tuple[float, float] = (1.0, 1.0)) -> Comparison:
+                 loose_scales: tuple[float, float] = (1.0, 1.0), scales: dict | None = None) -> Comparison:
     """UWB-only (3-D TDoA LS), the gated IMU-free TDoA EKF of notebook 03 (random force,
     ``ekf_psd_m2ps3``, the same χ² probability as the tight filter's gate), INS-only, loose
     (6 states), tight on TDoA and tight on ranges, on one ``iasl-uwb-imu`` recording, using only
@@ -299,33 +341,30 @@ def compare_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings 
        attitude) starts **every** filter. Scoring starts there, for every method.
 
     The tag's lever arm from the IMU is unknown and taken as zero (an assumption); so are the
-    accelerometer biases (zero at start). ``loose_scales`` multiplies the loose filter's Q and R
-    only (:func:`loose_filter`).
+    accelerometer biases (zero at start). ``scales`` maps a filter of :data:`TUNABLE` to its own
+    ``(q, r)`` multipliers (e.g. tuned on the calibration recording; :func:`run_fusion_filter`);
+    ``loose_scales`` is the loose filter's entry (kept for callers that tune only that one).
     """
     a = align_iasl(rec, cal, settings, ref_anchor=ref_anchor, still_s=still_s, align_s=align_s,
                    duration_s=duration_s)
-    log, tdoa, m3, x0, imu_run, bg0 = a.log, a.tdoa, a.model, a.x0, a.imu, a.gyro_bias0_radps
-    common = _common(settings)
-    ranges_update = eskf.RangeUpdate(rec.anchors.pos_m, cal.range_sigma_m, cal.range_bias_m)
+    scales = {"loose": loose_scales, **(scales or {})}
+    unknown = set(scales) - set(TUNABLE)
+    if unknown:
+        raise ValueError(f"scales: unknown filters {sorted(unknown)}; tunable: {TUNABLE}")
     # 3. the comparison, all from x0 at epoch k0
-    tight = eskf.TightEskf(cal.imu_model, eskf.TdoaUpdate(m3, settings.outlier_c_m), **common)
-    tight_r = eskf.TightEskf(cal.imu_model, ranges_update, name="tight (ranges)", **common)
-    loose = loose_filter(cal, settings, loose_scales=loose_scales)
-    after = a.after
-    sub = log.select(after)
-    ekf = TdoaEkf(RandomForce(ekf_psd_m2ps3, dim=3), m3, gate_prob=settings.gate_prob)
-    ekf_run = ekf.run(a.screened.select(after), x0=ekf.init(x0.pos_m, x0.vel_mps))
-    runs = {"tight": tight.run(imu_run, tdoa.select(after), x0, gyro_bias0=bg0),
-            "tight (ranges)": tight_r.run(imu_run, sub, x0, gyro_bias0=bg0),
-            "loose": loose.run(imu_run, a.fixes.select(after), x0),
-            "INS-only": eskf.dead_reckon(imu_run, x0, sub.t_s, gyro_bias=bg0)}
-    est = {"UWB-only": a.fixes.select(after), "EKF + gate": replace(ekf_run.to_estimates(), name="EKF + gate")}
-    est.update({k: v.to_estimates(dim=3, name=k) for k, v in runs.items()})
-    runs["EKF + gate"] = ekf_run
+    runs, est = {}, {"UWB-only": a.fixes.select(a.after)}
+    for name in ("EKF + gate", "tight", "tight (ranges)", "loose"):
+        runs[name], est[name] = run_fusion_filter(name, a, rec, cal, settings, scales=scales.get(name, (1.0, 1.0)),
+                                                  ekf_psd_m2ps3=ekf_psd_m2ps3)
+    sub = a.log.select(a.after)
+    runs["INS-only"] = eskf.dead_reckon(a.imu, a.x0, sub.t_s, gyro_bias=a.gyro_bias0_radps)
+    est["INS-only"] = runs["INS-only"].to_estimates(dim=3, name="INS-only")
+    runs = {k: runs[k] for k in ("tight", "tight (ranges)", "loose", "INS-only", "EKF + gate")}
+    est = {k: est[k] for k in ("UWB-only", "EKF + gate", "tight", "tight (ranges)", "loose", "INS-only")}
     truth, have = scored_truth(rec, sub.t_s)
-    rejected = {"eq4": int(a.n_eq4[after].sum()), "gated": int(runs["tight"].n_gated.sum()),
-                "tdoas": int(tdoa.n_tdoa[after].sum())}
-    return Comparison(rec.label, truth, est, runs, {"scored": have}, rejected, 2, dict(a.meta))
+    rejected = {"eq4": int(a.n_eq4[a.after].sum()), "gated": int(runs["tight"].n_gated.sum()),
+                "tdoas": int(a.tdoa.n_tdoa[a.after].sum())}
+    return Comparison(rec.label, truth, est, runs, {"scored": have}, rejected, 2, {**a.meta, "scales": dict(scales)})
 
 
 def scored_truth(rec: Recording, t_s: np.ndarray) -> tuple[Trajectory, np.ndarray]:

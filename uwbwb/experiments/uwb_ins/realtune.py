@@ -1,106 +1,31 @@
-"""Notebook 05's real-data protocol pieces (``iasl-uwb-imu``): the loose filter's Q/R fitted on
-the calibration scenario, the covariance inflation that makes the tight filter consistent
-(fitted on the calibration scenario, applied on the scored one), and the steps from notebook
-05's protocol to the board's (notebook 06) for "tight on the scored scenario".
+"""Notebook 05's real-data protocol pieces (``iasl-uwb-imu``): the covariance inflation that makes
+the tight filter consistent (fitted on the calibration scenario, applied on the scored one), and
+the steps from notebook 05's protocol to the board's (notebook 06) for "tight on the scored
+scenario". Every filter's Q/R tuning and the IMU clock without motion capture are in
+:mod:`.realfair`.
 
-Nothing here reads the scored scenario's truth except to score; the loader's IMU clock offset, however, is
-estimated against each scenario's own motion-capture attitude (see :mod:`uwbwb.datasets.registration`), the
-scored scenario's included — notebook 05 states it.
+Nothing here reads the scored scenario's truth except to score; the loader's default IMU clock
+offset is estimated against each scenario's own motion-capture attitude (see
+:mod:`uwbwb.datasets.registration`) — :func:`.realfair.imu_clock_sensitivity` measures what that changes.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 from scipy import stats
 
 from ... import metrics
-from ...filters.alignment import FusionSettings, align_iasl, compare_iasl, loose_filter
+from ...filters.alignment import FusionSettings, compare_iasl
 from ...filters.imu_calibration import RealCalibration
 from ...scoreboard.estimators import INS_ALIGN_S, INS_GRID, INS_REST_S, MAX_TRUTH_GAP_S, UwbInsFilter, calibrated_log
 from ...scoreboard.protocol import between, fit_calibration, thin
 from ...types import Recording
 from .realdata import common_epochs
 
-__all__ = ["LOOSE_GRID", "LOOSE_GRID_FAST", "summary_rows", "LooseTuning", "tune_loose", "nees_inflation", "inflation_sentence", "board_steps",
-           "reconcile_sentence"]
-
-#: The loose filter's ``(q, r)`` multipliers tried on the calibration scenario (Q: velocity random
-#: walk 0.3 m/s/√s; R: position σ 2 × the median range σ, velocity σ 0.5 m/s; see
-#: :func:`uwbwb.filters.alignment.loose_filter`).
-LOOSE_GRID = tuple((q, r) for q in (0.01, 0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0, 10.0))
-#: The FAST (and class-mode) grid: every other value of each knob.
-LOOSE_GRID_FAST = tuple((q, r) for q in (0.01, 1.0) for r in (0.3, 3.0))
-
-
-@dataclass(frozen=True)
-class LooseTuning:
-    """The loose filter's ``(q, r)`` pick on the calibration scenario.
-
-    Attributes
-    ----------
-    table
-        Horizontal RMSE (m) and mean NIS per dof on the calibration scenario per grid point.
-    q, r
-        The pick: lowest horizontal RMSE.
-    q_edge, r_edge
-        Whether the pick of that knob lies on the grid's edge (a wider grid might do better).
-    """
-
-    table: pd.DataFrame
-    q: float
-    r: float
-    q_edge: bool
-    r_edge: bool
-
-    def sentence(self, cal_label: str) -> str:
-        """The stated procedure and the pick, with the edge flags."""
-        edge = [k for k, e in (("Q", self.q_edge), ("R", self.r_edge)) if e]
-        flag = (f" {' and '.join(edge)} on the grid's edge: a wider grid might do better." if edge
-                else " Neither pick is on the grid's edge.")
-        return (f"Loose filter's Q and R: the {len(self.table)}-point grid (Q × {{{', '.join(f'{q:g}' for q in self.qs)}}}, "
-                f"R × {{{', '.join(f'{r:g}' for r in self.rs)}}}) run on `{cal_label}` from its own alignment; "
-                f"the lowest horizontal RMSE picks Q × {self.q:g}, R × {self.r:g} "
-                f"({self.table['horizontal RMSE (m)'].min():.4f} m), used unchanged on the scored scenario." + flag)
-
-    @property
-    def qs(self) -> list:
-        return sorted({q for q, _ in self.table.index})
-
-    @property
-    def rs(self) -> list:
-        return sorted({r for _, r in self.table.index})
-
-
-def tune_loose(rec: Recording, cal: RealCalibration, settings: FusionSettings = FusionSettings(), *,
-               grid=LOOSE_GRID, still_s: float = 2.0, align_s: float = 20.0,
-               duration_s: float | None = None) -> LooseTuning:
-    """Fit the loose filter's ``(q, r)`` on ``rec`` (the calibration scenario, with truth): one
-    alignment (:func:`~uwbwb.filters.alignment.align_iasl`), then the loose filter of every grid
-    point from the same start, scored by horizontal RMSE on the epochs with truth."""
-    if not grid:
-        raise ValueError("grid: at least one (q, r) pair")
-    a = align_iasl(rec, cal, settings, still_s=still_s, align_s=align_s, duration_s=duration_s)
-    fixes = a.fixes.select(a.after)
-    truth = rec.truth["tag"].interp(fixes.t_s)[:, :2]
-    rows = {}
-    for q, r in grid:
-        run = loose_filter(cal, settings, loose_scales=(q, r)).run(a.imu, fixes, a.x0)
-        est = run.to_estimates(dim=3, name="loose")
-        e = np.linalg.norm(est.pos_m[:, :2] - truth, axis=1)
-        ok = np.isfinite(e)
-        nis, dof = np.asarray(est.info.get("nis", []), float), np.asarray(est.info.get("dof", []), float)
-        good = np.isfinite(nis) & (dof > 0) if nis.size else np.zeros(0, bool)
-        rows[(float(q), float(r))] = {"horizontal RMSE (m)": float(np.sqrt(np.mean(e[ok] ** 2))) if ok.any() else np.inf,
-                                      "mean NIS / dof": float(nis[good].sum() / dof[good].sum()) if good.any() else np.nan}
-    table = pd.DataFrame(rows).T
-    table.index.names = ["q", "r"]
-    q, r = table["horizontal RMSE (m)"].idxmin()
-    qs, rs = sorted({k[0] for k in rows}), sorted({k[1] for k in rows})
-    return LooseTuning(table, q, r, qs.index(q) in (0, len(qs) - 1), rs.index(r) in (0, len(rs) - 1))
-
+__all__ = ["summary_rows", "nees_inflation", "inflation_sentence", "board_steps", "reconcile_sentence"]
 
 def _nees(comp, method: str) -> np.ndarray:
     sel = common_epochs(comp)
@@ -178,8 +103,9 @@ def board_steps(cal_rec: Recording, test_rec: Recording, real_cal: RealCalibrati
     Steps: (1) notebook 05 as run; (2) the ranges thinned to ``rate_hz`` (the board's rate) and the
     board's rest/alignment lengths; (3) the board's per-pair range calibration fitted on ``cal_rec``
     (calibrated ranges, σ per anchor from their residuals, no common bias) instead of the notebook's
-    raw ranges and robust σ; (4) the board's own adapter: ``(q, r)`` tuned on ``cal_rec`` over the
-    board's grid, scored by the board's rule (the estimate's own epochs against interpolated truth,
+    raw ranges and robust σ — steps 1–3 keep the tight filter's ``(q, r)`` of ``comp`` (its
+    ``meta["scales"]``, tuned by notebook 05 on ``cal_rec``); (4) the board's own adapter: ``(q, r)``
+    tuned on ``cal_rec`` over the board's grid, scored by the board's rule (the estimate's own epochs against interpolated truth,
     gaps over 0.5 s left out). With ``duration_s`` both recordings are cut to the rest, the
     alignment and that many seconds (FAST).
     """
@@ -193,14 +119,16 @@ def board_steps(cal_rec: Recording, test_rec: Recording, real_cal: RealCalibrati
         cal_rec, test_rec = cut(cal_rec), cut(test_rec)
     rows = {}
     rmse, n = _tight_rmse(comp)
-    rows["1 · notebook 05 (native rate, raw ranges, Q × 1, R × 1)"] = (rmse, n)
+    scales = {"tight": tuple(comp.meta.get("scales", {}).get("tight", (1.0, 1.0)))}
+    q, r = scales["tight"]
+    rows[f"1 · notebook 05 (native rate, raw ranges, Q × {q:g}, R × {r:g})"] = (rmse, n)
     cal_t, test_t = thin(cal_rec, rate_hz), thin(test_rec, rate_hz)
-    c2 = compare_iasl(test_t, real_cal, settings, still_s=INS_REST_S, align_s=INS_ALIGN_S)
+    c2 = compare_iasl(test_t, real_cal, settings, still_s=INS_REST_S, align_s=INS_ALIGN_S, scales=scales)
     rows[f"2 · + {rate_hz:g} Hz, rest {INS_REST_S:g} s, alignment {INS_ALIGN_S:g} s"] = _tight_rmse(c2)
     bcal = fit_calibration(cal_t, ("tag",), rate_hz=rate_hz, dim=3)
     real = replace(real_cal, range_sigma_m=bcal.sigma("tag"), range_bias_m=0.0)
     one = replace(test_t, ranges={"tag": calibrated_log(test_t, "tag", bcal)})
-    c3 = compare_iasl(one, real, settings, still_s=INS_REST_S, align_s=INS_ALIGN_S)
+    c3 = compare_iasl(one, real, settings, still_s=INS_REST_S, align_s=INS_ALIGN_S, scales=scales)
     rows["3 · + the board's range calibration and σ"] = _tight_rmse(c3)
     ins = UwbInsFilter("tight", {}, INS_GRID)
     tuned = ins.tune(cal_t, ("tag",), bcal)
@@ -225,14 +153,10 @@ def reconcile_sentence(steps: pd.DataFrame, *, test_label: str) -> str:
             + f". The largest step is \"{names[big + 1]}\".")
 
 
-def summary_rows(tuning: LooseTuning, inflation: dict, *, data: str, cal_label: str) -> list[dict]:
-    """Summary rows: the loose filter's tuned Q/R multipliers and the tight filter's covariance scale
-    (both fitted on ``cal_label``) with its mean NEES on ``data`` before and after the scale."""
-    return [dict(quantity=f"loose Q multiplier (tuned on {cal_label})", value=tuning.q, unit="", data=data,
-                 kind="reproduced"),
-            dict(quantity=f"loose R multiplier (tuned on {cal_label})", value=tuning.r, unit="", data=data,
-                 kind="reproduced"),
-            dict(quantity=f"tight covariance scale for mean NEES = dof (fitted on {cal_label})", value=inflation["k"],
-                 unit="", data=data, kind="reproduced"),
+def summary_rows(inflation: dict, *, data: str, cal_label: str) -> list[dict]:
+    """Summary rows: the tight filter's covariance scale fitted on ``cal_label`` (an output of that
+    fit, not of the filter) and its mean NEES on ``data`` after the scale."""
+    return [dict(quantity=f"tight covariance scale for mean NEES = dof (fitted on {cal_label}: mean NEES / dof there)",
+                 value=inflation["k"], unit="", data=data, kind="reproduced"),
             dict(quantity="mean position NEES tight after that scale", value=inflation["nees_test_scaled"], unit="",
                  data=data, kind="reproduced")]
