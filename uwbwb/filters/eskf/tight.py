@@ -23,6 +23,16 @@ from .updates import RangeUpdate, TdoaUpdate, _tag_jacobian
 
 
 # ====================================================================== tight
+def _checked_covariance(P0) -> np.ndarray:
+    """``P0`` as a fresh symmetric ``(15, 15)`` array, or a ValueError saying what is wrong."""
+    P = np.array(P0, float)
+    if P.shape != (N_ERR, N_ERR) or not np.all(np.isfinite(P)):
+        raise ValueError(f"P0 must be a finite ({N_ERR}, {N_ERR}) covariance, got shape {P.shape}")
+    if not np.allclose(P, P.T, rtol=1e-9, atol=1e-12) or np.any(np.diag(P) <= 0):
+        raise ValueError("P0 must be symmetric with a positive diagonal")
+    return 0.5 * (P + P.T)
+
+
 @dataclass(frozen=True)
 class TightEskf:
     """Tightly coupled 15-state error-state filter (module docstring).
@@ -183,7 +193,7 @@ class TightEskf:
 
     # ---------------------------------------------------------------- run
     def run(self, imu: ImuLog, uwb: TdoaLog | RangeLog | None, x0: NavState, *, t_s: np.ndarray | None = None,
-            heading: HeadingLog | None = None, acc_bias0=None, gyro_bias0=None, name: str | None = None,
+            heading: HeadingLog | None = None, acc_bias0=None, gyro_bias0=None, P0=None, name: str | None = None,
             reference_step: bool = False) -> FusionRun:
         """Filter a recording.
 
@@ -202,6 +212,10 @@ class TightEskf:
             Magnetometer headings, used at the UWB epochs if given.
         acc_bias0, gyro_bias0
             Initial bias estimates (default zero).
+        P0
+            Initial error-state covariance ``(15, 15)`` (default :meth:`initial_covariance`), e.g.
+            the covariance a heading alignment ended with: a filter started from another filter's
+            state should inherit how well that state is known.
         reference_step
             Same as :meth:`run_reference` (kept as an alias): run the straightforward form, step by step in Python (the mechanization and
             :func:`kalman.predict` at every IMU step, the measurement models and
@@ -230,7 +244,7 @@ class TightEskf:
         ba = np.zeros(3) if acc_bias0 is None else np.array(acc_bias0, float)
         bg = np.zeros(3) if gyro_bias0 is None else np.array(gyro_bias0, float)
         dx = np.zeros(N_ERR)
-        P = self.initial_covariance()
+        P = self.initial_covariance() if P0 is None else _checked_covariance(P0)
         qrate = self.process_noise_rate()
         gate1 = chi2.ppf(self.gate_prob, 1) if self.gate_prob is not None else np.inf
         sig_yaw = self.imu_model.mag_heading_sigma_rad
@@ -349,13 +363,13 @@ class TightEskf:
 
     def run_reference(self, imu: ImuLog, uwb: TdoaLog | RangeLog | None, x0: NavState, *,
                       t_s: np.ndarray | None = None, heading: HeadingLog | None = None, acc_bias0=None,
-                      gyro_bias0=None, name: str | None = None) -> FusionRun:
+                      gyro_bias0=None, P0=None, name: str | None = None) -> FusionRun:
         """The Python definition of :meth:`run` (its ``reference_step=True``): the mechanization
         and :func:`kalman.predict` at every IMU step, the measurement models and
         :func:`kalman.update_sequential` at every epoch. The compiled loop must equal it to
         rounding (the twin tests)."""
         return self.run(imu, uwb, x0, t_s=t_s, heading=heading, acc_bias0=acc_bias0, gyro_bias0=gyro_bias0,
-                        name=name, reference_step=True)
+                        P0=P0, name=name, reference_step=True)
 
     def _run_compiled(self, t, acc, gyro, ep_at, rows, refs, yaw_meas, p, v, q, ba, bg, P, qrate, gate1, out,
                       fix_tag, coasting):
