@@ -386,3 +386,22 @@ def test_reacquisition_time_is_the_start_of_the_last_stretch_below_the_limit():
     assert ab.reacquisition_s(t, e, 3.0) == math.inf
     assert math.isnan(ab.reacquisition_s(t, e, 20.0))       # nothing after the outage
     assert ab.reacquisition_s(t, np.full(t.size, 0.3), 3.0, limit_m=0.2) == math.inf
+
+
+def test_gated_loose_filter_re_acquires_with_a_ten_times_worse_imu(monkeypatch):
+    """With the IMU 10× worse than its model the gated loose filter leaves the 5 s outage metres
+    off with a covariance that claims centimetres; its gate's release now admits the lost lock
+    (``LooseFilter.lost_lock_variance``, the tight filter's rule) and it re-acquires. Without that
+    rule it never did on this seed (negative control)."""
+    from uwbwb.filters import eskf
+
+    cfg = ab.AblationConfig(seeds=1, mismatch_seeds=1, legs=5, static_s=10.0)
+    row = ("loose + gate",)
+
+    def reacq():
+        out = ab.score_seed("IMU 10× worse", 2, {"loose + gate": 10.0}, cfg, row, ("dynamic",))
+        return out["scores"]["loose + gate"]["reacq_s"]
+
+    assert math.isfinite(reacq())
+    monkeypatch.setattr(eskf.LooseFilter, "lost_lock_variance", lambda self, ms=0.0: np.zeros(2 * self.dim))
+    assert reacq() == math.inf

@@ -14,7 +14,7 @@ from ...models.ins import N_ERR, Mechanization, NavState, _dcm, _exp_left, _yaw,
 from ...types import Estimates, EstimateStatus, ImuLog
 from .. import kalman
 from ..kalman import Gaussian
-from .common import _lever, gap_timeline
+from .common import LOST_BUILD_S, _lever, gap_timeline
 from .result import FusionRun, _empty, _wrap
 
 
@@ -49,7 +49,8 @@ class LooseFilter:
         prior exceeds the ``gate_prob`` quantile of χ²(m), ``m`` the measurement dimension;
         a rejected fix does not enter the velocity difference. None: no gate.
     max_gated
-        Consecutive gated epochs after which the next epoch's fix is used ungated.
+        Consecutive gated epochs after which the next epoch's fix is used ungated, after the
+        lock's loss is admitted in ``P`` (:meth:`lost_lock_variance`).
     max_imu_gap_s
         An interval between IMU samples longer than this is a gap: the INS coasts across it
         (:func:`~uwbwb.models.ins.coast`, as :class:`~uwbwb.filters.eskf.TightEskf` does: velocity
@@ -102,6 +103,19 @@ class LooseFilter:
         if self.max_imu_gap_s is not None:
             validate.number("LooseFilter.max_imu_gap_s", self.max_imu_gap_s, minimum=0.0, strict_minimum=True)
         validate.number("LooseFilter.coast_acc_sigma_mps2", self.coast_acc_sigma_mps2, minimum=0.0)
+
+    def lost_lock_variance(self, innovation_ms_m2: float = 0.0) -> np.ndarray:
+        """What a lost lock adds to the diagonal of ``P`` before the ungated epoch, ``(2 dim,)``:
+        the tight filter's rule (:meth:`~uwbwb.filters.eskf.TightEskf.lost_lock_variance`) on this
+        filter's states — position: the initial variance plus the mean squared position innovation
+        of the epoch (``innovation_ms_m2``, m²); velocity: the initial variance plus that over
+        ``(1 s)²`` (the error assumed built up over about a second). Without it the released fix
+        meets a covariance that still claims centimetres, moves the state by a fraction of the
+        innovation and the gate shuts again: with the IMU 10× worse than modelled the gated
+        filter never re-acquired after a 5 s outage."""
+        d = self.dim
+        return np.array([self.sigma_r_pos_m ** 2 + innovation_ms_m2] * d
+                        + [self.sigma_r_vel_mps ** 2 + innovation_ms_m2 / LOST_BUILD_S ** 2] * d)
 
     def matrices(self, T_s: float):
         """``A``, ``Q``, ``R`` of eqs 5–6 for UWB period ``T_s``."""
@@ -201,6 +215,9 @@ class LooseFilter:
                     z, H, Rk = np.concatenate([z_pos, v[:d] - v_uwb]), np.eye(2 * d), R
                 else:
                     z, H, Rk = z_pos, np.eye(2 * d)[:d], R[:d, :d]
+                if gate_m is not None and gated_run >= self.max_gated:   # lock lost: admit it, then re-acquire
+                    y = z_pos - dx[:d]
+                    P = P + np.diag(self.lost_lock_variance(float(np.mean(y * y))))
                 if gate_m is not None and gated_run < self.max_gated:
                     y = z - H @ dx
                     if y @ np.linalg.solve(H @ P @ H.T + Rk, y) > gate_m[z.size]:
