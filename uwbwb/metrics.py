@@ -26,7 +26,7 @@ import numbers
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -37,7 +37,8 @@ from .validate import probability
 
 __all__ = [
     "ErrorSeries", "Summary", "cep", "cep50", "cep95", "ecdf", "epoch_summary", "error_stats", "errors_vs_truth",
-    "nees", "nis_consistency", "position_error_m", "rmse",
+    "nees", "nis_consistency", "position_error_m", "rmse", "block_bootstrap_difference",
+    "Headline",
 ]
 
 
@@ -394,6 +395,41 @@ def nis_consistency(nis, dof, prob: float = 0.95) -> dict:
             "sum_nis": s, "sum_dof": total, "sum_lo": lo, "sum_hi": hi, "verdict": verdict}
 
 
+def block_bootstrap_difference(err_a: np.ndarray, err_b: np.ndarray, *, rng: np.random.Generator,
+                               n_boot: int = 2000, n_blocks: int = 20, level: float = 0.95) -> dict:
+    """``RMSE(a) − RMSE(b)`` on paired epochs and its block-bootstrap interval (non-overlapping blocks).
+
+    Parameters
+    ----------
+    err_a, err_b
+        Error norms of two methods on the same epochs, shape ``(n,)``, in time order, m.
+    n_blocks
+        The run is cut into this many blocks of consecutive epochs; a replicate draws
+        ``n_blocks`` of them with replacement (pairs stay together).
+
+    Returns
+    -------
+    dict
+        ``diff_m``, ``lo_m``, ``hi_m`` (NaN interval with fewer than ``2·n_blocks`` epochs), ``n``.
+    """
+    a, b = np.asarray(err_a, float), np.asarray(err_b, float)
+    if a.shape != b.shape or a.ndim != 1:
+        raise ValueError(f"paired errors must be 1-D of the same length, got {a.shape} and {b.shape}")
+    n = a.size
+    diff = float(np.sqrt(np.mean(a ** 2)) - np.sqrt(np.mean(b ** 2))) if n else np.nan
+    if n < 2 * n_blocks:
+        return {"diff_m": diff, "lo_m": np.nan, "hi_m": np.nan, "n": n}
+    edges = np.linspace(0, n, n_blocks + 1).astype(int)
+    sa = np.add.reduceat(a ** 2, edges[:-1])
+    sb = np.add.reduceat(b ** 2, edges[:-1])
+    cnt = np.diff(edges)
+    pick = rng.integers(0, n_blocks, (n_boot, n_blocks))
+    N = cnt[pick].sum(axis=1)
+    d = np.sqrt(sa[pick].sum(axis=1) / N) - np.sqrt(sb[pick].sum(axis=1) / N)
+    lo, hi = np.quantile(d, [(1 - level) / 2, (1 + level) / 2])
+    return {"diff_m": diff, "lo_m": float(lo), "hi_m": float(hi), "n": n}
+
+
 # --------------------------------------------------------------------------- summary table
 
 
@@ -553,3 +589,36 @@ class Summary:
 def _is_recording_label(data: str) -> bool:
     dataset, _, recording = data.partition("/")
     return bool(dataset.strip()) and bool(recording.strip())
+
+
+@dataclass(frozen=True)
+class Headline:
+    """One summary row declared as data: what it is, and how to read its value from an
+    experiment's ``facts`` dict (each experiment's ``headlines.py`` lists its rows as these).
+
+    Attributes
+    ----------
+    quantity, unit
+        As in :meth:`Summary.add`.
+    kind
+        One of :attr:`Summary.KINDS`: *reproduced*, *target* or *input*.
+    read
+        ``facts → value``.
+    paper
+        The paper's value where one is comparable (None otherwise).
+    """
+
+    quantity: str
+    unit: str
+    kind: str
+    read: Callable[[dict], float]
+    paper: float | None = None
+
+    def __post_init__(self):
+        if self.kind not in Summary.KINDS:
+            raise ValueError(f"Headline.kind must be one of {', '.join(Summary.KINDS)}, got {self.kind!r}")
+
+    def row(self, facts: dict, *, data: str = "synthetic") -> dict:
+        """Keyword arguments of :meth:`Summary.add` for this headline, read from ``facts``."""
+        return {"quantity": self.quantity, "value": float(self.read(facts)), "unit": self.unit,
+                "paper_value": self.paper, "kind": self.kind, "data": data}

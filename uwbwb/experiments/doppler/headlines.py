@@ -1,29 +1,18 @@
 """Notebook 04's summary rows, declared as data, and its checks (read from :func:`.facts.facts`).
 
-Each :class:`Headline` names the quantity, its unit, its kind (*reproduced*, *target* or
+Each :class:`~uwbwb.metrics.Headline` names the quantity, its unit, its kind (*reproduced*, *target* or
 *input*), the paper's value where one is comparable, and how to read it from the facts.
 The lab layout is a *reconstruction* and its row says so.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable
-
 import numpy as np
 
+from ...metrics import Headline
 from .study import PAPER, READINGS
 
 __all__ = ["Headline", "HEADLINES", "rows", "publish", "checks"]
-
-
-@dataclass(frozen=True)
-class Headline:
-    quantity: str
-    unit: str
-    kind: str
-    read: Callable[[dict], float]
-    paper: float | None = None
 
 
 def _headlines() -> tuple[Headline, ...]:
@@ -78,8 +67,7 @@ HEADLINES = _headlines()
 
 def rows(f: dict) -> list[dict]:
     """The summary rows: ``quantity, value, unit, paper_value, kind`` (data: synthetic)."""
-    return [{"quantity": h.quantity, "value": float(h.read(f)), "unit": h.unit, "paper_value": h.paper,
-             "kind": h.kind, "data": "synthetic"} for h in HEADLINES]
+    return [h.row(f) for h in HEADLINES]
 
 
 def publish(f: dict, summary, path=None, *, sigma_range_m: float) -> None:

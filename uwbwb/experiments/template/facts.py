@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ... import metrics
 from .study import Results
 
 __all__ = ["LEVEL", "N_BLOCKS", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "rmse_difference", "sentence",
@@ -33,27 +34,11 @@ LEVEL = 0.95
 NIS_BAND = (0.5, 2.0)
 
 
-def rmse_difference(err_a, err_b, *, rng: np.random.Generator, n_boot: int = N_BOOT, n_blocks: int = N_BLOCKS,
-                    level: float = LEVEL) -> dict:
-    """``RMSE(a) − RMSE(b)`` of paired errors (same epochs, time order) and its block-bootstrap interval.
-
-    Returns ``{"diff_m", "lo_m", "hi_m", "n"}``; the interval is NaN with fewer than ``2 · n_blocks`` epochs.
-    """
-    a, b = np.asarray(err_a, float), np.asarray(err_b, float)
-    if a.shape != b.shape or a.ndim != 1:
-        raise ValueError(f"paired errors must be 1-D of one length, got {a.shape} and {b.shape}")
-    n = a.size
-    diff = float(np.sqrt(np.mean(a ** 2)) - np.sqrt(np.mean(b ** 2))) if n else np.nan
-    if n < 2 * n_blocks:
-        return {"diff_m": diff, "lo_m": np.nan, "hi_m": np.nan, "n": n}
-    edges = np.linspace(0, n, n_blocks + 1).astype(int)
-    sa, sb = np.add.reduceat(a ** 2, edges[:-1]), np.add.reduceat(b ** 2, edges[:-1])
-    count = np.diff(edges)
-    pick = rng.integers(0, n_blocks, (n_boot, n_blocks))
-    N = count[pick].sum(axis=1)
-    d = np.sqrt(sa[pick].sum(axis=1) / N) - np.sqrt(sb[pick].sum(axis=1) / N)
-    lo, hi = np.quantile(d, [(1 - level) / 2, (1 + level) / 2])
-    return {"diff_m": diff, "lo_m": float(lo), "hi_m": float(hi), "n": n}
+def rmse_difference(err_a, err_b, *, rng: np.random.Generator) -> dict:
+    """``RMSE(a) − RMSE(b)`` of paired errors and its interval: the package's one block bootstrap
+    (:func:`uwbwb.metrics.block_bootstrap_difference`) at this experiment's sizes — reuse the
+    package's statistics rather than writing another copy."""
+    return metrics.block_bootstrap_difference(err_a, err_b, rng=rng, n_boot=N_BOOT, n_blocks=N_BLOCKS, level=LEVEL)
 
 
 def verdict(lo_m: float, hi_m: float) -> str:

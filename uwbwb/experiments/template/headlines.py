@@ -1,6 +1,6 @@
 """The template's summary rows, declared as data, and its checks (both read from :func:`.facts.facts`).
 
-Each :class:`Headline` names the quantity, its unit, its kind (*reproduced*: came out of a method;
+Each :class:`~uwbwb.metrics.Headline` names the quantity, its unit, its kind (*reproduced*: came out of a method;
 *target*: a simulator setting chosen to hit it; *input*: taken from the paper) and the paper's value
 where one is comparable. :func:`checks` returns what fails (empty: everything holds); each check is
 one a broken method or a broken comparison would fail (tests/experiments/test_template.py doctors a
@@ -9,9 +9,7 @@ result for each).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable
-
+from ...metrics import Headline
 from .facts import facts
 from .study import METHODS, Results
 
@@ -20,19 +18,6 @@ __all__ = ["Headline", "HEADLINES", "PAPER", "checks", "publish", "rows"]
 #: What the paper states (a copied package puts its paper's printed values here). The template's
 #: "paper" states the range noise the simulator is given, so that row is an *input*.
 PAPER = {"sigma_range_m": 0.10}
-
-
-@dataclass(frozen=True)
-class Headline:
-    quantity: str
-    unit: str
-    kind: str
-    read: Callable[[dict], float]
-    paper: float | None = None
-
-    def __post_init__(self):
-        if self.kind not in ("reproduced", "target", "input"):
-            raise ValueError(f"Headline.kind must be reproduced, target or input, got {self.kind!r}")
 
 
 HEADLINES: tuple[Headline, ...] = (
@@ -48,8 +33,7 @@ HEADLINES: tuple[Headline, ...] = (
 
 def rows(f: dict) -> list[dict]:
     """Summary rows (keyword arguments of :meth:`uwbwb.metrics.Summary.add`) from :func:`.facts.facts`."""
-    return [{"quantity": h.quantity, "value": float(h.read(f)), "unit": h.unit, "paper_value": h.paper,
-             "kind": h.kind, "data": "synthetic"} for h in HEADLINES]
+    return [h.row(f) for h in HEADLINES]
 
 
 def publish(res: Results, summary, path=None):

@@ -58,6 +58,7 @@ from ...sim import mismatch as mm
 from ...sim import robot
 from ...types import EstimateStatus, Estimates
 from ...validate import integer, number, probability
+from .scoring import RECOVERY_MAX_M, _masks, _reacq, _scores, reacquisition_s  # noqa: F401 (re-exported)
 from .study import OUTAGE_START_S, imu_after, initial_state, ls_estimates, screened_tdoa
 
 __all__ = ["BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "pair_rmse", "METRICS", "LADDER", "EKF_Q0", "RECOVERY_S", "AblationConfig", "AblationResult",
@@ -80,9 +81,6 @@ TIE_REL = 0.02
 FULL_GRID = tuple(float(round(10 ** (k / 2), 4)) for k in range(-4, 5))
 #: FAST grid: three decades only (a smoke test; edge knobs are flagged, not resolved).
 FAST_GRID = (0.1, 1.0, 10.0)
-#: Error (m) a filter must get below, and stay below, within :data:`RECOVERY_S` of UWB's return
-#: after the outage to count as re-acquired (:func:`reacquisition_s`; matched world, every seed).
-RECOVERY_MAX_M = 0.5
 #: Seconds after an outage scored as "recovery" (not as "dynamic"); also the re-acquisition deadline.
 RECOVERY_S = 5.0
 #: Scores per row and seed (m; coverage as a fraction of the scored epochs).
@@ -358,62 +356,6 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
               "eq4_on_injected": int((triangle_outliers(run.tdoa.tdoa_m, ref, anchors, cfg.outlier_c_m) & bad).sum())
               if cfg.outlier_c_m is not None else 0}
     return out, k0, counts
-
-
-def _masks(run: robot.RobotRun, k0: int, recovery_s: float) -> dict:
-    T = len(run.truth)
-    scored = np.arange(T) >= k0
-    if not run.outage.any():
-        return {"all": scored}
-    t = run.truth.t_s
-    t_end = t[run.outage][-1]
-    rec = (t > t_end) & (t <= t_end + recovery_s)
-    return {"all": scored & ~run.outage & ~rec, "outage": scored & run.outage, "recovery": scored & rec}
-
-
-def reacquisition_s(t_s: np.ndarray, err_m: np.ndarray, t_end_s: float, limit_m: float = RECOVERY_MAX_M) -> float:
-    """Seconds from UWB's return after an outage until the error gets below ``limit_m`` for good.
-
-    UWB returns at the first epoch after ``t_end_s`` (the outage's last epoch); the filter has
-    re-acquired at the first epoch from which every later error is below ``limit_m`` (a missing,
-    non-finite error counts as not below). Returns 0 when every error from the return on is below
-    the limit, ``inf`` when the last epoch is not (never re-acquired before the run ends), NaN
-    when no epoch follows the outage. The drift UWB finds on its return is the outage's own score
-    (``outage_max``), not counted here: this is the time to re-acquire, not the error at return.
-
-    Parameters
-    ----------
-    t_s, err_m
-        Epoch times (s) and errors (m), shape ``(T,)``, scored epochs only.
-    """
-    t_s, err_m = np.asarray(t_s, float), np.asarray(err_m, float)
-    after = t_s > t_end_s
-    if not after.any():
-        return np.nan
-    t, e = t_s[after], err_m[after]
-    bad = np.flatnonzero(~(e < limit_m))
-    if not bad.size:
-        return 0.0
-    if bad[-1] == e.size - 1:
-        return math.inf
-    return float(t[bad[-1] + 1] - t[0])
-
-
-def _scores(pos: np.ndarray, truth_m: np.ndarray, sel: np.ndarray) -> tuple[float, float, float, float]:
-    e = np.linalg.norm(pos[sel] - truth_m[sel], axis=1)
-    ok = np.isfinite(e)
-    if not ok.any():
-        return np.nan, np.nan, 0.0, np.nan
-    return float(np.sqrt(np.mean(e[ok] ** 2))), float(e[ok].max()), float(ok.mean()), float(np.sum(e[ok] ** 2))
-
-
-def _reacq(run: robot.RobotRun, k0: int, pos: np.ndarray, truth_m: np.ndarray) -> float:
-    """:func:`reacquisition_s` of one row on one dynamic run (NaN without an outage)."""
-    if not run.outage.any():
-        return np.nan
-    t = run.truth.t_s
-    e = np.linalg.norm(pos - truth_m, axis=1)
-    return reacquisition_s(t[k0:], e[k0:], float(t[run.outage][-1]))
 
 
 def score_seed(case: str, seed: int, knobs: Mapping[str, float], cfg: AblationConfig,

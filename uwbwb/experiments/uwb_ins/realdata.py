@@ -14,6 +14,7 @@ import pandas as pd
 from scipy import stats
 
 from ... import metrics
+from ...metrics import block_bootstrap_difference  # noqa: F401 (re-exported; defined once in metrics)
 from .study import Comparison
 
 __all__ = ["N_BLOCKS", "PAIRS", "summary_rows", "common_epochs", "error_table", "block_bootstrap_difference", "difference_table",
@@ -56,41 +57,6 @@ def error_table(comp: Comparison, methods=None) -> pd.DataFrame:
         row["common epochs"] = int(sel.sum())
         rows[m] = row
     return pd.DataFrame(rows).T
-
-
-def block_bootstrap_difference(err_a: np.ndarray, err_b: np.ndarray, *, rng: np.random.Generator,
-                               n_boot: int = 2000, n_blocks: int = N_BLOCKS, level: float = 0.95) -> dict:
-    """``RMSE(a) − RMSE(b)`` on paired epochs and its block-bootstrap interval (non-overlapping blocks).
-
-    Parameters
-    ----------
-    err_a, err_b
-        Error norms of two methods on the same epochs, shape ``(n,)``, in time order, m.
-    n_blocks
-        The run is cut into this many blocks of consecutive epochs; a replicate draws
-        ``n_blocks`` of them with replacement (pairs stay together).
-
-    Returns
-    -------
-    dict
-        ``diff_m``, ``lo_m``, ``hi_m`` (NaN interval with fewer than ``2·n_blocks`` epochs), ``n``.
-    """
-    a, b = np.asarray(err_a, float), np.asarray(err_b, float)
-    if a.shape != b.shape or a.ndim != 1:
-        raise ValueError(f"paired errors must be 1-D of the same length, got {a.shape} and {b.shape}")
-    n = a.size
-    diff = float(np.sqrt(np.mean(a ** 2)) - np.sqrt(np.mean(b ** 2))) if n else np.nan
-    if n < 2 * n_blocks:
-        return {"diff_m": diff, "lo_m": np.nan, "hi_m": np.nan, "n": n}
-    edges = np.linspace(0, n, n_blocks + 1).astype(int)
-    sa = np.add.reduceat(a ** 2, edges[:-1])
-    sb = np.add.reduceat(b ** 2, edges[:-1])
-    cnt = np.diff(edges)
-    pick = rng.integers(0, n_blocks, (n_boot, n_blocks))
-    N = cnt[pick].sum(axis=1)
-    d = np.sqrt(sa[pick].sum(axis=1) / N) - np.sqrt(sb[pick].sum(axis=1) / N)
-    lo, hi = np.quantile(d, [(1 - level) / 2, (1 + level) / 2])
-    return {"diff_m": diff, "lo_m": float(lo), "hi_m": float(hi), "n": n}
 
 
 def difference_verdict(a: str, b: str, r: dict) -> str:
