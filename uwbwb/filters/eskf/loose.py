@@ -19,6 +19,19 @@ from .result import FusionRun, _empty, _wrap
 
 
 # ====================================================================== loose (the paper's filter)
+def _consistent(innovations: list) -> bool:
+    """Whether a run of gated position innovations says the *filter* is off rather than the fixes:
+    they change smoothly (a drifting filter against fixes that agree with each other), i.e. the RMS
+    step between consecutive innovations is shorter than their mean. Scattered outliers (a
+    multipath burst) jump from fix to fix and are not taken for a lost lock."""
+    if not innovations:
+        return False
+    y = np.asarray(innovations, float)
+    m = y.mean(axis=0)
+    step2 = float(np.mean(np.sum(np.diff(y, axis=0) ** 2, axis=1))) if len(y) > 1 else 0.0
+    return bool(m @ m > step2)
+
+
 @dataclass(frozen=True)
 class LooseFilter:
     """The paper's loosely coupled filter, eqs 5–7 (module docstring).
@@ -109,7 +122,9 @@ class LooseFilter:
         the tight filter's rule (:meth:`~uwbwb.filters.eskf.TightEskf.lost_lock_variance`) on this
         filter's states — position: the initial variance plus the mean squared position innovation
         of the epoch (``innovation_ms_m2``, m²); velocity: the initial variance plus that over
-        ``(1 s)²`` (the error assumed built up over about a second). Without it the released fix
+        ``(1 s)²`` (the error assumed built up over about a second). It is added only when the
+        gated run's innovations agree on an offset (a lost lock, not a burst of outliers:
+        :func:`_consistent`) and at least one epoch was gated. Without it the released fix
         meets a covariance that still claims centimetres, moves the state by a fraction of the
         innovation and the gate shuts again: with the IMU 10× worse than modelled the gated
         filter never re-acquired after a 5 s outage."""
@@ -163,7 +178,7 @@ class LooseFilter:
         hist_t, hist_p = [], []
         g_up = -mech.g_n / np.linalg.norm(mech.g_n)
         gate_m = None if self.gate_prob is None else {m: chi2.ppf(self.gate_prob, m) for m in (d, 2 * d)}
-        gated_run = 0
+        gated_run, gated_y = 0, []                      # position innovations of the current gated run
         # coast across IMU gaps: the 15-state accumulators of models.ins.coast since the last epoch,
         # whose position/velocity block is the extra process noise of the assumed acceleration
         blk = np.r_[0:d, 3:3 + d]
@@ -215,8 +230,8 @@ class LooseFilter:
                     z, H, Rk = np.concatenate([z_pos, v[:d] - v_uwb]), np.eye(2 * d), R
                 else:
                     z, H, Rk = z_pos, np.eye(2 * d)[:d], R[:d, :d]
-                if gate_m is not None and gated_run >= self.max_gated:   # lock lost: admit it, then re-acquire
-                    y = z_pos - dx[:d]
+                if gate_m is not None and 0 < gated_run >= self.max_gated and _consistent(gated_y):
+                    y = z_pos - dx[:d]                   # lock lost (the gated fixes agree): admit it, re-acquire
                     P = P + np.diag(self.lost_lock_variance(float(np.mean(y * y))))
                 if gate_m is not None and gated_run < self.max_gated:
                     y = z - H @ dx
@@ -224,11 +239,12 @@ class LooseFilter:
                         hist_t.pop()
                         hist_p.pop()
                         gated_run += 1
+                        gated_y.append(z_pos - dx[:d])
                         z = None
                         status = EstimateStatus.GATED
                         out["n_gated"][k] = 1
                 if z is not None:
-                    gated_run = 0
+                    gated_run, gated_y = 0, []
                     st, inn = kalman.update(Gaussian(dx, P), z, H, Rk)
                     dx, P = st.x, st.P
                     nis, dof, status = inn.nis, z.size, EstimateStatus.UPDATED
