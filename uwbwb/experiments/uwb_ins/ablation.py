@@ -81,7 +81,8 @@ TIE_REL = 0.02
 FULL_GRID = tuple(float(round(10 ** (k / 2), 4)) for k in range(-4, 5))
 #: FAST grid: three decades only (a smoke test; edge knobs are flagged, not resolved).
 FAST_GRID = (0.1, 1.0, 10.0)
-#: Seconds after an outage scored as "recovery" (not as "dynamic"); also the re-acquisition deadline.
+#: Seconds after an outage scored as "recovery" (not as "dynamic"); also the re-acquisition deadline
+#: (error below :data:`RECOVERY_MAX_M` within this, then held for :data:`~.scoring.HOLD_S`).
 RECOVERY_S = 5.0
 #: Scores per row and seed (m; coverage as a fraction of the scored epochs).
 METRICS = ("static_rmse", "static_cov", "dyn_rmse", "dyn_cov", "outage_max", "outage_rmse", "outage_cov",

@@ -90,10 +90,11 @@ def checks(res: AblationResult) -> list[str]:
        filter's max error grows (geometric mean of the paired seeds' ratios > 1).
     5. The LS residual test lowers LS's static and dynamic RMSE by ≥ 1.5× (mean over seeds).
     6. Re-acquisition: in the matched world every gated filter gets below :data:`RECOVERY_MAX_M`
-       within :data:`~.ablation.RECOVERY_S` of UWB's return after the outage and stays below it to
-       the end of the run (:func:`~.ablation.reacquisition_s`), on every seed: a filter that
+       within :data:`~.ablation.RECOVERY_S` of UWB's return after the outage and holds it for
+       :data:`~.scoring.HOLD_S` (:func:`~.ablation.reacquisition_s`), on every seed: a filter that
        diverges after the outage fails it however good its mean is. The error UWB finds on its
-       return (the outage's drift) is the outage's own score, not this check's. The EKF with the tight filter's per-TDoA gate
+       return (the outage's drift) is the outage's own score, not this check's; the check's earlier
+       reading (max error in the recovery window) is reported beside it by the notebook's sentence. The EKF with the tight filter's per-TDoA gate
        (:data:`~.ablation.EKF_TDOA_GATE`) is a diagnostic row, not one of the designs: its failure
        to re-acquire is named in the notebook (:func:`~.facts.matched_failure_sentence`), not asserted.
     """

@@ -9,7 +9,7 @@ import numpy as np
 
 from ...sim import robot
 
-__all__ = ["RECOVERY_MAX_M", "reacquisition_s"]
+__all__ = ["RECOVERY_MAX_M", "HOLD_S", "reacquisition_s"]
 
 #: Error (m) a filter must get below, and stay below, within :data:`~.ablation.RECOVERY_S` of UWB's
 #: return after the outage to count as re-acquired (:func:`reacquisition_s`; matched world, every seed).
@@ -27,15 +27,21 @@ def _masks(run: robot.RobotRun, k0: int, recovery_s: float) -> dict:
     return {"all": scored & ~run.outage & ~rec, "outage": scored & run.outage, "recovery": scored & rec}
 
 
-def reacquisition_s(t_s: np.ndarray, err_m: np.ndarray, t_end_s: float, limit_m: float = RECOVERY_MAX_M) -> float:
-    """Seconds from UWB's return after an outage until the error gets below ``limit_m`` for good.
+#: Seconds the error must then stay below the limit for the filter to count as re-acquired.
+HOLD_S = 5.0
+
+
+def reacquisition_s(t_s: np.ndarray, err_m: np.ndarray, t_end_s: float, limit_m: float = RECOVERY_MAX_M,
+                    hold_s: float = HOLD_S) -> float:
+    """Seconds from UWB's return after an outage until the error gets below ``limit_m`` and holds.
 
     UWB returns at the first epoch after ``t_end_s`` (the outage's last epoch); the filter has
-    re-acquired at the first epoch from which every later error is below ``limit_m`` (a missing,
-    non-finite error counts as not below). Returns 0 when every error from the return on is below
-    the limit, ``inf`` when the last epoch is not (never re-acquired before the run ends), NaN
-    when no epoch follows the outage. The drift UWB finds on its return is the outage's own score
-    (``outage_max``), not counted here: this is the time to re-acquire, not the error at return.
+    re-acquired at the first epoch from which the error stays below ``limit_m`` for ``hold_s``
+    seconds, or to the end of the run if that comes first (a missing, non-finite error counts as
+    not below). Returns 0 when it holds from the return, ``inf`` when no such stretch starts
+    (never re-acquired), NaN when no epoch follows the outage. The drift UWB finds on its return
+    is the outage's own score (``outage_max``) and a later excursion the dynamic score's: this is
+    the time to re-acquire, neither the error at return nor what happens long after.
 
     Parameters
     ----------
@@ -47,12 +53,14 @@ def reacquisition_s(t_s: np.ndarray, err_m: np.ndarray, t_end_s: float, limit_m:
     if not after.any():
         return np.nan
     t, e = t_s[after], err_m[after]
-    bad = np.flatnonzero(~(e < limit_m))
-    if not bad.size:
-        return 0.0
-    if bad[-1] == e.size - 1:
+    ok = e < limit_m
+    # stretches of consecutive epochs below the limit: [starts[i], ends[i]) in epoch indices
+    edge = np.diff(np.r_[0, ok.astype(np.int8), 0])
+    starts, ends = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1)
+    held = (t[ends - 1] - t[starts] >= hold_s) | (ends == t.size)
+    if not held.any():
         return math.inf
-    return float(t[bad[-1] + 1] - t[0])
+    return float(t[starts[np.argmax(held)]] - t[0])
 
 
 def _scores(pos: np.ndarray, truth_m: np.ndarray, sel: np.ndarray) -> tuple[float, float, float, float]:
