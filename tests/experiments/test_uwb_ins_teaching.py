@@ -103,9 +103,10 @@ def test_every_filter_is_tuned_by_one_procedure_and_its_scales_touch_only_itself
     one = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={n: (1.0, 1.0) for n in realfair.TUNED})
     for other in base.estimates:                                      # (1, 1) is the untuned filter, bit for bit
         np.testing.assert_array_equal(one.estimates[other].pos_m, base.estimates[other].pos_m)
-    rows = realfair.summary_rows(tun, None, data="x", cal_label="flight_a", grid_points=3)
+    rows = realfair.summary_rows(tun, None, data="x", cal_label="flight_a", cal_data="cal/flight_a")
     assert [r["value"] for r in rows[:2]] == [tun["EKF + gate"].q, tun["EKF + gate"].r]
-    assert all("tuning output" in r["quantity"] for r in rows)
+    assert all("tuning output" in r["quantity"] and "3-point grid" in r["quantity"] and r["data"] == "cal/flight_a"
+               for r in rows)
     assert realtune.summary_rows({"k": 2.0, "nees_test_scaled": 3.0}, data="x", cal_label="a")[0]["value"] == 2.0
     with pytest.raises(ValueError, match="grid"):
         realfair.tune_scales(rec, cal, grid=())
@@ -113,23 +114,27 @@ def test_every_filter_is_tuned_by_one_procedure_and_its_scales_touch_only_itself
         study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={"UWB-only": (1.0, 1.0)})
 
 
-def test_the_clock_sentence_follows_the_numbers():
+def test_the_clock_sentence_follows_the_intervals():
     from uwbwb.experiments.uwb_ins import realfair
 
-    def res(tight_mm, loose_mm):
-        t = pd.DataFrame({"motion-capture clock (m)": [0.06, 0.05, 0.055, 30.0],
-                          "ranges clock (m)": [0.06, 0.05 + tight_mm / 1e3, 0.055 + loose_mm / 1e3, 31.0]},
-                         index=["UWB-only", "tight", "loose", "INS-only"])
-        t["change (mm)"] = (t["ranges clock (m)"] - t["motion-capture clock (m)"]) * 1e3
-        return {"offsets": {"truth_s": -0.44, "ranges_s": -0.48, "peak": 0.8, "rival": 0.6}, "table": t}
+    def res(tight, loose):
+        rows = {"UWB-only": (0.01, -0.02, 0.03), "EKF + gate": (0.02, -0.01, 0.04), "tight": tight, "loose": loose,
+                "INS-only": (200.0, 100.0, 300.0)}
+        t = pd.DataFrame({m: {"motion-capture clock (m)": 0.05, "ranges clock (m)": 0.05 + c / 1e3, "change (mm)": c,
+                              "lo (mm)": lo, "hi (mm)": hi, "epochs": 900} for m, (c, lo, hi) in rows.items()}).T
+        return {"offsets": {"truth_s": -0.44, "ranges_s": -0.48, "peak": 0.8, "rival": 0.6}, "start_s": (22.0, 22.05),
+                "table": t}
 
-    s = realfair.clock_sentence(res(-0.3, -0.2), scenario="s2")
-    assert "-40 ms from the motion-capture one" in s and "does not flatter them" in s and "tight -0.3 mm" in s
-    s = realfair.clock_sentence(res(0.1, 2.5), scenario="s2")
-    assert "flatters them by at most 2.50 mm" in s and "(largest: loose)" in s
+    s = realfair.clock_sentence(res((-0.3, -0.9, 0.4), (-0.2, -0.5, 0.1)), scenario="s2")
+    assert "-40 ms from the motion-capture one" in s and "flatters none of them" in s
+    assert "tight no detectable change (-0.30 mm, 95 % CI [-0.90, +0.40])" in s and "22.05 s" in s
+    s = realfair.clock_sentence(res((0.1, -0.2, 0.5), (2.5, 1.0, 4.0)), scenario="s2")
+    assert "loose worse without the motion capture" in s and "flatters loose" in s and "flatters tight" not in s
+    s = realfair.clock_sentence(res((-2.0, -3.0, -1.0), (0.0, np.nan, np.nan)), scenario="s2")
+    assert "tight better without" in s and "too few epochs" in s
     s = realfair.clock_sentence({"error": "ambiguous peaks"}, scenario="s2")
     assert "not estimated" in s and "ambiguous peaks" in s
-    rows = realfair.summary_rows({}, res(0.1, 2.5), data="x", cal_label="c", grid_points=16)
+    rows = realfair.summary_rows({}, res((0.1, -0.2, 0.5), (2.5, 1.0, 4.0)), data="x", cal_label="c")
     assert [r["unit"] for r in rows] == ["ms", "mm", "mm"] and rows[0]["value"] == pytest.approx(-40.0)
 
 
