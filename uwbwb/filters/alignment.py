@@ -308,7 +308,11 @@ def run_fusion_filter(name: str, a: AlignedStart, rec: Recording, cal: RealCalib
     ``name`` is one of :data:`TUNABLE`. ``scales = (q, r)`` multiply that filter's process and
     measurement noise only (on top of ``settings``' common scales): the tight filters' ``q_scale``
     and ``r_scale``, the loose filter's Q and R (:func:`loose_filter`), the EKF's random-force
-    spectral density and its TDoA variance. ``(1, 1)`` is the untuned filter.
+    spectral density and its TDoA variance. ``(1, 1)`` is the untuned filter. ``settings``' common
+    ``q_scale``/``r_scale`` (the widget's knobs) act on the IMU filters only, as before; the EKF
+    takes its own ``scales``. Only the tight filters inherit the alignment's uncertainty
+    (:func:`handover_covariance`); the loose filter starts from its own (velocity σ 0.5 m/s) and
+    the EKF from its own (1 m, 1 m/s).
     """
     q, r = scales
     after = a.after
