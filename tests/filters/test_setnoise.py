@@ -3,22 +3,12 @@ import pytest
 
 from uwbwb.filters import kalman
 from uwbwb.filters import setnoise as F
+from uwbwb.filters.twins import setnoise_case
 from uwbwb.models.motion import VelocityKick
 from uwbwb.models.setnoise import SetNoiseModel
 from uwbwb.types import SetFixLog
 
-
-def _case(T=60, speed_mps=0.35, seed=1):
-    """A straight-line run observed through a two-set model, as (t, z, mu, sigma, truth)."""
-    rng = np.random.default_rng(seed)
-    t = np.cumsum(rng.uniform(0.09, 0.12, T))
-    truth = np.column_stack([1.0 + speed_mps * (t - t[0]), np.full(T, 2.0)])
-    model = SetNoiseModel([3, 5], [[0.08, -0.03], [-0.05, 0.06]], [[0.10, 0.08], [0.15, 0.12]], [50, 50],
-                          [0.0, 0.0], [0.2, 0.2], 100)
-    sets = rng.choice([3, 5], T)
-    z = model.sample(truth, sets, rng=rng)
-    mu, sd, _ = model.lookup(sets)
-    return t, z, mu, sd, truth
+_case = setnoise_case   # a straight-line run through a two-set model: (t, z, mu, sigma, truth)
 
 
 # --------------------------------------------------------------------------- steps

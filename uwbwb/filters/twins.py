@@ -42,7 +42,7 @@ from .eskf import kernels as eskf_kernels
 from .gating import NoGate
 from .setnoise import kf_sweep, pf_sweep, reference_pf
 
-__all__ = ["BIT", "Tol", "Twin", "TWINS"]
+__all__ = ["BIT", "Tol", "Twin", "TWINS", "setnoise_case"]
 
 
 class Tol(NamedTuple):
@@ -322,11 +322,12 @@ def _sequential_definition(a):
 
 
 # ---------------------------------------------------------------- set-noise KF and PF
-def _setnoise_case(T: int, seed: int = 1):
-    """The two-set straight-line case of tests/filters/test_setnoise.py: ``(t, z, mu, sd, truth)``."""
+def setnoise_case(T: int = 60, speed_mps: float = 0.35, seed: int = 1):
+    """A straight-line run observed through a two-set model (also the cases of
+    tests/filters/test_setnoise.py): ``(t, z, mu, sd, truth)``."""
     rng = np.random.default_rng(seed)
     t = np.cumsum(rng.uniform(0.09, 0.12, T))
-    truth = np.column_stack([1.0 + 0.35 * (t - t[0]), np.full(T, 2.0)])
+    truth = np.column_stack([1.0 + speed_mps * (t - t[0]), np.full(T, 2.0)])
     model = SetNoiseModel([3, 5], [[0.08, -0.03], [-0.05, 0.06]], [[0.10, 0.08], [0.15, 0.12]], [50, 50],
                           [0.0, 0.0], [0.2, 0.2], 100)
     sets = rng.choice([3, 5], T)
@@ -336,7 +337,7 @@ def _setnoise_case(T: int, seed: int = 1):
 
 
 def _kf_inputs():
-    return (*_setnoise_case(25), np.array([0.05, 0.3]))
+    return (*setnoise_case(25), np.array([0.05, 0.3]))
 
 
 def _kf_fast(a):
@@ -374,7 +375,7 @@ def _kf_definition(a):
 
 def _pf_inputs(resampler: str):
     def build():
-        return (*_setnoise_case(40), resampler)
+        return (*setnoise_case(40), resampler)
     return build
 
 
