@@ -313,6 +313,7 @@ def test_imu_clock_from_the_ranges_alone_recovers_a_known_offset(offset_s):
     al = align_imu_to_ranges(imu, ranges, anchors)
     # precision, not bias: 3 cm ranges differentiated twice; −34…+62 ms over four such flights
     assert al.offset_s == pytest.approx(offset_s, abs=0.08)
+    assert len(al.half_offsets_s) == 2 and all(abs(h - offset_s) < 0.15 for h in al.half_offsets_s)
     assert "no motion capture" in al.method and al.gyro_axes_corr is None
 
 

@@ -122,11 +122,13 @@ def test_the_clock_sentence_follows_the_intervals():
                 "INS-only": (200.0, 100.0, 300.0)}
         t = pd.DataFrame({m: {"motion-capture clock (m)": 0.05, "ranges clock (m)": 0.05 + c / 1e3, "change (mm)": c,
                               "lo (mm)": lo, "hi (mm)": hi, "epochs": 900} for m, (c, lo, hi) in rows.items()}).T
-        return {"offsets": {"truth_s": -0.44, "ranges_s": -0.48, "peak": 0.8, "rival": 0.6}, "start_s": (22.0, 22.05),
+        return {"offsets": {"truth_s": -0.44, "ranges_s": -0.48, "peak": 0.8, "rival": 0.6, "halves_s": (-0.47, -0.49)},
+                "start_s": (22.0, 22.05),
                 "table": t}
 
     s = realfair.clock_sentence(res((-0.3, -0.9, 0.4), (-0.2, -0.5, 0.1)), scenario="s2")
     assert "-40 ms from the motion-capture one" in s and "flatters none of them" in s
+    assert "halves of the recording give -0.470 and -0.490 s (-20 ms apart)" in s
     assert "tight no detectable change (-0.30 mm, 95 % CI [-0.90, +0.40])" in s and "22.05 s" in s
     s = realfair.clock_sentence(res((0.1, -0.2, 0.5), (2.5, 1.0, 4.0)), scenario="s2")
     assert "loose worse without the motion capture" in s and "flatters loose" in s and "flatters tight" not in s

@@ -36,6 +36,9 @@ class ImuAlignment:
         shows how the IMU is mounted. None when truth has no attitude.
     method
         Plain-words description.
+    half_offsets_s
+        The offset found on each half of the recording (within ±1 s of ``offset_s``), a
+        consistency check; None where not computed (:func:`align_imu`).
     """
 
     offset_s: float
@@ -45,13 +48,15 @@ class ImuAlignment:
     acc_corr: float
     gyro_axes_corr: np.ndarray | None = None
     method: str = ""
+    half_offsets_s: tuple[float, float] | None = None
 
     def as_dict(self) -> dict:
         return {"offset_s": self.offset_s, "peak_corr": self.peak_corr,
                 "second_peak_corr": self.second_peak_corr, "acc_offset_s": self.acc_offset_s,
                 "acc_corr": self.acc_corr,
                 "gyro_axes_corr": None if self.gyro_axes_corr is None else np.round(self.gyro_axes_corr, 3).tolist(),
-                "method": self.method}
+                "method": self.method,
+                "half_offsets_s": None if self.half_offsets_s is None else list(self.half_offsets_s)}
 
 
 def _pearson(x: np.ndarray, y: np.ndarray) -> float:
@@ -295,7 +300,10 @@ def align_imu_to_ranges(imu: ImuLog, ranges: RangeLog, anchors: Anchors, *, smoo
         raise RegistrationError(f"the specific-force correlation is ambiguous: its peak {peak:.3f} at {offset:+.3f} s "
                                 f"has a rival {second:.3f} more than 2 s away (≥ {AMBIGUOUS_PEAK_RATIO:g} × the peak); "
                                 f"the recording's motion does not pin the IMU clock down from the ranges")
+    mid = 0.5 * (t_u[0] + t_u[-1])
+    halves = tuple(float(_best_lag(t_i, f_i, t_u[h], f_uwb[h], offset - 1.0, offset + 1.0, 0.1, max_gap_s)[0])
+                   for h in (t_u < mid, t_u >= mid))
     method = (f"lag maximising the correlation of |f_imu| with the specific-force magnitude of the 3-D "
               f"multilateration fixes (both Gaussian-smoothed, σ {smooth_s:g} s); 0.1 s, 20 ms, 2 ms grids; "
-              f"no motion capture used")
-    return ImuAlignment(offset, peak, second, offset, peak, None, method)
+              f"no motion capture used; each half of the recording searched again within ±1 s")
+    return ImuAlignment(offset, peak, second, offset, peak, None, method, halves)

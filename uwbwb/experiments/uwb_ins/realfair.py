@@ -156,7 +156,7 @@ def imu_clock_sensitivity(comp: Comparison, rec: Recording, cal: RealCalibration
     al = rec_r.meta["imu_alignment"]
     truth_s = rec.meta.get("imu_time_offset_s", np.nan)
     return {"offsets": {"truth_s": float(truth_s), "ranges_s": float(al.offset_s), "peak": float(al.peak_corr),
-                        "rival": float(al.second_peak_corr)},
+                        "rival": float(al.second_peak_corr), "halves_s": tuple(al.half_offsets_s or ())},
             "start_s": (float(comp.meta.get("start_s", np.nan)), float(comp_r.meta.get("start_s", np.nan))),
             "table": pd.DataFrame(rows).T}
 
@@ -171,6 +171,13 @@ def _change(row) -> str:
     if hi < 0:
         return f"better without the motion capture ({span})"
     return f"no detectable change ({span})"
+
+
+def _halves(o: dict) -> str:
+    h = o.get("halves_s") or ()
+    if len(h) != 2:
+        return ""
+    return f"; the two halves of the recording give {h[0]:+.3f} and {h[1]:+.3f} s ({(h[1] - h[0]) * 1e3:+.0f} ms apart)"
 
 
 def clock_sentence(res: dict, *, scenario: str) -> str:
@@ -190,7 +197,7 @@ def clock_sentence(res: dict, *, scenario: str) -> str:
     others = [m for m in t.index if m not in IMU_FILTERS]
     return (f"**IMU clock without motion capture on `{scenario}`:** from the ranges alone the offset is "
             f"{o['ranges_s']:+.3f} s ({dt_ms:+.0f} ms from the motion-capture one; correlation peak {o['peak']:.2f}, "
-            f"rival {o['rival']:.2f}). With it, horizontal RMSE on the epochs both runs score: "
+            f"rival {o['rival']:.2f}{_halves(o)}). With it, horizontal RMSE on the epochs both runs score: "
             + "; ".join(f"{m} {_change(t.loc[m])}" for m in imu)
             + f" — {verdict}. Scoring starts at {s0:.2f} s with the motion-capture clock and {s1:.2f} s with the "
               f"ranges clock; {', '.join(others)} (no IMU in their updates, but started from the IMU-based "
