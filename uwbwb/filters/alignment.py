@@ -317,9 +317,7 @@ def run_fusion_filter(name: str, a: AlignedStart, rec: Recording, cal: RealCalib
     q, r = scales
     after = a.after
     if name in ("tight", "tight (ranges)"):
-        common = _common(settings)
-        if (q, r) != (1.0, 1.0):
-            common.update(q_scale=settings.q_scale * q, r_scale=settings.r_scale * r)
+        common = {**_common(settings), "q_scale": settings.q_scale * q, "r_scale": settings.r_scale * r}
         if name == "tight":
             f = eskf.TightEskf(cal.imu_model, eskf.TdoaUpdate(a.model, settings.outlier_c_m), **common)
             meas = a.tdoa.select(after)
@@ -334,7 +332,7 @@ def run_fusion_filter(name: str, a: AlignedStart, rec: Recording, cal: RealCalib
         return run, run.to_estimates(dim=3, name=name)
     if name == "EKF + gate":
         model = a.model if r == 1.0 else TdoaModel(rec.anchors.pos_m, np.asarray(cal.range_sigma_m) * math.sqrt(r), dim=3)
-        ekf = TdoaEkf(RandomForce(ekf_psd_m2ps3 if q == 1.0 else ekf_psd_m2ps3 * q, dim=3), model,
+        ekf = TdoaEkf(RandomForce(ekf_psd_m2ps3 * q, dim=3), model,
                       gate_prob=settings.gate_prob)
         run = ekf.run(a.screened.select(after), x0=ekf.init(a.x0.pos_m, a.x0.vel_mps))
         return run, replace(run.to_estimates(), name=name)

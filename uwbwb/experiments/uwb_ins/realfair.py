@@ -20,7 +20,7 @@ from ...datasets import iasl
 from ...errors import DataFormatError
 from ...filters.alignment import Comparison, FusionSettings, align_iasl, compare_iasl, run_fusion_filter
 from ...filters.imu_calibration import RealCalibration
-from ...metrics import block_bootstrap_difference
+from ...metrics import block_bootstrap_difference, nis_consistency
 from ...types import Recording
 
 __all__ = ["GRID", "GRID_FAST", "TUNED", "ScaleTuning", "tune_scales", "tuning_table", "IMU_FILTERS",
@@ -64,12 +64,6 @@ class ScaleTuning:
         return self.q, self.r
 
 
-def _nis_per_dof(est) -> float:
-    nis, dof = np.asarray(est.info.get("nis", []), float), np.asarray(est.info.get("dof", []), float)
-    good = np.isfinite(nis) & (dof > 0) if nis.size else np.zeros(0, bool)
-    return float(nis[good].sum() / dof[good].sum()) if good.any() else np.nan
-
-
 def tune_scales(rec: Recording, cal: RealCalibration, settings: FusionSettings = FusionSettings(), *,
                 names=TUNED, grid=GRID, still_s: float = 2.0, align_s: float = 20.0,
                 duration_s: float | None = None) -> dict[str, ScaleTuning]:
@@ -92,7 +86,9 @@ def tune_scales(rec: Recording, cal: RealCalibration, settings: FusionSettings =
             e = np.linalg.norm(est.pos_m[:, :2] - truth, axis=1)
             ok = np.isfinite(e)
             rows[(float(q), float(r))] = {"horizontal RMSE (m)": float(np.sqrt(np.mean(e[ok] ** 2))) if ok.any()
-                                          else np.inf, "mean NIS / dof": _nis_per_dof(est)}
+                                          else np.inf,
+                                          "mean NIS / dof": nis_consistency(est.info.get("nis", []),
+                                                                            est.info.get("dof", []))["mean_nis_over_dof"]}
         table = pd.DataFrame(rows).T
         table.index.names = ["q", "r"]
         q, r = table["horizontal RMSE (m)"].idxmin()
