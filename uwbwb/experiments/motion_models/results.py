@@ -30,27 +30,29 @@ METHODS = ("raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ")
 #: The AGV row prints "1 m/" for RW; read as 1 m/s.
 PAPER_SIGMA = {"office": {"RW": 0.83, "RF": 1.0, "RJ": 1.0}, "agv": {"RW": 1.0, "RF": 1.0, "RJ": 1.0}}
 
-#: Thesis Tables 2 (office) and 4 (AGV): CEP95 (m) of EKF (random walk), LS and the raw T4F output.
-PAPER_METHODS_CEP95 = {
-    ("office", "tag1"): {"EKF-RW": 0.41, "LS": 1.02, "raw": 1.23},
-    ("office", "tag2"): {"EKF-RW": 0.48, "LS": 1.02, "raw": 2.03},
-    ("agv1", "tag1"): {"EKF-RW": 0.41, "LS": 0.77, "raw": 1.03},
-    ("agv1", "tag2"): {"EKF-RW": 0.44, "LS": 0.76, "raw": 0.61},
-    ("agv2", "tag1"): {"EKF-RW": 0.35, "LS": 0.37, "raw": 0.46},
-    ("agv2", "tag2"): {"EKF-RW": 0.34, "LS": 0.45, "raw": 0.60},
+#: Thesis Tables 2–5 (inputs), CEP95 in metres, one row per (scenario, tag): Tables 2 (office) and 4
+#: (AGV) compare EKF (random walk), LS and the raw T4F output; Tables 3 (office) and 5 (AGV) compare the
+#: motion models. Table 5 labels its rows "Acq 1 Tag 1, Acq 1 Tag 2, Acq 1 Tag 1, Acq 1 Tag 2"; we read
+#: them in order as acquisitions 1 and 2 (the third label repeats a row name; its values differ from the
+#: first row). The two tables print different EKF-RW values for AGV tag 1 (acquisition 1: 0.41 and
+#: 0.13; acquisition 2: 0.35 and 0.44); each table's own value is used beside that table's rows.
+_THESIS_CEP95_M = {
+    # (scenario, tag):  Table 2/4: EKF-RW, LS, raw     Table 3/5: EKF-RW, EKF-RF, EKF-RJ
+    ("office", "tag1"): ((0.41, 1.02, 1.23), (0.41, 0.77, 1.03)),
+    ("office", "tag2"): ((0.48, 1.02, 2.03), (0.48, 1.13, 1.14)),
+    ("agv1", "tag1"): ((0.41, 0.77, 1.03), (0.13, 0.25, 0.33)),
+    ("agv1", "tag2"): ((0.44, 0.76, 0.61), (0.44, 0.60, 0.58)),
+    ("agv2", "tag1"): ((0.35, 0.37, 0.46), (0.44, 0.60, 0.59)),
+    ("agv2", "tag2"): ((0.34, 0.45, 0.60), (0.34, 0.34, 0.28)),
 }
 
-#: Thesis Tables 3 (office) and 5 (AGV): CEP95 (m) per motion model. Table 5 labels its rows
-#: "Acq 1 Tag 1, Acq 1 Tag 2, Acq 1 Tag 1, Acq 1 Tag 2"; we read them in order as acquisitions
-#: 1 and 2 (the third label repeats a row name; its values differ from the first row).
-PAPER_MODELS_CEP95 = {
-    ("office", "tag1"): {"EKF-RW": 0.41, "EKF-RF": 0.77, "EKF-RJ": 1.03},
-    ("office", "tag2"): {"EKF-RW": 0.48, "EKF-RF": 1.13, "EKF-RJ": 1.14},
-    ("agv1", "tag1"): {"EKF-RW": 0.13, "EKF-RF": 0.25, "EKF-RJ": 0.33},
-    ("agv1", "tag2"): {"EKF-RW": 0.44, "EKF-RF": 0.60, "EKF-RJ": 0.58},
-    ("agv2", "tag1"): {"EKF-RW": 0.44, "EKF-RF": 0.60, "EKF-RJ": 0.59},
-    ("agv2", "tag2"): {"EKF-RW": 0.34, "EKF-RF": 0.34, "EKF-RJ": 0.28},
-}
+#: Thesis Tables 2 and 4: CEP95 (m) of EKF (random walk), LS and the raw T4F output.
+PAPER_METHODS_CEP95 = {key: dict(zip(("EKF-RW", "LS", "raw"), methods))
+                       for key, (methods, _) in _THESIS_CEP95_M.items()}
+
+#: Thesis Tables 3 and 5: CEP95 (m) per motion model.
+PAPER_MODELS_CEP95 = {key: dict(zip(("EKF-RW", "EKF-RF", "EKF-RJ"), models))
+                      for key, (_, models) in _THESIS_CEP95_M.items()}
 
 
 def ekf_name(model: str) -> str:
