@@ -168,3 +168,32 @@ def test_other_attributes_are_still_attribute_errors(name):
 
     with pytest.raises(AttributeError):
         getattr(uw, name)
+
+
+#: The most lines a module of the package may have (issue 19); a declared kernel longer than that would be
+#: listed in :data:`LONG_KERNELS` with the reason (none is today).
+MAX_MODULE_LINES = 600
+LONG_KERNELS: dict[str, str] = {}
+
+
+def _too_long(package: Path) -> dict[str, int]:
+    out = {}
+    for path in sorted(package.rglob("*.py")):
+        name = path.relative_to(package).as_posix()
+        n = len(path.read_text(encoding="utf-8").splitlines())
+        if n > MAX_MODULE_LINES and name not in LONG_KERNELS:
+            out[name] = n
+    return out
+
+
+def test_no_module_is_longer_than_the_limit():
+    long = _too_long(PACKAGE)
+    assert not long, (f"modules over {MAX_MODULE_LINES} lines (split them by responsibility): "
+                      + ", ".join(f"{k} ({v})" for k, v in long.items()))
+
+
+def test_the_length_check_sees_a_long_module(tmp_path):
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "long.py").write_text("x = 1\n" * (MAX_MODULE_LINES + 1))
+    (tmp_path / "short.py").write_text("x = 1\n" * MAX_MODULE_LINES)
+    assert _too_long(tmp_path) == {"sub/long.py": MAX_MODULE_LINES + 1}

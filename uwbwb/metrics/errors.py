@@ -1,5 +1,5 @@
-"""Position errors, their distribution (ECDF, CEP, RMSE), filter consistency (NEES, NIS χ² test)
-and the reproduction summary table.
+"""Position errors and their distribution: per-epoch errors, ECDF, CEP, RMSE, the table of accuracy on
+common epochs with coverage beside it, and the paired block-bootstrap interval of an RMSE difference.
 
 Missing values
 --------------
@@ -20,29 +20,16 @@ exactly on the curve.
 
 from __future__ import annotations
 
-import json
 import math
 import numbers
-import os
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Callable, Sequence
+from typing import Sequence
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
 
-from .types import Trajectory
-from .validate import probability
+from ..types import Trajectory
 
-__all__ = [
-    "ErrorSeries", "Summary", "cep", "cep50", "cep95", "ecdf", "epoch_summary", "error_stats", "errors_vs_truth",
-    "nees", "nis_consistency", "position_error_m", "rmse", "block_bootstrap_difference",
-    "Headline",
-]
-
-
-# --------------------------------------------------------------------------- errors
 
 
 def position_error_m(est_pos_m, true_pos_m, *, horizontal: bool = True) -> np.ndarray:
@@ -326,75 +313,6 @@ def epoch_summary(epochs: pd.DataFrame, *, by: str = "estimator", order: Sequenc
     return pd.DataFrame(rows).set_index(by)
 
 
-# --------------------------------------------------------------------------- consistency
-# The one place where a filter's covariances are held to its errors (NEES) and its innovations (NIS):
-# every run type (``KalmanRun``, ``FusionRun``, the set-noise ``FilterRun``), the scoreboard and the
-# experiments call these two functions.
-
-
-def nees(err, cov, where=None) -> np.ndarray:
-    """Normalised estimation error squared ``eᵀ P⁻¹ e`` per epoch.
-
-    Parameters
-    ----------
-    err
-        Estimation errors, shape ``(T, d)`` (estimate minus truth).
-    cov
-        The estimator's own covariances of those components, shape ``(T, d, d)``.
-    where
-        Epochs to evaluate, bool ``(T,)`` (default: all); epochs whose error or covariance is
-        not finite are left out as well.
-
-    Returns
-    -------
-    numpy.ndarray
-        Shape ``(T,)``; χ²(d)-distributed when the estimator is consistent; NaN where not evaluated.
-    """
-    e, P = np.asarray(err, float), np.asarray(cov, float)
-    if e.ndim != 2 or P.shape != e.shape + (e.shape[1],):
-        raise ValueError(f"nees: err (T, d) and cov (T, d, d) expected, got {e.shape} and {P.shape}")
-    T = e.shape[0]
-    ok = np.all(np.isfinite(e), axis=1) & np.all(np.isfinite(P), axis=(1, 2))
-    if where is not None:
-        ok &= np.asarray(where, bool)
-    out = np.full(T, np.nan)
-    out[ok] = np.einsum("ti,ti->t", e[ok], np.linalg.solve(P[ok], e[ok][..., None])[..., 0])
-    return out
-
-
-def nis_consistency(nis, dof, prob: float = 0.95) -> dict:
-    """χ² test of a filter's NIS over its updates (also of NEES values, with ``dof`` the state size).
-
-    Under correct models the sum of the NIS over ``n`` updates is χ²(Σ dof). The verdict
-    compares that sum with its central ``prob`` interval: above it the filter is
-    *over-confident* (its covariances are too small for its errors), below it
-    *under-confident*. Epochs with ``dof == 0`` or a non-finite value (nothing used) are
-    left out.
-
-    Returns
-    -------
-    dict
-        ``n`` updates, ``mean_nis_over_dof`` (≈ 1 when consistent), ``fraction_inside``
-        (share of single updates inside their own central ``prob`` interval),
-        ``sum_nis``, ``sum_dof``, the interval ``sum_lo``/``sum_hi`` and ``verdict``
-        (``"consistent"``, ``"over-confident"``, ``"under-confident"`` or ``"no updates"``).
-    """
-    probability("prob", prob)
-    nis, dof = np.asarray(nis, float), np.asarray(dof, int)
-    ok = (dof > 0) & np.isfinite(nis)
-    if not ok.any():
-        return {"n": 0, "mean_nis_over_dof": np.nan, "fraction_inside": np.nan, "sum_nis": np.nan,
-                "sum_dof": 0, "sum_lo": np.nan, "sum_hi": np.nan, "verdict": "no updates"}
-    nis, dof = nis[ok], dof[ok]
-    a = (1 - prob) / 2
-    inside = (nis >= chi2.ppf(a, dof)) & (nis <= chi2.ppf(1 - a, dof))
-    total = int(dof.sum())
-    lo, hi, s = float(chi2.ppf(a, total)), float(chi2.ppf(1 - a, total)), float(nis.sum())
-    verdict = "over-confident" if s > hi else "under-confident" if s < lo else "consistent"
-    return {"n": int(ok.sum()), "mean_nis_over_dof": s / total, "fraction_inside": float(inside.mean()),
-            "sum_nis": s, "sum_dof": total, "sum_lo": lo, "sum_hi": hi, "verdict": verdict}
-
-
 def block_bootstrap_difference(err_a: np.ndarray, err_b: np.ndarray, *, rng: np.random.Generator,
                                n_boot: int = 2000, n_blocks: int = 20, level: float = 0.95) -> dict:
     """``RMSE(a) − RMSE(b)`` on paired epochs and its block-bootstrap interval (non-overlapping blocks).
@@ -428,197 +346,3 @@ def block_bootstrap_difference(err_a: np.ndarray, err_b: np.ndarray, *, rng: np.
     d = np.sqrt(sa[pick].sum(axis=1) / N) - np.sqrt(sb[pick].sum(axis=1) / N)
     lo, hi = np.quantile(d, [(1 - level) / 2, (1 + level) / 2])
     return {"diff_m": diff, "lo_m": float(lo), "hi_m": float(hi), "n": n}
-
-
-# --------------------------------------------------------------------------- summary table
-
-
-def _real(value, what: str, *, allow_none: bool = False) -> float | None:
-    if value is None and allow_none:
-        return None
-    if isinstance(value, np.ndarray) and value.ndim == 0:
-        value = value[()]
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{what} must be a real number, got {value!r}")
-    v = float(value)
-    if allow_none and math.isnan(v):
-        return None
-    if not math.isfinite(v):
-        raise ValueError(f"{what} must be finite, got {value!r}")
-    return v
-
-
-class Summary:
-    """Headline numbers of one notebook, for the reproduction report.
-
-    Every row says what kind of number it is and which mode produced it:
-
-    ``kind``
-        ``"reproduced"`` — came out of the method; ``"target"`` — a simulator
-        parameter was chosen to hit it (agreement with the paper is by
-        construction); ``"input"`` — taken from the paper (or follows directly
-        from a value taken from it).
-    ``mode``
-        ``"FAST"`` (small CI-sized experiments: smoke-test numbers) or ``"full"``.
-
-    Parameters
-    ----------
-    notebook
-        Notebook name, e.g. ``"00_quickstart"``.
-    fast
-        The notebook's ``FAST`` parameter: the mode of every row.
-
-    Examples
-    --------
-    >>> s = Summary("00_quickstart", fast=False)
-    >>> s.add(quantity="CEP95, tag t0, raw multilateration", value=0.31, unit="m",
-    ...       paper_value=None, data="lias-planar-uwb/fast", kind="reproduced")
-    >>> list(s.frame().columns)
-    ['notebook', 'quantity', 'value', 'unit', 'paper_value', 'data', 'kind', 'mode']
-    >>> s.frame()["mode"].tolist()
-    ['full']
-    """
-
-    COLUMNS = ("notebook", "quantity", "value", "unit", "paper_value", "data", "kind", "mode")
-    #: Allowed values of ``kind``.
-    KINDS = ("reproduced", "target", "input")
-    #: Allowed values of ``mode``: under ``FAST=True`` and otherwise.
-    MODES = ("FAST", "full")
-
-    def __init__(self, notebook: str, *, fast: bool):
-        if not isinstance(notebook, str) or not notebook.strip():
-            raise ValueError(f"notebook must be a non-empty string, got {notebook!r}")
-        if not isinstance(fast, (bool, np.bool_)):
-            raise ValueError(f"fast must be True or False (the notebook's FAST parameter), got {fast!r}")
-        self.notebook = notebook
-        self.mode = "FAST" if fast else "full"
-        self._rows: list[dict] = []
-
-    def __len__(self) -> int:
-        return len(self._rows)
-
-    def __repr__(self) -> str:
-        return f"Summary({self.notebook!r}, {len(self)} rows, mode {self.mode})"
-
-    def add(self, *, quantity: str, value, unit: str, data: str, kind: str, paper_value=None) -> None:
-        """Record one headline number.
-
-        Parameters
-        ----------
-        quantity
-            What was measured, specific enough to be unique with ``data``
-            (e.g. ``"CEP95, tag t0, raw multilateration"``).
-        value
-            The value: a finite real number (numpy scalars accepted).
-        unit
-            Unit of ``value`` and ``paper_value`` (e.g. ``"m"``, ``"cm"``, ``"%"``, ``""``).
-        data
-            ``"synthetic"`` or ``"dataset/recording"`` (e.g. ``Recording.label``).
-        kind
-            ``"reproduced"``, ``"target"`` or ``"input"`` (see the class docstring).
-        paper_value
-            The value the paper reports, or None (NaN is read as None).
-
-        Raises
-        ------
-        ValueError
-            On an invalid field or a repeated ``(quantity, data)`` pair.
-        """
-        if not isinstance(quantity, str) or not quantity.strip():
-            raise ValueError(f"quantity must be a non-empty string, got {quantity!r}")
-        v = _real(value, f"value of {quantity!r}")
-        pv = _real(paper_value, f"paper_value of {quantity!r}", allow_none=True)
-        if not isinstance(unit, str):
-            raise ValueError(f"unit of {quantity!r} must be a string, got {unit!r}")
-        if not isinstance(data, str) or not (data == "synthetic" or _is_recording_label(data)):
-            raise ValueError(f"data of {quantity!r} must be 'synthetic' or 'dataset/recording', got {data!r}")
-        if kind not in self.KINDS:
-            raise ValueError(f"kind of {quantity!r} must be one of {', '.join(self.KINDS)}, got {kind!r}")
-        if any(r["quantity"] == quantity and r["data"] == data for r in self._rows):
-            raise ValueError(f"{self.notebook}: quantity {quantity!r} on data {data!r} was already added")
-        self._rows.append({"notebook": self.notebook, "quantity": quantity, "value": v, "unit": unit,
-                           "paper_value": pv, "data": data, "kind": kind, "mode": self.mode})
-
-    def frame(self) -> pd.DataFrame:
-        """The rows as a DataFrame with exactly :attr:`COLUMNS` (``paper_value`` NaN where None)."""
-        df = pd.DataFrame(self._rows, columns=list(self.COLUMNS))
-        return df.astype({"value": float, "paper_value": float})
-
-    def publish(self, path: str | os.PathLike | None = None) -> pd.DataFrame:
-        """Return :meth:`frame` and, if ``path`` is given, also write the rows there.
-
-        The file is a JSON list of objects with the keys of :attr:`COLUMNS`,
-        missing ``paper_value`` written as ``null``. Parent directories are created.
-        Writing an empty summary is a ValueError (the report needs at least one row).
-        """
-        if path is not None:
-            if not self._rows:
-                raise ValueError(f"{self.notebook}: nothing to publish (no rows were added)")
-            path = Path(path)
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(json.dumps(self._rows, indent=2, allow_nan=False) + "\n", encoding="utf-8")
-        return self.frame()
-
-    @classmethod
-    def from_json(cls, path: str | os.PathLike) -> "Summary":
-        """Read a file written by :meth:`publish` (rows are validated again)."""
-        path = Path(path)
-        try:
-            rows = json.loads(path.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{path}: not valid JSON ({exc})") from None
-        if not isinstance(rows, list) or not rows or not all(isinstance(r, dict) for r in rows):
-            raise ValueError(f"{path}: expected a non-empty JSON list of objects")
-        for i, r in enumerate(rows):
-            if set(r) != set(cls.COLUMNS):
-                raise ValueError(f"{path}: row {i} has keys {sorted(r)}, expected {list(cls.COLUMNS)}")
-        names = {r["notebook"] for r in rows}
-        if len(names) != 1:
-            raise ValueError(f"{path}: rows from several notebooks {sorted(map(str, names))}")
-        modes = {r["mode"] for r in rows}
-        if len(modes) != 1 or not modes <= set(cls.MODES):
-            raise ValueError(f"{path}: mode must be one of {', '.join(cls.MODES)} and the same in every row, "
-                             f"got {sorted(map(str, modes))}")
-        s = cls(rows[0]["notebook"], fast=rows[0]["mode"] == "FAST")
-        for r in rows:
-            s.add(quantity=r["quantity"], value=r["value"], unit=r["unit"], data=r["data"], kind=r["kind"],
-                  paper_value=r["paper_value"])
-        return s
-
-
-def _is_recording_label(data: str) -> bool:
-    dataset, _, recording = data.partition("/")
-    return bool(dataset.strip()) and bool(recording.strip())
-
-
-@dataclass(frozen=True)
-class Headline:
-    """One summary row declared as data: what it is, and how to read its value from an
-    experiment's ``facts`` dict (each experiment's ``headlines.py`` lists its rows as these).
-
-    Attributes
-    ----------
-    quantity, unit
-        As in :meth:`Summary.add`.
-    kind
-        One of :attr:`Summary.KINDS`: *reproduced*, *target* or *input*.
-    read
-        ``facts → value``.
-    paper
-        The paper's value where one is comparable (None otherwise).
-    """
-
-    quantity: str
-    unit: str
-    kind: str
-    read: Callable[[dict], float]
-    paper: float | None = None
-
-    def __post_init__(self):
-        if self.kind not in Summary.KINDS:
-            raise ValueError(f"Headline.kind must be one of {', '.join(Summary.KINDS)}, got {self.kind!r}")
-
-    def row(self, facts: dict, *, data: str = "synthetic") -> dict:
-        """Keyword arguments of :meth:`Summary.add` for this headline, read from ``facts``."""
-        return {"quantity": self.quantity, "value": float(self.read(facts)), "unit": self.unit,
-                "paper_value": self.paper, "kind": self.kind, "data": data}

@@ -1,0 +1,22 @@
+"""Position errors, their distribution (ECDF, CEP, RMSE), filter consistency (NEES, NIS χ² test)
+and the reproduction summary table.
+
+* :mod:`.errors` — per-epoch errors, ECDF, CEP, RMSE, :func:`epoch_summary` (accuracy on common epochs,
+  coverage beside it), :func:`block_bootstrap_difference` (paired RMSE difference with its interval);
+  its docstring states the missing-value and quantile rules.
+* :mod:`.consistency` — :func:`nees` and :func:`nis_consistency`, the one place where a filter's
+  covariances are held to its errors and innovations.
+* :mod:`.summary` — :class:`Summary` (headline numbers of a notebook, each with its kind and mode) and
+  :class:`Headline` (one summary row declared as data).
+"""
+
+from .consistency import nees, nis_consistency
+from .errors import (ErrorSeries, _errors, block_bootstrap_difference, cep, cep50, cep95, ecdf, epoch_summary,
+                     error_stats, errors_vs_truth, position_error_m, rmse)
+from .summary import Headline, Summary
+
+__all__ = [
+    "ErrorSeries", "Summary", "cep", "cep50", "cep95", "ecdf", "epoch_summary", "error_stats", "errors_vs_truth",
+    "nees", "nis_consistency", "position_error_m", "rmse", "block_bootstrap_difference",
+    "Headline",
+]
