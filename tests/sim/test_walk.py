@@ -3,7 +3,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from uwbwb.models.motion import RandomForce
+from uwbwb.models.motion import RandomForce, VelocityKick
 from uwbwb.sim import walk
 from uwbwb.sim.walk import Obstacle, TagMount
 from uwbwb.types import Anchors, RangeLog
@@ -118,3 +118,24 @@ def test_scenario_validation():
         walk.office(anchor_pos_m=((0, 0, 1),))
     with pytest.raises(ValueError, match="consecutive waypoints"):
         walk.office(waypoints_m=((0, 0), (5, 0), (5, 0), (0, 4)))
+
+
+def test_a_motion_object_drives_the_walk_like_its_psd_bit_for_bit():
+    cfg = _short("agv1")
+    model = RandomForce(0.3, dim=2)
+    a, ta = walk.simulate_walk(cfg, rng=np.random.default_rng(3), motion=model)
+    b, tb = walk.simulate_walk(replace(cfg, psd_acc_m2ps3=0.3), rng=np.random.default_rng(3))
+    assert ta.config == tb.config and ta.config.motion == model
+    for tag in cfg.tag_ids:
+        np.testing.assert_array_equal(a.ranges[tag].range_m, b.ranges[tag].range_m)
+        np.testing.assert_array_equal(a.truth[tag].pos_m, b.truth[tag].pos_m)
+    np.testing.assert_array_equal(ta.reference.pos_m, tb.reference.pos_m)
+    np.testing.assert_array_equal(walk.steer(cfg, rng=np.random.default_rng(4), motion=model)[1],
+                                  walk.steer(cfg.with_motion(model), rng=np.random.default_rng(4))[1])
+    own, _ = walk.simulate_walk(cfg, rng=np.random.default_rng(3), motion=cfg.motion)
+    plain, _ = walk.simulate_walk(cfg, rng=np.random.default_rng(3))
+    np.testing.assert_array_equal(own.ranges["tag1"].range_m, plain.ranges["tag1"].range_m)
+    assert not np.array_equal(np.nan_to_num(a.ranges["tag1"].range_m), np.nan_to_num(plain.ranges["tag1"].range_m))
+    for bad in (RandomForce(0.3, dim=3), VelocityKick(0.3)):
+        with pytest.raises(ValueError, match="2-D RandomForce"):
+            walk.simulate_walk(cfg, rng=np.random.default_rng(3), motion=bad)

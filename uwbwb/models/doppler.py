@@ -25,8 +25,10 @@ measurement, ``‖X − T‖``.
 
 One :class:`DopplerModel` is used by the Monte Carlo sampler
 (:mod:`uwbwb.sampling`), the chirp simulator (:mod:`uwbwb.sim.chirps`) and both
-filters (:mod:`uwbwb.filters.doppler`); the filters wrap its measurement rows
-(:meth:`DopplerModel.measurement_rows`) in their own types, so this module imports
+filters (:mod:`uwbwb.filters.doppler`); the receiver's motion model,
+:class:`~uwbwb.models.motion.ReceiverMotion`, is a member of the kinematic family of
+:mod:`uwbwb.models.motion` and importable from here too. The filters wrap the measurement
+rows (:meth:`DopplerModel.measurement_rows`) in their own types, so this module imports
 nothing above the models layer.
 """
 
@@ -38,6 +40,7 @@ import numpy as np
 
 from ..types import Anchors
 from ..validate import integer, number
+from .motion import ReceiverMotion
 
 __all__ = ["speed_of_sound_mps", "DopplerModel", "ReceiverMotion", "cubic_layout", "lab_layout",
            "beacon_periods_s", "REFERENCE_POS_M", "REFERENCE_VEL_MPS", "PAPER_DP_REF_S"]
@@ -294,68 +297,3 @@ class DopplerModel:
             yr = (np.asarray(range_m, float) - self.pseudo_range_m(pos_m, beacon)) / sr
             ll = ll - 0.5 * yr * yr - np.log(sr * np.sqrt(2 * np.pi))
         return ll
-
-
-@dataclass(frozen=True)
-class ReceiverMotion:
-    """Section 4.2's receiver motion: position moves with velocity, velocity takes random kicks.
-
-    Interpretation: the "random variation" of σ 2 m/s² (x, y) and 0.2 m/s² (z) is
-    an acceleration held constant over each step between chirps (discrete white
-    noise acceleration), so over ``dt`` the state ``[X, V]`` gets
-    ``Δx = v dt + a dt²/2``, ``Δv = a dt``, ``a ~ N(0, diag σ²)``.
-
-    Attributes
-    ----------
-    sigma_acc_mps2
-        Per-axis acceleration standard deviation, shape ``(3,)``, m/s².
-    """
-
-    sigma_acc_mps2: tuple[float, float, float] = (2.0, 2.0, 0.2)
-
-    def __post_init__(self):
-        try:
-            s = tuple(float(v) for v in self.sigma_acc_mps2)
-        except (TypeError, ValueError):
-            s = ()
-        if len(s) != 3 or not all(np.isfinite(v) and v >= 0 for v in s):
-            raise ValueError(f"sigma_acc_mps2 must be three finite values >= 0 (m/s²), got {self.sigma_acc_mps2!r}")
-        object.__setattr__(self, "sigma_acc_mps2", s)
-
-    n_x = 6
-
-    def F(self, dt_s) -> np.ndarray:
-        """Transition over ``dt_s``, shape ``(..., 6, 6)``."""
-        if np.ndim(dt_s) == 0:                       # one step (the EKF's case): no broadcasting
-            F = np.eye(6)
-            F[0, 3] = F[1, 4] = F[2, 5] = float(dt_s)
-            return F
-        dt = np.asarray(dt_s, float)[..., None, None]
-        eye = np.eye(3)
-        top = np.concatenate([np.broadcast_to(eye, dt.shape[:-2] + (3, 3)), dt * eye], axis=-1)
-        bottom = np.concatenate([np.zeros(dt.shape[:-2] + (3, 3)), np.broadcast_to(eye, dt.shape[:-2] + (3, 3))],
-                                axis=-1)
-        return np.concatenate([top, bottom], axis=-2)
-
-    def Q(self, dt_s) -> np.ndarray:
-        """Process noise ``G diag(σ²) Gᵀ`` with ``G = [dt²/2 I; dt I]``, shape ``(..., 6, 6)``."""
-        s2 = np.diag(np.square(self.sigma_acc_mps2))
-        if np.ndim(dt_s) == 0:                       # one step: the same blocks without broadcasting
-            dt = float(dt_s)
-            Q = np.empty((6, 6))
-            Q[:3, :3], Q[:3, 3:] = dt ** 4 / 4 * s2, dt ** 3 / 2 * s2
-            Q[3:, :3], Q[3:, 3:] = dt ** 3 / 2 * s2, dt ** 2 * s2
-            return Q
-        dt = np.asarray(dt_s, float)[..., None, None]
-        return np.concatenate([np.concatenate([dt ** 4 / 4 * s2, dt ** 3 / 2 * s2], axis=-1),
-                               np.concatenate([dt ** 3 / 2 * s2, dt ** 2 * s2], axis=-1)], axis=-2)
-
-    def propagate(self, x: np.ndarray, dt_s, *, rng: np.random.Generator | None) -> np.ndarray:
-        """Move states ``(..., 6)`` over ``dt_s`` (scalar or broadcastable); ``rng=None``: no noise."""
-        x = np.asarray(x, float)
-        dt = np.asarray(dt_s, float)[..., None]
-        a = 0.0 if rng is None else rng.standard_normal(x.shape[:-1] + (3,)) * np.asarray(self.sigma_acc_mps2)
-        out = np.empty_like(x)
-        out[..., :3] = x[..., :3] + x[..., 3:] * dt + 0.5 * a * dt * dt
-        out[..., 3:] = x[..., 3:] + a * dt
-        return out

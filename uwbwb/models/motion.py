@@ -36,6 +36,32 @@ process averaged over ``dt`` is ``q / dt``); for the random walk this makes
 :class:`VelocityKick` is the discrete-time constant-velocity model of Banerjee et al.
 (paper 000, eq. 3): the velocity changes by an independent ``N(0, σ_d²)`` at every step,
 whatever its length, after the position has moved with the old velocity.
+
+One family
+----------
+All five models below are members of one family: they follow the protocol
+:class:`~uwbwb.models.layout.KinematicModel` — ``n_x``, ``layout`` (a
+:class:`~uwbwb.models.layout.StateLayout`: the labels of the state, ``pos_index``,
+``vel_index``, permutations to other orders), ``F(dt)`` and ``Q(dt)`` vectorised over
+``dt``, ``step(x, dt, rng=)`` and ``sample_path(x0, t_s, rng=)`` — and stack their
+states derivative-major. They are different models, not one formula: the first three
+integrate continuous-time white noise (``Q`` as above), the two discrete ones draw one
+random kick per step: a velocity change whatever the step's length (:class:`VelocityKick`),
+an acceleration held over the step (:class:`ReceiverMotion`).
+
+=======================  ====  =============  ======================================  ===================================
+model                    dim   state          ``Q`` over a step ``dt``                parameter (unit)
+=======================  ====  =============  ======================================  ===================================
+:class:`RandomWalk`      2, 3  ``[p]``        ``q dt``                                ``psd_m2ps`` (m²/s)
+:class:`RandomForce`     2, 3  ``[p, v]``     ``q [[dt³/3, dt²/2], [dt²/2, dt]]``     ``psd_m2ps3`` (m²/s³)
+:class:`RandomJerk`      2, 3  ``[p, v, a]``  ``q`` × the RJ matrix above             ``psd_m2ps5`` (m²/s⁵)
+:class:`VelocityKick`    2, 3  ``[p, v]``     ``diag(0, σ_d²)`` for any ``dt``        ``sigma_d_mps`` (m/s)
+:class:`ReceiverMotion`  3     ``[p, v]``     ``G diag(σ²) Gᵀ``, ``G = [dt²/2; dt]``  ``sigma_acc_mps2`` (m/s², per axis)
+=======================  ====  =============  ======================================  ===================================
+
+:class:`ReceiverMotion` (paper 003, section 4.2) is the discrete white-noise-acceleration
+model: an acceleration ``a ~ N(0, diag σ²)`` held constant over each step, with its own
+``σ`` per axis (it is also importable from :mod:`uwbwb.models.doppler`).
 """
 
 from __future__ import annotations
@@ -46,8 +72,10 @@ from typing import ClassVar
 
 import numpy as np
 
+from .layout import KinematicModel, StateLayout
+
 __all__ = ["MotionModel", "RandomWalk", "RandomForce", "RandomJerk", "MOTION_MODELS", "make_motion_model",
-           "transition_1d", "noise_1d", "VelocityKick"]
+           "transition_1d", "noise_1d", "VelocityKick", "ReceiverMotion", "KinematicModel", "StateLayout"]
 
 
 def transition_1d(order: int, dt_s) -> np.ndarray:
@@ -152,11 +180,14 @@ class MotionModel:
         return self.order * self.dim
 
     @property
+    def layout(self) -> StateLayout:
+        """The state's layout, derivative-major: ``[p (dim), v (dim), a (dim)][: n_x]``."""
+        return StateLayout.kinematic(self.dim, self.order)
+
+    @property
     def state_labels(self) -> tuple[str, ...]:
-        """Column names of the state, e.g. ``("x_m", "y_m", "vx_mps", "vy_mps")``."""
-        axes = "xyz"[: self.dim]
-        prefix = [("", "_m"), ("v", "_mps"), ("a", "_mps2")][: self.order]
-        return tuple(f"{p}{a}{u}" for p, u in prefix for a in axes)
+        """Column names of the state, e.g. ``("x_m", "y_m", "vx_mps", "vy_mps")`` (``layout.labels``)."""
+        return self.layout.labels
 
     def with_psd(self, psd: float):
         """The same model with another PSD."""
@@ -242,6 +273,20 @@ class MotionModel:
         """Diagonal prior covariance ``(n_x, n_x)`` from per-axis standard deviations."""
         sig = np.array([pos_sigma_m, vel_sigma_mps, acc_sigma_mps2][: self.order], float)
         return np.diag(np.repeat(sig ** 2, self.dim))
+
+    def step(self, x: np.ndarray, dt_s, *, rng: np.random.Generator | None) -> np.ndarray:
+        """One step of the model for states ``(..., n_x)``: ``F x + L ε``, ``ε ~ N(0, I)``, ``L Lᵀ = Q``.
+
+        ``dt_s`` is a scalar or an array broadcastable with ``x[..., 0]`` (seconds); ``L`` is
+        :meth:`Q_sqrt`. The standard normals are drawn with the broadcast shape of the states,
+        ``(..., n_x)``; ``rng=None`` moves the states without noise (``F x``).
+        """
+        x = np.asarray(x, float)
+        out = np.einsum("...ij,...j->...i", self.F(dt_s), x)
+        if rng is None:
+            return out
+        eps = rng.standard_normal(out.shape)
+        return out + np.einsum("...ij,...j->...i", self.Q_sqrt(dt_s), eps)
 
     def sample_path(self, x0: np.ndarray, t_s: np.ndarray, *, rng: np.random.Generator,
                     u: np.ndarray | None = None) -> np.ndarray:
@@ -351,10 +396,14 @@ class VelocityKick:
         return 2 * self.dim
 
     @property
+    def layout(self) -> StateLayout:
+        """The state's layout, derivative-major: ``[p (dim), v (dim)]``."""
+        return StateLayout.kinematic(self.dim, self.order)
+
+    @property
     def state_labels(self) -> tuple[str, ...]:
-        """Column names of the state, e.g. ``("x_m", "y_m", "vx_mps", "vy_mps")``."""
-        axes = "xyz"[: self.dim]
-        return tuple(f"{a}_m" for a in axes) + tuple(f"v{a}_mps" for a in axes)
+        """Column names of the state, e.g. ``("x_m", "y_m", "vx_mps", "vy_mps")`` (``layout.labels``)."""
+        return self.layout.labels
 
     def F(self, dt_s) -> np.ndarray:
         """State transition over steps ``dt_s`` (scalar or array), shape ``(..., n_x, n_x)``."""
@@ -408,3 +457,108 @@ class VelocityKick:
         x = np.asarray(x, float)
         w = np.moveaxis(rng.standard_normal((self.dim,) + x.shape[:-1]), 0, -1)
         return self.propagate(x, dt_s, self.sigma_d_mps * w)
+
+    def sample_path(self, x0: np.ndarray, t_s: np.ndarray, *, rng: np.random.Generator) -> np.ndarray:
+        """States ``(T, n_x)`` at ``t_s`` from ``x0``, one :meth:`step` per interval."""
+        return _sample_by_steps(self, x0, t_s, rng)
+
+
+def _sample_by_steps(model, x0, t_s, rng) -> np.ndarray:
+    """A path ``(T, n_x)`` of a discrete model: ``x[k + 1] = model.step(x[k], t[k + 1] − t[k], rng=rng)``."""
+    t_s = np.asarray(t_s, float)
+    dt = np.diff(t_s)
+    if np.any(dt <= 0):
+        raise ValueError(f"{type(model).__name__}.sample_path: t_s must be strictly increasing")
+    x = np.empty((t_s.size, model.n_x))
+    x[0] = x0
+    for k in range(dt.size):
+        x[k + 1] = model.step(x[k], dt[k], rng=rng)
+    return x
+
+
+@dataclass(frozen=True)
+class ReceiverMotion:
+    """Section 4.2's receiver motion (paper 003): position moves with velocity, velocity takes random kicks.
+
+    Interpretation: the "random variation" of σ 2 m/s² (x, y) and 0.2 m/s² (z) is
+    an acceleration held constant over each step between chirps (discrete white
+    noise acceleration), so over ``dt`` the state ``[X, V]`` gets
+    ``Δx = v dt + a dt²/2``, ``Δv = a dt``, ``a ~ N(0, diag σ²)``. The state is
+    derivative-major, ``[x, y, z, vx, vy, vz]`` (:attr:`layout`).
+
+    Attributes
+    ----------
+    sigma_acc_mps2
+        Per-axis acceleration standard deviation, shape ``(3,)``, m/s².
+    """
+
+    sigma_acc_mps2: tuple[float, float, float] = (2.0, 2.0, 0.2)
+
+    dim: ClassVar[int] = 3
+    order: ClassVar[int] = 2
+    abbreviation: ClassVar[str] = "DWNA"
+
+    def __post_init__(self):
+        try:
+            s = tuple(float(v) for v in self.sigma_acc_mps2)
+        except (TypeError, ValueError):
+            s = ()
+        if len(s) != 3 or not all(np.isfinite(v) and v >= 0 for v in s):
+            raise ValueError(f"sigma_acc_mps2 must be three finite values >= 0 (m/s²), got {self.sigma_acc_mps2!r}")
+        object.__setattr__(self, "sigma_acc_mps2", s)
+
+    n_x = 6
+
+    @property
+    def layout(self) -> StateLayout:
+        """The state's layout, ``[x, y, z, vx, vy, vz]``."""
+        return StateLayout.kinematic(3, 2)
+
+    @property
+    def state_labels(self) -> tuple[str, ...]:
+        """Column names of the state (``layout.labels``)."""
+        return self.layout.labels
+
+    def F(self, dt_s) -> np.ndarray:
+        """Transition over ``dt_s``, shape ``(..., 6, 6)``."""
+        if np.ndim(dt_s) == 0:                       # one step (the EKF's case): no broadcasting
+            F = np.eye(6)
+            F[0, 3] = F[1, 4] = F[2, 5] = float(dt_s)
+            return F
+        dt = np.asarray(dt_s, float)[..., None, None]
+        eye = np.eye(3)
+        top = np.concatenate([np.broadcast_to(eye, dt.shape[:-2] + (3, 3)), dt * eye], axis=-1)
+        bottom = np.concatenate([np.zeros(dt.shape[:-2] + (3, 3)), np.broadcast_to(eye, dt.shape[:-2] + (3, 3))],
+                                axis=-1)
+        return np.concatenate([top, bottom], axis=-2)
+
+    def Q(self, dt_s) -> np.ndarray:
+        """Process noise ``G diag(σ²) Gᵀ`` with ``G = [dt²/2 I; dt I]``, shape ``(..., 6, 6)``."""
+        s2 = np.diag(np.square(self.sigma_acc_mps2))
+        if np.ndim(dt_s) == 0:                       # one step: the same blocks without broadcasting
+            dt = float(dt_s)
+            Q = np.empty((6, 6))
+            Q[:3, :3], Q[:3, 3:] = dt ** 4 / 4 * s2, dt ** 3 / 2 * s2
+            Q[3:, :3], Q[3:, 3:] = dt ** 3 / 2 * s2, dt ** 2 * s2
+            return Q
+        dt = np.asarray(dt_s, float)[..., None, None]
+        return np.concatenate([np.concatenate([dt ** 4 / 4 * s2, dt ** 3 / 2 * s2], axis=-1),
+                               np.concatenate([dt ** 3 / 2 * s2, dt ** 2 * s2], axis=-1)], axis=-2)
+
+    def propagate(self, x: np.ndarray, dt_s, *, rng: np.random.Generator | None) -> np.ndarray:
+        """Move states ``(..., 6)`` over ``dt_s`` (scalar or broadcastable); ``rng=None``: no noise."""
+        x = np.asarray(x, float)
+        dt = np.asarray(dt_s, float)[..., None]
+        a = 0.0 if rng is None else rng.standard_normal(x.shape[:-1] + (3,)) * np.asarray(self.sigma_acc_mps2)
+        out = np.empty_like(x)
+        out[..., :3] = x[..., :3] + x[..., 3:] * dt + 0.5 * a * dt * dt
+        out[..., 3:] = x[..., 3:] + a * dt
+        return out
+
+    def step(self, x: np.ndarray, dt_s, *, rng: np.random.Generator | None) -> np.ndarray:
+        """The family's name for :meth:`propagate` (same draws, same numbers)."""
+        return self.propagate(x, dt_s, rng=rng)
+
+    def sample_path(self, x0: np.ndarray, t_s: np.ndarray, *, rng: np.random.Generator) -> np.ndarray:
+        """States ``(T, 6)`` at ``t_s`` from ``x0``, one :meth:`propagate` per interval."""
+        return _sample_by_steps(self, x0, t_s, rng)

@@ -118,14 +118,16 @@ class SetNoiseFilter(BaseEstimator):
             return bounds.Bound(est.t_s, C, kind)
         _, sd = model_noise(fixes, p["model"])
         dt = np.diff(fixes.t_s, prepend=fixes.t_s[0])
-        motion, axis_major = VelocityKick(p["sigma_d_mps"]), [0, 2, 1, 3]     # state x, ẋ, y, ẏ here
-        F = motion.F(dt)[:, axis_major][:, :, axis_major]
-        Q = motion.Q(dt)[:, axis_major][:, :, axis_major]
+        motion = VelocityKick(p["sigma_d_mps"])
+        here = motion.layout.axis_major()                                    # state x, ẋ, y, ẏ here
+        F = motion.layout.reorder_matrix(motion.F(dt), here)
+        Q = motion.layout.reorder_matrix(motion.Q(dt), here)
+        pos = list(here.pos_index)
         info = np.zeros((len(fixes), 4, 4))
-        info[:, 0, 0], info[:, 2, 2] = 1 / sd[:, 0] ** 2, 1 / sd[:, 1] ** 2
+        info[:, pos, pos] = 1 / sd ** 2
         P0 = np.diag([1e4, 1.0, 1e4, 1.0])       # position from the first fix, velocity ~ 1 m/s
         full = bounds.pcrlb(P0, F, Q, info)
-        C[idx] = full[:, [0, 2]][:, :, [0, 2]]
+        C[idx] = full[:, pos][:, :, pos]
         have = np.all(np.isfinite(truth_at(rec, tag, est.t_s, 2)), axis=1)
         C[~have] = np.nan
         return bounds.Bound(est.t_s, C, kind)

@@ -133,7 +133,8 @@ class WalkScenario:
     obstacles
         Walls, furniture, machines.
     psd_acc_m2ps3
-        PSD of the random acceleration of the target (the RF model's ``q``), m²/s³.
+        PSD of the random acceleration of the target (the RF model's ``q``), m²/s³; the model
+        itself is :attr:`motion` (:meth:`with_motion` sets it from a model object).
     tau_s, max_acc_mps2, lookahead_m
         Path-following: velocity time constant, acceleration limit, look-ahead distance.
     sway_m, sway_hz
@@ -208,6 +209,17 @@ class WalkScenario:
     def motion(self) -> RandomForce:
         """The motion model that moves the target (shared with the estimators)."""
         return RandomForce(self.psd_acc_m2ps3, dim=2)
+
+    def with_motion(self, motion: RandomForce | None) -> "WalkScenario":
+        """This scenario with the target moved by ``motion`` (a 2-D :class:`RandomForce`; None: unchanged).
+
+        The scenario keeps the model's PSD in ``psd_acc_m2ps3``, so ``with_motion(m).motion == m``.
+        """
+        if motion is None:
+            return self
+        if not isinstance(motion, RandomForce) or motion.dim != 2:
+            raise ValueError(f"{self.name}: motion must be a 2-D RandomForce, got {motion!r}")
+        return replace(self, psd_acc_m2ps3=motion.psd)
 
 
 _OFFICE_ANCHORS = ((0.2, 0.2, 2.6), (6.0, 0.1, 2.4), (11.8, 0.2, 2.6), (11.8, 7.8, 2.4), (6.0, 7.9, 2.6),
@@ -322,8 +334,12 @@ def path_points(waypoints_m, corner_radius_m: float, step_m: float = 0.02) -> tu
     return xy, curvature
 
 
-def steer(config: WalkScenario, *, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def steer(config: WalkScenario, *, rng: np.random.Generator,
+          motion: RandomForce | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Simulate the target's reference point along the path with the RF motion model.
+
+    ``motion`` (a 2-D :class:`~uwbwb.models.motion.RandomForce`) replaces the scenario's
+    model, :attr:`WalkScenario.motion`; the same numbers as ``config.with_motion(motion)``.
 
     Returns
     -------
@@ -332,6 +348,7 @@ def steer(config: WalkScenario, *, rng: np.random.Generator) -> tuple[np.ndarray
     x : ndarray, shape ``(T, 4)``
         RF states ``[x, y, vx, vy]`` (m, m/s).
     """
+    config = config.with_motion(motion)
     motion = config.motion
     dt = 1.0 / config.sim_rate_hz
     t_s = np.arange(0.0, config.duration_s + 1e-9, dt)
@@ -433,8 +450,12 @@ def _tag_positions(config, mount, t_s, ref_t, states):
     return np.column_stack([px, py, np.full_like(px, mount.height_m)]), psi
 
 
-def simulate_walk(config: WalkScenario, *, rng: np.random.Generator) -> tuple[Recording, WalkTruth]:
+def simulate_walk(config: WalkScenario, *, rng: np.random.Generator,
+                  motion: RandomForce | None = None) -> tuple[Recording, WalkTruth]:
     """One acquisition: ranges of every tag to every anchor, and truth.
+
+    ``motion`` (a 2-D :class:`~uwbwb.models.motion.RandomForce`) moves the target instead of
+    the scenario's own model; the truth's ``config`` then holds it (:meth:`WalkScenario.with_motion`).
 
     Returns
     -------
@@ -445,6 +466,7 @@ def simulate_walk(config: WalkScenario, *, rng: np.random.Generator) -> tuple[Re
     truth
         The simulator's hidden state (:class:`WalkTruth`).
     """
+    config = config.with_motion(motion)
     t_ref, states = steer(config, rng=rng)
     anchors = config.anchors
     A = anchors.pos_m
