@@ -1,8 +1,9 @@
 """Section 4.2's 6-D particle filter over ``[X, V]`` for independent ultrasonic beacons (paper 003).
 
 :class:`DopplerPf` moves particles with their velocity plus random acceleration and weights them
-by one ΔP at a time as chirps arrive, vectorised over particles *and* independent runs, on the
-particle primitives of :mod:`uwbwb.filters.particle` (log-weights normalised with log-sum-exp, ESS,
+by one ΔP at a time as chirps arrive, vectorised over particles *and* independent runs: the model's
+pieces (motion, ΔP likelihood, the room as a constraint with restarts, tempering) on the particle
+engine :class:`~uwbwb.filters.particle.ParticleFilter` (log-weights normalised with log-sum-exp, ESS,
 systematic resampling and roughening with an injected ``rng``). :class:`PfRuns` holds ``R`` runs as an
 :class:`~uwbwb.types.EstimatesBatch` (the ``Estimates`` fields batched along a leading run axis). Re-exported by
 :mod:`uwbwb.filters.doppler`.
@@ -19,7 +20,7 @@ from ..models.doppler import DopplerModel, ReceiverMotion
 from ..types import ChirpFlag, ChirpLog, EstimateStatus, EstimatesBatch
 from ..validate import integer, number, probability
 from .doppler_frontend import _check_log, _check_model, _check_motion, _per_row
-from .particle import effective_sample_size, normalise_log_weights, resample, roughen
+from .particle import ParticleFilter, tempering_exponent
 
 __all__ = ["DopplerPf", "PfRuns"]
 
@@ -246,8 +247,10 @@ class DopplerPf:
         return PfRuns(meas[0], pos, status, self.name, cov, vel, {"ess": ess},
                       {"rows": rows, "n_particles": self.n_particles, "restarts": restarts, "tempered": tempered})
 
-    def _log_likelihood(self, x, beacon, dp_s, range_m):
-        """Per-particle log-likelihood of one chirp, with the outlier mixture; shape ``x.shape[:-1]``."""
+    def _log_likelihood(self, x, chirp):
+        """Per-particle log-likelihood of one chirp ``(beacon, ΔP, range or None)``, with the outlier mixture;
+        shape ``x.shape[:-1]``."""
+        beacon, dp_s, range_m = chirp
         ll = self.model.log_likelihood(x[..., :3], x[..., 3:], np.int64(beacon), dp_s, range_m=range_m)
         if self.outlier_prob > 0:
             ll = np.logaddexp(np.log1p(-self.outlier_prob) + ll,
@@ -255,72 +258,56 @@ class DopplerPf:
         return ll
 
     def _tempering(self, logw: np.ndarray, ll: np.ndarray) -> np.ndarray:
-        """Per run, the largest ``β ≤ 1`` with ``ESS(logw + β ll) ≥ temper_ess · K`` (1 where the full update
-        keeps that many; 16 bisection steps otherwise). ``logw`` (R, K) may hold −inf; ``ll`` is finite."""
-        R, K = logw.shape
-        beta = np.ones(R)
-        if self.temper_ess <= 0:
-            return beta
-        target = self.temper_ess * K
-        need = effective_sample_size(logw + ll) < target
-        if need.any():
-            lo, hi = np.zeros(int(need.sum())), np.ones(int(need.sum()))
-            lw, l = logw[need], ll[need]
-            for _ in range(16):
-                mid = 0.5 * (lo + hi)
-                ok = effective_sample_size(lw + mid[:, None] * l) >= target
-                lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
-            beta[need] = lo
-        return beta
+        """Per run, the largest ``β ≤ 1`` with ``ESS(logw + β ll) ≥ temper_ess · K``
+        (:func:`~uwbwb.filters.particle.tempering_exponent`)."""
+        return tempering_exponent(logw, ll, self.temper_ess)
+
+    def engine(self) -> ParticleFilter:
+        """This filter on the particle engine: :meth:`ReceiverMotion.propagate`, the ΔP likelihood with its
+        outlier mixture, the particles' moments as the estimate, the room as the constraint (with restarts),
+        tempering, systematic resampling when ESS < ``resample_threshold`` · K and roughening."""
+        return ParticleFilter(self.motion.propagate, self._log_likelihood,
+                              estimate=_moments, ess_fraction=self.resample_threshold, roughening=self.roughening,
+                              temper_ess=self.temper_ess, constrain=self._keep_in_room, ess_renormalises=False)
+
+    def _keep_in_room(self, x: np.ndarray, logw: np.ndarray, *, rng: np.random.Generator):
+        """Zero weight outside the room; a run with no particle left inside is drawn again (a restart)."""
+        lo, hi = np.asarray(self.room_lo_m, float), np.asarray(self.room_hi_m, float)
+        inside = np.all((x[..., :3] >= lo) & (x[..., :3] <= hi), axis=-1)
+        lost = ~np.any(inside, axis=-1)
+        if lost.any():                           # the run lost track: start it again
+            x, logw = x.copy(), logw.copy()
+            x[lost] = self._draw(rng, int(lost.sum()), lo, hi)
+            logw[lost] = -np.log(self.n_particles)
+            inside[lost] = True
+        return x, np.where(inside, logw, -np.inf), lost
 
     def _run_block(self, meas, R: int, rng: np.random.Generator):
         """``R`` runs over ``(t, beacon, ΔP, range or None)``: positions, velocities, ESS, restarts, tempered share,
         position covariances."""
         t, b, dp, rng_r = meas
         K = self.n_particles
-        lo, hi = np.asarray(self.room_lo_m, float), np.asarray(self.room_hi_m, float)
-        pos = np.empty((R, t.size, 3))
-        vel = np.empty((R, t.size, 3))
-        ess = np.empty((R, t.size))
-        cov = np.empty((R, t.size, 3, 3))
-        restarts = np.zeros(R, int)
-        n_tempered = np.zeros(R)
-        x = self._draw(rng, R, lo, hi)
-        logw = np.full((R, K), -np.log(K))
-        t_prev = t[0]
-        for k in range(t.size):
-            x = self.motion.propagate(x, t[k] - t_prev, rng=rng)
-            t_prev = t[k]
-            r_k = None
-            if rng_r is not None and np.isfinite(rng_r[k]):
-                r_k = rng_r[k]
-            inside = np.all((x[..., :3] >= lo) & (x[..., :3] <= hi), axis=-1)
-            lost = ~np.any(inside, axis=-1)
-            if lost.any():                           # the run lost track: start it again
-                x[lost] = self._draw(rng, int(lost.sum()), lo, hi)
-                logw[lost] = -np.log(K)
-                inside[lost] = True
-                restarts += lost
-            ll = self._log_likelihood(x, b[k], dp[k], r_k)
-            prior = np.where(inside, logw, -np.inf)
-            beta = self._tempering(prior, ll)
-            n_tempered += beta < 1.0
-            logw, _ = normalise_log_weights(prior + beta[:, None] * ll)
-            w = np.exp(logw)
-            pos[:, k] = np.einsum("rk,rkn->rn", w, x[..., :3])
-            vel[:, k] = np.einsum("rk,rkn->rn", w, x[..., 3:])
-            d = x[..., :3] - pos[:, k, None, :]
-            cov[:, k] = np.swapaxes(d * w[..., None], 1, 2) @ d
-            ess[:, k] = 1.0 / np.sum(w * w, axis=-1)
-            x, logw, resampled = resample(x, logw, rng=rng, threshold=self.resample_threshold)
-            if self.roughening > 0 and resampled.any():
-                x = roughen(x, rng=rng, k=self.roughening, rows=resampled)
-        return pos, vel, ess, restarts, n_tempered / t.size, cov
+        x = self._draw(rng, R, np.asarray(self.room_lo_m, float), np.asarray(self.room_hi_m, float))
+        chirps = [(b[k], dp[k], rng_r[k] if rng_r is not None and np.isfinite(rng_r[k]) else None)
+                  for k in range(t.size)]
+        run = self.engine().run(x, np.full((R, K), -np.log(K)), t, chirps, rng=rng, t0_s=t[0])
+        pos, vel, cov = run.estimate
+        return pos, vel, run.ess, run.restarted.sum(axis=-1), (run.beta < 1.0).sum(axis=-1) / t.size, cov
 
     def _draw(self, rng, R, lo, hi):
         K = self.n_particles
         return np.concatenate([rng.uniform(lo, hi, (R, K, 3)),
                                rng.uniform(-self.init_speed_mps, self.init_speed_mps, (R, K, 3))], axis=-1)
+
+
+def _moments(x: np.ndarray, logw: np.ndarray):
+    """Weighted mean position ``(R, 3)``, velocity ``(R, 3)`` and position covariance ``(R, 3, 3)`` of
+    particles ``(R, K, 6)`` with normalised log-weights ``(R, K)``."""
+    w = np.exp(logw)
+    pos = np.einsum("rk,rkn->rn", w, x[..., :3])
+    vel = np.einsum("rk,rkn->rn", w, x[..., 3:])
+    d = x[..., :3] - pos[:, None, :]
+    return pos, vel, np.swapaxes(d * w[..., None], 1, 2) @ d
 
 
 def _pf_block(start: int, n_runs: int, seed, pf: DopplerPf, meas):

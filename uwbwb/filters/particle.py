@@ -17,9 +17,21 @@ systematic_counts       copy counts of systematic resampling (O(K), no search)
 systematic_indices, multinomial_indices    ancestor indices from given uniforms
 resample_indices        the same, drawing the uniforms from ``rng``
 resample                resample the rows whose ESS fell below ``threshold · K``
+roughen                 jitter resampled particles (Gordon, Salmond & Smith 1993)
+tempering_exponent      the largest likelihood exponent ``β ≤ 1`` that keeps a target ESS
+
+The engine
+----------
+:class:`ParticleFilter` runs a filter from a model's pieces (transition sampler, log-likelihood,
+estimate; optional constraint, tempering and roughening) with these blocks, one epoch in
+:meth:`~ParticleFilter.step` (kept as an :class:`Epoch`) or a whole recording in
+:meth:`~ParticleFilter.run` (a :class:`ParticleRun`).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, NamedTuple
 
 import numpy as np
 
@@ -96,7 +108,7 @@ def coefficient_of_variation(logw: np.ndarray) -> np.ndarray:
     return np.mean((K * w - 1.0) ** 2, axis=-1)
 
 
-def effective_sample_size(logw: np.ndarray) -> np.ndarray:
+def effective_sample_size(logw: np.ndarray, *, normalised: bool = False) -> np.ndarray:
     """Effective sample size ``K / (1 + CV) = 1 / Σ w²`` (paper 000, after eq. 12).
 
     The two forms are algebraically equal: ``1 + CV = K Σ w²`` for normalised ``w``.
@@ -105,12 +117,16 @@ def effective_sample_size(logw: np.ndarray) -> np.ndarray:
     ----------
     logw
         Log-weights, shape ``(..., K)``.
+    normalised
+        True: ``logw`` is already normalised (as :func:`normalise_log_weights` returns it), so
+        ``w = exp(logw)`` is used as is, one log-sum-exp pass fewer. False (default): normalise
+        first. The two agree to rounding (a second log-sum-exp moves the last bits).
 
     Returns
     -------
     ndarray, shape ``(...)``, in ``[1, K]``.
     """
-    w = _normalised_weights(logw)
+    w = np.exp(_as_float(logw)) if normalised else _normalised_weights(logw)
     return 1.0 / np.sum(w * w, axis=-1)
 
 
@@ -119,10 +135,8 @@ def weighted_mean(particles: np.ndarray, logw: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    particles
-        Shape ``(..., K, n_x)``.
-    logw
-        Shape ``(..., K)``.
+    particles, logw
+        Particles ``(..., K, n_x)`` and their log-weights ``(..., K)`` (normalised or not).
 
     Returns
     -------
@@ -274,10 +288,8 @@ def resample(particles: np.ndarray, logw: np.ndarray, *, rng: np.random.Generato
 
     Parameters
     ----------
-    particles
-        Shape ``(..., K, n_x)``.
-    logw
-        Shape ``(..., K)``.
+    particles, logw
+        As for :func:`weighted_mean`.
     threshold
         Fraction of ``K`` (paper 000 uses 0.5). 1 resamples every row at every call, 0 never.
     method
@@ -335,3 +347,186 @@ def roughen(particles: np.ndarray, *, rng: np.random.Generator, k: float = 0.2,
     if rows is not None:
         sigma = sigma * np.asarray(rows, bool)[..., None, None]
     return particles + sigma * rng.standard_normal(particles.shape)
+
+
+def tempering_exponent(logw: np.ndarray, ll: np.ndarray, min_ess_fraction: float) -> np.ndarray:
+    """Per row, the largest ``β ≤ 1`` with ``ESS(logw + β·ll) ≥ min_ess_fraction · K`` (likelihood tempering).
+
+    ``ESS(β)`` falls from the prior's ESS (β = 0) to the full update's (β = 1). Where the full update
+    keeps the target, β = 1; elsewhere 16 bisection steps on ``[0, 1]`` keep the lower end (resolution
+    2⁻¹⁶), so the update ``likelihood^β`` gives up only the sharpness the cloud cannot resolve.
+
+    Parameters
+    ----------
+    logw
+        Prior log-weights, shape ``(..., K)``; −inf is allowed.
+    ll
+        Log-likelihood of each particle, shape ``(..., K)``, finite.
+    min_ess_fraction
+        Target as a fraction of ``K`` in ``[0, 1)``; 0 = off (β = 1 everywhere).
+
+    Returns
+    -------
+    ndarray, shape ``(...)``
+    """
+    beta = np.ones(np.shape(logw)[:-1])
+    if min_ess_fraction <= 0:
+        return beta
+    target = min_ess_fraction * np.shape(logw)[-1]
+    need = effective_sample_size(logw + ll) < target
+    if need.any():
+        lo, hi = np.zeros(int(need.sum())), np.ones(int(need.sum()))
+        lw, l = logw[need], ll[need]
+        for _ in range(16):
+            mid = 0.5 * (lo + hi)
+            ok = effective_sample_size(lw + mid[:, None] * l) >= target
+            lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
+        beta[need] = lo
+    return beta
+
+
+class Epoch(NamedTuple):
+    """What :meth:`ParticleFilter.step` keeps of one epoch; arrays of the batch shape ``(...)``.
+
+    ``estimate`` is what the filter's ``estimate`` returned after the update; ``ess`` the effective
+    sample size after the update, before resampling; ``resampled`` and ``restarted`` (by the
+    constraint) flags; ``beta`` the tempering exponent (1 = the full likelihood).
+    """
+
+    estimate: Any
+    ess: np.ndarray
+    resampled: np.ndarray
+    restarted: np.ndarray
+    beta: np.ndarray
+
+
+class ParticleRun(NamedTuple):
+    """The epochs of :meth:`ParticleFilter.run`, with the time axis right after the batch axes.
+
+    ``estimate`` has shape ``(..., T, ...)`` (a tuple of such arrays when ``estimate`` returns a
+    tuple), ``ess``, ``resampled``, ``restarted``, ``beta`` shape ``(..., T)``; ``particles`` and
+    ``logw`` are the cloud after the last epoch.
+    """
+
+    estimate: Any
+    ess: np.ndarray
+    resampled: np.ndarray
+    restarted: np.ndarray
+    beta: np.ndarray
+    particles: np.ndarray
+    logw: np.ndarray
+
+
+def _stack(items: list, axis: int):
+    if isinstance(items[0], tuple):
+        return tuple(np.stack(column, axis=axis) for column in zip(*items))
+    return np.stack(items, axis=axis)
+
+
+@dataclass(frozen=True)
+class ParticleFilter:
+    """A bootstrap particle filter assembled from a model's pieces, batched over the leading axes.
+
+    One epoch (:meth:`step`), measurement ``z`` after ``dt_s`` seconds:
+
+    1. predict ``X ← propagate(X, dt_s, rng=rng)`` (skipped when ``dt_s`` is None);
+    2. constrain (optional) ``X, log w, restarted ← constrain(X, log w, rng=rng)``: −inf for an
+       impossible particle, a fresh cloud for a row that has none left;
+    3. weight ``log w ← log w + β log p(z | X)``, normalised by log-sum-exp (eqs. 8–10 of paper 000);
+       ``β = 1``, or :func:`tempering_exponent` when ``temper_ess > 0``;
+    4. keep ``estimate(X, log w)`` and the ESS (eq. 12);
+    5. resample the rows with ``ESS < ess_fraction · K`` (:func:`resample`), then roughen those rows
+       when ``roughening > 0`` (:func:`roughen`).
+
+    Every random number comes from the one ``rng``, in that order (prediction, constraint,
+    resampling, roughening); a batch shares it, one draw per piece for the whole batch.
+
+    Attributes
+    ----------
+    propagate
+        ``propagate(particles (..., K, n_x), dt_s, *, rng) -> particles``: the transition sampler
+        (e.g. :meth:`uwbwb.models.motion.VelocityKick.step`).
+    log_likelihood
+        ``log_likelihood(particles, z) -> (..., K)``: log-density of one epoch's measurement ``z``.
+    estimate
+        ``estimate(particles, logw)`` with normalised ``logw``: an array or a tuple of arrays of the
+        batch shape first (default :func:`weighted_mean`, eq. 11).
+    ess_fraction, method
+        Resampling rule (:func:`resample`): threshold as a fraction of ``K`` and the resampler.
+    roughening
+        Roughening constant (:func:`roughen`, ≥ 0; 0 = none).
+    temper_ess
+        Minimum ESS of an update as a fraction of ``K`` in ``[0, 1)`` (0 = the full likelihood always).
+    constrain
+        None, or ``constrain(particles, logw, *, rng) -> (particles, logw, restarted (...))``.
+    ess_renormalises
+        The ESS diagnostic normalises the log-weights once more (True, the :func:`effective_sample_size`
+        default) or reads them as normalised (False); the two differ only in the last bits.
+    """
+
+    propagate: Callable
+    log_likelihood: Callable
+    estimate: Callable = weighted_mean
+    ess_fraction: float = 0.5
+    method: str = "systematic"
+    roughening: float = 0.0
+    temper_ess: float = 0.0
+    constrain: Callable | None = None
+    ess_renormalises: bool = True
+
+    def __post_init__(self):
+        for name in ("propagate", "log_likelihood", "estimate"):
+            if not callable(getattr(self, name)):
+                raise ValueError(f"ParticleFilter: {name} must be callable, got {getattr(self, name)!r}")
+        if self.constrain is not None and not callable(self.constrain):
+            raise ValueError(f"ParticleFilter: constrain must be None or callable, got {self.constrain!r}")
+        object.__setattr__(self, "ess_fraction", probability("ess_fraction", self.ess_fraction, open_interval=False))
+        choice("method", self.method, RESAMPLERS)
+        object.__setattr__(self, "roughening", number("roughening", self.roughening, minimum=0.0))
+        t = probability("temper_ess", self.temper_ess, open_interval=False)
+        if t >= 1.0:
+            raise ValueError(f"temper_ess must be a number in [0, 1), got {self.temper_ess!r}")
+        object.__setattr__(self, "temper_ess", t)
+
+    def step(self, particles: np.ndarray, logw: np.ndarray, dt_s, z, *, rng: np.random.Generator
+             ) -> tuple[np.ndarray, np.ndarray, Epoch]:
+        """One epoch: ``(particles, normalised logw, Epoch)`` after measurement ``z`` (see the class)."""
+        if dt_s is not None:
+            particles = self.propagate(particles, dt_s, rng=rng)
+        restarted = np.zeros(np.shape(logw)[:-1], bool)
+        if self.constrain is not None:
+            particles, logw, restarted = self.constrain(particles, logw, rng=rng)
+        ll = self.log_likelihood(particles, z)
+        beta = tempering_exponent(logw, ll, self.temper_ess)
+        logw, _ = normalise_log_weights(logw + beta[..., None] * ll if self.temper_ess > 0 else logw + ll)
+        est = self.estimate(particles, logw)
+        ess = effective_sample_size(logw, normalised=not self.ess_renormalises)
+        particles, logw, resampled = resample(particles, logw, rng=rng, threshold=self.ess_fraction,
+                                              method=self.method)
+        if self.roughening > 0 and resampled.any():
+            particles = roughen(particles, rng=rng, k=self.roughening, rows=resampled)
+        return particles, logw, Epoch(est, ess, resampled, restarted, beta)
+
+    def run(self, particles: np.ndarray, logw: np.ndarray, t_s, measurements, *, rng: np.random.Generator,
+            t0_s: float | None = None) -> ParticleRun:
+        """Filter ``measurements[k]`` at times ``t_s[k]`` (non-decreasing, shape ``(T,)``, seconds).
+
+        ``t0_s`` is the time of the initial cloud: None means ``t_s[0]`` with no prediction before
+        the first update; a number means a prediction over ``t_s[0] − t0_s`` first (even 0 s: a
+        transition sampler may draw its noise all the same).
+        """
+        t = np.asarray(t_s, float)
+        if t.ndim != 1 or t.size == 0 or len(measurements) != t.size or np.any(np.diff(t) < 0):
+            raise ValueError(f"ParticleFilter.run: non-decreasing t_s (T,) and T measurements expected, "
+                             f"got t_s of shape {t.shape} and {len(measurements)} measurements")
+        if t0_s is not None and not t0_s <= t[0]:
+            raise ValueError(f"ParticleFilter.run: t0_s must not be after t_s[0], got {t0_s!r}")
+        epochs = []
+        t_prev = t0_s
+        for k, z in enumerate(measurements):
+            dt = None if t_prev is None else t[k] - t_prev
+            t_prev = t[k]
+            particles, logw, epoch = self.step(particles, logw, dt, z, rng=rng)
+            epochs.append(epoch)
+        axis = np.ndim(logw) - 1
+        return ParticleRun(*(_stack(list(column), axis) for column in zip(*epochs)), particles, logw)

@@ -32,8 +32,10 @@ The PF equations are implemented at three levels:
 * :func:`pf_init`, :func:`pf_predict`, :func:`pf_update`, :func:`pf_estimate`,
   :func:`pf_resample` — the textbook steps on ``(..., K, 4)`` particles, the prediction
   being the motion model's own :meth:`~uwbwb.models.motion.VelocityKick.step`;
-* :func:`reference_pf` — one filter run written with those steps (the readable
-  reference, and the "per-trial loop" of ``benchmarks/bench_setnoise_pf.py``);
+* :func:`reference_pf` — one filter run: the motion model's step and eq. 9's
+  :func:`fix_log_likelihood` on the particle engine
+  (:class:`~uwbwb.filters.particle.ParticleFilter`), epoch for epoch those steps (the
+  readable reference, and the "per-trial loop" of ``benchmarks/bench_setnoise_pf.py``);
 * :func:`pf_sweep` — the Monte Carlo sweep: filter variants × trials × σ_d values
   as leading array axes, processed in cache-sized blocks with in-place updates (eq. 3
   written out per state component; tested to reproduce :func:`reference_pf`).
@@ -50,8 +52,9 @@ closed-form Kalman filter); every name importable from here.
 
 from .kf import KFSweep, kf_sweep, run_set_noise_kf
 from .pf import (STATE, FilterRun, ParticleState, PFSweep, _block_trials, _sweep_block,  # noqa: F401 (benchmarks)
-                 model_noise, pf_estimate, pf_init, pf_predict, pf_resample, pf_sweep, pf_update, reference_pf,
-                 run_set_noise_pf)
+                 fix_log_likelihood, model_noise, pf_estimate, pf_init, pf_predict, pf_resample, pf_sweep, pf_update,
+                 reference_pf, run_set_noise_pf)
 
-__all__ = ["STATE", "FilterRun", "KFSweep", "PFSweep", "ParticleState", "kf_sweep", "model_noise", "pf_estimate", "pf_init",
-           "pf_predict", "pf_resample", "pf_sweep", "pf_update", "reference_pf", "run_set_noise_kf", "run_set_noise_pf"]
+__all__ = ["STATE", "FilterRun", "KFSweep", "PFSweep", "ParticleState", "fix_log_likelihood", "kf_sweep", "model_noise",
+           "pf_estimate", "pf_init", "pf_predict", "pf_resample", "pf_sweep", "pf_update", "reference_pf",
+           "run_set_noise_kf", "run_set_noise_pf"]

@@ -92,11 +92,17 @@ def pf_predict(state: ParticleState, dt_s: float, motion: VelocityKick, *, rng: 
     return ParticleState(motion.step(state.particles, dt_s, rng=rng), state.logw)
 
 
+def fix_log_likelihood(particles: np.ndarray, fix) -> np.ndarray:
+    """Eq. 9 in logs for every particle ``(..., K, 4)``: ``fix = (z_m, mu_m, sigma_m)``, each ``(..., 2)``,
+    metres (the fix, its set's bias and spread); shape ``(..., K)``."""
+    z_m, mu_m, sigma_m = fix
+    return log_likelihood(particles[..., :2], np.asarray(z_m)[..., None, :],
+                          np.asarray(mu_m)[..., None, :], np.asarray(sigma_m)[..., None, :])
+
+
 def pf_update(state: ParticleState, z_m, mu_m, sigma_m) -> ParticleState:
     """Eqs. 8–10: add eq. 9's log-likelihood of fix ``z`` (bias ``μ``, spread ``σ``) and normalise."""
-    ll = log_likelihood(state.particles[..., :2], np.asarray(z_m)[..., None, :],
-                        np.asarray(mu_m)[..., None, :], np.asarray(sigma_m)[..., None, :])
-    logw, _ = particle.normalise_log_weights(state.logw + ll)
+    logw, _ = particle.normalise_log_weights(state.logw + fix_log_likelihood(state.particles, (z_m, mu_m, sigma_m)))
     return ParticleState(state.particles, logw)
 
 
@@ -207,10 +213,14 @@ class FilterRun:
 def reference_pf(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps: float, *, rng: np.random.Generator,
                  n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "systematic",
                  name: str = "PF") -> FilterRun:
-    """One particle-filter run, written step by step with :func:`pf_predict` / :func:`pf_update`.
+    """One particle-filter run: the model's pieces on the particle engine.
 
-    This is the readable reference of the method; :func:`pf_sweep` computes the
-    same filter for many trials and parameters at once.
+    :class:`~uwbwb.filters.particle.ParticleFilter` with :meth:`VelocityKick.step` (eq. 3, no
+    prediction before the first fix), :func:`fix_log_likelihood` (eq. 9), the weighted mean
+    (eq. 11) and resampling when ``ESS < ess_fraction · K`` (eq. 12): the same epochs as
+    :func:`pf_predict`, :func:`pf_update`, :func:`pf_estimate`, :func:`pf_resample` in turn. This
+    is the readable reference of the method; :func:`pf_sweep` computes the same filter for many
+    trials and parameters at once.
 
     Parameters
     ----------
@@ -233,23 +243,15 @@ def reference_pf(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps: float, *, rng: np.r
     FilterRun
     """
     _check_common(n_particles, ess_fraction, resampler)
-    t, dt = _times(t_s)
+    t, _ = _times(t_s)
     z, mu, sd = _noise_arrays(z_m, mu_m, sigma_m, t.size)
     if mu.shape != (t.size, 2):
         raise ValueError(f"reference_pf runs one filter: mu_m must be ({t.size}, 2), got {mu.shape}")
-    motion = VelocityKick(sigma_d_mps, dim=2)
+    engine = particle.ParticleFilter(VelocityKick(sigma_d_mps, dim=2).step, fix_log_likelihood,
+                                     ess_fraction=ess_fraction, method=resampler)
     state = pf_init(x0_m, n_particles)
-    est = np.empty((t.size, 4))
-    ess = np.empty(t.size)
-    resampled = np.zeros(t.size, bool)
-    for k in range(t.size):
-        if k:
-            state = pf_predict(state, dt[k], motion, rng=rng)
-        state = pf_update(state, z[k], mu[k], sd[k])
-        est[k] = pf_estimate(state)
-        ess[k] = particle.effective_sample_size(state.logw)
-        state, resampled[k] = pf_resample(state, rng=rng, ess_fraction=ess_fraction, method=resampler)
-    return FilterRun(t, est, ess, resampled, name,
+    run = engine.run(state.particles, state.logw, t, list(zip(z, mu, sd)), rng=rng)
+    return FilterRun(t, run.estimate, run.ess, run.resampled, name,
                      {"n_particles": n_particles, "sigma_d_mps": sigma_d_mps, "ess_fraction": ess_fraction,
                       "resampler": resampler})
 
