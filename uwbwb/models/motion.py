@@ -131,6 +131,14 @@ def _describe(order: int) -> tuple[str, str, str, str, str]:
             "m/s" + _SUPERSCRIPT[order])
 
 
+def _check_parameters(model, field: str, value: float) -> None:
+    """A model's ``dim`` is 2 or 3 and its noise parameter ``field`` (value ``value``) is finite and >= 0."""
+    if model.dim not in (2, 3):
+        raise ValueError(f"{type(model).__name__}.dim must be 2 or 3, got {model.dim!r}")
+    if not np.isfinite(value) or value < 0:
+        raise ValueError(f"{type(model).__name__}.{field} must be finite and >= 0, got {value!r}")
+
+
 class MotionModel:
     """Common behaviour of the white-noise-driven kinematic models.
 
@@ -163,10 +171,7 @@ class MotionModel:
         self._validate()
 
     def _validate(self):
-        if self.dim not in (2, 3):
-            raise ValueError(f"{type(self).__name__}.dim must be 2 or 3, got {self.dim!r}")
-        if not np.isfinite(self.psd) or self.psd < 0:
-            raise ValueError(f"{type(self).__name__}.{self.psd_field} must be finite and >= 0, got {self.psd!r}")
+        _check_parameters(self, self.psd_field, self.psd)
 
     # ----------------------------------------------------------- description
     @property
@@ -385,10 +390,7 @@ class VelocityKick:
     abbreviation: ClassVar[str] = "CV"
 
     def __post_init__(self):
-        if self.dim not in (2, 3):
-            raise ValueError(f"VelocityKick.dim must be 2 or 3, got {self.dim!r}")
-        if not np.isfinite(self.sigma_d_mps) or self.sigma_d_mps < 0:
-            raise ValueError(f"VelocityKick.sigma_d_mps must be finite and >= 0, got {self.sigma_d_mps!r}")
+        _check_parameters(self, "sigma_d_mps", self.sigma_d_mps)
 
     @property
     def n_x(self) -> int:
