@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from scipy.stats import chi2
+from scipy.stats import chi2, multivariate_normal
 
 from uwbwb.filters import kalman
 from uwbwb.filters.ekf import Ekf, Linearisation, TdoaEkf
@@ -169,3 +169,49 @@ def test_tdoa_ekf_runs_with_every_policy(rng):
     assert (runs["ChiSquareEpoch"].status == EstimateStatus.GATED).sum() > 0
     assert runs["ChiSquarePerMeasurement"].n_rejected.sum() > 0
     assert runs["AnchorDropping"].n_rejected.sum() > 0
+
+
+def test_update_info_log_likelihood_is_the_innovation_density(rng):
+    """``UpdateInfo.log_likelihood`` is ``log N(y; 0, S)`` of the update's innovation (scipy's
+    density), for an epoch used and one the epoch gate rejected; NaN without an innovation."""
+    prior = Gaussian(np.array([1.0, 2.0, 0.5]), np.diag([0.3, 0.2, 0.5]))
+    H = np.array([[1.0, 0.0, 0.2], [0.0, 1.0, -0.1]])
+    R = np.array([[0.1, 0.02], [0.02, 0.05]])
+    for shift in (0.1, 30.0):
+        z = H @ prior.x + shift * rng.standard_normal(2)
+        lin = Linearisation(z, H @ prior.x, H, R)
+        S = H @ prior.P @ H.T + R
+        want = multivariate_normal(np.zeros(2), S).logpdf(z - H @ prior.x)
+        for policy in (NoGate(), ChiSquareEpoch(0.99)):
+            _, info = policy.update(prior, lin)
+            assert info.log_likelihood == pytest.approx(want, rel=1e-12)
+        assert info.status == (EstimateStatus.UPDATED if shift < 1 else EstimateStatus.GATED)
+    assert np.isnan(ChiSquarePerMeasurement(0.99).update(prior, lin)[1].log_likelihood)   # gated row by row
+
+
+def test_linear_linearisation_is_the_textbook_linear_update(rng, monkeypatch):
+    """``linear=True`` forms ``y = z − H x⁻`` as :func:`kalman.update` without ``h_x`` (the same call,
+    the same bits); the nonlinear form ``z − h`` agrees to rounding. ``rows`` is the marginal of the
+    chosen rows."""
+    prior = Gaussian(rng.standard_normal(4), np.diag([0.3, 0.2, 0.5, 0.1]))
+    H, R = np.eye(4)[:3], np.diag([0.1, 0.2, 0.3])
+    z = H @ prior.x + rng.standard_normal(3)
+    lin = Linearisation(z, H @ prior.x, H, R, linear=True)
+    want, _ = kalman.update(prior, z, H, R)
+    post, _ = ungated_update(prior, lin)
+    np.testing.assert_array_equal(post.x, want.x)
+    np.testing.assert_array_equal(post.P, want.P)
+    other, _ = ungated_update(prior, Linearisation(z, H @ prior.x, H, R))
+    np.testing.assert_allclose(other.x, want.x, rtol=1e-12)
+    seen = []
+    plain = kalman.update
+    monkeypatch.setattr(kalman, "update", lambda *a, h_x=None: seen.append(h_x) or plain(*a, h_x=h_x))
+    ungated_update(prior, lin)
+    ChiSquareEpoch(0.99).update(prior, lin)
+    ungated_update(prior, Linearisation(z, H @ prior.x, H, R))
+    assert seen[0] is None and seen[1] is None and seen[2] is not None
+    part = lin.rows(np.array([True, False, True]))
+    np.testing.assert_array_equal(part.R, np.diag([0.1, 0.3]))
+    assert part.linear and part.z.tolist() == z[[0, 2]].tolist()
+    with pytest.raises(ValueError, match="Linearisation.linear"):
+        Linearisation(z, H @ prior.x, H, R, linear="yes")

@@ -48,14 +48,15 @@ epoch's component identifiers and a function ``relinearise(keep) -> Linearisatio
 policy at construction.
 :func:`ungated_update` is the plain Joseph-form update every policy ends in. Filters with
 their own update arithmetic (an error-state filter's sequential updates, a particle
-filter's weights) use the decision part only: :meth:`ChiSquareEpoch.threshold` and
-:meth:`ChiSquarePerMeasurement.keep` take the NIS / per-row statistics the filter already
-computes.
+filter's weights) use the decision part only: :meth:`ChiSquareEpoch.threshold`,
+:meth:`ChiSquarePerMeasurement.threshold` and :meth:`ChiSquarePerMeasurement.keep` take the
+NIS / per-row statistics the filter already computes (the tight error-state filter's row test
+is ``ChiSquarePerMeasurement.threshold``, with its own release rule).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Callable, Protocol
 
@@ -67,19 +68,48 @@ from . import kalman
 from .kalman import Gaussian
 
 __all__ = ["AnchorDropping", "ChiSquareEpoch", "ChiSquarePerMeasurement", "GatePolicy", "NoGate", "Subsettable",
-           "UpdateInfo", "gate_from_prob", "ungated_update"]
+           "UpdateInfo", "gate_from_prob", "gate_policy", "ungated_update"]
 
 
 @dataclass(frozen=True)
 class UpdateInfo:
-    """What one update did: ``nis`` (NaN if nothing was measured), ``dof`` (size of the
-    measurement used, 0 if none), the epoch's :class:`~uwbwb.types.EstimateStatus` and
-    ``n_rejected``, the measurement components (e.g. anchors) a gate removed."""
+    """What one update did.
+
+    Attributes
+    ----------
+    nis
+        Normalised innovation squared ``yᵀ S⁻¹ y`` (NaN if nothing was measured).
+    dof
+        Size of the measurement used (0 if none).
+    status
+        The epoch's :class:`~uwbwb.types.EstimateStatus`.
+    n_rejected
+        Measurement components (e.g. anchors) a gate removed.
+    innovation
+        The :class:`~uwbwb.filters.kalman.Innovation` (``y (m,)``, ``S (m, m)``) whose NIS is
+        ``nis``: that of the rows used, or of the whole epoch where a χ² epoch gate rejected
+        it; None where there is none (nothing measured; an epoch gated row by row).
+    """
 
     nis: float
     dof: int
     status: EstimateStatus
     n_rejected: int = 0
+    innovation: kalman.Innovation | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def log_likelihood(self) -> float:
+        """Gaussian log-likelihood of the innovation, the measurement's likelihood under the prior::
+
+            log N(y; 0, S) = −½ (yᵀ S⁻¹ y + log det(2π S))
+
+        with ``y = z − h(x⁻)`` and ``S = H P⁻ Hᵀ + R`` (``yᵀ S⁻¹ y`` is :attr:`nis`). A
+        multi-hypothesis filter weights each child hypothesis by it. NaN without an innovation.
+        """
+        inn = self.innovation
+        if inn is None:
+            return np.nan
+        return -0.5 * (inn.nis + np.linalg.slogdet(2 * np.pi * inn.S)[1])
 
 
 class Subsettable(Protocol):
@@ -101,10 +131,16 @@ def _chi2_ppf(prob: float, dof: int):
     return chi2.ppf(prob, dof)
 
 
+def _update(state: Gaussian, lin) -> tuple[Gaussian, kalman.Innovation]:
+    """:func:`~uwbwb.filters.kalman.update` with ``lin``: the innovation ``z − h(x⁻)``, or, for a
+    linear measurement (``lin.linear``), ``z − H x⁻`` as in the textbook linear update."""
+    return kalman.update(state, lin.z, lin.H, lin.R, h_x=None if getattr(lin, "linear", False) else lin.h)
+
+
 def ungated_update(state: Gaussian, lin) -> tuple[Gaussian, UpdateInfo]:
     """Joseph-form update with all of ``lin`` (``z, h, H, R``), status ``UPDATED``."""
-    post, inn = kalman.update(state, lin.z, lin.H, lin.R, h_x=lin.h)
-    return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED)
+    post, inn = _update(state, lin)
+    return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED, innovation=inn)
 
 
 def _epoch_nis(state: Gaussian, lin) -> float:
@@ -183,10 +219,10 @@ class ChiSquareEpoch(_Release):
 
     def update(self, state: Gaussian, lin, parts: Parts | None = None) -> tuple[Gaussian, UpdateInfo]:
         """Posterior, or the prior with status ``GATED`` (its NIS kept, ``dof`` 0)."""
-        post, inn = kalman.update(state, lin.z, lin.H, lin.R, h_x=lin.h)
+        post, inn = _update(state, lin)
         if inn.nis > _chi2_ppf(self.prob, lin.z.size):
-            return state, UpdateInfo(inn.nis, 0, EstimateStatus.GATED)
-        return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED)
+            return state, UpdateInfo(inn.nis, 0, EstimateStatus.GATED, innovation=inn)
+        return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED, innovation=inn)
 
 
 @dataclass(frozen=True)
@@ -207,10 +243,14 @@ class ChiSquarePerMeasurement(_Release):
     def __post_init__(self):
         _check("ChiSquarePerMeasurement", self.prob, self.max_gated, self.min_rows)
 
+    def threshold(self) -> float:
+        """The ``y_i² / S_ii`` above which a row is rejected, ``χ²_1⁻¹(prob)``."""
+        return float(_chi2_ppf(self.prob, 1))
+
     def keep(self, y: np.ndarray, S_diag: np.ndarray) -> np.ndarray:
         """Rows that pass, bool ``(m,)``, from innovations ``y (m,)`` and variances ``S_ii (m,)``."""
         y, s = np.asarray(y, float), np.asarray(S_diag, float)
-        return y * y / s <= _chi2_ppf(self.prob, 1)
+        return y * y / s <= self.threshold()
 
     def update(self, state: Gaussian, lin, parts: Parts | None = None) -> tuple[Gaussian, UpdateInfo]:
         S = lin.H @ state.P @ lin.H.T + lin.R
@@ -220,8 +260,7 @@ class ChiSquarePerMeasurement(_Release):
         if ok.sum() < self.min_rows:
             return state, UpdateInfo(_epoch_nis(state, lin), 0, EstimateStatus.GATED, int(ok.size))
         rows = np.flatnonzero(ok)
-        part = replace(lin, z=lin.z[rows], h=lin.h[rows], H=lin.H[rows], R=lin.R[np.ix_(rows, rows)])
-        post, info = ungated_update(state, part)
+        post, info = ungated_update(state, lin.rows(rows))
         return post, replace(info, n_rejected=int(ok.size - rows.size))
 
 
@@ -261,6 +300,23 @@ class AnchorDropping(_Release):
             n_rejected += 1
         post, info = ungated_update(state, lin)
         return post, replace(info, n_rejected=n_rejected)
+
+
+def gate_policy(owner: str, gate, gate_prob: float | None, max_gated: int, default: tuple) -> GatePolicy:
+    """The policy a filter with fields ``gate``, ``gate_prob`` and ``max_gated`` runs with.
+
+    ``gate`` itself when given (then ``gate_prob``/``max_gated`` must be at their defaults,
+    ``default = (gate_prob, max_gated)``, or equal to the policy's own ``prob``/``max_gated``);
+    otherwise the one ``gate_prob`` and ``max_gated`` stand for (:func:`gate_from_prob`).
+    """
+    if gate is None:
+        return gate_from_prob(gate_prob, max_gated, owner)
+    if not all(hasattr(gate, a) for a in ("update", "active", "max_gated", "needs_subsets")):
+        raise ValueError(f"{owner}.gate must be a gate policy (uwbwb.filters.gating), got {gate!r}")
+    if (gate_prob, max_gated) not in (tuple(default), (getattr(gate, "prob", None), gate.max_gated)):
+        raise ValueError(f"{owner}: give the gate either as gate= or as gate_prob=/max_gated=, not both "
+                         f"(gate={gate!r}, gate_prob={gate_prob!r}, max_gated={max_gated!r})")
+    return gate
 
 
 def gate_from_prob(gate_prob: float | None, max_gated: int, owner: str, *, kind=ChiSquareEpoch, **settings):

@@ -1,11 +1,13 @@
 """Section 4.1's Kalman filter for independent ultrasonic beacons (paper 003): SCAAT MH-EKF.
 
 :class:`ScaatMhEkf` takes a single constraint at a time (SCAAT) on eq 1, one hypothesis per
-plausible source of an ambiguous chirp (including noise), pruned by likelihood. Its prediction is
-:meth:`uwbwb.filters.ekf.Ekf.predict` and its measurement update the shared Gaussian update
-:func:`uwbwb.filters.kalman.update` (Joseph form, innovation with its NIS), on the
+plausible source of an ambiguous chirp (including noise), pruned by likelihood. Each hypothesis
+runs through the Gaussian engine, :class:`uwbwb.filters.ekf.Ekf` over the
 :class:`DopplerMeasurement` linearisation (the EKF's view of
-:class:`~uwbwb.models.doppler.DopplerModel`). Re-exported by :mod:`uwbwb.filters.doppler`.
+:class:`~uwbwb.models.doppler.DopplerModel`): :meth:`~uwbwb.filters.ekf.Ekf.predict`, then
+:meth:`~uwbwb.filters.ekf.Ekf.update` without a gate, whose
+:attr:`~uwbwb.filters.gating.UpdateInfo.log_likelihood` weights the child. Re-exported by
+:mod:`uwbwb.filters.doppler`.
 """
 
 from __future__ import annotations
@@ -17,7 +19,6 @@ import numpy as np
 from ..models.doppler import DopplerModel, ReceiverMotion
 from ..types import ChirpFlag, ChirpLog, EstimateStatus, Estimates
 from ..validate import integer, number, probability
-from . import kalman
 from .doppler_frontend import _check_log, _check_model, _check_motion, _per_row
 from .ekf import Ekf, Linearisation
 from .kalman import Gaussian
@@ -158,13 +159,11 @@ class ScaatMhEkf:
                     prior = ekf.predict(h.state, t - h.t_s)
                 for i in fits:
                     meas = (int(i), float(shift[i]), rr[r] if log.beacon[r] == i else np.nan)
-                    lin = ekf.measurement.linearise(prior.x, meas)
-                    post, inn = kalman.update(prior, lin.z, lin.H, lin.R, h_x=lin.h)   # the EKF step of Ekf.update
-                    ll = -0.5 * (inn.nis + np.linalg.slogdet(2 * np.pi * inn.S)[1])
+                    post, info = ekf.update(prior, meas, gate=False)
                     moved = last.copy()
                     moved[i] = t
                     children.append(_Hypothesis(post, float(t), moved,
-                                                h.logw + ll + np.log(self.p_detect)
+                                                h.logw + info.log_likelihood + np.log(self.p_detect)
                                                 + (k[i] - 1) * np.log1p(-self.p_detect), True))
                 children.append(_Hypothesis(h.state, h.t_s, last, h.logw + log_clutter, False))
             logw = np.array([c.logw for c in children])

@@ -11,7 +11,7 @@ import pandas as pd
 from ...metrics import nees as _nees, nis_consistency
 from ...types import EstimateStatus, Estimates, Trajectory
 from .. import kalman
-from ..gating import GatePolicy, UpdateInfo, gate_from_prob, ungated_update
+from ..gating import GatePolicy, UpdateInfo, gate_policy, ungated_update
 from ..kalman import Gaussian
 
 
@@ -29,12 +29,17 @@ class Linearisation:
         Jacobian ``∂h/∂x`` at ``x⁻`` with respect to the *full* state, shape ``(m, n_x)``.
     R
         Measurement noise covariance, shape ``(m, m)``.
+    linear
+        True for a linear measurement, ``h(x) = H x`` (``h`` is then ``H x⁻``): the update forms
+        the innovation as ``y = z − H x⁻`` (the textbook linear update) instead of ``z − h``;
+        the two are the same number up to rounding.
     """
 
     z: np.ndarray
     h: np.ndarray
     H: np.ndarray
     R: np.ndarray
+    linear: bool = False
 
     def __post_init__(self):
         z = np.atleast_1d(np.asarray(self.z, float))
@@ -45,6 +50,8 @@ class Linearisation:
         if z.ndim != 1 or h.shape != (m,) or H.shape[0] != m or R.shape != (m, m):
             raise ValueError(f"Linearisation: z {z.shape}, h {h.shape}, H {H.shape}, R {R.shape} do not fit "
                              f"(expected (m,), (m,), (m, n_x), (m, m))")
+        if self.linear not in (True, False):
+            raise ValueError(f"Linearisation.linear must be True or False, got {self.linear!r}")
         for name, a in (("z", z), ("h", h), ("H", H), ("R", R)):
             object.__setattr__(self, name, a)
 
@@ -52,6 +59,14 @@ class Linearisation:
     def innovation(self) -> np.ndarray:
         """``z − h(x⁻)``, shape ``(m,)``."""
         return self.z - self.h
+
+    def rows(self, keep) -> "Linearisation":
+        """The measurement's rows ``keep`` only (indices or a boolean mask): the marginal of a
+        Gaussian measurement, ``z[keep]``, ``h[keep]``, ``H[keep]``, ``R[keep][:, keep]``."""
+        keep = np.asarray(keep)
+        if keep.dtype == bool:
+            keep = np.flatnonzero(keep)
+        return replace(self, z=self.z[keep], h=self.h[keep], H=self.H[keep], R=self.R[np.ix_(keep, keep)])
 
 
 class MeasurementModel(Protocol):
@@ -81,16 +96,7 @@ _DEFAULT_GATE = (0.9999, 10)      # Ekf's gate_prob, max_gated defaults
 
 def _resolve_gate(ekf: "Ekf", owner: str) -> None:
     """Set ``ekf.gate`` from ``gate_prob``/``max_gated`` (or check the given policy) and mirror it back."""
-    policy = ekf.gate
-    if policy is None:
-        policy = gate_from_prob(ekf.gate_prob, ekf.max_gated, owner)
-    else:
-        if not all(hasattr(policy, a) for a in ("update", "active", "max_gated", "needs_subsets")):
-            raise ValueError(f"{owner}.gate must be a gate policy (uwbwb.filters.gating), got {policy!r}")
-        mirror = (getattr(policy, "prob", None), policy.max_gated)
-        if (ekf.gate_prob, ekf.max_gated) not in (_DEFAULT_GATE, mirror):
-            raise ValueError(f"{owner}: give the gate either as gate= or as gate_prob=/max_gated=, not both "
-                             f"(gate={policy!r}, gate_prob={ekf.gate_prob!r}, max_gated={ekf.max_gated!r})")
+    policy = gate_policy(owner, ekf.gate, ekf.gate_prob, ekf.max_gated, _DEFAULT_GATE)
     if policy.needs_subsets and not (hasattr(ekf.measurement, "components")
                                      and hasattr(ekf.measurement, "linearise_components")):
         raise ValueError(f"{owner}: the {type(policy).__name__} gate needs a measurement model that can "
