@@ -8,6 +8,7 @@ import pytest
 from scipy.stats import chi2
 
 from uwbwb.filters import eskf
+from uwbwb.filters.gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate
 from uwbwb.filters.tdoa_ls import tdoa_least_squares
 from uwbwb.models.imu import GRADES, ImuErrorModel
 from uwbwb.models.ins import (NavState, dcm_from_euler, dcm_to_quat, quat_from_rotvec, quat_multiply, quat_to_dcm,
@@ -364,6 +365,41 @@ def test_loose_gate_rejects_a_gross_fix_and_none_is_todays_filter():
     for kw in (dict(gate_prob=1.0), dict(gate_prob=0.0), dict(max_gated=-1), dict(max_gated=2.5)):
         with pytest.raises(ValueError, match="LooseFilter." + next(iter(kw))):
             replace(base, **kw)
+
+
+def test_loose_runs_with_any_gate_policy():
+    """The loose filter's gate is an injected policy: ``gate=ChiSquareEpoch`` is ``gate_prob`` and
+    ``gate=NoGate()`` the ungated filter, bit for bit; a fix off in east only is gated whole by the
+    epoch test, but ChiSquarePerMeasurement (and AnchorDropping) drop only its east rows and
+    update with the rest — the status, dof and n_gated arrays change with the policy."""
+    cfg = robot.RobotConfig(**CLEAN)
+    run = robot.simulate(_short(), cfg, rng=np.random.default_rng(5))
+    fixes = _fixes(run, cfg)
+    k = int(np.flatnonzero(fixes.has_estimate)[len(fixes.t_s) // 2])
+    pos = fixes.pos_m.copy()
+    pos[k, 0] += 3.0
+    bad = replace(fixes, pos_m=pos)
+    base = eskf.LooseFilter(height_m=cfg.tag_height_m, lever_arm_m=cfg.lever_arm_m, r_scale=4.0)
+    go = lambda f: f.run(run.imu, bad, run.x0, heading=run.heading)  # noqa: E731
+    fields = ("pos_m", "vel_mps", "P", "nis", "dof", "status", "n_gated")
+    for policy, same in ((ChiSquareEpoch(0.999, max_gated=25), replace(base, gate_prob=0.999)),
+                         (NoGate(max_gated=25), base)):
+        given = replace(base, gate=policy)
+        assert given.gate_prob == same.gate_prob and given.gate_policy == policy
+        a, b = go(given), go(same)
+        for f in fields:
+            np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+    epoch = go(replace(base, gate_prob=0.999))
+    assert epoch.status[k] == EstimateStatus.GATED and epoch.dof[k] == 0 and epoch.n_gated[k] == 1
+    for policy in (ChiSquarePerMeasurement(0.999, max_gated=25), AnchorDropping(0.999, max_gated=25)):
+        res = go(replace(base, gate=policy))
+        assert res.status[k] == EstimateStatus.UPDATED and res.dof[k] == 2 and res.n_gated[k] == 2, type(policy)
+        assert np.isfinite(res.nis[k]) and not np.array_equal(res.status, epoch.status)
+        assert np.linalg.norm(res.pos_m[k, :2] - run.truth.pos_m[k, :2]) < 0.05     # the north rows helped
+    with pytest.raises(ValueError, match="LooseFilter: give the gate either"):
+        replace(base, gate=NoGate(), gate_prob=0.9)
+    with pytest.raises(ValueError, match="LooseFilter.gate must be a gate policy"):
+        replace(base, gate=0.9)
 
 
 BAD_TIGHT = [("imu_model", None), ("uwb", None), ("lever_arm_m", (0.0, np.nan, 0.1)), ("lever_arm_m", (0, 0)),

@@ -1,4 +1,9 @@
-"""The paper's loosely coupled filter, eqs 5–7 (:class:`LooseFilter`)."""
+"""The paper's loosely coupled filter, eqs 5–7 (:class:`LooseFilter`).
+
+Its UWB update is the Gaussian engine's: the fix (position, and the differenced velocity) is a
+linear :class:`~uwbwb.filters.ekf.Linearisation` of the error state, updated through the injected
+gate policy (:mod:`uwbwb.filters.gating`) or :func:`~uwbwb.filters.gating.ungated_update`.
+"""
 
 from __future__ import annotations
 
@@ -6,13 +11,14 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
 
 from ... import validate
 from ...models.imu import HeadingLog
 from ...models.ins import N_ERR, Mechanization, NavState, _dcm, _exp_left, _yaw, coast
 from ...types import Estimates, EstimateStatus, ImuLog
 from .. import kalman
+from ..ekf import Linearisation
+from ..gating import GatePolicy, gate_policy, ungated_update
 from ..kalman import Gaussian
 from .common import LOST_BUILD_S, _lever, gap_timeline
 from .result import FusionRun, _empty, _wrap
@@ -30,6 +36,16 @@ def _consistent(innovations: list) -> bool:
     m = y.mean(axis=0)
     step2 = float(np.mean(np.sum(np.diff(y, axis=0) ** 2, axis=1))) if len(y) > 1 else 0.0
     return bool(m @ m > step2)
+
+
+def _rows(lin: Linearisation):
+    """``(components, relinearise)`` of the loose filter's measurement for a gate that drops
+    components (:class:`~uwbwb.filters.gating.AnchorDropping`): its rows, and the marginal of
+    any subset of them (:meth:`Linearisation.rows`; the measurement is linear)."""
+    return np.arange(lin.z.size), lin.rows
+
+
+_DEFAULT_GATE = (None, 25)      # LooseFilter's gate_prob, max_gated defaults
 
 
 @dataclass(frozen=True)
@@ -58,12 +74,23 @@ class LooseFilter:
         Closed loop (True) or open loop.
     gate_prob
         χ² innovation gate on each epoch's UWB update (position, or position + velocity):
-        the update is rejected (status ``GATED``, ``n_gated`` 1) when its NIS against the
-        prior exceeds the ``gate_prob`` quantile of χ²(m), ``m`` the measurement dimension;
-        a rejected fix does not enter the velocity difference. None: no gate.
+        the update is rejected (status ``GATED``) when its NIS against the prior exceeds the
+        ``gate_prob`` quantile of χ²(m), ``m`` the measurement dimension. None: no gate. Stands
+        for :class:`~uwbwb.filters.gating.ChiSquareEpoch` when ``gate`` is not given; otherwise
+        it mirrors the policy's ``prob`` (None if it has none).
     max_gated
         Consecutive gated epochs after which the next epoch's fix is used ungated, after the
-        lock's loss is admitted in ``P`` (:meth:`lost_lock_variance`).
+        lock's loss is admitted in ``P`` (:meth:`lost_lock_variance`); mirrors
+        ``gate.max_gated`` when ``gate`` is given.
+    gate
+        Gate policy (:mod:`uwbwb.filters.gating`) on the linear measurement of the fix (rows:
+        position, then velocity; :attr:`gate_policy`); None: the one ``gate_prob`` and
+        ``max_gated`` stand for. Any policy fits (a per-row test or row dropping uses the rest
+        of the fix). A fix whose epoch is gated does not enter the velocity difference;
+        ``n_gated`` is 1 for a gated epoch, else the rows the gate removed; the NIS of a gated
+        epoch is not reported (NaN, ``dof`` 0). The policy's release rule uses the fix after
+        ``max_gated`` gated epochs; before it this filter's own lost-lock rule widens ``P``
+        (:meth:`lost_lock_variance`).
     max_imu_gap_s
         An interval between IMU samples longer than this is a gap: the INS coasts across it
         (:func:`~uwbwb.models.ins.coast`, as :class:`~uwbwb.filters.eskf.TightEskf` does: velocity
@@ -96,6 +123,7 @@ class LooseFilter:
     max_imu_gap_s: float | None = None
     coast_acc_sigma_mps2: float = 1.0
     name: str = "loose"
+    gate: GatePolicy | None = None
 
     def __post_init__(self):
         if not isinstance(self.mechanization, Mechanization):
@@ -113,9 +141,19 @@ class LooseFilter:
         if self.gate_prob is not None:
             validate.probability("LooseFilter.gate_prob", self.gate_prob)
         validate.integer("LooseFilter.max_gated", self.max_gated, minimum=0)
+        policy = self.gate_policy
+        if self.gate is not None:                       # mirror the given policy (as Ekf does)
+            object.__setattr__(self, "gate_prob", getattr(policy, "prob", None))
+            object.__setattr__(self, "max_gated", policy.max_gated)
         if self.max_imu_gap_s is not None:
             validate.number("LooseFilter.max_imu_gap_s", self.max_imu_gap_s, minimum=0.0, strict_minimum=True)
         validate.number("LooseFilter.coast_acc_sigma_mps2", self.coast_acc_sigma_mps2, minimum=0.0)
+
+    @property
+    def gate_policy(self) -> GatePolicy:
+        """The gate the filter runs with: ``gate``, or the one ``gate_prob`` and ``max_gated``
+        stand for (:func:`~uwbwb.filters.gating.gate_policy`; default no gate, released after 25)."""
+        return gate_policy("LooseFilter", self.gate, self.gate_prob, self.max_gated, _DEFAULT_GATE)
 
     def lost_lock_variance(self, innovation_ms_m2: float = 0.0) -> np.ndarray:
         """What a lost lock adds to the diagonal of ``P`` before the ungated epoch, ``(2 dim,)``:
@@ -177,7 +215,7 @@ class LooseFilter:
         last_t = None
         hist_t, hist_p = [], []
         g_up = -mech.g_n / np.linalg.norm(mech.g_n)
-        gate_m = None if self.gate_prob is None else {m: chi2.ppf(self.gate_prob, m) for m in (d, 2 * d)}
+        gate = self.gate_policy
         gated_run, gated_y = 0, []                      # position innovations of the current gated run
         # coast across IMU gaps: the 15-state accumulators of models.ins.coast since the last epoch,
         # whose position/velocity block is the extra process noise of the assumed acceleration
@@ -230,24 +268,26 @@ class LooseFilter:
                     z, H, Rk = np.concatenate([z_pos, v[:d] - v_uwb]), np.eye(2 * d), R
                 else:
                     z, H, Rk = z_pos, np.eye(2 * d)[:d], R[:d, :d]
-                if gate_m is not None and 0 < gated_run >= self.max_gated and _consistent(gated_y):
+                if 0 < gated_run >= gate.max_gated and _consistent(gated_y):
                     y = z_pos - dx[:d]                   # lock lost (the gated fixes agree): admit it, re-acquire
                     P = P + np.diag(self.lost_lock_variance(float(np.mean(y * y))))
-                if gate_m is not None and gated_run < self.max_gated:
-                    y = z - H @ dx
-                    if y @ np.linalg.solve(H @ P @ H.T + Rk, y) > gate_m[z.size]:
-                        hist_t.pop()
-                        hist_p.pop()
-                        gated_run += 1
-                        gated_y.append(z_pos - dx[:d])
-                        z = None
-                        status = EstimateStatus.GATED
-                        out["n_gated"][k] = 1
-                if z is not None:
+                lin = Linearisation(z, H @ dx, H, Rk, linear=True)      # eq 6: z = H δx + v
+                if gate.active(gated_run):
+                    st, info = gate.update(Gaussian(dx, P), lin, _rows(lin) if gate.needs_subsets else None)
+                else:
+                    st, info = ungated_update(Gaussian(dx, P), lin)
+                if info.status == EstimateStatus.GATED:
+                    hist_t.pop()
+                    hist_p.pop()
+                    gated_run += 1
+                    gated_y.append(z_pos - dx[:d])
+                    status = EstimateStatus.GATED
+                    out["n_gated"][k] = 1
+                else:
                     gated_run, gated_y = 0, []
-                    st, inn = kalman.update(Gaussian(dx, P), z, H, Rk)
                     dx, P = st.x, st.P
-                    nis, dof, status = inn.nis, z.size, EstimateStatus.UPDATED
+                    nis, dof, status = info.nis, info.dof, EstimateStatus.UPDATED
+                    out["n_gated"][k] = info.n_rejected
                 hist_t, hist_p = hist_t[-self.vel_window - 1:], hist_p[-self.vel_window - 1:]
             if self.feedback:
                 p[:d] -= dx[:d]

@@ -7,7 +7,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
 
 from ... import validate
 from ...models.imu import HeadingLog, ImuErrorModel
@@ -15,6 +14,7 @@ from ...models.ins import (BA_, BG_, N_ERR, P_, TH_, V_, Mechanization, NavState
                            error_transition, inject, reset_jacobian, yaw_jacobian)
 from ...types import EstimateStatus, ImuLog, RangeLog, TdoaLog
 from .. import kalman
+from ..gating import ChiSquarePerMeasurement
 from ..kalman import Gaussian
 from .common import _DEG, _ITER_TOL_M, HEADING_KNOWN_RAD, LOST_BUILD_S, _lever, gap_timeline
 from .kernels import INTS, SCALARS, _tight_loop
@@ -49,7 +49,9 @@ class TightEskf:
     lever_arm_m
         Tag position relative to the IMU in the body frame, m.
     gate_prob
-        Per-measurement χ²(1) gate probability; None: no gate.
+        Per-measurement χ²(1) gate probability: a UWB row is rejected when ``y_i² / S_ii`` exceeds
+        :meth:`ChiSquarePerMeasurement(gate_prob).threshold()
+        <uwbwb.filters.gating.ChiSquarePerMeasurement.threshold>`; None: no gate.
     max_gated
         Lost lock: after this many consecutive epochs in which the gate rejected at least half of
         the UWB measurements (outliers are a minority; a majority rejected means the prior is
@@ -246,7 +248,8 @@ class TightEskf:
         dx = np.zeros(N_ERR)
         P = self.initial_covariance() if P0 is None else _checked_covariance(P0)
         qrate = self.process_noise_rate()
-        gate1 = chi2.ppf(self.gate_prob, 1) if self.gate_prob is not None else np.inf
+        # the row test of the per-measurement policy (its decision part; the release rule is this filter's own)
+        gate1 = ChiSquarePerMeasurement(self.gate_prob).threshold() if self.gate_prob is not None else np.inf
         sig_yaw = self.imu_model.mag_heading_sigma_rad
         gated_run, clean_run = 0, 0
         engaged = bool(P[8, 8] <= HEADING_KNOWN_RAD ** 2)
