@@ -7,7 +7,7 @@ from scipy.stats import chi2
 from uwbwb.filters import kalman
 from uwbwb.filters.ekf import Ekf, Linearisation, nis_consistency
 from uwbwb.filters.kalman import Gaussian
-from uwbwb.models.motion import RandomForce
+from uwbwb.models.motion import RandomForce, RandomJerk, ReceiverMotion, VelocityKick
 from uwbwb.types import EstimateStatus, Estimates
 
 R_M2 = 0.3 ** 2
@@ -237,3 +237,23 @@ def test_estimates_validates_status_and_positions():
     assert e.coverage == pytest.approx(2 / 3)
     assert e.status_counts() == {"updated": 1, "predicted": 1, "gated": 0, "no_estimate": 1}
     assert len(e.select(e.has_estimate)) == 2
+
+
+def test_position_components_default_to_the_transition_models_declared_layout():
+    for motion, pos in ((RandomForce(1.0, dim=3), (0, 1, 2)), (RandomJerk(1.0, dim=2), (0, 1)),
+                        (VelocityKick(0.3), (0, 1)), (ReceiverMotion(), (0, 1, 2))):
+        assert Ekf(motion, PositionFix(RandomForce(1.0, dim=len(pos)))).pos_index == pos == motion.layout.pos_index
+    assert Ekf(RandomForce(1.0), PositionFix(RandomForce(1.0)), (1, 0)).pos_index == (1, 0)   # explicit wins
+
+    class NoLayout:                       # F and Q only: the position cannot be read from the model
+        n_x = 4
+
+        def F(self, dt_s):
+            return np.eye(4)
+
+        def Q(self, dt_s):
+            return np.eye(4)
+
+    with pytest.raises(ValueError, match="declares no state layout"):
+        Ekf(NoLayout(), PositionFix(RandomForce(1.0)))
+    assert Ekf(NoLayout(), PositionFix(RandomForce(1.0)), (0, 1)).vel_index is None

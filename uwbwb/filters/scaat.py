@@ -111,7 +111,7 @@ class ScaatMhEkf:
 
     @property
     def ekf(self) -> Ekf:
-        return Ekf(self.motion, DopplerMeasurement(self.model), pos_index=(0, 1, 2), vel_index=(3, 4, 5),
+        return Ekf(self.motion, DopplerMeasurement(self.model), vel_index=self.motion.layout.vel_index,
                    gate_prob=None)
 
     def run(self, log: ChirpLog, x0: Gaussian, *, ranges_m=None) -> Estimates:

@@ -90,8 +90,7 @@ class RangeEkfEstimator(BaseEstimator):
     def _filter(self, rec, tag, cal, sigma_w) -> Ekf:
         motion = make_motion_model(self.model, sigma=sigma_w, dt_s=1.0 / cal.rate_hz, dim=cal.dim)
         meas = RangeMeasurement(rec.anchors.pos_m, cal.sigma(tag), motion, cal.height(tag))
-        d = cal.dim
-        return Ekf(motion, meas, tuple(range(d)), tuple(range(d, 2 * d)) if motion.order >= 2 else None,
+        return Ekf(motion, meas, vel_index=motion.layout.vel_index,
                    gate=AnchorDropping(prob=self.gate_prob, max_gated=10, min_rows=2))
 
     def _run(self, rec, tag, cal, sigma_w) -> Estimates:

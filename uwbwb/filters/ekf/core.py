@@ -80,7 +80,8 @@ class MeasurementModel(Protocol):
 
 
 class TransitionModel(Protocol):
-    """What :class:`Ekf` needs from a motion model (:class:`~uwbwb.models.motion.MotionModel` fits)."""
+    """What :class:`Ekf` needs from a motion model (every :class:`~uwbwb.models.layout.KinematicModel` fits;
+    a model with a ``layout`` also gives :class:`Ekf` its default ``pos_index``)."""
 
     n_x: int
 
@@ -117,9 +118,12 @@ class Ekf:
     measurement
         Gives a :class:`Linearisation` per epoch (:class:`MeasurementModel`).
     pos_index
-        State components that are the position (2 or 3 of them), for results and metrics.
+        State components that are the position (2 or 3 of them), for results and metrics;
+        default: the transition model's declared ``layout.pos_index``
+        (:class:`~uwbwb.models.layout.StateLayout`).
     vel_index
-        State components that are the velocity, or None.
+        State components reported as the velocity, or None (none reported; pass
+        ``transition.layout.vel_index`` for the declared one).
     gate_prob
         χ² gate probability on each epoch's NIS; None = no gate (every measurement used).
         Stands for :class:`~uwbwb.filters.gating.ChiSquareEpoch` when ``gate`` is not given;
@@ -134,7 +138,7 @@ class Ekf:
 
     transition: TransitionModel
     measurement: MeasurementModel
-    pos_index: tuple[int, ...]
+    pos_index: tuple[int, ...] | None = None
     vel_index: tuple[int, ...] | None = None
     gate_prob: float | None = 0.9999
     max_gated: int = 10
@@ -142,6 +146,12 @@ class Ekf:
 
     def __post_init__(self):
         n = int(self.transition.n_x)
+        if self.pos_index is None:
+            layout = getattr(self.transition, "layout", None)
+            if layout is None:
+                raise ValueError(f"Ekf: give pos_index (the transition model {type(self.transition).__name__} "
+                                 f"declares no state layout)")
+            object.__setattr__(self, "pos_index", layout.pos_index)
         pos = tuple(int(i) for i in self.pos_index)
         if len(pos) not in (2, 3) or not all(0 <= i < n for i in pos):
             raise ValueError(f"Ekf.pos_index must name 2 or 3 of the {n} state components, got {self.pos_index!r}")
