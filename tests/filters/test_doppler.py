@@ -6,6 +6,7 @@ import pytest
 from uwbwb import ChirpFlag, EstimateStatus
 from uwbwb.filters import doppler as fd
 from uwbwb.filters.kalman import Gaussian
+from uwbwb.filters.particle import effective_sample_size, tempering_exponent
 from uwbwb.models import doppler as dm
 from uwbwb.sim import chirps as sc
 
@@ -185,11 +186,10 @@ def test_tempering_keeps_the_requested_effective_sample_size(lab):
     rng = np.random.default_rng(0)
     logw = np.full((3, 400), -np.log(400))
     ll = np.stack([np.zeros(400), -0.5 * (rng.normal(size=400) / 0.01) ** 2, -0.5 * (rng.normal(size=400) / 0.1) ** 2])
-    beta = pf._tempering(logw, ll)
-    from uwbwb.filters.particle import effective_sample_size
+    beta = tempering_exponent(logw, ll, pf.temper_ess)
     assert beta[0] == 1.0                                 # a flat likelihood is used in full
     assert 0 < beta[1] < 1 and effective_sample_size(logw[1] + beta[1] * ll[1]) == pytest.approx(40, rel=0.02)
-    off = fd.DopplerPf(lab, n_particles=400, temper_ess=0.0)._tempering(logw, ll)
+    off = tempering_exponent(logw, ll, fd.DopplerPf(lab, n_particles=400, temper_ess=0.0).temper_ess)
     np.testing.assert_array_equal(off, 1.0)
 
 

@@ -20,7 +20,7 @@ from ..models.doppler import DopplerModel, ReceiverMotion
 from ..types import ChirpFlag, ChirpLog, EstimateStatus, EstimatesBatch
 from ..validate import integer, number, probability
 from .doppler_frontend import _check_log, _check_model, _check_motion, _per_row
-from .particle import ParticleFilter, tempering_exponent
+from .particle import ParticleFilter
 
 __all__ = ["DopplerPf", "PfRuns"]
 
@@ -256,11 +256,6 @@ class DopplerPf:
             ll = np.logaddexp(np.log1p(-self.outlier_prob) + ll,
                               np.log(self.outlier_prob / (2 * self.outlier_window_s)))
         return ll
-
-    def _tempering(self, logw: np.ndarray, ll: np.ndarray) -> np.ndarray:
-        """Per run, the largest ``β ≤ 1`` with ``ESS(logw + β ll) ≥ temper_ess · K``
-        (:func:`~uwbwb.filters.particle.tempering_exponent`)."""
-        return tempering_exponent(logw, ll, self.temper_ess)
 
     def engine(self) -> ParticleFilter:
         """This filter on the particle engine: :meth:`ReceiverMotion.propagate`, the ΔP likelihood with its
