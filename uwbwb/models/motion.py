@@ -139,7 +139,30 @@ def _check_parameters(model, field: str, value: float) -> None:
         raise ValueError(f"{type(model).__name__}.{field} must be finite and >= 0, got {value!r}")
 
 
-class MotionModel:
+class _Kinematic:
+    """What every member of the family derives from its ``order`` (derivative blocks) and ``dim``:
+    the state size and its declared layout, derivative-major ``[p (dim), v (dim), a (dim)][: n_x]``."""
+
+    order: ClassVar[int]
+    dim: int
+
+    @property
+    def n_x(self) -> int:
+        """State size, ``order · dim``."""
+        return self.order * self.dim
+
+    @property
+    def layout(self) -> StateLayout:
+        """The state's layout (:class:`~uwbwb.models.layout.StateLayout`), derivative-major."""
+        return StateLayout.kinematic(self.dim, self.order)
+
+    @property
+    def state_labels(self) -> tuple[str, ...]:
+        """Column names of the state, e.g. ``("x_m", "y_m", "vx_mps", "vy_mps")`` (``layout.labels``)."""
+        return self.layout.labels
+
+
+class MotionModel(_Kinematic):
     """Common behaviour of the white-noise-driven kinematic models.
 
     Subclasses are frozen dataclasses with one PSD field (named with its unit)
@@ -178,21 +201,6 @@ class MotionModel:
     def psd(self) -> float:
         """Spectral density ``q`` of the white driving noise per axis (unit: :attr:`psd_unit`)."""
         return float(getattr(self, self.psd_field))
-
-    @property
-    def n_x(self) -> int:
-        """State size, ``order · dim``."""
-        return self.order * self.dim
-
-    @property
-    def layout(self) -> StateLayout:
-        """The state's layout, derivative-major: ``[p (dim), v (dim), a (dim)][: n_x]``."""
-        return StateLayout.kinematic(self.dim, self.order)
-
-    @property
-    def state_labels(self) -> tuple[str, ...]:
-        """Column names of the state, e.g. ``("x_m", "y_m", "vx_mps", "vy_mps")`` (``layout.labels``)."""
-        return self.layout.labels
 
     def with_psd(self, psd: float):
         """The same model with another PSD."""
@@ -359,7 +367,7 @@ def make_motion_model(name: str, *, sigma: float, dt_s: float, dim: int = 2) -> 
 
 
 @dataclass(frozen=True)
-class VelocityKick:
+class VelocityKick(_Kinematic):
     """Constant velocity with a random velocity change per step (paper 000, eq. 3).
 
     Between fixes ``T`` seconds apart, per axis::
@@ -391,21 +399,6 @@ class VelocityKick:
 
     def __post_init__(self):
         _check_parameters(self, "sigma_d_mps", self.sigma_d_mps)
-
-    @property
-    def n_x(self) -> int:
-        """State size, ``2 · dim``."""
-        return 2 * self.dim
-
-    @property
-    def layout(self) -> StateLayout:
-        """The state's layout, derivative-major: ``[p (dim), v (dim)]``."""
-        return StateLayout.kinematic(self.dim, self.order)
-
-    @property
-    def state_labels(self) -> tuple[str, ...]:
-        """Column names of the state, e.g. ``("x_m", "y_m", "vx_mps", "vy_mps")`` (``layout.labels``)."""
-        return self.layout.labels
 
     def F(self, dt_s) -> np.ndarray:
         """State transition over steps ``dt_s`` (scalar or array), shape ``(..., n_x, n_x)``."""
@@ -479,7 +472,7 @@ def _sample_by_steps(model, x0, t_s, rng) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class ReceiverMotion:
+class ReceiverMotion(_Kinematic):
     """Section 4.2's receiver motion (paper 003): position moves with velocity, velocity takes random kicks.
 
     Interpretation: the "random variation" of σ 2 m/s² (x, y) and 0.2 m/s² (z) is
@@ -508,18 +501,6 @@ class ReceiverMotion:
         if len(s) != 3 or not all(np.isfinite(v) and v >= 0 for v in s):
             raise ValueError(f"sigma_acc_mps2 must be three finite values >= 0 (m/s²), got {self.sigma_acc_mps2!r}")
         object.__setattr__(self, "sigma_acc_mps2", s)
-
-    n_x = 6
-
-    @property
-    def layout(self) -> StateLayout:
-        """The state's layout, ``[x, y, z, vx, vy, vz]``."""
-        return StateLayout.kinematic(3, 2)
-
-    @property
-    def state_labels(self) -> tuple[str, ...]:
-        """Column names of the state (``layout.labels``)."""
-        return self.layout.labels
 
     def F(self, dt_s) -> np.ndarray:
         """Transition over ``dt_s``, shape ``(..., 6, 6)``."""
