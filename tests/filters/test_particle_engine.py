@@ -111,6 +111,8 @@ def test_prediction_times_follow_t0():
     assert seen == [0.0, 0.5, 1.5]                                  # the cloud's own time given: predict over 0 s
     with pytest.raises(ValueError, match="non-decreasing"):
         pf.run(x, logw, [1.0, 0.5], [0.0, 0.0], rng=np.random.default_rng(0))
+    with pytest.raises(ValueError, match="no epochs"):
+        pf.run(x, logw, [], [], rng=np.random.default_rng(0))
 
 
 def test_constraint_zeroes_impossible_particles_and_restarts_a_lost_row():

@@ -119,3 +119,19 @@ def test_motion_model_step_without_noise_is_the_transition():
     rf = mm.RandomForce(0.5, dim=2)
     x = np.random.default_rng(0).standard_normal((3, 4))
     np.testing.assert_array_equal(rf.step(x, DT, rng=None), np.einsum("tij,tj->ti", rf.F(DT), x))
+
+
+def test_layout_sizes_must_be_the_integers_one_two_three():
+    for args in ((4, 2), (2, 4), (2.0, 2), (2, True)):
+        with pytest.raises(ValueError, match="must be 1, 2 or 3"):
+            StateLayout.kinematic(*args)
+    for dim in (2.0, True, 0):
+        with pytest.raises(ValueError, match="StateLayout.dim"):
+            StateLayout(("x_m", "y_m"), dim)
+    assert StateLayout.kinematic(1, 2).labels == ("x_m", "vx_mps")
+
+
+def test_velocity_kick_without_rng_moves_without_a_kick():
+    kick = mm.VelocityKick(0.5)
+    x = np.array([[1.0, 2.0, 0.3, -0.4]])
+    np.testing.assert_array_equal(kick.step(x, 2.0, rng=None), [[1.6, 1.2, 0.3, -0.4]])

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models.doppler import DopplerModel, ReceiverMotion
+from ..models.doppler import DopplerModel
+from ..models.motion import ReceiverMotion
 from ..types import ChirpFlag, ChirpLog
 from ..validate import integer, number
 

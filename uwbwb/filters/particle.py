@@ -435,8 +435,10 @@ class ParticleFilter:
     3. weight ``log w ← log w + β log p(z | X)``, normalised by log-sum-exp (eqs. 8–10 of paper 000);
        ``β = 1``, or :func:`tempering_exponent` when ``temper_ess > 0``;
     4. keep ``estimate(X, log w)`` and the ESS (eq. 12);
-    5. resample the rows with ``ESS < ess_fraction · K`` (:func:`resample`), then roughen those rows
-       when ``roughening > 0`` (:func:`roughen`).
+    5. resample the rows with ``ESS < ess_fraction · K`` (:func:`resample`, which computes the ESS of
+       the same weights itself; with ``ess_renormalises=False`` the recorded ESS and that one may differ
+       in the last bits, so a row exactly at the threshold can be recorded on the other side of it),
+       then roughen those rows when ``roughening > 0`` (:func:`roughen`).
 
     Every random number comes from the one ``rng``, in that order (prediction, constraint,
     resampling, roughening); a batch shares it, one draw per piece for the whole batch.
@@ -516,7 +518,10 @@ class ParticleFilter:
         transition sampler may draw its noise all the same).
         """
         t = np.asarray(t_s, float)
-        if t.ndim != 1 or t.size == 0 or len(measurements) != t.size or np.any(np.diff(t) < 0):
+        if t.size == 0:
+            raise ValueError("ParticleFilter.run: no epochs to filter (t_s is empty); a run needs at least one "
+                             "measurement")
+        if t.ndim != 1 or len(measurements) != t.size or np.any(np.diff(t) < 0):
             raise ValueError(f"ParticleFilter.run: non-decreasing t_s (T,) and T measurements expected, "
                              f"got t_s of shape {t.shape} and {len(measurements)} measurements")
         if t0_s is not None and not t0_s <= t[0]:

@@ -44,6 +44,11 @@ def _parse(label: str) -> tuple[int, int] | None:
     return None
 
 
+def _one_two_three(value) -> bool:
+    """``value`` is the integer 1, 2 or 3 (not a float, not a bool)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value in (1, 2, 3)
+
+
 @dataclass(frozen=True)
 class StateLayout:
     """Names and order of the components of a kinematic state.
@@ -64,7 +69,7 @@ class StateLayout:
     def __post_init__(self):
         labels = tuple(str(v) for v in self.labels)
         object.__setattr__(self, "labels", labels)
-        if self.dim not in (1, 2, 3):
+        if not _one_two_three(self.dim):
             raise ValueError(f"StateLayout.dim must be 1, 2 or 3, got {self.dim!r}")
         if len(set(labels)) != len(labels):
             raise ValueError(f"StateLayout labels must be distinct, got {labels!r}")
@@ -82,8 +87,9 @@ class StateLayout:
 
         Derivative-major by default (``x, y, vx, vy``); ``axis_major=True`` gives ``x, vx, y, vy``.
         """
-        if order not in (1, 2, 3):
-            raise ValueError(f"StateLayout.kinematic: order must be 1, 2 or 3, got {order!r}")
+        for name, value in (("order", order), ("dim", dim)):
+            if not _one_two_three(value):
+                raise ValueError(f"StateLayout.kinematic: {name} must be 1, 2 or 3, got {value!r}")
         pairs = [(k, a) for a in range(dim) for k in range(order)] if axis_major else \
             [(k, a) for k in range(order) for a in range(dim)]
         return cls(tuple(f"{DERIVATIVES[k][0]}{_AXES[a]}{DERIVATIVES[k][1]}" for k, a in pairs), dim)

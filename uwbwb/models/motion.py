@@ -443,13 +443,16 @@ class VelocityKick(_Kinematic):
         x[..., d:] += dv_mps
         return x
 
-    def step(self, x: np.ndarray, dt_s, *, rng: np.random.Generator) -> np.ndarray:
-        """Eq. 3 with ``dv ~ N(0, σ_d²)`` per axis for states ``(..., n_x)`` (e.g. particles ``(..., K, n_x)``).
+    def step(self, x: np.ndarray, dt_s, *, rng: np.random.Generator | None) -> np.ndarray:
+        """Eq. 3 with ``dv ~ N(0, σ_d²)`` per axis for states ``(..., n_x)`` (e.g. particles ``(..., K, n_x)``);
+        ``rng=None`` moves the states without a kick, as every member of the family does.
 
         The standard normals are drawn axis-major, shape ``(dim, ...)``, the order the batched
         particle-filter kernel draws them in.
         """
         x = np.asarray(x, float)
+        if rng is None:
+            return self.propagate(x, dt_s, 0.0)
         w = np.moveaxis(rng.standard_normal((self.dim,) + x.shape[:-1]), 0, -1)
         return self.propagate(x, dt_s, self.sigma_d_mps * w)
 

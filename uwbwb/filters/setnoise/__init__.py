@@ -40,9 +40,9 @@ The PF equations are implemented at three levels:
   as leading array axes, processed in cache-sized blocks with in-place updates (eq. 3
   written out per state component; tested to reproduce :func:`reference_pf`).
 
-The Kalman filter (:func:`kf_sweep`) runs the same model in closed form per axis; it is
-tested against the generic Kalman steps with :class:`~uwbwb.models.motion.VelocityKick`'s
-``F`` and ``Q``.
+The Kalman filter (:func:`kf_sweep`) runs the same model in closed form per axis; it is a
+declared kernel whose twin is :class:`~uwbwb.filters.ekf.Ekf` over
+:class:`~uwbwb.models.motion.VelocityKick` without a gate (:mod:`uwbwb.filters.twins`).
 
 Modules
 -------
