@@ -215,3 +215,77 @@ def test_linear_linearisation_is_the_textbook_linear_update(rng, monkeypatch):
     assert part.linear and part.z.tolist() == z[[0, 2]].tolist()
     with pytest.raises(ValueError, match="Linearisation.linear"):
         Linearisation(z, H @ prior.x, H, R, linear="yes")
+
+
+# ----------------------------------------------------------------- sequential updates through the engine
+def _linear_case(rng, correlated):
+    """A 5-state prior and a linear 4-row measurement, ``R`` diagonal or with correlated rows."""
+    A = rng.standard_normal((5, 5))
+    prior = Gaussian(rng.standard_normal(5), A @ A.T + 0.5 * np.eye(5))
+    H = rng.standard_normal((4, 5))
+    R = np.diag([0.1, 0.2, 0.3, 0.05])
+    if correlated:
+        R = R + 0.04 * (np.ones((4, 4)) - np.eye(4))      # a common reference: equal off-diagonals
+    z = H @ prior.x + rng.standard_normal(4)
+    return prior, H, R, z
+
+
+@pytest.mark.parametrize("correlated", [False, True])
+def test_sequential_update_is_update_sequential_bit_for_bit_and_the_batch_update_to_rounding(rng, correlated):
+    """``ungated_update(..., sequential=True)`` is :func:`kalman.update_sequential` on the same
+    arrays (same bits, its per-row NIS in ``nis_rows``, their sum as ``nis``); for a linear
+    measurement it equals the batch update to rounding, NIS and log-likelihood included."""
+    prior, H, R, z = _linear_case(rng, correlated)
+    for lin, h_x in ((Linearisation(z, H @ prior.x, H, R), H @ prior.x),
+                     (Linearisation(z, H @ prior.x, H, R, linear=True), None)):
+        want, rows = kalman.update_sequential(prior, z, H, R, h_x=h_x)
+        post, info = ungated_update(prior, lin, sequential=True)
+        assert post.x.tobytes() == want.x.tobytes() and post.P.tobytes() == want.P.tobytes()
+        assert info.nis_rows.tobytes() == rows.tobytes() and info.nis == float(rows.sum())
+        assert info.dof == 4 and info.status == EstimateStatus.UPDATED
+        batch, binfo = ungated_update(prior, lin)
+        assert binfo.nis_rows is None
+        np.testing.assert_allclose(post.x, batch.x, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(post.P, batch.P, rtol=1e-12, atol=1e-12)
+        assert info.nis == pytest.approx(binfo.nis, rel=1e-12)
+        assert info.log_likelihood == pytest.approx(binfo.log_likelihood, rel=1e-12)
+
+
+def test_ekf_sequential_updates_through_every_policy_and_the_batch_path_is_unchanged(rng):
+    """``Ekf(sequential=True)`` passes ``sequential`` to the gate policy (and to the ungated
+    update); the default Ekf makes exactly the batch call, as before."""
+    motion = RandomForce(0.5, dim=2)
+    prior = Gaussian(np.array([1.0, 2.0, 0.0, 0.0]), np.diag([0.04, 0.04, 1.0, 1.0]))
+    z = np.array([1.1, 1.95])
+    for policy in (NoGate(), ChiSquareEpoch(0.99), ChiSquarePerMeasurement(0.99)):
+        seq = Ekf(motion, PositionFix(motion), gate=policy, sequential=True)
+        post, info = seq.update(prior, z)
+        lin = PositionFix(motion).linearise(prior.x, z)
+        want, rows = kalman.update_sequential(prior, lin.z, lin.H, lin.R, h_x=lin.h)
+        assert post.x.tobytes() == want.x.tobytes() and info.nis_rows.tobytes() == rows.tobytes()
+        post_u, info_u = seq.update(prior, z, gate=False)
+        assert post_u.x.tobytes() == want.x.tobytes() and info_u.nis_rows is not None
+        batch, binfo = Ekf(motion, PositionFix(motion), gate=policy).update(prior, z)
+        plain, _ = policy.update(prior, lin)
+        assert batch.x.tobytes() == plain.x.tobytes() and binfo.nis_rows is None
+        np.testing.assert_allclose(post.P, batch.P, rtol=1e-12, atol=1e-14)
+    with pytest.raises(ValueError, match="Ekf.sequential"):
+        Ekf(motion, PositionFix(motion), sequential="yes")
+
+
+def test_stack_and_the_row_test_of_no_gate():
+    """``Linearisation.stack`` stacks rows with a block-diagonal ``R`` (linear only if every part
+    is); ``NoGate`` as a row test keeps every row with a defined statistic."""
+    a = Linearisation([1.0, 2.0], [0.5, 1.5], np.eye(2, 3), [[0.1, 0.02], [0.02, 0.2]], linear=True)
+    b = Linearisation([3.0], [2.5], [[0.0, 0.0, 1.0]], [[0.3]])
+    s = Linearisation.stack([a, b])
+    np.testing.assert_array_equal(s.z, [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(s.H, np.eye(3))
+    np.testing.assert_array_equal(s.R, [[0.1, 0.02, 0.0], [0.02, 0.2, 0.0], [0.0, 0.0, 0.3]])
+    assert not s.linear and Linearisation.stack([a, a]).linear
+    with pytest.raises(ValueError, match="at least one"):
+        Linearisation.stack([])
+    assert NoGate().threshold() == np.inf
+    np.testing.assert_array_equal(NoGate().keep([1e6, np.nan, 0.0], [1.0, 1.0, 1.0]), [True, False, True])
+    np.testing.assert_array_equal(ChiSquarePerMeasurement(0.99).keep([2.0, 3.0], [1.0, 1.0]),
+                                  [2.0 ** 2 <= chi2.ppf(0.99, 1), 3.0 ** 2 <= chi2.ppf(0.99, 1)])

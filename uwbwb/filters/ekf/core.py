@@ -7,6 +7,7 @@ from typing import Any, Protocol, Sequence
 
 import numpy as np
 import pandas as pd
+from scipy.linalg import block_diag
 
 from ...metrics import nees as _nees, nis_consistency
 from ...types import EstimateStatus, Estimates, Trajectory
@@ -67,6 +68,18 @@ class Linearisation:
         if keep.dtype == bool:
             keep = np.flatnonzero(keep)
         return replace(self, z=self.z[keep], h=self.h[keep], H=self.H[keep], R=self.R[np.ix_(keep, keep)])
+
+    @staticmethod
+    def stack(parts: Sequence["Linearisation"]) -> "Linearisation":
+        """Independent measurements of one epoch as one: ``z``, ``h`` and ``H`` stacked row-wise,
+        ``R = blockdiag(R₁, R₂, …)`` (no correlation between the parts); linear only when every
+        part is. The rows keep the parts' order, which a sequential update follows."""
+        parts = list(parts)
+        if not parts:
+            raise ValueError("Linearisation.stack needs at least one part")
+        return Linearisation(np.concatenate([a.z for a in parts]), np.concatenate([a.h for a in parts]),
+                             np.vstack([a.H for a in parts]), block_diag(*[a.R for a in parts]),
+                             all(a.linear for a in parts))
 
 
 class MeasurementModel(Protocol):
@@ -134,6 +147,11 @@ class Ekf:
     gate
         Gate policy (:mod:`uwbwb.filters.gating`); default: the one ``gate_prob`` and
         ``max_gated`` stand for.
+    sequential
+        Update with scalar rows one after the other (:func:`~uwbwb.filters.gating.ungated_update`
+        with ``sequential=True``: equal to the batch update in exact arithmetic for a linear
+        measurement, different by rounding; ``UpdateInfo.nis_rows`` reports each row's NIS)
+        instead of one batch update (default).
     """
 
     transition: TransitionModel
@@ -143,8 +161,11 @@ class Ekf:
     gate_prob: float | None = 0.9999
     max_gated: int = 10
     gate: GatePolicy | None = None
+    sequential: bool = False
 
     def __post_init__(self):
+        if self.sequential not in (True, False):
+            raise ValueError(f"Ekf.sequential must be True or False, got {self.sequential!r}")
         n = int(self.transition.n_x)
         if self.pos_index is None:
             layout = getattr(self.transition, "layout", None)
@@ -193,12 +214,14 @@ class Ekf:
             raise ValueError(f"Ekf.update: the measurement Jacobian has {lin.H.shape[1]} columns, "
                              f"the state {state.x.size} components")
         if not gate:
-            return ungated_update(state, lin)
+            return ungated_update(state, lin, sequential=self.sequential)
         parts = None
         if self.gate.needs_subsets:
             model = self.measurement
             parts = (model.components(measurement),
                      lambda keep: model.linearise_components(state.x, measurement, keep))
+        if self.sequential:     # passed only when asked for: a policy of one's own need not know it
+            return self.gate.update(state, lin, parts, sequential=True)
         return self.gate.update(state, lin, parts)
 
     def run(self, t_s, measurements: Sequence, x0: Gaussian, *, start: int = 0, name: str = "EKF") -> "KalmanRun":
