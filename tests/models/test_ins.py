@@ -211,3 +211,24 @@ def test_block_transition_equals_the_matrix_series(rng):
     dt = 0.05
     Adt = ins.error_dynamics(C, f) * dt
     np.testing.assert_allclose(ins.error_transition(C, f, dt), np.eye(15) + Adt + 0.5 * Adt @ Adt, atol=1e-14)
+
+
+def test_error_transition_model_gives_the_step_and_coast_matrices(rng):
+    """:class:`InsErrorTransition` is :func:`error_transition` with ``diag(qrate) Δt`` for an IMU
+    step and :func:`coast_transition` for a coast, to the bit; bad settings are refused."""
+    qrate = np.abs(rng.standard_normal(ins.N_ERR)) * 1e-4
+    qrate[:3] = 0.0
+    model = ins.InsErrorTransition(qrate, coast_acc_sigma_mps2=0.7, coast_rate_sigma_radps=0.1)
+    C = quat_to_dcm(quat_from_rotvec(rng.standard_normal(3)))
+    f_b = np.array([0.3, -0.2, 9.8])
+    F, Q = model.step(C, f_b, 0.01)
+    assert F.tobytes() == ins.error_transition(C, f_b, 0.01).tobytes()
+    assert Q.tobytes() == np.diag(qrate * 0.01).tobytes()
+    Fc, Qc = model.coast(0.25)
+    want_F, want_Q = ins.coast_transition(0.25, qrate, 0.7, 0.1)
+    assert Fc.tobytes() == want_F.tobytes() and Qc.tobytes() == want_Q.tobytes()
+    assert model.n_x == ins.N_ERR
+    with pytest.raises(ValueError, match="qrate_per_s"):
+        ins.InsErrorTransition(np.ones(9))
+    with pytest.raises(ValueError, match="coast_acc_sigma_mps2"):
+        ins.InsErrorTransition(qrate, coast_acc_sigma_mps2=-1.0)

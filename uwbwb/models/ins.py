@@ -60,6 +60,7 @@ __all__ = [
     "GRAVITY_MPS2", "N_ERR", "Mechanization", "NavState", "dcm_from_euler", "dcm_to_quat", "euler_from_dcm",
     "error_transition", "inject", "quat_convert", "quat_from_rotvec", "quat_multiply", "quat_to_dcm",
     "quat_to_rotvec", "reset_jacobian", "skew", "yaw_jacobian", "propagate", "coast", "coast_transition",
+    "InsErrorTransition",
 ]
 
 #: Standard gravity, m/s².
@@ -495,6 +496,56 @@ def coast_transition(dt_s: float, qrate, acc_sigma_mps2: float, rate_sigma_radps
     Q[V_, V_] += a2 * dt_s * np.eye(3)
     Q[TH_, TH_] += rate_sigma_radps ** 2 * dt_s * np.eye(3)
     return F, Q
+
+
+@dataclass(frozen=True)
+class InsErrorTransition:
+    """The error-state transition model of a strapdown INS: ``(F, Q)`` of one step of the 15-state
+    error ``δx = [δp, δv, δθ, δb_a, δb_g]`` (module docstring), for a step measured by the IMU
+    (:meth:`step`) and for a coast across an IMU gap (:meth:`coast`). An error-state filter
+    predicts with them, ``δx⁻ = F δx``, ``P⁻ = F P Fᵀ + Q`` (:func:`~uwbwb.filters.kalman.predict`),
+    after moving its nominal state with :class:`Mechanization`.
+
+    Attributes
+    ----------
+    qrate_per_s
+        Diagonal of ``G Q_c Gᵀ`` per second, ``(15,)``: the white-noise PSDs of the accelerometer
+        ((m/s²)²·s on δv, per second of step), the gyro (rad²/s on δθ) and the bias random walks
+        (on δb_a, δb_g); zero on δp. Isotropic noises make it independent of the attitude.
+    coast_acc_sigma_mps2, coast_rate_sigma_radps
+        The unknown acceleration and rotation rate assumed during a coast, as white noise of PSD
+        ``σ² · 1 s`` (:func:`coast_transition`).
+    """
+
+    qrate_per_s: np.ndarray
+    coast_acc_sigma_mps2: float = 1.0
+    coast_rate_sigma_radps: float = 0.2
+
+    n_x = N_ERR
+
+    def __post_init__(self):
+        q = np.array(self.qrate_per_s, float)
+        if q.shape != (N_ERR,) or not np.all(np.isfinite(q)) or np.any(q < 0):
+            raise ValueError(f"InsErrorTransition.qrate_per_s must be {N_ERR} finite non-negative numbers, "
+                             f"got shape {q.shape}")
+        for name in ("coast_acc_sigma_mps2", "coast_rate_sigma_radps"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
+                    or not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"InsErrorTransition.{name} must be a finite number >= 0, got {v!r}")
+        q.setflags(write=False)
+        object.__setattr__(self, "qrate_per_s", q)
+
+    def step(self, C, f_b, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(F, Q)`` of one IMU interval from the nominal attitude ``C`` (body → navigation, at
+        the interval's start) and bias-corrected specific force ``f_b`` (m/s², there):
+        ``F = I + A Δt + ½ (A Δt)²`` (:func:`error_transition`), ``Q = diag(qrate) Δt``."""
+        return error_transition(C, f_b, dt_s), np.diag(self.qrate_per_s * dt_s)
+
+    def coast(self, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(F, Q)`` of one step without IMU samples (:func:`coast_transition` with this model's
+        assumptions)."""
+        return coast_transition(dt_s, self.qrate_per_s, self.coast_acc_sigma_mps2, self.coast_rate_sigma_radps)
 
 
 @numba.njit(cache=True, nogil=True)
