@@ -8,6 +8,7 @@ import pytest
 from scipy.stats import chi2
 
 from uwbwb.filters import eskf
+from uwbwb.filters.eskf import tight as tight_module
 from uwbwb.filters.gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate
 from uwbwb.filters.tdoa_ls import tdoa_least_squares
 from uwbwb.models.imu import GRADES, ImuErrorModel
@@ -129,6 +130,29 @@ def test_compiled_run_equals_the_reference_loop(case):
         assert np.any(a.status == EstimateStatus.UPDATED)
     if case == "tight gate, short gated run":
         assert a.n_gated.sum() > 0 and np.any(a.status == EstimateStatus.GATED)
+
+
+def test_reference_is_the_transition_model_and_the_engines_sequential_update(monkeypatch):
+    """The reference predicts with :attr:`TightEskf.transition` (the INS error model with this
+    filter's noise and coast settings) and updates every epoch through the engine's sequential
+    update with the stacked error-state rows; the row test is :attr:`TightEskf.row_gate`."""
+    cfg = robot.RobotConfig(**CLEAN)
+    run = robot.simulate(_short(), cfg, rng=np.random.default_rng(2))
+    filt = _tight(cfg, q_scale=2.0, coast_acc_sigma_mps2=0.5)
+    model = filt.transition
+    assert isinstance(model, ins.InsErrorTransition) and model.coast_acc_sigma_mps2 == 0.5
+    assert model.qrate_per_s.tobytes() == filt.process_noise_rate().tobytes()
+    assert isinstance(filt.row_gate, ChiSquarePerMeasurement) and filt.row_gate.prob == filt.gate_prob
+    assert isinstance(replace(filt, gate_prob=None).row_gate, NoGate)
+    calls = []
+    engine = tight_module.ungated_update
+    monkeypatch.setattr(tight_module, "ungated_update",
+                        lambda state, lin, **kw: calls.append((lin.z.size, kw)) or engine(state, lin, **kw))
+    res = filt.run_reference(run.imu, run.tdoa, run.x0, heading=run.heading)
+    updated = res.status == EstimateStatus.UPDATED
+    assert len(calls) >= updated.sum() > 0 and all(kw == {"sequential": True} for _, kw in calls)
+    # UWB rows, heading and height in one stacked update per epoch
+    assert max(m for m, _ in calls) == res.dof.max() + 2
 
 
 def test_compiled_pieces_equal_the_model_functions(rng):

@@ -4,17 +4,18 @@ reference (:meth:`TightEskf.run_reference`) and the call of the compiled loop (:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ... import validate
 from ...models.imu import HeadingLog, ImuErrorModel
-from ...models.ins import (BA_, BG_, N_ERR, P_, TH_, V_, Mechanization, NavState, _dcm, _yaw, coast_transition,
-                           error_transition, inject, reset_jacobian, yaw_jacobian)
+from ...models.ins import (BA_, BG_, N_ERR, P_, TH_, V_, InsErrorTransition, Mechanization, NavState, _dcm, _yaw,
+                           inject, reset_jacobian, yaw_jacobian)
 from ...types import EstimateStatus, ImuLog, RangeLog, TdoaLog
 from .. import kalman
-from ..gating import ChiSquarePerMeasurement
+from ..ekf import Linearisation
+from ..gating import ChiSquarePerMeasurement, NoGate, ungated_update
 from ..kalman import Gaussian
 from .common import _DEG, _ITER_TOL_M, HEADING_KNOWN_RAD, LOST_BUILD_S, _lever, gap_timeline
 from .kernels import INTS, SCALARS, _tight_loop
@@ -36,6 +37,26 @@ def _checked_covariance(P0) -> np.ndarray:
 @dataclass(frozen=True)
 class TightEskf:
     """Tightly coupled 15-state error-state filter (module docstring).
+
+    Its Python definition (:meth:`run_reference`) is a model, the Gaussian engine and options:
+
+    * **model** — the nominal state moves with :class:`~uwbwb.models.ins.Mechanization`; the error
+      state ``δx`` is predicted by the engine (:func:`~uwbwb.filters.kalman.predict`) with the
+      ``(F, Q)`` of :attr:`transition` (:class:`~uwbwb.models.ins.InsErrorTransition`: an IMU step,
+      or a coast across an IMU gap); after each epoch ``δx`` is injected into the nominal state and
+      reset, ``P ← G P Gᵀ`` (closed loop).
+    * **measurements** — per epoch, the UWB rows the gate keeps (``uwb.linearise`` at the nominal
+      tag position), the heading and the known height, each a
+      :class:`~uwbwb.filters.ekf.Linearisation` in error-state form (predicted measurement
+      ``h(x̂) + H δx``), stacked (:meth:`Linearisation.stack`) and applied by the engine's
+      sequential update (:func:`~uwbwb.filters.gating.ungated_update` with ``sequential=True``);
+      the epoch's NIS is the sum of the UWB rows' ``UpdateInfo.nis_rows``. An iterated update
+      re-linearises the UWB rows and goes through the same route.
+    * **options** — the row test is :attr:`row_gate` (``keep`` / ``threshold``); the start-up
+      engagement (``gate_yaw_sigma_rad``) and the lost-lock release (``max_gated``, with the
+      inflation of :meth:`lost_lock_variance`) are this filter's own rules, described below.
+
+    The compiled loop (:func:`~.kernels._tight_loop`) does the same arithmetic in one function.
 
     Attributes
     ----------
@@ -193,6 +214,21 @@ class TightEskf:
         q[BG_] = m.gyro_bias_rw ** 2
         return q * self.q_scale
 
+    @property
+    def transition(self) -> InsErrorTransition:
+        """The error-state transition model: :meth:`process_noise_rate` and the coast assumptions."""
+        return InsErrorTransition(self.process_noise_rate(), self.coast_acc_sigma_mps2, self.coast_rate_sigma_radps)
+
+    @property
+    def row_gate(self) -> ChiSquarePerMeasurement | NoGate:
+        """The per-row test: :class:`~uwbwb.filters.gating.ChiSquarePerMeasurement` (``gate_prob``)
+        or, without a gate, :class:`~uwbwb.filters.gating.NoGate`. Only its decision part is read
+        (``keep``, ``threshold``); when it applies (start-up engagement) and when it is released
+        (lost lock) are this filter's rules, not the policy's ``active``."""
+        if self.gate_prob is None:
+            return NoGate(max_gated=self.max_gated)
+        return ChiSquarePerMeasurement(self.gate_prob, max_gated=self.max_gated)
+
     # ---------------------------------------------------------------- run
     def run(self, imu: ImuLog, uwb: TdoaLog | RangeLog | None, x0: NavState, *, t_s: np.ndarray | None = None,
             heading: HeadingLog | None = None, acc_bias0=None, gyro_bias0=None, P0=None, name: str | None = None,
@@ -219,11 +255,12 @@ class TightEskf:
             the covariance a heading alignment ended with: a filter started from another filter's
             state should inherit how well that state is known.
         reference_step
-            Same as :meth:`run_reference` (kept as an alias): run the straightforward form, step by step in Python (the mechanization and
-            :func:`kalman.predict` at every IMU step, the measurement models and
-            :func:`kalman.update_sequential` at every epoch; for benchmarks and tests) instead
-            of the compiled loop (:func:`_tight_loop`: the accumulated transition once per
-            epoch, same updates); results are identical up to rounding (tested).
+            Same as :meth:`run_reference` (kept as an alias): run the straightforward form, step
+            by step in Python (the mechanization and the engine's predict with :attr:`transition`
+            at every IMU step, the epoch's rows through the engine's sequential update; for
+            benchmarks and tests) instead of the compiled loop (:func:`_tight_loop`: the
+            accumulated transition once per epoch, same updates); results are identical up to
+            rounding (tested).
         """
         t_ep = (imu.t_s if t_s is None else np.asarray(t_s, float)) if uwb is None else uwb.t_s
         T = t_ep.size
@@ -248,8 +285,9 @@ class TightEskf:
         dx = np.zeros(N_ERR)
         P = self.initial_covariance() if P0 is None else _checked_covariance(P0)
         qrate = self.process_noise_rate()
+        transition, gate = self.transition, self.row_gate     # the error-state model and the row test
         # the row test of the per-measurement policy (its decision part; the release rule is this filter's own)
-        gate1 = ChiSquarePerMeasurement(self.gate_prob).threshold() if self.gate_prob is not None else np.inf
+        gate1 = gate.threshold()
         sig_yaw = self.imu_model.mag_heading_sigma_rad
         gated_run, clean_run = 0, 0
         engaged = bool(P[8, 8] <= HEADING_KNOWN_RAD ** 2)
@@ -264,21 +302,20 @@ class TightEskf:
                                fix_tag, coasting)
             out["n_outliers"][:] = n_out_all
             return FusionRun(t_ep.copy(), name=name, meta=meta, **out)
-        # The reference form, step by step in Python: mechanization and filterpy predict at every
-        # IMU step, then the epoch's update through the measurement models and kalman.update_sequential.
+        # The reference form, step by step in Python: mechanization and the engine's predict with the
+        # transition model at every IMU step, then the epoch's rows through the engine's sequential update.
         last = 0
         for i in np.flatnonzero(ep_at >= 0):
             for j in range(last + 1, i + 1):
                 dt = t[j] - t[j - 1]
                 if coasting[j]:                           # inside an IMU gap: coast
                     p = p + v * dt
-                    F, Q = coast_transition(dt, qrate, self.coast_acc_sigma_mps2, self.coast_rate_sigma_radps)
-                    st = kalman.predict(Gaussian(dx, P), F, Q)
-                    dx, P = st.x, st.P
-                    continue
-                f0, f1 = acc[j - 1] - ba, acc[j] - ba
-                p, v, q, C0, _ = mech.step(p, v, q, f0, f1, gyro[j - 1] - bg, gyro[j] - bg, dt)
-                st = kalman.predict(Gaussian(dx, P), error_transition(C0, f0, dt), np.diag(qrate * dt))
+                    F, Q = transition.coast(dt)
+                else:
+                    f0, f1 = acc[j - 1] - ba, acc[j] - ba
+                    p, v, q, C0, _ = mech.step(p, v, q, f0, f1, gyro[j - 1] - bg, gyro[j] - bg, dt)
+                    F, Q = transition.step(C0, f0, dt)
+                st = kalman.predict(Gaussian(dx, P), F, Q)
                 dx, P = st.x, st.P
             last = i
             k = ep_at[i]
@@ -286,7 +323,7 @@ class TightEskf:
             J_tag = _tag_jacobian(C, lever)
             tag = p + C @ lever
             far = np.sqrt(np.trace(J_tag @ P @ J_tag.T)) > self.iterate_sigma_m   # before any lost-lock inflation
-            parts = []                                   # (z, h, H, R) blocks used this epoch
+            parts = []                                   # the epoch's rows used, error-state Linearisations
             n_gated, n_out = 0, int(n_out_all[k])
             uwb_used = 0
             keep = None
@@ -296,36 +333,32 @@ class TightEskf:
                     y = lin.z - lin.h - lin.H @ dx
                     if gated_run >= self.max_gated:         # lock lost: admit it, then re-acquire ungated
                         P = P + np.diag(self.lost_lock_variance(float(np.mean(y * y))))
-                    R = lin.R * self.r_scale
-                    s = np.einsum("ij,jk,ik->i", lin.H, P, lin.H) + np.diag(R)
-                    test = y * y / s <= gate1
+                    lin = replace(lin, R=lin.R * self.r_scale)
+                    s = np.einsum("ij,jk,ik->i", lin.H, P, lin.H) + np.diag(lin.R)
+                    test = gate.keep(y, s)
                     keep = test if engaged and gated_run < self.max_gated else np.ones(y.size, bool)
                     if not engaged:                       # start-up: is the heading resolved?
                         clean_run = clean_run + 1 if 2 * int((~test).sum()) < y.size else 0
                         engaged = clean_run >= self.max_gated and P[8, 8] <= self.gate_yaw_sigma_rad ** 2
                     n_gated = int((~keep).sum())
                     if keep.any():
-                        parts.append((lin.z[keep], lin.h[keep] + lin.H[keep] @ dx, lin.H[keep],
-                                      R[np.ix_(keep, keep)]))
+                        parts.append(_error_form(lin.rows(keep), dx))
                         uwb_used = int(keep.sum())
                     lost = n_gated >= uwb_used and self.feedback
                     gated_run = gated_run + 1 if (n_gated and lost) else 0
             if np.isfinite(yaw_meas[k]) and sig_yaw > 0:
                 Hy = np.zeros(N_ERR)
                 Hy[TH_] = yaw_jacobian(C)
-                resid = _wrap(yaw_meas[k] - _yaw(C))
-                parts.append((np.array([resid]), np.array([Hy @ dx]), Hy[None], np.array([[sig_yaw ** 2]])))
+                resid = _wrap(yaw_meas[k] - _yaw(C))     # z − h(x̂), wrapped; h(x̂) + H δx − h(x̂) = H δx
+                parts.append(Linearisation(np.array([resid]), np.array([Hy @ dx]), Hy[None],
+                                           np.array([[sig_yaw ** 2]])))
             if self.height_m is not None:
-                parts.append((np.array([self.height_m]), np.array([tag[2] + J_tag[2] @ dx]), J_tag[2:3],
-                              np.array([[self.height_sigma_m ** 2]])))
+                parts.append(Linearisation(np.array([self.height_m]), np.array([tag[2] + J_tag[2] @ dx]),
+                                           J_tag[2:3], np.array([[self.height_sigma_m ** 2]])))
             nis, dof = np.nan, 0
             if parts:
-                z = np.concatenate([a[0] for a in parts])
-                h = np.concatenate([a[1] for a in parts])
-                H = np.vstack([a[2] for a in parts])
-                R = _block_diag([a[3] for a in parts])
-                st, nis_parts = kalman.update_sequential(Gaussian(dx, P), z, H, R, h_x=h)
-                nis = float(nis_parts[:uwb_used].sum()) if uwb_used else np.nan
+                st, info = ungated_update(Gaussian(dx, P), Linearisation.stack(parts), sequential=True)
+                nis = float(info.nis_rows[:uwb_used].sum()) if uwb_used else np.nan
                 dof = uwb_used
                 if uwb_used and far:
                     # iterated update (IEKF): relinearise the UWB rows at the updated tag position
@@ -334,11 +367,12 @@ class TightEskf:
                         if it == 0 and np.all(np.isfinite(fix_tag[k])):   # start at the snapshot fix
                             d = dx.copy()
                             d[P_] = fix_tag[k] - tag - J_tag[:, TH_] @ dx[TH_]
-                        li = self.uwb.linearise(tag + d[P_] + J_tag[:, TH_] @ d[TH_], J_tag, rows[k], int(refs[k]))
-                        zi, hi, Hi = li.z[keep], li.h[keep], li.H[keep]
-                        h[:uwb_used] = hi + Hi @ (dx - d)     # y_i = z − h(x_i) − H_i (dx − δx_i) − H_i dx
-                        H[:uwb_used] = Hi
-                        st, _ = kalman.update_sequential(Gaussian(dx, P), z, H, R, h_x=h)
+                        li = self.uwb.linearise(tag + d[P_] + J_tag[:, TH_] @ d[TH_], J_tag, rows[k],
+                                                int(refs[k])).rows(keep)
+                        # at x̂ ⊕ δx_i: h(x_i) + H_i (δx − δx_i), so y = z − h(x_i) − H_i (δx − δx_i) − H_i δx
+                        # (z and the scaled R of the first pass)
+                        parts[0] = _error_form(replace(li, z=parts[0].z, R=parts[0].R), dx - d)
+                        st, _ = ungated_update(Gaussian(dx, P), Linearisation.stack(parts), sequential=True)
                         if np.max(np.abs(st.x[P_] - d[P_])) < _ITER_TOL_M:
                             break
                 dx, P = st.x, st.P
@@ -367,10 +401,14 @@ class TightEskf:
     def run_reference(self, imu: ImuLog, uwb: TdoaLog | RangeLog | None, x0: NavState, *,
                       t_s: np.ndarray | None = None, heading: HeadingLog | None = None, acc_bias0=None,
                       gyro_bias0=None, P0=None, name: str | None = None) -> FusionRun:
-        """The Python definition of :meth:`run` (its ``reference_step=True``): the mechanization
-        and :func:`kalman.predict` at every IMU step, the measurement models and
-        :func:`kalman.update_sequential` at every epoch. The compiled loop must equal it to
-        rounding (the twin tests)."""
+        """The Python definition of :meth:`run` (its ``reference_step=True``), as model + engine +
+        options (class docstring): per IMU step the mechanization and
+        :func:`kalman.predict <uwbwb.filters.kalman.predict>` with ``transition.step`` /
+        ``transition.coast``; per epoch the rows :attr:`row_gate` keeps, the heading and the height
+        as error-state :class:`~uwbwb.filters.ekf.Linearisation` objects, stacked and applied by
+        :func:`~uwbwb.filters.gating.ungated_update` with ``sequential=True``
+        (:func:`kalman.update_sequential <uwbwb.filters.kalman.update_sequential>`); then the
+        injection and reset. The compiled loop must equal it to rounding (the twin tests)."""
         return self.run(imu, uwb, x0, t_s=t_s, heading=heading, acc_bias0=acc_bias0, gyro_bias0=gyro_bias0,
                         P0=P0, name=name, reference_step=True)
 
@@ -419,12 +457,8 @@ class TightEskf:
             raise ValueError("update_sequential: R must be symmetric positive definite")
 
 
-def _block_diag(blocks) -> np.ndarray:
-    n = sum(b.shape[0] for b in blocks)
-    out = np.zeros((n, n))
-    i = 0
-    for b in blocks:
-        m = b.shape[0]
-        out[i:i + m, i:i + m] = b
-        i += m
-    return out
+def _error_form(lin: Linearisation, dx: np.ndarray) -> Linearisation:
+    """Rows linearised at the nominal state ``x̂``, in error-state form about the error mean ``δx``:
+    the predicted measurement ``h(x̂) + H δx`` (``z``, ``H``, ``R`` unchanged), so that the engine's
+    update of ``δx`` forms the innovation ``z − h(x̂) − H δx``."""
+    return replace(lin, h=lin.h + lin.H @ dx)
