@@ -44,6 +44,7 @@ from ...filters.ekf import KalmanRun, TdoaEkf
 from ...filters.tdoa_ls import tdoa_least_squares
 from ...models.motion import MOTION_MODELS, make_motion_model
 from ...models.tdoa import TdoaModel
+from ...scoreboard.estimators import EKF_GRIDS
 from ...sim import walk
 from ...types import Recording, TagRun, TdoaLog, Trajectory
 
@@ -60,9 +61,10 @@ __all__ = [
 ]
 
 
-#: Default calibration grids of the driving standard deviation (model units), log-spaced.
-DEFAULT_GRIDS = {"RW": np.geomspace(0.05, 5.0, 11), "RF": np.geomspace(0.05, 20.0, 11),
-                 "RJ": np.geomspace(0.05, 100.0, 11)}
+#: Default calibration grids of the driving standard deviation (model units), log-spaced over the
+#: same spans as the scoreboard's EKF grids (:data:`~uwbwb.scoreboard.estimators.EKF_GRIDS`: the spans are
+#: written once, so notebooks 03 and 06 tune the same EKF over the same range), 11 values each.
+DEFAULT_GRIDS = {m: np.geomspace(g[0], g[-1], 11) for m, g in EKF_GRIDS.items()}
 
 
 # --------------------------------------------------------------------------- inputs
