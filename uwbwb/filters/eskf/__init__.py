@@ -13,8 +13,12 @@ squares after the eq-4 test); ``V_uwb`` is its backward difference over ``vel_wi
 epochs, ``(P_k − P_{k−w}) / (t_k − t_{k−w})``. The INS attitude comes, as in the paper's
 IMU, from the gyro with a complementary correction towards accelerometer levelling and,
 where there is one, the magnetometer heading (time constant ``attitude_tau_s``); the
-filter does not estimate attitude or sensor biases. Closed loop: the estimated errors are
-subtracted from the INS position and velocity and the error state is reset to zero.
+filter does not estimate attitude or sensor biases. The update is the Gaussian engine's
+(:func:`~uwbwb.filters.gating.ungated_update` on a linear
+:class:`~uwbwb.filters.ekf.Linearisation`), gated by an injected per-epoch policy
+(:class:`~uwbwb.filters.gating.NoGate` or :class:`~uwbwb.filters.gating.ChiSquareEpoch`). Closed
+loop: the estimated errors are subtracted from the INS position and velocity and the error
+state is reset to zero.
 
 **Tight.** Error state ``[δp, δv, δθ, δb_a, δb_g]`` (15; :mod:`uwbwb.models.ins`),
 propagated with the IMU (``F = I + AΔt + ½(AΔt)²``, ``Q`` from the

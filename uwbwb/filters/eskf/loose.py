@@ -18,7 +18,7 @@ from ...models.ins import N_ERR, Mechanization, NavState, _dcm, _exp_left, _yaw,
 from ...types import Estimates, EstimateStatus, ImuLog
 from .. import kalman
 from ..ekf import Linearisation
-from ..gating import GatePolicy, gate_policy, ungated_update
+from ..gating import ChiSquareEpoch, GatePolicy, NoGate, gate_policy, ungated_update
 from ..kalman import Gaussian
 from .common import LOST_BUILD_S, _lever, gap_timeline
 from .result import FusionRun, _empty, _wrap
@@ -36,13 +36,6 @@ def _consistent(innovations: list) -> bool:
     m = y.mean(axis=0)
     step2 = float(np.mean(np.sum(np.diff(y, axis=0) ** 2, axis=1))) if len(y) > 1 else 0.0
     return bool(m @ m > step2)
-
-
-def _rows(lin: Linearisation):
-    """``(components, relinearise)`` of the loose filter's measurement for a gate that drops
-    components (:class:`~uwbwb.filters.gating.AnchorDropping`): its rows, and the marginal of
-    any subset of them (:meth:`Linearisation.rows`; the measurement is linear)."""
-    return np.arange(lin.z.size), lin.rows
 
 
 _DEFAULT_GATE = (None, 25)      # LooseFilter's gate_prob, max_gated defaults
@@ -85,12 +78,14 @@ class LooseFilter:
     gate
         Gate policy (:mod:`uwbwb.filters.gating`) on the linear measurement of the fix (rows:
         position, then velocity; :attr:`gate_policy`); None: the one ``gate_prob`` and
-        ``max_gated`` stand for. Any policy fits (a per-row test or row dropping uses the rest
-        of the fix). A fix whose epoch is gated does not enter the velocity difference;
-        ``n_gated`` is 1 for a gated epoch, else the rows the gate removed; the NIS of a gated
-        epoch is not reported (NaN, ``dof`` 0). The policy's release rule uses the fix after
-        ``max_gated`` gated epochs; before it this filter's own lost-lock rule widens ``P``
-        (:meth:`lost_lock_variance`).
+        ``max_gated`` stand for. The policy must decide per epoch (:class:`~uwbwb.filters.gating.NoGate`
+        or :class:`~uwbwb.filters.gating.ChiSquareEpoch`; its own ``max_gated`` applies): the rows are
+        one fix and a velocity differenced from the same fixes, so a per-row decision would keep a
+        rejected fix in the velocity difference and, by updating with the remaining rows, never
+        count the epoch towards the release. A gated fix does not enter the velocity difference;
+        ``n_gated`` is 1 for a gated epoch; its NIS is not reported (NaN, ``dof`` 0). The policy's
+        release rule uses the fix after ``max_gated`` gated epochs; before it this filter's own
+        lost-lock rule widens ``P`` (:meth:`lost_lock_variance`).
     max_imu_gap_s
         An interval between IMU samples longer than this is a gap: the INS coasts across it
         (:func:`~uwbwb.models.ins.coast`, as :class:`~uwbwb.filters.eskf.TightEskf` does: velocity
@@ -142,6 +137,10 @@ class LooseFilter:
             validate.probability("LooseFilter.gate_prob", self.gate_prob)
         validate.integer("LooseFilter.max_gated", self.max_gated, minimum=0)
         policy = self.gate_policy
+        if not isinstance(policy, (NoGate, ChiSquareEpoch)):
+            raise ValueError(f"LooseFilter.gate must decide per epoch (NoGate or ChiSquareEpoch), got "
+                             f"{type(policy).__name__}: the fix's position and differenced-velocity rows come "
+                             f"from the same fixes, so a fix cannot be used in part")
         if self.gate is not None:                       # mirror the given policy (as Ekf does)
             object.__setattr__(self, "gate_prob", getattr(policy, "prob", None))
             object.__setattr__(self, "max_gated", policy.max_gated)
@@ -273,7 +272,7 @@ class LooseFilter:
                     P = P + np.diag(self.lost_lock_variance(float(np.mean(y * y))))
                 lin = Linearisation(z, H @ dx, H, Rk, linear=True)      # eq 6: z = H δx + v
                 if gate.active(gated_run):
-                    st, info = gate.update(Gaussian(dx, P), lin, _rows(lin) if gate.needs_subsets else None)
+                    st, info = gate.update(Gaussian(dx, P), lin, None)
                 else:
                     st, info = ungated_update(Gaussian(dx, P), lin)
                 if info.status == EstimateStatus.GATED:
@@ -287,7 +286,6 @@ class LooseFilter:
                     gated_run, gated_y = 0, []
                     dx, P = st.x, st.P
                     nis, dof, status = info.nis, info.dof, EstimateStatus.UPDATED
-                    out["n_gated"][k] = info.n_rejected
                 hist_t, hist_p = hist_t[-self.vel_window - 1:], hist_p[-self.vel_window - 1:]
             if self.feedback:
                 p[:d] -= dx[:d]
