@@ -1,5 +1,7 @@
 """The generic EKF: linear-case exactness, RTS smoother, NEES/NIS consistency, gating, results."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -254,6 +256,10 @@ def test_position_components_default_to_the_transition_models_declared_layout():
         def Q(self, dt_s):
             return np.eye(4)
 
+    two_d = Ekf(RandomForce(1.0, dim=2), PositionFix(RandomForce(1.0)))
+    with pytest.raises(ValueError, match="layout has 3"):       # a resolved default does not follow a new model
+        replace(two_d, transition=RandomForce(1.0, dim=3))
+    assert replace(two_d, transition=RandomForce(1.0, dim=3), pos_index=None).pos_index == (0, 1, 2)
     with pytest.raises(ValueError, match="declares no state layout"):
         Ekf(NoLayout(), PositionFix(RandomForce(1.0)))
     assert Ekf(NoLayout(), PositionFix(RandomForce(1.0)), (0, 1)).vel_index is None

@@ -289,3 +289,15 @@ def test_stack_and_the_row_test_of_no_gate():
     np.testing.assert_array_equal(NoGate().keep([1e6, np.nan, 0.0], [1.0, 1.0, 1.0]), [True, False, True])
     np.testing.assert_array_equal(ChiSquarePerMeasurement(0.99).keep([2.0, 3.0], [1.0, 1.0]),
                                   [2.0 ** 2 <= chi2.ppf(0.99, 1), 3.0 ** 2 <= chi2.ppf(0.99, 1)])
+
+
+def test_numpy_scalar_probabilities_are_accepted_and_stored_as_float():
+    for policy in (ChiSquareEpoch(np.float32(0.99)), ChiSquarePerMeasurement(np.float64(0.99)),
+                   AnchorDropping(np.float32(0.99))):
+        assert type(policy.prob) is float and abs(policy.prob - 0.99) < 1e-6
+    assert type(gate_from_prob(np.float32(0.999), 10, "Owner").prob) is float
+    for bad in (np.True_, True, 1.0, np.float64(np.nan), "0.9"):
+        with pytest.raises(ValueError, match="must be in"):
+            ChiSquareEpoch(bad)
+        with pytest.raises(ValueError, match="Owner.gate_prob"):
+            gate_from_prob(bad, 10, "Owner")

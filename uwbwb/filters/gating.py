@@ -60,6 +60,7 @@ engagement and release rule) and updates with the rows kept through
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Callable, Protocol
@@ -99,6 +100,10 @@ class UpdateInfo:
         decorrelating a non-diagonal ``R``): ``y'_i² / s_i`` with ``y'_i`` the row's innovation
         against the mean the rows before it left and ``s_i = h_iᵀ P_{i−1} h_i + r_i``. They sum to
         :attr:`nis`. None for a batch update.
+
+    Equality and ``repr`` compare ``nis``, ``dof``, ``status`` and ``n_rejected`` only: the arrays
+    behind them (``innovation``, ``nis_rows``) are diagnostics, so two infos that compare equal may
+    differ in :attr:`log_likelihood`.
     """
 
     nis: float
@@ -197,8 +202,13 @@ def _is_int(value, minimum: int) -> bool:
     return not isinstance(value, bool) and isinstance(value, (int, np.integer)) and value >= minimum
 
 
+def _is_prob(p) -> bool:
+    """``p`` is a real number (NumPy scalars included, not a bool) strictly between 0 and 1."""
+    return isinstance(p, numbers.Real) and not isinstance(p, (bool, np.bool_)) and 0 < p < 1
+
+
 def _check(owner: str, prob, max_gated, min_rows=None) -> None:
-    if prob is not None and not (isinstance(prob, (int, float)) and not isinstance(prob, bool) and 0 < prob < 1):
+    if prob is not None and not _is_prob(prob):
         raise ValueError(f"{owner}.prob must be in (0, 1), got {prob!r}")
     if not _is_int(max_gated, 0):
         raise ValueError(f"{owner}.max_gated must be an integer >= 0, got {max_gated!r}")
@@ -275,6 +285,7 @@ class ChiSquareEpoch(_Release):
 
     def __post_init__(self):
         _check("ChiSquareEpoch", self.prob, self.max_gated)
+        object.__setattr__(self, "prob", float(self.prob))
 
     def threshold(self, m: int) -> float:
         """The NIS above which an ``m``-component epoch is rejected."""
@@ -306,6 +317,7 @@ class ChiSquarePerMeasurement(_RowTest, _Release):
 
     def __post_init__(self):
         _check("ChiSquarePerMeasurement", self.prob, self.max_gated, self.min_rows)
+        object.__setattr__(self, "prob", float(self.prob))
 
     def threshold(self) -> float:
         """The ``y_i² / S_ii`` above which a row is rejected, ``χ²_1⁻¹(prob)``."""
@@ -343,6 +355,7 @@ class AnchorDropping(_Release):
 
     def __post_init__(self):
         _check("AnchorDropping", self.prob, self.max_gated, self.min_rows)
+        object.__setattr__(self, "prob", float(self.prob))
 
     def update(self, state: Gaussian, lin, parts: Parts | None = None, *,
                sequential: bool = False) -> tuple[Gaussian, UpdateInfo]:
@@ -382,11 +395,10 @@ def gate_policy(owner: str, gate, gate_prob: float | None, max_gated: int, defau
 
 def gate_from_prob(gate_prob: float | None, max_gated: int, owner: str, *, kind=ChiSquareEpoch, **settings):
     """The policy a ``gate_prob`` setting stands for: None → :class:`NoGate`, else ``kind(gate_prob, ...)``."""
-    if gate_prob is not None and not (isinstance(gate_prob, (int, float)) and not isinstance(gate_prob, bool)
-                                      and 0 < gate_prob < 1):
+    if gate_prob is not None and not _is_prob(gate_prob):
         raise ValueError(f"{owner}.gate_prob must be in (0, 1) or None (no gate), got {gate_prob!r}")
     if not _is_int(max_gated, 0):
         raise ValueError(f"{owner}.max_gated must be an integer >= 0, got {max_gated!r}")
     if gate_prob is None:
         return NoGate(max_gated=max_gated)
-    return kind(prob=gate_prob, max_gated=max_gated, **settings)
+    return kind(prob=float(gate_prob), max_gated=max_gated, **settings)

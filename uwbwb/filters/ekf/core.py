@@ -167,8 +167,8 @@ class Ekf:
         if self.sequential not in (True, False):
             raise ValueError(f"Ekf.sequential must be True or False, got {self.sequential!r}")
         n = int(self.transition.n_x)
+        layout = getattr(self.transition, "layout", None)
         if self.pos_index is None:
-            layout = getattr(self.transition, "layout", None)
             if layout is None:
                 raise ValueError(f"Ekf: give pos_index (the transition model {type(self.transition).__name__} "
                                  f"declares no state layout)")
@@ -176,6 +176,10 @@ class Ekf:
         pos = tuple(int(i) for i in self.pos_index)
         if len(pos) not in (2, 3) or not all(0 <= i < n for i in pos):
             raise ValueError(f"Ekf.pos_index must name 2 or 3 of the {n} state components, got {self.pos_index!r}")
+        if layout is not None and len(pos) != layout.dim:
+            # e.g. dataclasses.replace(ekf, transition=<a 3-D model>) keeps the 2-D pos_index it resolved
+            raise ValueError(f"Ekf.pos_index {pos} names {len(pos)} coordinates, the transition model's layout has "
+                             f"{layout.dim} ({layout.labels}); give pos_index=None to take the layout's")
         object.__setattr__(self, "pos_index", pos)
         if self.vel_index is not None:
             vel = tuple(int(i) for i in self.vel_index)
