@@ -36,7 +36,8 @@ class FusionRun:
     nis, dof
         Sum of the epoch's update NIS and the number of scalar updates used.
     n_outliers, n_gated
-        Per epoch: TDoAs (or fixes) rejected by the eq-4 test, and by the χ² gate.
+        Per epoch: TDoAs (or fixes) rejected by the eq-4 test, and by the χ² gate — the tight filter's
+        rejected TDoA rows, the loose filter's rejected fix (1: its gate decides per epoch).
     status
         :class:`~uwbwb.types.EstimateStatus` codes ``(T,)``.
     name
