@@ -4,6 +4,9 @@ and the reproduction summary table.
 * :mod:`.errors` — per-epoch errors, ECDF, CEP, RMSE, :func:`epoch_summary` (accuracy on common epochs,
   coverage beside it), :func:`block_bootstrap_difference` (paired RMSE difference with its interval);
   its docstring states the missing-value and quantile rules.
+* :mod:`.scoring` — :func:`score_epochs` (per-method errors on one epoch grid → :class:`EpochScores`:
+  each method's own epochs, the common epochs, coverage and the statistics asked for on either),
+  :func:`pool_scores` (grids pooled per method), :func:`errors_on_grid` (own time grids → one grid).
 * :mod:`.consistency` — :func:`nees` and :func:`nis_consistency`, the one place where a filter's
   covariances are held to its errors and innovations.
 * :mod:`.summary` — :class:`Summary` (headline numbers of a notebook, each with its kind and mode) and
@@ -13,10 +16,11 @@ and the reproduction summary table.
 from .consistency import nees, nis_consistency
 from .errors import (ErrorSeries, _errors, block_bootstrap_difference, cep, cep50, cep95, ecdf, epoch_summary,
                      error_stats, errors_vs_truth, position_error_m, rmse)
+from .scoring import EpochScores, MethodEpochs, errors_on_grid, pool_scores, score_epochs
 from .summary import Headline, Summary
 
 __all__ = [
     "ErrorSeries", "Summary", "cep", "cep50", "cep95", "ecdf", "epoch_summary", "error_stats", "errors_vs_truth",
     "nees", "nis_consistency", "position_error_m", "rmse", "block_bootstrap_difference",
-    "Headline",
+    "Headline", "EpochScores", "MethodEpochs", "errors_on_grid", "pool_scores", "score_epochs",
 ]

@@ -29,6 +29,7 @@ import numpy as np
 import pandas as pd
 
 from ..types import Trajectory
+from .scoring import score_epochs
 
 
 
@@ -299,18 +300,19 @@ def epoch_summary(epochs: pd.DataFrame, *, by: str = "estimator", order: Sequenc
         ``median_m`` and ``p90_m`` over the covered epochs, and ``p90_failed_counted_m``
         -- the 90th percentile (inverted CDF) when an epoch without a position counts
         as an unbounded error (``inf`` below 90 % coverage).
+
+    Notes
+    -----
+    Scored by :func:`uwbwb.metrics.score_epochs` with each estimator on its own rows
+    (``compare=False``): the table is expected to hold the same epochs for every estimator already.
     """
-    rows = []
     names = list(dict.fromkeys(epochs[by]))
-    for h in [h for h in order if h in names] + [h for h in names if h not in order]:
-        e = epochs.loc[epochs[by] == h, "err_m"].to_numpy(float)
-        ok = np.isfinite(e)
-        rows.append({by: h, "n_epochs": e.size, "coverage": ok.mean() if e.size else np.nan,
-                     "median_m": np.median(e[ok]) if ok.any() else np.nan,
-                     "p90_m": np.quantile(e[ok], 0.9) if ok.any() else np.nan,
-                     "p90_failed_counted_m": (np.quantile(np.where(ok, e, np.inf), 0.9, method="inverted_cdf")
-                                                 if e.size else np.nan)})
-    return pd.DataFrame(rows).set_index(by)
+    ordered = [h for h in order if h in names] + [h for h in names if h not in order]
+    scores = score_epochs({h: epochs.loc[epochs[by] == h, "err_m"].to_numpy(float) for h in ordered}, compare=False)
+    table = scores.table(own={"median_m": np.median, "p90_m": lambda e: np.quantile(e, 0.9)},
+                         failed_counted={"p90_failed_counted_m": lambda e: np.quantile(e, 0.9, method="inverted_cdf")},
+                         index=by)
+    return table[["n_epochs", "coverage", "median_m", "p90_m", "p90_failed_counted_m"]]
 
 
 def block_bootstrap_difference(err_a: np.ndarray, err_b: np.ndarray, *, rng: np.random.Generator,

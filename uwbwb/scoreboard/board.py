@@ -247,16 +247,24 @@ class Board:
         """Entries that ran (optionally of one tag)."""
         return [e for e in self.entries if e.skipped is None and (tag is None or e.tag == tag)]
 
+    def scores(self, tag: str) -> metrics.EpochScores:
+        """The methods that ran on ``tag`` on its epochs (:func:`uwbwb.metrics.score_epochs`: each
+        scored where truth exists and it has an estimate; common = every method that ran there)."""
+        ents = self.ran(tag)
+        return metrics.score_epochs({e.method: e.error_m for e in ents}, {e.method: e.scoring for e in ents})
+
+    def _pooled(self, ents: list[Entry]) -> metrics.MethodEpochs:
+        """One method's entries pooled over their tags, in the entries' order."""
+        return metrics.pool_scores([self.scores(e.tag) for e in ents])[ents[0].method]
+
     def errors(self, tag: str | None = None) -> dict[str, np.ndarray]:
         """Method → scored horizontal errors (pooled over tags, or of one tag), metres."""
-        out: dict[str, list] = {}
-        for e in self.ran(tag):
-            out.setdefault(e.method, []).append(e.error_m[e.scored])
-        return {m: np.concatenate(v) for m, v in out.items()}
+        ran = self.ran(tag)
+        return {m: self._pooled([e for e in ran if e.method == m]).own_m for m in dict.fromkeys(e.method for e in ran)}
 
     def _common(self, tag: str) -> np.ndarray:
-        ents = self.ran(tag)
-        return np.logical_and.reduce([e.scored for e in ents]) if ents else np.zeros(0, bool)
+        scores = self.scores(tag)
+        return scores.methods[0].common if len(scores) else np.zeros(0, bool)
 
     def _row(self, method: str, ents: list[Entry], skipped: list[Entry]) -> dict:
         row = {c: np.nan for c in TABLE_COLUMNS}
@@ -267,15 +275,13 @@ class Board:
             row["coverage"] = 0.0
             row["n_scored"] = 0
             return row
-        err = np.concatenate([e.error_m[e.scored] for e in ents])
-        n_scoring = sum(int(e.scoring.sum()) for e in ents)
-        row["coverage"] = err.size / n_scoring if n_scoring else np.nan
-        row["n_scored"] = int(err.size)
-        if err.size:
-            row.update(rmse_m=metrics.rmse(err), cep50_m=metrics.cep50(err), cep95_m=metrics.cep95(err))
-        common = np.concatenate([e.error_m[self._common(e.tag)] for e in ents])
-        if common.size:
-            row["rmse_common_m"] = metrics.rmse(common)
+        pooled = self._pooled(ents)
+        err = pooled.own_m
+        row["coverage"] = pooled.coverage
+        row["n_scored"] = pooled.n_scored
+        row.update(pooled.stats(own={"rmse_m": metrics.rmse, "cep50_m": metrics.cep50, "cep95_m": metrics.cep95},
+                                common={"rmse_common_m": metrics.rmse}))
+        if pooled.n_common:
             cc = np.concatenate([e.common_trace_m2[self._common(e.tag)] for e in ents])
             if np.isfinite(cc).all():
                 row["common_bound_common_m"] = float(np.sqrt(np.mean(cc)))

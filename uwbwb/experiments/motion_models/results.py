@@ -105,25 +105,27 @@ class TagResults:
     gate_prob: float | None
     n_epochs: int
 
+    def scores(self, names: Sequence[str] | None = None) -> tuple[np.ndarray, metrics.EpochScores]:
+        """The estimators in ``names`` (default: all) on one grid of their error times (seconds;
+        :func:`~uwbwb.metrics.errors_on_grid`), scored by :func:`~uwbwb.metrics.score_epochs`."""
+        names = list(self.errors) if names is None else list(names)
+        t, err = metrics.errors_on_grid({n: self.errors[n] for n in names})
+        return t, metrics.score_epochs(err)
+
     def common_t_s(self, names: Sequence[str] | None = None) -> np.ndarray:
         """Epoch times scored by every estimator in ``names`` (default: all), seconds."""
-        names = list(self.errors) if names is None else list(names)
-        t = None
-        for n in names:
-            e = self.errors[n]
-            tn = e.t_s[np.isfinite(e.err_m)]
-            t = tn if t is None else np.intersect1d(t, tn)
-        return np.asarray(t, float)
+        t, scores = self.scores(names)
+        return t[scores.methods[0].common]
 
     def common_errors(self, names: Sequence[str] | None = None) -> dict[str, np.ndarray]:
         """Name → horizontal errors (m) at :meth:`common_t_s`, the same epochs for every estimator."""
         names = list(self.errors) if names is None else list(names)
-        t = self.common_t_s(names)
-        if t.size == 0:
+        _, scores = self.scores(names)
+        if scores.methods[0].n_common == 0:
             cov = {k: f"{100 * v:.0f} %" for k, v in self.coverage_own().items()}
             raise ValueError(f"{self.run.key}: no epoch where every estimator of {names} has a position and truth "
                              f"exists (coverage {cov}); nothing can be scored on common epochs")
-        return {n: self.errors[n].err_m[np.isin(self.errors[n].t_s, t)] for n in names}
+        return {n: scores[n].common_m for n in names}
 
     def cep95(self, *, common: bool = True) -> dict[str, float]:
         """Name → CEP95 (m), on the common epochs (default) or on each estimator's own."""
