@@ -48,7 +48,7 @@ def test_without_truth_mask_every_epoch_counts_and_per_method_masks_are_allowed(
     np.testing.assert_array_equal(alone["B"].common, alone["B"].scored)
 
 
-def test_nan_and_inf_are_no_estimate_and_a_method_with_none_has_nan_statistics():
+def test_nan_is_no_estimate_an_infinite_error_is_one_and_a_method_with_none_has_nan_statistics():
     err = {**ERR_M, "C": np.full(6, NAN)}
     s = m.score_epochs(err, TRUTH)
     c = s["C"]
@@ -58,8 +58,8 @@ def test_nan_and_inf_are_no_estimate_and_a_method_with_none_has_nan_statistics()
                  failed_counted={"p90_failed_counted_m": lambda e: np.quantile(e, 0.9, method="inverted_cdf")})
     assert np.isnan(st["rmse_m"]) and np.isnan(st["rmse_common_m"]) and st["p90_failed_counted_m"] == np.inf
     assert np.isnan(s["A"].stats(common={"x": m.rmse})["x"])
-    inf = m.score_epochs({"A": np.array([1.0, np.inf])})["A"]
-    assert inf.n_scored == 1 and inf.coverage == 0.5
+    inf = m.score_epochs({"A": np.array([1.0, np.inf])})["A"]        # a diverged estimate is not hidden
+    assert inf.n_scored == 2 and inf.coverage == 1.0 and inf.own_m[-1] == np.inf
     empty = m.score_epochs({"A": np.zeros(0)})["A"]
     assert empty.n_epochs == 0 and np.isnan(empty.coverage)
     with pytest.raises(ValueError, match="common epoch"):

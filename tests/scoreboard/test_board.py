@@ -371,3 +371,20 @@ def test_uwb_ins_filters_are_tuned_like_the_ekfs_and_checked_against_their_bound
         r = df.loc[m]
         assert 1 - 3 * r.rmse_over_bound_se < r.rmse_over_bound < 3.0, (m, r.rmse_over_bound, r.rmse_over_bound_se)
         assert np.isfinite(r.rmse_over_common)
+
+
+def test_board_scores_each_tag_once_and_refuses_two_entries_for_one_method_and_tag():
+    cfg = syn.SyntheticConfig(duration_s=20.0)
+    ests = [CalibratedLs(), TdoaLs()]
+    rec = syn.simulate(cfg, rng=np.random.default_rng(4))
+    b = score(rec, rec, estimators=ests, rate_hz=None,
+              calibration=syn.exact_calibration(cfg, calibrate(rec, ests, rate_hz=None, dim=2)))
+    tag = b.tags[0]
+    assert b.scores(tag) is b.scores(tag)                      # scored once per board, not per table cell
+    table = b.table().set_index("method")
+    for method in ("LS", "TDoA LS"):
+        e = b.entry(method, tag)
+        assert table.loc[method, "n_scored"] == int(e.scored.sum())
+        assert table.loc[method, "rmse_m"] == pytest.approx(np.sqrt(np.mean(e.error_m[e.scored] ** 2)), rel=1e-12)
+    with pytest.raises(ValueError, match="one entry per"):
+        replace(b, entries=b.entries + (b.entries[0],))

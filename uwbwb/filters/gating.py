@@ -53,9 +53,10 @@ Filters with their own rules for when a gate applies, or their own arithmetic (a
 filter's weights), use the decision part only: :meth:`ChiSquareEpoch.threshold`,
 :meth:`ChiSquarePerMeasurement.threshold` and :meth:`ChiSquarePerMeasurement.keep` (also
 :class:`NoGate`'s, which keep every row) take the NIS / per-row statistics the filter already
-computes. The tight error-state filter tests its UWB rows with ``keep`` (its own start-up
-engagement and release rule) and updates with the rows kept through
-``ungated_update(..., sequential=True)``.
+computes. The tight error-state filter's Python definition (``TightEskf.run_reference``) tests its
+UWB rows with ``keep`` (its own start-up engagement and release rule) and updates with the rows kept
+through ``ungated_update(..., sequential=True)``; its compiled twin does the same arithmetic in one
+loop and reads only the threshold.
 """
 
 from __future__ import annotations
@@ -95,11 +96,12 @@ class UpdateInfo:
         ``nis``: that of the rows used, or of the whole epoch where a χ² epoch gate rejected
         it; None where there is none (nothing measured; an epoch gated row by row).
     nis_rows
-        For a sequential update (``sequential=True``), the NIS of each scalar row in the order
-        applied, shape ``(m,)`` (:func:`~uwbwb.filters.kalman.update_sequential`; rows after
+        For a sequential update (``sequential=True``) that was applied, the NIS of each scalar row
+        in the order applied, shape ``(m,)`` (:func:`~uwbwb.filters.kalman.update_sequential`; rows after
         decorrelating a non-diagonal ``R``): ``y'_i² / s_i`` with ``y'_i`` the row's innovation
         against the mean the rows before it left and ``s_i = h_iᵀ P_{i−1} h_i + r_i``. They sum to
-        :attr:`nis`. None for a batch update.
+        :attr:`nis`. None for a batch update and for an epoch a row gate rejected; for an epoch
+        :class:`ChiSquareEpoch` rejected, the rows' NIS it tested (nothing was applied).
 
     Equality and ``repr`` compare ``nis``, ``dof``, ``status`` and ``n_rejected`` only: the arrays
     behind them (``innovation``, ``nis_rows``) are diagnostics, so two infos that compare equal may
@@ -185,8 +187,11 @@ def ungated_update(state: Gaussian, lin, *, sequential: bool = False) -> tuple[G
 
         For a measurement linear in the state the result equals the batch update in exact
         arithmetic (the rows are independent given the state); in floating point the two
-        differ by rounding (about 1e-12 relative). No ``m × m`` inverse is formed. The NIS
-        of each row is reported in ``UpdateInfo.nis_rows`` and their sum as ``nis``.
+        differ by rounding (about 1e-12 relative), so a χ² decision on the summed NIS can fall
+        on the other side of its threshold at the boundary. It needs ``R`` symmetric (to 1e-12
+        relative) and positive definite, for its Cholesky factor; the batch update needs only
+        ``S`` positive definite. No ``m × m`` inverse is formed. The NIS of each row is reported
+        in ``UpdateInfo.nis_rows`` and their sum as ``nis``.
     """
     post, inn, nis_rows = _update(state, lin, sequential)
     return post, UpdateInfo(inn.nis, lin.z.size, EstimateStatus.UPDATED, innovation=inn, nis_rows=nis_rows)

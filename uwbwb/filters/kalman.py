@@ -155,7 +155,11 @@ def update_sequential(state: Gaussian, z: np.ndarray, H: np.ndarray, R: np.ndarr
     if code == 1:
         raise ValueError("update_sequential: non-finite values; a missing measurement is left out, not passed as NaN")
     if code == 2:
-        raise ValueError(f"update_sequential: R must be symmetric positive definite, got diagonal {np.diag(R).tolist()}")
+        if np.any(np.abs(R - R.T) > 1e-12 * (np.abs(R) + np.abs(R.T) + 1e-300)):
+            raise ValueError("update_sequential: R must be symmetric (to 1e-12 relative; the rows are decorrelated "
+                             f"by its Cholesky factor), largest asymmetry {np.max(np.abs(R - R.T)):.3g}")
+        raise ValueError("update_sequential: R must be positive definite (the rows are decorrelated by its Cholesky "
+                         f"factor; the batch update needs only S positive definite), got diagonal {np.diag(R).tolist()}")
     return Gaussian(x, _symmetric(P)), nis
 
 

@@ -1,8 +1,8 @@
 """Accuracy on common epochs, coverage beside it: the one scorer of methods compared on equal terms.
 
 Methods are compared on one epoch grid (a tag's epochs, a run's scored epochs). Per method and
-epoch there is an error (metres) or none (NaN, or any non-finite value: the method gave no position
-there); an optional mask says where truth exists. For each method the scorer keeps
+epoch there is an error (metres) or none (NaN: the method gave no position there; an infinite error
+is an estimate, a diverged one, and stays in the statistics); an optional mask says where truth exists. For each method the scorer keeps
 
 * the epochs with truth (``n_epochs``, the denominator of coverage),
 * its *own* epochs: truth and an estimate (``n_scored``; ``coverage = n_scored / n_epochs``),
@@ -21,7 +21,7 @@ order; an empty selection gives NaN.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable, Iterator, Mapping, Sequence
 
 import numpy as np
@@ -57,19 +57,22 @@ class MethodEpochs:
     name
         The method's label.
     err_m
-        Error per epoch, shape ``(T,)``, metres; NaN (any non-finite value) where the method
-        gave no position.
+        Error per epoch, shape ``(T,)``, metres; NaN where the method gave no position (an
+        infinite error is an estimate).
     truth
         Epochs where truth exists, bool ``(T,)``.
     common
         The common epochs: truth and an estimate of every compared method, bool ``(T,)``; a subset
         of :attr:`scored`.
+    scored
+        The method's own epochs: truth and an estimate, bool ``(T,)`` (derived, read-only).
     """
 
     name: str
     err_m: np.ndarray
     truth: np.ndarray
     common: np.ndarray
+    scored: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         e = _frozen(f"{self.name}: err_m", self.err_m, float)
@@ -79,13 +82,11 @@ class MethodEpochs:
                 raise ValueError(f"{self.name}: {attr} has shape {a.shape}, err_m has {e.shape}")
             object.__setattr__(self, attr, a)
         object.__setattr__(self, "err_m", e)
+        scored = self.truth & ~np.isnan(e)              # the method's own epochs: truth and an estimate
+        scored.setflags(write=False)
+        object.__setattr__(self, "scored", scored)
         if np.any(self.common & ~self.scored):
             raise ValueError(f"{self.name}: a common epoch must have truth and an estimate of this method")
-
-    @property
-    def scored(self) -> np.ndarray:
-        """The method's own epochs: truth and an estimate, bool ``(T,)``."""
-        return self.truth & np.isfinite(self.err_m)
 
     @property
     def n_epochs(self) -> int:
@@ -181,7 +182,7 @@ def score_epochs(err_m: Mapping[str, np.ndarray], truth: np.ndarray | Mapping[st
     Parameters
     ----------
     err_m
-        Method → error per epoch, shape ``(T,)``, metres; NaN (any non-finite value) where the method
+        Method → error per epoch, shape ``(T,)``, metres; NaN where the method
         gave no position.
     truth
         Epochs where truth exists, bool ``(T,)``, one mask for all or one per method (every key of
@@ -209,7 +210,7 @@ def score_epochs(err_m: Mapping[str, np.ndarray], truth: np.ndarray | Mapping[st
     for k, e in errs.items():
         if masks[k].shape != e.shape:
             raise ValueError(f"{k}: truth mask has shape {masks[k].shape}, err_m has {e.shape}")
-    scored = {k: masks[k] & np.isfinite(e) for k, e in errs.items()}
+    scored = {k: masks[k] & ~np.isnan(e) for k, e in errs.items()}
     if compare and errs:
         sizes = {k: e.size for k, e in errs.items()}
         if len(set(sizes.values())) > 1:

@@ -498,13 +498,16 @@ def coast_transition(dt_s: float, qrate, acc_sigma_mps2: float, rate_sigma_radps
     return F, Q
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class InsErrorTransition:
     """The error-state transition model of a strapdown INS: ``(F, Q)`` of one step of the 15-state
     error ``δx = [δp, δv, δθ, δb_a, δb_g]`` (module docstring), for a step measured by the IMU
     (:meth:`step`) and for a coast across an IMU gap (:meth:`coast`). An error-state filter
     predicts with them, ``δx⁻ = F δx``, ``P⁻ = F P Fᵀ + Q`` (:func:`~uwbwb.filters.kalman.predict`),
-    after moving its nominal state with :class:`Mechanization`.
+    after moving its nominal state with :class:`Mechanization`. Its matrices depend on the nominal
+    state, so it gives them per step (``step(C, f_b, dt)``) rather than as the ``F(dt)``, ``Q(dt)`` of
+    a kinematic model: it is not a transition model for :class:`~uwbwb.filters.ekf.Ekf`. Compared
+    by identity (it holds an array).
 
     Attributes
     ----------
@@ -527,7 +530,7 @@ class InsErrorTransition:
         q = np.array(self.qrate_per_s, float)
         if q.shape != (N_ERR,) or not np.all(np.isfinite(q)) or np.any(q < 0):
             raise ValueError(f"InsErrorTransition.qrate_per_s must be {N_ERR} finite non-negative numbers, "
-                             f"got shape {q.shape}")
+                             f"got {q.shape} values" + (f", minimum {np.nanmin(q):g}" if q.size else ""))
         for name in ("coast_acc_sigma_mps2", "coast_rate_sigma_radps"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \

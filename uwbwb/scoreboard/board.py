@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -224,6 +225,12 @@ class Board:
     checks: tuple[str, ...] = ()
     external: tuple[str, ...] = ()
 
+    def __post_init__(self):
+        seen = [(e.method, e.tag) for e in self.entries]
+        twice = sorted({k for k in seen if seen.count(k) > 1})
+        if twice:
+            raise ValueError(f"Board: one entry per (method, tag) expected, got several for {twice}")
+
     @property
     def data_label(self) -> str:
         """The ``data`` field of summary rows: ``synthetic`` or ``dataset/recording``."""
@@ -247,11 +254,19 @@ class Board:
         """Entries that ran (optionally of one tag)."""
         return [e for e in self.entries if e.skipped is None and (tag is None or e.tag == tag)]
 
+    @cached_property
+    def _scores_by_tag(self) -> dict[str, metrics.EpochScores]:
+        # scored once per board (the entries are frozen), not once per table cell
+        return {tag: self._score(tag) for tag in self.tags}
+
+    def _score(self, tag: str) -> metrics.EpochScores:
+        ents = self.ran(tag)
+        return metrics.score_epochs({e.method: e.error_m for e in ents}, {e.method: e.scoring for e in ents})
+
     def scores(self, tag: str) -> metrics.EpochScores:
         """The methods that ran on ``tag`` on its epochs (:func:`uwbwb.metrics.score_epochs`: each
         scored where truth exists and it has an estimate; common = every method that ran there)."""
-        ents = self.ran(tag)
-        return metrics.score_epochs({e.method: e.error_m for e in ents}, {e.method: e.scoring for e in ents})
+        return self._scores_by_tag[tag] if tag in self._scores_by_tag else self._score(tag)
 
     def _pooled(self, ents: list[Entry]) -> metrics.MethodEpochs:
         """One method's entries pooled over their tags, in the entries' order."""

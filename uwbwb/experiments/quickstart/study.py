@@ -122,14 +122,13 @@ def compare_calibration(rec: Recording, calibration: RangeCalibration, *, tag_he
         t = rec.ranges[tag].t_s
         span = rec.truth[tag].t_s
         with_truth = int(np.count_nonzero((t >= span[0]) & (t <= span[-1])))
-        ok = {v: np.isfinite(errors[v][tag].err_m) for v in VARIANTS}
-        common = np.intersect1d(*(errors[v][tag].t_s[ok[v]] for v in VARIANTS))
+        _, on_grid = metrics.errors_on_grid({v: errors[v][tag] for v in VARIANTS})
+        scores = metrics.score_epochs(on_grid)            # both variants on the epochs where both have a fix
         for v in VARIANTS:
-            e = errors[v][tag]
-            cmp = e.err_m[ok[v] & np.isin(e.t_s, common)]
-            r = resid[v]
+            s, r = scores[v], resid[v]
+            cmp = s.common_m
             rows.append({"tag": tag, "variant": v, "epochs": t.size, "with_truth": with_truth,
-                         "fixes": int(ok[v].sum()), "coverage": ok[v].sum() / with_truth if with_truth else np.nan,
+                         "fixes": s.n_scored, "coverage": s.n_scored / with_truth if with_truth else np.nan,
                          "compared": cmp.size, "cep50_m": metrics.cep50(cmp), "cep95_m": metrics.cep95(cmp),
                          "rmse_m": metrics.rmse(cmp),
                          "median_abs_range_resid_m": float(r.loc[r.tag_id == tag, "median_m"].abs().median())})

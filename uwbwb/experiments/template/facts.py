@@ -67,14 +67,13 @@ def facts(res: Results) -> dict:
         (common epochs), ``diff_m``, ``lo_m``, ``hi_m`` (ΔRMSE EKF-RF − LS and its interval), ``verdict``,
         ``nis_per_dof`` (mean over the EKF's updates), ``nis_verdict``, ``sigma_range_m``, ``driving_sigma_mps2``.
     """
-    err = res.errors_m
-    common = np.logical_and.reduce([np.isfinite(e) for e in err.values()])
-    f = {"fast": res.fast, "seed": res.seed, "n_epochs": int(res.t_s.size), "n_common": int(common.sum()),
+    scores = metrics.score_epochs(res.errors_m)          # every method on the common epochs, coverage beside
+    f = {"fast": res.fast, "seed": res.seed, "n_epochs": int(res.t_s.size), "n_common": scores["LS"].n_common,
          "sigma_range_m": res.config.sigma_range_m, "driving_sigma_mps2": res.config.driving_sigma_mps2}
-    for m, e in err.items():
-        f[f"coverage[{m}]"] = float(np.isfinite(e).mean())
-        f[f"rmse_m[{m}]"] = float(np.sqrt(np.mean(e[common] ** 2))) if common.any() else np.nan
-    d = rmse_difference(err["EKF-RF"][common], err["LS"][common], rng=np.random.default_rng(res.seed))
+    for s in scores:
+        f[f"coverage[{s.name}]"] = s.coverage
+        f[f"rmse_m[{s.name}]"] = s.stats(common={"rmse": metrics.rmse})["rmse"]
+    d = rmse_difference(scores["EKF-RF"].common_m, scores["LS"].common_m, rng=np.random.default_rng(res.seed))
     f.update(diff_m=d["diff_m"], lo_m=d["lo_m"], hi_m=d["hi_m"], verdict=verdict(d["lo_m"], d["hi_m"]))
     nis = res.nis_per_dof[np.isfinite(res.nis_per_dof)]
     f["nis_per_dof"] = float(nis.mean()) if nis.size else np.nan

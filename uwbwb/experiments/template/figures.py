@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import numpy as np
-
-from ... import plotting
+from ... import metrics, plotting
 from .study import Results
 
 __all__ = ["paths_figure", "cdf_figure"]
@@ -20,7 +18,7 @@ def paths_figure(res: Results, ax=None):
 
 def cdf_figure(res: Results, ax=None):
     """Error CDFs on the common epochs (each point a distinct epoch of the one walk)."""
-    common = np.logical_and.reduce([np.isfinite(e) for e in res.errors_m.values()])
-    ax = plotting.error_cdf({m: e[common] for m, e in res.errors_m.items()}, ax, unit="cm")
-    ax.set_title(f"{int(common.sum())} common epochs (distinct, one walk)")
+    scores = metrics.score_epochs(res.errors_m)
+    ax = plotting.error_cdf({s.name: s.common_m for s in scores}, ax, unit="cm")
+    ax.set_title(f"{scores['LS'].n_common} common epochs (distinct, one walk)")
     return ax

@@ -284,8 +284,8 @@ class TightEskf:
         bg = np.zeros(3) if gyro_bias0 is None else np.array(gyro_bias0, float)
         dx = np.zeros(N_ERR)
         P = self.initial_covariance() if P0 is None else _checked_covariance(P0)
-        qrate = self.process_noise_rate()
         transition, gate = self.transition, self.row_gate     # the error-state model and the row test
+        qrate = transition.qrate_per_s.copy()                 # the compiled loop's writeable copy of the same rates
         # the row test of the per-measurement policy (its decision part; the release rule is this filter's own)
         gate1 = gate.threshold()
         sig_yaw = self.imu_model.mag_heading_sigma_rad
