@@ -12,7 +12,7 @@ from uwbwb.filters.eskf import tight as tight_module
 from uwbwb.filters.gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate
 from uwbwb.filters.tdoa_ls import tdoa_least_squares
 from uwbwb.models.imu import GRADES, ImuErrorModel
-from uwbwb.models.ins import (NavState, dcm_from_euler, dcm_to_quat, quat_from_rotvec, quat_multiply, quat_to_dcm,
+from uwbwb.models.ins import (NavState, dcm_from_euler, quat_from_rotvec, quat_multiply, quat_to_dcm,
                               quat_to_rotvec)
 from uwbwb.models import ins
 from uwbwb.models.tdoa import TdoaModel
