@@ -3,9 +3,10 @@
 Both run the same 15-state filter (:class:`uwbwb.filters.eskf.TightEskf`) on the same simulated
 dynamic run of notebook 05 (100 Hz IMU, 50 Hz TDoA, four stations):
 
-* **per step** — ``reference_step=True``: the Python reference; the covariance goes through
-  :func:`uwbwb.filters.kalman.predict` (filterpy) at every IMU step and every epoch's update
-  through the measurement models and :func:`kalman.update_sequential`;
+* **per step** — ``reference_step=True``: the Python reference (``TightEskf.run_reference``); the
+  covariance goes through :func:`uwbwb.filters.kalman.predict` (filterpy) at every IMU step with the
+  (F, Q) of the INS error transition model, and every epoch's rows through the Gaussian engine's
+  sequential update (:func:`uwbwb.filters.gating.ungated_update`, :func:`kalman.update_sequential`);
 * **compiled** — the default: one compiled loop over the epochs (the transition of the IMU steps
   between two UWB epochs accumulated and applied once, then the same sequential updates).
 
