@@ -15,12 +15,13 @@ import pandas as pd
 
 from ... import metrics
 from ... import sampling as smp
-from ...calibration import MAD_TO_SIGMA
 from ...filters import doppler as fd
 from ...filters.kalman import Gaussian
 from ...models import doppler as dm
 from ...sim import chirps as sc
 from .ghosts import band_direction, cuts, fisher_analysis, ghost_geometry  # noqa: F401  (re-exported)
+from .scoring import (TrackStudy, bootstrap_median, corner_ratios, fig6_summary, filter_scores,  # noqa: F401
+                      in_region_95, snapshot_table)  # (re-exported)
 
 __all__ = ["PAPER", "StudyConfig", "LAYOUTS", "ROOMS", "READINGS", "make_model", "reference_table", "SpaceMap",
            "map_space", "period_readings", "figure_samples", "fraction_table", "band_direction", "cuts",
@@ -279,57 +280,6 @@ def fraction_table(maps: dict[str, SpaceMap], per_threshold: dict[str, dict] | N
 
 # ------------------------------------------------------------------------------------------ filters
 
-@dataclass(frozen=True)
-class TrackStudy:
-    """Fig 6 on one simulated recording: PF runs, the MH-EKF, with and without pseudo-ranges."""
-
-    model: dm.DopplerModel
-    track: sc.LoopTrack
-    recording: sc.ChirpRecording
-    log: object
-    pf: dict                      # "Doppler" / "Doppler + ranges" -> PfRuns
-    kf: dict                      # same keys -> Estimates
-    snapshots_s: tuple[float, float]
-    along_dirs: tuple[np.ndarray, np.ndarray]
-    t_score_s: float
-
-    def cloud(self, variant: str, k: int) -> np.ndarray:
-        """PF position estimates of every run at snapshot ``k``, shape ``(R, 3)``."""
-        return self.pf[variant].at(self.snapshots_s[k])
-
-    def snapshot_errors(self, variant: str) -> pd.DataFrame:
-        """Per snapshot (corner): the run cloud's error, split into the shared offset and the run-to-run spread.
-
-        ``CEP50`` is about the truth; ``offset`` is the distance from the truth to the
-        cloud's centre (coordinate-wise median of the runs: what every run shares, the
-        recording's own bias); ``run-to-run CEP50`` is about that centre. Along and
-        across are robust spreads about the truth, ``1.4826 · median |e|`` per component
-        along / across the direction of travel, and their ratio.
-        """
-        rows = []
-        for k, t in enumerate(self.snapshots_s):
-            e = self.cloud(variant, k)[:, :2] - self.track.pos_m(t)[:2]
-            a = self.along_dirs[k][:2]
-            c = np.array([-a[1], a[0]])
-            centre = np.median(e, axis=0)
-            along, cross = e @ a, e @ c
-            rows.append({"corner": ("bottom-left", "top-left")[k], "t (s)": t, "runs": e.shape[0],
-                         "CEP50 (cm)": 100 * metrics.cep50(np.linalg.norm(e, axis=1)),
-                         "offset (cm)": 100 * float(np.linalg.norm(centre)),
-                         "run-to-run CEP50 (cm)": 100 * metrics.cep50(np.linalg.norm(e - centre, axis=1)),
-                         "along (cm)": 100 * MAD_TO_SIGMA * np.median(np.abs(along)),
-                         "across (cm)": 100 * MAD_TO_SIGMA * np.median(np.abs(cross))})
-        df = pd.DataFrame(rows)
-        df["along / across"] = df["along (cm)"] / df["across (cm)"]
-        return df
-
-    def headline(self, variant: str) -> dict:
-        """CEP50 (cm) of both snapshot clouds pooled."""
-        errs = [np.linalg.norm(self.cloud(variant, k)[:, :2] - self.track.pos_m(t)[:2], axis=1)
-                for k, t in enumerate(self.snapshots_s)]
-        return {"cep50_cm": 100 * metrics.cep50(np.concatenate(errs))}
-
-
 def kf_prior(layout: str) -> Gaussian:
     """The MH-EKF's prior: the moments of the PF's uniform initial cloud (same information for both filters)."""
     lo, hi = (np.asarray(v, float) for v in ROOMS[layout])
@@ -354,23 +304,6 @@ def filter_settings(layout: str, cfg: StudyConfig) -> dict:
     pf, mh = make_filters(layout, cfg, make_model(layout, cfg))
     return {"pf_outlier": pf.outlier_prob, "pf_use_ambiguous": pf.use_ambiguous, "pf_temper_ess": pf.temper_ess,
             "pf_particles": pf.n_particles, "kf_p_detect": mh.p_detect, "kf_clutter_hz": mh.spurious_rate_hz}
-
-
-def in_region_95(err_m: np.ndarray, cov_m2: np.ndarray) -> np.ndarray:
-    """Whether each error lies in the filter's own 95 % region: ``eᵀ Σ⁻¹ e ≤ χ²_d(0.95)``.
-
-    ``err_m`` shape ``(..., d)`` (estimate − truth), ``cov_m2`` shape ``(..., d, d)``. A
-    singular or non-finite covariance covers nothing (returns False there).
-    """
-    from scipy.stats import chi2
-
-    err_m, cov_m2 = np.asarray(err_m, float), np.asarray(cov_m2, float)
-    d = err_m.shape[-1]
-    ok = np.all(np.isfinite(cov_m2), axis=(-2, -1)) & np.all(np.isfinite(err_m), axis=-1)
-    ok &= np.linalg.det(np.where(ok[..., None, None], cov_m2, np.eye(d))) > 1e-300
-    safe = np.where(ok[..., None, None], cov_m2, np.eye(d))
-    m2 = np.einsum("...i,...i->...", err_m, np.linalg.solve(safe, np.where(ok[..., None], err_m, 0.0)[..., None])[..., 0])
-    return ok & (m2 <= chi2.ppf(0.95, d))
 
 
 def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs: int | None = None,
@@ -429,106 +362,6 @@ def track_studies(layout: str, cfg: StudyConfig, *, workers: int = 1, progress: 
     return [track_study(layout, cfg, seed_offset=k, pf_runs=cfg.pf_runs if k == 0 else cfg.compare_runs,
                         workers=workers, progress=progress and k == 0, scheduler=scheduler)
             for k in range(cfg.n_recordings)]
-
-
-def snapshot_table(studies: list[TrackStudy]) -> pd.DataFrame:
-    """:meth:`TrackStudy.snapshot_errors` of every recording and variant, one row per (recording, variant, corner)."""
-    parts = []
-    for k, st in enumerate(studies):
-        for v in st.pf:
-            df = st.snapshot_errors(v)
-            df.insert(0, "variant", v)
-            df.insert(0, "recording", k)
-            parts.append(df)
-    return pd.concat(parts, ignore_index=True)
-
-
-def bootstrap_median(values, *, rng: np.random.Generator, n_boot: int = 4000, confidence: float = 0.95):
-    """Median of ``values`` and its percentile-bootstrap interval (resampling the values: one per recording).
-
-    Returns ``(median, low, high)``; the interval is NaN with fewer than 3 values.
-    """
-    v = np.asarray(values, float)
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return np.nan, np.nan, np.nan
-    med = float(np.median(v))
-    if v.size < 3:
-        return med, np.nan, np.nan
-    boot = np.median(v[rng.integers(0, v.size, (n_boot, v.size))], axis=1)
-    a = (1 - confidence) / 2
-    return med, float(np.quantile(boot, a)), float(np.quantile(boot, 1 - a))
-
-
-def fig6_summary(snap: pd.DataFrame, *, rng: np.random.Generator) -> pd.DataFrame:
-    """Distribution over recordings of the snapshot numbers, per variant (both corners pooled per recording).
-
-    Per recording: CEP50 of the pooled corner clouds is read as the mean of the two
-    corners' CEP50 (same runs at both corners); offset and run-to-run CEP50 likewise.
-    Returned per variant and quantity: median over recordings with its bootstrap 95 %
-    interval, and the range (min–max).
-    """
-    rows = []
-    per_rec = snap.groupby(["variant", "recording"])[["CEP50 (cm)", "offset (cm)", "run-to-run CEP50 (cm)"]].mean()
-    for variant, df in per_rec.groupby(level=0):
-        for q in df.columns:
-            med, lo, hi = bootstrap_median(df[q].to_numpy(), rng=rng)
-            rows.append({"variant": variant, "quantity": q, "recordings": len(df), "median": med, "95 % low": lo,
-                         "95 % high": hi, "min": float(df[q].min()), "max": float(df[q].max())})
-    return pd.DataFrame(rows)
-
-
-def corner_ratios(snap: pd.DataFrame, *, rng: np.random.Generator, variant: str = "Doppler") -> pd.DataFrame:
-    """Along / across-track ratio per corner over recordings: median, bootstrap 95 % interval, range."""
-    rows = []
-    for corner, df in snap[snap["variant"] == variant].groupby("corner", sort=False):
-        med, lo, hi = bootstrap_median(df["along / across"].to_numpy(), rng=rng)
-        rows.append({"corner": corner, "recordings": len(df), "median": med, "95 % low": lo, "95 % high": hi,
-                     "min": float(df["along / across"].min()), "max": float(df["along / across"].max())})
-    return pd.DataFrame(rows)
-
-
-def filter_scores(studies: list[TrackStudy], *, lost_m: float = 0.5) -> pd.DataFrame:
-    """PF and MH-EKF on the same epochs (PF update times after ``t_score_s``), per recording and variant.
-
-    CEP50/CEP95 pool all PF runs; the MH-EKF is deterministic (one run). Beside accuracy:
-    ``coverage`` (share of scored epochs whose horizontal truth lies in the filter's own
-    95 % region, :func:`in_region_95` on the x–y block of its position covariance: the
-    MH-EKF's ``pos_cov_m2``, the PF run's weighted particle covariance), ``with an
-    estimate`` (share of scored epochs with a finite estimate), ``in track`` (share of scored
-    epochs with horizontal error under ``lost_m``) and, for the PF, its restarts (runs
-    whose particles had all left the room) and the share of tempered updates. The MH-EKF
-    has no restart mechanism (its column is 0 by construction).
-    """
-    rows = []
-    for k, st in enumerate(studies):
-        for variant in st.pf:
-            runs = st.pf[variant]
-            keep = runs.t_s > st.t_score_s
-            t = runs.t_s[keep]
-            truth = st.track.pos_m(t)[:, :2]
-            e_pf = np.linalg.norm(runs.pos_m[:, keep, :2] - truth, axis=-1).ravel()
-            kf = st.kf[variant]
-            idx = np.searchsorted(kf.t_s, t)
-            e_kf = np.linalg.norm(kf.pos_m[idx, :2] - truth, axis=-1)
-            v_kf = np.linalg.norm(kf.vel_mps[idx] - st.track.vel(t), axis=-1)
-            v_pf = np.linalg.norm(runs.vel_mps[:, keep] - st.track.vel(t), axis=-1).ravel()
-            rows.append({"recording": k, "variant": variant, "epochs": int(keep.sum()), "PF runs": runs.n_runs,
-                         "PF CEP50 (cm)": 100 * metrics.cep50(e_pf), "MH-EKF CEP50 (cm)": 100 * metrics.cep50(e_kf),
-                         "PF CEP95 (cm)": 100 * metrics.cep95(e_pf), "MH-EKF CEP95 (cm)": 100 * metrics.cep95(e_kf),
-                         "PF coverage": float(np.mean(in_region_95(
-                             runs.pos_m[:, keep, :2] - truth, runs.pos_cov_m2[:, keep, :2, :2]))),
-                         "MH-EKF coverage": float(np.mean(in_region_95(
-                             kf.pos_m[idx, :2] - truth, kf.pos_cov_m2[idx, :2, :2]))),
-                         "PF with an estimate": float(np.mean(np.all(np.isfinite(runs.pos_m[:, keep]), axis=-1))),
-                         "MH-EKF with an estimate": float(np.mean(np.all(np.isfinite(kf.pos_m[idx]), axis=-1))),
-                         "PF in track": float(np.mean(e_pf < lost_m)), "MH-EKF in track": float(np.mean(e_kf < lost_m)),
-                         "PF restarts": int(runs.restarts.sum()), "PF runs restarted": int(np.count_nonzero(runs.restarts)),
-                         "MH-EKF restarts": 0,
-                         "PF tempered updates": float(np.mean(runs.meta.get("tempered", np.zeros(1)))),
-                         "PF median |V err| (m/s)": float(np.median(v_pf)),
-                         "MH-EKF median |V err| (m/s)": float(np.median(v_kf))})
-    return pd.DataFrame(rows)
 
 
 #: Conditions of :func:`error_floor`: (label, simulate noise, ΔP from eq 1 at the true state, particles factor).
