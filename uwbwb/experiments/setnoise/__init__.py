@@ -1,10 +1,11 @@
 """Notebook 01: sensor-set switching noise and the set-noise particle filter (paper 000).
 
 :mod:`.study` is the synthetic re-creation (facility, calibration, Table I, the
-Fig. 9 sweep, the resampler check, summary rows with their kind), :mod:`.real`
+Fig. 9 sweep), :mod:`.diagnostics` its Fig. 8 run, the PF → KF gap, the resampler check and the
+noise models' residuals, :mod:`.real`
 the sets emulated on ``lias-planar-uwb`` ranges, :mod:`.figures` the figure
 builders, :mod:`.discussion` the comparison with the paper written from the
-run's numbers, :mod:`.headlines` the real-data summary rows and the checks, and
+run's numbers, :mod:`.headlines` the summary rows (synthetic and real, each with its kind) and the checks, and
 :mod:`.panels` the widget's back end. Everything the notebook uses is importable from here.
 """
 
@@ -14,12 +15,13 @@ from .figures import (plot_facility, plot_fixes, plot_pf_kf_gap, plot_set_ellips
                       plot_sweep, plot_trace)
 from .real import (Emulation, RealStudy, emulate_fixes, modelled_share, range_bias_span_m, real_inputs,
                    real_study)
-from .study import (BAND_MPS, BASE_KF, BASE_PF, FACILITY_WIDE, FILTERS, INPUT, OFF_TRACK_XY_M, PAPER,
-                    PAPER_SIGMA_RULE, POOLED_SIGMA_RULE, RAW, REPRODUCED, SET_KF, SET_KF_POOLED, SET_PF,
-                    SIGMA_D_GRID_MPS, TARGET, SweepConfig, SyntheticStudy, band_sigmas, band_summary, best_sigma,
-                    calibration_proximity, fix_rates_hz, headline_rows, mean_over_recordings, normalised_residuals,
-                    paper_targets, pf_kf_gap, raw_error_m, resampler_check, residual_table, set_shares, sweep,
-                    synthetic_study, table1, trace)
+from .diagnostics import (FACILITY_WIDE, PAPER_SIGMA_RULE, POOLED_SIGMA_RULE, normalised_residuals, pf_kf_gap,
+                          resampler_check, residual_table, trace)
+from .headlines import fix_rates_hz, headline_rows, paper_targets
+from .study import (BAND_MPS, BASE_KF, BASE_PF, FILTERS, INPUT, OFF_TRACK_XY_M, PAPER, RAW, REPRODUCED, SET_KF,
+                    SET_KF_POOLED, SET_PF, SIGMA_D_GRID_MPS, TARGET, SweepConfig, SyntheticStudy, band_sigmas,
+                    band_summary, best_sigma, calibration_proximity, mean_over_recordings, raw_error_m, set_shares,
+                    sweep, synthetic_study, table1)
 
 LIAS = "lias-planar-uwb"
 

@@ -12,9 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .study import (BAND_MPS, BASE_KF, BASE_PF, FILTERS, PAPER, PAPER_SIGMA_RULE, POOLED_SIGMA_RULE, RAW,
-                    SET_KF, SET_KF_POOLED, SET_PF, SweepConfig, band_summary, best_sigma, fix_rates_hz,
-                    mean_over_recordings)
+from .diagnostics import PAPER_SIGMA_RULE, POOLED_SIGMA_RULE
+from .headlines import fix_rates_hz
+from .study import (BAND_MPS, BASE_KF, BASE_PF, FILTERS, PAPER, RAW, SET_KF, SET_KF_POOLED, SET_PF, SweepConfig,
+                    band_summary, best_sigma, mean_over_recordings)
 
 
 def _span(values, fmt: str = ".1f") -> str:

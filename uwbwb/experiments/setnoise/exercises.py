@@ -17,7 +17,8 @@ from ...models.setnoise import SetNoiseModel
 from ...filters import setnoise as filt
 from ...types import SetFixLog
 from ...widgets import ExerciseCheck
-from .study import BAND_MPS, RAW, SET_KF, SET_PF, pf_kf_gap, raw_error_m
+from .diagnostics import pf_kf_gap
+from .study import BAND_MPS, RAW, SET_KF, SET_PF, raw_error_m
 
 
 def few_particles(log: SetFixLog, model: SetNoiseModel, *, sigma_d_mps: float = 0.02, reference_mps: float = 0.30,

@@ -18,7 +18,8 @@ from ...models.setnoise import SetNoiseModel
 from ...types import SetFixLog
 from .figures import plot_trace
 from .real import RealStudy
-from .study import BASE_PF, RAW, SET_KF, SET_PF, SyntheticStudy, trace
+from .diagnostics import trace
+from .study import BASE_PF, RAW, SET_KF, SET_PF, SyntheticStudy
 
 __all__ = ["Explorer", "explorer_logs"]
 

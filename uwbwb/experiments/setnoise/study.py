@@ -6,11 +6,10 @@ campaign (6 locations × 1000 fixes), the calibrated
 :class:`~uwbwb.models.setnoise.SetNoiseModel` and the five Table I recordings,
 plus the same five recordings on a track away from the calibration locations;
 :func:`table1` and :func:`set_shares` give Table I and the Fig. 4 statistics,
-:func:`sweep` Fig. 9, :func:`band_summary` the improvement in the paper's σ_d
-band, :func:`trace` Fig. 8, :func:`pf_kf_gap` the PF approaching the exact KF,
-:func:`resampler_check` systematic against multinomial resampling, and
-:func:`headline_rows` the summary rows, each with its kind (reproduced, target
-or input).
+:func:`sweep` Fig. 9 and :func:`band_summary` the improvement in the paper's σ_d
+band. Fig. 8, the PF approaching the exact KF and the resampler check are in
+:mod:`.diagnostics`; the summary rows, each with its kind (reproduced, target or
+input), in :mod:`.headlines`.
 """
 
 from __future__ import annotations
@@ -320,58 +319,6 @@ def best_sigma(df: pd.DataFrame) -> pd.DataFrame:
     return df.loc[idx, ["recording", "filter", "sigma_d_mps", "mean_error_m"]].reset_index(drop=True)
 
 
-def normalised_residuals(log: SetFixLog, models: dict) -> dict:
-    """Mean squared normalised fix residual ``((z − x − μ)/σ)²`` per model (1 when σ is right)."""
-    out = {}
-    for name, m in models.items():
-        mu, sd, _ = m.lookup(log.set_id)
-        out[name] = float(np.mean(((log.error_m - mu) / sd) ** 2))
-    return out
-
-
-# --------------------------------------------------------------------------- Fig. 8 and PF → KF
-
-def trace(log: SetFixLog, model: SetNoiseModel, sigma_d_mps: float, *, rng: np.random.Generator,
-          n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "systematic") -> dict:
-    """One run of every estimator on one recording (Fig. 8).
-
-    Returns
-    -------
-    dict
-        name → estimated positions ``(T, 2)``, metres, for ``truth``, ``raw`` and the four filters.
-    """
-    mu, sd = _noise(log, model)
-    x0 = log.truth_m[0]
-    pf = filt.pf_sweep(log.t_s, log.pos_m, mu, sd, x0, sigma_d_mps, rng=rng, n_particles=n_particles,
-                       ess_fraction=ess_fraction, resampler=resampler)
-    kf = filt.kf_sweep(log.t_s, log.pos_m, mu, sd, x0, sigma_d_mps)
-    return {"truth": log.truth_m, RAW: log.pos_m, BASE_PF: pf.pos_m[0, 0, 0], SET_PF: pf.pos_m[1, 0, 0],
-            BASE_KF: kf.pos_m[0, 0], SET_KF: kf.pos_m[1, 0]}
-
-
-def pf_kf_gap(log: SetFixLog, model: SetNoiseModel, sigma_d_mps: float, n_particles=(30, 100, 300, 1000, 3000),
-              *, n_trials: int = 10, rng: np.random.Generator) -> pd.DataFrame:
-    """How far the set-noise PF is from the exact set-noise KF, against K.
-
-    Returns
-    -------
-    DataFrame
-        ``n_particles, rms_gap_m`` (RMS over trials and fixes of PF − KF position),
-        ``pf_error_m`` (mean error of the PF), ``kf_error_m``.
-    """
-    mu, sd, _ = model.lookup(log.set_id)
-    x0 = log.truth_m[0]
-    kf = filt.kf_sweep(log.t_s, log.pos_m, mu, sd, x0, sigma_d_mps)
-    rows = []
-    for K in n_particles:
-        pf = filt.pf_sweep(log.t_s, log.pos_m, mu, sd, x0, sigma_d_mps, rng=rng, n_trials=n_trials,
-                           n_particles=int(K))
-        gap = pf.pos_m[0, :, 0] - kf.pos_m[0]
-        rows.append({"n_particles": int(K), "rms_gap_m": float(np.sqrt(np.mean(np.sum(gap ** 2, axis=-1)))),
-                     "pf_error_m": float(pf.mean_error_m(log.truth_m).mean()),
-                     "kf_error_m": float(kf.mean_error_m(log.truth_m)[0])})
-    return pd.DataFrame(rows)
-
 def band_sigmas(config: SweepConfig, band=BAND_MPS) -> tuple:
     """The σ_d values of ``config`` inside the band, m/s (for a smaller sweep scored like the full one)."""
     s = np.asarray(config.sigma_d_mps, float)
@@ -381,149 +328,7 @@ def band_sigmas(config: SweepConfig, band=BAND_MPS) -> tuple:
     return tuple(float(v) for v in inside)
 
 
-# --------------------------------------------------------------------------- the resampler
-
-def resampler_check(log: SetFixLog, model: SetNoiseModel, config: SweepConfig, *, rng: np.random.Generator,
-                    resamplers=("systematic", "multinomial")) -> dict:
-    """Set-noise PF error under two resamplers, on one recording and the σ_d values of ``config``.
-
-    The runs share ``rng`` in the order of ``resamplers``; each error is the mean over
-    ``config``'s σ_d values of the trial-mean error, with its standard error.
-
-    Returns
-    -------
-    dict
-        ``recording, sigma_d_mps, n_trials, n_particles``; ``error_cm`` and ``se_cm``
-        (resampler → value); ``diff_cm`` (first − second), ``se_diff_cm`` (its
-        standard error) and ``z`` (|diff| in standard errors).
-    """
-    if len(resamplers) != 2:
-        raise ValueError(f"compare exactly two resamplers, got {resamplers}")
-    err, se = {}, {}
-    for r in resamplers:
-        d = sweep([log], model, replace(config, resampler=r), rng=rng, progress=False)
-        d = d[d["filter"] == SET_PF]
-        err[r] = float(100 * d["mean_error_m"].mean())
-        se[r] = float(100 * np.sqrt(np.mean(d["sem_error_m"] ** 2)))
-    a, b = resamplers
-    diff = err[a] - err[b]
-    se_diff = float(np.hypot(se[a], se[b]))
-    return {"recording": log.name, "sigma_d_mps": tuple(config.sigma_d_mps), "n_trials": config.n_trials,
-            "n_particles": config.n_particles, "resamplers": tuple(resamplers), "error_cm": err, "se_cm": se,
-            "diff_cm": diff, "se_diff_cm": se_diff, "z": abs(diff) / se_diff}
-
-
 # --------------------------------------------------------------------------- what kind each number is
 
 #: Kinds of headline numbers (as in :class:`uwbwb.metrics.Summary`).
 REPRODUCED, TARGET, INPUT = "reproduced", "target", "input"
-
-
-def fix_rates_hz() -> tuple:
-    """Fix rates implied by the paper's Table I: fixes ÷ (1750 cm at the stated speed), Hz.
-
-    The paper states no rate; :data:`uwbwb.sim.setnoise.FacilityConfig.rate_hz`
-    (9.4 Hz) is the mean of these five (9.36 Hz) to one decimal.
-    """
-    length_cm = 1750.0
-    return tuple(n / (length_cm / v) for n, v in zip(PAPER["n_fixes"], PAPER["speed_cmps"]))
-
-
-def paper_targets(shares: dict, table1: pd.DataFrame) -> pd.DataFrame:
-    """The synthetic numbers that were aimed at or taken from the paper, beside the paper's values.
-
-    None of these is a reproduction: the simulator's selection defaults were chosen so
-    that the Fig. 3 location's set shares resemble Fig. 4, its error defaults so that
-    raw errors resemble Table I (both *target*), and the fix counts follow from the
-    track, the speeds and the fix rate taken from the paper (*input*).
-
-    Returns
-    -------
-    DataFrame
-        ``quantity, ours, paper, unit, kind, how``.
-    """
-    rows = [
-        {"quantity": "top set share at the Fig. 3 location", "ours": 100 * shares["top1_share"],
-         "paper": PAPER["top1_share_max_pct"], "unit": "% (paper: below)", "kind": TARGET,
-         "how": "wall loss and fading defaults chosen to resemble Fig. 4"},
-        {"quantity": "top-5 set share at the Fig. 3 location", "ours": 100 * shares["top5_share"],
-         "paper": PAPER["top5_share_pct"], "unit": "%", "kind": TARGET,
-         "how": "wall loss and fading defaults chosen to resemble Fig. 4"},
-    ]
-    for i, r in table1.reset_index(drop=True).iterrows():
-        if "paper_raw_error_cm" not in r or pd.isna(r.get("paper_raw_error_cm")):
-            continue
-        rows.append({"quantity": f"raw error, recording {i + 1}", "ours": r["raw_error_cm"],
-                     "paper": r["paper_raw_error_cm"], "unit": "cm", "kind": TARGET,
-                     "how": "range-error defaults chosen so that raw errors average about the paper's"})
-        rows.append({"quantity": f"fixes, recording {i + 1}", "ours": r["n_fixes"], "paper": r["paper_n_fixes"],
-                     "unit": "", "kind": INPUT,
-                     "how": "track length, speed and fix rate taken from the paper"})
-    return pd.DataFrame(rows)
-
-
-def headline_rows(*, shares: dict, table1: pd.DataFrame, improvement: pd.DataFrame,
-                  off_improvement: pd.DataFrame | None = None) -> list[dict]:
-    """Summary rows of the synthetic part of notebook 01, each with its ``kind``.
-
-    Parameters
-    ----------
-    shares, table1
-        :func:`set_shares` at the Fig. 3 location and :func:`table1`.
-    improvement
-        Band improvements of the mean over recordings, indexed by filter, columns
-        ``improvement_pct, improvement_cm`` (:func:`band_summary` rows of ``"mean"``).
-    off_improvement
-        The same for the off-calibration track, or None.
-
-    Returns
-    -------
-    list of dict
-        Keyword arguments of :meth:`uwbwb.metrics.Summary.add` without ``data``.
-    """
-    rows = []
-    for i, r in table1.reset_index(drop=True).iterrows():
-        paper = "paper_raw_error_cm" in r and not pd.isna(r.get("paper_raw_error_cm"))
-        speed = f" ({int(r['paper_speed_cmps'])} cm/s)" if paper else ""
-        rows.append(dict(quantity=f"raw error, recording {i + 1}{speed}", value=r["raw_error_cm"], unit="cm",
-                         paper_value=r["paper_raw_error_cm"] if paper else None, kind=TARGET))
-        rows.append(dict(quantity=f"fixes, recording {i + 1}", value=r["n_fixes"], unit="",
-                         paper_value=r["paper_n_fixes"] if paper else None, kind=INPUT))
-    rows.append(dict(quantity="top-5 set share at the Fig. 3 location", value=100 * shares["top5_share"], unit="%",
-                     paper_value=PAPER["top5_share_pct"], kind=TARGET))
-    rows.append(dict(quantity="top set share at the Fig. 3 location (paper: below 45 %)",
-                     value=100 * shares["top1_share"], unit="%", paper_value=None, kind=TARGET))
-    for name in (SET_PF, BASE_PF, SET_KF, BASE_KF, SET_KF_POOLED):
-        paper = name == SET_PF
-        rows.append(dict(quantity=f"{name} improvement over raw, sigma_d 30-50 cm/s, mean of 5 recordings",
-                         value=improvement.loc[name, "improvement_pct"], unit="%",
-                         paper_value=PAPER["improvement_pct"] if paper else None, kind=REPRODUCED))
-        rows.append(dict(quantity=f"{name} improvement over raw (cm), sigma_d 30-50 cm/s, mean of 5 recordings",
-                         value=improvement.loc[name, "improvement_cm"], unit="cm",
-                         paper_value=PAPER["improvement_cm"] if paper else None, kind=REPRODUCED))
-    if off_improvement is not None:
-        for name in (SET_PF, BASE_PF, SET_KF, BASE_KF):
-            rows.append(dict(quantity=f"{name} improvement over raw, sigma_d 30-50 cm/s, track away from "
-                                      "calibration locations", value=off_improvement.loc[name, "improvement_pct"],
-                             unit="%", paper_value=None, kind=REPRODUCED))
-    return rows
-
-
-# --------------------------------------------------------------------------- consistency of the noise models
-
-#: Row labels of :func:`residual_table`.
-FACILITY_WIDE, PAPER_SIGMA_RULE, POOLED_SIGMA_RULE = "facility-wide", "set-noise (paper σ)", "set-noise (pooled σ)"
-
-
-def residual_table(logs, model: SetNoiseModel, pooled: SetNoiseModel) -> pd.DataFrame:
-    """Mean squared normalised residuals of the facility-wide, paper-σ and pooled-σ models.
-
-    Returns
-    -------
-    DataFrame
-        Rows :data:`FACILITY_WIDE`, :data:`PAPER_SIGMA_RULE`, :data:`POOLED_SIGMA_RULE`;
-        one column per log (1 where σ is right, above 1 where the model is overconfident).
-    """
-    models = {FACILITY_WIDE: model.facility_only(), PAPER_SIGMA_RULE: model, POOLED_SIGMA_RULE: pooled}
-    return pd.DataFrame({log.name: normalised_residuals(log, models) for log in logs})
-
