@@ -197,3 +197,13 @@ def test_the_length_check_sees_a_long_module(tmp_path):
     (tmp_path / "sub" / "long.py").write_text("x = 1\n" * (MAX_MODULE_LINES + 1))
     (tmp_path / "short.py").write_text("x = 1\n" * MAX_MODULE_LINES)
     assert _too_long(tmp_path) == {"sub/long.py": MAX_MODULE_LINES + 1}
+
+
+#: An experiment's ``study.py`` is orchestration only (issue 19): at most this many lines.
+MAX_STUDY_LINES = 400
+
+
+def test_every_experiment_study_is_orchestration_sized():
+    long = {p.parent.name: n for p in sorted((PACKAGE / "experiments").glob("*/study.py"))
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_STUDY_LINES}
+    assert not long, f"experiments whose study.py is over {MAX_STUDY_LINES} lines (move analysis out): {long}"
