@@ -66,18 +66,29 @@ def test_every_twin_names_its_test_and_keeps_tight_tolerances():
         assert twin.held_by.startswith("tests/") and "::" in twin.held_by, twin.name
         for key, tol in twin.tolerance.items():
             # the loosest exactness test in the suite: batched Gauss-Newton against scipy, per epoch
-            assert isinstance(tol, Tol) and tol.rtol <= 1e-4 and tol.atol <= 1e-6, (twin.name, key, tol)
+            assert isinstance(tol, Tol) and tol.rtol <= 1e-4 and tol.atol <= 1e-6 and tol.ulps <= 64, \
+                (twin.name, key, tol)
 
 
 # ------------------------------------------------------------------ the comparison sees a difference
 def test_a_one_ulp_change_fails_a_bit_for_bit_twin():
-    twin = TWINS["ins.propagate"]
+    twin = TWINS["ins._dcm_nb"]
     assert set(twin.tolerance.values()) == {BIT}
     fast, ref = twin.outputs()
     assert not twin.mismatches(fast, ref)
-    fast["quat"] = fast["quat"].copy()
-    fast["quat"][2] = np.nextafter(fast["quat"][2], np.inf)
-    assert any("quat" in m for m in twin.mismatches(fast, ref))
+    fast["C"] = fast["C"].copy()
+    fast["C"].flat[2] = np.nextafter(fast["C"].flat[2], np.inf)
+    assert any("C" in m for m in twin.mismatches(fast, ref))
+
+
+def test_an_ulps_tolerance_scales_with_the_outputs_largest_element():
+    twin = TWINS["ins.propagate"]
+    fast, ref = twin.outputs()
+    ulps = twin.tolerance["Phi"].ulps
+    unit = np.finfo(float).eps * np.abs(ref["Phi"]).max()
+    for step, fails in ((0.5 * ulps * unit, False), (4 * ulps * unit, True)):
+        doctored = dict(fast, Phi=ref["Phi"] + step)
+        assert any("Phi" in m for m in twin.mismatches(doctored, ref)) == fails, step
 
 
 def test_a_change_beyond_the_tolerance_fails_and_one_within_passes():

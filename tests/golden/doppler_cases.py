@@ -1,4 +1,4 @@
-"""Fixed inputs and outputs of the Doppler filters, for the bit-exact golden test.
+"""Fixed inputs and outputs of the Doppler filters, for the golden test.
 
 ``python -m tests.golden.doppler_cases`` (from the repository root) writes ``doppler_golden.npz``
 beside this file: every array of every case's :class:`~uwbwb.filters.doppler.DopplerPf` run

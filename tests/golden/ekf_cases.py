@@ -1,4 +1,4 @@
-"""Fixed inputs and outputs of every existing EKF configuration, for the bit-exact golden test.
+"""Fixed inputs and outputs of every existing EKF configuration, for the golden test.
 
 ``python -m tests.golden.ekf_cases`` (from the repository root) writes ``ekf_golden.npz``
 beside this file: every array of every case's :class:`~uwbwb.filters.ekf.KalmanRun` (priors,
@@ -36,8 +36,8 @@ IDS = tuple(f"a{i}" for i in range(8))
 
 
 def fingerprint() -> str:
-    """Where the numbers were computed (numpy version, machine, CPU model, which picks the BLAS
-    kernels): exactness to the bit is promised on the same one."""
+    """Where the numbers were computed (numpy version, machine, CPU model): a record in the file, not a
+    condition of the comparison (:mod:`tests.golden` compares to a stated tolerance on any machine)."""
     cpu = ""
     try:
         lines = Path("/proc/cpuinfo").read_text().splitlines()
