@@ -214,27 +214,22 @@ def test_real_study_on_lias():
     assert (st.reports.query("role == 'test'")["fixes"] > 500).all()
 
 
-# --------------------------------------------------------------------------- section 10 text
+# --------------------------------------------------------------------------- section 10: the verdict table
 
-def _sweep_frame(errors_cm: dict, sigmas=(0.02, 0.3, 0.5), recordings=("a", "b")) -> pd.DataFrame:
-    """A sweep table: filter → (error at the smallest σ_d, error at the others), cm, same for every recording."""
-    rows = [(rec, name, s, (small if s == sigmas[0] else band) / 100, 0.0, 1)
+def _sweep_frame(errors_cm: dict, sem_cm: float = 0.1, sigmas=(0.02, 0.3, 0.5), recordings=("a", "b")) -> pd.DataFrame:
+    """A sweep table: filter → (error at the smallest σ_d, error at the others), cm, same for every recording; the
+    particle filters get ``sem_cm`` as their standard error, the others none."""
+    rows = [(rec, name, s, (small if s == sigmas[0] else band) / 100, sem_cm / 100 if "PF" in name else 0.0, 3)
             for rec in recordings for name, (small, band) in errors_cm.items() for s in sigmas]
     return pd.DataFrame(rows, columns=["recording", "filter", "sigma_d_mps", "mean_error_m", "sem_error_m",
                                        "n_trials"])
 
 
-def _residuals(paper, pooled) -> pd.DataFrame:
-    return pd.DataFrame({"a": [1.0, paper[0], pooled[0]], "b": [1.1, paper[1], pooled[1]]},
-                        index=[E.FACILITY_WIDE, E.PAPER_SIGMA_RULE, E.POOLED_SIGMA_RULE])
+RESAMPLER = {"recording": "rec2", "resamplers": ("systematic", "multinomial"), "diff_cm": -0.05, "se_diff_cm": 0.1}
 
 
-def _discussion(sweep, residuals, **kw):
-    table = pd.DataFrame({"n_fixes": [1500, 470, 250, 165, 140], "raw_error_cm": [17.0, 17.5, 18.0, 18.2, 17.9]})
-    gap = pd.DataFrame({"n_particles": [30, 300, 3000], "rms_gap_m": 0.15 / np.sqrt([1.0, 10.0, 100.0])})
-    args = dict(shares={"top1_share": 0.416, "top5_share": 0.878}, table1=table, sweep=sweep, gap=gap,
-                residuals=residuals, config=E.SweepConfig(sigma_d_mps=(0.02, 0.3, 0.5)))
-    return E.discussion_markdown(**{**args, **kw})
+def _verdict(table: pd.DataFrame, start: str) -> pd.Series:
+    return table[table["claim"].str.startswith(start)].iloc[0]
 
 
 def test_residual_table_labels(study):
@@ -243,59 +238,42 @@ def test_residual_table_labels(study):
     assert list(t.columns) == ["rec1", "rec2"] and (t.to_numpy() > 0).all()
 
 
-def test_discussion_quotes_the_run_and_words_the_outcome():
-    sweep = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (60, 17), E.SET_PF: (90, 16), E.BASE_KF: (25, 16.5),
-                          E.SET_KF: (24, 15.8), E.SET_KF_POOLED: (23, 15.5)})
-    text = _discussion(sweep, _residuals((2.0, 2.2), (1.6, 1.8)))
-    assert "41.6 %" in text and "87.8 %" in text and "1500/470/250/165/140" in text
-    assert "raw errors of 17.0–18.2 cm" in text and "ours does not" in text
-    assert "aimed at, not reproduced" in text and "are inputs" in text and "9.26–9.56 Hz" in text
-    assert "emerge" not in text
-    assert "20.0 % (4.0 cm)" in text                                  # set-noise PF: 16 cm against raw 20 cm
-    assert "Most of it is smoothing" in text and "the set model adds 1.0 cm between the two PFs" in text
-    assert "breaks down at small σ_d" in text and "90.0 cm, worse than the raw fixes' 20.0 cm" in text
-    assert "falls like 1/√K" in text and "15.0 cm at K = 30" in text and "1.5 cm at K = 3 000" in text
-    assert "overconfident" in text and "2.0–2.2" in text and "gains 1.5 percentage points" in text
-    assert "Real ranges" not in text                                  # no real-data results given
-    assert "100 trials per σ_d, K = 1 000" in text and "Monte Carlo noise is larger" not in text
+def test_verdicts_follow_the_intervals_on_both_sides_of_each_rule():
+    on = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (60, 17), E.SET_PF: (90, 17.0), E.BASE_KF: (25, 16.5),
+                       E.SET_KF: (24, 15.8)}, sem_cm=0.1)
+    off = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (60, 17), E.SET_PF: (90, 17.05), E.BASE_KF: (25, 16.5),
+                        E.SET_KF: (24, 17.0)}, sem_cm=0.1)
+    t = E.headlines.verdicts(on, off, RESAMPLER)
+    assert list(t.columns) == ["claim", "paper", "ours", "low", "high", "rule", "verdict"]
+    pct = _verdict(t, "set-noise PF improvement over raw")
+    assert pct["ours"] == pytest.approx(15.0) and pct["verdict"] == "agrees"       # 3 cm of 20: the paper's 15 %
+    cm = _verdict(t, "set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (cm)")
+    assert cm["ours"] == pytest.approx(3.0) and cm["verdict"] == "differs: ours smaller"       # paper: 5 cm
+    se = 0.1 / np.sqrt(2)                                                           # two independent recordings
+    assert cm["high"] - cm["ours"] == pytest.approx(2 * se)
+    assert _verdict(t, f"{E.SET_KF} vs {E.BASE_KF}: error reduction, σ_d 30-50 cm/s, paper's").verdict == "better"
+    assert _verdict(t, f"{E.SET_KF} vs {E.BASE_KF}: error reduction, σ_d 30-50 cm/s, track away").verdict == "worse"
+    # 0 and 0.05 cm apart with se √2·0.07: not significant either way
+    assert _verdict(t, f"{E.SET_PF} vs {E.BASE_PF}: error reduction, σ_d 30-50 cm/s, paper's").verdict == "not significant"
+    assert _verdict(t, f"{E.SET_PF} vs {E.BASE_PF}: error reduction, σ_d 30-50 cm/s, track").verdict == "not significant"
+    kf = _verdict(t, f"{E.SET_KF} vs {E.SET_PF}")
+    assert kf["ours"] == pytest.approx(1.2) and kf["verdict"] == "better"
+    res = _verdict(t, "systematic vs multinomial")
+    assert res["ours"] == pytest.approx(0.05) and res["verdict"] == "not significant"
+    # the same table with a clear resampler difference and a set-noise PF beating its baseline
+    better = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (60, 17), E.SET_PF: (90, 16.0), E.BASE_KF: (25, 16.5),
+                           E.SET_KF: (24, 15.8)}, sem_cm=0.1)
+    t2 = E.headlines.verdicts(better, off, dict(RESAMPLER, diff_cm=0.5))
+    assert _verdict(t2, f"{E.SET_PF} vs {E.BASE_PF}: error reduction, σ_d 30-50 cm/s, paper's").verdict == "better"
+    assert _verdict(t2, "systematic vs multinomial").verdict == "worse"
+    assert _verdict(t2, "set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (%)").verdict == \
+        "differs: ours larger"
 
 
-def test_discussion_wording_follows_the_signs():
-    sweep = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (16.5, 15), E.SET_PF: (16.4, 16), E.BASE_KF: (16, 15.5),
-                          E.SET_KF: (16, 15.8), E.SET_KF_POOLED: (16, 16)})
-    gap = pd.DataFrame({"n_particles": [30, 300], "rms_gap_m": [0.02, 0.02]})
-    text = _discussion(sweep, _residuals((0.9, 1.0), (0.9, 1.0)), gap=gap,
-                       config=E.SweepConfig(sigma_d_mps=(0.02, 0.3, 0.5), n_trials=3, n_particles=200))
-    assert "the set model costs 1.0 cm between the two PFs" in text
-    assert "does not break away from the KF" in text and "breaks down" not in text
-    assert "does not fall with K" in text
-    assert "about right" in text and "loses 1.0 percentage points" in text
-    assert "Monte Carlo noise is larger" in text
-
-
-def test_discussion_of_the_real_run():
-    syn = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (60, 17), E.SET_PF: (90, 16), E.BASE_KF: (25, 16.5),
-                        E.SET_KF: (24, 15.8), E.SET_KF_POOLED: (23, 15.5)})
-    # calibrated: the set-noise PF loses, the pooled KF wins by half a millimetre; best σ_d at the grid's edge
-    cal = _sweep_frame({E.RAW: (6.0, 6.0), E.BASE_PF: (5.5, 5.6), E.SET_PF: (6.0, 6.1), E.BASE_KF: (5.4, 5.50),
-                        E.SET_KF: (5.6, 5.7), E.SET_KF_POOLED: (5.3, 5.45)})
-    raw = _sweep_frame({E.RAW: (12, 12), E.BASE_PF: (9, 9.3), E.SET_PF: (11, 11.9), E.BASE_KF: (9, 9.2),
-                        E.SET_KF: (9.8, 9.9), E.SET_KF_POOLED: (9.3, 9.4)})
-    res = {"calibrated": _residuals((6.0, 8.0), (3.0, 4.0)), "raw": _residuals((16.0, 25.0), (3.0, 4.0))}
-    text = _discussion(syn, _residuals((2.0, 2.2), (1.6, 1.8)), real_sweeps={"calibrated": cal, "raw": raw},
-                       real_residuals=res, real_label="lias-planar-uwb/fast")
-    real = text.split("Real ranges (lias-planar-uwb/fast, emulated sets)")[1]
-    assert "raw fixes average 6.0 cm" in real and "the set-noise PF loses 1.7 %" in real
-    assert "do not carry over" in real and "6.0–8.0 (raw ranges: 16.0–25.0)" in real
-    assert "hurts the PF most" in real
-    assert "by only 0.5 mm — no practical gain" in real
-    assert "still trails the baseline KF (17.5 % against 23.3 %)" in real
-    assert "range calibration does better than any filter" in real
-    assert "far below the paper's band" in real and "the optimum may lie lower" in real
-    # the stand-in rig says so
-    rig = _discussion(syn, _residuals((2.0, 2.2), (1.6, 1.8)), real_sweeps={"calibrated": cal},
-                      real_residuals={"calibrated": _residuals((1.0, 1.2), (1.0, 1.0))}, real_synthetic=True)
-    assert "synthetic LIAS-like rig" in rig and "simulated range errors" in rig and "fit the moving trolley" in rig
+def test_verdicts_refuse_a_sweep_without_the_band():
+    narrow = _sweep_frame({E.RAW: (20, 20), E.SET_PF: (90, 17)}, sigmas=(0.02, 0.06))
+    with pytest.raises(ValueError, match="band"):
+        E.headlines.verdicts(narrow, narrow, RESAMPLER)
 
 
 # --------------------------------------------------------------------------- kinds, the second track, the resampler
@@ -342,32 +320,6 @@ def test_resampler_check_reports_its_scope(study):
     with pytest.raises(ValueError, match="exactly two"):
         E.resampler_check(study.recordings[0], study.model, cfg, rng=np.random.default_rng(0),
                           resamplers=("systematic",))
-
-
-def test_discussion_of_the_second_track_and_the_resampler():
-    on = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (60, 17), E.SET_PF: (90, 16), E.BASE_KF: (25, 16.5),
-                       E.SET_KF: (24, 15.8), E.SET_KF_POOLED: (23, 15.5)}, sigmas=(0.02, 0.3, 0.5))
-    off = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (17, 17), E.SET_PF: (17.5, 17.5), E.BASE_KF: (16.5, 16.5),
-                        E.SET_KF: (16.6, 16.6), E.SET_KF_POOLED: (16.5, 16.5)}, sigmas=(0.3, 0.5),
-                       recordings=("off-a", "off-b"))
-    prox = pd.DataFrame({"recording": ["a", "b", "off-a", "off-b"], "n_fixes": [100, 100, 100, 100],
-                         "within_corr_share": [0.4, 0.4, 0.0, 0.0], "median_distance_m": [0.8, 0.8, 2.0, 2.0]})
-    chk = {"recording": "rec2", "sigma_d_mps": (0.3, 0.4, 0.5), "n_trials": 20, "n_particles": 1000,
-           "resamplers": ("systematic", "multinomial"), "error_cm": {"systematic": 14.0, "multinomial": 14.1},
-           "se_cm": {"systematic": 0.05, "multinomial": 0.05}, "diff_cm": -0.1, "z": 1.41}
-    text = _discussion(on, _residuals((2.0, 2.2), (1.6, 1.8)), off_sweep=off, proximity=prox, resampler=chk)
-    part = text.split("Away from the calibration locations.")[1].split("\n")[0]
-    assert "40 % of the fixes" in part and "calibration locations 0 %" in part
-    assert "set-noise PF improves on its raw fixes by 12.5 % (paper's track: +20.0 %)" in part
-    assert "-0.10 cm there against +0.70 cm" in part
-    assert "does worse than ignoring the sets" in part
-    worse = _discussion(on, _residuals((2.0, 2.2), (1.6, 1.8)), proximity=prox,
-                        off_sweep=off.assign(mean_error_m=np.where(off["filter"] == E.SET_PF, 0.25,
-                                                                   off["mean_error_m"])))
-    assert "set-noise PF is 25.0 % worse than its raw fixes" in worse
-    res = text.split("Resampler (interpretation 6).")[1].split("\n")[0]
-    assert "one recording (rec2)" in res and "30, 40 and 50 cm/s" in res and "20 trials" in res
-    assert "same within Monte Carlo noise" in res and "were not checked" in res
 
 
 # --------------------------------------------------------------------------- exercises and notes

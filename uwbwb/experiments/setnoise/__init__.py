@@ -4,13 +4,12 @@
 Fig. 9 sweep), :mod:`.diagnostics` its Fig. 8 run, the PF → KF gap, the resampler check and the
 noise models' residuals, :mod:`.real`
 the sets emulated on ``lias-planar-uwb`` ranges, :mod:`.figures` the figure
-builders, :mod:`.discussion` the comparison with the paper written from the
-run's numbers, :mod:`.headlines` the summary rows (synthetic and real, each with its kind) and the checks, and
+builders, :mod:`.headlines` the summary rows (synthetic and real, each with its kind), the checks and the verdict
+table of the comparison with the paper, and
 :mod:`.panels` the widget's back end. Everything the notebook uses is importable from here.
 """
 
 from . import exercises, headlines, panels
-from .discussion import discussion_markdown
 from .figures import (plot_facility, plot_fixes, plot_pf_kf_gap, plot_set_ellipses, plot_set_frequency,
                       plot_sweep, plot_trace)
 from .real import (Emulation, RealStudy, emulate_fixes, modelled_share, range_bias_span_m, real_inputs,
@@ -29,7 +28,7 @@ __all__ = [
     "BAND_MPS", "BASE_KF", "BASE_PF", "FACILITY_WIDE", "FILTERS", "INPUT", "LIAS", "OFF_TRACK_XY_M", "PAPER",
     "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "RAW", "REPRODUCED", "SET_KF", "SET_KF_POOLED", "SET_PF",
     "SIGMA_D_GRID_MPS", "TARGET", "Emulation", "RealStudy", "SweepConfig", "SyntheticStudy", "band_sigmas",
-    "band_summary", "best_sigma", "calibration_proximity", "discussion_markdown", "emulate_fixes", "exercises", "fix_rates_hz",
+    "band_summary", "best_sigma", "calibration_proximity", "emulate_fixes", "exercises", "fix_rates_hz",
     "headline_rows", "headlines", "mean_over_recordings", "modelled_share", "normalised_residuals", "panels", "paper_targets",
     "pf_kf_gap", "plot_facility", "plot_fixes", "plot_pf_kf_gap", "plot_set_ellipses", "plot_set_frequency",
     "plot_sweep", "plot_trace", "range_bias_span_m", "raw_error_m", "real_inputs", "real_study",

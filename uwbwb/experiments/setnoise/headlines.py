@@ -11,12 +11,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+import numpy as np
 import pandas as pd
 
 from .real import RealStudy
-from .study import BASE_KF, BASE_PF, INPUT, PAPER, RAW, REPRODUCED, SET_KF, SET_KF_POOLED, SET_PF, TARGET
+from .study import (BAND_MPS, BASE_KF, BASE_PF, INPUT, PAPER, RAW, REPRODUCED, SET_KF, SET_KF_POOLED, SET_PF,
+                    TARGET)
 
-__all__ = ["checks", "fix_rates_hz", "headline_rows", "paper_targets", "real_rows"]
+__all__ = ["checks", "fix_rates_hz", "headline_rows", "paper_targets", "real_rows", "verdicts"]
 
 
 def real_rows(real_band: pd.DataFrame, studies: Mapping[str, RealStudy], data_label: str) -> list[dict]:
@@ -158,3 +160,69 @@ def headline_rows(*, shares: dict, table1: pd.DataFrame, improvement: pd.DataFra
                                       "calibration locations", value=off_improvement.loc[name, "improvement_pct"],
                              unit="%", paper_value=None, kind=REPRODUCED))
     return rows
+
+
+# --------------------------------------------------------------------------- verdicts
+
+#: The interval of every verdict row: ±2 Monte Carlo standard errors over the PF's trials.
+VERDICT_RULE_SE = 2.0
+
+
+def _band(sweep: pd.DataFrame, name: str, band=BAND_MPS) -> tuple[float, float]:
+    """Band error of ``name`` averaged over σ_d values and recordings, cm, and its Monte Carlo standard error.
+
+    Per recording the σ_d values share their process-noise draws (common random numbers), so their
+    standard errors are combined as the RMS (as if fully correlated, the larger bound); recordings are
+    independent."""
+    d = sweep[(sweep["filter"] == name) & sweep["sigma_d_mps"].between(band[0] - 1e-12, band[1] + 1e-12)]
+    if d.empty:
+        raise ValueError(f"no {name!r} rows with σ_d in the band {band} m/s")
+    per_rec = d.groupby("recording", sort=False)
+    err = per_rec["mean_error_m"].mean()
+    se = per_rec["sem_error_m"].apply(lambda x: float(np.sqrt(np.mean(np.square(x.fillna(0.0))))))
+    return 100 * float(err.mean()), 100 * float(np.sqrt(np.sum(se ** 2)) / len(err))
+
+
+def verdicts(sweep: pd.DataFrame, off_sweep: pd.DataFrame, resampler: Mapping) -> pd.DataFrame:
+    """Notebook 01's claims as a table: ``claim, paper, ours, low, high, rule, verdict``.
+
+    Every interval is ours ± :data:`VERDICT_RULE_SE` Monte Carlo standard errors over the PF's trials (the
+    Kalman filters and the raw fixes have none): it covers the particle filter's randomness, not the draw
+    of the simulated recordings. A difference between two estimators takes the standard error of a
+    difference of independent means, an upper bound here (the filters share their draws within a trial).
+    Rules: a paper value *agrees* when it lies in the interval, else *differs*; a difference "A vs B: error
+    reduction" (B's error minus A's) is *better* (A better) or *worse* when its interval excludes 0, else *not
+    significant*. ``resampler`` is :func:`.diagnostics.resampler_check` (first resampler minus second).
+    """
+    k = VERDICT_RULE_SE
+    raw, _ = _band(sweep, RAW)
+    rows = []
+
+    def add(claim, paper, ours, se, rule):
+        lo, hi = ours - k * se, ours + k * se
+        if rule == "paper in interval":
+            verdict = "agrees" if lo <= paper <= hi else ("differs: ours larger" if lo > paper else
+                                                          "differs: ours smaller")
+        else:
+            verdict = "better" if lo > 0 else ("worse" if hi < 0 else "not significant")
+        rows.append({"claim": claim, "paper": paper, "ours": ours, "low": lo, "high": hi, "rule": rule,
+                     "verdict": verdict})
+
+    pf, pf_se = _band(sweep, SET_PF)
+    add("set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (%)", PAPER["improvement_pct"],
+        100 * (raw - pf) / raw, 100 * pf_se / raw, "paper in interval")
+    add("set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (cm)", PAPER["improvement_cm"],
+        raw - pf, pf_se, "paper in interval")
+    for label, data in (("paper's track", sweep), ("track away from calibration", off_sweep)):
+        for a, b in ((SET_PF, BASE_PF), (SET_KF, BASE_KF)):
+            ea, sa = _band(data, a)
+            eb, sb = _band(data, b)
+            add(f"{a} vs {b}: error reduction, σ_d 30-50 cm/s, {label} (cm)", np.nan, eb - ea, float(np.hypot(sa, sb)),
+                "difference excludes 0")
+    kf, _ = _band(sweep, SET_KF)
+    add(f"{SET_KF} vs {SET_PF}: error reduction, σ_d 30-50 cm/s, paper's track (cm)", np.nan, pf - kf, pf_se,
+        "difference excludes 0")
+    a, b = resampler["resamplers"]
+    add(f"{a} vs {b} resampling: set-noise PF error reduction, {resampler['recording']} (cm)", np.nan,
+        -resampler["diff_cm"], resampler["se_diff_cm"], "difference excludes 0")
+    return pd.DataFrame(rows)
