@@ -68,16 +68,24 @@ def test_truth_height_of_the_dynamic_run_is_not_used(synthetic):
     assert moved.tag_height == synthetic.tag_height
 
 
-def test_discussion_states_the_run_numbers(synthetic, compared):
-    cal, table, _ = compared
-    text = qs.discussion_markdown(table, cal, synthetic=True)
-    b = np.asarray(cal.bias_m)
-    assert f"{100 * b.min():.1f} to {100 * b.max():.1f} cm" in text
-    raw, calibrated = (table[table.variant == v].cep95_m.mean() for v in ("raw", "calibrated"))
-    assert f"from {raw:.3f} m to {calibrated:.3f} m" in text and "simulated rig" in text
-    assert "same epochs" in text
-    worse = table.assign(cep95_m=np.where(table.variant == "calibrated", 2 * raw, table.cep95_m))
-    assert "does not lower CEP95" in qs.discussion_markdown(worse, cal, synthetic=False)
+def test_verdicts_say_whether_calibration_helps_on_both_sides_of_the_rule(compared):
+    _, table, errors = compared
+    t = qs.verdicts(errors, rng=np.random.default_rng(0))
+    assert list(t.columns) == ["claim", "ours", "low", "high", "epochs", "rule", "verdict"]
+    raw = table[table.variant == "raw"].set_index("tag")
+    cal = table[table.variant == "calibrated"].set_index("tag")
+    for row, tag in zip(t.itertuples(), raw.index):
+        assert row.ours == pytest.approx(raw.loc[tag, "rmse_m"] - cal.loc[tag, "rmse_m"])
+        assert row.low <= row.ours <= row.high and row.epochs == raw.loc[tag, "compared"]
+    # calibrated fixes made worse by a constant 0.5 m: the verdict turns
+    worse = {"raw": errors["raw"], "calibrated": {k: dataclasses.replace(e, err_m=e.err_m + 0.5)
+                                                   for k, e in errors["calibrated"].items()}}
+    assert set(qs.verdicts(worse, rng=np.random.default_rng(0)).verdict) == {"worse"}
+    halved = {"raw": errors["raw"], "calibrated": {k: dataclasses.replace(e, err_m=0.5 * e.err_m)
+                                                    for k, e in errors["raw"].items()}}
+    assert set(qs.verdicts(halved, rng=np.random.default_rng(0)).verdict) == {"better"}
+    same = {"raw": errors["raw"], "calibrated": errors["raw"]}
+    assert set(qs.verdicts(same, rng=np.random.default_rng(0)).verdict) == {"not significant"}
 
 
 def test_headline_rows_carry_kind_and_coverage(compared):
