@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from uwbwb import sampling as smp
-from uwbwb.experiments.doppler import discussion, facts, figures, headlines, study
+from uwbwb.experiments.doppler import facts, figures, headlines, study
 from uwbwb.models import doppler as dm
 
 matplotlib.use("Agg")
@@ -152,98 +152,103 @@ def _results(**change) -> facts.Results:
     return facts.Results(**base)
 
 
-def _text(**change) -> tuple[dict, str]:
+def _table(**change) -> tuple[dict, pd.DataFrame]:
     f = facts.facts(_results(**change))
-    return f, discussion.discussion_markdown(f)
+    return f, facts.verdict_table(f)
+
+
+def _verdict(table: pd.DataFrame, start: str) -> str:
+    rows = table[table["claim"].str.startswith(start)]
+    assert len(rows) == 1, (start, list(table["claim"]))
+    return rows["verdict"].iloc[0]
+
+
+def _fig6(f: dict, quantity: str) -> pd.Series:
+    t = facts.fig6_table(f)
+    return t[(t["variant"] == "Doppler") & (t["quantity"] == quantity)].iloc[0]
 
 
 def test_dp_verdict_names_the_reading_that_reproduces_the_printed_values():
-    f, text = _text()
-    assert f["dp_reproduces"] == [R_MODEL] and f"The printed numbers follow from {R_MODEL}." in text
+    f, t = _table()
+    assert f["dp_reproduces"] == [R_MODEL]
+    assert _verdict(t, f"ΔP_ref of beacons 0 and 7 (ms), {R_MODEL}") == "reproduces"
+    assert _verdict(t, f"ΔP_ref of beacons 0 and 7 (ms), {R_500}") == "does not reproduce"
     ref = _results().ref_table.copy()
     ref.loc[ref.index[7], f"ΔP_ref (ms), {R_500}"] = -1.16          # inside ±0.05 ms of −1.2
     ref.loc[ref.index[7], f"ΔP_ref (ms), {R_MODEL}"] = -1.26        # outside
     f = facts.facts(replace(_results(), ref_table=ref))
     assert f["dp_reproduces"] == [R_500]
-    assert f"The printed numbers follow from {R_500}." in discussion.discussion_markdown(f)
+    t = facts.verdict_table(f)
+    assert _verdict(t, f"ΔP_ref of beacons 0 and 7 (ms), {R_500}") == "reproduces"
+    assert _verdict(t, f"ΔP_ref of beacons 0 and 7 (ms), {R_MODEL}") == "does not reproduce"
 
 
 @pytest.mark.parametrize("interval, verdict, words", [((4.94e-4, 4.99e-4), "below", "agrees"),
                                                       ((4.90e-4, 5.10e-4), "straddles", "undecided"),
                                                       ((5.01e-4, 5.20e-4), "above", "disagrees")])
 def test_fraction_verdict_follows_the_interval(interval, verdict, words):
-    f, text = _text(frac={R_MODEL: (sum(interval) / 2, *interval), R_500: (6.3e-4, 6.2e-4, 6.4e-4)})
+    f, t = _table(frac={R_MODEL: (sum(interval) / 2, *interval), R_500: (6.3e-4, 6.2e-4, 6.4e-4)})
     assert f[f"frac_verdict[cubic][{R_MODEL}]"] == verdict
-    assert f"— {discussion._FRAC_WORDS[verdict]}" in text and words in discussion._FRAC_WORDS[verdict]
+    assert _verdict(t, f"fraction of the 6-D space with δ < 15 cm, cubic (%), {R_MODEL}") == words
     assert f["frac_verdict[cubic][500 ms for all]"] == "above"
+    assert _verdict(t, f"fraction of the 6-D space with δ < 15 cm, cubic (%), {R_500}") == "disagrees"
 
 
 def test_cep50_verdict_judges_one_recording_against_the_spread_of_recordings():
-    f, text = _text()
-    assert f["cep50_verdict"] == "consistent" and "consistent with the paper's ≈ 25 cm" in text
-    assert "at K = 1000 particles" in text
+    f, _ = _table()
+    assert f["cep50_verdict"] == "consistent" and _fig6(f, "snapshot CEP50 (cm)")["paper vs range"] == "consistent"
     # the median's interval excludes 25 cm, yet a single recording of 25 cm is inside the spread
-    f, text = _text(cep=[20.0, 21.0, 22.0, 23.0, 21.5, 22.5, 20.5, 21.0, 26.0],
-                    ratio={"bottom-left": [0.5] * 9, "top-left": [1.8] * 9})
+    f, _ = _table(cep=[20.0, 21.0, 22.0, 23.0, 21.5, 22.5, 20.5, 21.0, 26.0],
+                  ratio={"bottom-left": [0.5] * 9, "top-left": [1.8] * 9})
     assert f["cep50_verdict"] == "consistent" and f["cep50_median_verdict"] == "below"
-    assert "consistent with the paper's ≈ 25 cm" in text and "median recording lies below 25 cm" in text
-    f, text = _text(cep=[40.0, 42.0, 39.0, 41.0, 43.0])
-    assert f["cep50_verdict"] == "above" and "larger than the paper's ≈ 25 cm" in text
-    f, text = _text(cep=[40.0, 42.0])
+    assert _fig6(f, "snapshot CEP50 (cm)")["paper vs median"] == "below"
+    f, _ = _table(cep=[40.0, 42.0, 39.0, 41.0, 43.0])
+    assert f["cep50_verdict"] == "above" and _fig6(f, "snapshot CEP50 (cm)")["paper vs range"] == "above"
+    f, _ = _table(cep=[40.0, 42.0])
     assert f["cep50_verdict"] == "no interval"
 
 
-@pytest.mark.parametrize("offset, label, words", [(20.0, "offset", "mostly the offset every run"),
-                                                  (5.0, "spread", "mostly run-to-run spread"),
-                                                  ([5.0, 15.0, 8.0, 12.0, 10.0], "comparable", "comparable")])
-def test_offset_or_spread_is_decided_on_the_interval_of_the_per_recording_share(offset, label, words):
-    f, text = _text(offset=offset)
-    assert f["offset_or_spread"] == label and words in text
+@pytest.mark.parametrize("offset, label", [(20.0, "offset"), (5.0, "spread"), ([5.0, 15.0, 8.0, 12.0, 10.0], "comparable")])
+def test_offset_or_spread_is_decided_on_the_interval_of_the_per_recording_share(offset, label):
+    f, t = _table(offset=offset)
+    assert f["offset_or_spread"] == label and _verdict(t, "Fig 6: offset²") == label
 
 
 def test_ratio_verdict_per_corner():
-    f, text = _text()
+    f, _ = _table()
     assert f["corners"]["bottom-left"][5] == "consistent" and f["corners"]["top-left"][5] == "above"
-    assert "Not reproduced" in text
-    f, text = _text(ratio={"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [0.5, 0.45, 0.55, 0.5, 0.6]})
-    assert f["ratio_reproduced"] and "Consistent at every corner." in text
-    f, text = _text(cep=[24.0, 26.0], ratio={"bottom-left": [0.4, 0.5], "top-left": [1.8, 1.9]})
-    assert f["ratio_verdict"] == "no interval" and "No verdict: fewer than 3 recordings" in text
+    assert _fig6(f, "along / across, top-left")["paper vs range"] == "above" and f["ratio_verdict"] == "not reproduced"
+    f, _ = _table(ratio={"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [0.5, 0.45, 0.55, 0.5, 0.6]})
+    assert f["ratio_reproduced"] and f["ratio_verdict"] == "reproduced"
+    f, _ = _table(cep=[24.0, 26.0], ratio={"bottom-left": [0.4, 0.5], "top-left": [1.8, 1.9]})
+    assert f["ratio_verdict"] == "no interval"
 
 
 def test_corner_dependence_is_decided_on_the_paired_difference():
-    f, text = _text()          # top-left ≈ 1.8 against bottom-left ≈ 0.5 in every recording
-    assert f["corner_dependence"] == "depends" and "The ratio depends on the corner" in text
+    f, t = _table()          # top-left ≈ 1.8 against bottom-left ≈ 0.5 in every recording
+    assert f["corner_dependence"] == "depends" and _verdict(t, "along/across ratio") == "depends"
     # overlapping medians (0.76 vs 0.82) whose paired differences straddle 0
-    f, text = _text(ratio={"bottom-left": [0.6, 0.9, 0.76, 0.7, 1.0], "top-left": [0.82, 0.7, 0.9, 0.85, 0.75]})
-    assert f["corner_dependence"] == "same" and "depends on the corner" not in text
-    assert "Both corners ≈" in text and "recordings spread 0.60–1.00" in text
+    f, t = _table(ratio={"bottom-left": [0.6, 0.9, 0.76, 0.7, 1.0], "top-left": [0.82, 0.7, 0.9, 0.85, 0.75]})
+    assert f["corner_dependence"] == "same" and _verdict(t, "along/across ratio") == "same"
 
 
 def test_keeps_track_verdict_flips_at_both_thresholds():
-    assert _text(in_track=0.96)[0]["pf_keeps_track[Doppler + ranges]"]
-    f, text = _text(in_track=0.94)
-    assert not f["pf_keeps_track[Doppler + ranges]"] and "beyond 0.5 m on" in text and "**loses track**" not in text
-    f, text = _text(restarted=1)
-    assert not f["pf_keeps_track[Doppler]"] and "**loses track**" in text     # 5 of 50 runs = 10 % > 5 %
+    f, t = _table(in_track=0.96)
+    assert f["pf_keeps_track[Doppler + ranges]"] and _verdict(t, "PF keeps track, Doppler + ranges") == "keeps track"
+    f, t = _table(in_track=0.94)
+    assert _verdict(t, "PF keeps track, Doppler + ranges") == "does not keep track"
+    f, t = _table(restarted=1)                                         # 5 of 50 runs = 10 % > 5 %
+    assert not f["pf_keeps_track[Doppler]"] and _verdict(t, "PF keeps track, Doppler:") == "does not keep track"
 
 
 def test_filter_comparison_verdict_follows_the_interval_of_differences():
-    assert _text()[0]["kf_vs_pf[Doppler]"] == "PF better"
-    assert _text(kf_minus_pf=[-5.0, -6.0, -4.0, -5.5, -4.5])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
-    f, text = _text(kf_minus_pf=[-5.0, 6.0, -4.0, 5.5, 0.5])
-    assert f["kf_vs_pf[Doppler]"] == "no significant difference" and "no significant difference" in text
-    f, text = _text(kf_minus_pf=[-0.2, -0.3, -0.1, -0.25, -0.15])      # all negative, but under 5 mm
-    assert f["kf_vs_pf[Doppler]"] == "equal within 5 mm" and "equal within 5 mm" in text
-    assert _text(kf_minus_pf=[-0.6, -0.7, -0.55, -0.65, -0.8])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
-
-
-def test_prior_sentence_states_what_each_filter_is_told(cfg):
-    text = _text()[1]
-    assert "same room prior" not in text
-    f, text = _text(filter_settings=study.filter_settings("lab", cfg))
-    assert "hard constraint" in text and "5 % uniform outlier share" in text and "non-ambiguous" in text
-    assert "p_d 0.95 and 0.5 Hz of clutter" in text and "Gaussian" in text
+    assert _verdict(_table()[1], "MH-EKF − PF snapshot CEP50 per recording, Doppler (cm)") == "PF better"
+    assert _table(kf_minus_pf=[-5.0, -6.0, -4.0, -5.5, -4.5])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
+    f, t = _table(kf_minus_pf=[-5.0, 6.0, -4.0, 5.5, 0.5])
+    assert _verdict(t, "MH-EKF − PF snapshot CEP50 per recording, Doppler (cm)") == "no significant difference"
+    f, t = _table(kf_minus_pf=[-0.2, -0.3, -0.1, -0.25, -0.15])      # all negative, but under 5 mm
+    assert _verdict(t, "MH-EKF − PF snapshot CEP50 per recording, Doppler (cm)") == "equal within 5 mm"
+    assert _table(kf_minus_pf=[-0.6, -0.7, -0.55, -0.65, -0.8])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
 
 
 def test_coverage_is_low_for_an_overconfident_posterior():
@@ -257,29 +262,25 @@ def test_coverage_is_low_for_an_overconfident_posterior():
     assert not study.in_region_95(err[:1], np.full((1, 2, 2), np.nan))[0]
 
 
-def test_floor_explanation_is_read_from_the_measured_steps():
-    f, text = _text()           # 4× particles still lowered it by 3 cm
-    assert not f["particles_converged"] and "particle count has **not converged**" in text
-    assert "the floor is the information" not in text
-    f, text = _text(floor=[40.0, 38.0, 30.0, 29.5])
-    assert f["particles_converged"] and "the floor is the information Doppler-only data carry" in text
-    f, text = _text(floor=[40.0, 38.0, 10.0, 8.0])
+def test_floor_verdict_is_read_from_the_measured_steps():
+    f, t = _table()           # 4× particles still lowered it by 3 cm
+    assert not f["particles_converged"] and _verdict(t, "error floor") == "not converged"
+    f, t = _table(floor=[40.0, 38.0, 30.0, 29.5])
+    assert f["particles_converged"] and f["floor_left_dominates"] and _verdict(t, "error floor") == "converged"
+    f, _ = _table(floor=[40.0, 38.0, 10.0, 8.0])
     assert not f["floor_left_dominates"] and f["floor_main_cause"].startswith("reading a period-averaged")
-    assert "The largest step is reading a period-averaged" in text
 
 
 def test_ghost_rules_flip():
-    assert "the paper's two observations hold" in _text()[1]
-    assert "do **not** both hold" in _text(angles=(25.0, 5.0))[1]
-    f, text = _text()
-    assert "V = 0.8 V_ref: minimum 13.5 cm (not a ghost)" in text
-    f, text = _text(cut_minima={"V = V_ref": (0.0, 0.0), "V = 0.8 V_ref": (0.4, 5.0)})
-    assert "V = 0.8 V_ref: minimum 5.0 cm (a ghost)" in text
+    assert _verdict(_table()[1], "ghost positions on a plane") == "holds"
+    assert _verdict(_table(angles=(25.0, 5.0))[1], "ghost positions on a plane") == "does not hold"
+    f, t = _table()
+    assert _verdict(t, "Fig 5: minimum of δ along the band, V = 0.8 V_ref") == "not a ghost"
+    f, t = _table(cut_minima={"V = V_ref": (0.0, 0.0), "V = 0.8 V_ref": (0.4, 5.0)})
+    assert _verdict(t, "Fig 5: minimum of δ along the band, V = 0.8 V_ref") == "a ghost"
 
 
-def test_fast_mode_is_announced_and_lab_row_says_reconstruction():
-    assert _text(fast=True)[1].startswith("> **FAST mode")
-    assert not _text()[1].startswith("> **FAST mode")
+def test_lab_row_says_reconstruction():
     rows = headlines.rows(facts.facts(_results()))
     lab = [r for r in rows if "lab layout" in r["quantity"] and "pseudo" not in r["quantity"]]
     assert lab and all("reconstruction" in r["quantity"] for r in lab)

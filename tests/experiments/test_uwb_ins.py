@@ -6,7 +6,7 @@ import pytest
 
 from tests.conftest import real_dataset
 from tests.fixtures import iasl as fx
-from uwbwb.experiments.uwb_ins import discussion, study
+from uwbwb.experiments.uwb_ins import study
 from uwbwb.models.tdoa import TdoaModel
 from uwbwb.types import TdoaLog
 
@@ -55,14 +55,6 @@ def test_screened_tdoa_removes_what_eq4_rejects():
     assert np.isnan(out.tdoa_m[0, 2]) and out.ref[1] == -1
     same, none = study.screened_tdoa(log, anchors, None)
     assert same is log and not none.any()
-
-
-def test_discussion_is_written_from_the_numbers(short_dynamic):
-    _, comp = short_dynamic
-    rng = {n: study.error_ranges(comp, n) for n in ("loose", "tight")}
-    text = discussion.discussion_markdown(rng, rng, {"d": comp.table()["RMSE (m)"].to_dict()},
-                                          comp.table("outage")["max (m)"].to_dict(), comp.rejected, None, True)
-    assert "FAST" in text and f"{rng['tight']['E_min']:.2f}" in text
 
 
 def _fixture_tree(tmp_path, names):

@@ -2,9 +2,9 @@
 
 :class:`Results` holds what the notebook computed; :func:`facts` turns it into a flat
 ``dict`` of numbers and verdict labels, each label decided by a stated rule on an
-interval (never fixed text). :mod:`.discussion` writes its sentences from these facts
-only and :mod:`.headlines` reads the summary rows from them, so a test can feed numbers
-on either side of each threshold and see the sentence flip.
+interval (never fixed text). :func:`verdict_table` and :func:`fig6_table` lay them out as the
+notebook's verdict tables and :mod:`.headlines` reads the summary rows from them, so a test can feed
+numbers on either side of each threshold and see the verdict flip.
 
 Rules
 -----
@@ -44,7 +44,7 @@ import pandas as pd
 from ...filters import doppler as fd
 from .study import PAPER, READINGS, bootstrap_median
 
-__all__ = ["Results", "facts", "fig6_table", "DP_TOLERANCE_MS", "KEEPS_TRACK", "GHOST_ANGLE_DEG", "OFFSET_SHARE", "EQUAL_CM"]
+__all__ = ["Results", "facts", "fig6_table", "verdict_table", "DP_TOLERANCE_MS", "KEEPS_TRACK", "GHOST_ANGLE_DEG", "OFFSET_SHARE", "EQUAL_CM"]
 
 #: Half of the last printed digit of the paper's ΔP_ref (ms).
 DP_TOLERANCE_MS = 0.05
@@ -65,7 +65,7 @@ GHOST_CUT_CM = 8.0
 
 @dataclass(frozen=True)
 class Results:
-    """Everything notebook 04 computed that its discussion and summary read.
+    """Everything notebook 04 computed that its verdict tables and summary read.
 
     Attributes
     ----------
@@ -282,7 +282,7 @@ def facts(res: Results) -> dict:
 
 
 def fig6_table(f: dict) -> pd.DataFrame:
-    """The Fig 6 numbers the discussion quotes (same bootstrap draws), one row per quantity.
+    """The Fig 6 numbers and verdicts (same bootstrap draws), one row per quantity.
 
     Columns: median over recordings, its bootstrap 95 % interval, the range over recordings,
     the verdict of the paper's single-recording value against the range, and that of the
@@ -304,4 +304,64 @@ def fig6_table(f: dict) -> pd.DataFrame:
         rows.append({"variant": "Doppler", "quantity": f"along / across, {corner}", "recordings": f["n_recordings"],
                      "median": v[0], "95 % low": v[1], "95 % high": v[2], "min": v[3], "max": v[4],
                      "paper vs range": v[5], "paper vs median": v[6]})
+    return pd.DataFrame(rows)
+
+
+def _ci(lo: float, hi: float, fmt: str) -> str:
+    return f"[{lo:{fmt}}, {hi:{fmt}}]" if np.isfinite(lo) and np.isfinite(hi) else "—"
+
+
+def verdict_table(f: dict) -> pd.DataFrame:
+    """Every claim of notebook 04 outside Fig 6 (that is :func:`fig6_table`), one row each: ``claim, paper, ours,
+    interval, rule, verdict``, read from :func:`facts` (the rules are this module's)."""
+    rows = []
+
+    def add(claim, paper, ours, interval, rule, verdict):
+        rows.append({"claim": claim, "paper": paper, "ours": ours, "interval": interval, "rule": rule,
+                     "verdict": verdict})
+
+    for r in f["readings"]:
+        add(f"ΔP_ref of beacons 0 and 7 (ms), {r}", "1.1, −1.2 (input)",
+            f"{f[f'dp_ms[{r}][0]']:.2f}, {f[f'dp_ms[{r}][7]']:.2f}", f"±{DP_TOLERANCE_MS:g} (printed precision)",
+            "both within the printed precision",
+            "reproduces" if r in f["dp_reproduces"] else "does not reproduce")
+    for r in f["readings"]:
+        k = f"[cubic][{r}]"
+        add(f"fraction of the 6-D space with δ < 15 cm, cubic (%), {r}", f"< {f['frac_bound_pct']:g}",
+            f"{f['frac_pct' + k]:.3g}", _ci(f["frac_lo_pct" + k], f["frac_hi_pct" + k], ".3g"),
+            "95 % interval below the bound: agrees; above: disagrees", {
+                "below": "agrees", "above": "disagrees", "straddles": "undecided",
+                "no interval": "undecided"}[f["frac_verdict" + k]])
+    add("brute force and conditional estimator agree (δ < 15 cm, cubic)", "—", f"{f['brute_frac_pct']:.3g} % from "
+        f"{f['brute_draws']:.2g} draws", "both 95 % intervals", "intervals overlap",
+        "agree" if f["estimators_agree"] else "disagree")
+    add("lab fraction over cubic fraction (δ < 15 cm)", f"{f['lab_over_cubic_paper']:.0f}×",
+        f"{f['lab_over_cubic']:.0f}×", "—", "same order of magnitude (the lab is a reconstruction)",
+        "agrees" if f["lab_same_order"] else "differs")
+    add("ghost positions on a plane ⟂ V, ghost velocities along V (angles, °)", "observed",
+        f"{f['plane_angle_deg']:.0f}, {f['vel_axis_angle_deg']:.0f}", "—", f"both under {GHOST_ANGLE_DEG:g}°",
+        "holds" if f["ghost_shape_holds"] else "does not hold")
+    for k, v in f["cut_min_cm"].items():
+        add(f"Fig 5: minimum of δ along the band, {k} (cm)", "—", f"{v:.1f}", "—",
+            f"a ghost when under {f['ghost_cut_cm']:g} cm", "a ghost" if f["cut_is_ghost"][k] else "not a ghost")
+    share, slo, shi = f["offset_share"]
+    add("Fig 6: offset² / (offset² + run-to-run²), median recording", "—", f"{share:.2f}", _ci(slo, shi, ".2f"),
+        f"interval above {OFFSET_SHARE:g}: offset; below: spread", f["offset_or_spread"])
+    if "corner_dependence" in f:
+        m, lo, hi = f["corner_diff"]
+        add(f"along/across ratio, {f['corner_pair'][0]} − {f['corner_pair'][1]} per recording", "—", f"{m:+.2f}",
+            _ci(lo, hi, "+.2f"), "interval excludes 0: depends on the corner", f["corner_dependence"])
+    for v in ("Doppler", "Doppler + ranges"):
+        if f"kf_vs_pf[{v}]" not in f:
+            continue
+        m, lo, hi = f[f"kf_minus_pf_cm[{v}]"]
+        add(f"MH-EKF − PF snapshot CEP50 per recording, {v} (cm)", "—", f"{m:+.1f}", _ci(lo, hi, "+.1f"),
+            f"|median| < {EQUAL_CM:g} cm: equal; else the interval excludes 0", f[f"kf_vs_pf[{v}]"])
+        rs, runs = f[f"pf_restarted_runs[{v}]"]
+        add(f"PF keeps track, {v}: epochs within 0.5 m, runs restarted", "—",
+            f"{100 * f[f'pf_in_track[{v}]']:.1f} %, {rs} of {runs}", "—",
+            f"≥ {100 * KEEPS_TRACK[0]:.0f} % within 0.5 m and ≤ {100 * KEEPS_TRACK[1]:.0f} % restarted",
+            "keeps track" if f[f"pf_keeps_track[{v}]"] else "does not keep track")
+    add("error floor: CEP50 lowered by 4× the particles (cm)", "—", f"{f['floor_particles_step_cm']:.1f}", "—",
+        f"under {PARTICLE_STEP_CM:g} cm: converged", "converged" if f["particles_converged"] else "not converged")
     return pd.DataFrame(rows)

@@ -87,7 +87,7 @@ def checks(f: dict, *, fast: bool) -> list[str]:
         fail.append("eq 1 at P = 500 ms must give ΔP_ref(beacon 0) ≈ 1.06 ms")
     if not f["estimators_agree"]:
         fail.append("brute force and conditional disagree beyond their intervals")
-    if f["fig_empty_panels"] and not fast:          # FAST: reported in the figure and the discussion
+    if f["fig_empty_panels"] and not fast:          # FAST: reported under the figure's panels
         fail.append(f"empty figure panels: {f['fig_empty_panels']}")
     if not all(f["ranges_frac_pct"][k] < 0.01 * f[f"frac_pct[{k}][{list(READINGS)[0]}]"] for k in ("cubic", "lab")):
         fail.append("the ranging term must shrink the fraction under 15 cm a hundredfold")

@@ -3,12 +3,11 @@
 ``study`` calibrates and runs the estimators (``results``: what one tag-run gives and the tables),
 ``real`` runs the real-data sections, ``headlines`` declares the summary rows and the checks,
 ``figures`` draws, ``panels`` is the explorer's back end, ``exercises`` the checked exercises,
-``facts`` and ``discussion`` word the comparisons from the run's numbers. The notebook imports this
+``facts`` explains, from the calibration curves, why 03 and the board can pick different σ_w. The notebook imports this
 package as ``mm``.
 """
 
 from . import exercises, facts, panels, real
-from .discussion import TIE_M, discussion_markdown
 from .figures import calibration_figure, cdf_figure, covariance_figure, paths_figure, scenario_figure
 from .headlines import Results, checks, headline_rows
 from .study import (DEFAULT_GRIDS, METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95,
@@ -19,9 +18,9 @@ from .study import (DEFAULT_GRIDS, METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_M
 
 __all__ = [
     "DEFAULT_GRIDS", "METHODS", "MODELS", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95",
-    "PAPER_SIGMA", "Results", "SIGMA_KIND", "Study", "TagResults", "TIE_M", "best_sigmas",
+    "PAPER_SIGMA", "Results", "SIGMA_KIND", "Study", "TagResults", "best_sigmas",
     "calibration_curves", "calibration_figure", "cdf_figure", "cep95_table", "checks", "covariance_figure",
-    "coverage_table", "discussion_markdown", "ekf_name", "estimate", "exercises", "facts", "headline_rows",
+    "coverage_table", "ekf_name", "estimate", "exercises", "facts", "headline_rows",
     "nis_table", "panels", "paper_table", "paths_figure", "ranging_summary", "ranking", "raw_multilateration", "real",
     "record", "run_ekf", "run_study", "scenario_figure", "sigma_rows", "split_runs", "summary_rows",
     "synthetic_acquisition", "tag_runs", "tdoa_noise_check",

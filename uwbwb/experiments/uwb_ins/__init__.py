@@ -2,7 +2,7 @@
 :mod:`.ablation` (what each ingredient adds, over seeds and model-mismatch cases),
 :mod:`.facts` (the verdicts, computed), :mod:`.headlines` (summary rows and checks),
 :mod:`.realdata` (the real-data table: common epochs, bootstrap differences, NEES/NIS),
-:mod:`.figures` (the paper's figures and ours), :mod:`.discussion` (comparison with the paper)."""
+:mod:`.figures` (the paper's figures and ours)."""
 
 from . import ablation, facts, headlines, realdata, study
 
