@@ -358,9 +358,9 @@ PERSIST = pd.DataFrame([[0.72, 0.52, 0.44, 0.50], [1.26, 0.48, 0.50, 0.76], [0.6
                        index=[0.0, 3.0, 30.0], columns=HS)
 
 
-def test_discussion_facts_follow_the_tables():
+def test_comparison_facts_follow_the_tables():
     syn = _summary([1.157, 0.321, 0.515, 0.604], point=2.9)
-    f = ex.discussion_facts(syn, synthetic_other=_three_d(), persistence=PERSIST, hanyang=_hanyang(0.12, 0.16),
+    f = ex.comparison_facts(syn, synthetic_other=_three_d(), persistence=PERSIST, hanyang=_hanyang(0.12, 0.16),
                             **_lias())
     assert f["ranking"] == ("percentile", "robust_mean", "residual") and not f["paper_ranking"]
     assert f["point_best_nls"] == "robust_mean" and f["nls_beats_point_p90"]
@@ -390,40 +390,49 @@ def test_discussion_facts_follow_the_tables():
     assert min(h["growth_m"].values()) == pytest.approx(0.224)
 
 
-def test_discussion_words_state_the_facts():
+def _row(table, start):
+    rows = table[table["claim"].str.startswith(start)]
+    assert len(rows) == 1, (start, list(table["claim"]))
+    return rows.iloc[0]
+
+
+def test_verdict_table_states_the_facts():
     syn = _summary([1.157, 0.321, 0.515, 0.604], point=2.9)
-    text = ex.discussion_markdown(syn, synthetic_other=_three_d(), persistence=PERSIST,
-                                  hanyang=_hanyang(0.12, 0.16), **_lias())
-    for number in ("0.32 m", "1.16 m", "2.90 m", "97 %", "1.10 m", "0.14 m", "0.09", "0.41", "1.0 %",
-                   "0.157", "1.081", "+0.21", "40 %", "98 %"):
-        assert number in text, number
-    assert "not the paper's ranking" in text and "do not tune it" in text
-    assert "beats the point-based fixes" in text and "too high" in text and "same as at the known height" in text
-    assert "better than the point fixes with raw ranges" in text
-    assert "little NLOS" not in text and "0.1–0.5 m" not in text     # said only when the run computes it
-    assert text.index("the 5th percentile (0.32 m)") < text.index("the robust mean (0.52 m)")
+    t = ex.verdict_table(ex.comparison_facts(syn, synthetic_other=_three_d(), persistence=PERSIST,
+                                             hanyang=_hanyang(0.12, 0.16), **_lias()))
+    assert list(t.columns) == ["claim", "paper", "ours", "rule", "verdict"]
+    rank = _row(t, "ranking of the heuristics")
+    assert rank.verdict == "differs" and rank.ours.index("the 5th percentile (0.32 m)") < rank.ours.index("the robust mean")
+    assert _row(t, "best trajectory NLS vs the point-based fixes").verdict == "NLS better"
+    assert "2.90" in _row(t, "best trajectory NLS vs the point-based fixes").ours
+    assert _row(t, "ranking in 3-D").verdict == "same" and _row(t, "5th percentile in 3-D").verdict == "too high"
+    assert _row(t, "best heuristic as NLOS episodes lengthen").verdict == "changes"
+    assert _row(t, "LIAS static, raw ranges").verdict == "NLS better"
+    assert _row(t, "LIAS dynamic, raw ranges: best trajectory").verdict == "NLS better"
+    assert _row(t, "LIAS static: range calibration").verdict == "calibration larger"
+    assert _row(t, "LIAS dynamic, raw ranges: plain NLS").verdict == "plain NLS beats every heuristic"
+    assert _row(t, "Hanyang static").verdict == "NLOS larger"
 
 
-def test_discussion_when_the_paper_ranking_comes_out():
+def test_verdicts_when_the_paper_ranking_comes_out():
     persistence = pd.DataFrame([[1.0, 0.6, 0.65, 0.5], [1.2, 0.9, 0.8, 0.6]], index=[3.0, 30.0], columns=HS)
     syn = _summary([1.0, 0.8, 0.6, 0.4], speed=(1.10, np.nan, 1.1, 1.1), point=1.2)
-    f = ex.discussion_facts(syn, persistence=persistence, hanyang=_hanyang(0.0, 1.0, slope=0.0))
+    f = ex.comparison_facts(syn, persistence=persistence, hanyang=_hanyang(0.0, 1.0, slope=0.0))
     assert f["paper_ranking"] and f["persistence"]["worse"] == HS and f["persistence"]["best_long"] == "residual"
     assert not f["nls_beats_point_p90"] and "geometry" not in f and "lias_static" not in f
-    text = ex.discussion_markdown(syn, persistence=persistence, hanyang=_hanyang(0.0, 1.0, slope=0.0))
-    assert "— the paper's ranking" in text and "do not tune it" not in text and "designed for" not in text
-    assert "does not beat the point-based fixes" in text and "unbounded" not in text
-    assert "LIAS" not in text and "(1.100)" in text and "strong" in text and "−0.03 m (LOS)" in text
+    t = ex.verdict_table(f)
+    assert _row(t, "ranking of the heuristics").verdict == "as in the paper"
+    assert _row(t, "best trajectory NLS vs the point-based fixes").verdict == "NLS not better"
+    assert not t["claim"].str.contains("LIAS").any()
 
 
-def test_discussion_with_one_hanyang_condition_only():
+def test_verdicts_with_one_hanyang_condition_only_and_low_point_coverage():
     low = _summary([1.0, 0.8, 0.6, 0.4], point=2.0)
     low.loc["point", "coverage"] = 0.7
-    assert "30 % of the packets without a position" in ex.discussion_markdown(low)
-    f = ex.discussion_facts(_summary([1.0, 0.8, 0.6, 0.4]), hanyang=_hanyang(0.0, 1.0).query("condition == 'LOS'"))
+    assert "70 %" in _row(ex.verdict_table(ex.comparison_facts(low)), "best trajectory NLS vs the point").ours
+    f = ex.comparison_facts(_summary([1.0, 0.8, 0.6, 0.4]), hanyang=_hanyang(0.0, 1.0).query("condition == 'LOS'"))
     assert f["hanyang"]["conditions"] == ["LOS"] and "gap_m" not in f["hanyang"]
-    assert "no LOS vs NLOS comparison" in ex.discussion_markdown(
-        _summary([1.0, 0.8, 0.6, 0.4]), hanyang=_hanyang(0.0, 1.0).query("condition == 'LOS'"))
+    assert not ex.verdict_table(f)["claim"].str.startswith("Hanyang").any()
 
 
 def test_headline_rows_say_their_kind_and_never_a_paper_bound(rng):

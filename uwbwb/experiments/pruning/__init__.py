@@ -5,11 +5,10 @@
 LIAS static poses and dynamic pieces, ``sections`` the notebook's LIAS sections in one call each;
 ``figures`` draws them; ``panels`` backs the notebook's widgets and writes the notes under them;
 ``headlines`` declares the summary rows and the checks; ``exercises`` checks the notebook's
-exercises; ``discussion`` writes the comparison with the paper from the run's tables.
+exercises; ``verdicts`` computes the comparison with the paper from the run's tables (``verdict_table``).
 """
 
 from . import exercises, headlines, panels
-from .discussion import discussion_facts, discussion_markdown
 from .figures import (HEURISTIC_MARKERS, error_cdf_by_heuristic, heuristic_color, plot_coverage,
                       plot_error_cdf_percentile, plot_error_histogram, plot_hanyang, plot_polar_errors,
                       plot_robust_mean_cloud, plot_segment_fits)
@@ -19,17 +18,18 @@ from .real import DynamicResult, StaticResult, run_dynamic_segments, run_static_
 from .scoring import (ESTIMATORS, LABELS, MIN_SEGMENT_RANGES, PAPER_RANKING, POINT, epoch_summary, hanyang_table,
                       heuristic_summary, rank_heuristics, wins_table)
 from .sections import LiasDynamic, LiasStatic, lias_dynamic, lias_static
+from .verdicts import comparison_facts, verdict_table
 from .study import (SyntheticConfig, SyntheticResult, loso_calibrations, outlier_free_control, range_error_stats,
                     run_recordings, run_synthetic, run_tour, segment_ranges, sensitivity)
 
 __all__ = [
     "ESTIMATORS", "HEURISTIC_MARKERS", "LABELS", "MIN_SEGMENT_RANGES", "PAPER_RANKING", "POINT", "DynamicResult",
     "LiasDynamic", "LiasStatic", "PieceExplorer", "Results", "StaticResult", "SyntheticConfig", "SyntheticResult",
-    "TourExplorer", "discussion_facts", "discussion_markdown", "epoch_summary", "error_cdf_by_heuristic",
+    "TourExplorer", "comparison_facts", "epoch_summary", "error_cdf_by_heuristic",
     "exercises", "hanyang_table", "headline_rows", "headlines", "heuristic_color", "heuristic_summary",
     "lias_dynamic", "lias_static", "loso_calibrations", "outlier_free_control", "panels", "plot_coverage",
     "plot_error_cdf_percentile", "plot_error_histogram", "plot_hanyang", "plot_polar_errors",
     "plot_robust_mean_cloud", "plot_segment_fits", "range_error_stats", "rank_heuristics",
     "run_dynamic_segments", "run_recordings", "run_static_poses", "run_synthetic", "run_tour", "segment_ranges",
-    "sensitivity", "wins_table",
+    "sensitivity", "verdict_table", "wins_table",
 ]

@@ -4,7 +4,7 @@
 calibration when the session has two sites or more) at the tags' mount height from the same
 poses; :func:`lias_dynamic` cuts the dynamic run into straight pieces and fits each (raw ranges,
 and calibrated from the static poses of the same room when the anchors match). Each returns a
-frozen record of everything the notebook's tables, figures, checks and discussion read, with a
+frozen record of everything the notebook's tables, figures, checks and verdict table read, with a
 short printed report.
 """
 
