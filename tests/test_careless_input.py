@@ -115,12 +115,21 @@ def _samples(spec: nbp.Spec, default) -> list[str]:
         values = tuple(default[:2]) if isinstance(default, tuple) and default else (item(spec.item),)
         out += [repr(values), repr(list(values))]
     elif spec.kind == "str":
-        out.append("local" if spec.check is not None else "some folder")
+        checked = [t for t in ("local", str(Path(__file__).parent)) if _passes(spec, t)]
+        out.append(checked[0] if spec.check is not None else "some folder")
     else:
         out.append(repr(item(spec)))
     if spec.none is not None:
         out.append("None")
     return out
+
+
+def _passes(spec, text: str) -> bool:
+    try:
+        spec.parse(text)
+    except ValueError:
+        return False
+    return True
 
 
 _TYPED = [(path, name, text) for path in NOTEBOOKS
@@ -209,6 +218,8 @@ def no_run(monkeypatch):
     ("00", "SEED", "-1", "expected an integer ≥ 0"),
     ("00", "RECORDING", "", "expected non-empty text"),
     ("00", "DASK_SCHEDULER", "notanaddress", "scheduler 'notanaddress' is not an address"),
+    ("00", "DATA_DIR", "/no/such/folder", "DATA_DIR /no/such/folder: does not exist"),
+    ("01", "DATA_DIR", __file__, "is a file, not a folder"),
 ])
 def test_a_value_outside_its_spec_stops_reproduce_naming_the_parameter(only, name, text, message, no_run, capsys,
                                                                        tmp_path):
@@ -226,7 +237,7 @@ def test_a_value_outside_its_spec_stops_reproduce_naming_the_parameter(only, nam
     ("03", "GATE_PROB", "None", None),
     ("03", "LIAS_TAGS", "['t1']", ("t1",)),
     ("00", "DATA_DIR", "None", None),
-    ("00", "DATA_DIR", "/data/uwb 2", "/data/uwb 2"),
+    ("00", "DATA_DIR", str(Path(__file__).parent), str(Path(__file__).parent)),
     ("02", "STATIC_SESSION", "8.20", "8.20"),
 ])
 def test_values_inside_their_spec_are_passed_typed(only, name, text, expected, no_run, tmp_path):

@@ -27,6 +27,7 @@ from __future__ import annotations
 import ast
 import math
 from collections.abc import Callable, Mapping
+from pathlib import Path
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -290,11 +291,21 @@ def _scheduler_address(value: str, name: str) -> None:
         raise ValueError(str(exc)) from None
 
 
+def _existing_folder(value: str, name: str) -> None:
+    """A ``DATA_DIR`` value: a folder that exists (a missing one would silently leave every notebook on its
+    synthetic stand-in)."""
+    path = Path(value).expanduser()
+    if not path.is_dir():
+        what = "is a file, not a folder" if path.exists() else "does not exist"
+        raise ValueError(f"{name}={value!r}: {what}; expected the folder that holds the dataset folders "
+                         "(e.g. ../shared/datasets), or None for the usual search")
+
+
 #: Parameters every notebook declares.
 COMMON: dict[str, Spec] = {
     "FAST": flag(),
     "SEED": integer(lo=0),
-    "DATA_DIR": text(none="the usual search: $UWBWB_DATA, data/external, ../shared/datasets"),
+    "DATA_DIR": text(none="the usual search: $UWBWB_DATA, data/external, ../shared/datasets", check=_existing_folder),
     "SUMMARY_PATH": text(none="publish no summary"),
     "DASK_SCHEDULER": text(none="sweeps run in this process", check=_scheduler_address),
 }
