@@ -140,10 +140,12 @@ def test_eq4_thresholds_are_where_the_test_starts_to_fire():
     assert over.to_numpy().min() < cfg.outlier_excess_m[1]      # somewhere on it the 0.3–4 m multipath can fire
     g = facts.facts(_fake(GOOD))["eq4_geometry"]
     assert g["min_m"] == pytest.approx(over.to_numpy().min())
-    s = facts.eq4_sentence({"eq4": {}, "eq4_geometry": {**g, "min_m": 3.0, "excess_m": (0.3, 4.0)}})
-    assert "above 3.00 m" in s and "can fire on the largest" in s
-    s = facts.eq4_sentence({"eq4": {}, "eq4_geometry": {**g, "min_m": 5.0, "excess_m": (0.3, 4.0)}})
-    assert "cannot fire there" in s
+    f = facts.facts(_fake(GOOD))
+    for min_m, verdict in ((3.0, "can fire"), (5.0, "cannot fire")):
+        f["eq4_geometry"] = {**g, "min_m": min_m, "excess_m": (0.3, 4.0)}
+        t = facts.verdict_table(f)
+        row = t[t["claim"].str.startswith("eq. 4 can fire on the path")].iloc[0]
+        assert row.verdict == verdict and row.ours == f"{min_m:.2f} m"
 
 
 # ---------------------------------------------------------------- verdicts flip with the numbers
@@ -179,40 +181,42 @@ def _fake(ratios: dict, *, case_ratios: dict | None = None, fast=False, nis=None
 GOOD = {"LS": 30.0, "LS + gate": 5.0, "EKF": 20.0, "EKF + gate": 1.5, "loose": 15.0, "loose + gate": 1.4}
 
 
-def test_ingredient_and_outage_sentences_flip_at_ratio_one():
+def _row(f: dict, start: str) -> pd.Series:
+    t = facts.verdict_table(f)
+    rows = t[t["claim"].str.startswith(start)]
+    assert len(rows) == 1, (start, list(t["claim"]))
+    return rows.iloc[0]
+
+
+def test_ladder_and_headline_verdicts_flip_at_ratio_one():
     f = facts.facts(_fake(GOOD))
-    s = facts.ingredient_sentence("tight vs loose", f["ladder"]["tight vs loose (gated)"]["dyn_rmse"])
-    assert "helps" in s and "1.4× lower" in s
-    assert "1.5× smaller than the gated IMU-free EKF" in facts.outage_sentence(f)
+    r = _row(f, "tight vs loose (gated): dynamic RMSE")
+    assert r.verdict == "helps" and r.ours.endswith("×") and 1.3 < float(r.ours[:-1]) < 1.5
+    assert _row(f, "headline: EKF + gate / tight + gate").verdict == "helps"
     flat = facts.facts(_fake({**GOOD, "loose + gate": 1.0, "EKF + gate": 1.0}))
-    s = facts.ingredient_sentence("tight vs loose", flat["ladder"]["tight vs loose (gated)"]["dyn_rmse"])
-    assert "not significant" in s
-    assert "not significantly different from the gated loose filter" in facts.outage_sentence(flat)
+    assert _row(flat, "tight vs loose (gated): dynamic RMSE").verdict == "not significant"
+    assert _row(flat, "headline: loose + gate / tight + gate").verdict == "not significant"
     worse = facts.facts(_fake({**GOOD, "loose + gate": 0.7, "EKF + gate": 0.7}))
-    s = facts.ingredient_sentence("tight vs loose", worse["ladder"]["tight vs loose (gated)"]["dyn_rmse"])
-    assert "hurts" in s and "higher" in s
-    assert "*larger* than the gated loose filter" in facts.outage_sentence(worse)
+    assert _row(worse, "tight vs loose (gated): dynamic RMSE").verdict == "hurts"
+    assert _row(worse, "headline: loose + gate / tight + gate").verdict == "hurts"
     assert facts.verdict(np.nan, np.nan) == "undetermined"
 
 
-def test_survival_sentence_says_where_the_outage_advantage_is_kept_or_lost():
+def test_survival_rows_say_where_the_outage_advantage_is_kept_or_lost():
     lost = {**GOOD, "EKF + gate": 1.0}
     f = facts.facts(_fake(GOOD, case_ratios={"UWB σ 2×": lost, "IMU 10× worse": {**GOOD, "EKF + gate": 0.7}}))
-    s = facts.survival_sentence(f, "EKF + gate")
-    assert "Not significant (interval includes 1) with UWB σ 2×" in s
-    assert "Reversed (interval below 1: tight is worse) with IMU 10× worse" in s
-    assert "survives (interval above 1) with multipath up to 12 m" in s
+    assert _row(f, "UWB σ 2×: EKF + gate / tight + gate").verdict == "not significant"
+    assert _row(f, "IMU 10× worse: EKF + gate / tight + gate").verdict == "reversed"
+    assert _row(f, "multipath up to 12 m: EKF + gate / tight + gate").verdict == "survives"
     assert f["survival"]["UWB σ 2×"]["EKF + gate"]["share"] == pytest.approx(0.0, abs=0.1)
-    none = facts.facts(_fake({**GOOD, "EKF + gate": 0.8}))
-    assert "nothing to survive" in facts.survival_sentence(none, "EKF + gate")
-    md = facts.summary_markdown(f)
-    assert md.startswith("*full run: 6 scoring seeds") and "Eq. 4 removed 0 of 100" in md
+    assert "share kept" in _row(f, "multipath up to 12 m: EKF + gate / tight + gate").ours
+    assert _row(f, "matched: injected-multipath TDoAs that eq. 4 removed").ours == "0 of 100"
 
 
 def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     f = facts.facts(_fake(GOOD))
     assert f["diverged"] == {c: [] for c in ("UWB σ 2×", "IMU 10× worse", "multipath up to 12 m")}
-    assert "No gated row diverged" in facts.diverged_sentence(f)
+    assert not facts.verdict_table(f)["verdict"].eq("diverged").any()
     bad = _fake(GOOD, nis={"UWB σ 2×": 3.0})
     sc = bad.scores
     hit = (sc["case"] == "IMU 10× worse") & (sc["method"] == "tight + gate")
@@ -221,9 +225,8 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     f = facts.facts(bad)
     d = f["diverged"]["IMU 10× worse"]
     assert [(x["row"], x["metric"]) for x in d] == [("tight + gate", "dyn_rmse")]
-    s = facts.diverged_sentence(f)
-    assert "**Diverged**" in s and "tight + gate with IMU 10× worse (dynamic RMSE" in s
-    assert "Diverged" in facts.summary_markdown(f)
+    assert _row(f, "IMU 10× worse: tight + gate diverged (dyn_rmse)").verdict == "diverged"
+    assert _row(f, "IMU 10× worse: loose + gate / tight + gate").verdict.startswith("a row diverged")
     assert headlines.checks(bad) == []                      # mismatch divergence is reported, not a check
     rows = headlines.ablation_rows(bad)
     q = [r for r in rows if r["quantity"].startswith("mismatch 'IMU 10× worse': dynamic RMSE, tight + gate")]
@@ -245,11 +248,10 @@ def test_knobs_break_near_ties_upwards_flag_the_edge_and_name_blowups():
     assert k.loc["c", "knob"] == 0.1 and k.loc["c", "edge"] and k.loc["c", "blowups"] == (10.0,)
     res = _fake(GOOD)
     res = ab.AblationResult(res.config, True, t, {}, res.scores, res.counts)
-    s = facts.tuning_sentence(facts.facts(res))
-    assert "FAST" in s and "c 0.1 (grid edge)" in s and "**Blew up**" in s and "c at 10" in s
+    tuning = facts.facts(res)["tuning"]
+    assert tuning["c"]["edge"] and tuning["c"]["blowups"] == (10.0,) and not len(tuning["a"]["blowups"])
     t.loc["c", 10.0] = 5.0
-    res = ab.AblationResult(res.config, False, t, {}, res.scores, res.counts)
-    assert "No grid entry exceeds 10×" in facts.tuning_sentence(facts.facts(res))
+    assert not len(ab.choose_knobs(t).loc["c", "blowups"])
     assert ab.FULL_GRID[0] == 0.01 and ab.FULL_GRID[-1] == 100.0 and len(ab.FULL_GRID) == 9
 
 
@@ -266,8 +268,7 @@ def test_ladder_ratios_use_the_epochs_both_rows_cover_and_show_each_coverage():
     assert t.loc[step, ("dyn_rmse", "ratio")] == pytest.approx(2.0)
     assert t.loc[step, ("dyn_rmse", "cov without")] == pytest.approx(0.8)
     assert t.loc[step, ("dyn_rmse", "cov with")] == 1.0 and t.loc[step, ("dyn_rmse", "cov both")] == pytest.approx(0.8)
-    s = facts.ingredient_sentence(step, facts.facts(res)["ladder"][step]["dyn_rmse"])
-    assert "2.0× lower dynamic RMSE (on the 80 % of epochs both rows cover)" in s
+    assert _row(facts.facts(res), f"{step}: dynamic RMSE").ours == "2.00×"
     # the EKF → tight step compares equal gates: the per-TDoA χ² gate with the tight filter's release
     (_, a, b), = [x for x in ab.LADDER if x[0].startswith("IMU, tightly")]
     g = ab.gate_table(res.config)
@@ -277,22 +278,21 @@ def test_ladder_ratios_use_the_epochs_both_rows_cover_and_show_each_coverage():
 
 def test_a_matched_failure_to_reacquire_is_named():
     res = _fake(GOOD)
-    assert "Every gated filter re-acquired" in facts.matched_failure_sentence(facts.facts(res))
+    t = facts.verdict_table(facts.facts(res))
+    assert not t["verdict"].isin(["failed", "drift found on the return"]).any()
     m = (res.scores["case"] == "matched") & (res.scores["method"] == ab.EKF_TDOA_GATE) & (res.scores["seed"] == 3)
-    assert "earlier reading" not in facts.matched_failure_sentence(facts.facts(res))
     r9 = (res.scores["case"] == "matched") & (res.scores["method"] == "loose + gate") & (res.scores["seed"] == 2)
-    res.scores.loc[r9, "recovery_max"] = 0.83              # drift found on the return: the earlier reading fails
-    s = facts.matched_failure_sentence(facts.facts(res))
-    assert "Every gated filter re-acquired" in s and "earlier reading" in s and "loose + gate (seed 2: 0.83 m)" in s
+    res.scores.loc[r9, "recovery_max"] = 0.83              # drift found on the return
+    r = _row(facts.facts(res), "matched: loose + gate, max error")
+    assert r.verdict == "drift found on the return" and r.ours == "seed 2: 0.83 m"
     res.scores.loc[m, "reacq_s"] = math.inf
     f = facts.facts(res)
     assert list(f["matched_failures"]) == [ab.EKF_TDOA_GATE] and f["matched_failures"][ab.EKF_TDOA_GATE][3] == math.inf
-    s = facts.matched_failure_sentence(f)
-    assert "Failed to re-acquire" in s and f"{ab.EKF_TDOA_GATE} (seed 3: never)" in s
-    md = facts.summary_markdown(f)
-    tight_line = next(x for x in md.splitlines() if x.startswith("- IMU, tightly"))
-    assert "failed to re-acquire after the outage: this ratio measures that failure" in tight_line
-    assert "failed to re-acquire" not in next(x for x in md.splitlines() if x.startswith("- tight vs loose"))
+    r = _row(f, f"matched: {ab.EKF_TDOA_GATE} re-acquires")
+    assert r.verdict == "failed" and "seed 3: never" in r.ours
+    tight_step = next(w for w, a, b in ab.LADDER if w.startswith("IMU, tightly"))
+    assert "failed to re-acquire" in _row(f, f"{tight_step}: dynamic RMSE").verdict
+    assert "failed to re-acquire" not in _row(f, "tight vs loose (gated): dynamic RMSE").verdict
 
 
 def test_checks_pass_on_a_sound_result_and_fail_on_each_defect():

@@ -1,5 +1,5 @@
 """Notebook 05's verdicts, computed: :func:`facts` reads the numbers and the rules out of an
-:class:`~.ablation.AblationResult`; the ``*_sentence`` templates only word them.
+:class:`~.ablation.AblationResult`; :func:`verdict_table` lays them out, one claim a row.
 
 Rules
 -----
@@ -26,13 +26,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 
-from .ablation import (EKF_TDOA_GATE, LADDER, RECOVERY_MAX_M, RECOVERY_S, AblationResult, choose_knobs, eq4_path, eq4_thresholds,
+from .ablation import (EKF_TDOA_GATE, LADDER, RECOVERY_MAX_M, AblationResult, choose_knobs, eq4_path, eq4_thresholds,
                        pair_rmse)
 from .scoring import HOLD_S
 
-__all__ = ["DIVERGED_FACTOR", "verdict", "facts", "ingredient_sentence", "outage_sentence", "survival_sentence",
-           "diverged_sentence", "matched_failure_sentence", "tuning_sentence", "eq4_sentence", "summary_markdown"]
+__all__ = ["DIVERGED_FACTOR", "verdict", "facts", "verdict_table"]
 
 #: A mismatch row whose dynamic RMSE or recovery max exceeds this many times its matched value diverged.
 DIVERGED_FACTOR = 10.0
@@ -162,174 +162,68 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
     return f
 
 
-def _ci(r: dict, nd: int = 1) -> str:
-    if not (np.isfinite(r["lo"]) and np.isfinite(r["hi"])):
-        return "no interval"
-    return f"95 % CI {r['lo']:.{nd}f}–{r['hi']:.{nd}f}"
+def _interval(r: dict) -> str:
+    return f"[{r['lo']:.2f}, {r['hi']:.2f}]" if np.isfinite(r["lo"]) and np.isfinite(r["hi"]) else "—"
 
 
-def ingredient_sentence(step: str, r: dict, metric: str = "dyn_rmse") -> str:
-    """One ladder step in words, e.g. ``"temporal filtering … helps: 3.1× lower dynamic RMSE (95 % CI …)"``."""
-    v, x = r["verdict"], r["ratio"]
-    what = _METRIC_WORDS[metric]
-    bc = r.get("both_cov", np.nan)
-    if np.isfinite(bc) and bc < 1:
-        what += f" (on the {bc * 100:.0f} % of epochs both rows cover)"
-    if not np.isfinite(x):
-        return f"{step}: not measurable on the {what} (a row has no estimate there)."
-    size = f"{x:.1f}× lower {what}" if x >= 1 else f"{1 / x:.1f}× higher {what}"
-    if v == "helps":
-        return f"{step} helps: {size} ({_ci(r)}, {r['n']} seeds)."
-    if v == "hurts":
-        return f"{step} hurts: {size} ({_ci(r)}, {r['n']} seeds)."
-    if v == "not significant":
-        return f"{step}: {size}, not significant ({_ci(r)} includes 1, {r['n']} seeds)."
-    return f"{step}: {size} on {r['n']} seed — undetermined (no interval)."
+_RATIO_RULE = "paired ratio over seeds; interval above 1: helps, below 1: hurts, else not significant"
 
 
-def outage_sentence(f: dict) -> str:
-    """The headline: tight coupling's single-TDoA update through the outage, against the gated
-    loose filter and the gated IMU-free EKF."""
-    parts = []
-    for other, label in (("loose + gate", "the gated loose filter"), ("EKF + gate", "the gated IMU-free EKF"),
-                         (EKF_TDOA_GATE, "the IMU-free EKF with the same per-TDoA gate")):
-        r = f["outage"][other]
-        x = r["ratio"]
-        if not np.isfinite(x):
-            parts.append(f"{label}: not measurable")
-        elif r["verdict"] == "helps":
-            parts.append(f"{x:.1f}× smaller than {label}'s ({_ci(r)})")
-        elif r["verdict"] == "hurts":
-            parts.append(f"{1 / x:.1f}× *larger* than {label}'s ({_ci(r)})")
-        elif r["verdict"] == "not significant":
-            parts.append(f"not significantly different from {label}'s ({x:.2f}×, {_ci(r, 2)})")
-        else:
-            parts.append(f"{x:.1f}× smaller than {label}'s on one seed (undetermined)")
-    return (f"Through the {f['outage_s']:g} s outage (one TDoA per epoch, no position fix), tight coupling's "
-            f"max error is " + "; ".join(parts) + f" ({f['mode']}, {f['seeds']} seeds, matched model).")
+def verdict_table(f: dict) -> pd.DataFrame:
+    """Notebook 05's ablation verdicts, one row each: ``claim, ours, interval, seeds, rule, verdict``.
 
+    Rows: each ladder step on the dynamic RMSE and the max outage error (without / with the ingredient); the
+    headline (the others' max outage error over tight's, matched); how much of that advantage each mismatch
+    case keeps (``share kept`` in log ratio) — *a row diverged* instead of a verdict where tight or the other
+    row diverged in that case (the ratio then measures a failure); every diverged row; every gated row that
+    failed to re-acquire in the matched world; where eq. 4 can fire and what it removed."""
+    rows = []
 
-def survival_sentence(f: dict, versus: str = "EKF + gate") -> str:
-    """How much of the outage advantage over ``versus`` survives each mismatch case."""
-    r0 = f["outage"][versus]
-    if not (np.isfinite(r0["ratio"]) and r0["ratio"] > 1):
-        return (f"In the matched case tight coupling has no outage advantage over {versus} "
-                f"({r0['ratio']:.2f}×), so there is nothing to survive mismatch.")
-    kept = [c for c, v in f["survival"].items() if v[versus]["verdict"] == "helps"]
-    unsure = [c for c, v in f["survival"].items() if v[versus]["verdict"] == "not significant"]
-    lost = [c for c, v in f["survival"].items() if v[versus]["verdict"] == "hurts"]
-    und = [c for c, v in f["survival"].items() if v[versus]["verdict"] == "undetermined"]
-    shares = ", ".join(f"{c} {v[versus]['share'] * 100:.0f} %" for c, v in f["survival"].items()
-                       if np.isfinite(v[versus]["share"]))
-    sig = "" if r0["verdict"] == "helps" else ", itself not significant"
-    text = (f"Of the matched outage advantage over {versus} ({r0['ratio']:.1f}×{sig}), the share kept (in log "
-            f"ratio) is: {shares or 'not measurable'}.")
-    if kept:
-        text += f" It survives (interval above 1) with {', '.join(kept)}."
-    if unsure:
-        text += f" Not significant (interval includes 1) with {', '.join(unsure)}."
-    if lost:
-        text += f" Reversed (interval below 1: tight is worse) with {', '.join(lost)}."
-    if und:
-        text += f" Undetermined ({f['mismatch_seeds']} seed, no interval): {', '.join(und)}."
-    return text
+    def add(claim, ours, interval, seeds, rule, verdict):
+        rows.append({"claim": claim, "ours": ours, "interval": interval, "seeds": seeds, "rule": rule,
+                     "verdict": verdict})
 
-
-_WHAT = {"dyn_rmse": "dynamic RMSE", "recovery_max": "max error in the recovery after the outage"}
-
-
-def matched_failure_sentence(f: dict) -> str:
-    """Names every gated filter that failed to re-acquire after the outage in the matched world."""
-    fl = f.get("matched_failures", {})
-    lim, dl = f.get("recovery_max_m", RECOVERY_MAX_M), f.get("recovery_s", RECOVERY_S)
-    rule = f"error below {lim:g} m within {dl:g} s of UWB's return, held for {HOLD_S:g} s"
-    if not fl:
-        slow = f.get("slowest_reacq") or {}
-        worst = (f" The slowest took {slow['s']:.2f} s ({slow['row']}, seed {slow['seed']})." if slow else "")
-        text = f"Every gated filter re-acquired after the outage in the matched world ({rule}, on every seed).{worst}"
-    else:
-        text = (f"**Failed to re-acquire after the outage in the matched world** ({rule}): "
-                + "; ".join(f"{r} (" + ", ".join(f"seed {k}: " + ("never" if not np.isfinite(v) else f"{v:.3g} s")
-                                                 for k, v in s.items() if not v <= dl) + ")"
-                            for r, s in fl.items())
-                + ". A filter defect, not a tuning result: every ratio involving it measures the failure.")
-    ret = f.get("return_errors", {})
-    if ret:
-        text += (f" By the check's earlier reading (max error in the {dl:g} s after UWB's return below {lim:g} m, "
-                 "which also counts the drift UWB finds on its return — the outage's own score) these fail: "
-                 + "; ".join(f"{r} (" + ", ".join(f"seed {k}: {v:.3g} m" for k, v in s.items()) + ")"
-                             for r, s in ret.items())
-                 + ". The check was changed to the re-acquisition time after that reading failed in full mode.")
-    return text
-
-
-def diverged_sentence(f: dict) -> str:
-    """Names every mismatch row that diverged (:data:`DIVERGED_FACTOR` × its matched value)."""
-    parts = [f"{d['row']} with {case} ({_WHAT[d['metric']]} {d['value']:.3g} m against {d['matched']:.3g} m "
-             f"matched)" for case, ds in f["diverged"].items() for d in ds]
-    k = f"{DIVERGED_FACTOR:g}×"
-    if not parts:
-        return (f"No gated row diverged under mismatch (none has a dynamic RMSE or recovery max above {k} its "
-                f"matched value).")
-    return (f"**Diverged** (dynamic RMSE or recovery max above {k} the matched value, same seeds): "
-            + "; ".join(parts) + ". These are filter failures, not degradations; ratios and shares involving "
-                                 "them measure the failure.")
-
-
-def tuning_sentence(f: dict) -> str:
-    """The chosen knobs, those on the grid's edge, and grid entries where a filter blew up."""
-    t = f["tuning"]
-    if not t:
-        return "No tuning table."
-    grid = f["grid"]
-    text = (f"Knobs from a {len(grid)}-point grid {grid[0]:g}–{grid[-1]:g}"
-            + (" (FAST: fewer points than the full run's 9)" if f["mode"] == "FAST" else "") + ": "
-            + ", ".join(f"{r} {v['knob']:g}" + (" (grid edge)" if v["edge"] else "") for r, v in t.items()) + ".")
-    edge = [r for r, v in t.items() if v["edge"]]
-    if edge:
-        text += f" On the grid's edge (the optimum may lie outside it): {', '.join(edge)}."
-    blow = [(r, v["blowups"]) for r, v in t.items() if len(v["blowups"])]
-    if blow:
-        text += (" **Blew up** (tuning RMSE above 10× the row's lowest — the filter fails there, not a trade-off): "
-                 + "; ".join(f"{r} at {', '.join(f'{g:g}' for g in b)}" for r, b in blow) + ".")
-    else:
-        text += " No grid entry exceeds 10× its row's lowest RMSE."
-    return text
-
-
-def eq4_sentence(f: dict, *, wide_case: str = "multipath up to 12 m") -> str:
-    """Where eq. 4 can fire on the ablation's path, and how often it fired on injected multipath,
-    in the matched world and where excesses reach 12 m."""
-    m = f["eq4"].get("matched", {})
-    text = ""
+    failed = f.get("matched_failures", {})
+    steps = {what: (a, b) for what, a, b in LADDER}
+    for step, by_metric in f["ladder"].items():
+        for metric in ("dyn_rmse", "outage_max"):
+            r = by_metric[metric]
+            bad = [x for x in steps.get(step, ()) if x in failed]
+            add(f"{step}: {_METRIC_WORDS[metric]}, without / with", f"{r['ratio']:.2f}×", _interval(r), r["n"],
+                _RATIO_RULE, r["verdict"] + (f" ({', '.join(bad)} failed to re-acquire)" if bad else ""))
+    for other, r in f["outage"].items():
+        add(f"headline: {other} / tight + gate, max error in the {f['outage_s']:g} s outage, matched",
+            f"{r['ratio']:.2f}×", _interval(r), r["n"], _RATIO_RULE, r["verdict"])
+    words = {"helps": "survives", "hurts": "reversed", "not significant": "not significant",
+             "undetermined": "undetermined"}
+    for case, by_other in f["survival"].items():
+        gone = {d["row"] for d in f["diverged"].get(case, [])}
+        for other, r in by_other.items():
+            share = f", share kept {100 * r['share']:.0f} %" if np.isfinite(r["share"]) else ""
+            v = ("a row diverged (the ratio measures a failure)" if {other, "tight + gate"} & gone
+                 else words[r["verdict"]])
+            add(f"{case}: {other} / tight + gate, max outage error", f"{r['ratio']:.2f}×{share}", _interval(r),
+                r["n"], _RATIO_RULE + " (above 1: the advantage survives)", v)
+    for case, ds in f["diverged"].items():
+        for d in ds:
+            add(f"{case}: {d['row']} diverged ({d['metric']})", f"{d['value']:.3g} m against {d['matched']:.3g} m "
+                "matched", "—", f["mismatch_seeds"], f"above {DIVERGED_FACTOR:g}× the matched value", "diverged")
+    for row, per_seed in failed.items():
+        add(f"matched: {row} re-acquires after the outage", ", ".join(
+            f"seed {k}: " + ("never" if not np.isfinite(v) else f"{v:.3g} s") for k, v in per_seed.items()),
+            "—", f["seeds"], f"error below {f['recovery_max_m']:g} m within {f['recovery_s']:g} s of UWB's return, "
+            f"held {HOLD_S:g} s", "failed")
+    for row, per_seed in f.get("return_errors", {}).items():
+        add(f"matched: {row}, max error in the {f['recovery_s']:g} s after UWB's return", ", ".join(
+            f"seed {k}: {v:.3g} m" for k, v in per_seed.items()), "—", f["seeds"],
+            f"below {f['recovery_max_m']:g} m (counts the drift UWB finds on its return)", "drift found on the return")
     g = f.get("eq4_geometry")
     if g:
-        lo, hi = g["excess_m"]
-        text = (f"On the ablation's path eq. 4 fires for excesses above {g['min_m']:.2f} m at the least (pair "
-                f"{g['pair']}, excess on the {g['side']}); the matched world draws {lo:g}–{hi:g} m, so ")
-        text += ("eq. 4 can fire on the largest of them. " if g["min_m"] < hi else
-                 "eq. 4 cannot fire there. ")
-    text += (f"Eq. 4 removed {m.get('eq4_on_injected', 0)} of {m.get('injected', 0)} TDoAs carrying injected "
-            f"multipath in the matched runs ({m.get('eq4', 0)} TDoAs in all)")
-    w = f["eq4"].get(wide_case)
-    if w:
-        text += (f"; with excesses up to 12 m it removed {w['eq4_on_injected']} of {w['injected']} "
-                 f"(the rest only a gate can catch)")
-    return text + "."
-
-
-def summary_markdown(f: dict) -> str:
-    """The ablation's verdicts as markdown (one line per ladder step on the dynamic RMSE and the
-    outage, then the headline, the survival and the eq-4 sentences)."""
-    lines = [f"*{f['mode']} run: {f['seeds']} scoring seeds; mismatch cases on {f['mismatch_seeds']}.*", ""]
-    failed = f.get("matched_failures", {})
-    rows = {what: (a, b) for what, a, b in LADDER}
-    for step, r in f["ladder"].items():
-        bad = [x for x in rows.get(step, ()) if x in failed]
-        note = (f" *({', '.join(bad)} failed to re-acquire after the outage: this ratio measures that failure.)*"
-                if bad else "")
-        lines.append("- " + ingredient_sentence(step, r["dyn_rmse"], "dyn_rmse") + note)
-    lines += ["", matched_failure_sentence(f), "", "**Headline.** " + outage_sentence(f), "",
-              " ".join(survival_sentence(f, v) for v in ("EKF + gate", EKF_TDOA_GATE, "loose + gate")), "",
-              diverged_sentence(f), "", tuning_sentence(f), "", eq4_sentence(f)]
-    return "\n".join(lines)
+        add(f"eq. 4 can fire on the path (smallest excess that trips it: pair {g['pair']}, on the {g['side']})",
+            f"{g['min_m']:.2f} m", "—", "—", f"below the largest matched excess ({g['excess_m'][1]:g} m)",
+            "can fire" if g["min_m"] < g["excess_m"][1] else "cannot fire")
+    for case, c in f["eq4"].items():
+        if c.get("injected"):
+            add(f"{case}: injected-multipath TDoAs that eq. 4 removed", f"{c.get('eq4_on_injected', 0)} of "
+                f"{c['injected']}", "—", "—", "count (the rest only a gate can catch)", "—")
+    return pd.DataFrame(rows)

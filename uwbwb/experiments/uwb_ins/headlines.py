@@ -97,7 +97,7 @@ def checks(res: AblationResult) -> list[str]:
        return (the outage's drift) is the outage's own score, not this check's; the check's earlier
        reading (max error in the recovery window) is reported beside it by the notebook's sentence. The EKF with the tight filter's per-TDoA gate
        (:data:`~.ablation.EKF_TDOA_GATE`) is a diagnostic row, not one of the designs: its failure
-       to re-acquire is named in the notebook (:func:`~.facts.matched_failure_sentence`), not asserted.
+       to re-acquire is named in the notebook (a "failed" row of :func:`~.facts.verdict_table`), not asserted.
     """
     fails = []
     t = res.table("matched")
