@@ -229,7 +229,7 @@ def test_corner_dependence_is_decided_on_the_paired_difference():
     assert f["corner_dependence"] == "depends" and _verdict(t, "along/across ratio") == "depends"
     # overlapping medians (0.76 vs 0.82) whose paired differences straddle 0
     f, t = _table(ratio={"bottom-left": [0.6, 0.9, 0.76, 0.7, 1.0], "top-left": [0.82, 0.7, 0.9, 0.85, 0.75]})
-    assert f["corner_dependence"] == "same" and _verdict(t, "along/across ratio") == "same"
+    assert f["corner_dependence"] == "same" and _verdict(t, "along/across ratio") == "not significant"
 
 
 def test_keeps_track_verdict_flips_at_both_thresholds():
@@ -242,12 +242,12 @@ def test_keeps_track_verdict_flips_at_both_thresholds():
 
 
 def test_filter_comparison_verdict_follows_the_interval_of_differences():
-    assert _verdict(_table()[1], "MH-EKF − PF snapshot CEP50 per recording, Doppler (cm)") == "PF better"
+    assert _verdict(_table()[1], "MH-EKF − PF CEP50 on the scored epochs per recording, Doppler (cm)") == "PF better"
     assert _table(kf_minus_pf=[-5.0, -6.0, -4.0, -5.5, -4.5])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
     f, t = _table(kf_minus_pf=[-5.0, 6.0, -4.0, 5.5, 0.5])
-    assert _verdict(t, "MH-EKF − PF snapshot CEP50 per recording, Doppler (cm)") == "no significant difference"
+    assert _verdict(t, "MH-EKF − PF CEP50 on the scored epochs per recording, Doppler (cm)") == "no significant difference"
     f, t = _table(kf_minus_pf=[-0.2, -0.3, -0.1, -0.25, -0.15])      # all negative, but under 5 mm
-    assert _verdict(t, "MH-EKF − PF snapshot CEP50 per recording, Doppler (cm)") == "equal within 5 mm"
+    assert _verdict(t, "MH-EKF − PF CEP50 on the scored epochs per recording, Doppler (cm)") == "equal within 5 mm"
     assert _table(kf_minus_pf=[-0.6, -0.7, -0.55, -0.65, -0.8])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
 
 

@@ -251,8 +251,8 @@ def test_verdicts_follow_the_intervals_on_both_sides_of_each_rule():
     assert cm["ours"] == pytest.approx(3.0) and cm["verdict"] == "differs: ours smaller"       # paper: 5 cm
     se = 0.1 / np.sqrt(2)                                                           # two independent recordings
     assert cm["high"] - cm["ours"] == pytest.approx(2 * se)
-    assert _verdict(t, f"{E.SET_KF} vs {E.BASE_KF}: error reduction, σ_d 30-50 cm/s, paper's").verdict == "better"
-    assert _verdict(t, f"{E.SET_KF} vs {E.BASE_KF}: error reduction, σ_d 30-50 cm/s, track away").verdict == "worse"
+    kf = _verdict(t, f"{E.SET_KF} vs {E.BASE_KF}: error reduction, σ_d 30-50 cm/s, paper's")
+    assert kf["ours"] == pytest.approx(0.7) and kf.verdict == "exact filters: no Monte Carlo interval"
     # 0 and 0.05 cm apart with se √2·0.07: not significant either way
     assert _verdict(t, f"{E.SET_PF} vs {E.BASE_PF}: error reduction, σ_d 30-50 cm/s, paper's").verdict == "not significant"
     assert _verdict(t, f"{E.SET_PF} vs {E.BASE_PF}: error reduction, σ_d 30-50 cm/s, track").verdict == "not significant"
@@ -268,6 +268,15 @@ def test_verdicts_follow_the_intervals_on_both_sides_of_each_rule():
     assert _verdict(t2, "systematic vs multinomial").verdict == "worse"
     assert _verdict(t2, "set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (%)").verdict == \
         "differs: ours larger"
+
+
+def test_one_trial_gives_no_interval_and_no_verdict():
+    one = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (60, 17), E.SET_PF: (90, 16.0), E.BASE_KF: (25, 16.5),
+                        E.SET_KF: (24, 15.8)}, sem_cm=np.nan)
+    t = E.headlines.verdicts(one, one, RESAMPLER)
+    pf_rows = t[t["claim"].str.contains("PF") & ~t["claim"].str.startswith("systematic")]   # the sweep's rows
+    assert (pf_rows["verdict"] == "no interval (fewer than two trials)").all()
+    assert pf_rows["low"].isna().all()
 
 
 def test_verdicts_refuse_a_sweep_without_the_band():

@@ -172,15 +172,15 @@ def _band(sweep: pd.DataFrame, name: str, band=BAND_MPS) -> tuple[float, float]:
     """Band error of ``name`` averaged over σ_d values and recordings, cm, and its Monte Carlo standard error.
 
     Per recording the σ_d values share their process-noise draws (common random numbers), so their
-    standard errors are combined as the RMS (as if fully correlated, the larger bound); recordings are
-    independent."""
+    standard errors are combined as their RMS (no smaller than their mean, the fully correlated case);
+    recordings are independent. NaN when a point has one trial."""
     d = sweep[(sweep["filter"] == name) & sweep["sigma_d_mps"].between(band[0] - 1e-12, band[1] + 1e-12)]
     if d.empty:
         raise ValueError(f"no {name!r} rows with σ_d in the band {band} m/s")
     per_rec = d.groupby("recording", sort=False)
     err = per_rec["mean_error_m"].mean()
-    se = per_rec["sem_error_m"].apply(lambda x: float(np.sqrt(np.mean(np.square(x.fillna(0.0))))))
-    return 100 * float(err.mean()), 100 * float(np.sqrt(np.sum(se ** 2)) / len(err))
+    se = per_rec["sem_error_m"].apply(lambda x: float(np.sqrt(np.mean(np.square(x.to_numpy(float))))))
+    return 100 * float(err.mean()), 100 * float(np.sqrt(np.sum(se.to_numpy(float) ** 2)) / len(err))  # NaN: 1 trial
 
 
 def verdicts(sweep: pd.DataFrame, off_sweep: pd.DataFrame, resampler: Mapping) -> pd.DataFrame:
@@ -190,6 +190,8 @@ def verdicts(sweep: pd.DataFrame, off_sweep: pd.DataFrame, resampler: Mapping) -
     Kalman filters and the raw fixes have none): it covers the particle filter's randomness, not the draw
     of the simulated recordings. A difference between two estimators takes the standard error of a
     difference of independent means, an upper bound here (the filters share their draws within a trial).
+    Two Kalman filters compared with each other have no Monte Carlo noise, so no interval and no verdict
+    (*exact filters*); with one trial per point no row has an interval.
     Rules: a paper value *agrees* when it lies in the interval, else *differs*; a difference "A vs B: error
     reduction" (B's error minus A's) is *better* (A better) or *worse* when its interval excludes 0, else *not
     significant*. ``resampler`` is :func:`.diagnostics.resampler_check` (first resampler minus second).
@@ -200,7 +202,11 @@ def verdicts(sweep: pd.DataFrame, off_sweep: pd.DataFrame, resampler: Mapping) -
 
     def add(claim, paper, ours, se, rule):
         lo, hi = ours - k * se, ours + k * se
-        if rule == "paper in interval":
+        if not np.isfinite(se):
+            verdict = "no interval (fewer than two trials)"
+        elif se == 0:
+            verdict = "exact filters: no Monte Carlo interval"
+        elif rule == "paper in interval":
             verdict = "agrees" if lo <= paper <= hi else ("differs: ours larger" if lo > paper else
                                                           "differs: ours smaller")
         else:
