@@ -113,6 +113,8 @@ def _samples(spec: nbp.Spec, default) -> list[str]:
     out = []
     if spec.kind == "tuple":
         values = tuple(default[:2]) if isinstance(default, tuple) and default else (item(spec.item),)
+        if not _passes(spec, repr(values)):                    # a check on the whole tuple: the default passes
+            values = tuple(default)
         out += [repr(values), repr(list(values))]
     elif spec.kind == "str":
         checked = [t for t in ("local", str(Path(__file__).parent)) if _passes(spec, t)]
@@ -136,8 +138,8 @@ _TYPED = [(path, name, text) for path in NOTEBOOKS
           for name, default in rp.notebook_parameters(path).items()
           if name not in rp.RESERVED_PARAMETERS and (default is None or isinstance(default, (tuple, list)))
           for text in _samples(nbp.specs_for(path.stem, {name: default})[name], default)]
-_TYPED += [(NOTEBOOKS_DIR / "01_set_noise_pf.ipynb", "SIGMA_D_CMPS", "(2.5, 4)"),
-           (NOTEBOOKS_DIR / "01_set_noise_pf.ipynb", "SIGMA_D_CMPS", "(2, 4)"),
+_TYPED += [(NOTEBOOKS_DIR / "01_set_noise_pf.ipynb", "SIGMA_D_CMPS", "(2.5, 4, 40)"),
+           (NOTEBOOKS_DIR / "01_set_noise_pf.ipynb", "SIGMA_D_CMPS", "(2, 4, 30)"),
            (NOTEBOOKS_DIR / "04_doppler_beacons.ipynb", "N_BRUTE", "1e7")]
 
 
@@ -161,9 +163,34 @@ def test_a_value_reaches_the_notebook_with_the_type_of_its_spec(path, name, text
 
 def test_sigma_d_accepts_non_integer_speeds_and_they_arrive_as_a_tuple_of_floats():
     path = NOTEBOOKS_DIR / "01_set_noise_pf.ipynb"
-    params = rp.resolve_parameters([path], text={"SIGMA_D_CMPS": "(2.5, 4)"})[path]
-    assert params == {"SIGMA_D_CMPS": (2.5, 4.0)}
-    assert "SIGMA_D_CMPS = (2.5, 4.0)" in rp.injected_source(params)
+    params = rp.resolve_parameters([path], text={"SIGMA_D_CMPS": "(2.5, 4, 40)"})[path]
+    assert params == {"SIGMA_D_CMPS": (2.5, 4.0, 40.0)}
+    assert "SIGMA_D_CMPS = (2.5, 4.0, 40.0)" in rp.injected_source(params)
+
+
+def test_sigma_d_without_a_value_in_the_papers_band_is_refused_before_the_run():
+    """The old README example (2.5, 4) used to pass the check and kill notebook 01 at its band table."""
+    from uwbwb.experiments.setnoise import BAND_MPS
+    assert tuple(100 * b for b in BAND_MPS) == nbp.SIGMA_D_BAND_CMPS
+    path = NOTEBOOKS_DIR / "01_set_noise_pf.ipynb"
+    with pytest.raises(ValueError, match=r"no value in the paper's band 30–50 cm/s.*add one, e.g. \(2\.5, 4\.0, 40\.0\)"):
+        rp.resolve_parameters([path], text={"SIGMA_D_CMPS": "(2.5, 4)"})
+    assert rp.resolve_parameters([path], text={"SIGMA_D_CMPS": "(50, 80)"})[path] == {"SIGMA_D_CMPS": (50.0, 80.0)}
+
+
+def test_the_parameter_examples_of_the_readme_and_the_help_are_accepted_as_written():
+    import re
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    helptext = " ".join(cli._build_parser()[1]["reproduce"].format_help().split())
+    examples = re.findall(r"-p ([A-Z_]+) \"([^\"]+)\"", readme) + re.findall(r"-p ([A-Z_]+) '([^']+)'", readme + helptext)
+    examples += re.findall(r"`-p ([A-Z_]+) ([^`\s\"']+)`", readme)
+    examples = [(n, v) for n, v in examples if n not in ("NAME", "KEY")]          # the placeholders
+    assert ("SIGMA_D_CMPS", "(2.5, 4, 40)") in examples and len(examples) >= 4, examples
+    for name, value in examples:
+        declaring = [p for p in NOTEBOOKS if name in rp.notebook_parameters(p)]
+        assert declaring, f"README/--help example -p {name} {value}: no notebook declares {name}"
+        for path in declaring:
+            rp.resolve_parameters([path], text={name: value})     # raises naming the parameter if it does not fit
 
 
 def test_the_injected_cell_refuses_values_that_are_not_literals():
@@ -253,7 +280,7 @@ def test_values_inside_their_spec_are_passed_typed(only, name, text, expected, n
     (["--quick", "--only", "02", "-p", "TOURS", "(1, 2)"],
      "TOURS=(1, 2) would not be used: with FAST=True the notebook runs tour 2 only"),
     (["--only", "02", "-p", "FAST", "True", "-p", "TOURS", "(1, 2)"], "TOURS=(1, 2) would not be used"),
-    (["--quick", "--only", "01", "-p", "SIGMA_D_CMPS", "(2, 4)"], "runs its own CI-sized sweep"),
+    (["--quick", "--only", "01", "-p", "SIGMA_D_CMPS", "(2, 4, 40)"], "runs its own CI-sized sweep"),
     (["--quick", "--only", "03", "-p", "SIM_DURATION_S", "100"],
      "SIM_DURATION_S=100.0 would not be used: with FAST=True the notebook lowers SIM_DURATION_S to 60"),
     (["--quick", "--only", "05", "-p", "REAL_DURATION_S", "None"], "lowers REAL_DURATION_S to 20"),

@@ -146,7 +146,7 @@ class Spec:
 
         Text parameters take the text exactly as typed (``8.20`` stays ``"8.20"``), except
         ``None`` where None is accepted; booleans take ``True``/``False`` (also lower case);
-        everything else is read as a Python literal (``(2.5, 4)``, ``1e9``, ``None``).
+        everything else is read as a Python literal (``(2.5, 4, 40)``, ``1e9``, ``None``).
 
         Raises
         ------
@@ -301,6 +301,19 @@ def _existing_folder(value: str, name: str) -> None:
                          "(e.g. ../shared/datasets), or None for the usual search")
 
 
+#: The paper's σ_d band in cm/s (notebook 01): section 7, the verdict table and the summary average over it
+#: (``uwbwb.experiments.setnoise.BAND_MPS`` in m/s; a test holds the two equal).
+SIGMA_D_BAND_CMPS = (30.0, 50.0)
+
+
+def _reaches_the_band(value: tuple, name: str) -> None:
+    """A ``SIGMA_D_CMPS`` value: at least one σ_d in the paper's band, which notebook 01 averages over."""
+    lo, hi = SIGMA_D_BAND_CMPS
+    if not any(lo <= v <= hi for v in value):
+        raise ValueError(f"{name}={value!r}: no value in the paper's band {lo:g}–{hi:g} cm/s, which notebook 01's "
+                         f"band tables, verdicts and summary average over; add one, e.g. {value + (40.0,)!r}")
+
+
 #: Parameters every notebook declares.
 COMMON: dict[str, Spec] = {
     "FAST": flag(),
@@ -326,7 +339,7 @@ SPECS: dict[str, dict[str, Spec]] = {
         "STATIC_SESSION": _RECORDING,
         "N_TRIALS": integer(lo=1, fast="runs its own CI-sized sweep (SweepConfig.fast())"),
         "N_PARTICLES": integer(lo=1, fast="runs its own CI-sized sweep (SweepConfig.fast())"),
-        "SIGMA_D_CMPS": seq(real(lo=0, lo_open=True), increasing=True,
+        "SIGMA_D_CMPS": seq(real(lo=0, lo_open=True), increasing=True, check=_reaches_the_band,
                             fast="runs its own CI-sized sweep (SweepConfig.fast())"),
         "REAL_N_TRIALS": integer(lo=1, fast="runs 2 trials per σ_d on the real run"),
         "N_THREADS": integer(lo=1, hi=1024),

@@ -90,7 +90,7 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
                         "VALUE is checked against the notebook's specification of NAME (type, range, what None "
                         "means; uwbwb/notebook_params.py) and reaches the notebook with that type (text stays "
                         "text: -p STATIC_SESSION 8.20; True/False; numbers and tuples as Python literals: "
-                        "-p SIGMA_D_CMPS '(2.5, 4)'). Unknown names and values that do not fit are errors")
+                        "-p SIGMA_D_CMPS '(2.5, 4, 40)'). Unknown names and values that do not fit are errors")
     p.add_argument("--timeout", metavar="S", type=_positive_float, default=None,
                    help="execution timeout per cell in seconds (default none)")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,
