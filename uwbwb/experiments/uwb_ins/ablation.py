@@ -41,7 +41,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -52,19 +51,19 @@ from ...filters import eskf
 from ...filters.ekf import TdoaEkf
 from ...filters.gating import ChiSquarePerMeasurement
 from ...models.imu import GRADES
-from ...models.ins import NavState, quat_to_dcm
+from ...models.ins import quat_to_dcm
 from ...models.motion import RandomForce
 from ...models.tdoa import TdoaModel, triangle_outliers
 from ...sim import mismatch as mm
 from ...sim import robot
-from ...types import EstimateStatus, Estimates, ImuLog, TdoaLog
+from ...types import EstimateStatus, Estimates
 from ...validate import integer, number, probability
 from .scoring import RECOVERY_MAX_M, _masks, _reacq, _scores, reacquisition_s  # noqa: F401 (re-exported)
 from .study import OUTAGE_START_S, imu_after, initial_state, ls_estimates, screened_tdoa
 
 __all__ = ["BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "pair_rmse", "METRICS", "LADDER", "EKF_Q0", "RECOVERY_S", "AblationConfig", "AblationResult",
            "check_outage", "check_parameters", "notebook_config", "legs_for_outage", "simulate", "ls_gate",
-           "Start", "start", "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci", "ladder_table", "mismatch_table",
+           "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci", "ladder_table", "mismatch_table",
            "eq4_thresholds", "eq4_path", "choose_knobs", "TIE_REL", "RECOVERY_MAX_M", "reacquisition_s", "FULL_GRID", "FAST_GRID"]
 
 #: The four estimators, without and with the gate; the EKF also with the tight filter's per-TDoA gate.
@@ -294,30 +293,6 @@ def ls_gate(fixes: Estimates, tdoa, model: TdoaModel, gate_prob: float) -> tuple
     return Estimates(fixes.t_s, p, status, fixes.name + " + gate", cov), int(bad.sum())
 
 
-class Start(NamedTuple):
-    """What every row of the ablation starts from on one run (:func:`start`)."""
-
-    screened: TdoaLog       # the TDoAs after eq. 4
-    n_eq4: np.ndarray       # TDoAs eq. 4 removed, per epoch
-    model_2d: TdoaModel     # the TDoA model at the known tag height
-    fixes: Estimates        # LS fixes from the screened TDoAs
-    x0: NavState            # the INS state at the first fix, magnetometer heading
-    k0: int                 # that epoch: the first scored one
-    imu: ImuLog             # the IMU samples from it on
-
-
-def start(run: robot.RobotRun, model: robot.RobotConfig, outlier_c_m: float | None) -> Start:
-    """Eq. 4's screen, LS fixes at the tag height and the INS start at the first fix with the magnetometer's
-    heading (:mod:`uwbwb.filters.alignment`): the same start for every row of :func:`run_methods`."""
-    anchors = np.asarray(model.stations_m, float)
-    screened, n_eq4 = screened_tdoa(run.tdoa, anchors, outlier_c_m)
-    m2 = TdoaModel(anchors, model.sigma_toa_m, dim=2, z_m=model.tag_height_m)
-    fixes = ls_estimates(screened, m2, "LS")
-    yaw0 = float(run.heading.yaw_rad[int(np.flatnonzero(fixes.has_estimate)[0])])
-    x0, k0 = initial_state(fixes, height_m=model.tag_height_m, lever_m=model.lever_arm_m, yaw_rad=yaw0)
-    return Start(screened, n_eq4, m2, fixes, x0, k0, imu_after(run.imu, run.truth.t_s[k0]))
-
-
 def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[str, float], cfg: AblationConfig,
                 rows: Sequence[str] = ROWS) -> tuple[dict, int, dict]:
     """Every row of ``rows`` on one run, with the filters' ``model`` (not the run's world).
@@ -328,7 +303,12 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
     freedom over the run, NaN for LS).
     """
     anchors = np.asarray(model.stations_m, float)
-    screened, n_eq4, m2, fixes, x0, k0, imu = start(run, model, cfg.outlier_c_m)
+    screened, n_eq4 = screened_tdoa(run.tdoa, anchors, cfg.outlier_c_m)
+    m2 = TdoaModel(anchors, model.sigma_toa_m, dim=2, z_m=model.tag_height_m)
+    fixes = ls_estimates(screened, m2, "LS")
+    yaw0 = float(run.heading.yaw_rad[int(np.flatnonzero(fixes.has_estimate)[0])])
+    x0, k0 = initial_state(fixes, height_m=model.tag_height_m, lever_m=model.lever_arm_m, yaw_rad=yaw0)
+    imu = imu_after(run.imu, run.truth.t_s[k0])
     tag0 = x0.pos_m + quat_to_dcm(x0.quat) @ np.asarray(model.lever_arm_m, float)
     gate = cfg.gate_prob
     out, gated, nis = {}, {}, {}
