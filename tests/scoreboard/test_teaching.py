@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
@@ -58,14 +56,6 @@ def test_short_table_keeps_the_main_columns_of_the_methods_that_ran(board):
     np.testing.assert_allclose(t["rmse_m"], board.table().set_index("method").loc[t.index, "rmse_m"], atol=5e-4)
 
 
-def test_short_findings_are_shorter_and_name_the_most_accurate_method(board):
-    full = sbt.findings_markdown({"synthetic": board}, rng=np.random.default_rng(0))
-    short = sbt.findings_markdown({"synthetic": board}, rng=np.random.default_rng(0), short=True)
-    best = board.table().set_index("method")["rmse_m"].idxmin()
-    assert f"lowest RMSE {best}" in short and f"lowest RMSE {best}" in full
-    assert len(short.split()) < len(full.split()) and len(short.split()) <= 200
-
-
 def test_panel_note_quotes_the_board(board):
     df = board.table().set_index("method")
     best = df["rmse_m"].idxmin()
@@ -74,20 +64,6 @@ def test_panel_note_quotes_the_board(board):
     above = int((df["rmse_over_common"] > 1).sum())
     assert f"{above} of {len(df)} methods stand above it" in note
     assert f"best LS, {df.loc['LS', 'rmse_m']:.3f} m" in note or f"best raw LS, {df.loc['raw LS', 'rmse_m']:.3f} m" in note
-
-
-def test_sigma_w_note_reads_the_tuning_record(board):
-    p = board.calibration.params("EKF-RJ")
-    note = sbt.sigma_w_note(board, "RJ")
-    assert f"σ_w to {p['sigma_w']:.3g} m/s³" in note and "CEP95" in note and "RMSE" in note
-    assert f"of {len(p['grid'])} on a log grid" in note
-    flat = replace(board.calibration, tuned={**board.calibration.tuned,
-                                             "EKF-RJ": {**p, "grid_rmse_m": (0.100, 0.101, 0.300)}})
-    assert "2 of the 3 values (0.05 to 0.5 m/s³) are within 5%" in sbt.sigma_w_note(replace(board, calibration=flat), "RJ")
-    steep = replace(board.calibration, tuned={**board.calibration.tuned,
-                                              "EKF-RJ": {**p, "grid_rmse_m": (0.100, 0.200, 0.300)}})
-    assert "no other grid value is within 5%" in sbt.sigma_w_note(replace(board, calibration=steep), "RJ")
-    assert sbt.sigma_w_note(board, "RW") == ""            # no EKF-RW on this board
 
 
 def test_panel_offers_only_the_tags_the_boards_have(board):

@@ -1,4 +1,4 @@
-"""Verdict sentences follow from the facts: each flips when a value crosses its threshold."""
+"""Verdicts follow from the intervals: each flips when a value crosses its threshold, in the facts and in the tables."""
 
 from __future__ import annotations
 
@@ -11,30 +11,26 @@ from uwbwb.scoreboard import calibrate, score
 from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, ExternalEstimates
 from uwbwb.scoreboard.verdicts import (BLOCK_LAG_FACTOR, MIN_BLOCKS, block_length, difference_facts,
-                                       difference_sentence, placement_facts, placement_sentence)
+                                       difference_table, placement_facts, placement_table)
 from uwbwb.types import Trajectory
 
 
-def _facts(lo, hi):
-    return {"a": "A", "b": "B", "mode": "FAST", "n_epochs": 100, "rmse_a_m": 0.05, "rmse_b_m": 0.06,
-            "diff_m": (lo + hi) / 2, "lo_m": lo, "hi_m": hi,
-            "verdict": "a" if hi < 0 else ("b" if lo > 0 else "none")}
+def _table_board(rows):
+    """A stand-in board whose table holds the given (method, ratio, se) rows."""
+    import pandas as pd
+
+    df = pd.DataFrame([{"method": m, "n_scored": 5, "rmse_over_common": r, "rmse_over_common_se": se}
+                       for m, r, se in rows])
+    return SimpleNamespace(table=lambda: df)
 
 
-@pytest.mark.parametrize("lo, hi, expected", [(-0.010, -0.001, "A is more accurate"),
-                                              (-0.010, 0.001, "no significant difference"),
-                                              (0.001, 0.010, "B is more accurate")])
-def test_difference_sentence_flips_with_the_interval(lo, hi, expected):
-    s = difference_sentence(_facts(lo, hi))
-    assert s.endswith(expected + ".") or expected in s
-    assert "FAST" in s
-
-
-@pytest.mark.parametrize("ratio, se, expected", [(1.30, 0.10, "above"), (1.15, 0.10, "on"), (0.85, 0.10, "on"),
-                                                 (0.70, 0.10, "below"), (float("nan"), 0.1, "no common bound")])
+@pytest.mark.parametrize("ratio, se, expected", [(1.30, 0.10, "above the bound"), (1.15, 0.10, "on the bound"),
+                                                 (0.85, 0.10, "on the bound"), (0.70, 0.10, "below the bound"),
+                                                 (float("nan"), 0.1, "no common bound on its epochs"),
+                                                 (3.0, float("nan"), "no verdict (fewer than 10 blocks)")])
 def test_placement_flips_at_two_standard_errors(ratio, se, expected):
-    f = placement_facts(SimpleNamespace(method="M", rmse_over_common=ratio, rmse_over_common_se=se))
-    assert expected in placement_sentence(f)
+    t = placement_table({"rec": _table_board([("M", ratio, se)])})
+    assert t.loc[0, "verdict"] == expected and t.loc[0, "method"] == "M" and t.loc[0, "recording"] == "rec"
 
 
 def _board(offset_m):
@@ -50,19 +46,19 @@ def _board(offset_m):
 
 @pytest.mark.parametrize("offset_m, verdict", [(0.005, "b"), (0.2, "a")])
 def test_difference_facts_on_a_board_follow_the_errors(offset_m, verdict):
-    """An outside method 5 mm off beats LS (σ 5 cm); 20 cm off it loses — and the interval says so."""
+    """An outside method 5 mm off beats LS (σ 5 cm); 20 cm off it loses — and the interval says so, in the
+    facts and in the table's verdict column."""
     b = _board(offset_m)
-    f = difference_facts(b, "LS", "shifted truth (external)", rng=np.random.default_rng(0))
+    ext = "shifted truth (external)"
+    f = difference_facts(b, "LS", ext, rng=np.random.default_rng(0))
     assert f["n_epochs"] == len(b.entry("LS", "tag").estimates)
     assert f["verdict"] == verdict and f["lo_m"] <= f["diff_m"] <= f["hi_m"]
     assert f["diff_m"] == pytest.approx(f["rmse_a_m"] - f["rmse_b_m"])
-
-
-def test_placement_without_a_standard_error_gives_no_verdict():
-    """Fewer than MIN_BLOCKS blocks leave the standard error NaN: no above/on/below."""
-    s = placement_sentence(placement_facts(SimpleNamespace(method="M", rmse_over_common=3.0,
-                                                           rmse_over_common_se=float("nan"))))
-    assert "no verdict" in s and "above" not in s
+    t = difference_table({"syn": b}, [("LS", ext), ("LS", "not on this board")], rng=np.random.default_rng(0))
+    assert len(t) == 1                                    # a pair that did not run has no row
+    assert t.loc[0, "verdict"] == ("LS more accurate" if verdict == "a" else f"{ext} more accurate")
+    assert t.loc[0, "95 % low (mm)"] == pytest.approx(1000 * f["lo_m"])
+    assert t.loc[0, "A − B (mm)"] == pytest.approx(1000 * f["diff_m"])
 
 
 def test_block_length_follows_the_autocorrelation():
@@ -78,8 +74,11 @@ def test_block_length_follows_the_autocorrelation():
 
 def _fake_board(err_a, err_b):
     n = err_a.size
+    import pandas as pd
+
     ent = {m: SimpleNamespace(skipped=None, scored=np.ones(n, bool), error_m=e) for m, e in (("A", err_a), ("B", err_b))}
-    return SimpleNamespace(tags=("t",), mode="FAST", entry=lambda m, tag: ent[m])
+    table = pd.DataFrame({"method": ["A", "B"], "n_scored": [n, n]})
+    return SimpleNamespace(tags=("t",), mode="FAST", entry=lambda m, tag: ent[m], table=lambda: table)
 
 
 @pytest.mark.parametrize("n, verdict", [(2 * (MIN_BLOCKS - 1), "none"), (400, "a")])
@@ -91,7 +90,8 @@ def test_difference_verdict_needs_min_blocks(n, verdict):
     f = difference_facts(_fake_board(a, b), "A", "B", rng=np.random.default_rng(0))
     assert f["verdict"] == verdict
     assert (f["n_blocks"] >= MIN_BLOCKS) == (verdict != "none")
-    assert ("no verdict" in difference_sentence(f)) == (verdict == "none")
+    row = difference_table({"r": _fake_board(a, b)}, [("A", "B")], rng=np.random.default_rng(0)).iloc[0]
+    assert row["verdict"] == ("A more accurate" if verdict == "a" else f"no verdict (fewer than {MIN_BLOCKS} blocks)")
 
 
 def test_external_rows_are_inputs_in_the_summary(tmp_path):

@@ -12,8 +12,8 @@ Cramér–Rao bounds (notebook 06 and ``python -m uwbwb score``).
 * :mod:`.sources` — recordings named on the command line;
 * :mod:`.reference` — the common bound (one per recording, the same for every method);
 * :mod:`.checks` — is a recording scorable (measured vs predicted ranges, with a diagnosis);
-* :mod:`.verdicts` — verdict sentences computed from differences with block-bootstrap intervals;
-* :mod:`.teaching` — notebook 06's class-size board, verdict text, panel and computed notes;
+* :mod:`.verdicts` — verdict tables computed from differences with block-bootstrap intervals;
+* :mod:`.teaching` — notebook 06's class-size board, panel and computed notes;
 * :mod:`.exercises` — notebook 06's checked exercises on the synthetic hall.
 """
 

@@ -1,18 +1,17 @@
-"""Verdicts of a board, computed from facts with intervals (notebook 06's "what the boards say").
+"""Verdicts of a board, computed from intervals into tables (notebook 06's "what the boards say").
 
-Two kinds of statement, each a ``facts`` function returning the numbers and the rule, and a
-``sentence`` template over them (tests feed values on both sides of each threshold):
+Two kinds of statement, each a ``facts`` function returning the numbers and the verdict by its rule,
+and a table over many of them (tests feed values on both sides of each threshold):
 
-* :func:`difference_facts` / :func:`difference_sentence` — method A against method B: the
+* :func:`difference_facts` / :func:`difference_table` — method A against method B: the
   difference of their RMSEs on the epochs *both* covered, with a 95 % block-bootstrap interval
   (blocks from :func:`block_ids`, so that the correlation of a tracking filter's errors is kept).
   The verdict is "A more accurate" / "B more accurate" when the interval excludes 0, else "no
   significant difference"; with fewer than :data:`MIN_BLOCKS` blocks no interval and no verdict.
-* :func:`placement_facts` / :func:`placement_sentence` — a method against the recording's common
-  bound (:mod:`.reference`): RMSE / common bound with its block standard error; "above the
-  bound" when ``ratio − 2 se > 1``, "below the bound" when ``ratio + 2 se < 1`` (with what that
-  means), else "on the bound"; no placement when the standard error could not be formed (fewer
-  than :data:`MIN_BLOCKS` blocks).
+* :func:`placement_facts` / :func:`placement_table` — a method against the recording's common
+  bound (:mod:`.reference`): RMSE / common bound with its block standard error; "above" when
+  ``ratio − 2 se > 1``, "below" when ``ratio + 2 se < 1``, else "on the bound"; no verdict when the
+  standard error could not be formed (fewer than :data:`MIN_BLOCKS` blocks).
 
 One block rule serves both (and :meth:`uwbwb.scoreboard.Board.table`'s standard errors): a block is
 :data:`BLOCK_LAG_FACTOR` × the first lag (epochs) at which the autocorrelation of the series
@@ -22,10 +21,14 @@ One block rule serves both (and :meth:`uwbwb.scoreboard.Board.table`'s standard 
 
 from __future__ import annotations
 
-import numpy as np
+from typing import Mapping, Sequence
 
-__all__ = ["ACF_LEVEL", "BLOCK_LAG_FACTOR", "MIN_BLOCKS", "N_BOOT", "block_ids", "block_length", "block_se_ratio",
-           "difference_facts", "difference_sentence", "placement_facts", "placement_sentence"]
+import numpy as np
+import pandas as pd
+
+__all__ = ["ACF_LEVEL", "BLOCK_LAG_FACTOR", "DIFFERENCE_RULE", "MIN_BLOCKS", "N_BOOT", "PLACEMENT_RULE", "block_ids",
+           "block_length", "block_se_ratio", "difference_facts", "difference_table", "placement_facts",
+           "placement_table"]
 
 #: Bootstrap resamples of a difference.
 N_BOOT = 2000
@@ -37,6 +40,9 @@ ACF_LEVEL = 0.05
 BLOCK_LAG_FACTOR = 2
 #: Fewest blocks for an interval, a standard error or a verdict.
 MIN_BLOCKS = 10
+#: The rules the tables state beside each verdict.
+DIFFERENCE_RULE = "95 % block-bootstrap interval of RMSE(A) − RMSE(B) on common epochs excludes 0"
+PLACEMENT_RULE = "RMSE / common bound ± 2 block standard errors excludes 1"
 
 
 def block_length(x: np.ndarray, *, acf_level: float = ACF_LEVEL) -> int:
@@ -129,24 +135,6 @@ def difference_facts(board, a: str, b: str, *, n_boot: int = N_BOOT, rng: np.ran
     return {**out, "lo_m": lo, "hi_m": hi, "verdict": "a" if hi < 0 else ("b" if lo > 0 else "none")}
 
 
-def difference_sentence(f: dict) -> str:
-    """One sentence from :func:`difference_facts`."""
-    if f["n_epochs"] < 2:
-        return f"{f['a']} vs {f['b']}: no epochs that both covered ({f['mode']})."
-    if f.get("n_blocks", MIN_BLOCKS) < MIN_BLOCKS:
-        return (f"{f['a']} − {f['b']}: RMSE {f['rmse_a_m']:.3f} vs {f['rmse_b_m']:.3f} m on the {f['n_epochs']} "
-                f"epochs both covered, only {f['n_blocks']} independent blocks (fewer than {MIN_BLOCKS}): "
-                f"no interval and no verdict ({f['mode']}).")
-    head = (f"{f['a']} − {f['b']}: RMSE {f['rmse_a_m']:.3f} vs {f['rmse_b_m']:.3f} m on the {f['n_epochs']} epochs "
-            f"both covered, difference {1000 * f['diff_m']:+.1f} mm, 95 % block-bootstrap interval "
-            f"[{1000 * f['lo_m']:+.1f}, {1000 * f['hi_m']:+.1f}] mm ({f['mode']})")
-    if f["verdict"] == "a":
-        return head + f": {f['a']} is more accurate."
-    if f["verdict"] == "b":
-        return head + f": {f['b']} is more accurate."
-    return head + ": the interval includes 0 — no significant difference."
-
-
 def placement_facts(row) -> dict:
     """Where one board row (:meth:`Board.table`) sits against the common bound: ``above``, ``on``, ``below`` or ``none``."""
     r, se = float(row.rmse_over_common), float(row.rmse_over_common_se)
@@ -159,19 +147,38 @@ def placement_facts(row) -> dict:
     return {"method": row.method, "ratio": r, "se": se, "where": where}
 
 
-def placement_sentence(f: dict) -> str:
-    """One sentence from :func:`placement_facts`."""
-    if f["where"] == "none":
-        return f"{f['method']}: no common bound on its epochs."
-    if f["where"] == "few blocks":
-        return (f"{f['method']}: RMSE / common bound {f['ratio']:.2f}, from fewer than {MIN_BLOCKS} independent "
-                "blocks: no standard error and no verdict.")
-    head = f"{f['method']}: RMSE / common bound {f['ratio']:.2f} ± {f['se']:.2f}"
-    if f["where"] == "above":
-        return head + (" — above the common bound by more than 2 standard errors: room to improve under the bound's "
-                       "model, or errors that its unbiased Gaussian range noise leaves out (biases, multipath).")
-    if f["where"] == "below":
-        return head + (" — below the common bound by more than 2 standard errors: it uses information the bound "
-                       "does not (an IMU, or later ranges: a smoother), or the track is smoother than the fitted "
-                       "motion model.")
-    return head + " — on the common bound within 2 standard errors."
+def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, str]], *,
+                     rng: np.random.Generator) -> pd.DataFrame:
+    """:func:`difference_facts` of every pair ``(A, B)`` that ran on each board, one row each: recording, A, B,
+    epochs both covered, blocks, both RMSEs, A − B and its 95 % interval (mm), the rule and the verdict."""
+    rows = []
+    for label, board in boards.items():
+        ran = set(board.table().query("n_scored > 0")["method"])
+        for a, b in pairs:
+            if a not in ran or b not in ran:
+                continue
+            f = difference_facts(board, a, b, rng=rng)
+            verdict = {"a": f"{a} more accurate", "b": f"{b} more accurate"}.get(f["verdict"], "not significant")
+            if f["n_epochs"] < 2:
+                verdict = "no epochs both covered"
+            elif f["n_blocks"] < MIN_BLOCKS:
+                verdict = f"no verdict (fewer than {MIN_BLOCKS} blocks)"
+            rows.append({"recording": label, "A": a, "B": b, "epochs": f["n_epochs"], "blocks": f["n_blocks"],
+                         "RMSE A (m)": f["rmse_a_m"], "RMSE B (m)": f["rmse_b_m"], "A − B (mm)": 1000 * f["diff_m"],
+                         "95 % low (mm)": 1000 * f["lo_m"], "95 % high (mm)": 1000 * f["hi_m"], "rule": DIFFERENCE_RULE,
+                         "verdict": verdict})
+    return pd.DataFrame(rows)
+
+
+def placement_table(boards: Mapping[str, object]) -> pd.DataFrame:
+    """:func:`placement_facts` of every method that ran on each board: recording, method, RMSE / common bound,
+    its block standard error, the rule and the verdict (above / on / below the bound, or none)."""
+    rows = []
+    for label, board in boards.items():
+        for r in board.table().query("n_scored > 0").itertuples():
+            f = placement_facts(r)
+            verdict = {"above": "above the bound", "below": "below the bound", "on": "on the bound",
+                       "none": "no common bound on its epochs"}.get(f["where"], f"no verdict (fewer than {MIN_BLOCKS} blocks)")
+            rows.append({"recording": label, "method": f["method"], "RMSE / common bound": f["ratio"],
+                         "standard error": f["se"], "rule": PLACEMENT_RULE, "verdict": verdict})
+    return pd.DataFrame(rows)
