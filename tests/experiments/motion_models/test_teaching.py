@@ -2,12 +2,11 @@
 
 import matplotlib
 import numpy as np
-import pandas as pd
 import pytest
 
 from uwbwb.calibration import fit_range_sigma
 from uwbwb.experiments import motion_models as mm
-from uwbwb.experiments.motion_models import exercises, facts, headlines, panels
+from uwbwb.experiments.motion_models import exercises, headlines, panels
 
 matplotlib.use("Agg")
 
@@ -103,37 +102,6 @@ def test_checks_report_a_failure(small_study):
     bad = replace(small_study, results=[replace(res, errors=worse)])
     problems = headlines.checks(mm.Results(synthetic={"office": bad}), fast=True)
     assert any("clearly worse than LS" in p for p in problems) and ls is res.errors["LS"]
-
-
-# --------------------------------------------------------------------------- σ_w tuning criterion
-
-def _curves(cep, rmse, grid=(0.1, 0.3, 1.0, 3.0)):
-    rows = [{"run": "r", "tag": "t", "model": "RJ", "sigma": s, "cep95_m": c, "rmse_m": e}
-            for s, c, e in zip(grid, cep, rmse)]
-    return pd.DataFrame(rows)
-
-
-def test_tuning_criterion_facts_and_sentence_flip():
-    flat = facts.tuning_criterion_facts(_curves([0.20, 0.1001, 0.1000, 0.12], [0.08, 0.0500, 0.0501, 0.06]), "RJ")
-    assert flat["by_cep95"] == 1.0 and flat["by_rmse"] == 0.3 and flat["adjacent"] and flat["flat"]
-    assert not flat["same"]
-    text = facts.tuning_criterion_sentence(flat, "d/x")
-    assert "CEP95 picks 1 m/s³ and RMSE picks 0.3 m/s³, neighbouring points" in text and "minimum is flat" in text
-    steep = facts.tuning_criterion_facts(_curves([0.20, 0.15, 0.10, 0.12], [0.08, 0.05, 0.07, 0.06]), "RJ")
-    assert not steep["flat"] and "choice of criterion matters" in facts.tuning_criterion_sentence(steep, "d/x")
-    far = facts.tuning_criterion_facts(_curves([0.20, 0.15, 0.12, 0.10], [0.08, 0.05, 0.07, 0.06]), "RJ")
-    assert not far["adjacent"] and "different points" in facts.tuning_criterion_sentence(far, "d/x")
-    same = facts.tuning_criterion_facts(_curves([0.2, 0.1, 0.15, 0.2], [0.2, 0.1, 0.15, 0.2]), "RJ")
-    assert same["same"] and "both criteria pick 0.3 m/s³: the criterion makes no difference" in \
-        facts.tuning_criterion_sentence(same, "d/x")
-    with pytest.raises(ValueError, match="model"):
-        facts.tuning_criterion_facts(_curves([0.1] * 4, [0.1] * 4), "RW")
-
-
-def test_tuning_criterion_on_a_real_sweep(small_study):
-    f = facts.tuning_criterion_facts(small_study.curves, "RF")
-    assert f["by_cep95"] == small_study.best["RF"] and f["n_grid"] == 2
-    assert f["by_rmse"] in set(small_study.curves["sigma"])
 
 
 # --------------------------------------------------------------------------- real-data sections

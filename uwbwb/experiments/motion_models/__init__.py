@@ -2,12 +2,11 @@
 
 ``study`` calibrates and runs the estimators (``results``: what one tag-run gives and the tables),
 ``real`` runs the real-data sections, ``headlines`` declares the summary rows and the checks,
-``figures`` draws, ``panels`` is the explorer's back end, ``exercises`` the checked exercises,
-``facts`` explains, from the calibration curves, why 03 and the board can pick different σ_w. The notebook imports this
-package as ``mm``.
+``figures`` draws, ``panels`` is the explorer's back end, ``exercises`` the checked exercises. The notebook imports
+this package as ``mm``.
 """
 
-from . import exercises, facts, panels, real
+from . import exercises, panels, real
 from .figures import calibration_figure, cdf_figure, covariance_figure, paths_figure, scenario_figure
 from .headlines import Results, checks, headline_rows
 from .study import (DEFAULT_GRIDS, METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95,
@@ -20,7 +19,7 @@ __all__ = [
     "DEFAULT_GRIDS", "METHODS", "MODELS", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95",
     "PAPER_SIGMA", "Results", "SIGMA_KIND", "Study", "TagResults", "best_sigmas",
     "calibration_curves", "calibration_figure", "cdf_figure", "cep95_table", "checks", "covariance_figure",
-    "coverage_table", "ekf_name", "estimate", "exercises", "facts", "headline_rows",
+    "coverage_table", "ekf_name", "estimate", "exercises", "headline_rows",
     "nis_table", "panels", "paper_table", "paths_figure", "ranging_summary", "ranking", "raw_multilateration", "real",
     "record", "run_ekf", "run_study", "scenario_figure", "sigma_rows", "split_runs", "summary_rows",
     "synthetic_acquisition", "tag_runs", "tdoa_noise_check",
