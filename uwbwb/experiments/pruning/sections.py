@@ -77,14 +77,6 @@ class LiasStatic:
             lines.append("raw ranges only: no leave-one-site-out calibration (one site, or not asked for)")
         return "\n".join(lines)
 
-    def range_markdown(self) -> str:
-        """One sentence on the poses' range errors (bias, spread, long outliers), from :attr:`range_stats`."""
-        r = self.range_stats
-        return (f"Range errors against the pose tables, per anchor–tag pair (median over pairs): bias "
-                f"{r.bias_m.median():.3f} m (10th–90th percentile {r.bias_m.quantile(0.1):.3f}–"
-                f"{r.bias_m.quantile(0.9):.3f} m), spread {r.spread_m.median():.3f} m; "
-                f"{np.average(r.frac_long, weights=r.n):.2%} of ranges more than 0.5 m above their pair's median.")
-
 
 def lias_static(recordings, *, label: str, tags, config: PruningConfig, stride: int, loso: bool = True,
                 progress: bool = False) -> LiasStatic:

@@ -7,7 +7,7 @@ simulated walk — laid out the way every experiment package is:
   the data (:func:`~.study.simulate`), the estimators (built from ``filters/``, each returning
   :class:`~uwbwb.types.Estimates`), and the one :class:`~.study.Results` the other modules read;
 * ``facts`` — :func:`~.facts.facts` (numbers and verdicts, each from a stated rule on an interval)
-  and :func:`~.facts.sentence` (a template over those numbers);
+  and :func:`~.facts.verdict_table` (those verdicts with their rules, as a table);
 * ``headlines`` — the summary rows as data (quantity, unit, kind, paper value) and
   :func:`~.headlines.checks` ``(results, fast)``, which returns what fails;
 * ``figures`` — the figures (``ax=`` in, Axes out); ``panels`` — the widget back end (cached).
@@ -22,13 +22,13 @@ In a notebook::
     from uwbwb.experiments import template as tp
     res = tp.run_study(fast=FAST, seed=SEED)
     assert not tp.checks(res, FAST), tp.checks(res, FAST)
-    print(tp.sentence(tp.facts.facts(res)))
+    display(tp.verdict_table(tp.facts.facts(res)))
 """
 
 from . import facts, figures, headlines, panels, study
-from .facts import sentence
+from .facts import verdict_table
 from .headlines import HEADLINES, checks, publish, rows
 from .study import FAST, FULL, METHODS, Config, Results, run_study
 
 __all__ = ["Config", "FAST", "FULL", "HEADLINES", "METHODS", "Results", "checks", "facts", "figures", "headlines",
-           "panels", "publish", "rows", "run_study", "sentence", "study"]
+           "panels", "publish", "rows", "run_study", "study", "verdict_table"]

@@ -1,5 +1,6 @@
 """The template's numbers and computed verdicts: :func:`facts` turns :class:`~.study.Results` into a
-flat ``dict``; :func:`sentence` words it (a template over those numbers, never fixed text).
+flat ``dict``; :func:`verdict_table` shows its verdicts with their rules (the words around them are the
+notebook's, written by hand).
 
 Rules
 -----
@@ -17,12 +18,13 @@ Rules
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 
 from ... import metrics
 from .study import Results
 
-__all__ = ["LEVEL", "N_BLOCKS", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "rmse_difference", "sentence",
-           "verdict"]
+__all__ = ["LEVEL", "N_BLOCKS", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "rmse_difference", "verdict",
+           "verdict_table"]
 
 #: Blocks of consecutive epochs of the bootstrap (errors of a filter are correlated in time).
 N_BLOCKS = 10
@@ -81,25 +83,14 @@ def facts(res: Results) -> dict:
     return f
 
 
-_PHRASE = {"better": "the EKF is more accurate than LS",
-           "worse": "the EKF is less accurate than LS",
-           "no significant difference": "the two do not differ significantly",
-           "no interval": "there are too few common epochs to tell"}
-
-
-def sentence(f: dict) -> str:
-    """One paragraph from :func:`facts` (every number and verdict read from ``f``)."""
-    cm = 100.0
-    text = (f"On {f['n_common']} common epochs (coverage LS {f['coverage[LS]'] * 100:.0f} %, EKF-RF "
-            f"{f['coverage[EKF-RF]'] * 100:.0f} %) the EKF-RF's RMSE is {f['rmse_m[EKF-RF]'] * cm:.1f} cm against "
-            f"{f['rmse_m[LS]'] * cm:.1f} cm for LS: ΔRMSE {f['diff_m'] * cm:+.1f} cm")
-    if f["verdict"] != "no interval":
-        text += f", {LEVEL * 100:g} % block-bootstrap interval [{f['lo_m'] * cm:+.1f}, {f['hi_m'] * cm:+.1f}] cm"
-    text += f", so {_PHRASE[f['verdict']]}. "
+def verdict_table(f: dict) -> pd.DataFrame:
+    """The verdicts of :func:`facts` as a table: claim, ours, 95 % interval, rule, verdict (one row each)."""
     lo, hi = NIS_BAND
-    text += (f"Its mean NIS per degree of freedom is {f['nis_per_dof']:.2f}, "
-             + ("inside" if f["nis_verdict"] == "consistent" else "outside")
-             + f" [{lo:g}, {hi:g}]: its covariance is {f['nis_verdict']} with its innovations.")
-    if f["fast"]:
-        text += " (FAST: a short walk; the numbers are a smoke test.)"
-    return text
+    return pd.DataFrame([
+        {"claim": "EKF-RF against LS: RMSE(EKF-RF) − RMSE(LS), common epochs (m)", "ours": f["diff_m"],
+         "interval": (f["lo_m"], f["hi_m"]),
+         "rule": f"{LEVEL:.0%} block-bootstrap interval ({N_BLOCKS} blocks) below 0: better; above 0: worse",
+         "verdict": f["verdict"]},
+        {"claim": "EKF-RF's covariance matches its innovations: mean NIS per dof", "ours": f["nis_per_dof"],
+         "interval": None, "rule": f"inside [{lo:g}, {hi:g}]", "verdict": f["nis_verdict"]},
+    ]).set_index("claim")

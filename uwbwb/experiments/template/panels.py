@@ -1,5 +1,5 @@
 """Back end of the template's slider panel: the settings it offers, the cached study behind each
-setting, and what one setting draws and says.
+setting, and what one setting draws and its verdicts.
 
 The callback of a panel built with :mod:`uwbwb.widgets` calls :func:`draw` and :func:`readout`; both
 recompute only through :func:`run`, which is cached on the (frozen, hashable) setting, so moving a
@@ -14,7 +14,7 @@ from functools import lru_cache
 import matplotlib.pyplot as plt
 
 from ... import validate
-from .facts import facts, sentence
+from .facts import facts, verdict_table
 from .figures import cdf_figure, paths_figure
 from .study import FAST, FULL, Results, run_study
 
@@ -36,9 +36,9 @@ def run(driving_sigma_mps2: float, sigma_range_m: float, *, seed: int = 0, fast:
     return run_study(fast=fast, seed=seed, config=cfg)
 
 
-def readout(driving_sigma_mps2: float, sigma_range_m: float, *, seed: int = 0, fast: bool = True) -> str:
-    """The computed sentence of one setting."""
-    return sentence(facts(run(driving_sigma_mps2, sigma_range_m, seed=seed, fast=fast)))
+def readout(driving_sigma_mps2: float, sigma_range_m: float, *, seed: int = 0, fast: bool = True):
+    """The verdict table of one setting (:func:`.facts.verdict_table`)."""
+    return verdict_table(facts(run(driving_sigma_mps2, sigma_range_m, seed=seed, fast=fast)))
 
 
 def draw(driving_sigma_mps2: float, sigma_range_m: float, *, seed: int = 0, fast: bool = True, axes=None):
