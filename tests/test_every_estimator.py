@@ -33,7 +33,7 @@ from uwbwb.models.motion import RandomForce
 from uwbwb.scoreboard.board import calibrate
 from uwbwb.scoreboard.estimators import (BaseEstimator, TdoaEkfEstimator, _tdoa_model, calibrated_log,
                                          default_estimators)
-from uwbwb.scoreboard.protocol import between, scored_tags, split_in_time, thin
+from uwbwb.scoreboard.protocol import between, scored_tags, split_in_time
 from uwbwb.types import EstimateStatus, Estimates, TdoaLog, pseudo_tdoa
 
 RATE_HZ = 10.0
@@ -99,7 +99,7 @@ def trees(tmp_path_factory):
         tag = scored_tags(test)[0]
         cal_rec = between(cal_rec, -np.inf, np.inf)
         cal = calibrate(cal_rec, registry(), [tag], rate_hz=RATE_HZ)
-        ready[key] = (thin(test, RATE_HZ), tag, cal)
+        ready[key] = (test.decimate(rate_hz=RATE_HZ), tag, cal)
     return ready
 
 

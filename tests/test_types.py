@@ -237,9 +237,28 @@ def test_recording_decimate_by_step_or_rate():
     np.testing.assert_array_equal(by_rate.ranges["tag"].t_s, by_step.ranges["tag"].t_s)
     assert by_rate.meta["decimated"] == 4
     assert rec.decimate(rate_hz=50.0) is rec                     # faster than the data: step 1
+    assert rec.decimate(rate_hz=4.0).meta["decimated"] == 2      # the largest step keeping at least 4 Hz
+    assert rec.decimate(rate_hz=3.0).meta["decimated"] == 3
     for bad in (dict(), dict(step=2, rate_hz=1.0), dict(rate_hz=0.0), dict(rate_hz=True)):
         with pytest.raises(ValueError):
             rec.decimate(**bad)
+
+
+def test_recording_decimate_by_rate_steps_each_tag_on_its_own_rate():
+    """Two tags at 10 and 20 Hz thinned to 5 Hz: steps 2 and 4, both at 5 Hz; the meta says each step; a tag's
+    truth on its range epochs is thinned alike, and decimating again multiplies the steps."""
+    from uwbwb.types import Anchors, Recording
+    anchors = Anchors(("a", "b"), np.array([[0.0, 0.0, 2.0], [5.0, 0.0, 2.0]]))
+    t10, t20 = np.arange(0.0, 4.0, 0.1), np.arange(0.0, 4.0, 0.05)
+    ranges = {"slow": RangeLog(t10, np.ones((t10.size, 2)), anchors.ids, "slow"),
+              "fast": RangeLog(t20, np.ones((t20.size, 2)), anchors.ids, "fast")}
+    truth = {"fast": Trajectory(t20, np.zeros((t20.size, 3)))}
+    rec = Recording("synthetic", "r", anchors, ranges, truth).decimate(rate_hz=5.0)
+    assert rec.meta["decimated"] == {"slow": 2, "fast": 4}
+    for tag in ("slow", "fast"):
+        assert np.median(np.diff(rec.ranges[tag].t_s)) == pytest.approx(0.2)
+    np.testing.assert_array_equal(rec.truth["fast"].t_s, rec.ranges["fast"].t_s)
+    assert rec.decimate(2).meta["decimated"] == {"slow": 4, "fast": 8}
 
 
 def test_estimates_batch_members_are_estimates_in_batch_order():

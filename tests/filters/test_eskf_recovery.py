@@ -39,12 +39,11 @@ def test_in_motion_heading_alignment_does_not_lock_the_filters_out(iasl_flights,
     at 10 Hz on some: the χ² gate rejected every range while the heading was unresolved."""
     from uwbwb.datasets import iasl
     from uwbwb.experiments.uwb_ins import study
-    from uwbwb.scoreboard.protocol import thin
 
     data, cal = iasl_flights
     worst, start = {}, {}
     for s in SEEDS:
-        rec = thin(iasl.load_scenario(f"flight{s}", data), rate_hz)
+        rec = iasl.load_scenario(f"flight{s}", data).decimate(rate_hz=rate_hz)
         comp = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0)
         t = comp.table()
         for name in ("tight", "tight (ranges)", "loose"):
@@ -75,13 +74,12 @@ def test_without_the_hand_over_rule_the_tight_filters_start_with_a_transient(ias
     from uwbwb.datasets import iasl
     from uwbwb.experiments.uwb_ins import study
     from uwbwb.filters import alignment
-    from uwbwb.scoreboard.protocol import thin
 
     data, cal = iasl_flights
     monkeypatch.setattr(alignment, "handover_covariance", lambda f, P: f.initial_covariance())
     start = {}
     for s in (4, 7):
-        comp = study.compare_iasl(thin(iasl.load_scenario(f"flight{s}", data), 5.0), cal, still_s=1.0, align_s=10.0)
+        comp = study.compare_iasl(iasl.load_scenario(f"flight{s}", data).decimate(rate_hz=5.0), cal, still_s=1.0, align_s=10.0)
         start.update(_start_transient(comp, s))
     assert max(start.values()) > 1.0, start
 
@@ -92,12 +90,11 @@ def _alignment_gating(data, cal, seeds, rates):
     and after it."""
     from uwbwb.datasets import iasl
     from uwbwb.filters.alignment import align_iasl
-    from uwbwb.scoreboard.protocol import thin
 
     out = {}
     for s in seeds:
         for rate_hz in rates:
-            al = align_iasl(thin(iasl.load_scenario(f"flight{s}", data), rate_hz), cal, still_s=1.0,
+            al = align_iasl(iasl.load_scenario(f"flight{s}", data).decimate(rate_hz=rate_hz), cal, still_s=1.0,
                             align_s=10.0).alignment
             resolved = np.flatnonzero(np.sqrt(al.P[:, 8, 8]) <= eskf.TightEskf.gate_yaw_sigma_rad)
             assert resolved.size, (s, rate_hz)

@@ -11,7 +11,7 @@ import pytest
 
 from uwbwb import cli
 from uwbwb.datasets import tidy
-from uwbwb.scoreboard import Estimator, calibrate, default_estimators, score, split_in_time, thin
+from uwbwb.scoreboard import Estimator, calibrate, default_estimators, score, split_in_time
 from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, TdoaEkfEstimator, TdoaLs
 from uwbwb.types import Trajectory
@@ -80,9 +80,9 @@ def test_uwb_ins_estimators_never_read_the_scoring_truth(tmp_path):
     ests = [UwbInsFilter(k, {}, INS_GRID[:1]) for k in ("loose", "tight")]
     cal = calibrate(cal_rec, ests, rate_hz=10.0)
     for kind, est in zip(("loose", "tight"), ests):
-        rec = thin(test, 10.0)
+        rec = test.decimate(rate_hz=10.0)
         a = est.estimate(rec, "tag", cal)
-        b = UwbInsFilter(kind, {}, INS_GRID[:1]).estimate(thin(moved, 10.0), "tag", cal)
+        b = UwbInsFilter(kind, {}, INS_GRID[:1]).estimate(moved.decimate(rate_hz=10.0), "tag", cal)
         assert a.has_estimate.any(), kind
         np.testing.assert_array_equal(a.pos_m, b.pos_m, err_msg=kind)
         np.testing.assert_array_equal(a.status, b.status, err_msg=kind)

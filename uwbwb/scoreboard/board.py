@@ -61,7 +61,7 @@ from ..types import Estimates, Recording
 from . import checks as _checks
 from .estimators import Estimator, default_estimators, truth_at
 from .explain import beats_bound_note, diagnostics
-from .protocol import Calibration, fit_calibration, scored_tags, split_in_time, thin
+from .protocol import Calibration, fit_calibration, scored_tags, split_in_time
 from .reference import REFERENCE, common_bound, fit_reference_motion
 from .reference import describe as describe_reference
 from .verdicts import MIN_BLOCKS, block_se_ratio
@@ -170,7 +170,7 @@ def calibrate(cal_rec: Recording, estimators: Sequence[Estimator], tags: Sequenc
     (:func:`.reference.fit_reference_motion`), then let each estimator tune itself on it."""
     tags = scored_tags(cal_rec, tags)
     cal = fit_calibration(cal_rec, tags, rate_hz=rate_hz, dim=dim, tag_height_m=tag_height_m)
-    rec = thin(cal_rec, rate_hz)
+    rec = cal_rec if rate_hz is None else cal_rec.decimate(rate_hz=rate_hz)
     reference = fit_reference_motion(rec, tags, cal)
     if reference:
         cal = cal.with_tuned(REFERENCE, reference)
@@ -527,14 +527,15 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
     test_rec, _ = _checks.lift_truth(test_rec, {**(given or {}), **heights})
     notes += [f"tag {t}: 2-D truth, {h}" for t, h in how.items()]
     if check:
-        _checks.check_overlap(thin(cal_rec, rate_hz), tags, min_epochs=_checks.MIN_ANCHOR_SAMPLES,
-                              part="calibration part")
+        thinned = cal_rec if rate_hz is None else cal_rec.decimate(rate_hz=rate_hz)
+        _checks.check_overlap(thinned, tags, min_epochs=_checks.MIN_ANCHOR_SAMPLES, part="calibration part")
         if calibration is None:
             cal_rec, test_rec, dropped = _checks.drop_silent_anchors(cal_rec, test_rec, tags)
             if dropped:
                 notes.append(f"anchors dropped (fewer than {_checks.MIN_ANCHOR_SAMPLES} ranges on the calibration "
                              f"part, cannot be calibrated): {', '.join(dropped)}")
-        _checks.check_overlap(thin(test_rec, rate_hz), tags, min_epochs=min_epochs)
+        thinned = test_rec if rate_hz is None else test_rec.decimate(rate_hz=rate_hz)
+        _checks.check_overlap(thinned, tags, min_epochs=min_epochs)
         for part, r in (("calibration part", cal_rec), ("scored part", test_rec)):
             for tag in tags:
                 c = _checks.check_ranges_against_truth(r, tag)
@@ -543,7 +544,7 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
         known = {**(given or {}), **heights} if (tag_height_m is not None or how) else None
         calibration = calibrate(cal_rec, estimators, tags, rate_hz=rate_hz, dim=dim, progress=progress,
                                 tag_height_m=known)
-    rec = thin(test_rec, rate_hz)
+    rec = test_rec if rate_hz is None else test_rec.decimate(rate_hz=rate_hz)
     commons = {t: common_bound(rec, t, calibration) for t in tags}
     entries = []
     for tag in tags:

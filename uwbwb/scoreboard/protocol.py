@@ -30,8 +30,7 @@ import numpy as np
 from ..calibration import RangeCalibration, fit_range_calibration
 from ..types import MAX_TRUTH_GAP_S, Recording
 
-__all__ = ["Calibration", "between", "PLANAR_SPREAD_M", "TRUTH_PAD_S", "fit_calibration", "scored_tags", "split_in_time",
-           "thin"]
+__all__ = ["Calibration", "between", "PLANAR_SPREAD_M", "TRUTH_PAD_S", "fit_calibration", "scored_tags", "split_in_time"]
 
 #: Calibration truth whose height (5th–95th percentile) spans less than this is a planar problem.
 PLANAR_SPREAD_M = 0.15
@@ -75,24 +74,6 @@ def split_in_time(rec: Recording, fraction: float = 0.5) -> tuple[Recording, Rec
     tm = t0 + fraction * (t1 - t0)
     return (between(rec, t0, tm, f"{rec.name} [{t0:.0f}–{tm:.0f} s]"),
             between(rec, tm, t1 + 1e-9, f"{rec.name} [{tm:.0f}–{t1:.0f} s]"))
-
-
-def thin(rec: Recording, rate_hz: float | None) -> Recording:
-    """Every ``k``-th range epoch of each tag so that the rate is at most ``rate_hz`` (truth whole).
-
-    ``k = floor(native rate / rate_hz)``, from each tag's median epoch step; None or a lower
-    native rate leaves the recording unchanged.
-    """
-    if rate_hz is None:
-        return rec
-    if not rate_hz > 0:
-        raise ValueError(f"rate_hz must be positive, got {rate_hz!r}")
-    ranges = {}
-    for tag, log in rec.ranges.items():
-        dt = float(np.median(np.diff(log.t_s))) if len(log) > 1 else np.inf
-        k = int(np.floor(1.0 / (rate_hz * dt) + 1e-9)) if np.isfinite(dt) else 1
-        ranges[tag] = log.select(slice(None, None, k)) if k > 1 else log
-    return replace(rec, ranges=ranges)
 
 
 @dataclass(frozen=True)
@@ -189,7 +170,7 @@ def fit_calibration(rec: Recording, tags: Sequence[str] | None = None, *, rate_h
         With no tuned parameters yet (see :func:`uwbwb.scoreboard.board.calibrate`).
     """
     tags = scored_tags(rec, tags)
-    rec = thin(rec, rate_hz)
+    rec = rec if rate_hz is None else rec.decimate(rate_hz=rate_hz)
     sub = replace(rec, ranges={t: rec.ranges[t] for t in tags}, truth={t: rec.truth[t] for t in tags})
     heights, spreads = {}, []
     for t in tags:

@@ -127,15 +127,18 @@ class Recording:
         simulator's truth) is thinned alike; truth on its own clock (e.g. motion
         capture at another rate) is kept whole, since estimates are compared with it
         by interpolation. The IMU log is kept whole. ``meta["decimated"]`` holds the
-        total step (steps multiply when decimating twice).
+        total step (steps multiply when decimating twice; ``{tag: step}`` when the tags'
+        steps differ).
 
         Parameters
         ----------
         step
             Positive integer; 1 returns the recording unchanged.
         rate_hz
-            Instead of ``step``: the wanted range rate, Hz; the step is
-            ``max(1, round(range_rate_hz() / rate_hz))`` (:meth:`range_rate_hz`).
+            Instead of ``step``: the epoch rate wanted, Hz. Each tag's step is the largest whole
+            step that keeps at least ``rate_hz``: ``max(1, floor(1 / (rate_hz · dt)))``, ``dt`` the
+            median step of that tag's range epochs (a tag with fewer than two epochs keeps them
+            all); a rate at or above the data's returns the recording unchanged.
 
         Raises
         ------
@@ -150,19 +153,23 @@ class Recording:
             if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float, np.integer, np.floating)) \
                     or not np.isfinite(rate_hz) or rate_hz <= 0:
                 raise ValueError(f"{self.label}: rate_hz must be a positive number of hertz, got {rate_hz!r}")
-            step = max(1, int(round(self.range_rate_hz() / float(rate_hz))))
-        if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 1:
-            raise ValueError(f"{self.label}: decimation step must be a positive integer, got {step!r}")
-        step = int(step)
-        if step == 1:
+            steps = {t: (max(1, int(np.floor(1.0 / (float(rate_hz) * float(np.median(np.diff(log.t_s)))) + 1e-9)))
+                         if len(log) > 1 else 1) for t, log in self.ranges.items()}
+        else:
+            if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 1:
+                raise ValueError(f"{self.label}: decimation step must be a positive integer, got {step!r}")
+            steps = {t: int(step) for t in self.ranges}
+        if all(k == 1 for k in steps.values()):
             return self
-        ranges = {t: log.select(slice(None, None, step)) for t, log in self.ranges.items()}
+        ranges = {t: log.select(slice(None, None, steps[t])) for t, log in self.ranges.items()}
         truth = {}
         for t, tr in self.truth.items():
-            log = self.ranges[t]
-            on_ranges = len(tr) == len(log) and np.array_equal(tr.t_s, log.t_s)
-            truth[t] = tr.select(slice(None, None, step)) if on_ranges else tr
-        meta = {**self.meta, "decimated": step * int(self.meta.get("decimated", 1))}
+            log = self.ranges.get(t)
+            on_ranges = log is not None and len(tr) == len(log) and np.array_equal(tr.t_s, log.t_s)
+            truth[t] = tr.select(slice(None, None, steps[t])) if on_ranges else tr
+        before = self.meta.get("decimated", 1)
+        total = {t: k * int(before[t] if isinstance(before, Mapping) else before) for t, k in steps.items()}
+        meta = {**self.meta, "decimated": total.popitem()[1] if len(set(total.values())) == 1 else total}
         return Recording(self.dataset, self.name, self.anchors, ranges, truth, self.imu, self.cleaning, meta)
 
     def cleaning_report(self) -> str:

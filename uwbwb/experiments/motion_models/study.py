@@ -103,8 +103,7 @@ def tag_runs(rec: Recording, tags: Sequence[str] | None = None, *, dim: int, z_m
         raise ValueError(f"{rec.label}: 2-D runs need the tag height of every tag {tags} (from calibration data "
                          f"or the dataset's description), got {z_m!r}")
     if rate_hz is not None:
-        dt = float(np.median(np.concatenate([np.diff(rec.ranges[t].t_s) for t in tags])))
-        rec = rec.decimate(max(1, int(np.floor(1.0 / (rate_hz * dt) + 1e-9))))
+        rec = rec.decimate(rate_hz=rate_hz)
     data = "synthetic" if rec.dataset == "synthetic" else rec.label
     runs = []
     for tag in tags:

@@ -21,7 +21,7 @@ from ... import metrics
 from ...filters.alignment import FusionSettings, compare_iasl
 from ...filters.imu_calibration import RealCalibration
 from ...scoreboard.estimators import INS_ALIGN_S, INS_GRID, INS_REST_S, MAX_TRUTH_GAP_S, UwbInsFilter, calibrated_log
-from ...scoreboard.protocol import between, fit_calibration, thin
+from ...scoreboard.protocol import between, fit_calibration
 from ...types import Recording
 from .realdata import common_epochs
 
@@ -122,7 +122,7 @@ def board_steps(cal_rec: Recording, test_rec: Recording, real_cal: RealCalibrati
     scales = {"tight": tuple(comp.meta.get("scales", {}).get("tight", (1.0, 1.0)))}
     q, r = scales["tight"]
     rows[f"1 · notebook 05 (native rate, raw ranges, Q × {q:g}, R × {r:g})"] = (rmse, n)
-    cal_t, test_t = thin(cal_rec, rate_hz), thin(test_rec, rate_hz)
+    cal_t, test_t = cal_rec.decimate(rate_hz=rate_hz), test_rec.decimate(rate_hz=rate_hz)
     c2 = compare_iasl(test_t, real_cal, settings, still_s=INS_REST_S, align_s=INS_ALIGN_S, scales=scales)
     rows[f"2 · + {rate_hz:g} Hz, rest {INS_REST_S:g} s, alignment {INS_ALIGN_S:g} s"] = _tight_rmse(c2)
     bcal = fit_calibration(cal_t, ("tag",), rate_hz=rate_hz, dim=3)
