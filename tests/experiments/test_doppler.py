@@ -214,12 +214,20 @@ def test_offset_or_spread_is_decided_on_the_interval_of_the_per_recording_share(
     assert f["offset_or_spread"] == label and _verdict(t, "Fig 6: offset²") == label
 
 
-def test_ratio_verdict_per_corner():
-    f, _ = _table()
-    assert f["corners"]["bottom-left"][5] == "consistent" and f["corners"]["top-left"][5] == "above"
-    assert _fig6(f, "along / across, top-left")["paper vs range"] == "above" and f["ratio_verdict"] == "not reproduced"
+def test_ratio_verdict_per_corner_tests_asymmetry_and_the_paper_value():
+    f, _ = _table()          # top-left ≈ 1.8 in every recording: asymmetric, the other way
+    assert f["corners"]["top-left"][5] == "asymmetric, above 0.5"
+    assert _fig6(f, "along / across, top-left")["paper vs median"] == "asymmetric, above 0.5"
+    assert f["ratio_verdict"] == "not reproduced"
     f, _ = _table(ratio={"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [0.5, 0.45, 0.55, 0.5, 0.6]})
+    assert f["corners"]["bottom-left"][5] == "asymmetric, consistent with 0.5"
     assert f["ratio_reproduced"] and f["ratio_verdict"] == "reproduced"
+    # a spread that holds 0.5 and 1 alike (min–max 0.3–1.9): no asymmetry detected, whatever 0.5 lies in
+    wide = [0.3, 0.6, 0.9, 1.2, 1.5, 1.9, 0.7, 1.1, 0.8]
+    f, _ = _table(ratio={"bottom-left": wide, "top-left": wide})
+    assert {v[5] for v in f["corners"].values()} == {"no asymmetry detected"} and f["ratio_verdict"] == "not reproduced"
+    f, _ = _table(ratio={"bottom-left": [0.2, 0.22, 0.25, 0.21, 0.23], "top-left": [0.5, 0.45, 0.55, 0.5, 0.6]})
+    assert f["corners"]["bottom-left"][5] == "asymmetric, below 0.5" and not f["ratio_reproduced"]
     f, _ = _table(cep=[24.0, 26.0], ratio={"bottom-left": [0.4, 0.5], "top-left": [1.8, 1.9]})
     assert f["ratio_verdict"] == "no interval"
 
