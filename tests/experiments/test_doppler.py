@@ -132,13 +132,14 @@ def _results(**change) -> facts.Results:
     in_track = change.pop("in_track", 0.99)
     restarted = change.pop("restarted", 0)
     kf_minus_pf = change.pop("kf_minus_pf", [5.0, 6.0, 4.0, 5.5, 4.5])
+    kf_in_track = change.pop("kf_in_track", [1.0] * 5)
     scores = pd.DataFrame([{"recording": k, "variant": v, "epochs": 100, "PF runs": 10, "PF CEP50 (cm)": 20.0,
                             "MH-EKF CEP50 (cm)": 20.0 + kf_minus_pf[k], "PF CEP95 (cm)": 50.0,
                             "MH-EKF CEP95 (cm)": 50.0, "PF coverage": 1.0, "MH-EKF coverage": 1.0,
-                            "PF in track": in_track, "MH-EKF in track": 1.0, "PF restarts": restarted,
+                            "PF in track": in_track, "MH-EKF in track": kf_in_track[k], "PF restarts": restarted,
                             "PF runs restarted": restarted, "MH-EKF restarts": 0, "PF tempered updates": 0.01}
                            for k in range(5) for v in ("Doppler", "Doppler + ranges")])
-    floor = pd.DataFrame({"CEP50, scored epochs (cm)": change.pop("floor", [40.0, 38.0, 30.0, 27.0]),
+    floor = pd.DataFrame({"CEP50, scored epochs (cm)": change.pop("floor", [40.0, 38.0, 30.0, 29.5]),
                           "particles": [1000, 1000, 1000, 4000]}, index=[c[0] for c in study.FLOOR_CONDITIONS])
     angles = change.pop("angles", (4.0, 5.0))
     base = dict(fast=False, ref_table=ref, readings=readings, at15=at15,
@@ -249,6 +250,17 @@ def test_keeps_track_verdict_flips_at_both_thresholds():
     assert not f["pf_keeps_track[Doppler]"] and _verdict(t, "PF keeps track, Doppler:") == "does not keep track"
 
 
+def test_the_mh_ekf_is_held_to_the_keeps_track_rule_and_lost_recordings_are_named():
+    f, t = _table()
+    assert f["kf_keeps_track[Doppler]"] and _verdict(t, "MH-EKF keeps track, Doppler:") == "keeps track"
+    assert f["lost_track[Doppler]"] == {"PF": [], "MH-EKF": []}
+    f, t = _table(kf_in_track=[0.25, 1.0, 1.0, 1.0, 1.0])            # recording 0: a quarter of epochs in track
+    assert f["lost_track[Doppler]"]["MH-EKF"] == [0]
+    assert not f["kf_keeps_track[Doppler]"] and _verdict(t, "MH-EKF keeps track, Doppler:") == "does not keep track"
+    f, _ = _table(in_track=0.9)
+    assert f["lost_track[Doppler]"]["PF"] == [0, 1, 2, 3, 4]
+
+
 def test_filter_comparison_verdict_follows_the_interval_of_differences():
     assert _verdict(_table()[1], "MH-EKF − PF CEP50 on the scored epochs per recording, Doppler (cm)") == "PF better"
     assert _table(kf_minus_pf=[-5.0, -6.0, -4.0, -5.5, -4.5])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
@@ -271,8 +283,11 @@ def test_coverage_is_low_for_an_overconfident_posterior():
 
 
 def test_floor_verdict_is_read_from_the_measured_steps():
-    f, t = _table()           # 4× particles still lowered it by 3 cm
+    f, t = _table(floor=[40.0, 38.0, 30.0, 27.0])           # 4× particles still lowered it by 3 cm
     assert not f["particles_converged"] and _verdict(t, "error floor") == "not converged"
+    # ... and then the CEP50 is not judged against the paper's 25 cm at all
+    assert f["cep50_verdict"] == f["cep50_median_verdict"] == facts.NOT_CONVERGED
+    assert _fig6(f, "snapshot CEP50 (cm)")["paper vs range"] == facts.NOT_CONVERGED
     f, t = _table(floor=[40.0, 38.0, 30.0, 29.5])
     assert f["particles_converged"] and f["floor_left_dominates"] and _verdict(t, "error floor") == "converged"
     f, _ = _table(floor=[40.0, 38.0, 10.0, 8.0])
