@@ -299,8 +299,12 @@ def test_ghost_rules_flip():
     assert _verdict(_table(angles=(25.0, 5.0))[1], "ghost positions on a plane") == "does not hold"
     f, t = _table()
     assert _verdict(t, "Fig 5: minimum of δ along the band, V = 0.8 V_ref") == "not a ghost"
-    f, t = _table(cut_minima={"V = V_ref": (0.0, 0.0), "V = 0.8 V_ref": (0.4, 5.0)})
+    # the cut through V_ref reaches δ = 0 at s = 0: the reference itself, not a ghost
+    assert _verdict(t, "Fig 5: minimum of δ along the band, V = V_ref") == "the reference itself"
+    assert not f["cut_is_ghost"]["V = V_ref"]
+    f, t = _table(cut_minima={"V = V_ref": (0.3, 2.0), "V = 0.8 V_ref": (0.4, 5.0)})
     assert _verdict(t, "Fig 5: minimum of δ along the band, V = 0.8 V_ref") == "a ghost"
+    assert _verdict(t, "Fig 5: minimum of δ along the band, V = V_ref") == "a ghost"
 
 
 def test_lab_row_says_reconstruction():

@@ -68,6 +68,8 @@ OFFSET_SHARE = 0.5
 EQUAL_CM = 0.5
 #: Largest drop (cm) of the floor from 4× the particles for the particle count to count as converged.
 PARTICLE_STEP_CM = 1.0
+#: A Fig 5 minimum closer than this to s = 0 (m along the cut) is the reference point itself.
+REFERENCE_S_M = 0.01
 #: The CEP50 verdicts when 4× the particles still lower the CEP50 by PARTICLE_STEP_CM or more.
 NOT_CONVERGED = "no verdict (PF not converged in particles)"
 #: Threshold (cm) under which a cut's minimum counts as a ghost (Fig 5 uses 6 cm; Fig 3(d) 8 cm).
@@ -208,7 +210,10 @@ def facts(res: Results) -> dict:
     f["weak_pos_angle_deg"] = float(weak["angle(position part, V) (°)"])
     f["weak_vel_angle_deg"] = float(weak["angle(velocity part, ±V) (°)"])
     f["cut_min_cm"] = {k: float(v[1]) for k, v in res.cut_minima.items()}
-    f["cut_is_ghost"] = {k: bool(v[1] < GHOST_CUT_CM) for k, v in res.cut_minima.items()}
+    # a minimum at s = 0 on the cut through V_ref is the reference itself (δ = 0 by construction), not a ghost
+    f["cut_at_reference"] = {k: bool(abs(v[0]) < REFERENCE_S_M) for k, v in res.cut_minima.items()}
+    f["cut_is_ghost"] = {k: bool(v[1] < GHOST_CUT_CM and not f["cut_at_reference"][k])
+                         for k, v in res.cut_minima.items()}
     f["ghost_cut_cm"] = GHOST_CUT_CM
 
     # --- Fig 6 over recordings
@@ -369,7 +374,8 @@ def verdict_table(f: dict) -> pd.DataFrame:
         "holds" if f["ghost_shape_holds"] else "does not hold")
     for k, v in f["cut_min_cm"].items():
         add(f"Fig 5: minimum of δ along the band, {k} (cm)", "—", f"{v:.1f}", "—",
-            f"a ghost when under {f['ghost_cut_cm']:g} cm", "a ghost" if f["cut_is_ghost"][k] else "not a ghost")
+            f"a ghost when under {f['ghost_cut_cm']:g} cm away from the reference (s ≠ 0)",
+            "the reference itself" if f["cut_at_reference"][k] else "a ghost" if f["cut_is_ghost"][k] else "not a ghost")
     share, slo, shi = f["offset_share"]
     add("Fig 6: offset² / (offset² + run-to-run²), median recording", "—", f"{share:.2f}", _ci(slo, shi, ".2f"),
         f"interval above {OFFSET_SHARE:g}: offset; below: spread", f["offset_or_spread"])

@@ -40,7 +40,9 @@ def ghost_panel(samples: smp.GhostSamples, what: str, *, beacons=None, weak_dir=
                 lim: float | None = None):
     """X–Y projection of ghost samples: ``what`` is ``"position"`` or ``"velocity"``.
 
-    The reference pair is the circled dot; beacons are stars (position panels);
+    The reference pair is the open circle, drawn beneath the samples; when every sample lies within 5 % of
+    the panel's half-width of it, the panel says how close (they would hide inside the circle); beacons are
+    stars (position panels);
     ``weak_dir`` (3,) draws a line through the reference (the weakest direction of
     the information matrix, or ``V_ref`` on velocity panels).
     """
@@ -48,7 +50,7 @@ def ghost_panel(samples: smp.GhostSamples, what: str, *, beacons=None, weak_dir=
     pts = samples.pos_m if what == "position" else samples.vel_mps
     ref = dm.REFERENCE_POS_M if what == "position" else dm.REFERENCE_VEL_MPS
     lim = lim if lim is not None else (5.0 if what == "position" else 3.0)
-    ax.plot(pts[:, 0], pts[:, 1], ".", color=_GHOST, markersize=1.5, alpha=0.5, rasterized=True)
+    ax.plot(pts[:, 0], pts[:, 1], ".", color=_GHOST, markersize=1.5, alpha=0.5, rasterized=True, zorder=3)
     if beacons is not None:
         ax.plot(beacons[:, 0], beacons[:, 1], "*", color="#000000", markersize=10, label="beacons")
     if weak_dir is not None:
@@ -57,8 +59,14 @@ def ghost_panel(samples: smp.GhostSamples, what: str, *, beacons=None, weak_dir=
             d = d / np.linalg.norm(d) * 2 * lim
             ax.plot([ref[0] - d[0], ref[0] + d[0]], [ref[1] - d[1], ref[1] + d[1]], "--", color="#d62728",
                     linewidth=1.0)
-    ax.plot(ref[0], ref[1], "o", color="#000000", markersize=4)
-    ax.plot(ref[0], ref[1], "o", markerfacecolor="none", markeredgecolor="#000000", markersize=12)
+    # the reference as an open circle beneath the samples, so that samples near it stay visible
+    ax.plot(ref[0], ref[1], "o", markerfacecolor="none", markeredgecolor="#000000", markersize=12, zorder=2)
+    if len(pts):
+        reach = float(np.max(np.linalg.norm(pts[:, :2] - np.asarray(ref)[:2], axis=1)))
+        if reach < 0.05 * lim:      # every sample inside the circle at this scale: say so on the panel
+            unit = "cm" if what == "position" else "cm/s"
+            ax.text(0.03, 0.03, f"every sample within {100 * reach:.1f} {unit}\nof the reference (circle)",
+                    transform=ax.transAxes, fontsize=7, va="bottom")
     ax.set_xlim(-lim, lim)
     ax.set_ylim(-lim, lim)
     ax.set_aspect("equal")
