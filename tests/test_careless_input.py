@@ -178,6 +178,25 @@ def test_sigma_d_without_a_value_in_the_papers_band_is_refused_before_the_run():
     assert rp.resolve_parameters([path], text={"SIGMA_D_CMPS": "(50, 80)"})[path] == {"SIGMA_D_CMPS": (50.0, 80.0)}
 
 
+def test_numpy_scalars_and_paths_from_python_are_the_values_they_stand_for(tmp_path):
+    """A Python caller's np.int64, np.float64, np.bool_ and Path are accepted and arrive as int, float, bool, str."""
+    import numpy as np
+
+    assert type(nbp.integer(1).validate(np.int64(3), "N")) is int
+    assert type(nbp.real(0.0).validate(np.float64(2.5), "X")) is float
+    assert nbp.flag().validate(np.bool_(True), "FAST") is True
+    assert nbp.text(none="x").validate(tmp_path, "DATA_DIR") == str(tmp_path)
+    with pytest.raises(ValueError, match="expected an integer"):
+        nbp.integer(1).validate(np.float64(2.5), "N")
+
+
+def test_a_tag_named_twice_is_refused_before_the_run():
+    path = NOTEBOOKS_DIR / "03_ekf_motion_models.ipynb"
+    with pytest.raises(ValueError, match=r"-p LIAS_TAGS .*distinct values"):
+        rp.resolve_parameters([path], text={"LIAS_TAGS": "('t0', 't0')"})
+    assert rp.resolve_parameters([path], text={"LIAS_TAGS": "('t0', 't1')"})[path] == {"LIAS_TAGS": ("t0", "t1")}
+
+
 def test_the_parameter_examples_of_the_readme_and_the_help_are_accepted_as_written():
     import re
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")

@@ -279,3 +279,17 @@ def test_estimates_batch_members_are_estimates_in_batch_order():
                       (dict(vel_mps=np.zeros((2, 3, 4, 3))), "vel_mps"), (dict(pos_m=pos[..., :1]), "pos_m")):
         with pytest.raises(ValueError, match=what):
             EstimatesBatch(**{**dict(t_s=t, pos_m=pos, status=st), **bad})
+
+
+def test_imu_log_refuses_non_finite_samples_naming_the_first():
+    """A NaN in an IMU sample would be integrated and blamed on the next UWB measurement: the container refuses it."""
+    from uwbwb.types import ImuLog
+    t = np.arange(0.0, 1.0, 0.01)
+    acc, gyro = np.zeros((t.size, 3)), np.zeros((t.size, 3))
+    ImuLog(t, acc, gyro)
+    acc[37, 1] = np.nan
+    with pytest.raises(ValueError, match=r"acc_mps2 must be finite: 1 sample\(s\).*index 37 \(t = 0\.370 s\)"):
+        ImuLog(t, acc, gyro)
+    gyro[5, 2] = np.inf
+    with pytest.raises(ValueError, match="gyro_radps must be finite"):
+        ImuLog(t, np.zeros((t.size, 3)), gyro)

@@ -26,10 +26,13 @@ from __future__ import annotations
 
 import ast
 import math
+import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from dataclasses import dataclass, field
 from typing import Any
+
+import numpy as np
 
 from .parallel import check_scheduler_address
 
@@ -105,7 +108,8 @@ class Spec:
         elif self.kind == "tuple":
             item = self.item.expected() if self.item is not None else "any value"
             what = f"a tuple of {'at least ' + str(self.min_len) + ' ' if self.min_len > 1 else ''}" \
-                   f"{'strictly increasing ' if self.increasing else ''}values, each {item}"
+                   f"{'strictly increasing ' if self.increasing else ''}" \
+                   f"{'distinct ' if self.item is not None and self.item.kind == 'str' else ''}values, each {item}"
         elif self.choices is not None:
             what = "one of " + ", ".join(map(repr, self.choices))
         elif self.kind in ("int", "float"):
@@ -178,6 +182,15 @@ class Spec:
         return out
 
     def _convert(self, value: Any) -> Any:
+        # NumPy scalars and paths, as a Python caller passes them, are the plain values they stand for
+        if isinstance(value, np.bool_):
+            value = bool(value)
+        elif isinstance(value, np.integer):
+            value = int(value)
+        elif isinstance(value, np.floating):
+            value = float(value)
+        elif isinstance(value, os.PathLike) and self.kind == "str":
+            value = os.fspath(value)
         if value is None:
             return None if self.none is not None or self.kind == "any" else _BAD
         if self.kind == "any":
@@ -210,6 +223,8 @@ class Spec:
             items = tuple(value) if self.item is None else tuple(self.item._convert(v) for v in value)
             if any(v is _BAD for v in items):
                 return _BAD
+            if self.item is not None and self.item.kind == "str" and len(set(items)) < len(items):
+                return _BAD                                         # a tag named twice would run twice
             if self.increasing and any(not a < b for a, b in zip(items, items[1:])):
                 return _BAD
             return items

@@ -373,8 +373,8 @@ def unit_problem(t_s, acc, gyro) -> tuple[str | None, ImuEvidence, np.ndarray]:
 def check_body_imu(imu: ImuLog, *, source: str = "IMU log") -> ImuEvidence:
     """Refuse a log that cannot be body-frame SI samples (what the INS and the ESKF integrate).
 
-    Raises ``ValueError`` naming ``source``, in this order, for: a sample that is not finite; a
-    median ``|f|`` outside g ± :data:`GRAVITY_TOLERANCE_MPS2`, or more than
+    Raises ``ValueError`` naming ``source``, in this order, for (a sample that is not finite cannot reach it:
+    :class:`~uwbwb.types.ImuLog` refuses one): a median ``|f|`` outside g ± :data:`GRAVITY_TOLERANCE_MPS2`, or more than
     :data:`MAX_SPIKE_FRACTION` of the samples beyond full scale (accelerations not in m/s²); a gyro
     whose rate scale says deg/s (:attr:`ImuEvidence.gyro_looks_deg`); a negative median ``f_z`` (a
     z-down frame: gravity's reaction must point along +z); any remaining sample beyond
@@ -383,11 +383,6 @@ def check_body_imu(imu: ImuLog, *, source: str = "IMU log") -> ImuEvidence:
     scale is judged only on logs of at least 20 samples. Returns the evidence.
     """
     a, w = np.asarray(imu.acc_mps2, float), np.asarray(imu.gyro_radps, float)
-    for name, x in (("specific force", a), ("angular rate", w)):
-        bad = ~np.isfinite(x).all(axis=1)
-        if bad.any():
-            i = np.flatnonzero(bad)
-            raise ValueError(f"{source}: {i.size} {name} sample(s) not finite (first at t = {imu.t_s[i[0]]:g} s)")
     problem, ev, spike = unit_problem(imu.t_s, a, w)
     if a.shape[0] == 0:
         return ev

@@ -245,9 +245,9 @@ class ImuLog(ArrayRecord):
     t_s
         Times, shape ``(T,)``, seconds, strictly increasing.
     acc_mps2
-        Specific force, shape ``(T, 3)``, m/s².
+        Specific force, shape ``(T, 3)``, m/s², finite.
     gyro_radps
-        Angular rate, shape ``(T, 3)``, rad/s.
+        Angular rate, shape ``(T, 3)``, rad/s, finite.
     """
 
     t_s: np.ndarray
@@ -264,6 +264,10 @@ class ImuLog(ArrayRecord):
         for name, x in (("acc_mps2", a), ("gyro_radps", g)):
             if x.shape != (t.size, 3):
                 raise ValueError(f"ImuLog.{name} must have shape ({t.size}, 3), got {x.shape}")
+            bad = np.flatnonzero(~np.isfinite(x).all(axis=1))
+            if bad.size:     # a filter would read it as an IMU sample and blame the next UWB measurement
+                raise ValueError(f"ImuLog.{name} must be finite: {bad.size} sample(s) hold NaN or inf, the first at "
+                                 f"index {bad[0]} (t = {t[bad[0]]:.3f} s); drop or interpolate them when loading")
         _check_time(t, "ImuLog")
         self._set(t_s=t, acc_mps2=a, gyro_radps=g)
 
