@@ -263,3 +263,19 @@ def test_class_run_writes_folded_notebooks_and_handouts(tmp_path, capfd):
     assert classroom.main(["--only", "01", "--notebooks-dir", str(src), "--out", str(out)]) == 1
     printed = capfd.readouterr().out
     assert "01_broken: FAILED" in printed and "no CLASS parameter" in printed and "ZeroDivisionError" in printed
+
+
+@pytest.mark.parametrize("argv, message", [(["--timeout", "0"], "--timeout must be a positive"),
+                                           (["--timeout", "-1"], "--timeout must be a positive"),
+                                           (["--timeout", "nan"], "--timeout must be a positive"),
+                                           (["--out", "FILE"], "exists and is not a folder")])
+def test_class_mode_refuses_arguments_it_cannot_use(argv, message, tmp_path, capsys):
+    (tmp_path / "FILE").write_text("x")
+    argv = [str(tmp_path / a) if a == "FILE" else a for a in argv]
+    with pytest.raises(SystemExit) as exc:
+        classroom.main(argv)
+    assert exc.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_class_mode_writes_into_the_working_directory_by_default():
+    assert not classroom.CLASS_DIR.is_absolute()          # never beside the installed package

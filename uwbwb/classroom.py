@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 import sys
 import time
@@ -75,8 +76,8 @@ MAX_OUTPUT_WORDS = 200
 #: Words that mark a dimensionless axis label (besides a bracketed unit such as ``[-]``).
 DIMENSIONLESS = ("count", "number", "index", "fraction", "ratio", "probability", "share", "unitless",
                  "dimensionless")
-#: Default output folder of ``make class`` (git-ignored).
-CLASS_DIR = Path(__file__).resolve().parents[1] / "class"
+#: Default output folder of ``make class`` (git-ignored), in the working directory: never inside the package.
+CLASS_DIR = Path("class")
 
 _UNIT = re.compile(r"[\[(][^\[\]()]{1,20}[\])]")
 _DIMLESS = re.compile(r"\b(" + "|".join(DIMENSIONLESS) + r")s?\b", re.IGNORECASE)
@@ -471,10 +472,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                                                  "folded notebooks and HTML handouts without research cells.")
     parser.add_argument("--only", nargs="+", metavar="NB", help="notebooks to run: stems or prefixes (00 01)")
     parser.add_argument("--kernel", default=reproduce.KERNEL_NAME, help="Jupyter kernel name (default %(default)s)")
-    parser.add_argument("--out", type=Path, default=CLASS_DIR, help="output folder (default class/)")
+    parser.add_argument("--out", type=Path, default=CLASS_DIR, help="output folder (default class/ in the working "
+                                                                   "directory)")
     parser.add_argument("--notebooks-dir", type=Path, default=None, help="folder of the notebooks")
-    parser.add_argument("--timeout", type=float, default=600, help="seconds per cell (default %(default)s)")
+    parser.add_argument("--timeout", type=float, default=600, help="seconds per cell, > 0 (default %(default)s)")
     args = parser.parse_args(argv)
+    if not (math.isfinite(args.timeout) and args.timeout > 0):
+        parser.error(f"--timeout must be a positive number of seconds, got {args.timeout}")
+    if args.out.exists() and not args.out.is_dir():
+        parser.error(f"--out {args.out}: exists and is not a folder")
     try:
         notebooks = reproduce.select_notebooks(args.notebooks_dir, args.only)
     except ValueError as exc:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from ..scoreboard import default_estimators, score, split_in_time
@@ -15,6 +16,10 @@ def cmd_score(args: argparse.Namespace, parser: argparse.ArgumentParser, *,
               reports_dir: str | Path | None = None) -> int:
     if not 0 < args.fraction < 1:
         parser.error(f"--fraction must be in (0, 1), got {args.fraction}")
+    if args.tags is not None and len(set(args.tags)) < len(args.tags):
+        parser.error(f"--tags: each tag once, got {args.tags}")
+    if args.tag_height_m is not None and not math.isfinite(args.tag_height_m):
+        parser.error(f"--tag-height-m must be a finite height in metres, got {args.tag_height_m}")
     estimators = default_estimators(fast=args.fast)
     if args.methods is not None:
         known = [e.name for e in estimators]
