@@ -114,3 +114,12 @@ def test_simulated_and_assigned_logs_pass_the_rules(tmp_path):
     assert log.counts()["gap"] > 0 and log.counts()["unassigned"] > 0 and log.counts()["lock"] > 0
     back = read_chirps_csv(write_chirps_csv(tmp_path / "sim.csv", log), log.beacon_ids)
     assert back.counts() == log.counts()
+
+
+@pytest.mark.parametrize("ids, error, message", [(None, TypeError, "beacon_ids must be the layout's beacon identifiers"),
+                                                 ("b0", TypeError, "beacon_ids must be"),
+                                                 ((), ValueError, "no beacon identifiers")])
+def test_beacon_ids_that_are_not_a_layout_are_refused(tmp_path, ids, error, message):
+    path = write_chirps_csv(tmp_path / "chirps.csv", _log())
+    with pytest.raises(error, match=message):
+        read_chirps_csv(path, ids)

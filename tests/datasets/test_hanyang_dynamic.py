@@ -174,3 +174,14 @@ def test_the_registry_opens_a_case_by_name(tree, loaded):
     rec = registry.open(f"hanyang-outdoor-uwb/{cases[2].name}", data)
     assert rec.label == loaded[cases[2].name].label
     assert set(registry.names("hanyang-outdoor-uwb", data)) >= {f"hanyang-outdoor-uwb/{c.name}" for c in cases}
+
+
+@pytest.mark.parametrize("kw, message", [({"tag_height_m": float("nan")}, "tag_height_m must be a finite height"),
+                                         ({"tag_height_m": True}, "tag_height_m must be a finite height"),
+                                         ({"epoch_gap_s": 0.0}, "epoch_gap_s must be a positive number"),
+                                         ({"epoch_gap_s": -1.0}, "epoch_gap_s must be a positive number"),
+                                         ({"epoch_gap_s": float("nan")}, "epoch_gap_s must be a positive number")])
+def test_load_options_that_cannot_be_used_are_refused(tree, kw, message):
+    data, cases = tree
+    with pytest.raises(ValueError, match=message):
+        hd.load_dynamic_case(cases[0].name, data, **kw)

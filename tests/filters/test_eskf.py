@@ -74,6 +74,21 @@ def test_noise_free_run_has_zero_error():
     assert _err(run, ins_only).max() < 2e-4            # the ideal IMU dead-reckons exactly too
 
 
+def test_the_filters_refuse_an_imu_or_start_that_is_not_a_container():
+    """An ndarray IMU or a tuple start gave a raw AttributeError deep inside; now a TypeError says what to build."""
+    cfg = robot.RobotConfig(sigma_toa_m=0.0, imu=QUIET, **CLEAN)
+    run = robot.simulate(_short(), cfg, rng=np.random.default_rng(0))
+    raw = np.column_stack([run.imu.t_s, run.imu.acc_mps2, run.imu.gyro_radps])
+    with pytest.raises(TypeError, match=r"TightEskf.run: imu must be an ImuLog .* got ndarray"):
+        _tight(cfg).run(raw, run.tdoa, run.x0)
+    with pytest.raises(TypeError, match=r"TightEskf.run: x0 must be a NavState .* got tuple"):
+        _tight(cfg).run(run.imu, run.tdoa, tuple(run.x0.pos_m))
+    n = run.tdoa.t_s.size
+    fixes = Estimates(run.tdoa.t_s, np.zeros((n, 2)), np.full(n, EstimateStatus.UPDATED, np.int8))
+    with pytest.raises(TypeError, match="LooseFilter.run: imu must be an ImuLog"):
+        eskf.LooseFilter().run(raw, fixes, run.x0)
+
+
 def _range_log(run, cfg, rng):
     """Two-way ranges from the simulated truth at the TDoA epochs (10 cm noise, a few missing)."""
     a = np.asarray(cfg.stations_m, float)

@@ -95,7 +95,12 @@ def read_chirps_csv(path: PathLike, beacon_ids) -> ChirpLog:
     DataNotFoundError
         If the file does not exist.
     """
+    if isinstance(beacon_ids, (str, bytes)) or not hasattr(beacon_ids, "__iter__"):
+        raise TypeError(f"beacon_ids must be the layout's beacon identifiers in order (a sequence), "
+                        f"got {beacon_ids!r}")
     ids = tuple(str(i) for i in beacon_ids)
+    if not ids:
+        raise ValueError("beacon_ids: the layout has no beacon identifiers")
     _, cols, line_no = _csv_table(path, [CHIRPS_HEADER], "chirp log")
     t = _numbers(path, cols["t_s"], line_no, "t_s")
     bad = np.flatnonzero(np.diff(t) <= 0)

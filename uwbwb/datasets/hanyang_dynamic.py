@@ -441,6 +441,13 @@ def load_dynamic_case(case: PathLike, data_dir: PathLike | None = None, *, tag_h
     DataFormatError
         A file breaks the format, or the reference cannot be registered.
     """
+    if tag_height_m is not None and not (isinstance(tag_height_m, (int, float, np.integer, np.floating))
+                                         and not isinstance(tag_height_m, bool) and np.isfinite(tag_height_m)):
+        raise ValueError(f"tag_height_m must be a finite height in metres or None, got {tag_height_m!r}")
+    if epoch_gap_s is not None and not (isinstance(epoch_gap_s, (int, float, np.integer, np.floating))
+                                        and not isinstance(epoch_gap_s, bool) and np.isfinite(epoch_gap_s)
+                                        and epoch_gap_s > 0):
+        raise ValueError(f"epoch_gap_s must be a positive number of seconds or None, got {epoch_gap_s!r}")
     folder, name = case_dir(case, data_dir)
     files = sorted((p for p in folder.iterdir() if _ANCHOR_FILE.fullmatch(p.name)), key=lambda p: _natural_key(p.name))
     anchors_read = [read_anchor_file(p, max_range_m=max_range_m) for p in files]

@@ -17,6 +17,19 @@ MAX_IMU_GAP_STEPS = 5        # an IMU step longer than this many median steps is
 SNAPSHOT_RMS_SIGMAS = 3.0    # a snapshot fix is consistent when its TDoA residual RMS is at most this many TDoA σ
 
 
+def check_inputs(where: str, imu, x0) -> None:
+    """A filter's entry: ``imu`` must be an :class:`~uwbwb.types.ImuLog` (which holds finite SI samples) and ``x0``
+    a :class:`~uwbwb.models.ins.NavState`; a ``TypeError`` naming ``where`` and how to build one otherwise."""
+    from ...models.ins import NavState
+
+    if not isinstance(imu, ImuLog):
+        raise TypeError(f"{where}: imu must be an ImuLog (t_s, acc_mps2, gyro_radps in the body frame, SI), got "
+                        f"{type(imu).__name__}; build one with uwbwb.types.ImuLog(t_s, acc_mps2, gyro_radps)")
+    if not isinstance(x0, NavState):
+        raise TypeError(f"{where}: x0 must be a NavState (position, velocity, attitude at the first IMU sample), "
+                        f"got {type(x0).__name__}; build one with uwbwb.models.ins.NavState(...)")
+
+
 def _lever(name: str, value) -> np.ndarray:
     """A lever arm: 3 finite numbers, m, body frame."""
     try:

@@ -20,7 +20,7 @@ from .. import kalman
 from ..ekf import Linearisation
 from ..gating import ChiSquareEpoch, GatePolicy, NoGate, gate_policy, ungated_update
 from ..kalman import Gaussian
-from .common import LOST_BUILD_S, _lever, gap_timeline
+from .common import LOST_BUILD_S, _lever, check_inputs, gap_timeline
 from .result import FusionRun, _empty, _wrap
 
 
@@ -194,6 +194,7 @@ class LooseFilter:
         heading
             Magnetometer headings (used by the attitude correction).
         """
+        check_inputs("LooseFilter.run", imu, x0)
         d = self.dim
         t_ep = fixes.t_s
         T = t_ep.size

@@ -17,7 +17,7 @@ from .. import kalman
 from ..ekf import Linearisation
 from ..gating import ChiSquarePerMeasurement, NoGate, ungated_update
 from ..kalman import Gaussian
-from .common import _DEG, _ITER_TOL_M, HEADING_KNOWN_RAD, LOST_BUILD_S, _lever, gap_timeline
+from .common import _DEG, _ITER_TOL_M, HEADING_KNOWN_RAD, LOST_BUILD_S, _lever, check_inputs, gap_timeline
 from .kernels import INTS, SCALARS, _tight_loop
 from .result import FusionRun, _empty, _wrap
 from .updates import RangeUpdate, TdoaUpdate, _tag_jacobian
@@ -262,6 +262,7 @@ class TightEskf:
             accumulated transition once per epoch, same updates); results are identical up to
             rounding (tested).
         """
+        check_inputs("TightEskf.run", imu, x0)
         t_ep = (imu.t_s if t_s is None else np.asarray(t_s, float)) if uwb is None else uwb.t_s
         T = t_ep.size
         if uwb is not None and isinstance(uwb, TdoaLog) != isinstance(self.uwb, TdoaUpdate):
