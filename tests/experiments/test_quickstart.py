@@ -3,9 +3,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from uwbwb.widgets import data_banner
-
 from uwbwb.experiments import quickstart as qs
+from uwbwb.metrics import MIN_BLOCKS
+from uwbwb.widgets import data_banner
 from uwbwb.types import Trajectory
 
 
@@ -71,19 +71,26 @@ def test_truth_height_of_the_dynamic_run_is_not_used(synthetic):
 def test_verdicts_say_whether_calibration_helps_on_both_sides_of_the_rule(compared):
     _, table, errors = compared
     t = qs.verdicts(errors, rng=np.random.default_rng(0))
-    assert list(t.columns) == ["claim", "ours", "low", "high", "epochs", "rule", "verdict"]
+    assert list(t.columns) == ["claim", "ours", "low", "high", "epochs", "blocks", "rule", "verdict"]
     raw = table[table.variant == "raw"].set_index("tag")
     cal = table[table.variant == "calibrated"].set_index("tag")
     for row, tag in zip(t.itertuples(), raw.index):
         assert row.ours == pytest.approx(raw.loc[tag, "rmse_m"] - cal.loc[tag, "rmse_m"])
-        assert row.low <= row.ours <= row.high and row.epochs == raw.loc[tag, "compared"]
-    # calibrated fixes made worse by a constant 0.5 m: the verdict turns
-    worse = {"raw": errors["raw"], "calibrated": {k: dataclasses.replace(e, err_m=e.err_m + 0.5)
-                                                   for k, e in errors["calibrated"].items()}}
-    assert set(qs.verdicts(worse, rng=np.random.default_rng(0)).verdict) == {"worse"}
-    halved = {"raw": errors["raw"], "calibrated": {k: dataclasses.replace(e, err_m=0.5 * e.err_m)
-                                                    for k, e in errors["raw"].items()}}
-    assert set(qs.verdicts(halved, rng=np.random.default_rng(0)).verdict) == {"better"}
+        assert row.epochs == raw.loc[tag, "compared"]
+        if row.blocks >= MIN_BLOCKS:
+            assert row.low <= row.ours <= row.high and row.verdict in ("better", "worse", "not significant")
+        else:                                     # too few independent stretches: no interval, no verdict
+            assert np.isnan(row.low) and row.verdict == "no verdict"
+    # white errors (short blocks), calibrated 10 cm better or worse than raw: the verdict turns with the sign
+    rng = np.random.default_rng(1)
+
+    def white(mean_m):
+        return {k: dataclasses.replace(e, err_m=np.abs(rng.normal(mean_m, 0.05, e.err_m.size)))
+                for k, e in errors["raw"].items()}
+
+    raw_white = white(0.3)
+    assert set(qs.verdicts({"raw": raw_white, "calibrated": white(0.4)}, rng=rng).verdict) == {"worse"}
+    assert set(qs.verdicts({"raw": raw_white, "calibrated": white(0.2)}, rng=rng).verdict) == {"better"}
     same = {"raw": errors["raw"], "calibrated": errors["raw"]}
     assert set(qs.verdicts(same, rng=np.random.default_rng(0)).verdict) == {"not significant"}
 

@@ -10,8 +10,8 @@ import pytest
 from uwbwb.scoreboard import calibrate, score
 from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, ExternalEstimates
-from uwbwb.scoreboard.verdicts import (BLOCK_LAG_FACTOR, MIN_BLOCKS, block_length, difference_facts,
-                                       difference_table, placement_facts, placement_table)
+from uwbwb.metrics.errors import BLOCK_LAG_FACTOR, MIN_BLOCKS, block_length
+from uwbwb.scoreboard.verdicts import difference_facts, difference_table, placement_table
 from uwbwb.types import Trajectory
 
 

@@ -315,36 +315,87 @@ def epoch_summary(epochs: pd.DataFrame, *, by: str = "estimator", order: Sequenc
     return table[["n_epochs", "coverage", "median_m", "p90_m", "p90_failed_counted_m"]]
 
 
-def block_bootstrap_difference(err_a: np.ndarray, err_b: np.ndarray, *, rng: np.random.Generator,
-                               n_boot: int = 2000, n_blocks: int = 20, level: float = 0.95) -> dict:
-    """``RMSE(a) − RMSE(b)`` on paired epochs and its block-bootstrap interval (non-overlapping blocks).
+#: The block rule: a block is BLOCK_LAG_FACTOR × the first lag at which the autocorrelation of the series falls
+#: below ACF_LEVEL (an assumption: beyond it, epochs count as independent).
+ACF_LEVEL = 0.05
+BLOCK_LAG_FACTOR = 2
+#: Fewest blocks for an interval, a standard error or a verdict.
+MIN_BLOCKS = 10
+
+
+def block_length(x: np.ndarray, *, acf_level: float = ACF_LEVEL) -> int:
+    """Block length in epochs: :data:`BLOCK_LAG_FACTOR` × the first lag at which the autocorrelation of
+    ``x`` (``(n,)``, consecutive epochs) falls below ``acf_level``; at least :data:`BLOCK_LAG_FACTOR`."""
+    d = np.asarray(x, float)
+    d = d - d.mean() if d.size else d
+    var = float(np.dot(d, d))
+    if d.size < 3 or var <= 0:
+        return BLOCK_LAG_FACTOR
+    f = np.fft.rfft(d, 2 * d.size)
+    acf = np.fft.irfft(f * np.conj(f))[: d.size] / var
+    below = np.flatnonzero(acf < acf_level)
+    lag = int(below[0]) if below.size else d.size
+    return BLOCK_LAG_FACTOR * max(lag, 1)
+
+
+def block_ids(series: Sequence[np.ndarray]) -> tuple[np.ndarray, int]:
+    """Block of every epoch of the concatenated ``series`` (one array per segment — a tag, a run —, consecutive
+    epochs): the package's one block rule.
+
+    Each series is cut into contiguous blocks of :func:`block_length` epochs (its own rule; a trailing piece
+    shorter than a block joins the block before it). Returns the block index per epoch ``(sum n,)`` and the
+    number of blocks."""
+    ids, nb = [], 0
+    for x in series:
+        n = len(x)
+        if n == 0:
+            continue
+        L = block_length(x)
+        k = max(1, n // L)
+        ids.append(nb + np.minimum(np.arange(n) // L, k - 1))
+        nb += k
+    return (np.concatenate(ids) if ids else np.zeros(0, int)), nb
+
+
+def block_bootstrap_difference(err_a, err_b, *, rng: np.random.Generator, n_boot: int = 2000,
+                               level: float = 0.95) -> dict:
+    """``RMSE(a) − RMSE(b)`` on paired epochs and its block-bootstrap interval: the package's one interval rule
+    for a difference of two methods on the same time series.
 
     Parameters
     ----------
     err_a, err_b
-        Error norms of two methods on the same epochs, shape ``(n,)``, in time order, m.
-    n_blocks
-        The run is cut into this many blocks of consecutive epochs; a replicate draws
-        ``n_blocks`` of them with replacement (pairs stay together).
+        Error norms of two methods on the same epochs, m: one ``(n,)`` array in time order, or a list of
+        them (one per tag or run, paired segment by segment).
 
     Returns
     -------
     dict
-        ``diff_m``, ``lo_m``, ``hi_m`` (NaN interval with fewer than ``2·n_blocks`` epochs), ``n``.
+        ``rmse_a_m``, ``rmse_b_m``, ``diff_m``, ``lo_m``, ``hi_m``, ``n`` (epochs), ``n_blocks``. The blocks
+        follow :func:`block_ids` over the paired difference ``e_a² − e_b²`` of each segment (so the correlation
+        of a tracking filter's errors is kept); a replicate draws as many blocks as there are, with
+        replacement, pairs together. Fewer than :data:`MIN_BLOCKS` blocks: NaN interval (no verdict).
     """
-    a, b = np.asarray(err_a, float), np.asarray(err_b, float)
-    if a.shape != b.shape or a.ndim != 1:
-        raise ValueError(f"paired errors must be 1-D of the same length, got {a.shape} and {b.shape}")
-    n = a.size
-    diff = float(np.sqrt(np.mean(a ** 2)) - np.sqrt(np.mean(b ** 2))) if n else np.nan
-    if n < 2 * n_blocks:
-        return {"diff_m": diff, "lo_m": np.nan, "hi_m": np.nan, "n": n}
-    edges = np.linspace(0, n, n_blocks + 1).astype(int)
-    sa = np.add.reduceat(a ** 2, edges[:-1])
-    sb = np.add.reduceat(b ** 2, edges[:-1])
-    cnt = np.diff(edges)
-    pick = rng.integers(0, n_blocks, (n_boot, n_blocks))
-    N = cnt[pick].sum(axis=1)
-    d = np.sqrt(sa[pick].sum(axis=1) / N) - np.sqrt(sb[pick].sum(axis=1) / N)
-    lo, hi = np.quantile(d, [(1 - level) / 2, (1 + level) / 2])
-    return {"diff_m": diff, "lo_m": float(lo), "hi_m": float(hi), "n": n}
+    seg_a = [np.asarray(x, float) for x in err_a] if isinstance(err_a, (list, tuple)) else [np.asarray(err_a, float)]
+    seg_b = [np.asarray(x, float) for x in err_b] if isinstance(err_b, (list, tuple)) else [np.asarray(err_b, float)]
+    if len(seg_a) != len(seg_b) or any(a.shape != b.shape or a.ndim != 1 for a, b in zip(seg_a, seg_b)):
+        raise ValueError(f"paired errors must be 1-D arrays of the same lengths, got {[a.shape for a in seg_a]} "
+                         f"and {[b.shape for b in seg_b]}")
+    sa, sb = [a ** 2 for a in seg_a], [b ** 2 for b in seg_b]
+    xa, xb = np.concatenate(sa), np.concatenate(sb)
+    out = {"n": int(xa.size), "n_blocks": 0, "lo_m": np.nan, "hi_m": np.nan}
+    if xa.size == 0:
+        return {**out, "rmse_a_m": np.nan, "rmse_b_m": np.nan, "diff_m": np.nan}
+    rmse_a, rmse_b = float(np.sqrt(xa.mean())), float(np.sqrt(xb.mean()))
+    out.update(rmse_a_m=rmse_a, rmse_b_m=rmse_b, diff_m=rmse_a - rmse_b)
+    ids, nb = block_ids([p - q for p, q in zip(sa, sb)])
+    out["n_blocks"] = nb
+    if nb < MIN_BLOCKS:
+        return out
+    ba, bb, bn = np.bincount(ids, xa, nb), np.bincount(ids, xb, nb), np.bincount(ids, minlength=nb)
+    pick = rng.integers(0, nb, (n_boot, nb))
+    n = bn[pick].sum(axis=1)
+    d = np.sqrt(ba[pick].sum(axis=1) / n) - np.sqrt(bb[pick].sum(axis=1) / n)
+    alpha = round((1 - level) / 2, 12)
+    lo, hi = (float(v) for v in np.quantile(d, [alpha, 1 - alpha]))
+    return {**out, "lo_m": lo, "hi_m": hi}

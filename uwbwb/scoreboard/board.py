@@ -57,6 +57,7 @@ import numpy as np
 import pandas as pd
 
 from .. import metrics
+from ..metrics.errors import MIN_BLOCKS
 from ..types import Estimates, Recording
 from . import checks as _checks
 from .estimators import Estimator, default_estimators, truth_at
@@ -64,9 +65,9 @@ from .explain import beats_bound_note, diagnostics
 from .protocol import Calibration, fit_calibration, scored_tags, split_in_time
 from .reference import REFERENCE, common_bound, fit_reference_motion
 from .reference import describe as describe_reference
-from .verdicts import MIN_BLOCKS, block_se_ratio
+from .verdicts import block_se_ratio
 
-__all__ = ["Board", "Entry", "calibrate", "score", "score_recording", "TABLE_COLUMNS", "MIN_BLOCKS"]
+__all__ = ["Board", "Entry", "calibrate", "score", "score_recording", "TABLE_COLUMNS"]
 
 #: Columns of :meth:`Board.table`, in order.
 TABLE_COLUMNS = ("method", "coverage", "n_scored", "rmse_m", "cep50_m", "cep95_m", "rmse_common_m",

@@ -13,10 +13,10 @@ and a table over many of them (tests feed values on both sides of each threshold
   ``ratio − 2 se > 1``, "below" when ``ratio + 2 se < 1``, else "on the bound"; no verdict when the
   standard error could not be formed (fewer than :data:`MIN_BLOCKS` blocks).
 
-One block rule serves both (and :meth:`uwbwb.scoreboard.Board.table`'s standard errors): a block is
-:data:`BLOCK_LAG_FACTOR` × the first lag (epochs) at which the autocorrelation of the series
-(the paired difference ``e_a² − e_b²``, or the squared error for a placement) falls below
-:data:`ACF_LEVEL` — an assumption: beyond it, epochs count as independent — cut per tag.
+The package's one block rule serves both (and :meth:`uwbwb.scoreboard.Board.table`'s standard errors):
+:func:`uwbwb.metrics.block_ids` over the paired difference ``e_a² − e_b²`` (in
+:func:`uwbwb.metrics.block_bootstrap_difference`, the one interval rule of a difference) or over the squared
+error for a placement, cut per tag.
 """
 
 from __future__ import annotations
@@ -26,56 +26,16 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-__all__ = ["ACF_LEVEL", "BLOCK_LAG_FACTOR", "DIFFERENCE_RULE", "MIN_BLOCKS", "N_BOOT", "PLACEMENT_RULE", "block_ids",
-           "block_length", "block_se_ratio", "difference_facts", "difference_table", "placement_facts",
-           "placement_table"]
+from ..metrics.errors import MIN_BLOCKS, block_bootstrap_difference, block_ids
+
+__all__ = ["DIFFERENCE_RULE", "N_BOOT", "PLACEMENT_RULE", "block_se_ratio", "difference_facts", "difference_table",
+           "placement_facts", "placement_table"]
 
 #: Bootstrap resamples of a difference.
 N_BOOT = 2000
-
-
-#: A block is BLOCK_LAG_FACTOR × the first lag at which the autocorrelation falls below ACF_LEVEL
-#: (an assumption: beyond it, epochs count as independent).
-ACF_LEVEL = 0.05
-BLOCK_LAG_FACTOR = 2
-#: Fewest blocks for an interval, a standard error or a verdict.
-MIN_BLOCKS = 10
 #: The rules the tables state beside each verdict.
 DIFFERENCE_RULE = "95 % block-bootstrap interval of RMSE(A) − RMSE(B) on common epochs excludes 0"
 PLACEMENT_RULE = "RMSE / common bound ± 2 block standard errors excludes 1"
-
-
-def block_length(x: np.ndarray, *, acf_level: float = ACF_LEVEL) -> int:
-    """Block length in epochs: :data:`BLOCK_LAG_FACTOR` × the first lag at which the autocorrelation of
-    ``x`` (``(n,)``, consecutive epochs) falls below ``acf_level``; at least :data:`BLOCK_LAG_FACTOR`."""
-    d = np.asarray(x, float)
-    d = d - d.mean() if d.size else d
-    var = float(np.dot(d, d))
-    if d.size < 3 or var <= 0:
-        return BLOCK_LAG_FACTOR
-    f = np.fft.rfft(d, 2 * d.size)
-    acf = np.fft.irfft(f * np.conj(f))[: d.size] / var
-    below = np.flatnonzero(acf < acf_level)
-    lag = int(below[0]) if below.size else d.size
-    return BLOCK_LAG_FACTOR * max(lag, 1)
-
-
-def block_ids(series: list[np.ndarray]) -> tuple[np.ndarray, int]:
-    """Block of every epoch of the concatenated ``series`` (one array per tag, consecutive epochs).
-
-    Each series is cut into contiguous blocks of :func:`block_length` epochs (its own rule; a
-    trailing piece shorter than a block joins the block before it). Returns the block index per
-    epoch ``(sum n,)`` and the number of blocks."""
-    ids, nb = [], 0
-    for x in series:
-        n = len(x)
-        if n == 0:
-            continue
-        L = block_length(x)
-        k = max(1, n // L)
-        ids.append(nb + np.minimum(np.arange(n) // L, k - 1))
-        nb += k
-    return (np.concatenate(ids) if ids else np.zeros(0, int)), nb
 
 
 def block_se_ratio(sq_err: list[np.ndarray], trace: list[np.ndarray]) -> tuple[float, int]:
@@ -105,7 +65,7 @@ def difference_facts(board, a: str, b: str, *, n_boot: int = N_BOOT, rng: np.ran
         ``"b"`` or ``"none"``: which is more accurate, by the rule that the interval excludes 0; no
         interval and ``"none"`` with fewer than :data:`MIN_BLOCKS` blocks), ``mode``.
     """
-    sa, sb, boot_a, boot_b = [], [], [], []
+    sa, sb = [], []
     for tag in board.tags:
         ea, eb = board.entry(a, tag), board.entry(b, tag)
         if ea.skipped or eb.skipped:
@@ -113,26 +73,12 @@ def difference_facts(board, a: str, b: str, *, n_boot: int = N_BOOT, rng: np.ran
         both = ea.scored & eb.scored
         if both.sum() < 2:
             continue
-        sa.append(ea.error_m[both] ** 2)
-        sb.append(eb.error_m[both] ** 2)
-    out = {"a": a, "b": b, "mode": board.mode, "n_epochs": int(sum(x.size for x in sa)), "n_blocks": 0}
-    if out["n_epochs"] < 2:
-        return {**out, "rmse_a_m": np.nan, "rmse_b_m": np.nan, "diff_m": np.nan, "lo_m": np.nan, "hi_m": np.nan,
-                "verdict": "none"}
-    xa, xb = np.concatenate(sa), np.concatenate(sb)
-    rmse_a, rmse_b = float(np.sqrt(xa.mean())), float(np.sqrt(xb.mean()))
-    out.update(rmse_a_m=rmse_a, rmse_b_m=rmse_b, diff_m=rmse_a - rmse_b)
-    ids, nb = block_ids([p - q for p, q in zip(sa, sb)])
-    out["n_blocks"] = nb
-    if nb < MIN_BLOCKS:
-        return {**out, "lo_m": np.nan, "hi_m": np.nan, "verdict": "none"}
-    # resample the blocks of every tag (pooled) with replacement
-    ba, bb, bn = np.bincount(ids, xa, nb), np.bincount(ids, xb, nb), np.bincount(ids, minlength=nb)
-    pick = rng.integers(0, nb, (n_boot, nb))
-    n = bn[pick].sum(axis=1)
-    d = np.sqrt(ba[pick].sum(axis=1) / n) - np.sqrt(bb[pick].sum(axis=1) / n)
-    lo, hi = (float(v) for v in np.percentile(d, [2.5, 97.5]))
-    return {**out, "lo_m": lo, "hi_m": hi, "verdict": "a" if hi < 0 else ("b" if lo > 0 else "none")}
+        sa.append(ea.error_m[both])
+        sb.append(eb.error_m[both])
+    d = block_bootstrap_difference(sa, sb, rng=rng, n_boot=n_boot)
+    verdict = "a" if d["hi_m"] < 0 else ("b" if d["lo_m"] > 0 else "none")
+    return {"a": a, "b": b, "mode": board.mode, "n_epochs": d["n"], "n_blocks": d["n_blocks"], "rmse_a_m": d["rmse_a_m"],
+            "rmse_b_m": d["rmse_b_m"], "diff_m": d["diff_m"], "lo_m": d["lo_m"], "hi_m": d["hi_m"], "verdict": verdict}
 
 
 def placement_facts(row) -> dict:

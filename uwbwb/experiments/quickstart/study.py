@@ -164,7 +164,8 @@ def verdicts(errors: dict, *, rng: np.random.Generator) -> pd.DataFrame:
     epochs where both have a fix, with the 95 % block-bootstrap interval of
     :func:`uwbwb.metrics.block_bootstrap_difference` (pairs of epochs stay together, so the correlation of
     consecutive errors is kept). The verdict is *better* (calibrated) or *worse* when the interval excludes 0,
-    *not significant* otherwise; no interval and *no verdict* with too few epochs. ``errors`` is the second
+    *not significant* otherwise; no interval and *no verdict* with fewer than :data:`uwbwb.metrics.MIN_BLOCKS`
+    independent blocks. ``errors`` is the second
     result of :func:`compare_calibration`.
     """
     rows = []
@@ -176,6 +177,6 @@ def verdicts(errors: dict, *, rng: np.random.Generator) -> pd.DataFrame:
         verdict = ("no verdict" if not np.isfinite(lo) else "better" if lo > 0 else "worse" if hi < 0
                    else "not significant")
         rows.append({"claim": f"tag {tag}: calibrated vs raw ranges, RMSE reduction on the epochs both fixed (m)",
-                     "ours": d["diff_m"], "low": lo, "high": hi, "epochs": d["n"],
+                     "ours": d["diff_m"], "low": lo, "high": hi, "epochs": d["n"], "blocks": d["n_blocks"],
                      "rule": "95 % block bootstrap excludes 0", "verdict": verdict})
     return pd.DataFrame(rows)

@@ -7,10 +7,10 @@ Rules
 * Accuracy is the RMSE on the epochs **both** methods cover (common epochs); each method's coverage
   (share of all epochs with an estimate) stands beside it.
 * EKF vs LS: ``ΔRMSE = RMSE(EKF-RF) − RMSE(LS)`` on the common epochs, with a 95 % block-bootstrap
-  interval (:data:`N_BLOCKS` non-overlapping blocks of consecutive epochs, drawn with replacement,
-  the two methods' errors kept paired). Interval entirely below 0 → ``"better"``; entirely above 0
-  → ``"worse"``; otherwise ``"no significant difference"``; fewer than ``2 · N_BLOCKS`` common
-  epochs → ``"no interval"``.
+  interval (the package's one rule, :func:`uwbwb.metrics.block_bootstrap_difference`: blocks follow the
+  autocorrelation of the paired errors, drawn with replacement, the two methods' errors kept paired).
+  Interval entirely below 0 → ``"better"``; entirely above 0 → ``"worse"``; otherwise
+  ``"no significant difference"``; fewer than :data:`uwbwb.metrics.MIN_BLOCKS` blocks → ``"no interval"``.
 * NIS: the EKF's mean NIS per degree of freedom over its updates inside :data:`NIS_BAND` →
   ``"consistent"``, else ``"inconsistent"``.
 """
@@ -23,11 +23,9 @@ import pandas as pd
 from ... import metrics
 from .study import Results
 
-__all__ = ["LEVEL", "N_BLOCKS", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "rmse_difference", "verdict",
+__all__ = ["LEVEL", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "rmse_difference", "verdict",
            "verdict_table"]
 
-#: Blocks of consecutive epochs of the bootstrap (errors of a filter are correlated in time).
-N_BLOCKS = 10
 #: Bootstrap replicates.
 N_BOOT = 2000
 #: Level of the interval.
@@ -40,7 +38,7 @@ def rmse_difference(err_a, err_b, *, rng: np.random.Generator) -> dict:
     """``RMSE(a) − RMSE(b)`` of paired errors and its interval: the package's one block bootstrap
     (:func:`uwbwb.metrics.block_bootstrap_difference`) at this experiment's sizes — reuse the
     package's statistics rather than writing another copy."""
-    return metrics.block_bootstrap_difference(err_a, err_b, rng=rng, n_boot=N_BOOT, n_blocks=N_BLOCKS, level=LEVEL)
+    return metrics.block_bootstrap_difference(err_a, err_b, rng=rng, n_boot=N_BOOT, level=LEVEL)
 
 
 def verdict(lo_m: float, hi_m: float) -> str:
@@ -89,7 +87,7 @@ def verdict_table(f: dict) -> pd.DataFrame:
     return pd.DataFrame([
         {"claim": "EKF-RF against LS: RMSE(EKF-RF) − RMSE(LS), common epochs (m)", "ours": f["diff_m"],
          "interval": (f["lo_m"], f["hi_m"]),
-         "rule": f"{LEVEL:.0%} block-bootstrap interval ({N_BLOCKS} blocks) below 0: better; above 0: worse",
+         "rule": f"{LEVEL:.0%} block-bootstrap interval below 0: better; above 0: worse",
          "verdict": f["verdict"]},
         {"claim": "EKF-RF's covariance matches its innovations: mean NIS per dof", "ours": f["nis_per_dof"],
          "interval": None, "rule": f"inside [{lo:g}, {hi:g}]", "verdict": f["nis_verdict"]},

@@ -14,15 +14,11 @@ import pandas as pd
 from scipy import stats
 
 from ... import metrics
-from ...metrics import block_bootstrap_difference  # noqa: F401 (re-exported; defined once in metrics)
+from ...metrics import MIN_BLOCKS, block_bootstrap_difference
 from .study import Comparison
 
-__all__ = ["N_BLOCKS", "PAIRS", "summary_rows", "common_epochs", "error_table", "block_bootstrap_difference", "difference_table",
+__all__ = ["PAIRS", "summary_rows", "common_epochs", "error_table", "difference_table",
            "difference_verdict", "consistency_table"]
-
-#: Blocks of the bootstrap: each holds ``n / N_BLOCKS`` consecutive epochs (≥ several seconds at 50 Hz
-#: for a run of a minute, longer than the error correlation of the filters).
-N_BLOCKS = 20
 
 
 def common_epochs(comp: Comparison, methods=None) -> np.ndarray:
@@ -60,21 +56,16 @@ def error_table(comp: Comparison, methods=None) -> pd.DataFrame:
 
 
 def difference_verdict(a: str, b: str, r: dict) -> str:
-    """``a`` beats / loses to ``b``, or no significant difference, from the interval of ``RMSE(a) − RMSE(b)``."""
+    """Which of ``a`` and ``b`` is more accurate by the interval of ``RMSE(a) − RMSE(b)``
+    (:func:`uwbwb.metrics.block_bootstrap_difference`), "not significant", or no verdict with too few blocks."""
     if not (np.isfinite(r["lo_m"]) and np.isfinite(r["hi_m"])):
-        return f"{a} vs {b}: too few common epochs for an interval"
-    span = f"{r['diff_m'] * 1e3:+.1f} mm, 95 % block-bootstrap interval [{r['lo_m'] * 1e3:+.1f}, {r['hi_m'] * 1e3:+.1f}] mm"
-    if r["hi_m"] < 0:
-        return f"{a} beats {b} ({span})"
-    if r["lo_m"] > 0:
-        return f"{a} is worse than {b} ({span})"
-    return f"{a} vs {b}: no significant difference ({span})"
+        return f"no verdict (fewer than {MIN_BLOCKS} blocks)"
+    return f"{a} more accurate" if r["hi_m"] < 0 else f"{b} more accurate" if r["lo_m"] > 0 else "not significant"
 
 
-def difference_table(comp: Comparison, pairs, *, rng: np.random.Generator, horizontal: bool = True,
-                     n_blocks: int = N_BLOCKS) -> pd.DataFrame:
-    """:func:`block_bootstrap_difference` for each ``(a, b)`` of ``pairs`` on the common epochs of
-    every method in the pairs, with the verdict sentence."""
+def difference_table(comp: Comparison, pairs, *, rng: np.random.Generator, horizontal: bool = True) -> pd.DataFrame:
+    """:func:`uwbwb.metrics.block_bootstrap_difference` (the package's one interval rule) for each ``(a, b)`` of
+    ``pairs`` on the common epochs of every method in the pairs, with its blocks and :func:`difference_verdict`."""
     names = sorted({m for p in pairs for m in p})
     sel = common_epochs(comp, names)
     k = 2 if horizontal else None
@@ -82,13 +73,14 @@ def difference_table(comp: Comparison, pairs, *, rng: np.random.Generator, horiz
     for a, b in pairs:
         ea = np.linalg.norm(_err(comp, a)[sel][:, :k], axis=1)
         eb = np.linalg.norm(_err(comp, b)[sel][:, :k], axis=1)
-        r = block_bootstrap_difference(ea, eb, rng=rng, n_blocks=n_blocks)
+        r = block_bootstrap_difference(ea, eb, rng=rng)
         rows[f"{a} − {b}"] = {"difference (mm)": r["diff_m"] * 1e3, "lo (mm)": r["lo_m"] * 1e3,
-                              "hi (mm)": r["hi_m"] * 1e3, "epochs": r["n"], "verdict": difference_verdict(a, b, r)}
+                              "hi (mm)": r["hi_m"] * 1e3, "epochs": r["n"], "blocks": r["n_blocks"],
+                              "verdict": difference_verdict(a, b, r)}
     t = pd.DataFrame(rows).T
     num = ["difference (mm)", "lo (mm)", "hi (mm)"]
     t[num] = t[num].astype(float)
-    t["epochs"] = t["epochs"].astype(int)
+    t[["epochs", "blocks"]] = t[["epochs", "blocks"]].astype(int)
     return t
 
 
