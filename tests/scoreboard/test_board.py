@@ -98,8 +98,24 @@ def test_a_method_below_its_bound_is_explained():
     b = score(rec, rec, estimators=ests, rate_hz=None, calibration=cal)
     row = b.table().set_index("method").loc["LS"]
     assert row.rmse_over_bound < 0.7
-    assert row.note.startswith("BEATS its own bound") and "less noisy than calibrated" in row.note
-    assert "over-states the noise" in row.note           # NEES well below 2
+    assert row.note.startswith(f"BEATS its own bound (RMSE/bound {row.rmse_over_bound:.2f} ± ")
+    assert row.nees_mean < 0.8 * row.nees_dof             # its covariance over-states the noise too
+    diag = b.diagnostics_table()                           # ... and the measurement says why: σ half the calibrated
+    assert 0.4 < diag.loc["tag", "range σ scoring / calibrated"] < 0.6
+    assert diag.loc["tag", "σ_w RF tuned"] == cal.params("EKF-RF")["sigma_w"]
+    assert "range σ scoring / calibrated" in b.markdown()
+
+
+def test_the_note_says_sampling_error_within_two_standard_errors():
+    from types import SimpleNamespace
+
+    from uwbwb.scoreboard.explain import beats_bound_note
+
+    assert beats_bound_note(SimpleNamespace(rmse_over_bound=1.1, rmse_over_bound_se=0.1)) == ""
+    assert "sampling error" in beats_bound_note(SimpleNamespace(rmse_over_bound=0.9, rmse_over_bound_se=0.1))
+    assert beats_bound_note(SimpleNamespace(rmse_over_bound=0.7, rmse_over_bound_se=0.1)).startswith("BEATS")
+    assert "no standard error" in beats_bound_note(SimpleNamespace(rmse_over_bound=0.7,
+                                                                   rmse_over_bound_se=float("nan")))
 
 
 def _write_tidy(directory, seed=11):
@@ -263,6 +279,14 @@ def test_fraction_leaving_too_few_epochs_is_an_error(tmp_path, capsys):
     assert "at least 30 are needed" in capsys.readouterr().err
     assert _score(tmp_path, "none", "--fraction", "0.9") == 1          # 15 scored epochs at 5 Hz
     assert "at least 40 are needed" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("extra, message", [(("--tags", "tag", "tag"), "--tags: each tag once"),
+                                            (("--tag-height-m", "nan"), "--tag-height-m must be a finite height")])
+def test_arguments_that_cannot_be_used_are_refused_before_anything_runs(tmp_path, capsys, extra, message):
+    assert _score(tmp_path, "none", *extra) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 def test_the_diagnosed_offset_scores_once_given(tmp_path, capsys):

@@ -29,8 +29,8 @@
 ``rmse_over_bound``, ``rmse_over_bound_se``
     RMSE over those epochs divided by ``bound_m`` (the textbook *efficiency* is the inverse,
     bound / RMSE): a consistency check of each method against its own model — near 1 the
-    method does what its model promises; below 1 it *beats* its own bound, which the ``note``
-    explains from the data. Not comparable across methods (a poor model has a loose bound).
+    method does what its model promises; below 1 by more than 2 standard errors it *beats* its own
+    bound (the ``note`` says so; :meth:`Board.diagnostics_table` holds the measurements that explain it). Not comparable across methods (a poor model has a loose bound).
 ``nees_mean``, ``nees_dof``, ``nees_ok``
     Mean NEES of the position (methods with a covariance) against its χ² 95 % interval
     (epochs treated as independent: a tracking filter's errors are correlated, so read it
@@ -61,7 +61,7 @@ from ..metrics.errors import MIN_BLOCKS
 from ..types import Estimates, Recording
 from . import checks as _checks
 from .estimators import Estimator, default_estimators, truth_at
-from .explain import beats_bound_note, diagnostics
+from .explain import beats_bound_note, diagnostics, diagnostics_table
 from .protocol import Calibration, fit_calibration, scored_tags, split_in_time
 from .reference import REFERENCE, common_bound, fit_reference_motion
 from .reference import describe as describe_reference
@@ -205,7 +205,7 @@ class Board:
         Method names in board order.
     diagnostics
         Per tag, what the scoring part's truth says about the noise and the motion
-        (used to explain a method that beats its bound).
+        (:meth:`diagnostics_table`: read it for a method that beats its bound).
     fast
         Whether CI-sized settings were used (numbers are then smoke tests).
     checks
@@ -341,7 +341,7 @@ class Board:
         base = df.loc[df["method"] == "raw LS", "us_per_epoch"]
         if len(base) and np.isfinite(base.iloc[0]) and base.iloc[0] > 0:
             df["time_ratio"] = df["us_per_epoch"] / base.iloc[0]
-        df["note"] = [r.note or self.explain(r) for r in df.itertuples(index=False)]
+        df["note"] = [r.note or beats_bound_note(r) for r in df.itertuples(index=False)]
         return df
 
     def by_tag(self) -> pd.DataFrame:
@@ -354,11 +354,10 @@ class Board:
                 rows.append({"tag": tag, **row})
         return pd.DataFrame(rows)
 
-    # ------------------------------------------------------------------ findings
-    def explain(self, row) -> str:
-        """Why a method's RMSE is below its own bound (empty when it is not, beyond sampling error;
-        :func:`.explain.beats_bound_note`)."""
-        return beats_bound_note(row, self.diagnostics, self.calibration)
+    def diagnostics_table(self) -> pd.DataFrame:
+        """What the scoring part's truth says beside what the methods were told, per tag
+        (:func:`.explain.diagnostics_table`): read it for a method that beats its own bound."""
+        return diagnostics_table(self.diagnostics, self.calibration)
 
     # ------------------------------------------------------------------ output
     def markdown(self) -> str:
@@ -403,6 +402,13 @@ class Board:
                                               r.bound_kind or "—", eff, nees, nis,
                                               f(r.us_per_epoch, ".0f"), f(r.time_ratio, ".1f"),
                                               _pick(r.grid_edge), r.note or ""]) + " |")
+        diag = self.diagnostics_table()
+        if not diag.empty:
+            cols = ["tag", *diag.columns]
+            lines += ["", "Diagnostics of the scoring part (what its truth says beside what the methods were told):", "",
+                      "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+            lines += ["| " + " | ".join([str(t), *(f(float(v), ".3g") for v in r)]) + " |"
+                      for t, r in zip(diag.index, diag.to_numpy())]
         lines += ["", "```", self.calibration.describe(), *self.checks, "```", ""]
         return "\n".join(lines)
 
