@@ -20,11 +20,11 @@ from ...datasets import iasl
 from ...errors import DataFormatError
 from ...filters.alignment import Comparison, FusionSettings, align_iasl, compare_iasl, run_fusion_filter
 from ...filters.imu_calibration import RealCalibration
-from ...metrics import block_bootstrap_difference, nis_consistency
+from ...metrics import MIN_BLOCKS, block_bootstrap_difference, nis_consistency
 from ...types import Recording
 
 __all__ = ["GRID", "GRID_FAST", "TUNED", "ScaleTuning", "tune_scales", "tuning_table", "IMU_FILTERS",
-           "imu_clock_sensitivity", "clock_sentence", "summary_rows"]
+           "imu_clock_sensitivity", "clock_verdict", "summary_rows"]
 
 #: ``(q, r)`` multipliers tried for every tuned filter (Q and R each over 3 decades, 16 points).
 GRID = tuple((q, r) for q in (0.01, 0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0, 10.0))
@@ -132,7 +132,8 @@ def imu_clock_sensitivity(comp: Comparison, rec: Recording, cal: RealCalibration
     (:func:`~uwbwb.filters.alignment.compare_iasl`: the same tuned scales). Per method, on the
     epochs both runs score and cover: horizontal RMSE both ways, the change ``ranges − motion
     capture`` (mm) with its 95 % block-bootstrap interval (:func:`uwbwb.metrics.block_bootstrap_difference`)
-    and the epoch count. Returns ``{"offsets": {"truth_s", "ranges_s", "peak", "rival"}, "start_s":
+    and the epoch count, and :func:`clock_verdict` of that interval. Returns ``{"offsets": {"truth_s", "ranges_s",
+    "peak", "rival", "halves_s"}, "start_s":
     (as run, with the ranges clock), "table": DataFrame}``, or ``{"error": message}`` when the
     ranges cannot pin the clock down (an ambiguous correlation) — reported, not hidden.
     """
@@ -148,56 +149,23 @@ def imu_clock_sensitivity(comp: Comparison, rec: Recording, cal: RealCalibration
         rows[name] = {"motion-capture clock (m)": float(np.sqrt(np.mean(ea ** 2))) if ea.size else np.nan,
                       "ranges clock (m)": float(np.sqrt(np.mean(eb ** 2))) if eb.size else np.nan,
                       "change (mm)": d["diff_m"] * 1e3, "lo (mm)": d["lo_m"] * 1e3, "hi (mm)": d["hi_m"] * 1e3,
-                      "epochs": d["n"]}
+                      "epochs": d["n"], "verdict": clock_verdict(d["lo_m"] * 1e3, d["hi_m"] * 1e3)}
     al = rec_r.meta["imu_alignment"]
     truth_s = rec.meta.get("imu_time_offset_s", np.nan)
     return {"offsets": {"truth_s": float(truth_s), "ranges_s": float(al.offset_s), "peak": float(al.peak_corr),
                         "rival": float(al.second_peak_corr), "halves_s": tuple(al.half_offsets_s or ())},
             "start_s": (float(comp.meta.get("start_s", np.nan)), float(comp_r.meta.get("start_s", np.nan))),
-            "table": pd.DataFrame(rows).T}
+            "table": pd.DataFrame(rows).T.astype({c: float for c in ("motion-capture clock (m)", "ranges clock (m)",
+                                                                     "change (mm)", "lo (mm)", "hi (mm)", "epochs")})}
 
 
-def _change(row) -> str:
-    lo, hi = row["lo (mm)"], row["hi (mm)"]
-    span = f"{row['change (mm)']:+.2f} mm, 95 % CI [{lo:+.2f}, {hi:+.2f}]"
-    if not (np.isfinite(lo) and np.isfinite(hi)):
-        return f"{span}: too few epochs for an interval"
-    if lo > 0:
-        return f"worse without the motion capture ({span})"
-    if hi < 0:
-        return f"better without the motion capture ({span})"
-    return f"no detectable change ({span})"
-
-
-def _halves(o: dict) -> str:
-    h = o.get("halves_s") or ()
-    if len(h) != 2:
-        return ""
-    return f"; the two halves of the recording give {h[0]:+.3f} and {h[1]:+.3f} s ({(h[1] - h[0]) * 1e3:+.0f} ms apart)"
-
-
-def clock_sentence(res: dict, *, scenario: str) -> str:
-    """The computed sentence on the IMU clock's effect (from :func:`imu_clock_sensitivity`): per
-    fusion filter a verdict from the interval of its RMSE change; the motion-capture clock
-    *flatters* a filter only where the interval lies above 0."""
-    if "error" in res:
-        return (f"**IMU clock without motion capture on `{scenario}`: not estimated** — {res['error']}. The numbers "
-                "above use the clock from this scenario's motion capture; its effect is not measured here.")
-    o, t = res["offsets"], res["table"]
-    imu = [m for m in IMU_FILTERS if m in t.index and m != "INS-only"]
-    flattered = [m for m in imu if t.loc[m, "lo (mm)"] > 0]
-    dt_ms = (o["ranges_s"] - o["truth_s"]) * 1e3
-    s0, s1 = res.get("start_s", (np.nan, np.nan))
-    verdict = (f"the motion-capture clock flatters {', '.join(flattered)}" if flattered else
-               "the motion-capture clock flatters none of them")
-    others = [m for m in t.index if m not in IMU_FILTERS]
-    return (f"**IMU clock without motion capture on `{scenario}`:** from the ranges alone the offset is "
-            f"{o['ranges_s']:+.3f} s ({dt_ms:+.0f} ms from the motion-capture one; correlation peak {o['peak']:.2f}, "
-            f"rival {o['rival']:.2f}{_halves(o)}). With it, horizontal RMSE on the epochs both runs score: "
-            + "; ".join(f"{m} {_change(t.loc[m])}" for m in imu)
-            + f" — {verdict}. Scoring starts at {s0:.2f} s with the motion-capture clock and {s1:.2f} s with the "
-              f"ranges clock; {', '.join(others)} (no IMU in their updates, but started from the IMU-based "
-              f"alignment) change by at most {t.loc[others, 'change (mm)'].abs().max():.2f} mm.")
+def clock_verdict(lo_mm: float, hi_mm: float) -> str:
+    """What the ranges' IMU clock does to a filter's RMSE, from the interval of the change (ranges − motion
+    capture): worse / better without the motion capture where it excludes 0, else no detectable change."""
+    if not (np.isfinite(lo_mm) and np.isfinite(hi_mm)):
+        return f"no verdict (fewer than {MIN_BLOCKS} blocks)"
+    return ("worse without the motion capture" if lo_mm > 0 else "better without the motion capture" if hi_mm < 0
+            else "no detectable change")
 
 
 def summary_rows(tunings: dict[str, ScaleTuning], clock: dict | None, *, data: str, cal_label: str,
