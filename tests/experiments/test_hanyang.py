@@ -32,7 +32,7 @@ def test_reproduction_matches_an_independent_implementation_of_the_authors_defin
             assert df.loc[(method, "RMSE 3-D"), "reproduced_m"] == pytest.approx(v["rmse_m"], abs=1e-6)
             assert df.loc[(method, "RMSE 2-D"), "published_m"] == pytest.approx(v["rmse_2d_m"], abs=1e-12)
         f = facts.reproduction_facts(df.reset_index())
-        assert f["agree"] and "agree with" in facts.reproduction_sentence(f)
+        assert f["agree"] and facts.verdict_table(f, {}, facts.static_facts(pd.DataFrame()))["verdict"][0] == "agree"
 
 
 def test_reproduction_verdict_flips_with_the_difference():
@@ -40,7 +40,7 @@ def test_reproduction_verdict_flips_with_the_difference():
     assert facts.reproduction_facts(repro)["agree"]
     repro["diff_m"] = [0.011, 0.0]
     f = facts.reproduction_facts(repro)
-    assert not f["agree"] and "DISAGREE" in facts.reproduction_sentence(f)
+    assert not f["agree"] and facts.verdict_table(f, {}, facts.static_facts(pd.DataFrame()))["verdict"][0] == "DISAGREE"
 
 
 def test_rmsd_file_parsing(tmp_path):
@@ -172,7 +172,7 @@ def test_too_few_independent_blocks_give_no_interval_and_no_verdict():
             "coverage": 0.9, "coverage_authors_ls": 1.0, "n": 100, "block_s": 2.0, "ratio_lo": 0.7, "ratio_hi": 0.9}
     for n_blocks, verdict in ((study.MIN_BLOCKS - 1, facts.NO_VERDICT), (study.MIN_BLOCKS, "better")):
         f = facts.ratio_facts(pd.DataFrame([{**base, "n_blocks": n_blocks}]))
-        assert f["cases"][0]["verdict"].startswith(verdict) and verdict in facts.ratio_sentence(f)
+        assert f["cases"][0]["verdict"].startswith(verdict)
         assert f["n_no_verdict"] == (verdict == facts.NO_VERDICT)
 
 
@@ -184,7 +184,10 @@ def test_ratio_verdict_flips_at_one(lo, hi, verdict):
                             "coverage": 0.9, "coverage_authors_ls": 1.0, "n": 100, "n_blocks": 20, "block_s": 1.0}])
     f = facts.ratio_facts(ratios)
     assert f["cases"][0]["verdict"] == verdict
-    assert verdict in facts.ratio_sentence(f)
+    table = facts.verdict_table(facts.reproduction_facts(pd.DataFrame({"data": [], "published_m": [], "diff_m": []})),
+                                {"best": f}, facts.static_facts(pd.DataFrame()))
+    assert table["verdict"].iloc[1] == verdict and table["claim"].iloc[1].startswith("X: EKF (best on the scored case")
+    assert table["verdict"].iloc[2].startswith(f"better {int(verdict == 'better')}, worse {int(verdict == 'worse')}")
 
 
 @pytest.mark.parametrize("his, answer", [((0.95, 0.99), "yes"), ((0.95, 1.01), "no"), ((1.2, 1.3), "no")])
@@ -192,7 +195,10 @@ def test_static_answer_is_yes_only_if_it_helps_everywhere(his, answer):
     effect = pd.DataFrame([{"case": f"c{k}", "method": "LS static LOS model", "ratio_vs_raw_ls": h - 0.05,
                             "ratio_vs_raw_ls_lo": h - 0.1, "ratio_vs_raw_ls_hi": h} for k, h in enumerate(his)])
     f = facts.static_facts(effect)
-    assert f["answer"] == answer and f"**{answer}**" in facts.static_sentence(f)
+    assert f["answer"] == answer
+    table = facts.verdict_table(facts.reproduction_facts(pd.DataFrame({"data": [], "published_m": [], "diff_m": []})),
+                                {}, f)
+    assert table["verdict"].iloc[-1] == answer and len(table) == 1 + len(his) + 1
 
 
 def test_static_model_is_fitted_from_the_static_files(tree):
@@ -252,7 +258,7 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     summary = uw.metrics.Summary("06_scoreboard", fast=True)
     sec = sections.scoreboard_section(None, data, fast=True, summary=summary)
     assert sec.absent is None and list(sec.boards) == [cases[0].name]           # FAST: one case
-    assert sec.facts["reproduction"]["agree"] and "agree with" in sec.markdown
+    assert sec.facts["reproduction"]["agree"] and "| agree |" in sec.markdown
     label = f"hanyang-outdoor-uwb/{cases[0].name}"
     assert {r["data"] for r in summary.frame().to_dict("records")} == {label, label + facts.EXTERNAL}
     kinds = dict(zip(summary.frame()["quantity"], summary.frame()["kind"]))
@@ -263,20 +269,23 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     assert kinds["authors LS RMSE_2d, recomputed (their definition)"] == "input"
     assert kinds["RMSE_2d ratio ours (best on the scored case) / authors LS"] == "reproduced"
     assert kinds["RMSE_2d ratio ours (picked on the tuning case) / authors LS"] == "reproduced"
-    assert "both covered" in sec.markdown and "jump" in sec.markdown
+    assert "*both* covered" in sec.markdown and "jump" in sec.markdown
     methods = set(sec.tables["ratios"]["method"])
     assert "raw LS, authors' front end (jump gate + hold)" in methods
     assert not any("external" in m for m in methods)
     assert any(m.startswith("authors LS, latency removed") for m in sec.boards[cases[0].name].methods)
     assert np.isfinite(sec.tables["ratios"]["nolat_ratio"]).all()
-    assert "moved by −0.1 / +0.1 s" in sec.markdown and "latency removed" in sec.markdown
+    assert "ratio_dt-0.1s" in sec.markdown and "latency removed" in sec.markdown
     assert sec.facts["tuning"][cases[0].name] != cases[0].name
     prune = sections.pruning_section(None, data, fast=True)
     assert prune.facts["case"].startswith("NLOS/") and {"NLS residual pruning", "NLS robust mean"} <= set(
         prune.tables["ablation"]["method"])
     s2 = uw.metrics.Summary("02_pruning_nls", fast=True)
     prune.record(s2)
-    assert len(s2) == len(prune.rows) > 0 and {r["data"] for r in prune.rows} == {f"hanyang-outdoor-uwb/{prune.facts['case']}"}
+    label = f"hanyang-outdoor-uwb/{prune.facts['case']}"
+    assert len(s2) == len(prune.rows) > 0 and {r["data"] for r in prune.rows} == {label, label + facts.EXTERNAL}
+    theirs = [r for r in prune.rows if r["quantity"] == "RMSE_2d, authors LS (external)"]
+    assert len(theirs) == 1 and theirs[0]["kind"] == "input" and theirs[0]["data"] == label + facts.EXTERNAL
     motion = sections.motion_section(cases[1].name, data, fast=True)
     assert set(motion.tables["models"]["method"]) == {"EKF-RF", "EKF-RW ranges", "EKF-RF ranges", "EKF-RJ ranges"}
     assert motion.facts["tuned_on"] == cases[0].name

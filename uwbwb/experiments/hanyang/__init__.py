@@ -3,7 +3,7 @@
 ``study`` reproduces the authors' RMSEs with the package's metric code, scores every method of the
 board on each case (tuned on another case) beside the authors' estimates (*external* rows), and
 tests the static part's range model on the dynamic runs; ``facts`` turns the numbers into the
-sentences the notebooks print.
+verdict table the notebooks print.
 """
 
 from .study import (AUTHORS_TAG_HEIGHT_M, AUTHORS_Z_LIMIT_M, FAST_SPAN_S, MIN_BLOCKS, WINDOW_RULES, AuthorsEstimator,

@@ -1,5 +1,6 @@
-"""Verdicts of the Hanyang study, computed from its tables: ``*_facts`` return the numbers and the rule,
-``*_sentence`` write them out. The thresholds are the rules below, never tuned to a run.
+"""Verdicts of the Hanyang study, computed from its tables: ``*_facts`` return the numbers and the verdict by
+its rule, :func:`verdict_table` lays them out (claim, ours, interval, rule, verdict). The thresholds are the
+rules below, never tuned to a run.
 
 * Reproduction (:func:`reproduction_facts`): the authors' numbers are *reproduced* when every
   recomputed RMSE is within :data:`REPRO_TOL_M` of their ``RMSD_results.txt``.
@@ -19,8 +20,8 @@ import pandas as pd
 
 from .study import MIN_BLOCKS
 
-__all__ = ["NO_VERDICT", "REPRO_TOL_M", "interval_verdict", "pair_verdict", "ratio_facts", "ratio_sentence", "reproduction_facts",
-           "reproduction_sentence", "sensitivity_sentence", "static_facts", "static_sentence", "summary_rows"]
+__all__ = ["NO_VERDICT", "PICKS", "REPRO_TOL_M", "interval_verdict", "pair_verdict", "ratio_facts", "reproduction_facts",
+           "static_facts", "summary_rows", "verdict_table"]
 
 #: Largest difference between our recomputation and the authors' published RMSE called agreement, m.
 REPRO_TOL_M = 0.01
@@ -57,15 +58,6 @@ def reproduction_facts(repro: pd.DataFrame, tol_m: float = REPRO_TOL_M) -> dict:
             "agree": bool(len(have)) and bool(worst <= tol_m)}
 
 
-def reproduction_sentence(f: dict) -> str:
-    if not f["n_published"]:
-        return "No RMSD_results.txt to compare with: the authors' numbers are recomputed but not checked."
-    verb = "agree with" if f["agree"] else "DISAGREE with"
-    return (f"Recomputed with the workbench's metric code, the authors' RMSE and RMSE_2d on {f['n_cases']} case(s) "
-            f"{verb} their RMSD_results.txt: largest difference {f['max_abs_diff_m'] * 100:.2g} cm "
-            f"(rule: within {f['tol_m'] * 100:.0f} cm).")
-
-
 def ratio_facts(ratios: pd.DataFrame, pick: str = "best") -> dict:
     """Per case, our ranges-only method marked ``pick`` (``"best"``: lowest RMSE on the scored case;
     ``"chosen"``: best on the case it was tuned on) against the authors' LS, and the spread across cases."""
@@ -88,44 +80,9 @@ def ratio_facts(ratios: pd.DataFrame, pick: str = "best") -> dict:
             "n_no_verdict": sum(c["verdict"].startswith(NO_VERDICT) for c in cases)}
 
 
-_PICKS = {"best": "Our best ranges-only method (picked on the scored case itself: optimistic)",
-          "chosen": "Our ranges-only method picked on the tuning case alone (tuned on the first half of its "
-                    "window, picked by the lowest ratio to the authors' LS on the second half: nothing of the "
-                    "scored case enters the pick)"}
-
-
-def ratio_sentence(f: dict) -> str:
-    if not f["n_cases"]:
-        return (f"{_PICKS[f['pick']]}: no case to report (the pick needs the board of the tuning case too)"
-                if f["pick"] == "chosen" else "No case had both our methods and the authors' LS on common epochs.")
-    per = "; ".join(f"{c['case']}: {c['method']} {c['ours_m']:.2f} m vs their LS {c['theirs_m']:.2f} m on the "
-                    f"{c['n']} epochs both covered (coverage ours {c['coverage']:.0%}, theirs {c['coverage_theirs']:.0%}), "
-                    f"ratio {c['ratio']:.2f} [{c['lo']:.2f}, {c['hi']:.2f}] ({c['n_blocks']} blocks of "
-                    f"{c['block_s']:.1f} s) — {c['verdict']}" for c in f["cases"])
-    spread = (f", sd {f['sd_ratio']:.2f}" if np.isfinite(f["sd_ratio"]) else "")
-    return (f"{_PICKS[f['pick']]} against the authors' LS, RMSE_2d — {per}. Across {f['n_cases']} case(s) the ratio "
-            f"ours/theirs is {f['mean_ratio']:.2f} on average{spread} (range {f['min_ratio']:.2f}–{f['max_ratio']:.2f}); "
-            f"better on {f['n_better']}, worse on {f['n_worse']}, no verdict on {f['n_no_verdict']}, not "
-            f"distinguishable on {f['n_cases'] - f['n_better'] - f['n_worse'] - f['n_no_verdict']}.")
-
-
-def sensitivity_sentence(ratios: pd.DataFrame, pick: str = "chosen") -> str:
-    """How the ratio of the ``pick`` rows moves with the reference clock offset changed by ±0.1 s and against
-    the authors' LS with its latency removed (columns of :func:`~.study.ratio_table`, where present)."""
-    rows = ratios[ratios[pick].astype(bool)] if len(ratios) and pick in ratios else ratios.iloc[:0]
-    if not len(rows):
-        return "No sensitivity check to report."
-    parts = []
-    for r in rows.to_dict("records"):
-        bits = [f"{r['ratio']:.2f} as scored"]
-        if np.isfinite(r.get("ratio_dt-0.1s", np.nan)) and np.isfinite(r.get("ratio_dt+0.1s", np.nan)):
-            bits.append(f"{r['ratio_dt-0.1s']:.2f} / {r['ratio_dt+0.1s']:.2f} with the reference clock offset "
-                        f"moved by −0.1 / +0.1 s")
-        if np.isfinite(r.get("nolat_ratio", np.nan)):
-            bits.append(f"{r['nolat_ratio']:.2f} against their LS with its output latency removed")
-        parts.append(f"{r['case']} ({r['method']}): " + ", ".join(bits))
-    return ("Sensitivity of the ratio ours/theirs (the loader's clock registration and the board's own clock "
-            "check differ by about 0.1 s) — " + "; ".join(parts) + ".")
+#: The two picks of our ranges-only method against the authors' LS.
+PICKS = {"best": "best on the scored case (optimistic)",
+         "chosen": "picked on the tuning case alone (nothing of the scored case enters the pick)"}
 
 
 def static_facts(effect: pd.DataFrame) -> dict:
@@ -143,14 +100,45 @@ def static_facts(effect: pd.DataFrame) -> dict:
             "answer": "yes" if rows and all(helps) else "no"}
 
 
-def static_sentence(f: dict) -> str:
-    if not f["n"]:
-        return "The static range model was not applied (no static files, or no case scored)."
-    per = "; ".join(f"{r['case']}, {r['method']}: ×{r['ratio']:.3f} [{r['lo']:.3f}, {r['hi']:.3f}] ({r['verdict']})"
-                    for r in f["rows"])
-    return (f"Does calibrating the dynamic ranges with the static bias-vs-distance help? **{f['answer']}**. "
-            f"RMSE_2d of LS on statically corrected ranges relative to raw LS — {per}. It helps on {f['n_helps']} "
-            f"and hurts on {f['n_hurts']} of {f['n']} (case, model) pairs.")
+def verdict_table(repro: dict, picks: dict[str, dict], static: dict) -> pd.DataFrame:
+    """The Hanyang verdicts, one row each: ``claim, ours, interval, rule, verdict``.
+
+    ``repro``: :func:`reproduction_facts`; ``picks``: ``{pick: ratio_facts(..., pick)}``; ``static``:
+    :func:`static_facts`. Rows: the authors' numbers recomputed; per pick and case, ours / their LS on the epochs
+    both covered; per pick, the count of verdicts over the cases; per case and static model, its effect on raw
+    LS and the yes/no answer."""
+    rows = []
+
+    def add(claim, ours, interval, rule, verdict):
+        rows.append({"claim": claim, "ours": ours, "interval": interval, "rule": rule, "verdict": verdict})
+
+    def iv(lo, hi, fmt):
+        return f"[{lo:{fmt}}, {hi:{fmt}}]" if np.isfinite(lo) and np.isfinite(hi) else "—"
+
+    add("authors' RMSE and RMSE_2d recomputed (their definition) vs RMSD_results.txt: largest absolute difference (cm)",
+        f"{100 * repro['max_abs_diff_m']:.2g}" if repro["n_published"] else "—", "—",
+        f"within {100 * repro['tol_m']:.0f} cm",
+        ("agree" if repro["agree"] else "DISAGREE") if repro["n_published"] else "no published values")
+    ratio_rule = "95 % block bootstrap of the ratio: below 1 better, above 1 worse"
+    for pick, f in picks.items():
+        for c in f["cases"]:
+            add(f"{c['case']}: {c['method']} ({PICKS[pick]}) / authors LS, RMSE_2d on {c['n']} common epochs "
+                f"({c['n_blocks']} blocks)", f"{c['ratio']:.2f}", iv(c["lo"], c["hi"], ".2f"), ratio_rule,
+                c["verdict"])
+        if f["n_cases"]:
+            sd = f" (sd {f['sd_ratio']:.2f})" if np.isfinite(f["sd_ratio"]) else ""
+            add(f"ours ({PICKS[pick]}) / authors LS over {f['n_cases']} case(s): mean ratio", f"{f['mean_ratio']:.2f}{sd}",
+                f"range {f['min_ratio']:.2f}–{f['max_ratio']:.2f}", "count of the per-case verdicts",
+                f"better {f['n_better']}, worse {f['n_worse']}, no verdict {f['n_no_verdict']}, not significant "
+                f"{f['n_cases'] - f['n_better'] - f['n_worse'] - f['n_no_verdict']}")
+    for r in static["rows"]:
+        add(f"{r['case']}: {r['method']} / raw LS, RMSE_2d (static bias-vs-distance model on the dynamic ranges)",
+            f"{r['ratio']:.3f}", iv(r["lo"], r["hi"], ".3f"), "95 % interval below 1 helps, above 1 hurts",
+            r["verdict"])
+    if static["n"]:
+        add("does the static range model help on every (case, model) scored?", f"helps on {static['n_helps']} of "
+            f"{static['n']}", "—", "yes only if it helps on every one", static["answer"])
+    return pd.DataFrame(rows)
 
 
 #: Data label suffix of rows that are numbers of the authors' estimates (their LS.csv / ESKF.csv): *external*.

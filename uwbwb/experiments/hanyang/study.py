@@ -18,7 +18,7 @@ Three steps, each a function the notebooks call:
    (:func:`ratio_interval`, :func:`block_length_s`; no verdict with fewer than :data:`MIN_BLOCKS`
    blocks), and a full-coverage variant with ours holding its last position (:func:`held_errors`;
    :func:`ratio_table`). The method set against theirs is picked on the tuning case alone
-   (:func:`pick_on_tuning_case`); :mod:`.facts` turns them into sentences.
+   (:func:`pick_on_tuning_case`); :mod:`.facts` turns them into verdicts.
 
 Front ends differ, so outlier handling is *not* equal between their LS and ours: the authors' LS
 (``Technical_validation/``) rejects a per-anchor range that jumps by more than 0.5 m from that
