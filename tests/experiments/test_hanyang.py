@@ -53,6 +53,28 @@ def test_rmsd_file_parsing(tmp_path):
     assert err.value.line == 2
 
 
+@pytest.mark.parametrize("text, message, line", [("LS RMSE: -1.5 m\n", "non-negative number", 1),
+                                                 ("LS RMSE: nan m\n", "non-negative number", 1),
+                                                 ("LS RMSE: 1.5 m\nLS RMSE: 1.6 m\n", "given twice", 2)])
+def test_rmsd_values_that_cannot_be_rmses_are_refused_naming_the_line(tmp_path, text, message, line):
+    p = tmp_path / "RMSD_results.txt"
+    p.write_text(text)
+    with pytest.raises(DataFormatError, match=message) as err:
+        study.read_rmsd_results(p)
+    assert err.value.line == line and str(p) in str(err.value)
+
+
+def test_rmsd_file_that_is_not_text_or_not_a_file_is_a_format_error(tmp_path):
+    p = tmp_path / "RMSD_results.txt"
+    p.write_bytes(b"LS RMSE: \xff\xfe 1.5 m\n")
+    with pytest.raises(DataFormatError, match="UTF-8"):
+        study.read_rmsd_results(p)
+    d = tmp_path / "folder"
+    d.mkdir()
+    with pytest.raises(DataFormatError, match="found a folder"):
+        study.read_rmsd_results(d)
+
+
 def test_authors_window_follows_their_rules(tree):
     data, cases = tree
     rec = hd.load_dynamic_case(cases[0].name, data, register=False)
@@ -113,16 +135,16 @@ def test_range_measurement_jacobian_matches_finite_differences():
         assert meas.linearise(x, np.full(4, np.nan)) is None
 
 
-def test_block_bootstrap_ratio_brackets_the_truth():
+def test_the_ratio_interval_of_the_one_block_bootstrap_brackets_the_truth():
+    from uwbwb.metrics import block_bootstrap_difference
+
     rng = np.random.default_rng(0)
     e = np.abs(rng.normal(0, 1, 400))
-    lo, hi = study.block_bootstrap_ratio(e, e * 1.0, rng=np.random.default_rng(1))
-    assert lo == pytest.approx(1.0) and hi == pytest.approx(1.0)
-    lo, hi = study.block_bootstrap_ratio(0.5 * e + 0.05 * np.abs(rng.normal(0, 1, 400)), e, rng=np.random.default_rng(1))
-    assert hi < 1.0 and lo > 0.4
-    assert np.isnan(study.block_bootstrap_ratio(e[:10], e[:10], rng=np.random.default_rng(1))[0])
-    a = study.block_bootstrap_ratio(e, 1.1 * e, rng=np.random.default_rng(3))
-    assert a == study.block_bootstrap_ratio(e, 1.1 * e, rng=np.random.default_rng(3))
+    same = block_bootstrap_difference(e, e * 1.0, rng=np.random.default_rng(1))
+    assert same["ratio_lo"] == pytest.approx(1.0) and same["ratio_hi"] == pytest.approx(1.0)
+    half = block_bootstrap_difference(0.5 * e + 0.05 * np.abs(rng.normal(0, 1, 400)), e, rng=np.random.default_rng(1))
+    assert half["ratio_hi"] < 1.0 and half["ratio_lo"] > 0.4
+    assert np.isnan(block_bootstrap_difference(e[:10], e[:10], rng=np.random.default_rng(1))["ratio_lo"])
 
 
 def test_authors_front_end_gates_jumps_and_holds_ranges():
@@ -140,37 +162,12 @@ def test_authors_front_end_gates_jumps_and_holds_ranges():
     assert rep2["n_rejected"].sum() == 0 and out2[2, 0] == 13.0
 
 
-def _ar1(n, phi, rng):
-    x = np.zeros(n)
-    w = rng.normal(0, 1, n)
-    for k in range(1, n):
-        x[k] = phi * x[k - 1] + w[k]
-    return x
-
-
-def test_block_length_follows_the_autocorrelation_of_the_paired_difference():
-    rng = np.random.default_rng(4)
-    t = 0.1 * np.arange(3000)
-    base = np.full(t.size, 2.0)
-    white = np.sqrt(np.maximum(base ** 2 + _ar1(t.size, 0.0, rng), 0))
-    slow = np.sqrt(np.maximum(base ** 2 + _ar1(t.size, 0.95, rng), 0))
-    b_white, b_slow = study.block_length_s(white, base, t), study.block_length_s(slow, base, t)
-    # AR(1) with φ: the autocorrelation falls below 0.05 at lag ln 0.05 / ln φ ≈ 58 for φ = 0.95
-    assert b_white <= 0.4 and 8.0 < b_slow < 16.0
-    iv = study.ratio_interval(slow, base, t, rng=np.random.default_rng(1))
-    assert iv["block_s"] == b_slow and iv["n_blocks"] == pytest.approx(300.0 / b_slow, abs=1.5)
-
-
 def test_too_few_independent_blocks_give_no_interval_and_no_verdict():
-    rng = np.random.default_rng(5)
-    t = 0.1 * np.arange(200)
-    e = np.abs(rng.normal(0, 1, 200))
-    few = study.ratio_interval(0.5 * e, e, t, rng=np.random.default_rng(1), block_s=2.5)        # 8 blocks
-    enough = study.ratio_interval(0.5 * e, e, t, rng=np.random.default_rng(1), block_s=2.0)     # 10 blocks
-    assert few["n_blocks"] == 8 and np.isnan(few["lo"]) and enough["n_blocks"] == 10 and enough["hi"] < 1
+    from uwbwb.metrics import MIN_BLOCKS
+
     base = {"case": "X", "method": "EKF", "best": True, "ratio": 0.8, "rmse_2d_m": 0.5, "authors_ls_rmse_2d_m": 0.6,
-            "coverage": 0.9, "coverage_authors_ls": 1.0, "n": 100, "block_s": 2.0, "ratio_lo": 0.7, "ratio_hi": 0.9}
-    for n_blocks, verdict in ((study.MIN_BLOCKS - 1, facts.NO_VERDICT), (study.MIN_BLOCKS, "better")):
+            "coverage": 0.9, "coverage_authors_ls": 1.0, "n": 100, "ratio_lo": 0.7, "ratio_hi": 0.9}
+    for n_blocks, verdict in ((MIN_BLOCKS - 1, facts.NO_VERDICT), (MIN_BLOCKS, "better")):
         f = facts.ratio_facts(pd.DataFrame([{**base, "n_blocks": n_blocks}]))
         assert f["cases"][0]["verdict"].startswith(verdict)
         assert f["n_no_verdict"] == (verdict == facts.NO_VERDICT)
@@ -181,7 +178,7 @@ def test_too_few_independent_blocks_give_no_interval_and_no_verdict():
 def test_ratio_verdict_flips_at_one(lo, hi, verdict):
     ratios = pd.DataFrame([{"case": "X", "method": "EKF", "best": True, "ratio": (lo + hi) / 2 if np.isfinite(lo) else 1.0,
                             "ratio_lo": lo, "ratio_hi": hi, "rmse_2d_m": 0.5, "authors_ls_rmse_2d_m": 0.6,
-                            "coverage": 0.9, "coverage_authors_ls": 1.0, "n": 100, "n_blocks": 20, "block_s": 1.0}])
+                            "coverage": 0.9, "coverage_authors_ls": 1.0, "n": 100, "n_blocks": 20}])
     f = facts.ratio_facts(ratios)
     assert f["cases"][0]["verdict"] == verdict
     table = facts.verdict_table(facts.reproduction_facts(pd.DataFrame({"data": [], "published_m": [], "diff_m": []})),

@@ -371,7 +371,8 @@ def block_bootstrap_difference(err_a, err_b, *, rng: np.random.Generator, n_boot
     Returns
     -------
     dict
-        ``rmse_a_m``, ``rmse_b_m``, ``diff_m``, ``lo_m``, ``hi_m``, ``n`` (epochs), ``n_blocks``. The blocks
+        ``rmse_a_m``, ``rmse_b_m``, ``diff_m``, ``lo_m``, ``hi_m``, ``n`` (epochs), ``n_blocks``, and the
+        interval of the ratio ``RMSE(a) / RMSE(b)`` from the same replicates, ``ratio_lo``, ``ratio_hi``. The blocks
         follow :func:`block_ids` over the paired difference ``e_a² − e_b²`` of each segment (so the correlation
         of a tracking filter's errors is kept); a replicate draws as many blocks as there are, with
         replacement, pairs together. Fewer than :data:`MIN_BLOCKS` blocks: NaN interval (no verdict).
@@ -383,7 +384,7 @@ def block_bootstrap_difference(err_a, err_b, *, rng: np.random.Generator, n_boot
                          f"and {[b.shape for b in seg_b]}")
     sa, sb = [a ** 2 for a in seg_a], [b ** 2 for b in seg_b]
     xa, xb = np.concatenate(sa), np.concatenate(sb)
-    out = {"n": int(xa.size), "n_blocks": 0, "lo_m": np.nan, "hi_m": np.nan}
+    out = {"n": int(xa.size), "n_blocks": 0, "lo_m": np.nan, "hi_m": np.nan, "ratio_lo": np.nan, "ratio_hi": np.nan}
     if xa.size == 0:
         return {**out, "rmse_a_m": np.nan, "rmse_b_m": np.nan, "diff_m": np.nan}
     rmse_a, rmse_b = float(np.sqrt(xa.mean())), float(np.sqrt(xb.mean()))
@@ -398,4 +399,7 @@ def block_bootstrap_difference(err_a, err_b, *, rng: np.random.Generator, n_boot
     d = np.sqrt(ba[pick].sum(axis=1) / n) - np.sqrt(bb[pick].sum(axis=1) / n)
     alpha = round((1 - level) / 2, 12)
     lo, hi = (float(v) for v in np.quantile(d, [alpha, 1 - alpha]))
-    return {**out, "lo_m": lo, "hi_m": hi}
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.sqrt(ba[pick].sum(axis=1) / bb[pick].sum(axis=1))
+    r_lo, r_hi = (float(v) for v in np.quantile(ratio, [alpha, 1 - alpha]))
+    return {**out, "lo_m": lo, "hi_m": hi, "ratio_lo": r_lo, "ratio_hi": r_hi}

@@ -6,17 +6,17 @@ tests the static part's range model on the dynamic runs; ``facts`` turns the num
 verdict table the notebooks print.
 """
 
-from .study import (AUTHORS_TAG_HEIGHT_M, AUTHORS_Z_LIMIT_M, FAST_SPAN_S, MIN_BLOCKS, WINDOW_RULES, AuthorsEstimator,
+from .study import (AUTHORS_TAG_HEIGHT_M, AUTHORS_Z_LIMIT_M, FAST_SPAN_S, WINDOW_RULES, AuthorsEstimator,
                     CaseComparison, PrunedNls, RangeEkfEstimator, RangeMeasurement, StaticModelLs, StaticRangeModel, authors_errors, authors_window,
-                    block_bootstrap_ratio, block_length_s, board_epochs, case_board, compare_cases, held_errors,
-                    load_pair, pair_errors, pick_on_tuning_case, ratio_interval, ratio_table,
+                    board_epochs, case_board, compare_cases, held_errors,
+                    load_pair, pair_errors, pick_on_tuning_case, ratio_table,
                     read_rmsd_results, reproduce_authors, static_model_effect, static_range_model,
                     study_estimators, tuning_case)
 
-__all__ = ["AUTHORS_TAG_HEIGHT_M", "AUTHORS_Z_LIMIT_M", "FAST_SPAN_S", "MIN_BLOCKS", "WINDOW_RULES", "AuthorsEstimator",
+__all__ = ["AUTHORS_TAG_HEIGHT_M", "AUTHORS_Z_LIMIT_M", "FAST_SPAN_S", "WINDOW_RULES", "AuthorsEstimator",
            "CaseComparison", "PrunedNls", "RangeEkfEstimator", "RangeMeasurement", "StaticModelLs", "StaticRangeModel", "authors_errors", "authors_window",
-           "block_bootstrap_ratio", "block_length_s", "board_epochs", "case_board", "compare_cases", "held_errors",
-           "load_pair", "pair_errors", "pick_on_tuning_case", "ratio_interval", "ratio_table",
+           "board_epochs", "case_board", "compare_cases", "held_errors",
+           "load_pair", "pair_errors", "pick_on_tuning_case", "ratio_table",
            "read_rmsd_results", "reproduce_authors", "static_model_effect", "static_range_model",
            "study_estimators", "tuning_case"]
 from . import facts

@@ -6,8 +6,8 @@ rules below, never tuned to a run.
   recomputed RMSE is within :data:`REPRO_TOL_M` of their ``RMSD_results.txt``.
 * Ours vs theirs per case (:func:`ratio_facts`), on the epochs both covered: ``better`` when the 95 %
   block-bootstrap interval of RMSE(ours) / RMSE(their LS) lies below 1, ``worse`` when above 1, else
-  ``not significant``; with fewer than :data:`~.study.MIN_BLOCKS` independent blocks (block length from
-  the autocorrelation of the paired difference, :func:`~.study.block_length_s`) no verdict is given.
+  ``not significant``; with fewer than :data:`uwbwb.metrics.MIN_BLOCKS` independent blocks (the package's
+  one interval rule, :func:`uwbwb.metrics.block_bootstrap_difference`) no verdict is given.
 * Static range model (:func:`static_facts`): ``helps`` on a case when the interval of
   RMSE(LS on statically corrected ranges) / RMSE(raw LS) lies below 1, ``hurts`` above 1, else
   ``no clear effect``; the answer to "does it help?" is *yes* only if it helps on every case scored.
@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .study import MIN_BLOCKS
+from ...metrics import MIN_BLOCKS
 
 __all__ = ["NO_VERDICT", "PICKS", "REPRO_TOL_M", "interval_verdict", "pair_verdict", "ratio_facts", "reproduction_facts",
            "static_facts", "summary_rows", "verdict_table"]
@@ -67,7 +67,7 @@ def ratio_facts(ratios: pd.DataFrame, pick: str = "best") -> dict:
         cases.append({"case": r.case, "method": r.method, "ratio": float(r.ratio), "lo": float(r.ratio_lo),
                       "hi": float(r.ratio_hi), "ours_m": float(r.rmse_2d_m), "theirs_m": float(r.authors_ls_rmse_2d_m),
                       "coverage": float(r.coverage), "coverage_theirs": float(r.coverage_authors_ls),
-                      "n": int(r.n), "n_blocks": int(r.n_blocks), "block_s": float(r.block_s),
+                      "n": int(r.n), "n_blocks": int(r.n_blocks),
                       "verdict": pair_verdict(r.ratio_lo, r.ratio_hi, r.n_blocks, "better", "worse", "not significant")})
     ratio = np.array([c["ratio"] for c in cases])
     return {"pick": pick, "cases": cases, "n_cases": len(cases),

@@ -1,7 +1,6 @@
 """Ours vs theirs on the Hanyang boards: errors on the epochs a pair of methods both covered, a
-hold-last-position variant, a clock-offset sensitivity, and block-bootstrap intervals of RMSE ratios.
-
-Split from :mod:`.study` (which re-exports every name).
+hold-last-position variant and a clock-offset sensitivity. Their intervals are the package's one rule,
+:func:`uwbwb.metrics.block_bootstrap_difference` (its ``ratio_lo`` / ``ratio_hi``).
 """
 
 from __future__ import annotations
@@ -10,14 +9,6 @@ import numpy as np
 
 from ... import metrics
 from ...scoreboard import Board
-
-#: Block bootstrap: a block is BLOCK_LAG_FACTOR × the lag (s) at which the autocorrelation of the paired
-#: difference e_ours² − e_theirs² first falls below ACF_LEVEL (an assumption: below it, epochs count as
-#: independent); with fewer than MIN_BLOCKS blocks no interval and no verdict is given.
-ACF_LEVEL = 0.05
-BLOCK_LAG_FACTOR = 2.0
-MIN_BLOCKS = 10
-
 
 def _external(name: str) -> bool:
     return "external" in name
@@ -84,68 +75,3 @@ def offset_ratio(board: Board, method: str, reference: str, delta_s: float, tag:
     ea = np.hypot(*(a.estimates.pos_m[both, :2] - truth[both]).T)
     eb = np.hypot(*(b.estimates.pos_m[both, :2] - truth[both]).T)
     return metrics.rmse(ea) / metrics.rmse(eb)
-
-
-def block_length_s(err_a: np.ndarray, err_b: np.ndarray, t_s: np.ndarray, *, acf_level: float = ACF_LEVEL) -> float:
-    """Block length of the bootstrap, seconds: :data:`BLOCK_LAG_FACTOR` × the first lag at which the
-    autocorrelation of the paired difference ``err_a² − err_b²`` falls below ``acf_level``.
-
-    The autocorrelation is taken over the sequence of paired epochs (gaps ignored) and the lag turned
-    into seconds with their median spacing; at least two spacings. NaN with fewer than 3 epochs.
-    """
-    t = np.asarray(t_s, float)
-    if t.size < 3:
-        return float("nan")
-    d = np.asarray(err_a, float) ** 2 - np.asarray(err_b, float) ** 2
-    d = d - d.mean()
-    dt = float(np.median(np.diff(t)))
-    var = float(np.dot(d, d))
-    if var <= 0:
-        return BLOCK_LAG_FACTOR * dt
-    f = np.fft.rfft(d, 2 * d.size)
-    acf = np.fft.irfft(f * np.conj(f))[: d.size] / var
-    below = np.flatnonzero(acf < acf_level)
-    lag = int(below[0]) if below.size else d.size
-    return BLOCK_LAG_FACTOR * max(lag, 1) * dt
-
-
-def ratio_interval(err_a: np.ndarray, err_b: np.ndarray, t_s: np.ndarray, *, rng: np.random.Generator,
-                   n_boot: int = 2000, level: float = 0.95, block_s: float | None = None,
-                   min_blocks: int = MIN_BLOCKS) -> dict:
-    """Interval of ``RMSE(err_a) / RMSE(err_b)`` on paired epochs by a block bootstrap.
-
-    The epochs at ``t_s`` (seconds, ``(N,)``) are cut into contiguous blocks of ``block_s`` seconds
-    (default :func:`block_length_s`, derived from the data); the blocks are resampled with replacement.
-    With fewer than ``min_blocks`` non-empty blocks there are too few independent pieces for an
-    interval: ``lo``/``hi`` are NaN and the verdict is refused.
-
-    Returns
-    -------
-    dict
-        ``lo``, ``hi``, ``block_s``, ``n_blocks``.
-    """
-    err_a, err_b, t = np.asarray(err_a, float), np.asarray(err_b, float), np.asarray(t_s, float)
-    if not (err_a.size == err_b.size == t.size):
-        raise ValueError(f"paired errors and times must have the same length, got {err_a.size}, {err_b.size}, {t.size}")
-    bl = block_length_s(err_a, err_b, t) if block_s is None else float(block_s)
-    if not np.isfinite(bl) or t.size == 0:
-        return {"lo": float("nan"), "hi": float("nan"), "block_s": bl, "n_blocks": 0}
-    ids = np.floor((t - t[0]) / bl).astype(int)
-    _, ids = np.unique(ids, return_inverse=True)
-    nb = int(ids.max()) + 1
-    if nb < min_blocks:
-        return {"lo": float("nan"), "hi": float("nan"), "block_s": bl, "n_blocks": nb}
-    sa = np.bincount(ids, err_a ** 2, nb)
-    sb = np.bincount(ids, err_b ** 2, nb)
-    pick = rng.integers(0, nb, (n_boot, nb))
-    ratio = np.sqrt(sa[pick].sum(axis=1) / sb[pick].sum(axis=1))
-    lo, hi = np.quantile(ratio, [(1 - level) / 2, (1 + level) / 2])
-    return {"lo": float(lo), "hi": float(hi), "block_s": bl, "n_blocks": nb}
-
-
-def block_bootstrap_ratio(err_a: np.ndarray, err_b: np.ndarray, *, rng: np.random.Generator, t_s=None,
-                          n_boot: int = 2000, level: float = 0.95) -> tuple[float, float]:
-    """``(lo, hi)`` of :func:`ratio_interval` (``t_s`` None: one epoch per 0.1 s, the runs' rate)."""
-    t = 0.1 * np.arange(np.asarray(err_a).size) if t_s is None else t_s
-    r = ratio_interval(err_a, err_b, t, rng=rng, n_boot=n_boot, level=level)
-    return r["lo"], r["hi"]

@@ -118,7 +118,7 @@ def _md(df: pd.DataFrame, digits: int = 3) -> str:
 def ablation(board: Board, pairs: Sequence[tuple[str, str]], *, low: str, high: str, neither: str,
              seed: int = 0) -> pd.DataFrame:
     """RMSE_2d of ``method`` vs ``reference`` on the epochs both covered (:func:`~.study.pair_errors`), both
-    coverages, the ratio, its block-bootstrap interval (:func:`~.study.ratio_interval`) and the verdict (``low``
+    coverages, the ratio, its block-bootstrap interval (:func:`uwbwb.metrics.block_bootstrap_difference`) and the verdict (``low``
     below 1, ``high`` above, ``neither`` otherwise; none with too few independent blocks)."""
     rows = []
     for m, ref in pairs:
@@ -126,12 +126,13 @@ def ablation(board: Board, pairs: Sequence[tuple[str, str]], *, low: str, high: 
         if p is None or not p["err_m"].size:
             continue
         rng = np.random.default_rng([seed, zlib.crc32(f"{board.label}/{m}/{ref}".encode())])
-        iv = study.ratio_interval(p["err_m"], p["err_ref_m"], p["t_s"], rng=rng)
+        iv = metrics.block_bootstrap_difference(p["err_m"], p["err_ref_m"], rng=rng)
         r_m, r_ref = metrics.rmse(p["err_m"]), metrics.rmse(p["err_ref_m"])
         rows.append({"method": m, "coverage": p["coverage"], "reference": ref, "reference_coverage": p["coverage_ref"],
                      "n_common": int(p["err_m"].size), "rmse_2d_m": r_m, "reference_rmse_2d_m": r_ref,
-                     "ratio": r_m / r_ref, "ratio_lo": iv["lo"], "ratio_hi": iv["hi"], "n_blocks": iv["n_blocks"],
-                     "verdict": facts.pair_verdict(iv["lo"], iv["hi"], iv["n_blocks"], low, high, neither)})
+                     "ratio": r_m / r_ref, "ratio_lo": iv["ratio_lo"], "ratio_hi": iv["ratio_hi"],
+                     "n_blocks": iv["n_blocks"],
+                     "verdict": facts.pair_verdict(iv["ratio_lo"], iv["ratio_hi"], iv["n_blocks"], low, high, neither)})
     return pd.DataFrame(rows)
 
 
@@ -190,9 +191,10 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
         text += [_board_text(b), ""]
     text += ["**Ours vs theirs.** Each row is one pair, our method and the authors' LS, scored on the epochs "
              "*both* covered (`n`; `coverage` ours, `coverage_authors_ls` theirs, each over the scoring epochs) — "
-             "not the board's all-method common epochs. 95 % block-bootstrap interval of the ratio: blocks of "
-             "`block_s` s, twice the lag at which the autocorrelation of e_ours² − e_theirs² falls below "
-             f"{study.ACF_LEVEL}; no verdict with fewer than {study.MIN_BLOCKS} blocks. `held_*`: on every epoch "
+             "not the board's all-method common epochs. 95 % block-bootstrap interval of the ratio (the package's "
+             "one rule: blocks twice the lag at which the autocorrelation of e_ours² − e_theirs² falls below "
+             f"{metrics.errors.ACF_LEVEL}, `n_blocks` of them); no verdict with fewer than {metrics.MIN_BLOCKS} "
+             "blocks. `held_*`: on every epoch "
              "the authors' LS covered, ours holding its last position where it has none. `nolat_*`: against "
              "the authors' LS with its output latency removed (lag measured on the tuning case; a sensitivity "
              "check). `ratio_dt±0.1s`: the ratio with the reference's clock offset moved by ±0.1 s (the loader's "
@@ -203,7 +205,7 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
              "holds each anchor's latest range up to 0.3 s, solves in 3-D warm-started and outputs on a 10 Hz "
              "timer; ours solve each epoch's ranges independently, in 2-D at the calibrated height.", "",
              _md(comp.ratios[["case", "tuned_on", "method", "best", "chosen", "n", "coverage", "coverage_authors_ls",
-                              "rmse_2d_m", "authors_ls_rmse_2d_m", "ratio", "ratio_lo", "ratio_hi", "block_s",
+                              "rmse_2d_m", "authors_ls_rmse_2d_m", "ratio", "ratio_lo", "ratio_hi",
                               "n_blocks", "held_n", "held_rmse_2d_m", "held_authors_ls_rmse_2d_m", "held_ratio",
                               "authors_ls_published_2d_m"] + [c for c in ("nolat_ratio", "nolat_ratio_lo", "nolat_ratio_hi",
                                                                        "ratio_dt-0.1s", "ratio_dt+0.1s") if c in comp.ratios]])

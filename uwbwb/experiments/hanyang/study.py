@@ -15,8 +15,8 @@ Three steps, each a function the notebooks call:
    its RMSE_2d and the authors' LS's on the epochs *that pair* covered (:func:`pair_errors`; both
    coverages beside; not the board's all-method common epochs, which depend on what else is on the
    board), the ratio with a block-bootstrap interval whose block length comes from the data
-   (:func:`ratio_interval`, :func:`block_length_s`; no verdict with fewer than :data:`MIN_BLOCKS`
-   blocks), and a full-coverage variant with ours holding its last position (:func:`held_errors`;
+   (:func:`uwbwb.metrics.block_bootstrap_difference`; no verdict with fewer than
+   :data:`uwbwb.metrics.MIN_BLOCKS` blocks), and a full-coverage variant with ours holding its last position (:func:`held_errors`;
    :func:`ratio_table`). The method set against theirs is picked on the tuning case alone
    (:func:`pick_on_tuning_case`); :mod:`.facts` turns them into verdicts.
 
@@ -59,14 +59,13 @@ from .authors import (AUTHORS_HOLD_S, AUTHORS_JUMP_M, AUTHORS_MAX_GAP_S, AUTHORS
                       authors_window, read_rmsd_results, reproduce_authors)
 from .estimators import (PrunedNls, RangeEkfEstimator, RangeMeasurement, StaticModelLs, StaticRangeModel,
                          static_range_model)
-from .pairs import (ACF_LEVEL, BLOCK_LAG_FACTOR, MIN_BLOCKS, _external, block_bootstrap_ratio, block_length_s,
-                    held_errors, offset_ratio, pair_errors, ratio_interval)
+from .pairs import _external, held_errors, offset_ratio, pair_errors
 
 
 __all__ = ["AUTHORS_TAG_HEIGHT_M", "AUTHORS_Z_LIMIT_M", "AuthorsEstimator", "CaseComparison", "FAST_SPAN_S",
-           "ACF_LEVEL", "AUTHORS_HOLD_S", "AUTHORS_JUMP_M", "AUTHORS_MAX_REJECTS", "AuthorsFrontEndLs", "BLOCK_LAG_FACTOR", "MIN_BLOCKS", "OFFSET_CHECK_S", "PrunedNls", "RangeEkfEstimator", "RangeMeasurement", "StaticModelLs", "StaticRangeModel", "WINDOW_RULES", "authors_errors",
-           "authors_front_end", "authors_window", "block_bootstrap_ratio", "block_length_s", "board_epochs", "case_board", "compare_cases",
-           "held_errors", "load_pair", "offset_ratio", "pair_errors", "pick_on_tuning_case", "ratio_interval", "ratio_table",
+           "AUTHORS_HOLD_S", "AUTHORS_JUMP_M", "AUTHORS_MAX_REJECTS", "AuthorsFrontEndLs", "OFFSET_CHECK_S", "PrunedNls", "RangeEkfEstimator", "RangeMeasurement", "StaticModelLs", "StaticRangeModel", "WINDOW_RULES", "authors_errors",
+           "authors_front_end", "authors_window", "board_epochs", "case_board", "compare_cases",
+           "held_errors", "load_pair", "offset_ratio", "pair_errors", "pick_on_tuning_case", "ratio_table",
            "read_rmsd_results", "reproduce_authors", "static_model_effect", "static_range_model", "tuning_case"]
 
 PathLike = str | os.PathLike
@@ -228,11 +227,11 @@ def _ratio_cols(prefix: str, p: dict | None, case: str, m: str, seed: int) -> di
     if p is None or not p["err_m"].size:
         return {}
     rng = np.random.default_rng([seed, zlib.crc32(f"{case}/{m}/{prefix}".encode())])
-    iv = ratio_interval(p["err_m"], p["err_ref_m"], p["t_s"], rng=rng)
+    iv = metrics.block_bootstrap_difference(p["err_m"], p["err_ref_m"], rng=rng)
     r_ours, r_theirs = metrics.rmse(p["err_m"]), metrics.rmse(p["err_ref_m"])
     return {f"{prefix}n": int(p["err_m"].size), f"{prefix}rmse_2d_m": r_ours,
             f"{prefix}authors_ls_rmse_2d_m": r_theirs, f"{prefix}ratio": r_ours / r_theirs,
-            f"{prefix}ratio_lo": iv["lo"], f"{prefix}ratio_hi": iv["hi"], f"{prefix}block_s": iv["block_s"],
+            f"{prefix}ratio_lo": iv["ratio_lo"], f"{prefix}ratio_hi": iv["ratio_hi"],
             f"{prefix}n_blocks": iv["n_blocks"]}
 
 
@@ -240,8 +239,8 @@ def ratio_table(boards: Mapping[str, Board], reproduction: pd.DataFrame, *, pick
                 seed: int = 0) -> pd.DataFrame:
     """Per case and our ranges-only method: RMSE_2d of ours and of the authors' LS on the epochs *that
     pair* covered (both have a position; independent of the other methods on the board), the ratio
-    ours / theirs and its 95 % block-bootstrap interval (:func:`ratio_interval`: block length from the
-    data, ``n_blocks`` beside it), with both coverages (``coverage``: ours, ``coverage_authors_ls``:
+    ours / theirs and its 95 % block-bootstrap interval (:func:`uwbwb.metrics.block_bootstrap_difference`:
+    blocks from the data, ``n_blocks`` beside it), with both coverages (``coverage``: ours, ``coverage_authors_ls``:
     theirs, each over the scoring epochs). Columns ``held_*``: the same on *every* epoch the authors'
     LS covered, ours holding its last position where it has none (full-coverage variant). Columns
     ``nolat_*`` (when the board has it): against the authors' LS with its latency removed (sensitivity).
@@ -323,12 +322,12 @@ def static_model_effect(boards: Mapping[str, Board], *, seed: int = 0) -> pd.Dat
                 if p is None or not p["err_m"].size:
                     continue
                 rng = np.random.default_rng([seed, zlib.crc32(f"{case}/{m}/{ref}".encode())])
-                iv = ratio_interval(p["err_m"], p["err_ref_m"], p["t_s"], rng=rng)
+                iv = metrics.block_bootstrap_difference(p["err_m"], p["err_ref_m"], rng=rng)
                 key = ref.replace(" ", "_").lower()
                 row.setdefault("rmse_2d_m", metrics.rmse(p["err_m"]))
                 row.update({f"{key}_rmse_2d_m": metrics.rmse(p["err_ref_m"]),
                             f"ratio_vs_{key}": metrics.rmse(p["err_m"]) / metrics.rmse(p["err_ref_m"]),
-                            f"ratio_vs_{key}_lo": iv["lo"], f"ratio_vs_{key}_hi": iv["hi"],
+                            f"ratio_vs_{key}_lo": iv["ratio_lo"], f"ratio_vs_{key}_hi": iv["ratio_hi"],
                             f"ratio_vs_{key}_n_blocks": iv["n_blocks"]})
             rows.append(row)
     return pd.DataFrame(rows)
