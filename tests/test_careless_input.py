@@ -434,3 +434,18 @@ def test_the_scheduler_timeout_reaches_the_kernels(monkeypatch, tmp_path):
     assert list(seen.values()) == [{"UWBWB_SCHEDULER_TIMEOUT_S": "2.5"}]
     with pytest.raises(ValueError, match="timeout_s must be positive"):
         rp.reproduce(only=["00"], out=tmp_path, scheduler_timeout_s=-1)
+
+
+def test_reproduce_takes_the_notebooks_from_a_folder_given_on_the_command_line(no_run, tmp_path, monkeypatch, capsys):
+    """--notebooks-dir runs the notebooks of that folder from any working directory; a folder that does not
+    exist is refused before anything runs."""
+    import shutil
+
+    src = tmp_path / "elsewhere"
+    src.mkdir()
+    shutil.copy(NOTEBOOKS_DIR / "00_quickstart.ipynb", src / "00_quickstart.ipynb")
+    monkeypatch.chdir(tmp_path)                               # no notebooks/ here
+    assert cli.main(["reproduce", "--notebooks-dir", str(src), "--out", str(tmp_path / "out")]) == 0
+    assert list(no_run) == ["00_quickstart"]
+    assert cli.main(["reproduce", "--notebooks-dir", str(tmp_path / "missing"), "--out", str(tmp_path / "o2")]) == 2
+    assert "--notebooks-dir" in capsys.readouterr().err and not (tmp_path / "o2").exists()

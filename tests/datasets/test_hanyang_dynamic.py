@@ -185,3 +185,12 @@ def test_load_options_that_cannot_be_used_are_refused(tree, kw, message):
     data, cases = tree
     with pytest.raises(ValueError, match=message):
         hd.load_dynamic_case(cases[0].name, data, **kw)
+
+
+def test_one_anchor_in_two_files_is_refused(tmp_path):
+    data = tmp_path / "data"
+    cases = fx.write_dynamic_tree(data / "hanyang-outdoor-uwb", rng=np.random.default_rng(5))
+    folder, _ = hd.case_dir(cases[0].name, data)
+    (folder / "A03.csv").write_text((folder / "A3.csv").read_text())
+    with pytest.raises(DataFormatError, match=r"anchor 3 has two files here"):
+        hd.load_dynamic_case(cases[0].name, data)

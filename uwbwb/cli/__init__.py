@@ -7,7 +7,7 @@ Commands
     counts, and the recordings its loader lists.
 ``fetch NAME [--dest DIR] [--base-url URL]``
     Download a dataset from upstream with checksum verification (resumable).
-``reproduce [--quick] [--only NB ...] [--out DIR] [-p KEY VALUE ...] [--timeout S] [--scheduler ADDRESS] [--scheduler-timeout S]``
+``reproduce [--quick] [--only NB ...] [--out DIR] [--notebooks-dir DIR] [-p KEY VALUE ...] [--timeout S] [--scheduler ADDRESS] [--scheduler-timeout S]``
     Execute the notebooks headless; write executed notebooks, HTML and
     ``summary.json`` / ``summary.md`` (default into ``reports/``).
 
@@ -85,6 +85,8 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
     p.add_argument("--only", nargs="+", action="extend", metavar="NB", default=None,
                    help="run only notebooks whose stem starts with NB (e.g. 00 or 00_quickstart)")
     p.add_argument("--out", metavar="DIR", default=None, help="output folder (default reports/)")
+    p.add_argument("--notebooks-dir", metavar="DIR", default=None,
+                   help="folder holding the notebooks (default notebooks/ in the working directory)")
     p.add_argument("-p", "--parameter", nargs=2, action="append", metavar=("KEY", "VALUE"), default=[],
                    help="notebook parameter, given to every selected notebook that declares it; "
                         "VALUE is checked against the notebook's specification of NAME (type, range, what None "
@@ -290,6 +292,10 @@ def cmd_fetch(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser, *,
                   notebooks_dir: str | Path | None = None, reports_dir: str | Path | None = None) -> int:
+    if args.notebooks_dir is not None:
+        notebooks_dir = Path(args.notebooks_dir)
+        if not notebooks_dir.is_dir():
+            parser.error(f"--notebooks-dir {args.notebooks_dir}: no such folder")
     text = {}
     for key, value in args.parameter:
         if not key.isidentifier():

@@ -450,6 +450,12 @@ def load_dynamic_case(case: PathLike, data_dir: PathLike | None = None, *, tag_h
         raise ValueError(f"epoch_gap_s must be a positive number of seconds or None, got {epoch_gap_s!r}")
     folder, name = case_dir(case, data_dir)
     files = sorted((p for p in folder.iterdir() if _ANCHOR_FILE.fullmatch(p.name)), key=lambda p: _natural_key(p.name))
+    by_id: dict[int, Path] = {}
+    for p in files:                   # A03.csv and A3.csv would be one anchor read twice
+        k = int(_ANCHOR_FILE.fullmatch(p.name)["id"])
+        if k in by_id:
+            raise DataFormatError(p, f"anchor {k} has two files here ({by_id[k].name} and {p.name}): keep one")
+        by_id[k] = p
     anchors_read = [read_anchor_file(p, max_range_m=max_range_m) for p in files]
     cleaning = [s for f in anchors_read for s in f.cleaning]
     anchors = Anchors(tuple(f.anchor_id for f in anchors_read), np.array([f.pos_m for f in anchors_read]))

@@ -109,6 +109,10 @@ def read_rmsd_results(path: PathLike) -> dict[str, dict[str, float]]:
         lines = Path(path).read_text(encoding="utf-8").splitlines()
     except FileNotFoundError:
         raise DataNotFoundError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise DataFormatError(path, "expected the RMSD_results.txt file, found a folder") from None
+    except UnicodeDecodeError as exc:
+        raise DataFormatError(path, f"expected UTF-8 text, found undecodable bytes at byte {exc.start}") from None
     out: dict[str, dict[str, float]] = {}
     for i, ln in enumerate(lines, start=1):
         if not ln.strip() or ln.startswith("Insufficient data"):
@@ -118,7 +122,16 @@ def read_rmsd_results(path: PathLike) -> dict[str, dict[str, float]]:
             raise DataFormatError(path, f"expected '<METHOD> RMSE: <value> m' or '<METHOD> RMSE_2d: <value>', "
                                         f"got {ln!r}", line=i)
         key = "rmse_2d_m" if m["metric"].endswith("_2d") else "rmse_m"
-        out.setdefault(m["method"], {})[key] = float(m["value"])
+        try:
+            value = float(m["value"])
+        except ValueError:
+            value = float("nan")
+        if not (np.isfinite(value) and value >= 0):
+            raise DataFormatError(path, f"an RMSE must be a non-negative number of metres, got {m['value']!r}", line=i)
+        if key in out.get(m["method"], {}):
+            raise DataFormatError(path, f"{m['method']} {m['metric']} is given twice (an earlier line holds "
+                                        f"{out[m['method']][key]!r})", line=i)
+        out.setdefault(m["method"], {})[key] = value
     return out
 
 
