@@ -17,11 +17,11 @@ Cramér–Rao bounds (notebook 06 and ``python -m uwbwb score``).
 * :mod:`.exercises` — notebook 06's checked exercises on the synthetic hall.
 """
 
-from .board import Board, Entry, calibrate, score, score_recording
+from .board import Board, Entry, calibrate, score
 from .estimators import BaseEstimator, Estimator, ExternalEstimates, default_estimators
 from .reference import common_bound
 from .protocol import Calibration, between, fit_calibration, split_in_time
 
 __all__ = ["BaseEstimator", "Board", "Calibration", "Entry", "Estimator", "ExternalEstimates", "calibrate",
            "common_bound", "default_estimators",
-           "between", "fit_calibration", "score", "score_recording", "split_in_time"]
+           "between", "fit_calibration", "score", "split_in_time"]

@@ -67,7 +67,7 @@ from .reference import REFERENCE, common_bound, fit_reference_motion
 from .reference import describe as describe_reference
 from .verdicts import block_se_ratio
 
-__all__ = ["Board", "Entry", "calibrate", "score", "score_recording", "TABLE_COLUMNS"]
+__all__ = ["Board", "Entry", "calibrate", "score", "TABLE_COLUMNS"]
 
 #: Columns of :meth:`Board.table`, in order.
 TABLE_COLUMNS = ("method", "coverage", "n_scored", "rmse_m", "cep50_m", "cep95_m", "rmse_common_m",
@@ -495,7 +495,8 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
     fast
         CI-sized settings (recorded in the board's mode).
     label
-        What the board is about (default ``test_rec.label``; :func:`score_recording` gives the whole run's).
+        What the board is about (default ``test_rec.label``; give the whole run's label when ``test_rec`` is a part
+        of it, as the command line does).
     tag_height_m
         Height of the tag(s) for a 2-D truth (one value or per tag); None fits it from the
         calibration ranges (:func:`.checks.fit_tag_height`). 3-D truth is left as it is.
@@ -578,9 +579,3 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
     external = tuple(e.name for e in estimators if getattr(e, "external", False))
     return Board(label or test_rec.label, test_rec.label, calibration, tuple(entries), tuple(names), diag, fast,
                  tuple(notes), external)
-
-
-def score_recording(rec: Recording, *, fraction: float = 0.5, **kw) -> Board:
-    """:func:`score` with the first ``fraction`` of ``rec`` calibrating and the rest scored."""
-    cal, test = split_in_time(rec, fraction)
-    return score(test, cal, label=rec.label, **kw)
