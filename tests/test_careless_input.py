@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ast
 import json
+import os
 import socket
 import subprocess
 import sys
@@ -449,3 +450,39 @@ def test_reproduce_takes_the_notebooks_from_a_folder_given_on_the_command_line(n
     assert list(no_run) == ["00_quickstart"]
     assert cli.main(["reproduce", "--notebooks-dir", str(tmp_path / "missing"), "--out", str(tmp_path / "o2")]) == 2
     assert "--notebooks-dir" in capsys.readouterr().err and not (tmp_path / "o2").exists()
+
+
+def test_a_second_run_into_the_same_folder_is_refused_while_the_first_lives(no_run, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ".reproduce.lock").write_text(str(os.getppid()))          # a live process holds it
+    with pytest.raises(ValueError, match=r"another reproduce \(process \d+\) is writing into this folder"):
+        rp.reproduce(only=["00"], out=out)
+    assert not no_run
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    (out / ".reproduce.lock").write_text(dead.stdout.strip())         # its process is gone: taken over
+    rp.reproduce(only=["00"], out=out)
+    assert list(no_run) == ["00_quickstart"] and not (out / ".reproduce.lock").exists()
+
+
+def test_an_interrupted_run_leaves_no_ok_summary_and_says_it_stopped(monkeypatch, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "summary.json").write_text("[]")                          # an earlier run's summary
+    (out / "summary.md").write_text("all ok")
+    calls = []
+
+    def fake_run(source, out_dir, parameters, **kwargs):
+        calls.append(source.stem)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return rp.NotebookRun(notebook=source.stem, source=source, executed=out_dir / "x.ipynb", html=None,
+                              summary=out_dir / "x.json", seconds=0.0, error=None)
+
+    monkeypatch.setattr(rp, "run_notebook", fake_run)
+    with pytest.raises(KeyboardInterrupt):
+        rp.reproduce(only=["00", "01"], out=out)
+    text = (out / "summary.md").read_text()
+    assert "INTERRUPTED" in text and "00_quickstart" in text and "all ok" not in text
+    assert not (out / "summary.json").exists() and not (out / ".reproduce.lock").exists()
+    assert not list(out.glob(".*.tmp"))

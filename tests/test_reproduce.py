@@ -148,7 +148,7 @@ def test_parse_parameter_value_takes_the_type_of_the_default():
     ("fast", 0.5, "a number"),
     ("None", 0.5, "a number"),
     ("1", (1, 2), "a tuple of values, each an integer"),
-    ("slow,fast", ("slow", "fast"), "a tuple of values, each text"),
+    ("slow,fast", ("slow", "fast"), "a tuple of distinct values, each text"),
     ("(1, 'x')", (1, 2), "a tuple"),
 ])
 def test_parse_parameter_value_rejects_values_that_do_not_fit(text, default, expected):

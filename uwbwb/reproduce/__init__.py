@@ -27,6 +27,12 @@ under ``FAST=True``, as is ``FAST=False`` given with ``quick``. All notebooks
 run even if one fails; the run is unsuccessful if a notebook failed or wrote no
 valid summary.
 
+One run at a time per output folder: a run holds ``<out>/.reproduce.lock`` (a second run into the folder is
+refused while the first one's process lives). At its start a run removes the folder's old ``summary.json``
+and writes a ``summary.md`` saying it is in progress; the summaries are written at the end, each through a
+temporary file, so a run stopped half-way (Ctrl-C, SIGTERM) leaves a ``summary.md`` saying so and no
+``summary.json`` — never an old "ok" beside new notebooks.
+
 Kernels are started on IPC transport (local sockets, no TCP ports), so that
 jupyter_client's warning about unencrypted TCP never reaches the output.
 
@@ -208,11 +214,33 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
                 log(f"parameter {name} goes to {', '.join(receivers)} only (the others do not declare it)")
     out_dir = Path(REPORTS_DIR if out is None else out).expanduser().resolve()
     out_dir.mkdir(parents=True, exist_ok=True)
+    summary_json, summary_md = out_dir / "summary.json", out_dir / "summary.md"
+    with _OutLock(out_dir), _sigterm_interrupts():
+        summary_json.unlink(missing_ok=True)            # no earlier "ok" may stand beside a run that stops half-way
+        _write_atomic(summary_md, f"# Reproduction in progress\n\nStarted with {len(notebooks)} notebook(s); a run "
+                                  "that stopped leaves this text and no summary.json.\n")
+        runs: list = []
+        try:
+            _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_name, log, kernel_env, runs)
+        except KeyboardInterrupt:
+            done = ", ".join(f"{r.notebook} ({r.status})" for r in runs) or "none"
+            _write_atomic(summary_md, f"# Reproduction INTERRUPTED\n\nStopped by the user or a signal; notebooks "
+                                      f"finished before it: {done}. No summary.json was written: rerun.\n")
+            raise
+        result = ReproduceResult(runs=tuple(runs), out_dir=out_dir, summary_json=summary_json,
+                                 summary_md=summary_md)
+        shown = {name: value for params in resolved.values() for name, value in params.items()}
+        _write_atomic(summary_md, summary_markdown(runs, shown))
+        _write_atomic(summary_json, json.dumps(result.rows, indent=2, allow_nan=True) + "\n")
+    return result
 
-    runs = []
+
+def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_name, log, kernel_env,
+             runs: list) -> None:
+    """Run the notebooks (on the cluster when ``client`` is given), appending each run to ``runs`` as it ends."""
     if client is not None:
         try:
-            runs = _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env)
+            runs.extend(_run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env))
         finally:
             if isinstance(scheduler, str) and scheduler.strip() == "local":   # the cluster started for this run
                 parallel.shutdown(scheduler)
@@ -226,10 +254,74 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
             log(f"[{i}/{len(notebooks)}] {run.notebook}: {run.status} ({run.seconds:.1f} s)"
                 + (f" — {run.error}" if run.error else ""))
 
-    summary_json, summary_md = out_dir / "summary.json", out_dir / "summary.md"
-    result = ReproduceResult(runs=tuple(runs), out_dir=out_dir, summary_json=summary_json,
-                             summary_md=summary_md)
-    summary_json.write_text(json.dumps(result.rows, indent=2, allow_nan=True) + "\n", encoding="utf-8")
-    shown = {name: value for params in resolved.values() for name, value in params.items()}
-    summary_md.write_text(summary_markdown(runs, shown), encoding="utf-8")
-    return result
+
+def _write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file in the same folder: a reader sees the old or the new file."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+class _OutLock:
+    """``<out>/.reproduce.lock`` held for one run: a second run into the same folder is refused while the first
+    one's process lives (a lock left by a process that no longer exists is taken over)."""
+
+    def __init__(self, out_dir: Path):
+        self.path = out_dir / ".reproduce.lock"
+
+    def __enter__(self):
+        for _ in range(2):
+            try:
+                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+            except FileExistsError:
+                try:
+                    pid = int(self.path.read_text().strip() or 0)
+                except (OSError, ValueError):
+                    pid = 0
+                if pid > 0 and _alive(pid):
+                    raise ValueError(f"{self.path.parent}: another reproduce (process {pid}) is writing into this "
+                                     "folder; wait for it to finish or give another --out") from None
+                self.path.unlink(missing_ok=True)         # stale: its process is gone
+                continue
+            with os.fdopen(fd, "w") as f:
+                f.write(str(os.getpid()))
+            return self
+        raise ValueError(f"{self.path}: could not take the output folder's lock")
+
+    def __exit__(self, *exc):
+        self.path.unlink(missing_ok=True)
+        return False
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+class _sigterm_interrupts:
+    """While a run lasts, SIGTERM stops it like Ctrl-C (so the summary says it was interrupted and temporary files
+    go); only in the main thread, where Python can install the handler."""
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        self.previous = None
+        if threading.current_thread() is threading.main_thread():
+            def stop(signum, frame):
+                raise KeyboardInterrupt(f"signal {signum}")
+
+            self.previous = signal.signal(signal.SIGTERM, stop)
+        return self
+
+    def __exit__(self, *exc):
+        import signal
+
+        if self.previous is not None:
+            signal.signal(signal.SIGTERM, self.previous)
+        return False
