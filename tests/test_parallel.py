@@ -250,6 +250,7 @@ def _free_port():
     ("notanaddress", r"scheduler 'notanaddress' is not an address.*expected 'local' or a scheduler address"),
     ("tcp://127.0.0.1:99999", r"is not an address"),
     ("foo://host:1", r"unknown protocol 'foo'"),
+    ("inproc://10.0.0.5/123/1", r"inproc:// address lives inside one Python process"),
 ])
 def test_an_address_without_a_scheduler_fails_promptly_naming_it(case, message):
     server = _Server(silent=case == "silent") if case in ("http", "silent") else None
@@ -385,3 +386,13 @@ def test_calibration_curves_identical_on_a_cluster(client, pickled):
     a = mm.calibration_curves(cal, sig, grids=grids, gate_prob=None, progress=False)
     b = mm.calibration_curves(cal, sig, grids=grids, gate_prob=None, scheduler=client, progress=False)
     pd.testing.assert_frame_equal(a, b, check_exact=True)
+
+
+def test_a_protocol_whose_listener_is_not_checked_is_not_said_to_accept_connections():
+    """ucx:// (or tls://) is not probed with a plain socket first: the message must not claim a listener."""
+    try:
+        par.connect(f"tls://127.0.0.1:{_free_port()}", timeout_s=1.0)
+    except par.SchedulerUnreachable as exc:
+        assert "something accepts connections" not in str(exc) and "tls:// connection was not checked" in str(exc)
+    else:
+        raise AssertionError("a closed tls:// port gave a scheduler")

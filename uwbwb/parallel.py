@@ -247,6 +247,9 @@ def check_scheduler_address(address: str) -> str:
     if scheme not in backends:
         raise SchedulerUnreachable(f"scheduler {address!r}: unknown protocol {scheme!r} "
                                    f"(known: {', '.join(sorted(backends))}); {expected}")
+    if scheme == "inproc":
+        raise SchedulerUnreachable(f"scheduler {address!r}: an inproc:// address lives inside one Python process and "
+                                   f"cannot be reached from the notebooks' kernels; {expected}")
     if scheme in ("tcp", "tls", "ws", "wss"):
         try:
             host, port = parse_host_port(loc)
@@ -307,14 +310,17 @@ def _probe(address: str, timeout_s: float) -> None:
     thread = threading.Thread(target=run, name="uwbwb-scheduler-probe", daemon=True)
     thread.start()
     thread.join(timeout_s + 2.0)
+    # only a plain socket was checked to accept connections above; other protocols (tls, wss, ucx) were not
+    there = ("something accepts connections there but" if scheme in ("tcp", "ws") else
+             f"the {scheme}:// connection was not checked on its own and")
     if thread.is_alive() or isinstance(outcome.get("error"), (asyncio.TimeoutError, TimeoutError)):
-        raise SchedulerUnreachable(f"no Dask scheduler at {address}: something accepts connections there but "
-                                   f"did not answer as a Dask scheduler within {timeout_s:g} s") from None
+        raise SchedulerUnreachable(f"no Dask scheduler at {address}: {there} did not answer as a Dask scheduler "
+                                   f"within {timeout_s:g} s") from None
     if "error" in outcome:
         exc = outcome["error"]
         text = _short.repr((str(exc).strip().splitlines() or [""])[0]).strip("'\"")
-        raise SchedulerUnreachable(f"no Dask scheduler at {address}: something accepts connections there but "
-                                   f"the Dask handshake failed ({type(exc).__name__}: {text})") from None
+        raise SchedulerUnreachable(f"no Dask scheduler at {address}: {there} the Dask handshake failed "
+                                   f"({type(exc).__name__}: {text})") from None
     reply = outcome.get("reply")
     kind = reply.get("type") if isinstance(reply, dict) else None
     if kind != "Scheduler":
