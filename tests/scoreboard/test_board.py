@@ -412,3 +412,15 @@ def test_board_scores_each_tag_once_and_refuses_two_entries_for_one_method_and_t
         assert table.loc[method, "rmse_m"] == pytest.approx(np.sqrt(np.mean(e.error_m[e.scored] ** 2)), rel=1e-12)
     with pytest.raises(ValueError, match="one entry per"):
         replace(b, entries=b.entries + (b.entries[0],))
+
+
+def test_what_the_loader_cleaned_is_on_the_board_once():
+    from uwbwb.scoreboard.estimators import CalibratedLs
+    from uwbwb.types import CleaningStep
+
+    step = CleaningStep("ranges above 60 m set to NaN", 7, "anchor A3")
+    rec = replace(_rec(), cleaning=(step,))
+    cal, test = split_in_time(rec, 0.5)
+    b = score(test, cal, estimators=[CalibratedLs()], rate_hz=None, fast=True)
+    assert [c for c in b.checks if c.startswith("loader:")] == [f"loader: {step}"]
+    assert f"loader: {step}" in b.markdown()

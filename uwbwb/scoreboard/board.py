@@ -520,7 +520,8 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
         raise ValueError(f"estimator names must be unique, got {names}")
     tags = scored_tags(test_rec, tags)
     scored_tags(cal_rec, tags)
-    notes: list[str] = []
+    # what the loaders dropped or set to NaN (both parts of one run carry the same steps: each once)
+    notes: list[str] = list(dict.fromkeys(f"loader: {step}" for rec in (cal_rec, test_rec) for step in rec.cleaning))
     if truth_offset_s:
         cal_rec, test_rec = _checks.shift_truth(cal_rec, truth_offset_s), _checks.shift_truth(test_rec, truth_offset_s)
         notes.append(f"truth clock shifted by {-truth_offset_s:+.3f} s (given)")
