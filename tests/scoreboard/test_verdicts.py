@@ -109,3 +109,18 @@ def test_external_rows_are_inputs_in_the_summary(tmp_path):
     assert len(own) and set(own["kind"]) == {"reproduced"} and not own["data"].str.contains("external").any()
     csv = b.write(tmp_path, figure=False)["csv"].read_text()
     assert "shifted truth (external)" in csv and ",input" in csv and ",reproduced" in csv
+
+
+def test_no_common_epochs_give_a_row_that_says_so_not_an_error():
+    """Methods that never covered the same epoch: no interval, no verdict, and the table says why."""
+    n = 50
+    ent = {"A": SimpleNamespace(skipped=None, scored=np.arange(n) < 25, error_m=np.ones(n)),
+           "B": SimpleNamespace(skipped=None, scored=np.arange(n) >= 25, error_m=np.ones(n))}
+    import pandas as pd
+
+    board = SimpleNamespace(tags=("t",), mode="FAST", entry=lambda m, tag: ent[m],
+                            table=lambda: pd.DataFrame({"method": ["A", "B"], "n_scored": [25, 25]}))
+    f = difference_facts(board, "A", "B", rng=np.random.default_rng(0))
+    assert f["n_epochs"] == 0 and f["verdict"] == "none" and np.isnan(f["lo_m"])
+    assert difference_table({"r": board}, [("A", "B")], rng=np.random.default_rng(0)).loc[0, "verdict"] == \
+        "no epochs both covered"

@@ -383,7 +383,7 @@ def block_bootstrap_difference(err_a, err_b, *, rng: np.random.Generator, n_boot
         raise ValueError(f"paired errors must be 1-D arrays of the same lengths, got {[a.shape for a in seg_a]} "
                          f"and {[b.shape for b in seg_b]}")
     sa, sb = [a ** 2 for a in seg_a], [b ** 2 for b in seg_b]
-    xa, xb = np.concatenate(sa), np.concatenate(sb)
+    xa, xb = (np.concatenate(sa), np.concatenate(sb)) if sa else (np.zeros(0), np.zeros(0))
     out = {"n": int(xa.size), "n_blocks": 0, "lo_m": np.nan, "hi_m": np.nan, "ratio_lo": np.nan, "ratio_hi": np.nan}
     if xa.size == 0:
         return {**out, "rmse_a_m": np.nan, "rmse_b_m": np.nan, "diff_m": np.nan}

@@ -27,14 +27,15 @@ def beats_bound_note(row) -> str:
     """The note of a board row (:meth:`.board.Board.table`) whose RMSE is below its own bound; empty when it is not.
 
     Below by less than 2 standard errors: sampling error; by more: "BEATS its own bound" with the ratio and its
-    standard error (none formed: said so), and a pointer to :func:`diagnostics_table`."""
+    standard error, and a pointer to :func:`diagnostics_table`; without a standard error only that it is below."""
     eff, se = row.rmse_over_bound, row.rmse_over_bound_se
     if not np.isfinite(eff) or eff >= 1:
         return ""
-    if np.isfinite(se) and eff > 1 - 2 * se:
+    if not np.isfinite(se):
+        return f"below its own bound (RMSE/bound {eff:.2f}; no standard error: too few blocks to say more)"
+    if eff > 1 - 2 * se:
         return f"below its own bound by {1 - eff:.0%}, within 2 standard errors ({se:.2f}): sampling error"
-    spread = f" ± {se:.2f}" if np.isfinite(se) else " (no standard error: too few blocks)"
-    return f"BEATS its own bound (RMSE/bound {eff:.2f}{spread}): see the board's diagnostics"
+    return f"BEATS its own bound (RMSE/bound {eff:.2f} ± {se:.2f}): see the board's diagnostics"
 
 
 def diagnostics_table(diag: Mapping[str, Mapping], calibration: Calibration) -> pd.DataFrame:

@@ -22,9 +22,9 @@ Rules
   of travel as across it) is a claim of asymmetry, so it is tested against no asymmetry (1) as
   well as against 0.5, on the bootstrap 95 % interval of the median recording (a min–max range
   over recordings cannot reject anything): the interval contains 1 → ``"no asymmetry
-  detected"``; it excludes 1 and contains 0.5 → ``"asymmetric, consistent with 0.5"``; it
-  excludes both → ``"asymmetric, above 0.5"`` / ``"asymmetric, below 0.5"``; no interval →
-  ``"no interval"``. The ratio is reproduced when every corner is asymmetric and consistent with 0.5.
+  detected"``; it lies above 1 → ``"asymmetric the other way"``; it lies below 1 and contains 0.5 →
+  ``"asymmetric, consistent with 0.5"``; below 1 and excluding 0.5 → ``"asymmetric, above 0.5"`` /
+  ``"asymmetric, below 0.5"``; no interval → ``"no interval"``. The ratio is reproduced when every corner is asymmetric and consistent with 0.5.
 * Offset or spread: per recording ``offset² / (offset² + spread²)``; the bootstrap interval
   of its median entirely above 0.5 → ``"offset"``, below → ``"spread"``, else ``"comparable"``.
 * Corner dependence of the ratio: per recording, ratio at the first corner minus at the
@@ -40,7 +40,12 @@ Rules
   noise → model error (exact eq-1 ΔP) → particle count (4×). The particle count has
   *converged* when 4× the particles lowers it by less than 1 cm; only then is what is left
   attributed to the information in Doppler-only data under the motion prior, and only then do the
-  Fig 6 CEP50 verdicts judge its value (else :data:`NOT_CONVERGED`).
+  Fig 6 CEP50 verdicts judge its value (else :data:`NOT_CONVERGED`). The step is measured on the floor
+  run (the first recording, no noise, exact ΔP), not on Fig 6's noisy snapshots, and has no Monte Carlo
+  interval: a proxy for "more particles would still change the answer", stated as such.
+* Fig 5: a cut's minimum is "the reference itself" when it lies at s = 0 with δ = 0 (the cut through
+  V_ref passes through the reference); as the minimum over the whole cut, that cut's own ghosts (a
+  second minimum elsewhere along it) are not judged.
 """
 
 from __future__ import annotations
@@ -68,10 +73,12 @@ OFFSET_SHARE = 0.5
 EQUAL_CM = 0.5
 #: Largest drop (cm) of the floor from 4× the particles for the particle count to count as converged.
 PARTICLE_STEP_CM = 1.0
-#: A Fig 5 minimum closer than this to s = 0 (m along the cut) is the reference point itself.
+#: A Fig 5 minimum closer than this to s = 0 (m along the cut) with δ under REFERENCE_DELTA_CM is the reference
+#: point itself (δ = 0 there by construction, on the cut through V_ref only).
 REFERENCE_S_M = 0.01
+REFERENCE_DELTA_CM = 1e-3
 #: The CEP50 verdicts when 4× the particles still lower the CEP50 by PARTICLE_STEP_CM or more.
-NOT_CONVERGED = "no verdict (PF not converged in particles)"
+NOT_CONVERGED = "no verdict (the floor run's CEP50 still fell by ≥ 1 cm with 4× the particles)"
 #: Threshold (cm) under which a cut's minimum counts as a ghost (Fig 5 uses 6 cm; Fig 3(d) 8 cm).
 GHOST_CUT_CM = 8.0
 
@@ -140,6 +147,8 @@ def _ratio_verdict(lo: float, hi: float, paper: float) -> str:
         return "no interval"
     if lo <= 1.0 <= hi:
         return "no asymmetry detected"
+    if lo > 1.0:
+        return "asymmetric the other way (longer along than across)"
     where = _interval_verdict(lo, hi, paper)
     return f"asymmetric, consistent with {paper:g}" if where == "consistent" else f"asymmetric, {where} {paper:g}"
 
@@ -211,7 +220,8 @@ def facts(res: Results) -> dict:
     f["weak_vel_angle_deg"] = float(weak["angle(velocity part, ±V) (°)"])
     f["cut_min_cm"] = {k: float(v[1]) for k, v in res.cut_minima.items()}
     # a minimum at s = 0 on the cut through V_ref is the reference itself (δ = 0 by construction), not a ghost
-    f["cut_at_reference"] = {k: bool(abs(v[0]) < REFERENCE_S_M) for k, v in res.cut_minima.items()}
+    f["cut_at_reference"] = {k: bool(abs(v[0]) < REFERENCE_S_M and v[1] < REFERENCE_DELTA_CM)
+                             for k, v in res.cut_minima.items()}
     f["cut_is_ghost"] = {k: bool(v[1] < GHOST_CUT_CM and not f["cut_at_reference"][k])
                          for k, v in res.cut_minima.items()}
     f["ghost_cut_cm"] = GHOST_CUT_CM
