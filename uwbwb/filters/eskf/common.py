@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from ...models.ins import NavState
 from ...types import ImuLog
 
 
@@ -20,8 +21,6 @@ SNAPSHOT_RMS_SIGMAS = 3.0    # a snapshot fix is consistent when its TDoA residu
 def check_inputs(where: str, imu, x0) -> None:
     """A filter's entry: ``imu`` must be an :class:`~uwbwb.types.ImuLog` (which holds finite SI samples) and ``x0``
     a :class:`~uwbwb.models.ins.NavState`; a ``TypeError`` naming ``where`` and how to build one otherwise."""
-    from ...models.ins import NavState
-
     if not isinstance(imu, ImuLog):
         raise TypeError(f"{where}: imu must be an ImuLog (t_s, acc_mps2, gyro_radps in the body frame, SI), got "
                         f"{type(imu).__name__}; build one with uwbwb.types.ImuLog(t_s, acc_mps2, gyro_radps)")
