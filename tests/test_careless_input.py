@@ -486,3 +486,12 @@ def test_an_interrupted_run_leaves_no_ok_summary_and_says_it_stopped(monkeypatch
     assert "INTERRUPTED" in text and "00_quickstart" in text and "all ok" not in text
     assert not (out / "summary.json").exists() and not (out / ".reproduce.lock").exists()
     assert not list(out.glob(".*.tmp"))
+
+
+def test_an_inproc_scheduler_is_refused_for_the_notebooks(tmp_path):
+    """The notebooks run in kernels of their own: an in-process scheduler address cannot reach them."""
+    path = NOTEBOOKS_DIR / "04_doppler_beacons.ipynb"
+    with pytest.raises(ValueError, match="inproc:// address lives inside one Python process"):
+        rp.resolve_parameters([path], text={"DASK_SCHEDULER": "inproc://10.0.0.5/123/1"})
+    with pytest.raises(ValueError, match="inproc:// address lives inside one Python process"):
+        rp.reproduce(only=["04"], out=tmp_path, scheduler="inproc://10.0.0.5/123/1")

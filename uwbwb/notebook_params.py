@@ -298,6 +298,10 @@ def _scheduler_address(value: str, name: str) -> None:
     """A ``DASK_SCHEDULER`` value: ``"local"`` or a well-formed scheduler address."""
     if value.strip() == "local":
         return
+    if value.strip().startswith("inproc://"):     # the notebooks run in kernels of their own: they cannot reach it
+        raise ValueError(f"{name}={value!r}: an inproc:// address lives inside one Python process and cannot be "
+                         "reached from the notebooks' kernels; expected 'local' or an address such as "
+                         "tcp://10.0.0.5:8786")
     try:
         check_scheduler_address(value)
     except ImportError as exc:

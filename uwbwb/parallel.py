@@ -247,9 +247,6 @@ def check_scheduler_address(address: str) -> str:
     if scheme not in backends:
         raise SchedulerUnreachable(f"scheduler {address!r}: unknown protocol {scheme!r} "
                                    f"(known: {', '.join(sorted(backends))}); {expected}")
-    if scheme == "inproc":
-        raise SchedulerUnreachable(f"scheduler {address!r}: an inproc:// address lives inside one Python process and "
-                                   f"cannot be reached from the notebooks' kernels; {expected}")
     if scheme in ("tcp", "tls", "ws", "wss"):
         try:
             host, port = parse_host_port(loc)

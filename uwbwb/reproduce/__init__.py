@@ -191,6 +191,9 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     if scheduler_timeout_s is not None:
         kernel_env[parallel.TIMEOUT_ENV] = repr(parallel.connect_timeout_s(scheduler_timeout_s))
     client = None
+    if isinstance(scheduler, str) and scheduler.strip().startswith("inproc://"):
+        raise ValueError(f"scheduler {scheduler!r}: an inproc:// address lives inside one Python process and cannot "
+                         "be reached from the notebooks' kernels; give 'local' or a tcp:// address")
     if scheduler is not None:
         if SCHEDULER_PARAMETER in given or SCHEDULER_PARAMETER in (text_parameters or {}):
             raise ValueError(f"give the cluster once: scheduler={scheduler!r} sets {SCHEDULER_PARAMETER} itself")
