@@ -17,7 +17,7 @@
     it bounds causal estimators only — a smoother or a method with an IMU may go below it)
     aggregated as ``sqrt(mean_k tr C_k)`` over the method's covered epochs, and the method's RMSE
     over those epochs divided by it, with a block standard error (:func:`.verdicts.block_se_ratio`:
-    the board's one block rule; NaN with fewer than :data:`MIN_BLOCKS` blocks). These are each
+    the board's one block rule; NaN with fewer than :data:`uwbwb.metrics.MIN_BLOCKS` blocks). These are each
     method's own covered epochs: a method that skips the hard epochs is placed on easier ones.
 ``common_bound_common_m``, ``rmse_common_over_common``
     The same on the epochs *every* method covered: one bound and one set of epochs for all, so this
@@ -57,12 +57,11 @@ import numpy as np
 import pandas as pd
 
 from .. import metrics
-from ..metrics.errors import MIN_BLOCKS
 from ..types import Estimates, Recording
 from . import checks as _checks
 from .estimators import Estimator, default_estimators, truth_at
 from .explain import beats_bound_note, diagnostics, diagnostics_table
-from .protocol import Calibration, fit_calibration, scored_tags, split_in_time
+from .protocol import Calibration, fit_calibration, scored_tags
 from .reference import REFERENCE, common_bound, fit_reference_motion
 from .reference import describe as describe_reference
 from .verdicts import block_se_ratio

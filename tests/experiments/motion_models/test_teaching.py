@@ -1,7 +1,6 @@
-"""Notebook 03's exercises, panel back end, headline rows/checks and the σ_w tuning-criterion sentence."""
+"""Notebook 03's exercises, panel back end and headline rows/checks."""
 
 import matplotlib
-import numpy as np
 import pytest
 
 from uwbwb.calibration import fit_range_sigma

@@ -107,7 +107,7 @@ def _diverged(res: AblationResult, case: str) -> list[dict]:
 
 
 def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
-    """Numbers and rule outcomes behind every sentence of notebook 05's ablation.
+    """Numbers and rule outcomes behind notebook 05's ablation verdict table.
 
     Returns a dict with ``mode`` ("FAST" or "full"), ``seeds``, ``outage_s``, ``ladder``
     (step → metric → ratio/lo/hi/n/verdict), ``outage`` (versus "loose + gate" and "EKF + gate":
