@@ -31,8 +31,8 @@ from uwbwb.filters.ekf import TdoaEkf
 from uwbwb.filters.gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate
 from uwbwb.models.motion import RandomForce
 from uwbwb.scoreboard.board import calibrate
-from uwbwb.scoreboard.estimators import (BaseEstimator, TdoaEkfEstimator, _tdoa_model, calibrated_log,
-                                         default_estimators)
+from uwbwb.scoreboard.estimators import TdoaEkfEstimator, default_estimators
+from uwbwb.scoreboard.interface import BaseEstimator, _tdoa_model, calibrated_log
 from uwbwb.scoreboard.protocol import between, scored_tags, split_in_time
 from uwbwb.types import EstimateStatus, Estimates, TdoaLog, pseudo_tdoa
 
@@ -148,7 +148,8 @@ def test_every_result_type_gives_the_common_result_with_no_argument():
     (sweeps into an ``EstimatesBatch`` of them), and every run type's NIS consistency has the keys
     of :func:`uwbwb.metrics.nis_consistency`."""
     from uwbwb import metrics
-    from uwbwb.filters import doppler_pf, nls, pruning, tdoa_ls
+    from uwbwb.filters import nls, pruning, tdoa_ls
+    from uwbwb.filters.doppler import pf as doppler_pf
     from uwbwb.filters.eskf.result import FusionRun, _empty
     from uwbwb.filters.setnoise import kf as setnoise_kf
     from uwbwb.filters.setnoise import pf as setnoise_pf

@@ -170,40 +170,137 @@ def test_other_attributes_are_still_attribute_errors(name):
         getattr(uw, name)
 
 
-#: The most lines a module of the package may have (issue 19); a declared kernel longer than that would be
-#: listed in :data:`LONG_KERNELS` with the reason (none is today).
-MAX_MODULE_LINES = 600
-LONG_KERNELS: dict[str, str] = {}
-
-
-def _too_long(package: Path) -> dict[str, int]:
-    out = {}
-    for path in sorted(package.rglob("*.py")):
-        name = path.relative_to(package).as_posix()
-        n = len(path.read_text(encoding="utf-8").splitlines())
-        if n > MAX_MODULE_LINES and name not in LONG_KERNELS:
-            out[name] = n
+def _defined(tree: ast.Module) -> set[str]:
+    """Names a module binds at its top level other than by importing them."""
+    out = set()
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            out.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+            for target in (node.targets if isinstance(node, ast.Assign) else [node.target]):
+                out |= {n.id for n in ast.walk(target) if isinstance(n, ast.Name)}
     return out
 
 
-def test_no_module_is_longer_than_the_limit():
-    long = _too_long(PACKAGE)
-    assert not long, (f"modules over {MAX_MODULE_LINES} lines (split them by responsibility): "
-                      + ", ".join(f"{k} ({v})" for k, v in long.items()))
+def _top_imports(module: str, path: Path, tree: ast.Module):
+    """``(node, resolved module, alias)`` of every top-level ``from … import`` of the package."""
+    package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
+    for node in tree.body:
+        if isinstance(node, ast.ImportFrom) and node.module != "__future__":
+            if node.level:
+                parts = package.split(".")
+                target = ".".join(parts[: len(parts) - node.level + 1] + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            for alias in node.names:
+                yield node, target, alias
 
 
-def test_the_length_check_sees_a_long_module(tmp_path):
-    (tmp_path / "sub").mkdir()
-    (tmp_path / "sub" / "long.py").write_text("x = 1\n" * (MAX_MODULE_LINES + 1))
-    (tmp_path / "short.py").write_text("x = 1\n" * MAX_MODULE_LINES)
-    assert _too_long(tmp_path) == {"sub/long.py": MAX_MODULE_LINES + 1}
+def re_exports(package: Path | None = None) -> list[str]:
+    """Imports that only pass a name on, and imports of a name from a module that does not define it.
+
+    A module other than a package's ``__init__`` uses every name it imports (an import only listed in
+    ``__all__`` is a re-export) and lists in ``__all__`` only names it defines; and nobody imports a name
+    from a plain module that got it by importing. A package's ``__init__`` is its public face and may
+    gather names, from the module that defines each.
+    """
+    global PACKAGE
+    saved, PACKAGE = PACKAGE, package or PACKAGE
+    try:
+        modules = _modules()
+        trees = {m: ast.parse(p.read_text(encoding="utf-8"), str(p)) for m, p in modules.items()}
+    finally:
+        PACKAGE = saved
+    found = []
+    for module, tree in trees.items():
+        path = modules[module]
+        mine = _defined(tree)
+        if path.name != "__init__.py":
+            exported = [n for node in tree.body if isinstance(node, ast.Assign)
+                        and any(isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets)
+                        for n in ast.walk(node.value) if isinstance(n, ast.Constant)]
+            listed = {id(n) for n in exported}
+            used = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+            text = " ".join(n.value for n in ast.walk(tree)                    # string annotations, doctests
+                            if isinstance(n, ast.Constant) and isinstance(n.value, str) and id(n) not in listed)
+            for node, _, alias in _top_imports(module, path, tree):
+                name = alias.asname or alias.name
+                if name not in used and name not in text:
+                    found.append(f"{module}: imports {name} and does not use it (a re-export)")
+            found += [f"{module}: __all__ lists {n.value}, which it does not define" for n in exported
+                      if n.value not in mine]
+        for node, target, alias in _top_imports(module, path, tree):
+            source = modules.get(target)
+            if (source is not None and source.name != "__init__.py" and f"{target}.{alias.name}" not in modules
+                    and alias.name not in _defined(trees[target])):
+                found.append(f"{module}: imports {alias.name} from {target}, which does not define it")
+    return sorted(found)
 
 
-#: An experiment's ``study.py`` is orchestration only (issue 19): at most this many lines.
-MAX_STUDY_LINES = 400
+def import_circles(package: Path | None = None) -> list[list[str]]:
+    """Groups of modules that import each other at their top level (strongly connected components)."""
+    global PACKAGE
+    saved, PACKAGE = PACKAGE, package or PACKAGE
+    try:
+        modules = _modules()
+        trees = {m: ast.parse(p.read_text(encoding="utf-8"), str(p)) for m, p in modules.items()}
+    finally:
+        PACKAGE = saved
+    # imports run when the module loads: its top level (not functions, not `if TYPE_CHECKING:` blocks)
+    graph = {m: {f"{t}.{a.name}" if f"{t}.{a.name}" in modules else t
+                 for _, t, a in _top_imports(m, modules[m], tree)} - {m} for m, tree in trees.items()}
+    # a package's __init__ and the modules it gathers are one unit: edges into an ancestor package do not count
+    graph = {m: {t for t in ts if t in modules and not m.startswith(t + ".")} for m, ts in graph.items()}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    circles = []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                circles.append(sorted(group))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return circles
 
 
-def test_every_experiment_study_is_orchestration_sized():
-    long = {p.parent.name: n for p in sorted((PACKAGE / "experiments").glob("*/study.py"))
-            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_STUDY_LINES}
-    assert not long, f"experiments whose study.py is over {MAX_STUDY_LINES} lines (move analysis out): {long}"
+def test_no_module_passes_names_on():
+    found = re_exports()
+    assert not found, "import each name from the module that defines it:\n" + "\n".join(found)
+
+
+def test_no_import_circle():
+    circles = import_circles()
+    assert not circles, f"modules that import each other (one of them holds what both need): {circles}"
+
+
+def test_the_structure_checks_see_re_exports_and_circles(tmp_path):
+    pkg = tmp_path / "uwbwb"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("from .a import f\n")                      # a package's face: allowed
+    (pkg / "a.py").write_text("from .b import g\n\n__all__ = ['f', 'g']\n\ndef f():\n    return g()\n")
+    (pkg / "b.py").write_text("from .a import f\nfrom .c import h\n\ndef g():\n    return f()\n")
+    (pkg / "c.py").write_text("def h():\n    return 1\n")
+    (pkg / "sub" / "__init__.py").write_text("")
+    (pkg / "sub" / "d.py").write_text("from ..a import g\n\ndef k():\n    return g()\n")
+    assert re_exports(pkg) == ["uwbwb.a: __all__ lists g, which it does not define",
+                               "uwbwb.b: imports h and does not use it (a re-export)",
+                               "uwbwb.sub.d: imports g from uwbwb.a, which does not define it"]
+    assert import_circles(pkg) == [["uwbwb.a", "uwbwb.b"]]

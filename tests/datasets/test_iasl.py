@@ -10,7 +10,7 @@ import pytest
 from tests.conftest import real_dataset
 from tests.fixtures import iasl as fx
 from uwbwb import Anchors, DataFormatError, DataNotFoundError, RangeLog, Trajectory
-from uwbwb.datasets import iasl
+from uwbwb.datasets import iasl, iasl_files
 
 
 
@@ -115,9 +115,9 @@ def test_headers_are_optional(synthetic, tmp_path):
 
 
 def _arrays(parsed):
-    if isinstance(parsed, iasl.UwbFile):
+    if isinstance(parsed, iasl_files.UwbFile):
         return parsed.ranges.t_s, parsed.ranges.range_m, parsed.device.pos_m
-    if isinstance(parsed, iasl.ImuFile):
+    if isinstance(parsed, iasl_files.ImuFile):
         return parsed.imu.t_s, parsed.imu.acc_mps2, parsed.imu.gyro_radps
     return parsed.truth.t_s, parsed.truth.pos_m, parsed.truth.rot
 

@@ -9,7 +9,7 @@ import pytest
 from tests.conftest import real_dataset
 from tests.fixtures import lias as fx
 from uwbwb import DataFormatError, DataNotFoundError, Recording
-from uwbwb.datasets import lias
+from uwbwb.datasets import lias, registration
 
 OFFSET_S = 0.35
 
@@ -112,12 +112,12 @@ def test_read_mocap_csv(tree):
 
 def test_quaternion_to_rot_orders_agree():
     q = np.array([[np.cos(0.3), 0.0, 0.0, np.sin(0.3)]])
-    rz = lias.quaternion_to_rot(q, "wxyz")[0]
+    rz = registration.quaternion_to_rot(q, "wxyz")[0]
     np.testing.assert_allclose(rz, [[np.cos(0.6), -np.sin(0.6), 0], [np.sin(0.6), np.cos(0.6), 0], [0, 0, 1]],
                                atol=1e-12)
-    np.testing.assert_allclose(lias.quaternion_to_rot(q[:, [1, 2, 3, 0]], "xyzw")[0], rz, atol=1e-12)
+    np.testing.assert_allclose(registration.quaternion_to_rot(q[:, [1, 2, 3, 0]], "xyzw")[0], rz, atol=1e-12)
     with pytest.raises(ValueError):
-        lias.quaternion_to_rot(q, "zyxw")
+        registration.quaternion_to_rot(q, "zyxw")
 
 
 def test_read_tables_parses_every_section(tree):

@@ -27,7 +27,7 @@ from hypothesis import strategies as st
 from tests.fixtures import hanyang as hanyang_fx
 from tests.fixtures import iasl as iasl_fx
 from uwbwb import DataFormatError, RangeLog, Recording
-from uwbwb.datasets import hanyang, iasl, packets, tidy
+from uwbwb.datasets import hanyang, iasl, iasl_files, packets, tidy
 from uwbwb.datasets.cleaning import MAX_RANGE_M
 
 _EXPLORE = int(os.environ.get("UWBWB_FUZZ_EXAMPLES", "0"))
@@ -132,14 +132,14 @@ IASL_FILES = ["scenario1/uwb.csv", "scenario2/uwb.csv", "scenario1/imu.csv", "sc
 
 
 def _check_iasl_file(parsed) -> None:
-    if isinstance(parsed, iasl.UwbFile):
+    if isinstance(parsed, iasl_files.UwbFile):
         log = parsed.ranges
         assert log.range_m.shape == (len(log.t_s), len(log.anchor_ids))
         assert len(parsed.device) == len(log) == parsed.system_time_ms.size
         assert not np.any(log.range_m <= 0) and not np.any(log.range_m > MAX_RANGE_M)
-    elif isinstance(parsed, iasl.ImuFile):
+    elif isinstance(parsed, iasl_files.ImuFile):
         assert parsed.imu.acc_mps2.shape == parsed.imu.gyro_radps.shape == (len(parsed.imu), 3)
-    elif isinstance(parsed, iasl.GtFile):
+    elif isinstance(parsed, iasl_files.GtFile):
         assert parsed.truth.rot.shape == (len(parsed.truth), 3, 3)
     else:
         assert parsed.pos_m.shape == (len(parsed.ids), 3)

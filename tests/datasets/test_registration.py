@@ -14,7 +14,6 @@ from uwbwb.geometry import linear_multilaterate
 def test_loaders_use_the_shared_estimators():
     assert iasl.register_truth is registration.register_truth and iasl.align_imu is registration.align_imu
     assert iasl.RegistrationError is registration.RegistrationError
-    assert lias.quaternion_to_rot is registration.quaternion_to_rot
     assert not hasattr(iasl, "multilaterate_linear")    # one linear multilateration: uwbwb.geometry
 
 

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from uwbwb import sampling as smp
-from uwbwb.experiments.doppler import facts, figures, headlines, study
+from uwbwb.experiments.doppler import facts, figures, ghosts, headlines, scoring, study
 from uwbwb.models import doppler as dm
 
 matplotlib.use("Agg")
@@ -52,7 +52,7 @@ def test_reference_table_is_eq1_under_both_readings(cfg):
 
 def test_fisher_weakest_direction_is_the_least_informative_one(cfg):
     model = study.make_model("cubic", cfg)
-    f = study.fisher_analysis(model)
+    f = ghosts.fisher_analysis(model)
     w = f["weak"][0]
     d = np.concatenate([w["position part"], w["velocity part"]])
     J = f["J"]
@@ -71,7 +71,7 @@ def test_fisher_weakest_direction_is_the_least_informative_one(cfg):
 def test_cut_with_the_reference_velocity_reaches_zero_at_the_reference(cfg):
     model = study.make_model("cubic", cfg)
     s = np.linspace(-1, 1, 201)
-    df = study.cuts(model, np.array([1.0, 0, 0]), {"ref": dm.REFERENCE_VEL_MPS, "fast": 2 * dm.REFERENCE_VEL_MPS}, s)
+    df = ghosts.cuts(model, np.array([1.0, 0, 0]), {"ref": dm.REFERENCE_VEL_MPS, "fast": 2 * dm.REFERENCE_VEL_MPS}, s)
     assert df["ref"].iloc[100] == pytest.approx(0.0, abs=1e-9) and df["ref"].min() == df["ref"].iloc[100]
     assert df["fast"].min() > 0.5
 
@@ -84,7 +84,7 @@ def test_ghost_geometry_finds_a_plane_and_an_axis():
     b = np.cross(v, a)
     pos = rng.normal(size=(3000, 1)) * a + rng.normal(size=(3000, 1)) * b + 0.01 * rng.normal(size=(3000, 1)) * v
     vel = rng.normal(size=(3000, 1)) * v + 0.05 * rng.normal(size=(3000, 3))
-    g = study.ghost_geometry(smp.GhostSamples(pos, vel, np.zeros(3000), np.ones(3000)))
+    g = ghosts.ghost_geometry(smp.GhostSamples(pos, vel, np.zeros(3000), np.ones(3000)))
     assert g["angle(position plane normal, V) (°)"] < 2 and g["angle(velocity main axis, V) (°)"] < 5
 
 
@@ -98,9 +98,9 @@ def test_distinct_counts_do_not_count_resampled_copies():
 
 def test_bootstrap_median_interval_covers_and_needs_three_values():
     rng = np.random.default_rng(0)
-    m, lo, hi = study.bootstrap_median(rng.normal(10.0, 1.0, 40), rng=rng)
+    m, lo, hi = scoring.bootstrap_median(rng.normal(10.0, 1.0, 40), rng=rng)
     assert lo < 10.0 < hi and lo < m < hi
-    assert np.isnan(study.bootstrap_median([1.0, 2.0], rng=rng)[1])
+    assert np.isnan(scoring.bootstrap_median([1.0, 2.0], rng=rng)[1])
 
 
 # ------------------------------------------------------------------ facts and sentences on both sides of each rule
@@ -276,12 +276,12 @@ def test_filter_comparison_verdict_follows_the_interval_of_differences():
 def test_coverage_is_low_for_an_overconfident_posterior():
     rng = np.random.default_rng(3)
     err = rng.normal(0.0, 0.1, (4000, 2))
-    honest = study.in_region_95(err, np.broadcast_to(0.01 * np.eye(2), (4000, 2, 2)))
+    honest = scoring.in_region_95(err, np.broadcast_to(0.01 * np.eye(2), (4000, 2, 2)))
     assert 0.93 < honest.mean() < 0.97
-    collapsed = study.in_region_95(err, np.broadcast_to(1e-6 * np.eye(2), (4000, 2, 2)))
+    collapsed = scoring.in_region_95(err, np.broadcast_to(1e-6 * np.eye(2), (4000, 2, 2)))
     assert collapsed.mean() < 0.01
-    assert not study.in_region_95(err[:1], np.zeros((1, 2, 2)))[0]          # singular: covers nothing
-    assert not study.in_region_95(err[:1], np.full((1, 2, 2), np.nan))[0]
+    assert not scoring.in_region_95(err[:1], np.zeros((1, 2, 2)))[0]          # singular: covers nothing
+    assert not scoring.in_region_95(err[:1], np.full((1, 2, 2), np.nan))[0]
 
 
 def test_floor_verdict_is_read_from_the_measured_steps():
@@ -351,11 +351,11 @@ def test_small_study_end_to_end(cfg):
     tracks = study.track_studies("lab", cfg)
     assert len(tracks) == 2 and tracks[0].pf["Doppler"].n_runs == 3 and tracks[1].pf["Doppler"].n_runs == 2
     t_a, t_b = tracks[0].snapshots_s
-    snap = study.snapshot_table(tracks)
+    snap = scoring.snapshot_table(tracks)
     assert set(snap["corner"]) == {"bottom-left", "top-left"} and len(snap) == 2 * 2 * 2
     # the error about the truth is the offset and the spread about the cloud's centre combined
     assert np.all(snap["CEP50 (cm)"] <= snap["offset (cm)"] + snap["run-to-run CEP50 (cm)"] + 1e-9)
-    scores = study.filter_scores(tracks)
+    scores = scoring.filter_scores(tracks)
     assert (scores["epochs"] > 50).all() and (scores["PF with an estimate"] == 1).all()
     assert scores[["PF coverage", "MH-EKF coverage"]].apply(lambda c: c.between(0, 1)).all().all()
     assert tracks[0].pf["Doppler"].pos_cov_m2.shape == tracks[0].pf["Doppler"].pos_m.shape + (3,)

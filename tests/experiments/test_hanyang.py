@@ -9,7 +9,7 @@ import pytest
 from tests.fixtures import hanyang as fx
 from uwbwb.datasets import hanyang_dynamic as hd
 from uwbwb.errors import DataFormatError
-from uwbwb.experiments.hanyang import facts, study
+from uwbwb.experiments.hanyang import authors, estimators, facts, pairs, study
 from uwbwb.models.motion import make_motion_model
 from uwbwb.types import EstimateStatus, Estimates
 
@@ -26,7 +26,7 @@ def tree(tmp_path_factory):
 def test_reproduction_matches_an_independent_implementation_of_the_authors_definition(tree):
     data, cases = tree
     for c in cases:
-        df = study.reproduce_authors(c.name, data).set_index(["method", "metric"])
+        df = authors.reproduce_authors(c.name, data).set_index(["method", "metric"])
         for method, v in c.rmsd.items():
             assert df.loc[(method, "RMSE 2-D"), "reproduced_m"] == pytest.approx(v["rmse_2d_m"], abs=1e-6)
             assert df.loc[(method, "RMSE 3-D"), "reproduced_m"] == pytest.approx(v["rmse_m"], abs=1e-6)
@@ -46,10 +46,10 @@ def test_reproduction_verdict_flips_with_the_difference():
 def test_rmsd_file_parsing(tmp_path):
     p = tmp_path / "RMSD_results.txt"
     p.write_text("LS RMSE: 1.5 m\nLS RMSE_2d: 1.0\nInsufficient data for ESKF RMSE calculation\nESKF RMSE_2d: 0.9\n")
-    assert study.read_rmsd_results(p) == {"LS": {"rmse_m": 1.5, "rmse_2d_m": 1.0}, "ESKF": {"rmse_2d_m": 0.9}}
+    assert authors.read_rmsd_results(p) == {"LS": {"rmse_m": 1.5, "rmse_2d_m": 1.0}, "ESKF": {"rmse_2d_m": 0.9}}
     p.write_text("LS RMSE: 1.5 m\nLS RMSE 2d = 1.0\n")
     with pytest.raises(DataFormatError) as err:
-        study.read_rmsd_results(p)
+        authors.read_rmsd_results(p)
     assert err.value.line == 2
 
 
@@ -60,7 +60,7 @@ def test_rmsd_values_that_cannot_be_rmses_are_refused_naming_the_line(tmp_path, 
     p = tmp_path / "RMSD_results.txt"
     p.write_text(text)
     with pytest.raises(DataFormatError, match=message) as err:
-        study.read_rmsd_results(p)
+        authors.read_rmsd_results(p)
     assert err.value.line == line and str(p) in str(err.value)
 
 
@@ -68,21 +68,21 @@ def test_rmsd_file_that_is_not_text_or_not_a_file_is_a_format_error(tmp_path):
     p = tmp_path / "RMSD_results.txt"
     p.write_bytes(b"LS RMSE: \xff\xfe 1.5 m\n")
     with pytest.raises(DataFormatError, match="UTF-8"):
-        study.read_rmsd_results(p)
+        authors.read_rmsd_results(p)
     d = tmp_path / "folder"
     d.mkdir()
     with pytest.raises(DataFormatError, match="found a folder"):
-        study.read_rmsd_results(d)
+        authors.read_rmsd_results(d)
 
 
 def test_authors_window_follows_their_rules(tree):
     data, cases = tree
     rec = hd.load_dynamic_case(cases[0].name, data, register=False)
-    t0, t1 = study.authors_window(rec.truth["tag"], "A")
+    t0, t1 = authors.authors_window(rec.truth["tag"], "A")
     p = rec.truth["tag"].interp([t0, t1])
     assert p[0, 0] > 49.3 and p[0, 1] > -5 and p[1, 0] <= 12 and p[1, 1] > 3.4
     with pytest.raises(ValueError, match="never meets the start rule"):
-        study.authors_window(rec.truth["tag"].select(slice(0, 10)), "A")
+        authors.authors_window(rec.truth["tag"].select(slice(0, 10)), "A")
 
 
 def test_tuning_case_is_never_the_scored_one():
@@ -106,14 +106,14 @@ def test_external_rows_are_interpolated_onto_the_board_epochs_without_extrapolat
     rec = replace(rec, meta={**rec.meta, "authors_estimates": {"LS": est}})
     cal = fit_calibration(rec, dim=2)
     log = rec.ranges["tag"]
-    out = study.AuthorsEstimator("LS").estimate(rec, "tag", cal)
+    out = authors.AuthorsEstimator("LS").estimate(rec, "tag", cal)
     assert np.array_equal(out.t_s, log.t_s)
     inside = (log.t_s >= 1.0) & (log.t_s <= 1.2)
     np.testing.assert_allclose(out.pos_m[inside], np.column_stack([log.t_s[inside], 2 * log.t_s[inside]]))
     gap = (log.t_s > 1.2) & (log.t_s < 2.0)                 # 0.8 s between two outputs: no estimate
     assert gap.any() and np.all(out.status[gap] == EstimateStatus.NO_ESTIMATE)
     assert np.all(out.status[log.t_s > 2.1] == EstimateStatus.NO_ESTIMATE)
-    assert study.AuthorsEstimator("ESKF").applies(rec, "tag", cal) is not None
+    assert authors.AuthorsEstimator("ESKF").applies(rec, "tag", cal) is not None
 
 
 def test_range_measurement_jacobian_matches_finite_differences():
@@ -121,7 +121,7 @@ def test_range_measurement_jacobian_matches_finite_differences():
     anchors = np.array(list(fx.DYNAMIC_ANCHORS.values()))
     for model in ("RW", "RF"):
         motion = make_motion_model(model, sigma=1.0, dt_s=0.1, dim=2)
-        meas = study.RangeMeasurement(anchors, np.full(4, 0.1), motion, 1.1)
+        meas = estimators.RangeMeasurement(anchors, np.full(4, 0.1), motion, 1.1)
         x = rng.normal(0, 5, motion.n_x)
         row = np.array([10.0, np.nan, 12.0, 11.0])
         lin = meas.linearise(x, row)
@@ -152,13 +152,13 @@ def test_authors_front_end_gates_jumps_and_holds_ranges():
     r = np.full((12, 2), np.nan)
     r[:, 0] = [10.0, 10.1, 13.0, 13.0, 13.0, 13.0, 13.0, 13.1, np.nan, np.nan, np.nan, np.nan]
     r[::3, 1] = 5.0
-    out, rep = study.authors_front_end(t, r)
+    out, rep = authors.authors_front_end(t, r)
     # four jumps rejected (held at 10.1 within 0.3 s), the fifth accepted and kept
     np.testing.assert_allclose(out[:, 0], [10.0, 10.1, 10.1, 10.1, 10.1, np.nan, 13.0, 13.1, 13.1, 13.1, 13.1, np.nan])
     np.testing.assert_allclose(out[:, 1], np.where(np.arange(12) < 12, 5.0, np.nan))
     assert rep["n_rejected"].sum() == 4 and rep["n_rejected"][2:6].tolist() == [1, 1, 1, 1]
     assert rep["n_held"].sum() == 3 + 3 + 8
-    out2, rep2 = study.authors_front_end(t, r, jump_m=5.0)
+    out2, rep2 = authors.authors_front_end(t, r, jump_m=5.0)
     assert rep2["n_rejected"].sum() == 0 and out2[2, 0] == 13.0
 
 
@@ -200,7 +200,7 @@ def test_static_answer_is_yes_only_if_it_helps_everywhere(his, answer):
 
 def test_static_model_is_fitted_from_the_static_files(tree):
     data, _ = tree
-    m = study.static_range_model("LOS", data)
+    m = estimators.static_range_model("LOS", data)
     assert m.bias_m == pytest.approx(0.22, abs=0.05) and m.scale == pytest.approx(1.0, abs=0.01)
     np.testing.assert_allclose(m.correct(m.scale * 10.0 + m.bias_m), 10.0)
 
@@ -211,7 +211,7 @@ def test_case_board_scores_ours_and_theirs_on_the_same_epochs(tree):
     tune = study.tuning_case(case, [c.name for c in cases])
     assert tune == cases[3].name
     est = [e for e in study.study_estimators(fast=True) if e.name in
-           ("raw LS", "LS", "EKF-RF ranges", "NLS residual pruning")] + [study.AuthorsEstimator("LS")]
+           ("raw LS", "LS", "EKF-RF ranges", "NLS residual pruning")] + [authors.AuthorsEstimator("LS")]
     board = study.case_board(case, tune, data, fast=True, estimators=est)
     assert board.label == f"hanyang-outdoor-uwb/{case}" and tune in board.calibration.source
     assert board.calibration.dim == 2
@@ -222,7 +222,7 @@ def test_case_board_scores_ours_and_theirs_on_the_same_epochs(tree):
     t0, t1 = study.board_epochs(hd.load_dynamic_case(case, data))
     e = board.entry("raw LS", "tag")
     assert e.estimates.t_s[0] >= t0 and e.estimates.t_s[-1] < min(t1, t0 + study.FAST_SPAN_S)
-    repro = study.reproduce_authors(case, data)
+    repro = authors.reproduce_authors(case, data)
     ratios = study.ratio_table({case: board}, repro)
     assert set(ratios["method"]) == {"raw LS", "LS", "EKF-RF ranges", "NLS residual pruning"}
     assert ratios["best"].sum() == 1 and (ratios["ratio"] > 0).all()
@@ -348,7 +348,7 @@ def test_ratio_is_on_the_pairs_epochs_whatever_else_is_on_the_board():
     assert with_c.loc["C", "held_ratio"] == pytest.approx(0.5)
     assert with_c["best"].sum() == 1 and with_c.loc["C", "best"]
     # with no clock change the offset check gives the plain ratio
-    assert study.offset_ratio(_fake_board("d/X", errs, has), "A", "authors LS (external)", 0.0) == pytest.approx(
+    assert pairs.offset_ratio(_fake_board("d/X", errs, has), "A", "authors LS (external)", 0.0) == pytest.approx(
         np.sqrt(5.0) / 2.0)
 
 
@@ -366,8 +366,8 @@ def test_offset_ratio_moves_the_truth_clock():
     board = SimpleNamespace(ran=lambda tag=None: [Entry("late", "tag", late, None, truth),
                                                   Entry("exact", "tag", exact, None, truth)])
     # truth'(t) = truth(t − 0.2) matches "late": its error vanishes (ratio → 0); without the change it is 0.2/0.1
-    assert study.offset_ratio(board, "late", "exact", 0.0) == pytest.approx(2.0)
-    assert study.offset_ratio(board, "late", "exact", 0.2) < 0.05
+    assert pairs.offset_ratio(board, "late", "exact", 0.0) == pytest.approx(2.0)
+    assert pairs.offset_ratio(board, "late", "exact", 0.2) < 0.05
 
 
 def test_the_fair_pick_is_made_on_the_tuning_case_alone(tree, tmp_path):
@@ -376,7 +376,7 @@ def test_the_fair_pick_is_made_on_the_tuning_case_alone(tree, tmp_path):
 
     data, cases = tree
     case, tune = cases[2].name, cases[3].name
-    est = [e for e in study.study_estimators(fast=True) if e.name in ("raw LS", "LS")] + [study.AuthorsEstimator("LS")]
+    est = [e for e in study.study_estimators(fast=True) if e.name in ("raw LS", "LS")] + [authors.AuthorsEstimator("LS")]
 
     def run(d):
         board = study.case_board(case, tune, d, fast=True, estimators=est)
@@ -390,7 +390,7 @@ def test_the_fair_pick_is_made_on_the_tuning_case_alone(tree, tmp_path):
     df = pd.read_csv(path)
     ref = hd.load_dynamic_case(case, data, register=False).truth["tag"]
     assert len(ref) == len(df)
-    t0, t1 = study.authors_window(ref, "A")
+    t0, t1 = authors.authors_window(ref, "A")
     inside = (ref.t_s > t0 + 0.4 * (t1 - t0)) & (ref.t_s < t0 + 0.6 * (t1 - t0))
     assert inside.sum() > 10
     df.loc[inside, "x"] += 0.7

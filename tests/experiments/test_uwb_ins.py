@@ -7,6 +7,7 @@ import pytest
 from tests.conftest import real_dataset
 from tests.fixtures import iasl as fx
 from uwbwb.experiments.uwb_ins import study
+from uwbwb.filters import alignment, imu_calibration
 from uwbwb.models.tdoa import TdoaModel
 from uwbwb.types import TdoaLog
 
@@ -50,10 +51,10 @@ def test_screened_tdoa_removes_what_eq4_rejects():
     anchors = np.array([[0, 0, 2.4], [7, 0, 2.2], [7, 5, 2.4], [0, 5, 2.2]], float)
     d = np.array([[0.0, 1.0, 30.0, np.nan], [0.0, 20.0, np.nan, np.nan]])
     log = TdoaLog(np.array([0.0, 0.02]), d, np.array([0, 0]), ("a", "b", "c", "d"))
-    out, n = study.screened_tdoa(log, anchors, 0.1)
+    out, n = alignment.screened_tdoa(log, anchors, 0.1)
     np.testing.assert_array_equal(n, [1, 1])
     assert np.isnan(out.tdoa_m[0, 2]) and out.ref[1] == -1
-    same, none = study.screened_tdoa(log, anchors, None)
+    same, none = alignment.screened_tdoa(log, anchors, None)
     assert same is log and not none.any()
 
 
@@ -72,12 +73,12 @@ def test_real_data_path_runs_on_any_scenario_by_name(tmp_path, names):
     from uwbwb.datasets import iasl
 
     data = _fixture_tree(tmp_path, names)
-    cal = study.calibrate_iasl(iasl.load_scenario(names[0], data))
+    cal = imu_calibration.calibrate_iasl(iasl.load_scenario(names[0], data))
     assert cal.source.endswith(names[0])
     # the fixture's accelerometer reads 1.056 × the specific force, z down (as upstream)
     assert cal.notes["accelerometer scale (flight fit, cross-check)"] == pytest.approx(1 / 1.056, rel=0.03)
     np.testing.assert_allclose(np.diag(cal.convention.R_body_sensor), [1, -1, -1])
-    comp = study.compare_iasl(iasl.load_scenario(names[1], data), cal, still_s=1.0, align_s=15.0)
+    comp = alignment.compare_iasl(iasl.load_scenario(names[1], data), cal, still_s=1.0, align_s=15.0)
     t = comp.table()
     assert comp.label.endswith(names[1])
     assert t.loc["tight", "coverage"] > 0.99 and np.isfinite(t.loc["tight", "RMSE (m)"])
@@ -100,9 +101,9 @@ def test_real_iasl_calibration_transfers():
     from uwbwb.datasets import iasl
 
     real_dataset("iasl-uwb-imu")
-    cal = study.calibrate_iasl(iasl.load_scenario("scenario1"))
+    cal = imu_calibration.calibrate_iasl(iasl.load_scenario("scenario1"))
     assert 0.93 < cal.convention.acc_scale < 0.96              # ≈ 9.81 / 10.3
-    comp = study.compare_iasl(iasl.load_scenario("scenario2"), cal, duration_s=20.0, align_s=15.0)
+    comp = alignment.compare_iasl(iasl.load_scenario("scenario2"), cal, duration_s=20.0, align_s=15.0)
     t = comp.table()
     assert t.loc["tight", "RMSE (m)"] < 1.2 * t.loc["UWB-only", "RMSE (m)"]
     assert t.loc["EKF + gate", "coverage"] > 0.99             # the gated IMU-free EKF scores beside them

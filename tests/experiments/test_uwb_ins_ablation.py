@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 
 from uwbwb.experiments.uwb_ins import ablation as ab
-from uwbwb.experiments.uwb_ins import facts, headlines
+from uwbwb.experiments.uwb_ins import facts, headlines, ladder, scoring
+from uwbwb.filters import alignment
 from uwbwb.models.tdoa import TdoaModel, triangle_outliers
 from uwbwb.sim import robot
 from uwbwb.types import EstimateStatus, Estimates, TdoaLog
@@ -123,7 +124,7 @@ def test_eq4_thresholds_are_where_the_test_starts_to_fire():
     cfg = robot.RobotConfig()
     a = np.asarray(cfg.stations_m, float)
     p = np.array([3.5, 2.0, cfg.tag_height_m])
-    th = ab.eq4_thresholds(cfg, p, 0.1)
+    th = ladder.eq4_thresholds(cfg, p, 0.1)
     assert len(th) == 3 and th.notna().all().all()
     e = float(th.loc["BS2 − BS1", "min excess on the station (m)"])
     r = np.linalg.norm(p - a, axis=1)
@@ -133,9 +134,9 @@ def test_eq4_thresholds_are_where_the_test_starts_to_fire():
         assert triangle_outliers(d, 0, a, 0.1)[0, 1] == fires
     # over the ablation's path the smallest threshold is where the matched 0.3–4 m multipath can fire
     cfg_ab = ab.AblationConfig.fast()
-    path = ab.eq4_path(cfg_ab)
-    over = ab.eq4_thresholds(cfg, path, 0.1).iloc[:, 1:]
-    per_point = np.array([ab.eq4_thresholds(cfg, q, 0.1).iloc[:, 1:].to_numpy().min() for q in path])
+    path = ladder.eq4_path(cfg_ab)
+    over = ladder.eq4_thresholds(cfg, path, 0.1).iloc[:, 1:]
+    per_point = np.array([ladder.eq4_thresholds(cfg, q, 0.1).iloc[:, 1:].to_numpy().min() for q in path])
     assert over.to_numpy().min() == pytest.approx(per_point.min())           # the minimum over the path
     assert over.to_numpy().min() < cfg.outlier_excess_m[1]      # somewhere on it the 0.3–4 m multipath can fire
     g = facts.facts(_fake(GOOD))["eq4_geometry"]
@@ -261,10 +262,10 @@ def test_ladder_ratios_use_the_epochs_both_rows_cover_and_show_each_coverage():
     prs = [{"case": "matched", "seed": k + 1, "step": step, "metric": "dyn_rmse", "num": 2.0, "den": 1.0,
             "both_cov": 0.8} for k in range(res.config.seeds)]
     res = ab.AblationResult(res.config, False, res.tuning, {}, res.scores, res.counts, pd.DataFrame(prs))
-    r = ab.pair_rmse(res, step, "dyn_rmse")
+    r = ladder.pair_rmse(res, step, "dyn_rmse")
     assert r["ratio"] == pytest.approx(2.0) and r["both_cov"] == pytest.approx(0.8) and r["n"] == 6
     res.scores.loc[res.scores["method"] == "LS + gate", "dyn_cov"] = 0.8
-    t = ab.ladder_table(res, metrics=("dyn_rmse",))
+    t = ladder.ladder_table(res, metrics=("dyn_rmse",))
     assert t.loc[step, ("dyn_rmse", "ratio")] == pytest.approx(2.0)
     assert t.loc[step, ("dyn_rmse", "cov without")] == pytest.approx(0.8)
     assert t.loc[step, ("dyn_rmse", "cov with")] == 1.0 and t.loc[step, ("dyn_rmse", "cov both")] == pytest.approx(0.8)
@@ -344,7 +345,7 @@ def test_consistency_table_nees_is_chi2_for_honest_covariances_and_scales_with_t
     st = np.full(T, EstimateStatus.UPDATED, np.int8)
     est = {"honest": Estimates(truth.t_s, e, st, "honest", P),
            "over-confident": Estimates(truth.t_s, e, st, "over-confident", P / 4)}
-    comp = study.Comparison("test", truth, est, {}, {"scored": np.ones(T, bool)}, {}, 3)
+    comp = alignment.Comparison("test", truth, est, {}, {"scored": np.ones(T, bool)}, {}, 3)
     c = realdata.consistency_table(comp)
     assert c.loc["honest", "mean NEES"] == pytest.approx(3.0, rel=0.05)
     assert c.loc["honest", "inside own 95% ellipse"] == pytest.approx(0.95, abs=0.01)
@@ -382,19 +383,19 @@ def test_error_range_assumption_is_read_off_the_simulated_world():
 def test_reacquisition_time_is_the_start_of_the_first_stretch_below_the_limit_that_holds():
     t = np.arange(0.0, 12.0, 0.5)                           # outage ends at t = 3 s; UWB returns at 3.5 s
     e = np.full(t.size, 0.1)
-    assert ab.reacquisition_s(t, e, 3.0) == 0.0
+    assert scoring.reacquisition_s(t, e, 3.0) == 0.0
     e[(t > 3.0) & (t < 5.0)] = 0.8                          # drift found on the return, gone at 5 s
-    assert ab.reacquisition_s(t, e, 3.0) == pytest.approx(1.5)
+    assert scoring.reacquisition_s(t, e, 3.0) == pytest.approx(1.5)
     e[t == 9.0] = np.nan                                    # a missing estimate later counts as not re-acquired
-    assert ab.reacquisition_s(t, e, 3.0) == pytest.approx(6.0)
+    assert scoring.reacquisition_s(t, e, 3.0) == pytest.approx(6.0)
     e[-1] = 0.5                                             # at the limit on the last epoch: never
-    assert ab.reacquisition_s(t, e, 3.0) == math.inf
-    assert math.isnan(ab.reacquisition_s(t, e, 20.0))       # nothing after the outage
-    assert ab.reacquisition_s(t, np.full(t.size, 0.3), 3.0, limit_m=0.2) == math.inf
+    assert scoring.reacquisition_s(t, e, 3.0) == math.inf
+    assert math.isnan(scoring.reacquisition_s(t, e, 20.0))       # nothing after the outage
+    assert scoring.reacquisition_s(t, np.full(t.size, 0.3), 3.0, limit_m=0.2) == math.inf
     late = np.full(t.size, 0.1)
     late[t >= 10.0] = 0.9                                   # an excursion after a 6.5 s hold is not a failure
-    assert ab.reacquisition_s(t, late, 3.0) == 0.0
-    assert ab.reacquisition_s(t, late, 3.0, hold_s=7.0) == math.inf
+    assert scoring.reacquisition_s(t, late, 3.0) == 0.0
+    assert scoring.reacquisition_s(t, late, 3.0, hold_s=7.0) == math.inf
 
 
 def test_gated_loose_filter_re_acquires_with_a_ten_times_worse_imu(monkeypatch):

@@ -6,7 +6,8 @@ import pandas as pd
 import pytest
 
 from tests.fixtures import iasl as fx
-from uwbwb.experiments.uwb_ins import exercises, panels, realtune, study
+from uwbwb.experiments.uwb_ins import exercises, panels, realtune
+from uwbwb.filters import alignment, imu_calibration
 from uwbwb.types import Estimates, Trajectory
 
 
@@ -41,7 +42,7 @@ def test_panel_offers_the_notebooks_outage_and_says_what_to_see():
                            gate_prob=0.999, loose_window=5, stations_m=np.zeros((4, 3)))
 
 
-def _fake(nees_scale: float, nis: float, n: int = 400, seed: int = 0) -> study.Comparison:
+def _fake(nees_scale: float, nis: float, n: int = 400, seed: int = 0) -> alignment.Comparison:
     """A comparison whose "tight" errors are drawn with covariance ``nees_scale`` × its reported one."""
     rng = np.random.default_rng(seed)
     t = np.arange(n) * 0.02
@@ -49,7 +50,7 @@ def _fake(nees_scale: float, nis: float, n: int = 400, seed: int = 0) -> study.C
     e = rng.normal(size=(n, 3)) * np.sqrt(1e-4 * nees_scale)
     truth = Trajectory(t, np.zeros((n, 3)), name="truth")
     est = Estimates(t, e, np.full(n, 1, np.int8), "tight", P, info={"nis": np.full(n, nis), "dof": np.ones(n)})
-    return study.Comparison("fake", truth, {"tight": est}, {}, {"scored": np.ones(n, bool)})
+    return alignment.Comparison("fake", truth, {"tight": est}, {}, {"scored": np.ones(n, bool)})
 
 
 def test_inflation_is_fitted_on_one_comparison_and_applied_on_the_other():
@@ -71,7 +72,7 @@ def test_every_filter_is_tuned_by_one_procedure_and_its_scales_touch_only_itself
     (root / "uwb.yaml").write_text(fx.YAML_TEXT)
     fx.write_scenario(root / "flight_a", rng=np.random.default_rng(8), duration_s=30.0)
     rec = iasl.load_scenario("flight_a", tmp_path)
-    cal = study.calibrate_iasl(rec)
+    cal = imu_calibration.calibrate_iasl(rec)
     grid = ((0.1, 1.0), (1.0, 1.0), (10.0, 1.0))
     tun = realfair.tune_scales(rec, cal, still_s=1.0, align_s=10.0, grid=grid)
     assert set(tun) == set(realfair.TUNED)
@@ -81,13 +82,13 @@ def test_every_filter_is_tuned_by_one_procedure_and_its_scales_touch_only_itself
         assert t.q_edge == (t.q in (0.1, 10.0)) and len(col) == 3
     table = realfair.tuning_table(tun)
     assert list(table.index) == list(realfair.TUNED) and (table["RMSE picked (m)"] <= table["RMSE at Q × 1, R × 1 (m)"]).all()
-    base = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0)
+    base = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0)
     for name in realfair.TUNED:                                        # (q, r) moves that filter and no other
-        comp = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={name: (10.0, 3.0)})
+        comp = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={name: (10.0, 3.0)})
         for other in base.estimates:
             same = np.array_equal(comp.estimates[other].pos_m, base.estimates[other].pos_m, equal_nan=True)
             assert same == (other != name), (name, other)
-    one = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={n: (1.0, 1.0) for n in realfair.TUNED})
+    one = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={n: (1.0, 1.0) for n in realfair.TUNED})
     for other in base.estimates:                                      # (1, 1) is the untuned filter, bit for bit
         np.testing.assert_array_equal(one.estimates[other].pos_m, base.estimates[other].pos_m)
     rows = realfair.summary_rows(tun, None, data="x", cal_label="flight_a", cal_data="cal/flight_a")
@@ -98,7 +99,7 @@ def test_every_filter_is_tuned_by_one_procedure_and_its_scales_touch_only_itself
     with pytest.raises(ValueError, match="grid"):
         realfair.tune_scales(rec, cal, grid=())
     with pytest.raises(ValueError, match="unknown filters"):
-        study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={"UWB-only": (1.0, 1.0)})
+        alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={"UWB-only": (1.0, 1.0)})
 
 
 def test_the_clock_verdict_follows_the_interval_of_the_change():
@@ -139,7 +140,7 @@ def test_figures_draw_truth_only_where_it_exists_and_keep_uwb_spikes_off_the_axe
     uwb[20] = [40.0, -30.0]                                  # one multipath spike
     est = {"UWB-only": Estimates(t, uwb, np.ones(n, np.int8), "UWB-only"),
            "tight": Estimates(t, truth + 0.01, np.ones(n, np.int8), "tight")}
-    comp = study.Comparison("c", Trajectory(t, truth, name="truth"), est, {}, {"scored": scored})
+    comp = alignment.Comparison("c", Trajectory(t, truth, name="truth"), est, {}, {"scored": scored})
     fig, (a, b) = plt.subplots(1, 2)
     figures.track(comp, ("UWB-only", "tight"), ax=a)
     line = next(ln for ln in a.lines if ln.get_label() == "truth")

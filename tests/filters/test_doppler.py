@@ -8,6 +8,7 @@ from uwbwb.filters import doppler as fd
 from uwbwb.filters.kalman import Gaussian
 from uwbwb.filters.particle import effective_sample_size, tempering_exponent
 from uwbwb.models import doppler as dm
+from uwbwb.models.motion import ReceiverMotion
 from uwbwb.sim import chirps as sc
 
 
@@ -87,7 +88,7 @@ def test_mh_ekf_converges_on_a_noise_free_run(lab):
                                spurious_rate_hz=0.0)
     log = fd.assign_chirps(clean.t_s, lab)
     x0 = np.concatenate([clean.truth.pos_m[0] + [0.4, -0.3, 0.2], clean.truth.vel_mps[0] + [0.2, 0.2, 0.0]])
-    ekf = fd.ScaatMhEkf(replace(lab, sigma_model_mps=0.01), motion=dm.ReceiverMotion((0.2, 0.2, 0.02)))
+    ekf = fd.ScaatMhEkf(replace(lab, sigma_model_mps=0.01), motion=ReceiverMotion((0.2, 0.2, 0.02)))
     est = ekf.run(log, Gaussian(x0, np.diag([0.5 ** 2] * 3 + [0.5 ** 2] * 3)))
     err = np.linalg.norm(est.pos_m - clean.truth.pos_m, axis=1)
     late = est.t_s > 15.0

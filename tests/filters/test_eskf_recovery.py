@@ -17,7 +17,7 @@ SEEDS = range(8)
 def iasl_flights(tmp_path_factory):
     """One calibration flight and eight scored flights (30 s each) in the upstream format."""
     from uwbwb.datasets import iasl
-    from uwbwb.experiments.uwb_ins import study
+    from uwbwb.filters import alignment, imu_calibration
 
     data = tmp_path_factory.mktemp("iasl")
     root = data / "iasl-uwb-imu"
@@ -26,7 +26,7 @@ def iasl_flights(tmp_path_factory):
     fx.write_scenario(root / "cal", rng=np.random.default_rng(100), duration_s=30.0)
     for s in SEEDS:
         fx.write_scenario(root / f"flight{s}", rng=np.random.default_rng(s), duration_s=30.0)
-    cal = study.calibrate_iasl(iasl.load_scenario("cal", data))
+    cal = imu_calibration.calibrate_iasl(iasl.load_scenario("cal", data))
     return data, cal
 
 
@@ -38,14 +38,14 @@ def test_in_motion_heading_alignment_does_not_lock_the_filters_out(iasl_flights,
     Before the start-up gate rule the filters diverged (28–600 m) at 5 Hz on most seeds and
     at 10 Hz on some: the χ² gate rejected every range while the heading was unresolved."""
     from uwbwb.datasets import iasl
-    from uwbwb.experiments.uwb_ins import study
+    from uwbwb.filters import alignment, imu_calibration
 
     data, cal = iasl_flights
     worst, start = {}, {}
     for s in SEEDS:
         rec = iasl.load_scenario(f"flight{s}", data)
         rec = rec if rate_hz is None else rec.decimate(rate_hz=rate_hz)          # None: the native rate
-        comp = study.compare_iasl(rec, cal, still_s=1.0, align_s=10.0)
+        comp = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0)
         t = comp.table()
         for name in ("tight", "tight (ranges)", "loose"):
             worst[(s, name)] = float(t.loc[name, "RMSE (m)"])
@@ -73,14 +73,14 @@ def test_without_the_hand_over_rule_the_tight_filters_start_with_a_transient(ias
     velocity σ of ~0.7 m/s, the tight filters gate good ranges and drift by over 1 m in the first
     3 s on some 5 Hz flights (seeds 4 and 7 of these)."""
     from uwbwb.datasets import iasl
-    from uwbwb.experiments.uwb_ins import study
+    from uwbwb.filters import alignment, imu_calibration
     from uwbwb.filters import alignment
 
     data, cal = iasl_flights
     monkeypatch.setattr(alignment, "handover_covariance", lambda f, P: f.initial_covariance())
     start = {}
     for s in (4, 7):
-        comp = study.compare_iasl(iasl.load_scenario(f"flight{s}", data).decimate(rate_hz=5.0), cal, still_s=1.0, align_s=10.0)
+        comp = alignment.compare_iasl(iasl.load_scenario(f"flight{s}", data).decimate(rate_hz=5.0), cal, still_s=1.0, align_s=10.0)
         start.update(_start_transient(comp, s))
     assert max(start.values()) > 1.0, start
 
@@ -134,7 +134,7 @@ def outage_flights(tmp_path_factory):
     """Eight 52-s flights: 1 s rest, 10 s heading alignment, 3 s tracking, a 30 s UWB outage,
     then 8 s with UWB back; the calibration flight of the start-up test's kind."""
     from uwbwb.datasets import iasl
-    from uwbwb.experiments.uwb_ins import study
+    from uwbwb.filters import alignment, imu_calibration
     from uwbwb.filters import alignment
 
     data = tmp_path_factory.mktemp("iasl-outage")
@@ -142,7 +142,7 @@ def outage_flights(tmp_path_factory):
     root.mkdir()
     (root / "uwb.yaml").write_text(fx.YAML_TEXT)
     fx.write_scenario(root / "cal", rng=np.random.default_rng(100), duration_s=30.0)
-    cal = study.calibrate_iasl(iasl.load_scenario("cal", data))
+    cal = imu_calibration.calibrate_iasl(iasl.load_scenario("cal", data))
     out = []
     for s in SEEDS:
         fx.write_scenario(root / f"long{s}", rng=np.random.default_rng(s), duration_s=52.0)

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from uwbwb.models import doppler as dm
+from uwbwb.models.motion import ReceiverMotion
 
 
 @pytest.fixture
@@ -105,13 +106,13 @@ def test_invalid_models_are_rejected():
     with pytest.raises(ValueError, match="step_s"):
         dm.beacon_periods_s(8, step_s=-0.001)
     with pytest.raises(ValueError, match="sigma_acc_mps2"):
-        dm.ReceiverMotion(None)
+        ReceiverMotion(None)
     with pytest.raises(ValueError, match="sigma_acc_mps2"):
-        dm.ReceiverMotion((1.0, -1.0, 0.0))
+        ReceiverMotion((1.0, -1.0, 0.0))
 
 
 def test_receiver_motion_matches_its_covariance():
-    mot = dm.ReceiverMotion()
+    mot = ReceiverMotion()
     rng = np.random.default_rng(2)
     x0 = np.zeros((200_000, 6))
     x1 = mot.propagate(x0, 0.1, rng=rng)

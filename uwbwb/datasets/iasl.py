@@ -114,8 +114,7 @@ from .cleaning import MAX_RANGE_M
 from .discovery import find_dataset
 from .text import _decode_lines, _read_bytes
 from .registration import ImuAlignment, Registration, RegistrationError, align_imu, align_imu_to_ranges, register_truth
-from .iasl_files import (GT_COLUMNS, IMU_COLUMNS, UWB_COLUMNS, GtFile, ImuFile, UwbFile,  # noqa: F401 (re-exported)
-                         read_gt, read_imu, read_uwb, spread_whole_seconds)
+from .iasl_files import read_gt, read_imu, read_uwb, spread_whole_seconds
 
 NAME = "iasl-uwb-imu"
 UWB_FILE, IMU_FILE, GT_FILE = "uwb.csv", "imu.csv", "gt.csv"

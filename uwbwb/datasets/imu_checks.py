@@ -37,11 +37,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataFormatError
-from ..models.imu import ACC_FULL_SCALE_MPS2, GYRO_FULL_SCALE_RADPS, MAX_SPIKE_FRACTION, ImuEvidence, unit_problem
+from ..models.imu import ACC_FULL_SCALE_MPS2, GYRO_FULL_SCALE_RADPS, ImuEvidence, unit_problem
 from ..types import CleaningStep
 from .cleaning import lines_text
 
-__all__ = ["GAP_POLICIES", "ImuChecks", "ImuGapWarning", "MAX_GAP_SAMPLES", "MAX_SPIKE_FRACTION", "check_imu_samples",
+__all__ = ["GAP_POLICIES", "ImuChecks", "ImuGapWarning", "MAX_GAP_SAMPLES", "check_imu_samples",
            "check_second_counts"]
 
 #: Longest step between IMU samples, in nominal intervals, that is not a gap: the filters

@@ -95,14 +95,12 @@ import pandas as pd
 from ..errors import DataFormatError, DataNotFoundError
 from ..geometry import yaw_rotation
 from ..types import CleaningStep, RangeLog, Recording, Trajectory
-from .registration import (BODY_FLIPS, QUAT_ORDERS, body_points, fit_clock_offset_and_convention,
-                           frame_rotation, quaternion_to_rot)
+from .registration import BODY_FLIPS, QUAT_ORDERS, body_points, fit_clock_offset_and_convention, frame_rotation
 from .discovery import find_dataset
-from .lias_files import _N_ANCHORS, _N_TAGS, read_mocap_csv, read_uwb_csv  # noqa: F401 (re-exported)
-from .lias_tables import _SESSION_RE, LiasTables, _parse_session, read_tables  # noqa: F401 (re-exported)
+from .lias_tables import _SESSION_RE, _parse_session, read_tables
+from .lias_files import read_mocap_csv, read_uwb_csv
 
-__all__ = ["NAME", "TROLLEY_CENTROID_Z_M", "LiasTables", "list_recordings", "read_uwb_csv",
-           "read_mocap_csv", "read_tables", "quaternion_to_rot", "load_dynamic", "load_static"]
+__all__ = ["NAME", "TROLLEY_CENTROID_Z_M", "list_recordings", "load_dynamic", "load_static"]
 
 #: Dataset name, as in the manifest and the data folders.
 NAME = "lias-planar-uwb"

@@ -59,7 +59,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import pandas as pd
 from scipy.optimize import least_squares, minimize
 
 from ..calibration import MAD_TO_SIGMA

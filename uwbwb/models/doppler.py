@@ -40,10 +40,9 @@ import numpy as np
 
 from ..types import Anchors
 from ..validate import integer, number
-from .motion import ReceiverMotion
 
-__all__ = ["speed_of_sound_mps", "DopplerModel", "ReceiverMotion", "cubic_layout", "lab_layout",
-           "beacon_periods_s", "REFERENCE_POS_M", "REFERENCE_VEL_MPS", "PAPER_DP_REF_S"]
+__all__ = ["speed_of_sound_mps", "DopplerModel", "cubic_layout", "lab_layout", "beacon_periods_s", "REFERENCE_POS_M",
+           "REFERENCE_VEL_MPS", "PAPER_DP_REF_S"]
 
 #: Reference pair of section 3.1 (metres, metres per second).
 REFERENCE_POS_M = np.array([-0.5, 0.5, 0.4])

@@ -71,11 +71,11 @@ from math import factorial
 from typing import ClassVar
 
 import numpy as np
+from .layout import StateLayout
 
-from .layout import KinematicModel, StateLayout
 
 __all__ = ["MotionModel", "RandomWalk", "RandomForce", "RandomJerk", "MOTION_MODELS", "make_motion_model",
-           "transition_1d", "noise_1d", "VelocityKick", "ReceiverMotion", "KinematicModel", "StateLayout"]
+           "transition_1d", "noise_1d", "VelocityKick", "ReceiverMotion"]
 
 
 def transition_1d(order: int, dt_s) -> np.ndarray:

@@ -18,7 +18,8 @@ Cramér–Rao bounds (notebook 06 and ``python -m uwbwb score``).
 """
 
 from .board import Board, Entry, calibrate, score
-from .estimators import BaseEstimator, Estimator, ExternalEstimates, default_estimators
+from .estimators import ExternalEstimates, default_estimators
+from .interface import BaseEstimator, Estimator
 from .reference import common_bound
 from .protocol import Calibration, between, fit_calibration, split_in_time
 

@@ -59,11 +59,11 @@ import pandas as pd
 from .. import metrics
 from ..types import Estimates, Recording
 from . import checks as _checks
-from .estimators import Estimator, default_estimators, truth_at
+from .estimators import default_estimators
+from .interface import Estimator, truth_at
 from .explain import beats_bound_note, diagnostics, diagnostics_table
 from .protocol import Calibration, fit_calibration, scored_tags
-from .reference import REFERENCE, common_bound, fit_reference_motion
-from .reference import describe as describe_reference
+from .reference import REFERENCE, common_bound, describe as describe_reference, fit_reference_motion
 from .verdicts import block_se_ratio
 
 __all__ = ["Board", "Entry", "calibrate", "score", "TABLE_COLUMNS"]

@@ -19,7 +19,7 @@ A method joins the board by implementing :class:`Estimator`:
     for its own bound and still places it against the recording's common bound.
 
 The interface and the helpers every adapter shares are in :mod:`.interface`; the set-noise filters
-and the windowed NLS in :mod:`.setnoise_nls` (re-exported here). The adapters wrap the existing
+and the windowed NLS in :mod:`.setnoise_nls`. The adapters wrap the existing
 estimators without changing them. Every method
 but ``raw LS`` uses the calibrated ranges (the calibration is information every method
 is given; ``raw LS`` shows what it is worth). Estimators return the package's common
@@ -40,13 +40,13 @@ from ..filters.ekf import TdoaEkf
 from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import RandomForce, make_motion_model
 from ..types import Estimates, TdoaLog, Trajectory
-from .interface import (_NONE, _UP, MAX_TRUTH_GAP_S, BaseEstimator, Estimator, _errors_rmse,  # noqa: F401 (re-exported)
-                        _range_bound, _tdoa_information, _tdoa_model, calibrated_log, on_grid_edge, truth_at)
+from .interface import (BaseEstimator, Estimator, _NONE, _UP, _errors_rmse, _range_bound, _tdoa_information,
+                        _tdoa_model, calibrated_log, on_grid_edge)
 from .protocol import Calibration
-from .setnoise_nls import NLS_WINDOWS_S, SIGMA_D_GRID_MPS, SetNoiseFilter, WindowNls  # noqa: F401 (re-exported)
+from .setnoise_nls import NLS_WINDOWS_S, SetNoiseFilter, WindowNls
 
-__all__ = ["Estimator", "BaseEstimator", "RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "SetNoiseFilter",
-           "WindowNls", "UwbInsFilter", "ExternalEstimates", "INS_GRID", "default_estimators", "truth_at", "MAX_TRUTH_GAP_S"]
+__all__ = ["RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "UwbInsFilter", "ExternalEstimates", "INS_GRID",
+           "default_estimators"]
 
 # ----------------------------------------------------------------------------- snapshot methods
 
@@ -168,7 +168,7 @@ class TdoaEkfEstimator(BaseEstimator):
 # ----------------------------------------------------------------------------- UWB/INS
 
 #: Rest at the start of a flight (levelling) and in-motion heading alignment before the fusion
-#: filters start, seconds (:func:`uwbwb.experiments.uwb_ins.study.compare_iasl`).
+#: filters start, seconds (:func:`uwbwb.filters.alignment.compare_iasl`).
 INS_REST_S, INS_ALIGN_S = 2.0, 20.0
 #: ``(q_scale, r_scale)`` pairs the UWB/INS filters search on the calibration part: multipliers on the
 #: IMU process-noise and the UWB measurement-noise variances, nine as the EKFs' nine σ_w values
@@ -182,17 +182,17 @@ class UwbInsFilter(BaseEstimator):
     TDoA LS fixes; ``"tight"``: the 15-state filter with one update per TDoA), where an IMU exists.
 
     ``tune`` is notebook 05's IMU calibration on the calibration recording (each filter keeps its own copy)
-    (:func:`~uwbwb.experiments.uwb_ins.study.calibrate_iasl`: sensor axes, accelerometer scale,
+    (:func:`~uwbwb.filters.imu_calibration.calibrate_iasl`: sensor axes, accelerometer scale,
     noise densities), then, with the same effort as the EKFs' driving-noise search, the
     ``(q_scale, r_scale)`` pair of :data:`INS_GRID` (``grid``) that minimises the filter's horizontal
     RMSE on the calibration part (mean over every usable tag, as the EKFs; the IMU calibration itself
     uses the first tag's truth: one IMU); the ranges are the board's calibrated ones with the board's range
     noise, so the fusion filters get the same UWB information as every other method. ``estimate`` runs
     notebook 05's start-up (rest levelling, in-motion heading alignment over the first
-    :data:`INS_ALIGN_S` s) and the filters (:func:`~uwbwb.experiments.uwb_ins.study.compare_iasl`);
+    :data:`INS_ALIGN_S` s) and the filters (:func:`~uwbwb.filters.alignment.compare_iasl`);
     no estimate before the alignment ends. One run gives every fusion filter, so it is kept for the
     next adapter and its time is charged to the first one run. The filters never see the scored
-    truth: :func:`~uwbwb.experiments.uwb_ins.study.compare_iasl` is handed a hidden (all-NaN) truth,
+    truth: :func:`~uwbwb.filters.alignment.compare_iasl` is handed a hidden (all-NaN) truth,
     and the board scores the estimates itself.
 
     Bound: the posterior CRLB of position and velocity driven by the accelerometer's white noise

@@ -15,10 +15,10 @@ import numpy as np
 
 from .. import bounds, metrics
 from ..models.tdoa import TdoaModel
-from ..types import MAX_TRUTH_GAP_S, EstimateStatus, Estimates, RangeLog, Recording
+from ..types import EstimateStatus, Estimates, MAX_TRUTH_GAP_S, RangeLog, Recording
 from .protocol import Calibration
 
-__all__ = ["Estimator", "BaseEstimator", "MAX_TRUTH_GAP_S", "calibrated_log", "truth_at", "on_grid_edge"]
+__all__ = ["Estimator", "BaseEstimator", "calibrated_log", "truth_at", "on_grid_edge"]
 
 _UP, _NONE = int(EstimateStatus.UPDATED), int(EstimateStatus.NO_ESTIMATE)
 

@@ -1,6 +1,6 @@
 """One common bound per recording, against which every method is placed.
 
-Each method's *own* bound (:meth:`~.estimators.Estimator.bound`) uses that method's own
+Each method's *own* bound (:meth:`~.interface.Estimator.bound`) uses that method's own
 measurement and motion model with its own tuning: RMSE / own bound near 1 says the method
 does what its model promises (a consistency check), but the ratios of two methods are not
 comparable — a method with a poor model has a loose bound and looks "efficient".
@@ -40,7 +40,7 @@ import numpy as np
 from .. import bounds
 from ..models.motion import make_motion_model
 from ..types import Recording
-from .estimators import calibrated_log, truth_at
+from .interface import calibrated_log, truth_at
 from .protocol import Calibration
 
 __all__ = ["REFERENCE", "REFERENCE_GRIDS", "TRUTH_SIGMA_M", "common_bound", "fit_reference_motion"]

@@ -56,7 +56,8 @@ import numpy as np
 import pandas as pd
 
 from ...filters import doppler as fd
-from .study import PAPER, READINGS, bootstrap_median
+from .scoring import bootstrap_median
+from .study import PAPER, READINGS
 
 __all__ = ["Results", "facts", "fig6_table", "verdict_table", "DP_TOLERANCE_MS", "KEEPS_TRACK", "GHOST_ANGLE_DEG", "OFFSET_SHARE", "EQUAL_CM"]
 

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...metrics import Headline
 from .study import PAPER, READINGS
+from ...metrics import Headline
 
-__all__ = ["Headline", "HEADLINES", "rows", "publish", "checks"]
+__all__ = ["HEADLINES", "rows", "publish", "checks"]
 
 
 def _headlines() -> tuple[Headline, ...]:

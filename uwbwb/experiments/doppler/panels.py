@@ -12,12 +12,12 @@ import functools
 
 import numpy as np
 
-from ... import metrics, widgets
-from ... import sampling as smp
+from ... import metrics, sampling as smp, widgets
 from ...filters import doppler as fd
 from ...models import doppler as dm
+from ...models.motion import ReceiverMotion
 from ...plotting import color_for
-from . import figures, study
+from . import figures, scoring, study
 
 __all__ = ["ghost_map", "space_panel", "filter_run", "filter_readout", "filter_panel"]
 
@@ -72,7 +72,7 @@ def space_panel(cfg: study.StudyConfig):
 _FILTER_RUNS: dict = {}
 
 
-def filter_run(track: study.TrackStudy, cfg: study.StudyConfig, method: str, n_particles: int, sigma_xy: float,
+def filter_run(track: scoring.TrackStudy, cfg: study.StudyConfig, method: str, n_particles: int, sigma_xy: float,
                ranges: bool, *, layout: str = "lab"):
     """One run of the PF (``method="PF"``, one run of ``n_particles``) or the MH-EKF on ``track``'s recording,
     with acceleration σ ``sigma_xy`` (x, y; m/s²) and with or without pseudo-ranges: its
@@ -83,7 +83,7 @@ def filter_run(track: study.TrackStudy, cfg: study.StudyConfig, method: str, n_p
         return hit[1]
     model, log = track.model, track.log
     r = fd.clock_pseudo_ranges(log, model, track.recording.phase_s) if ranges else None
-    motion = dm.ReceiverMotion((sigma_xy, sigma_xy, 0.2))
+    motion = ReceiverMotion((sigma_xy, sigma_xy, 0.2))
     variant = "Doppler + ranges" if ranges else "Doppler"
     if method == "PF":
         lo, hi = study.ROOMS[layout]
@@ -98,7 +98,7 @@ def filter_run(track: study.TrackStudy, cfg: study.StudyConfig, method: str, n_p
     return est
 
 
-def filter_readout(track: study.TrackStudy, est) -> dict:
+def filter_readout(track: scoring.TrackStudy, est) -> dict:
     """CEP50 / CEP95 of the horizontal error after the start-up (``track.t_score_s``), and the epochs scored."""
     err = np.linalg.norm(est.pos_m[:, :2] - track.track.pos_m(est.t_s)[:, :2], axis=1)
     late = est.t_s > track.t_score_s
@@ -106,7 +106,7 @@ def filter_readout(track: study.TrackStudy, est) -> dict:
             "CEP95 after the start-up (cm)": 100 * metrics.cep95(err[late]), "epochs": int(late.sum())}
 
 
-def filter_panel(track: study.TrackStudy, cfg: study.StudyConfig, *, layout: str = "lab"):
+def filter_panel(track: scoring.TrackStudy, cfg: study.StudyConfig, *, layout: str = "lab"):
     """Widget: the PF (one run) or the MH-EKF on ``track``'s recording, with or without pseudo-ranges.
 
     Left: the track after the start-up in the room (x–y, metres) with the beacons and the truth;

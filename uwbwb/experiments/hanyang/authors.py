@@ -1,7 +1,6 @@
 """The Hanyang dataset authors' numbers and estimates: their RMSE definition reproduced, their
 published LS/ESKF as *external* rows of a board, and their LS range front end.
-
-Split from :mod:`.study` (which re-exports every name); see its docstring for the whole study.
+See :mod:`.study` for the whole study.
 """
 
 from __future__ import annotations
@@ -17,7 +16,7 @@ import pandas as pd
 from ... import bounds, geometry, metrics
 from ...datasets import hanyang_dynamic
 from ...errors import DataFormatError, DataNotFoundError
-from ...scoreboard.estimators import BaseEstimator, _range_bound
+from ...scoreboard.interface import BaseEstimator, _range_bound
 from ...types import EstimateStatus, Estimates, Trajectory
 
 PathLike = str | os.PathLike

@@ -1,8 +1,6 @@
 """Estimators of the Hanyang study beside the board's defaults: an EKF on the ranges with the
 RW/RF/RJ motion models, NLS with pruning, and LS on ranges corrected by the static part's
 range model (:func:`static_range_model`).
-
-Split from :mod:`.study` (which re-exports every name).
 """
 
 from __future__ import annotations
@@ -17,11 +15,11 @@ from ...datasets import hanyang
 from ...filters.ekf import Ekf, Linearisation
 from ...filters.gating import AnchorDropping
 from ...filters.kalman import Gaussian
-from ...filters.pruning import LABELS as PRUNING_LABELS
-from ...filters.pruning import PruningConfig, localize
+from ...filters.pruning import LABELS as PRUNING_LABELS, PruningConfig, localize
 from ...models.motion import MotionModel, make_motion_model
-from ...scoreboard.estimators import (EKF_GRIDS, BaseEstimator, WindowNls, _range_bound, _errors_rmse,
-                                      calibrated_log, truth_at)
+from ...scoreboard.estimators import EKF_GRIDS
+from ...scoreboard.interface import BaseEstimator, _errors_rmse, _range_bound, calibrated_log, truth_at
+from ...scoreboard.setnoise_nls import WindowNls
 from ...types import EstimateStatus, Estimates
 
 PathLike = str | os.PathLike

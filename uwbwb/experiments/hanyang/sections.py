@@ -30,8 +30,10 @@ from ... import metrics
 from ...datasets import dataset_available, hanyang_dynamic
 from ...errors import DataNotFoundError
 from ...scoreboard import Board
-from ...scoreboard.estimators import EKF_GRIDS, NLS_WINDOWS_S, RawLs, TdoaEkfEstimator, WindowNls
-from . import facts, study
+from ...scoreboard.estimators import EKF_GRIDS, RawLs, TdoaEkfEstimator
+from ...scoreboard.setnoise_nls import NLS_WINDOWS_S, WindowNls
+from . import authors, estimators, facts, study
+from .pairs import pair_errors
 
 __all__ = ["Section", "ablation", "motion_section", "pruning_section", "scoreboard_section"]
 
@@ -117,12 +119,12 @@ def _md(df: pd.DataFrame, digits: int = 3) -> str:
 
 def ablation(board: Board, pairs: Sequence[tuple[str, str]], *, low: str, high: str, neither: str,
              seed: int = 0) -> pd.DataFrame:
-    """RMSE_2d of ``method`` vs ``reference`` on the epochs both covered (:func:`~.study.pair_errors`), both
+    """RMSE_2d of ``method`` vs ``reference`` on the epochs both covered (:func:`~.pairs.pair_errors`), both
     coverages, the ratio, its block-bootstrap interval (:func:`uwbwb.metrics.block_bootstrap_difference`) and the verdict (``low``
     below 1, ``high`` above, ``neither`` otherwise; none with too few independent blocks)."""
     rows = []
     for m, ref in pairs:
-        p = study.pair_errors(board, m, ref)
+        p = pair_errors(board, m, ref)
         if p is None or not p["err_m"].size:
             continue
         rng = np.random.default_rng([seed, zlib.crc32(f"{board.label}/{m}/{ref}".encode())])
@@ -171,7 +173,7 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
     for case, b in comp.boards.items():
         df = b.table().set_index("method")
         assert df["coverage"].between(0, 1).all(), case
-        assert df.loc[study.AuthorsEstimator("LS").name, "n_scored"] > 0, f"{case}: the authors' LS was not scored"
+        assert df.loc[authors.AuthorsEstimator("LS").name, "n_scored"] > 0, f"{case}: the authors' LS was not scored"
     ratio_f = facts.ratio_facts(comp.ratios)
     chosen_f = facts.ratio_facts(comp.ratios, "chosen")
     effect = study.static_model_effect(comp.boards, seed=seed)
@@ -248,8 +250,8 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
         return Section(absent=absent)
     tune = study.tuning_case(case, available)
     windows = (1.0,) if fast else NLS_WINDOWS_S
-    est = [RawLs(), WindowNls(windows_s=windows), study.PrunedNls(windows_s=windows, heuristic="residual"),
-           study.PrunedNls(windows_s=windows, heuristic="robust_mean"), study.AuthorsEstimator("LS")]
+    est = [RawLs(), WindowNls(windows_s=windows), estimators.PrunedNls(windows_s=windows, heuristic="residual"),
+           estimators.PrunedNls(windows_s=windows, heuristic="robust_mean"), authors.AuthorsEstimator("LS")]
     board = study.case_board(case, tune, data_dir, fast=fast, estimators=est)
     pairs = [("NLS residual pruning", "NLS"), ("NLS robust mean", "NLS"), ("NLS", "raw LS"),
              ("NLS residual pruning", "authors LS (external)"), ("NLS robust mean", "authors LS (external)")]
@@ -283,8 +285,8 @@ def motion_section(case: str | None = None, data_dir: PathLike | None = None, *,
     tune = study.tuning_case(case, available)
     coarse = {m: tuple(float(g) for g in EKF_GRIDS[m][::2]) for m in EKF_GRIDS}
     est = [RawLs(), TdoaEkfEstimator("RF", grid=coarse["RF"]),
-           *[study.RangeEkfEstimator(m, grid=coarse[m] if fast else None) for m in ("RW", "RF", "RJ")],
-           study.AuthorsEstimator("ESKF")]
+           *[estimators.RangeEkfEstimator(m, grid=coarse[m] if fast else None) for m in ("RW", "RF", "RJ")],
+           authors.AuthorsEstimator("ESKF")]
     board = study.case_board(case, tune, data_dir, fast=fast, estimators=est)
     names = [e.name for e in est[1:5]]
     table = ablation(board, [(m, "raw LS") for m in names], low="better", high="worse", neither="not significant",

@@ -51,22 +51,17 @@ from ... import metrics
 from ...datasets import hanyang_dynamic
 from ...errors import DataNotFoundError
 from ...scoreboard import Board, score
-from ...scoreboard.estimators import EKF_GRIDS, NLS_WINDOWS_S, TdoaEkfEstimator, default_estimators
+from ...scoreboard.estimators import EKF_GRIDS, TdoaEkfEstimator, default_estimators
+from ...scoreboard.setnoise_nls import NLS_WINDOWS_S
 from ...scoreboard.protocol import between
 from ...types import Recording
-from .authors import (AUTHORS_HOLD_S, AUTHORS_JUMP_M, AUTHORS_MAX_GAP_S, AUTHORS_MAX_REJECTS, AUTHORS_TAG_HEIGHT_M,
-                      AUTHORS_Z_LIMIT_M, WINDOW_RULES, AuthorsEstimator, AuthorsFrontEndLs, authors_errors, authors_front_end,
-                      authors_window, read_rmsd_results, reproduce_authors)
-from .estimators import (PrunedNls, RangeEkfEstimator, RangeMeasurement, StaticModelLs, StaticRangeModel,
-                         static_range_model)
 from .pairs import _external, held_errors, offset_ratio, pair_errors
+from .authors import AuthorsEstimator, AuthorsFrontEndLs, authors_window, reproduce_authors
+from .estimators import PrunedNls, RangeEkfEstimator, StaticModelLs, StaticRangeModel, static_range_model
 
 
-__all__ = ["AUTHORS_TAG_HEIGHT_M", "AUTHORS_Z_LIMIT_M", "AuthorsEstimator", "CaseComparison", "FAST_SPAN_S",
-           "AUTHORS_HOLD_S", "AUTHORS_JUMP_M", "AUTHORS_MAX_REJECTS", "AuthorsFrontEndLs", "OFFSET_CHECK_S", "PrunedNls", "RangeEkfEstimator", "RangeMeasurement", "StaticModelLs", "StaticRangeModel", "WINDOW_RULES", "authors_errors",
-           "authors_front_end", "authors_window", "board_epochs", "case_board", "compare_cases",
-           "held_errors", "load_pair", "offset_ratio", "pair_errors", "pick_on_tuning_case", "ratio_table",
-           "read_rmsd_results", "reproduce_authors", "static_model_effect", "static_range_model", "tuning_case"]
+__all__ = ["CaseComparison", "FAST_SPAN_S", "OFFSET_CHECK_S", "board_epochs", "case_board", "compare_cases",
+           "load_pair", "pick_on_tuning_case", "ratio_table", "static_model_effect", "tuning_case"]
 
 PathLike = str | os.PathLike
 

@@ -8,12 +8,12 @@ this package as ``mm``.
 
 from . import exercises, panels, real
 from .figures import calibration_figure, cdf_figure, covariance_figure, paths_figure, scenario_figure
-from .headlines import Results, checks, headline_rows
-from .study import (DEFAULT_GRIDS, METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95,
-                    PAPER_SIGMA, SIGMA_KIND, Study, TagResults, best_sigmas, calibration_curves,
-                    cep95_table, coverage_table, ekf_name, estimate, nis_table, paper_table,
-                    ranging_summary, ranking, raw_multilateration, record, run_ekf, run_study, sigma_rows,
-                    split_runs, summary_rows, synthetic_acquisition, tag_runs, tdoa_noise_check)
+from .headlines import Results, SIGMA_KIND, checks, headline_rows, record, sigma_rows, summary_rows
+from .results import (METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, cep95_table,
+                      coverage_table, ekf_name, nis_table, paper_table, ranking)
+from .study import (DEFAULT_GRIDS, Study, best_sigmas, calibration_curves, estimate, ranging_summary,
+                    raw_multilateration, run_ekf, run_study, split_runs, synthetic_acquisition, tag_runs,
+                    tdoa_noise_check)
 
 __all__ = [
     "DEFAULT_GRIDS", "METHODS", "MODELS", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95",

@@ -16,7 +16,7 @@ from ... import plotting
 from ...models.motion import MOTION_MODELS
 from ...sim import walk
 from ...types import Trajectory
-from .study import MODELS, TagResults, ekf_name
+from .results import MODELS, TagResults, ekf_name
 
 __all__ = ["scenario_figure", "covariance_figure", "calibration_figure", "paths_figure", "cdf_figure"]
 

@@ -1,7 +1,5 @@
 """Notebook 03's results: every estimator's output for one tag-run, scored on common epochs, and
 the tables built from it (CEP95, coverage, NIS verdicts, rankings), beside the thesis' values.
-
-Split from :mod:`.study` (which re-exports every name).
 """
 
 from __future__ import annotations

@@ -48,17 +48,10 @@ from ...scoreboard.estimators import EKF_GRIDS
 from ...sim import walk
 from ...types import Recording, TagRun, TdoaLog, Trajectory
 
-from .headlines import SIGMA_KIND, record, sigma_rows, summary_rows
-from .results import (METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, _errors,
-                      cep95_table, coverage_table, ekf_name, nis_table, paper_table, ranking)
+from .results import METHODS, MODELS, TagResults, _errors, cep95_table, coverage_table, ekf_name, nis_table
 
-__all__ = [
-    "MODELS", "METHODS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "DEFAULT_GRIDS",
-    "TagResults", "tag_runs", "synthetic_acquisition",
-    "raw_multilateration", "ranging_summary", "estimate", "calibration_curves", "best_sigmas", "cep95_table",
-    "coverage_table", "nis_table", "ranking", "paper_table", "split_runs", "Study", "run_study",
-    "tdoa_noise_check", "ekf_name", "run_ekf", "SIGMA_KIND", "summary_rows", "sigma_rows", "record",
-]
+__all__ = ["DEFAULT_GRIDS", "tag_runs", "synthetic_acquisition", "raw_multilateration", "ranging_summary", "estimate",
+           "calibration_curves", "best_sigmas", "split_runs", "Study", "run_study", "tdoa_noise_check", "run_ekf"]
 
 
 #: Default calibration grids of the driving standard deviation (model units), log-spaced over the

@@ -1,6 +1,6 @@
 """Notebook 02: trajectory estimation by NLS with pruning heuristics (Zupanec et al.).
 
-``study`` runs the synthetic comparisons (and re-exports the rest of the package's runs);
+``study`` runs the synthetic comparisons;
 ``scoring`` holds the estimator names and the tables (coverage beside accuracy); ``real`` runs the
 LIAS static poses and dynamic pieces, ``sections`` the notebook's LIAS sections in one call each;
 ``figures`` draws them; ``panels`` backs the notebook's widgets and writes the notes under them;

@@ -36,28 +36,10 @@ from ...filters.pruning import HEURISTICS, PruningConfig, localize
 from ...geometry import point_fixes
 from ...sim import tours as tours_mod
 from ...types import RangeLog, RangeSamples, Recording
-from .real import DynamicResult, StaticResult, run_dynamic_segments, run_static_poses
-from .scoring import (ESTIMATORS, LABELS, MIN_SEGMENT_RANGES, PAPER_RANKING, POINT, bearing_deg, epoch_summary,
-                      hanyang_table, heading_err_deg, heuristic_summary, rank_heuristics, wins_table)
+from .scoring import MIN_SEGMENT_RANGES, POINT, bearing_deg, heading_err_deg, heuristic_summary
 
-__all__ = [
-    "ESTIMATORS", "LABELS", "MIN_SEGMENT_RANGES", "POINT", "PAPER_RANKING", "DynamicResult", "StaticResult",
-    "SyntheticConfig", "SyntheticResult", "TourExplorer", "PieceExplorer", "epoch_summary", "hanyang_table",
-    "headline_rows", "heuristic_summary", "loso_calibrations", "outlier_free_control",
-    "range_error_stats", "rank_heuristics", "run_dynamic_segments", "run_recordings", "run_static_poses",
-    "run_synthetic", "run_tour", "segment_ranges", "sensitivity", "wins_table",
-]
-
-#: Names that moved to the panel and headline modules, still importable from here.
-_MOVED = {"TourExplorer": "panels", "PieceExplorer": "panels", "headline_rows": "headlines"}
-
-
-def __getattr__(name):
-    if name in _MOVED:
-        import importlib
-        return getattr(importlib.import_module(f".{_MOVED[name]}", __package__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
+__all__ = ["SyntheticConfig", "SyntheticResult", "loso_calibrations", "outlier_free_control", "range_error_stats", "run_recordings", "run_synthetic",
+           "run_tour", "segment_ranges", "sensitivity"]
 
 # =========================================================================== synthetic
 

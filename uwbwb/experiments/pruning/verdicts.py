@@ -47,12 +47,12 @@ def comparison_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
     Parameters
     ----------
     synthetic
-        :func:`~.study.heuristic_summary` of the fair synthetic comparison (stops, walks,
+        :func:`~.scoring.heuristic_summary` of the fair synthetic comparison (stops, walks,
         track; with the point-based baseline).
     synthetic_dim
         Its geometry: 2 (every estimator at the known mount height) or 3 (none has a height).
     synthetic_other
-        The same packets in the other geometry (its :func:`~.study.heuristic_summary`).
+        The same packets in the other geometry (its :func:`~.scoring.heuristic_summary`).
     persistence
         Median stationary error per mean NLOS episode length (index, s) and heuristic.
     lias_static

@@ -9,11 +9,11 @@ result for each).
 
 from __future__ import annotations
 
-from ...metrics import Headline
 from .facts import facts
 from .study import METHODS, Results
+from ...metrics import Headline
 
-__all__ = ["Headline", "HEADLINES", "PAPER", "checks", "publish", "rows"]
+__all__ = ["HEADLINES", "PAPER", "checks", "publish", "rows"]
 
 #: What the paper states (a copied package puts its paper's printed values here). The template's
 #: "paper" states the range noise the simulator is given, so that row is an *input*.

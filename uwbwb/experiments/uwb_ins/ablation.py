@@ -54,17 +54,17 @@ from ...models.imu import GRADES
 from ...models.ins import quat_to_dcm
 from ...models.motion import RandomForce
 from ...models.tdoa import TdoaModel, triangle_outliers
-from ...sim import mismatch as mm
-from ...sim import robot
+from ...sim import mismatch as mm, robot
 from ...types import EstimateStatus, Estimates
 from ...validate import integer, number, probability
-from .scoring import RECOVERY_MAX_M, _masks, _reacq, _scores, reacquisition_s  # noqa: F401 (re-exported)
-from .study import OUTAGE_START_S, imu_after, initial_state, ls_estimates, screened_tdoa
+from .scoring import _masks, _reacq, _scores
+from .study import OUTAGE_START_S
+from ...filters.alignment import imu_after, initial_state, ls_estimates, screened_tdoa
 
-__all__ = ["BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "pair_rmse", "METRICS", "LADDER", "EKF_Q0", "RECOVERY_S", "AblationConfig", "AblationResult",
-           "check_outage", "check_parameters", "notebook_config", "legs_for_outage", "simulate", "ls_gate",
-           "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci", "ladder_table", "mismatch_table",
-           "eq4_thresholds", "eq4_path", "choose_knobs", "TIE_REL", "RECOVERY_MAX_M", "reacquisition_s", "FULL_GRID", "FAST_GRID"]
+__all__ = ["BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "METRICS", "LADDER", "EKF_Q0",
+           "RECOVERY_S", "AblationConfig", "AblationResult", "check_outage", "check_parameters", "notebook_config",
+           "legs_for_outage", "simulate", "ls_gate", "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci",
+           "choose_knobs", "TIE_REL", "FULL_GRID", "FAST_GRID"]
 
 #: The four estimators, without and with the gate; the EKF also with the tight filter's per-TDoA gate.
 BASES = ("LS", "EKF", "loose", "tight")
@@ -578,6 +578,3 @@ def run_ablation(cfg: AblationConfig, *, base_seed: int = 0, fast: bool = False,
                 c[k] += sc[k]
     return AblationResult(cfg, fast, tuning, knobs, pd.DataFrame(recs), counts, pd.DataFrame(prs))
 
-
-# moved to .ladder (the ladder and mismatch tables, the eq-4 thresholds), re-exported under their old names
-from .ladder import eq4_path, eq4_thresholds, ladder_table, mismatch_table, pair_rmse  # noqa: E402

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import validate
+from ...filters import alignment
 from ...widgets import ExerciseCheck
 from . import study
 from .ablation import legs_for_outage
@@ -30,7 +31,7 @@ def outage_loose_vs_tight(*, seed: int, outage_s: float = 5.0, grade: str = "con
     factor = validate.number("factor", factor, minimum=1.0)
     run = study.simulate_case("dynamic", seed=seed, grade=grade, outlier_rate=outlier_rate, outage_s=outage_s,
                               legs=legs_for_outage(outage_s))
-    comp = study.compare_synthetic(run, study.FusionSettings(), label="outage", methods=("UWB-only", "loose", "tight"))
+    comp = study.compare_synthetic(run, alignment.FusionSettings(), label="outage", methods=("UWB-only", "loose", "tight"))
     t = comp.table("outage")
     loose, tight = float(t.loc["loose", "max (m)"]), float(t.loc["tight", "max (m)"])
     return ExerciseCheck(f"{outage_s:g} s outage: loose max error more than {factor:g}× tight's",
@@ -51,7 +52,7 @@ def gate_off(*, seed: int, outlier_rate: float = 0.1, duration_s: float = 8.0, g
     run = study.simulate_case("static", seed=seed, grade=grade, outlier_rate=outlier_rate, static_s=duration_s)
     rmse = {}
     for g in (gate_prob, None):
-        comp = study.compare_synthetic(run, study.FusionSettings(gate_prob=g), label="static",
+        comp = study.compare_synthetic(run, alignment.FusionSettings(gate_prob=g), label="static",
                                        methods=("UWB-only", "tight"))
         rmse[g] = float(comp.table().loc["tight", "RMSE (m)"])
     return ExerciseCheck(f"multipath rate {outlier_rate:g}: tight RMSE higher without the χ² gate",

@@ -17,7 +17,7 @@ Rules
 * A tuning-grid entry **blew up** when its RMSE exceeds 10× the row's lowest on the grid
   (:func:`~.ablation.choose_knobs`): the filter fails at that knob.
 * Eq. 4 **can fire** in the matched world when the smallest excess that trips it anywhere on the
-  ablation's path (:func:`~.ablation.eq4_thresholds`) lies below the largest excess the matched
+  ablation's path (:func:`~.ladder.eq4_thresholds`) lies below the largest excess the matched
   simulator draws.
 """
 
@@ -28,9 +28,9 @@ import math
 import numpy as np
 import pandas as pd
 
-from .ablation import (EKF_TDOA_GATE, LADDER, RECOVERY_MAX_M, AblationResult, choose_knobs, eq4_path, eq4_thresholds,
-                       pair_rmse)
-from .scoring import HOLD_S
+from .ablation import AblationResult, EKF_TDOA_GATE, LADDER, choose_knobs
+from .ladder import eq4_path, eq4_thresholds, pair_rmse
+from .scoring import HOLD_S, RECOVERY_MAX_M
 
 __all__ = ["DIVERGED_FACTOR", "verdict", "facts", "verdict_table"]
 
@@ -63,7 +63,7 @@ def _gated(rows) -> list:
 
 
 def _matched_failures(res: AblationResult) -> dict:
-    """Gated rows that did not re-acquire (:func:`~.ablation.reacquisition_s`) within the recovery
+    """Gated rows that did not re-acquire (:func:`~.scoring.reacquisition_s`) within the recovery
     time on some matched seed: row → per-seed re-acquisition times (s)."""
     rec = res.case("matched")["reacq_s"].unstack("method")
     lim = res.config.recovery_s

@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ...plotting import color_for
-from .study import Comparison
+from ...filters.alignment import Comparison
 
 __all__ = ["static_traces", "track", "error_vs_time", "attitude", "bias_estimates"]
 

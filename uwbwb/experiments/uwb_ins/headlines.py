@@ -13,10 +13,11 @@ import numpy as np
 
 from ...models.imu import GRADES
 from ...sim import robot
-from .ablation import EKF_TDOA_GATE, LADDER, RECOVERY_MAX_M, ROWS, AblationResult
-from .scoring import HOLD_S
+from .ablation import EKF_TDOA_GATE, LADDER, ROWS, AblationResult
+from .scoring import HOLD_S, RECOVERY_MAX_M
 
-__all__ = ["ERROR_RANGE_ASSUMPTION", "error_range_assumption", "RECOVERY_MAX_M", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
+__all__ = ["ERROR_RANGE_ASSUMPTION", "error_range_assumption", "ablation_rows", "checks", "comparison_rows",
+           "comparison_checks"]
 
 def error_range_assumption(world: robot.RobotConfig) -> str:
     """What the synthetic error ranges follow from, read off the simulated world ``world``."""
@@ -92,7 +93,7 @@ def checks(res: AblationResult) -> list[str]:
     5. The LS residual test lowers LS's static and dynamic RMSE by ≥ 1.5× (mean over seeds).
     6. Re-acquisition: in the matched world every gated filter gets below :data:`RECOVERY_MAX_M`
        within :data:`~.ablation.RECOVERY_S` of UWB's return after the outage and holds it for
-       :data:`~.scoring.HOLD_S` (:func:`~.ablation.reacquisition_s`), on every seed: a filter that
+       :data:`~.scoring.HOLD_S` (:func:`~.scoring.reacquisition_s`), on every seed: a filter that
        diverges after the outage fails it however good its mean is. The error UWB finds on its
        return (the outage's drift) is the outage's own score, not this check's; the check's earlier
        reading (max error in the recovery window) is reported beside it by the notebook's sentence. The EKF with the tight filter's per-TDoA gate

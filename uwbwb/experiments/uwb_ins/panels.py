@@ -12,6 +12,7 @@ import functools
 import numpy as np
 
 from ... import validate
+from ...filters import alignment
 from ...models.imu import GRADES
 from ...widgets import Panel, PanelFigure, dropdown, float_slider
 from . import figures, study
@@ -33,15 +34,15 @@ def panel_run(scenario: str, grade: str, outlier_rate: float, outage_s: float, *
 @functools.lru_cache(maxsize=64)
 def panel_comparison(scenario: str, grade: str, q_scale: float, r_scale: float, c_m: float, outlier_rate: float,
                      outage_s: float, feedback: bool, method: str, *, seed: int, legs: int, gate_prob: float | None,
-                     loose_window: int) -> study.Comparison:
+                     loose_window: int) -> alignment.Comparison:
     """UWB-only and ``method`` on :func:`panel_run` (``c_m`` < 0: no eq-4 test)."""
     run = panel_run(scenario, grade, outlier_rate, outage_s, seed=seed, legs=legs)
-    settings = study.FusionSettings(outlier_c_m=c_m if c_m >= 0 else None, gate_prob=gate_prob, q_scale=q_scale,
+    settings = alignment.FusionSettings(outlier_c_m=c_m if c_m >= 0 else None, gate_prob=gate_prob, q_scale=q_scale,
                                     r_scale=r_scale, feedback=feedback, loose_window=loose_window)
     return study.compare_synthetic(run, settings, label=scenario, methods=("UWB-only", method))
 
 
-def readout(comp: study.Comparison, method: str) -> dict:
+def readout(comp: alignment.Comparison, method: str) -> dict:
     """The panel's numbers: RMSE and max of ``method`` and UWB-only, rejections, max in the outage."""
     t = comp.table()
     read = {f"RMSE {method} (m)": t.loc[method, "RMSE (m)"], "RMSE UWB-only (m)": t.loc["UWB-only", "RMSE (m)"],

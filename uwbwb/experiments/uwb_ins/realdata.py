@@ -1,7 +1,7 @@
 """Notebook 05's real-data table (``iasl-uwb-imu``): horizontal, vertical and 3-D error on common
 epochs, block-bootstrap intervals on the differences between methods, and consistency (NEES, NIS).
 
-Every method of a :class:`~.study.Comparison` from :func:`~.study.compare_iasl` is scored on the
+Every method of a :class:`~uwbwb.filters.alignment.Comparison` from :func:`~uwbwb.filters.alignment.compare_iasl` is scored on the
 **common epochs**: those where the truth exists and every method has an estimate. The errors of
 one method are correlated in time, so an interval on a difference resamples contiguous blocks
 of epochs (a block bootstrap over non-overlapping blocks), never single epochs.
@@ -15,7 +15,7 @@ from scipy import stats
 
 from ... import metrics
 from ...metrics import MIN_BLOCKS, block_bootstrap_difference
-from .study import Comparison
+from ...filters.alignment import Comparison
 
 __all__ = ["PAIRS", "summary_rows", "common_epochs", "error_table", "difference_table",
            "difference_verdict", "consistency_table"]

@@ -6,9 +6,9 @@ UWB epochs (TDoA from the same ranges, the same eq-4 test), the same initial sta
 magnetometer headings where there are any, the same known tag height for the ground robot.
 They are scored on the same epochs; coverage is reported beside accuracy.
 
-The real-data pieces live in the core and are re-exported here under their old names: the IMU
-calibration in :mod:`uwbwb.filters.imu_calibration`, the start-up (eq-4 screen, levelling,
-heading alignment) and :func:`compare_iasl` in :mod:`uwbwb.filters.alignment`.
+The real-data pieces live in the core: the IMU calibration in :mod:`uwbwb.filters.imu_calibration`, the start-up
+(eq-4 screen, levelling, heading alignment) and :func:`~uwbwb.filters.alignment.compare_iasl` in
+:mod:`uwbwb.filters.alignment`.
 """
 
 from __future__ import annotations
@@ -16,17 +16,13 @@ from __future__ import annotations
 import numpy as np
 
 from ...filters import eskf
-from ...filters.alignment import (IASL_EKF_PSD_M2PS3, Comparison, FusionSettings, compare_iasl, imu_after,
-                                  initial_state, level_attitude, ls_estimates, screened_tdoa)
-from ...filters.imu_calibration import RealCalibration, calibrate_iasl
 from ...models.imu import GRADES
 from ...models.tdoa import TdoaModel
 from ...sim import robot
 from ...types import Trajectory
+from ...filters.alignment import Comparison, FusionSettings, imu_after, initial_state, ls_estimates, screened_tdoa
 
-__all__ = ["PAPER", "METHODS", "FusionSettings", "Comparison", "simulate_case", "compare_synthetic",
-           "error_ranges", "RealCalibration", "calibrate_iasl", "compare_iasl", "screened_tdoa", "level_attitude",
-           "initial_state", "ls_estimates", "imu_after", "IASL_EKF_PSD_M2PS3"]
+__all__ = ["PAPER", "METHODS", "simulate_case", "compare_synthetic", "error_ranges"]
 
 #: Numbers quoted from paper 004 (kind "input"): error ranges (m) and the summary bounds.
 PAPER = {"static_E_m": (-0.04, 0.07), "static_N_m": (-0.07, 0.09), "dynamic_m": (-0.21, 0.16),

@@ -35,7 +35,8 @@ Modules
 """
 
 from ..gating import UpdateInfo
-from .core import Ekf, KalmanRun, Linearisation, MeasurementModel, TransitionModel, nis_consistency
+from .core import Ekf, KalmanRun, Linearisation, MeasurementModel, TransitionModel
+from ...metrics import nis_consistency
 from .tdoa import TdoaEkf, TdoaMeasurement, run_tdoa_ekf
 
 __all__ = ["Ekf", "KalmanRun", "Linearisation", "MeasurementModel", "TransitionModel", "UpdateInfo",

@@ -54,10 +54,12 @@ measurement models), :mod:`.result` (:class:`FusionRun`, :func:`dead_reckon`), :
 
 from .common import (HEADING_KNOWN_RAD, LOST_BUILD_S, MAX_IMU_GAP_STEPS, SNAPSHOT_RMS_SIGMAS, gap_timeline, imu_gaps,
                      merge_timeline)
-from .kernels import _exp_left_nb, _fill_row, _reset_block, _reset_covariance, _skew_into, _tight_loop, _uwb_rows
+from .kernels import _fill_row, _reset_block, _reset_covariance, _skew_into, _tight_loop, _uwb_rows
+from ...models.ins import _exp_left_nb
 from .loose import LooseFilter
 from .result import FusionRun, dead_reckon
-from .tight import HeadingLog, TightEskf
+from .tight import TightEskf
+from ...models.imu import HeadingLog
 from .updates import RangeUpdate, TdoaUpdate, _tag_jacobian
 
 __all__ = ["FusionRun", "HeadingLog", "LooseFilter", "RangeUpdate", "TdoaUpdate", "TightEskf", "dead_reckon",

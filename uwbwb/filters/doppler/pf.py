@@ -5,8 +5,8 @@ by one ΔP at a time as chirps arrive, vectorised over particles *and* independe
 pieces (motion, ΔP likelihood, the room as a constraint with restarts, tempering) on the particle
 engine :class:`~uwbwb.filters.particle.ParticleFilter` (log-weights normalised with log-sum-exp, ESS,
 systematic resampling and roughening with an injected ``rng``). :class:`PfRuns` holds ``R`` runs as an
-:class:`~uwbwb.types.EstimatesBatch` (the ``Estimates`` fields batched along a leading run axis). Re-exported by
-:mod:`uwbwb.filters.doppler`.
+:class:`~uwbwb.types.EstimatesBatch` (the ``Estimates`` fields batched along a leading run axis).
+Part of the :mod:`uwbwb.filters.doppler` package.
 """
 
 from __future__ import annotations
@@ -15,12 +15,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import parallel
-from ..models.doppler import DopplerModel, ReceiverMotion
-from ..types import ChirpFlag, ChirpLog, EstimateStatus, EstimatesBatch
-from ..validate import integer, number, probability
-from .doppler_frontend import _check_log, _check_model, _check_motion, _per_row
-from .particle import ParticleFilter
+from ... import parallel
+from ...models.doppler import DopplerModel
+from ...models.motion import ReceiverMotion
+from ...types import ChirpFlag, ChirpLog, EstimateStatus, EstimatesBatch
+from ...validate import integer, number, probability
+from ..particle import ParticleFilter
+from .frontend import _check_log, _check_model, _check_motion, _per_row
 
 __all__ = ["DopplerPf", "PfRuns"]
 

@@ -5,18 +5,18 @@
 * :func:`clock_pseudo_ranges` — pseudo-ranges from a model of the beacons'
   transmission clocks (the ranging term proposed in section 5).
 
-The input checks shared by the Doppler filters (:mod:`.doppler_pf`, :mod:`.scaat`) live here too.
-Everything is re-exported by :mod:`uwbwb.filters.doppler`.
+The input checks shared by the Doppler filters (:mod:`.pf`, :mod:`.scaat`) live here too.
+Part of the :mod:`uwbwb.filters.doppler` package.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..models.doppler import DopplerModel
-from ..models.motion import ReceiverMotion
-from ..types import ChirpFlag, ChirpLog
-from ..validate import integer, number
+from ...models.doppler import DopplerModel
+from ...models.motion import ReceiverMotion
+from ...types import ChirpFlag, ChirpLog
+from ...validate import integer, number
 
 __all__ = ["assign_chirps", "clock_pseudo_ranges"]
 

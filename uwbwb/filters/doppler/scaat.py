@@ -6,8 +6,8 @@ runs through the Gaussian engine, :class:`uwbwb.filters.ekf.Ekf` over the
 :class:`DopplerMeasurement` linearisation (the EKF's view of
 :class:`~uwbwb.models.doppler.DopplerModel`): :meth:`~uwbwb.filters.ekf.Ekf.predict`, then
 :meth:`~uwbwb.filters.ekf.Ekf.update` without a gate, whose
-:attr:`~uwbwb.filters.gating.UpdateInfo.log_likelihood` weights the child. Re-exported by
-:mod:`uwbwb.filters.doppler`.
+:attr:`~uwbwb.filters.gating.UpdateInfo.log_likelihood` weights the child.
+Part of the :mod:`uwbwb.filters.doppler` package.
 """
 
 from __future__ import annotations
@@ -16,12 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models.doppler import DopplerModel, ReceiverMotion
-from ..types import ChirpFlag, ChirpLog, EstimateStatus, Estimates
-from ..validate import integer, number, probability
-from .doppler_frontend import _check_log, _check_model, _check_motion, _per_row
-from .ekf import Ekf, Linearisation
-from .kalman import Gaussian
+from ...models.doppler import DopplerModel
+from ...models.motion import ReceiverMotion
+from ...types import ChirpFlag, ChirpLog, EstimateStatus, Estimates
+from ...validate import integer, number, probability
+from ..ekf import Ekf, Linearisation
+from ..kalman import Gaussian
+from .frontend import _check_log, _check_model, _check_motion, _per_row
 
 __all__ = ["DopplerMeasurement", "ScaatMhEkf"]
 

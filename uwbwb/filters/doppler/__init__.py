@@ -2,10 +2,10 @@
 
 One import path for the whole family (the modules below hold the code):
 
-* :mod:`.doppler_frontend` — :func:`assign_chirps` (the receiver's front end: chirps
+* :mod:`.frontend` — :func:`assign_chirps` (the receiver's front end: chirps
   assigned to beacons by their periodicity, ΔP per period, section 2) and
   :func:`clock_pseudo_ranges` (pseudo-ranges from a beacon-clock model, section 5);
-* :mod:`.doppler_pf` — :class:`DopplerPf`, the 6-D particle filter of section 4.2 on the
+* :mod:`.pf` — :class:`DopplerPf`, the 6-D particle filter of section 4.2 on the
   particle engine (:class:`uwbwb.filters.particle.ParticleFilter`, :meth:`DopplerPf.engine`),
   vectorised over particles and runs; :class:`PfRuns`, its runs as :class:`~uwbwb.types.Estimates` fields batched along
   a leading run axis;
@@ -19,8 +19,8 @@ Both filters take the same :class:`~uwbwb.models.doppler.DopplerModel` (eq 1, no
 
 from __future__ import annotations
 
-from .doppler_frontend import assign_chirps, clock_pseudo_ranges
-from .doppler_pf import DopplerPf, PfRuns
+from .frontend import assign_chirps, clock_pseudo_ranges
+from .pf import DopplerPf, PfRuns
 from .scaat import DopplerMeasurement, ScaatMhEkf
 
 __all__ = ["assign_chirps", "clock_pseudo_ranges", "DopplerMeasurement", "DopplerPf", "PfRuns", "ScaatMhEkf"]
