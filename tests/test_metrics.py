@@ -232,3 +232,11 @@ def test_nis_consistency_is_one_function_with_one_set_of_keys():
     assert m.nis_consistency(rng.chisquare(dof) / 3, dof)["verdict"] == "under-confident"
     none = m.nis_consistency([np.nan, 1.0], [2, 0])                  # nothing used: no updates
     assert none["verdict"] == "no updates" and set(none) == set(c)
+
+
+@pytest.mark.parametrize("lo, hi, null, side", [(-2.0, -0.1, 0.0, "below"), (0.1, 2.0, 0.0, "above"),
+                                                (-1.0, 1.0, 0.0, "contains"), (0.0, 1.0, 0.0, "contains"),
+                                                (1.2, 1.5, 1.0, "above"), (0.4, 0.9, 1.0, "below"),
+                                                (np.nan, 1.0, 0.0, "none"), (0.0, np.inf, 0.0, "none")])
+def test_interval_side_rejects_the_null_only_when_the_interval_excludes_it(lo, hi, null, side):
+    assert m.interval_side(lo, hi, null) == side

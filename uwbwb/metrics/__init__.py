@@ -3,7 +3,8 @@ and the reproduction summary table.
 
 * :mod:`.errors` — per-epoch errors, ECDF, CEP, RMSE, :func:`epoch_summary` (accuracy on common epochs,
   coverage beside it), :func:`block_bootstrap_difference` (paired RMSE difference with its interval: the one
-  interval rule for a difference on a time series, blocks by :func:`block_ids`); its docstring states the
+  interval rule for a difference on a time series, blocks by :func:`block_ids`), :func:`interval_side` (the one rule
+  from an interval to a verdict); its docstring states the
   missing-value and quantile rules.
 * :mod:`.scoring` — :func:`score_epochs` (per-method errors on one epoch grid → :class:`EpochScores`:
   each method's own epochs, the common epochs, coverage and the statistics asked for on either),
@@ -16,12 +17,13 @@ and the reproduction summary table.
 
 from .consistency import nees, nis_consistency
 from .errors import (MIN_BLOCKS, ErrorSeries, _errors, block_bootstrap_difference, block_ids, cep, cep50, cep95, ecdf,
-                     epoch_summary, error_stats, errors_vs_truth, position_error_m, rmse)
+                     epoch_summary, error_stats, errors_vs_truth, interval_side, position_error_m, rmse)
 from .scoring import EpochScores, MethodEpochs, errors_on_grid, pool_scores, score_epochs
 from .summary import Headline, Summary
 
 __all__ = [
     "ErrorSeries", "Summary", "cep", "cep50", "cep95", "ecdf", "epoch_summary", "error_stats", "errors_vs_truth",
     "nees", "nis_consistency", "position_error_m", "rmse", "block_bootstrap_difference", "block_ids", "MIN_BLOCKS",
+    "interval_side",
     "Headline", "EpochScores", "MethodEpochs", "errors_on_grid", "pool_scores", "score_epochs",
 ]

@@ -357,6 +357,17 @@ def block_ids(series: Sequence[np.ndarray]) -> tuple[np.ndarray, int]:
     return (np.concatenate(ids) if ids else np.zeros(0, int)), nb
 
 
+def interval_side(lo: float, hi: float, null: float = 0.0) -> str:
+    """Where an interval lies against the value of a null hypothesis: the package's one interval → verdict rule.
+
+    ``"below"`` when ``hi < null``, ``"above"`` when ``lo > null`` (the interval rejects the null), ``"contains"``
+    when ``lo ≤ null ≤ hi`` (it does not), ``"none"`` when either end is not finite (no interval, e.g. fewer than
+    :data:`MIN_BLOCKS` blocks). Each table names its outcomes from these four; none decides otherwise."""
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return "none"
+    return "below" if hi < null else "above" if lo > null else "contains"
+
+
 def block_bootstrap_difference(err_a, err_b, *, rng: np.random.Generator, n_boot: int = 2000,
                                level: float = 0.95) -> dict:
     """``RMSE(a) − RMSE(b)`` on paired epochs and its block-bootstrap interval: the package's one interval rule

@@ -26,7 +26,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ..metrics.errors import MIN_BLOCKS, block_bootstrap_difference, block_ids
+from ..metrics.errors import MIN_BLOCKS, block_bootstrap_difference, block_ids, interval_side
 
 __all__ = ["DIFFERENCE_RULE", "N_BOOT", "PLACEMENT_RULE", "block_se_ratio", "difference_facts", "difference_table",
            "placement_facts", "placement_table"]
@@ -76,7 +76,7 @@ def difference_facts(board, a: str, b: str, *, n_boot: int = N_BOOT, rng: np.ran
         sa.append(ea.error_m[both])
         sb.append(eb.error_m[both])
     d = block_bootstrap_difference(sa, sb, rng=rng, n_boot=n_boot)
-    verdict = "a" if d["hi_m"] < 0 else ("b" if d["lo_m"] > 0 else "none")
+    verdict = {"below": "a", "above": "b"}.get(interval_side(d["lo_m"], d["hi_m"]), "none")
     return {"a": a, "b": b, "mode": board.mode, "n_epochs": d["n"], "n_blocks": d["n_blocks"], "rmse_a_m": d["rmse_a_m"],
             "rmse_b_m": d["rmse_b_m"], "diff_m": d["diff_m"], "lo_m": d["lo_m"], "hi_m": d["hi_m"], "verdict": verdict}
 

@@ -56,6 +56,7 @@ import numpy as np
 import pandas as pd
 
 from ...filters import doppler as fd
+from ...metrics import interval_side
 from .scoring import bootstrap_median
 from .study import PAPER, READINGS
 
@@ -135,33 +136,23 @@ class Results:
 
 
 def _interval_verdict(lo: float, hi: float, value: float) -> str:
-    if not (np.isfinite(lo) and np.isfinite(hi)):
-        return "no interval"
-    if lo <= value <= hi:
-        return "consistent"
-    return "above" if lo > value else "below"
+    return {"contains": "consistent", "above": "above", "below": "below"}.get(interval_side(lo, hi, value),
+                                                                               "no interval")
 
 
 def _ratio_verdict(lo: float, hi: float, paper: float) -> str:
     """The along/across ratio's median interval against no asymmetry (1) and the paper's value (module docstring)."""
-    if not (np.isfinite(lo) and np.isfinite(hi)):
-        return "no interval"
-    if lo <= 1.0 <= hi:
-        return "no asymmetry detected"
-    if lo > 1.0:
-        return "asymmetric the other way (longer along than across)"
+    side = interval_side(lo, hi, 1.0)
+    if side != "below":
+        return {"none": "no interval", "contains": "no asymmetry detected",
+                "above": "asymmetric the other way (longer along than across)"}[side]
     where = _interval_verdict(lo, hi, paper)
     return f"asymmetric, consistent with {paper:g}" if where == "consistent" else f"asymmetric, {where} {paper:g}"
 
 
 def _bound_verdict(lo: float, hi: float, bound: float) -> str:
-    if not (np.isfinite(lo) and np.isfinite(hi)):
-        return "no interval"
-    if hi < bound:
-        return "below"
-    if lo > bound:
-        return "above"
-    return "straddles"
+    side = interval_side(lo, hi, bound)
+    return {"contains": "straddles", "none": "no interval"}.get(side, side)
 
 
 def facts(res: Results) -> dict:
@@ -248,8 +239,8 @@ def facts(res: Results) -> dict:
     share = d["offset (cm)"] ** 2 / (d["offset (cm)"] ** 2 + d["run-to-run CEP50 (cm)"] ** 2)
     m, lo, hi = bootstrap_median(share.to_numpy(), rng=rng)
     f["offset_share"] = (m, lo, hi)
-    f["offset_or_spread"] = ("no interval" if not np.isfinite(lo) else "offset" if lo > OFFSET_SHARE else
-                             "spread" if hi < OFFSET_SHARE else "comparable")
+    f["offset_or_spread"] = {"above": "offset", "below": "spread", "contains": "comparable"}.get(
+        interval_side(lo, hi, OFFSET_SHARE), "no interval")
     f["corners"] = {}
     for corner, d in snap[snap["variant"] == "Doppler"].groupby("corner", sort=False):
         m, lo, hi = bootstrap_median(d["along / across"].to_numpy(), rng=rng)
@@ -270,8 +261,7 @@ def facts(res: Results) -> dict:
         f["corner_diff"] = (m, lo, hi)
         f["corner_pair"] = tuple(names)
         f["ratio_all"] = (float(np.median(allv)), float(np.min(allv)), float(np.max(allv)))
-        f["corner_dependence"] = ("no interval" if not np.isfinite(lo) else
-                                  "depends" if (lo > 0 or hi < 0) else "same")
+        f["corner_dependence"] = {"contains": "same", "none": "no interval"}.get(interval_side(lo, hi), "depends")
 
     # --- filters: accuracy, restarts, coverage
     sc = res.scores
@@ -280,8 +270,8 @@ def facts(res: Results) -> dict:
         m, lo, hi = bootstrap_median(diff, rng=rng)
         f[f"kf_minus_pf_cm[{variant}]"] = (m, lo, hi)
         f[f"kf_vs_pf[{variant}]"] = ("equal within 5 mm" if abs(m) < EQUAL_CM else
-                                     "no interval" if not np.isfinite(lo) else "PF better" if lo > 0 else
-                                     "MH-EKF better" if hi < 0 else "no significant difference")
+                                     {"above": "PF better", "below": "MH-EKF better",
+                                      "contains": "no significant difference"}.get(interval_side(lo, hi), "no interval"))
         runs = d["PF runs"].sum()
         f[f"pf_cep50_cm[{variant}]"] = float(d["PF CEP50 (cm)"].median())
         f[f"kf_cep50_cm[{variant}]"] = float(d["MH-EKF CEP50 (cm)"].median())

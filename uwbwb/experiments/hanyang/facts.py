@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ...metrics import MIN_BLOCKS
+from ...metrics import MIN_BLOCKS, interval_side
 
 __all__ = ["NO_VERDICT", "PICKS", "REPRO_TOL_M", "interval_verdict", "pair_verdict", "ratio_facts", "reproduction_facts",
            "static_facts", "summary_rows", "verdict_table"]
@@ -29,13 +29,7 @@ REPRO_TOL_M = 0.01
 
 def interval_verdict(lo: float, hi: float, low: str, high: str, neither: str) -> str:
     """``low`` if the interval lies below 1, ``high`` if above, ``neither`` otherwise (or ``"no interval"``)."""
-    if not (np.isfinite(lo) and np.isfinite(hi)):
-        return "no interval"
-    if hi < 1.0:
-        return low
-    if lo > 1.0:
-        return high
-    return neither
+    return {"below": low, "above": high, "contains": neither}.get(interval_side(lo, hi, 1.0), "no interval")
 
 
 NO_VERDICT = "no verdict: too few independent blocks"

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from ... import geometry, metrics
+from ...metrics import interval_side
 from ...calibration import MountHeight, RangeCalibration, fit_range_calibration, range_residuals, tag_mount_height
 from ...datasets.standin import RoomData, load_lias_room
 from ...sim import rig
@@ -174,8 +175,8 @@ def verdicts(errors: dict, *, rng: np.random.Generator) -> pd.DataFrame:
         both = np.isfinite(on_grid["raw"]) & np.isfinite(on_grid["calibrated"])
         d = metrics.block_bootstrap_difference(on_grid["raw"][both], on_grid["calibrated"][both], rng=rng)
         lo, hi = d["lo_m"], d["hi_m"]
-        verdict = ("no verdict" if not np.isfinite(lo) else "better" if lo > 0 else "worse" if hi < 0
-                   else "not significant")
+        verdict = {"above": "better", "below": "worse", "contains": "not significant"}.get(
+            interval_side(lo, hi), "no verdict")
         rows.append({"claim": f"tag {tag}: calibrated vs raw ranges, RMSE reduction on the epochs both fixed (m)",
                      "ours": d["diff_m"], "low": lo, "high": hi, "epochs": d["n"], "blocks": d["n_blocks"],
                      "rule": "95 % block bootstrap excludes 0", "verdict": verdict})

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
+from ...metrics import interval_side
 from .real import RealStudy
 from .study import (BAND_MPS, BASE_KF, BASE_PF, INPUT, PAPER, RAW, REPRODUCED, SET_KF, SET_KF_POOLED, SET_PF,
                     TARGET)
@@ -207,10 +208,10 @@ def verdicts(sweep: pd.DataFrame, off_sweep: pd.DataFrame, resampler: Mapping) -
         elif se == 0:
             verdict = "exact filters: no Monte Carlo interval"
         elif rule == "paper in interval":
-            verdict = "agrees" if lo <= paper <= hi else ("differs: ours larger" if lo > paper else
-                                                          "differs: ours smaller")
+            verdict = {"contains": "agrees", "above": "differs: ours larger",
+                       "below": "differs: ours smaller"}[interval_side(lo, hi, paper)]
         else:
-            verdict = "better" if lo > 0 else ("worse" if hi < 0 else "not significant")
+            verdict = {"above": "better", "below": "worse", "contains": "not significant"}[interval_side(lo, hi)]
         rows.append({"claim": claim, "paper": paper, "ours": ours, "low": lo, "high": hi, "rule": rule,
                      "verdict": verdict})
 

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from ... import metrics
+from ...metrics import interval_side
 from .study import Results
 
 __all__ = ["LEVEL", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "rmse_difference", "verdict",
@@ -43,18 +44,12 @@ def rmse_difference(err_a, err_b, *, rng: np.random.Generator) -> dict:
 
 def verdict(lo_m: float, hi_m: float) -> str:
     """The EKF against LS from the interval of ΔRMSE (module docstring)."""
-    if not (np.isfinite(lo_m) and np.isfinite(hi_m)):
-        return "no interval"
-    if hi_m < 0:
-        return "better"
-    if lo_m > 0:
-        return "worse"
-    return "no significant difference"
+    return {"below": "better", "above": "worse", "contains": "no significant difference"}.get(
+        interval_side(lo_m, hi_m), "no interval")
 
 
 def nis_verdict(mean_nis_per_dof: float) -> str:
-    lo, hi = NIS_BAND
-    return "consistent" if lo <= mean_nis_per_dof <= hi else "inconsistent"
+    return "consistent" if interval_side(*NIS_BAND, mean_nis_per_dof) == "contains" else "inconsistent"
 
 
 def facts(res: Results) -> dict:

@@ -28,6 +28,7 @@ import math
 import numpy as np
 import pandas as pd
 
+from ...metrics import interval_side
 from .ablation import AblationResult, EKF_TDOA_GATE, LADDER, choose_knobs
 from .ladder import eq4_path, eq4_thresholds, pair_rmse
 from .scoring import HOLD_S, RECOVERY_MAX_M
@@ -44,13 +45,8 @@ _METRIC_WORDS = {"static_rmse": "static RMSE", "dyn_rmse": "dynamic RMSE", "outa
 
 def verdict(lo: float, hi: float) -> str:
     """``"helps"``, ``"hurts"``, ``"not significant"`` or ``"undetermined"`` from a ratio interval."""
-    if not (np.isfinite(lo) and np.isfinite(hi)):
-        return "undetermined"
-    if lo > 1:
-        return "helps"
-    if hi < 1:
-        return "hurts"
-    return "not significant"
+    return {"above": "helps", "below": "hurts", "contains": "not significant"}.get(interval_side(lo, hi, 1.0),
+                                                                                  "undetermined")
 
 
 def _ratio(res: AblationResult, a: str, b: str, metric: str, case: str = "matched", seeds=None) -> dict:

@@ -14,7 +14,7 @@ import pandas as pd
 from scipy import stats
 
 from ... import metrics
-from ...metrics import MIN_BLOCKS, block_bootstrap_difference
+from ...metrics import MIN_BLOCKS, block_bootstrap_difference, interval_side
 from ...filters.alignment import Comparison
 
 __all__ = ["PAIRS", "summary_rows", "common_epochs", "error_table", "difference_table",
@@ -58,9 +58,8 @@ def error_table(comp: Comparison, methods=None) -> pd.DataFrame:
 def difference_verdict(a: str, b: str, r: dict) -> str:
     """Which of ``a`` and ``b`` is more accurate by the interval of ``RMSE(a) − RMSE(b)``
     (:func:`uwbwb.metrics.block_bootstrap_difference`), "not significant", or no verdict with too few blocks."""
-    if not (np.isfinite(r["lo_m"]) and np.isfinite(r["hi_m"])):
-        return f"no verdict (fewer than {MIN_BLOCKS} blocks)"
-    return f"{a} more accurate" if r["hi_m"] < 0 else f"{b} more accurate" if r["lo_m"] > 0 else "not significant"
+    return {"below": f"{a} more accurate", "above": f"{b} more accurate", "contains": "not significant"}.get(
+        interval_side(r["lo_m"], r["hi_m"]), f"no verdict (fewer than {MIN_BLOCKS} blocks)")
 
 
 def difference_table(comp: Comparison, pairs, *, rng: np.random.Generator, horizontal: bool = True) -> pd.DataFrame:

@@ -20,7 +20,7 @@ from ...datasets import iasl
 from ...errors import DataFormatError
 from ...filters.alignment import Comparison, FusionSettings, align_iasl, compare_iasl, run_fusion_filter
 from ...filters.imu_calibration import RealCalibration
-from ...metrics import MIN_BLOCKS, block_bootstrap_difference, nis_consistency
+from ...metrics import MIN_BLOCKS, block_bootstrap_difference, interval_side, nis_consistency
 from ...types import Recording
 
 __all__ = ["GRID", "GRID_FAST", "TUNED", "ScaleTuning", "tune_scales", "tuning_table", "IMU_FILTERS",
@@ -162,10 +162,9 @@ def imu_clock_sensitivity(comp: Comparison, rec: Recording, cal: RealCalibration
 def clock_verdict(lo_mm: float, hi_mm: float) -> str:
     """What the ranges' IMU clock does to a filter's RMSE, from the interval of the change (ranges − motion
     capture): worse / better without the motion capture where it excludes 0, else no detectable change."""
-    if not (np.isfinite(lo_mm) and np.isfinite(hi_mm)):
-        return f"no verdict (fewer than {MIN_BLOCKS} blocks)"
-    return ("worse without the motion capture" if lo_mm > 0 else "better without the motion capture" if hi_mm < 0
-            else "no detectable change")
+    return {"above": "worse without the motion capture", "below": "better without the motion capture",
+            "contains": "no detectable change"}.get(interval_side(lo_mm, hi_mm),
+                                                    f"no verdict (fewer than {MIN_BLOCKS} blocks)")
 
 
 def summary_rows(tunings: dict[str, ScaleTuning], clock: dict | None, *, data: str, cal_label: str,
