@@ -14,7 +14,7 @@ from uwbwb.datasets import tidy
 from uwbwb.scoreboard import Estimator, calibrate, default_estimators, score, split_in_time
 from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, TdoaEkfEstimator, TdoaLs
-from uwbwb.types import Trajectory
+from uwbwb.types import Estimates, Trajectory
 
 
 def test_filters_reach_their_bound_where_truth_and_noise_are_known():
@@ -424,3 +424,68 @@ def test_what_the_loader_cleaned_is_on_the_board_once():
     b = score(test, cal, estimators=[CalibratedLs()], rate_hz=None, fast=True)
     assert [c for c in b.checks if c.startswith("loader:")] == [f"loader: {step}"]
     assert f"loader: {step}" in b.markdown()
+
+
+class _UserMethod:
+    """A user's estimator (no base class): the calibrated LS, or what ``behaviour`` makes of it."""
+
+    def __init__(self, name="mine", behaviour="ok"):
+        self.name, self.behaviour, self.saw_truth, self._ls = name, behaviour, None, CalibratedLs()
+
+    def applies(self, rec, tag, cal):
+        return self._ls.applies(rec, tag, cal)
+
+    def tune(self, rec, tags, cal):
+        if self.behaviour == "tune":
+            raise KeyError("grid")
+        return {}
+
+    def bound(self, rec, tag, cal, est):
+        return None
+
+    def estimate(self, rec, tag, cal):
+        self.saw_truth = dict(rec.truth)
+        if self.behaviour == "raise":
+            raise ZeroDivisionError("my bug")
+        if self.behaviour == "none":
+            return None
+        if self.behaviour == "short":
+            out = self._ls.estimate(rec, tag, cal)
+            return Estimates(out.t_s[:-1], out.pos_m[:-1], out.status[:-1])
+        return self._ls.estimate(rec, tag, cal)
+
+
+@pytest.mark.parametrize("behaviour, says", [("raise", "estimate raised ZeroDivisionError: my bug"),
+                                             ("none", "estimate returned NoneType, expected uwbwb.types.Estimates"),
+                                             ("short", "estimates must be on the tag's")])
+def test_a_failing_user_estimator_is_named_on_the_board_and_the_others_stay(behaviour, says):
+    rec = _rec(duration_s=20.0)
+    cal_rec, test = split_in_time(rec)
+    with pytest.warns(RuntimeWarning, match=f"mine on .*/tag: {says[:20]}"):
+        board = score(test, cal_rec, estimators=[CalibratedLs(), _UserMethod(behaviour=behaviour)], check=False)
+    table = board.table().set_index("method")
+    assert table.loc["mine", "note"].startswith(f"not run: failed: {says}")
+    assert table.loc["LS", "n_scored"] > 0 and np.isfinite(table.loc["LS", "rmse_m"])
+
+
+def test_an_estimator_sees_the_measurements_not_the_scoring_truth():
+    rec = _rec(duration_s=20.0)
+    cal_rec, test = split_in_time(rec)
+    mine = _UserMethod()
+    board = score(test, cal_rec, estimators=[mine], check=False)
+    assert mine.saw_truth == {} and board.table().set_index("method").loc["mine", "n_scored"] > 0
+
+
+@pytest.mark.parametrize("name", ["a|b", "two\nlines", "", "  ", None, "x`y"])
+def test_estimator_names_that_would_break_the_table_are_refused(name):
+    rec = _rec(duration_s=20.0)
+    cal_rec, test = split_in_time(rec)
+    with pytest.raises(ValueError, match="estimator names must be non-empty text"):
+        score(test, cal_rec, estimators=[_UserMethod(name=name)], check=False)
+
+
+def test_a_tune_that_raises_names_the_method_and_the_recording():
+    rec = _rec(duration_s=20.0)
+    cal_rec, test = split_in_time(rec)
+    with pytest.raises(RuntimeError, match=r"mine: tune on .* raised KeyError: 'grid'"):
+        score(test, cal_rec, estimators=[_UserMethod(behaviour="tune")], check=False)

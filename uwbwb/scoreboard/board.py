@@ -48,7 +48,8 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+import warnings
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -163,6 +164,20 @@ def _trace(bound, n: int) -> np.ndarray:
     return np.trace(bound.pos_cov_m2[:, :2, :2], axis1=1, axis2=2)
 
 
+def _run_estimate(est: Estimator, rec: Recording, tag: str, cal: Calibration) -> tuple[Estimates | None, str]:
+    """``est.estimate`` on ``rec`` (without its truth), checked: the estimates and ``""``, or None and what went
+    wrong (an exception, a return that is not :class:`~uwbwb.types.Estimates`, or estimates off the tag's epochs)."""
+    try:
+        out = est.estimate(rec, tag, cal)
+    except Exception as exc:                           # a user's estimator: named on the board, not fatal to it
+        return None, f"estimate raised {type(exc).__name__}: {exc}"
+    if not isinstance(out, Estimates):
+        return None, f"estimate returned {type(out).__name__}, expected uwbwb.types.Estimates"
+    if not np.array_equal(out.t_s, rec.ranges[tag].t_s):
+        return None, f"estimates must be on the tag's {len(rec.ranges[tag])} epochs, got {len(out)}"
+    return out, ""
+
+
 def calibrate(cal_rec: Recording, estimators: Sequence[Estimator], tags: Sequence[str] | None = None, *,
               rate_hz: float | None = None, dim: int | None = None, progress: bool = False,
               tag_height_m: Mapping[str, float] | None = None) -> Calibration:
@@ -180,7 +195,11 @@ def calibrate(cal_rec: Recording, estimators: Sequence[Estimator], tags: Sequenc
             continue
         if progress:
             print(f"tuning {est.name} on {rec.label} ...", flush=True)
-        params = est.tune(rec, usable, cal)
+        try:
+            params = est.tune(rec, usable, cal)
+        except Exception as exc:
+            raise RuntimeError(f"{est.name}: tune on {rec.label} (tags {', '.join(usable)}) raised "
+                               f"{type(exc).__name__}: {exc}") from exc
         if params:
             cal = cal.with_tuned(est.name, params)
     return cal
@@ -514,7 +533,11 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
         A recording that the checks find unscorable, with the diagnosis.
     """
     estimators = list(default_estimators(fast=fast) if estimators is None else estimators)
-    names = [e.name for e in estimators]
+    names = [getattr(e, "name", None) for e in estimators]
+    odd = [n for n in names if not isinstance(n, str) or not n.strip() or any(c in n for c in "|\n\r`")]
+    if odd:
+        raise ValueError(f"estimator names must be non-empty text without '|', '`' or line breaks (they head the "
+                         f"board's Markdown table), got {odd!r}")
     if len(set(names)) != len(names):
         raise ValueError(f"estimator names must be unique, got {names}")
     tags = scored_tags(test_rec, tags)
@@ -554,6 +577,7 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
                                 tag_height_m=known)
     rec = test_rec if rate_hz is None else test_rec.decimate(rate_hz=rate_hz)
     commons = {t: common_bound(rec, t, calibration) for t in tags}
+    blind = replace(rec, truth={})                    # what an estimator sees: the measurements, not the truth
     entries = []
     for tag in tags:
         for est in estimators:
@@ -564,11 +588,13 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
             if progress:
                 print(f"scoring {est.name} on {rec.label}/{tag} ...", flush=True)
             t0 = time.perf_counter()
-            out = est.estimate(rec, tag, calibration)
+            out, failed = _run_estimate(est, blind, tag, calibration)
             seconds = time.perf_counter() - t0
-            if not np.array_equal(out.t_s, rec.ranges[tag].t_s):
-                raise ValueError(f"{est.name}: estimates must be on the tag's epochs ({len(rec.ranges[tag])}), "
-                                 f"got {len(out)}")
+            if failed:
+                warnings.warn(f"{est.name} on {rec.label}/{tag}: {failed}; the board keeps the other rows",
+                              RuntimeWarning, stacklevel=2)
+                entries.append(Entry(est.name, tag, None, None, None, skipped=f"failed: {failed}"))
+                continue
             try:
                 b = est.bound(rec, tag, calibration, out)
             except NotImplementedError:
