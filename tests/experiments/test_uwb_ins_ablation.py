@@ -277,6 +277,23 @@ def test_ladder_ratios_use_the_epochs_both_rows_cover_and_show_each_coverage():
     assert g.loc[a, "max_gated"] == g.loc[b, "max_gated"] == 5 and g.loc["EKF + gate", "max_gated"] == 10
 
 
+def test_the_summary_ladder_rows_are_the_numbers_the_ladder_table_shows():
+    """Common epochs, not each row's own: with LS + gate dropping 20 % of the epochs, the own-epoch ratio
+    (3×) would credit the gate with the epochs it drops; the table and the summary row both say 1."""
+    res = _fake(GOOD)
+    step = "outlier handling (gate), LS"
+    prs = [{"case": "matched", "seed": k + 1, "step": step, "metric": m, "num": 1.0, "den": 1.0, "both_cov": 0.8}
+           for k in range(res.config.seeds) for m in ("dyn_rmse", "outage_max")]
+    res.scores.loc[res.scores["method"] == "LS", "dyn_rmse"] = 3.0 * res.scores.loc[
+        res.scores["method"] == "LS + gate", "dyn_rmse"].to_numpy()
+    res = ab.AblationResult(res.config, False, res.tuning, {}, res.scores, res.counts, pd.DataFrame(prs))
+    assert res.ratio("LS", "LS + gate", "dyn_rmse")["ratio"] == pytest.approx(3.0)
+    table = ladder.ladder_table(res, metrics=("dyn_rmse",))
+    rows = {r["quantity"]: r["value"] for r in headlines.ablation_rows(res)}
+    (q,) = [k for k in rows if k.startswith("ablation ratio LS / LS + gate, dynamic RMSE")]
+    assert rows[q] == table.loc[step, ("dyn_rmse", "ratio")] == pytest.approx(1.0)
+
+
 def test_a_matched_failure_to_reacquire_is_named():
     res = _fake(GOOD)
     t = facts.verdict_table(facts.facts(res))
