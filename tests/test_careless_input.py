@@ -432,7 +432,8 @@ def test_the_scheduler_timeout_reaches_the_kernels(monkeypatch, tmp_path):
 
     monkeypatch.setattr(rp, "run_notebook", fake_run)
     rp.reproduce(only=["00"], out=tmp_path, scheduler_timeout_s=2.5)
-    assert list(seen.values()) == [{"UWBWB_SCHEDULER_TIMEOUT_S": "2.5"}]
+    (env,) = seen.values()
+    assert env["UWBWB_SCHEDULER_TIMEOUT_S"] == "2.5" and set(env) == {"UWBWB_SCHEDULER_TIMEOUT_S", "UWBWB_READ_LOG"}
     with pytest.raises(ValueError, match="timeout_s must be positive"):
         rp.reproduce(only=["00"], out=tmp_path, scheduler_timeout_s=-1)
 

@@ -196,6 +196,17 @@ def _top_imports(module: str, path: Path, tree: ast.Module):
                 yield node, target, alias
 
 
+def _parsed(package: Path | None) -> tuple[dict[str, Path], dict[str, ast.Module]]:
+    """The modules of ``package`` (default :data:`PACKAGE`) and their syntax trees."""
+    global PACKAGE
+    saved, PACKAGE = PACKAGE, package or PACKAGE
+    try:
+        modules = _modules()
+    finally:
+        PACKAGE = saved
+    return modules, {m: ast.parse(p.read_text(encoding="utf-8"), str(p)) for m, p in modules.items()}
+
+
 def re_exports(package: Path | None = None) -> list[str]:
     """Imports that only pass a name on, and imports of a name from a module that does not define it.
 
@@ -204,13 +215,7 @@ def re_exports(package: Path | None = None) -> list[str]:
     from a plain module that got it by importing. A package's ``__init__`` is its public face and may
     gather names, from the module that defines each.
     """
-    global PACKAGE
-    saved, PACKAGE = PACKAGE, package or PACKAGE
-    try:
-        modules = _modules()
-        trees = {m: ast.parse(p.read_text(encoding="utf-8"), str(p)) for m, p in modules.items()}
-    finally:
-        PACKAGE = saved
+    modules, trees = _parsed(package)
     found = []
     for module, tree in trees.items():
         path = modules[module]
@@ -239,13 +244,7 @@ def re_exports(package: Path | None = None) -> list[str]:
 
 def import_circles(package: Path | None = None) -> list[list[str]]:
     """Groups of modules that import each other at their top level (strongly connected components)."""
-    global PACKAGE
-    saved, PACKAGE = PACKAGE, package or PACKAGE
-    try:
-        modules = _modules()
-        trees = {m: ast.parse(p.read_text(encoding="utf-8"), str(p)) for m, p in modules.items()}
-    finally:
-        PACKAGE = saved
+    modules, trees = _parsed(package)
     # imports run when the module loads: its top level (not functions, not `if TYPE_CHECKING:` blocks)
     graph = {m: {f"{t}.{a.name}" if f"{t}.{a.name}" in modules else t
                  for _, t, a in _top_imports(m, modules[m], tree)} - {m} for m, tree in trees.items()}

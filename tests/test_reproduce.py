@@ -102,12 +102,12 @@ def test_summary_markdown_has_numbers_and_status(ran):
     status = {}
     for line in md.splitlines():
         cells = line.removeprefix("| ").removesuffix(" |").split(" | ")
-        if len(cells) == 4 and cells[1] in ("ok", "failed"):
+        if len(cells) == 5 and cells[1] in ("ok", "failed"):
             status[cells[0]] = cells
-    assert status["01_good"][1] == "ok" and status["01_good"][3] == ""
+    assert status["01_good"][1] == "ok" and status["01_good"][3] == "no" and status["01_good"][4] == ""
     assert float(status["01_good"][2]) > 0
     assert status["02_broken"][1] == "failed"
-    assert status["02_broken"][3].startswith("RuntimeError: boom: deliberate failure")
+    assert status["02_broken"][4].startswith("RuntimeError: boom: deliberate failure")
     assert "1 of 2 notebooks ok." in md
 
 
@@ -271,7 +271,7 @@ def test_summary_markdown_formats_values():
     md = rp.summary_markdown([run], {"FAST": False})
     assert "| nb | CEP95 | 0.1235 | m |  | reproduced | full | sim |" in md
     assert "FAST mode" not in md and "(FAST)" not in md
-    assert "| nb | ok | 2.0 |  |" in md
+    assert "| nb | ok | 2.0 | no |  |" in md
     assert "`FAST=False`" in md and "All 1 notebooks ok." in md
     md = rp.summary_markdown([rp.NotebookRun(**{**run.__dict__, "rows": (row, fast)})])
     assert "| nb | CEP50 | 0.1235 (FAST) | m | 0.1 | target | FAST | sim |" in md
@@ -317,3 +317,48 @@ def test_folders_are_arguments_with_defaults_in_the_working_directory_not_the_pa
     assert received == {"07_other.ipynb": (tmp_path / "mine").resolve()}
     tooling = [*Path(rp.__file__).parent.glob("*.py"), Path(cli.__file__)]
     assert not [p.name for p in tooling if "__file__" in p.read_text(encoding="utf-8")]
+
+
+READER_PARAMS = 'FAST = False\nDATA_DIR = None\nSUMMARY_PATH = None\nN = 1\n'
+READER_BODY = """\
+import json, os
+from uwbwb.datasets.text import _read_bytes
+size = len(_read_bytes(os.path.join(DATA_DIR, "ranges.txt")))
+rows = [{"notebook": "01_reader", "quantity": "bytes read", "value": size * N, "unit": "", "paper_value": None,
+         "data": "x", "kind": "reproduced", "mode": "FAST" if FAST else "full"}]
+with open(SUMMARY_PATH, "w") as fh:
+    json.dump(rows, fh)
+"""
+
+
+@pytest.mark.notebook
+def test_a_second_run_reuses_a_notebook_only_while_nothing_it_depends_on_changed(tmp_path):
+    notebooks, out, data = tmp_path / "notebooks", tmp_path / "reports", tmp_path / "data"
+    notebooks.mkdir()
+    data.mkdir()
+    (data / "ranges.txt").write_text("1 2 3\n")
+    source = _notebook(notebooks / "01_reader.ipynb", READER_PARAMS, READER_BODY)
+
+    def run(**kw):
+        params = {"DATA_DIR": str(data), **kw.pop("parameters", {})}
+        (r,) = rp.reproduce(out=out, notebooks_dir=notebooks, parameters=params, timeout_s=120, **kw).runs
+        assert r.ok, r.error
+        return r
+
+    first = run()
+    assert not first.cached and first.rows[0]["value"] == 6
+    stamp = first.executed.stat().st_mtime_ns
+    again = run()
+    assert again.cached and again.rows == first.rows and again.executed.stat().st_mtime_ns == stamp
+    assert "| 01_reader | ok |" in (out / "summary.md").read_text() and "| yes |" in (out / "summary.md").read_text()
+    (data / "ranges.txt").write_text("1 2 3 4\n")                    # the data file it read changed
+    changed = run()
+    assert not changed.cached and changed.rows[0]["value"] == 8
+    assert run().cached
+    assert not run(parameters={"N": 2}).cached                          # another parameter value
+    assert not run(force=True).cached                                   # told to
+    assert run().cached                                                 # the forced run's entry (N = 1) stands
+    _notebook(source, READER_PARAMS, READER_BODY + "\n# an edit\n")   # the notebook changed
+    assert not run().cached
+    (out / "01_reader.html").unlink()                                   # an output is missing
+    assert not run().cached

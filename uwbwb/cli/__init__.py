@@ -7,7 +7,7 @@ Commands
     counts, and the recordings its loader lists.
 ``fetch NAME [--dest DIR] [--base-url URL]``
     Download a dataset from upstream with checksum verification (resumable).
-``reproduce [--quick] [--only NB ...] [--out DIR] [--notebooks-dir DIR] [-p KEY VALUE ...] [--timeout S] [--scheduler ADDRESS] [--scheduler-timeout S]``
+``reproduce [--quick] [--only NB ...] [--out DIR] [--notebooks-dir DIR] [-p KEY VALUE ...] [--timeout S] [--force] [--scheduler ADDRESS] [--scheduler-timeout S]``
     Execute the notebooks headless; write executed notebooks, HTML and
     ``summary.json`` / ``summary.md`` (default into ``reports/``).
 
@@ -95,6 +95,9 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
                         "-p SIGMA_D_CMPS '(2.5, 4, 40)'). Unknown names and values that do not fit are errors")
     p.add_argument("--timeout", metavar="S", type=_positive_float, default=None,
                    help="execution timeout per cell in seconds (default none)")
+    p.add_argument("--force", action="store_true",
+                   help="execute every notebook; without it a notebook whose source, parameters, package source, "
+                        "environment and data files are those of its last successful run into --out is reused")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="run the notebooks concurrently on a Dask cluster: 'local' (a LocalCluster sized to this "
                         "machine) or a scheduler address such as tcp://10.0.0.5:8786; each notebook gets it as "
@@ -320,7 +323,8 @@ def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser, *,
     result = rp.reproduce(quick=args.quick, only=args.only, out=args.out or reports_dir, text_parameters=text,
                           notebooks_dir=notebooks_dir,
                           timeout_s=args.timeout, scheduler=args.scheduler,
-                          scheduler_timeout_s=args.scheduler_timeout, log=lambda line: print(line, flush=True))
+                          scheduler_timeout_s=args.scheduler_timeout, log=lambda line: print(line, flush=True),
+                          force=args.force)
     print(f"wrote {result.summary_md} and {result.summary_json}")
     for run in result.failed:
         print(f"FAILED {run.notebook}: {run.error}", file=sys.stderr)

@@ -18,6 +18,7 @@ import pandas as pd
 from ..errors import DataFormatError, DataNotFoundError
 from ..types import Anchors
 from .lias_files import _NUMBER_RE
+from .text import _read_bytes
 
 __all__ = ["LiasTables", "read_tables"]
 
@@ -228,7 +229,7 @@ def read_tables(readme_path: str | os.PathLike, session: str | None = None) -> L
     readme = Path(readme_path)
     if not readme.is_file():
         raise DataNotFoundError(f"{readme} not found (it holds the anchor and tag tables)")
-    text = readme.read_text(encoding="utf-8", errors="replace")
+    text = _read_bytes(readme).decode("utf-8", errors="replace")
     if not text.strip():
         raise DataFormatError(readme, "README is empty (expected the settings tables)", line=1)
     lines = text.splitlines()

@@ -20,13 +20,23 @@ from ..errors import DataFormatError, DataNotFoundError
 PathLike = str | os.PathLike
 
 
+#: Environment variable naming a file to which every data file a loader reads is appended (one absolute path a
+#: line): how ``reproduce`` learns which files an executed notebook depends on (:mod:`uwbwb.reproduce.cache`).
+READ_LOG_ENV = "UWBWB_READ_LOG"
+
+
 def _read_bytes(path: PathLike) -> bytes:
     try:
-        return Path(path).read_bytes()
+        data = Path(path).read_bytes()
     except FileNotFoundError:
         raise DataNotFoundError(f"{path}: no such file") from None
     except IsADirectoryError:
         raise DataFormatError(path, "is a directory, expected a text file") from None
+    log = os.environ.get(READ_LOG_ENV)
+    if log:
+        with open(log, "a", encoding="utf-8") as fh:
+            fh.write(f"{Path(path).resolve()}\n")
+    return data
 
 
 def _decode_lines(path: PathLike, data: bytes) -> list[str]:

@@ -33,6 +33,10 @@ and writes a ``summary.md`` saying it is in progress; the summaries are written 
 temporary file, so a run stopped half-way (Ctrl-C, SIGTERM) leaves a ``summary.md`` saying so and no
 ``summary.json`` — never an old "ok" beside new notebooks.
 
+A notebook whose source, parameters, package source, environment, data locations and data files (by
+checksum) are those of its last successful run into the same output folder is not executed again: its
+outputs are reused and the report says so (:mod:`.cache`; ``force=True`` / ``--force`` executes everything).
+
 Kernels are started on IPC transport (local sockets, no TCP ports), so that
 jupyter_client's warning about unencrypted TCP never reaches the output.
 
@@ -61,6 +65,8 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
 from .. import parallel
+from ..datasets.text import READ_LOG_ENV
+from . import cache
 from .params import (INJECTED_TAG, RESERVED_PARAMETERS, SCHEDULER_PARAMETER, injected_source,  # noqa: F401
                      notebook_parameters, parameter_specs, parameterized, parse_parameter_value, resolve_parameters)
 from .report import FAST_MARK, summary_markdown  # noqa: F401
@@ -121,7 +127,7 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
               text_parameters: Mapping[str, str] | None = None,
               timeout_s: float | None = None, notebooks_dir: str | os.PathLike | None = None,
               kernel_name: str = KERNEL_NAME, scheduler=None, scheduler_timeout_s: float | None = None,
-              log: Callable[[str], None] | None = None) -> ReproduceResult:
+              log: Callable[[str], None] | None = None, force: bool = False) -> ReproduceResult:
     """Execute the notebooks and aggregate their summaries.
 
     Parameters
@@ -161,6 +167,8 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         notebooks' own connections. None: :func:`uwbwb.parallel.connect_timeout_s`.
     log
         Called with one progress line per notebook (e.g. ``print``).
+    force
+        Execute every notebook, even one whose last successful run into ``out`` can be reused (:mod:`.cache`).
 
     Returns
     -------
@@ -224,7 +232,8 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
                                   "that stopped leaves this text and no summary.json.\n")
         runs: list = []
         try:
-            _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_name, log, kernel_env, runs)
+            _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_name, log, kernel_env, runs,
+                     force)
         except KeyboardInterrupt:
             done = ", ".join(f"{r.notebook} ({r.status})" for r in runs) or "none"
             _write_atomic(summary_md, f"# Reproduction INTERRUPTED\n\nStopped by the user or a signal; notebooks "
@@ -239,23 +248,47 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
 
 
 def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_name, log, kernel_env,
-             runs: list) -> None:
-    """Run the notebooks (on the cluster when ``client`` is given), appending each run to ``runs`` as it ends."""
+             runs: list, force: bool = False) -> None:
+    """Run the notebooks (on the cluster when ``client`` is given), appending each run to ``runs`` as it ends;
+    serially, a notebook whose last run can be reused (:mod:`.cache`) is not executed unless ``force``."""
     if client is not None:
         try:
             runs.extend(_run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env))
         finally:
             if isinstance(scheduler, str) and scheduler.strip() == "local":   # the cluster started for this run
                 parallel.shutdown(scheduler)
+    digest = cache.package_digest() if client is None else ""
     for i, source in enumerate(notebooks if client is None else (), 1):
-        if log:
-            log(f"[{i}/{len(notebooks)}] {source.stem} ...")
-        run = run_notebook(source, out_dir, resolved[source], timeout_s=timeout_s, kernel_name=kernel_name,
-                           kernel_env=kernel_env)
+        key = cache.notebook_key(source, resolved[source], package_digest=digest)
+        run = None if force else _reused(source, out_dir, resolved[source], key)
+        if run is None:
+            if log:
+                log(f"[{i}/{len(notebooks)}] {source.stem} ...")
+            cache.forget(out_dir, source.stem)
+            env = {**kernel_env, READ_LOG_ENV: str(cache.read_log_path(out_dir, source.stem))}
+            run = run_notebook(source, out_dir, resolved[source], timeout_s=timeout_s, kernel_name=kernel_name,
+                               kernel_env=env)
+            if run.ok and run.executed.is_file():
+                cache.write_entry(out_dir, source.stem, key, run.seconds)
         runs.append(run)
         if log:
-            log(f"[{i}/{len(notebooks)}] {run.notebook}: {run.status} ({run.seconds:.1f} s)"
-                + (f" — {run.error}" if run.error else ""))
+            how = f"from the cache, ran {run.seconds:.1f} s before" if run.cached else f"{run.seconds:.1f} s"
+            log(f"[{i}/{len(notebooks)}] {run.notebook}: {run.status} ({how})" + (f" — {run.error}" if run.error else ""))
+
+
+def _reused(source: Path, out_dir: Path, parameters: Mapping[str, Any], key: str) -> NotebookRun | None:
+    """The earlier run of ``source`` into ``out_dir`` as a :class:`NotebookRun` if it can be reused, else None."""
+    entry = cache.valid_entry(out_dir, source.stem, key)
+    if entry is None:
+        return None
+    fast = parameters.get("FAST", notebook_parameters(source).get("FAST"))
+    summary = out_dir / f"{source.stem}.summary.json"
+    rows, problem = read_summary(summary, source.stem, ("FAST" if fast else "full") if isinstance(fast, bool) else None)
+    if problem:
+        return None
+    return NotebookRun(notebook=source.stem, source=source, executed=out_dir / f"{source.stem}.ipynb",
+                       html=out_dir / f"{source.stem}.html", summary=summary, seconds=float(entry.get("seconds", 0.0)),
+                       error=None, rows=tuple(rows), cached=True)
 
 
 def _write_atomic(path: Path, text: str) -> None:

@@ -63,8 +63,8 @@ def summary_markdown(runs: Iterable[NotebookRun], parameters: Mapping[str, Any] 
     else:
         out.append("No notebook published a summary.")
     out += ["", "## Notebook runs", ""]
-    out += _table(["notebook", "status", "seconds", "error"],
-                  [[r.notebook, r.status, f"{r.seconds:.1f}", r.error] for r in runs])
+    out += _table(["notebook", "status", "seconds", "from the cache", "error"],
+                  [[r.notebook, r.status, f"{r.seconds:.1f}", "yes" if r.cached else "no", r.error] for r in runs])
     n_failed = sum(not r.ok for r in runs)
     out += ["", f"{len(runs) - n_failed} of {len(runs)} notebooks ok." if n_failed else
             f"All {len(runs)} notebooks ok.", ""]

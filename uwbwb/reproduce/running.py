@@ -53,6 +53,8 @@ class NotebookRun:
         (first line of the exception, or the summary problem).
     rows
         The summary rows it published (empty when none).
+    cached
+        True when the outputs of an earlier run were reused (:mod:`.cache`); ``seconds`` is then that run's.
     """
 
     notebook: str
@@ -63,6 +65,7 @@ class NotebookRun:
     seconds: float
     error: str | None
     rows: tuple[dict, ...] = ()
+    cached: bool = False
 
     @property
     def ok(self) -> bool:
