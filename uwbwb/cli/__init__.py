@@ -7,7 +7,7 @@ Commands
     counts, and the recordings its loader lists.
 ``fetch NAME [--dest DIR] [--base-url URL]``
     Download a dataset from upstream with checksum verification (resumable).
-``reproduce [--quick] [--only NB ...] [--out DIR] [--notebooks-dir DIR] [-p KEY VALUE ...] [--timeout S] [--force] [--scheduler ADDRESS] [--scheduler-timeout S]``
+``reproduce [--quick] [--only NB ...] [--out DIR] [--notebooks-dir DIR] [-p KEY VALUE ...] [--timeout S] [--jobs N] [--force] [--scheduler ADDRESS] [--scheduler-timeout S]``
     Execute the notebooks headless; write executed notebooks, HTML and
     ``summary.json`` / ``summary.md`` (default into ``reports/``).
 
@@ -95,6 +95,9 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
                         "-p SIGMA_D_CMPS '(2.5, 4, 40)'). Unknown names and values that do not fit are errors")
     p.add_argument("--timeout", metavar="S", type=_positive_float, default=None,
                    help="execution timeout per cell in seconds (default none)")
+    p.add_argument("--jobs", metavar="N", type=int, default=None,
+                   help="notebooks executed at once, each in its own process (default: one per core; 1: one after "
+                        "the other). The numbers do not depend on it")
     p.add_argument("--force", action="store_true",
                    help="execute every notebook; without it a notebook whose source, parameters, package source, "
                         "environment and data files are those of its last successful run into --out is reused")
@@ -295,6 +298,8 @@ def cmd_fetch(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser, *,
                   notebooks_dir: str | Path | None = None, reports_dir: str | Path | None = None) -> int:
+    if args.jobs is not None and args.jobs < 1:
+        parser.error(f"--jobs {args.jobs}: give a whole number ≥ 1 (notebooks at once)")
     if args.notebooks_dir is not None:
         notebooks_dir = Path(args.notebooks_dir)
         if not notebooks_dir.is_dir():
@@ -324,7 +329,7 @@ def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser, *,
                           notebooks_dir=notebooks_dir,
                           timeout_s=args.timeout, scheduler=args.scheduler,
                           scheduler_timeout_s=args.scheduler_timeout, log=lambda line: print(line, flush=True),
-                          force=args.force)
+                          force=args.force, jobs=args.jobs)
     print(f"wrote {result.summary_md} and {result.summary_json}")
     for run in result.failed:
         print(f"FAILED {run.notebook}: {run.error}", file=sys.stderr)

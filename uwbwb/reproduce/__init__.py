@@ -61,6 +61,11 @@ from __future__ import annotations
 
 import json
 import os
+import signal
+import subprocess
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
@@ -127,7 +132,8 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
               text_parameters: Mapping[str, str] | None = None,
               timeout_s: float | None = None, notebooks_dir: str | os.PathLike | None = None,
               kernel_name: str = KERNEL_NAME, scheduler=None, scheduler_timeout_s: float | None = None,
-              log: Callable[[str], None] | None = None, force: bool = False) -> ReproduceResult:
+              log: Callable[[str], None] | None = None, force: bool = False,
+              jobs: int | None = None) -> ReproduceResult:
     """Execute the notebooks and aggregate their summaries.
 
     Parameters
@@ -169,6 +175,10 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         Called with one progress line per notebook (e.g. ``print``).
     force
         Execute every notebook, even one whose last successful run into ``out`` can be reused (:mod:`.cache`).
+    jobs
+        Notebooks executed at once on this machine, each in its own process (None: one per core,
+        ``os.cpu_count()``; 1: one after the other in this process). Each notebook is seeded by its parameters, so
+        the numbers do not depend on it. Ignored with ``scheduler`` (the cluster decides).
 
     Returns
     -------
@@ -189,6 +199,8 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     """
     if timeout_s is not None and not timeout_s > 0:
         raise ValueError(f"timeout must be positive seconds, got {timeout_s!r}")
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
+        raise ValueError(f"jobs must be a whole number ≥ 1 (notebooks at once), got {jobs!r}")
     notebooks = select_notebooks(notebooks_dir, only)
     if quick:
         lacking = [nb.stem for nb in notebooks if "FAST" not in notebook_parameters(nb)]
@@ -233,7 +245,7 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         runs: list = []
         try:
             _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_name, log, kernel_env, runs,
-                     force)
+                     force, jobs or os.cpu_count() or 1)
         except KeyboardInterrupt:
             done = ", ".join(f"{r.notebook} ({r.status})" for r in runs) or "none"
             _write_atomic(summary_md, f"# Reproduction INTERRUPTED\n\nStopped by the user or a signal; notebooks "
@@ -248,32 +260,73 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
 
 
 def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_name, log, kernel_env,
-             runs: list, force: bool = False) -> None:
-    """Run the notebooks (on the cluster when ``client`` is given), appending each run to ``runs`` as it ends;
-    serially, a notebook whose last run can be reused (:mod:`.cache`) is not executed unless ``force``."""
+             runs: list, force: bool = False, jobs: int = 1) -> None:
+    """Run the notebooks (on the cluster when ``client`` is given, else up to ``jobs`` at once), appending each
+    run to ``runs`` as it ends, then putting ``runs`` in notebook order; without a cluster, a notebook whose last
+    run can be reused (:mod:`.cache`) is not executed unless ``force``."""
     if client is not None:
         try:
             runs.extend(_run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env))
         finally:
             if isinstance(scheduler, str) and scheduler.strip() == "local":   # the cluster started for this run
                 parallel.shutdown(scheduler)
-    digest = cache.package_digest() if client is None else ""
-    for i, source in enumerate(notebooks if client is None else (), 1):
+    if client is not None:
+        return
+    digest, order = cache.package_digest(), {nb: i for i, nb in enumerate(notebooks, 1)}
+    todo = []
+    for source in notebooks:
         key = cache.notebook_key(source, resolved[source], package_digest=digest)
         run = None if force else _reused(source, out_dir, resolved[source], key)
         if run is None:
-            if log:
-                log(f"[{i}/{len(notebooks)}] {source.stem} ...")
-            cache.forget(out_dir, source.stem)
-            env = {**kernel_env, READ_LOG_ENV: str(cache.read_log_path(out_dir, source.stem))}
-            run = run_notebook(source, out_dir, resolved[source], timeout_s=timeout_s, kernel_name=kernel_name,
-                               kernel_env=env)
-            if run.ok and run.executed.is_file():
-                cache.write_entry(out_dir, source.stem, key, run.seconds)
-        runs.append(run)
+            todo.append((source, key))
+        else:
+            runs.append(run)
+            _log_end(log, order[source], len(notebooks), run)
+    processes = set() if jobs > 1 and len(todo) > 1 else None
+
+    def one(source: Path, key: str) -> NotebookRun:
         if log:
-            how = f"from the cache, ran {run.seconds:.1f} s before" if run.cached else f"{run.seconds:.1f} s"
-            log(f"[{i}/{len(notebooks)}] {run.notebook}: {run.status} ({how})" + (f" — {run.error}" if run.error else ""))
+            log(f"[{order[source]}/{len(notebooks)}] {source.stem} ...")
+        cache.forget(out_dir, source.stem)
+        env = {**kernel_env, READ_LOG_ENV: str(cache.read_log_path(out_dir, source.stem))}
+        run = run_notebook(source, out_dir, resolved[source], timeout_s=timeout_s, kernel_name=kernel_name,
+                           kernel_env=env, processes=processes)
+        if run.ok and run.executed.is_file():
+            cache.write_entry(out_dir, source.stem, key, run.seconds)
+        _log_end(log, order[source], len(notebooks), run)
+        return run
+
+    if processes is None:
+        runs.extend(one(source, key) for source, key in todo)
+    else:
+        pool = ThreadPoolExecutor(max_workers=min(jobs, len(todo)), thread_name_prefix="notebook")
+        try:
+            for future in as_completed([pool.submit(one, source, key) for source, key in todo]):
+                runs.append(future.result())
+        except BaseException:                  # Ctrl-C or SIGTERM: stop the notebooks still running, then report
+            pool.shutdown(wait=False, cancel_futures=True)
+            _stop(processes)
+            raise
+        pool.shutdown()
+    runs.sort(key=lambda r: order[r.source])
+
+
+def _log_end(log, i: int, n: int, run: NotebookRun) -> None:
+    if log:
+        how = f"from the cache, ran {run.seconds:.1f} s before" if run.cached else f"{run.seconds:.1f} s"
+        log(f"[{i}/{n}] {run.notebook}: {run.status} ({how})" + (f" — {run.error}" if run.error else ""))
+
+
+def _stop(processes: set, grace_s: float = 10.0) -> None:
+    """Interrupt the notebook processes still running (their kernels shut down with them), then kill the rest."""
+    for child in list(processes):
+        child.send_signal(signal.SIGINT)
+    deadline = time.monotonic() + grace_s
+    for child in list(processes):
+        try:
+            child.wait(max(deadline - time.monotonic(), 0.1))
+        except subprocess.TimeoutExpired:
+            child.kill()
 
 
 def _reused(source: Path, out_dir: Path, parameters: Mapping[str, Any], key: str) -> NotebookRun | None:
@@ -344,9 +397,6 @@ class _sigterm_interrupts:
     go); only in the main thread, where Python can install the handler."""
 
     def __enter__(self):
-        import signal
-        import threading
-
         self.previous = None
         if threading.current_thread() is threading.main_thread():
             def stop(signum, frame):
@@ -356,8 +406,6 @@ class _sigterm_interrupts:
         return self
 
     def __exit__(self, *exc):
-        import signal
-
         if self.previous is not None:
             signal.signal(signal.SIGTERM, self.previous)
         return False

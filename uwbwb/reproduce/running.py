@@ -160,21 +160,27 @@ def _export_html(executed: Path, html: Path) -> None:
 
 def run_notebook(source: Path, out_dir: Path, parameters: Mapping[str, Any], *,
                  timeout_s: float | None = None, kernel_name: str = KERNEL_NAME,
-                 kernel_env: Mapping[str, str] | None = None) -> NotebookRun:
+                 kernel_env: Mapping[str, str] | None = None, processes: set | None = None) -> NotebookRun:
     """Execute one notebook into ``out_dir`` and read its summary (see :func:`reproduce`).
 
     ``parameters`` go to the notebook's injected cell as given (see
     :func:`resolve_parameters` for checking them first); ``kernel_env`` is added to
-    the kernel's environment.
+    the kernel's environment. With ``processes`` (a set the caller watches) papermill runs in a child process
+    that is added to it while it lives, so that several notebooks can run at once from threads and a caller
+    that is interrupted can stop them; without, in this process.
     """
     executed, html, summary = _outputs(source, out_dir)
     params = {**parameters, "SUMMARY_PATH": str(summary)}
     error = None
     t0 = time.perf_counter()
-    try:
-        _papermill(source, executed, params, source.parent, timeout_s, kernel_name, kernel_env)
-    except Exception as exc:  # any failure of one notebook is reported; the others still run
-        error = _first_line(exc)
+    if processes is not None:
+        error = _papermill_in_subprocess(source, executed, params, source.parent, timeout_s, kernel_name, kernel_env,
+                                         processes=processes)
+    else:
+        try:
+            _papermill(source, executed, params, source.parent, timeout_s, kernel_name, kernel_env)
+        except Exception as exc:  # any failure of one notebook is reported; the others still run
+            error = _first_line(exc)
     return _finish(source, out_dir, parameters, error, time.perf_counter() - t0)
 
 
@@ -300,26 +306,40 @@ def _notebook_task(name: str, text: str, cwd: str, parameters: Mapping[str, Any]
             rejoin()
 
 
-def _papermill_in_subprocess(source, executed, params, cwd, timeout_s, kernel_name, kernel_env=None) -> str | None:
+def _papermill_in_subprocess(source, executed, params, cwd, timeout_s, kernel_name, kernel_env=None, *,
+                             processes: set | None = None) -> str | None:
     """:func:`_papermill` in a child Python process; the first line of its error, or None.
 
     Each notebook gets its own process (and event loop): several notebooks run at
-    once in the threads of one worker, which papermill's client cannot share.
+    once in the threads of one worker, which papermill's client cannot share. The child is in ``processes``
+    while it runs (when given), for a caller that must stop it.
     """
     import pickle
     import subprocess
     import sys
 
     job = Path(executed).with_suffix(".job")
+    failure = job.with_suffix(".error")
+    failure.unlink(missing_ok=True)
     job.write_bytes(pickle.dumps((str(source), str(executed), dict(params), str(cwd), timeout_s, kernel_name,
                                   dict(kernel_env or {}))))
     code = "import sys; from uwbwb.reproduce.running import _papermill_job; _papermill_job(sys.argv[1])"
-    done = subprocess.run([sys.executable, "-c", code, str(job)], capture_output=True, text=True)
-    failure = job.with_suffix(".error")
+    child = subprocess.Popen([sys.executable, "-c", code, str(job)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True)
+    if processes is not None:
+        processes.add(child)
+    try:
+        _, stderr = child.communicate()
+    finally:
+        if processes is not None:
+            processes.discard(child)
+        job.unlink(missing_ok=True)
     if failure.is_file():
-        return failure.read_text(encoding="utf-8")
-    if done.returncode != 0:
-        lines = done.stderr.strip().splitlines() or [f"exit status {done.returncode}"]
+        error = failure.read_text(encoding="utf-8")
+        failure.unlink()
+        return error
+    if child.returncode != 0:
+        lines = stderr.strip().splitlines() or [f"exit status {child.returncode}"]
         return f"notebook process failed: {lines[-1]}"
     return None
 
