@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tests.fixtures import iasl as fx
-from uwbwb import Anchors, RangeLog, Trajectory
+from uwbwb import Anchors, DataFormatError, ImuLog, RangeLog, Trajectory
 from uwbwb.datasets import iasl, lias, registration
 from uwbwb.geometry import linear_multilaterate
 
@@ -87,3 +87,50 @@ def test_clock_offset_and_convention_recovered_from_a_rigid_body():
         flips=tuple(registration.BODY_FLIPS), max_offset_s=2.0, min_overlap=0.5, max_rows=3000)
     assert (fit.order, fit.flip) == ("wxyz", "none")
     assert fit.clock_offset_s == pytest.approx(true_offset_s, abs=0.005)
+
+
+def _yaw_flight(seed: int, t_s: np.ndarray) -> np.ndarray:
+    """A yaw rate (rad/s) that wanders at random: no period for a wrong lag to match."""
+    k = np.exp(-0.5 * (np.arange(-60, 61) / 20.0) ** 2)
+    return 3.0 * np.convolve(np.random.default_rng(seed).normal(0, 1, t_s.size), k / k.sum(), "same")
+
+
+def _imu_and_truth(yaw_rate_imu, offset_s=0.4):
+    t = np.arange(0, 60, 0.05)
+    yaw = np.cumsum(_yaw_flight(1, t)) * 0.05
+    rot = np.zeros((t.size, 3, 3))
+    rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = (np.cos(yaw), -np.sin(yaw), np.sin(yaw),
+                                                                         np.cos(yaw), 1.0)
+    truth = Trajectory(t, np.zeros((t.size, 3)), rot=rot, name="truth")
+    ti = np.arange(0, 60, 0.01)
+    gyro = np.column_stack([np.zeros((ti.size, 2)), yaw_rate_imu(t, ti)])
+    gyro += np.random.default_rng(5).normal(0, 0.02, gyro.shape)
+    return ImuLog(ti - offset_s, np.tile([0, 0, 9.81], (ti.size, 1)), gyro), truth
+
+
+def test_imu_alignment_finds_its_own_flight():
+    imu, truth = _imu_and_truth(lambda t, ti: np.interp(ti, t, _yaw_flight(1, t)))
+    al = registration.align_imu(imu, truth)
+    assert al.offset_s == pytest.approx(0.4, abs=0.03) and al.peak_corr > 0.99
+
+
+@pytest.mark.parametrize("what, yaw_rate", [("another flight's IMU", lambda t, ti: np.interp(ti, t, _yaw_flight(2, t))),
+                                            ("a motionless IMU", lambda t, ti: np.zeros(ti.size))])
+def test_imu_alignment_refuses_a_weak_peak_with_its_numbers(what, yaw_rate):
+    imu, truth = _imu_and_truth(yaw_rate)
+    with pytest.raises(registration.RegistrationError,
+                       match=r"too weak to fix the IMU clock: its best peak is 0\.\d+ \(at [+-]\d+\.\d+ s\), under 0\.6"):
+        registration.align_imu(imu, truth)
+
+
+def test_the_loader_names_the_imu_file_whose_clock_it_cannot_fix(tmp_path):
+    fx.write_dataset(tmp_path / iasl.NAME, rng=np.random.default_rng(7), duration_s=30.0)
+    path = tmp_path / iasl.NAME / "scenario1" / "imu.csv"
+    lines = path.read_text().splitlines()
+    rng = np.random.default_rng(1)
+    still = [lines[0]] + ["\t".join([row.split("\t")[0], *(f"{v:.5f}" for v in rng.normal([0, 0, -9.81], 0.05)),
+                                     *(f"{v:.5f}" for v in rng.normal(0, 0.01, 3))]) for row in lines[1:]]
+    path.write_text("\n".join(still) + "\n")
+    with pytest.raises(DataFormatError, match=rf"{path}: cannot align the IMU clock: the gyro-rate correlation is "
+                                              r"too weak .* best peak is 0\.\d+"):
+        iasl.load_scenario("scenario1", data_dir=tmp_path)

@@ -166,7 +166,10 @@ def align_imu(imu: ImuLog, truth: Trajectory, *, max_lag_s: float | None = None)
     Raises
     ------
     RegistrationError
-        No attitude, too few samples or no overlap.
+        No attitude, too few samples or no overlap; a correlation peak under :data:`MIN_PEAK_CORR` (an IMU
+        from another recording, or one that did not move). A rival peak is reported (``second_peak_corr``), not
+        refused: at the right lag the gyro and attitude rates agree sample for sample, so on periodic motion
+        the true peak still stands out (1.000 against 0.986 on the test fixtures' sums of sines).
     """
     if truth.rot is None or len(truth) < 3:
         raise RegistrationError("IMU alignment needs a truth track with attitude (at least 3 samples)")
@@ -187,6 +190,7 @@ def align_imu(imu: ImuLog, truth: Trajectory, *, max_lag_s: float | None = None)
     offset, peak, second = _best_lag(t_g, g, t_w, w, lo, hi, 0.1, gap)
     if not np.isfinite(offset):
         raise RegistrationError("gyro and truth rotation rate never overlap enough to correlate")
+    _check_peak("gyro-rate", offset, peak, second, ambiguity=False)
 
     vel = np.gradient(truth.pos_m, truth.t_s, axis=0)
     acc = np.gradient(vel, truth.t_s, axis=0)
@@ -212,9 +216,26 @@ def align_imu(imu: ImuLog, truth: Trajectory, *, max_lag_s: float | None = None)
     return ImuAlignment(offset, peak, second, acc_offset, acc_corr, axes, method)
 
 
-#: A rival correlation peak this close to the best one makes :func:`align_imu_to_ranges` refuse
-#: (smooth periodic motion gives several near-equal lags; an assumption, not fitted to a recording).
+#: A rival correlation peak this close to the best one makes an alignment refuse (smooth periodic motion gives
+#: several near-equal lags; an assumption, not fitted to a recording).
 AMBIGUOUS_PEAK_RATIO = 0.9
+#: The weakest correlation peak an IMU clock alignment accepts. An assumption: on i-ASL the gyro-rate peaks are
+#: 0.99 and the range-based specific-force ones 0.82–0.89, while another flight's IMU against a flight's truth
+#: peaks at 0.27 and a motionless IMU has no peak to speak of.
+MIN_PEAK_CORR = 0.6
+
+
+def _check_peak(what: str, offset: float, peak: float, second: float, *, ambiguity: bool = True) -> None:
+    """Refuse a correlation peak too weak (or, with ``ambiguity``, too ambiguous) to fix a clock offset, with the
+    numbers."""
+    if not peak >= MIN_PEAK_CORR:
+        raise RegistrationError(f"the {what} correlation is too weak to fix the IMU clock: its best peak is {peak:.3f} "
+                                f"(at {offset:+.3f} s), under {MIN_PEAK_CORR:g} — is this IMU log from this recording, "
+                                "and did it move?")
+    if ambiguity and second >= AMBIGUOUS_PEAK_RATIO * peak:
+        raise RegistrationError(f"the {what} correlation is ambiguous: its peak {peak:.3f} at {offset:+.3f} s "
+                                f"has a rival {second:.3f} more than 2 s away (≥ {AMBIGUOUS_PEAK_RATIO:g} × the peak); "
+                                "the recording's motion does not pin the IMU clock down")
 
 
 def _uniform(t: np.ndarray, x: np.ndarray, step_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -296,10 +317,7 @@ def align_imu_to_ranges(imu: ImuLog, ranges: RangeLog, anchors: Anchors, *, smoo
     offset, peak, second = _best_lag(t_i, f_i, t_u, f_uwb, lo, hi, 0.1, max_gap_s)
     if not np.isfinite(offset):
         raise RegistrationError("IMU and UWB-derived specific force never overlap enough to correlate")
-    if second >= AMBIGUOUS_PEAK_RATIO * peak:
-        raise RegistrationError(f"the specific-force correlation is ambiguous: its peak {peak:.3f} at {offset:+.3f} s "
-                                f"has a rival {second:.3f} more than 2 s away (≥ {AMBIGUOUS_PEAK_RATIO:g} × the peak); "
-                                f"the recording's motion does not pin the IMU clock down from the ranges")
+    _check_peak("specific-force", offset, peak, second)
     mid = 0.5 * (t_u[0] + t_u[-1])
     halves = tuple(float(_best_lag(t_i, f_i, t_u[h], f_uwb[h], offset - 1.0, offset + 1.0, 0.1, max_gap_s)[0])
                    for h in (t_u < mid, t_u >= mid))
