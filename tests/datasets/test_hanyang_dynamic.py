@@ -194,3 +194,30 @@ def test_one_anchor_in_two_files_is_refused(tmp_path):
     (folder / "A03.csv").write_text((folder / "A3.csv").read_text())
     with pytest.raises(DataFormatError, match=r"anchor 3 has two files here"):
         hd.load_dynamic_case(cases[0].name, data)
+
+
+def _edit_reference(folder: Path, edit) -> Path:
+    """Rewrite the case's trajectory.csv (timestamp,x,y,z,heading) with ``edit(t_ns, xyz)`` -> (t_ns, xyz)."""
+    path = folder / "trajectory.csv"
+    head, *rows = path.read_text().splitlines()
+    data = np.array([[float(v) for v in r.split(",")] for r in rows])
+    t_ns, xyz = edit(data[:, 0].copy(), data[:, 1:4].copy())
+    path.write_text("\n".join([head] + [f"{t:.17g},{x!r},{y!r},{z!r},{h!r}" for t, (x, y, z), h
+                                        in zip(t_ns, xyz.tolist(), data[:, 4].tolist())]) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("what, edit, says", [
+    ("in millimetres", lambda t, p: (t, 1000 * p), "robust range residual σ"),
+    ("shifted 3 m", lambda t, p: (t, p + [3.0, 0.0, 0.0]), "horizontal translation"),
+    ("with y mirrored", lambda t, p: (t, p * [1.0, -1.0, 1.0]), "horizontal translation"),
+    ("30 s late", lambda t, p: (t + 30e9, p), "robust range residual σ"),
+])
+def test_a_reference_that_does_not_fit_the_ranges_is_refused_with_what_does_not_fit(tmp_path, what, edit, says):
+    c = fx.write_dynamic_case(tmp_path / "LOS" / "Trajectory_A" / "Case_1", rng=np.random.default_rng(4), shape="A")
+    assert hd.load_dynamic_case(c.folder).meta["registration"].robust_sigma_m < hd.MAX_REGISTRATION_SIGMA_M
+    path = _edit_reference(c.folder, edit)
+    with pytest.raises(DataFormatError, match=f"the reference does not fit the ranges — .*{says}") as err:
+        hd.load_dynamic_case(c.folder)
+    assert err.value.path == path, what
+    assert hd.load_dynamic_case(c.folder, register=False).meta["registered"] is False   # unregistered: loaded as is

@@ -60,7 +60,11 @@ assumed: :func:`~uwbwb.datasets.registration.register_truth` fits ``range_i =
 clock offset, ``t_ranges = t_ref + Δt``; ``T`` a translation; ``b`` a common range
 bias) and reports ``Δt`` refitted on each half (drift check). On the four
 provided cases ``Δt`` = 0.17–0.20 s (halves within 60 ms), ``T`` ≈ (0.01–0.10,
-0.00–0.05, 0.97–1.15) m, robust residual σ 6–9 cm. What is applied:
+0.00–0.05, 0.97–1.15) m, robust residual σ 6–9 cm. A registration is refused (an error naming
+``trajectory.csv`` and every number that does not fit) when its robust residual σ exceeds
+:data:`MAX_REGISTRATION_SIGMA_M`, its horizontal translation :data:`MAX_REFERENCE_SHIFT_M`, its tag height
+leaves :data:`TAG_HEIGHT_RANGE_M`, or the two halves' offsets differ by more than
+:data:`MAX_HALF_OFFSET_SPREAD_S`: a reference in millimetres, shifted, mirrored or seconds off. What is applied:
 
 * the **clock offset** ``Δt`` (the reference is moved onto the ranges' clock),
   always: without it every reference point is ~0.2 s late, ~0.2 m at the robot's
@@ -118,6 +122,15 @@ TRAJECTORY_FILE = "trajectory.csv"
 #: Largest clock offset between ranges and reference searched, seconds. An assumption: the
 #: files share Unix time, so an offset of seconds would mean a misconfigured clock.
 MAX_OFFSET_S = 5.0
+#: What a registration of the reference to the ranges may show and still be applied (assumptions, each from the
+#: four provided cases with a wide margin; a registration outside any of them is an error naming the file): the
+#: robust residual σ (provided 6–9 cm), the horizontal translation (the reference is documented to be in the
+#: anchors' frame; provided ≤ 0.11 m), the tag height above the reference (a tag on a ground robot; provided
+#: 0.97–1.15 m), the clock offsets fitted on the two halves (provided within 60 ms of each other).
+MAX_REGISTRATION_SIGMA_M = 0.25
+MAX_REFERENCE_SHIFT_M = 0.5
+TAG_HEIGHT_RANGE_M = (0.0, 3.0)
+MAX_HALF_OFFSET_SPREAD_S = 0.25
 #: Share of the smallest squared distances averaged when the authors' lag is estimated (an assumption:
 #: up to 20 % of their epochs may be outliers, as NLOS runs show).
 TRIM = 0.8
@@ -484,6 +497,7 @@ def load_dynamic_case(case: PathLike, data_dir: PathLike | None = None, *, tag_h
             reg = register_truth(ranges, anchors, ref, fit_range_bias=True, max_offset_s=MAX_OFFSET_S)
         except RegistrationError as exc:
             raise DataFormatError(traj_path, f"cannot register the reference to the ranges: {exc}") from None
+        _check_registration(reg, traj_path)
         ref = ref.shifted(reg.time_offset_s)
         meta.update(registration=reg, reference_time_offset_s=reg.time_offset_s,
                     reference_translation_fit_m=reg.translation_m.copy(), tag_height_fit_m=float(reg.translation_m[2]))
@@ -514,6 +528,29 @@ def authors_estimates(case: PathLike | Recording, data_dir: PathLike | None = No
     """The authors' estimates of a case (``{"LS": ..., "ESKF": ...}``, those present), on the case's clock."""
     rec = case if isinstance(case, Recording) else load_dynamic_case(case, data_dir, register=False)
     return dict(rec.meta.get("authors_estimates", {}))
+
+
+def _check_registration(reg: Registration, path: Path) -> None:
+    """Refuse a registration of the reference ``path`` that does not fit the ranges well enough to be applied."""
+    problems = []
+    if not reg.robust_sigma_m <= MAX_REGISTRATION_SIGMA_M:
+        problems.append(f"robust range residual σ {reg.robust_sigma_m:.3g} m (at most {MAX_REGISTRATION_SIGMA_M:g} m)")
+    shift = float(np.hypot(*reg.translation_m[:2]))
+    if not shift <= MAX_REFERENCE_SHIFT_M:
+        problems.append(f"horizontal translation {shift:.3g} m to the anchors' frame (at most {MAX_REFERENCE_SHIFT_M:g} m: "
+                        "the reference should already be in it)")
+    lo, hi = TAG_HEIGHT_RANGE_M
+    if not lo <= reg.translation_m[2] <= hi:
+        problems.append(f"tag height above the reference {reg.translation_m[2]:.3g} m (expected {lo:g}–{hi:g} m)")
+    if not abs(reg.time_offset_s) <= MAX_OFFSET_S:
+        problems.append(f"clock offset {reg.time_offset_s:+.3f} s (searched within ±{MAX_OFFSET_S:g} s)")
+    halves = getattr(reg, "half_offsets_s", None)
+    if halves is not None and len(halves) == 2 and not abs(halves[0] - halves[1]) <= MAX_HALF_OFFSET_SPREAD_S:
+        problems.append(f"clock offsets of the two halves {halves[0]:+.3f} s and {halves[1]:+.3f} s (at most "
+                        f"{MAX_HALF_OFFSET_SPREAD_S:g} s apart)")
+    if problems:
+        raise DataFormatError(path, "the reference does not fit the ranges — " + "; ".join(problems) + " — check its "
+                              "units (metres), axes and time stamps")
 
 
 def registration_of(rec: Recording) -> Registration | None:
