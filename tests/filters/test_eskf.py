@@ -89,6 +89,46 @@ def test_the_filters_refuse_an_imu_or_start_that_is_not_a_container():
         eskf.LooseFilter().run(raw, fixes, run.x0)
 
 
+def _scaled(imu, acc=1.0, gyro=1.0, flip_z=False, spike_at=None):
+    acc_mps2, gyro_radps = imu.acc_mps2 * acc, imu.gyro_radps * gyro
+    if flip_z:
+        acc_mps2, gyro_radps = acc_mps2 * [1, -1, -1], gyro_radps * [1, -1, -1]
+    if spike_at is not None:
+        acc_mps2 = acc_mps2.copy()
+        acc_mps2[spike_at, 0] = 500.0
+    return type(imu)(imu.t_s, acc_mps2, gyro_radps)
+
+
+@pytest.mark.parametrize("what, change, says", [
+    ("mm/s²", dict(acc=1000.0), "accelerations not in m/s²"),
+    ("g", dict(acc=1 / 9.80665), "accelerations not in m/s²"),
+    ("deg/s", dict(gyro=180 / np.pi), "gyro rates look like deg/s"),
+    ("z down", dict(flip_z=True), "z-down frame"),
+    ("a spike", dict(spike_at=40), "beyond the full scale"),
+])
+def test_every_imu_entry_refuses_samples_that_are_not_body_frame_si(what, change, says):
+    """Before, each of these ran silently: mm/s² gave a 396 m median error, g, deg/s or z down 4-14x worse, a
+    spike a 700 m transient. The loaders' unit rules now hold at the filters' entry too."""
+    cfg = robot.RobotConfig(sigma_toa_m=0.0, imu=QUIET, **CLEAN)
+    run = robot.simulate(robot.broken_line(robot.PAPER_WAYPOINTS_M[:3]), cfg, rng=np.random.default_rng(0))
+    bad = _scaled(run.imu, **change)
+    n = run.tdoa.t_s.size
+    fixes = Estimates(run.tdoa.t_s, np.zeros((n, 2)), np.full(n, EstimateStatus.UPDATED, np.int8))
+    for where, call in (("TightEskf.run", lambda: _tight(cfg).run(bad, run.tdoa, run.x0)),
+                        ("LooseFilter.run", lambda: eskf.LooseFilter().run(bad, fixes, run.x0)),
+                        ("dead_reckon", lambda: eskf.dead_reckon(bad, run.x0, run.truth.t_s))):
+        with pytest.raises(ValueError, match=f"{where}: imu: .*{says}"):
+            call()
+
+
+def test_a_poor_imu_in_si_units_still_runs():
+    """The entry refuses unit errors, not poor sensors: notebook 05's "IMU 10x worse" case reads |f| = 7.6 m/s²."""
+    cfg = robot.RobotConfig(sigma_toa_m=0.0, imu=QUIET, **CLEAN)
+    run = robot.simulate(robot.broken_line(robot.PAPER_WAYPOINTS_M[:3]), cfg, rng=np.random.default_rng(0))
+    res = eskf.dead_reckon(_scaled(run.imu, acc=0.77), run.x0, run.truth.t_s)
+    assert np.isfinite(res.pos_m).all()
+
+
 def _range_log(run, cfg, rng):
     """Two-way ranges from the simulated truth at the TDoA epochs (10 cm noise, a few missing)."""
     a = np.asarray(cfg.stations_m, float)

@@ -32,7 +32,7 @@ from .ins import GRAVITY_MPS2
 
 __all__ = ["ACC_FULL_SCALE_MPS2", "GRADES", "GRAVITY_TOLERANCE_MPS2", "GYRO_FULL_SCALE_RADPS", "HeadingLog",
            "ImuConvention", "ImuErrorModel", "ImuErrors", "ImuEvidence", "MAX_SPIKE_FRACTION", "RATE_SCALE_DEG_LIMIT",
-           "check_body_imu", "imu_evidence", "unit_problem"]
+           "UNIT_GRAVITY_TOLERANCE_MPS2", "check_body_imu", "imu_evidence", "unit_problem"]
 
 _DEG = np.pi / 180.0
 
@@ -234,6 +234,10 @@ GYRO_FULL_SCALE_RADPS = 2000.0 * _DEG
 #: |median specific force| of a log that mostly rests or hovers lies within g ± this, m/s²: flight
 #: accelerations of a few m/s² average out, and scale errors of a consumer part are a few per cent.
 GRAVITY_TOLERANCE_MPS2 = 2.0
+#: At a filter's entry (:func:`check_body_imu` with ``gravity_tolerance_mps2`` of this): |median |f| − g| may
+#: reach g/2 — wide enough for a deliberately poor sensor (notebook 05's "IMU 10× worse" reads 7.6 m/s²), narrow
+#: enough for every unit error (g: 1, cm/s²: 981, mm/s²: 9 807).
+UNIT_GRAVITY_TOLERANCE_MPS2 = 0.5 * GRAVITY_MPS2
 #: More samples than this fraction beyond full scale is a unit problem (mg, deg/s), not spikes.
 MAX_SPIKE_FRACTION = 0.01
 #: The gyro is taken to be in deg/s when the rate scale ``k`` (:func:`imu_evidence`) is confidently below
@@ -326,12 +330,13 @@ def imu_evidence(t_s, acc, gyro) -> ImuEvidence:
     return ImuEvidence(g, fz, k, se)
 
 
-def unit_problem(t_s, acc, gyro) -> tuple[str | None, ImuEvidence, np.ndarray]:
+def unit_problem(t_s, acc, gyro, *, gravity_tolerance_mps2: float = GRAVITY_TOLERANCE_MPS2
+                 ) -> tuple[str | None, ImuEvidence, np.ndarray]:
     """The unit rules shared by :func:`check_body_imu` and the loaders' checks.
 
     * Accelerations not in m/s²: more than :data:`MAX_SPIKE_FRACTION` of the samples have an
       accelerometer component beyond :data:`ACC_FULL_SCALE_MPS2`, or the median ``|f|`` of the
-      others lies outside g ± :data:`GRAVITY_TOLERANCE_MPS2`.
+      others lies outside g ± ``gravity_tolerance_mps2`` (default :data:`GRAVITY_TOLERANCE_MPS2`).
     * Gyro rates in deg/s: more than :data:`MAX_SPIKE_FRACTION` of the samples beyond
       :data:`GYRO_FULL_SCALE_RADPS` while the rate scale (on all samples within the accelerometer
       full scale) is not that of rad/s, or :attr:`ImuEvidence.gyro_looks_deg`.
@@ -352,10 +357,10 @@ def unit_problem(t_s, acc, gyro) -> tuple[str | None, ImuEvidence, np.ndarray]:
     ev = imu_evidence(t[~spike], a[~spike], w[~spike])
     if t.size == 0:
         return None, ev, spike
-    if acc_over.mean() > MAX_SPIKE_FRACTION or not ev.gravity_ok:
+    if acc_over.mean() > MAX_SPIKE_FRACTION or not abs(ev.gravity_mps2 - GRAVITY_MPS2) <= gravity_tolerance_mps2:
         g = imu_evidence(t, a, w)
         return (f"accelerations not in m/s² (mg? g?): median |f| = {g.gravity_mps2:.4g}, expected "
-                f"{GRAVITY_MPS2:.2f} ± {GRAVITY_TOLERANCE_MPS2:g} ({g.unit_guess()}); {int(acc_over.sum())} of "
+                f"{GRAVITY_MPS2:.2f} ± {gravity_tolerance_mps2:.3g} ({g.unit_guess()}); {int(acc_over.sum())} of "
                 f"{t.size} samples beyond the full scale 16 g"), ev, spike
     wide = ev if gyro_over.mean() <= MAX_SPIKE_FRACTION else imu_evidence(t[~acc_over], a[~acc_over], w[~acc_over])
     if wide.gyro_looks_deg or (gyro_over.mean() > MAX_SPIKE_FRACTION and not wide.rate_scale > RATE_SCALE_DEG_LIMIT):
@@ -370,11 +375,13 @@ def unit_problem(t_s, acc, gyro) -> tuple[str | None, ImuEvidence, np.ndarray]:
     return None, ev, spike
 
 
-def check_body_imu(imu: ImuLog, *, source: str = "IMU log") -> ImuEvidence:
+def check_body_imu(imu: ImuLog, *, source: str = "IMU log",
+                   gravity_tolerance_mps2: float = GRAVITY_TOLERANCE_MPS2) -> ImuEvidence:
     """Refuse a log that cannot be body-frame SI samples (what the INS and the ESKF integrate).
 
     Raises ``ValueError`` naming ``source``, in this order, for (a sample that is not finite cannot reach it:
-    :class:`~uwbwb.types.ImuLog` refuses one): a median ``|f|`` outside g ± :data:`GRAVITY_TOLERANCE_MPS2`, or more than
+    :class:`~uwbwb.types.ImuLog` refuses one): a median ``|f|`` outside g ± ``gravity_tolerance_mps2`` (default
+    :data:`GRAVITY_TOLERANCE_MPS2`; the filters' entry uses :data:`UNIT_GRAVITY_TOLERANCE_MPS2`), or more than
     :data:`MAX_SPIKE_FRACTION` of the samples beyond full scale (accelerations not in m/s²); a gyro
     whose rate scale says deg/s (:attr:`ImuEvidence.gyro_looks_deg`); a negative median ``f_z`` (a
     z-down frame: gravity's reaction must point along +z); any remaining sample beyond
@@ -383,7 +390,7 @@ def check_body_imu(imu: ImuLog, *, source: str = "IMU log") -> ImuEvidence:
     scale is judged only on logs of at least 20 samples. Returns the evidence.
     """
     a, w = np.asarray(imu.acc_mps2, float), np.asarray(imu.gyro_radps, float)
-    problem, ev, spike = unit_problem(imu.t_s, a, w)
+    problem, ev, spike = unit_problem(imu.t_s, a, w, gravity_tolerance_mps2=gravity_tolerance_mps2)
     if a.shape[0] == 0:
         return ev
     if problem is not None:

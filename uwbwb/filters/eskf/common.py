@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from ...models.imu import UNIT_GRAVITY_TOLERANCE_MPS2, check_body_imu
 from ...models.ins import NavState
 from ...types import ImuLog
 
@@ -19,14 +20,19 @@ SNAPSHOT_RMS_SIGMAS = 3.0    # a snapshot fix is consistent when its TDoA residu
 
 
 def check_inputs(where: str, imu, x0) -> None:
-    """A filter's entry: ``imu`` must be an :class:`~uwbwb.types.ImuLog` (which holds finite SI samples) and ``x0``
-    a :class:`~uwbwb.models.ins.NavState`; a ``TypeError`` naming ``where`` and how to build one otherwise."""
+    """A filter's entry: ``imu`` must be an :class:`~uwbwb.types.ImuLog` (which holds finite samples) and ``x0``
+    a :class:`~uwbwb.models.ins.NavState` — a ``TypeError`` naming ``where`` and how to build one otherwise —,
+    and the samples must be body-frame SI ones (:func:`~uwbwb.models.imu.check_body_imu`: m/s² not g or mg,
+    rad/s not deg/s, z up, no spike beyond full scale) — a ``ValueError`` naming ``where`` otherwise. The
+    loaders run the same rules; this is where the Python API meets them, with gravity allowed g/2 either way
+    (:data:`~uwbwb.models.imu.UNIT_GRAVITY_TOLERANCE_MPS2`: a unit error, not a poor or mis-simulated sensor)."""
     if not isinstance(imu, ImuLog):
         raise TypeError(f"{where}: imu must be an ImuLog (t_s, acc_mps2, gyro_radps in the body frame, SI), got "
                         f"{type(imu).__name__}; build one with uwbwb.types.ImuLog(t_s, acc_mps2, gyro_radps)")
     if not isinstance(x0, NavState):
         raise TypeError(f"{where}: x0 must be a NavState (position, velocity, attitude at the first IMU sample), "
                         f"got {type(x0).__name__}; build one with uwbwb.models.ins.NavState(...)")
+    check_body_imu(imu, source=f"{where}: imu", gravity_tolerance_mps2=UNIT_GRAVITY_TOLERANCE_MPS2)
 
 
 def _lever(name: str, value) -> np.ndarray:

@@ -11,7 +11,7 @@ from ... import validate
 from ...metrics import nis_consistency
 from ...models.ins import N_ERR, Mechanization, NavState, coast, euler_from_dcm, quat_to_dcm
 from ...types import EstimateStatus, Estimates, ImuLog
-from .common import gap_timeline
+from .common import check_inputs, gap_timeline
 
 
 # ====================================================================== result
@@ -122,6 +122,7 @@ def dead_reckon(imu: ImuLog, x0: NavState, t_s: np.ndarray, *, mechanization: Me
     stays in every later position). Coasting rather than stopping keeps INS-only scored on the
     same epochs, under the same assumption, as the filters it is compared with.
     """
+    check_inputs("dead_reckon", imu, x0)
     t_ep = np.asarray(t_s, float)
     if max_imu_gap_s is not None:
         validate.number("dead_reckon.max_imu_gap_s", max_imu_gap_s, minimum=0.0, strict_minimum=True)
