@@ -489,3 +489,20 @@ def test_a_tune_that_raises_names_the_method_and_the_recording():
     cal_rec, test = split_in_time(rec)
     with pytest.raises(RuntimeError, match=r"mine: tune on .* raised KeyError: 'grid'"):
         score(test, cal_rec, estimators=[_UserMethod(behaviour="tune")], check=False)
+
+
+def test_a_calibration_recording_of_other_anchors_is_refused():
+    rec = _rec(duration_s=20.0)
+    cal_rec, test = split_in_time(rec)
+    moved = replace(cal_rec, anchors=replace(cal_rec.anchors, pos_m=cal_rec.anchors.pos_m + [0.5, 0.0, 0.0]))
+    with pytest.raises(ValueError, match=r"places anchor A0 0\.500 m away from where the scored recording"):
+        score(test, moved, estimators=[CalibratedLs()], check=False)
+
+
+def test_a_tag_height_for_a_3d_truth_is_refused():
+    """It was applied to the planar methods while the truth kept its own height (5 m: LS 4x, EKF 7x worse)."""
+    rec = _rec(duration_s=20.0)
+    cal_rec, test = split_in_time(rec)
+    assert test.truth["tag"].dim == 3
+    with pytest.raises(ValueError, match=r"the truth of 'tag' is 3-D: its height comes from the truth"):
+        score(test, cal_rec, estimators=[CalibratedLs()], tag_height_m=5.0, check=False)

@@ -542,6 +542,9 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
         raise ValueError(f"estimator names must be unique, got {names}")
     tags = scored_tags(test_rec, tags)
     scored_tags(cal_rec, tags)
+    _checks.check_same_anchors(cal_rec, test_rec)
+    if tag_height_m is not None:
+        _checks.check_height_applies(test_rec, cal_rec, tags)
     # what the loaders dropped or set to NaN (both parts of one run carry the same steps: each once)
     notes: list[str] = list(dict.fromkeys(f"loader: {step}" for rec in (cal_rec, test_rec) for step in rec.cleaning))
     if truth_offset_s:

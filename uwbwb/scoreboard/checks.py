@@ -153,6 +153,33 @@ def lift_truth(rec: Recording, tag_height_m: Mapping[str, float] | float | None 
     return (replace(rec, truth=truth) if how else rec), how
 
 
+#: Anchors of a calibration and a scored recording that differ by more than this are different set-ups (m).
+SAME_ANCHOR_TOL_M = 0.01
+
+
+def check_same_anchors(cal: Recording, test: Recording) -> None:
+    """Refuse a calibration recording whose anchors are not the scored one's: every method would be tuned, and
+    the ranges calibrated, for another set-up (``ValueError`` naming both and the largest difference)."""
+    if tuple(cal.anchors.ids) != tuple(test.anchors.ids):
+        raise ValueError(f"calibration recording {cal.label} has anchors {list(cal.anchors.ids)}, the scored recording "
+                         f"{test.label} {list(test.anchors.ids)}: calibrate on a recording of the same anchors")
+    d = np.linalg.norm(np.asarray(cal.anchors.pos_m, float) - np.asarray(test.anchors.pos_m, float), axis=1)
+    if np.any(d > SAME_ANCHOR_TOL_M):
+        k = int(np.argmax(d))
+        raise ValueError(f"calibration recording {cal.label} places anchor {cal.anchors.ids[k]} {d[k]:.3f} m away from "
+                         f"where the scored recording {test.label} has it (at most {SAME_ANCHOR_TOL_M:g} m): calibrate "
+                         "on a recording of the same set-up")
+
+
+def check_height_applies(test: Recording, cal: Recording, tags: Sequence[str]) -> None:
+    """A given tag height is for a 2-D truth: refuse it for a tag whose truth is 3-D (its height is in the truth;
+    a second one would put the planar methods at another height than the one they are scored at)."""
+    three_d = [t for t in tags if any(t in r.truth and r.truth[t].dim == 3 for r in (test, cal))]
+    if three_d:
+        raise ValueError(f"a tag height was given, but the truth of {', '.join(map(repr, three_d))} is 3-D: its "
+                         "height comes from the truth (--tag-height-m is for a 2-D truth only)")
+
+
 def drop_silent_anchors(cal: Recording, test: Recording, tags: Sequence[str], *,
                         min_samples: int = MIN_ANCHOR_SAMPLES) -> tuple[Recording, Recording, tuple[str, ...]]:
     """Drop anchors that give fewer than ``min_samples`` ranges to any of ``tags`` on ``cal``.
