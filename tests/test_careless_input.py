@@ -11,6 +11,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import nbformat
@@ -482,11 +483,31 @@ def test_an_interrupted_run_leaves_no_ok_summary_and_says_it_stopped(monkeypatch
 
     monkeypatch.setattr(rp, "run_notebook", fake_run)
     with pytest.raises(KeyboardInterrupt):
-        rp.reproduce(only=["00", "01"], out=out)
+        rp.reproduce(only=["00", "01"], out=out, jobs=1)
     text = (out / "summary.md").read_text()
     assert "INTERRUPTED" in text and "00_quickstart" in text and "all ok" not in text
     assert not (out / "summary.json").exists() and not (out / ".reproduce.lock").exists()
     assert not list(out.glob(".*.tmp"))
+
+
+def test_an_interrupted_concurrent_run_names_what_finished_before_it(monkeypatch, tmp_path):
+    first_done = threading.Event()
+
+    def fake_run(source, out_dir, parameters, **kwargs):
+        if source.stem.startswith("00"):
+            first_done.set()
+            return rp.NotebookRun(notebook=source.stem, source=source, executed=out_dir / "x.ipynb", html=None,
+                                  summary=out_dir / "x.json", seconds=0.0, error=None)
+        first_done.wait(10)
+        time.sleep(0.2)                      # let the first notebook's thread record its end
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(rp, "run_notebook", fake_run)
+    with pytest.raises(KeyboardInterrupt):
+        rp.reproduce(only=["00", "01"], out=tmp_path, jobs=2)
+    text = (tmp_path / "summary.md").read_text()
+    assert "INTERRUPTED" in text and "00_quickstart (ok)" in text and "01_set_noise_pf" not in text
+    assert not (tmp_path / "summary.json").exists() and not (tmp_path / ".reproduce.lock").exists()
 
 
 def test_an_inproc_scheduler_is_refused_for_the_notebooks(tmp_path):

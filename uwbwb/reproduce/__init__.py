@@ -283,6 +283,7 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_
             runs.append(run)
             _log_end(log, order[source], len(notebooks), run)
     processes = set() if jobs > 1 and len(todo) > 1 else None
+    stopping, finished = threading.Event(), []
 
     def one(source: Path, key: str) -> NotebookRun:
         if log:
@@ -294,6 +295,8 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_
         if run.ok and run.executed.is_file():
             cache.write_entry(out_dir, source.stem, key, run.seconds)
         _log_end(log, order[source], len(notebooks), run)
+        if not stopping.is_set():
+            finished.append(run)
         return run
 
     if processes is None:
@@ -302,12 +305,15 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_
         pool = ThreadPoolExecutor(max_workers=min(jobs, len(todo)), thread_name_prefix="notebook")
         try:
             for future in as_completed([pool.submit(one, source, key) for source, key in todo]):
-                runs.append(future.result())
+                future.result()
         except BaseException:                  # Ctrl-C or SIGTERM: stop the notebooks still running, then report
+            stopping.set()                     # the ones that finished before it
             pool.shutdown(wait=False, cancel_futures=True)
             _stop(processes)
+            runs.extend(finished)
             raise
         pool.shutdown()
+        runs.extend(finished)
     runs.sort(key=lambda r: order[r.source])
 
 
