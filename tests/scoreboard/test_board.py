@@ -3,6 +3,7 @@ scoring truth away from the estimators, and ``python -m uwbwb score`` runs on re
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -506,3 +507,23 @@ def test_a_tag_height_for_a_3d_truth_is_refused():
     assert test.truth["tag"].dim == 3
     with pytest.raises(ValueError, match=r"the truth of 'tag' is 3-D: its height comes from the truth"):
         score(test, cal_rec, estimators=[CalibratedLs()], tag_height_m=5.0, check=False)
+
+
+@pytest.mark.parametrize("defect, says", [
+    ("clean", None),
+    ("0.3 s late", r"the truth clock looks offset by \+0\.\d\d s .*--truth-offset-s 0\.\d\d"),
+    ("shifted 0.7 m", r"the truth looks shifted by \(-0\.[67]\d, [+-]0\.0\d\) m from the anchors. frame"),
+])
+def test_a_board_reports_a_clock_offset_or_shift_below_its_error_threshold(defect, says):
+    """Both defects passed the 1 m residual check silently (EKF-RF 3.33 m instead of 0.17 for 0.3 s late)."""
+    rec = _rec(duration_s=30.0)
+    tr = rec.truth["tag"]
+    moved = {"clean": tr, "0.3 s late": Trajectory(tr.t_s + 0.3, tr.pos_m, name="truth"),
+             "shifted 0.7 m": Trajectory(tr.t_s, tr.pos_m + [0.7, 0.0, 0.0], name="truth")}[defect]
+    cal_rec, test = split_in_time(replace(rec, truth={"tag": moved}))
+    board = score(test, cal_rec, estimators=[CalibratedLs()])
+    warnings = [n for n in board.checks if "WARNING" in n]
+    if says is None:
+        assert not warnings and any("are not reported" in n for n in board.checks)
+    else:
+        assert len(warnings) == 2 and all(re.search(says, w) for w in warnings), warnings   # both parts
