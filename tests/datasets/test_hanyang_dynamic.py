@@ -221,3 +221,13 @@ def test_a_reference_that_does_not_fit_the_ranges_is_refused_with_what_does_not_
         hd.load_dynamic_case(c.folder)
     assert err.value.path == path, what
     assert hd.load_dynamic_case(c.folder, register=False).meta["registered"] is False   # unregistered: loaded as is
+
+
+def test_the_authors_lag_is_nan_without_overlap_not_the_first_lag_searched(tmp_path):
+    c = fx.write_dynamic_case(tmp_path / "LOS" / "Trajectory_A" / "Case_1", rng=np.random.default_rng(4), shape="A")
+    rec = hd.load_dynamic_case(c.folder)
+    assert all(np.isfinite(v) and abs(v) < 1.0 for v in rec.meta["authors_lag_s"].values())
+    est = rec.meta["authors_estimates"]["LS"]
+    ref = rec.truth["tag"]
+    far = type(est)(est.t_s + 1000.0, est.pos_m, est.status, est.name)
+    assert np.isnan(hd._best_lag(far, ref))                    # was -1.0 s: the first lag of the search

@@ -393,7 +393,8 @@ def _estimates_on(stamp_ns: np.ndarray, pos_m: np.ndarray, t0_ns: int, name: str
 
 def _best_lag(est: Estimates, truth: Trajectory, max_lag_s: float = 1.0, step_s: float = 0.01) -> float:
     """Lag ``d`` minimising the trimmed mean squared horizontal distance of ``est(t)`` to ``truth(t + d)``, s
-    (the smallest :data:`TRIM` share of the squared distances: robust to the estimates' outliers)."""
+    (the smallest :data:`TRIM` share of the squared distances: robust to the estimates' outliers); NaN when the
+    estimates do not overlap the reference (before: the search's first lag, −1.0 s, was reported)."""
     lags = np.arange(-max_lag_s, max_lag_s + 0.5 * step_s, step_s)
     t = est.t_s[None, :] + lags[:, None]
     inside = (t >= truth.t_s[0]) & (t <= truth.t_s[-1])
@@ -404,6 +405,8 @@ def _best_lag(est: Estimates, truth: Trajectory, max_lag_s: float = 1.0, step_s:
     keep = max(1, int(TRIM * est.t_s.size))
     ms = np.mean(np.partition(sq, keep - 1, axis=1)[:, :keep], axis=1)     # the smallest TRIM share
     ms[n < 0.8 * est.t_s.size] = np.inf
+    if not np.isfinite(ms).any():
+        return np.nan                 # no lag within ±max_lag_s puts 80 % of the estimates inside the reference
     return float(lags[int(np.argmin(ms))])
 
 

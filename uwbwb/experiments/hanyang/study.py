@@ -153,7 +153,7 @@ def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: 
     if estimators is None:
         est = study_estimators(fast=fast, static_models=static_models)
         lag = cal_rec.meta.get("authors_lag_s", {}).get("LS")
-        if lag:                                                 # sensitivity: their latency, measured on the tuning case
+        if lag is not None and np.isfinite(lag) and lag != 0:  # sensitivity: their latency, measured on the tuning case
             est.append(AuthorsEstimator("LS", shift_s=float(lag)))
     else:
         est = list(estimators)
