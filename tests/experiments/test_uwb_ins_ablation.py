@@ -2,6 +2,7 @@
 parameters refused up front, eq-4 thresholds, and verdict sentences that flip with the numbers."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -238,6 +239,14 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     assert not any("recovery" in x for x in headlines.checks(bad))
     sc.loc[m, "reacq_s"] = 5.2                              # past the 5 s deadline
     assert any("recovery: EKF + gate" in x and "5.2 s (seed 2)" in x for x in headlines.checks(bad))
+    # after a longer outage than the default the IMU-free EKF is not asked to re-acquire: a "failed" row, no error
+    sc.loc[m, "reacq_s"] = math.inf
+    long = ab.AblationResult(replace(bad.config, outage_s=18.6), bad.fast, bad.tuning, {}, sc, bad.counts)
+    assert not any("recovery" in x for x in headlines.checks(long))
+    assert _row(facts.facts(long), "matched: EKF + gate re-acquires after the outage").verdict == "failed"
+    t = (sc["case"] == "matched") & (sc["method"] == "tight + gate") & (sc["seed"] == 2)
+    sc.loc[t, "reacq_s"] = math.inf                         # the IMU-aided ones are, after any outage
+    assert any("recovery: tight + gate" in x for x in headlines.checks(long))
 
 
 def test_knobs_break_near_ties_upwards_flag_the_edge_and_name_blowups():
@@ -432,3 +441,17 @@ def test_gated_loose_filter_re_acquires_with_a_ten_times_worse_imu(monkeypatch):
     assert reacq() < 4.0                                    # 3.1 s
     monkeypatch.setattr(eskf.LooseFilter, "lost_lock_variance", lambda self, ms=0.0: np.zeros(2 * self.dim))
     assert reacq() > ab.RECOVERY_S                          # 5.5 s: past the deadline
+
+
+def test_the_nis_check_reads_normal_operation_not_the_aftermath_of_a_long_outage():
+    """OUTAGE_S = 18.6 s (in the declared range) made notebook 05 fail its NIS check: the IMU-free EKF coasts
+    through the outage on one TDoA per epoch and its innovations on UWB's return counted (mean NIS/dof 14.75).
+    The NIS is now taken on the scored epochs, as the dynamic score is (outage and recovery window out)."""
+    nb = dict(seeds=2, gate_prob=0.999, outlier_c_m=0.1, grade="consumer", outlier_rate=0.02, loose_window=5,
+              static_s=10.0)
+    cfg = ab.notebook_config(fast=True, outage_s=18.6, **nb)
+    run = ab.simulate("dynamic", cfg.model, cfg, 3)
+    rows = ("EKF + gate", "tight + gate")
+    _, k0, counts = ab.run_methods(run, cfg.model, dict.fromkeys(rows, 1.0), cfg, rows=rows)
+    for r in rows:
+        assert 0.5 < counts["nis"][r] < 2.0, (r, counts["nis"][r])
