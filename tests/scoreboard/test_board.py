@@ -498,6 +498,13 @@ def test_a_calibration_recording_of_other_anchors_is_refused():
     moved = replace(cal_rec, anchors=replace(cal_rec.anchors, pos_m=cal_rec.anchors.pos_m + [0.5, 0.0, 0.0]))
     with pytest.raises(ValueError, match=r"places anchor A0 0\.500 m away from where the scored recording"):
         score(test, moved, estimators=[CalibratedLs()], check=False)
+    fewer = replace(cal_rec, anchors=cal_rec.anchors.subset(cal_rec.anchors.ids[:-1]),
+                    ranges={t: replace(log, range_m=log.range_m[:, :-1], anchor_ids=log.anchor_ids[:-1])
+                            for t, log in cal_rec.ranges.items()})
+    with pytest.raises(ValueError, match=r"has anchors \['A0'.*'A6'\], the scored .*same anchors"):
+        score(test, fewer, estimators=[CalibratedLs()], check=False, other_anchors=True)
+    board = score(test, moved, estimators=[CalibratedLs()], check=False, other_anchors=True)   # a deliberate transfer
+    assert any("anchors sit elsewhere (anchor A0 0.50 m away" in n for n in board.checks)
 
 
 def test_a_tag_height_for_a_3d_truth_is_refused():

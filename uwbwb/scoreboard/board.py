@@ -493,7 +493,7 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
           calibration: Calibration | None = None, fast: bool = False, progress: bool = False,
           label: str | None = None, tag_height_m: float | Mapping[str, float] | None = None,
           truth_offset_s: float = 0.0, check: bool = True,
-          min_epochs: int = _checks.MIN_SCORED_EPOCHS) -> Board:
+          min_epochs: int = _checks.MIN_SCORED_EPOCHS, other_anchors: bool = False) -> Board:
     """Calibrate on ``cal_rec`` and score every estimator on ``test_rec``.
 
     Parameters
@@ -542,11 +542,14 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
         raise ValueError(f"estimator names must be unique, got {names}")
     tags = scored_tags(test_rec, tags)
     scored_tags(cal_rec, tags)
-    _checks.check_same_anchors(cal_rec, test_rec)
+    moved = _checks.check_same_anchors(cal_rec, test_rec, allow_moved=other_anchors)
     if tag_height_m is not None:
         _checks.check_height_applies(test_rec, cal_rec, tags)
     # what the loaders dropped or set to NaN (both parts of one run carry the same steps: each once)
     notes: list[str] = list(dict.fromkeys(f"loader: {step}" for rec in (cal_rec, test_rec) for step in rec.cleaning))
+    if moved:
+        notes.append(f"calibrated on a recording whose anchors sit elsewhere ({moved}): the per-anchor calibration "
+                     "and the tuned parameters are carried over by anchor id")
     if truth_offset_s:
         cal_rec, test_rec = _checks.shift_truth(cal_rec, truth_offset_s), _checks.shift_truth(test_rec, truth_offset_s)
         notes.append(f"truth clock shifted by {-truth_offset_s:+.3f} s (given)")

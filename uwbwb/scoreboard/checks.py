@@ -157,18 +157,23 @@ def lift_truth(rec: Recording, tag_height_m: Mapping[str, float] | float | None 
 SAME_ANCHOR_TOL_M = 0.01
 
 
-def check_same_anchors(cal: Recording, test: Recording) -> None:
+def check_same_anchors(cal: Recording, test: Recording, *, allow_moved: bool = False) -> str:
     """Refuse a calibration recording whose anchors are not the scored one's: every method would be tuned, and
-    the ranges calibrated, for another set-up (``ValueError`` naming both and the largest difference)."""
+    the ranges calibrated, for another set-up (``ValueError`` naming both and the largest difference). With
+    ``allow_moved`` the same anchors (ids) may sit elsewhere — a deliberate transfer across layouts, e.g. the
+    Hanyang trajectories — and the largest move is returned for the board's notes; "" when none moved."""
     if tuple(cal.anchors.ids) != tuple(test.anchors.ids):
         raise ValueError(f"calibration recording {cal.label} has anchors {list(cal.anchors.ids)}, the scored recording "
                          f"{test.label} {list(test.anchors.ids)}: calibrate on a recording of the same anchors")
     d = np.linalg.norm(np.asarray(cal.anchors.pos_m, float) - np.asarray(test.anchors.pos_m, float), axis=1)
     if np.any(d > SAME_ANCHOR_TOL_M):
         k = int(np.argmax(d))
+        if allow_moved:
+            return f"anchor {cal.anchors.ids[k]} {d[k]:.2f} m away, the largest move"
         raise ValueError(f"calibration recording {cal.label} places anchor {cal.anchors.ids[k]} {d[k]:.3f} m away from "
                          f"where the scored recording {test.label} has it (at most {SAME_ANCHOR_TOL_M:g} m): calibrate "
                          "on a recording of the same set-up")
+    return ""
 
 
 def check_height_applies(test: Recording, cal: Recording, tags: Sequence[str]) -> None:
