@@ -368,13 +368,13 @@ def test_a_second_run_reuses_a_notebook_only_while_nothing_it_depends_on_changed
 def test_notebooks_run_at_once_give_what_they_give_one_after_the_other(tmp_path):
     notebooks = tmp_path / "notebooks"
     notebooks.mkdir()
-    for i in range(1, 4):
+    for i in range(1, 3):
         body = GOOD_BODY.replace('"01_good"', f'"0{i}_good"').replace("2.5 * N", f"2.5 * N + {i}")
-        _notebook(notebooks / f"0{i}_good.ipynb", GOOD_PARAMS, body + "\nimport time\ntime.sleep(1)\n")
+        _notebook(notebooks / f"0{i}_good.ipynb", GOOD_PARAMS, body)
     serial = rp.reproduce(out=tmp_path / "serial", notebooks_dir=notebooks, jobs=1, timeout_s=120)
-    together = rp.reproduce(out=tmp_path / "together", notebooks_dir=notebooks, jobs=3, timeout_s=120)
+    together = rp.reproduce(out=tmp_path / "together", notebooks_dir=notebooks, jobs=2, timeout_s=120)
     assert serial.ok and together.ok
-    assert [r.notebook for r in together.runs] == ["01_good", "02_good", "03_good"]    # notebook order
+    assert [r.notebook for r in together.runs] == ["01_good", "02_good"]    # notebook order
     assert together.rows == serial.rows
     assert json.loads(together.summary_json.read_text()) == json.loads(serial.summary_json.read_text())
     with pytest.raises(ValueError, match="jobs must be a whole number"):
