@@ -547,8 +547,8 @@ def _check_registration(reg: Registration, path: Path) -> None:
         problems.append(f"tag height above the reference {reg.translation_m[2]:.3g} m (expected {lo:g}–{hi:g} m)")
     if not abs(reg.time_offset_s) <= MAX_OFFSET_S:
         problems.append(f"clock offset {reg.time_offset_s:+.3f} s (searched within ±{MAX_OFFSET_S:g} s)")
-    halves = getattr(reg, "half_offsets_s", None)
-    if halves is not None and len(halves) == 2 and not abs(halves[0] - halves[1]) <= MAX_HALF_OFFSET_SPREAD_S:
+    halves = reg.half_offsets_s
+    if not abs(halves[0] - halves[1]) <= MAX_HALF_OFFSET_SPREAD_S:
         problems.append(f"clock offsets of the two halves {halves[0]:+.3f} s and {halves[1]:+.3f} s (at most "
                         f"{MAX_HALF_OFFSET_SPREAD_S:g} s apart)")
     if problems:

@@ -75,7 +75,7 @@ from . import cache
 from .params import (INJECTED_TAG, RESERVED_PARAMETERS, SCHEDULER_PARAMETER, injected_source,  # noqa: F401
                      notebook_parameters, parameter_specs, parameterized, parse_parameter_value, resolve_parameters)
 from .report import FAST_MARK, summary_markdown  # noqa: F401
-from .running import (KERNEL_NAME, SUMMARY_KEYS, NotebookRun, ReproduceResult, _run_on_cluster,  # noqa: F401
+from .running import (KERNEL_NAME, SUMMARY_KEYS, NotebookRun, ReproduceResult, _published, _run_on_cluster,  # noqa: F401
                       ipc_kernel_manager, read_summary, run_notebook)
 
 __all__ = ["FAST_MARK", "INJECTED_TAG", "KERNEL_NAME", "NOTEBOOKS_DIR", "NotebookRun", "REPORTS_DIR",
@@ -340,9 +340,8 @@ def _reused(source: Path, out_dir: Path, parameters: Mapping[str, Any], key: str
     entry = cache.valid_entry(out_dir, source.stem, key)
     if entry is None:
         return None
-    fast = parameters.get("FAST", notebook_parameters(source).get("FAST"))
     summary = out_dir / f"{source.stem}.summary.json"
-    rows, problem = read_summary(summary, source.stem, ("FAST" if fast else "full") if isinstance(fast, bool) else None)
+    rows, problem = _published(source, summary, parameters)
     if problem:
         return None
     return NotebookRun(notebook=source.stem, source=source, executed=out_dir / f"{source.stem}.ipynb",

@@ -259,12 +259,17 @@ def _finish(source: Path, out_dir: Path, parameters: Mapping[str, Any], error: s
             error = error or f"HTML export failed: {_first_line(exc)}"
     else:
         html = None
-    fast = parameters.get("FAST", notebook_parameters(source).get("FAST"))
-    rows, problem = read_summary(summary, stem, ("FAST" if fast else "full") if isinstance(fast, bool) else None)
+    rows, problem = _published(source, summary, parameters)
     if error is None:
         error = problem
     return NotebookRun(notebook=stem, source=source, executed=executed, html=html, summary=summary,
                        seconds=seconds, error=error, rows=tuple(rows))
+
+
+def _published(source: Path, summary: Path, parameters: Mapping[str, Any]) -> tuple[list[dict], str | None]:
+    """:func:`read_summary` of ``source``'s summary file, its mode read from the ``FAST`` it ran with."""
+    fast = parameters.get("FAST", notebook_parameters(source).get("FAST"))
+    return read_summary(summary, source.stem, ("FAST" if fast else "full") if isinstance(fast, bool) else None)
 
 
 def _notebook_task(name: str, text: str, cwd: str, parameters: Mapping[str, Any], timeout_s: float | None,
