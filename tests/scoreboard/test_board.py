@@ -226,11 +226,11 @@ def test_board_on_a_generated_iasl_tree_calibrates_on_another_scenario(tmp_path,
 
 # ----------------------------------------------------------------------------- a user's folder
 
-def _user_folder(directory, defect: str):
-    """A tidy folder of a 30 s synthetic run with one defect a user's recording may have."""
+def _user_folder(directory, defect: str, duration_s: float = 30.0):
+    """A tidy folder of a synthetic run with one defect a user's recording may have."""
     from uwbwb.types import Anchors, RangeLog
 
-    rec = _rec(seed=11, duration_s=30.0)
+    rec = _rec(seed=11, duration_s=duration_s)
     tr, log = rec.truth["tag"], rec.ranges["tag"]
     truth = Trajectory(tr.t_s, tr.pos_m, name="truth")
     if defect == "2-D truth":
@@ -239,8 +239,16 @@ def _user_folder(directory, defect: str):
         log = RangeLog(log.t_s, log.range_m * 1000.0, log.anchor_ids, "tag")
     elif defect == "anchors in mm":
         rec = replace(rec, anchors=Anchors(rec.anchors.ids, rec.anchors.pos_m * 1000.0))
+    elif defect == "ranges in cm":
+        log = RangeLog(log.t_s, log.range_m * 100.0, log.anchor_ids, "tag")
     elif defect == "truth clock offset":
         truth = Trajectory(tr.t_s + 2.0, tr.pos_m, name="truth")
+    elif defect == "truth 12 s late":
+        truth = Trajectory(tr.t_s + 12.0, tr.pos_m, name="truth")
+    elif defect == "mirrored truth":
+        truth = Trajectory(tr.t_s, tr.pos_m * [1.0, -1.0, 1.0], name="truth")
+    elif defect == "shifted reference":
+        truth = Trajectory(tr.t_s, tr.pos_m + [3.0, 0.0, 0.0], name="truth")
     elif defect == "swapped axes":
         truth = Trajectory(tr.t_s, tr.pos_m[:, [1, 0, 2]], name="truth")
     elif defect == "anchors swapped":
@@ -254,14 +262,14 @@ def _user_folder(directory, defect: str):
     tidy.write_recording(replace(rec, ranges={"tag": log}, truth={"tag": truth}), directory)
 
 
-def _score(tmp_path, defect, *extra):
-    _user_folder(tmp_path / "run", defect)
+def _score(tmp_path, defect, *extra, duration_s: float = 30.0):
+    _user_folder(tmp_path / "run", defect, duration_s)
     return cli.main(["score", str(tmp_path / "run"), "--out", str(tmp_path / "out"), "--quiet", "--fast",
                      "--rate-hz", "5", "--methods", "LS", "EKF-RF", *extra])
 
 
 @pytest.mark.parametrize("defect, expected", [
-    ("ranges in mm", "are the ranges in millimetres"),
+    ("ranges in mm", "are the ranges in centimetres or millimetres"),
     ("anchors in mm", "anchor positions look like millimetres"),
     ("truth clock offset", "truth time = range time +2.00 s"),
     ("swapped axes", "x and y of the truth look swapped"),
@@ -273,6 +281,20 @@ def test_a_defective_folder_is_refused_with_its_diagnosis(tmp_path, capsys, defe
     err = capsys.readouterr().err
     assert expected in err, err
     assert not (tmp_path / "out" / "scoreboard.csv").exists()
+
+
+@pytest.mark.parametrize("defect, expected, duration_s", [
+    ("ranges in cm", "are the ranges in centimetres or millimetres", 30.0),
+    ("truth 12 s late", "truth time = range time +12.00 s", 90.0),
+    ("mirrored truth", "the y axis of the truth looks mirrored", 30.0),
+    ("shifted reference", "the truth looks shifted by (+3.00, +0.00) m", 30.0),
+])
+def test_a_defect_of_the_truth_is_not_blamed_on_the_anchors(tmp_path, capsys, defect, expected, duration_s):
+    """A 12 s clock offset, a mirrored truth and a shifted reference were reported as "anchors.csv does not match
+    the ranges", and ranges in centimetres were called millimetres."""
+    assert _score(tmp_path, defect, duration_s=duration_s) == 1
+    err = capsys.readouterr().err
+    assert expected in err and "anchors.csv does not match" not in err, err
 
 
 def test_fraction_leaving_too_few_epochs_is_an_error(tmp_path, capsys):
@@ -294,7 +316,8 @@ def test_the_diagnosed_offset_scores_once_given(tmp_path, capsys):
     assert _score(tmp_path, "truth clock offset", "--truth-offset-s", "2.0") == 0, capsys.readouterr().err
     table = pd.read_csv(tmp_path / "out" / "scoreboard.csv").set_index("method")
     assert table.loc["LS", "rmse_m"] < 0.2
-    assert "truth clock offset estimate +0.00 s" in (tmp_path / "out" / "scoreboard.md").read_text()
+    found = re.findall(r"truth clock offset estimate ([+-]\d+\.\d\d) s", (tmp_path / "out" / "scoreboard.md").read_text())
+    assert found and all(abs(float(v)) <= 0.01 for v in found), found      # the 5 ms grid's resolution
 
 
 @pytest.mark.parametrize("height", [None, "1.0"])
@@ -519,7 +542,7 @@ def test_a_tag_height_for_a_3d_truth_is_refused():
 @pytest.mark.parametrize("defect, says", [
     ("clean", None),
     ("0.3 s late", r"the truth clock looks offset by \+0\.\d\d s .*--truth-offset-s 0\.\d\d"),
-    ("shifted 0.7 m", r"the truth looks shifted by \(-0\.[67]\d, [+-]0\.0\d\) m from the anchors. frame"),
+    ("shifted 0.7 m", r"the truth looks shifted by \(\+0\.[67]\d, [+-]0\.0\d\) m from the anchors. frame"),
 ])
 def test_a_board_reports_a_clock_offset_or_shift_below_its_error_threshold(defect, says):
     """Both defects passed the 1 m residual check silently (EKF-RF 3.33 m instead of 0.17 for 0.3 s late)."""
