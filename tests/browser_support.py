@@ -539,6 +539,7 @@ class NotebookReport:
     run_s: float
     panels: list[ControlChange] = field(default_factory=list)
     screenshots: list[Path] = field(default_factory=list)
+    output_text: str = ""
 
 
 def check_notebook(server: LabServer, browser, name: str, *, out_dir: Path | None = None,
@@ -548,7 +549,8 @@ def check_notebook(server: LabServer, browser, name: str, *, out_dir: Path | Non
 
     Asserts: no error output or error-looking stderr, no "Error displaying widget",
     no panel error, at least one ``uwbwb-panel``, and every panel updates its readout
-    or figure after one control change. Screenshots (whole panel before and after,
+    or figure after one control change. The text of every cell output after the run is in the report's
+    ``output_text``. Screenshots (whole panel before and after,
     figure before) and a ``report.json`` go to ``out_dir``. Failures raise
     AssertionError whose message starts with the notebook's name. The notebook's
     kernel is shut down afterwards.
@@ -567,6 +569,7 @@ def check_notebook(server: LabServer, browser, name: str, *, out_dir: Path | Non
             run_s = open_and_run(page, server, name, workspace=f"check-{stem}", timeout_s=timeout_s)
             report = NotebookReport(name, run_s)
             _wait_for_widget_views(page, name)
+            report.output_text = "\n".join(page.locator(".jp-OutputArea-output").all_inner_texts())
             problems = _page_problems(page)
             if problems:
                 raise AssertionError(f"{name}: after running all cells:\n  " + "\n  ".join(problems))

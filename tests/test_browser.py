@@ -35,6 +35,17 @@ def lab_root(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
+def cluster_address():
+    """A LocalCluster the notebooks send their sweeps to (``DASK_SCHEDULER``), as ``reproduce --scheduler`` does:
+    every notebook then runs once here for the browser and the cluster together."""
+    distributed = pytest.importorskip("distributed", reason="dask.distributed is not installed")
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None,
+                                       scheduler_port=0, protocol="tcp")
+    yield cluster.scheduler_address
+    cluster.close()
+
+
+@pytest.fixture(scope="module")
 def lab(lab_root):
     """``(server, browser)``, shared by the module and closed even when tests fail."""
     with lab_session(lab_root) as (server, browser):
@@ -55,12 +66,21 @@ def test_kernel_and_widget_manager_come_from_this_environment(lab):
     "notebook",
     NOTEBOOKS or [pytest.param(None, marks=pytest.mark.skip(reason=f"no notebooks in {NOTEBOOK_DIR} yet"))],
     ids=[p.stem for p in NOTEBOOKS] or ["no-notebooks"])
-def test_notebook_in_jupyterlab(notebook, lab, lab_root, tmp_path):
+def test_notebook_in_jupyterlab(notebook, lab, lab_root, tmp_path, cluster_address):
+    """Run every cell in the browser with the FAST parameters and the sweeps on a LocalCluster, move a control
+    of every panel; the notebook must join the cluster and publish its FAST summary."""
+    from uwbwb.reproduce import read_summary
+
     server, browser = lab
-    parameters = {**FAST_PARAMETERS, "SUMMARY_PATH": str(tmp_path / f"{notebook.stem}.summary.json")}
+    summary = tmp_path / f"{notebook.stem}.summary.json"
+    parameters = {**FAST_PARAMETERS, "SUMMARY_PATH": str(summary), "DASK_SCHEDULER": cluster_address}
     prepare_notebook(notebook, lab_root, parameters)
     report = check_notebook(server, browser, notebook.name, out_dir=OUTPUT_DIR / notebook.stem)
     assert report.panels, f"{notebook.name}: no panel was checked"
+    assert f"Sweeps run on the Dask cluster at {cluster_address}" in report.output_text, \
+        f"{notebook.name} did not join the cluster at {cluster_address}"
+    rows, problem = read_summary(summary, notebook.stem, "FAST")
+    assert problem is None and rows, f"{notebook.name}: {problem or 'no summary rows'}"
 
 
 # --------------------------------------------------------------------------- self-check

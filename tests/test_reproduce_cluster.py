@@ -83,19 +83,51 @@ def test_scheduler_needs_the_parameter_in_every_notebook_and_only_once(tmp_path,
                      text_parameters={"DASK_SCHEDULER": "local"})
 
 
+def test_cli_reproduce_quick_runs_the_notebooks_on_a_local_cluster(tmp_path, capsys):
+    """`reproduce --scheduler local --quick` from the command line: the notebooks of a folder, concurrently, on one
+    LocalCluster that each notebook's sweeps join. (The workbench's own notebooks join a cluster in
+    ``tests/test_browser.py``, which runs each of them once with ``DASK_SCHEDULER`` set; without a browser, the
+    next test runs them here.)"""
+    folder = tmp_path / "notebooks"
+    folder.mkdir()
+    for stem in ("01_a", "02_b"):
+        _notebook(folder / f"{stem}.ipynb", PARAMS, "from uwbwb import parallel\nprint(parallel.describe(DASK_SCHEDULER))\n"
+                  + BODY)
+    out = tmp_path / "reports"
+    code = cli.main(["reproduce", "--scheduler", "local", "--quick", "--out", str(out), "--timeout", "300"],
+                    notebooks_dir=folder)
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    assert "Sweeps run on the Dask cluster at tcp://" in printed and "dashboard" in printed
+    for stem in ("01_a", "02_b"):
+        assert "Sweeps run on the Dask cluster at tcp://" in (out / f"{stem}.ipynb").read_text(), stem
+    rows = json.loads((out / "summary.json").read_text())
+    assert [r["value"] for r in rows] == [55, 55] and {r["mode"] for r in rows} == {"FAST"}
+    assert len({r["data"] for r in rows}) == 1 and rows[0]["data"].startswith("tcp://")   # both on one cluster
+    assert "DASK_SCHEDULER='tcp://" in (out / "summary.md").read_text()
+
+
+def _browser_test_runs() -> bool:
+    from tests.browser_support import CHROMIUM
+
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        return False
+    return CHROMIUM.exists()
+
+
 @pytest.mark.notebook
+@pytest.mark.skipif(_browser_test_runs(), reason="tests/test_browser.py runs every notebook on a LocalCluster")
 def test_cli_reproduce_quick_runs_every_notebook_on_a_local_cluster(tmp_path, capsys):
-    """`reproduce --scheduler local --quick`: every notebook of the workbench, concurrently, on one LocalCluster."""
+    """Without the browser test: every notebook of the workbench, concurrently, on one LocalCluster."""
     out = tmp_path / "reports"
     code = cli.main(["reproduce", "--scheduler", "local", "--quick", "--out", str(out), "--timeout", "900"])
     printed = capsys.readouterr().out
     assert code == 0, printed
-    assert "Sweeps run on the Dask cluster at tcp://" in printed and "dashboard" in printed
     stems = sorted(p.stem for p in NOTEBOOK_DIR.glob("*.ipynb"))
     for stem in stems:
-        executed = (out / f"{stem}.ipynb").read_text()
-        assert "Sweeps run on the Dask cluster at tcp://" in executed, f"{stem} did not join the cluster"
+        assert "Sweeps run on the Dask cluster at tcp://" in (out / f"{stem}.ipynb").read_text(), \
+            f"{stem} did not join the cluster"
     rows = json.loads((out / "summary.json").read_text())
-    assert {r["notebook"] for r in rows} == set(stems)
-    assert {r["mode"] for r in rows} == {"FAST"}
-    assert "DASK_SCHEDULER='tcp://" in (out / "summary.md").read_text()
+    assert {r["notebook"] for r in rows} == set(stems) and {r["mode"] for r in rows} == {"FAST"}
