@@ -168,6 +168,18 @@ def test_accelerations_not_in_mps2_are_an_error_with_the_magnitude(tree, tmp_pat
         check_body_imu(ImuLog(body.t_s, body.acc_mps2 * factor, body.gyro_radps))
 
 
+def test_a_saturating_accelerometer_is_not_called_a_unit_error(tree):
+    """1.3 % of the samples clipped at 16 g in an m/s² log were reported as "not in m/s²"."""
+    body = _body(tree)
+    acc = body.acc_mps2.copy()
+    clipped = np.arange(0, acc.shape[0], 75)[: int(0.013 * acc.shape[0])]
+    acc[clipped, 0] = 20 * GRAVITY_MPS2
+    with pytest.raises(ValueError, match=r"\(1\.\d %\) have an accelerometer component beyond the full scale "
+                                         r"16 g, while the others read m/s² .*a saturating sensor") as exc:
+        check_body_imu(ImuLog(body.t_s, acc, body.gyro_radps))
+    assert "not in m/s²" not in str(exc.value)
+
+
 # --- z-down frame ----------------------------------------------------------------------------
 
 def test_z_down_body_frame_is_refused_with_the_measured_gravity(tree):

@@ -241,3 +241,19 @@ def test_snapshot_fixes_are_consistent_ones_and_a_screened_out_epoch_has_none():
     fix = upd.snapshot(np.arange(3.0), d, np.zeros(3, int))
     np.testing.assert_allclose(fix[0], tag[0], atol=1e-6)
     assert np.isnan(fix[1:]).all()
+
+
+@pytest.mark.parametrize("kw, says", [
+    (dict(still_s=0.0), "still_s must be a finite number of seconds > 0, got 0.0"),
+    (dict(align_s=-5.0), "align_s must be a finite number of seconds > 0, got -5.0"),
+    (dict(align_s=float("nan")), "align_s must be a finite number of seconds > 0, got nan"),
+    (dict(duration_s=0.0), "duration_s must be a finite number of seconds > 0 or None"),
+    (dict(align_s=500.0), r"heading alignment \(500 s\) end at .* but the ranges end at"),
+])
+def test_bad_start_up_parameters_are_refused_by_name(outage_flights, kw, says):
+    """They gave a raw IndexError, an error about NavState.pos_m, or ran on nothing."""
+    from uwbwb.filters import alignment
+
+    cal, flights = outage_flights
+    with pytest.raises(ValueError, match=says):
+        alignment.align_iasl(flights[0][0], cal, **kw)

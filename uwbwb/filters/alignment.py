@@ -236,9 +236,18 @@ def align_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings = 
     epoch every filter starts from, and the screened TDoAs and fixes they share."""
     if rec.imu is None:
         raise ValueError(f"{rec.label}: no IMU log")
+    for name, value in (("still_s", still_s), ("align_s", align_s), ("duration_s", duration_s)):
+        if not (value is None and name == "duration_s") and not (isinstance(value, (int, float, np.floating))
+                                                                  and np.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a finite number of seconds > 0"
+                             + (" or None (the whole recording)" if name == "duration_s" else "") + f", got {value!r}")
     log = rec.ranges["tag"]
     t_start = max(log.t_s[0], rec.imu.t_s[0])
     t_align = t_start + still_s + align_s
+    if not t_align < log.t_s[-1]:
+        raise ValueError(f"{rec.label}: rest ({still_s:g} s) and heading alignment ({align_s:g} s) end at "
+                         f"{t_align:.2f} s, but the ranges end at {log.t_s[-1]:.2f} s: nothing is left to run the "
+                         "filters on (shorten still_s or align_s)")
     if duration_s is not None:
         log = log.between(log.t_s[0], t_align + duration_s)
     imu = cal.convention.to_body(rec.imu)
