@@ -557,3 +557,30 @@ def test_a_board_reports_a_clock_offset_or_shift_below_its_error_threshold(defec
         assert not warnings and any("are not reported" in n for n in board.checks)
     else:
         assert len(warnings) == 2 and all(re.search(says, w) for w in warnings), warnings   # both parts
+
+
+@pytest.mark.parametrize("unit", ["rad/s", "deg/s"])
+def test_a_deg_per_s_gyro_on_a_robot_that_only_turns_is_refused(unit):
+    """A ground robot turning at most ~27 °/s about the vertical shows no tilt, so the loaders' tilt test passed a
+    gyro in deg/s; the truth's course rate against the gyro's vertical rate catches it."""
+    from uwbwb.scoreboard.checks import check_gyro_against_truth
+    from uwbwb.types import ImuLog
+
+    rng = np.random.default_rng(5)
+    rec = _rec(seed=3, duration_s=60.0)
+    t = np.arange(0.0, 60.0, 0.01)
+    yaw_rate = 0.47 * np.sin(2 * np.pi * t / 20.0)                  # up to 27 °/s, both ways
+    yaw = np.cumsum(yaw_rate) * 0.01
+    xy = np.cumsum(0.6 * np.column_stack([np.cos(yaw), np.sin(yaw)]), axis=0) * 0.01
+    truth = Trajectory(t, np.column_stack([xy, np.full(t.size, 1.0)]), name="truth")
+    gyro = np.column_stack([rng.normal(0, 0.01, t.size), rng.normal(0, 0.01, t.size), yaw_rate])
+    acc = np.column_stack([rng.normal(0, 0.05, t.size), 0.6 * yaw_rate, np.full(t.size, 9.81)])
+    scale = 180 / np.pi if unit == "deg/s" else 1.0
+    robot = replace(rec, truth={"tag": truth}, imu=ImuLog(t, acc, gyro * scale))
+    if unit == "rad/s":
+        assert "turns at +1" in check_gyro_against_truth(robot, "tag") or "turns at +0.9" in check_gyro_against_truth(
+            robot, "tag")
+    else:
+        with pytest.raises(ValueError, match=r"gyro rates look like deg/s, not rad/s: the truth's course turns at "
+                                             r"\+0\.01\d"):
+            check_gyro_against_truth(robot, "tag")

@@ -577,6 +577,8 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
             for tag in tags:
                 c = _checks.check_ranges_against_truth(r, tag)
                 notes.append(f"{part}: {c.describe()}")
+        if cal_rec.imu is not None and len(cal_rec.imu.t_s):
+            notes.append(f"calibration part: {_checks.check_gyro_against_truth(cal_rec, tags[0])}")
     if calibration is None:
         known = {**(given or {}), **heights} if (tag_height_m is not None or how) else None
         calibration = calibrate(cal_rec, estimators, tags, rate_hz=rate_hz, dim=dim, progress=progress,

@@ -383,6 +383,55 @@ def _offset(log: RangeLog, tr: Trajectory, a: np.ndarray, idx: np.ndarray, max_o
     return float(fine[k]), float(f[k])
 
 
+#: Slowest truth speed at which the track's course is read as the platform's heading, m/s.
+MIN_COURSE_SPEED_MPS = 0.2
+
+
+def check_gyro_against_truth(rec: Recording, tag: str) -> str:
+    """Is the gyro in rad/s? The turn rate of the truth track against the gyro's vertical rate.
+
+    The tilt test of the loaders (:func:`uwbwb.models.imu.imu_evidence`) needs tilt; a ground robot that only
+    turns about the vertical shows none, so a gyro in deg/s passes it. With a truth, the course of the track
+    (direction of the horizontal velocity, where the speed exceeds :data:`MIN_COURSE_SPEED_MPS`) turns at the
+    heading rate for a platform that drives where it points, and the gyro's rate about the vertical (projected
+    on the mean specific force, so any sensor frame will do) should match it: the least-squares factor ``k``
+    between the two is about ±1 in rad/s and ±π/180 in deg/s. Raises ``ValueError`` when ``|k|`` is confidently
+    below :data:`uwbwb.models.imu.RATE_SCALE_DEG_LIMIT` while course and gyro turn together (correlation above
+    0.5; a platform that flies sideways, whose course is not its heading, makes no claim). Returns a line for
+    the board's checks otherwise.
+    """
+    from ..models.imu import RATE_SCALE_DEG_LIMIT
+
+    imu, tr = rec.imu, rec.truth[tag]
+    t = np.arange(max(imu.t_s[0], tr.t_s[0]), min(imu.t_s[-1], tr.t_s[-1]), 0.1)
+    if t.size < 50:
+        return "gyro against the truth's course: too little overlap to compare"
+    xy = tr.interp(t)[:, :2]
+    kern = np.ones(5) / 5                                  # 0.5 s moving average against truth jitter
+    v = np.column_stack([np.convolve(np.gradient(xy[:, i], t), kern, "same") for i in range(2)])
+    a = np.column_stack([np.gradient(v[:, i], t) for i in range(2)])
+    speed2 = np.sum(v ** 2, axis=1)
+    up = np.median(imu.acc_mps2, axis=0)
+    up = up / np.linalg.norm(up)
+    w_up = np.interp(t, imu.t_s, imu.gyro_radps @ up)
+    w_up = np.convolve(w_up, kern, "same")
+    ok = (speed2 > MIN_COURSE_SPEED_MPS ** 2) & (np.arange(t.size) >= 2) & (np.arange(t.size) < t.size - 2)
+    if ok.sum() < 50 or not np.any(w_up[ok]):
+        return "gyro against the truth's course: the truth moves too little to compare"
+    course_rate = (v[ok, 0] * a[ok, 1] - v[ok, 1] * a[ok, 0]) / speed2[ok]
+    w = w_up[ok]
+    k = float(course_rate @ w / (w @ w))
+    r = course_rate - k * w
+    se = float(np.sqrt((r @ r) / max(r.size - 1, 1) / (w @ w)))
+    corr = float(np.corrcoef(course_rate, w)[0, 1]) if np.std(course_rate) > 0 and np.std(w) > 0 else 0.0
+    line = (f"the truth's course turns at {k:+.3g} ± {se:.2g} × the gyro's vertical rate (correlation {corr:.2f}; "
+            f"±1 for rad/s, ±{np.pi / 180:.4f} for deg/s)")
+    if abs(corr) > 0.5 and abs(k) + 3 * se < RATE_SCALE_DEG_LIMIT:
+        raise ValueError(f"{_where(rec)}: gyro rates look like deg/s, not rad/s: {line}, over {int(ok.sum())} "
+                         f"samples of tag {tag!r}'s truth")
+    return f"IMU: {line}"
+
+
 def check_ranges_against_truth(rec: Recording, tag: str, *, max_residual_m: float = MAX_RESIDUAL_M,
                                max_offset_s: float = MAX_OFFSET_S) -> RangeCheck:
     """Compare ``tag``'s measured ranges with those predicted from the anchors and its (3-D) truth.
