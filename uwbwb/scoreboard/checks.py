@@ -32,6 +32,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..models.imu import RATE_SCALE_DEG_LIMIT
 from ..types import CleaningStep, RangeLog, Recording, Trajectory
 
 __all__ = ["MAX_RESIDUAL_M", "MIN_SCORED_EPOCHS", "MAX_OFFSET_S", "MIN_ANCHOR_SAMPLES", "RangeCheck",
@@ -400,8 +401,6 @@ def check_gyro_against_truth(rec: Recording, tag: str) -> str:
     0.5; a platform that flies sideways, whose course is not its heading, makes no claim). Returns a line for
     the board's checks otherwise.
     """
-    from ..models.imu import RATE_SCALE_DEG_LIMIT
-
     imu, tr = rec.imu, rec.truth[tag]
     t = np.arange(max(imu.t_s[0], tr.t_s[0]), min(imu.t_s[-1], tr.t_s[-1]), 0.1)
     if t.size < 50:
