@@ -24,9 +24,10 @@ env: $(STAMP)
 lab: $(STAMP)
 	$(VENV)/bin/jupyter lab --notebook-dir=notebooks --ServerApp.ip=$(LAB_IP) --ServerApp.port=$(LAB_PORT) $(LAB_ROOT)
 
-## Run the whole test suite, notebooks and the browser test included.
+## Run the whole test suite, notebooks and the browser test included, on every core (TEST_WORKERS=0: one process).
+TEST_WORKERS ?= auto
 test: $(STAMP)
-	$(PY) -m pytest $(PYTEST_ARGS)
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 
 ## Headless main job: execute every notebook, write reports/ with summary.json + summary.md.
 reproduce: $(STAMP)
