@@ -11,7 +11,7 @@ from uwbwb.scoreboard import calibrate, score
 from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, ExternalEstimates
 from uwbwb.metrics.errors import BLOCK_LAG_FACTOR, MIN_BLOCKS, block_length
-from uwbwb.scoreboard.verdicts import difference_facts, difference_table, placement_table
+from uwbwb.scoreboard.verdicts import difference_facts, difference_table, pair_rng, placement_table
 from uwbwb.types import Trajectory
 
 
@@ -50,11 +50,11 @@ def test_difference_facts_on_a_board_follow_the_errors(offset_m, verdict):
     facts and in the table's verdict column."""
     b = _board(offset_m)
     ext = "shifted truth (external)"
-    f = difference_facts(b, "LS", ext, rng=np.random.default_rng(0))
+    f = difference_facts(b, "LS", ext, rng=pair_rng(0, "syn", "LS", ext))
     assert f["n_epochs"] == len(b.entry("LS", "tag").estimates)
     assert f["verdict"] == verdict and f["lo_m"] <= f["diff_m"] <= f["hi_m"]
     assert f["diff_m"] == pytest.approx(f["rmse_a_m"] - f["rmse_b_m"])
-    t = difference_table({"syn": b}, [("LS", ext), ("LS", "not on this board")], rng=np.random.default_rng(0))
+    t = difference_table({"syn": b}, [("LS", ext), ("LS", "not on this board")], seed=0)
     assert len(t) == 1                                    # a pair that did not run has no row
     assert t.loc[0, "verdict"] == ("LS more accurate" if verdict == "a" else f"{ext} more accurate")
     assert t.loc[0, "95 % low (mm)"] == pytest.approx(1000 * f["lo_m"])
@@ -90,7 +90,7 @@ def test_difference_verdict_needs_min_blocks(n, verdict):
     f = difference_facts(_fake_board(a, b), "A", "B", rng=np.random.default_rng(0))
     assert f["verdict"] == verdict
     assert (f["n_blocks"] >= MIN_BLOCKS) == (verdict != "none")
-    row = difference_table({"r": _fake_board(a, b)}, [("A", "B")], rng=np.random.default_rng(0)).iloc[0]
+    row = difference_table({"r": _fake_board(a, b)}, [("A", "B")], seed=0).iloc[0]
     assert row["verdict"] == ("A more accurate" if verdict == "a" else f"no verdict (fewer than {MIN_BLOCKS} blocks)")
 
 
@@ -122,5 +122,24 @@ def test_no_common_epochs_give_a_row_that_says_so_not_an_error():
                             table=lambda: pd.DataFrame({"method": ["A", "B"], "n_scored": [25, 25]}))
     f = difference_facts(board, "A", "B", rng=np.random.default_rng(0))
     assert f["n_epochs"] == 0 and f["verdict"] == "none" and np.isnan(f["lo_m"])
-    assert difference_table({"r": board}, [("A", "B")], rng=np.random.default_rng(0)).loc[0, "verdict"] == \
+    assert difference_table({"r": board}, [("A", "B")], seed=0).loc[0, "verdict"] == \
         "no epochs both covered"
+
+
+def test_a_pairs_interval_does_not_depend_on_what_else_the_table_holds():
+    """05 and 06 put the same flight's tight − loose in tables of different pairs and boards: one evaluation, one
+    interval — the bootstrap's draws come from the seed and the pair's names only."""
+    rng = np.random.default_rng(4)
+    n = 600
+    a, b, c = (np.abs(rng.normal(m, 0.01, n)) for m in (0.050, 0.052, 0.070))
+    ent = {m: SimpleNamespace(skipped=None, scored=np.ones(n, bool), error_m=e) for m, e in (("A", a), ("B", b), ("C", c))}
+    import pandas as pd
+
+    board = SimpleNamespace(tags=("t",), mode="FAST", entry=lambda m, tag: ent[m],
+                            table=lambda: pd.DataFrame({"method": ["A", "B", "C"], "n_scored": [n, n, n]}))
+    alone = difference_table({"flight": board}, [("A", "B")], seed=0).iloc[0]
+    crowded = difference_table({"other": board, "flight": board}, [("C", "B"), ("A", "C"), ("A", "B")], seed=0)
+    row = crowded[(crowded["recording"] == "flight") & (crowded["A"] == "A") & (crowded["B"] == "B")].iloc[0]
+    assert (row["95 % low (mm)"], row["95 % high (mm)"]) == (alone["95 % low (mm)"], alone["95 % high (mm)"])
+    other = difference_table({"flight": board}, [("A", "B")], seed=1).iloc[0]
+    assert other["95 % low (mm)"] != alone["95 % low (mm)"]                # the seed still matters

@@ -21,6 +21,7 @@ error for a placement, cut per tag.
 
 from __future__ import annotations
 
+import zlib
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -28,7 +29,7 @@ import pandas as pd
 
 from ..metrics.errors import MIN_BLOCKS, block_bootstrap_difference, block_ids, interval_side
 
-__all__ = ["DIFFERENCE_RULE", "N_BOOT", "PLACEMENT_RULE", "block_se_ratio", "difference_facts", "difference_table",
+__all__ = ["DIFFERENCE_RULE", "N_BOOT", "PLACEMENT_RULE", "block_se_ratio", "difference_facts", "difference_table", "pair_rng",
            "placement_facts", "placement_table"]
 
 #: Bootstrap resamples of a difference.
@@ -93,17 +94,25 @@ def placement_facts(row) -> dict:
     return {"method": row.method, "ratio": r, "se": se, "where": where}
 
 
+def pair_rng(seed: int, label: str, a: str, b: str) -> np.random.Generator:
+    """The bootstrap's generator for ``A − B`` on the board ``label``: from ``seed`` and the three names only, so
+    that a pair's interval is the same in every table that holds it (notebooks 05 and 06 on one flight), whatever
+    else the table holds and in whatever order."""
+    return np.random.default_rng([int(seed), zlib.crc32(f"{label}\x00{a}\x00{b}".encode())])
+
+
 def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, str]], *,
-                     rng: np.random.Generator) -> pd.DataFrame:
+                     seed: int) -> pd.DataFrame:
     """:func:`difference_facts` of every pair ``(A, B)`` that ran on each board, one row each: recording, A, B,
-    epochs both covered, blocks, both RMSEs, A − B and its 95 % interval (mm), the rule and the verdict."""
+    epochs both covered, blocks, both RMSEs, A − B and its 95 % interval (mm), the rule and the verdict. Each
+    row's bootstrap draws from :func:`pair_rng` (``seed``, the recording, A, B)."""
     rows = []
     for label, board in boards.items():
         ran = set(board.table().query("n_scored > 0")["method"])
         for a, b in pairs:
             if a not in ran or b not in ran:
                 continue
-            f = difference_facts(board, a, b, rng=rng)
+            f = difference_facts(board, a, b, rng=pair_rng(seed, label, a, b))
             verdict = {"a": f"{a} more accurate", "b": f"{b} more accurate"}.get(f["verdict"], "not significant")
             if f["n_epochs"] < 2:
                 verdict = "no epochs both covered"
