@@ -62,7 +62,7 @@ def small_cfg():
 
 @pytest.fixture(scope="module")
 def one_seed(small_cfg):
-    return ab.score_seed("matched", 1, {r: 1.0 for r in ab.ROWS}, small_cfg)
+    return ab.score_seed("matched", 1, {r: (1.0, 1.0) for r in ab.ROWS}, small_cfg)
 
 
 def test_every_row_is_scored_with_coverage_and_the_outage_leaves_no_fix(one_seed):
@@ -250,19 +250,35 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
 
 
 def test_knobs_break_near_ties_upwards_flag_the_edge_and_name_blowups():
-    t = pd.DataFrame({0.1: {"a": 1.00, "b": 2.0, "c": 1.0}, 1.0: {"a": 1.01, "b": 1.0, "c": 1.5},
-                      10.0: {"a": 1.5, "b": 2.0, "c": 50.0}})
+    pairs = [(q, r) for q in (0.1, 1.0, 10.0) for r in (1.0, 3.0)]
+    rmse = {"a": [1.0, 1.3, 1.01, 1.3, 1.5, 1.6],       # 1 % worse at the larger Q wins (R stays 1: 30 % worse at 3)
+            "b": [2.0, 2.0, 1.0, 1.01, 2.0, 2.0],       # then the larger R within the tie
+            "c": [1.0, 1.2, 1.5, 1.6, 50.0, 9.0]}       # a blow-up at Q 10, R 1
+    t = pd.DataFrame({p: {row: v[i] for row, v in rmse.items()} for i, p in enumerate(pairs)})
+    t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
     k = ab.choose_knobs(t)
-    assert k.loc["a", "knob"] == 1.0 and not k.loc["a", "edge"]          # 1 % worse at the larger Q wins
-    assert k.loc["b", "knob"] == 1.0 and not k.loc["b", "edge"]
-    assert k.loc["c", "knob"] == 0.1 and k.loc["c", "edge"] and k.loc["c", "blowups"] == (10.0,)
+    assert (k.loc["a", "Q ×"], k.loc["a", "R ×"], k.loc["a", "edge"]) == (1.0, 1.0, "R")
+    assert (k.loc["b", "Q ×"], k.loc["b", "R ×"], k.loc["b", "edge"]) == (1.0, 3.0, "R")
+    assert (k.loc["c", "Q ×"], k.loc["c", "edge"]) == (0.1, "Q, R") and k.loc["c", "blowups"] == ((10.0, 1.0),)
     res = _fake(GOOD)
     res = ab.AblationResult(res.config, True, t, {}, res.scores, res.counts)
     tuning = facts.facts(res)["tuning"]
-    assert tuning["c"]["edge"] and tuning["c"]["blowups"] == (10.0,) and not len(tuning["a"]["blowups"])
-    t.loc["c", 10.0] = 5.0
+    assert tuning["c"]["edge"] == "Q, R" and tuning["c"]["blowups"] == ((10.0, 1.0),) and not tuning["a"]["blowups"]
+    t.loc["c", (10.0, 1.0)] = 5.0
     assert not len(ab.choose_knobs(t).loc["c", "blowups"])
     assert ab.FULL_GRID[0] == 0.01 and ab.FULL_GRID[-1] == 100.0 and len(ab.FULL_GRID) == 9
+    assert ab.R_GRID == (0.3, 1.0, 3.0, 10.0) and ab.AblationConfig().r_grid == ab.R_GRID
+
+
+def test_the_measurement_noise_knob_reaches_every_tuned_filter():
+    """R × was never tuned (the loose filter's velocity R among others); now it scales each filter's R."""
+    cfg = ab.AblationConfig.fast(seeds=1)
+    run = ab.simulate("dynamic", cfg.model, cfg, 7)
+    rows = ("EKF + gate", "loose", "tight")
+    one, _, _ = ab.run_methods(run, cfg.model, dict.fromkeys(rows, (1.0, 1.0)), cfg, rows=rows)
+    ten, _, _ = ab.run_methods(run, cfg.model, dict.fromkeys(rows, (1.0, 10.0)), cfg, rows=rows)
+    for row in rows:
+        assert not np.allclose(one[row], ten[row], equal_nan=True), f"R × does not reach {row}"
 
 
 def test_ladder_ratios_use_the_epochs_both_rows_cover_and_show_each_coverage():
@@ -435,7 +451,7 @@ def test_gated_loose_filter_re_acquires_with_a_ten_times_worse_imu(monkeypatch):
     row = ("loose + gate",)
 
     def reacq():
-        out = ab.score_seed("IMU 10× worse", 6, {"loose + gate": 10.0}, cfg, row, ("dynamic",))
+        out = ab.score_seed("IMU 10× worse", 6, {"loose + gate": (10.0, 1.0)}, cfg, row, ("dynamic",))
         return out["scores"]["loose + gate"]["reacq_s"]
 
     assert reacq() < 4.0                                    # 3.1 s
@@ -452,6 +468,6 @@ def test_the_nis_check_reads_normal_operation_not_the_aftermath_of_a_long_outage
     cfg = ab.notebook_config(fast=True, outage_s=18.6, **nb)
     run = ab.simulate("dynamic", cfg.model, cfg, 3)
     rows = ("EKF + gate", "tight + gate")
-    _, k0, counts = ab.run_methods(run, cfg.model, dict.fromkeys(rows, 1.0), cfg, rows=rows)
+    _, k0, counts = ab.run_methods(run, cfg.model, dict.fromkeys(rows, (1.0, 1.0)), cfg, rows=rows)
     for r in rows:
         assert 0.5 < counts["nis"][r] < 2.0, (r, counts["nis"][r])

@@ -20,13 +20,15 @@ and without a χ² gate of the same probability:
 
 Every row gets the same TDoAs (after the same eq-4 test), the same known tag height, the same
 start (state, epoch) and is scored on the same epochs with coverage beside accuracy. The IMU rows
-also get the magnetometer heading. **Tuning**: each filter has one process-noise knob — the
-variance multiplier ``q_scale`` of the loose and the tight filter, the random-force spectral
-density ``q = EKF_Q0 · knob`` of the EKF — chosen from the same grid (:attr:`AblationConfig.grid`)
+also get the magnetometer heading. **Tuning**: each filter has two knobs, tuned together — a
+process-noise multiplier ``Q ×`` (the variance multiplier ``q_scale`` of the loose and the tight filter,
+the random-force spectral density ``EKF_Q0 · Q ×`` of the EKF) and a measurement-noise multiplier ``R ×``
+(``r_scale`` of the loose filter's position and velocity fixes and of the tight filter's TDoAs; the EKF's
+TDoA variance) — chosen from the same grid of pairs (:attr:`AblationConfig.grid` × :attr:`AblationConfig.r_grid`)
 by the lowest RMSE on a *tuning seed* that is never scored (static run + dynamic run outside the
 outage and recovery); RMSEs within :data:`TIE_REL` of the lowest count as a tie, broken towards
-the larger knob (the less over-confident filter). A knob on the grid's edge is flagged
-(:func:`choose_knobs`): its optimum may lie outside the grid. LS has no knob (no grid). The filters are tuned once on the matched world
+the larger ``Q ×``, then the larger ``R ×`` (the less over-confident filter). A pick on the grid's edge
+is flagged (:func:`choose_knobs`): its optimum may lie outside the grid. LS has no knob (no grid). The filters are tuned once on the matched world
 and keep their knob in every mismatch case: a mismatch row tests the design on a world it was
 not built for.
 
@@ -63,7 +65,7 @@ from ...validate import integer, number, probability
 from .scoring import _masks, _reacq, _scores
 from .study import OUTAGE_START_S
 
-__all__ = ["BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "METRICS", "LADDER", "EKF_Q0",
+__all__ = ["R_GRID", "FAST_R_GRID", "BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "METRICS", "LADDER", "EKF_Q0",
            "RECOVERY_S", "AblationConfig", "AblationResult", "check_outage", "check_parameters", "notebook_config",
            "legs_for_outage", "simulate", "ls_gate", "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci",
            "choose_knobs", "TIE_REL", "FULL_GRID", "FAST_GRID"]
@@ -83,6 +85,11 @@ TIE_REL = 0.02
 FULL_GRID = tuple(float(round(10 ** (k / 2), 4)) for k in range(-4, 5))
 #: FAST grid: three decades only (a smoke test; edge knobs are flagged, not resolved).
 FAST_GRID = (0.1, 1.0, 10.0)
+#: Measurement-noise multipliers of the full run, tried with every process-noise multiplier (the values of the
+#: real-data grid, :data:`~.realfair.GRID`).
+R_GRID = (0.3, 1.0, 3.0, 10.0)
+#: FAST measurement-noise multipliers (those of :data:`~.realfair.GRID_FAST`).
+FAST_R_GRID = (1.0, 3.0)
 #: Seconds after an outage scored as "recovery" (not as "dynamic"); also the re-acquisition deadline
 #: (error below :data:`RECOVERY_MAX_M` within this, then held for :data:`~.scoring.HOLD_S`).
 RECOVERY_S = 5.0
@@ -105,7 +112,9 @@ class AblationConfig:
     seeds
         Scoring seeds (``base_seed + 1 … + seeds``); the tuning seed is ``base_seed + 1000``.
     grid
-        Process-noise multipliers tried for every tuned filter (same grid, same effort).
+        Process-noise multipliers (``Q ×``) tried for every tuned filter (same grid, same effort).
+    r_grid
+        Measurement-noise multipliers (``R ×``), each tried with every value of ``grid``.
     gate_prob
         χ² probability of every gate.
     outlier_c_m
@@ -134,6 +143,7 @@ class AblationConfig:
 
     seeds: int = 10
     grid: tuple = FULL_GRID
+    r_grid: tuple = R_GRID
     gate_prob: float = 0.999
     outlier_c_m: float | None = 0.1
     static_s: float = 60.0
@@ -155,8 +165,9 @@ class AblationConfig:
         number("static_s", self.static_s, minimum=1.0)
         number("recovery_s", self.recovery_s, minimum=0.0)
         number("outlier_rate", self.outlier_rate, minimum=0.0, maximum=1.0)
-        if len(self.grid) < 1 or not all(g > 0 for g in self.grid):
-            raise ValueError(f"grid must hold positive multipliers, got {self.grid!r}")
+        for name, grid in (("grid", self.grid), ("r_grid", self.r_grid)):
+            if len(grid) < 1 or not all(np.isfinite(g) and g > 0 for g in grid) or len(set(grid)) != len(grid):
+                raise ValueError(f"{name} must hold distinct positive multipliers, got {grid!r}")
         if self.grade not in GRADES:
             raise ValueError(f"grade must be one of {list(GRADES)}, got {self.grade!r}")
         for c in self.cases:
@@ -168,10 +179,10 @@ class AblationConfig:
 
     @classmethod
     def fast(cls, **kw) -> "AblationConfig":
-        """FAST (smoke-test) sizes: 2 seeds, a 3-point grid (:data:`FAST_GRID`, not the full 9), a 10 s static run, 3 legs, and three
+        """FAST (smoke-test) sizes: 2 seeds, a 3 × 2 grid (:data:`FAST_GRID` × :data:`FAST_R_GRID`, not the full 9 × 4), a 10 s static run, 3 legs, and three
         mismatch cases (those the checks read: IMU 10×, UWB σ 2×, multipath up to 12 m) on 1 seed and
         the dynamic run only."""
-        base = dict(seeds=2, grid=FAST_GRID, static_s=10.0, legs=3, mismatch_seeds=1, mismatch_static=False,
+        base = dict(seeds=2, grid=FAST_GRID, r_grid=FAST_R_GRID, static_s=10.0, legs=3, mismatch_seeds=1, mismatch_static=False,
                     cases=("matched", "IMU 10× worse", "UWB σ 2×", "multipath up to 12 m"))
         base.update(kw)
         return cls(**base)
@@ -299,9 +310,10 @@ def ls_gate(fixes: Estimates, tdoa, model: TdoaModel, gate_prob: float) -> tuple
     return Estimates(fixes.t_s, p, status, fixes.name + " + gate", cov), int(bad.sum())
 
 
-def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[str, float], cfg: AblationConfig,
-                rows: Sequence[str] = ROWS) -> tuple[dict, int, dict]:
-    """Every row of ``rows`` on one run, with the filters' ``model`` (not the run's world).
+def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[str, tuple[float, float]],
+                cfg: AblationConfig, rows: Sequence[str] = ROWS) -> tuple[dict, int, dict]:
+    """Every row of ``rows`` on one run, with the filters' ``model`` (not the run's world) and each tuned row's
+    ``knobs[row] = (Q ×, R ×)``.
 
     Returns ``(positions, k0, counts)``: row → horizontal tag position ``(T, 2)`` (NaN where the
     row has no estimate), the first scored epoch, and counts (``eq4`` TDoAs removed by eq. 4,
@@ -326,15 +338,17 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
     for row in rows:
         g = gate if row.endswith("+ gate") else None
         base = row.split(" ")[0]
+        q, r = knobs[row] if base != "LS" else (1.0, 1.0)
         if base == "LS":
             est, gated[row] = ls_gate(fixes, screened, m2, gate) if g else (fixes, 0)
             pos = est.pos_m
         elif base == "EKF":
+            m2r = TdoaModel(anchors, model.sigma_toa_m * math.sqrt(r), dim=2, z_m=model.tag_height_m)
             if row == EKF_TDOA_GATE:
-                ekf = TdoaEkf(RandomForce(EKF_Q0 * knobs[row], dim=2), m2,
+                ekf = TdoaEkf(RandomForce(EKF_Q0 * q, dim=2), m2r,
                               gate=ChiSquarePerMeasurement(g, max_gated=EKF_TDOA_MAX_GATED))
             else:
-                ekf = TdoaEkf(RandomForce(EKF_Q0 * knobs[row], dim=2), m2, gate_prob=g)
+                ekf = TdoaEkf(RandomForce(EKF_Q0 * q, dim=2), m2r, gate_prob=g)
             kr = ekf.run(screened.select(slice(k0, None)), x0=ekf.init(tag0[:2]))
             pos = np.full((len(run.truth), 2), np.nan)
             pos[k0:] = np.where(kr.started[:, None], kr.pos_m, np.nan)
@@ -342,7 +356,7 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
             up = (kr.status == EstimateStatus.UPDATED) & keep[k0:]
             nis[row] = nis_consistency(kr.nis[up], kr.dof[up])["mean_nis_over_dof"]
         elif base == "loose":
-            f = eskf.LooseFilter(height_m=model.tag_height_m, lever_arm_m=model.lever_arm_m, q_scale=knobs[row],
+            f = eskf.LooseFilter(height_m=model.tag_height_m, lever_arm_m=model.lever_arm_m, q_scale=q, r_scale=r,
                                  vel_window=cfg.loose_window, sigma_r_pos_m=2 * model.sigma_toa_m, gate_prob=g)
             fr = f.run(imu, fixes, x0, heading=run.heading)
             pos = fr.to_estimates(dim=2).pos_m
@@ -350,7 +364,7 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
             nis[row] = nis_consistency(fr.nis[keep], fr.dof[keep])["mean_nis_over_dof"]
         elif base == "tight":
             f = eskf.TightEskf(model.imu, eskf.TdoaUpdate(model.tdoa_model(), cfg.outlier_c_m),
-                               lever_arm_m=model.lever_arm_m, gate_prob=g, q_scale=knobs[row],
+                               lever_arm_m=model.lever_arm_m, gate_prob=g, q_scale=q, r_scale=r,
                                height_m=model.tag_height_m)
             fr = f.run(imu, run.tdoa, x0, heading=run.heading)
             pos = fr.to_estimates(dim=2).pos_m
@@ -371,7 +385,7 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
     return out, k0, counts
 
 
-def score_seed(case: str, seed: int, knobs: Mapping[str, float], cfg: AblationConfig,
+def score_seed(case: str, seed: int, knobs: Mapping[str, tuple[float, float]], cfg: AblationConfig,
                rows: Sequence[str] = ROWS, scenarios: Sequence[str] = ("static", "dynamic")) -> dict:
     """Scores (:data:`METRICS`) of every row on the runs of one (mismatch case, seed).
 
@@ -411,7 +425,7 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, float], cfg: AblationCo
     return {"scores": scores, "counts": counts, "pairs": pairs}
 
 
-def _tune_task(row: str, knob: float, cfg: AblationConfig, seed: int) -> float:
+def _tune_task(row: str, knob: tuple[float, float], cfg: AblationConfig, seed: int) -> float:
     """Sum of squared errors and count over the tuning seed's scored epochs (no outage, no recovery)."""
     sse = n = 0.0
     for scen in ("static", "dynamic"):
@@ -425,36 +439,41 @@ def _tune_task(row: str, knob: float, cfg: AblationConfig, seed: int) -> float:
 
 
 def tune(cfg: AblationConfig, *, tuning_seed: int, scheduler=None, workers: int = 1) -> pd.DataFrame:
-    """RMSE on the tuning seed for every tuned row × grid value (rows: rows, columns: grid).
+    """RMSE on the tuning seed for every tuned row × ``(Q ×, R ×)`` pair (rows: rows; columns: the pairs, a
+    two-level index ``Q ×``, ``R ×``).
 
-    The knob of each row is chosen by :func:`choose_knobs`.
+    The pair of each row is chosen by :func:`choose_knobs`.
     """
-    tasks = [parallel.Task({"row": r, "knob": float(g)}) for r in _TUNED for g in cfg.grid]
+    pairs = [(float(q), float(r)) for q in cfg.grid for r in cfg.r_grid]
+    tasks = [parallel.Task({"row": row, "knob": pair}) for row in _TUNED for pair in pairs]
     res = {(t.params["row"], t.params["knob"]): v for t, v in parallel.imap(
         _tune_task_shared, tasks, shared={"cfg": cfg, "tuning_seed": tuning_seed}, scheduler=scheduler,
         workers=workers, desc="ablation tuning", unit="run")}
-    return pd.DataFrame({g: {r: res[(r, float(g))] for r in _TUNED} for g in cfg.grid})
+    out = pd.DataFrame({pair: {row: res[(row, pair)] for row in _TUNED} for pair in pairs})
+    out.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
+    return out
 
 
 def choose_knobs(tuning: pd.DataFrame, *, tie_rel: float = TIE_REL) -> pd.DataFrame:
-    """Knob per tuned row from its tuning RMSEs (rows: rows, columns: grid values).
+    """The ``(Q ×, R ×)`` pair per tuned row from its tuning RMSEs (:func:`tune`'s table).
 
-    The knob is the largest grid value whose RMSE is within ``tie_rel`` of the row's lowest (a
-    near-tie goes to the larger process noise). Returns per row ``knob``, ``rmse`` (m), ``edge``
-    (the knob is the grid's smallest or largest value: the optimum may lie outside) and
-    ``blowups``: the grid values whose RMSE exceeds 10× the row's lowest (a filter that fails
-    there, not a tuning trade-off).
+    The pick is the pair with the largest ``Q ×``, then the largest ``R ×``, among those whose RMSE is within
+    ``tie_rel`` of the row's lowest (a near-tie goes to the less over-confident filter). Returns per row
+    ``Q ×``, ``R ×``, ``rmse`` (m), ``edge`` ("Q", "R", "Q, R" where the pick lies on that knob's grid edge —
+    the optimum may lie outside —, "—" otherwise) and ``blowups``: the pairs whose RMSE exceeds 10× the row's
+    lowest (a filter that fails there, not a tuning trade-off).
     """
-    grid = np.asarray(tuning.columns, float)
+    pairs = [tuple(float(x) for x in c) for c in tuning.columns]
+    qs, rs = sorted({q for q, _ in pairs}), sorted({r for _, r in pairs})
     out = {}
-    for r in tuning.index:
-        v = tuning.loc[r].to_numpy(float)
+    for row in tuning.index:
+        v = tuning.loc[row].to_numpy(float)
         best = np.nanmin(v)
         ok = np.flatnonzero(v <= best * (1 + tie_rel))
-        k = int(ok[np.argmax(grid[ok])])
-        out[r] = {"knob": float(grid[k]), "rmse": float(v[k]),
-                  "edge": bool(len(grid) > 1 and grid[k] in (grid.min(), grid.max())),
-                  "blowups": tuple(float(g) for g, x in zip(grid, v) if not x <= 10 * best)}
+        q, r = max(pairs[k] for k in ok)
+        edges = [name for name, x, xs in (("Q", q, qs), ("R", r, rs)) if len(xs) > 1 and x in (xs[0], xs[-1])]
+        out[row] = {"Q ×": q, "R ×": r, "rmse": float(v[pairs.index((q, r))]), "edge": ", ".join(edges) or "—",
+                    "blowups": tuple(p for p, x in zip(pairs, v) if not x <= 10 * best)}
     return pd.DataFrame(out).T
 
 
@@ -477,9 +496,9 @@ class AblationResult:
     fast
         True for a FAST (smoke-test) run.
     tuning
-        RMSE on the tuning seed per tuned row × grid value (m).
+        RMSE on the tuning seed per tuned row × ``(Q ×, R ×)`` pair (m; :func:`tune`).
     knobs
-        Row → chosen process-noise multiplier.
+        Row → chosen ``(Q ×, R ×)`` (:func:`choose_knobs`).
     scores
         Long table: one row per (case, seed, method) with the :data:`METRICS`.
     counts
@@ -564,7 +583,8 @@ def run_ablation(cfg: AblationConfig, *, base_seed: int = 0, fast: bool = False,
     ``workers``); results do not depend on how it runs.
     """
     tuning = tune(cfg, tuning_seed=base_seed + 1000, scheduler=scheduler, workers=workers)
-    knobs = {r: float(k) for r, k in choose_knobs(tuning)["knob"].items()}
+    picked = choose_knobs(tuning)
+    knobs = {row: (float(p["Q ×"]), float(p["R ×"])) for row, p in picked.iterrows()}
     mis_rows = ("LS",) + tuple(r for r in ROWS if r.endswith("+ gate"))
     tasks = []
     for case in cfg.cases:

@@ -111,7 +111,7 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
     ratio/lo/hi/verdict/share), ``winners`` (case → metric → best gated row) and ``eq4``
     (counts per case, and ``eq4_geometry``: the smallest excess that fires eq. 4 on the path, its
     pair and side, and the matched world's excess range), ``diverged`` (case → list of
-    row/metric/value/matched) and ``tuning`` (row → knob/rmse/edge/blowups; empty without a
+    row/metric/value/matched) and ``tuning`` (row → Q ×/R ×/rmse/edge/blowups; empty without a
     tuning table).
     """
     cfg = res.config
