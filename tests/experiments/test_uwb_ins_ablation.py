@@ -355,9 +355,8 @@ def test_checks_pass_on_a_sound_result_and_fail_on_each_defect():
 
 
 # ---------------------------------------------------------------- real-data table pieces
-def test_block_bootstrap_difference_and_its_verdict_flip_with_the_interval():
-    from uwbwb.experiments.uwb_ins import realdata
-    from uwbwb.metrics import block_bootstrap_difference
+def test_block_bootstrap_difference_and_its_side_flip_with_the_interval():
+    from uwbwb.metrics import block_bootstrap_difference, interval_side
 
     rng = np.random.default_rng(3)
     base = np.abs(rng.normal(0, 0.05, 2000))
@@ -366,11 +365,10 @@ def test_block_bootstrap_difference_and_its_verdict_flip_with_the_interval():
     worse = block_bootstrap_difference(1.2 * base, base, rng=np.random.default_rng(0))
     assert better["diff_m"] == pytest.approx(-0.2 * np.sqrt(np.mean(base ** 2)))
     assert better["hi_m"] < 0 < worse["lo_m"] and same["lo_m"] < 0 < same["hi_m"]
-    assert realdata.difference_verdict("tight", "loose", better) == "tight more accurate"
-    assert realdata.difference_verdict("tight", "loose", worse) == "loose more accurate"
-    assert realdata.difference_verdict("tight", "loose", same) == "not significant"
+    side = {k: interval_side(r["lo_m"], r["hi_m"]) for k, r in (("better", better), ("worse", worse), ("same", same))}
+    assert side == {"better": "below", "worse": "above", "same": "contains"}
     short = block_bootstrap_difference(base[:10], base[:10], rng=np.random.default_rng(0))
-    assert np.isnan(short["lo_m"]) and realdata.difference_verdict("a", "b", short).startswith("no verdict")
+    assert np.isnan(short["lo_m"]) and interval_side(short["lo_m"], short["hi_m"]) == "none"
     with pytest.raises(ValueError, match="same length"):
         block_bootstrap_difference(base, base[:-1], rng=np.random.default_rng(0))
 

@@ -168,6 +168,9 @@ class AblationConfig:
         for name, grid in (("grid", self.grid), ("r_grid", self.r_grid)):
             if len(grid) < 1 or not all(np.isfinite(g) and g > 0 for g in grid) or len(set(grid)) != len(grid):
                 raise ValueError(f"{name} must hold distinct positive multipliers, got {grid!r}")
+            if 1.0 not in grid:
+                raise ValueError(f"{name} must hold 1.0 (the model's own noise, where the NIS check reads the "
+                                 f"filters), got {grid!r}")
         if self.grade not in GRADES:
             raise ValueError(f"grade must be one of {list(GRADES)}, got {self.grade!r}")
         for c in self.cases:
@@ -425,22 +428,27 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, tuple[float, float]], c
     return {"scores": scores, "counts": counts, "pairs": pairs}
 
 
-def _tune_task(row: str, knob: tuple[float, float], cfg: AblationConfig, seed: int) -> float:
-    """Sum of squared errors and count over the tuning seed's scored epochs (no outage, no recovery)."""
+def _tune_task(row: str, knob: tuple[float, float], cfg: AblationConfig, seed: int) -> tuple[float, float]:
+    """RMSE over the tuning seed's scored epochs (no outage, no recovery), and the row's mean NIS per dof on its
+    dynamic run (NaN for rows without one)."""
     sse = n = 0.0
+    nis = np.nan
     for scen in ("static", "dynamic"):
         run = simulate(scen, cfg.model, cfg, seed)
-        pos, k0, _ = run_methods(run, cfg.model, {row: knob}, cfg, (row,))
+        pos, k0, counts = run_methods(run, cfg.model, {row: knob}, cfg, (row,))
         sel = _masks(run, k0, cfg.recovery_s)["all"]
         e = np.linalg.norm(pos[row][sel] - run.truth.pos_m[sel, :2], axis=1)
         ok = np.isfinite(e)
         sse, n = sse + float(np.sum(e[ok] ** 2)), n + int(ok.sum())
-    return math.sqrt(sse / n) if n else np.inf
+        if scen == "dynamic":
+            nis = float(counts["nis"].get(row, np.nan))
+    return (math.sqrt(sse / n) if n else np.inf), nis
 
 
-def tune(cfg: AblationConfig, *, tuning_seed: int, scheduler=None, workers: int = 1) -> pd.DataFrame:
+def tune(cfg: AblationConfig, *, tuning_seed: int, scheduler=None,
+         workers: int = 1) -> tuple[pd.DataFrame, pd.DataFrame]:
     """RMSE on the tuning seed for every tuned row × ``(Q ×, R ×)`` pair (rows: rows; columns: the pairs, a
-    two-level index ``Q ×``, ``R ×``).
+    two-level index ``Q ×``, ``R ×``), and the mean NIS per dof of the same runs' dynamic part (same shape).
 
     The pair of each row is chosen by :func:`choose_knobs`.
     """
@@ -449,9 +457,12 @@ def tune(cfg: AblationConfig, *, tuning_seed: int, scheduler=None, workers: int 
     res = {(t.params["row"], t.params["knob"]): v for t, v in parallel.imap(
         _tune_task_shared, tasks, shared={"cfg": cfg, "tuning_seed": tuning_seed}, scheduler=scheduler,
         workers=workers, desc="ablation tuning", unit="run")}
-    out = pd.DataFrame({pair: {row: res[(row, pair)] for row in _TUNED} for pair in pairs})
-    out.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
-    return out
+    tables = []
+    for i in (0, 1):
+        t = pd.DataFrame({pair: {row: res[(row, pair)][i] for row in _TUNED} for pair in pairs})
+        t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
+        tables.append(t)
+    return tables[0], tables[1]
 
 
 def choose_knobs(tuning: pd.DataFrame, *, tie_rel: float = TIE_REL) -> pd.DataFrame:
@@ -508,6 +519,10 @@ class AblationResult:
         (case, seed, step, metric) with ``num``, ``den`` (the without / with row's score there) and
         ``both_cov`` (share of the scored epochs both rows cover). Empty: ratios fall back to the
         per-row scores.
+    tuning_nis
+        Mean NIS per dof of the tuning runs (dynamic part), same shape as ``tuning``: at ``(1, 1)`` it is the
+        filter's consistency with the model's own noise, which the NIS check reads (a tuned ``R ×`` above 1
+        makes a filter deliberately pessimistic, and its NIS small, by design).
     """
 
     config: AblationConfig
@@ -517,6 +532,7 @@ class AblationResult:
     scores: pd.DataFrame
     counts: dict = field(default_factory=dict)
     pairs: pd.DataFrame = field(default_factory=pd.DataFrame)
+    tuning_nis: pd.DataFrame = field(default_factory=pd.DataFrame)
 
     def case(self, name: str = "matched") -> pd.DataFrame:
         """Scores of one case, indexed by (seed, method)."""
@@ -582,7 +598,7 @@ def run_ablation(cfg: AblationConfig, *, base_seed: int = 0, fast: bool = False,
     only if ``mismatch_static``). Work is sent through :func:`uwbwb.parallel.imap` (``scheduler``,
     ``workers``); results do not depend on how it runs.
     """
-    tuning = tune(cfg, tuning_seed=base_seed + 1000, scheduler=scheduler, workers=workers)
+    tuning, tuning_nis = tune(cfg, tuning_seed=base_seed + 1000, scheduler=scheduler, workers=workers)
     picked = choose_knobs(tuning)
     knobs = {row: (float(p["Q ×"]), float(p["R ×"])) for row, p in picked.iterrows()}
     mis_rows = ("LS",) + tuple(r for r in ROWS if r.endswith("+ gate"))
@@ -608,5 +624,5 @@ def run_ablation(cfg: AblationConfig, *, base_seed: int = 0, fast: bool = False,
         for sc in out["counts"].values():
             for k in c:
                 c[k] += sc[k]
-    return AblationResult(cfg, fast, tuning, knobs, pd.DataFrame(recs), counts, pd.DataFrame(prs))
+    return AblationResult(cfg, fast, tuning, knobs, pd.DataFrame(recs), counts, pd.DataFrame(prs), tuning_nis)
 
