@@ -398,26 +398,28 @@ def test_the_common_bound_is_one_yardstick_fitted_on_the_calibration_truth():
 
 def test_uwb_ins_filters_are_tuned_like_the_ekfs_and_checked_against_their_bound(tmp_path):
     """Generated i-ASL flights (not in ../shared), another seed than the command-line test: the fusion
-    filters pick (q_scale, r_scale) on the calibration scenario from a grid as large as the EKFs' σ_w grid,
-    and on the scored flight neither beats its bound (a lower bound: attitude and biases taken as known)
+    filters pick (q_scale, r_scale) on the calibration scenario from the board's grid (both knobs over three
+    decades, the untuned pair among them), and on the scored flight neither beats its bound (a lower bound: attitude and biases taken as known)
     beyond 3 standard errors nor wastes it (RMSE under 3× the bound; a diverged filter is far above)."""
     from tests.fixtures import iasl as fx
     from uwbwb.datasets import iasl
-    from uwbwb.scoreboard.estimators import EKF_GRIDS, INS_GRID, UwbInsFilter
+    from uwbwb.scoreboard.estimators import INS_GRID, INS_GRID_FAST, UwbInsFilter
 
-    assert len(INS_GRID) == len(EKF_GRIDS["RF"])
+    assert len(INS_GRID) == 16 and (1.0, 1.0) in INS_GRID and set(INS_GRID_FAST) <= set(INS_GRID)
     fx.write_dataset(tmp_path / "iasl-uwb-imu", rng=np.random.default_rng(9), duration_s=30.0)
     cal, test = iasl.load_scenario("scenario1", tmp_path), iasl.load_scenario("scenario2", tmp_path)
     cache: dict = {}
-    ests = [CalibratedLs(), UwbInsFilter("loose", cache, INS_GRID[::2]), UwbInsFilter("tight", cache, INS_GRID[::2])]
+    ests = [CalibratedLs(), UwbInsFilter("loose", cache, INS_GRID_FAST), UwbInsFilter("tight", cache, INS_GRID_FAST)]
     b = score(test, cal, estimators=ests, rate_hz=10.0, fast=True)
     df = b.table().set_index("method")
     for m in ("loose", "tight"):
         p = b.calibration.params(m)
-        assert (p["q_scale"], p["r_scale"]) in INS_GRID[::2] and len(p["grid_rmse_m"]) == 5
-        assert p["grid_rmse_m"][INS_GRID[::2].index((p["q_scale"], p["r_scale"]))] == min(p["grid_rmse_m"])
+        assert (p["q_scale"], p["r_scale"]) in INS_GRID_FAST and len(p["grid_rmse_m"]) == len(INS_GRID_FAST)
+        assert p["grid_rmse_m"][INS_GRID_FAST.index((p["q_scale"], p["r_scale"]))] == min(p["grid_rmse_m"])
         r = df.loc[m]
-        assert 1 - 3 * r.rmse_over_bound_se < r.rmse_over_bound < 3.0, (m, r.rmse_over_bound, r.rmse_over_bound_se)
+        # with too few blocks for a standard error, a bound beaten by half is still a wrong bound
+        floor = 1 - 3 * r.rmse_over_bound_se if np.isfinite(r.rmse_over_bound_se) else 0.5
+        assert floor < r.rmse_over_bound < 3.0, (m, r.rmse_over_bound, r.rmse_over_bound_se)
         assert np.isfinite(r.rmse_over_common)
 
 

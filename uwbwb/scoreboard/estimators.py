@@ -45,7 +45,7 @@ from .interface import (BaseEstimator, Estimator, _NONE, _UP, _errors_rmse, _ran
 from .protocol import Calibration
 from .setnoise_nls import NLS_WINDOWS_S, SetNoiseFilter, WindowNls
 
-__all__ = ["RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "UwbInsFilter", "ExternalEstimates", "INS_GRID",
+__all__ = ["RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "UwbInsFilter", "ExternalEstimates", "INS_GRID", "INS_GRID_FAST",
            "default_estimators"]
 
 # ----------------------------------------------------------------------------- snapshot methods
@@ -170,10 +170,13 @@ class TdoaEkfEstimator(BaseEstimator):
 #: Rest at the start of a flight (levelling) and in-motion heading alignment before the fusion
 #: filters start, seconds (:func:`uwbwb.filters.alignment.compare_iasl`).
 INS_REST_S, INS_ALIGN_S = 2.0, 20.0
-#: ``(q_scale, r_scale)`` pairs the UWB/INS filters search on the calibration part: multipliers on the
-#: IMU process-noise and the UWB measurement-noise variances, nine as the EKFs' nine σ_w values
-#: (FAST: every other pair, five, as the EKFs' FAST grids).
-INS_GRID = tuple((q, r) for q in (1.0, 30.0, 1000.0) for r in (1.0, 3.0, 10.0))
+#: ``(q_scale, r_scale)`` pairs the UWB/INS filters search on the calibration part (here and in notebook 05):
+#: multipliers on the IMU process-noise and the UWB measurement-noise variances, each over three decades, 16 pairs
+#: for two knobs where the EKFs get 9 values of one. On the i-ASL drone the former grid (Q × 1–1000, R × 1–10)
+#: put both filters' picks on its lower Q edge; with this one the tight filter picks (0.1, 0.3).
+INS_GRID = tuple((q, r) for q in (0.01, 0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0, 10.0))
+#: The FAST (and class-mode) grid: two values of each knob, the untuned (1, 1) among them (a smoke test).
+INS_GRID_FAST = tuple((q, r) for q in (0.1, 1.0) for r in (1.0, 3.0))
 
 
 @dataclass(frozen=True, eq=False)
@@ -362,7 +365,7 @@ def default_estimators(*, fast: bool = False, seed: int = 0) -> list[Estimator]:
     """Every method of the package, in the board's order.
 
     ``fast`` shrinks what costs time (particles, tuning grids) for CI-sized runs: every other value
-    of each tuning grid (the EKFs' σ_w: 5 of 9; the UWB/INS (q, r) pairs: 5 of 9); the NLS windows: 2 of 3 (1 and
+    of each tuning grid (the EKFs' σ_w: 5 of 9; the UWB/INS (q, r) pairs: :data:`INS_GRID_FAST`, 4 of 16); the NLS windows: 2 of 3 (1 and
     2 s: a 0.5 s window holds too few epochs at the low rates FAST runs use); the set-noise KF's σ_d grid
     is searched in full.
     """
@@ -373,7 +376,7 @@ def default_estimators(*, fast: bool = False, seed: int = 0) -> list[Estimator]:
             grid = tuple(float(g) for g in EKF_GRIDS[m][::2])
         ekfs.append(TdoaEkfEstimator(m, grid=grid))
     ins_cache: dict = {}
-    ins_grid = INS_GRID[::2] if fast else INS_GRID
+    ins_grid = INS_GRID_FAST if fast else INS_GRID
     return [RawLs(), CalibratedLs(), TdoaLs(), *ekfs,
             SetNoiseFilter("KF", seed=seed), SetNoiseFilter("PF", n_particles=200 if fast else 1000, seed=seed),
             WindowNls(windows_s=NLS_WINDOWS_S[1:] if fast else NLS_WINDOWS_S),

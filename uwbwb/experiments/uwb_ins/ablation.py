@@ -86,9 +86,9 @@ FULL_GRID = tuple(float(round(10 ** (k / 2), 4)) for k in range(-4, 5))
 #: FAST grid: three decades only (a smoke test; edge knobs are flagged, not resolved).
 FAST_GRID = (0.1, 1.0, 10.0)
 #: Measurement-noise multipliers of the full run, tried with every process-noise multiplier (the values of the
-#: real-data grid, :data:`~.realfair.GRID`).
+#: real-data grid, :data:`uwbwb.scoreboard.estimators.INS_GRID`).
 R_GRID = (0.3, 1.0, 3.0, 10.0)
-#: FAST measurement-noise multipliers (those of :data:`~.realfair.GRID_FAST`).
+#: FAST measurement-noise multipliers (those of :data:`uwbwb.scoreboard.estimators.INS_GRID_FAST`).
 FAST_R_GRID = (1.0, 3.0)
 #: Seconds after an outage scored as "recovery" (not as "dynamic"); also the re-acquisition deadline
 #: (error below :data:`RECOVERY_MAX_M` within this, then held for :data:`~.scoring.HOLD_S`).

@@ -21,15 +21,12 @@ from ...errors import DataFormatError
 from ...filters.alignment import Comparison, FusionSettings, align_iasl, compare_iasl, run_fusion_filter
 from ...filters.imu_calibration import RealCalibration
 from ...metrics import MIN_BLOCKS, block_bootstrap_difference, interval_side, nis_consistency
+from ...scoreboard.estimators import INS_GRID
 from ...types import Recording
 
-__all__ = ["GRID", "GRID_FAST", "TUNED", "ScaleTuning", "tune_scales", "tuning_table", "IMU_FILTERS",
+__all__ = ["TUNED", "ScaleTuning", "tune_scales", "tuning_table", "IMU_FILTERS",
            "imu_clock_sensitivity", "clock_verdict", "summary_rows"]
 
-#: ``(q, r)`` multipliers tried for every tuned filter (Q and R each over 3 decades, 16 points).
-GRID = tuple((q, r) for q in (0.01, 0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0, 10.0))
-#: The FAST (and class-mode) grid: two values of each knob, the untuned (1, 1) among them (a smoke test).
-GRID_FAST = tuple((q, r) for q in (0.1, 1.0) for r in (1.0, 3.0))
 #: The filters notebook 05 tunes on the calibration scenario, each by the same procedure and grid.
 TUNED = ("EKF + gate", "loose", "tight", "tight (ranges)")
 #: The rows whose inputs include the IMU (the clock's sensitivity is read on them).
@@ -65,7 +62,7 @@ class ScaleTuning:
 
 
 def tune_scales(rec: Recording, cal: RealCalibration, settings: FusionSettings = FusionSettings(), *,
-                names=TUNED, grid=GRID, still_s: float = 2.0, align_s: float = 20.0,
+                names=TUNED, grid=INS_GRID, still_s: float = 2.0, align_s: float = 20.0,
                 duration_s: float | None = None) -> dict[str, ScaleTuning]:
     """Tune every filter of ``names`` on ``rec`` (the calibration scenario, with truth) by the
     module's procedure: one alignment, every grid point from the same start, lowest horizontal RMSE.
