@@ -1,7 +1,7 @@
 """What the notebooks show of the Hanyang dynamic runs: one function per notebook section.
 
 Each takes the case(s) by parameter, runs on any tree of the upstream layout, returns a
-:class:`Section` (its tables, a Markdown text computed from them, the boards) and records the
+:class:`Section` (its tables and boards; the text around them is the notebook's) and records the
 headline numbers into the notebook's :class:`~uwbwb.metrics.Summary` with
 ``data = hanyang-outdoor-uwb/<case>``. A dataset or dynamic part that is absent gives a
 section with ``absent`` set (the notebook prints it); a case *name* that a present dataset does
@@ -35,7 +35,7 @@ from ...scoreboard.setnoise_nls import NLS_WINDOWS_S, WindowNls
 from . import authors, estimators, facts, study
 from .pairs import pair_errors
 
-__all__ = ["Section", "ablation", "motion_section", "pruning_section", "scoreboard_section"]
+__all__ = ["Section", "ablation", "board_table", "motion_section", "pruning_section", "scoreboard_section"]
 
 PathLike = str | os.PathLike
 NAME = hanyang_dynamic.NAME
@@ -49,10 +49,8 @@ class Section:
     ----------
     absent
         Why the section did not run (dataset or dynamic part absent), else None.
-    markdown
-        Text and tables computed from the run (what the notebook displays).
     tables
-        The tables, by name.
+        The tables the notebook displays, by name (the text around them is the notebook's).
     boards
         Per case, its board.
     facts
@@ -63,7 +61,6 @@ class Section:
     """
 
     absent: str | None = None
-    markdown: str = ""
     tables: Mapping[str, pd.DataFrame] = field(default_factory=dict)
     boards: Mapping[str, Board] = field(default_factory=dict)
     facts: Mapping[str, object] = field(default_factory=dict)
@@ -105,18 +102,6 @@ def _cases(data_dir, wanted: Sequence[str] | None) -> tuple[list[str], list[str]
     return available, list(wanted), None
 
 
-def _md(df: pd.DataFrame, digits: int = 3) -> str:
-    """A DataFrame as a Markdown table (numbers rounded)."""
-    def cell(v):
-        if isinstance(v, (float, np.floating)):
-            return "—" if not np.isfinite(v) else f"{v:.{digits}f}"
-        return str(v)
-    head = "| " + " | ".join(map(str, df.columns)) + " |"
-    rule = "|" + "---|" * len(df.columns)
-    return "\n".join([head, rule] + ["| " + " | ".join(cell(v) for v in row) + " |"
-                                     for row in df.itertuples(index=False)])
-
-
 def ablation(board: Board, pairs: Sequence[tuple[str, str]], *, low: str, high: str, neither: str,
              seed: int = 0) -> pd.DataFrame:
     """RMSE_2d of ``method`` vs ``reference`` on the epochs both covered (:func:`~.pairs.pair_errors`), both
@@ -138,12 +123,12 @@ def ablation(board: Board, pairs: Sequence[tuple[str, str]], *, low: str, high: 
     return pd.DataFrame(rows)
 
 
-def _board_text(board: Board) -> str:
+def board_table(board: Board) -> pd.DataFrame:
+    """The columns of ``board`` a section shows (horizontal errors, m; coverage = share of scored epochs with a
+    position), one row per method."""
     df = board.table()
     cols = [c for c in ("method", "coverage", "n_scored", "rmse_m", "cep95_m", "rmse_common_m", "bound_m") if c in df]
-    return (f"**{board.label}** — tuned on {board.calibration.source}; scored on {board.part} "
-            f"({board.mode}; horizontal errors, m; coverage = share of scored epochs with a position)\n\n"
-            + _md(df[cols]))
+    return df[cols].set_index("method")
 
 
 # --------------------------------------------------------------------------------------------
@@ -180,44 +165,11 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
     static_f = facts.static_facts(effect)
     rows = _Rows(summary)
     facts.summary_rows(comp, rows)
-    mode = "FAST (smoke-test numbers: one case, a 30 s part)" if fast else "full"
-    text = [f"### Hanyang outdoor dynamic runs ({mode})", "",
-            "**Their numbers first** (*input*: RMSD_results.txt; *reproduced*: the package's metric code on their "
-            "LS.csv / ESKF.csv with their window, epochs, |z| < 0.5 m filter and 2-D/3-D definitions).", "",
-            _md(comp.reproduction[["data", "method", "metric", "published_m", "reproduced_m", "diff_m", "n_epochs"]],
-                digits=4), "",
-            "**Boards** (our protocol: the range epochs inside the authors' window, every method on the same "
-            "epochs, tuned on another case; the authors' LS and ESKF as *external* rows; their ESKF also had the "
-            "robot's IMU).", ""]
-    for case, b in comp.boards.items():
-        text += [_board_text(b), ""]
-    text += ["**Ours vs theirs.** Each row is one pair, our method and the authors' LS, scored on the epochs "
-             "*both* covered (`n`; `coverage` ours, `coverage_authors_ls` theirs, each over the scoring epochs) — "
-             "not the board's all-method common epochs. 95 % block-bootstrap interval of the ratio (the package's "
-             "one rule: blocks twice the lag at which the autocorrelation of e_ours² − e_theirs² falls below "
-             f"{metrics.errors.ACF_LEVEL}, `n_blocks` of them); no verdict with fewer than {metrics.MIN_BLOCKS} "
-             "blocks. `held_*`: on every epoch "
-             "the authors' LS covered, ours holding its last position where it has none. `nolat_*`: against "
-             "the authors' LS with its output latency removed (lag measured on the tuning case; a sensitivity "
-             "check). `ratio_dt±0.1s`: the ratio with the reference's clock offset moved by ±0.1 s (the loader's "
-             "registration and the board's own clock check can differ by about that much). "
-             "`raw LS, authors' front end` is raw LS behind their jump gate and hold. `chosen`: picked on the "
-             "tuning case alone (tuned on the first half of its window, scored on the second half). "
-             "Front ends differ: the authors' LS rejects per-anchor range jumps over 0.5 m (up to 4 in a row), "
-             "holds each anchor's latest range up to 0.3 s, solves in 3-D warm-started and outputs on a 10 Hz "
-             "timer; ours solve each epoch's ranges independently, in 2-D at the calibrated height.", "",
-             _md(comp.ratios[["case", "tuned_on", "method", "best", "chosen", "n", "coverage", "coverage_authors_ls",
-                              "rmse_2d_m", "authors_ls_rmse_2d_m", "ratio", "ratio_lo", "ratio_hi",
-                              "n_blocks", "held_n", "held_rmse_2d_m", "held_authors_ls_rmse_2d_m", "held_ratio",
-                              "authors_ls_published_2d_m"] + [c for c in ("nolat_ratio", "nolat_ratio_lo", "nolat_ratio_hi",
-                                                                       "ratio_dt-0.1s", "ratio_dt+0.1s") if c in comp.ratios]])
-             if len(comp.ratios)
-             else "(no ratio)", "",
-             "**Static range model on the dynamic runs**: " + "; ".join(m.describe() for m in comp.static_models), "",
-             "**Verdicts** (each by its rule; `chosen` is the fair pick, `best` the optimistic one):", "",
-             _md(facts.verdict_table(repro_f, {"chosen": chosen_f, "best": ratio_f}, static_f))]
-    return Section(None, "\n".join(text), {"reproduction": comp.reproduction, "ratios": comp.ratios,
-                                           "static_effect": effect}, dict(comp.boards),
+    tables = {"reproduction": comp.reproduction, "ratios": comp.ratios, "static_effect": effect,
+              "static_models": pd.Series([m.describe() for m in comp.static_models], name="static range model",
+                                         dtype=object).to_frame(),
+              "verdicts": facts.verdict_table(repro_f, {"chosen": chosen_f, "best": ratio_f}, static_f)}
+    return Section(None, tables, dict(comp.boards),
                    {"reproduction": repro_f, "ratios": ratio_f, "chosen": chosen_f, "static": static_f,
                     "tuning": dict(comp.tuning)},
                    tuple(rows.rows))
@@ -265,12 +217,7 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
             ext = r.method in board.external
             rows.add(quantity=f"RMSE_2d, {r.method}", value=r.rmse_m, unit="m",
                      data=board.label + (facts.EXTERNAL if ext else ""), kind="input" if ext else "reproduced")
-    cond = hanyang_dynamic._case_fields(case)["condition"] or "unknown condition"
-    text = [f"### Pruning on a Hanyang dynamic run: {case} ({cond}; {'FAST: a 30 s part' if fast else 'full'})", "",
-            _board_text(board), "",
-            "Each pair on the epochs both covered: the RMSE ratio, its 95 % block-bootstrap interval and the verdict "
-            "(below 1 better, above 1 worse; no verdict with fewer than ten independent blocks).", "", _md(table)]
-    return Section(None, "\n".join(text), {"ablation": table}, {case: board}, {"case": case, "tuned_on": tune},
+    return Section(None, {"ablation": table}, {case: board}, {"case": case, "tuned_on": tune},
                    tuple(rows.rows))
 
 
@@ -298,12 +245,5 @@ def motion_section(case: str | None = None, data_dir: PathLike | None = None, *,
         rows.add(quantity=f"RMSE_2d, {r.method}", value=r.rmse_2d_m, unit="m", data=board.label, kind="reproduced")
         rows.add(quantity=f"RMSE_2d ratio {r.method} / raw LS", value=r.ratio, unit="", data=board.label,
                  kind="reproduced")
-    text = [f"### Motion models on a Hanyang dynamic run: {case} ({'FAST: a 30 s part' if fast else 'full'})", "",
-            _board_text(board), "",
-            "Each filter against raw LS on the epochs both covered: the RMSE ratio, its 95 % block-bootstrap interval "
-            "and the verdict (below 1 better, above 1 worse); σ_w tuned on the other case, in the model's unit "
-            "(m/s, m/s², m/s³). The TDoA filter of notebook 03 uses range *differences*: from a 2 m anchor cluster "
-            "they carry little information about a tag tens of metres away, which the ranges themselves do.", "",
-            _md(table)]
-    return Section(None, "\n".join(text), {"models": table}, {case: board}, {"case": case, "tuned_on": tune},
+    return Section(None, {"models": table}, {case: board}, {"case": case, "tuned_on": tune},
                    tuple(rows.rows))
