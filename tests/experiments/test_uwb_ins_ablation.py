@@ -249,16 +249,18 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     assert any("recovery: tight + gate" in x for x in headlines.checks(long))
 
 
-def test_knobs_break_near_ties_upwards_flag_the_edge_and_name_blowups():
+def test_knobs_break_near_ties_towards_the_models_own_noise_flag_the_edge_and_name_blowups():
     pairs = [(q, r) for q in (0.1, 1.0, 10.0) for r in (1.0, 3.0)]
-    rmse = {"a": [1.0, 1.3, 1.01, 1.3, 1.5, 1.6],       # 1 % worse at the larger Q wins (R stays 1: 30 % worse at 3)
-            "b": [2.0, 2.0, 1.0, 1.01, 2.0, 2.0],       # then the larger R within the tie
+    rmse = {"a": [1.0, 1.3, 1.01, 1.3, 1.5, 1.6],       # 1 % worse at the model's own noise (1, 1) wins
+            "b": [2.0, 2.0, 1.01, 1.0, 2.0, 2.0],       # (1, 1) within the tie of (1, 3): the model as built
+            "d": [1.0, 2.0, 2.0, 2.0, 1.01, 2.0],       # (0.1, 1) and (10, 1) equally far from (1, 1): the larger Q
             "c": [1.0, 1.2, 1.5, 1.6, 50.0, 9.0]}       # a blow-up at Q 10, R 1
     t = pd.DataFrame({p: {row: v[i] for row, v in rmse.items()} for i, p in enumerate(pairs)})
     t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
     k = ab.choose_knobs(t)
     assert (k.loc["a", "Q ×"], k.loc["a", "R ×"], k.loc["a", "edge"]) == (1.0, 1.0, "R")
-    assert (k.loc["b", "Q ×"], k.loc["b", "R ×"], k.loc["b", "edge"]) == (1.0, 3.0, "R")
+    assert (k.loc["b", "Q ×"], k.loc["b", "R ×"], k.loc["b", "edge"]) == (1.0, 1.0, "R")
+    assert (k.loc["d", "Q ×"], k.loc["d", "R ×"], k.loc["d", "edge"]) == (10.0, 1.0, "Q, R")
     assert (k.loc["c", "Q ×"], k.loc["c", "edge"]) == (0.1, "Q, R") and k.loc["c", "blowups"] == ((10.0, 1.0),)
     res = _fake(GOOD)
     res = ab.AblationResult(res.config, True, t, {}, res.scores, res.counts)
@@ -469,3 +471,20 @@ def test_the_nis_check_reads_normal_operation_not_the_aftermath_of_a_long_outage
     _, k0, counts = ab.run_methods(run, cfg.model, dict.fromkeys(rows, (1.0, 1.0)), cfg, rows=rows)
     for r in rows:
         assert 0.5 < counts["nis"][r] < 2.0, (r, counts["nis"][r])
+
+
+def test_the_nis_check_reads_the_filters_at_the_models_own_noise():
+    """The check reads the tuning run at (Q × 1, R × 1), where a correct filter is consistent; a tuned R × above 1
+    (NIS small by design) does not fail it, and an inconsistent filter at (1, 1) does."""
+    res = _fake(GOOD)
+    pairs = [(1.0, 1.0), (1.0, 3.0)]
+    ok = pd.DataFrame({p: {r: v for r in ab._TUNED} for p, v in zip(pairs, (1.05, 0.35))})
+    ok.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
+    sc = res.scores.copy()
+    sc.loc[sc["method"].isin(["EKF + gate", "tight + gate"]), "nis"] = 0.35      # the tuned filters: pessimistic
+    good = ab.AblationResult(res.config, res.fast, res.tuning, {}, sc, res.counts, tuning_nis=ok)
+    assert not any(x.startswith("NIS:") and "own noise" in x for x in headlines.checks(good))
+    bad_nis = ok.copy()
+    bad_nis.loc["tight + gate", (1.0, 1.0)] = 4.0                                # wrong R or H: NIS far above 1
+    bad = ab.AblationResult(res.config, res.fast, res.tuning, {}, sc, res.counts, tuning_nis=bad_nis)
+    assert any("NIS: tight + gate mean NIS/dof 4.00" in x for x in headlines.checks(bad))

@@ -405,7 +405,7 @@ def test_uwb_ins_filters_are_tuned_like_the_ekfs_and_checked_against_their_bound
     from uwbwb.datasets import iasl
     from uwbwb.scoreboard.estimators import INS_GRID, INS_GRID_FAST, UwbInsFilter
 
-    assert len(INS_GRID) == 16 and (1.0, 1.0) in INS_GRID and set(INS_GRID_FAST) <= set(INS_GRID)
+    assert len(INS_GRID) == 30 and (1.0, 1.0) in INS_GRID and set(INS_GRID_FAST) <= set(INS_GRID)
     fx.write_dataset(tmp_path / "iasl-uwb-imu", rng=np.random.default_rng(9), duration_s=30.0)
     cal, test = iasl.load_scenario("scenario1", tmp_path), iasl.load_scenario("scenario2", tmp_path)
     cache: dict = {}

@@ -171,10 +171,11 @@ class TdoaEkfEstimator(BaseEstimator):
 #: filters start, seconds (:func:`uwbwb.filters.alignment.compare_iasl`).
 INS_REST_S, INS_ALIGN_S = 2.0, 20.0
 #: ``(q_scale, r_scale)`` pairs the UWB/INS filters search on the calibration part (here and in notebook 05):
-#: multipliers on the IMU process-noise and the UWB measurement-noise variances, each over three decades, 16 pairs
-#: for two knobs where the EKFs get 9 values of one. On the i-ASL drone the former grid (Q × 1–1000, R × 1–10)
-#: put both filters' picks on its lower Q edge; with this one the tight filter picks (0.1, 0.3).
-INS_GRID = tuple((q, r) for q in (0.01, 0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0, 10.0))
+#: multipliers on the IMU process-noise (Q × 0.01–100) and the UWB measurement-noise variances (R × 0.1–30), 30
+#: pairs of two knobs where the EKFs search 9 values of one. On the i-ASL drone the former grid (Q × 1–1000,
+#: R × 1–10) put both filters' picks on its lower Q edge, and a 4 × 4 one (Q × 0.01–10, R × 0.3–10) put them on an
+#: R edge; on this one loose picks (10, 10) and tight (0.1, 0.3), both inside.
+INS_GRID = tuple((q, r) for q in (0.01, 0.1, 1.0, 10.0, 100.0) for r in (0.1, 0.3, 1.0, 3.0, 10.0, 30.0))
 #: The FAST (and class-mode) grid: two values of each knob, the untuned (1, 1) among them (a smoke test).
 INS_GRID_FAST = tuple((q, r) for q in (0.1, 1.0) for r in (1.0, 3.0))
 
@@ -186,13 +187,14 @@ class UwbInsFilter(BaseEstimator):
 
     ``tune`` is notebook 05's IMU calibration on the calibration recording (each filter keeps its own copy)
     (:func:`~uwbwb.filters.imu_calibration.calibrate_iasl`: sensor axes, accelerometer scale,
-    noise densities), then, with the same effort as the EKFs' driving-noise search, the
-    ``(q_scale, r_scale)`` pair of :data:`INS_GRID` (``grid``) that minimises the filter's horizontal
+    noise densities), then the ``(q_scale, r_scale)`` pair of :data:`INS_GRID` (``grid``; 30 pairs of two knobs,
+    where the EKFs search 9 values of one and have no R ×) that minimises the filter's horizontal
     RMSE on the calibration part (mean over every usable tag, as the EKFs; the IMU calibration itself
     uses the first tag's truth: one IMU); the ranges are the board's calibrated ones with the board's range
     noise, so the fusion filters get the same UWB information as every other method. ``estimate`` runs
     notebook 05's start-up (rest levelling, in-motion heading alignment over the first
-    :data:`INS_ALIGN_S` s) and the filters (:func:`~uwbwb.filters.alignment.compare_iasl`);
+    :data:`INS_ALIGN_S` s, untuned: the pair scales the fusion filters only, so every grid point and both
+    filters start from one state) and the filters (:func:`~uwbwb.filters.alignment.compare_iasl`);
     no estimate before the alignment ends. One run gives every fusion filter, so it is kept for the
     next adapter and its time is charged to the first one run. The filters never see the scored
     truth: :func:`~uwbwb.filters.alignment.compare_iasl` is handed a hidden (all-NaN) truth,
@@ -265,8 +267,12 @@ class UwbInsFilter(BaseEstimator):
             keep = len(self.grid) * self._cache.get("n_tags", 1) + 2
             while len(runs) >= keep:                            # bounded: one grid's runs per tag and the scored ones
                 self._cache.pop(runs.pop(0))
-            settings = alignment.FusionSettings(q_scale=float(scales[0]), r_scale=float(scales[1]))
-            self._cache[key] = alignment.compare_iasl(one, real, settings, still_s=INS_REST_S, align_s=INS_ALIGN_S)
+            # the pair scales the fusion filters only: the heading alignment that starts them all stays untuned
+            # (as notebook 05's own tuning has it), so loose and tight start from one state at every grid point
+            pair = (float(scales[0]), float(scales[1]))
+            self._cache[key] = alignment.compare_iasl(one, real, alignment.FusionSettings(), still_s=INS_REST_S,
+                                                      align_s=INS_ALIGN_S,
+                                                      scales={k: pair for k in ("loose", "tight", "tight (ranges)")})
         return self._cache[key]
 
     def estimate(self, rec, tag, cal):

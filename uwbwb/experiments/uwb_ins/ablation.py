@@ -26,8 +26,9 @@ the random-force spectral density ``EKF_Q0 · Q ×`` of the EKF) and a measureme
 (``r_scale`` of the loose filter's position and velocity fixes and of the tight filter's TDoAs; the EKF's
 TDoA variance) — chosen from the same grid of pairs (:attr:`AblationConfig.grid` × :attr:`AblationConfig.r_grid`)
 by the lowest RMSE on a *tuning seed* that is never scored (static run + dynamic run outside the
-outage and recovery); RMSEs within :data:`TIE_REL` of the lowest count as a tie, broken towards
-the larger ``Q ×``, then the larger ``R ×`` (the less over-confident filter). A pick on the grid's edge
+outage and recovery); RMSEs within :data:`TIE_REL` of the lowest count as a tie, broken towards the
+model's own noise ``(1, 1)`` (the pair nearest it in log scale), then the larger ``Q ×`` and ``R ×``. A pick on
+the grid's edge
 is flagged (:func:`choose_knobs`): its optimum may lie outside the grid. LS has no knob (no grid). The filters are tuned once on the matched world
 and keep their knob in every mismatch case: a mismatch row tests the design on a world it was
 not built for.
@@ -85,8 +86,8 @@ TIE_REL = 0.02
 FULL_GRID = tuple(float(round(10 ** (k / 2), 4)) for k in range(-4, 5))
 #: FAST grid: three decades only (a smoke test; edge knobs are flagged, not resolved).
 FAST_GRID = (0.1, 1.0, 10.0)
-#: Measurement-noise multipliers of the full run, tried with every process-noise multiplier (the values of the
-#: real-data grid, :data:`uwbwb.scoreboard.estimators.INS_GRID`).
+#: Measurement-noise multipliers of the full run, tried with every process-noise multiplier (four of the six of
+#: the real-data grid, :data:`uwbwb.scoreboard.estimators.INS_GRID`: the simulated world's noise is known).
 R_GRID = (0.3, 1.0, 3.0, 10.0)
 #: FAST measurement-noise multipliers (those of :data:`uwbwb.scoreboard.estimators.INS_GRID_FAST`).
 FAST_R_GRID = (1.0, 3.0)
@@ -468,8 +469,9 @@ def tune(cfg: AblationConfig, *, tuning_seed: int, scheduler=None,
 def choose_knobs(tuning: pd.DataFrame, *, tie_rel: float = TIE_REL) -> pd.DataFrame:
     """The ``(Q ×, R ×)`` pair per tuned row from its tuning RMSEs (:func:`tune`'s table).
 
-    The pick is the pair with the largest ``Q ×``, then the largest ``R ×``, among those whose RMSE is within
-    ``tie_rel`` of the row's lowest (a near-tie goes to the less over-confident filter). Returns per row
+    The pick is, among the pairs whose RMSE is within ``tie_rel`` of the row's lowest, the one nearest the model's
+    own noise ``(1, 1)`` (sum of ``|log10 Q ×| + |log10 R ×|``), then the one with the larger ``Q ×``, then ``R ×``
+    (a near-tie goes to the model as built, not to a filter made pessimistic by the grid). Returns per row
     ``Q ×``, ``R ×``, ``rmse`` (m), ``edge`` ("Q", "R", "Q, R" where the pick lies on that knob's grid edge —
     the optimum may lie outside —, "—" otherwise) and ``blowups``: the pairs whose RMSE exceeds 10× the row's
     lowest (a filter that fails there, not a tuning trade-off).
@@ -481,7 +483,7 @@ def choose_knobs(tuning: pd.DataFrame, *, tie_rel: float = TIE_REL) -> pd.DataFr
         v = tuning.loc[row].to_numpy(float)
         best = np.nanmin(v)
         ok = np.flatnonzero(v <= best * (1 + tie_rel))
-        q, r = max(pairs[k] for k in ok)
+        q, r = min((pairs[k] for k in ok), key=lambda p: (abs(np.log10(p[0])) + abs(np.log10(p[1])), -p[0], -p[1]))
         edges = [name for name, x, xs in (("Q", q, qs), ("R", r, rs)) if len(xs) > 1 and x in (xs[0], xs[-1])]
         out[row] = {"Q ×": q, "R ×": r, "rmse": float(v[pairs.index((q, r))]), "edge": ", ".join(edges) or "—",
                     "blowups": tuple(p for p, x in zip(pairs, v) if not x <= 10 * best)}
