@@ -177,7 +177,9 @@ def _fake(ratios: dict, *, case_ratios: dict | None = None, fast=False, nis=None
                 recs.append(row)
     counts = counts or {c: {"eq4": 5 if c == "multipath up to 12 m" else 0, "injected": 100,
                             "eq4_on_injected": 5 if c == "multipath up to 12 m" else 0} for c in cfg.cases}
-    return ab.AblationResult(cfg, fast, pd.DataFrame(), {}, pd.DataFrame(recs), counts)
+    own = pd.DataFrame({(1.0, 1.0): {r: (nis or {}).get("matched", 1.0) for r in ab._TUNED}})   # the NIS check's
+    own.columns = pd.MultiIndex.from_tuples([(1.0, 1.0)], names=["Q ×", "R ×"])               # reading at (1, 1)
+    return ab.AblationResult(cfg, fast, pd.DataFrame(), {}, pd.DataFrame(recs), counts, tuning_nis=own)
 
 
 GOOD = {"LS": 30.0, "LS + gate": 5.0, "EKF": 20.0, "EKF + gate": 1.5, "loose": 15.0, "loose + gate": 1.4}
@@ -241,7 +243,8 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     assert any("recovery: EKF + gate" in x and "5.2 s (seed 2)" in x for x in headlines.checks(bad))
     # after a longer outage than the default the IMU-free EKF is not asked to re-acquire: a "failed" row, no error
     sc.loc[m, "reacq_s"] = math.inf
-    long = ab.AblationResult(replace(bad.config, outage_s=18.6), bad.fast, bad.tuning, {}, sc, bad.counts)
+    long = ab.AblationResult(replace(bad.config, outage_s=18.6), bad.fast, bad.tuning, {}, sc, bad.counts,
+                             tuning_nis=bad.tuning_nis)
     assert not any("recovery" in x for x in headlines.checks(long))
     assert _row(facts.facts(long), "matched: EKF + gate re-acquires after the outage").verdict == "failed"
     t = (sc["case"] == "matched") & (sc["method"] == "tight + gate") & (sc["seed"] == 2)

@@ -244,10 +244,10 @@ def test_snapshot_fixes_are_consistent_ones_and_a_screened_out_epoch_has_none():
 
 
 @pytest.mark.parametrize("kw, says", [
-    (dict(still_s=0.0), "still_s must be a finite number of seconds > 0, got 0.0"),
-    (dict(align_s=-5.0), "align_s must be a finite number of seconds > 0, got -5.0"),
-    (dict(align_s=float("nan")), "align_s must be a finite number of seconds > 0, got nan"),
-    (dict(duration_s=0.0), "duration_s must be a finite number of seconds > 0 or None"),
+    (dict(still_s=0.0), "still_s must be a finite number > 0, got 0.0"),
+    (dict(align_s=-5.0), "align_s must be a finite number > 0, got -5.0"),
+    (dict(align_s=float("nan")), "align_s must be a finite number > 0, got nan"),
+    (dict(duration_s=0.0), "duration_s must be a finite number > 0, got 0.0"),
     (dict(align_s=500.0), r"heading alignment \(500 s\) end at .* but the ranges end at"),
 ])
 def test_bad_start_up_parameters_are_refused_by_name(outage_flights, kw, says):

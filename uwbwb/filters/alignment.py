@@ -17,6 +17,7 @@ import pandas as pd
 from ..models.ins import NavState, dcm_from_euler, dcm_to_quat
 from ..models.motion import RandomForce
 from ..models.tdoa import TdoaModel, triangle_outliers
+from ..validate import number
 from ..types import EstimateStatus, Estimates, ImuLog, Recording, TdoaLog, Trajectory
 from . import eskf
 from .ekf import TdoaEkf
@@ -237,10 +238,8 @@ def align_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings = 
     if rec.imu is None:
         raise ValueError(f"{rec.label}: no IMU log")
     for name, value in (("still_s", still_s), ("align_s", align_s), ("duration_s", duration_s)):
-        if not (value is None and name == "duration_s") and not (isinstance(value, (int, float, np.floating))
-                                                                  and np.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be a finite number of seconds > 0"
-                             + (" or None (the whole recording)" if name == "duration_s" else "") + f", got {value!r}")
+        if value is not None or name != "duration_s":          # duration_s None: the whole recording
+            number(name, value, minimum=0.0, strict_minimum=True)
     log = rec.ranges["tag"]
     t_start = max(log.t_s[0], rec.imu.t_s[0])
     t_align = t_start + still_s + align_s

@@ -318,38 +318,26 @@ MIN_REPORTED_SHIFT_M = 0.3
 REPORT_GAIN = 0.5
 
 
-def _shift(log: RangeLog, tr: Trajectory, a: np.ndarray, idx: np.ndarray) -> tuple[tuple[float, float], float]:
-    """The horizontal truth translation (±1 m; 20, 4, then 1 cm grids) minimising the median range residual
-    (on at most 400 of the epochs)."""
-    idx = idx[:: max(1, idx.size // 400)]
-    r, pos = log.range_m[idx], tr.interp(log.t_s[idx])
-
-    def best(centre, half, step):
+def _search_shift(r: np.ndarray, pos: np.ndarray, a: np.ndarray,
+                  stages: Sequence[tuple[float, float]]) -> tuple[tuple[float, float], float]:
+    """The horizontal truth translation minimising the median range residual, coarse to fine: each stage
+    ``(half, step)`` searches ±``half`` in steps of ``step`` around the previous stage's best."""
+    centre, cost = (0.0, 0.0), float("inf")
+    for half, step in stages:
         grid = np.arange(-half, half + 1e-9, step)
         c = {(float(centre[0] + dx), float(centre[1] + dy)): _cost(r, _predicted(pos + [centre[0] + dx, centre[1] + dy,
                                                                                        0.0], a))
              for dx in grid for dy in grid}
-        k = min(c, key=c.get)
-        return k, c[k]
-
-    coarse, _ = best((0.0, 0.0), 1.0, 0.2)
-    mid, _ = best(coarse, 0.2, 0.04)
-    return best(mid, 0.04, 0.01)
+        centre = min(c, key=c.get)
+        cost = c[centre]
+    return centre, cost
 
 
-def _wide_shift(r: np.ndarray, pos: np.ndarray, a: np.ndarray) -> tuple[tuple[float, float], float]:
-    """The horizontal truth translation within ±:data:`MAX_DIAGNOSED_SHIFT_M` (0.5 m grid, then 10 cm, then 2 cm)
-    minimising the median range residual: what a diagnosis tries when the residuals are gross."""
-    best, centre = float("inf"), (0.0, 0.0)
-    for half, step in ((MAX_DIAGNOSED_SHIFT_M, 0.5), (0.5, 0.1), (0.1, 0.02)):
-        grid = np.arange(-half, half + 1e-9, step)
-        c0 = centre
-        for dx in grid:
-            for dy in grid:
-                c = _cost(r, _predicted(pos + [c0[0] + dx, c0[1] + dy, 0.0], a))
-                if c < best:
-                    best, centre = c, (float(c0[0] + dx), float(c0[1] + dy))
-    return centre, best
+def _shift(log: RangeLog, tr: Trajectory, a: np.ndarray, idx: np.ndarray) -> tuple[tuple[float, float], float]:
+    """The horizontal truth translation (±1 m; 20, 4, then 1 cm grids) minimising the median range residual
+    (on at most 400 of the epochs)."""
+    idx = idx[:: max(1, idx.size // 400)]
+    return _search_shift(log.range_m[idx], tr.interp(log.t_s[idx]), a, ((1.0, 0.2), (0.2, 0.04), (0.04, 0.01)))
 
 
 #: Largest horizontal truth translation a diagnosis tries, metres (a reference frame whose origin is elsewhere).
@@ -491,7 +479,8 @@ def check_ranges_against_truth(rec: Recording, tag: str, *, max_residual_m: floa
         flip[axis] = -1.0
         costs[f"the {name} axis of the truth looks mirrored relative to the anchors' ({name} → −{name}): truth and "
               "anchors must share one frame"] = _cost(r, _predicted(pos * flip, a))
-    (dx, dy), at = _wide_shift(r, pos, a)
+    # a reference frame whose origin is elsewhere: ±MAX_DIAGNOSED_SHIFT_M on 50, 10, then 2 cm grids
+    (dx, dy), at = _search_shift(r, pos, a, ((MAX_DIAGNOSED_SHIFT_M, 0.5), (0.5, 0.1), (0.1, 0.02)))
     costs[f"the truth looks shifted by ({-dx + 0.0:+.2f}, {-dy + 0.0:+.2f}) m from the anchors' frame (another origin?): truth "
           "and anchors must share one frame"] = at
     costs[f"the truth clock is offset: truth time = range time {off:+.2f} s (shift the truth, e.g. "

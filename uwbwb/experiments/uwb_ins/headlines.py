@@ -121,8 +121,7 @@ def checks(res: AblationResult) -> list[str]:
         fails.append(f"coverage: a filter misses scored epochs:\n{cov}")
     lo, hi = (0.5, 2.0) if res.fast else (0.6, 1.6)
     for r in ("EKF + gate", "tight + gate"):
-        own = res.tuning_nis.get((1.0, 1.0)) if not res.tuning_nis.empty else None
-        v = float(own[r]) if own is not None else t.loc[r, "nis"]
+        v = float(res.tuning_nis.loc[r, (1.0, 1.0)])
         if not lo < v < hi:
             fails.append(f"NIS: {r} mean NIS/dof {v:.2f} outside ({lo}, {hi}) in the matched world with the model's "
                          "own noise (Q × 1, R × 1)")
