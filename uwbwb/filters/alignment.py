@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
+from ..metrics import rmse, score_epochs
 from ..models.ins import NavState, dcm_from_euler, dcm_to_quat
 from ..models.motion import RandomForce
 from ..models.tdoa import TdoaModel, triangle_outliers
@@ -118,18 +119,16 @@ class Comparison:
         return np.linalg.norm(est.pos_m[:, :2] - self.truth.pos_m[:, :2], axis=1)
 
     def table(self, mask: str | None = None) -> pd.DataFrame:
-        """RMSE, max and coverage per method (on ``masks[mask]`` if given), metres."""
+        """RMSE, max and coverage per method on its own epochs (on ``masks[mask]`` if given), metres:
+        :func:`uwbwb.metrics.score_epochs`, each method on its own (the ranking across methods on
+        common epochs is the scoreboard's)."""
         sel = self.masks.get("scored", np.ones(len(self.truth), bool))
         if mask is not None:
             sel = sel & self.masks[mask]
-        rows = {}
-        for name, est in self.estimates.items():
-            e = self.errors(name)[sel]
-            ok = np.isfinite(e)
-            rows[name] = {"RMSE (m)": float(np.sqrt(np.mean(e[ok] ** 2))) if ok.any() else np.nan,
-                          "max (m)": float(e[ok].max()) if ok.any() else np.nan,
-                          "coverage": float(ok.mean()) if e.size else np.nan, "epochs": int(e.size)}
-        return pd.DataFrame(rows).T
+        scores = score_epochs({name: self.errors(name)[sel] for name in self.estimates}, compare=False)
+        t = scores.table(own={"RMSE (m)": rmse, "max (m)": np.max})
+        t["epochs"] = t["n_epochs"]
+        return t[["RMSE (m)", "max (m)", "coverage", "epochs"]].rename_axis(None)
 
 
 def initial_state(fixes: Estimates, *, height_m: float | None, lever_m, yaw_rad: float, roll_rad: float = 0.0,

@@ -58,12 +58,12 @@ from ...models.imu import GRADES
 from ...models.ins import quat_to_dcm
 from ...models.motion import RandomForce
 from ...models.tdoa import TdoaModel, triangle_outliers
-from ...metrics import nis_consistency
+from ...metrics import nis_consistency, pool_scores, rmse, score_epochs
 from ...sim import mismatch as mm
 from ...sim import robot
 from ...types import EstimateStatus, Estimates
 from ...validate import integer, number, probability
-from .scoring import _masks, _reacq, _scores
+from .scoring import _error_m, _masks, _reacq
 from .study import OUTAGE_START_S
 
 __all__ = ["R_GRID", "FAST_R_GRID", "BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "METRICS", "LADDER", "EKF_Q0",
@@ -404,26 +404,27 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, tuple[float, float]], c
         pos, k0, counts[scen] = run_methods(run, model, knobs, cfg, rows)
         masks = _masks(run, k0, cfg.recovery_s)
         truth = run.truth.pos_m[:, :2]
+        err = {r: _error_m(pos[r], truth) for r in pos}
         for what, a, b in LADDER:
             if a in pos and b in pos:
                 p = pairs.setdefault(what, {})
-                for key, sel, i in (("static_rmse" if scen == "static" else "dyn_rmse", masks["all"], 0),
-                                    ("outage_max", masks.get("outage"), 1)):
+                for key, sel, stat in (("static_rmse" if scen == "static" else "dyn_rmse", masks["all"], rmse),
+                                       ("outage_max", masks.get("outage"), np.max)):
                     if sel is None:
                         continue
-                    both = sel & np.isfinite(pos[a]).all(axis=1) & np.isfinite(pos[b]).all(axis=1)
-                    p[key] = (_scores(pos[a], truth, both)[i], _scores(pos[b], truth, both)[i],
-                              float(both.sum() / max(sel.sum(), 1)))
+                    both = score_epochs({a: err[a], b: err[b]}, sel).table(common={key: stat})
+                    p[key] = (both.loc[a, key], both.loc[b, key], float(both.loc[a, "n_common"] / max(sel.sum(), 1)))
         for r in rows:
-            rmse, mx, cov, _ = _scores(pos[r], truth, masks["all"])
+            own = {k: score_epochs({r: err[r]}, m)[r] for k, m in masks.items()}
+            rmse_m, cov = own["all"].stats(own={"": rmse})[""], own["all"].coverage
             s = scores[r]
             if scen == "static":
-                s["static_rmse"], s["static_cov"] = rmse, cov
+                s["static_rmse"], s["static_cov"] = rmse_m, cov
             else:
-                s["dyn_rmse"], s["dyn_cov"] = rmse, cov
-                o_rmse, o_max, o_cov, _ = _scores(pos[r], truth, masks["outage"])
-                s["outage_rmse"], s["outage_max"], s["outage_cov"] = o_rmse, o_max, o_cov
-                s["recovery_max"] = _scores(pos[r], truth, masks["recovery"])[1]
+                s["dyn_rmse"], s["dyn_cov"] = rmse_m, cov
+                o = own["outage"].stats(own={"rmse": rmse, "max": np.max})
+                s["outage_rmse"], s["outage_max"], s["outage_cov"] = o["rmse"], o["max"], own["outage"].coverage
+                s["recovery_max"] = own["recovery"].stats(own={"max": np.max})["max"]
                 s["reacq_s"] = _reacq(run, k0, pos[r], truth)
                 s["nis"] = counts[scen]["nis"].get(r, np.nan)
     return {"scores": scores, "counts": counts, "pairs": pairs}
@@ -432,18 +433,16 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, tuple[float, float]], c
 def _tune_task(row: str, knob: tuple[float, float], cfg: AblationConfig, seed: int) -> tuple[float, float]:
     """RMSE over the tuning seed's scored epochs (no outage, no recovery), and the row's mean NIS per dof on its
     dynamic run (NaN for rows without one)."""
-    sse = n = 0.0
-    nis = np.nan
+    parts, nis = [], np.nan
     for scen in ("static", "dynamic"):
         run = simulate(scen, cfg.model, cfg, seed)
         pos, k0, counts = run_methods(run, cfg.model, {row: knob}, cfg, (row,))
-        sel = _masks(run, k0, cfg.recovery_s)["all"]
-        e = np.linalg.norm(pos[row][sel] - run.truth.pos_m[sel, :2], axis=1)
-        ok = np.isfinite(e)
-        sse, n = sse + float(np.sum(e[ok] ** 2)), n + int(ok.sum())
+        parts.append(score_epochs({row: _error_m(pos[row], run.truth.pos_m[:, :2])},
+                                  _masks(run, k0, cfg.recovery_s)["all"]))
         if scen == "dynamic":
             nis = float(counts["nis"].get(row, np.nan))
-    return (math.sqrt(sse / n) if n else np.inf), nis
+    pooled = pool_scores(parts)[row]
+    return (rmse(pooled.own_m) if pooled.n_scored else np.inf), nis
 
 
 def tune(cfg: AblationConfig, *, tuning_seed: int, scheduler=None,

@@ -34,22 +34,19 @@ def _err(comp: Comparison, m: str) -> np.ndarray:
 
 def error_table(comp: Comparison, methods=None) -> pd.DataFrame:
     """Horizontal, vertical and 3-D RMSE per method on the common epochs (m), with each method's
-    own coverage of the scored epochs and the common-epoch count."""
+    own coverage of the scored epochs and the common-epoch count: :func:`uwbwb.metrics.score_epochs`."""
     methods = list(methods or comp.estimates)
-    sel = common_epochs(comp, methods)
     scored = comp.masks.get("scored", np.ones(len(comp.truth), bool))
-    rows = {}
-    for m in methods:
-        e = _err(comp, m)[sel]
-        row = {"horizontal RMSE (m)": float(np.sqrt(np.mean(np.sum(e[:, :2] ** 2, axis=1))))}
-        if e.shape[1] == 3 and comp.truth.pos_m.shape[1] == 3:
-            row["vertical RMSE (m)"] = float(np.sqrt(np.mean(e[:, 2] ** 2)))
-            row["3-D RMSE (m)"] = float(np.sqrt(np.mean(np.sum(e ** 2, axis=1))))
-        own = np.all(np.isfinite(comp.estimates[m].pos_m[scored]), axis=1)
-        row["coverage"] = float(own.mean()) if own.size else np.nan
-        row["common epochs"] = int(sel.sum())
-        rows[m] = row
-    return pd.DataFrame(rows).T
+    common = common_epochs(comp, methods)
+    err = {m: _err(comp, m) for m in methods}
+    parts = {"horizontal RMSE (m)": {m: np.linalg.norm(e[:, :2], axis=1) for m, e in err.items()}}
+    if comp.truth.pos_m.shape[1] == 3 and all(e.shape[1] == 3 for e in err.values()):
+        parts["vertical RMSE (m)"] = {m: np.abs(e[:, 2]) for m, e in err.items()}
+        parts["3-D RMSE (m)"] = {m: np.linalg.norm(e, axis=1) for m, e in err.items()}
+    cols = [metrics.score_epochs(e, common).table(common={col: metrics.rmse})[col] for col, e in parts.items()]
+    own = metrics.score_epochs(parts["horizontal RMSE (m)"], scored)
+    return pd.concat(cols + [pd.Series({m.name: m.coverage for m in own}, name="coverage"),
+                             pd.Series(int(common.sum()), index=methods, name="common epochs")], axis=1).rename_axis(None)
 
 
 def consistency_table(comp: Comparison, methods=None, *, prob: float = 0.95) -> pd.DataFrame:

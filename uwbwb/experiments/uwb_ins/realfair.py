@@ -20,7 +20,7 @@ from ...datasets import iasl
 from ...errors import DataFormatError
 from ...filters.alignment import Comparison, FusionSettings, align_iasl, compare_iasl, run_fusion_filter
 from ...filters.imu_calibration import RealCalibration
-from ...metrics import MIN_BLOCKS, block_bootstrap_difference, interval_side, nis_consistency
+from ...metrics import MIN_BLOCKS, block_bootstrap_difference, interval_side, nis_consistency, rmse, score_epochs
 from ...scoreboard.estimators import INS_GRID
 from ...types import Recording
 
@@ -80,10 +80,9 @@ def tune_scales(rec: Recording, cal: RealCalibration, settings: FusionSettings =
         rows = {}
         for q, r in grid:
             _, est = run_fusion_filter(name, a, rec, cal, settings, scales=(float(q), float(r)))
-            e = np.linalg.norm(est.pos_m[:, :2] - truth, axis=1)
-            ok = np.isfinite(e)
-            rows[(float(q), float(r))] = {"horizontal RMSE (m)": float(np.sqrt(np.mean(e[ok] ** 2))) if ok.any()
-                                          else np.inf,
+            own = score_epochs({name: np.linalg.norm(est.pos_m[:, :2] - truth, axis=1)})[name]
+            rows[(float(q), float(r))] = {"horizontal RMSE (m)": rmse(own.own_m)   # a diverged (infinite) error: inf
+                                          if own.n_scored and np.isfinite(own.own_m).all() else np.inf,
                                           "mean NIS / dof": nis_consistency(est.info.get("nis", []),
                                                                             est.info.get("dof", []))["mean_nis_over_dof"]}
         table = pd.DataFrame(rows).T
@@ -143,8 +142,8 @@ def imu_clock_sensitivity(comp: Comparison, rec: Recording, cal: RealCalibration
     for name in comp.estimates:
         ea, eb = _paired(comp, comp_r, name)
         d = block_bootstrap_difference(eb, ea, rng=rng)
-        rows[name] = {"motion-capture clock (m)": float(np.sqrt(np.mean(ea ** 2))) if ea.size else np.nan,
-                      "ranges clock (m)": float(np.sqrt(np.mean(eb ** 2))) if eb.size else np.nan,
+        rows[name] = {"motion-capture clock (m)": rmse(ea) if ea.size else np.nan,
+                      "ranges clock (m)": rmse(eb) if eb.size else np.nan,
                       "change (mm)": d["diff_m"] * 1e3, "lo (mm)": d["lo_m"] * 1e3, "hi (mm)": d["hi_m"] * 1e3,
                       "epochs": d["n"], "verdict": clock_verdict(d["lo_m"] * 1e3, d["hi_m"] * 1e3)}
     al = rec_r.meta["imu_alignment"]

@@ -63,12 +63,9 @@ def reacquisition_s(t_s: np.ndarray, err_m: np.ndarray, t_end_s: float, limit_m:
     return float(t[starts[np.argmax(held)]] - t[0])
 
 
-def _scores(pos: np.ndarray, truth_m: np.ndarray, sel: np.ndarray) -> tuple[float, float, float, float]:
-    e = np.linalg.norm(pos[sel] - truth_m[sel], axis=1)
-    ok = np.isfinite(e)
-    if not ok.any():
-        return np.nan, np.nan, 0.0, np.nan
-    return float(np.sqrt(np.mean(e[ok] ** 2))), float(e[ok].max()), float(ok.mean()), float(np.sum(e[ok] ** 2))
+def _error_m(pos_m: np.ndarray, truth_m: np.ndarray) -> np.ndarray:
+    """Horizontal error per epoch (m); NaN where the row gave no finite position (the scorer's "no estimate")."""
+    return np.where(np.isfinite(pos_m).all(axis=1), np.linalg.norm(pos_m - truth_m, axis=1), np.nan)
 
 
 def _reacq(run: robot.RobotRun, k0: int, pos: np.ndarray, truth_m: np.ndarray) -> float:
