@@ -193,12 +193,12 @@ class UwbInsFilter(BaseEstimator):
     uses the first tag's truth: one IMU); the ranges are the board's calibrated ones with the board's range
     noise, so the fusion filters get the same UWB information as every other method. ``estimate`` runs
     notebook 05's start-up (rest levelling, in-motion heading alignment over the first
-    :data:`INS_ALIGN_S` s, untuned: the pair scales the fusion filters only, so every grid point and both
-    filters start from one state) and the filters (:func:`~uwbwb.filters.alignment.compare_iasl`);
-    no estimate before the alignment ends. One run gives every fusion filter, so it is kept for the
-    next adapter and its time is charged to the first one run. The filters never see the scored
-    truth: :func:`~uwbwb.filters.alignment.compare_iasl` is handed a hidden (all-NaN) truth,
-    and the board scores the estimates itself.
+    :data:`INS_ALIGN_S` s: :func:`~uwbwb.filters.alignment.align_iasl`, untuned: the pair scales the fusion
+    filters only, so every grid point and both filters start from one state), then this adapter's filter
+    only (:func:`~uwbwb.filters.alignment.run_fusion_filter`, as :func:`~uwbwb.filters.alignment.compare_iasl`
+    runs it); no estimate before the alignment ends. The start-up is run once per recording and tag (each
+    adapter its own: its time is part of the adapter's). The filters never see the scored
+    truth: the start-up is handed a hidden (all-NaN) truth, and the board scores the estimates itself.
 
     Bound: the posterior CRLB of position and velocity driven by the accelerometer's white noise
     (a random-force model with PSD = noise density²) with the TDoA information of every epoch —
@@ -235,8 +235,8 @@ class UwbInsFilter(BaseEstimator):
         cal_ins = cal.with_tuned(self.name, {"calibration": imu_cal})
         self._cache["n_tags"] = max(len(tags), self._cache.get("n_tags", 1))
         # the (q, r) pick minimises the mean RMSE over every usable tag, as the EKFs' σ_w search
-        cost = [np.mean([_errors_rmse(self._placed(self._comparison(rec, t, cal_ins, (q, r)), rec, t), rec, t, cal.dim)
-                         for t in tags]) for q, r in self.grid]
+        cost = [np.mean([_errors_rmse(self._run(rec, t, cal_ins, (q, r)), rec, t, cal.dim) for t in tags])
+                for q, r in self.grid]
         best = int(np.argmin(cost))
         q, r = self.grid[best]
         qs, rs = sorted({g[0] for g in self.grid}), sorted({g[1] for g in self.grid})
@@ -250,37 +250,42 @@ class UwbInsFilter(BaseEstimator):
         except KeyError:
             raise ValueError(f"{self.name}: no IMU calibration in {cal.source} (its recording has no IMU)") from None
 
-    def _comparison(self, rec, tag, cal, scales=None):
-        """One run of every fusion filter (cached for the other adapter: the last few runs are kept)."""
+    def _start(self, rec, tag, cal):
+        """The start-up every grid point shares (rest levelling, heading alignment), run once per recording,
+        tag and calibration (the last few are kept). Each adapter runs its own, so that its time column holds
+        the whole of what it costs."""
+        imu_cal = self._imu_calibration(cal)
+        key = (self.kind, rec.label, tag, float(rec.ranges[tag].t_s[0]), len(rec.ranges[tag]), id(imu_cal),
+               cal.sigma(tag).tobytes())
+        starts = self._cache.setdefault("starts", {})
+        if key not in starts:
+            real = replace(imu_cal, range_sigma_m=cal.sigma(tag), range_bias_m=0.0)
+            log = calibrated_log(rec, tag, cal)
+            # the truth is hidden from the filters: the board scores the estimates itself
+            hidden = Trajectory(log.t_s[[0, -1]], np.full((2, 3), np.nan), name="truth (hidden)")
+            one = replace(rec, ranges={"tag": log}, truth={"tag": hidden})
+            while len(starts) >= 4 * self._cache.get("n_tags", 1) + 4:   # bounded: calibration and test, both kinds
+                starts.pop(next(iter(starts)))
+            starts[key] = (one, real, alignment.align_iasl(one, real, alignment.FusionSettings(),
+                                                           still_s=INS_REST_S, align_s=INS_ALIGN_S))
+        return starts[key]
+
+    def _run(self, rec, tag, cal, scales=None):
+        """This filter from the shared start-up with its ``(q, r)`` multipliers (the tuned pair by default):
+        the pair scales the fusion filter only, so every grid point starts from one state."""
         if scales is None:
             p = cal.params(self.name)
             scales = (float(p.get("q_scale", 1.0)), float(p.get("r_scale", 1.0)))
-        imu_cal = self._imu_calibration(cal)
-        key = (rec.label, tag, float(rec.ranges[tag].t_s[0]), len(rec.ranges[tag]), id(imu_cal), tuple(scales))
-        if key not in self._cache:
-            real = replace(imu_cal, range_sigma_m=cal.sigma(tag), range_bias_m=0.0)
-            log = calibrated_log(rec, tag, cal)
-            # the truth is hidden from the filters: compare_iasl only scores with it, the board scores itself
-            hidden = Trajectory(log.t_s[[0, -1]], np.full((2, 3), np.nan), name="truth (hidden)")
-            one = replace(rec, ranges={"tag": log}, truth={"tag": hidden})
-            runs = [k for k in self._cache if isinstance(k, tuple)]
-            keep = len(self.grid) * self._cache.get("n_tags", 1) + 2
-            while len(runs) >= keep:                            # bounded: one grid's runs per tag and the scored ones
-                self._cache.pop(runs.pop(0))
-            # the pair scales the fusion filters only: the heading alignment that starts them all stays untuned
-            # (as notebook 05's own tuning has it), so loose and tight start from one state at every grid point
-            pair = (float(scales[0]), float(scales[1]))
-            self._cache[key] = alignment.compare_iasl(one, real, alignment.FusionSettings(), still_s=INS_REST_S,
-                                                      align_s=INS_ALIGN_S,
-                                                      scales={k: pair for k in ("loose", "tight", "tight (ranges)")})
-        return self._cache[key]
+        one, real, start = self._start(rec, tag, cal)
+        _, est = alignment.run_fusion_filter(self.kind, start, one, real, alignment.FusionSettings(),
+                                             scales=(float(scales[0]), float(scales[1])))
+        return self._placed(est, rec, tag)
 
     def estimate(self, rec, tag, cal):
-        return self._placed(self._comparison(rec, tag, cal), rec, tag)
+        return self._run(rec, tag, cal)
 
-    def _placed(self, comp, rec, tag):
-        """The filter's part of a comparison placed on ``tag``'s epochs (no estimate before the alignment ends)."""
-        part = comp.estimates[self.kind]
+    def _placed(self, part, rec, tag):
+        """The filter's estimates placed on ``tag``'s epochs (no estimate before the alignment ends)."""
         log = rec.ranges[tag]
         idx = np.searchsorted(log.t_s, part.t_s)
         T, d = len(log), part.dim
