@@ -139,8 +139,11 @@ def _results(**change) -> facts.Results:
                             "PF in track": in_track, "MH-EKF in track": kf_in_track[k], "PF restarts": restarted,
                             "PF runs restarted": restarted, "MH-EKF restarts": 0, "PF tempered updates": 0.01}
                            for k in range(5) for v in ("Doppler", "Doppler + ranges")])
+    drop_lo, drop_hi = change.pop("floor_drop_ci", (-0.4, 0.9))     # interval of the drop with 4× the particles
     floor = pd.DataFrame({"CEP50, scored epochs (cm)": change.pop("floor", [40.0, 38.0, 30.0, 29.5]),
-                          "particles": [1000, 1000, 1000, 4000]}, index=[c[0] for c in study.FLOOR_CONDITIONS])
+                          "particles": [1000, 1000, 1000, 4000], "drop 95 % low (cm)": [np.nan, 1.0, 7.0, drop_lo],
+                          "drop 95 % high (cm)": [np.nan, 3.0, 9.0, drop_hi]},
+                         index=[c[0] for c in study.FLOOR_CONDITIONS])
     angles = change.pop("angles", (4.0, 5.0))
     base = dict(fast=False, ref_table=ref, readings=readings, at15=at15,
                 fig_counts={"cubic": {0.02: (300, 40, None)}, "lab": {0.04: (500, 60, None)}},
@@ -216,31 +219,44 @@ def test_offset_or_spread_is_decided_on_the_interval_of_the_per_recording_share(
 
 
 def test_ratio_verdict_per_corner_tests_asymmetry_and_the_paper_value():
-    f, _ = _table()          # top-left ≈ 1.8 in every recording: asymmetric, the other way
+    f, t = _table()          # top-left ≈ 1.8 in every recording: asymmetric, the other way
     assert f["corners"]["top-left"][5].startswith("asymmetric the other way")
-    assert _fig6(f, "along / across, top-left")["paper vs median"].startswith("asymmetric the other way")
-    assert f["ratio_verdict"] == "not reproduced"
-    f, _ = _table(ratio={"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [0.5, 0.45, 0.55, 0.5, 0.6]})
+    row = _fig6(f, "along / across, top-left")
+    assert row["asymmetry (≠ 1)"] == "detected, the other way (> 1)" and row["paper vs median"] == "outside (interval above 0.5)"
+    assert _fig6(f, "along / across, bottom-left")["asymmetry (≠ 1)"] == "detected (< 1)"
+    assert _fig6(f, "along / across, bottom-left")["paper vs median"] == "inside"
+    assert f["ratio_verdict"] == "not reproduced" and _verdict(t, "along/across ratio ≈ 0.5") == "not reproduced"
+    f, t = _table(ratio={"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [0.5, 0.45, 0.55, 0.5, 0.6]})
     assert f["corners"]["bottom-left"][5] == "asymmetric, consistent with 0.5"
     assert f["ratio_reproduced"] and f["ratio_verdict"] == "reproduced"
-    # a spread that holds 0.5 and 1 alike (min–max 0.3–1.9): no asymmetry detected, whatever 0.5 lies in
+    assert _verdict(t, "along/across ratio ≈ 0.5") == "reproduced"
+    # a spread that holds 0.5 and 1 alike (min–max 0.3–1.9): no asymmetry detected, though 0.5 is inside
     wide = [0.3, 0.6, 0.9, 1.2, 1.5, 1.9, 0.7, 1.1, 0.8]
-    f, _ = _table(ratio={"bottom-left": wide, "top-left": wide})
+    f, t = _table(ratio={"bottom-left": wide, "top-left": wide})
     assert {v[5] for v in f["corners"].values()} == {"no asymmetry detected"} and f["ratio_verdict"] == "not reproduced"
+    row = _fig6(f, "along / across, top-left")
+    assert row["asymmetry (≠ 1)"] == "not detected" and row["paper vs median"] == "inside"
+    # the interval [0.55, 1.06] of the referee's top-left corner: above 0.5, holds 1
+    f, _ = _table(ratio={"bottom-left": [0.5] * 9, "top-left": [0.55, 0.7, 1.06, 0.9, 0.8, 0.6, 1.05, 0.95, 1.02]},
+                  cep=[24.0, 26.0, 25.0, 23.0, 27.0, 25.0, 24.0, 25.0, 26.0])
+    row = _fig6(f, "along / across, top-left")
+    assert row["asymmetry (≠ 1)"] == "not detected" and row["paper vs median"] == "outside (interval above 0.5)"
     f, _ = _table(ratio={"bottom-left": [0.2, 0.22, 0.25, 0.21, 0.23], "top-left": [0.5, 0.45, 0.55, 0.5, 0.6]})
     assert f["corners"]["bottom-left"][5] == "asymmetric, below 0.5" and not f["ratio_reproduced"]
+    assert _fig6(f, "along / across, bottom-left")["paper vs median"] == "outside (interval below 0.5)"
     f, _ = _table(ratio={"bottom-left": [0.75, 0.8, 0.85, 0.78, 0.82], "top-left": [0.5, 0.45, 0.55, 0.5, 0.6]})
     assert f["corners"]["bottom-left"][5] == "asymmetric, above 0.5"
     f, _ = _table(cep=[24.0, 26.0], ratio={"bottom-left": [0.4, 0.5], "top-left": [1.8, 1.9]})
     assert f["ratio_verdict"] == "no interval"
+    assert _fig6(f, "along / across, top-left")[["asymmetry (≠ 1)", "paper vs median"]].tolist() == ["no interval"] * 2
 
 
 def test_corner_dependence_is_decided_on_the_paired_difference():
     f, t = _table()          # top-left ≈ 1.8 against bottom-left ≈ 0.5 in every recording
-    assert f["corner_dependence"] == "depends" and _verdict(t, "along/across ratio") == "depends"
+    assert f["corner_dependence"] == "depends" and _verdict(t, "along/across ratio, ") == "depends"
     # overlapping medians (0.76 vs 0.82) whose paired differences straddle 0
     f, t = _table(ratio={"bottom-left": [0.6, 0.9, 0.76, 0.7, 1.0], "top-left": [0.82, 0.7, 0.9, 0.85, 0.75]})
-    assert f["corner_dependence"] == "same" and _verdict(t, "along/across ratio") == "not significant"
+    assert f["corner_dependence"] == "same" and _verdict(t, "along/across ratio, ") == "not significant"
 
 
 def test_keeps_track_verdict_flips_at_both_thresholds():
@@ -250,6 +266,16 @@ def test_keeps_track_verdict_flips_at_both_thresholds():
     assert _verdict(t, "PF keeps track, Doppler + ranges") == "does not keep track"
     f, t = _table(restarted=1)                                         # 5 of 50 runs = 10 % > 5 %
     assert not f["pf_keeps_track[Doppler]"] and _verdict(t, "PF keeps track, Doppler:") == "does not keep track"
+    assert f["lost_track[Doppler]"]["PF"] == [0, 1, 2, 3, 4]            # 1 of 10 runs restarted on each recording
+
+
+def test_keeps_track_is_applied_to_each_filter_on_each_recording():
+    scores = _results(in_track=0.96, kf_in_track=[0.25, 0.95, 0.94, 1.0, 1.0]).scores
+    scores.loc[scores["recording"] == 3, "PF runs restarted"] = 1         # 1 of 10 runs: over 5 %
+    pf, kf = scoring.keeps_track(scores)
+    d = scores.assign(pf=pf, kf=kf)[scores["variant"] == "Doppler"]
+    assert d["pf"].tolist() == [True, True, True, False, True]
+    assert d["kf"].tolist() == [False, True, False, True, True]
 
 
 def test_the_mh_ekf_is_held_to_the_keeps_track_rule_and_lost_recordings_are_named():
@@ -263,14 +289,35 @@ def test_the_mh_ekf_is_held_to_the_keeps_track_rule_and_lost_recordings_are_name
     assert f["lost_track[Doppler]"]["PF"] == [0, 1, 2, 3, 4]
 
 
+ALL = "MH-EKF − PF CEP50 on the scored epochs per recording, Doppler, all recordings (cm)"
+TRACKED = "MH-EKF − PF CEP50 on the scored epochs per recording, Doppler, recordings where both keep track (cm)"
+
+
 def test_filter_comparison_verdict_follows_the_interval_of_differences():
-    assert _verdict(_table()[1], "MH-EKF − PF CEP50 on the scored epochs per recording, Doppler (cm)") == "PF better"
+    assert _verdict(_table()[1], ALL) == "PF better" and _verdict(_table()[1], TRACKED) == "PF better"
     assert _table(kf_minus_pf=[-5.0, -6.0, -4.0, -5.5, -4.5])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
     f, t = _table(kf_minus_pf=[-5.0, 6.0, -4.0, 5.5, 0.5])
-    assert _verdict(t, "MH-EKF − PF CEP50 on the scored epochs per recording, Doppler (cm)") == "no significant difference"
+    assert _verdict(t, ALL) == "no significant difference"
     f, t = _table(kf_minus_pf=[-0.2, -0.3, -0.1, -0.25, -0.15])      # all negative, but under 5 mm
-    assert _verdict(t, "MH-EKF − PF CEP50 on the scored epochs per recording, Doppler (cm)") == "equal within 5 mm"
+    assert _verdict(t, ALL) == "equal within 5 mm"
     assert _table(kf_minus_pf=[-0.6, -0.7, -0.55, -0.65, -0.8])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
+
+
+def test_filter_comparison_is_stated_on_the_recordings_where_both_keep_track():
+    # the MH-EKF "better" on all five, but it lost track on two of them (the referee's recording 0)
+    f, t = _table(kf_minus_pf=[-9.0, -10.0, -8.0, 6.0, 5.0], kf_in_track=[1.0, 1.0, 1.0, 0.25, 0.5])
+    ours = t.loc[t["claim"] == ALL, "ours"].iloc[0]
+    assert "lost track: PF 0, MH-EKF 2 of 5" in ours
+    assert f["both_keep_track[Doppler]"] == (3, 5) and _verdict(t, TRACKED) == "MH-EKF better"
+    assert t.loc[t["claim"] == TRACKED, "ours"].iloc[0].endswith("on 3 of 5")
+    f, t = _table(kf_minus_pf=[-9.0, -10.0, -8.0, -6.0, -5.0], kf_in_track=[0.25, 1.0, 1.0, 0.5, 1.0])
+    assert _verdict(t, ALL) == "MH-EKF better" and _verdict(t, TRACKED) == "MH-EKF better"
+    f, t = _table(in_track=0.9)                                       # the PF loses every recording
+    assert _verdict(t, TRACKED) == "no recording" and f["both_keep_track[Doppler]"] == (0, 5)
+    assert t.loc[t["claim"] == TRACKED, "ours"].iloc[0] == "none of 5"
+    # two recordings where both keep track: a median but no interval, so no verdict (not even "equal")
+    f, t = _table(kf_minus_pf=[-0.2, -0.3, -9.0, -9.0, -9.0], kf_in_track=[1.0, 1.0, 0.5, 0.5, 0.5])
+    assert _verdict(t, TRACKED) == "no interval" and _verdict(t, ALL) == "MH-EKF better"
 
 
 def test_coverage_is_low_for_an_overconfident_posterior():
@@ -284,16 +331,38 @@ def test_coverage_is_low_for_an_overconfident_posterior():
     assert not scoring.in_region_95(err[:1], np.full((1, 2, 2), np.nan))[0]
 
 
-def test_floor_verdict_is_read_from_the_measured_steps():
-    f, t = _table(floor=[40.0, 38.0, 30.0, 27.0])           # 4× particles still lowered it by 3 cm
-    assert not f["particles_converged"] and _verdict(t, "error floor") == "not converged"
+def test_floor_verdict_is_read_from_the_interval_of_the_particle_step():
+    f, t = _table(floor=[40.0, 38.0, 30.0, 27.0], floor_drop_ci=(2.0, 4.0))   # 4× particles: 3 [2, 4] cm lower
+    assert f["particles_verdict"] == "not converged" and _verdict(t, "particle count") == "not converged"
     # ... and then the CEP50 is not judged against the paper's 25 cm at all
-    assert f["cep50_verdict"] == f["cep50_median_verdict"] == facts.NOT_CONVERGED
+    assert f["cep50_verdict"] == f["cep50_median_verdict"] == facts.NOT_CONVERGED == "not converged"
     assert _fig6(f, "snapshot CEP50 (cm)")["paper vs range"] == facts.NOT_CONVERGED
-    f, t = _table(floor=[40.0, 38.0, 30.0, 29.5])
-    assert f["particles_converged"] and f["floor_left_dominates"] and _verdict(t, "error floor") == "converged"
+    f, t = _table(floor=[40.0, 38.0, 30.0, 29.5])                    # 0.5 [−0.4, 0.9] cm
+    assert f["particles_converged"] and f["floor_left_dominates"] and _verdict(t, "particle count") == "converged"
+    assert f["cep50_verdict"] == "consistent"
+    # a drop under 1 cm whose interval reaches past 1 cm is not converged yet: undecided, no verdict on the CEP50
+    f, t = _table(floor=[40.0, 38.0, 30.0, 29.5], floor_drop_ci=(-1.5, 2.5))
+    assert _verdict(t, "particle count") == "undecided" and f["cep50_verdict"] == facts.NOT_JUDGED
+    f, t = _table(floor=[40.0, 38.0, 30.0, 29.5], floor_drop_ci=(np.nan, np.nan))
+    assert _verdict(t, "particle count") == "no interval" and f["cep50_verdict"] == facts.NOT_JUDGED
     f, _ = _table(floor=[40.0, 38.0, 10.0, 8.0])
     assert not f["floor_left_dominates"] and f["floor_main_cause"].startswith("reading a period-averaged")
+
+
+def test_bootstrap_run_cep50_resamples_whole_runs_with_metrics_rule():
+    from uwbwb import metrics
+
+    rng = np.random.default_rng(0)
+    err = rng.rayleigh(0.2, (25, 150))
+    boot = scoring.bootstrap_run_cep50(err, rng=rng, n_boot=1000)
+    assert boot.shape == (1000,) and np.quantile(boot, 0.025) < 100 * metrics.cep50(err.ravel()) < np.quantile(boot, 0.975)
+    one = scoring.bootstrap_run_cep50(np.repeat(err[:1], 4, axis=0), rng=rng, n_boot=10)   # identical runs
+    np.testing.assert_allclose(one, 100 * metrics.cep50(err[0]))
+    # runs that differ by an offset: the interval is as wide as the runs are apart, not as the epochs are many
+    shifted = err[:10] + np.linspace(0.0, 0.5, 10)[:, None]
+    b = scoring.bootstrap_run_cep50(shifted, rng=rng, n_boot=1000)
+    assert np.quantile(b, 0.975) - np.quantile(b, 0.025) > 10.0
+    assert scoring.bootstrap_run_cep50(err[:2], rng=rng).size == 0
 
 
 def test_ghost_rules_flip():
@@ -313,6 +382,11 @@ def test_ghost_rules_flip():
 
 def test_lab_row_says_reconstruction():
     rows = headlines.rows(facts.facts(_results()))
+    names = [r["quantity"] for r in rows]
+    # the zero-noise CEP50 is a floor only once converged in particles: not named one, and its 4× row beside it
+    assert not any("floor" in n for n in names)
+    four = [r for r in rows if "zero noise" in r["quantity"] and "4× particles" in r["quantity"]]
+    assert len(four) == 1 and four[0]["value"] == 29.5
     lab = [r for r in rows if "lab layout" in r["quantity"] and "pseudo" not in r["quantity"]]
     assert lab and all("reconstruction" in r["quantity"] for r in lab)
     assert len({r["quantity"] for r in rows}) == len(rows)
@@ -360,9 +434,52 @@ def test_small_study_end_to_end(cfg):
     assert scores[["PF coverage", "MH-EKF coverage"]].apply(lambda c: c.between(0, 1)).all().all()
     assert tracks[0].pf["Doppler"].pos_cov_m2.shape == tracks[0].pf["Doppler"].pos_m.shape + (3,)
     assert {"PF restarts", "MH-EKF restarts", "PF in track", "MH-EKF in track"} <= set(scores.columns)
-    floor = study.error_floor("lab", replace(cfg, n_particles=100, floor_runs=2))
+    floor = study.error_floor("lab", replace(cfg, n_particles=100, floor_runs=3))
     assert list(floor.index) == [c[0] for c in study.FLOOR_CONDITIONS]
-    assert floor["particles"].tolist() == [100, 100, 100, 400] and (floor["runs"] == 2).all()
+    assert floor["particles"].tolist() == [100, 100, 100, 400] and (floor["runs"] == 3).all()
+    assert (floor["CEP50 95 % low (cm)"] <= floor["CEP50, scored epochs (cm)"]).all()
+    assert (floor["CEP50, scored epochs (cm)"] <= floor["CEP50 95 % high (cm)"]).all()
+    drop = floor["drop from the row above (cm)"]
+    np.testing.assert_allclose(drop.iloc[1:], -np.diff(floor["CEP50, scored epochs (cm)"]))
+    assert np.isnan(floor["drop 95 % low (cm)"].iloc[0]) and floor["drop 95 % low (cm)"].iloc[1:].notna().all()
+    assert scores["PF keeps track"].dtype == bool and scores["MH-EKF keeps track"].dtype == bool
+
+
+def test_samples_hidden_at_the_reference_get_a_zoom_above_the_reference_marker():
+    """The referee's Fig 3(a): every sample within a few cm of the reference, invisible at ±5 m."""
+    rng = np.random.default_rng(0)
+    pos = dm.REFERENCE_POS_M + rng.normal(0.0, 0.01, (471, 3))
+    vel = dm.REFERENCE_VEL_MPS + rng.normal(0.0, 0.01, (471, 3))
+    s = smp.GhostSamples(pos, vel, np.full(471, 0.01), np.ones(471))
+    ax = figures.ghost_panel(s, "position", beacons=dm.cubic_layout().pos_m, weak_dir=np.array([1.0, -0.8, 0.0]))
+    insets = ax.child_axes
+    assert len(insets) == 1
+    zoom = insets[0]
+    ref_marker, samples = zoom.get_lines()
+    assert samples.get_zorder() > ref_marker.get_zorder() and ref_marker.get_marker() == "+"
+    np.testing.assert_allclose(samples.get_xydata(), 100 * (pos[:, :2] - dm.REFERENCE_POS_M[:2]))
+    lo, hi = zoom.get_xlim()
+    assert lo < samples.get_xydata()[:, 0].min() and samples.get_xydata()[:, 0].max() < hi < 10.0
+    assert "(cm)" in zoom.get_xlabel() and "(cm)" in zoom.get_ylabel() and zoom.get_title().startswith("zoom")
+    # the inset covers no beacon and not the reference
+    ax.figure.canvas.draw()
+    box = zoom.get_window_extent().transformed(ax.transData.inverted())
+    for p in (*dm.cubic_layout().pos_m[:, :2], dm.REFERENCE_POS_M[:2]):
+        assert not (box.x0 <= p[0] <= box.x1 and box.y0 <= p[1] <= box.y1), p
+    # samples spread over the panel: no zoom
+    wide = smp.GhostSamples(pos + np.array([2.0, 0.0, 0.0]) * rng.uniform(0, 1, (471, 1)), vel, np.full(471, 0.01),
+                            np.ones(471))
+    assert not figures.ghost_panel(wide, "position").child_axes
+    matplotlib.pyplot.close("all")
+
+
+def test_far_positions_count_what_lies_away_from_the_reference():
+    near = dm.REFERENCE_POS_M + np.array([[0.1, 0.0, 0.0], [0.0, 0.2, 0.0], [0.0, 0.2, 0.0]])
+    far = dm.REFERENCE_POS_M + np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.3]])
+    pos = np.concatenate([near, far])
+    s = smp.GhostSamples(pos, np.zeros((5, 3)) + np.arange(5)[:, None], np.full(5, 0.01), np.ones(5))
+    assert figures.far_positions(s) == 2 and figures.far_positions(s, radius_m=0.05) == 4
+    assert figures.far_positions(smp.GhostSamples(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0))) == 0
 
 
 # ------------------------------------------------------------------ exercises and panel notes

@@ -9,9 +9,26 @@ from ... import sampling as smp
 from ...models import doppler as dm
 from ...plotting import color_for
 
-__all__ = ["ghost_panel", "space_figure", "cuts_figure", "tracks_figure", "clouds_figure"]
+__all__ = ["ghost_panel", "space_figure", "cuts_figure", "tracks_figure", "clouds_figure", "NEAR_REFERENCE",
+           "far_positions"]
 
 _GHOST = "#3182bd"
+#: Share of a panel's half-width within which a sample counts as *at* the reference: a panel whose samples all
+#: lie that close gets an inset zoom (at the panel's scale they would sit inside the reference marker), and a
+#: position farther than this (25 cm on the ±5 m position panels) is counted apart, away from the reference.
+NEAR_REFERENCE = 0.05
+#: Half-width of the position panels (m) and of the velocity panels (m/s).
+LIMITS = {"position": 5.0, "velocity": 3.0}
+#: Lower-left corners (axes fraction) an inset zoom may take, in order of preference.
+_CORNERS = ((0.73, 0.72), (0.09, 0.09), (0.73, 0.09), (0.09, 0.72))
+
+
+def far_positions(samples: smp.GhostSamples, *, radius_m: float = NEAR_REFERENCE * LIMITS["position"]) -> int:
+    """Distinct sample positions farther than ``radius_m`` from the reference position (the reference is no sample)."""
+    if len(samples) == 0:
+        return 0
+    pos = np.unique(samples.pos_m, axis=0)
+    return int(np.count_nonzero(np.linalg.norm(pos - dm.REFERENCE_POS_M, axis=1) > radius_m))
 
 
 def _ax(ax):
@@ -40,33 +57,34 @@ def ghost_panel(samples: smp.GhostSamples, what: str, *, beacons=None, weak_dir=
                 lim: float | None = None):
     """X–Y projection of ghost samples: ``what`` is ``"position"`` or ``"velocity"``.
 
-    The reference pair is the open circle, drawn beneath the samples; when every sample lies within 5 % of
-    the panel's half-width of it, the panel says how close (they would hide inside the circle); beacons are
-    stars (position panels);
-    ``weak_dir`` (3,) draws a line through the reference (the weakest direction of
+    The reference pair (the truth, not a sample) is the open circle, drawn beneath the samples; when every
+    sample lies within :data:`NEAR_REFERENCE` of the panel's half-width of it (at the panel's scale they
+    would sit inside the circle), an inset zooms in: the samples' offsets from the reference in cm (cm/s),
+    drawn above a small ``+`` for the reference, its title saying how close they all are. Beacons are
+    stars (position panels); ``weak_dir`` (3,) draws a line through the reference (the weakest direction of
     the information matrix, or ``V_ref`` on velocity panels).
     """
     ax = _ax(ax)
     pts = samples.pos_m if what == "position" else samples.vel_mps
     ref = dm.REFERENCE_POS_M if what == "position" else dm.REFERENCE_VEL_MPS
-    lim = lim if lim is not None else (5.0 if what == "position" else 3.0)
+    lim = lim if lim is not None else LIMITS[what]
     ax.plot(pts[:, 0], pts[:, 1], ".", color=_GHOST, markersize=1.5, alpha=0.5, rasterized=True, zorder=3)
     if beacons is not None:
         ax.plot(beacons[:, 0], beacons[:, 1], "*", color="#000000", markersize=10, label="beacons")
+    line = None
     if weak_dir is not None:
         d = np.asarray(weak_dir, float)[:2]
         if np.linalg.norm(d) > 0:
-            d = d / np.linalg.norm(d) * 2 * lim
+            line = d / np.linalg.norm(d)
+            d = line * 2 * lim
             ax.plot([ref[0] - d[0], ref[0] + d[0]], [ref[1] - d[1], ref[1] + d[1]], "--", color="#d62728",
                     linewidth=1.0)
     # the reference as an open circle beneath the samples, so that samples near it stay visible
     ax.plot(ref[0], ref[1], "o", markerfacecolor="none", markeredgecolor="#000000", markersize=12, zorder=2)
     if len(pts):
         reach = float(np.max(np.linalg.norm(pts[:, :2] - np.asarray(ref)[:2], axis=1)))
-        if reach < 0.05 * lim:      # every sample inside the circle at this scale: say so on the panel
-            unit = "cm" if what == "position" else "cm/s"
-            ax.text(0.03, 0.03, f"every sample within {100 * reach:.1f} {unit}\nof the reference (circle)",
-                    transform=ax.transAxes, fontsize=7, va="bottom")
+        if reach < NEAR_REFERENCE * lim:      # every sample inside the circle at this scale: zoom in
+            _zoom(ax, 100 * (pts[:, :2] - np.asarray(ref)[:2]), 100 * reach, what, lim, ref, beacons, line)
     ax.set_xlim(-lim, lim)
     ax.set_ylim(-lim, lim)
     ax.set_aspect("equal")
@@ -77,6 +95,40 @@ def ghost_panel(samples: smp.GhostSamples, what: str, *, beacons=None, weak_dir=
     return ax
 
 
+def _zoom(ax, offsets_cm, reach_cm, what, lim, ref, beacons, line):
+    """Inset of ``ax``: the samples' offsets from the reference (cm or cm/s) above a small ``+`` at the reference.
+
+    Placed in the corner of the panel (a 25 % square, room left for its labels) that covers the fewest beacons, not the reference, and
+    preferably not the dashed line.
+    """
+    size, unit = 0.25, ("cm" if what == "position" else "cm/s")
+    marks = np.empty((0, 2)) if beacons is None else np.asarray(beacons, float)[:, :2]
+    ref2 = np.asarray(ref, float)[:2]
+    costs = []
+    for corner in _CORNERS:
+        lo = -lim + 2 * lim * np.asarray(corner)
+        hi = lo + 2 * lim * size
+        n_marks = np.count_nonzero(np.all((marks >= lo) & (marks <= hi), axis=1))
+        covers_ref = bool(np.all((ref2 >= lo) & (ref2 <= hi)))
+        c = (lo + hi) / 2 - ref2
+        crossed = line is not None and abs(c[0] * line[1] - c[1] * line[0]) < 0.75 * (hi - lo)[0]
+        costs.append(10 * covers_ref + 3 * n_marks + int(crossed))
+    corner = _CORNERS[int(np.argmin(costs))]
+    ins = ax.inset_axes([*corner, size, size])
+    ins.plot(0.0, 0.0, "+", color="#000000", markersize=7, zorder=2)
+    ins.plot(offsets_cm[:, 0], offsets_cm[:, 1], ".", color=_GHOST, markersize=3, alpha=0.7, zorder=3)
+    half = max(1.25 * reach_cm, 0.5)
+    ins.set_xlim(-half, half)
+    ins.set_ylim(-half, half)
+    ins.set_aspect("equal")
+    ins.tick_params(labelsize=5, length=2, pad=1)
+    axis = ("x", "y") if what == "position" else ("vx", "vy")
+    ins.set_xlabel(f"Δ{axis[0]} ({unit})", fontsize=5, labelpad=0)
+    ins.set_ylabel(f"Δ{axis[1]} ({unit})", fontsize=5, labelpad=0)
+    ins.set_title(f"zoom: all within {reach_cm:.1f} {unit}", fontsize=6, pad=2)
+    return ins
+
+
 def space_figure(runs_by_threshold: dict[float, smp.SamplerResult], model: dm.DopplerModel, *, pos_dir=None,
                  vel_dir=None, suptitle: str = ""):
     """Figs 3 / 4: one column per threshold, positions on top, velocities below. Returns the Figure.
@@ -84,8 +136,9 @@ def space_figure(runs_by_threshold: dict[float, smp.SamplerResult], model: dm.Do
     ``runs_by_threshold`` maps each threshold to the conditional-sampler run made for it
     (:func:`~.study.figure_samples`). Every kept draw under the threshold is drawn once
     (nothing is resampled); under each panel: the number of distinct samples, of distinct
-    positions (draws of one position share it) and the fraction with its 95 % interval. A
-    panel without samples says so.
+    positions (draws of one position share it), of those positions away from the reference
+    (:func:`far_positions`; the reference itself is no sample) and the fraction with its 95 %
+    interval. A panel without samples says so.
     """
     from .study import distinct_counts
 
@@ -99,7 +152,8 @@ def space_figure(runs_by_threshold: dict[float, smp.SamplerResult], model: dm.Do
                     title=f"({'abcd'[j]}) δ < {100 * tau:g} cm")
         ghost_panel(s, "velocity", weak_dir=vel_dir, ax=axes[1, j])
         iv = f" [{100 * e.ci_low:.2g}, {100 * e.ci_high:.2g}]" if np.isfinite(e.ci_low) else " (no interval)"
-        axes[1, j].set_title(f"{n_s} distinct samples, {n_p} positions\nfraction {100 * e.fraction:.2g} %{iv}",
+        far = f"{far_positions(s)} of them > {100 * NEAR_REFERENCE * LIMITS['position']:g} cm from the reference"
+        axes[1, j].set_title(f"{n_s} distinct samples, {n_p} positions,\n{far}\nfraction {100 * e.fraction:.2g} %{iv}",
                              fontsize=8)
         if n_s == 0:
             for ax in axes[:, j]:

@@ -2,8 +2,10 @@
 
 Fig 6 and the filter comparison: :class:`TrackStudy` (the PF runs and the MH-EKF on one simulated
 recording, its snapshot errors), :func:`in_region_95` (coverage of a filter's own 95 % region),
-:func:`snapshot_table`, :func:`bootstrap_median`, :func:`fig6_summary`, :func:`corner_ratios` (the
-distribution over recordings) and :func:`filter_scores` (PF and MH-EKF on the same epochs).
+:func:`snapshot_table`, :func:`bootstrap_median`, :func:`bootstrap_run_cep50` (a CEP50 pooled over
+runs, resampled by run), :func:`fig6_summary`, :func:`corner_ratios` (the distribution over recordings)
+and :func:`filter_scores` (PF and MH-EKF on the same epochs, with the keeps-track rule
+:data:`KEEPS_TRACK` applied to each per recording).
 :mod:`.study` runs the filters and builds the :class:`TrackStudy`.
 """
 
@@ -19,8 +21,15 @@ from ...calibration import MAD_TO_SIGMA
 from ...models import doppler as dm
 from ...sim import chirps as sc
 
-__all__ = ["TrackStudy", "in_region_95", "snapshot_table", "bootstrap_median", "fig6_summary", "corner_ratios",
-           "filter_scores"]
+__all__ = ["TrackStudy", "in_region_95", "snapshot_table", "bootstrap_median", "bootstrap_run_cep50", "fig6_summary",
+           "corner_ratios", "filter_scores", "keeps_track", "KEEPS_TRACK", "LOST_M"]
+
+#: A filter *keeps track* on a recording when at least ``KEEPS_TRACK[0]`` of its scored epochs have a
+#: horizontal error under :data:`LOST_M` (the PF: pooled over its runs) and, for the PF, at most
+#: ``KEEPS_TRACK[1]`` of its runs restarted (the MH-EKF does not restart).
+KEEPS_TRACK = (0.95, 0.05)
+#: Horizontal error (m) beyond which an epoch counts as off the track.
+LOST_M = 0.5
 
 
 @dataclass(frozen=True)
@@ -120,6 +129,24 @@ def bootstrap_median(values, *, rng: np.random.Generator, n_boot: int = 4000, co
     return med, float(np.quantile(boot, a)), float(np.quantile(boot, 1 - a))
 
 
+def bootstrap_run_cep50(err_m, *, rng: np.random.Generator, n_boot: int = 2000, chunk: int = 250) -> np.ndarray:
+    """Bootstrap replicates (cm) of the CEP50 of errors pooled over runs, resampling whole runs.
+
+    ``err_m`` shape ``(runs, epochs)``: the runs are the independent replicates (one recording, a
+    fresh random stream each), the epochs of one run are not. Returns ``n_boot`` values, or an
+    empty array with fewer than 3 runs (no interval).
+    """
+    e = np.asarray(err_m, float)
+    if e.ndim != 2 or e.shape[0] < 3:
+        return np.empty(0)
+    k = int(np.ceil(0.5 * e.size)) - 1          # metrics.cep50's rule: the ceil(N / 2)-th smallest error
+    out = []
+    for start in range(0, n_boot, chunk):
+        pick = rng.integers(0, e.shape[0], (min(chunk, n_boot - start), e.shape[0]))
+        out.append(100 * np.partition(e[pick].reshape(len(pick), -1), k, axis=1)[:, k])
+    return np.concatenate(out)
+
+
 def fig6_summary(snap: pd.DataFrame, *, rng: np.random.Generator) -> pd.DataFrame:
     """Distribution over recordings of the snapshot numbers, per variant (both corners pooled per recording).
 
@@ -148,7 +175,7 @@ def corner_ratios(snap: pd.DataFrame, *, rng: np.random.Generator, variant: str 
     return pd.DataFrame(rows)
 
 
-def filter_scores(studies: list[TrackStudy], *, lost_m: float = 0.5) -> pd.DataFrame:
+def filter_scores(studies: list[TrackStudy], *, lost_m: float = LOST_M) -> pd.DataFrame:
     """PF and MH-EKF on the same epochs (PF update times after ``t_score_s``), per recording and variant.
 
     CEP50/CEP95 pool all PF runs; the MH-EKF is deterministic (one run). Beside accuracy:
@@ -158,7 +185,8 @@ def filter_scores(studies: list[TrackStudy], *, lost_m: float = 0.5) -> pd.DataF
     estimate`` (share of scored epochs with a finite estimate), ``in track`` (share of scored
     epochs with horizontal error under ``lost_m``) and, for the PF, its restarts (runs
     whose particles had all left the room) and the share of tempered updates. The MH-EKF
-    has no restart mechanism (its column is 0 by construction).
+    has no restart mechanism (its column is 0 by construction). ``PF keeps track`` and ``MH-EKF
+    keeps track`` apply the rule :data:`KEEPS_TRACK` to each filter on each recording.
     """
     rows = []
     for k, st in enumerate(studies):
@@ -188,4 +216,20 @@ def filter_scores(studies: list[TrackStudy], *, lost_m: float = 0.5) -> pd.DataF
                          "PF tempered updates": float(np.mean(runs.meta.get("tempered", np.zeros(1)))),
                          "PF median |V err| (m/s)": float(np.median(v_pf)),
                          "MH-EKF median |V err| (m/s)": float(np.median(v_kf))})
-    return pd.DataFrame(rows)
+    df = pd.DataFrame(rows)
+    if len(df):
+        pf, kf = keeps_track(df)
+        df.insert(df.columns.get_loc("PF in track"), "PF keeps track", pf)
+        df.insert(df.columns.get_loc("PF in track"), "MH-EKF keeps track", kf)
+    return df
+
+
+def keeps_track(scores: pd.DataFrame) -> tuple[pd.Series, pd.Series]:
+    """:data:`KEEPS_TRACK` on each row of :func:`filter_scores` (one recording and variant): ``(PF, MH-EKF)``.
+
+    The PF keeps track when its share of scored epochs within :data:`LOST_M` (pooled over runs) is at
+    least ``KEEPS_TRACK[0]`` and at most ``KEEPS_TRACK[1]`` of its runs restarted; the MH-EKF on its share
+    alone.
+    """
+    pf = (scores["PF in track"] >= KEEPS_TRACK[0]) & (scores["PF runs restarted"] <= KEEPS_TRACK[1] * scores["PF runs"])
+    return pf.rename("PF keeps track"), (scores["MH-EKF in track"] >= KEEPS_TRACK[0]).rename("MH-EKF keeps track")

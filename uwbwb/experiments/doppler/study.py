@@ -20,7 +20,7 @@ from ...models import doppler as dm
 from ...models.motion import ReceiverMotion
 from ...sim import chirps as sc
 from .ghosts import cuts
-from .scoring import TrackStudy
+from .scoring import TrackStudy, bootstrap_run_cep50
 
 __all__ = ["PAPER", "StudyConfig", "LAYOUTS", "ROOMS", "READINGS", "make_model", "reference_table", "SpaceMap",
            "map_space", "period_readings", "figure_samples", "fraction_table", "make_filters",
@@ -370,16 +370,20 @@ FLOOR_CONDITIONS = (("as simulated", True, False, 1), ("zero noise", False, Fals
 
 def error_floor(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, workers: int = 1,
                 scheduler=None) -> pd.DataFrame:
-    """What the Doppler-only PF's error floor is made of, measured on one recording (Doppler only).
+    """What the Doppler-only PF's CEP50 is made of, measured on one recording (Doppler only).
 
     The same walk (same seed) is filtered under each of :data:`FLOOR_CONDITIONS`: as
     simulated; with no timing jitter, misses or spurious chirps; with ΔP also replaced by
     eq 1 at the true state (removes the model error of reading a period-averaged ΔP as one
     state); and that with four times the particles (the particle count's share). Each row:
     snapshot CEP50 (both corners pooled), offset and run-to-run CEP50 (mean of the corners),
-    CEP50 over all scored epochs, ``cfg.floor_runs`` runs.
+    CEP50 over all scored epochs with its 95 % interval (bootstrap over the ``cfg.floor_runs``
+    runs, :func:`~.scoring.bootstrap_run_cep50`), and the drop of that CEP50 from the row above
+    with its interval (the two rows' runs resampled independently; NaN with fewer than 3 runs).
+    The last condition's CEP50 is a floor only if the drop to it is nil within its interval.
     """
-    rows = []
+    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 5, seed_offset]))
+    rows, boots = [], []
     for label, noise, exact, factor in FLOOR_CONDITIONS:
         st = track_study(layout, cfg, seed_offset=seed_offset, pf_runs=cfg.floor_runs, noise=noise, exact_dp=exact,
                          n_particles=factor * cfg.n_particles, variants=("Doppler",), kf=False, workers=workers,
@@ -388,9 +392,25 @@ def error_floor(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, workers:
         runs = st.pf["Doppler"]
         keep = runs.t_s > st.t_score_s
         e = np.linalg.norm(runs.pos_m[:, keep, :2] - st.track.pos_m(runs.t_s[keep])[:, :2], axis=-1)
+        boots.append(bootstrap_run_cep50(e, rng=rng))
+        lo, hi = _quantiles(boots[-1])
         rows.append({"condition": label, "particles": factor * cfg.n_particles, "runs": runs.n_runs,
                      "snapshot CEP50 (cm)": st.headline("Doppler")["cep50_cm"],
                      "offset (cm)": float(snap["offset (cm)"].mean()),
                      "run-to-run CEP50 (cm)": float(snap["run-to-run CEP50 (cm)"].mean()),
-                     "CEP50, scored epochs (cm)": 100 * metrics.cep50(e.ravel())})
-    return pd.DataFrame(rows).set_index("condition")
+                     "CEP50, scored epochs (cm)": 100 * metrics.cep50(e.ravel()),
+                     "CEP50 95 % low (cm)": lo, "CEP50 95 % high (cm)": hi})
+    df = pd.DataFrame(rows).set_index("condition")
+    df["drop from the row above (cm)"] = -df["CEP50, scored epochs (cm)"].diff()
+    drops = [(np.nan, np.nan)] + [_quantiles(a - b if a.size and b.size else np.empty(0))
+                                  for a, b in zip(boots[:-1], boots[1:])]
+    df["drop 95 % low (cm)"], df["drop 95 % high (cm)"] = zip(*drops)
+    return df
+
+
+def _quantiles(boot: np.ndarray, confidence: float = 0.95) -> tuple[float, float]:
+    """Percentile interval of bootstrap replicates (NaN, NaN when there are none)."""
+    if not boot.size:
+        return np.nan, np.nan
+    a = (1 - confidence) / 2
+    return float(np.quantile(boot, a)), float(np.quantile(boot, 1 - a))
