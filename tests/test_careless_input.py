@@ -304,7 +304,7 @@ def test_values_inside_their_spec_are_passed_typed(only, name, text, expected, n
     (["--quick", "--only", "01", "-p", "SIGMA_D_CMPS", "(2, 4, 40)"], "runs its own CI-sized sweep"),
     (["--quick", "--only", "03", "-p", "SIM_DURATION_S", "100"],
      "SIM_DURATION_S=100.0 would not be used: with FAST=True the notebook lowers SIM_DURATION_S to 60"),
-    (["--quick", "--only", "05", "-p", "REAL_DURATION_S", "None"], "lowers REAL_DURATION_S to 20"),
+    (["--quick", "--only", "05", "-p", "STATIC_S", "60"], "lowers STATIC_S to 20"),
     # class mode sets its own lecture sizes: below FAST's cap is still not what a CLASS run uses
     (["--only", "03", "-p", "CLASS", "True", "-p", "SIM_DURATION_S", "50"],
      "SIM_DURATION_S=50.0 would not be used: with CLASS=True the notebook picks its own lecture sizes"),

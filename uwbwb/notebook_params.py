@@ -420,8 +420,6 @@ SPECS: dict[str, dict[str, Spec]] = {
         "OUTLIER_C_M": real(lo=0, lo_open=True, hi=100.0),
         "GATE_PROB": real(lo=0, hi=1, lo_open=True, hi_open=True),
         "LOOSE_WINDOW": integer(lo=1, hi=10_000),
-        "ALIGN_S": real(lo=0, lo_open=True, hi=86400.0, fast_cap=15.0),
-        "REAL_DURATION_S": real(lo=0, lo_open=True, hi=86400.0, none="to the end of the run", fast_cap=20.0),
         "RATE_HZ": real(lo=0, lo_open=True, hi=1000.0, fast_cap=5.0),
         "SEEDS": integer(lo=2, hi=100_000, fast="scores the ablation on 2 seeds (AblationConfig.fast)"),
     },

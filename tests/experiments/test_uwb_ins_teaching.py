@@ -63,9 +63,8 @@ def test_inflation_is_fitted_on_one_comparison_and_applied_on_the_other():
     assert not h["scaled_consistent"] and h["inside_test_scaled"] < f["prob"] - realtune.CONSISTENT_POINTS
 
 
-def test_every_filter_is_tuned_by_one_procedure_and_its_scales_touch_only_itself(tmp_path):
+def test_each_filters_scales_touch_only_itself(tmp_path):
     from uwbwb.datasets import iasl
-    from uwbwb.experiments.uwb_ins import realfair
 
     root = tmp_path / "iasl-uwb-imu"
     root.mkdir()
@@ -73,33 +72,49 @@ def test_every_filter_is_tuned_by_one_procedure_and_its_scales_touch_only_itself
     fx.write_scenario(root / "flight_a", rng=np.random.default_rng(8), duration_s=30.0)
     rec = iasl.load_scenario("flight_a", tmp_path)
     cal = imu_calibration.calibrate_iasl(rec)
-    grid = ((0.1, 1.0), (1.0, 1.0), (10.0, 1.0))
-    tun = realfair.tune_scales(rec, cal, still_s=1.0, align_s=10.0, grid=grid)
-    assert set(tun) == set(realfair.TUNED)
-    for name, t in tun.items():
-        col = t.table["horizontal RMSE (m)"]
-        assert t.scales == col.idxmin() and t.r_edge                   # a one-value knob is on its edge
-        assert t.q_edge == (t.q in (0.1, 10.0)) and len(col) == 3
-    table = realfair.tuning_table(tun)
-    assert list(table.index) == list(realfair.TUNED) and (table["RMSE picked (m)"] <= table["RMSE at Q × 1, R × 1 (m)"]).all()
     base = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0)
-    for name in realfair.TUNED:                                        # (q, r) moves that filter and no other
+    for name in alignment.TUNABLE:                                     # (q, r) moves that filter and no other
         comp = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={name: (10.0, 3.0)})
         for other in base.estimates:
             same = np.array_equal(comp.estimates[other].pos_m, base.estimates[other].pos_m, equal_nan=True)
             assert same == (other != name), (name, other)
-    one = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={n: (1.0, 1.0) for n in realfair.TUNED})
+    one = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={n: (1.0, 1.0) for n in alignment.TUNABLE})
     for other in base.estimates:                                      # (1, 1) is the untuned filter, bit for bit
         np.testing.assert_array_equal(one.estimates[other].pos_m, base.estimates[other].pos_m)
-    rows = realfair.summary_rows(tun, None, data="x", cal_label="flight_a", cal_data="cal/flight_a")
-    assert [r["value"] for r in rows[:2]] == [tun["EKF + gate"].q, tun["EKF + gate"].r]
-    assert all("tuning output" in r["quantity"] and "3-point grid" in r["quantity"] and r["data"] == "cal/flight_a"
-               for r in rows)
     assert realtune.summary_rows({"k": 2.0, "nees_test_scaled": 3.0}, data="x", cal_label="a")[0]["value"] == 2.0
-    with pytest.raises(ValueError, match="grid"):
-        realfair.tune_scales(rec, cal, grid=())
     with pytest.raises(ValueError, match="unknown filters"):
         alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={"UWB-only": (1.0, 1.0)})
+
+
+def test_the_real_data_tables_read_the_boards_tuning_and_estimates(tmp_path):
+    """Notebook 05's real-data section is one scoreboard: its tuning table, summary rows and Comparison come from it."""
+    from uwbwb import scoreboard as sb
+    from uwbwb.datasets import iasl
+    from uwbwb.experiments.uwb_ins import realdata, realfair
+    from uwbwb.scoreboard.estimators import CalibratedLs, UwbInsFilter
+
+    fx.write_dataset(tmp_path / "iasl-uwb-imu", rng=np.random.default_rng(8), duration_s=30.0)
+    cal_rec, test = iasl.load_scenario("scenario1", tmp_path), iasl.load_scenario("scenario2", tmp_path)
+    grid, cache = ((0.1, 1.0), (1.0, 1.0), (10.0, 1.0)), {}
+    ests = [CalibratedLs(), *(UwbInsFilter(k, cache, grid) for k in ("loose", "tight", "INS-only"))]
+    b = sb.score(test, cal_rec, estimators=ests, rate_hz=10.0, fast=True)
+    table = realfair.tuning_table(b)
+    assert list(table.index) == ["loose", "tight"]                   # LS and INS-only tune nothing
+    for name in table.index:
+        p = b.calibration.params(name)
+        assert (table.loc[name, "Q ×"], table.loc[name, "R ×"]) == (p["q_scale"], p["r_scale"])
+        assert table.loc[name, "RMSE picked (m)"] == min(p["grid_rmse_m"]) <= table.loc[name, "RMSE at Q × 1, R × 1 (m)"]
+        assert table.loc[name, "edge"] == ("on the edge" if p["grid_edge"] else "—")
+    rows = realfair.summary_rows(b, None, data="x", cal_label="scenario1", cal_data="cal")
+    assert [r["value"] for r in rows[:2]] == [b.calibration.params("loose")["q_scale"], b.calibration.params("loose")["r_scale"]]
+    assert len(rows) == 4 and all("3-point grid" in r["quantity"] and r["data"] == "cal" for r in rows)
+    comp = realdata.board_comparison(b)
+    assert list(comp.estimates) == ["LS", "loose", "tight", "INS-only"] and b.entry("INS-only", "tag").bound is None
+    for e in b.ran("tag"):                                            # the board's errors, epoch for epoch
+        np.testing.assert_array_equal(comp.errors(e.method)[e.scoring], e.error_m[e.scoring])
+    assert comp.rejected["eq4"] == int(np.sum(b.entry("tight", "tag").estimates.info["n_outliers"]))
+    with pytest.raises(ValueError, match="kind"):
+        UwbInsFilter("EKF + gate")
 
 
 def test_the_clock_verdict_follows_the_interval_of_the_change():
@@ -119,7 +134,9 @@ def test_the_clock_verdict_follows_the_interval_of_the_change():
                 "start_s": (22.0, 22.05),
                 "table": t}
 
-    rows = realfair.summary_rows({}, res((0.1, -0.2, 0.5), (2.5, 1.0, 4.0)), data="x", cal_label="c")
+    class NoTuning:                                         # a board whose methods tuned nothing
+        methods = ()
+    rows = realfair.summary_rows(NoTuning(), res((0.1, -0.2, 0.5), (2.5, 1.0, 4.0)), data="x", cal_label="c")
     assert [r["unit"] for r in rows] == ["ms", "mm", "mm"] and rows[0]["value"] == pytest.approx(-40.0)
 
 

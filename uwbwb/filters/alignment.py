@@ -312,7 +312,7 @@ def run_fusion_filter(name: str, a: AlignedStart, rec: Recording, cal: RealCalib
                       ekf_psd_m2ps3: float = IASL_EKF_PSD_M2PS3):
     """One filter of :func:`compare_iasl` from the aligned start ``a``; returns ``(run, Estimates)``.
 
-    ``name`` is one of :data:`TUNABLE`. ``scales = (q, r)`` multiply that filter's process and
+    ``name`` is one of :data:`TUNABLE`, or ``"INS-only"`` (the mechanization alone, nothing to scale). ``scales = (q, r)`` multiply that filter's process and
     measurement noise only (on top of ``settings``' common scales): the tight filters' ``q_scale``
     and ``r_scale``, the loose filter's Q and R (:func:`loose_filter`), the EKF's random-force
     spectral density and its TDoA variance. ``(1, 1)`` is the untuned filter. ``settings``' common
@@ -343,7 +343,10 @@ def run_fusion_filter(name: str, a: AlignedStart, rec: Recording, cal: RealCalib
                       gate_prob=settings.gate_prob)
         run = ekf.run(a.screened.select(after), x0=ekf.init(a.x0.pos_m, a.x0.vel_mps))
         return run, replace(run.to_estimates(), name=name)
-    raise ValueError(f"name must be one of {TUNABLE}, got {name!r}")
+    if name == "INS-only":                               # no aiding and no knob: the scales are ignored
+        run = eskf.dead_reckon(a.imu, a.x0, a.log.select(after).t_s, gyro_bias=a.gyro_bias0_radps)
+        return run, run.to_estimates(dim=3, name=name)
+    raise ValueError(f"name must be one of {TUNABLE + ('INS-only',)}, got {name!r}")
 
 
 def compare_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings = FusionSettings(), *,
@@ -380,12 +383,10 @@ def compare_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings 
         raise ValueError(f"scales: unknown filters {sorted(unknown)}; tunable: {TUNABLE}")
     # 3. the comparison, all from x0 at epoch k0
     runs, est = {}, {"UWB-only": a.fixes.select(a.after)}
-    for name in ("EKF + gate", "tight", "tight (ranges)", "loose"):
+    for name in ("EKF + gate", "tight", "tight (ranges)", "loose", "INS-only"):
         runs[name], est[name] = run_fusion_filter(name, a, rec, cal, settings, scales=scales.get(name, (1.0, 1.0)),
                                                   ekf_psd_m2ps3=ekf_psd_m2ps3)
     sub = a.log.select(a.after)
-    runs["INS-only"] = eskf.dead_reckon(a.imu, a.x0, sub.t_s, gyro_bias=a.gyro_bias0_radps)
-    est["INS-only"] = runs["INS-only"].to_estimates(dim=3, name="INS-only")
     runs = {k: runs[k] for k in ("tight", "tight (ranges)", "loose", "INS-only", "EKF + gate")}
     est = {k: est[k] for k in ("UWB-only", "EKF + gate", "tight", "tight (ranges)", "loose", "INS-only")}
     truth, have = scored_truth(rec, sub.t_s)

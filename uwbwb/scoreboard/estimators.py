@@ -183,7 +183,8 @@ INS_GRID_FAST = tuple((q, r) for q in (0.1, 1.0) for r in (1.0, 3.0))
 @dataclass(frozen=True, eq=False)
 class UwbInsFilter(BaseEstimator):
     """The UWB/INS error-state filters of notebook 05 (``"loose"``: the paper's 6-state filter on
-    TDoA LS fixes; ``"tight"``: the 15-state filter with one update per TDoA), where an IMU exists.
+    TDoA LS fixes; ``"tight"``: the 15-state filter with one update per TDoA; ``"tight (ranges)"``: the same
+    with one update per range; ``"INS-only"``: the mechanization alone, no knob and no bound), where an IMU exists.
 
     ``tune`` is notebook 05's IMU calibration on the calibration recording (each filter keeps its own copy)
     (:func:`~uwbwb.filters.imu_calibration.calibrate_iasl`: sensor axes, accelerometer scale,
@@ -209,6 +210,12 @@ class UwbInsFilter(BaseEstimator):
     kind: str = "tight"
     _cache: dict = field(default_factory=dict, repr=False)
     grid: tuple[tuple[float, float], ...] = INS_GRID
+    #: eq. 4's margin, the χ² gate, the loose filter's velocity window (notebook 05's parameters; defaults as there)
+    settings: alignment.FusionSettings = alignment.FusionSettings()
+
+    def __post_init__(self):
+        if self.kind not in alignment.TUNABLE + ("INS-only",) or self.kind == "EKF + gate":
+            raise ValueError(f"UwbInsFilter kind must be loose, tight, tight (ranges) or INS-only, got {self.kind!r}")
 
     @property
     def name(self) -> str:
@@ -234,6 +241,8 @@ class UwbInsFilter(BaseEstimator):
         imu_cal = store[ikey]
         cal_ins = cal.with_tuned(self.name, {"calibration": imu_cal})
         self._cache["n_tags"] = max(len(tags), self._cache.get("n_tags", 1))
+        if self.kind not in alignment.TUNABLE:              # INS-only: no knob to tune
+            return {"calibration": imu_cal}
         # the (q, r) pick minimises the mean RMSE over every usable tag, as the EKFs' σ_w search
         cost = [np.mean([_errors_rmse(self._run(rec, t, cal_ins, (q, r)), rec, t, cal.dim) for t in tags])
                 for q, r in self.grid]
@@ -256,7 +265,7 @@ class UwbInsFilter(BaseEstimator):
         the whole of what it costs."""
         imu_cal = self._imu_calibration(cal)
         key = (self.kind, rec.label, tag, float(rec.ranges[tag].t_s[0]), len(rec.ranges[tag]), id(imu_cal),
-               cal.sigma(tag).tobytes())
+               cal.sigma(tag).tobytes(), hash(rec.imu.t_s.tobytes()))     # the IMU clock may differ, not the ranges
         starts = self._cache.setdefault("starts", {})
         if key not in starts:
             real = replace(imu_cal, range_sigma_m=cal.sigma(tag), range_bias_m=0.0)
@@ -266,8 +275,8 @@ class UwbInsFilter(BaseEstimator):
             one = replace(rec, ranges={"tag": log}, truth={"tag": hidden})
             while len(starts) >= 4 * self._cache.get("n_tags", 1) + 4:   # bounded: calibration and test, both kinds
                 starts.pop(next(iter(starts)))
-            starts[key] = (one, real, alignment.align_iasl(one, real, alignment.FusionSettings(),
-                                                           still_s=INS_REST_S, align_s=INS_ALIGN_S))
+            starts[key] = (one, real, alignment.align_iasl(one, real, self.settings, still_s=INS_REST_S,
+                                                           align_s=INS_ALIGN_S))
         return starts[key]
 
     def _run(self, rec, tag, cal, scales=None):
@@ -277,7 +286,7 @@ class UwbInsFilter(BaseEstimator):
             p = cal.params(self.name)
             scales = (float(p.get("q_scale", 1.0)), float(p.get("r_scale", 1.0)))
         one, real, start = self._start(rec, tag, cal)
-        _, est = alignment.run_fusion_filter(self.kind, start, one, real, alignment.FusionSettings(),
+        _, est = alignment.run_fusion_filter(self.kind, start, one, real, self.settings,
                                              scales=(float(scales[0]), float(scales[1])))
         return self._placed(est, rec, tag)
 
@@ -301,6 +310,8 @@ class UwbInsFilter(BaseEstimator):
         return Estimates(log.t_s, pos, status, self.name, cov, None, info)
 
     def bound(self, rec, tag, cal, est):
+        if self.kind == "INS-only":                         # no UWB, no model of its own drift: no bound
+            return None
         log = calibrated_log(rec, tag, cal)
         info, have = _tdoa_information(rec, tag, cal, log)
         C = np.full((len(log), cal.dim, cal.dim), np.nan)
@@ -372,8 +383,12 @@ class ExternalEstimates(BaseEstimator):
         return None
 
 
-def default_estimators(*, fast: bool = False, seed: int = 0) -> list[Estimator]:
+def default_estimators(*, fast: bool = False, seed: int = 0, ins_kinds: tuple[str, ...] = ("loose", "tight"),
+                       ins_settings: alignment.FusionSettings = alignment.FusionSettings()) -> list[Estimator]:
     """Every method of the package, in the board's order.
+
+    ``ins_kinds`` are the UWB/INS filters on the board (:class:`UwbInsFilter` kinds; notebook 05 adds
+    ``"tight (ranges)"`` and ``"INS-only"``), all with ``ins_settings``; they share one IMU calibration.
 
     ``fast`` shrinks what costs time (particles, tuning grids) for CI-sized runs: every other value
     of each tuning grid (the EKFs' σ_w: 5 of 9; the UWB/INS (q, r) pairs: :data:`INS_GRID_FAST`, 4 of 16); the NLS windows: 2 of 3 (1 and
@@ -391,4 +406,4 @@ def default_estimators(*, fast: bool = False, seed: int = 0) -> list[Estimator]:
     return [RawLs(), CalibratedLs(), TdoaLs(), *ekfs,
             SetNoiseFilter("KF", seed=seed), SetNoiseFilter("PF", n_particles=200 if fast else 1000, seed=seed),
             WindowNls(windows_s=NLS_WINDOWS_S[1:] if fast else NLS_WINDOWS_S),
-            UwbInsFilter("loose", ins_cache, ins_grid), UwbInsFilter("tight", ins_cache, ins_grid)]
+            *(UwbInsFilter(kind, ins_cache, ins_grid, ins_settings) for kind in ins_kinds)]

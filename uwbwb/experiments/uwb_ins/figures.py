@@ -15,6 +15,10 @@ from ...filters.alignment import Comparison
 __all__ = ["static_traces", "track", "error_vs_time", "attitude", "bias_estimates"]
 
 
+#: The UWB-only fixes (notebook 05's name, the board's): drawn thin and beneath the filters, spikes counted.
+FIXES = ("UWB-only", "LS")
+
+
 def _axes(ax, n=1):
     if ax is None:
         _, ax = plt.subplots(1, n, figsize=(6 * n, 3.5))
@@ -36,8 +40,8 @@ def static_traces(comp: Comparison, names=("UWB-only", "loose", "tight"), axes=N
     for k, (ax, lab) in enumerate(zip(axes, ("east", "north"))):
         for name in names:
             est = comp.estimates[name]
-            ax.plot(t, est.pos_m[:, k], color=color_for(name), lw=0.8 if name != "UWB-only" else 0.5,
-                    alpha=1.0 if name != "UWB-only" else 0.6, label=name)
+            ax.plot(t, est.pos_m[:, k], color=color_for(name), lw=0.8 if name not in FIXES else 0.5,
+                    alpha=1.0 if name not in FIXES else 0.6, label=name)
         ax.axhline(comp.truth.pos_m[0, k], color="k", ls="--", lw=1, label="truth")
         ax.set_ylim(comp.truth.pos_m[0, k] - window_m, comp.truth.pos_m[0, k] + window_m)
         ax.set_xlabel("t (s)")
@@ -64,9 +68,9 @@ def track(comp: Comparison, names=("UWB-only", "loose", "tight"), ax=None, *, an
     keep = [truth]
     for name in names:
         p = comp.estimates[name].pos_m
-        ax.plot(p[:, 0], p[:, 1], color=color_for(name), lw=0.8 if name != "UWB-only" else 0.4,
-                alpha=1.0 if name != "UWB-only" else 0.5, label=name, zorder=1 if name == "UWB-only" else 2)
-        if name != "UWB-only":
+        ax.plot(p[:, 0], p[:, 1], color=color_for(name), lw=0.8 if name not in FIXES else 0.4,
+                alpha=1.0 if name not in FIXES else 0.5, label=name, zorder=1 if name in FIXES else 2)
+        if name not in FIXES:
             keep.append(p[:, :2])
     ax.plot(truth[:, 0], truth[:, 1], "k--", lw=1, label="truth", zorder=3)
     if anchors_m is not None:
@@ -79,11 +83,11 @@ def track(comp: Comparison, names=("UWB-only", "loose", "tight"), ax=None, *, an
         lo, hi = pts.min(axis=0) - margin_m, pts.max(axis=0) + margin_m
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
-        if "UWB-only" in names:
-            u = comp.estimates["UWB-only"].pos_m[:, :2]
+        for fix in (n for n in names if n in FIXES):
+            u = comp.estimates[fix].pos_m[:, :2]
             out = int(np.sum(np.any((u < lo) | (u > hi), axis=1) & np.all(np.isfinite(u), axis=1)))
             if out:
-                ax.text(0.01, 0.01, f"{out} UWB-only fixes outside the axes", transform=ax.transAxes, fontsize=8)
+                ax.text(0.01, 0.01, f"{out} {fix} fixes outside the axes", transform=ax.transAxes, fontsize=8)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
@@ -103,20 +107,20 @@ def error_vs_time(comp: Comparison, names=("UWB-only", "loose", "tight"), ax=Non
     _shade(comp, ax)
     t = comp.truth.t_s
     scored = comp.masks.get("scored", np.ones(len(t), bool))
-    others = [comp.errors(n)[scored] for n in names if n != "UWB-only"]
+    others = [comp.errors(n)[scored] for n in names if n not in FIXES]
     top = ylim_m
     if top is None:
         finite = [e[np.isfinite(e)] for e in others]
         top = 1.2 * max((float(e.max()) for e in finite if e.size), default=1.0)
     for name in names:
         e = np.where(scored, comp.errors(name), np.nan)
-        uwb = name == "UWB-only"
+        uwb = name in FIXES
         ax.plot(t, e, color=color_for(name), lw=0.5 if uwb else 0.9, alpha=0.5 if uwb else 1.0, label=name,
                 zorder=1 if uwb else 2)
         if uwb:
             above = int(np.sum(e > top))
             if above:
-                ax.text(0.01, 0.97, f"UWB-only: {above} epochs above {top:.2g} m (max {np.nanmax(e):.2g} m)",
+                ax.text(0.01, 0.97, f"{name}: {above} epochs above {top:.2g} m (max {np.nanmax(e):.2g} m)",
                         transform=ax.transAxes, fontsize=8, va="top")
     ax.set_ylim(0, top)
     ax.set_xlabel("t (s)")

@@ -1,9 +1,10 @@
 """Notebook 05's real-data tables (``iasl-uwb-imu``): horizontal, vertical and 3-D error on common
-epochs, and consistency (NEES, NIS). Which method is more accurate is the scoreboard's verdict
-(:func:`uwbwb.scoreboard.verdicts.difference_table`), not this module's.
+epochs, and consistency (NEES, NIS), of the methods on a scoreboard (:func:`board_comparison`: the board
+runs and tunes them; these tables read its estimates). Which method is more accurate is the scoreboard's
+verdict (:func:`uwbwb.scoreboard.verdicts.difference_table`), not this module's.
 
-Every method of a :class:`~uwbwb.filters.alignment.Comparison` from :func:`~uwbwb.filters.alignment.compare_iasl` is scored on the
-**common epochs**: those where the truth exists and every method has an estimate.
+Every method of a :class:`~uwbwb.filters.alignment.Comparison` is scored on the **common epochs**: those
+where the truth exists and every method has an estimate.
 """
 
 from __future__ import annotations
@@ -14,8 +15,31 @@ from scipy import stats
 
 from ... import metrics
 from ...filters.alignment import Comparison
+from ...scoreboard import Board
+from ...types import Trajectory
 
-__all__ = ["summary_rows", "common_epochs", "error_table", "consistency_table"]
+__all__ = ["board_comparison", "summary_rows", "common_epochs", "error_table", "consistency_table"]
+
+
+def board_comparison(board: Board, tag: str = "tag", methods=None) -> Comparison:
+    """The board's estimates of ``methods`` (default: every method that ran) on ``tag`` as a
+    :class:`~uwbwb.filters.alignment.Comparison` (the container notebook 05's tables and figures read):
+    truth at the board's epochs (``masks["scored"]``: where it exists), and the TDoAs eq. 4 and the tight
+    filter's gate rejected (``rejected``, where the board has a ``tight`` row)."""
+    ents = [e for e in board.ran(tag) if methods is None or e.method in methods]
+    if not ents:
+        raise ValueError(f"{board.label}: no method ran on {tag!r}")
+    t = ents[0].estimates.t_s
+    have = ents[0].scoring
+    truth = Trajectory(t, np.where(have[:, None], ents[0].truth_pos_m, 0.0), name="truth")
+    est = {e.method: e.estimates for e in ents}
+    rejected = {}
+    if "tight" in est:
+        info = est["tight"].info
+        rejected = {"eq4": int(np.sum(info.get("n_outliers", 0))), "gated": int(np.sum(info.get("n_gated", 0)))}
+    first = {m: e.t_s[e.has_estimate][0] for m, e in est.items() if e.has_estimate.any()}
+    return Comparison(board.data_label, truth, est, {}, {"scored": have}, rejected, 2,
+                      {"start_s": float(max(first.values())) if first else np.nan})
 
 
 def common_epochs(comp: Comparison, methods=None) -> np.ndarray:

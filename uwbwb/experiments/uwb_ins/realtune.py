@@ -1,6 +1,6 @@
 """Notebook 05's real-data covariance check (``iasl-uwb-imu``): the covariance inflation that makes
-the tight filter consistent, fitted on the calibration scenario and applied on the scored one. Every
-filter's Q/R tuning and the IMU clock without motion capture are in :mod:`.realfair`.
+the tight filter consistent, fitted on the calibration scenario and applied on the scored one. The
+tuning table and the IMU clock without motion capture are in :mod:`.realfair`.
 
 Nothing here reads the scored scenario's truth except to score; the loader's default IMU clock
 offset is estimated against each scenario's own motion-capture attitude (see

@@ -7,8 +7,8 @@ magnetometer headings where there are any, the same known tag height for the gro
 They are scored on the same epochs; coverage is reported beside accuracy.
 
 The real-data pieces live in the core: the IMU calibration in :mod:`uwbwb.filters.imu_calibration`, the start-up
-(eq-4 screen, levelling, heading alignment) and :func:`~uwbwb.filters.alignment.compare_iasl` in
-:mod:`uwbwb.filters.alignment`.
+(eq-4 screen, levelling, heading alignment) and the filters run from it in :mod:`uwbwb.filters.alignment`, and the
+board that tunes and scores them on a recording in :mod:`uwbwb.scoreboard` (notebook 05's real-data section).
 """
 
 from __future__ import annotations
