@@ -103,10 +103,11 @@ def update(state: Gaussian, z: np.ndarray, H: np.ndarray, R: np.ndarray,
     if H.shape != (z.size, state.x.size) or R.shape != (z.size, z.size):
         raise ValueError(f"update: z {z.shape}, H {H.shape}, R {R.shape} do not fit state of size {state.x.size}")
     for name, a in (("z", z), ("H", H), ("R", R)) + ((("h_x", np.asarray(h_x, float)),) if h_x is not None else ()):
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"update: {name} contains non-finite values; a missing measurement is left out, "
                              f"not passed as NaN")
-    if np.any(np.diag(R) <= 0) or not np.allclose(R, R.T):
+    # np.allclose(R, R.T)'s test (rtol 1e-5, atol 1e-8), written out: the filters call this per epoch
+    if (np.diag(R) <= 0).any() or not (np.abs(R - R.T) <= 1e-8 + 1e-5 * np.abs(R.T)).all():
         raise ValueError(f"update: R must be symmetric with positive variances, got diagonal {np.diag(R).tolist()}")
     S = H @ state.P @ H.T + R
     try:
