@@ -6,6 +6,7 @@ import json
 import sys
 import types
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -186,3 +187,31 @@ def test_argument_errors_exit_2_with_a_message(argv, message, capsys, tmp_path, 
 def test_help_exits_zero(capsys):
     assert cli.main(["--help"]) == 0
     assert "reproduce" in capsys.readouterr().out
+
+
+def test_score_prints_no_runtime_warning_on_sound_recordings(tmp_path, capsys):
+    """A sound recording, with and without an IMU, scores with no RuntimeWarning reaching the console (an empty
+    slice, a division by zero or an invalid value inside a method would print one to every user)."""
+    import warnings
+
+    from tests.fixtures import iasl as fx
+    from uwbwb.datasets import tidy
+    from uwbwb.scoreboard import synthetic as syn
+
+    from dataclasses import replace
+
+    from uwbwb.types import Trajectory
+
+    rec = syn.simulate(syn.SyntheticConfig(duration_s=30.0), rng=np.random.default_rng(5))
+    tr = rec.truth["tag"]
+    tidy.write_recording(replace(rec, truth={"tag": Trajectory(tr.t_s, tr.pos_m, name="truth")}), tmp_path / "run")
+    fx.write_dataset(tmp_path / "iasl-uwb-imu", rng=np.random.default_rng(6), duration_s=40.0)
+    runs = (["score", str(tmp_path / "run"), "--rate-hz", "5"],
+            ["score", "iasl-uwb-imu/scenario2", "--calibrate-on", "iasl-uwb-imu/scenario1", "--data-dir", str(tmp_path),
+             "--methods", "LS", "EKF-RF", "loose", "tight"])
+    for k, argv in enumerate(runs):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert cli.main([*argv, "--out", str(tmp_path / f"out{k}"), "--fast", "--quiet"]) == 0, capsys.readouterr().err
+        assert not [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)], argv
+        assert "Warning" not in capsys.readouterr().err
