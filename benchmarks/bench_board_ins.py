@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import tempfile
-import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -35,6 +34,8 @@ from uwbwb.scoreboard import calibrate
 from uwbwb.scoreboard.estimators import INS_GRID, INS_REST_S, INS_ALIGN_S, UwbInsFilter
 from uwbwb.scoreboard.interface import _errors_rmse, calibrated_log
 from uwbwb.types import Trajectory
+
+from bench_eskf import _time                                   # best wall and CPU time of N calls (same folder)
 
 
 def _recording(rate_hz: float):
@@ -65,15 +66,6 @@ def _whole(rec, cal, est, grid):
 def _adapter(rec, cal, grid):
     est = UwbInsFilter("tight", {}, grid)
     return np.array(est.tune(rec, ["tag"], cal)["grid_rmse_m"])
-
-
-def _time(fn, repeat: int):
-    best, cpu, out = np.inf, np.inf, None
-    for _ in range(repeat):
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        best, cpu = min(best, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
-    return best, cpu, out
 
 
 def main() -> None:
