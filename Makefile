@@ -21,8 +21,10 @@ $(STAMP): environment.txt pyproject.toml
 env: $(STAMP)
 
 ## Open the workbench: JupyterLab on notebooks/ (token auth on, loopback only by default).
+## LAB_DIR=class/student opens the student copies that `make class` writes instead.
+LAB_DIR ?= notebooks
 lab: $(STAMP)
-	$(VENV)/bin/jupyter lab --notebook-dir=notebooks --ServerApp.ip=$(LAB_IP) --ServerApp.port=$(LAB_PORT) $(LAB_ROOT)
+	$(VENV)/bin/jupyter lab --notebook-dir=$(LAB_DIR) --ServerApp.ip=$(LAB_IP) --ServerApp.port=$(LAB_PORT) $(LAB_ROOT)
 
 ## Run the whole test suite, notebooks and the browser test included, on every core (TEST_WORKERS=0: one process).
 TEST_WORKERS ?= auto
@@ -33,8 +35,10 @@ test: $(STAMP)
 reproduce: $(STAMP)
 	$(PY) -m uwbwb reproduce $(REPRODUCE_ARGS)
 
-## Class mode: every notebook with CLASS=True and FAST=True into class/: executed notebooks with the research
-## cells folded, HTML handouts without them; prints run times and class-limit violations.
+## Class mode (CLASS=True, FAST=True), for a lecturer: class/student/ holds the notebooks to hand out (no outputs,
+## CLASS = True in the parameters cell, research cells folded, the glossary beside them; `make lab
+## LAB_DIR=class/student`), class/answers/ the same notebooks run from there, offline HTML handouts (no research
+## cells), TEACHING.md and the glossary. Prints run times and class-limit violations.
 ## CLASS_ARGS="--only 00 01 --kernel python3" picks notebooks and the kernel.
 class: $(STAMP)
 	$(PY) -m uwbwb.classroom $(CLASS_ARGS)

@@ -1,16 +1,28 @@
 """Class mode: a lecturer's run of the notebooks, and the audits that keep them teachable.
 
-``make class`` (``python -m uwbwb.classroom``) executes every notebook with ``FAST=True`` and
-``CLASS=True`` (``CLASS`` only where the notebook's ``parameters`` cell declares it) into the
-git-ignored folder ``class/`` and writes, per notebook:
+``make class`` (``python -m uwbwb.classroom``) writes two folders into the git-ignored ``class/``
+(:func:`run_class`):
 
-* ``<stem>.ipynb`` — the executed notebook; cells tagged ``research`` open *folded* in JupyterLab
-  (cell metadata ``jupyter: {source_hidden: true, outputs_hidden: true}``), one click unfolds them;
-* ``<stem>.html`` — the handout: the same run without the ``research`` cells and without the
-  injected-parameters cell (nbconvert's ``TagRemovePreprocessor``);
+* ``class/student/`` — what students get: every notebook **unexecuted** (no outputs, so no answer
+  printed under a question), its ``parameters`` cell rewritten to ``FAST = True`` and ``CLASS = True``
+  (each where the notebook declares it; :func:`set_parameters`), cells tagged ``research`` *folded*
+  (cell metadata ``jupyter: {source_hidden: true, outputs_hidden: true}``; one click unfolds them),
+  with ``GLOSSARY.md`` and every other file the notebooks link to copied beside them (links rewritten
+  where a copy moved: :func:`unresolved_links` finds none). Students open it with
+  ``make lab LAB_DIR=class/student``; the package finds the datasets wherever the notebook runs from
+  (:mod:`uwbwb.datasets.discovery` searches relative to the package, not the working directory).
+* ``class/answers/`` — what the lecturer keeps: each student notebook executed *as handed out*
+  (a Run All in ``class/student/``, no injected parameters), its HTML handout, ``TEACHING.md`` (from
+  the folder above the notebooks) and the glossary as ``GLOSSARY.md`` and ``GLOSSARY.html``.
 
-and prints each notebook's wall time and its :func:`class_limits` violations. It exits non-zero
-when a notebook fails to execute (violations are reported, not fatal).
+A handout (:func:`handout_html`) is the executed notebook without its ``research`` cells, readable
+offline in one file with no script: formulas drawn server-side as inline SVG by Matplotlib's mathtext
+(:func:`math_svg`; a formula it cannot draw is shown as TeX code and reported), each widget panel as
+static HTML of its saved state — its controls' values, its readout and its figure as a PNG
+(:func:`static_panels`) — and glossary links pointing at ``GLOSSARY.html``.
+
+The command prints each notebook's wall time and its :func:`class_limits` violations. It exits
+non-zero when a notebook fails to execute (violations are reported, not fatal).
 
 Class limits (:func:`class_limits`), among the cells *not* tagged ``research``:
 
@@ -47,21 +59,27 @@ panels) and colorbars. Each executed notebook must also hold at least one image 
 from __future__ import annotations
 
 import argparse
+import ast
+import copy
 import json
 import math
+import os
 import re
+import shutil
 import sys
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from . import reproduce
 
-__all__ = ["AUDIT_HOOK_TAG", "DIMENSIONLESS", "MAX_CODE_LINES", "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS",
-           "MAX_OUTPUT_WORDS", "MAX_TABLE_ROWS", "RESEARCH_TAG", "axes_problems", "axes_record", "class_limits",
-           "code_rules", "figure_audit",
-           "fold_research", "handout_html", "hook_cell", "image_count", "install_figure_recorder", "main",
-           "record_figure", "run_class", "source_indices"]
+__all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "MATH_SCALE", "MAX_CODE_LINES",
+           "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS", "MAX_OUTPUT_WORDS", "MAX_TABLE_ROWS", "RESEARCH_TAG",
+           "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "axes_problems", "axes_record", "class_limits",
+           "class_values", "code_rules", "figure_audit", "fold_research", "handout_html", "hook_cell", "image_count",
+           "install_figure_recorder", "main", "markdown_page_html", "math_svg", "mathtext_source", "notebook_links",
+           "record_figure", "relative_links", "relink_notebook", "run_class", "set_parameters", "source_indices",
+           "static_panels", "static_widget_html", "student_notebook", "unresolved_links", "write_student_folder"]
 
 #: Tag of the research-bookkeeping cells: folded in class notebooks, dropped from handouts.
 RESEARCH_TAG = "research"
@@ -78,6 +96,10 @@ DIMENSIONLESS = ("count", "number", "index", "fraction", "ratio", "probability",
                  "dimensionless")
 #: Default output folder of ``make class`` (git-ignored), in the working directory: never inside the package.
 CLASS_DIR = Path("class")
+#: Sub-folders of the output folder: unexecuted copies for students, and the executed run for the lecturer.
+STUDENT_DIR, ANSWERS_DIR = "student", "answers"
+#: The glossary beside the notebooks (copied beside each class copy) and the lecturer's notes above them.
+GLOSSARY_NAME, TEACHING_NAME = "GLOSSARY.md", "TEACHING.md"
 
 _UNIT = re.compile(r"[\[(][^\[\]()]{1,20}[\])]")
 _DIMLESS = re.compile(r"\b(" + "|".join(DIMENSIONLESS) + r")s?\b", re.IGNORECASE)
@@ -388,7 +410,7 @@ def figure_audit(records: Sequence[dict], nb) -> list[str]:
     return problems
 
 
-# ---------------------------------------------------------------- class run
+# ---------------------------------------------------------------- student copies
 
 def fold_research(nb):
     """Fold every ``research`` cell (source and outputs hidden in JupyterLab); returns ``nb``."""
@@ -399,62 +421,663 @@ def fold_research(nb):
     return nb
 
 
-def handout_html(nb) -> str:
-    """HTML of ``nb`` without its ``research`` cells and its injected-parameters cell."""
+def set_parameters(source: str, values: Mapping[str, object]) -> str:
+    """``source`` (a parameters cell) with the top-level assignment of each name in ``values`` set to
+    ``repr(value)``; the rest of each line (its comment, in the same column where it fits) is kept.
+
+    Raises
+    ------
+    ValueError
+        A name is not assigned at the top level of the cell, or its value spans several lines.
+    """
+    lines = source.splitlines(keepends=True)
+    found = {}
+    for node in ast.parse(source).body:
+        if (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)
+                and node.targets[0].id in values):
+            found[node.targets[0].id] = node.value
+    missing = [name for name in values if name not in found]
+    if missing:
+        raise ValueError(f"the parameters cell assigns no {', '.join(missing)}")
+    for name, node in found.items():
+        if node.lineno != node.end_lineno:
+            raise ValueError(f"the value of {name} spans several lines")
+        raw = lines[node.lineno - 1].encode("utf-8")        # ast offsets count UTF-8 bytes
+        new = repr(values[name]).encode("utf-8")
+        rest = raw[node.end_col_offset:]
+        spare = len(rest) - len(rest.lstrip(b" ")) - 1       # keep the comment's column where it can be kept
+        if len(new) < node.end_col_offset - node.col_offset and rest.strip() and spare >= 0:
+            new += b" " * (node.end_col_offset - node.col_offset - len(new))
+        elif len(new) > node.end_col_offset - node.col_offset and spare > 0:
+            rest = rest[min(spare, len(new) - (node.end_col_offset - node.col_offset)):]
+        lines[node.lineno - 1] = (raw[:node.col_offset] + new + rest).decode("utf-8")
+    return "".join(lines)
+
+
+def class_values(declared: Iterable[str]) -> dict[str, bool]:
+    """The parameters a class copy sets: ``FAST`` and ``CLASS``, each where the notebook declares it."""
+    declared = set(declared)
+    return {name: True for name in ("FAST", "CLASS") if name in declared}
+
+
+def student_notebook(nb, values: Mapping[str, object]):
+    """A student's copy of ``nb``: no outputs or execution counts, ``values`` written into its
+    ``parameters`` cell (:func:`set_parameters`), ``research`` cells folded, no papermill or widget
+    metadata, no injected or audit cells. ``nb`` itself is not changed."""
+    nb = copy.deepcopy(nb)
+    nb.cells = [c for c in nb.cells if not ({INJECTED_TAG, AUDIT_HOOK_TAG} & set(_tags(c)))]
+    params = [c for c in nb.cells if c.cell_type == "code" and "parameters" in _tags(c)]
+    if values and len(params) != 1:
+        raise ValueError(f"expected one code cell tagged 'parameters', found {len(params)}")
+    for cell in nb.cells:
+        if cell.cell_type == "code":
+            cell.outputs = []
+            cell.execution_count = None
+        for key in ("execution", "papermill", "ExecuteTime"):
+            cell.metadata.pop(key, None)
+    if values:
+        params[0].source = set_parameters(params[0].source, values)
+    for key in ("widgets", "papermill"):
+        nb.metadata.pop(key, None)
+    return fold_research(nb)
+
+
+# ---------------------------------------------------------------- relative links
+
+_FENCE = re.compile(r"^(```|~~~).*?^\1[^\n]*$|`[^`\n]*`", flags=re.S | re.M)
+_MD_LINK = re.compile(r"(\]\(\s*<?)([^)\s>]+)(>?(?:\s+\"[^\"]*\")?\s*\))")
+_HTML_LINK = re.compile(r"""(\b(?:href|src)\s*=\s*["'])([^"']+)(["'])""", flags=re.I)
+_SCHEME = re.compile(r"^[a-zA-Z][a-zA-Z0-9+.-]*:")
+
+
+def _is_relative(target: str) -> bool:
+    return bool(target) and not (target.startswith(("#", "/")) or _SCHEME.match(target))
+
+
+def _map_links(markdown: str, fn) -> str:
+    """``markdown`` with every relative link target ``t`` (Markdown and HTML links, outside code) replaced by
+    ``fn(t)``."""
+    def sub(text):
+        for pattern in (_MD_LINK, _HTML_LINK):
+            text = pattern.sub(lambda m: m.group(1) + (fn(m.group(2)) if _is_relative(m.group(2)) else m.group(2))
+                               + m.group(3), text)
+        return text
+
+    out, pos = [], 0
+    for m in _FENCE.finditer(markdown):
+        out += [sub(markdown[pos:m.start()]), m.group(0)]
+        pos = m.end()
+    return "".join(out + [sub(markdown[pos:])])
+
+
+def relative_links(markdown: str) -> list[str]:
+    """The relative link targets of a Markdown text (Markdown and HTML links outside code, fragment kept):
+    no URL with a scheme, no bare ``#anchor``, no absolute path."""
+    found = []
+    _map_links(markdown, lambda t: found.append(t) or t)
+    return found
+
+
+def _split_target(target: str) -> tuple[str, str]:
+    path, sep, frag = target.partition("#")
+    return path.partition("?")[0], sep + frag
+
+
+def notebook_links(nb) -> list[str]:
+    """Relative link targets of the Markdown cells of ``nb``."""
+    return [t for c in nb.cells if c.cell_type == "markdown" for t in relative_links(c.source)]
+
+
+def unresolved_links(folder: Path) -> list[str]:
+    """Relative links of the notebooks and Markdown files in ``folder`` (and below) whose file is missing,
+    as ``"file: target"``."""
+    folder = Path(folder)
+    problems = []
+    for path in sorted(folder.rglob("*")):
+        if path.suffix == ".ipynb":
+            targets = notebook_links(_read_notebook(path))
+        elif path.suffix == ".md":
+            targets = relative_links(path.read_text(encoding="utf-8"))
+        else:
+            continue
+        for t in targets:
+            file = _split_target(t)[0]
+            if file and not (path.parent / file).exists():
+                problems.append(f"{path.relative_to(folder).as_posix()}: {t}")
+    return problems
+
+
+def _read_notebook(path):
+    import nbformat
+
+    return nbformat.read(path, as_version=4)
+
+
+class _Companions:
+    """The files a set of notebooks (and Markdown files) link to, transitively through linked Markdown
+    files, each with its place in an output folder: its path relative to the notebooks' folder, or,
+    for a file outside it, relative to the folder above (``../docs/X.md`` → ``docs/X.md``)."""
+
+    def __init__(self, notebooks_dir: Path):
+        self.root = Path(notebooks_dir).resolve()
+        self.placed: dict[Path, Path] = {}       # source file -> place relative to an output folder
+
+    def place(self, file: Path) -> Path | None:
+        for base in (self.root, self.root.parent):
+            rel = Path(os.path.relpath(file, base))
+            if not rel.parts or rel.parts[0] != "..":
+                return rel
+        return None
+
+    def add(self, file: Path, place: Path | None = None) -> None:
+        file = Path(file).resolve()
+        if file in self.placed or not file.is_file():
+            return
+        place = place or self.place(file)
+        if place is None:
+            return
+        self.placed[file] = place
+        if file.suffix == ".md":
+            self.add_links(relative_links(file.read_text(encoding="utf-8")), file.parent)
+
+    def add_links(self, targets: Iterable[str], base: Path) -> None:
+        for t in targets:
+            path = _split_target(t)[0]
+            if path:
+                self.add(Path(base) / path)
+
+    def relink(self, markdown: str, source_dir: Path, out_root: Path, out_dir: Path) -> str:
+        """``markdown`` (from ``source_dir``, written to ``out_dir`` under ``out_root``) with each relative
+        link to a placed file pointing at its copy, and every other link to an existing file pointing back
+        at the original."""
+        def fix(target):
+            path, frag = _split_target(target)
+            if not path:
+                return target
+            file = (Path(source_dir) / path).resolve()
+            if file in self.placed:
+                new = os.path.relpath(out_root / self.placed[file], out_dir)
+            elif file.exists():
+                new = os.path.relpath(file, out_dir)
+            else:
+                return target
+            return Path(new).as_posix() + frag
+
+        return _map_links(markdown, fix)
+
+    def write(self, out_root: Path) -> list[Path]:
+        """Copy every placed file under ``out_root`` (Markdown files relinked); returns the copies."""
+        out_root = Path(out_root)
+        written = []
+        for file, place in self.placed.items():
+            dest = out_root / place
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            if file.suffix == ".md":
+                dest.write_text(self.relink(file.read_text(encoding="utf-8"), file.parent, out_root.resolve(),
+                                            dest.parent.resolve()), encoding="utf-8")
+            else:
+                shutil.copy2(file, dest)
+            written.append(dest)
+        return written
+
+
+def relink_notebook(nb, companions: _Companions, source_dir: Path, out_dir: Path):
+    """Relink the Markdown cells of ``nb`` (in place) for a copy in ``out_dir`` (see :class:`_Companions`)."""
+    out_dir = Path(out_dir).resolve()
+    for cell in nb.cells:
+        if cell.cell_type == "markdown":
+            cell.source = companions.relink(cell.source, source_dir, out_dir, out_dir)
+    return nb
+
+
+# ---------------------------------------------------------------- handouts: math and panels
+
+_SIMPLE_TEX = [(r"\\[bB]igg?[lrm]?(?![A-Za-z])", ""), (r"\\[lr]Vert(?![A-Za-z])", r"\\Vert "),
+               (r"\\[lr]vert(?![A-Za-z])", "|"), (r"\\[td]frac(?![A-Za-z])", r"\\frac"),
+               (r"\\le(?![A-Za-z])", r"\\leq "), (r"\\ge(?![A-Za-z])", r"\\geq "), (r"\\ne(?![A-Za-z])", r"\\neq "),
+               (r"\\operatorname(?![A-Za-z])", r"\\mathrm"), (r"\\lbrace(?![A-Za-z])", r"\\{"),
+               (r"\\rbrace(?![A-Za-z])", r"\\}")]
+_TEX_ARGS = re.compile(r"\\(frac|mathcal|mathbf|mathrm|mathit|mathbb|mathsf|mathtt|text|hat|tilde|bar|dot|ddot|vec"
+                       r"|sqrt|overline|widehat|widetilde)(?![A-Za-z])")
+
+
+def _tex_argument(s: str, i: int) -> tuple[str, int]:
+    """``(argument, end)`` of the TeX argument at ``s[i]`` (spaces skipped): a ``{group}``, a ``\\command``
+    or one character."""
+    while i < len(s) and s[i] == " ":
+        i += 1
+    if i >= len(s):
+        return "", i
+    if s[i] == "{":
+        depth = 0
+        for j in range(i, len(s)):
+            depth += {"{": 1, "}": -1}.get(s[j], 0)
+            if depth == 0:
+                return s[i + 1:j], j + 1
+        return s[i + 1:], len(s)
+    if s[i] == "\\":
+        m = re.match(r"\\([A-Za-z]+|.)", s[i:])
+        return m.group(0), i + len(m.group(0))
+    return s[i], i + 1
+
+
+def _brace_arguments(s: str) -> str:
+    out, i = [], 0
+    while True:
+        m = _TEX_ARGS.search(s, i)
+        if not m:
+            return "".join(out + [s[i:]])
+        out.append(s[i:m.end()])
+        i = m.end()
+        for _ in range(2 if m.group(1) == "frac" else 1):
+            arg, i = _tex_argument(s, i)
+            out.append("{" + _brace_arguments(arg) + "}")
+
+
+def _two_row_matrix(m) -> str:
+    rows = [r.strip() for r in re.split(r"\\\\", m.group(2)) if r.strip()]
+    if len(rows) != 2:
+        return m.group(0)                   # left as it is: mathtext refuses it and the TeX is shown
+    cells = [r" \quad ".join(c.strip() for c in r.split("&")) for r in rows]
+    left, right = {"bmatrix": ("[", "]"), "pmatrix": ("(", ")"), "vmatrix": ("|", "|")}.get(m.group(1), (".", "."))
+    return rf"\left{left}\genfrac{{}}{{}}{{0}}{{}}{{{cells[0]}}}{{{cells[1]}}}\right{right}"
+
+
+def mathtext_source(tex: str) -> str:
+    """``tex`` (a formula of the notebooks, LaTeX as MathJax reads it) in the dialect of Matplotlib's
+    mathtext: ``\\big`` sizes dropped, ``\\lVert``/``\\lvert`` as ``\\Vert``/``|``, ``\\tfrac`` as ``\\frac``,
+    ``\\le`` as ``\\leq``, one-token arguments braced (``\\mathcal N`` → ``\\mathcal{N}``, ``\\frac1K`` →
+    ``\\frac{1}{K}``) and a two-row matrix as a ``\\genfrac`` stack."""
+    s = " ".join(tex.split())
+    s = re.sub(r"\\begin\{([bpv]?matrix)\}(.*?)\\end\{\1\}", _two_row_matrix, s)
+    for pattern, repl in _SIMPLE_TEX:
+        s = re.sub(pattern, repl, s)
+    return _brace_arguments(s)
+
+
+#: Formula glyphs per glyph of the surrounding text (Computer Modern looks smaller than the page's sans serif).
+MATH_SCALE = 1.15
+
+
+def _svg_number(v: float) -> str:
+    text = f"{v:.2f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def math_svg(tex: str, *, display: bool = False) -> str:
+    """An inline SVG of formula ``tex``, drawn by Matplotlib's mathtext (Computer Modern glyphs as
+    outlines: no font, script or network needed to show it), sized in ``em`` of the surrounding text and
+    sitting on its baseline; its TeX is the SVG's title and ARIA label.
+
+    Raises
+    ------
+    ValueError
+        mathtext cannot parse the formula (:func:`mathtext_source`'s translation included).
+    """
+    import html as html_mod
+
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.path import Path as MplPath
+    from matplotlib.textpath import TextPath
+
+    size = 10.0                             # outline units per em of the formula
+    try:
+        path = TextPath((0, 0), f"${mathtext_source(tex)}$", size=size,
+                        prop=FontProperties(family="DejaVu Serif", math_fontfamily="cm"))
+    except Exception as exc:  # pyparsing's exceptions differ between versions
+        raise ValueError(f"mathtext cannot draw {tex!r}: {str(exc).splitlines()[0] if str(exc) else exc!r}") from None
+    verts = path.vertices
+    (x0, y0), (x1, y1) = (verts.min(axis=0), verts.max(axis=0)) if len(verts) else ((0, 0), (0, 0))
+    pad = 0.08 * size
+    x0, x1, y0, y1 = x0 - pad, x1 + pad, min(y0, -0.2 * size) - pad, max(y1, 0.7 * size) + pad
+    em = MATH_SCALE / size                  # ems of the surrounding text per outline unit
+    letters = {MplPath.MOVETO: "M", MplPath.LINETO: "L", MplPath.CURVE3: "Q", MplPath.CURVE4: "C"}
+    d = "".join("Z" if code == MplPath.CLOSEPOLY else letters[code] + " ".join(map(_svg_number, pts))
+                for pts, code in path.iter_segments(simplify=False, curves=True))
+    label = html_mod.escape(tex, quote=True)
+    svg = (f'<svg class="uwbwb-math" role="img" aria-label="{label}" '
+           f'width="{(x1 - x0) * em:.3f}em" height="{(y1 - y0) * em:.3f}em" '
+           f'viewBox="{_svg_number(x0)} {_svg_number(-y1)} {_svg_number(x1 - x0)} {_svg_number(y1 - y0)}" '
+           f'style="vertical-align: {y0 * em:.3f}em"><title>{label}</title>'
+           f'<path transform="scale(1,-1)" fill="currentColor" d="{d}"/></svg>')
+    return f'<div class="uwbwb-math-display">{svg}</div>' if display else svg
+
+
+def _tex_fallback(tex: str, display: bool) -> str:
+    import html as html_mod
+
+    code = f'<code class="uwbwb-tex">{html_mod.escape(tex)}</code>'
+    return f'<div class="uwbwb-math-display">{code}</div>' if display else code
+
+
+def _format_value(value, fmt: str | None) -> str:
+    if fmt:
+        try:
+            return format(value, fmt)
+        except (TypeError, ValueError):
+            pass
+    return str(value)
+
+
+def static_widget_html(model_id: str, state: Mapping[str, dict]) -> str:
+    """Static HTML of the widget ``model_id`` from a saved widget state (``nb.metadata.widgets``): boxes
+    as boxes, HTML widgets as their HTML, each control as ``label: value`` (no control), an ``Output`` as
+    its saved outputs (a figure as its embedded PNG). What a panel showed when the run ended, with no
+    script."""
+    import html as html_mod
+
+    model = state.get(model_id.removeprefix("IPY_MODEL_"))
+    if model is None:
+        return ""
+    name, s = model.get("model_name", ""), model.get("state", {})
+    classes = " ".join(s.get("_dom_classes", []))
+    if "children" in s:
+        inner = "".join(static_widget_html(c, state) for c in s["children"])
+        return f'<div class="uwbwb-static-box {html_mod.escape(classes)}">{inner}</div>'
+    if name in ("HTMLModel", "HTMLMathModel"):
+        return f'<div class="{html_mod.escape(classes)}">{s.get("value", "")}</div>'
+    if name == "OutputModel":
+        return "".join(_static_output(o) for o in s.get("outputs", []))
+    if name == "ButtonModel":
+        return ""
+    if name in ("FloatProgressModel", "IntProgressModel"):       # e.g. a tqdm bar, at its end
+        return (f'<progress value="{_format_value(s.get("value", 0), None)}" '
+                f'max="{_format_value(s.get("max", 100), None)}"></progress>')
+    label = s.get("description", "")
+    if "_options_labels" in s:
+        index = s.get("index")
+        labels = s["_options_labels"]
+        value = labels[index] if isinstance(index, int) and 0 <= index < len(labels) else "—"
+    elif "value" in s:
+        value = _format_value(s["value"], s.get("readout_format"))
+    else:
+        return ""
+    label = f'<span class="uwbwb-static-label">{html_mod.escape(str(label))}:</span> ' if label else ""
+    return (f'<div class="uwbwb-static-control">{label}<span class="uwbwb-static-value">'
+            f'{html_mod.escape(str(value))}</span></div>')
+
+
+def _static_output(out: Mapping) -> str:
+    import html as html_mod
+
+    if out.get("output_type") == "stream":
+        return f"<pre>{html_mod.escape(_text(out.get('text', '')))}</pre>"
+    data = out.get("data", {})
+    for mime in ("image/png", "image/jpeg"):
+        if mime in data:
+            return f'<img src="data:{mime};base64,{_text(data[mime]).strip()}" alt="panel figure">'
+    if "image/svg+xml" in data:
+        return _text(data["image/svg+xml"])
+    if "text/html" in data:
+        return _text(data["text/html"])
+    if "text/plain" in data:
+        return f"<pre>{html_mod.escape(_text(data['text/plain']))}</pre>"
+    return ""
+
+
+#: Shown above each static panel of a handout.
+STATIC_PANEL_NOTE = ("Static copy of an interactive panel: its controls and figure at the settings the run "
+                     "left it in (its defaults). Open the notebook to move the controls.")
+
+
+#: CSS class of a :class:`uwbwb.widgets.Panel`'s box (its static copy carries :data:`STATIC_PANEL_NOTE`).
+_PANEL_CLASS = "uwbwb-panel"
+
+
+def static_panels(nb) -> int:
+    """Replace every widget output of ``nb`` (in place) by static HTML (:func:`static_widget_html`; a
+    :class:`uwbwb.widgets.Panel` under :data:`STATIC_PANEL_NOTE`) and drop the saved widget state, so that an
+    HTML export needs no widget script; returns the number of widget outputs made static."""
+    import html as html_mod
+
+    state = nb.metadata.get("widgets", {}).get("application/vnd.jupyter.widget-state+json", {}).get("state", {})
+    count = 0
+    for cell in nb.cells:
+        for out in cell.get("outputs", []):
+            data = out.get("data", {})
+            if _WIDGET_MIME not in data:
+                continue
+            model_id = data[_WIDGET_MIME].get("model_id", "")
+            body = static_widget_html(model_id, state)
+            del data[_WIDGET_MIME]
+            if not body:
+                data.setdefault("text/plain", "(a widget: open the notebook)")
+                continue
+            count += 1
+            if _PANEL_CLASS in state.get(model_id, {}).get("state", {}).get("_dom_classes", []):
+                body = (f'<div class="uwbwb-static-panel"><p class="uwbwb-static-note">'
+                        f'{html_mod.escape(STATIC_PANEL_NOTE)}</p>{body}</div>')
+            data["text/html"] = body
+    nb.metadata.pop("widgets", None)
+    return count
+
+
+_HANDOUT_TEMPLATE = """{%- extends 'index.html.j2' -%}
+{%- block html_head_js_requirejs -%}{%- endblock html_head_js_requirejs -%}
+{%- block jupyter_widgets -%}{%- endblock jupyter_widgets -%}
+{%- block html_head_js_mathjax -%}{%- endblock html_head_js_mathjax -%}
+{%- block html_head_js_mermaidjs -%}{%- endblock html_head_js_mermaidjs -%}
+{%- block extra_css -%}
+<style type="text/css">
+.uwbwb-math-display { text-align: center; margin: 0.6em 0; overflow-x: auto; }
+svg.uwbwb-math { overflow: visible; }
+.uwbwb-static-panel { border: 1px solid #ccc; padding: 0.5em; }
+.uwbwb-static-note { font-style: italic; color: #555; margin: 0 0 0.4em 0; }
+.uwbwb-static-control { display: inline-block; margin-right: 1.2em; }
+.uwbwb-static-label { color: #555; }
+.uwbwb-static-value { font-weight: bold; }
+.uwbwb-static-panel img { max-width: 100%; }
+</style>
+{%- endblock extra_css -%}
+"""
+
+
+def _handout_exporter(link_map: Mapping[str, str], fallbacks: list[str]):
+    from jinja2 import DictLoader, pass_context
     from nbconvert import HTMLExporter
+    from nbconvert.filters.markdown_mistune import IPythonRenderer, MarkdownWithMath
     from nbconvert.preprocessors import TagRemovePreprocessor
     from traitlets.config import Config
+
+    class Renderer(IPythonRenderer):
+        def _math(self, body, display):
+            try:
+                return math_svg(body, display=display)
+            except ValueError:
+                fallbacks.append(body)
+                return _tex_fallback(body, display)
+
+        def inline_math(self, body):
+            return self._math(body, False)
+
+        def block_math(self, body):
+            return self._math(body, True)
+
+        def latex_environment(self, name, body):
+            return self._math(f"\\begin{{{name}}}{body}\\end{{{name}}}", True)
+
+        def link(self, text, url, title=None):
+            path, frag = _split_target(url)
+            return super().link(text, link_map.get(path, path) + frag if _is_relative(url) else url, title)
+
+    class Exporter(HTMLExporter):
+        @pass_context                       # a context filter, as nbconvert's own
+        def markdown2html(self, context, source):
+            cell = context.get("cell", {})
+            renderer = Renderer(escape=False, attachments=cell.get("attachments", {}),
+                                embed_images=self.embed_images,
+                                path=context.get("resources", {}).get("metadata", {}).get("path", ""),
+                                anchor_link_text=self.anchor_link_text,
+                                exclude_anchor_links=self.exclude_anchor_links)
+            return MarkdownWithMath(renderer=renderer).render(source)
 
     config = Config()
     config.TagRemovePreprocessor.remove_cell_tags = {RESEARCH_TAG, INJECTED_TAG, AUDIT_HOOK_TAG}
     config.TagRemovePreprocessor.enabled = True
-    exporter = HTMLExporter(config=config)
+    exporter = Exporter(config=config, extra_loaders=[DictLoader({"uwbwb_handout.html.j2": _HANDOUT_TEMPLATE})],
+                        template_file="uwbwb_handout.html.j2", embed_images=True)
     exporter.register_preprocessor(TagRemovePreprocessor(config=config), enabled=True)
-    body, _ = exporter.from_notebook_node(nb)
+    return exporter
+
+
+def handout_html(nb, *, name: str = "", path: str | os.PathLike = "", link_map: Mapping[str, str] | None = None,
+                 tex_left: list[str] | None = None) -> str:
+    """HTML of ``nb`` without its ``research`` cells and its injected-parameters cell, that shows all it
+    holds offline: one file, no script (no MathJax, RequireJS or widget manager from a CDN), formulas as
+    inline SVG (:func:`math_svg`), panels static (:func:`static_panels`), figures embedded.
+
+    Parameters
+    ----------
+    name
+        Page title.
+    path
+        Folder relative Markdown images are embedded from.
+    link_map
+        Relative link paths to replace (``{"GLOSSARY.md": "GLOSSARY.html"}``); fragments are kept.
+    tex_left
+        If given, each formula mathtext could not draw is appended to it (shown as TeX code).
+    """
+    nb = copy.deepcopy(nb)
+    static_panels(nb)
+    fallbacks = [] if tex_left is None else tex_left
+    exporter = _handout_exporter(dict(link_map or {}), fallbacks)
+    body, _ = exporter.from_notebook_node(nb, resources={"metadata": {"name": name or "handout",
+                                                                      "path": str(path)}})
     return body
 
 
+def markdown_page_html(markdown: str, *, name: str, link_map: Mapping[str, str] | None = None,
+                       tex_left: list[str] | None = None) -> str:
+    """A Markdown text (the glossary) as a standalone HTML page made like a handout (:func:`handout_html`)."""
+    import nbformat
+
+    nb = nbformat.v4.new_notebook()
+    nb.cells = [nbformat.v4.new_markdown_cell(markdown)]
+    return handout_html(nb, name=name, link_map=link_map, tex_left=tex_left)
+
+
+# ---------------------------------------------------------------- class run
+
+def _one_folder(notebooks: Sequence[Path]) -> Path:
+    folders = {n.resolve().parent for n in notebooks}
+    if len(folders) != 1:
+        raise ValueError("the notebooks of a class run come from one folder, got "
+                         f"{sorted(map(str, folders)) or 'none'}")
+    return folders.pop()
+
+
+def write_student_folder(notebooks: Iterable[Path], student_dir: Path) -> tuple[_Companions, dict[Path, Path]]:
+    """The student folder (module docstring): each notebook's :func:`student_notebook` with the class values of
+    its parameters (:func:`class_values`), and the glossary and every file they link to beside them.
+
+    Returns
+    -------
+    (companions, copies)
+        The linked files and their places; ``{source notebook: its student copy}``.
+    """
+    import nbformat
+
+    notebooks = [Path(n) for n in notebooks]
+    source_dir = _one_folder(notebooks)
+    student_dir = Path(student_dir)
+    student_dir.mkdir(parents=True, exist_ok=True)
+    sources = {n: _read_notebook(n) for n in notebooks}
+    companions = _Companions(source_dir)
+    companions.add(source_dir / GLOSSARY_NAME)
+    for nb in sources.values():
+        companions.add_links(notebook_links(nb), source_dir)
+    companions.write(student_dir)
+    copies = {}
+    for source, nb in sources.items():
+        copies[source] = student_dir / source.name
+        student = student_notebook(nb, class_values(reproduce.notebook_parameters(source)))
+        nbformat.write(relink_notebook(student, companions, source_dir, student_dir), copies[source])
+    return companions, copies
+
+
+def _answer_companions(companions: _Companions, answers_dir: Path, teaching: Path, log) -> dict[str, str]:
+    """Write the student folder's companions, ``teaching`` and the glossary's HTML page into ``answers_dir``;
+    returns the link map of the handouts (``{"GLOSSARY.md": "GLOSSARY.html"}``)."""
+    answers = _Companions(companions.root)
+    answers.placed.update(companions.placed)
+    if teaching.is_file():
+        answers.add(teaching, Path(TEACHING_NAME))
+    else:
+        log(f"no {teaching}: the answers folder has no lecturer's notes")
+    answers.write(answers_dir)
+    glossary = (companions.root / GLOSSARY_NAME).resolve()
+    if glossary not in companions.placed:
+        return {}
+    place = companions.placed[glossary]
+    text = companions.relink(glossary.read_text(encoding="utf-8"), glossary.parent, answers_dir.resolve(),
+                             (answers_dir / place).parent.resolve())
+    tex_left: list[str] = []
+    (answers_dir / place.with_suffix(".html")).write_text(
+        markdown_page_html(text, name="Glossary", link_map={place.name: place.with_suffix(".html").name},
+                           tex_left=tex_left), encoding="utf-8")
+    if tex_left:
+        log(f"{GLOSSARY_NAME}: {len(tex_left)} formulas shown as TeX in its HTML page: " + "; ".join(tex_left[:3]))
+    return {place.as_posix(): place.with_suffix(".html").as_posix()}
+
+
 def run_class(notebooks: Iterable[Path], out_dir: Path, *, kernel_name: str = reproduce.KERNEL_NAME,
-              timeout_s: float | None = 600, log=print) -> list[dict]:
-    """Execute ``notebooks`` in class mode into ``out_dir`` (see the module docstring).
+              timeout_s: float | None = 600, teaching: Path | None = None, log=print) -> list[dict]:
+    """Write the class folders of ``notebooks`` under ``out_dir`` (see the module docstring): the
+    student folder first (:func:`write_student_folder`), then each student copy executed in that folder
+    into the answers folder, with its handout.
+
+    Parameters
+    ----------
+    teaching
+        The lecturer's notes copied into the answers folder; default ``TEACHING.md`` in the folder above
+        the notebooks' (skipped, with a note, when there is none).
 
     Returns
     -------
     list of dict
-        Per notebook: ``notebook``, ``seconds`` (wall time, kernel start included), ``error``
-        (None when it ran), ``limits`` (:func:`class_limits`), ``executed`` and ``html`` paths.
+        Per notebook: ``notebook``, ``seconds`` (wall time, kernel start included), ``error`` (None when it
+        ran), ``limits`` (:func:`class_limits`), ``student``, ``executed`` and ``html`` paths, ``tex_left``
+        (formulas the handout shows as TeX) and ``class_parameter``.
     """
     import nbformat
     import papermill as pm
 
+    notebooks = [Path(n) for n in notebooks]
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    student_dir, answers_dir = out_dir / STUDENT_DIR, out_dir / ANSWERS_DIR
+    answers_dir.mkdir(parents=True, exist_ok=True)
+    for source in notebooks:     # the single-folder layout this one replaced, and this run's earlier output
+        for stale in (out_dir / f"{source.stem}.ipynb", out_dir / f"{source.stem}.html",
+                      answers_dir / f"{source.stem}.ipynb", answers_dir / f"{source.stem}.html"):
+            stale.unlink(missing_ok=True)
+    companions, copies = write_student_folder(notebooks, student_dir)
+    teaching = (companions.root.parent / TEACHING_NAME) if teaching is None else Path(teaching)
+    link_map = _answer_companions(companions, answers_dir, teaching, log)
+
     runs = []
     for source in notebooks:
-        source = Path(source)
-        declared = reproduce.notebook_parameters(source)
-        params = {"FAST": True, **({"CLASS": True} if "CLASS" in declared else {})}
-        executed, html = out_dir / f"{source.stem}.ipynb", out_dir / f"{source.stem}.html"
-        for stale in (executed, html):
-            stale.unlink(missing_ok=True)
+        values = class_values(reproduce.notebook_parameters(source))
+        student = copies[source]
+        executed, html = answers_dir / f"{source.stem}.ipynb", answers_dir / f"{source.stem}.html"
         error = None
         t0 = time.perf_counter()
-        try:
-            pm.execute_notebook(str(source), str(executed), parameters=params, kernel_name=kernel_name,
-                                cwd=str(source.parent), progress_bar=False, log_output=False,
-                                execution_timeout=timeout_s, kernel_manager_class=reproduce.ipc_kernel_manager())
+        try:            # a student's Run All: the copy as handed out, run in its own folder
+            pm.execute_notebook(str(student), str(executed), kernel_name=kernel_name, cwd=str(student_dir),
+                                progress_bar=False, log_output=False, execution_timeout=timeout_s,
+                                kernel_manager_class=reproduce.ipc_kernel_manager())
         except Exception as exc:  # reported per notebook; the others still run
             error = f"{type(exc).__name__}: {str(exc).strip().splitlines()[-1] if str(exc).strip() else ''}"
         seconds = time.perf_counter() - t0
-        limits = []
+        limits, tex_left = [], []
         if executed.is_file():
             nb = nbformat.read(executed, as_version=4)
             limits = class_limits(nb)
             nbformat.write(fold_research(nb), executed)
-            html.write_text(handout_html(nb), encoding="utf-8")
-        run = {"notebook": source.stem, "seconds": seconds, "error": error, "limits": limits,
+            html.write_text(handout_html(nb, name=source.stem, path=answers_dir, link_map=link_map,
+                                         tex_left=tex_left), encoding="utf-8")
+        run = {"notebook": source.stem, "seconds": seconds, "error": error, "limits": limits, "student": student,
                "executed": executed if executed.is_file() else None, "html": html if html.is_file() else None,
-               "class_parameter": "CLASS" in declared}
+               "tex_left": tex_left, "class_parameter": "CLASS" in values}
         runs.append(run)
         note = "" if run["class_parameter"] else " (no CLASS parameter: FAST only)"
         log(f"{source.stem}: {'ok' if error is None else 'FAILED'} in {seconds:.1f} s{note}")
@@ -462,14 +1085,18 @@ def run_class(notebooks: Iterable[Path], out_dir: Path, *, kernel_name: str = re
             log(f"  error: {error}")
         for p in limits:
             log(f"  class limit: {p}")
+        if tex_left:
+            log(f"  handout: {len(tex_left)} formulas shown as TeX (mathtext cannot draw them): "
+                + "; ".join(tex_left[:3]))
     return runs
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m uwbwb.classroom [--only NB ...] [--kernel NAME] [--out DIR] [--notebooks-dir DIR]``."""
     parser = argparse.ArgumentParser(prog="python -m uwbwb.classroom",
-                                     description="Run the notebooks in class mode (CLASS=True, FAST=True): "
-                                                 "folded notebooks and HTML handouts without research cells.")
+                                     description="Class mode (CLASS=True, FAST=True): unexecuted student notebooks "
+                                                 "in OUT/student, the same run into OUT/answers with offline HTML "
+                                                 "handouts, TEACHING.md and the glossary.")
     parser.add_argument("--only", nargs="+", metavar="NB", help="notebooks to run: stems or prefixes (00 01)")
     parser.add_argument("--kernel", default=reproduce.KERNEL_NAME, help="Jupyter kernel name (default %(default)s)")
     parser.add_argument("--out", type=Path, default=CLASS_DIR, help="output folder (default class/ in the working "
@@ -489,7 +1116,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     total = sum(r["seconds"] for r in runs)
     n_limits = sum(len(r["limits"]) for r in runs)
     print(f"class mode: {len(runs)} notebooks in {total:.0f} s, {sum(r['error'] is not None for r in runs)} failed, "
-          f"{n_limits} class-limit violations; notebooks and handouts in {args.out}")
+          f"{n_limits} class-limit violations; for students: {args.out / STUDENT_DIR} (make lab "
+          f"LAB_DIR={args.out / STUDENT_DIR}); executed notebooks, handouts and notes: {args.out / ANSWERS_DIR}")
     return 0 if all(r["error"] is None for r in runs) else 1
 
 
