@@ -130,6 +130,19 @@ def test_outlier_free_control_and_sensitivity_shapes():
     assert list(sens.index) == [0.0, 30.0] and list(sens.columns) == ["none", "residual"]
 
 
+def test_nlos_excess_sensitivity_scales_only_the_excess():
+    cfg = _small()
+    ex_t = ex.nlos_excess_sensitivity(cfg, (0.5, 1.0, 2.0), seed=1)
+    base = cfg.tour.nlos_mean_m
+    assert list(ex_t.index) == [0.5 * base, base, 2 * base] and list(ex_t.factor) == [0.5, 1.0, 2.0]
+    r = ex.run_synthetic(cfg, rng=np.random.default_rng(1))        # the same seed: the factor-1 row is its number
+    own = ex.heuristic_summary(r.stops, r.moves, r.track).loc["residual", "all_p90_m"]
+    assert ex_t.loc[base, "all_p90_m"] == own
+    assert ex_t.all_p90_m.is_monotonic_increasing                   # the same draws, a larger excess
+    with pytest.raises(ValueError, match="positive"):
+        ex.nlos_excess_sensitivity(cfg, (0.0,), seed=1)
+
+
 def test_summary_and_ranks_on_a_constructed_table():
     stops = pd.DataFrame({"heuristic": ["none"] * 3 + ["residual"] * 3 + ["percentile"] * 3,
                           "err_m": [1.0, 2.0, 3.0, 0.1, 0.2, 0.3, 0.5, 0.6, 0.9]})
@@ -400,7 +413,12 @@ def test_verdict_table_states_the_facts():
     syn = _summary([1.157, 0.321, 0.515, 0.604], point=2.9)
     t = ex.verdict_table(ex.comparison_facts(syn, synthetic_other=_three_d(), persistence=PERSIST,
                                              hanyang=_hanyang(0.12, 0.16), **_lias()))
-    assert list(t.columns) == ["claim", "paper", "ours", "rule", "verdict"]
+    assert list(t.columns) == ["claim", "paper", "paper kind", "ours", "ours kind", "assumption", "rule", "verdict"]
+    assert set(t["ours kind"]) == {"reproduced"}
+    assert (t["paper kind"] == np.where(t["paper"] == "—", "—", "input")).all()
+    four = t.set_index("claim").loc["residual pruning: 90 % of all distance errors under 4 m"]
+    assert four["paper kind"] == "input" and "not the paper's" in four.assumption
+    assert _row(t, "LIAS static, raw ranges").assumption == "—"     # real ranges: no simulator assumption
     rank = _row(t, "ranking of the heuristics")
     assert rank.verdict == "differs" and rank.ours.index("the 5th percentile (0.32 m)") < rank.ours.index("the robust mean")
     assert _row(t, "best trajectory NLS vs the point-based fixes").verdict == "NLS better"
@@ -412,6 +430,27 @@ def test_verdict_table_states_the_facts():
     assert _row(t, "LIAS static: range calibration").verdict == "calibration larger"
     assert _row(t, "LIAS dynamic, raw ranges: plain NLS").verdict == "plain NLS beats every heuristic"
     assert _row(t, "Hanyang static").verdict == "NLOS larger"
+
+
+def _excess(p90):
+    return pd.DataFrame({"factor": [0.5, 1.0, 2.0], "all_p90_m": p90},
+                        index=pd.Index([1.25, 2.5, 5.0], name="nlos_mean_m"))
+
+
+@pytest.mark.parametrize("p90, verdict", [((1.0, 1.7, 3.9), "agrees at each"), ((4.1, 4.5, 6.0), "differs at each"),
+                                          ((1.0, 1.7, 4.0), "depends on the assumed excess")])
+def test_the_4_m_row_names_the_simulated_excess_and_follows_it(p90, verdict):
+    syn = _summary([1.157, 0.321, 0.515, 0.604], point=2.9)
+    cfg = tours.TourConfig(nlos_mean_m=2.5, p_nlos_out=0.3, nlos_dwell_s=3.0)
+    t = ex.verdict_table(ex.comparison_facts(syn, tour=cfg, excess=_excess(list(p90))))
+    row = _row(t, "residual pruning: 90 % of all distance errors under 4 m, as the simulated NLOS excess")
+    assert row.verdict == verdict and row.ours.startswith(" / ".join(f"{p:.2f}" for p in p90))
+    four = t.set_index("claim").loc["residual pruning: 90 % of all distance errors under 4 m"]
+    assert "NLOS excess N(2.5 m, 1 m)" in four.assumption and "30 % of links outside" in four.assumption
+    assert "TourConfig" in four.assumption and "next row" in four.assumption
+    plain = ex.verdict_table(ex.comparison_facts(syn))               # no configuration, no sensitivity: named only
+    assert not plain["claim"].str.contains("as the simulated NLOS excess").any()
+    assert "N(" not in _row(plain, "residual pruning: 90 %").assumption
 
 
 def test_verdicts_when_the_paper_ranking_comes_out():

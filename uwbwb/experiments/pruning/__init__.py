@@ -19,15 +19,16 @@ from .scoring import (ESTIMATORS, LABELS, MIN_SEGMENT_RANGES, PAPER_RANKING, POI
                       heuristic_summary, rank_heuristics, wins_table)
 from .sections import LiasDynamic, LiasStatic, lias_dynamic, lias_static
 from .verdicts import comparison_facts, verdict_table
-from .study import (SyntheticConfig, SyntheticResult, loso_calibrations, outlier_free_control, range_error_stats,
-                    run_recordings, run_synthetic, run_tour, segment_ranges, sensitivity)
+from .study import (EXCESS_FACTORS, SyntheticConfig, SyntheticResult, loso_calibrations, nlos_excess_sensitivity,
+                    outlier_free_control, range_error_stats, run_recordings, run_synthetic, run_tour, segment_ranges,
+                    sensitivity)
 
 __all__ = [
-    "ESTIMATORS", "HEURISTIC_MARKERS", "LABELS", "MIN_SEGMENT_RANGES", "PAPER_RANKING", "POINT", "DynamicResult",
+    "ESTIMATORS", "EXCESS_FACTORS", "HEURISTIC_MARKERS", "LABELS", "MIN_SEGMENT_RANGES", "PAPER_RANKING", "POINT", "DynamicResult",
     "LiasDynamic", "LiasStatic", "PieceExplorer", "Results", "StaticResult", "SyntheticConfig", "SyntheticResult",
     "TourExplorer", "comparison_facts", "epoch_summary", "error_cdf_by_heuristic",
     "exercises", "hanyang_table", "headline_rows", "headlines", "heuristic_color", "heuristic_summary",
-    "lias_dynamic", "lias_static", "loso_calibrations", "outlier_free_control", "panels", "plot_coverage",
+    "lias_dynamic", "lias_static", "loso_calibrations", "nlos_excess_sensitivity", "outlier_free_control", "panels", "plot_coverage",
     "plot_error_cdf_percentile", "plot_error_histogram", "plot_hanyang", "plot_polar_errors",
     "plot_robust_mean_cloud", "plot_segment_fits", "range_error_stats", "rank_heuristics",
     "run_dynamic_segments", "run_recordings", "run_static_poses", "run_synthetic", "run_tour", "segment_ranges",

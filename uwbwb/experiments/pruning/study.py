@@ -39,7 +39,7 @@ from ...types import RangeLog, RangeSamples, Recording
 from .scoring import MIN_SEGMENT_RANGES, POINT, bearing_deg, heading_err_deg, heuristic_summary
 
 __all__ = ["SyntheticConfig", "SyntheticResult", "loso_calibrations", "outlier_free_control", "range_error_stats", "run_recordings", "run_synthetic",
-           "run_tour", "segment_ranges", "sensitivity"]
+           "run_tour", "segment_ranges", "sensitivity", "EXCESS_FACTORS", "nlos_excess_sensitivity"]
 
 # =========================================================================== synthetic
 
@@ -264,6 +264,36 @@ def sensitivity(config: SyntheticConfig, dwell_s=(0.0, 3.0, 30.0), *, seed: int)
         out[float(d)] = heuristic_summary(r.stops)["stop_median_m"]
     table = pd.DataFrame(out).T
     table.index.name = "nlos_dwell_s"
+    return table
+
+
+#: Factors on the simulated NLOS excess (``TourConfig.nlos_mean_m``) of :func:`nlos_excess_sensitivity`: half,
+#: the configured value, double.
+EXCESS_FACTORS = (0.5, 1.0, 2.0)
+
+
+def nlos_excess_sensitivity(config: SyntheticConfig, factors=EXCESS_FACTORS, *, seed: int,
+                            heuristic: str = "residual") -> pd.DataFrame:
+    """All distance errors of one heuristic as the simulated NLOS excess is scaled.
+
+    The mean NLOS excess of the range-error model (``config.tour.nlos_mean_m``, an assumption of the
+    simulator, not a number of the paper) is multiplied by each factor; every row simulates the configured
+    tours afresh from ``seed`` (the same draws whatever the factor), so the row of factor 1 is the
+    comparison's own number when ``seed`` is the comparison's. Returns one row per factor, indexed by
+    ``nlos_mean_m``: ``factor``, ``all_p90_m``, ``all_median_m`` (:func:`heuristic_summary`).
+    """
+    rows = {}
+    for k in factors:
+        if not k > 0:
+            raise ValueError(f"excess factors must be positive, got {k!r}")
+        tour = dataclasses.replace(config.tour, nlos_mean_m=float(k) * config.tour.nlos_mean_m)
+        c = dataclasses.replace(config, tour=tour, heuristics=(heuristic,), point_baseline=False)
+        r = run_synthetic(c, rng=np.random.default_rng(seed))
+        t = heuristic_summary(r.stops, r.moves, r.track)
+        rows[tour.nlos_mean_m] = {"factor": float(k), "all_p90_m": float(t.loc[heuristic, "all_p90_m"]),
+                                  "all_median_m": float(t.loc[heuristic, "all_median_m"])}
+    table = pd.DataFrame.from_dict(rows, orient="index")
+    table.index.name = "nlos_mean_m"
     return table
 
 

@@ -3,9 +3,10 @@
 :func:`comparison_facts` derives every statement about our run (which heuristic wins,
 whether trajectory NLS beats the point-based fixes, where the percentile's error goes
 in 3-D, whether calibration or pruning removes the error...) as numbers and orderings;
-:func:`verdict_table` lays the claims out as rows (claim, paper, ours, rule, verdict). The
-paper's claims and our simulator's assumptions are quoted, never compared with a number tuned
-from them.
+:func:`verdict_table` lays the claims out as rows (claim, paper and its kind, ours and its kind, the
+assumption a synthetic number rests on, rule, verdict). The paper's claims are *inputs*, our numbers
+*reproduced*; a synthetic number is reproduced under our simulator's range-error model, which is an
+assumption (``uw.sim.tours.TourConfig``), not the paper's, and is named beside it.
 """
 
 from __future__ import annotations
@@ -13,9 +14,13 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ...sim.tours import TourConfig
 from .scoring import LABELS, PAPER_RANKING, POINT
 
-__all__ = ["comparison_facts", "verdict_table"]
+__all__ = ["COLUMNS", "comparison_facts", "verdict_table"]
+
+#: The columns of :func:`verdict_table`.
+COLUMNS = ["claim", "paper", "paper kind", "ours", "ours kind", "assumption", "rule", "verdict"]
 
 _NAMES = {"none": "plain NLS", "percentile": "the 5th percentile", "robust_mean": "the robust mean",
           "residual": "residual pruning", POINT: "the point-based fixes"}
@@ -41,7 +46,8 @@ def comparison_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
                      persistence: pd.DataFrame | None = None, lias_static: pd.DataFrame | None = None,
                      lias_static_epochs: dict | None = None, lias_ranges: pd.DataFrame | None = None,
                      lias_dynamic: pd.DataFrame | None = None, lias_dynamic_epochs: dict | None = None,
-                     hanyang: pd.DataFrame | None = None) -> dict:
+                     hanyang: pd.DataFrame | None = None, tour: TourConfig | None = None,
+                     excess: pd.DataFrame | None = None) -> dict:
     """The facts of the comparison, as numbers and orderings.
 
     Parameters
@@ -67,8 +73,20 @@ def comparison_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
         ``{ranges: (epoch_summary, run_coverage)}`` of the dynamic run.
     hanyang
         :func:`uwbwb.calibration.percentile_by_file` of the Hanyang static files.
+    tour
+        The simulator configuration of the synthetic comparison (its range-error model is named
+        beside every synthetic row; None: named without its values).
+    excess
+        :func:`~.study.nlos_excess_sensitivity` of residual pruning (``all_p90_m`` per simulated mean
+        NLOS excess).
     """
     f: dict = {"dim": synthetic_dim}
+    if tour is not None:
+        f["tour"] = {k: getattr(tour, k) for k in ("sigma_m", "bias_range_m", "p_nlos_in", "p_nlos_out",
+                                                    "nlos_mean_m", "nlos_sigma_m", "nlos_dwell_s")}
+    if excess is not None and len(excess):
+        f["excess"] = {"nlos_mean_m": [float(x) for x in excess.index],
+                       "p90_m": [float(x) for x in excess["all_p90_m"]]}
     med = synthetic["stop_median_m"].dropna()
     three = [h for h in PAPER_RANKING if h in med.index]
     f["ranking"] = tuple(med[three].sort_values().index)
@@ -184,46 +202,79 @@ def comparison_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
     return f
 
 
-def verdict_table(f: dict) -> pd.DataFrame:
-    """The claims of notebook 02, one row each: ``claim, paper, ours, rule, verdict`` from :func:`comparison_facts`.
+def _assumption(f: dict, what: str = "errors") -> str:
+    """The simulator assumption a synthetic row rests on, with its values when the configuration was given."""
+    t = f.get("tour")
+    if t is None:
+        return "simulated range errors: our model (uw.sim.tours.TourConfig), not the paper's"
+    nlos = (f"NLOS excess N({t['nlos_mean_m']:g} m, {t['nlos_sigma_m']:g} m) clipped at 0 on "
+            f"{_pct(t['p_nlos_out'])} of links outside coverage ({_pct(t['p_nlos_in'])} inside), "
+            f"{t['nlos_dwell_s']:g} s episodes")
+    los = f"LOS σ {t['sigma_m']:g} m, per-pair bias {t['bias_range_m'][0]:g}–{t['bias_range_m'][1]:g} m"
+    tail = "our simulator (uw.sim.tours.TourConfig), not the paper's"
+    if what == "p90":
+        return f"{nlos}; {los}: {tail}" + ("; the next row scales the excess" if "excess" in f else "")
+    if what == "excess":
+        return f"nlos_mean_m scaled, the rest as above: {tail}"
+    if what == "dwell":
+        return f"nlos_dwell_s varied, the rest as above: {tail}"
+    return f"{nlos}; {los}: {tail}"
 
+
+def verdict_table(f: dict) -> pd.DataFrame:
+    """The claims of notebook 02, one row each (:data:`COLUMNS`) from :func:`comparison_facts`.
+
+    ``paper kind`` is *input* where the paper states the claim, ``ours kind`` is *reproduced*;
+    ``assumption`` names the simulator assumption a synthetic number rests on (real-data rows: none).
     None of these has an interval: the comparisons are of medians and percentiles of one run each. Only the
     rows that say so allow a tolerance (5 mm, where two estimators count as equal); the others follow the sign
     or the order, so a millimetre can decide them. The NLS-vs-point row takes the best of the NLS variants on
     its own epochs, with coverage beside it."""
     rows = []
 
-    def add(claim, paper, ours, rule, verdict):
-        rows.append({"claim": claim, "paper": paper, "ours": ours, "rule": rule, "verdict": verdict})
+    def add(claim, paper, ours, rule, verdict, assumption="—"):
+        rows.append({"claim": claim, "paper": paper, "paper kind": "—" if paper == "—" else "input",
+                     "ours": ours, "ours kind": "reproduced", "assumption": assumption, "rule": rule,
+                     "verdict": verdict})
 
+    syn = _assumption(f)
     geo = "known mount height" if f["dim"] == 2 else "3-D, no height"
     add(f"ranking of the heuristics by median stop error, synthetic ({geo})",
         " < ".join(_name(h) for h in PAPER_RANKING),
         " < ".join(f"{_name(h)} ({f['stop_median_m'][h]:.2f} m)" for h in f["ranking"]),
-        "the same order", "as in the paper" if f["paper_ranking"] else "differs")
+        "the same order", "as in the paper" if f["paper_ranking"] else "differs", syn)
     if f.get("point_best_nls"):
         b, pt = f["point_best_nls"], f["point"]
         add("best trajectory NLS vs the point-based fixes, 90th percentile of all errors (m)",
             "a slight improvement", f"{_name(b)} {pt[b]['p90_m']:.2f}, point {pt[POINT]['p90_m']:.2f} "
             f"(coverage {_pct(pt[b]['coverage'])}, {_pct(pt[POINT]['coverage'])})", "lower",
-            "NLS better" if f["nls_beats_point_p90"] else "NLS not better")
+            "NLS better" if f["nls_beats_point_p90"] else "NLS not better", syn)
         if "residual" in pt:
             add("residual pruning: 90 % of all distance errors under 4 m", "yes", f"{pt['residual']['p90_m']:.2f} m",
-                "90th percentile < 4 m", "agrees" if pt["residual"]["p90_m"] < 4.0 else "differs")
+                "90th percentile < 4 m", "agrees" if pt["residual"]["p90_m"] < 4.0 else "differs",
+                _assumption(f, "p90"))
+    if "excess" in f:
+        e = f["excess"]
+        under = [p < 4.0 for p in e["p90_m"]]
+        add("residual pruning: 90 % of all distance errors under 4 m, as the simulated NLOS excess is scaled", "yes",
+            " / ".join(f"{p:.2f}" for p in e["p90_m"]) + " m at a mean excess of "
+            + " / ".join(f"{m:g}" for m in e["nlos_mean_m"]) + " m", "90th percentile < 4 m at each",
+            "agrees at each" if all(under) else "differs at each" if not any(under) else
+            "depends on the assumed excess", _assumption(f, "excess"))
     if "geometry" in f:
         g = f["geometry"]
         known = tuple(h for h in g["ranking_known"] if h in g["ranking_3d_by_3d_error"])
         add("ranking in 3-D without a height, by 3-D median error (the robust mean has no 3-D version)", "—",
             " < ".join(_name(h) for h in g["ranking_3d_by_3d_error"]), "same order as at the known height",
-            "same" if g["ranking_3d_by_3d_error"] == known else "changes")
+            "same" if g["ranking_3d_by_3d_error"] == known else "changes", syn)
         add("5th percentile in 3-D: median height error (m; > 0: the node sits too high)", "—",
             f"{g['percentile_dz_bias_m']:+.2f}", "sign", "too high" if g["percentile_dz_bias_m"] > 0 else
-            "too low" if g["percentile_dz_bias_m"] < 0 else "zero")
+            "too low" if g["percentile_dz_bias_m"] < 0 else "zero", syn)
     if "persistence" in f:
         p = f["persistence"]
         add(f"best heuristic as NLOS episodes lengthen ({p['base_s']:g} s → {p['long_s']:g} s)", "—",
             f"{_name(p['best_base'])} → {_name(p['best_long'])}", "the same heuristic",
-            "same" if p["best_base"] == p["best_long"] else "changes")
+            "same" if p["best_base"] == p["best_long"] else "changes", _assumption(f, "dwell"))
     words = {"better than": "NLS better", "as good as": "equal within 5 mm", "worse than": "NLS worse"}
     for k, v in f.get("lias_point_verdict", {}).items():
         t = f["lias_static_point"][k]
@@ -247,4 +298,4 @@ def verdict_table(f: dict) -> pd.DataFrame:
     if "hanyang" in f and "gap_m" in f["hanyang"]:
         add("Hanyang static: NLOS − LOS median range error (m)", "—", f"{f['hanyang']['gap_m']:+.2f}", "> 0",
             "NLOS larger" if f["hanyang"]["gap_m"] > 0 else "not larger")
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows, columns=COLUMNS)
