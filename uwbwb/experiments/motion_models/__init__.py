@@ -2,25 +2,27 @@
 
 ``study`` calibrates and runs the estimators (``results``: what one tag-run gives and the tables),
 ``real`` runs the real-data sections, ``headlines`` declares the summary rows and the checks,
-``figures`` draws, ``panels`` is the explorer's back end, ``exercises`` the checked exercises. The notebook imports
-this package as ``mm``.
+``seeds`` runs the synthetic tables over several test seeds (a verdict per pair), ``figures`` draws,
+``panels`` is the explorer's back end, ``exercises`` the checked exercises. The notebook imports this package
+as ``mm``.
 """
 
-from . import exercises, panels, real
+from . import exercises, panels, real, seeds
 from .figures import calibration_figure, cdf_figure, covariance_figure, paths_figure, scenario_figure
 from .headlines import Results, SIGMA_KIND, checks, headline_rows, record, sigma_rows, summary_rows
 from .results import (METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, cep95_table,
                       coverage_table, ekf_name, nis_table, paper_table, ranking)
+from .seeds import SEED_PAIRS, SEED_RULE, SeedStudy, scoring_seeds, seed_rows, seed_study, t_interval
 from .study import (DEFAULT_GRIDS, Study, best_sigmas, calibration_curves, estimate, ranging_summary,
                     raw_multilateration, run_ekf, run_study, split_runs, synthetic_acquisition, tag_runs,
                     tdoa_noise_check)
 
 __all__ = [
     "DEFAULT_GRIDS", "METHODS", "MODELS", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95",
-    "PAPER_SIGMA", "Results", "SIGMA_KIND", "Study", "TagResults", "best_sigmas",
+    "PAPER_SIGMA", "Results", "SEED_PAIRS", "SEED_RULE", "SIGMA_KIND", "SeedStudy", "Study", "TagResults", "best_sigmas",
     "calibration_curves", "calibration_figure", "cdf_figure", "cep95_table", "checks", "covariance_figure",
     "coverage_table", "ekf_name", "estimate", "exercises", "headline_rows",
     "nis_table", "panels", "paper_table", "paths_figure", "ranging_summary", "ranking", "raw_multilateration", "real",
-    "record", "run_ekf", "run_study", "scenario_figure", "sigma_rows", "split_runs", "summary_rows",
-    "synthetic_acquisition", "tag_runs", "tdoa_noise_check",
+    "record", "run_ekf", "run_study", "scenario_figure", "scoring_seeds", "seed_rows", "seed_study", "seeds",
+    "sigma_rows", "split_runs", "summary_rows", "synthetic_acquisition", "t_interval", "tag_runs", "tdoa_noise_check",
 ]

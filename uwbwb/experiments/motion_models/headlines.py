@@ -11,7 +11,8 @@ import numpy as np
 
 from ... import metrics
 from ...models.motion import MOTION_MODELS
-from .results import MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, ekf_name
+from .results import METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, ekf_name
+from .seeds import SeedStudy, seed_rows
 
 if TYPE_CHECKING:
     from .study import Study
@@ -95,23 +96,28 @@ class Results:
     real
         ``(data label, variant, Study)`` per real-data study, e.g.
         ``("lias-planar-uwb/fast", "calibrated ranges", study)``.
+    seeds
+        The synthetic studies' filters over several test seeds (:func:`.seeds.seed_study`; None: not run).
     """
 
     synthetic: Mapping[str, "Study"]
     real: Sequence[tuple[str, str, "Study"]] = ()
+    seeds: SeedStudy | None = None
 
 
 def headline_rows(results: Results) -> list[dict]:
     """Every summary row of notebook 03's studies, in the summary's order (synthetic first), each with kind.
 
     Synthetic scenarios: the calibrated driving σ (:func:`sigma_rows`; RW a *target*) and the test
-    results against the thesis' tables; real studies: the test results, named
-    ``"{tag} {method} (<variant>, test part {run})"``.
+    results against the thesis' tables, then the differences over test seeds (:func:`.seeds.seed_rows`);
+    real studies: the test results, named ``"{tag} {method} (<variant>, test part {run})"``.
     """
     rows = []
     for scen, study in results.synthetic.items():
         rows += sigma_rows(study.best, scen)
         rows += summary_rows(study.results, data="synthetic", paper=True)
+    if results.seeds is not None:
+        rows += seed_rows(results.seeds)
     for label, variant, study in results.real:
         rows += summary_rows(study.results, data=label, label="{tag} {method} (" + variant + ", test part {run})")
     return rows
@@ -130,8 +136,9 @@ def checks(results: Results, fast: bool) -> list[str]:
     epochs LS covers (it starts at the first LS fix and predicts through every later epoch); every
     EKF made an update; the best EKF within :data:`LS_MARGIN` of LS (the grid's largest driving σ
     makes an EKF nearly the per-epoch fix). Synthetic only: EKF-RW beats the untracked 4-anchor
-    device output, and the best EKF is within :data:`SYNTHETIC_LS_MARGIN` of LS. ``fast`` does not
-    loosen any of these (the margins already allow for short runs).
+    device output, and the best EKF is within :data:`SYNTHETIC_LS_MARGIN` of LS; the seeds study's first seed
+    (the study's own) gives the single-seed tables' CEP95 exactly (the same filters, the same code path).
+    ``fast`` does not loosen any of these (the margins already allow for short runs).
 
     Returns
     -------
@@ -159,4 +166,11 @@ def checks(results: Results, fast: bool) -> list[str]:
                 problems.append(f"{res.run.key}: EKF-RW should beat the untracked 4-anchor device output {c}")
             if min(c[m] for m in models) > SYNTHETIC_LS_MARGIN * c["LS"]:
                 problems.append(f"{res.run.key}: the best EKF should not lose to LS {c}")
+    if results.seeds is not None:
+        base = results.seeds.base()
+        for study in results.synthetic.values():
+            t = study.table(METHODS)
+            t = t[t.index.isin(base.index)]
+            if len(t) == 0 or not np.array_equal(t.to_numpy(), base.loc[t.index, list(METHODS)].to_numpy()):
+                problems.append(f"the seeds study's first seed does not reproduce the single-seed table {list(t.index)}")
     return problems

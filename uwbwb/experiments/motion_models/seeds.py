@@ -1,0 +1,180 @@
+"""Notebook 03's synthetic tables over several test seeds, and a verdict per pair of estimators.
+
+The single-seed Tables 2–5 score one simulated test acquisition per scenario, so a ranking of the motion
+models there may be one draw's luck. :func:`seed_study` keeps the filters the study calibrated (its driving σ
+per model and range σ per anchor and tag, fitted on the calibration acquisition of the study's seed) and
+runs them (:func:`~.study.estimate`, the study's own code path) on the test acquisitions of several seeds;
+the first seed is the study's own, so its rows are the single-seed tables. :meth:`SeedStudy.pairs` gives, per
+data set and pair ``(A, B)``, the mean over seeds of ``CEP95(A) − CEP95(B)`` (averaged over the data set's
+tag-runs within a seed), its Student-t interval over the seeds (seeds are independent replicates; the tag-runs
+of one seed share its walk and are not) and the verdict by :func:`uwbwb.metrics.interval_side`: "A better",
+"B better" or "not significant". The interval covers test noise given the calibration, not the luck of the
+one calibration acquisition.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from ...metrics import interval_side
+from .results import METHODS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, cep95_table
+from .study import Study, estimate, synthetic_acquisition
+
+__all__ = ["SEED_PAIRS", "SEED_RULE", "SeedStudy", "scoring_seeds", "seed_rows", "seed_study", "t_interval"]
+
+#: Pairs ``(A, B)`` the seeds verdict compares: the motion models among themselves (Tables 3, 5), each EKF
+#: against LS and LS against the raw output (Tables 2, 4).
+SEED_PAIRS = (("EKF-RW", "EKF-RF"), ("EKF-RW", "EKF-RJ"), ("EKF-RF", "EKF-RJ"), ("EKF-RW", "LS"), ("EKF-RF", "LS"),
+              ("EKF-RJ", "LS"), ("LS", "raw"))
+#: The rule the verdict table states beside each verdict.
+SEED_RULE = "95 % Student-t interval over test seeds of CEP95(A) − CEP95(B) excludes 0"
+
+
+def scoring_seeds(seed: int, n: int) -> tuple[int, ...]:
+    """The test seeds of a study made with ``seed``: ``seed`` itself (the single-seed tables), then the next
+    ``n − 1``."""
+    if int(n) < 1:
+        raise ValueError(f"at least one test seed is needed, got {n!r}")
+    return tuple(range(int(seed), int(seed) + int(n)))
+
+
+def t_interval(x, *, prob: float = 0.95) -> dict:
+    """Mean of ``x`` (one value per seed) and its two-sided Student-t interval at ``prob``.
+
+    Returns ``{"mean", "lo", "hi", "n"}``; with fewer than two finite values the interval is NaN (no verdict).
+    """
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    n = int(x.size)
+    if n == 0:
+        return {"mean": np.nan, "lo": np.nan, "hi": np.nan, "n": 0}
+    m = float(x.mean())
+    if n < 2:
+        return {"mean": m, "lo": np.nan, "hi": np.nan, "n": n}
+    h = float(stats.t.ppf(0.5 + prob / 2, n - 1) * x.std(ddof=1) / math.sqrt(n))
+    return {"mean": m, "lo": m - h, "hi": m + h, "n": n}
+
+
+def _thesis(key: tuple[str, str], a: str, b: str) -> float:
+    """The thesis' ``CEP95(A) − CEP95(B)`` on one of its rows (*input*): both from one table where it has both
+    (Tables 3/5 for the models, Tables 2/4 for EKF-RW, LS and raw), else each from the table that has it."""
+    models, methods = PAPER_MODELS_CEP95.get(key, {}), PAPER_METHODS_CEP95.get(key, {})
+    for table in (models, methods):
+        if a in table and b in table:
+            return table[a] - table[b]
+    va, vb = models.get(a, methods.get(a, np.nan)), models.get(b, methods.get(b, np.nan))
+    return va - vb
+
+
+@dataclass(frozen=True)
+class SeedStudy:
+    """CEP95 of every estimator on the test acquisitions of several seeds.
+
+    Attributes
+    ----------
+    cep95
+        CEP95 (m) on common epochs, rows ``(seed, run, tag)``, columns :data:`~.results.METHODS`.
+    datasets
+        Data-set label → the scenario names (runs) it pools, e.g. ``{"synthetic AGV": ("agv1", "agv2")}``.
+    seeds
+        The test seeds, the study's own first.
+    """
+
+    cep95: pd.DataFrame
+    datasets: Mapping[str, tuple[str, ...]]
+    seeds: tuple[int, ...]
+
+    def base(self) -> pd.DataFrame:
+        """The first seed's rows, indexed ``(run, tag)``: the single-seed tables' numbers."""
+        return self.cep95.xs(self.seeds[0], level="seed")
+
+    def table(self, methods: Sequence[str] = METHODS, *, prob: float = 0.95) -> pd.DataFrame:
+        """Per ``(run, tag)``: the mean CEP95 over the seeds of every method and the half-width of its
+        Student-t interval (columns ``(method, "mean")``, ``(method, "± 95 %")``), and the seed count."""
+        out = {}
+        for key, g in self.cep95.groupby(level=["run", "tag"], sort=False):
+            row = {}
+            for m in methods:
+                t = t_interval(g[m], prob=prob)
+                row[(m, "mean")], row[(m, "± 95 %")] = t["mean"], (t["hi"] - t["lo"]) / 2
+            row[("seeds", "")] = len(g)
+            out[key] = row
+        table = pd.DataFrame.from_dict(out, orient="index")
+        table.index.names = ["run", "tag"]
+        table.columns = pd.MultiIndex.from_tuples(table.columns)
+        return table
+
+    def pairs(self, pairs: Sequence[tuple[str, str]] = SEED_PAIRS, *, prob: float = 0.95) -> pd.DataFrame:
+        """Per data set and pair ``(A, B)``: seeds, the mean over seeds of ``CEP95(A) − CEP95(B)`` (each seed's
+        value averaged over the data set's tag-runs), its Student-t interval, the thesis' difference on the same
+        rows (*input*), the rule, the verdict (:func:`~uwbwb.metrics.interval_side`) and whether its order is the
+        thesis'."""
+        rows = []
+        for label, runs in self.datasets.items():
+            d = self.cep95[self.cep95.index.get_level_values("run").isin(runs)]
+            keys = list(dict.fromkeys((r, t) for _, r, t in d.index))
+            for a, b in pairs:
+                per_seed = (d[a] - d[b]).groupby(level="seed").mean()
+                t = t_interval(per_seed.to_numpy(), prob=prob)
+                side = interval_side(t["lo"], t["hi"])
+                verdict = {"below": f"{a} better", "above": f"{b} better", "contains": "not significant"}.get(
+                    side, "no interval (one seed)")
+                thesis = round(float(np.nanmean([_thesis(k, a, b) for k in keys])), 6) if keys else np.nan
+                order = ("thesis: equal" if thesis == 0 else
+                         "same order" if (side == "below") == (thesis < 0) else "opposite order") \
+                    if side in ("below", "above") and np.isfinite(thesis) else "—"
+                rows.append({"data": label, "A": a, "B": b, "seeds": t["n"], "A − B (m)": t["mean"],
+                             "95 % low (m)": t["lo"], "95 % high (m)": t["hi"], "thesis A − B (m, input)": thesis,
+                             "rule": SEED_RULE, "verdict": verdict, "vs thesis": order})
+        return pd.DataFrame(rows)
+
+
+def seed_study(studies: Mapping[str, tuple[Study, Sequence[str]]], seeds: Sequence[int], *, gate_prob: float | None,
+               duration_s: float | None = None, rate_hz: float | None = None, ref: int = 0) -> SeedStudy:
+    """The study's calibrated filters on the test acquisitions of every seed.
+
+    Parameters
+    ----------
+    studies
+        Data-set label → ``(study, scenario names)``: the study whose calibration is used (:attr:`Study.best`,
+        :attr:`Study.sigma_m`) and the scenarios (:func:`~.study.synthetic_acquisition` names) it tests on.
+    seeds
+        Test seeds (:func:`scoring_seeds`); each seed's test acquisition is drawn with ``role="test"``, so it
+        never shares noise with a calibration acquisition.
+    gate_prob, duration_s, rate_hz, ref
+        As for the study (the χ² gate is required, as there).
+    """
+    seeds = tuple(int(s) for s in seeds)
+    if not seeds:
+        raise ValueError("at least one test seed is needed")
+    frames = {}
+    for s in seeds:
+        for study, names in studies.values():
+            for name in names:
+                runs, _ = synthetic_acquisition(name, seed=s, duration_s=duration_s, rate_hz=rate_hz, role="test")
+                res = [estimate(r, study.sigma_m[r.tag], study.best, gate_prob=gate_prob, ref=ref) for r in runs]
+                frames[(s, name)] = cep95_table(res, METHODS)
+    table = pd.concat({s: pd.concat([frames[(s, n)] for _, names in studies.values() for n in names])
+                       for s in seeds}, names=["seed"])
+    return SeedStudy(table, {k: tuple(v) for k, (_, v) in studies.items()}, seeds)
+
+
+def seed_rows(seeds: SeedStudy, pairs: Sequence[tuple[str, str]] = SEED_PAIRS) -> list[dict]:
+    """Summary rows of :meth:`SeedStudy.pairs` (all *reproduced*; the thesis' difference as ``paper_value``):
+    the mean difference and the two ends of its interval, where finite."""
+    rows = []
+    for r in seeds.pairs(pairs).to_dict("records"):
+        base = f"CEP95 {r['A']} minus {r['B']}, mean over test seeds ({r['data']})"
+        thesis = r["thesis A − B (m, input)"]
+        for q, v, pv in ((base, r["A − B (m)"], thesis if np.isfinite(thesis) else None),
+                         (f"{base}, 95 % low", r["95 % low (m)"], None), (f"{base}, 95 % high", r["95 % high (m)"], None)):
+            if np.isfinite(v):
+                rows.append({"quantity": q, "value": float(v), "unit": "m", "data": "synthetic",
+                             "paper_value": pv, "kind": "reproduced"})
+    return rows
