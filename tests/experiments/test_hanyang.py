@@ -274,6 +274,24 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     assert {"ratio_dt-0.1s", "nolat_ratio"} <= set(sec.tables["ratios"].columns)
     assert len(sec.tables["static_models"]) >= 1 and len(sec.tables["verdicts"]) >= 3
     assert sec.facts["tuning"][cases[0].name] != cases[0].name
+    # the boards carry the common bound of every board of notebook 06 (one per recording, fitted on the tuning
+    # case's truth), shown by the section's table and placed by the one placement rule
+    board = sec.boards[cases[0].name]
+    shown, full = sections.board_table(board), board.table().set_index("method")
+    ran = full[full["n_scored"] > 0]
+    assert board.calibration.params("common bound")["model"] in ("RW", "RF", "RJ")
+    assert (ran["common_bound_m"] > 0).all() and ran["common_bound_common_m"].nunique() == 1
+    cols = ["common_bound_m", "rmse_over_common", "common_bound_common_m", "rmse_common_over_common"]
+    pd.testing.assert_frame_equal(shown.loc[ran.index, cols], ran[cols])
+    assert set(sec.tables["placement"]["method"]) == set(ran.index)
+    assert set(sec.tables["own_bound"]["method"]) == set(ran.index[ran["bound_m"] > 0])
+    # the TDoA fix's own bound against the ranges' CRLB: the 2 m cluster, measured, in its note
+    tdoa = full.loc["TDoA LS"]
+    assert tdoa.bound_over_ranges_crlb > 10 and tdoa.note.startswith(f"own bound {tdoa.bound_over_ranges_crlb:.0f}×")
+    assert full.loc["raw LS", "bound_over_ranges_crlb"] == pytest.approx(1.0)
+    # the UWB/INS filters are on the board and say why they did not run; every tuned EKF says where its pick lies
+    assert full.loc[["loose", "tight"], "note"].str.contains("needs an IMU").all()
+    assert full.loc["EKF-RF ranges", "tuning_pick"].startswith("σ_w ")
     prune = sections.pruning_section(None, data, fast=True)
     assert prune.facts["case"].startswith("NLOS/") and {"NLS residual pruning", "NLS robust mean"} <= set(
         prune.tables["ablation"]["method"])

@@ -105,6 +105,40 @@ def test_a_method_below_its_bound_is_explained():
     assert 0.4 < diag.loc["tag", "range σ scoring / calibrated"] < 0.6
     assert diag.loc["tag", "σ_w RF tuned"] == cal.params("EKF-RF")["sigma_w"]
     assert "range σ scoring / calibrated" in b.markdown()
+    # the bound re-evaluated at the scored part's measured noise (half the calibrated): LS is not below that one
+    assert row.bound_measured_m == pytest.approx(0.5 * row.bound_m, rel=0.15)
+    assert row.rmse_over_bound_measured + 2 * row.rmse_over_bound_measured_se >= 1
+    assert "not below it at the scored part's measured noise" in row.note and "cause not measured" not in row.note
+    from uwbwb.scoreboard.verdicts import own_bound_table
+
+    own = own_bound_table({"synthetic": b}).set_index("method")
+    assert own.loc["LS", "verdict"] == "below its own bound; not below it at the measured noise"
+
+
+class _LooseBoundLs(CalibratedLs):
+    """LS whose stated bound is three times its CRLB whatever the noise: it beats it, and the noise is not why."""
+
+    def bound(self, rec, tag, cal, est):
+        b = super().bound(rec, tag, cal, est)
+        return replace(b, pos_cov_m2=9.0 * b.pos_cov_m2)
+
+
+def test_a_method_below_its_bound_for_no_measured_reason_says_cause_not_measured():
+    """Exact noise, a bound three times too wide: below it also at the measured noise, so the note and the
+    verdict say the cause is not measured (no sentence claims a reason)."""
+    from uwbwb.scoreboard.verdicts import own_bound_table
+
+    cfg = syn.SyntheticConfig(duration_s=20.0)
+    rec = syn.simulate(cfg, rng=np.random.default_rng(5))
+    ests = [CalibratedLs(), _LooseBoundLs(name="LS, loose bound")]
+    cal = syn.exact_calibration(cfg, calibrate(rec, ests, rate_hz=None, dim=2))
+    b = score(rec, rec, estimators=ests, rate_hz=None, calibration=cal)
+    row = b.table().set_index("method").loc["LS, loose bound"]
+    assert row.rmse_over_bound < 0.5 and row.rmse_over_bound_measured < 0.5
+    assert row.note.startswith("BEATS its own bound") and row.note.endswith("cause not measured")
+    own = own_bound_table({"synthetic": b}).set_index("method")
+    assert own.loc["LS, loose bound", "verdict"] == "below its own bound, also at the measured noise: cause not measured"
+    assert own.loc["LS", "verdict"] == "not below its own bound"
 
 
 def test_the_note_says_sampling_error_within_two_standard_errors():
@@ -117,6 +151,27 @@ def test_the_note_says_sampling_error_within_two_standard_errors():
     assert beats_bound_note(SimpleNamespace(rmse_over_bound=0.7, rmse_over_bound_se=0.1)).startswith("BEATS")
     nose = beats_bound_note(SimpleNamespace(rmse_over_bound=0.99, rmse_over_bound_se=float("nan")))
     assert "no standard error" in nose and "BEATS" not in nose
+    # beside a beaten bound: the same bound at the measured noise, or "cause not measured" where there is none
+    assert beats_bound_note(SimpleNamespace(rmse_over_bound=0.7, rmse_over_bound_se=0.1)).endswith("cause not measured")
+    held = SimpleNamespace(rmse_over_bound=0.7, rmse_over_bound_se=0.1, rmse_over_bound_measured=0.85,
+                           rmse_over_bound_measured_se=0.1)
+    assert "not below it at the scored part's measured noise 0.85 ± 0.10" in beats_bound_note(held)
+    assert "cause not measured" not in beats_bound_note(held)
+    held.rmse_over_bound_measured = 0.75
+    assert beats_bound_note(held).endswith("measured noise 0.75 ± 0.10: cause not measured")
+
+
+def test_the_geometry_note_gives_the_own_bound_against_the_ranges_crlb():
+    from types import SimpleNamespace
+
+    from uwbwb.scoreboard.explain import GEOMETRY_FACTOR, bound_note, geometry_note
+
+    far = SimpleNamespace(bound_over_ranges_crlb=550.4, ranges_crlb_m=1.754, rmse_over_bound=0.04,
+                          rmse_over_bound_se=float("nan"))
+    assert geometry_note(far) == "own bound 550× the ranges' CRLB (1.75 m)"
+    assert bound_note(far).startswith("own bound 550× the ranges' CRLB (1.75 m); below its own bound (RMSE/bound 0.04")
+    near = SimpleNamespace(bound_over_ranges_crlb=GEOMETRY_FACTOR, ranges_crlb_m=1.0)
+    assert geometry_note(near) == ""
 
 
 def _write_tidy(directory, seed=11):
@@ -375,6 +430,13 @@ def test_common_epoch_ratio_ranks_on_one_bound_and_tuning_picks_say_if_on_the_ed
     assert bool(df.loc["EKF-RW", "grid_edge"]) and df.loc["LS", "grid_edge"] is None
     md = b.markdown()
     assert "on the grid's edge" in md and "inside the grid" in md and "common epochs" in md
+    # the pick itself beside where it lies
+    assert df.loc["EKF-RF", "tuning_pick"] == "σ_w 1: inside the grid"
+    assert df.loc["EKF-RW", "tuning_pick"] == f"σ_w {b.calibration.params('EKF-RW')['sigma_w']:.3g}: on the grid's edge"
+    assert df.loc["LS", "tuning_pick"] == "—" and "| σ_w 1: inside the grid |" in md
+    # on a good geometry (8 anchors around the tag) the LS bound is the ranges' CRLB, a filter's lies below it
+    assert df.loc["LS", "bound_over_ranges_crlb"] == pytest.approx(1.0)
+    assert df.loc["EKF-RF", "bound_over_ranges_crlb"] < 1
 
 
 def test_the_common_bound_is_one_yardstick_fitted_on_the_calibration_truth():
@@ -421,6 +483,11 @@ def test_uwb_ins_filters_are_tuned_like_the_ekfs_and_checked_against_their_bound
         floor = 1 - 3 * r.rmse_over_bound_se if np.isfinite(r.rmse_over_bound_se) else 0.5
         assert floor < r.rmse_over_bound < 3.0, (m, r.rmse_over_bound, r.rmse_over_bound_se)
         assert np.isfinite(r.rmse_over_common)
+        # each filter's own run is timed (start-up and filter), none charged to the other
+        assert r.us_per_epoch > 0 and all(e.seconds > 0 for e in b.entries if e.method == m)
+        # the pick and, on this 2 × 2 grid, the knob(s) on its edge
+        assert r.tuning_pick.startswith(f"Q × {p['q_scale']:.3g}, R × {p['r_scale']:.3g}: on the grid's edge (")
+        assert p["edge_knobs"] and all(k.startswith(("Q × at its", "R × at its")) for k in p["edge_knobs"])
 
 
 def test_board_scores_each_tag_once_and_refuses_two_entries_for_one_method_and_tag():
@@ -586,3 +653,23 @@ def test_a_deg_per_s_gyro_on_a_robot_that_only_turns_is_refused(unit):
         with pytest.raises(ValueError, match=r"gyro rates look like deg/s, not rad/s: the truth's course turns at "
                                              r"\+0\.01\d"):
             check_gyro_against_truth(robot, "tag")
+
+
+def test_the_set_noise_bound_at_the_measured_noise_refits_the_set_model_on_the_scored_part():
+    """The set-noise filters' bound rests on the per-set fix noise fitted on the calibration part. Told twice the
+    fix noise, the own bound doubles; the bound at the measured noise (the set model refitted on the scored part's
+    own fixes against its truth) stays where it was."""
+    from uwbwb.scoreboard.setnoise_nls import SetNoiseFilter
+
+    cfg = syn.SyntheticConfig(duration_s=20.0)
+    rec = syn.simulate(cfg, rng=np.random.default_rng(6))
+    ests = [CalibratedLs(), SetNoiseFilter("KF")]
+    cal = syn.exact_calibration(cfg, calibrate(rec, ests, rate_hz=None, dim=2))
+    p = cal.params("set-noise KF")
+    m = p["model"]
+    wide = replace(m, sigma_m=2 * m.sigma_m, default_sigma_m=2 * m.default_sigma_m)
+    rows = [score(rec, rec, estimators=ests, rate_hz=None, calibration=c).table().set_index("method").loc["set-noise KF"]
+            for c in (cal, cal.with_tuned("set-noise KF", {**p, "model": wide}))]
+    assert rows[1].bound_m > 1.3 * rows[0].bound_m
+    assert rows[1].bound_measured_m == pytest.approx(rows[0].bound_measured_m, rel=1e-9)
+    assert np.isfinite(rows[0].rmse_over_bound_measured)

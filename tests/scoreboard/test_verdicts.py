@@ -11,7 +11,8 @@ from uwbwb.scoreboard import calibrate, score
 from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, ExternalEstimates
 from uwbwb.metrics.errors import BLOCK_LAG_FACTOR, MIN_BLOCKS, block_length
-from uwbwb.scoreboard.verdicts import difference_facts, difference_table, pair_rng, placement_table
+from uwbwb.scoreboard.verdicts import (difference_facts, difference_table, own_bound_table, pair_rng,
+                                       placement_table)
 from uwbwb.types import Trajectory
 
 
@@ -31,6 +32,24 @@ def _table_board(rows):
 def test_placement_flips_at_two_standard_errors(ratio, se, expected):
     t = placement_table({"rec": _table_board([("M", ratio, se)])})
     assert t.loc[0, "verdict"] == expected and t.loc[0, "method"] == "M" and t.loc[0, "recording"] == "rec"
+
+
+@pytest.mark.parametrize("ratio, se, measured, measured_se, expected", [
+    (0.95, 0.05, 1.0, 0.05, "not below its own bound"),
+    (0.85, 0.05, 1.0, 0.05, "below its own bound; not below it at the measured noise"),
+    (0.85, 0.05, 0.91, 0.05, "below its own bound; not below it at the measured noise"),
+    (0.85, 0.05, 0.89, 0.05, "below its own bound, also at the measured noise: cause not measured"),
+    (0.85, 0.05, float("nan"), float("nan"), "below its own bound; noise not measured: cause not measured"),
+    (0.50, float("nan"), 0.6, float("nan"), "no verdict (fewer than 10 blocks)")])
+def test_own_bound_verdict_flips_at_two_standard_errors_and_names_no_cause_it_did_not_measure(
+        ratio, se, measured, measured_se, expected):
+    import pandas as pd
+
+    df = pd.DataFrame([{"method": "M", "n_scored": 5, "rmse_over_bound": ratio, "rmse_over_bound_se": se,
+                        "rmse_over_bound_measured": measured, "rmse_over_bound_measured_se": measured_se,
+                        "bias_share": 0.1}])
+    t = own_bound_table({"rec": SimpleNamespace(table=lambda: df)})
+    assert t.loc[0, "verdict"] == expected and t.loc[0, "bias share"] == 0.1
 
 
 def _board(offset_m):

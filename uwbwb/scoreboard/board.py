@@ -31,6 +31,21 @@
     bound / RMSE): a consistency check of each method against its own model — near 1 the
     method does what its model promises; below 1 by more than 2 standard errors it *beats* its own
     bound (the ``note`` says so; :meth:`Board.diagnostics_table` holds the measurements that explain it). Not comparable across methods (a poor model has a loose bound).
+``bound_measured_m``, ``rmse_over_bound_measured``, ``rmse_over_bound_measured_se``
+    The own bound re-evaluated with its noise assumption replaced by what the scored part's truth
+    measures (:meth:`~.interface.BaseEstimator.measured_noise_bound`: the scored part's robust range σ;
+    the set-noise filters' noise model refitted on the scored part), and RMSE over it: a method below its
+    own bound but not below this one beats the bound's noise assumption. NaN where not measured.
+``ranges_crlb_m``, ``bound_over_ranges_crlb``
+    The snapshot CRLB of every range of the epoch at the calibrated noise (the range-domain bound of the
+    geometry) over the epochs of ``bound_m`` where it is finite, and the own bound over it on those epochs: far
+    above 1 the method's own
+    measurement model (e.g. range differences of a small anchor cluster) carries far less information than the
+    ranges (the note gives the factor above :data:`.explain.GEOMETRY_FACTOR`).
+``bias_share``
+    The constant part of the error: ``sqrt(Σ_tag n |mean error vector|² / Σ n) / RMSE`` over the scored epochs
+    (0: no constant offset; 1: all of the error is one offset per tag). A Cramér–Rao bound holds for unbiased
+    estimators.
 ``nees_mean``, ``nees_dof``, ``nees_ok``
     Mean NEES of the position (methods with a covariance) against its χ² 95 % interval
     (epochs treated as independent: a tracking filter's errors are correlated, so read it
@@ -43,6 +58,9 @@
 ``grid_edge``
     Whether the method's tuning pick on the calibration part lies on the edge of its grid (a wider
     grid might do better: its tuning effort fell short); None for a method that tunes nothing.
+``tuning_pick``
+    The picked value(s) (σ_w; Q ×, R ×; σ_d; window) and where they lie on the grid (which knob sits on
+    which end, where the tuning says); "—" for a method that tunes nothing.
 """
 
 from __future__ import annotations
@@ -61,8 +79,8 @@ from .. import metrics
 from ..types import Estimates, Recording
 from . import checks as _checks
 from .estimators import default_estimators
-from .interface import Estimator, truth_at
-from .explain import beats_bound_note, diagnostics, diagnostics_table
+from .interface import Estimator, _range_bound, truth_at
+from .explain import bound_note, diagnostics, diagnostics_table
 from .protocol import Calibration, fit_calibration, scored_tags
 from .reference import REFERENCE, common_bound, describe as describe_reference, fit_reference_motion
 from .verdicts import block_se_ratio
@@ -73,8 +91,10 @@ __all__ = ["Board", "Entry", "calibrate", "score", "TABLE_COLUMNS"]
 TABLE_COLUMNS = ("method", "coverage", "n_scored", "rmse_m", "cep50_m", "cep95_m", "rmse_common_m",
                  "common_bound_m", "rmse_over_common", "rmse_over_common_se", "common_bound_common_m",
                  "rmse_common_over_common", "bound_m", "bound_kind", "n_bound",
-                 "rmse_over_bound", "rmse_over_bound_se", "nees_mean", "nees_dof", "nees_ok", "nis_over_dof",
-                 "nis_verdict", "us_per_epoch", "time_ratio", "grid_edge", "note")
+                 "rmse_over_bound", "rmse_over_bound_se", "bound_measured_m", "rmse_over_bound_measured",
+                 "rmse_over_bound_measured_se", "ranges_crlb_m", "bound_over_ranges_crlb", "bias_share",
+                 "nees_mean", "nees_dof", "nees_ok", "nis_over_dof",
+                 "nis_verdict", "us_per_epoch", "time_ratio", "grid_edge", "tuning_pick", "note")
 
 
 @dataclass(frozen=True)
@@ -97,6 +117,11 @@ class Entry:
         Why the method did not run here (None if it ran).
     common
         The recording's common bound at the same epochs (:mod:`.reference`; None if there is none).
+    bound_measured
+        The own bound with its noise assumption measured on the scored part
+        (:meth:`~.interface.BaseEstimator.measured_noise_bound`; None if not measured).
+    ranges_crlb
+        The snapshot CRLB of all the epoch's ranges at the calibrated noise (the geometry's range-domain bound).
     """
 
     method: str
@@ -107,6 +132,8 @@ class Entry:
     seconds: float = float("nan")
     skipped: str | None = None
     common: object | None = None
+    bound_measured: object | None = None
+    ranges_crlb: object | None = None
 
     @property
     def error_m(self) -> np.ndarray:
@@ -133,6 +160,16 @@ class Entry:
     def common_trace_m2(self) -> np.ndarray:
         """Horizontal trace of the common bound per epoch, ``(T,)``, m² (NaN where none)."""
         return _trace(self.common, len(self.estimates))
+
+    @property
+    def bound_measured_trace_m2(self) -> np.ndarray:
+        """Horizontal trace of the own bound at the measured noise per epoch, ``(T,)``, m² (NaN where none)."""
+        return _trace(self.bound_measured, len(self.estimates))
+
+    @property
+    def ranges_crlb_trace_m2(self) -> np.ndarray:
+        """Horizontal trace of the ranges' snapshot CRLB per epoch, ``(T,)``, m² (NaN where none)."""
+        return _trace(self.ranges_crlb, len(self.estimates))
 
     @property
     def nees(self) -> np.ndarray:
@@ -302,8 +339,9 @@ class Board:
 
     def _row(self, method: str, ents: list[Entry], skipped: list[Entry]) -> dict:
         row = {c: np.nan for c in TABLE_COLUMNS}
+        params = self.calibration.params(method)
         row.update(method=method, note="", bound_kind="", nis_verdict="", nees_ok=None,
-                   grid_edge=self.calibration.params(method).get("grid_edge"))
+                   grid_edge=params.get("grid_edge"), tuning_pick=pick_label(params))
         if not ents:
             row["note"] = "not run: " + "; ".join(sorted({e.skipped for e in skipped}))
             row["coverage"] = 0.0
@@ -334,6 +372,18 @@ class Board:
             row["bound_m"] = float(np.sqrt(np.mean(tr[have])))
             row["rmse_over_bound"] = float(np.sqrt(np.mean(err[have] ** 2)) / row["bound_m"])
             row["rmse_over_bound_se"] = _se(ents, "bound_trace_m2")
+            rc = np.concatenate([e.ranges_crlb_trace_m2[e.scored] for e in ents])
+            both = have & np.isfinite(rc)          # epochs whose ranges alone fix the position
+            if both.any():
+                row["ranges_crlb_m"] = float(np.sqrt(np.mean(rc[both])))
+                row["bound_over_ranges_crlb"] = float(np.sqrt(np.mean(tr[both]))) / row["ranges_crlb_m"]
+        tm = np.concatenate([e.bound_measured_trace_m2[e.scored] for e in ents])
+        have = np.isfinite(tm)
+        if have.any():
+            row["bound_measured_m"] = float(np.sqrt(np.mean(tm[have])))
+            row["rmse_over_bound_measured"] = float(np.sqrt(np.mean(err[have] ** 2)) / row["bound_measured_m"])
+            row["rmse_over_bound_measured_se"] = _se(ents, "bound_measured_trace_m2")
+        row["bias_share"] = _bias_share(ents)
         nees = np.concatenate([e.nees[e.scored] for e in ents])
         nees = nees[np.isfinite(nees)]
         if nees.size:
@@ -359,7 +409,7 @@ class Board:
         base = df.loc[df["method"] == "raw LS", "us_per_epoch"]
         if len(base) and np.isfinite(base.iloc[0]) and base.iloc[0] > 0:
             df["time_ratio"] = df["us_per_epoch"] / base.iloc[0]
-        df["note"] = [r.note or beats_bound_note(r) for r in df.itertuples(index=False)]
+        df["note"] = [r.note or bound_note(r) for r in df.itertuples(index=False)]
         return df
 
     def by_tag(self) -> pd.DataFrame:
@@ -401,6 +451,7 @@ class Board:
             lines += ["FAST mode: CI-sized tuning grids and particle counts — smoke-test numbers.", ""]
         head = ["method", "coverage", "RMSE (m)", "CEP50 (m)", "CEP95 (m)", "RMSE common epochs (m)",
                 "common bound (m)", "RMSE / common bound", "RMSE / common bound, common epochs", "own bound (m)", "own bound kind", "RMSE / own bound",
+                "RMSE / own bound at measured noise", "own bound / ranges' CRLB", "bias share",
                 "NEES / dof", "NIS / dof", "µs/epoch", "time × raw LS", "tuning pick", "note"]
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
 
@@ -412,14 +463,17 @@ class Board:
                    else f(r.rmse_over_bound, ".2f"))
             com = (f"{r.rmse_over_common:.2f} ± {r.rmse_over_common_se:.2f}" if np.isfinite(r.rmse_over_common_se)
                    else f(r.rmse_over_common, ".2f"))
+            meas = (f"{r.rmse_over_bound_measured:.2f} ± {r.rmse_over_bound_measured_se:.2f}"
+                    if np.isfinite(r.rmse_over_bound_measured_se) else f(r.rmse_over_bound_measured, ".2f"))
             nees = f"{r.nees_mean:.2f} / {r.nees_dof:.0f}" if np.isfinite(r.nees_mean) else "—"
             nis = f"{r.nis_over_dof:.2f} ({r.nis_verdict})" if np.isfinite(r.nis_over_dof) else "—"
             lines.append("| " + " | ".join([r.method, f(r.coverage, ".1%"), f(r.rmse_m), f(r.cep50_m), f(r.cep95_m),
                                               f(r.rmse_common_m), f(r.common_bound_m), com,
                                               f(r.rmse_common_over_common, ".2f"), f(r.bound_m),
-                                              r.bound_kind or "—", eff, nees, nis,
+                                              r.bound_kind or "—", eff, meas, f(r.bound_over_ranges_crlb, ".3g"),
+                                              f(r.bias_share, ".2f"), nees, nis,
                                               f(r.us_per_epoch, ".0f"), f(r.time_ratio, ".1f"),
-                                              _pick(r.grid_edge), r.note or ""]) + " |")
+                                              r.tuning_pick, r.note or ""]) + " |")
         diag = self.diagnostics_table()
         if not diag.empty:
             cols = ["tag", *diag.columns]
@@ -473,10 +527,41 @@ class Board:
                          external=m in self.external, label=self.label)
 
 
+#: Tuned knobs the board names in its *tuning pick* column: key in the tuned parameters, label, unit.
+TUNED_KNOBS = (("sigma_w", "σ_w", ""), ("q_scale", "Q ×", ""), ("r_scale", "R ×", ""),
+               ("sigma_d_mps", "σ_d", " m/s"), ("window_s", "window", " s"))
+
+
 def _pick(edge) -> str:
     if edge is None or (isinstance(edge, float) and not np.isfinite(edge)):
         return "—"
     return "on the grid's edge" if edge else "inside the grid"
+
+
+def pick_label(params: Mapping) -> str:
+    """A method's tuning pick as the board shows it: the picked knob values (:data:`TUNED_KNOBS`) and whether
+    they lie on the grid's edge, naming the knob(s) there where the tuning records them (``edge_knobs``);
+    "—" for a method that tunes nothing (no ``grid_edge``)."""
+    where = _pick(params.get("grid_edge"))
+    if where == "—":
+        return where
+    values = ", ".join(f"{label} {float(params[k]):.3g}{unit}" for k, label, unit in TUNED_KNOBS if k in params)
+    knobs = params.get("edge_knobs") or ()
+    if params.get("grid_edge") and knobs:
+        where += f" ({', '.join(knobs)})"
+    return f"{values}: {where}" if values else where
+
+
+def _bias_share(ents: list[Entry]) -> float:
+    """``sqrt(Σ_tag n |mean error vector|² / Σ n) / RMSE`` over the entries' scored epochs, horizontal."""
+    n, b2, e2 = 0, 0.0, 0.0
+    for e in ents:
+        d = (e.estimates.pos_m[:, :2] - e.truth_pos_m[:, :2])[e.scored]
+        if len(d):
+            n += len(d)
+            b2 += len(d) * float(np.sum(d.mean(axis=0) ** 2))
+            e2 += float(np.sum(d * d))
+    return float(np.sqrt(b2 / e2)) if n and e2 > 0 else float("nan")
 
 
 def _add(summary, *, external: bool, label: str, **row) -> None:
@@ -585,6 +670,7 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
                                 tag_height_m=known)
     rec = test_rec if rate_hz is None else test_rec.decimate(rate_hz=rate_hz)
     commons = {t: common_bound(rec, t, calibration) for t in tags}
+    ranges_crlb = {t: _range_bound(rec, t, calibration, rec.ranges[t], "CRLB of the ranges") for t in tags}
     blind = replace(rec, truth={})                    # what an estimator sees: the measurements, not the truth
     entries = []
     for tag in tags:
@@ -607,8 +693,16 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
                 b = est.bound(rec, tag, calibration, out)
             except NotImplementedError:
                 b = None                              # e.g. an external method's estimates: no model, no bound
+            measured = None
+            if b is not None and hasattr(est, "measured_noise_bound"):
+                try:
+                    measured = est.measured_noise_bound(rec, tag, calibration, out)
+                except Exception as exc:                # a measurement that cannot be made is "not measured"
+                    warnings.warn(f"{est.name} on {rec.label}/{tag}: its bound at the measured noise raised "
+                                  f"{type(exc).__name__}: {exc}; left out", RuntimeWarning, stacklevel=2)
             truth = truth_at(rec, tag, out.t_s, out.dim)
-            entries.append(Entry(est.name, tag, out, b, truth, seconds, common=commons[tag]))
+            entries.append(Entry(est.name, tag, out, b, truth, seconds, common=commons[tag], bound_measured=measured,
+                                 ranges_crlb=ranges_crlb[tag]))
     diag = {t: diagnostics(rec, t, calibration) for t in tags}
     external = tuple(e.name for e in estimators if getattr(e, "external", False))
     return Board(label or test_rec.label, test_rec.label, calibration, tuple(entries), tuple(names), diag, fast,

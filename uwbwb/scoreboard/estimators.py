@@ -249,9 +249,10 @@ class UwbInsFilter(BaseEstimator):
         best = int(np.argmin(cost))
         q, r = self.grid[best]
         qs, rs = sorted({g[0] for g in self.grid}), sorted({g[1] for g in self.grid})
-        edge = on_grid_edge(qs.index(q), len(qs)) or on_grid_edge(rs.index(r), len(rs))
+        knobs = tuple(f"{label} at its {'lowest' if v == vals[0] else 'highest'}"
+                      for label, v, vals in (("Q ×", q, qs), ("R ×", r, rs)) if on_grid_edge(vals.index(v), len(vals)))
         return {"calibration": imu_cal, "q_scale": float(q), "r_scale": float(r), "grid": tuple(self.grid),
-                "grid_rmse_m": tuple(float(c) for c in cost), "grid_edge": edge}
+                "grid_rmse_m": tuple(float(c) for c in cost), "grid_edge": bool(knobs), "edge_knobs": knobs}
 
     def _imu_calibration(self, cal):
         try:

@@ -13,12 +13,20 @@ from typing import Mapping, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
+from dataclasses import replace
+
 from .. import bounds, metrics
+from ..calibration import range_sigma_from_truth
 from ..models.tdoa import TdoaModel
 from ..types import EstimateStatus, Estimates, MAX_TRUTH_GAP_S, RangeLog, Recording
 from .protocol import Calibration
 
-__all__ = ["Estimator", "BaseEstimator", "calibrated_log", "truth_at", "on_grid_edge"]
+__all__ = ["Estimator", "BaseEstimator", "MIN_NOISE_SAMPLES", "calibrated_log", "measured_noise_calibration", "truth_at",
+           "on_grid_edge"]
+
+#: Fewest range residuals of an anchor on the scored part for its noise to be measured there
+#: (:func:`measured_noise_calibration`; an anchor with fewer keeps its calibrated σ).
+MIN_NOISE_SAMPLES = 10
 
 _UP, _NONE = int(EstimateStatus.UPDATED), int(EstimateStatus.NO_ESTIMATE)
 
@@ -49,6 +57,13 @@ class BaseEstimator:
     def tune(self, rec: Recording, tags: Sequence[str], cal: Calibration) -> Mapping:
         return {}
 
+    def measured_noise_bound(self, rec: Recording, tag: str, cal: Calibration, est: Estimates):
+        """The method's own bound with its noise assumption replaced by what the scored part's truth measures
+        (:func:`measured_noise_calibration`: every bound of the package built on the calibrated range σ takes the
+        scored part's own robust range σ). The board sets it beside the bound: a method below its own bound but
+        not below this one beats the bound's noise assumption, not its model. None: not measured."""
+        return self.bound(rec, tag, measured_noise_calibration(rec, tag, cal), est)
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.name!r})"
 
@@ -64,6 +79,29 @@ def truth_at(rec: Recording, tag: str, t_s: np.ndarray, dim: int) -> np.ndarray:
     """True positions ``(T, dim)`` at ``t_s`` by the one truth rule (:meth:`uwbwb.types.Recording.truth_at`:
     NaN outside the truth or in gaps over :data:`~uwbwb.types.MAX_TRUTH_GAP_S`)."""
     return rec.truth_at(tag, t_s, dim)
+
+
+def measured_noise_calibration(rec: Recording, tag: str, cal: Calibration) -> Calibration:
+    """``cal`` with ``tag``'s range σ replaced by the robust σ (1.4826 × MAD, as the calibration's) of the
+    calibrated ranges of ``rec`` against the true ranges (truth at the calibrated tag height on a 2-D board);
+    anchors with fewer than :data:`MIN_NOISE_SAMPLES` residuals keep their calibrated σ. ``cal`` unchanged where
+    ``rec`` has no truth for ``tag``."""
+    log = calibrated_log(rec, tag, cal)
+    if tag not in rec.truth:
+        return cal
+    pos = truth_at(rec, tag, log.t_s, 3 if rec.truth[tag].dim == 3 else 2)
+    if pos.shape[1] == 2:
+        h = cal.height(tag)
+        if h is None:
+            return cal
+        pos = np.column_stack([pos, np.full(len(pos), h)])
+    true_r = np.linalg.norm(pos[:, None, :] - rec.anchors.pos_m[None], axis=-1)
+    resid = log.range_m - true_r
+    sigma = cal.sigma(tag).copy()
+    ok = np.isfinite(resid).sum(axis=0) >= MIN_NOISE_SAMPLES
+    if ok.any():
+        sigma[ok] = range_sigma_from_truth(log.range_m[:, ok], true_r[:, ok])
+    return replace(cal, range_sigma_m={**cal.range_sigma_m, tag: sigma})
 
 
 def _range_bound(rec, tag, cal, log: RangeLog, kind="CRLB ranges") -> bounds.Bound:

@@ -111,14 +111,30 @@ class SetNoiseFilter(BaseEstimator):
 
     def bound(self, rec, tag, cal, est):
         p = self._params(cal)
+        return self._bound(rec, tag, cal, est, p["model"], p["sigma_d_mps"])
+
+    def measured_noise_bound(self, rec, tag, cal, est):
+        """The bound with the per-set noise model refitted on the scored part's own emulated fixes against its
+        truth (the bound's noise assumption, measured where it is scored); None where that fit is not possible."""
+        p = self._params(cal)
+        fixes = self._fixes(rec, tag, cal, truth=True)[0]
+        if len(fixes) == 0 or not np.all(np.isfinite(fixes.truth_m)):
+            return None
+        try:
+            model = fit_set_noise_from_fixes([fixes])
+            return self._bound(rec, tag, cal, est, model, p["sigma_d_mps"])
+        except ValueError:            # too few fixes of a set on this part to fit its noise
+            return None
+
+    def _bound(self, rec, tag, cal, est, model, sigma_d_mps):
         fixes, idx = self._fixes(rec, tag, cal)
         C = np.full((len(est), 2, 2), np.nan)
         kind = "PCRLB set-noise CV (given the fixes)"
         if len(fixes) == 0:
             return bounds.Bound(est.t_s, C, kind)
-        _, sd = model_noise(fixes, p["model"])
+        _, sd = model_noise(fixes, model)
         dt = np.diff(fixes.t_s, prepend=fixes.t_s[0])
-        motion = VelocityKick(p["sigma_d_mps"])
+        motion = VelocityKick(sigma_d_mps)
         here = motion.layout.axis_major()                                    # state x, ẋ, y, ẏ here
         F = motion.layout.reorder_matrix(motion.F(dt), here)
         Q = motion.layout.reorder_matrix(motion.Q(dt), here)

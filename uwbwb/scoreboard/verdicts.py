@@ -8,6 +8,10 @@ and a table over many of them (tests feed values on both sides of each threshold
   (blocks from :func:`block_ids`, so that the correlation of a tracking filter's errors is kept).
   The verdict is "A more accurate" / "B more accurate" when the interval excludes 0, else "no
   significant difference"; with fewer than :data:`MIN_BLOCKS` blocks no interval and no verdict.
+* :func:`own_bound_facts` / :func:`own_bound_table` — a method below its *own* bound (RMSE / own bound
+  + 2 se < 1), and whether it is still below that bound re-evaluated at the noise the scored part's truth
+  measures (:meth:`~.interface.BaseEstimator.measured_noise_bound`): not below it, the measured noise accounts for
+  the gap; still below it, or not measured, "cause not measured" — the table claims no other reason.
 * :func:`placement_facts` / :func:`placement_table` — a method against the recording's common
   bound (:mod:`.reference`): RMSE / common bound with its block standard error; "above" when
   ``ratio − 2 se > 1``, "below" when ``ratio + 2 se < 1``, else "on the bound"; no verdict when the
@@ -29,14 +33,16 @@ import pandas as pd
 
 from ..metrics.errors import MIN_BLOCKS, block_bootstrap_difference, block_ids, interval_side
 
-__all__ = ["DIFFERENCE_RULE", "N_BOOT", "PLACEMENT_RULE", "block_se_ratio", "difference_facts", "difference_table", "pair_rng",
-           "placement_facts", "placement_table"]
+__all__ = ["DIFFERENCE_RULE", "N_BOOT", "OWN_BOUND_RULE", "PLACEMENT_RULE", "block_se_ratio", "difference_facts",
+           "difference_table", "own_bound_facts", "own_bound_table", "pair_rng", "placement_facts", "placement_table"]
 
 #: Bootstrap resamples of a difference.
 N_BOOT = 2000
 #: The rules the tables state beside each verdict.
 DIFFERENCE_RULE = "95 % block-bootstrap interval of RMSE(A) − RMSE(B) on common epochs excludes 0"
 PLACEMENT_RULE = "RMSE / common bound ± 2 block standard errors excludes 1"
+OWN_BOUND_RULE = ("below: RMSE / own bound + 2 block standard errors < 1; then the same against the own bound at the "
+                  "scored part's measured noise")
 
 
 def block_se_ratio(sq_err: list[np.ndarray], trace: list[np.ndarray]) -> tuple[float, int]:
@@ -92,6 +98,55 @@ def placement_facts(row) -> dict:
     else:
         where = "above" if r - 2 * se > 1 else ("below" if r + 2 * se < 1 else "on")
     return {"method": row.method, "ratio": r, "se": se, "where": where}
+
+
+def _side(r: float, se: float) -> str:
+    if not np.isfinite(r):
+        return "none"
+    if not np.isfinite(se):
+        return "few blocks"
+    return "below" if r + 2 * se < 1 else "not below"
+
+
+def own_bound_facts(row) -> dict:
+    """One board row (:meth:`Board.table`) against its own bound (``where``: ``below``, ``not below``, ``few blocks``,
+    ``none``) and, where below, against the own bound at the measured noise (``measured``: the same sides;
+    ``none`` where not measured). ``verdict``: the table's words (module docstring)."""
+    r, se = float(row.rmse_over_bound), float(row.rmse_over_bound_se)
+    rm = float(getattr(row, "rmse_over_bound_measured", np.nan))
+    sm = float(getattr(row, "rmse_over_bound_measured_se", np.nan))
+    where, measured = _side(r, se), _side(rm, sm)
+    if where == "none":
+        verdict = "no own bound"
+    elif where == "few blocks":
+        verdict = f"no verdict (fewer than {MIN_BLOCKS} blocks)"
+    elif where == "not below":
+        verdict = "not below its own bound"
+    elif measured == "not below":
+        verdict = "below its own bound; not below it at the measured noise"
+    elif measured == "below":
+        verdict = "below its own bound, also at the measured noise: cause not measured"
+    else:
+        verdict = "below its own bound; noise not measured: cause not measured"
+    return {"method": row.method, "ratio": r, "se": se, "ratio_measured": rm, "se_measured": sm, "where": where,
+            "measured": measured, "verdict": verdict}
+
+
+def own_bound_table(boards: Mapping[str, object]) -> pd.DataFrame:
+    """:func:`own_bound_facts` of every method with an own bound on each board: recording, method, RMSE / own bound
+    and its standard error, the same at the scored part's measured noise, the bias share (a Cramér–Rao bound holds
+    for unbiased estimators), the rule and the verdict."""
+    rows = []
+    for label, board in boards.items():
+        for r in board.table().query("n_scored > 0").itertuples():
+            f = own_bound_facts(r)
+            if f["where"] == "none":
+                continue
+            rows.append({"recording": label, "method": f["method"], "RMSE / own bound": f["ratio"],
+                         "standard error": f["se"], "at measured noise": f["ratio_measured"],
+                         "its standard error": f["se_measured"], "bias share": float(r.bias_share),
+                         "rule": OWN_BOUND_RULE, "verdict": f["verdict"]})
+    return pd.DataFrame(rows)
 
 
 def pair_rng(seed: int, label: str, a: str, b: str) -> np.random.Generator:

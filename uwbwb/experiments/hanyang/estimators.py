@@ -18,7 +18,7 @@ from ...filters.kalman import Gaussian
 from ...filters.pruning import LABELS as PRUNING_LABELS, PruningConfig, localize
 from ...models.motion import MotionModel, make_motion_model
 from ...scoreboard.estimators import EKF_GRIDS
-from ...scoreboard.interface import BaseEstimator, _errors_rmse, _range_bound, calibrated_log, truth_at
+from ...scoreboard.interface import BaseEstimator, _errors_rmse, _range_bound, calibrated_log, on_grid_edge, truth_at
 from ...scoreboard.setnoise_nls import WindowNls
 from ...types import EstimateStatus, Estimates
 
@@ -109,7 +109,7 @@ class RangeEkfEstimator(BaseEstimator):
         cost = [np.mean([_errors_rmse(self._run(rec, t, cal, g), rec, t, cal.dim) for t in tags]) for g in grid]
         best = int(np.argmin(cost))
         return {"sigma_w": float(grid[best]), "grid": tuple(float(g) for g in grid),
-                "grid_rmse_m": tuple(float(c) for c in cost)}
+                "grid_rmse_m": tuple(float(c) for c in cost), "grid_edge": on_grid_edge(best, len(grid))}
 
     def estimate(self, rec, tag, cal):
         return self._run(rec, tag, cal, cal.params(self.name)["sigma_w"])

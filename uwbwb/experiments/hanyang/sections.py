@@ -9,7 +9,8 @@ not hold is an error.
 
 * :func:`scoreboard_section` (notebook 06): the authors' numbers reproduced, a board per case
   (their LS/ESKF as external rows), the summary ours / theirs across cases, the static range
-  model's effect;
+  model's effect, and each board's methods against the common bound and their own bounds
+  (:func:`~uwbwb.scoreboard.verdicts.placement_table`, :func:`~uwbwb.scoreboard.verdicts.own_bound_table`);
 * :func:`pruning_section` (notebook 02): NLS with and without the pruning heuristics of paper 001
   on one case (NLOS is the point), each against plain NLS with a bootstrap interval;
 * :func:`motion_section` (notebook 03): the RW/RF/RJ motion models on ranges (and the TDoA EKF of
@@ -32,10 +33,12 @@ from ...errors import DataNotFoundError
 from ...scoreboard import Board
 from ...scoreboard.estimators import EKF_GRIDS, RawLs, TdoaEkfEstimator
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S, WindowNls
+from ...scoreboard.verdicts import own_bound_table, placement_table
 from . import authors, estimators, facts, study
 from .pairs import pair_errors
 
-__all__ = ["Section", "ablation", "board_table", "motion_section", "pruning_section", "scoreboard_section"]
+__all__ = ["BOARD_COLUMNS", "Section", "ablation", "board_table", "motion_section", "pruning_section",
+           "scoreboard_section"]
 
 PathLike = str | os.PathLike
 NAME = hanyang_dynamic.NAME
@@ -123,11 +126,20 @@ def ablation(board: Board, pairs: Sequence[tuple[str, str]], *, low: str, high: 
     return pd.DataFrame(rows)
 
 
+#: The board columns a section shows (:func:`board_table`): errors, the common bound as on every board of notebook
+#: 06 (one per recording, :mod:`uwbwb.scoreboard.reference`) and on the common epochs, the own bound with its
+#: geometry factor and the check at the measured noise, the tuning pick, the time and the note.
+BOARD_COLUMNS = ("method", "coverage", "n_scored", "rmse_m", "cep95_m", "rmse_common_m", "common_bound_m",
+                 "rmse_over_common", "rmse_over_common_se", "common_bound_common_m", "rmse_common_over_common",
+                 "bound_m", "bound_kind", "rmse_over_bound", "rmse_over_bound_se", "rmse_over_bound_measured",
+                 "bound_over_ranges_crlb", "bias_share", "us_per_epoch", "tuning_pick", "note")
+
+
 def board_table(board: Board) -> pd.DataFrame:
-    """The columns of ``board`` a section shows (horizontal errors, m; coverage = share of scored epochs with a
-    position), one row per method."""
+    """The columns of ``board`` a section shows (:data:`BOARD_COLUMNS`; horizontal errors, m; coverage = share of
+    scored epochs with a position), one row per method."""
     df = board.table()
-    cols = [c for c in ("method", "coverage", "n_scored", "rmse_m", "cep95_m", "rmse_common_m", "bound_m") if c in df]
+    cols = [c for c in BOARD_COLUMNS if c in df]
     return df[cols].set_index("method")
 
 
@@ -168,7 +180,8 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
     tables = {"reproduction": comp.reproduction, "ratios": comp.ratios, "static_effect": effect,
               "static_models": pd.Series([m.describe() for m in comp.static_models], name="static range model",
                                          dtype=object).to_frame(),
-              "verdicts": facts.verdict_table(repro_f, {"chosen": chosen_f, "best": ratio_f}, static_f)}
+              "verdicts": facts.verdict_table(repro_f, {"chosen": chosen_f, "best": ratio_f}, static_f),
+              "placement": placement_table(comp.boards), "own_bound": own_bound_table(comp.boards)}
     return Section(None, tables, dict(comp.boards),
                    {"reproduction": repro_f, "ratios": ratio_f, "chosen": chosen_f, "static": static_f,
                     "tuning": dict(comp.tuning)},
