@@ -87,3 +87,22 @@ def test_seed_study_runs_the_study_filters_and_its_first_seed_is_the_study(offic
     assert len(rows) == len(mm.headline_rows(mm.Results(synthetic={"office": study}))) + len(seeds_rows)
     moved = replace(s, cep95=s.cep95 + 0.01)                          # a first seed that is not the study's
     assert any("first seed" in p for p in mm.checks(replace(results, seeds=moved), fast=True))
+
+
+def test_pairs_per_tag_run_split_what_the_data_set_pools():
+    rows = []
+    for s in range(4):                                   # tag1: RF better on every seed; tag2: RW better by more
+        rows.append({"seed": s, "run": "office", "tag": "tag1", "raw": 1.0, "LS": 1.0, "EKF-RJ": 1.0,
+                     "EKF-RW": 0.45 + 0.01 * s, "EKF-RF": 0.42 + 0.01 * s})
+        rows.append({"seed": s, "run": "office", "tag": "tag2", "raw": 1.0, "LS": 1.0, "EKF-RJ": 1.0,
+                     "EKF-RW": 0.37 + 0.005 * s, "EKF-RF": 0.50 - 0.004 * s})
+    t = pd.DataFrame(rows).set_index(["seed", "run", "tag"])[list(mm.METHODS)]
+    s = mm.SeedStudy(t, {"synthetic office": ("office",)}, (0, 1, 2, 3))
+    pooled = s.pairs(mm.MODEL_PAIRS[:1]).iloc[0]
+    per = s.pairs(mm.MODEL_PAIRS[:1], by="tag-run").set_index("data")
+    assert pooled["verdict"] == "EKF-RW better" and list(per.index) == ["office tag1", "office tag2"]
+    assert per.loc["office tag1", "verdict"] == "EKF-RF better" and per.loc["office tag1", "vs thesis"] == "opposite order"
+    assert per.loc["office tag1", "thesis A − B (m, input)"] == pytest.approx(0.41 - 0.77)
+    assert per.loc["office tag2", "verdict"] == "EKF-RW better"
+    with pytest.raises(ValueError, match="by must be"):
+        s.pairs(by="tag")

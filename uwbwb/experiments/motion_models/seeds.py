@@ -26,12 +26,14 @@ from ...metrics import interval_side
 from .results import METHODS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, cep95_table
 from .study import Study, estimate, synthetic_acquisition
 
-__all__ = ["SEED_PAIRS", "SEED_RULE", "SeedStudy", "scoring_seeds", "seed_rows", "seed_study", "t_interval"]
+__all__ = ["MODEL_PAIRS", "SEED_PAIRS", "SEED_RULE", "SeedStudy", "scoring_seeds", "seed_rows", "seed_study", "t_interval"]
 
 #: Pairs ``(A, B)`` the seeds verdict compares: the motion models among themselves (Tables 3, 5), each EKF
 #: against LS and LS against the raw output (Tables 2, 4).
 SEED_PAIRS = (("EKF-RW", "EKF-RF"), ("EKF-RW", "EKF-RJ"), ("EKF-RF", "EKF-RJ"), ("EKF-RW", "LS"), ("EKF-RF", "LS"),
               ("EKF-RJ", "LS"), ("LS", "raw"))
+#: The motion-model pairs alone (Tables 3 and 5).
+MODEL_PAIRS = SEED_PAIRS[:3]
 #: The rule the verdict table states beside each verdict.
 SEED_RULE = "95 % Student-t interval over test seeds of CEP95(A) − CEP95(B) excludes 0"
 
@@ -110,15 +112,25 @@ class SeedStudy:
         table.columns = pd.MultiIndex.from_tuples(table.columns)
         return table
 
-    def pairs(self, pairs: Sequence[tuple[str, str]] = SEED_PAIRS, *, prob: float = 0.95) -> pd.DataFrame:
-        """Per data set and pair ``(A, B)``: seeds, the mean over seeds of ``CEP95(A) − CEP95(B)`` (each seed's
-        value averaged over the data set's tag-runs), its Student-t interval, the thesis' difference on the same
-        rows (*input*), the rule, the verdict (:func:`~uwbwb.metrics.interval_side`) and whether its order is the
-        thesis'."""
-        rows = []
+    def pairs(self, pairs: Sequence[tuple[str, str]] = SEED_PAIRS, *, by: str = "data",
+              prob: float = 0.95) -> pd.DataFrame:
+        """Per data set (``by="data"``) or per tag-run (``by="tag-run"``) and pair ``(A, B)``: seeds, the mean over
+        seeds of ``CEP95(A) − CEP95(B)`` (with ``by="data"`` each seed's value averaged over the data set's
+        tag-runs), its Student-t interval, the thesis' difference on the same rows (*input*), the rule, the verdict
+        (:func:`~uwbwb.metrics.interval_side`) and whether a significant order is the thesis'."""
+        if by not in ("data", "tag-run"):
+            raise ValueError(f"by must be 'data' or 'tag-run', got {by!r}")
+        groups = []
         for label, runs in self.datasets.items():
             d = self.cep95[self.cep95.index.get_level_values("run").isin(runs)]
             keys = list(dict.fromkeys((r, t) for _, r, t in d.index))
+            if by == "data":
+                groups.append((label, d, keys))
+            else:
+                groups += [(f"{r} {t}", d.xs((r, t), level=("run", "tag"), drop_level=False), [(r, t)])
+                           for r, t in keys]
+        rows = []
+        for label, d, keys in groups:
             for a, b in pairs:
                 per_seed = (d[a] - d[b]).groupby(level="seed").mean()
                 t = t_interval(per_seed.to_numpy(), prob=prob)
