@@ -231,7 +231,14 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     assert [(x["row"], x["metric"]) for x in d] == [("tight + gate", "dyn_rmse")]
     assert _row(f, "IMU 10× worse: tight + gate diverged (dyn_rmse)").verdict == "diverged"
     assert _row(f, "IMU 10× worse: loose + gate / tight + gate").verdict.startswith("a row diverged")
+    assert "share kept" not in _row(f, "IMU 10× worse: loose + gate / tight + gate").ours
     assert headlines.checks(bad) == []                      # mismatch divergence is reported, not a check
+    small = _fake(GOOD)                                     # 20× the matched error but still centimetres: not a failure
+    hs = (small.scores["case"] == "UWB σ 2×") & (small.scores["method"] == "tight + gate")
+    small.scores.loc[hs, "recovery_max"] = 20 * small.scores.loc[(small.scores["case"] == "matched")
+                                                                  & (small.scores["method"] == "tight + gate"),
+                                                                  "recovery_max"].mean()
+    assert small.scores.loc[hs, "recovery_max"].max() < 0.5 and facts.facts(small)["diverged"]["UWB σ 2×"] == []
     rows = headlines.ablation_rows(bad)
     q = [r for r in rows if r["quantity"].startswith("mismatch 'IMU 10× worse': dynamic RMSE, tight + gate")]
     assert len(q) == 1 and q[0]["value"] > 0.1

@@ -79,7 +79,7 @@ def space_note(cfg: study.StudyConfig, values: Mapping) -> str:
     e = panels.ghost_map(cfg, v["layout"], v["threshold_cm"], v["speed_scale"], v["turn_deg"],
                          v["n_positions"])[2].estimates[0]
     return (f"At δ < {v['threshold_cm']:g} cm ({v['layout']}) the ghosts fill {100 * e.fraction:.2g} % of the 6-D box: "
-            "blue dots spread in a band through the reference (circled dot), not around every beacon. "
+            "blue dots spread in a band through the reference (open circle), not around every beacon. "
             "Halve |V| / |V_ref| or raise δ and watch the band widen.")
 
 

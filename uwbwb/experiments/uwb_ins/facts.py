@@ -13,7 +13,8 @@ Rules
   both ratios over the same seeds (the case's).
 * A row **diverged** in a mismatch case when its dynamic RMSE or its max error in the recovery
   after the outage (mean over the case's seeds) exceeds :data:`DIVERGED_FACTOR` × its matched
-  value on the same seeds: a failure, not a degradation, and named as such.
+  value on the same seeds *and* the re-acquisition limit :data:`~.scoring.RECOVERY_MAX_M`: a failure,
+  not a degradation, and named as such (a centimetre error ten times a millimetre one is not a failure).
 * A tuning-grid entry **blew up** when its RMSE exceeds 10× the row's lowest on the grid
   (:func:`~.ablation.choose_knobs`): the filter fails at that knob.
 * Eq. 4 **can fire** in the matched world when the smallest excess that trips it anywhere on the
@@ -35,7 +36,8 @@ from .scoring import HOLD_S, RECOVERY_MAX_M
 
 __all__ = ["DIVERGED_FACTOR", "verdict", "facts", "verdict_table"]
 
-#: A mismatch row whose dynamic RMSE or recovery max exceeds this many times its matched value diverged.
+#: A mismatch row whose dynamic RMSE or recovery max exceeds this many times its matched value (and
+#: RECOVERY_MAX_M) diverged.
 DIVERGED_FACTOR = 10.0
 
 #: The rows tight coupling's outage advantage is measured against.
@@ -87,7 +89,8 @@ def _slowest_reacquisition(res: AblationResult) -> dict:
 
 
 def _diverged(res: AblationResult, case: str) -> list[dict]:
-    """Rows of ``case`` whose dyn RMSE or recovery max exceeds DIVERGED_FACTOR × matched (same seeds)."""
+    """Rows of ``case`` whose dyn RMSE or recovery max exceeds DIVERGED_FACTOR × matched (same seeds) and
+    RECOVERY_MAX_M."""
     c, m = res.case(case), res.case("matched")
     out = []
     for row in c.index.get_level_values("method").unique():
@@ -97,7 +100,7 @@ def _diverged(res: AblationResult, case: str) -> list[dict]:
         ms = m.xs(row, level="method").reindex(cs.index)
         for metric in ("dyn_rmse", "recovery_max"):
             v, v0 = float(cs[metric].mean()), float(ms[metric].mean())
-            if np.isfinite(v) and np.isfinite(v0) and v > DIVERGED_FACTOR * v0:
+            if np.isfinite(v) and np.isfinite(v0) and v > DIVERGED_FACTOR * v0 and v > RECOVERY_MAX_M:
                 out.append({"row": str(row), "metric": metric, "value": v, "matched": v0})
     return out
 
@@ -195,15 +198,16 @@ def verdict_table(f: dict) -> pd.DataFrame:
     for case, by_other in f["survival"].items():
         gone = {d["row"] for d in f["diverged"].get(case, [])}
         for other, r in by_other.items():
-            share = f", share kept {100 * r['share']:.0f} %" if np.isfinite(r["share"]) else ""
-            v = ("a row diverged (the ratio measures a failure)" if {other, "tight + gate"} & gone
-                 else words[r["verdict"]])
+            failure = bool({other, "tight + gate"} & gone)          # the ratio measures a failure: no share
+            share = f", share kept {100 * r['share']:.0f} %" if np.isfinite(r["share"]) and not failure else ""
+            v = "a row diverged (the ratio measures a failure)" if failure else words[r["verdict"]]
             add(f"{case}: {other} / tight + gate, max outage error", f"{r['ratio']:.2f}×{share}", _interval(r),
                 r["n"], _RATIO_RULE + " (above 1: the advantage survives)", v)
     for case, ds in f["diverged"].items():
         for d in ds:
             add(f"{case}: {d['row']} diverged ({d['metric']})", f"{d['value']:.3g} m against {d['matched']:.3g} m "
-                "matched", "—", f["mismatch_seeds"], f"above {DIVERGED_FACTOR:g}× the matched value", "diverged")
+                "matched", "—", f["mismatch_seeds"], f"above {DIVERGED_FACTOR:g}× the matched value and "
+                f"{RECOVERY_MAX_M:g} m", "diverged")
     for row, per_seed in failed.items():
         add(f"matched: {row} re-acquires after the outage", ", ".join(
             f"seed {k}: " + ("never" if not np.isfinite(v) else f"{v:.3g} s") for k, v in per_seed.items()),
