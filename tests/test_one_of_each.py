@@ -1,5 +1,5 @@
-"""One of each: the package's one block-bootstrap interval rule, its one interval → verdict rule and its one
-thinning rule are defined once.
+"""One of each: the package's one block-bootstrap interval rule, its one interval over seeds, its one interval →
+verdict rule and its one thinning rule are defined once.
 
 A second definition elsewhere — a block length, a block cut, a block bootstrap, a comparison of an interval's
 ends with a null value, a thinning function — would let two notebooks give two verdicts on one comparison; these
@@ -78,3 +78,11 @@ def test_the_interval_check_sees_a_comparison(tmp_path):
     (tmp_path / "m.py").write_text("def my_verdict(lo, hi):\n    return lo > 1\n\ndef axis(lo, v):\n    return v < lo\n")
     (tmp_path / "ok.py").write_text("def g_verdict(lo, hi):\n    return lo == hi\n")
     assert sorted(interval_comparisons(tmp_path)) == [("facts.py", 2), ("facts.py", 2), ("m.py", 2)]
+
+
+def test_the_interval_over_seeds_is_defined_once_in_metrics():
+    """Student-t over independent seeds: one definition (metrics.seeds_interval), used by 03's seeds study and 05's
+    ablation ratios; a second t quantile elsewhere would be a second copy of the rule."""
+    found = sorted(p.relative_to(PACKAGE).as_posix() for p in PACKAGE.rglob("*.py")
+                   if re.search(r"\bt\.ppf\(", p.read_text(encoding="utf-8")))
+    assert found == ["metrics/errors.py"], found

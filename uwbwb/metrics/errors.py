@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+from scipy import stats
 import pandas as pd
 
 from ..types import Trajectory
@@ -366,6 +367,25 @@ def interval_side(lo: float, hi: float, null: float = 0.0) -> str:
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return "none"
     return "below" if hi < null else "above" if lo > null else "contains"
+
+
+def seeds_interval(x, *, prob: float = 0.95) -> dict:
+    """Mean of ``x`` (one value per independent seed) and its two-sided Student-t interval at ``prob``: the
+    package's one interval over seeds (the block bootstrap is its one interval over correlated epochs).
+
+    Non-finite values are left out. Returns ``{"mean", "lo", "hi", "n"}``; with fewer than two values the
+    interval is NaN (no verdict by :func:`interval_side`).
+    """
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    n = int(x.size)
+    if n == 0:
+        return {"mean": np.nan, "lo": np.nan, "hi": np.nan, "n": 0}
+    m = float(x.mean())
+    if n < 2:
+        return {"mean": m, "lo": np.nan, "hi": np.nan, "n": n}
+    h = float(stats.t.ppf(0.5 + prob / 2, n - 1) * x.std(ddof=1) / math.sqrt(n))
+    return {"mean": m, "lo": m - h, "hi": m + h, "n": n}
 
 
 def block_bootstrap_difference(err_a, err_b, *, rng: np.random.Generator, n_boot: int = 2000,

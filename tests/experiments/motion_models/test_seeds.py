@@ -7,16 +7,17 @@ import pandas as pd
 import pytest
 from scipy import stats
 
+from uwbwb import metrics
 from uwbwb.experiments import motion_models as mm
 
 
-def test_t_interval_is_the_student_t_interval_over_seeds():
+def test_the_seeds_interval_is_the_student_t_interval_over_seeds():
     x = np.array([0.1, 0.3, 0.2, 0.6])
-    t = mm.t_interval(x)
+    t = metrics.seeds_interval(x)
     h = stats.t.ppf(0.975, 3) * x.std(ddof=1) / 2.0
     assert t["n"] == 4 and t["mean"] == pytest.approx(0.3)
     assert (t["lo"], t["hi"]) == (pytest.approx(0.3 - h), pytest.approx(0.3 + h))
-    one = mm.t_interval([0.5, np.nan])                               # one finite seed: a mean, no interval
+    one = metrics.seeds_interval([0.5, np.nan])                               # one finite seed: a mean, no interval
     assert one["n"] == 1 and one["mean"] == 0.5 and np.isnan(one["lo"]) and np.isnan(one["hi"])
     assert mm.scoring_seeds(7, 3) == (7, 8, 9)
     with pytest.raises(ValueError, match="at least one"):

@@ -12,7 +12,7 @@ from .figures import calibration_figure, cdf_figure, covariance_figure, paths_fi
 from .headlines import Results, SIGMA_KIND, checks, headline_rows, record, sigma_rows, summary_rows
 from .results import (METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, cep95_table,
                       coverage_table, ekf_name, nis_table, paper_table, ranking)
-from .seeds import MODEL_PAIRS, SEED_PAIRS, SEED_RULE, SeedStudy, scoring_seeds, seed_rows, seed_study, t_interval
+from .seeds import MODEL_PAIRS, SEED_PAIRS, SEED_RULE, SeedStudy, scoring_seeds, seed_rows, seed_study
 from .study import (DEFAULT_GRIDS, Study, best_sigmas, calibration_curves, estimate, ranging_summary,
                     raw_multilateration, run_ekf, run_study, split_runs, synthetic_acquisition, tag_runs,
                     tdoa_noise_check)
@@ -24,5 +24,5 @@ __all__ = [
     "coverage_table", "ekf_name", "estimate", "exercises", "headline_rows",
     "nis_table", "panels", "paper_table", "paths_figure", "ranging_summary", "ranking", "raw_multilateration", "real",
     "record", "run_ekf", "run_study", "scenario_figure", "scoring_seeds", "seed_rows", "seed_study", "seeds",
-    "sigma_rows", "split_runs", "summary_rows", "synthetic_acquisition", "t_interval", "tag_runs", "tdoa_noise_check",
+    "sigma_rows", "split_runs", "summary_rows", "synthetic_acquisition", "tag_runs", "tdoa_noise_check",
 ]

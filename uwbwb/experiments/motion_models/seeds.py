@@ -14,19 +14,17 @@ one calibration acquisition.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
-from ...metrics import interval_side
+from ...metrics import interval_side, seeds_interval
 from .results import METHODS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, cep95_table
 from .study import Study, estimate, synthetic_acquisition
 
-__all__ = ["MODEL_PAIRS", "SEED_PAIRS", "SEED_RULE", "SeedStudy", "scoring_seeds", "seed_rows", "seed_study", "t_interval"]
+__all__ = ["MODEL_PAIRS", "SEED_PAIRS", "SEED_RULE", "SeedStudy", "scoring_seeds", "seed_rows", "seed_study"]
 
 #: Pairs ``(A, B)`` the seeds verdict compares: the motion models among themselves (Tables 3, 5), each EKF
 #: against LS and LS against the raw output (Tables 2, 4).
@@ -44,23 +42,6 @@ def scoring_seeds(seed: int, n: int) -> tuple[int, ...]:
     if int(n) < 1:
         raise ValueError(f"at least one test seed is needed, got {n!r}")
     return tuple(range(int(seed), int(seed) + int(n)))
-
-
-def t_interval(x, *, prob: float = 0.95) -> dict:
-    """Mean of ``x`` (one value per seed) and its two-sided Student-t interval at ``prob``.
-
-    Returns ``{"mean", "lo", "hi", "n"}``; with fewer than two finite values the interval is NaN (no verdict).
-    """
-    x = np.asarray(x, float)
-    x = x[np.isfinite(x)]
-    n = int(x.size)
-    if n == 0:
-        return {"mean": np.nan, "lo": np.nan, "hi": np.nan, "n": 0}
-    m = float(x.mean())
-    if n < 2:
-        return {"mean": m, "lo": np.nan, "hi": np.nan, "n": n}
-    h = float(stats.t.ppf(0.5 + prob / 2, n - 1) * x.std(ddof=1) / math.sqrt(n))
-    return {"mean": m, "lo": m - h, "hi": m + h, "n": n}
 
 
 def _thesis(key: tuple[str, str], a: str, b: str) -> float:
@@ -103,7 +84,7 @@ class SeedStudy:
         for key, g in self.cep95.groupby(level=["run", "tag"], sort=False):
             row = {}
             for m in methods:
-                t = t_interval(g[m], prob=prob)
+                t = seeds_interval(g[m], prob=prob)
                 row[(m, "mean")], row[(m, "± 95 %")] = t["mean"], (t["hi"] - t["lo"]) / 2
             row[("seeds", "")] = len(g)
             out[key] = row
@@ -133,7 +114,7 @@ class SeedStudy:
         for label, d, keys in groups:
             for a, b in pairs:
                 per_seed = (d[a] - d[b]).groupby(level="seed").mean()
-                t = t_interval(per_seed.to_numpy(), prob=prob)
+                t = seeds_interval(per_seed.to_numpy(), prob=prob)
                 side = interval_side(t["lo"], t["hi"])
                 verdict = {"below": f"{a} better", "above": f"{b} better", "contains": "not significant"}.get(
                     side, "no interval (one seed)")

@@ -58,7 +58,7 @@ from ...models.imu import GRADES
 from ...models.ins import quat_to_dcm
 from ...models.motion import RandomForce
 from ...models.tdoa import TdoaModel, triangle_outliers
-from ...metrics import nis_consistency, pool_scores, rmse, score_epochs
+from ...metrics import nis_consistency, pool_scores, rmse, score_epochs, seeds_interval
 from ...sim import mismatch as mm
 from ...sim import robot
 from ...types import EstimateStatus, Estimates
@@ -580,15 +580,9 @@ def ratio_ci(a, b, *, prob: float = 0.95) -> dict:
     """
     a, b = np.asarray(a, float), np.asarray(b, float)
     ok = np.isfinite(a) & np.isfinite(b) & (a > 0) & (b > 0)
-    d = np.log(a[ok] / b[ok])
-    n = int(d.size)
-    if n == 0:
-        return {"ratio": np.nan, "lo": np.nan, "hi": np.nan, "n": 0}
-    m = float(d.mean())
-    if n < 2:
-        return {"ratio": math.exp(m), "lo": np.nan, "hi": np.nan, "n": n}
-    h = float(stats.t.ppf(0.5 + prob / 2, n - 1) * d.std(ddof=1) / math.sqrt(n))
-    return {"ratio": math.exp(m), "lo": math.exp(m - h), "hi": math.exp(m + h), "n": n}
+    t = seeds_interval(np.log(a[ok] / b[ok]), prob=prob)          # on the log ratios
+    return {"ratio": math.exp(t["mean"]) if t["n"] else np.nan, "lo": math.exp(t["lo"]), "hi": math.exp(t["hi"]),
+            "n": t["n"]}
 
 
 def run_ablation(cfg: AblationConfig, *, base_seed: int = 0, fast: bool = False, scheduler=None,
