@@ -240,3 +240,25 @@ def test_nis_consistency_is_one_function_with_one_set_of_keys():
                                                 (np.nan, 1.0, 0.0, "none"), (0.0, np.inf, 0.0, "none")])
 def test_interval_side_rejects_the_null_only_when_the_interval_excludes_it(lo, hi, null, side):
     assert m.interval_side(lo, hi, null) == side
+
+
+def test_block_bootstrap_median_difference_sees_a_shift_and_not_a_tie():
+    """``statistic="median"``: the interval of median(a) − median(b) lies above 0 for a shifted method, contains 0
+    for the same errors relabelled, and is NaN with fewer than MIN_BLOCKS blocks; a bad statistic is an error."""
+    import pytest
+
+    from uwbwb.metrics import block_bootstrap_difference, interval_side
+
+    rng = np.random.default_rng(3)
+    base = [np.abs(rng.normal(0, 1, 60)) for _ in range(6)]
+    shifted = block_bootstrap_difference([b + 0.4 + rng.normal(0, 0.05, b.size) for b in base], base,
+                                         rng=np.random.default_rng(0), statistic="median")
+    assert shifted["diff_m"] == pytest.approx(0.4, abs=0.05) and interval_side(shifted["lo_m"], shifted["hi_m"]) == "above"
+    noisy = [b * np.exp(rng.normal(0, 0.3, b.size)) for b in base]
+    tie = block_bootstrap_difference(noisy, base, rng=np.random.default_rng(0), statistic="median")
+    assert interval_side(tie["lo_m"], tie["hi_m"]) == "contains"
+    assert set(tie) >= {"median_a_m", "median_b_m", "n_blocks"} and "rmse_a_m" not in tie
+    few = block_bootstrap_difference(base[0][:8], base[0][:8] + 1, rng=np.random.default_rng(0), statistic="median")
+    assert np.isnan(few["lo_m"]) and few["diff_m"] == pytest.approx(-1.0)
+    with pytest.raises(ValueError, match="statistic must be 'rmse' or 'median'"):
+        block_bootstrap_difference(base, base, rng=np.random.default_rng(0), statistic="mean")

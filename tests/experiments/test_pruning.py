@@ -503,3 +503,26 @@ def test_hanyang_table_per_condition():
     assert ex.hanyang_table(calibration.percentile_by_file(df[df.file == "c"])).empty
     t = ex.hanyang_table(out)
     assert list(t.index) == ["LOS", "NLOS"] and list(t.n_files) == [1, 1]
+
+
+@pytest.mark.parametrize("gaps_m, verdict", [((0.3, 0.3), "as in the paper"), ((-0.3, 0.3), "differs"),
+                                             ((0.0, 0.3), "not resolved")])
+def test_the_ranking_row_decides_each_step_by_its_interval(gaps_m, verdict):
+    """With the per-stop errors, each step of the paper's order (residual < robust mean < percentile) needs its
+    median-difference interval below 0: a reversed step says "differs", a step inside the noise "not resolved"."""
+    rng = np.random.default_rng(5)
+    rows = []
+    for e in range(8):
+        base = np.abs(rng.normal(0.5, 0.2, 6))
+        tie = base[::-1]        # gap 0: the same errors at other stops, so the medians tie and the pairs differ
+        errs = {"none": base + 1.0, "residual": base, "robust_mean": base + gaps_m[0] if gaps_m[0] else tie,
+                "percentile": base + gaps_m[0] + gaps_m[1]}
+        for h, err in errs.items():
+            for k, v in enumerate(err):
+                rows.append({"experiment": f"e{e}", "tag": "H", "segment": k, "heuristic": h, "err_m": v})
+    stops = pd.DataFrame(rows)
+    syn = ex.heuristic_summary(stops)
+    t = ex.verdict_table(ex.comparison_facts(syn, stops=stops))
+    row = _row(t, "ranking of the heuristics")
+    assert row.verdict == verdict, row.ours
+    assert "block-bootstrap interval" in row.rule

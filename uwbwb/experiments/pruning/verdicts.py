@@ -14,10 +14,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ... import metrics
 from ...sim.tours import TourConfig
 from .scoring import LABELS, PAPER_RANKING, POINT
 
-__all__ = ["COLUMNS", "comparison_facts", "verdict_table"]
+__all__ = ["COLUMNS", "comparison_facts", "ranking_steps", "verdict_table"]
 
 #: The columns of :func:`verdict_table`.
 COLUMNS = ["claim", "paper", "paper kind", "ours", "ours kind", "assumption", "rule", "verdict"]
@@ -47,7 +48,7 @@ def comparison_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
                      lias_static_epochs: dict | None = None, lias_ranges: pd.DataFrame | None = None,
                      lias_dynamic: pd.DataFrame | None = None, lias_dynamic_epochs: dict | None = None,
                      hanyang: pd.DataFrame | None = None, tour: TourConfig | None = None,
-                     excess: pd.DataFrame | None = None) -> dict:
+                     excess: pd.DataFrame | None = None, stops: pd.DataFrame | None = None, seed: int = 0) -> dict:
     """The facts of the comparison, as numbers and orderings.
 
     Parameters
@@ -79,6 +80,9 @@ def comparison_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
     excess
         :func:`~.study.nlos_excess_sensitivity` of residual pruning (``all_p90_m`` per simulated mean
         NLOS excess).
+    stops
+        The per-stop errors behind ``synthetic`` (``SyntheticResult.stops``): each step of the paper's ranking
+        then gets the block-bootstrap interval of its median difference (:func:`ranking_steps`, seeded by ``seed``).
     """
     f: dict = {"dim": synthetic_dim}
     if tour is not None:
@@ -93,6 +97,8 @@ def comparison_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
     f["ranking_all"] = tuple(med.sort_values().index)
     f["stop_median_m"] = med.to_dict()
     f["paper_ranking"] = f["ranking"] == PAPER_RANKING[:len(f["ranking"])] and len(three) == 3
+    if stops is not None and len(three) == 3:
+        f["ranking_steps"] = ranking_steps(stops, rng=np.random.default_rng(seed))
 
     if POINT in synthetic.index and "all_p90_m" in synthetic:
         nls = [h for h in ("none", "robust_mean", "residual") if h in synthetic.index
@@ -202,6 +208,28 @@ def comparison_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
     return f
 
 
+def ranking_steps(stops: pd.DataFrame, order=PAPER_RANKING, *, rng: np.random.Generator) -> list[dict]:
+    """Each step of the paper's ranking (``order``, best first) on our stops: ``median(a) − median(b)`` for the
+    neighbours ``a`` (ranked better by the paper) and ``b``, over the stops both fitted, with its block-bootstrap
+    interval (:func:`uwbwb.metrics.block_bootstrap_difference`, ``statistic="median"``; one series per experiment
+    and node, stops in time order) and the side of 0 it lies on (:func:`uwbwb.metrics.interval_side`:
+    ``below`` agrees with the paper's step, ``above`` reverses it)."""
+    wide = stops.pivot_table(index=["experiment", "tag", "segment"], columns="heuristic", values="err_m")
+    out = []
+    for a, b in zip(order[:-1], order[1:]):
+        pair = wide[[a, b]].dropna().sort_index()
+        groups = [g for _, g in pair.groupby(level=[0, 1], sort=True)]
+        d = metrics.block_bootstrap_difference([g[a].to_numpy() for g in groups], [g[b].to_numpy() for g in groups],
+                                               rng=rng, statistic="median")
+        out.append({"better": a, "worse": b, "diff_m": d["diff_m"], "lo_m": d["lo_m"], "hi_m": d["hi_m"],
+                    "n": d["n"], "side": metrics.interval_side(d["lo_m"], d["hi_m"])})
+    return out
+
+
+#: The ranking row's verdict from the sides of its steps: every step as the paper's, one step reversed, or neither.
+_RANKING_VERDICT = {"all below": "as in the paper", "a step above": "differs", "otherwise": "not resolved"}
+
+
 def _assumption(f: dict, what: str = "errors") -> str:
     """The simulator assumption a synthetic row rests on, with its values when the configuration was given."""
     t = f.get("tour")
@@ -226,9 +254,10 @@ def verdict_table(f: dict) -> pd.DataFrame:
 
     ``paper kind`` is *input* where the paper states the claim, ``ours kind`` is *reproduced*;
     ``assumption`` names the simulator assumption a synthetic number rests on (real-data rows: none).
-    None of these has an interval: the comparisons are of medians and percentiles of one run each. Only the
-    rows that say so allow a tolerance (5 mm, where two estimators count as equal); the others follow the sign
-    or the order, so a millimetre can decide them. The NLS-vs-point row takes the best of the NLS variants on
+    The ranking row, when the per-stop errors were given, decides each step of the paper's order by the
+    block-bootstrap interval of its median difference (:func:`ranking_steps`). The other rows have no interval:
+    they compare medians and percentiles of one run each. Only the rows that say so allow a tolerance (5 mm,
+    where two estimators count as equal); the others follow the sign or the order, so a millimetre can decide them. The NLS-vs-point row takes the best of the NLS variants on
     its own epochs, with coverage beside it."""
     rows = []
 
@@ -239,10 +268,22 @@ def verdict_table(f: dict) -> pd.DataFrame:
 
     syn = _assumption(f)
     geo = "known mount height" if f["dim"] == 2 else "3-D, no height"
-    add(f"ranking of the heuristics by median stop error, synthetic ({geo})",
-        " < ".join(_name(h) for h in PAPER_RANKING),
-        " < ".join(f"{_name(h)} ({f['stop_median_m'][h]:.2f} m)" for h in f["ranking"]),
-        "the same order", "as in the paper" if f["paper_ranking"] else "differs", syn)
+    steps = f.get("ranking_steps")
+    if steps is None:
+        add(f"ranking of the heuristics by median stop error, synthetic ({geo})",
+            " < ".join(_name(h) for h in PAPER_RANKING),
+            " < ".join(f"{_name(h)} ({f['stop_median_m'][h]:.2f} m)" for h in f["ranking"]),
+            "the same order", "as in the paper" if f["paper_ranking"] else "differs", syn)
+    else:
+        sides = [s["side"] for s in steps]
+        key = "all below" if all(x == "below" for x in sides) else "a step above" if "above" in sides else "otherwise"
+        add(f"ranking of the heuristics by median stop error, synthetic ({geo})",
+            " < ".join(_name(h) for h in PAPER_RANKING),
+            "; ".join(f"{_name(s['better'])} − {_name(s['worse'])} {s['diff_m']:+.2f} m "
+                      + (f"[{s['lo_m']:+.2f}, {s['hi_m']:+.2f}]" if s["side"] != "none" else "(too few stops for an interval)")
+                      for s in steps) + f" ({steps[0]['n']} stops)",
+            "each step of the paper's order: 95 % block-bootstrap interval of the median difference below 0 "
+            "(all: as in the paper; one above 0: differs; else not resolved)", _RANKING_VERDICT[key], syn)
     if f.get("point_best_nls"):
         b, pt = f["point_best_nls"], f["point"]
         add("best trajectory NLS vs the point-based fixes, 90th percentile of all errors (m)",
