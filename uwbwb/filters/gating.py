@@ -101,11 +101,19 @@ class UpdateInfo:
         decorrelating a non-diagonal ``R``): ``y'_i² / s_i`` with ``y'_i`` the row's innovation
         against the mean the rows before it left and ``s_i = h_iᵀ P_{i−1} h_i + r_i``. They sum to
         :attr:`nis`. None for a batch update and for an epoch a row gate rejected; for an epoch
-        :class:`ChiSquareEpoch` rejected, the rows' NIS it tested (nothing was applied).
+        :class:`ChiSquareEpoch` rejected, the rows' NIS it tested (nothing was applied); None for a
+        :class:`Robust` update (its rows are applied with the inflated ``R``, so their NIS would not
+        sum to the epoch's).
+    n_downweighted
+        For a :class:`Robust` update, the components used whose final normalised residual exceeded
+        the tuning constant (Huber: weight below 1; Cauchy: weight below ½); 0 otherwise.
+    weights
+        For a :class:`Robust` update, the final weight of each component used, shape ``(m,)``, in
+        (0, 1] (``R`` was inflated by their inverse); None otherwise.
 
-    Equality and ``repr`` compare ``nis``, ``dof``, ``status`` and ``n_rejected`` only: the arrays
-    behind them (``innovation``, ``nis_rows``) are diagnostics, so two infos that compare equal may
-    differ in :attr:`log_likelihood`.
+    Equality and ``repr`` compare ``nis``, ``dof``, ``status``, ``n_rejected`` and ``n_downweighted``
+    only: the arrays behind them (``innovation``, ``nis_rows``, ``weights``) are diagnostics, so two
+    infos that compare equal may differ in :attr:`log_likelihood`.
     """
 
     nis: float
@@ -114,6 +122,8 @@ class UpdateInfo:
     n_rejected: int = 0
     innovation: kalman.Innovation | None = field(default=None, compare=False, repr=False)
     nis_rows: np.ndarray | None = field(default=None, compare=False, repr=False)
+    n_downweighted: int = 0
+    weights: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     @property
     def log_likelihood(self) -> float:
@@ -203,6 +213,24 @@ def _epoch_nis(state: Gaussian, lin) -> float:
     return float(y @ np.linalg.solve(S, y))
 
 
+def _innovation(state: Gaussian, lin) -> kalman.Innovation:
+    """The epoch's innovation under the model: ``y = z − h(x⁻)`` (``z − H x⁻`` for a linear
+    measurement, as :func:`_update` forms it), ``S = H P⁻ Hᵀ + R`` (symmetrised) and ``yᵀ S⁻¹ y``."""
+    y = lin.z - (lin.H @ state.x if getattr(lin, "linear", False) else lin.h)
+    S = lin.H @ state.P @ lin.H.T + lin.R
+    S = 0.5 * (S + S.T)
+    return kalman.Innovation(y, S, float(y @ np.linalg.solve(S, y)))
+
+
+def _update_screened(state: Gaussian, screened: Screened, sequential: bool) -> tuple[Gaussian, UpdateInfo]:
+    """A row gate's update: the prior and its ``GATED`` info, or :func:`ungated_update` of the rows kept."""
+    kept, n_rejected, gated = screened
+    if kept is None:
+        return state, gated
+    post, info = ungated_update(state, kept, sequential=sequential)
+    return post, replace(info, n_rejected=n_rejected) if n_rejected else info
+
+
 def _is_int(value, minimum: int) -> bool:
     return not isinstance(value, bool) and isinstance(value, (int, np.integer)) and value >= minimum
 
@@ -234,6 +262,13 @@ class GatePolicy(Protocol):
                sequential: bool = False) -> tuple[Gaussian, UpdateInfo]:
         """The gated update of one epoch (``sequential``: the update it makes is
         :func:`ungated_update`'s sequential form; a filter passes it only when asked for)."""
+
+
+Screened = tuple[object | None, int, UpdateInfo | None]
+"""What a χ² policy's ``screen`` decides for one epoch: ``(kept, n_rejected, gated)`` — the
+linearisation of the rows it lets through (None when it rejects the epoch), the components it removed,
+and, for a rejected epoch, the ``GATED`` :class:`UpdateInfo` its ``update`` returns (else None).
+:class:`Robust` with ``gate=`` reads it, then updates ``kept`` its own way."""
 
 
 @dataclass(frozen=True)
@@ -270,6 +305,10 @@ class NoGate(_RowTest, _Release):
         """``inf``: no row is rejected."""
         return float("inf")
 
+    def screen(self, state: Gaussian, lin, parts: Parts | None = None) -> Screened:
+        """Every row passes."""
+        return lin, 0, None
+
     def update(self, state: Gaussian, lin, parts: Parts | None = None, *,
                sequential: bool = False) -> tuple[Gaussian, UpdateInfo]:
         """:func:`ungated_update`."""
@@ -295,6 +334,13 @@ class ChiSquareEpoch(_Release):
     def threshold(self, m: int) -> float:
         """The NIS above which an ``m``-component epoch is rejected."""
         return float(_chi2_ppf(self.prob, int(m)))
+
+    def screen(self, state: Gaussian, lin, parts: Parts | None = None) -> Screened:
+        """The epoch whole, or nothing (``GATED``) when its NIS (batch, ``yᵀ S⁻¹ y``) is above the threshold."""
+        inn = _innovation(state, lin)
+        if inn.nis > _chi2_ppf(self.prob, lin.z.size):
+            return None, 0, UpdateInfo(inn.nis, 0, EstimateStatus.GATED, innovation=inn)
+        return lin, 0, None
 
     def update(self, state: Gaussian, lin, parts: Parts | None = None, *,
                sequential: bool = False) -> tuple[Gaussian, UpdateInfo]:
@@ -328,17 +374,20 @@ class ChiSquarePerMeasurement(_RowTest, _Release):
         """The ``y_i² / S_ii`` above which a row is rejected, ``χ²_1⁻¹(prob)``."""
         return float(_chi2_ppf(self.prob, 1))
 
-    def update(self, state: Gaussian, lin, parts: Parts | None = None, *,
-               sequential: bool = False) -> tuple[Gaussian, UpdateInfo]:
+    def screen(self, state: Gaussian, lin, parts: Parts | None = None) -> Screened:
+        """The rows that pass (``lin.rows``), or nothing (``GATED``) when fewer than ``min_rows`` do."""
         S = lin.H @ state.P @ lin.H.T + lin.R
         ok = self.keep(lin.z - lin.h, np.diag(S))
         if ok.all():
-            return ungated_update(state, lin, sequential=sequential)
+            return lin, 0, None
         if ok.sum() < self.min_rows:
-            return state, UpdateInfo(_epoch_nis(state, lin), 0, EstimateStatus.GATED, int(ok.size))
+            return None, int(ok.size), UpdateInfo(_epoch_nis(state, lin), 0, EstimateStatus.GATED, int(ok.size))
         rows = np.flatnonzero(ok)
-        post, info = ungated_update(state, lin.rows(rows), sequential=sequential)
-        return post, replace(info, n_rejected=int(ok.size - rows.size))
+        return lin.rows(rows), int(ok.size - rows.size), None
+
+    def update(self, state: Gaussian, lin, parts: Parts | None = None, *,
+               sequential: bool = False) -> tuple[Gaussian, UpdateInfo]:
+        return _update_screened(state, self.screen(state, lin, parts), sequential)
 
 
 @dataclass(frozen=True)
@@ -362,8 +411,8 @@ class AnchorDropping(_Release):
         _check("AnchorDropping", self.prob, self.max_gated, self.min_rows)
         object.__setattr__(self, "prob", float(self.prob))
 
-    def update(self, state: Gaussian, lin, parts: Parts | None = None, *,
-               sequential: bool = False) -> tuple[Gaussian, UpdateInfo]:
+    def screen(self, state: Gaussian, lin, parts: Parts | None = None) -> Screened:
+        """The re-linearised subset that passes, or nothing (``GATED``)."""
         if parts is None:
             raise ValueError("AnchorDropping needs a measurement model that can re-linearise a subset of its "
                              "components (components(), linearise_components())")
@@ -372,13 +421,17 @@ class AnchorDropping(_Release):
         n_rejected = 0
         while not _epoch_nis(state, lin) <= _chi2_ppf(self.prob, lin.z.size):
             if lin.z.size - 1 < max(self.min_rows, 1):
-                return state, UpdateInfo(np.nan, 0, EstimateStatus.GATED, n_rejected + keep.size)
+                n = n_rejected + keep.size
+                return None, n, UpdateInfo(np.nan, 0, EstimateStatus.GATED, n)
             trial = [_epoch_nis(state, subset(keep[keep != k])) for k in keep]
             keep = keep[keep != keep[int(np.argmin(trial))]]
             lin = subset(keep)
             n_rejected += 1
-        post, info = ungated_update(state, lin, sequential=sequential)
-        return post, replace(info, n_rejected=n_rejected)
+        return lin, n_rejected, None
+
+    def update(self, state: Gaussian, lin, parts: Parts | None = None, *,
+               sequential: bool = False) -> tuple[Gaussian, UpdateInfo]:
+        return _update_screened(state, self.screen(state, lin, parts), sequential)
 
 
 def gate_policy(owner: str, gate, gate_prob: float | None, max_gated: int, default: tuple) -> GatePolicy:
