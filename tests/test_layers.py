@@ -36,7 +36,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("bounds", "calibration", "sampling", "sim"),
     ("filters",),
     ("datasets",),
-    ("plotting", "widgets"),
+    ("plotting", "widgets", "coding"),
     ("scoreboard",),
     ("experiments",),
     ("notebook_params",),

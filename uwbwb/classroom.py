@@ -12,8 +12,9 @@
   ``make lab LAB_DIR=class/student``; the package finds the datasets wherever the notebook runs from
   (:mod:`uwbwb.datasets.discovery` searches relative to the package, not the working directory).
 * ``class/answers/`` — what the lecturer keeps: each student notebook executed *as handed out*
-  (a Run All in ``class/student/``, no injected parameters), its HTML handout, ``TEACHING.md`` (from
-  the folder above the notebooks) and the glossary as ``GLOSSARY.md`` and ``GLOSSARY.html``.
+  (a Run All in ``class/student/``, no injected parameters) except that its coding exercise is answered
+  (:func:`answer_key`), its HTML handout, ``TEACHING.md`` (from the folder above the notebooks) and the
+  glossary as ``GLOSSARY.md`` and ``GLOSSARY.html``.
 
 A handout (:func:`handout_html`) is the executed notebook without its ``research`` cells, readable
 offline in one file with no script: formulas drawn server-side as inline SVG by Matplotlib's mathtext
@@ -35,8 +36,8 @@ Class limits (:func:`class_limits`), among the cells *not* tagged ``research``:
   plain-text results that are not tables.
 
 Code rules (:func:`code_rules`, issue 19): every code cell at most :data:`MAX_CODE_LINES` lines and
-without a ``def``, except the final widget cell (the last cell that builds a panel); no private package
-name (``module._name``) in any cell.
+without a ``def``, except the final widget cell (the last cell that builds a panel) and a coding exercise's
+stub (tagged :data:`uwbwb.coding.EXERCISE_TAG`); no private package name (``module._name``) in any cell.
 
 Figure audit (:func:`axes_problems`, :func:`figure_audit`). Every Axes a notebook draws through
 pyplot is recorded while it runs (:func:`install_figure_recorder`, a ``figure.hooks`` entry plus a
@@ -72,14 +73,16 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from . import reproduce
+from .coding import EXERCISE_TAG, answer_cell
 
 __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "MATH_SCALE", "MAX_CODE_LINES",
            "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS", "MAX_OUTPUT_WORDS", "MAX_TABLE_ROWS", "RESEARCH_TAG",
-           "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "axes_problems", "axes_record", "class_limits",
-           "class_values", "code_rules", "figure_audit", "fold_research", "handout_html", "hook_cell", "image_count",
-           "install_figure_recorder", "main", "markdown_page_html", "math_svg", "mathtext_source", "notebook_links",
-           "record_figure", "relative_links", "relink_notebook", "run_class", "set_parameters", "source_indices",
-           "static_panels", "static_widget_html", "student_notebook", "unresolved_links", "write_student_folder"]
+           "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "answer_key", "axes_problems", "axes_record",
+           "class_limits", "class_values", "code_rules", "figure_audit", "fold_research", "handout_html", "hook_cell",
+           "image_count", "install_figure_recorder", "main", "markdown_page_html", "math_svg", "mathtext_source",
+           "notebook_links", "record_figure", "relative_links", "relink_notebook", "run_class", "set_parameters",
+           "source_indices", "static_panels", "static_widget_html", "student_notebook", "unresolved_links",
+           "write_student_folder"]
 
 #: Tag of the research-bookkeeping cells: folded in class notebooks, dropped from handouts.
 RESEARCH_TAG = "research"
@@ -226,7 +229,8 @@ def code_rules(nb) -> list[str]:
         lines = [ln for ln in cell.source.splitlines()]
         if k != widget and len(lines) > MAX_CODE_LINES:
             problems.append(f"cell {k}: {len(lines)} lines of code (limit {MAX_CODE_LINES})")
-        if k != widget and re.search(r"^\s*(async\s+)?def\s", cell.source, flags=re.M):
+        if k != widget and EXERCISE_TAG not in _tags(cell) and re.search(r"^\s*(async\s+)?def\s", cell.source,
+                                                                      flags=re.M):
             problems.append(f"cell {k}: defines a function (move it into the experiment package)")
         for name in sorted(set(_PRIVATE.findall(cell.source))):
             if not name.startswith("__"):
@@ -480,6 +484,16 @@ def student_notebook(nb, values: Mapping[str, object]):
     for key in ("widgets", "papermill"):
         nb.metadata.pop(key, None)
     return fold_research(nb)
+
+
+def answer_key(nb):
+    """``nb`` with the stub of each coding exercise (cells tagged :data:`uwbwb.coding.EXERCISE_TAG`) replaced by
+    its answer (:func:`uwbwb.coding.answer_cell`); ``nb`` itself is not changed."""
+    nb = copy.deepcopy(nb)
+    for cell in nb.cells:
+        if cell.cell_type == "code" and EXERCISE_TAG in _tags(cell):
+            cell.source = answer_cell(cell.source)
+    return nb
 
 
 # ---------------------------------------------------------------- relative links
@@ -1061,8 +1075,9 @@ def run_class(notebooks: Iterable[Path], out_dir: Path, *, kernel_name: str = re
         executed, html = answers_dir / f"{source.stem}.ipynb", answers_dir / f"{source.stem}.html"
         error = None
         t0 = time.perf_counter()
-        try:            # a student's Run All: the copy as handed out, run in its own folder
-            pm.execute_notebook(str(student), str(executed), kernel_name=kernel_name, cwd=str(student_dir),
+        try:            # a student's Run All of the copy as handed out, answered, run in the student folder
+            nbformat.write(answer_key(nbformat.read(student, as_version=4)), executed)
+            pm.execute_notebook(str(executed), str(executed), kernel_name=kernel_name, cwd=str(student_dir),
                                 progress_bar=False, log_output=False, execution_timeout=timeout_s,
                                 kernel_manager_class=reproduce.ipc_kernel_manager())
         except Exception as exc:  # reported per notebook; the others still run
