@@ -5,7 +5,7 @@ import pytest
 from scipy.stats import chi2, multivariate_normal
 
 from uwbwb.filters import kalman
-from uwbwb.filters.ekf import Ekf, Linearisation, TdoaEkf
+from uwbwb.filters.ekf import Ekf, Linearisation, TdoaEkf, TdoaMeasurement
 from uwbwb.filters.gating import (AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate, gate_from_prob,
                                   ungated_update)
 from uwbwb.filters.kalman import Gaussian
@@ -301,3 +301,33 @@ def test_numpy_scalar_probabilities_are_accepted_and_stored_as_float():
             ChiSquareEpoch(bad)
         with pytest.raises(ValueError, match="Owner.gate_prob"):
             gate_from_prob(bad, 10, "Owner")
+
+
+def test_screen_is_the_decision_update_makes(rng):
+    """Each χ² policy's ``screen`` keeps the rows its ``update`` uses (the posterior of ``ungated_update``
+    on them, bit for bit) and rejects the epochs it gates, with the same ``GATED`` info (NIS to rounding)."""
+    model, log = _tdoa_log(rng)
+    ekf = TdoaEkf(RandomWalk(0.3), model, gate_prob=None)
+    run = ekf.run(log)
+    meas = ekf.measurement
+    epochs = TdoaMeasurement.epochs(log)
+    seen = set()
+    for policy in (NoGate(), ChiSquareEpoch(0.99), ChiSquarePerMeasurement(0.99, min_rows=4), AnchorDropping(0.99)):
+        for k in np.flatnonzero(run.started)[1:]:
+            prior = Gaussian(run.x_prior[k], run.P_prior[k])
+            m = epochs[k]
+            lin = meas.linearise(prior.x, m)
+            parts = (meas.components(m), lambda keep: meas.linearise_components(prior.x, m, keep))
+            kept, n_rejected, gated = policy.screen(prior, lin, parts)
+            post, info = policy.update(prior, lin, parts)
+            assert info.n_rejected == n_rejected
+            if kept is None:
+                assert post is prior and info.status == gated.status == EstimateStatus.GATED and info.dof == 0
+                assert info.n_rejected == gated.n_rejected
+                np.testing.assert_allclose(info.nis, gated.nis, rtol=1e-12)     # ChiSquareEpoch: NIS formed apart
+            else:
+                assert gated is None and info.status == EstimateStatus.UPDATED and info.dof == kept.z.size
+                assert post.x.tobytes() == ungated_update(prior, kept)[0].x.tobytes()
+            seen.add((type(policy).__name__, kept is None, n_rejected > 0))
+    assert ("ChiSquareEpoch", True, False) in seen and ("ChiSquarePerMeasurement", False, True) in seen
+    assert ("AnchorDropping", False, True) in seen
