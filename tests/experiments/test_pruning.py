@@ -526,3 +526,26 @@ def test_the_ranking_row_decides_each_step_by_its_interval(gaps_m, verdict):
     row = _row(t, "ranking of the heuristics")
     assert row.verdict == verdict, row.ours
     assert "block-bootstrap interval" in row.rule
+
+
+@pytest.mark.parametrize("offset_m, verdict", [(-0.2, "NLS better"), (0.2, "NLS worse"), (0.0, "not significant")])
+def test_the_lias_dynamic_point_row_decides_by_the_median_difference_on_common_epochs(offset_m, verdict):
+    """Given the dynamic run's epoch table, best fit vs point fixes is decided by the interval of the median
+    difference on the epochs both covered (not by a 5 mm tolerance); epochs the fit missed are left out."""
+    rng = np.random.default_rng(8)
+    rows = []
+    for seg in range(6):
+        t = np.arange(60) * 0.1
+        point = np.abs(rng.normal(0.5, 0.2, t.size))
+        fit = point[::-1] + offset_m if offset_m == 0.0 else point + offset_m + rng.normal(0, 0.02, t.size)
+        fit = fit.copy()
+        fit[:5] = np.nan                               # not covered: out of the pairing
+        for h, e in (("point", point), ("none", fit)):
+            rows.append(pd.DataFrame({"segment": seg, "tag": "t0", "t_s": t, "heuristic": h, "err_m": e}))
+    epochs = pd.concat(rows, ignore_index=True)
+    summary = ex.epoch_summary(epochs)
+    f = ex.comparison_facts(_summary([1.0, 0.8, 0.6, 0.4]), lias_dynamic_epochs={"raw": (summary, {"none": 0.9})},
+                            lias_dynamic_errors={"raw": epochs})
+    assert f["lias_dynamic_point"]["raw"]["paired"]["n"] == 6 * 55
+    row = _row(ex.verdict_table(f), "LIAS dynamic, raw ranges: best trajectory fit vs point fixes")
+    assert row.verdict == verdict, row.ours

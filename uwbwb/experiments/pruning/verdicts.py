@@ -18,7 +18,7 @@ from ... import metrics
 from ...sim.tours import TourConfig
 from .scoring import LABELS, PAPER_RANKING, POINT
 
-__all__ = ["COLUMNS", "comparison_facts", "ranking_steps", "verdict_table"]
+__all__ = ["COLUMNS", "comparison_facts", "paired_median", "ranking_steps", "verdict_table"]
 
 #: The columns of :func:`verdict_table`.
 COLUMNS = ["claim", "paper", "paper kind", "ours", "ours kind", "assumption", "rule", "verdict"]
@@ -48,7 +48,8 @@ def comparison_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
                      lias_static_epochs: dict | None = None, lias_ranges: pd.DataFrame | None = None,
                      lias_dynamic: pd.DataFrame | None = None, lias_dynamic_epochs: dict | None = None,
                      hanyang: pd.DataFrame | None = None, tour: TourConfig | None = None,
-                     excess: pd.DataFrame | None = None, stops: pd.DataFrame | None = None, seed: int = 0) -> dict:
+                     excess: pd.DataFrame | None = None, stops: pd.DataFrame | None = None,
+                     lias_dynamic_errors: dict | None = None, seed: int = 0) -> dict:
     """The facts of the comparison, as numbers and orderings.
 
     Parameters
@@ -83,6 +84,10 @@ def comparison_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
     stops
         The per-stop errors behind ``synthetic`` (``SyntheticResult.stops``): each step of the paper's ranking
         then gets the block-bootstrap interval of its median difference (:func:`ranking_steps`, seeded by ``seed``).
+    lias_dynamic_errors
+        ``{ranges: epoch table}`` of the dynamic run (``DynamicResult.epochs``: ``segment, tag, t_s, heuristic,
+        err_m``): the best trajectory fit vs the point fixes then gets the interval of its median difference on
+        the epochs both covered (:func:`paired_median`), in place of the 5 mm tolerance.
     """
     f: dict = {"dim": synthetic_dim}
     if tour is not None:
@@ -183,6 +188,10 @@ def comparison_facts(synthetic: pd.DataFrame, *, synthetic_dim: int = 2, synthet
             m = v["median_m"]
             if POINT in m and len(m) > 1:
                 v["verdict"] = _versus(m[POINT], min(x for h, x in m.items() if h != POINT))
+                if lias_dynamic_errors is not None and k in lias_dynamic_errors:
+                    best = min((h for h in m if h != POINT), key=lambda h: m[h])
+                    v["paired"] = paired_median(lias_dynamic_errors[k], best, POINT, ["segment", "tag"],
+                                                rng=np.random.default_rng(seed))
 
     ratios = []
     if "speed_ratio_median" in synthetic and "none" in synthetic.index and np.isfinite(
@@ -225,6 +234,21 @@ def ranking_steps(stops: pd.DataFrame, order=PAPER_RANKING, *, rng: np.random.Ge
                     "n": d["n"], "side": metrics.interval_side(d["lo_m"], d["hi_m"])})
     return out
 
+
+def paired_median(epochs: pd.DataFrame, a: str, b: str, series: list[str], *, rng: np.random.Generator) -> dict:
+    """``median(a) − median(b)`` of two estimators of an epoch table (``heuristic``, ``err_m`` and the ``series``
+    columns plus ``t_s``) over the epochs both covered, with its block-bootstrap interval (one series per value
+    of ``series``, in time order) and its side of 0 (:func:`uwbwb.metrics.interval_side`)."""
+    wide = epochs.pivot_table(index=[*series, "t_s"], columns="heuristic", values="err_m")[[a, b]].dropna()
+    groups = [g for _, g in wide.sort_index().groupby(level=list(range(len(series))), sort=True)]
+    d = metrics.block_bootstrap_difference([g[a].to_numpy() for g in groups], [g[b].to_numpy() for g in groups],
+                                           rng=rng, statistic="median")
+    return {**d, "a": a, "b": b, "side": metrics.interval_side(d["lo_m"], d["hi_m"])}
+
+
+#: The paired rows' verdicts from the side of their interval.
+_PAIRED_VERDICT = {"below": "NLS better", "above": "NLS worse", "contains": "not significant",
+                   "none": "no interval (too few blocks)"}
 
 #: The ranking row's verdict from the sides of its steps: every step as the paper's, one step reversed, or neither.
 _RANKING_VERDICT = {"all below": "as in the paper", "a step above": "differs", "otherwise": "not resolved"}
@@ -331,7 +355,14 @@ def verdict_table(f: dict) -> pd.DataFrame:
         add(f"LIAS dynamic, {k} ranges: plain NLS vs the best heuristic (mean error, m)", "—",
             f"{v['none_m']:.3f} vs {v['best_m']:.3f} ({_name(v['best'])})", "5 mm counts as equal", v["verdict"])
     for k, v in f.get("lias_dynamic_point", {}).items():
-        if "verdict" in v:
+        if "paired" in v:
+            p = v["paired"]
+            interval = f"[{p['lo_m']:+.3f}, {p['hi_m']:+.3f}]" if p["side"] != "none" else "(no interval)"
+            add(f"LIAS dynamic, {k} ranges: best trajectory fit vs point fixes, median error on common epochs (m)",
+                "—", f"{_name(p['a'])} {p['median_a_m']:.3f}, point {p['median_b_m']:.3f}: {p['diff_m']:+.3f} "
+                f"{interval} ({p['n']} epochs)", "95 % block-bootstrap interval of the median difference vs 0",
+                _PAIRED_VERDICT[p["side"]])
+        elif "verdict" in v:
             m = v["median_m"]
             best = min((h for h in m if h != POINT), key=lambda h: m[h])
             add(f"LIAS dynamic, {k} ranges: best trajectory fit vs point fixes, median error (m)", "—",
