@@ -15,7 +15,9 @@ and NIS consistency work on any filter built this way; :meth:`KalmanRun.to_estim
 gives the package's common result type :class:`~uwbwb.types.Estimates`.
 
 Gating is a policy injected with ``gate=`` (:mod:`uwbwb.filters.gating`): no gate, χ² per
-epoch, χ² per measurement or anchor dropping, each with its ``max_gated`` release rule. The
+epoch, χ² per measurement or anchor dropping, each with its ``max_gated`` release rule, or the
+robust (M-estimation) update :class:`~uwbwb.filters.gating.Robust`, alone or after one of those
+gates (``Robust(gate=...)``). The
 older ``gate_prob=`` / ``max_gated=`` settings still work and stand for
 :class:`~uwbwb.filters.gating.ChiSquareEpoch` (``gate_prob = 0.9999`` by default: an epoch
 whose NIS exceeds the 0.9999 quantile of χ²(m) is rejected, prediction only, status
