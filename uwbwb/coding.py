@@ -7,19 +7,16 @@ answer key of :mod:`uwbwb.classroom` puts in the stub's place) and *known mistak
 variants, each with what it gets wrong. :func:`check` runs the student's function on the cases and says:
 
 * ``not written yet`` — the stub still raises :class:`NotImplementedError` (the cell does not fail);
-* ``wrong`` — an exception, a wrong shape or type, the negative of the equation, a known mistake (the
-  first variant that matches on every case), or else where the numbers differ;
+* ``wrong`` — an exception, a wrong shape or type, a known mistake (the first variant that matches on every
+  case), the negative of the equation, or else where the numbers differ;
 * ``right`` — equal to the package's function on every case.
 
-=====  ==========================  ======================================================================
- nb    function                    reference (used by the filter of the notebook's "in a cell" section)
-=====  ==========================  ======================================================================
- 01    ``fix_log_likelihood``      :func:`uwbwb.models.setnoise.log_likelihood` (eq. 9, in ``pf_update``)
- 02    ``range_residuals``         :meth:`uwbwb.models.track.LinearTrackRanges.residuals_jacobian` (eq. 1)
- 03    ``tdoa_jacobian``           :meth:`uwbwb.models.tdoa.TdoaModel.jacobian` (the EKF's ``H``)
- 04    ``delta_p``                 :meth:`uwbwb.models.doppler.DopplerModel.delta_p` (eq 1)
- 05    ``eq4_outliers``            :func:`uwbwb.models.tdoa.triangle_outliers` (eq. 4, in ``TdoaUpdate``)
-=====  ==========================  ======================================================================
+Notebook, function and reference (the package's function the filter of the notebook's "in a cell" section
+calls): 01 ``fix_log_likelihood``, :func:`uwbwb.models.setnoise.log_likelihood` (eq. 9, in ``pf_update``);
+02 ``range_residuals``, :meth:`uwbwb.models.track.LinearTrackRanges.residuals_jacobian` (eq. 1); 03
+``tdoa_jacobian``, :meth:`uwbwb.models.tdoa.TdoaModel.jacobian` (the EKF's ``H``); 04 ``delta_p``,
+:meth:`uwbwb.models.doppler.DopplerModel.delta_p` (eq 1); 05 ``eq4_outliers``,
+:func:`uwbwb.models.tdoa.triangle_outliers` (eq. 4, in ``TdoaUpdate``).
 """
 
 from __future__ import annotations
