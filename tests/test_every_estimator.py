@@ -31,7 +31,7 @@ from uwbwb.filters.ekf import TdoaEkf
 from uwbwb.filters.gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate
 from uwbwb.models.motion import RandomForce
 from uwbwb.scoreboard.board import calibrate
-from uwbwb.scoreboard.estimators import TdoaEkfEstimator, default_estimators
+from uwbwb.scoreboard.estimators import RangeEkfEstimator, TdoaEkfEstimator, default_estimators
 from uwbwb.scoreboard.interface import BaseEstimator, _tdoa_model, calibrated_log
 from uwbwb.scoreboard.protocol import between, scored_tags, split_in_time
 from uwbwb.types import EstimateStatus, Estimates, TdoaLog, pseudo_tdoa
@@ -65,7 +65,7 @@ def registry():
     what this test is about and costs a filter run per grid value) and :data:`EXTRA`."""
     methods = []
     for e in default_estimators(fast=True, seed=SEED):
-        if isinstance(e, TdoaEkfEstimator):
+        if isinstance(e, (TdoaEkfEstimator, RangeEkfEstimator)):
             e = replace(e, grid=(e.grid[len(e.grid) // 2],))
         methods.append(e)
     return [*methods, *EXTRA]

@@ -10,7 +10,7 @@ from tests.fixtures import hanyang as fx
 from uwbwb.datasets import hanyang_dynamic as hd
 from uwbwb.errors import DataFormatError
 from uwbwb.experiments.hanyang import authors, estimators, facts, pairs, study
-from uwbwb.models.motion import make_motion_model
+from uwbwb.scoreboard.interface import GEOMETRY, MAX_TDOA_OVER_RANGES
 from uwbwb.types import EstimateStatus, Estimates
 
 
@@ -114,25 +114,6 @@ def test_external_rows_are_interpolated_onto_the_board_epochs_without_extrapolat
     assert gap.any() and np.all(out.status[gap] == EstimateStatus.NO_ESTIMATE)
     assert np.all(out.status[log.t_s > 2.1] == EstimateStatus.NO_ESTIMATE)
     assert authors.AuthorsEstimator("ESKF").applies(rec, "tag", cal) is not None
-
-
-def test_range_measurement_jacobian_matches_finite_differences():
-    rng = np.random.default_rng(2)
-    anchors = np.array(list(fx.DYNAMIC_ANCHORS.values()))
-    for model in ("RW", "RF"):
-        motion = make_motion_model(model, sigma=1.0, dt_s=0.1, dim=2)
-        meas = estimators.RangeMeasurement(anchors, np.full(4, 0.1), motion, 1.1)
-        x = rng.normal(0, 5, motion.n_x)
-        row = np.array([10.0, np.nan, 12.0, 11.0])
-        lin = meas.linearise(x, row)
-        assert lin.z.size == 3
-        num = np.empty_like(lin.H)
-        for j in range(x.size):
-            dx = np.zeros_like(x)
-            dx[j] = 1e-6
-            num[:, j] = (meas.linearise(x + dx, row).h - meas.linearise(x - dx, row).h) / 2e-6
-        np.testing.assert_allclose(lin.H, num, atol=1e-7)
-        assert meas.linearise(x, np.full(4, np.nan)) is None
 
 
 def test_the_ratio_interval_of_the_one_block_bootstrap_brackets_the_truth():
@@ -285,9 +266,12 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     pd.testing.assert_frame_equal(shown.loc[ran.index, cols], ran[cols])
     assert set(sec.tables["placement"]["method"]) == set(ran.index)
     assert set(sec.tables["own_bound"]["method"]) == set(ran.index[ran["bound_m"] > 0])
-    # the TDoA fix's own bound against the ranges' CRLB: the 2 m cluster, measured, in its note
-    tdoa = full.loc["TDoA LS"]
-    assert tdoa.bound_over_ranges_crlb > 10 and tdoa.note.startswith(f"own bound {tdoa.bound_over_ranges_crlb:.0f}×")
+    # the TDoA methods do not run on the 2 m cluster: the calibration part's TDoA CRLB against the ranges', in the note
+    geo = board.calibration.params(GEOMETRY)["tag"]
+    assert geo["tdoa_over_ranges"] > MAX_TDOA_OVER_RANGES
+    for m in ("TDoA LS", "EKF-RW", "EKF-RF", "EKF-RJ"):
+        assert full.loc[m, "n_scored"] == 0 and full.loc[m, "note"].startswith("not run: TDoAs uninformative here")
+        assert f"{geo['tdoa_over_ranges']:.3g}× the ranges'" in full.loc[m, "note"]
     assert full.loc["raw LS", "bound_over_ranges_crlb"] == pytest.approx(1.0)
     # the UWB/INS filters are on the board and say why they did not run; every tuned EKF says where its pick lies
     assert full.loc[["loose", "tight"], "note"].str.contains("needs an IMU").all()
@@ -302,7 +286,8 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     theirs = [r for r in prune.rows if r["quantity"] == "RMSE_2d, authors LS (external)"]
     assert len(theirs) == 1 and theirs[0]["kind"] == "input" and theirs[0]["data"] == label + facts.EXTERNAL
     motion = sections.motion_section(cases[1].name, data, fast=True)
-    assert set(motion.tables["models"]["method"]) == {"EKF-RF", "EKF-RW ranges", "EKF-RF ranges", "EKF-RJ ranges"}
+    assert set(motion.tables["models"]["method"]) == {"EKF-RW ranges", "EKF-RF ranges", "EKF-RJ ranges"}
+    assert motion.boards[cases[1].name].table().set_index("method").loc["EKF-RF", "note"].startswith("not run: TDoAs")
     assert motion.facts["tuned_on"] == cases[0].name
 
 

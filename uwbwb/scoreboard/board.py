@@ -79,7 +79,7 @@ from .. import metrics
 from ..types import Estimates, Recording
 from . import checks as _checks
 from .estimators import default_estimators
-from .interface import Estimator, _range_bound, truth_at
+from .interface import GEOMETRY, Estimator, _range_bound, measurement_geometry, truth_at
 from .explain import bound_note, diagnostics, diagnostics_table
 from .protocol import Calibration, fit_calibration, scored_tags
 from .reference import REFERENCE, common_bound, describe as describe_reference, fit_reference_motion
@@ -219,13 +219,15 @@ def calibrate(cal_rec: Recording, estimators: Sequence[Estimator], tags: Sequenc
               rate_hz: float | None = None, dim: int | None = None, progress: bool = False,
               tag_height_m: Mapping[str, float] | None = None) -> Calibration:
     """Fit the shared calibration on ``cal_rec``, the common bound's motion model
-    (:func:`.reference.fit_reference_motion`), then let each estimator tune itself on it."""
+    (:func:`.reference.fit_reference_motion`) and the measurement geometry (:func:`.interface.measurement_geometry`:
+    whether the TDoA methods run), then let each estimator that applies tune itself on it."""
     tags = scored_tags(cal_rec, tags)
     cal = fit_calibration(cal_rec, tags, rate_hz=rate_hz, dim=dim, tag_height_m=tag_height_m)
     rec = cal_rec if rate_hz is None else cal_rec.decimate(rate_hz=rate_hz)
     reference = fit_reference_motion(rec, tags, cal)
     if reference:
         cal = cal.with_tuned(REFERENCE, reference)
+    cal = cal.with_tuned(GEOMETRY, measurement_geometry(rec, tags, cal))
     for est in estimators:
         usable = [t for t in tags if est.applies(rec, t, cal) is None]
         if not usable:
@@ -668,6 +670,9 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
         known = {**(given or {}), **heights} if (tag_height_m is not None or how) else None
         calibration = calibrate(cal_rec, estimators, tags, rate_hz=rate_hz, dim=dim, progress=progress,
                                 tag_height_m=known)
+    elif GEOMETRY not in calibration.tuned:            # a calibration made elsewhere: the geometry of this one's part
+        thinned = cal_rec if rate_hz is None else cal_rec.decimate(rate_hz=rate_hz)
+        calibration = calibration.with_tuned(GEOMETRY, measurement_geometry(thinned, tags, calibration))
     rec = test_rec if rate_hz is None else test_rec.decimate(rate_hz=rate_hz)
     commons = {t: common_bound(rec, t, calibration) for t in tags}
     ranges_crlb = {t: _range_bound(rec, t, calibration, rec.ranges[t], "CRLB of the ranges") for t in tags}

@@ -36,16 +36,19 @@ import numpy as np
 
 from .. import bounds, geometry
 from ..filters import alignment, imu_calibration
-from ..filters.ekf import TdoaEkf
+from ..filters.ekf import Ekf, TdoaEkf
+from ..filters.ekf.ranges import RangeMeasurement
+from ..filters.gating import AnchorDropping, gate_from_prob
+from ..filters.kalman import Gaussian
 from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import RandomForce, make_motion_model
 from ..types import Estimates, TdoaLog, Trajectory
 from .interface import (BaseEstimator, Estimator, _NONE, _UP, _errors_rmse, _range_bound, _tdoa_information,
-                        _tdoa_model, calibrated_log, on_grid_edge)
+                        _tdoa_model, calibrated_log, on_grid_edge, tdoa_geometry_note, truth_at)
 from .protocol import Calibration
 from .setnoise_nls import NLS_WINDOWS_S, SetNoiseFilter, WindowNls
 
-__all__ = ["RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "UwbInsFilter", "ExternalEstimates", "INS_GRID", "INS_GRID_FAST",
+__all__ = ["RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "RangeEkfEstimator", "UwbInsFilter", "ExternalEstimates", "INS_GRID", "INS_GRID_FAST",
            "default_estimators"]
 
 # ----------------------------------------------------------------------------- snapshot methods
@@ -86,10 +89,14 @@ class CalibratedLs(BaseEstimator):
 @dataclass(frozen=True)
 class TdoaLs(BaseEstimator):
     """Gauss–Newton TDoA fix per epoch (:func:`uwbwb.filters.tdoa_ls.tdoa_least_squares`), pseudo-TDoA
-    to anchor ``ref`` with the reference-correlated covariance."""
+    to anchor ``ref`` with the reference-correlated covariance. Not run where the TDoAs are uninformative
+    (:func:`~.interface.tdoa_geometry_note`)."""
 
     name: str = "TDoA LS"
     ref: int = 0
+
+    def applies(self, rec, tag, cal):
+        return tdoa_geometry_note(cal, tag)
 
     def estimate(self, rec, tag, cal):
         log = calibrated_log(rec, tag, cal)
@@ -102,42 +109,27 @@ class TdoaLs(BaseEstimator):
         return bounds.Bound(log.t_s, bounds.crlb(info), "CRLB TDoA")
 
 
-# ----------------------------------------------------------------------------- TDoA EKFs
+# ----------------------------------------------------------------------------- EKFs: TDoAs and ranges
 
 #: Driving-noise grids searched on the calibration part (model units: m/s, m/s², m/s³).
 EKF_GRIDS = {"RW": np.geomspace(0.05, 5.0, 9), "RF": np.geomspace(0.05, 20.0, 9), "RJ": np.geomspace(0.05, 100.0, 9)}
 
 
 @dataclass(frozen=True)
-class TdoaEkfEstimator(BaseEstimator):
-    """The TDoA EKF of notebook 03 (:class:`uwbwb.filters.ekf.TdoaEkf`) with motion model ``model``.
-
-    ``tune`` picks the driving-noise standard deviation minimising the RMSE on the
-    calibration part over :data:`EKF_GRIDS` (one value for all tags). The χ² gate is on
-    (``gate_prob``). Its bound is the posterior CRLB with the same motion model (tuned
-    driving noise), the TDoA information of every epoch and the filter's initial
-    covariance as prior, from the filter's first epoch.
-    """
+class _MotionEkf(BaseEstimator):
+    """What the TDoA and the range EKFs share: motion model ``model`` (RW, RF, RJ of notebook 03), its
+    driving noise tuned on the calibration part over :data:`EKF_GRIDS` (or ``grid``; one value for all tags,
+    minimising the mean RMSE), and a bound that is the posterior CRLB with the same motion model (tuned driving
+    noise), the information of the filter's measurements at every epoch and its initial covariance as prior,
+    from the filter's first epoch. A subclass gives the filter (:meth:`_filter`), its run (:meth:`_run`), its
+    initial covariance (:meth:`_prior`) and the information (:meth:`_information`)."""
 
     model: str = "RF"
     gate_prob: float | None = 0.9999
-    ref: int = 0
     grid: tuple[float, ...] | None = None
 
-    @property
-    def name(self) -> str:
-        return f"EKF-{self.model}"
-
-    def _dt(self, cal: Calibration) -> float:
-        return 1.0 / cal.rate_hz
-
-    def _filter(self, cal, tag, rec, sigma_w) -> TdoaEkf:
-        motion = make_motion_model(self.model, sigma=sigma_w, dt_s=self._dt(cal), dim=cal.dim)
-        return TdoaEkf(motion, _tdoa_model(rec, tag, cal), gate_prob=self.gate_prob)
-
-    def _run(self, rec, tag, cal, sigma_w) -> Estimates:
-        log = TdoaLog.from_ranges(calibrated_log(rec, tag, cal), self.ref)
-        return self._filter(cal, tag, rec, sigma_w).run(log, name=self.name).to_estimates()
+    def _motion(self, cal: Calibration, sigma_w: float):
+        return make_motion_model(self.model, sigma=sigma_w, dt_s=1.0 / cal.rate_hz, dim=cal.dim)
 
     def tune(self, rec, tags, cal):
         grid = EKF_GRIDS[self.model] if self.grid is None else np.asarray(self.grid, float)
@@ -151,18 +143,101 @@ class TdoaEkfEstimator(BaseEstimator):
 
     def bound(self, rec, tag, cal, est):
         log = calibrated_log(rec, tag, cal)
-        info, have = _tdoa_information(rec, tag, cal, log)
+        info, have = self._information(rec, tag, cal, log)
         start = np.flatnonzero(est.has_estimate)
         C = np.full((len(log), cal.dim, cal.dim), np.nan)
-        kind = f"PCRLB {self.model}"
-        if start.size == 0:
-            return bounds.Bound(log.t_s, C, kind)
-        k0 = int(start[0])
-        ekf = self._filter(cal, tag, rec, cal.params(self.name)["sigma_w"])
-        P0 = ekf.motion.initial_covariance(ekf.init_pos_sigma_m, ekf.init_vel_sigma_mps, ekf.init_acc_sigma_mps2)
-        C[k0:] = bounds.tracking_bound(ekf.motion, log.t_s[k0:], info[k0:], P0)
-        C[~have] = np.nan                     # no truth there: the bound is not evaluated
-        return bounds.Bound(log.t_s, C, kind)
+        if start.size:
+            k0 = int(start[0])
+            ekf = self._filter(rec, tag, cal, cal.params(self.name)["sigma_w"])
+            C[k0:] = bounds.tracking_bound(ekf.transition, log.t_s[k0:], info[k0:], self._prior(ekf))
+            C[~have] = np.nan                     # no truth there: the bound is not evaluated
+        return bounds.Bound(log.t_s, C, self._bound_kind)
+
+
+@dataclass(frozen=True)
+class TdoaEkfEstimator(_MotionEkf):
+    """The TDoA EKF of notebook 03 (:class:`uwbwb.filters.ekf.TdoaEkf`) with motion model ``model``, on
+    pseudo-TDoAs to anchor ``ref``, the χ² gate on (``gate_prob``). Tuning and bound: :class:`_MotionEkf`, with
+    the TDoA information and the filter's initial covariance. Not run where the TDoAs are uninformative
+    (:func:`~.interface.tdoa_geometry_note`).
+    """
+
+    ref: int = 0
+
+    @property
+    def name(self) -> str:
+        return f"EKF-{self.model}"
+
+    @property
+    def _bound_kind(self) -> str:
+        return f"PCRLB {self.model}"
+
+    def applies(self, rec, tag, cal):
+        return tdoa_geometry_note(cal, tag)
+
+    def _filter(self, rec, tag, cal, sigma_w) -> TdoaEkf:
+        return TdoaEkf(self._motion(cal, sigma_w), _tdoa_model(rec, tag, cal), gate_prob=self.gate_prob)
+
+    def _run(self, rec, tag, cal, sigma_w) -> Estimates:
+        log = TdoaLog.from_ranges(calibrated_log(rec, tag, cal), self.ref)
+        return self._filter(rec, tag, cal, sigma_w).run(log, name=self.name).to_estimates()
+
+    def _prior(self, ekf):
+        return ekf.motion.initial_covariance(ekf.init_pos_sigma_m, ekf.init_vel_sigma_mps, ekf.init_acc_sigma_mps2)
+
+    def _information(self, rec, tag, cal, log):
+        return _tdoa_information(rec, tag, cal, log)
+
+
+@dataclass(frozen=True)
+class RangeEkfEstimator(_MotionEkf):
+    """An EKF on the ranges themselves (:class:`~uwbwb.filters.ekf.ranges.RangeMeasurement`): the motion models
+    of the TDoA EKF, the calibrated ranges and range noise of the board and the anchor-dropping χ² gate
+    (``gate_prob``). Where the TDoAs are uninformative (four anchors in a 2 m cluster, the tag up to 50 m away)
+    the ranges still locate the tag. The filter starts at the first epoch with a multilateration fix, with
+    standard deviation ``init_sigma`` on every state component (m, m/s, m/s²). Tuning and bound:
+    :class:`_MotionEkf`, with the range information.
+    """
+
+    init_sigma: float = 1.0
+
+    @property
+    def name(self) -> str:
+        return f"EKF-{self.model} ranges"
+
+    @property
+    def _bound_kind(self) -> str:
+        return f"PCRLB {self.model} ranges"
+
+    def _filter(self, rec, tag, cal, sigma_w) -> Ekf:
+        motion = self._motion(cal, sigma_w)
+        meas = RangeMeasurement(rec.anchors.pos_m, cal.sigma(tag), motion, cal.height(tag))
+        gate = gate_from_prob(self.gate_prob, 10, self.name, kind=AnchorDropping, min_rows=2)
+        return Ekf(motion, meas, vel_index=motion.layout.vel_index, gate=gate)
+
+    def _run(self, rec, tag, cal, sigma_w) -> Estimates:
+        log = calibrated_log(rec, tag, cal)
+        ekf = self._filter(rec, tag, cal, sigma_w)
+        fix = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag))
+        ok = np.flatnonzero(np.all(np.isfinite(fix.pos_m), axis=1))
+        if ok.size == 0:
+            T = len(log)
+            return Estimates(log.t_s, np.full((T, cal.dim), np.nan), np.full(T, _NONE, np.int8), self.name)
+        x0 = Gaussian(ekf.transition.initial_state(fix.pos_m[ok[0], : cal.dim]), self._prior(ekf))
+        return ekf.run(log.t_s, RangeMeasurement.epochs(log), x0, start=int(ok[0]), name=self.name).to_estimates()
+
+    def _prior(self, ekf):
+        s = self.init_sigma
+        return ekf.transition.initial_covariance(s, s, s)
+
+    def _information(self, rec, tag, cal, log):
+        pos = truth_at(rec, tag, log.t_s, cal.dim)
+        have = np.all(np.isfinite(pos), axis=1)
+        info = np.zeros((len(log), cal.dim, cal.dim))
+        if have.any():
+            info[have] = bounds.range_information(pos[have], rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
+                                                  mask=np.isfinite(log.range_m[have]))
+        return info, have
 
 
 # ----------------------------------------------------------------------------- UWB/INS
@@ -386,22 +461,22 @@ class ExternalEstimates(BaseEstimator):
 
 def default_estimators(*, fast: bool = False, seed: int = 0, ins_kinds: tuple[str, ...] = ("loose", "tight"),
                        ins_settings: alignment.FusionSettings = alignment.FusionSettings()) -> list[Estimator]:
-    """Every method of the package, in the board's order.
+    """Every method of the package, in the board's order: the snapshot fixes (raw LS, LS, TDoA LS), the EKFs
+    RW/RF/RJ on TDoAs and on ranges, the set-noise filters, NLS and the UWB/INS filters. Each says where it does
+    not run (the TDoA methods where the TDoAs are uninformative: :func:`~.interface.tdoa_geometry_note`; the
+    UWB/INS filters without an IMU).
 
     ``ins_kinds`` are the UWB/INS filters on the board (:class:`UwbInsFilter` kinds; notebook 05 adds
     ``"tight (ranges)"`` and ``"INS-only"``), all with ``ins_settings``; they share one IMU calibration.
 
     ``fast`` shrinks what costs time (particles, tuning grids) for CI-sized runs: every other value
-    of each tuning grid (the EKFs' σ_w: 5 of 9; the UWB/INS (q, r) pairs: :data:`INS_GRID_FAST`, 4 of 16); the NLS windows: 2 of 3 (1 and
+    of each tuning grid (the EKFs' σ_w, on TDoAs and on ranges: 5 of 9; the UWB/INS (q, r) pairs: :data:`INS_GRID_FAST`, 4 of 16); the NLS windows: 2 of 3 (1 and
     2 s: a 0.5 s window holds too few epochs at the low rates FAST runs use); the set-noise KF's σ_d grid
     is searched in full.
     """
-    grid = None
     ekfs = []
-    for m in ("RW", "RF", "RJ"):
-        if fast:
-            grid = tuple(float(g) for g in EKF_GRIDS[m][::2])
-        ekfs.append(TdoaEkfEstimator(m, grid=grid))
+    for kind in (TdoaEkfEstimator, RangeEkfEstimator):
+        ekfs += [kind(m, grid=tuple(float(g) for g in EKF_GRIDS[m][::2]) if fast else None) for m in ("RW", "RF", "RJ")]
     ins_cache: dict = {}
     ins_grid = INS_GRID_FAST if fast else INS_GRID
     return [RawLs(), CalibratedLs(), TdoaLs(), *ekfs,

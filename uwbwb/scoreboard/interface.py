@@ -5,6 +5,11 @@ member means); :class:`BaseEstimator` gives the defaults. The helpers place trut
 epochs (:func:`truth_at`, one gap rule: :data:`MAX_TRUTH_GAP_S`), apply the shared range
 calibration (:func:`calibrated_log`) and evaluate the range and TDoA information the adapters'
 bounds are built from.
+
+Whether a measurement domain is informative on a recording is judged once, on the calibration part
+(:func:`measurement_geometry`, stored in the calibration under :data:`GEOMETRY`): a TDoA method does not
+run where the TDoAs' position CRLB there exceeds the ranges' by more than :data:`MAX_TDOA_OVER_RANGES`
+(:func:`tdoa_geometry_note` says why, with the numbers, in the board's note column).
 """
 
 from __future__ import annotations
@@ -21,12 +26,23 @@ from ..models.tdoa import TdoaModel
 from ..types import EstimateStatus, Estimates, MAX_TRUTH_GAP_S, RangeLog, Recording
 from .protocol import Calibration
 
-__all__ = ["Estimator", "BaseEstimator", "MIN_NOISE_SAMPLES", "calibrated_log", "measured_noise_calibration", "truth_at",
-           "on_grid_edge"]
+__all__ = ["Estimator", "BaseEstimator", "GEOMETRY", "MAX_TDOA_OVER_RANGES", "MIN_NOISE_SAMPLES", "calibrated_log",
+           "measured_noise_calibration", "measurement_geometry", "tdoa_geometry_note", "truth_at", "on_grid_edge"]
 
 #: Fewest range residuals of an anchor on the scored part for its noise to be measured there
 #: (:func:`measured_noise_calibration`; an anchor with fewer keeps its calibrated σ).
 MIN_NOISE_SAMPLES = 10
+
+#: A TDoA method (TDoA LS, the TDoA EKFs) is not run where the median position CRLB of the TDoAs on the
+#: calibration part exceeds that of the ranges by more than this factor (:func:`tdoa_geometry_note`). With
+#: reference-correlated pseudo-TDoAs the factor is at least 1 (a TDoA loses only the common offset). Measured on
+#: the calibration parts the boards use: 1.04–1.05 on the LIAS planar run ``fast`` (8 anchors around the floor;
+#: its first half), 1.07 and 1.15 on the i-ASL drone scenarios 1 and 2 (8 anchors around the room), 27–714 on the
+#: four Hanyang cases (4 anchors in a 2 m cluster, the robot up to 50 m away; 35–201 on notebook 06's boards,
+#: 27–543 on their FAST parts, 93–714 on the command line's first halves in 3-D).
+MAX_TDOA_OVER_RANGES = 10.0
+#: Key of the calibration's entry holding :func:`measurement_geometry` (per tag).
+GEOMETRY = "measurement geometry"
 
 _UP, _NONE = int(EstimateStatus.UPDATED), int(EstimateStatus.NO_ESTIMATE)
 
@@ -129,6 +145,49 @@ def _tdoa_information(rec, tag, cal, log: RangeLog) -> tuple[np.ndarray, np.ndar
         info[have] = np.where((mask.sum(axis=1) >= 2)[:, None, None],
                               bounds.tdoa_information(pos[have], _tdoa_model(rec, tag, cal), mask=mask), 0.0)
     return info, have
+
+
+def _median_position_sd(info: np.ndarray) -> float:
+    """Median over epochs of ``sqrt(trace(CRLB))`` (m); a singular epoch counts as infinite."""
+    if not len(info):
+        return float("nan")
+    sd = np.sqrt(np.trace(bounds.crlb(info), axis1=1, axis2=2))
+    return float(np.median(np.where(np.isfinite(sd), sd, np.inf)))
+
+
+def measurement_geometry(rec: Recording, tags: Sequence[str], cal: Calibration) -> dict[str, dict]:
+    """How much the TDoA domain loses against the range domain on ``rec`` (the calibration part).
+
+    Per tag, at the true positions of its epochs with truth and with the calibrated range noise: the median
+    position standard deviation of the CRLB of the ranges (``crlb_ranges_m``) and of the reference-correlated
+    pseudo-TDoAs (``crlb_tdoa_m``; an epoch whose TDoA information is singular counts as infinite), their ratio
+    ``tdoa_over_ranges`` (≥ 1) and the epochs used (``n_epochs``). Tags without truth epochs are left out.
+    """
+    out = {}
+    for tag in tags:
+        log = calibrated_log(rec, tag, cal)
+        info_t, have = _tdoa_information(rec, tag, cal, log)
+        if not have.any():
+            continue
+        pos = truth_at(rec, tag, log.t_s[have], cal.dim)
+        info_r = bounds.range_information(pos, rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
+                                          mask=np.isfinite(log.range_m[have]))
+        r, t = _median_position_sd(info_r), _median_position_sd(info_t[have])
+        out[tag] = {"crlb_ranges_m": r, "crlb_tdoa_m": t, "tdoa_over_ranges": t / r if r > 0 else float("nan"),
+                    "n_epochs": int(have.sum())}
+    return out
+
+
+def tdoa_geometry_note(cal: Calibration, tag: str) -> str | None:
+    """Why a TDoA method does not run for ``tag`` (None: it runs): the calibration's :func:`measurement_geometry`
+    puts the TDoAs' median position CRLB above the ranges' by more than :data:`MAX_TDOA_OVER_RANGES`. A
+    calibration without the measurement (or a tag without truth there) lets it run."""
+    g = cal.params(GEOMETRY).get(tag)
+    if not g or not g["tdoa_over_ranges"] > MAX_TDOA_OVER_RANGES:
+        return None
+    return (f"TDoAs uninformative here: on the calibration part their median position CRLB is "
+            f"{g['crlb_tdoa_m']:.3g} m, {g['tdoa_over_ranges']:.3g}× the ranges' {g['crlb_ranges_m']:.3g} m "
+            f"(limit {MAX_TDOA_OVER_RANGES:g}×)")
 
 
 def _errors_rmse(est: Estimates, rec: Recording, tag: str, dim: int) -> float:

@@ -14,7 +14,7 @@ not hold is an error.
 * :func:`pruning_section` (notebook 02): NLS with and without the pruning heuristics of paper 001
   on one case (NLOS is the point), each against plain NLS with a bootstrap interval;
 * :func:`motion_section` (notebook 03): the RW/RF/RJ motion models on ranges (and the TDoA EKF of
-  notebook 03, which the 4-anchor cluster defeats), each against raw LS.
+  notebook 03, which does not run where the 4-anchor cluster leaves the TDoAs uninformative), each against raw LS.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from ... import metrics
 from ...datasets import dataset_available, hanyang_dynamic
 from ...errors import DataNotFoundError
 from ...scoreboard import Board
-from ...scoreboard.estimators import EKF_GRIDS, RawLs, TdoaEkfEstimator
+from ...scoreboard.estimators import RawLs, default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S, WindowNls
 from ...scoreboard.verdicts import own_bound_table, placement_table
 from . import authors, estimators, facts, study
@@ -237,18 +237,18 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
 def motion_section(case: str | None = None, data_dir: PathLike | None = None, *, fast: bool, summary=None,
                    seed: int = 0) -> Section:
     """Notebook 03's Hanyang section: the motion models on one case (default the first LOS case), tuned on
-    :func:`~.study.tuning_case`: EKF-RW/RF/RJ on the ranges, the TDoA EKF-RF of notebook 03, raw LS and the
-    authors' ESKF (external, IMU-aided); each EKF against raw LS with a block-bootstrap interval."""
+    :func:`~.study.tuning_case`: the board's EKF-RW/RF/RJ on the ranges and its TDoA EKF-RF of notebook 03 (which
+    does not run where the 4-anchor cluster leaves the TDoAs uninformative: its row's note gives the numbers), raw
+    LS and the authors' ESKF (external, IMU-aided); each EKF that ran against raw LS with a block-bootstrap
+    interval. The EKFs are the board's (:func:`~uwbwb.scoreboard.estimators.default_estimators`, FAST grids in FAST)."""
     case, absent, available = _one_case(case, data_dir, "LOS")
     if absent:
         return Section(absent=absent)
     tune = study.tuning_case(case, available)
-    coarse = {m: tuple(float(g) for g in EKF_GRIDS[m][::2]) for m in EKF_GRIDS}
-    est = [RawLs(), TdoaEkfEstimator("RF", grid=coarse["RF"]),
-           *[estimators.RangeEkfEstimator(m, grid=coarse[m] if fast else None) for m in ("RW", "RF", "RJ")],
-           authors.AuthorsEstimator("ESKF")]
+    board_est = {e.name: e for e in default_estimators(fast=fast)}
+    names = ["EKF-RF", "EKF-RW ranges", "EKF-RF ranges", "EKF-RJ ranges"]
+    est = [board_est["raw LS"], *[board_est[m] for m in names], authors.AuthorsEstimator("ESKF")]
     board = study.case_board(case, tune, data_dir, fast=fast, estimators=est)
-    names = [e.name for e in est[1:5]]
     table = ablation(board, [(m, "raw LS") for m in names], low="better", high="worse", neither="not significant",
                      seed=seed)
     sigma = {m: board.calibration.params(m).get("sigma_w", np.nan) for m in names}

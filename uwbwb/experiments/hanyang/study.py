@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import os
 import zlib
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -51,13 +51,13 @@ from ... import metrics
 from ...datasets import hanyang_dynamic
 from ...errors import DataNotFoundError
 from ...scoreboard import Board, score
-from ...scoreboard.estimators import EKF_GRIDS, TdoaEkfEstimator, default_estimators
+from ...scoreboard.estimators import default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S
 from ...scoreboard.protocol import between
 from ...types import Recording
 from .pairs import _external, held_errors, offset_ratio, pair_errors
 from .authors import AuthorsEstimator, AuthorsFrontEndLs, authors_window, reproduce_authors
-from .estimators import PrunedNls, RangeEkfEstimator, StaticModelLs, StaticRangeModel, static_range_model
+from .estimators import PrunedNls, StaticModelLs, StaticRangeModel, static_range_model
 
 
 __all__ = ["CaseComparison", "FAST_SPAN_S", "OFFSET_CHECK_S", "board_epochs", "case_board", "compare_cases",
@@ -112,20 +112,14 @@ def load_pair(case: str, tune: str, data_dir: PathLike | None = None) -> tuple[R
 
 
 def study_estimators(*, fast: bool = False, static_models: Sequence[StaticRangeModel] = ()) -> list:
-    """The board of this study: every method of the package (the UWB/INS filters stay on the board, where their
-    rows say why they did not run: they need an IMU, which this dataset does not provide), the EKFs RW/RF/RJ on
-    ranges (:class:`RangeEkfEstimator`),
-    NLS with residual pruning and with the robust mean, LS on
-    ranges corrected by each static model, raw LS behind the authors' front end (:class:`AuthorsFrontEndLs`),
-    then the authors' LS and ESKF (*external*)."""
-    coarse = {m: tuple(float(g) for g in EKF_GRIDS[m][::2]) for m in EKF_GRIDS}
-    # the TDoA EKFs get the coarse grid in both modes: range differences from a 2 m anchor cluster do not
-    # locate a tag tens of metres away (they diverge on every setting), and each setting costs a full run
-    base = [replace(e, grid=coarse[e.model]) if isinstance(e, TdoaEkfEstimator) else e
-            for e in default_estimators(fast=fast)]
+    """The board of this study: every method of the package (:func:`~uwbwb.scoreboard.estimators.default_estimators`,
+    the EKFs RW/RF/RJ on ranges among them; the methods that do not apply stay on the board, where their rows say
+    why: the TDoA methods, whose range differences from a 2 m anchor cluster do not locate a tag tens of metres
+    away, and the UWB/INS filters, which need an IMU this dataset does not provide), NLS with residual pruning and
+    with the robust mean, LS on ranges corrected by each static model, raw LS behind the authors' front end
+    (:class:`AuthorsFrontEndLs`), then the authors' LS and ESKF (*external*)."""
     windows = (1.0,) if fast else NLS_WINDOWS_S
-    ekfs = [RangeEkfEstimator(m, grid=coarse[m] if fast else None) for m in ("RW", "RF", "RJ")]
-    return [*base, *ekfs, PrunedNls(windows_s=windows, heuristic="residual"),
+    return [*default_estimators(fast=fast), PrunedNls(windows_s=windows, heuristic="residual"),
             PrunedNls(windows_s=windows, heuristic="robust_mean"),
             *[StaticModelLs(m) for m in static_models], AuthorsFrontEndLs(), AuthorsEstimator("LS"),
             AuthorsEstimator("ESKF")]

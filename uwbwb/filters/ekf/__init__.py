@@ -32,14 +32,16 @@ up an epoch.
 Modules
 -------
 :mod:`.core` (:class:`Ekf`, :class:`KalmanRun`, :class:`Linearisation`, the model protocols,
-:func:`nis_consistency`) and :mod:`.tdoa` (:class:`TdoaEkf`, :class:`TdoaMeasurement`,
-:func:`run_tdoa_ekf`); every name importable from here.
+:func:`nis_consistency`), :mod:`.tdoa` (:class:`TdoaEkf`, :class:`TdoaMeasurement`,
+:func:`run_tdoa_ekf`) and :mod:`.ranges` (:class:`RangeMeasurement`: the ranges themselves as the
+measurement); every name importable from here.
 """
 
 from ..gating import UpdateInfo
 from .core import Ekf, KalmanRun, Linearisation, MeasurementModel, TransitionModel
 from ...metrics import nis_consistency
+from .ranges import RangeMeasurement
 from .tdoa import TdoaEkf, TdoaMeasurement, run_tdoa_ekf
 
 __all__ = ["Ekf", "KalmanRun", "Linearisation", "MeasurementModel", "TransitionModel", "UpdateInfo",
-           "nis_consistency", "TdoaEkf", "TdoaMeasurement", "run_tdoa_ekf"]
+           "nis_consistency", "RangeMeasurement", "TdoaEkf", "TdoaMeasurement", "run_tdoa_ekf"]

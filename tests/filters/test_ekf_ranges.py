@@ -1,0 +1,42 @@
+"""The range measurement adapter of the generic EKF (:mod:`uwbwb.filters.ekf.ranges`)."""
+
+import numpy as np
+import pytest
+
+from uwbwb.filters.ekf.ranges import RangeMeasurement
+from uwbwb.models.motion import make_motion_model
+from uwbwb.types import RangeLog
+
+ANCHORS_M = np.array([[0.0, 0.0, 1.0], [2.0, 0.0, 1.2], [2.0, 2.0, 1.0], [0.0, 2.0, 1.4]])
+
+
+def test_range_measurement_jacobian_matches_finite_differences():
+    rng = np.random.default_rng(2)
+    for model in ("RW", "RF", "RJ"):
+        motion = make_motion_model(model, sigma=1.0, dt_s=0.1, dim=2)
+        meas = RangeMeasurement(ANCHORS_M, np.full(4, 0.1), motion, 1.1)
+        x = rng.normal(0, 5, motion.n_x)
+        row = np.array([10.0, np.nan, 12.0, 11.0])
+        lin = meas.linearise(x, row)
+        assert lin.z.size == 3 and np.array_equal(meas.components(row), [0, 2, 3])
+        num = np.empty_like(lin.H)
+        for j in range(x.size):
+            dx = np.zeros_like(x)
+            dx[j] = 1e-6
+            num[:, j] = (meas.linearise(x + dx, row).h - meas.linearise(x - dx, row).h) / 2e-6
+        np.testing.assert_allclose(lin.H, num, atol=1e-7)
+        np.testing.assert_allclose(lin.R, np.diag(np.full(3, 0.01)))
+        assert meas.linearise(x, np.full(4, np.nan)) is None
+        two = meas.linearise_components(x, row, np.array([0, 3]))
+        np.testing.assert_allclose(two.h, lin.h[[0, 2]])
+        np.testing.assert_allclose(two.H, lin.H[[0, 2]])
+
+
+def test_a_2d_range_model_needs_the_tag_height_and_epochs_are_the_rows():
+    motion = make_motion_model("RF", sigma=1.0, dt_s=0.1, dim=2)
+    with pytest.raises(ValueError, match="tag height"):
+        RangeMeasurement(ANCHORS_M, np.full(4, 0.1), motion)
+    log = RangeLog(np.array([0.0, 0.1]), np.array([[1.0, 2.0, np.nan, 3.0], [1.1, 2.1, 2.5, np.nan]]),
+                   ("A0", "A1", "A2", "A3"), "tag")
+    rows = RangeMeasurement.epochs(log)
+    assert len(rows) == 2 and np.array_equal(rows[1], log.range_m[1], equal_nan=True)
