@@ -17,7 +17,10 @@ Commands
     run (or on another recording), scoring on the rest; a recording whose ranges do not fit its
     anchors and truth is refused with a diagnosis (units, axes, clock offset, anchors); writes
     ``scoreboard.csv``, ``scoreboard.md`` and ``scoreboard.png`` into ``--out`` (default
-    ``reports/score/<recording>``).
+    ``reports/score/<recording>``). Estimates made outside the workbench that the recording brings
+    (a tidy folder's ``external/*.csv``, a Hanyang case's ``LS.csv`` / ``ESKF.csv``) join the board
+    as *external* rows, whatever ``--methods`` says; a method that does not apply (the TDoA methods
+    where the TDoAs are uninformative, the UWB/INS filters without an IMU) says why in its note.
 
 The notebook and report folders are arguments of :func:`main` (defaults ``notebooks/`` and
 ``reports/`` in the working directory), the data folder the commands' ``--data-dir``; nothing is
@@ -115,7 +118,8 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
                                    "estimator on the rest, and write the board (CSV, Markdown, figure).")
     p.add_argument("target", metavar="TARGET",
                    help="DATASET/RECORDING (e.g. lias-planar-uwb/fast, iasl-uwb-imu/scenario2) or a folder "
-                        "holding ranges.csv, anchors.csv and truth.csv in the tidy format")
+                        "holding ranges.csv, anchors.csv and truth.csv in the tidy format (outside estimates in "
+                        "external/*.csv beside them join as external rows)")
     p.add_argument("--out", metavar="DIR", default=None, help="output folder (default reports/score/<name>)")
     p.add_argument("--calibrate-on", metavar="SPEC", default=None,
                    help="calibrate on this recording (same anchors and tags) instead of the first part")
@@ -126,7 +130,8 @@ def _build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argumen
                    help="rate every method runs at; ranges are thinned to it (default 10)")
     p.add_argument("--data-dir", metavar="DIR", default=None, help="folder holding the datasets")
     p.add_argument("--methods", nargs="+", metavar="NAME", default=None,
-                   help="only these methods (names as in the table, e.g. LS EKF-RF 'set-noise KF')")
+                   help="only these methods (names as in the table, e.g. LS EKF-RF 'EKF-RF ranges' 'set-noise KF'); "
+                        "the recording's external rows are always shown")
     p.add_argument("--tag-height-m", metavar="Z", type=float, default=None,
                    help="tag height for a 2-D truth.csv (default: fitted from the calibration part's ranges)")
     p.add_argument("--truth-offset-s", metavar="S", type=float, default=0.0,

@@ -6,8 +6,9 @@ import argparse
 import math
 from pathlib import Path
 
+from ..experiments.hanyang.authors import authors_estimators
 from ..scoreboard import default_estimators, score, split_in_time
-from ..scoreboard.sources import load_target
+from ..scoreboard.sources import external_estimators, load_target
 
 __all__ = ["cmd_score"]
 
@@ -30,6 +31,8 @@ def cmd_score(args: argparse.Namespace, parser: argparse.ArgumentParser, *,
             args.methods.append("set-noise KF")        # the PF takes the KF's tuning
         estimators = [e for e in estimators if e.name in args.methods]
     rec = load_target(args.target, args.data_dir)
+    # outside estimates the recording brings join as external rows, whatever --methods says (nothing runs)
+    estimators += [*external_estimators(rec), *authors_estimators(rec)]
     if args.calibrate_on is not None:
         cal, test = load_target(args.calibrate_on, args.data_dir), rec
     else:

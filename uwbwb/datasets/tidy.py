@@ -61,6 +61,19 @@ that order. Positions (metres) of each tag on the clock of the ranges file.
 Rows are in non-decreasing ``t_s`` order over the file, and a repeated
 ``(t_s, tag_id)`` is an error. Every tag in it must have ranges.
 
+External estimates (optional)
+------------------------------
+Positions estimated *outside* the workbench (another group's method, a vendor's
+RTLS output) may sit beside the three files, one CSV per method in a folder
+``external/`` next to the ranges file: ``external/<METHOD>.csv``, in the truth
+file's format (header ``t_s,x_m,y_m``, optionally ``z_m`` and/or ``tag_id``;
+the same rules), on the clock of the ranges file. :func:`load_recording` reads
+them (:func:`read_external_dir`) into ``meta["external_estimates"]``
+(method → tag → :class:`~uwbwb.Trajectory`, the method named by the file name
+without ``.csv``); ``uwbwb score`` puts each on the board as an *external* row
+(:class:`uwbwb.scoreboard.estimators.ExternalEstimates`: scored as given, no
+tuning, no bound, its numbers *input*). Every tag of a file must have ranges.
+
 What is and is not stored
 -------------------------
 The format holds times, anchor identifiers, ranges and tag positions. It does
@@ -408,6 +421,24 @@ def read_truth_csv(path: PathLike) -> dict[str, Trajectory]:
             for k in np.unique(g_code, return_index=True)[1].argsort()}
 
 
+#: Folder beside the ranges file holding outside estimates, one ``<METHOD>.csv`` each (module docstring).
+EXTERNAL_DIR = "external"
+
+
+def read_external_dir(directory: PathLike) -> dict[str, dict[str, Trajectory]]:
+    """Outside estimates from ``directory`` (``external/`` of a tidy folder): per ``<METHOD>.csv`` (sorted by
+    name), the method's positions per tag, read as a truth file (:func:`read_truth_csv`), each trajectory named
+    ``METHOD``. An absent folder gives none."""
+    folder = Path(directory)
+    if not folder.is_dir():
+        return {}
+    out = {}
+    for path in sorted(folder.glob("*.csv"), key=lambda p: _natural_key(p.stem)):
+        out[path.stem] = {tag: Trajectory(tr.t_s, tr.pos_m, name=path.stem)
+                          for tag, tr in read_truth_csv(path).items()}
+    return out
+
+
 def load_recording(ranges_csv: PathLike, anchors_csv: PathLike, truth_csv: PathLike | None = None,
                    name: str | None = None, *, max_range_m: float = MAX_RANGE_M) -> Recording:
     """A :class:`~uwbwb.Recording` from tidy CSV files.
@@ -425,7 +456,10 @@ def load_recording(ranges_csv: PathLike, anchors_csv: PathLike, truth_csv: PathL
     -------
     Recording
         ``dataset="tidy"``; ``cleaning`` counts the ``ERR`` rows and the ranges
-        above ``max_range_m``; ``meta`` holds the source paths.
+        above ``max_range_m``; ``meta`` holds the source paths and, where a folder
+        :data:`EXTERNAL_DIR` sits beside the ranges file, the outside estimates in
+        it (``meta["external_estimates"]``, :func:`read_external_dir`; format in the
+        module docstring).
     """
     anchors = read_anchors_csv(anchors_csv)
     ranges, cleaning = _read_ranges(ranges_csv, anchors, max_range_m)
@@ -438,6 +472,16 @@ def load_recording(ranges_csv: PathLike, anchors_csv: PathLike, truth_csv: PathL
                                              f"{Path(ranges_csv).name} (tags there: {list(ranges)})")
     meta = {"source": {"ranges": str(ranges_csv), "anchors": str(anchors_csv),
                        "truth": None if truth_csv is None else str(truth_csv)}}
+    external_dir = Path(ranges_csv).parent / EXTERNAL_DIR
+    external = read_external_dir(external_dir)
+    for method, tracks in external.items():
+        unknown = [t for t in tracks if t not in ranges]
+        if unknown:
+            raise DataFormatError(external_dir / f"{method}.csv", f"estimates for tags {unknown} that have no ranges "
+                                                                  f"in {Path(ranges_csv).name} (tags there: {list(ranges)})")
+    if external:
+        meta.update(external_estimates=external)
+        meta["source"]["external"] = {m: str(external_dir / f"{m}.csv") for m in external}
     return Recording(NAME, name or Path(ranges_csv).stem, anchors, ranges, truth,
                      cleaning=cleaning, meta=meta)
 

@@ -4,6 +4,9 @@ folder of the Hanyang dynamic layout (``A<id>.csv`` per anchor, ``trajectory.csv
 A name goes through the package's one registry of recordings (:func:`uwbwb.datasets.open`): a
 name that a present dataset does not hold is an error listing the names it does hold, and nothing
 is ever replaced by synthetic data.
+
+:func:`external_estimators` gives the *external* rows a loaded recording brings (a tidy folder's
+``external/*.csv``, :mod:`uwbwb.datasets.tidy`).
 """
 
 from __future__ import annotations
@@ -15,8 +18,9 @@ from .. import datasets
 from ..datasets import hanyang_dynamic
 from ..errors import DataNotFoundError
 from ..types import Recording
+from .estimators import ExternalEstimates
 
-__all__ = ["LOADERS", "load_target"]
+__all__ = ["LOADERS", "external_estimators", "load_target"]
 
 #: Datasets whose recordings ``score`` can load by name, and what a name means there.
 LOADERS = {
@@ -56,3 +60,10 @@ def load_target(spec: str, data_dir: str | os.PathLike | None = None) -> Recordi
         known = "; ".join(f"{d}/NAME — {what}" for d, what in LOADERS.items())
         raise ValueError(f"{spec!r} is neither a folder nor DATASET/RECORDING of a known dataset ({known})")
     return datasets.open(spec, data_dir)
+
+
+def external_estimators(rec: Recording) -> list[ExternalEstimates]:
+    """One *external* row per outside method of ``rec`` (``meta["external_estimates"]``: method → tag →
+    trajectory, as :func:`uwbwb.datasets.tidy.load_recording` reads a tidy folder's ``external/*.csv``), in the
+    order given; none when it has none."""
+    return [ExternalEstimates(method, dict(tracks)) for method, tracks in rec.meta.get("external_estimates", {}).items()]

@@ -7,14 +7,14 @@ verdict table the notebooks print.
 """
 
 from .authors import (AUTHORS_TAG_HEIGHT_M, AUTHORS_Z_LIMIT_M, AuthorsEstimator, WINDOW_RULES, authors_errors,
-                      authors_window, read_rmsd_results, reproduce_authors)
+                      authors_estimators, authors_window, read_rmsd_results, reproduce_authors)
 from .estimators import PrunedNls, StaticModelLs, StaticRangeModel, static_range_model
 from .pairs import held_errors, pair_errors
 from .study import (CaseComparison, FAST_SPAN_S, board_epochs, case_board, compare_cases, load_pair,
                     pick_on_tuning_case, ratio_table, static_model_effect, study_estimators, tuning_case)
 
 __all__ = ["AUTHORS_TAG_HEIGHT_M", "AUTHORS_Z_LIMIT_M", "FAST_SPAN_S", "WINDOW_RULES", "AuthorsEstimator",
-           "CaseComparison", "PrunedNls", "StaticModelLs", "StaticRangeModel", "authors_errors", "authors_window",
+           "CaseComparison", "PrunedNls", "StaticModelLs", "StaticRangeModel", "authors_errors", "authors_estimators", "authors_window",
            "board_epochs", "case_board", "compare_cases", "held_errors",
            "load_pair", "pair_errors", "pick_on_tuning_case", "ratio_table",
            "read_rmsd_results", "reproduce_authors", "static_model_effect", "static_range_model",

@@ -17,7 +17,7 @@ from ... import bounds, geometry, metrics
 from ...datasets import hanyang_dynamic
 from ...errors import DataFormatError, DataNotFoundError
 from ...scoreboard.interface import BaseEstimator, _range_bound
-from ...types import EstimateStatus, Estimates, Trajectory
+from ...types import EstimateStatus, Estimates, Recording, Trajectory
 
 PathLike = str | os.PathLike
 
@@ -212,6 +212,13 @@ class AuthorsEstimator(BaseEstimator):
 
     def bound(self, rec, tag, cal, est):
         return _nan_bound(est.t_s, cal.dim, "none (external)")
+
+
+def authors_estimators(rec: Recording) -> list[AuthorsEstimator]:
+    """The external rows a recording brings (the authors' LS and ESKF, those its case folder holds: ``LS.csv``,
+    ``ESKF.csv``); none for a recording of another dataset. What ``uwbwb score`` adds to a Hanyang board."""
+    have = rec.meta.get("authors_estimates", {})
+    return [AuthorsEstimator(m) for m in ("LS", "ESKF") if m in have]
 
 
 
