@@ -1,8 +1,10 @@
-# uwbwb — every target creates the environment it needs (.venv from environment.txt).
+# uwbwb — every target creates the environment it needs: .venv from environment.txt (the workbench: lab, class,
+# reproduce), plus environment-test.txt for test and bench (pytest, the browser driver, Dask).
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+TEST_STAMP := $(VENV)/.installed-test
 LAB_IP ?= 127.0.0.1
 LAB_PORT ?= 8888
 # JupyterLab refuses to start as root unless told; containers and CI machines often run as root.
@@ -16,7 +18,12 @@ $(STAMP): environment.txt pyproject.toml
 	$(PY) -m pip install --quiet -r environment.txt
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	$(PY) -m ipykernel install --sys-prefix --name python3 --display-name "Python 3 (uwbwb)" >/dev/null
+	$(PY) -m uwbwb.filters.twins   # compile the numba kernels into their cache once, not in a student's first run
 	touch $(STAMP)
+
+$(TEST_STAMP): $(STAMP) environment-test.txt
+	$(PY) -m pip install --quiet -r environment-test.txt
+	touch $(TEST_STAMP)
 
 env: $(STAMP)
 
@@ -28,7 +35,7 @@ lab: $(STAMP)
 
 ## Run the whole test suite, notebooks and the browser test included, on every core (TEST_WORKERS=0: one process).
 TEST_WORKERS ?= auto
-test: $(STAMP)
+test: $(TEST_STAMP)
 	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 
 ## Headless main job: execute every notebook, write reports/ with summary.json + summary.md.
@@ -43,7 +50,7 @@ reproduce: $(STAMP)
 class: $(STAMP)
 	$(PY) -m uwbwb.classroom $(CLASS_ARGS)
 
-bench: $(STAMP)
+bench: $(TEST_STAMP)
 	@for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
 clean:
