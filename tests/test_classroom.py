@@ -282,3 +282,28 @@ def test_class_mode_refuses_arguments_it_cannot_use(argv, message, tmp_path, cap
 
 def test_class_mode_writes_into_the_working_directory_by_default():
     assert not classroom.CLASS_DIR.is_absolute()          # never beside the installed package
+
+
+def test_a_table_pandas_cut_is_named_and_a_whole_one_is_not():
+    import pandas as pd
+
+    wide = pd.DataFrame([range(30)], columns=[f"c{i}" for i in range(30)])
+    with pd.option_context("display.max_columns", 20):
+        cut = {"text/html": wide._repr_html_(), "text/plain": repr(wide)}
+    with pd.option_context("display.max_columns", None):
+        whole = {"text/html": wide._repr_html_(), "text/plain": repr(wide)}
+    research = _code(outputs=[_display(cut)])
+    research.metadata["tags"] = ["research"]
+    nb = _notebook(_md("front"), _code(outputs=[_display(whole)]), research)
+    assert classroom.cut_tables(nb) == ["cell 2: a table printed cut (1 rows × 30 columns)"]
+    assert classroom.cut_tables(_notebook(_md("front"), _code(outputs=[_display(whole)]))) == []
+
+
+def test_the_answer_key_fills_each_prediction_and_refuses_a_cell_it_cannot_read():
+    pred = _code('PREDICTION_1 = None  # write "up" or "down"', "prediction")
+    nb = _notebook(_md("front"), pred, _code("check.against(PREDICTION_1, reveal=not CLASS)"))
+    key = classroom.answer_key(nb)
+    assert key.cells[1].source == 'PREDICTION_1 = \'answer key\'  # write "up" or "down"'
+    assert nb.cells[1].source.startswith("PREDICTION_1 = None")                 # the student's copy is unchanged
+    with pytest.raises(ValueError, match="PREDICTION"):
+        classroom.answer_key(_notebook(_code("PREDICTION_1 = 'up'", "prediction")))

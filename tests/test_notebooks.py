@@ -101,7 +101,7 @@ def test_notebook_executes_fast(path, tmp_path):
     assert problem is None, f"{path.name}: {problem}"
     executed = nbformat.read(out, as_version=4)
     found = {"figure audit": classroom.figure_audit(json.loads(figures.read_text()), executed),
-             "class limits": classroom.class_limits(executed)}
+             "class limits": classroom.class_limits(executed), "cut tables": classroom.cut_tables(executed)}
     report = "; ".join(f"{path.name} {what}: " + "; ".join(p) for what, p in found.items() if p)
     if path.stem in AUDITED:
         assert "CLASS" in parameters, f"{path.name}: audited notebooks need CLASS in their parameters cell"
@@ -120,6 +120,10 @@ def _run_on(notebook: str, tmp_path, data_dir, **parameters) -> list[dict]:
                                     **parameters},
                         kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
                         execution_timeout=CELL_TIMEOUT_S)
+    from uwbwb import classroom
+
+    cut = classroom.cut_tables(nbformat.read(tmp_path / "out.ipynb", as_version=4))
+    assert not cut, f"{notebook}: " + "; ".join(cut)
     return json.loads(summary.read_text())
 
 

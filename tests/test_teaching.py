@@ -170,12 +170,18 @@ def test_taught_notebook_has_checked_exercises(stem):
     cells = nbformat.read(NOTEBOOK_DIR / f"{stem}.ipynb", as_version=4).cells
     exercises = [i for i, c in enumerate(cells) if c.cell_type == "markdown" and "**Exercise" in c.source]
     assert len(exercises) >= 2, f"{stem}: {len(exercises)} exercises (want at least 2)"
-    for i in exercises:
+    for k, i in enumerate(exercises, 1):
         assert re.search(r"[Pp]redict", cells[i].source), f"{stem}: exercise in cell {i} asks no prediction"
-        nxt = cells[i + 1]
+        pred, nxt = cells[i + 1], cells[i + 2]
+        assert pred.cell_type == "code" and "prediction" in pred.metadata.get("tags", []), \
+            f"{stem}: exercise in cell {i} is not followed by a cell tagged 'prediction'"
+        assert re.fullmatch(rf"PREDICTION_{k} = None  # write .+", pred.source.strip()), \
+            f"{stem}: cell {i + 1} must be 'PREDICTION_{k} = None  # write <the choices>', got {pred.source!r}"
         assert nxt.cell_type == "code" and re.search(r"^assert \w+\.holds", nxt.source, flags=re.M), \
             f"{stem}: exercise in cell {i} is not followed by a check cell asserting it"
-        assert len(nxt.source.strip().splitlines()) <= 4, f"{stem}: check cell {i + 1} is more than a line or two"
+        assert nxt.source.strip().endswith(f".against(PREDICTION_{k}, reveal=not CLASS)"), \
+            f"{stem}: check cell {i + 2} does not read PREDICTION_{k}"
+        assert len(nxt.source.strip().splitlines()) <= 4, f"{stem}: check cell {i + 2} is more than a line or two"
 
 
 @pytest.mark.parametrize("stem", TAUGHT)
@@ -199,12 +205,41 @@ def test_what_you_should_see_limits():
             what_you_should_see(bad)
 
 
-def test_exercise_check_shows_its_verdict():
+def assert_reads_predictions(check):
+    """``check`` read against its right answer, its wrong one, none (numbers hidden, unless revealed), the answer
+    key and a prediction that is not a choice. Called on a check from every exercise function of the package."""
+    from uwbwb.widgets import ANSWER_KEY
+
+    right, wrong = check.outcome, next(c for c in check.choices if c != check.outcome)
+    assert check.outcome == check.choices[0 if check.holds else 1]
+    yes, no = check.against(right), check.against(wrong)
+    assert yes.right is True and "✔ Right" in yes._repr_markdown_() and "Numbers:" in yes._repr_markdown_()
+    assert no.right is False and "Not what the run shows" in no._repr_markdown_()
+    assert f"the run shows **{right}**" in no._repr_markdown_() and "Numbers:" in no._repr_markdown_()
+    hidden = check.against(None)._repr_markdown_()
+    assert "Write your prediction first" in hidden and "Numbers:" not in hidden and right in hidden and wrong in hidden
+    assert not any(name in hidden for name in check.numbers)
+    assert check.against(None).right is None and "Numbers:" in check.against(None, reveal=True)._repr_markdown_()
+    key = check.against(ANSWER_KEY)._repr_markdown_()
+    assert key.startswith("**Answer key:**") and f"**{right}**" in key
+    with pytest.raises(ValueError, match="PREDICTION"):
+        check.against("perhaps")
+
+
+def test_exercise_check_shows_its_verdict_and_reads_a_prediction():
     from uwbwb.widgets import ExerciseCheck
 
-    ok = ExerciseCheck("A above B", True, {"A (cm)": 2.0, "B (cm)": 1.0})
+    ok = ExerciseCheck("A above B", True, {"A (cm)": 2.0, "B (cm)": 1.0}, ("above", "not above"), "Because.")
     assert str(ok).startswith("holds: A above B") and "✔" in ok._repr_markdown_()
-    no = ExerciseCheck("A above B", False, {"A (cm)": 1.0, "B (cm)": 2.0})
+    no = ExerciseCheck("A above B", False, {"A (cm)": 1.0, "B (cm)": 2.0}, ("above", "not above"))
     assert "DOES NOT HOLD" in str(no) and "✘" in no._repr_markdown_()
+    assert (ok.outcome, no.outcome) == ("above", "not above")
+    assert ok.against("not above").right is False and no.against("not above").right is True
+    assert "Because." in ok.against("above")._repr_markdown_() and "Because." not in ok.against(None)._repr_markdown_()
+    for check in (ok, no):
+        assert_reads_predictions(check)
     with pytest.raises(TypeError):
         no.numbers["A (cm)"] = 3.0                                   # frozen numbers
+    for bad in (("above",), ("x", "x"), ("answer key", "no")):
+        with pytest.raises(ValueError, match="choices"):
+            ExerciseCheck("A above B", True, {}, bad)

@@ -74,11 +74,12 @@ from pathlib import Path
 
 from . import reproduce
 from .coding import EXERCISE_TAG, answer_cell
+from .widgets import ANSWER_KEY
 
 __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "MATH_SCALE", "MAX_CODE_LINES",
            "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS", "MAX_OUTPUT_WORDS", "MAX_TABLE_ROWS", "RESEARCH_TAG",
-           "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "answer_key", "axes_problems", "axes_record",
-           "class_limits", "class_values", "code_rules", "figure_audit", "fold_research", "handout_html", "hook_cell",
+           "PREDICTION_TAG", "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "answer_key", "axes_problems", "axes_record",
+           "class_limits", "class_values", "code_rules", "cut_tables", "figure_audit", "fold_research", "handout_html", "hook_cell",
            "image_count", "install_figure_recorder", "main", "markdown_page_html", "math_svg", "mathtext_source",
            "notebook_links", "record_figure", "relative_links", "relink_notebook", "run_class", "set_parameters",
            "source_indices", "static_panels", "static_widget_html", "student_notebook", "unresolved_links",
@@ -148,6 +149,23 @@ def _prose_words(markdown: str) -> int:
 def _html_rows(html: str) -> int:
     bodies = re.findall(r"<tbody.*?</tbody>", html, flags=re.S | re.I)
     return sum(len(re.findall(r"<tr[\s>]", b, flags=re.I)) for b in (bodies or [html]))
+
+
+_CUT_TABLE = re.compile(r"\[?(\d+) rows [x×] (\d+) columns\]?")
+
+
+def cut_tables(nb) -> list[str]:
+    """Tables pandas printed cut (its ``N rows × M columns`` footer, written only when it hides rows or
+    columns), one sentence each naming the cell, research cells included: a table a notebook discusses must
+    print whole (``pd.set_option("display.max_columns", None)``) or select the columns it shows."""
+    problems = []
+    for i, k in source_indices(nb).items():
+        for out in nb.cells[i].get("outputs", []) if nb.cells[i].cell_type == "code" else ():
+            data = out.get("data", {})
+            text = _text(data.get("text/html", "")) or _text(data.get("text/plain", ""))
+            for m in _CUT_TABLE.finditer(text):
+                problems.append(f"cell {k}: a table printed cut ({m.group(1)} rows × {m.group(2)} columns)")
+    return problems
 
 
 def class_limits(nb) -> list[str]:
@@ -486,13 +504,23 @@ def student_notebook(nb, values: Mapping[str, object]):
     return fold_research(nb)
 
 
+#: Tag of the cell where a student writes an exercise's prediction (``PREDICTION_1 = None  # ...``).
+PREDICTION_TAG = "prediction"
+_PREDICTION = re.compile(r"^(PREDICTION_\w+\s*=\s*)None\b", flags=re.M)
+
+
 def answer_key(nb):
     """``nb`` with the stub of each coding exercise (cells tagged :data:`uwbwb.coding.EXERCISE_TAG`) replaced by
-    its answer (:func:`uwbwb.coding.answer_cell`); ``nb`` itself is not changed."""
+    its answer (:func:`uwbwb.coding.answer_cell`), and each prediction (cells tagged :data:`PREDICTION_TAG`) set
+    to :data:`uwbwb.widgets.ANSWER_KEY`, so that its check shows the run's answer; ``nb`` itself is not changed."""
     nb = copy.deepcopy(nb)
     for cell in nb.cells:
         if cell.cell_type == "code" and EXERCISE_TAG in _tags(cell):
             cell.source = answer_cell(cell.source)
+        elif cell.cell_type == "code" and PREDICTION_TAG in _tags(cell):
+            cell.source, n = _PREDICTION.subn(rf"\g<1>{ANSWER_KEY!r}", cell.source)
+            if n != 1:
+                raise ValueError(f"a cell tagged {PREDICTION_TAG!r} must set one PREDICTION_… = None, got:\n{cell.source}")
     return nb
 
 

@@ -8,6 +8,7 @@ import pytest
 from uwbwb import sampling as smp
 from uwbwb.experiments.doppler import facts, figures, ghosts, headlines, scoring, study
 from uwbwb.models import doppler as dm
+from tests.test_teaching import assert_reads_predictions
 
 matplotlib.use("Agg")
 
@@ -492,6 +493,8 @@ def test_slower_receiver_exercise_holds_and_can_fail():
     assert check.holds, check
     faster = exercises.slower_receiver(cfg, speed_scale=2.0, n_positions=3000)     # faster: fewer ghosts
     assert not faster.holds, faster
+    for c in (check, faster):
+        assert_reads_predictions(c)
     with pytest.raises(ValueError, match="speed_scale"):
         exercises.slower_receiver(cfg, speed_scale=0.0)
 
@@ -510,6 +513,7 @@ def test_pseudo_ranges_exercise_holds_on_a_fresh_walk():
     check = exercises.pseudo_ranges(study.StudyConfig.for_mode(True, 0))
     assert check.holds, check
     assert check.numbers["ratio"] > 5
+    assert_reads_predictions(check)
 
 
 def test_filter_panel_draws_labelled_axes_with_beacons_and_its_note_quotes_its_numbers():

@@ -20,6 +20,7 @@ from uwbwb.experiments import pruning as ex  # noqa: E402
 from uwbwb.experiments.pruning import exercises, headlines, panels  # noqa: E402
 from uwbwb.filters.pruning import PruningConfig  # noqa: E402
 from uwbwb.sim import rig, tours  # noqa: E402
+from tests.test_teaching import assert_reads_predictions
 
 
 @pytest.fixture(autouse=True)
@@ -186,6 +187,8 @@ def test_pruning_off_raises_the_stop_error_and_equals_plain_nls(tour2):
     assert n["retention 1 (m)"] == pytest.approx(n["plain NLS (m)"])          # nothing pruned: plain NLS
     same = exercises.pruning_off(*tour2, cfg, node="H", retention=0.9)
     assert not same.holds                                                  # no change: the check cannot hold
+    for c in (check, same):
+        assert_reads_predictions(c)
     with pytest.raises(ValueError, match="retention"):
         exercises.pruning_off(*tour2, cfg, retention=0.0)
 
@@ -196,6 +199,7 @@ def test_without_nlos_the_fifth_percentile_loses_to_plain_nls():
     n = dict(check.numbers)
     assert n["without NLOS, 5th percentile (m)"] > n["without NLOS, plain NLS (m)"]
     assert n["with NLOS, 5th percentile (m)"] < n["with NLOS, plain NLS (m)"]
+    assert_reads_predictions(check)
     with pytest.raises(ValueError, match="seed"):
         exercises.no_nlos(_small(), seed=-1)
 

@@ -7,6 +7,7 @@ from uwbwb.experiments import quickstart as qs
 from uwbwb.metrics import MIN_BLOCKS
 from uwbwb.widgets import data_banner
 from uwbwb.types import Trajectory
+from tests.test_teaching import assert_reads_predictions
 
 
 @pytest.fixture(scope="module")
@@ -112,6 +113,8 @@ def test_exercise_fewer_anchors(synthetic):
     assert check.holds, check
     assert n["HDOP, 4 anchors"] > n["HDOP, all anchors"] > 0          # fewer rows in H: never a lower DOP
     assert n["CEP95 4 anchors (m)"] > n["CEP95 all (m)"]
+    assert check.holds == (n["CEP95 4 anchors (m)"] > n["CEP95 all (m)"])    # the HDOP, which cannot fall, is no claim
+    assert_reads_predictions(check)
     with pytest.raises(ValueError, match="keep"):
         qs.exercises.fewer_anchors(rec, tag, tag_height_m=z, keep=[0, 1])
 
@@ -124,6 +127,7 @@ def test_exercise_noisier_ranges_matches_the_first_order_prediction(synthetic, c
     n = check.numbers
     assert check.holds, check
     assert n["RMSE after (m)"] == pytest.approx(n["RMSE after, predicted (m)"], rel=0.2)
+    assert_reads_predictions(check)
     with pytest.raises(ValueError, match="sigma_m"):
         qs.exercises.noisier_ranges(rec, tag, tag_height_m=1.0, sigma_m=0.0, rng=np.random.default_rng(3))
 

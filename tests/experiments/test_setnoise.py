@@ -14,6 +14,7 @@ from uwbwb.experiments import setnoise as E  # noqa: E402
 from uwbwb.types import set_mask  # noqa: E402
 from uwbwb.widgets import data_banner, what_you_should_see  # noqa: E402
 from uwbwb.sim import setnoise as S  # noqa: E402
+from tests.test_teaching import assert_reads_predictions
 
 SMALL = dataclasses.replace(S.FacilityConfig(), n_calibration=300, n_legs=2, speeds_mps=(0.35, 1.0))
 TINY_SWEEP = E.SweepConfig(sigma_d_mps=(0.1, 0.3, 0.5), n_trials=3, n_particles=100)
@@ -342,6 +343,8 @@ def test_exercise_few_particles_at_small_sigma_d(study):
     # the verdict follows the numbers: an impossible factor turns it
     strict = E.exercises.few_particles(rec, study.model, factor=1000.0, rng=np.random.default_rng(5))
     assert not strict.holds and strict.numbers == check.numbers
+    for c in (check, strict):
+        assert_reads_predictions(c)
     with pytest.raises(ValueError, match="factor"):
         E.exercises.few_particles(rec, study.model, factor=0.5, rng=np.random.default_rng(5))
 
@@ -356,6 +359,7 @@ def test_exercise_no_resampling(study):
     assert 1 <= n["ESS at the last fix, never resample"] < 0.1 * 200       # the weights have degenerated
     again = E.exercises.no_resampling(rec, study.model, rng=np.random.default_rng(6))
     assert again.numbers == check.numbers                           # same seed, same numbers
+    assert_reads_predictions(check)
 
 
 def test_plot_sweep_marks_points_above_the_axes():

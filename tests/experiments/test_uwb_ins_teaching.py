@@ -9,6 +9,7 @@ from tests.fixtures import iasl as fx
 from uwbwb.experiments.uwb_ins import exercises, panels, realtune
 from uwbwb.filters import alignment, imu_calibration
 from uwbwb.types import Estimates, Trajectory
+from tests.test_teaching import assert_reads_predictions
 
 
 def test_outage_exercise_holds_and_its_claim_can_fail():
@@ -17,6 +18,8 @@ def test_outage_exercise_holds_and_its_claim_can_fail():
     assert check.holds == (loose > 2.0 * tight) and check.holds
     strict = exercises.outage_loose_vs_tight(seed=0, outage_s=3.0, factor=loose / tight * 1.01)
     assert not strict.holds
+    for c in (check, strict):
+        assert_reads_predictions(c)
     with pytest.raises(ValueError, match="outage_s"):
         exercises.outage_loose_vs_tight(seed=0, outage_s=0.0)
 
@@ -25,6 +28,7 @@ def test_gate_exercise_compares_the_same_run_with_and_without_the_gate():
     check = exercises.gate_off(seed=0, outlier_rate=0.1, duration_s=4.0)
     with_gate, without = check.numbers["tight RMSE with gate (m)"], check.numbers["tight RMSE without gate (m)"]
     assert check.holds == (without > with_gate) and check.holds
+    assert_reads_predictions(check)
     clean = exercises.gate_off(seed=0, outlier_rate=0.0, duration_s=4.0)     # nothing to gate: no big difference
     assert clean.numbers["tight RMSE without gate (m)"] < 2 * clean.numbers["tight RMSE with gate (m)"] + 0.01
 

@@ -87,37 +87,109 @@ def what_you_should_see(text: str):
     return Markdown("**What you should see.** " + " ".join(ln.strip() for ln in lines))
 
 
+#: What the answer-key copy of a notebook writes in place of a prediction (``make class``, class/answers).
+ANSWER_KEY = "answer key"
+
+
 @dataclass(frozen=True)
 class ExerciseCheck:
-    """Outcome of an exercise's check: the predicted direction, whether it held, and the numbers.
+    """What an exercise's run shows, and the student's prediction read against it.
 
-    An exercise asks "change X, predict Y"; the experiment package computes both settings
-    and returns one of these. The notebook's check cell is ``assert check.holds, check``
-    followed by ``check`` (shown as one line of Markdown).
+    An exercise asks "change X, predict Y" and offers two answers: ``choices[0]`` is the claim, ``choices[1]``
+    its opposite. The experiment package computes both settings and returns one of these; the run's
+    ``outcome`` is the choice its numbers support. The notebook's check cell is::
+
+        check = <exercise>(...)
+        assert check.holds, check            # the notebook's text states the claim: a flip fails the run
+        check.against(PREDICTION_1, reveal=not CLASS)
 
     Attributes
     ----------
     claim
-        The direction asserted, e.g. ``"PF error above KF error"``.
+        The claim as a sentence, e.g. ``"PF error above KF error"``.
     holds
         Whether the run shows it.
     numbers
         ``{name: value}`` the verdict was computed from, with units in the names.
+    choices
+        ``(the claim, its opposite)`` as a student writes them, e.g. ``("higher", "not higher")``.
+    why
+        The reason, written by hand in the exercise's function; shown once the student has predicted.
     """
 
     claim: str
     holds: bool
     numbers: Mapping[str, float]
+    choices: tuple[str, str]
+    why: str = ""
 
     def __post_init__(self):
         object.__setattr__(self, "holds", bool(self.holds))
         object.__setattr__(self, "numbers", MappingProxyType(dict(self.numbers)))
+        choices = tuple(str(c) for c in self.choices)
+        if len(choices) != 2 or choices[0] == choices[1] or ANSWER_KEY in choices:
+            raise ValueError(f"choices: two different answers (the claim, its opposite), got {self.choices!r}")
+        object.__setattr__(self, "choices", choices)
+
+    @property
+    def outcome(self) -> str:
+        """The choice the run shows."""
+        return self.choices[0] if self.holds else self.choices[1]
+
+    def _numbers(self) -> str:
+        return ", ".join(f"{k} = {_format_number(float(v))}" for k, v in self.numbers.items())
 
     def __str__(self) -> str:
-        nums = ", ".join(f"{k} = {_format_number(float(v))}" for k, v in self.numbers.items())
-        return f"{'holds' if self.holds else 'DOES NOT HOLD'}: {self.claim} ({nums})"
+        return f"{'holds' if self.holds else 'DOES NOT HOLD'}: {self.claim} ({self._numbers()})"
 
     def _repr_markdown_(self) -> str:
-        nums = ", ".join(f"{k} = {_format_number(float(v))}" for k, v in self.numbers.items())
         mark = "✔ check holds" if self.holds else "✘ check does not hold"
-        return f"**{mark}:** {self.claim} — {nums}"
+        return f"**{mark}:** {self.claim} — {self._numbers()}"
+
+    def against(self, prediction: str | None, *, reveal: bool = False) -> "PredictionCheck":
+        """The student's ``prediction`` (one of :attr:`choices`, or None before they write one) read against the
+        run. With None the result asks for a prediction and shows no number, unless ``reveal`` (a research run,
+        where nobody predicts); :data:`ANSWER_KEY` shows the run's answer as the answer key.
+
+        Raises
+        ------
+        ValueError
+            A prediction that is not one of the choices (the message lists them).
+        """
+        if prediction is not None and prediction != ANSWER_KEY and prediction not in self.choices:
+            raise ValueError(f"PREDICTION: write one of {list(self.choices)} (as a string), or None; "
+                             f"got {prediction!r}")
+        return PredictionCheck(self, prediction, bool(reveal))
+
+
+@dataclass(frozen=True)
+class PredictionCheck:
+    """A prediction read against an :class:`ExerciseCheck` (:meth:`ExerciseCheck.against`); shown as Markdown."""
+
+    check: ExerciseCheck
+    prediction: str | None
+    reveal: bool = False
+
+    @property
+    def right(self) -> bool | None:
+        """Whether the prediction is what the run shows (None: no prediction, or the answer key)."""
+        if self.prediction is None or self.prediction == ANSWER_KEY:
+            return None
+        return self.prediction == self.check.outcome
+
+    def _repr_markdown_(self) -> str:
+        c = self.check
+        options = " or ".join(f'`"{x}"`' for x in c.choices)
+        if self.prediction is None and not self.reveal:
+            return (f"**Write your prediction first**: set `PREDICTION_…` in the cell above to {options}, "
+                    "then run this cell again; it says whether the run agrees, why, and shows the numbers.")
+        if self.prediction is None:
+            head = f"**No prediction written.** The run shows **{c.outcome}**"
+        elif self.prediction == ANSWER_KEY:
+            head = f"**Answer key:** the run shows **{c.outcome}**"
+        elif self.right:
+            head = f"**✔ Right:** you predicted {self.prediction!r} and the run shows **{c.outcome}**"
+        else:
+            head = f"**✘ Not what the run shows:** you predicted {self.prediction!r}; the run shows **{c.outcome}**"
+        why = f" {c.why}" if c.why else ""
+        return f"{head} ({c.claim}: {'holds' if c.holds else 'does not hold'}).{why}\n\nNumbers: {c._numbers()}"

@@ -6,6 +6,7 @@ import pytest
 from uwbwb.calibration import fit_range_sigma
 from uwbwb.experiments import motion_models as mm
 from uwbwb.experiments.motion_models import exercises, headlines, panels
+from tests.test_teaching import assert_reads_predictions
 
 matplotlib.use("Agg")
 
@@ -34,6 +35,9 @@ def test_reference_anchor_exercise_correlated_sigma_is_invariant(fitted):
     assert check.holds
     assert n["LS spread, correlated Σ (cm)"] < 1e-6 and n["EKF-RW spread, correlated Σ (cm)"] < 1e-6
     assert n["LS spread, diagonal Σ (cm)"] > 0.1                       # the diagonal shortcut depends on it
+    assert check.holds == (n["LS spread, diagonal Σ (cm)"] > exercises.REFERENCE_SPREAD_CM
+                           and n["EKF-RW spread, diagonal Σ (cm)"] > exercises.REFERENCE_SPREAD_CM)
+    assert_reads_predictions(check)
     with pytest.raises(ValueError, match="refs"):
         exercises.reference_anchor(run, sigma_m, SIGMAS, refs=(1, 1))
     with pytest.raises(ValueError, match="refs"):
@@ -49,6 +53,8 @@ def test_overconfident_exercise_raises_cep95_and_nis(fitted):
     assert n["σ_w small"] == pytest.approx(0.01 * SIGMAS["RF"])
     same = exercises.overconfident_driving_noise(run, sigma_m, SIGMAS, factor=1.0, window_s=15.0)
     assert not same.holds                                               # no change: the claim must fail
+    for c in (check, same):
+        assert_reads_predictions(c)
     with pytest.raises(ValueError, match="factor"):
         exercises.overconfident_driving_noise(run, sigma_m, SIGMAS, factor=0.0)
 

@@ -60,7 +60,7 @@ def fewer_anchors(rec: Recording, tag: str, *, tag_height_m: float, calibration:
     Returns
     -------
     ExerciseCheck
-        Claim "fewer anchors: median HDOP and CEP95 both higher"; numbers: anchors used, median
+        Claim "fewer anchors: CEP95 higher" (the HDOP cannot fall, so it is a number, not the claim); numbers: median
         HDOP along the true path and CEP95 (m) with all and with the kept anchors, coverage of each.
     """
     n = len(rec.anchors.pos_m)
@@ -77,12 +77,16 @@ def fewer_anchors(rec: Recording, tag: str, *, tag_height_m: float, calibration:
     h_part = float(np.median(geometry.gdop(path, rec.anchors.pos_m, z_m=tag_height_m, mask=mask)))
     c_full, c_part = metrics.cep95(e_full), metrics.cep95(e_part)
     return ExerciseCheck(
-        f"with {int(mask.sum())} of {n} anchors the median HDOP and CEP95 are both higher",
-        h_part > h_full and c_part > c_full,
+        f"with {int(mask.sum())} of {n} anchors CEP95 is higher",
+        c_part > c_full,
         {"HDOP, all anchors": h_full, f"HDOP, {int(mask.sum())} anchors": h_part,
          "CEP95 all (m)": c_full, f"CEP95 {int(mask.sum())} anchors (m)": c_part,
          "coverage all (%)": 100 * np.isfinite(full.err_m).mean(),
-         f"coverage {int(mask.sum())} anchors (%)": 100 * np.isfinite(part.err_m).mean()})
+         f"coverage {int(mask.sum())} anchors (%)": 100 * np.isfinite(part.err_m).mean()},
+        ("higher", "not higher"),
+        "Removing anchors removes rows of H, so the HDOP can only grow (compare the two HDOPs); with the same "
+        "range errors the fixes then usually scatter more, but on one short run they need not — so only CEP95 "
+        "is a prediction.")
 
 
 def noisier_ranges(rec: Recording, tag: str, *, tag_height_m: float, calibration: RangeCalibration | None = None,
@@ -110,7 +114,10 @@ def noisier_ranges(rec: Recording, tag: str, *, tag_height_m: float, calibration
         metrics.cep50(after) > metrics.cep50(before),
         {"CEP50 before (m)": metrics.cep50(before), "CEP50 after (m)": metrics.cep50(after),
          "RMSE before (m)": rmse_b, "RMSE after (m)": rmse_a,
-         "RMSE after, predicted (m)": float(np.hypot(rmse_b, sigma_m * hdop))})
+         "RMSE after, predicted (m)": float(np.hypot(rmse_b, sigma_m * hdop))},
+        ("higher", "not higher"),
+        "Independent errors add in quadrature: the RMSE grows to about √(RMSE² + (σ · HDOP)²), the predicted "
+        "value among the numbers.")
 
 
 def explorer_note(errors: dict, tag: str, start_s: float, window_s: float) -> str:
