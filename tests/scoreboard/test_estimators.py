@@ -1,18 +1,38 @@
-"""The board's UWB/INS adapters: what they run per grid point, and that they equal notebook 05's comparison."""
+"""The board's adapters: the EKFs' tuning criterion, and the UWB/INS adapters (what they run per grid point, and
+that they equal notebook 05's comparison)."""
 
 from __future__ import annotations
 
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from tests.fixtures import iasl as fx
 from uwbwb.datasets import iasl
 from uwbwb.filters import alignment
-from uwbwb.scoreboard import calibrate
-from uwbwb.scoreboard.estimators import INS_GRID_FAST, UwbInsFilter
+from uwbwb.scoreboard import Calibration, calibrate
+from uwbwb.scoreboard.estimators import INS_GRID_FAST, TdoaEkfEstimator, UwbInsFilter
 from uwbwb.scoreboard.interface import calibrated_log
+from uwbwb.sim import walk
 from uwbwb.types import Trajectory
+
+
+def test_ekf_tuning_minimises_the_mean_over_tags_of_its_criterion():
+    cfg = walk.office(duration_s=20.0)
+    rec, _ = walk.simulate_walk(cfg, rng=np.random.default_rng(3))
+    tags = list(rec.tags)
+    cal = Calibration("office", 2, {m.tag_id: m.height_m for m in cfg.tags}, None,
+                      {t: np.full(len(rec.anchors), 0.1) for t in tags}, 10.0)
+    assert calibrated_log(rec, tags[0], cal) is rec.ranges[tags[0]]        # no range calibration: as logged
+    grid = (0.05, 1.0, 20.0)
+    for criterion, key in (("rmse", "grid_rmse_m"), ("cep95", "grid_cep95_m")):
+        p = TdoaEkfEstimator("RW", gate_prob=None, grid=grid, criterion=criterion).tune(rec, tags, cal)
+        for c in ("rmse", "cep95"):                                         # both means, from each tag's scores
+            np.testing.assert_allclose(p[f"grid_{c}" + "_m"], np.mean([p["grid_by_tag"][t][c] for t in tags], axis=0))
+        assert p["criterion"] == criterion and p["sigma_w"] == grid[int(np.argmin(p[key]))] == 1.0
+    with pytest.raises(ValueError, match="criterion"):
+        TdoaEkfEstimator("RW", grid=grid, criterion="mae").tune(rec, tags, cal)
 
 
 def _flights(tmp_path):

@@ -4,6 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from uwbwb import metrics
 from uwbwb.calibration import fit_range_sigma
 from uwbwb.experiments import motion_models as mm
 from uwbwb.sim import walk
@@ -67,21 +68,26 @@ def test_raw_multilateration_is_exact_on_exact_ranges():
 
 def test_estimate_calibrate_and_tables(office_runs):
     cal, test = office_runs
-    sig = {r.key: fit_range_sigma(r) for r in cal}
     grids = {"RW": [0.1, 1.0], "RF": [1.0], "RJ": [1.0, 10.0]}
-    curves = mm.calibration_curves(cal, sig, grids=grids, gate_prob=None, progress=False)
+    study = mm.run_study(cal, test, grids=grids, gate_prob=None, progress=False)
+    curves = study.curves
     assert len(curves) == 2 * 5
     assert list(curves.columns) == ["run", "tag", "model", "sigma", "sigma_unit", "psd", "psd_unit", "cep95_m",
                                     "rmse_m"]
     np.testing.assert_allclose(curves.psd, curves.sigma ** 2 * 0.1)
     assert set(curves.psd_unit) == {"m²/s", "m²/s³", "m²/s⁵"}
-    best = mm.best_sigmas(curves)
+    best = study.best
     assert set(best) == {"RW", "RF", "RJ"} and best["RF"] == 1.0
     # a random walk driven by 0.1 m/s cannot follow a 0.8 m/s walker
     rw = curves[curves.model == "RW"].groupby("sigma").cep95_m.mean()
     assert rw[0.1] > rw[1.0] and best["RW"] == 1.0
+    # the tuning is the board's (CEP95 criterion): the pick minimises the mean CEP95 over the tags
+    p = study.calibration.params("EKF-RJ")
+    assert p["criterion"] == "cep95" and best["RJ"] == p["grid"][int(np.argmin(p["grid_cep95_m"]))]
+    np.testing.assert_allclose(curves[curves.model == "RJ"].groupby("sigma").cep95_m.mean(), p["grid_cep95_m"])
+    np.testing.assert_array_equal(study.sigma_m["tag1"], fit_range_sigma(cal[0]))
 
-    est = mm.estimate(test[0], sig[cal[0].key], best, gate_prob=None)
+    est = mm.estimate(test[0], study.sigma_m["tag1"], best, gate_prob=None)
     assert set(est.trajectories) == {"raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ"} and est.gate_prob is None
     c = est.cep95()
     assert all(0 < v < 3 for v in c.values())
@@ -95,11 +101,19 @@ def test_estimate_calibrate_and_tables(office_runs):
     assert table.loc[("office", "tag1"), "LS"] == pytest.approx(c["LS"])
 
 
-def test_best_sigmas_minimises_the_mean_over_runs():
-    curves = pd.DataFrame({"run": ["a"] * 3 + ["b"] * 3, "tag": ["t"] * 6, "model": ["RW"] * 6,
-                           "sigma": [0.1, 1.0, 10.0] * 2, "cep95_m": [0.5, 0.4, 0.9, 0.3, 0.6, 0.2]})
-    # means: 0.1 -> 0.40, 1.0 -> 0.50, 10 -> 0.55
-    assert mm.best_sigmas(curves) == {"RW": 0.1}
+def test_the_tuned_filter_is_the_study_filter(office_runs):
+    """Declared twin: the board's TDoA EKF that tunes σ_w runs the study's EKF (:func:`mm.run_ekf`). The board runs
+    every tag at the calibration's one rate (1 / median epoch step over the tags), the study each run at its own
+    median step: on these runs the two steps differ in their last bits, hence the tolerance."""
+    cal, _ = office_runs
+    study = mm.run_study(cal, cal, grids={"RW": [1.0], "RF": [2.0], "RJ": [5.0]}, gate_prob=None, progress=False)
+    for run in cal:
+        res = study.result_for(run.name, run.tag)
+        for m in mm.MODELS:
+            tuned = study.calibration.params(mm.ekf_name(m))["grid_by_tag"][run.tag]
+            errors = res.errors[mm.ekf_name(m)].err_m
+            want = [[metrics.rmse(errors)], [metrics.cep95(errors)]]
+            np.testing.assert_allclose([tuned["rmse"], tuned["cep95"]], want, rtol=1e-12)
 
 
 def test_ranking_and_paper_table():
@@ -143,6 +157,8 @@ def test_split_runs_and_study(office_runs):
         study.result_for("office", "tag9")
     with pytest.raises(ValueError, match="no calibration run"):
         mm.run_study(cal[:1], test, grids=grids, gate_prob=None, progress=False)
+    with pytest.raises(ValueError, match="one per tag"):
+        mm.run_study(cal + cal[:1], test, grids=grids, gate_prob=None, progress=False)
     with pytest.raises(TypeError, match="gate_prob"):
         mm.run_study(cal, test, grids=grids, progress=False)          # the gate is always the caller's choice
 
