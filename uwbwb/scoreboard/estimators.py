@@ -89,18 +89,21 @@ class CalibratedLs(BaseEstimator):
 @dataclass(frozen=True)
 class TdoaLs(BaseEstimator):
     """Gauss–Newton TDoA fix per epoch (:func:`uwbwb.filters.tdoa_ls.tdoa_least_squares`), pseudo-TDoA
-    to anchor ``ref`` with the reference-correlated covariance. Not run where the TDoAs are uninformative
+    to anchor ``ref`` with the reference-correlated covariance (``correlated=False``: its diagonal, the shortcut
+    notebook 03's exercise tries). Not run where the TDoAs are uninformative
     (:func:`~.interface.tdoa_geometry_note`)."""
 
     name: str = "TDoA LS"
     ref: int = 0
+    correlated: bool = True
 
     def applies(self, rec, tag, cal):
         return tdoa_geometry_note(cal, tag)
 
     def estimate(self, rec, tag, cal):
         log = calibrated_log(rec, tag, cal)
-        res = tdoa_least_squares(TdoaLog.from_ranges(log, self.ref), _tdoa_model(rec, tag, cal), name=self.name)
+        res = tdoa_least_squares(TdoaLog.from_ranges(log, self.ref), _tdoa_model(rec, tag, cal, self.correlated),
+                                 name=self.name)
         return res.to_estimates()
 
     def bound(self, rec, tag, cal, est):
@@ -122,8 +125,9 @@ class _MotionEkf(BaseEstimator):
     minimising the mean RMSE, or the mean CEP95 with ``criterion="cep95"``, notebook 03's thesis Table 1
     procedure; both means and each tag's scores are kept at every grid value), and a bound that is the
     posterior CRLB with the same motion model (tuned driving noise), the information of the filter's
-    measurements at every epoch and its initial covariance as prior, from the filter's first epoch. A subclass gives the filter (:meth:`_filter`), its run (:meth:`_run`), its
-    initial covariance (:meth:`_prior`) and the information (:meth:`_information`)."""
+    measurements at every epoch and its initial covariance as prior, from the filter's first epoch. A subclass
+    gives the filter (:meth:`_filter`), its run (:meth:`_run`), its initial covariance (:meth:`_prior`) and the
+    information (:meth:`_information`)."""
 
     model: str = "RF"
     gate_prob: float | None = 0.9999
@@ -164,12 +168,13 @@ class _MotionEkf(BaseEstimator):
 @dataclass(frozen=True)
 class TdoaEkfEstimator(_MotionEkf):
     """The TDoA EKF of notebook 03 (:class:`uwbwb.filters.ekf.TdoaEkf`) with motion model ``model``, on
-    pseudo-TDoAs to anchor ``ref``, the χ² gate on (``gate_prob``). Tuning and bound: :class:`_MotionEkf`, with
-    the TDoA information and the filter's initial covariance. Not run where the TDoAs are uninformative
-    (:func:`~.interface.tdoa_geometry_note`).
+    pseudo-TDoAs to anchor ``ref`` (reference-correlated covariance; ``correlated=False``: its diagonal), the χ²
+    gate on (``gate_prob``). Tuning and bound: :class:`_MotionEkf`, with the TDoA information and the filter's
+    initial covariance. Not run where the TDoAs are uninformative (:func:`~.interface.tdoa_geometry_note`).
     """
 
     ref: int = 0
+    correlated: bool = True
 
     @property
     def name(self) -> str:
@@ -183,7 +188,8 @@ class TdoaEkfEstimator(_MotionEkf):
         return tdoa_geometry_note(cal, tag)
 
     def _filter(self, rec, tag, cal, sigma_w) -> TdoaEkf:
-        return TdoaEkf(self._motion(cal, sigma_w), _tdoa_model(rec, tag, cal), gate_prob=self.gate_prob)
+        return TdoaEkf(self._motion(cal, sigma_w), _tdoa_model(rec, tag, cal, self.correlated),
+                       gate_prob=self.gate_prob)
 
     def _run(self, rec, tag, cal, sigma_w) -> Estimates:
         log = TdoaLog.from_ranges(calibrated_log(rec, tag, cal), self.ref)

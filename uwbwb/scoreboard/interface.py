@@ -132,8 +132,8 @@ def _range_bound(rec, tag, cal, log: RangeLog, kind="CRLB ranges") -> bounds.Bou
     return bounds.Bound(log.t_s, C, kind)
 
 
-def _tdoa_model(rec, tag, cal) -> TdoaModel:
-    return TdoaModel(rec.anchors.pos_m, cal.sigma(tag), dim=cal.dim, z_m=cal.height(tag) or 0.0)
+def _tdoa_model(rec, tag, cal, correlated: bool = True) -> TdoaModel:
+    return TdoaModel(rec.anchors.pos_m, cal.sigma(tag), dim=cal.dim, z_m=cal.height(tag) or 0.0, correlated=correlated)
 
 
 def _tdoa_information(rec, tag, cal, log: RangeLog) -> tuple[np.ndarray, np.ndarray]:

@@ -62,7 +62,7 @@ def test_raw_multilateration_is_exact_on_exact_ranges():
     pos = np.column_stack([2 + 0.5 * t, 3 + 0.2 * t, np.full(t.size, 1.2)])
     r = np.linalg.norm(pos[:, None] - anchors.pos_m, axis=-1)
     run = TagRun("synthetic", "x", "t", RangeLog(t, r, anchors.ids, "t"), Trajectory(t, pos), anchors, 2, 1.2)
-    raw = mm.raw_multilateration(run)
+    raw = mm.estimate(run, 0.1, {"RW": 1.0}, gate_prob=None, models=("RW",)).trajectories["raw"]   # no device output
     np.testing.assert_allclose(raw.pos_m, pos[:, :2], atol=1e-6)
 
 
@@ -111,7 +111,7 @@ def test_the_tuned_filter_is_the_study_filter(office_runs):
         res = study.result_for(run.name, run.tag)
         for m in mm.MODELS:
             tuned = study.calibration.params(mm.ekf_name(m))["grid_by_tag"][run.tag]
-            errors = res.errors[mm.ekf_name(m)].err_m
+            errors = res.scores[mm.ekf_name(m)].own_m
             want = [[metrics.rmse(errors)], [metrics.cep95(errors)]]
             np.testing.assert_allclose([tuned["rmse"], tuned["cep95"]], want, rtol=1e-12)
 
@@ -176,14 +176,15 @@ def test_scoring_on_common_epochs_with_coverage_beside(office_runs):
     est = mm.estimate(run, fit_range_sigma(cal[0]), {"RW": 1.0, "RF": 3.0, "RJ": 10.0}, gate_prob=None)
     cov = est.coverage()
     assert cov["EKF-RW"] > cov["LS"] + 0.1 and cov["common"] == pytest.approx(cov["LS"], abs=0.01)
-    t = est.common_t_s()
+    scores, t_s = est.scores, run.ranges.t_s
+    t = t_s[scores["LS"].common]
     assert not np.any((t >= 10.0) & (t < 14.0))                            # LS's outage is not scored
     common = est.common_errors()
     assert len({e.size for e in common.values()}) == 1 and common["LS"].size == t.size
-    ekf_own = est.errors["EKF-RW"]
-    in_outage = (ekf_own.t_s >= 10.0) & (ekf_own.t_s < 14.0)
+    ekf_own = scores["EKF-RW"].scored
+    in_outage = ekf_own & (t_s >= 10.0) & (t_s < 14.0)
     assert in_outage.sum() > 30                                              # the EKF coasted there ...
-    assert common["EKF-RW"].size == ekf_own.err_m.size - in_outage.sum()   # ... and is scored without them
+    assert common["EKF-RW"].size == ekf_own.sum() - in_outage.sum()        # ... and is scored without them
     own = est.cep95(common=False)
     assert own["LS"] == pytest.approx(est.cep95()["LS"])                     # LS's own epochs are the common ones
     table = mm.coverage_table([est])

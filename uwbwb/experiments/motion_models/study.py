@@ -16,11 +16,11 @@ The pipeline for one tag of one recording (:class:`~uwbwb.types.TagRun`):
    :class:`~uwbwb.scoreboard.protocol.Calibration` of the calibration run (ranges as logged), and each EKF's
    board estimator (:class:`~uwbwb.scoreboard.estimators.TdoaEkfEstimator`) tunes its driving σ over the
    notebook's grid with the CEP95 criterion (``criterion="cep95"``, mean over the tags; :func:`run_study`);
-4. on a *different* test run: raw output, LS and the three EKFs
-   (:func:`estimate`), scored on the epochs where *every* estimator has a
-   position (:meth:`TagResults.common_errors`), with each one's coverage beside
-   it (:func:`cep95_table`, :func:`coverage_table`), and the NIS χ² verdict of
-   each EKF (:meth:`TagResults.nis`);
+4. on a *different* test run: raw output, LS and the three EKFs, the board's estimators on the
+   protocol's calibration of that run (:func:`estimate`), held as a board of its tag and scored by it
+   (:meth:`~uwbwb.scoreboard.board.Board.scores`) on the epochs where *every* estimator has a position
+   (:meth:`TagResults.common_errors`), with each one's coverage beside it (:func:`cep95_table`,
+   :func:`coverage_table`), and the NIS χ² verdict of each EKF (:meth:`TagResults.nis`);
 5. headline rows for the reproduction summary, each with its kind
    (:func:`summary_rows`).
 
@@ -33,27 +33,26 @@ of the nominal epoch period ``T``, i.e. PSD ``q = σ_w² T`` (see
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
 
-from ... import geometry, parallel
+from ... import parallel
 from ...calibration import empirical_tdoa_covariance, fit_range_sigma
-from ...filters.ekf import KalmanRun, TdoaEkf
-from ...filters.tdoa_ls import tdoa_least_squares
-from ...models.motion import MOTION_MODELS, make_motion_model
+from ...models.motion import MOTION_MODELS
 from ...models.tdoa import TdoaModel
-from ...scoreboard.estimators import TdoaEkfEstimator
+from ...scoreboard.board import Board, Entry
+from ...scoreboard.estimators import ExternalEstimates, RawLs, TdoaEkfEstimator, TdoaLs
 from ...scoreboard.protocol import Calibration
 from ...sim import walk
-from ...types import Recording, TagRun, TdoaLog, Trajectory
+from ...types import Recording, TagRun, Trajectory
 
-from .results import METHODS, MODELS, TagResults, _errors, cep95_table, coverage_table, ekf_name, nis_table
+from .results import METHODS, MODELS, TagResults, cep95_table, coverage_table, ekf_name, nis_table
 
-__all__ = ["tag_runs", "synthetic_acquisition", "raw_multilateration", "ranging_summary", "estimate", "split_runs",
-           "Study", "run_study", "tdoa_noise_check", "run_ekf"]
+__all__ = ["tag_runs", "synthetic_acquisition", "ranging_summary", "estimate", "split_runs", "Study", "run_study",
+           "tdoa_noise_check"]
 
 
 # --------------------------------------------------------------------------- inputs
@@ -160,29 +159,26 @@ def ranging_summary(runs: Sequence[TagRun], truth: walk.WalkTruth) -> pd.DataFra
     return pd.DataFrame(rows).set_index(["run", "tag"])
 
 
-def raw_multilateration(run: TagRun, *, sigma_m=None, name: str = "raw") -> Trajectory:
-    """Per-epoch range multilateration (:func:`uwbwb.geometry.multilaterate`, Gauss–Newton, all anchors)."""
-    kw = {"z_m": run.z_m} if run.dim == 2 else {}
-    res = geometry.multilaterate(run.ranges.range_m, run.anchors.pos_m, dim=run.dim, sigma_m=sigma_m, **kw)
-    return res.to_trajectory(run.ranges.t_s, name=name)
-
-
-
-def run_ekf(run: TagRun, model: str, sigma: float, measurement: TdoaModel, *, gate_prob: float | None,
-            ref: int = 0, tdoa: TdoaLog | None = None) -> KalmanRun:
-    """The EKF with motion model ``model`` at driving standard deviation ``sigma`` over one run.
-
-    ``gate_prob`` is required: the χ² gate (or None, no gate) is a setting of the
-    study, never left to the filter's default.
-    """
-    motion = make_motion_model(model, sigma=sigma, dt_s=run.dt_s, dim=run.dim)
-    log = tdoa if tdoa is not None else run.tdoa(ref)
-    return TdoaEkf(motion, measurement, gate_prob=gate_prob).run(log, name=ekf_name(model))
+def _protocol(runs: Sequence[TagRun], sigma_m: Mapping[str, np.ndarray]) -> tuple[Recording, Calibration]:
+    """Runs (one per tag of one recording) as the board's recording, and the protocol's calibration holding the
+    range σ per anchor of each tag, the tag heights and the runs' rate (1 / median epoch step); the ranges are
+    used as logged (no range calibration)."""
+    r0 = runs[0]
+    rec = Recording(r0.data, r0.name, r0.anchors, {r.tag: r.ranges for r in runs}, {r.tag: r.truth for r in runs})
+    cal = Calibration(r0.name, r0.dim, {r.tag: r.z_m for r in runs}, None, dict(sigma_m),
+                      1.0 / float(np.median([r.dt_s for r in runs])))
+    return rec, cal
 
 
 def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: float | None, ref: int = 0,
              correlated: bool = True, models: Sequence[str] = MODELS) -> TagResults:
-    """Raw output, TDoA LS and the EKFs on one run.
+    """Raw output, TDoA LS and the EKFs on one run: the board's estimators, held and scored as a board of its tag.
+
+    ``raw`` is the device's own output where the run has one (an outside estimate,
+    :class:`~uwbwb.scoreboard.estimators.ExternalEstimates`), else per-epoch multilateration of the ranges
+    (:class:`~uwbwb.scoreboard.estimators.RawLs`); ``LS`` is :class:`~uwbwb.scoreboard.estimators.TdoaLs` and
+    ``EKF-<model>`` :class:`~uwbwb.scoreboard.estimators.TdoaEkfEstimator`, both on pseudo-TDoAs. The estimators
+    see the ranges, never the truth.
 
     Parameters
     ----------
@@ -197,19 +193,16 @@ def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: fl
     gate_prob
         χ² gate of the EKFs (None: no gating); required.
     correlated
-        Model the reference correlation of the TDoA noise.
+        Model the reference correlation of the TDoA noise (False: the diagonal shortcut).
     """
-    measurement = TdoaModel.for_tag(run, sigma_m, correlated=correlated)
-    log = run.tdoa(ref)
-    ls = tdoa_least_squares(log, measurement)
-    trajs = {"raw": run.raw if run.raw is not None else raw_multilateration(run), "LS": ls.to_trajectory("LS")}
-    ekfs = {}
-    for m in models:
-        ekfs[m] = run_ekf(run, m, sigmas[m], measurement, gate_prob=gate_prob, tdoa=log)
-        trajs[ekf_name(m)] = ekfs[m].to_trajectory()
-    errors = {k: _errors(t, run) for k, t in trajs.items()}
-    return TagResults(run, trajs, errors, ekfs, ls, {m: float(sigmas[m]) for m in models}, gate_prob,
-                      len(run.ranges))
+    rec, cal = _protocol([run], {run.tag: sigma_m})
+    cal = replace(cal, tuned={ekf_name(m): {"sigma_w": float(sigmas[m])} for m in models})
+    ests = {"raw": RawLs("raw") if run.raw is None else ExternalEstimates("device", {run.tag: run.raw}),
+            "LS": TdoaLs("LS", ref, correlated),
+            **{ekf_name(m): TdoaEkfEstimator(m, gate_prob=gate_prob, ref=ref, correlated=correlated) for m in models}}
+    blind, truth = replace(rec, truth={}), rec.truth_at(run.tag, run.ranges.t_s, run.dim)
+    entries = tuple(Entry(n, run.tag, e.estimate(blind, run.tag, cal), None, truth) for n, e in ests.items())
+    return TagResults(run, Board(run.data, run.key, cal, entries, tuple(ests)), gate_prob)
 
 
 def split_runs(runs: Sequence[TagRun], fraction: float = 0.5) -> tuple[list[TagRun], list[TagRun]]:
@@ -311,11 +304,7 @@ def run_study(cal_runs: Sequence[TagRun], test_runs: Sequence[TagRun], *, gate_p
     missing = sorted({r.tag for r in test_runs} - set(fits))
     if missing:
         raise ValueError(f"test tags {missing} have no calibration run")
-    r0 = cal_runs[0]
-    rec = Recording(r0.data, r0.name, r0.anchors, {r.tag: r.ranges for r in cal_runs},
-                    {r.tag: r.truth for r in cal_runs})
-    cal = Calibration(r0.name, r0.dim, {r.tag: r.z_m for r in cal_runs}, None, fits,
-                      1.0 / float(np.median([r.dt_s for r in cal_runs])))
+    rec, cal = _protocol(cal_runs, fits)
     ekfs = {m: TdoaEkfEstimator(m, gate_prob=gate_prob, grid=None if grids is None else tuple(map(float, grids[m])),
                                 criterion="cep95", ref=ref) for m in models}
     tasks = [parallel.Task({"model": m}) for m in models]
