@@ -137,13 +137,8 @@ def test_sigma_fit_methods_and_common_mode(los_run):
         fit_range_sigma(los_run, method="mad")
 
 
-def test_split_runs_and_study(office_runs):
+def test_study(office_runs):
     cal, test = office_runs
-    first, second = mm.split_runs(test, 0.5)
-    assert first[0].name.startswith("office 0–") and second[0].ranges.t_s[0] >= first[0].ranges.t_s[-1]
-    assert len(first[0].ranges) + len(second[0].ranges) == len(test[0].ranges)
-    with pytest.raises(ValueError, match="fraction"):
-        mm.split_runs(test, 1.0)
     grids = {"RW": [1.0], "RF": [1.0, 3.0], "RJ": [3.0]}
     study = mm.run_study(cal, test, grids=grids, gate_prob=None, progress=False)
     assert study.best == {"RW": 1.0, "RF": study.best["RF"], "RJ": 3.0}

@@ -13,7 +13,7 @@ from .headlines import Results, SIGMA_KIND, checks, headline_rows, record, sigma
 from .results import (METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, cep95_table,
                       coverage_table, ekf_name, nis_table, paper_table, ranking)
 from .seeds import MODEL_PAIRS, SEED_PAIRS, SEED_RULE, SeedStudy, scoring_seeds, seed_rows, seed_study
-from .study import (Study, estimate, ranging_summary, run_study, split_runs, synthetic_acquisition, tag_runs,
+from .study import (Study, estimate, ranging_summary, run_study, synthetic_acquisition, tag_runs,
                     tdoa_noise_check)
 
 __all__ = [
@@ -23,5 +23,5 @@ __all__ = [
     "coverage_table", "ekf_name", "estimate", "exercises", "headline_rows",
     "nis_table", "panels", "paper_table", "paths_figure", "ranging_summary", "ranking", "real",
     "record", "run_study", "scenario_figure", "scoring_seeds", "seed_rows", "seed_study", "seeds",
-    "sigma_rows", "split_runs", "summary_rows", "synthetic_acquisition", "tag_runs", "tdoa_noise_check",
+    "sigma_rows", "summary_rows", "synthetic_acquisition", "tag_runs", "tdoa_noise_check",
 ]

@@ -51,8 +51,7 @@ from ...types import Recording, TagRun, Trajectory
 
 from .results import METHODS, MODELS, TagResults, cep95_table, coverage_table, ekf_name, nis_table
 
-__all__ = ["tag_runs", "synthetic_acquisition", "ranging_summary", "estimate", "split_runs", "Study", "run_study",
-           "tdoa_noise_check"]
+__all__ = ["tag_runs", "synthetic_acquisition", "ranging_summary", "estimate", "Study", "run_study", "tdoa_noise_check"]
 
 
 # --------------------------------------------------------------------------- inputs
@@ -203,23 +202,6 @@ def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: fl
     blind, truth = replace(rec, truth={}), rec.truth_at(run.tag, run.ranges.t_s, run.dim)
     entries = tuple(Entry(n, run.tag, e.estimate(blind, run.tag, cal), None, truth) for n, e in ests.items())
     return TagResults(run, Board(run.data, run.key, cal, entries, tuple(ests)), gate_prob)
-
-
-def split_runs(runs: Sequence[TagRun], fraction: float = 0.5) -> tuple[list[TagRun], list[TagRun]]:
-    """Split each run in time: the first ``fraction`` for calibration, the rest for testing.
-
-    The names say which part (``"fast 0–67 s"``). Used when a dataset has a single
-    run of the kind (the LIAS ``fast`` run): calibration and test never share epochs.
-    """
-    if not 0 < fraction < 1:
-        raise ValueError(f"fraction must be in (0, 1), got {fraction!r}")
-    first, second = [], []
-    for r in runs:
-        t0, t1 = float(r.ranges.t_s[0]), float(r.ranges.t_s[-1])
-        tm = t0 + fraction * (t1 - t0)
-        first.append(r.between(t0, tm, name=f"{r.name} {t0:.0f}–{tm:.0f} s"))
-        second.append(r.between(tm, t1 + 1e-9, name=f"{r.name} {tm:.0f}–{t1:.0f} s"))
-    return first, second
 
 
 @dataclass(frozen=True)
