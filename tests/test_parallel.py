@@ -376,15 +376,14 @@ def test_doppler_pf_cloud_identical_on_a_cluster(client, pickled):
 
 
 def test_calibration_curves_identical_on_a_cluster(client, pickled):
-    from uwbwb.calibration import fit_range_sigma
     from uwbwb.experiments import motion_models as mm
 
     cal, _ = mm.synthetic_acquisition("office", seed=1, duration_s=15.0, role="calibration")
-    sig = {r.key: fit_range_sigma(r) for r in cal}
     grids = {"RW": [0.1, 1.0], "RF": [1.0], "RJ": [1.0, 10.0]}
-    a = mm.calibration_curves(cal, sig, grids=grids, gate_prob=None, progress=False)
-    b = mm.calibration_curves(cal, sig, grids=grids, gate_prob=None, scheduler=client, progress=False)
-    pd.testing.assert_frame_equal(a, b, check_exact=True)
+    a = mm.run_study(cal, cal[:1], grids=grids, gate_prob=None, progress=False)
+    b = mm.run_study(cal, cal[:1], grids=grids, gate_prob=None, scheduler=client, progress=False)
+    pd.testing.assert_frame_equal(a.curves, b.curves, check_exact=True)
+    assert a.best == b.best
 
 
 def test_a_protocol_whose_listener_is_not_checked_is_not_said_to_accept_connections():

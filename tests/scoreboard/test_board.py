@@ -51,6 +51,9 @@ def test_split_parts_share_no_epoch_and_truth_is_padded_only():
     a, b = cal.ranges["tag"].t_s, test.ranges["tag"].t_s
     assert a.size + b.size == len(rec.ranges["tag"]) and a[-1] < b[0]
     assert cal.truth["tag"].t_s[-1] <= a[-1] + 0.5 + 1e-9
+    assert cal.name.startswith(f"{rec.name} [0–") and test.name.endswith(" s]")
+    with pytest.raises(ValueError, match="fraction"):
+        split_in_time(rec, 1.0)
 
 
 def test_estimators_never_read_the_scoring_truth():

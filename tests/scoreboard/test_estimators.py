@@ -1,18 +1,56 @@
-"""The board's UWB/INS adapters: what they run per grid point, and that they equal notebook 05's comparison."""
+"""The board's adapters: the EKFs' tuning criterion, and the UWB/INS adapters (what they run per grid point, and
+that they equal notebook 05's comparison)."""
 
 from __future__ import annotations
 
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from tests.fixtures import iasl as fx
 from uwbwb.datasets import iasl
 from uwbwb.filters import alignment
-from uwbwb.scoreboard import calibrate
-from uwbwb.scoreboard.estimators import INS_GRID_FAST, UwbInsFilter
+from uwbwb.scoreboard import Calibration, calibrate
+from uwbwb.scoreboard.estimators import INS_GRID_FAST, TdoaEkfEstimator, TdoaLs, UwbInsFilter
 from uwbwb.scoreboard.interface import calibrated_log
+from uwbwb.sim import walk
 from uwbwb.types import Trajectory
+
+
+def _office(sigma_m=0.1):
+    """A simulated office walk and a calibration of it without range calibration (ranges as logged)."""
+    cfg = walk.office(duration_s=20.0)
+    rec, _ = walk.simulate_walk(cfg, rng=np.random.default_rng(3))
+    sigma = np.broadcast_to(sigma_m, (len(rec.anchors),))
+    return rec, Calibration("office", 2, {m.tag_id: m.height_m for m in cfg.tags}, None,
+                            {t: sigma for t in rec.tags}, 10.0)
+
+
+def test_ekf_tuning_minimises_the_mean_over_tags_of_its_criterion():
+    rec, cal = _office()
+    tags = list(rec.tags)
+    assert calibrated_log(rec, tags[0], cal) is rec.ranges[tags[0]]        # no range calibration: as logged
+    grid = (0.05, 1.0, 20.0)
+    for criterion, key in (("rmse", "grid_rmse_m"), ("cep95", "grid_cep95_m")):
+        p = TdoaEkfEstimator("RW", gate_prob=None, grid=grid, criterion=criterion).tune(rec, tags, cal)
+        for c in ("rmse", "cep95"):                                         # both means, from each tag's scores
+            np.testing.assert_allclose(p[f"grid_{c}" + "_m"], np.mean([p["grid_by_tag"][t][c] for t in tags], axis=0))
+        assert p["criterion"] == criterion and p["sigma_w"] == grid[int(np.argmin(p[key]))] == 1.0
+    with pytest.raises(ValueError, match="criterion"):
+        TdoaEkfEstimator("RW", grid=grid, criterion="mae").tune(rec, tags, cal)
+
+
+def test_tdoa_methods_offer_the_diagonal_shortcut():
+    """With the reference-correlated Σ the TDoA fix and filter do not depend on the reference anchor; with its
+    diagonal (``correlated=False``, notebook 03's exercise) they do."""
+    rec, cal = _office(np.linspace(0.05, 0.3, 6))
+    cal = cal.with_tuned("EKF-RW", {"sigma_w": 1.0})
+    for make in (lambda **k: TdoaLs(**k), lambda **k: TdoaEkfEstimator("RW", gate_prob=None, **k)):
+        pos = {(c, ref): make(ref=ref, correlated=c).estimate(rec, "tag1", cal).pos_m for c in (True, False)
+               for ref in (0, 2)}
+        np.testing.assert_allclose(pos[True, 0], pos[True, 2], atol=1e-6)
+        assert np.nanmax(np.abs(pos[False, 0] - pos[False, 2])) > 1e-3
 
 
 def _flights(tmp_path):

@@ -43,8 +43,8 @@ from ..filters.kalman import Gaussian
 from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import RandomForce, make_motion_model
 from ..types import Estimates, TdoaLog, Trajectory
-from .interface import (BaseEstimator, Estimator, _NONE, _UP, _errors_rmse, _range_bound, _tdoa_information,
-                        _tdoa_model, calibrated_log, on_grid_edge, tdoa_geometry_note, truth_at)
+from .interface import (BaseEstimator, Estimator, TUNING_CRITERIA, _NONE, _UP, _range_bound, _tdoa_information,
+                        _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge, tdoa_geometry_note, truth_at)
 from .protocol import Calibration
 from .setnoise_nls import NLS_WINDOWS_S, SetNoiseFilter, WindowNls
 
@@ -89,18 +89,21 @@ class CalibratedLs(BaseEstimator):
 @dataclass(frozen=True)
 class TdoaLs(BaseEstimator):
     """Gauss–Newton TDoA fix per epoch (:func:`uwbwb.filters.tdoa_ls.tdoa_least_squares`), pseudo-TDoA
-    to anchor ``ref`` with the reference-correlated covariance. Not run where the TDoAs are uninformative
+    to anchor ``ref`` with the reference-correlated covariance (``correlated=False``: its diagonal, the shortcut
+    notebook 03's exercise tries). Not run where the TDoAs are uninformative
     (:func:`~.interface.tdoa_geometry_note`)."""
 
     name: str = "TDoA LS"
     ref: int = 0
+    correlated: bool = True
 
     def applies(self, rec, tag, cal):
         return tdoa_geometry_note(cal, tag)
 
     def estimate(self, rec, tag, cal):
         log = calibrated_log(rec, tag, cal)
-        res = tdoa_least_squares(TdoaLog.from_ranges(log, self.ref), _tdoa_model(rec, tag, cal), name=self.name)
+        res = tdoa_least_squares(TdoaLog.from_ranges(log, self.ref), _tdoa_model(rec, tag, cal, self.correlated),
+                                 name=self.name)
         return res.to_estimates()
 
     def bound(self, rec, tag, cal, est):
@@ -119,24 +122,32 @@ EKF_GRIDS = {"RW": np.geomspace(0.05, 5.0, 9), "RF": np.geomspace(0.05, 20.0, 9)
 class _MotionEkf(BaseEstimator):
     """What the TDoA and the range EKFs share: motion model ``model`` (RW, RF, RJ of notebook 03), its
     driving noise tuned on the calibration part over :data:`EKF_GRIDS` (or ``grid``; one value for all tags,
-    minimising the mean RMSE), and a bound that is the posterior CRLB with the same motion model (tuned driving
-    noise), the information of the filter's measurements at every epoch and its initial covariance as prior,
-    from the filter's first epoch. A subclass gives the filter (:meth:`_filter`), its run (:meth:`_run`), its
-    initial covariance (:meth:`_prior`) and the information (:meth:`_information`)."""
+    minimising the mean RMSE, or the mean CEP95 with ``criterion="cep95"``, notebook 03's thesis Table 1
+    procedure; both means and each tag's scores are kept at every grid value), and a bound that is the
+    posterior CRLB with the same motion model (tuned driving noise), the information of the filter's
+    measurements at every epoch and its initial covariance as prior, from the filter's first epoch. A subclass
+    gives the filter (:meth:`_filter`), its run (:meth:`_run`), its initial covariance (:meth:`_prior`) and the
+    information (:meth:`_information`)."""
 
     model: str = "RF"
     gate_prob: float | None = 0.9999
     grid: tuple[float, ...] | None = None
+    criterion: str = "rmse"
 
     def _motion(self, cal: Calibration, sigma_w: float):
         return make_motion_model(self.model, sigma=sigma_w, dt_s=1.0 / cal.rate_hz, dim=cal.dim)
 
     def tune(self, rec, tags, cal):
+        if self.criterion not in TUNING_CRITERIA:
+            raise ValueError(f"{self.name}: criterion must be one of {TUNING_CRITERIA}, got {self.criterion!r}")
         grid = EKF_GRIDS[self.model] if self.grid is None else np.asarray(self.grid, float)
-        cost = [np.mean([_errors_rmse(self._run(rec, t, cal, s), rec, t, cal.dim) for t in tags]) for s in grid]
-        best = int(np.argmin(cost))
-        return {"sigma_w": float(grid[best]), "grid": tuple(float(g) for g in grid),
-                "grid_rmse_m": tuple(float(c) for c in cost), "grid_edge": on_grid_edge(best, len(grid))}
+        scores = [[_tuning_scores(self._run(rec, t, cal, s), rec, t) for t in tags] for s in grid]
+        mean = {c: tuple(float(np.mean([sc[c] for sc in row])) for row in scores) for c in TUNING_CRITERIA}
+        best = int(np.argmin(mean[self.criterion]))
+        return {"sigma_w": float(grid[best]), "grid": tuple(float(g) for g in grid), "criterion": self.criterion,
+                "grid_rmse_m": mean["rmse"], "grid_cep95_m": mean["cep95"], "grid_edge": on_grid_edge(best, len(grid)),
+                "grid_by_tag": {t: {c: tuple(row[k][c] for row in scores) for c in TUNING_CRITERIA}
+                                for k, t in enumerate(tags)}}
 
     def estimate(self, rec, tag, cal):
         return self._run(rec, tag, cal, cal.params(self.name)["sigma_w"])
@@ -157,12 +168,13 @@ class _MotionEkf(BaseEstimator):
 @dataclass(frozen=True)
 class TdoaEkfEstimator(_MotionEkf):
     """The TDoA EKF of notebook 03 (:class:`uwbwb.filters.ekf.TdoaEkf`) with motion model ``model``, on
-    pseudo-TDoAs to anchor ``ref``, the χ² gate on (``gate_prob``). Tuning and bound: :class:`_MotionEkf`, with
-    the TDoA information and the filter's initial covariance. Not run where the TDoAs are uninformative
-    (:func:`~.interface.tdoa_geometry_note`).
+    pseudo-TDoAs to anchor ``ref`` (reference-correlated covariance; ``correlated=False``: its diagonal), the χ²
+    gate on (``gate_prob``). Tuning and bound: :class:`_MotionEkf`, with the TDoA information and the filter's
+    initial covariance. Not run where the TDoAs are uninformative (:func:`~.interface.tdoa_geometry_note`).
     """
 
     ref: int = 0
+    correlated: bool = True
 
     @property
     def name(self) -> str:
@@ -176,7 +188,8 @@ class TdoaEkfEstimator(_MotionEkf):
         return tdoa_geometry_note(cal, tag)
 
     def _filter(self, rec, tag, cal, sigma_w) -> TdoaEkf:
-        return TdoaEkf(self._motion(cal, sigma_w), _tdoa_model(rec, tag, cal), gate_prob=self.gate_prob)
+        return TdoaEkf(self._motion(cal, sigma_w), _tdoa_model(rec, tag, cal, self.correlated),
+                       gate_prob=self.gate_prob)
 
     def _run(self, rec, tag, cal, sigma_w) -> Estimates:
         log = TdoaLog.from_ranges(calibrated_log(rec, tag, cal), self.ref)
@@ -319,7 +332,7 @@ class UwbInsFilter(BaseEstimator):
         if self.kind not in alignment.TUNABLE:              # INS-only: no knob to tune
             return {"calibration": imu_cal}
         # the (q, r) pick minimises the mean RMSE over every usable tag, as the EKFs' σ_w search
-        cost = [np.mean([_errors_rmse(self._run(rec, t, cal_ins, (q, r)), rec, t, cal.dim) for t in tags])
+        cost = [np.mean([_tuning_scores(self._run(rec, t, cal_ins, (q, r)), rec, t)["rmse"] for t in tags])
                 for q, r in self.grid]
         best = int(np.argmin(cost))
         q, r = self.grid[best]

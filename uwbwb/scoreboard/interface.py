@@ -26,8 +26,9 @@ from ..models.tdoa import TdoaModel
 from ..types import EstimateStatus, Estimates, MAX_TRUTH_GAP_S, RangeLog, Recording
 from .protocol import Calibration
 
-__all__ = ["Estimator", "BaseEstimator", "GEOMETRY", "MAX_TDOA_OVER_RANGES", "MIN_NOISE_SAMPLES", "calibrated_log",
-           "measured_noise_calibration", "measurement_geometry", "tdoa_geometry_note", "truth_at", "on_grid_edge"]
+__all__ = ["Estimator", "BaseEstimator", "GEOMETRY", "MAX_TDOA_OVER_RANGES", "MIN_NOISE_SAMPLES", "TUNING_CRITERIA",
+           "calibrated_log", "measured_noise_calibration", "measurement_geometry", "tdoa_geometry_note", "truth_at",
+           "on_grid_edge"]
 
 #: Fewest range residuals of an anchor on the scored part for its noise to be measured there
 #: (:func:`measured_noise_calibration`; an anchor with fewer keeps its calibrated σ).
@@ -87,8 +88,8 @@ class BaseEstimator:
 # ----------------------------------------------------------------------------- shared pieces
 
 def calibrated_log(rec: Recording, tag: str, cal: Calibration) -> RangeLog:
-    """``tag``'s ranges with the calibration's per-pair bias/scale removed."""
-    return cal.range_calibration.apply(rec.ranges[tag])
+    """``tag``'s ranges with the calibration's per-pair bias/scale removed (as logged where it has none)."""
+    return rec.ranges[tag] if cal.range_calibration is None else cal.range_calibration.apply(rec.ranges[tag])
 
 
 def truth_at(rec: Recording, tag: str, t_s: np.ndarray, dim: int) -> np.ndarray:
@@ -131,8 +132,8 @@ def _range_bound(rec, tag, cal, log: RangeLog, kind="CRLB ranges") -> bounds.Bou
     return bounds.Bound(log.t_s, C, kind)
 
 
-def _tdoa_model(rec, tag, cal) -> TdoaModel:
-    return TdoaModel(rec.anchors.pos_m, cal.sigma(tag), dim=cal.dim, z_m=cal.height(tag) or 0.0)
+def _tdoa_model(rec, tag, cal, correlated: bool = True) -> TdoaModel:
+    return TdoaModel(rec.anchors.pos_m, cal.sigma(tag), dim=cal.dim, z_m=cal.height(tag) or 0.0, correlated=correlated)
 
 
 def _tdoa_information(rec, tag, cal, log: RangeLog) -> tuple[np.ndarray, np.ndarray]:
@@ -190,13 +191,20 @@ def tdoa_geometry_note(cal: Calibration, tag: str) -> str | None:
             f"(limit {MAX_TDOA_OVER_RANGES:g}×)")
 
 
-def _errors_rmse(est: Estimates, rec: Recording, tag: str, dim: int) -> float:
-    """RMSE (horizontal) of ``est`` against ``rec``'s truth: what tuning on the calibration part minimises."""
+#: What a tuning on the calibration part may minimise (mean over tags), both of the horizontal error over the
+#: estimator's own epochs: the RMSE (the board's) or the CEP95 (notebook 03's, the thesis' Table 1 procedure).
+TUNING_CRITERIA = ("rmse", "cep95")
+
+
+def _tuning_scores(est: Estimates, rec: Recording, tag: str) -> dict[str, float]:
+    """Every :data:`TUNING_CRITERIA` score of ``est`` against ``rec``'s truth (inf where nothing can be scored)."""
     tr = est.to_trajectory()
     if len(tr) == 0:
-        return float("inf")
+        return {c: float("inf") for c in TUNING_CRITERIA}
     e = metrics.errors_vs_truth(tr, rec.truth[tag], horizontal=True, max_gap_s=MAX_TRUTH_GAP_S)
-    return metrics.rmse(e.err_m) if len(e) else float("inf")
+    if not len(e):
+        return {c: float("inf") for c in TUNING_CRITERIA}
+    return {"rmse": metrics.rmse(e.err_m), "cep95": metrics.cep95(e.err_m)}
 
 
 def on_grid_edge(best: int, n: int) -> bool:

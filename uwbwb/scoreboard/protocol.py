@@ -89,7 +89,8 @@ class Calibration:
     tag_height_m
         Mounting height per tag, metres (used when ``dim == 2``).
     range_calibration
-        Per-pair range bias/scale.
+        Per-pair range bias/scale (None: the ranges are used as logged, e.g. notebook 03's simulated runs
+        and ranges calibrated beforehand).
     range_sigma_m
         Range-noise standard deviation per anchor, per tag, ``(n_anchors,)``, metres.
     rate_hz
@@ -101,7 +102,7 @@ class Calibration:
     source: str
     dim: int
     tag_height_m: Mapping[str, float]
-    range_calibration: RangeCalibration
+    range_calibration: RangeCalibration | None
     range_sigma_m: Mapping[str, np.ndarray]
     rate_hz: float
     tuned: Mapping[str, Mapping] = field(default_factory=dict)

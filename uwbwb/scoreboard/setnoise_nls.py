@@ -18,7 +18,7 @@ from ..filters.setnoise import model_noise, run_set_noise_kf, run_set_noise_pf
 from ..models.motion import VelocityKick
 from ..sim.setnoise import SetEmulation, emulate_set_fixes
 from ..types import Estimates, RangeLog, RangeSamples
-from .interface import _NONE, _UP, BaseEstimator, _errors_rmse, calibrated_log, on_grid_edge, truth_at
+from .interface import _NONE, _UP, BaseEstimator, _tuning_scores, calibrated_log, on_grid_edge, truth_at
 
 __all__ = ["SIGMA_D_GRID_MPS", "SetNoiseFilter", "NLS_WINDOWS_S", "WindowNls"]
 
@@ -196,7 +196,7 @@ class WindowNls(BaseEstimator):
         return Estimates(log.t_s, pos, status, self.name, cov, None, {"window": win})
 
     def tune(self, rec, tags, cal):
-        cost = [np.mean([_errors_rmse(self._run(rec, t, cal, w), rec, t, cal.dim) for t in tags])
+        cost = [np.mean([_tuning_scores(self._run(rec, t, cal, w), rec, t)["rmse"] for t in tags])
                 for w in self.windows_s]
         best = int(np.argmin(cost))
         return {"window_s": float(self.windows_s[best]), "grid_rmse_m": tuple(float(c) for c in cost),

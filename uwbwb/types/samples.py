@@ -132,8 +132,7 @@ class TagRun:
         Tag height for ``dim=2`` (known mounting height), metres.
     raw
         The device's own output if the acquisition has one (synthetic: :func:`uwbwb.sim.walk.device_output`);
-        None means raw multilateration is used
-        (:func:`uwbwb.experiments.motion_models.raw_multilateration`).
+        None means per-epoch multilateration of the ranges is used (the board's ``RawLs``).
     """
 
     data: str

@@ -4,6 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from uwbwb import metrics
 from uwbwb.calibration import fit_range_sigma
 from uwbwb.experiments import motion_models as mm
 from uwbwb.sim import walk
@@ -61,27 +62,32 @@ def test_raw_multilateration_is_exact_on_exact_ranges():
     pos = np.column_stack([2 + 0.5 * t, 3 + 0.2 * t, np.full(t.size, 1.2)])
     r = np.linalg.norm(pos[:, None] - anchors.pos_m, axis=-1)
     run = TagRun("synthetic", "x", "t", RangeLog(t, r, anchors.ids, "t"), Trajectory(t, pos), anchors, 2, 1.2)
-    raw = mm.raw_multilateration(run)
+    raw = mm.estimate(run, 0.1, {"RW": 1.0}, gate_prob=None, models=("RW",)).trajectories["raw"]   # no device output
     np.testing.assert_allclose(raw.pos_m, pos[:, :2], atol=1e-6)
 
 
 def test_estimate_calibrate_and_tables(office_runs):
     cal, test = office_runs
-    sig = {r.key: fit_range_sigma(r) for r in cal}
     grids = {"RW": [0.1, 1.0], "RF": [1.0], "RJ": [1.0, 10.0]}
-    curves = mm.calibration_curves(cal, sig, grids=grids, gate_prob=None, progress=False)
+    study = mm.run_study(cal, test, grids=grids, gate_prob=None, progress=False)
+    curves = study.curves
     assert len(curves) == 2 * 5
     assert list(curves.columns) == ["run", "tag", "model", "sigma", "sigma_unit", "psd", "psd_unit", "cep95_m",
                                     "rmse_m"]
     np.testing.assert_allclose(curves.psd, curves.sigma ** 2 * 0.1)
     assert set(curves.psd_unit) == {"m²/s", "m²/s³", "m²/s⁵"}
-    best = mm.best_sigmas(curves)
+    best = study.best
     assert set(best) == {"RW", "RF", "RJ"} and best["RF"] == 1.0
     # a random walk driven by 0.1 m/s cannot follow a 0.8 m/s walker
     rw = curves[curves.model == "RW"].groupby("sigma").cep95_m.mean()
     assert rw[0.1] > rw[1.0] and best["RW"] == 1.0
+    # the tuning is the board's (CEP95 criterion): the pick minimises the mean CEP95 over the tags
+    p = study.calibration.params("EKF-RJ")
+    assert p["criterion"] == "cep95" and best["RJ"] == p["grid"][int(np.argmin(p["grid_cep95_m"]))]
+    np.testing.assert_allclose(curves[curves.model == "RJ"].groupby("sigma").cep95_m.mean(), p["grid_cep95_m"])
+    np.testing.assert_array_equal(study.sigma_m["tag1"], fit_range_sigma(cal[0]))
 
-    est = mm.estimate(test[0], sig[cal[0].key], best, gate_prob=None)
+    est = mm.estimate(test[0], study.sigma_m["tag1"], best, gate_prob=None)
     assert set(est.trajectories) == {"raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ"} and est.gate_prob is None
     c = est.cep95()
     assert all(0 < v < 3 for v in c.values())
@@ -95,11 +101,20 @@ def test_estimate_calibrate_and_tables(office_runs):
     assert table.loc[("office", "tag1"), "LS"] == pytest.approx(c["LS"])
 
 
-def test_best_sigmas_minimises_the_mean_over_runs():
-    curves = pd.DataFrame({"run": ["a"] * 3 + ["b"] * 3, "tag": ["t"] * 6, "model": ["RW"] * 6,
-                           "sigma": [0.1, 1.0, 10.0] * 2, "cep95_m": [0.5, 0.4, 0.9, 0.3, 0.6, 0.2]})
-    # means: 0.1 -> 0.40, 1.0 -> 0.50, 10 -> 0.55
-    assert mm.best_sigmas(curves) == {"RW": 0.1}
+def test_the_tuned_filter_is_the_study_filter(office_runs):
+    """The tuning scores the filter the study tests: tested on its own calibration runs, each EKF's CEP95 and RMSE
+    per tag are the tuning's at that σ_w. The tuning runs every tag at the calibration's one rate (1 / median
+    epoch step over the tags), a test run at its own: on these runs the steps differ in their last bits, hence
+    the tolerance."""
+    cal, _ = office_runs
+    study = mm.run_study(cal, cal, grids={"RW": [1.0], "RF": [2.0], "RJ": [5.0]}, gate_prob=None, progress=False)
+    for run in cal:
+        res = study.result_for(run.name, run.tag)
+        for m in mm.MODELS:
+            tuned = study.calibration.params(mm.ekf_name(m))["grid_by_tag"][run.tag]
+            errors = res.scores[mm.ekf_name(m)].own_m
+            want = [[metrics.rmse(errors)], [metrics.cep95(errors)]]
+            np.testing.assert_allclose([tuned["rmse"], tuned["cep95"]], want, rtol=1e-12)
 
 
 def test_ranking_and_paper_table():
@@ -123,13 +138,8 @@ def test_sigma_fit_methods_and_common_mode(los_run):
         fit_range_sigma(los_run, method="mad")
 
 
-def test_split_runs_and_study(office_runs):
+def test_study(office_runs):
     cal, test = office_runs
-    first, second = mm.split_runs(test, 0.5)
-    assert first[0].name.startswith("office 0–") and second[0].ranges.t_s[0] >= first[0].ranges.t_s[-1]
-    assert len(first[0].ranges) + len(second[0].ranges) == len(test[0].ranges)
-    with pytest.raises(ValueError, match="fraction"):
-        mm.split_runs(test, 1.0)
     grids = {"RW": [1.0], "RF": [1.0, 3.0], "RJ": [3.0]}
     study = mm.run_study(cal, test, grids=grids, gate_prob=None, progress=False)
     assert study.best == {"RW": 1.0, "RF": study.best["RF"], "RJ": 3.0}
@@ -143,6 +153,8 @@ def test_split_runs_and_study(office_runs):
         study.result_for("office", "tag9")
     with pytest.raises(ValueError, match="no calibration run"):
         mm.run_study(cal[:1], test, grids=grids, gate_prob=None, progress=False)
+    with pytest.raises(ValueError, match="one per tag"):
+        mm.run_study(cal + cal[:1], test, grids=grids, gate_prob=None, progress=False)
     with pytest.raises(TypeError, match="gate_prob"):
         mm.run_study(cal, test, grids=grids, progress=False)          # the gate is always the caller's choice
 
@@ -160,14 +172,15 @@ def test_scoring_on_common_epochs_with_coverage_beside(office_runs):
     est = mm.estimate(run, fit_range_sigma(cal[0]), {"RW": 1.0, "RF": 3.0, "RJ": 10.0}, gate_prob=None)
     cov = est.coverage()
     assert cov["EKF-RW"] > cov["LS"] + 0.1 and cov["common"] == pytest.approx(cov["LS"], abs=0.01)
-    t = est.common_t_s()
+    scores, t_s = est.scores, run.ranges.t_s
+    t = t_s[scores["LS"].common]
     assert not np.any((t >= 10.0) & (t < 14.0))                            # LS's outage is not scored
     common = est.common_errors()
     assert len({e.size for e in common.values()}) == 1 and common["LS"].size == t.size
-    ekf_own = est.errors["EKF-RW"]
-    in_outage = (ekf_own.t_s >= 10.0) & (ekf_own.t_s < 14.0)
+    ekf_own = scores["EKF-RW"].scored
+    in_outage = ekf_own & (t_s >= 10.0) & (t_s < 14.0)
     assert in_outage.sum() > 30                                              # the EKF coasted there ...
-    assert common["EKF-RW"].size == ekf_own.err_m.size - in_outage.sum()   # ... and is scored without them
+    assert common["EKF-RW"].size == ekf_own.sum() - in_outage.sum()        # ... and is scored without them
     own = est.cep95(common=False)
     assert own["LS"] == pytest.approx(est.cep95()["LS"])                     # LS's own epochs are the common ones
     table = mm.coverage_table([est])

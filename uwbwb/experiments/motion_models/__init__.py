@@ -13,16 +13,15 @@ from .headlines import Results, SIGMA_KIND, checks, headline_rows, record, sigma
 from .results import (METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, cep95_table,
                       coverage_table, ekf_name, nis_table, paper_table, ranking)
 from .seeds import MODEL_PAIRS, SEED_PAIRS, SEED_RULE, SeedStudy, scoring_seeds, seed_rows, seed_study
-from .study import (DEFAULT_GRIDS, Study, best_sigmas, calibration_curves, estimate, ranging_summary,
-                    raw_multilateration, run_ekf, run_study, split_runs, synthetic_acquisition, tag_runs,
+from .study import (Study, estimate, ranging_summary, run_study, synthetic_acquisition, tag_runs,
                     tdoa_noise_check)
 
 __all__ = [
-    "DEFAULT_GRIDS", "METHODS", "MODEL_PAIRS", "MODELS", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95",
-    "PAPER_SIGMA", "Results", "SEED_PAIRS", "SEED_RULE", "SIGMA_KIND", "SeedStudy", "Study", "TagResults", "best_sigmas",
-    "calibration_curves", "calibration_figure", "cdf_figure", "cep95_table", "checks", "covariance_figure",
+    "METHODS", "MODEL_PAIRS", "MODELS", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95",
+    "PAPER_SIGMA", "Results", "SEED_PAIRS", "SEED_RULE", "SIGMA_KIND", "SeedStudy", "Study", "TagResults",
+    "calibration_figure", "cdf_figure", "cep95_table", "checks", "covariance_figure",
     "coverage_table", "ekf_name", "estimate", "exercises", "headline_rows",
-    "nis_table", "panels", "paper_table", "paths_figure", "ranging_summary", "ranking", "raw_multilateration", "real",
-    "record", "run_ekf", "run_study", "scenario_figure", "scoring_seeds", "seed_rows", "seed_study", "seeds",
-    "sigma_rows", "split_runs", "summary_rows", "synthetic_acquisition", "tag_runs", "tdoa_noise_check",
+    "nis_table", "panels", "paper_table", "paths_figure", "ranging_summary", "ranking", "real",
+    "record", "run_study", "scenario_figure", "scoring_seeds", "seed_rows", "seed_study", "seeds",
+    "sigma_rows", "summary_rows", "synthetic_acquisition", "tag_runs", "tdoa_noise_check",
 ]

@@ -60,7 +60,7 @@ def calibration_figure(curves: pd.DataFrame, *, best: Mapping[str, float] | None
                        title: str | None = None):
     """CEP95 against driving standard deviation, one panel per motion model (thesis Table 1 procedure).
 
-    Each run/tag is a thin line; the mean over them (what :func:`best_sigmas` minimises)
+    Each run/tag is a thin line; the mean over them (what the tuning minimises)
     is thick; ``best`` is marked and ``paper`` drawn as a dashed vertical line.
     Returns the Figure.
     """

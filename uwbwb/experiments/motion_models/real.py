@@ -7,7 +7,7 @@ studies (empty when the data is absent: the section is skipped, never replaced b
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -15,7 +15,8 @@ import numpy as np
 from ... import calibration, datasets, widgets
 from ...datasets import iasl
 from ...errors import DataNotFoundError
-from .study import Study, run_study, split_runs, tag_runs
+from ...scoreboard.protocol import split_in_time
+from .study import Study, run_study, tag_runs
 
 __all__ = ["IaslSection", "LiasSection", "iasl_section", "lias_section"]
 
@@ -65,7 +66,10 @@ def lias_section(data_dir, recording: str, static_session: str, *, tags: Sequenc
     range_cal = calibration.fit_range_calibration(static)
     studies = {}
     for variant, r in {"calibrated ranges": range_cal.apply_recording(rec), "raw ranges": rec}.items():
-        cal_runs, test_runs = split_runs(tag_runs(r, tags, dim=2, z_m=mount.per_tag_m, rate_hz=rate_hz))
+        parts = split_in_time(r.decimate(rate_hz=rate_hz))      # the protocol's split: the first half calibrates
+        # each part keeps the run's label; its name without brackets ("fast 0–67 s") is the summary's key, as before
+        cal_runs, test_runs = (tag_runs(replace(p, name=r.name), tags, dim=2, z_m=mount.per_tag_m,
+                                        name=p.name.replace("[", "").replace("]", "")) for p in parts)
         g = grids if not studies else {m: [s] for m, s in studies["calibrated ranges"].best.items()}
         studies[variant] = run_study(cal_runs, test_runs, grids=g, ref=ref, gate_prob=gate_prob, scheduler=scheduler)
     bias = range_cal.bias_m

@@ -1,5 +1,6 @@
-"""Notebook 03's results: every estimator's output for one tag-run, scored on common epochs, and
-the tables built from it (CEP95, coverage, NIS verdicts, rankings), beside the thesis' values.
+"""Notebook 03's results: every estimator's output for one tag-run, held and scored on common epochs by the
+board (:class:`~uwbwb.scoreboard.board.Board`), and the tables built from it (CEP95, coverage, NIS verdicts,
+rankings), beside the thesis' values.
 """
 
 from __future__ import annotations
@@ -11,8 +12,8 @@ import numpy as np
 import pandas as pd
 
 from ... import metrics
-from ...filters.tdoa_ls import TdoaLsResult
-from ...types import TagRun, Trajectory
+from ...scoreboard.board import Board
+from ...types import EstimateStatus, Estimates, TagRun, Trajectory
 
 
 __all__ = ["MODELS", "METHODS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "TagResults",
@@ -60,29 +61,20 @@ def ekf_name(model: str) -> str:
 
 @dataclass(frozen=True)
 class TagResults:
-    """Every estimator's output for one :class:`TagRun`.
+    """Every estimator's output for one :class:`TagRun`, as the board holds and scores it.
 
     Attributes
     ----------
     run
         The input.
-    trajectories
-        Name → trajectory (``"raw"``, ``"LS"``, ``"EKF-RW"``, ...); an estimator leaves
-        out the epochs where it has no position (LS: too few anchors or no
-        convergence; EKF: before its first LS fix).
-    errors
-        Name → horizontal errors against truth over that estimator's own epochs
-        (:class:`~uwbwb.metrics.ErrorSeries`).
-    ekf
-        Model → EKF result.
-    ls
-        The LS result (per-epoch status included).
-    sigmas
-        Model → driving standard deviation used.
+    board
+        The run as a :class:`~uwbwb.scoreboard.board.Board` of its one tag (:func:`~.study.estimate`): one entry per
+        estimator (``"raw"``, ``"LS"``, ``"EKF-RW"`` ...) with its :class:`~uwbwb.types.Estimates` on the run's
+        epochs (NaN where it has no position: LS with too few anchors or no convergence, an EKF before its
+        first LS fix) and the truth there, scored by :meth:`~uwbwb.scoreboard.board.Board.scores`
+        (:func:`uwbwb.metrics.score_epochs`); its calibration holds the range σ and the EKFs' driving σ.
     gate_prob
         The EKFs' χ² gate (None: every measurement used).
-    n_epochs
-        Epochs in the run (the denominator of coverage).
 
     Notes
     -----
@@ -95,52 +87,52 @@ class TagResults:
     """
 
     run: TagRun
-    trajectories: dict
-    errors: dict
-    ekf: dict
-    ls: TdoaLsResult
-    sigmas: dict
+    board: Board
     gate_prob: float | None
-    n_epochs: int
 
-    def scores(self, names: Sequence[str] | None = None) -> tuple[np.ndarray, metrics.EpochScores]:
-        """The estimators in ``names`` (default: all) on one grid of their error times (seconds;
-        :func:`~uwbwb.metrics.errors_on_grid`), scored by :func:`~uwbwb.metrics.score_epochs`."""
-        names = list(self.errors) if names is None else list(names)
-        t, err = metrics.errors_on_grid({n: self.errors[n] for n in names})
-        return t, metrics.score_epochs(err)
+    @property
+    def methods(self) -> tuple[str, ...]:
+        return self.board.methods
 
-    def common_t_s(self, names: Sequence[str] | None = None) -> np.ndarray:
-        """Epoch times scored by every estimator in ``names`` (default: all), seconds."""
-        t, scores = self.scores(names)
-        return t[scores.methods[0].common]
+    def estimates(self, name: str) -> Estimates:
+        """Estimator ``name``'s output on the run's epochs."""
+        return self.board.entry(name, self.run.tag).estimates
 
-    def common_errors(self, names: Sequence[str] | None = None) -> dict[str, np.ndarray]:
-        """Name → horizontal errors (m) at :meth:`common_t_s`, the same epochs for every estimator."""
-        names = list(self.errors) if names is None else list(names)
-        _, scores = self.scores(names)
+    @property
+    def trajectories(self) -> dict[str, Trajectory]:
+        """Name → the epochs with a position."""
+        return {n: self.estimates(n).to_trajectory(n) for n in self.methods}
+
+    @property
+    def scores(self) -> metrics.EpochScores:
+        """Every estimator on the run's epochs (:meth:`~uwbwb.scoreboard.board.Board.scores`)."""
+        return self.board.scores(self.run.tag)
+
+    def common_errors(self) -> dict[str, np.ndarray]:
+        """Name → horizontal errors (m) on the common epochs, the same epochs for every estimator."""
+        scores = self.scores
         if scores.methods[0].n_common == 0:
             cov = {k: f"{100 * v:.0f} %" for k, v in self.coverage_own().items()}
-            raise ValueError(f"{self.run.key}: no epoch where every estimator of {names} has a position and truth "
-                             f"exists (coverage {cov}); nothing can be scored on common epochs")
-        return {n: scores[n].common_m for n in names}
+            raise ValueError(f"{self.run.key}: no epoch where every estimator of {list(self.methods)} has a position "
+                             f"and truth exists (coverage {cov}); nothing can be scored on common epochs")
+        return {n: scores[n].common_m for n in self.methods}
 
     def cep95(self, *, common: bool = True) -> dict[str, float]:
         """Name → CEP95 (m), on the common epochs (default) or on each estimator's own."""
         if common:
             return {k: metrics.cep95(e) for k, e in self.common_errors().items()}
-        return {k: metrics.cep95(e.err_m) for k, e in self.errors.items()}
+        return {n: metrics.cep95(self.scores[n].own_m) for n in self.methods}
 
     def coverage_own(self) -> dict[str, float]:
         """Name → fraction of the run's epochs with a position."""
-        return {k: len(t) / self.n_epochs for k, t in self.trajectories.items()}
+        return {n: int(self.estimates(n).has_estimate.sum()) / len(self.run.ranges) for n in self.methods}
 
     def coverage(self) -> dict[str, float]:
         """:meth:`coverage_own`, and ``"common"``: the share of epochs the tables score."""
-        return {**self.coverage_own(), "common": self.common_t_s().size / self.n_epochs}
+        return {**self.coverage_own(), "common": self.scores.methods[0].n_common / len(self.run.ranges)}
 
     def nis(self, prob: float = 0.95) -> pd.DataFrame:
-        """NIS consistency per EKF (:meth:`uwbwb.filters.ekf.KalmanRun.nis_consistency`).
+        """NIS consistency per EKF over its updates (:func:`uwbwb.metrics.nis_consistency`).
 
         Under right noise models the NIS summed over the ``n`` updates is χ² with
         ``sum_dof`` degrees of freedom; the verdict compares it with the central
@@ -149,18 +141,16 @@ class TagResults:
         *Over-confident*: errors larger than the filter's covariance says.
         """
         rows = []
-        for m, r in self.ekf.items():
-            c = r.nis_consistency(prob)
+        for m in (m for m in MODELS if ekf_name(m) in self.methods):
+            est = self.estimates(ekf_name(m))
+            up = est.status == EstimateStatus.UPDATED
+            c = metrics.nis_consistency(est.info["nis"][up], est.info["dof"][up], prob)
             dof = max(c["sum_dof"], 1)
             rows.append({"model": m, "n": c["n"], "mean_nis_over_dof": c["mean_nis_over_dof"],
                          "mean_lo": c["sum_lo"] / dof, "mean_hi": c["sum_hi"] / dof,
                          "fraction_inside": c["fraction_inside"], "verdict": c["verdict"],
-                         "n_rejected": int(r.n_rejected.sum())})
+                         "n_rejected": int(est.info["n_rejected"].sum())})
         return pd.DataFrame(rows).set_index("model")
-
-
-def _errors(traj: Trajectory, run: TagRun) -> metrics.ErrorSeries:
-    return metrics.errors_vs_truth(traj, run.truth, horizontal=True, max_gap_s=TagRun.max_truth_gap_s)
 
 
 def cep95_table(results: Iterable[TagResults], methods: Sequence[str] = METHODS, *,

@@ -12,14 +12,15 @@ The pipeline for one tag of one recording (:class:`~uwbwb.types.TagRun`):
 2. range-noise level per anchor from a *calibration* run with truth
    (:func:`uwbwb.calibration.fit_range_sigma`; by default the part of the range error that does
    not cancel in a TDoA) → TDoA covariance ``Σ = diag(σ_j²) + σ_ref² 11ᵀ``;
-3. driving-noise calibration: CEP95 of each EKF over a grid of driving
-   standard deviations on the calibration run (:func:`calibration_curves`),
-   the minimum per model (:func:`best_sigmas`);
-4. on a *different* test run: raw output, LS and the three EKFs
-   (:func:`estimate`), scored on the epochs where *every* estimator has a
-   position (:meth:`TagResults.common_errors`), with each one's coverage beside
-   it (:func:`cep95_table`, :func:`coverage_table`), and the NIS χ² verdict of
-   each EKF (:meth:`TagResults.nis`);
+3. driving-noise calibration by the board's protocol: the range-noise fits form a
+   :class:`~uwbwb.scoreboard.protocol.Calibration` of the calibration run (ranges as logged), and each EKF's
+   board estimator (:class:`~uwbwb.scoreboard.estimators.TdoaEkfEstimator`) tunes its driving σ over the
+   notebook's grid with the CEP95 criterion (``criterion="cep95"``, mean over the tags; :func:`run_study`);
+4. on a *different* test run: raw output, LS and the three EKFs, the board's estimators on the
+   protocol's calibration of that run (:func:`estimate`), held as a board of its tag and scored by it
+   (:meth:`~uwbwb.scoreboard.board.Board.scores`) on the epochs where *every* estimator has a position
+   (:meth:`TagResults.common_errors`), with each one's coverage beside it (:func:`cep95_table`,
+   :func:`coverage_table`), and the NIS χ² verdict of each EKF (:meth:`TagResults.nis`);
 5. headline rows for the reproduction summary, each with its kind
    (:func:`summary_rows`).
 
@@ -32,32 +33,25 @@ of the nominal epoch period ``T``, i.e. PSD ``q = σ_w² T`` (see
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
 
-from ... import geometry, metrics, parallel
+from ... import parallel
 from ...calibration import empirical_tdoa_covariance, fit_range_sigma
-from ...filters.ekf import KalmanRun, TdoaEkf
-from ...filters.tdoa_ls import tdoa_least_squares
-from ...models.motion import MOTION_MODELS, make_motion_model
+from ...models.motion import MOTION_MODELS
 from ...models.tdoa import TdoaModel
-from ...scoreboard.estimators import EKF_GRIDS
+from ...scoreboard.board import Board, Entry
+from ...scoreboard.estimators import ExternalEstimates, RawLs, TdoaEkfEstimator, TdoaLs
+from ...scoreboard.protocol import Calibration
 from ...sim import walk
-from ...types import Recording, TagRun, TdoaLog, Trajectory
+from ...types import Recording, TagRun, Trajectory
 
-from .results import METHODS, MODELS, TagResults, _errors, cep95_table, coverage_table, ekf_name, nis_table
+from .results import METHODS, MODELS, TagResults, cep95_table, coverage_table, ekf_name, nis_table
 
-__all__ = ["DEFAULT_GRIDS", "tag_runs", "synthetic_acquisition", "raw_multilateration", "ranging_summary", "estimate",
-           "calibration_curves", "best_sigmas", "split_runs", "Study", "run_study", "tdoa_noise_check", "run_ekf"]
-
-
-#: Default calibration grids of the driving standard deviation (model units), log-spaced over the
-#: same spans as the scoreboard's EKF grids (:data:`~uwbwb.scoreboard.estimators.EKF_GRIDS`: the spans are
-#: written once, so notebooks 03 and 06 tune the same EKF over the same range), 11 values each.
-DEFAULT_GRIDS = {m: np.geomspace(g[0], g[-1], 11) for m, g in EKF_GRIDS.items()}
+__all__ = ["tag_runs", "synthetic_acquisition", "ranging_summary", "estimate", "Study", "run_study", "tdoa_noise_check"]
 
 
 # --------------------------------------------------------------------------- inputs
@@ -164,29 +158,26 @@ def ranging_summary(runs: Sequence[TagRun], truth: walk.WalkTruth) -> pd.DataFra
     return pd.DataFrame(rows).set_index(["run", "tag"])
 
 
-def raw_multilateration(run: TagRun, *, sigma_m=None, name: str = "raw") -> Trajectory:
-    """Per-epoch range multilateration (:func:`uwbwb.geometry.multilaterate`, Gauss–Newton, all anchors)."""
-    kw = {"z_m": run.z_m} if run.dim == 2 else {}
-    res = geometry.multilaterate(run.ranges.range_m, run.anchors.pos_m, dim=run.dim, sigma_m=sigma_m, **kw)
-    return res.to_trajectory(run.ranges.t_s, name=name)
-
-
-
-def run_ekf(run: TagRun, model: str, sigma: float, measurement: TdoaModel, *, gate_prob: float | None,
-            ref: int = 0, tdoa: TdoaLog | None = None) -> KalmanRun:
-    """The EKF with motion model ``model`` at driving standard deviation ``sigma`` over one run.
-
-    ``gate_prob`` is required: the χ² gate (or None, no gate) is a setting of the
-    study, never left to the filter's default.
-    """
-    motion = make_motion_model(model, sigma=sigma, dt_s=run.dt_s, dim=run.dim)
-    log = tdoa if tdoa is not None else run.tdoa(ref)
-    return TdoaEkf(motion, measurement, gate_prob=gate_prob).run(log, name=ekf_name(model))
+def _protocol(runs: Sequence[TagRun], sigma_m: Mapping[str, np.ndarray]) -> tuple[Recording, Calibration]:
+    """Runs (one per tag of one recording) as the board's recording, and the protocol's calibration holding the
+    range σ per anchor of each tag, the tag heights and the runs' rate (1 / median epoch step); the ranges are
+    used as logged (no range calibration)."""
+    r0 = runs[0]
+    rec = Recording(r0.data, r0.name, r0.anchors, {r.tag: r.ranges for r in runs}, {r.tag: r.truth for r in runs})
+    cal = Calibration(r0.name, r0.dim, {r.tag: r.z_m for r in runs}, None, dict(sigma_m),
+                      1.0 / float(np.median([r.dt_s for r in runs])))
+    return rec, cal
 
 
 def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: float | None, ref: int = 0,
              correlated: bool = True, models: Sequence[str] = MODELS) -> TagResults:
-    """Raw output, TDoA LS and the EKFs on one run.
+    """Raw output, TDoA LS and the EKFs on one run: the board's estimators, held and scored as a board of its tag.
+
+    ``raw`` is the device's own output where the run has one (an outside estimate,
+    :class:`~uwbwb.scoreboard.estimators.ExternalEstimates`), else per-epoch multilateration of the ranges
+    (:class:`~uwbwb.scoreboard.estimators.RawLs`); ``LS`` is :class:`~uwbwb.scoreboard.estimators.TdoaLs` and
+    ``EKF-<model>`` :class:`~uwbwb.scoreboard.estimators.TdoaEkfEstimator`, both on pseudo-TDoAs. The estimators
+    see the ranges, never the truth.
 
     Parameters
     ----------
@@ -201,102 +192,16 @@ def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: fl
     gate_prob
         χ² gate of the EKFs (None: no gating); required.
     correlated
-        Model the reference correlation of the TDoA noise.
+        Model the reference correlation of the TDoA noise (False: the diagonal shortcut).
     """
-    measurement = TdoaModel.for_tag(run, sigma_m, correlated=correlated)
-    log = run.tdoa(ref)
-    ls = tdoa_least_squares(log, measurement)
-    trajs = {"raw": run.raw if run.raw is not None else raw_multilateration(run), "LS": ls.to_trajectory("LS")}
-    ekfs = {}
-    for m in models:
-        ekfs[m] = run_ekf(run, m, sigmas[m], measurement, gate_prob=gate_prob, tdoa=log)
-        trajs[ekf_name(m)] = ekfs[m].to_trajectory()
-    errors = {k: _errors(t, run) for k, t in trajs.items()}
-    return TagResults(run, trajs, errors, ekfs, ls, {m: float(sigmas[m]) for m in models}, gate_prob,
-                      len(run.ranges))
-
-
-def calibration_curves(runs: Sequence[TagRun], sigma_m: Mapping[str, np.ndarray], *,
-                       gate_prob: float | None, grids: Mapping[str, Sequence[float]] | None = None,
-                       models: Sequence[str] = MODELS, ref: int = 0, correlated: bool = True,
-                       progress: bool | None = True, workers: int = 1, scheduler=None) -> pd.DataFrame:
-    """CEP95 of each EKF over a grid of driving standard deviations (thesis Table 1 procedure).
-
-    Parameters
-    ----------
-    runs
-        Calibration runs (with truth).
-    sigma_m
-        Range-noise standard deviation per anchor for each run, keyed by :attr:`TagRun.key`.
-    gate_prob
-        χ² gate of the EKFs (None: no gating); required.
-    grids
-        Driving standard deviations per model (default :data:`DEFAULT_GRIDS`).
-    workers, scheduler
-        Threads in this process, or a Dask scheduler (``"local"``, an address or a
-        ``distributed.Client``): each (run, model) pair is one task of the sweep
-        (:mod:`uwbwb.parallel`); the table does not depend on where it ran.
-
-    Each EKF is scored over its own epochs (it has a position at every epoch
-    after its first LS fix).
-
-    Returns
-    -------
-    DataFrame
-        One row per (run, model, sigma): ``run, tag, model, sigma, sigma_unit, psd, psd_unit,
-        cep95_m, rmse_m``.
-    """
-    grids = {m: tuple(map(float, g)) for m, g in dict(DEFAULT_GRIDS if grids is None else grids).items()}
-    tasks = [parallel.Task({"key": r.key, "model": m}, size=len(grids[m])) for r in runs for m in models]
-    shared = {"runs": {r.key: r for r in runs}, "sigma_m": {r.key: sigma_m[r.key] for r in runs}, "grids": grids,
-              "ref": ref, "gate_prob": gate_prob, "correlated": correlated}
-    rows = []
-    for _, out in parallel.imap(_curve_task, tasks, shared=shared, workers=workers, scheduler=scheduler,
-                                progress=progress, desc="driving-noise calibration", unit="EKF run"):
-        rows.extend(out)
-    return pd.DataFrame(rows)
-
-
-def _curve_task(key: str, model: str, runs, sigma_m, grids, ref, gate_prob, correlated) -> list[dict]:
-    """One run's calibration curve for one motion model (a task of :func:`calibration_curves`)."""
-    r = runs[key]
-    meas, log = TdoaModel.for_tag(r, sigma_m[key], correlated=correlated), r.tdoa(ref)
-    cls = MOTION_MODELS[model]
-    rows = []
-    for s in grids[model]:
-        res = run_ekf(r, model, s, meas, gate_prob=gate_prob, tdoa=log)
-        err = _errors(res.to_trajectory(), r).err_m
-        rows.append({"run": r.name, "tag": r.tag, "model": model, "sigma": s, "sigma_unit": cls.sigma_unit,
-                     "psd": s ** 2 * r.dt_s, "psd_unit": cls.psd_unit,
-                     "cep95_m": metrics.cep95(err), "rmse_m": metrics.rmse(err)})
-    return rows
-
-
-def best_sigmas(curves: pd.DataFrame) -> dict[str, float]:
-    """Per model, the grid value minimising the mean CEP95 over the calibration runs/tags.
-
-    One value per model and scenario, as in the thesis' Table 1.
-    """
-    mean = curves.groupby(["model", "sigma"], sort=True)["cep95_m"].mean().reset_index()
-    best = mean.loc[mean.groupby("model")["cep95_m"].idxmin()]
-    return {m: float(s) for m, s in zip(best["model"], best["sigma"])}
-
-
-def split_runs(runs: Sequence[TagRun], fraction: float = 0.5) -> tuple[list[TagRun], list[TagRun]]:
-    """Split each run in time: the first ``fraction`` for calibration, the rest for testing.
-
-    The names say which part (``"fast 0–67 s"``). Used when a dataset has a single
-    run of the kind (the LIAS ``fast`` run): calibration and test never share epochs.
-    """
-    if not 0 < fraction < 1:
-        raise ValueError(f"fraction must be in (0, 1), got {fraction!r}")
-    first, second = [], []
-    for r in runs:
-        t0, t1 = float(r.ranges.t_s[0]), float(r.ranges.t_s[-1])
-        tm = t0 + fraction * (t1 - t0)
-        first.append(r.between(t0, tm, name=f"{r.name} {t0:.0f}–{tm:.0f} s"))
-        second.append(r.between(tm, t1 + 1e-9, name=f"{r.name} {tm:.0f}–{t1:.0f} s"))
-    return first, second
+    rec, cal = _protocol([run], {run.tag: sigma_m})
+    cal = replace(cal, tuned={ekf_name(m): {"sigma_w": float(sigmas[m])} for m in models})
+    ests = {"raw": RawLs("raw") if run.raw is None else ExternalEstimates("device", {run.tag: run.raw}),
+            "LS": TdoaLs("LS", ref, correlated),
+            **{ekf_name(m): TdoaEkfEstimator(m, gate_prob=gate_prob, ref=ref, correlated=correlated) for m in models}}
+    blind, truth = replace(rec, truth={}), rec.truth_at(run.tag, run.ranges.t_s, run.dim)
+    entries = tuple(Entry(n, run.tag, e.estimate(blind, run.tag, cal), None, truth) for n, e in ests.items())
+    return TagResults(run, Board(run.data, run.key, cal, entries, tuple(ests)), gate_prob)
 
 
 @dataclass(frozen=True)
@@ -305,20 +210,34 @@ class Study:
 
     Attributes
     ----------
-    curves
-        Calibration curves (:func:`calibration_curves`).
+    calibration
+        The protocol's calibration of the calibration runs (:func:`run_study`): range σ per anchor and tag, and
+        per EKF (``"EKF-RW"`` ...) what its ``tune`` kept (σ_w, the grid, each tag's CEP95 and RMSE there).
     best
-        Driving standard deviation per model (:func:`best_sigmas`).
+        Driving standard deviation per model.
     sigma_m
         Range-noise standard deviation per anchor, per tag, fitted on the calibration runs.
     results
         One :class:`TagResults` per test run.
     """
 
-    curves: pd.DataFrame
+    calibration: Calibration
     best: dict
     sigma_m: dict
     results: list
+
+    @property
+    def curves(self) -> pd.DataFrame:
+        """The driving-noise calibration, one row per (tag, model, σ): ``run, tag, model, sigma, sigma_unit, psd,
+        psd_unit, cep95_m, rmse_m`` (``psd = σ² T``)."""
+        rows, cal = [], self.calibration
+        for m in self.best:
+            p, cls = cal.params(ekf_name(m)), MOTION_MODELS[m]
+            for tag, sc in p["grid_by_tag"].items():
+                rows += [{"run": cal.source, "tag": tag, "model": m, "sigma": s, "sigma_unit": cls.sigma_unit,
+                          "psd": s ** 2 / cal.rate_hz, "psd_unit": cls.psd_unit, "cep95_m": c, "rmse_m": r}
+                         for s, c, r in zip(p["grid"], sc["cep95"], sc["rmse"])]
+        return pd.DataFrame(rows)
 
     def table(self, methods: Sequence[str] = METHODS, *, common: bool = True) -> pd.DataFrame:
         """CEP95 per test run (rows) and method (columns), metres (:func:`cep95_table`)."""
@@ -340,34 +259,44 @@ class Study:
         raise KeyError(f"no test result for {name}/{tag}; have {[e.run.key for e in self.results]}")
 
 
+def _tune(model: str, estimators, rec: Recording, tags, cal: Calibration) -> dict:
+    """One EKF's ``tune`` on the calibration recording (a task of :func:`run_study`'s sweep)."""
+    return estimators[model].tune(rec, tags, cal)
+
+
 def run_study(cal_runs: Sequence[TagRun], test_runs: Sequence[TagRun], *, gate_prob: float | None, grids=None,
-              models: Sequence[str] = MODELS, ref: int = 0, correlated: bool = True, sigma_method: str = "tdoa",
-              progress: bool = True, scheduler=None) -> Study:
-    """Fit range noise and driving noise on ``cal_runs``, then run every estimator on ``test_runs``.
+              models: Sequence[str] = MODELS, ref: int = 0, sigma_method: str = "tdoa", progress: bool = True,
+              scheduler=None) -> Study:
+    """Fit range noise and driving noise on ``cal_runs`` (one run per tag of one recording), then run every
+    estimator on ``test_runs``.
 
-    ``gate_prob`` (the EKFs' χ² gate, None for none) is required. ``scheduler`` says
-    where the driving-noise calibration sweep runs (:func:`calibration_curves`; None:
-    in this process).
-
-    A test run takes the range-noise fit of the calibration run with the same tag
-    (pooled over those runs by taking the RMS when a tag has several). The driving
-    noise per model is one value for all tags (:func:`best_sigmas`).
+    The range σ per anchor of each tag is :func:`~uwbwb.calibration.fit_range_sigma` (``sigma_method``) on its
+    calibration run; with the tag heights and the runs' rate it forms the protocol's
+    :class:`~uwbwb.scoreboard.protocol.Calibration` (ranges as logged). The driving σ per model is one value for
+    all tags: the board's :class:`~uwbwb.scoreboard.estimators.TdoaEkfEstimator` tunes it on the calibration runs
+    over ``grids[model]`` (None: the board's :data:`~uwbwb.scoreboard.estimators.EKF_GRIDS`) with the CEP95
+    criterion (thesis Table 1), with the χ² gate ``gate_prob`` (None for none; required) and reference anchor
+    ``ref``. ``scheduler`` says where the sweep runs, one task per model (:mod:`uwbwb.parallel`; None: in this
+    process); the result does not depend on where it ran.
     """
-    fits = {r.key: fit_range_sigma(r, method=sigma_method) for r in cal_runs}
-    per_tag: dict[str, list] = {}
-    for r in cal_runs:
-        per_tag.setdefault(r.tag, []).append(fits[r.key])
-    sigma_tag = {t: np.sqrt(np.mean(np.square(v), axis=0)) for t, v in per_tag.items()}
-    missing = sorted({r.tag for r in test_runs} - set(sigma_tag))
+    tags = [r.tag for r in cal_runs]
+    if len(set(tags)) != len(tags) or len({r.name for r in cal_runs}) != 1:
+        raise ValueError(f"calibration runs must be one per tag of one recording, got {[r.key for r in cal_runs]}")
+    fits = {r.tag: fit_range_sigma(r, method=sigma_method) for r in cal_runs}
+    missing = sorted({r.tag for r in test_runs} - set(fits))
     if missing:
         raise ValueError(f"test tags {missing} have no calibration run")
-    curves = calibration_curves(cal_runs, fits, grids=grids, models=models, ref=ref, gate_prob=gate_prob,
-                                correlated=correlated, progress=progress, scheduler=scheduler)
-    best = best_sigmas(curves)
-    ests = [estimate(r, sigma_tag[r.tag], best, ref=ref, gate_prob=gate_prob, correlated=correlated, models=models)
-            for r in test_runs]
-    return Study(curves, best, sigma_tag, ests)
-
+    rec, cal = _protocol(cal_runs, fits)
+    ekfs = {m: TdoaEkfEstimator(m, gate_prob=gate_prob, grid=None if grids is None else tuple(map(float, grids[m])),
+                                criterion="cep95", ref=ref) for m in models}
+    tasks = [parallel.Task({"model": m}) for m in models]
+    for task, params in parallel.imap(_tune, tasks, shared={"estimators": ekfs, "rec": rec, "tags": tags, "cal": cal},
+                                      scheduler=scheduler, progress=progress, desc="driving-noise calibration",
+                                      unit="motion model"):
+        cal = cal.with_tuned(ekfs[task.params["model"]].name, params)
+    best = {m: cal.params(ekfs[m].name)["sigma_w"] for m in models}
+    ests = [estimate(r, fits[r.tag], best, ref=ref, gate_prob=gate_prob, models=models) for r in test_runs]
+    return Study(cal, best, fits, ests)
 
 
 def tdoa_noise_check(run: TagRun, sigma_m, *, ref: int = 0) -> tuple[np.ndarray, np.ndarray]:
