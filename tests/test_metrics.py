@@ -262,3 +262,24 @@ def test_block_bootstrap_median_difference_sees_a_shift_and_not_a_tie():
     assert np.isnan(few["lo_m"]) and few["diff_m"] == pytest.approx(-1.0)
     with pytest.raises(ValueError, match="statistic must be 'rmse' or 'median'"):
         block_bootstrap_difference(base, base, rng=np.random.default_rng(0), statistic="mean")
+
+
+def test_segment_blocks_see_an_offset_shared_within_a_segment_that_acf_blocks_do_not():
+    """Twelve 10-stop series whose differences share one offset per series (as stops of one simulated experiment
+    share its range biases): the ACF of a mean-centred series cannot see the offset, so its blocks (about 5 a
+    series) count each series several times as independent; resampling whole series widens the interval by
+    about √5."""
+    from uwbwb.metrics import block_bootstrap_difference
+
+    rng = np.random.default_rng(3)
+    b = [np.abs(rng.normal(1.0, 0.05, 10)) for _ in range(12)]
+    a = [x + rng.normal(0.0, 0.3) + rng.normal(0.0, 0.01, 10) for x in b]      # one offset per series
+    acf = block_bootstrap_difference(a, b, rng=np.random.default_rng(0), statistic="median")
+    seg = block_bootstrap_difference(a, b, rng=np.random.default_rng(0), statistic="median", blocks="segment")
+    assert seg["n_blocks"] == 12 and acf["n_blocks"] >= 4 * 12
+    assert seg["diff_m"] == acf["diff_m"]
+    assert (seg["hi_m"] - seg["lo_m"]) > 1.5 * (acf["hi_m"] - acf["lo_m"]), (seg, acf)
+    r = block_bootstrap_difference(a, b, rng=np.random.default_rng(0), blocks="segment")
+    assert r["n_blocks"] == 12 and np.isfinite(r["lo_m"])
+    with pytest.raises(ValueError, match="blocks"):
+        block_bootstrap_difference(a, b, rng=np.random.default_rng(0), blocks="time")

@@ -512,7 +512,7 @@ def test_the_ranking_row_decides_each_step_by_its_interval(gaps_m, verdict):
     median-difference interval below 0: a reversed step says "differs", a step inside the noise "not resolved"."""
     rng = np.random.default_rng(5)
     rows = []
-    for e in range(8):
+    for e in range(12):                                 # 12 series: each resampled whole, at least MIN_BLOCKS
         base = np.abs(rng.normal(0.5, 0.2, 6))
         tie = base[::-1]        # gap 0: the same errors at other stops, so the medians tie and the pairs differ
         errs = {"none": base + 1.0, "residual": base, "robust_mean": base + gaps_m[0] if gaps_m[0] else tie,
@@ -525,13 +525,14 @@ def test_the_ranking_row_decides_each_step_by_its_interval(gaps_m, verdict):
     t = ex.verdict_table(ex.comparison_facts(syn, stops=stops))
     row = _row(t, "ranking of the heuristics")
     assert row.verdict == verdict, row.ours
-    assert "block-bootstrap interval" in row.rule
+    assert "block-bootstrap rule, each experiment's series of stops one block" in row.rule
 
 
 @pytest.mark.parametrize("offset_m, verdict", [(-0.2, "NLS better"), (0.2, "NLS worse"), (0.0, "not significant")])
 def test_the_lias_dynamic_point_row_decides_by_the_median_difference_on_common_epochs(offset_m, verdict):
-    """Given the dynamic run's epoch table, best fit vs point fixes is decided by the interval of the median
-    difference on the epochs both covered (not by a 5 mm tolerance); epochs the fit missed are left out."""
+    """Given the dynamic run's epoch table, plain NLS (fixed in advance) vs point fixes is decided by the interval
+    of the median difference on the epochs both covered (not by a 5 mm tolerance); epochs the fit missed are left
+    out; a heuristic with a lower median is not picked instead."""
     rng = np.random.default_rng(8)
     rows = []
     for seg in range(6):
@@ -540,12 +541,13 @@ def test_the_lias_dynamic_point_row_decides_by_the_median_difference_on_common_e
         fit = point[::-1] + offset_m if offset_m == 0.0 else point + offset_m + rng.normal(0, 0.02, t.size)
         fit = fit.copy()
         fit[:5] = np.nan                               # not covered: out of the pairing
-        for h, e in (("point", point), ("none", fit)):
+        for h, e in (("point", point), ("none", fit), ("residual", fit - 1.0)):
             rows.append(pd.DataFrame({"segment": seg, "tag": "t0", "t_s": t, "heuristic": h, "err_m": e}))
     epochs = pd.concat(rows, ignore_index=True)
     summary = ex.epoch_summary(epochs)
     f = ex.comparison_facts(_summary([1.0, 0.8, 0.6, 0.4]), lias_dynamic_epochs={"raw": (summary, {"none": 0.9})},
                             lias_dynamic_errors={"raw": epochs})
     assert f["lias_dynamic_point"]["raw"]["paired"]["n"] == 6 * 55
-    row = _row(ex.verdict_table(f), "LIAS dynamic, raw ranges: best trajectory fit vs point fixes")
+    assert f["lias_dynamic_point"]["raw"]["paired"]["a"] == "none"
+    row = _row(ex.verdict_table(f), "LIAS dynamic, raw ranges: plain NLS (fixed in advance) vs point fixes")
     assert row.verdict == verdict, row.ours
