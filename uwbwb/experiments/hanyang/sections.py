@@ -20,14 +20,12 @@ not hold is an error.
 from __future__ import annotations
 
 import os
-import zlib
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
 
-from ... import metrics
 from ...datasets import dataset_available, hanyang_dynamic
 from ...errors import DataNotFoundError
 from ...scoreboard import Board
@@ -35,7 +33,7 @@ from ...scoreboard.estimators import RawLs, default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S, WindowNls
 from ...scoreboard.verdicts import own_bound_table, placement_table
 from . import authors, estimators, facts, study
-from .pairs import pair_errors
+from .pairs import ablation
 
 __all__ = ["BOARD_COLUMNS", "Section", "ablation", "board_table", "motion_section", "pruning_section",
            "scoreboard_section"]
@@ -103,27 +101,6 @@ def _cases(data_dir, wanted: Sequence[str] | None) -> tuple[list[str], list[str]
     if missing:
         raise DataNotFoundError(f"{NAME} has no dynamic case {missing}; cases present: {available}")
     return available, list(wanted), None
-
-
-def ablation(board: Board, pairs: Sequence[tuple[str, str]], *, low: str, high: str, neither: str,
-             seed: int = 0) -> pd.DataFrame:
-    """RMSE_2d of ``method`` vs ``reference`` on the epochs both covered (:func:`~.pairs.pair_errors`), both
-    coverages, the ratio, its block-bootstrap interval (:func:`uwbwb.metrics.block_bootstrap_difference`) and the verdict (``low``
-    below 1, ``high`` above, ``neither`` otherwise; none with too few independent blocks)."""
-    rows = []
-    for m, ref in pairs:
-        p = pair_errors(board, m, ref)
-        if p is None or not p["err_m"].size:
-            continue
-        rng = np.random.default_rng([seed, zlib.crc32(f"{board.label}/{m}/{ref}".encode())])
-        iv = metrics.block_bootstrap_difference(p["err_m"], p["err_ref_m"], rng=rng)
-        r_m, r_ref = metrics.rmse(p["err_m"]), metrics.rmse(p["err_ref_m"])
-        rows.append({"method": m, "coverage": p["coverage"], "reference": ref, "reference_coverage": p["coverage_ref"],
-                     "n_common": int(p["err_m"].size), "rmse_2d_m": r_m, "reference_rmse_2d_m": r_ref,
-                     "ratio": r_m / r_ref, "ratio_lo": iv["ratio_lo"], "ratio_hi": iv["ratio_hi"],
-                     "n_blocks": iv["n_blocks"],
-                     "verdict": facts.pair_verdict(iv["ratio_lo"], iv["ratio_hi"], iv["n_blocks"], low, high, neither)})
-    return pd.DataFrame(rows)
 
 
 #: The board columns a section shows (:func:`board_table`): errors, the common bound as on every board of notebook
