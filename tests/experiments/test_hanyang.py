@@ -409,3 +409,38 @@ def test_the_fair_pick_is_made_on_the_tuning_case_alone(tree, tmp_path):
     # the truth did change: the scores on the scored case differ
     r0, r1 = (b.table().set_index("method").loc["raw LS", "rmse_m"] for b in (b0, b1))
     assert r0 != pytest.approx(r1, abs=1e-6)
+
+
+def test_the_declared_method_is_written_down_before_scoring():
+    """The rule itself: the board's range EKF-RF with its χ² gate, the board's grid (FAST: every other value)."""
+    from uwbwb.scoreboard.estimators import EKF_GRIDS, RangeEkfEstimator
+
+    assert study.DECLARED_METHOD == RangeEkfEstimator("RF", update="gate")
+    assert study.declared_method(fast=False) is study.DECLARED_METHOD
+    assert study.declared_method(fast=True).grid == tuple(EKF_GRIDS["RF"][::2])
+    assert study.AUTHORS_ROWS == ("authors LS (external)", "authors ESKF (external, +IMU)")
+
+
+def test_declared_method_table_per_case_and_reference_with_its_verdict_rule_and_mean(tree):
+    """Two rows per case (against the authors' LS and ESKF), each verdict the rule applied to its own interval; then
+    one mean row per reference whose ratio is the mean of the cases' and whose verdict counts theirs. A case folder
+    (not a name) runs with its tuning case given."""
+    data, cases = tree
+    names = [c.name for c in cases[:2]]
+    table = study.declared_method_table(names, data, fast=True, seed=0)
+    per = table[~table["case"].str.startswith("mean")]
+    assert list(per["case"]) == [n for n in names for _ in range(2)]
+    assert list(per["reference"]) == list(study.AUTHORS_ROWS) * 2 and (per["method"] == "EKF-RF ranges").all()
+    for r in per.itertuples():
+        assert r.verdict == facts.pair_verdict(r.ratio_lo, r.ratio_hi, r.n_blocks, "better", "worse", "not significant")
+        assert r.ratio == pytest.approx(r.rmse_2d_m / r.reference_rmse_2d_m)
+        assert 0 < r.coverage <= 1 and 0 < r.reference_coverage <= 1
+    mean = table[table["case"] == "mean over 2 cases"].set_index("reference")
+    for ref in study.AUTHORS_ROWS:
+        g = per[per["reference"] == ref]
+        assert mean.loc[ref, "ratio"] == pytest.approx(g["ratio"].mean())
+        n_better = int((g["verdict"] == "better").sum())
+        assert mean.loc[ref, "verdict"].startswith(f"better {n_better}, worse {int((g['verdict'] == 'worse').sum())}")
+    folder = study.declared_method_table([str(cases[0].folder)], data, tuning={str(cases[0].folder): names[1]},
+                                         fast=True, seed=0)
+    np.testing.assert_allclose(folder["ratio"].iloc[:2], per["ratio"].iloc[:2])

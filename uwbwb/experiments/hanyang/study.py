@@ -349,13 +349,14 @@ def declared_method(*, fast: bool = False) -> RangeEkfEstimator:
 
 
 def declared_method_table(cases: Sequence[str] | None = None, data_dir: PathLike | None = None, *,
-                          tuning: Mapping[str, str] | None = None, fast: bool = False, seed: int = 0
-                          ) -> pd.DataFrame:
+                          tuning: Mapping[str, str] | None = None, fast: bool = False, seed: int = 0,
+                          boards: Mapping[str, Board] | None = None) -> pd.DataFrame:
     """:data:`DECLARED_METHOD`, unchanged, on every case against the authors' LS and ESKF.
 
     ``cases``: names or case folders of the upstream format (default: every case present); ``tuning[case]``
     the case it is tuned on (default :func:`tuning_case` among the cases present). One board per case
-    (:func:`case_board`: the method and the authors' two rows), then per case and reference one row of
+    (:func:`case_board`: the method and the authors' two rows; ``boards[case]`` instead where given, e.g. the
+    section's boards, which hold the same method tuned alike), then per case and reference one row of
     :func:`~.pairs.ablation`: RMSE_2d of both on the epochs both covered, both coverages, the ratio ours / theirs,
     its 95 % block-bootstrap interval and the verdict (``better`` below 1, ``worse`` above, ``not significant``);
     last, per reference, the mean ratio over the cases (``case`` ``"mean over N cases"``; no interval: its
@@ -369,10 +370,11 @@ def declared_method_table(cases: Sequence[str] | None = None, data_dir: PathLike
     parts = []
     for c in cases:
         tune = (tuning or {}).get(c) or tuning_case(c, available)
-        board = case_board(c, tune, data_dir, fast=fast, estimators=[method, *map(AuthorsEstimator, ("LS", "ESKF"))])
+        board = (boards or {}).get(c) or case_board(c, tune, data_dir, fast=fast,
+                                                    estimators=[method, *map(AuthorsEstimator, ("LS", "ESKF"))])
         t = ablation(board, [(method.name, ref) for ref in AUTHORS_ROWS], low="better", high="worse",
                      neither="not significant", seed=seed)
-        parts.append(t.assign(case=c, tuned_on=tune))
+        parts.append(t.assign(case=c, data=board.label, tuned_on=board.calibration.source))
     table = pd.concat(parts, ignore_index=True)
     means = []
     for ref, g in table.groupby("reference", sort=False):
@@ -382,4 +384,4 @@ def declared_method_table(cases: Sequence[str] | None = None, data_dir: PathLike
                       "ratio": float(g["ratio"].mean()),
                       "verdict": ", ".join(f"{v} {k}" for v, k in n.items()) + (f", no verdict {rest}" if rest else "")})
     table = pd.concat([table, pd.DataFrame(means)], ignore_index=True)
-    return table[["case", "tuned_on", *[c for c in table if c not in ("case", "tuned_on")]]]
+    return table[["case", "tuned_on", *[c for c in table if c not in ("case", "tuned_on", "data")], "data"]]
