@@ -7,7 +7,9 @@ import pytest
 from uwbwb.filters.gating import AnchorDropping, NoGate, Robust
 from uwbwb.scoreboard import score, split_in_time
 from uwbwb.scoreboard import synthetic as syn
-from uwbwb.scoreboard.estimators import UPDATES, RangeEkfEstimator, TdoaEkfEstimator, default_estimators
+from uwbwb.scoreboard.estimators import (UPDATES, RangeEkfEstimator, TdoaEkfEstimator, default_estimators,
+                                        update_variants)
+from uwbwb.scoreboard.verdicts import difference_table
 from uwbwb.scoreboard.protocol import fit_calibration
 from uwbwb.types import RangeLog, Recording, Trajectory
 
@@ -60,8 +62,20 @@ def test_variants_run_side_by_side_and_the_gate_matters_with_nlos_ranges():
     gated one and than the robust ones (a policy that is not applied would tie them)."""
     cal_rec, test = split_in_time(_hall(p_nlos=0.1), 0.5)
     est = [RangeEkfEstimator("RF", grid=(0.3, 1.0), update=u) for u in UPDATES]
-    rmse = score(test, cal_rec, estimators=est, rate_hz=None, dim=2).table().set_index("method")["rmse_m"]
+    board = score(test, cal_rec, estimators=est, rate_hz=None, dim=2)
+    rmse = board.table().set_index("method")["rmse_m"]
     assert len(rmse) == len(UPDATES) and np.isfinite(rmse).all()
     none = rmse["EKF-RF ranges (no gate)"]
     for name in ("EKF-RF ranges", "EKF-RF ranges (Huber)", "EKF-RF ranges (Cauchy)", "EKF-RF ranges (gate + Huber)"):
         assert rmse[name] < 0.7 * none, (name, rmse.to_dict())
+    # the ablation's table: each variant against the gate, coverage beside the interval's verdict
+    diff = difference_table({"hall": board}, [(e.name, est[0].name) for e in est[1:]], seed=0).set_index("A")
+    assert (diff["coverage A"] > 0.9).all() and (diff["coverage B"] > 0.9).all()
+    assert diff.loc["EKF-RF ranges (no gate)", "verdict"] == "EKF-RF ranges more accurate"
+
+
+def test_update_variants_are_the_ablation_rows_tuned_alike():
+    rows = update_variants("RW", fast=True)
+    assert [e.update for e in rows] == list(UPDATES) and rows[0].name == "EKF-RW ranges"
+    assert {e.grid for e in rows} == {tuple(default_estimators(fast=True)[6].grid)}
+    assert all(e.grid is None for e in update_variants("RW"))

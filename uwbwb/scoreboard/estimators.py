@@ -49,7 +49,7 @@ from .protocol import Calibration
 from .setnoise_nls import NLS_WINDOWS_S, SetNoiseFilter, WindowNls
 
 __all__ = ["RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "RangeEkfEstimator", "UwbInsFilter", "ExternalEstimates", "INS_GRID", "INS_GRID_FAST",
-           "UPDATES", "default_estimators"]
+           "UPDATES", "default_estimators", "update_variants"]
 
 # ----------------------------------------------------------------------------- snapshot methods
 
@@ -507,3 +507,11 @@ def default_estimators(*, fast: bool = False, seed: int = 0, ins_kinds: tuple[st
             SetNoiseFilter("KF", seed=seed), SetNoiseFilter("PF", n_particles=200 if fast else 1000, seed=seed),
             WindowNls(windows_s=NLS_WINDOWS_S[1:] if fast else NLS_WINDOWS_S),
             *(UwbInsFilter(kind, ins_cache, ins_grid, ins_settings) for kind in ins_kinds)]
+
+
+def update_variants(model: str = "RF", *, fast: bool = False) -> list[RangeEkfEstimator]:
+    """The range EKF with motion model ``model`` once per measurement update of :data:`UPDATES` (the default χ² gate
+    first), each with the board's tuning grid (FAST: every other value, as :func:`default_estimators`): the rows of
+    an update ablation, tuned alike."""
+    grid = tuple(float(g) for g in EKF_GRIDS[model][::2]) if fast else None
+    return [RangeEkfEstimator(model, grid=grid, update=u) for u in UPDATES]
