@@ -238,7 +238,8 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     assert sec.absent is None and list(sec.boards) == [cases[0].name]           # FAST: one case
     assert sec.facts["reproduction"]["agree"] and "agree" in set(sec.tables["verdicts"]["verdict"])
     label = f"hanyang-outdoor-uwb/{cases[0].name}"
-    assert {r["data"] for r in summary.frame().to_dict("records")} == {label, label + facts.EXTERNAL}
+    assert {r["data"] for r in summary.frame().to_dict("records")} == {label, label + facts.EXTERNAL,
+                                                                       "hanyang-outdoor-uwb/1 cases"}
     kinds = dict(zip(summary.frame()["quantity"], summary.frame()["kind"]))
     assert kinds["authors LS RMSE_2d, published"] == "input"
     # numbers of the authors' estimates are never "reproduced", and their data label says external
@@ -247,6 +248,11 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     assert kinds["authors LS RMSE_2d, recomputed (their definition)"] == "input"
     assert kinds["RMSE_2d ratio ours (best on the scored case) / authors LS"] == "reproduced"
     assert kinds["RMSE_2d ratio ours (picked on the tuning case) / authors LS"] == "reproduced"
+    for theirs in ("authors LS", "authors ESKF"):      # the method declared before scoring, per case and mean
+        assert kinds[f"RMSE_2d ratio ours (declared before scoring: EKF-RF ranges) / {theirs}"] == "reproduced"
+        assert kinds[f"RMSE_2d ratio ours (declared before scoring: EKF-RF ranges) / {theirs}, mean over the cases "
+                     f"scored"] == "reproduced"
+    assert list(sec.tables["declared"]["reference"]) == list(study.AUTHORS_ROWS) * 2
     methods = set(sec.tables["ratios"]["method"])
     assert "raw LS, authors' front end (jump gate + hold)" in methods
     assert not any("external" in m for m in methods)

@@ -8,7 +8,8 @@ section with ``absent`` set (the notebook prints it); a case *name* that a prese
 not hold is an error.
 
 * :func:`scoreboard_section` (notebook 06): the authors' numbers reproduced, a board per case
-  (their LS/ESKF as external rows), the summary ours / theirs across cases, the static range
+  (their LS/ESKF as external rows), the summary ours / theirs across cases, the method declared before scoring
+  against their LS and ESKF (:func:`~.study.declared_method_table`), the static range
   model's effect, and each board's methods against the common bound and their own bounds
   (:func:`~uwbwb.scoreboard.verdicts.placement_table`, :func:`~uwbwb.scoreboard.verdicts.own_bound_table`);
 * :func:`pruning_section` (notebook 02): NLS with and without the pruning heuristics of paper 001
@@ -154,7 +155,16 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
     static_f = facts.static_facts(effect)
     rows = _Rows(summary)
     facts.summary_rows(comp, rows)
-    tables = {"reproduction": comp.reproduction, "ratios": comp.ratios, "static_effect": effect,
+    declared = study.declared_method_table(list(comp.boards), data_dir, fast=fast, seed=seed, boards=comp.boards)
+    for r in declared.itertuples(index=False):
+        theirs = r.reference.split(" (")[0]
+        if r.case.startswith("mean over"):
+            rows.add(quantity=f"RMSE_2d ratio ours (declared before scoring: {r.method}) / {theirs}, mean over the "
+                     f"cases scored", value=r.ratio, unit="", data=f"{NAME}/{r.case.split()[-2]} cases", kind="reproduced")
+        else:
+            rows.add(quantity=f"RMSE_2d ratio ours (declared before scoring: {r.method}) / {theirs}", value=r.ratio,
+                     unit="", data=r.data, kind="reproduced")
+    tables = {"reproduction": comp.reproduction, "ratios": comp.ratios, "declared": declared, "static_effect": effect,
               "static_models": pd.Series([m.describe() for m in comp.static_models], name="static range model",
                                          dtype=object).to_frame(),
               "verdicts": facts.verdict_table(repro_f, {"chosen": chosen_f, "best": ratio_f}, static_f),
