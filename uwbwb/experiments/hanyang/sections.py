@@ -36,7 +36,7 @@ from ...scoreboard.verdicts import own_bound_table, placement_table
 from . import authors, estimators, facts, study
 from .pairs import ablation
 
-__all__ = ["BOARD_COLUMNS", "Section", "ablation", "board_table", "motion_section", "pruning_section",
+__all__ = ["BOARD_COLUMNS", "Section", "board_table", "motion_section", "pruning_section",
            "scoreboard_section"]
 
 PathLike = str | os.PathLike
