@@ -258,7 +258,7 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     assert not any("external" in m for m in methods)
     assert any(m.startswith("authors LS, latency removed") for m in sec.boards[cases[0].name].methods)
     assert np.isfinite(sec.tables["ratios"]["nolat_ratio"]).all()
-    assert {"ratio_dt-0.1s", "nolat_ratio"} <= set(sec.tables["ratios"].columns)
+    assert "nolat_ratio" in sec.tables["ratios"].columns
     assert len(sec.tables["static_models"]) >= 1 and len(sec.tables["verdicts"]) >= 3
     assert sec.facts["tuning"][cases[0].name] != cases[0].name
     # the boards carry the common bound of every board of notebook 06 (one per recording, fitted on the tuning
@@ -356,27 +356,6 @@ def test_ratio_is_on_the_pairs_epochs_whatever_else_is_on_the_board():
     assert with_c.loc["C", "held_n"] == n and with_c.loc["C", "held_n_filled"] == 200
     assert with_c.loc["C", "held_ratio"] == pytest.approx(0.5)
     assert with_c["best"].sum() == 1 and with_c.loc["C", "best"]
-    # with no clock change the offset check gives the plain ratio
-    assert pairs.offset_ratio(_fake_board("d/X", errs, has), "A", "authors LS (external)", 0.0) == pytest.approx(
-        np.sqrt(5.0) / 2.0)
-
-
-def test_offset_ratio_moves_the_truth_clock():
-    from types import SimpleNamespace
-
-    from uwbwb.scoreboard.board import Entry
-
-    n = 200
-    t = 0.1 * np.arange(n)
-    truth = np.column_stack([t, np.zeros(n)])                              # 1 m/s along x
-    st = np.full(n, int(EstimateStatus.UPDATED), np.int8)
-    late = Estimates(t, np.column_stack([t - 0.2, np.zeros(n)]), st, "late")    # 0.2 s behind the truth
-    exact = Estimates(t, truth.copy() + [0.0, 0.1], st, "exact")
-    board = SimpleNamespace(ran=lambda tag=None: [Entry("late", "tag", late, None, truth),
-                                                  Entry("exact", "tag", exact, None, truth)])
-    # truth'(t) = truth(t − 0.2) matches "late": its error vanishes (ratio → 0); without the change it is 0.2/0.1
-    assert pairs.offset_ratio(board, "late", "exact", 0.0) == pytest.approx(2.0)
-    assert pairs.offset_ratio(board, "late", "exact", 0.2) < 0.05
 
 
 def test_the_fair_pick_is_made_on_the_tuning_case_alone(tree, tmp_path):

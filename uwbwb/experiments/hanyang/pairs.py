@@ -1,5 +1,5 @@
 """Ours vs theirs on the Hanyang boards: errors on the epochs a pair of methods both covered, a
-hold-last-position variant and a clock-offset sensitivity. Their intervals are the package's one rule,
+hold-last-position variant. Their intervals are the package's one rule,
 :func:`uwbwb.metrics.block_bootstrap_difference` (its ``ratio_lo`` / ``ratio_hi``).
 """
 
@@ -57,29 +57,6 @@ def held_errors(board: Board, method: str, reference: str, tag: str = "tag") -> 
             "coverage": float(keep.sum() / n) if n else float("nan"),
             "coverage_ref": float(b.scored.sum() / n) if n else float("nan"), "n_scoring": n,
             "n_held": int((keep & ~a.scored).sum())}
-
-
-def offset_ratio(board: Board, method: str, reference: str, delta_s: float, tag: str = "tag") -> float:
-    """RMSE_2d ratio ``method`` / ``reference`` on the epochs both covered, with the reference track's clock
-    offset changed by ``delta_s`` (truth'(t) = truth(t − delta_s), interpolated linearly between the board's
-    epochs; epochs it does not reach are left out). A sensitivity check of the registration."""
-    ran = {e.method: e for e in board.ran(tag)}
-    if method not in ran or reference not in ran:
-        return float("nan")
-    a, b = ran[method], ran[reference]
-    t = a.estimates.t_s
-    have = a.scoring
-    if have.sum() < 2:
-        return float("nan")
-    tq = t - delta_s
-    inside = (tq >= t[have][0]) & (tq <= t[have][-1])
-    truth = np.column_stack([np.interp(tq, t[have], a.truth_pos_m[have, k]) for k in range(2)])
-    both = a.scored & b.scored & inside
-    if not both.any():
-        return float("nan")
-    ea = np.hypot(*(a.estimates.pos_m[both, :2] - truth[both]).T)
-    eb = np.hypot(*(b.estimates.pos_m[both, :2] - truth[both]).T)
-    return metrics.rmse(ea) / metrics.rmse(eb)
 
 
 def ablation(board: Board, pairs: Sequence[tuple[str, str]], *, low: str, high: str, neither: str,

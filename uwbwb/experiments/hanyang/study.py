@@ -57,21 +57,19 @@ from ...scoreboard.estimators import EKF_GRIDS, RangeEkfEstimator, default_estim
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S
 from ...scoreboard.protocol import between
 from ...types import Recording
-from .pairs import _external, ablation, held_errors, offset_ratio, pair_errors
+from .pairs import _external, ablation, held_errors, pair_errors
 from .authors import AuthorsEstimator, AuthorsFrontEndLs, authors_window, reproduce_authors
 from .estimators import PrunedNls, StaticModelLs, StaticRangeModel, static_range_model
 
 
-__all__ = ["CaseComparison", "DECLARED_METHOD", "FAST_SPAN_S", "OFFSET_CHECK_S", "board_epochs", "case_board",
-           "compare_cases", "declared_method", "declared_method_table", "load_pair", "pick_on_tuning_case", "ratio_table", "static_model_effect", "tuning_case"]
+__all__ = ["CaseComparison", "DECLARED_METHOD", "FAST_SPAN_S", "board_epochs", "case_board", "compare_cases",
+           "declared_method", "declared_method_table", "load_pair", "pick_on_tuning_case", "ratio_table",
+           "static_model_effect", "tuning_case"]
 
 PathLike = str | os.PathLike
 
 #: FAST mode scores this many seconds of the window (and tunes on as many of the other case).
 FAST_SPAN_S = 30.0
-#: Changes of the reference's clock offset under which the ratio ours / theirs is recomputed, seconds (the
-#: loader's registration and the board's own clock check differ by about this much on the real cases).
-OFFSET_CHECK_S = (-0.1, 0.1)
 
 
 # --------------------------------------------------------------------------------------------
@@ -236,7 +234,6 @@ def ratio_table(boards: Mapping[str, Board], reproduction: pd.DataFrame, *, pick
     theirs, each over the scoring epochs). Columns ``held_*``: the same on *every* epoch the authors'
     LS covered, ours holding its last position where it has none (full-coverage variant). Columns
     ``nolat_*`` (when the board has it): against the authors' LS with its latency removed (sensitivity).
-    ``ratio_dt±0.1s``: the ratio with the reference's clock offset changed by ±0.1 s (:func:`offset_ratio`).
 
     Two picks: ``best`` marks the lowest ratio on the scored case itself (optimistic: made after seeing
     the scores); ``chosen`` marks ``picks[case]`` (:func:`pick_on_tuning_case`: made on the tuning case
@@ -257,8 +254,6 @@ def ratio_table(boards: Mapping[str, Board], reproduction: pd.DataFrame, *, pick
             nolat = [n for n in (e.method for e in board.ran("tag")) if n.startswith("authors LS, latency removed")]
             if nolat:
                 row.update(_ratio_cols("nolat_", pair_errors(board, m, nolat[0]), case, m, seed))
-            for d in OFFSET_CHECK_S:
-                row[f"ratio_dt{d:+.1f}s"] = offset_ratio(board, m, THEIRS, d)
             h = held_errors(board, m, THEIRS)
             row.update(_ratio_cols("held_", h, case, m, seed))
             row["held_n_filled"] = h["n_held"] if h is not None else 0
