@@ -238,7 +238,8 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     assert sec.absent is None and list(sec.boards) == [cases[0].name]           # FAST: one case
     assert sec.facts["reproduction"]["agree"] and "agree" in set(sec.tables["verdicts"]["verdict"])
     label = f"hanyang-outdoor-uwb/{cases[0].name}"
-    assert {r["data"] for r in summary.frame().to_dict("records")} == {label, label + facts.EXTERNAL}
+    assert {r["data"] for r in summary.frame().to_dict("records")} == {label, label + facts.EXTERNAL,
+                                                                       "hanyang-outdoor-uwb/1 cases"}
     kinds = dict(zip(summary.frame()["quantity"], summary.frame()["kind"]))
     assert kinds["authors LS RMSE_2d, published"] == "input"
     # numbers of the authors' estimates are never "reproduced", and their data label says external
@@ -247,12 +248,17 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     assert kinds["authors LS RMSE_2d, recomputed (their definition)"] == "input"
     assert kinds["RMSE_2d ratio ours (best on the scored case) / authors LS"] == "reproduced"
     assert kinds["RMSE_2d ratio ours (picked on the tuning case) / authors LS"] == "reproduced"
+    for theirs in ("authors LS", "authors ESKF"):      # the method declared before scoring, per case and mean
+        assert kinds[f"RMSE_2d ratio ours (declared before scoring: EKF-RF ranges) / {theirs}"] == "reproduced"
+        assert kinds[f"RMSE_2d ratio ours (declared before scoring: EKF-RF ranges) / {theirs}, mean over the cases "
+                     f"scored"] == "reproduced"
+    assert list(sec.tables["declared"]["reference"]) == list(study.AUTHORS_ROWS) * 2
     methods = set(sec.tables["ratios"]["method"])
     assert "raw LS, authors' front end (jump gate + hold)" in methods
     assert not any("external" in m for m in methods)
     assert any(m.startswith("authors LS, latency removed") for m in sec.boards[cases[0].name].methods)
     assert np.isfinite(sec.tables["ratios"]["nolat_ratio"]).all()
-    assert {"ratio_dt-0.1s", "nolat_ratio"} <= set(sec.tables["ratios"].columns)
+    assert "nolat_ratio" in sec.tables["ratios"].columns
     assert len(sec.tables["static_models"]) >= 1 and len(sec.tables["verdicts"]) >= 3
     assert sec.facts["tuning"][cases[0].name] != cases[0].name
     # the boards carry the common bound of every board of notebook 06 (one per recording, fitted on the tuning
@@ -350,27 +356,6 @@ def test_ratio_is_on_the_pairs_epochs_whatever_else_is_on_the_board():
     assert with_c.loc["C", "held_n"] == n and with_c.loc["C", "held_n_filled"] == 200
     assert with_c.loc["C", "held_ratio"] == pytest.approx(0.5)
     assert with_c["best"].sum() == 1 and with_c.loc["C", "best"]
-    # with no clock change the offset check gives the plain ratio
-    assert pairs.offset_ratio(_fake_board("d/X", errs, has), "A", "authors LS (external)", 0.0) == pytest.approx(
-        np.sqrt(5.0) / 2.0)
-
-
-def test_offset_ratio_moves_the_truth_clock():
-    from types import SimpleNamespace
-
-    from uwbwb.scoreboard.board import Entry
-
-    n = 200
-    t = 0.1 * np.arange(n)
-    truth = np.column_stack([t, np.zeros(n)])                              # 1 m/s along x
-    st = np.full(n, int(EstimateStatus.UPDATED), np.int8)
-    late = Estimates(t, np.column_stack([t - 0.2, np.zeros(n)]), st, "late")    # 0.2 s behind the truth
-    exact = Estimates(t, truth.copy() + [0.0, 0.1], st, "exact")
-    board = SimpleNamespace(ran=lambda tag=None: [Entry("late", "tag", late, None, truth),
-                                                  Entry("exact", "tag", exact, None, truth)])
-    # truth'(t) = truth(t − 0.2) matches "late": its error vanishes (ratio → 0); without the change it is 0.2/0.1
-    assert pairs.offset_ratio(board, "late", "exact", 0.0) == pytest.approx(2.0)
-    assert pairs.offset_ratio(board, "late", "exact", 0.2) < 0.05
 
 
 def test_the_fair_pick_is_made_on_the_tuning_case_alone(tree, tmp_path):
@@ -409,3 +394,38 @@ def test_the_fair_pick_is_made_on_the_tuning_case_alone(tree, tmp_path):
     # the truth did change: the scores on the scored case differ
     r0, r1 = (b.table().set_index("method").loc["raw LS", "rmse_m"] for b in (b0, b1))
     assert r0 != pytest.approx(r1, abs=1e-6)
+
+
+def test_the_declared_method_is_written_down_before_scoring():
+    """The rule itself: the board's range EKF-RF with its χ² gate, the board's grid (FAST: every other value)."""
+    from uwbwb.scoreboard.estimators import EKF_GRIDS, RangeEkfEstimator
+
+    assert study.DECLARED_METHOD == RangeEkfEstimator("RF", update="gate")
+    assert study.declared_method(fast=False) is study.DECLARED_METHOD
+    assert study.declared_method(fast=True).grid == tuple(EKF_GRIDS["RF"][::2])
+    assert study.AUTHORS_ROWS == ("authors LS (external)", "authors ESKF (external, +IMU)")
+
+
+def test_declared_method_table_per_case_and_reference_with_its_verdict_rule_and_mean(tree):
+    """Two rows per case (against the authors' LS and ESKF), each verdict the rule applied to its own interval; then
+    one mean row per reference whose ratio is the mean of the cases' and whose verdict counts theirs. A case folder
+    (not a name) runs with its tuning case given."""
+    data, cases = tree
+    names = [c.name for c in cases[:2]]
+    table = study.declared_method_table(names, data, fast=True, seed=0)
+    per = table[~table["case"].str.startswith("mean")]
+    assert list(per["case"]) == [n for n in names for _ in range(2)]
+    assert list(per["reference"]) == list(study.AUTHORS_ROWS) * 2 and (per["method"] == "EKF-RF ranges").all()
+    for r in per.itertuples():
+        assert r.verdict == facts.pair_verdict(r.ratio_lo, r.ratio_hi, r.n_blocks, "better", "worse", "not significant")
+        assert r.ratio == pytest.approx(r.rmse_2d_m / r.reference_rmse_2d_m)
+        assert 0 < r.coverage <= 1 and 0 < r.reference_coverage <= 1
+    mean = table[table["case"] == "mean over 2 cases"].set_index("reference")
+    for ref in study.AUTHORS_ROWS:
+        g = per[per["reference"] == ref]
+        assert mean.loc[ref, "ratio"] == pytest.approx(g["ratio"].mean())
+        n_better = int((g["verdict"] == "better").sum())
+        assert mean.loc[ref, "verdict"].startswith(f"better {n_better}, worse {int((g['verdict'] == 'worse').sum())}")
+    folder = study.declared_method_table([str(cases[0].folder)], data, tuning={str(cases[0].folder): names[1]},
+                                         fast=True, seed=0)
+    np.testing.assert_allclose(folder["ratio"].iloc[:2], per["ratio"].iloc[:2])

@@ -65,7 +65,9 @@ def test_the_score_command_on_a_generated_hanyang_case(tmp_path, capsys):
     out = tmp_path / "out"
     rc = cli.main(["score", str(cases[0].folder), "--out", str(out), "--fast", "--quiet",
                    "--methods", "raw LS", "TDoA LS", "EKF-RF", "EKF-RF ranges"])
-    assert rc == 0, capsys.readouterr().err
+    printed = capsys.readouterr()
+    assert rc == 0, printed.err
+    assert ": 2-D," in printed.out          # a ground robot: 2-D at the tag height, as notebook 06's Hanyang boards
     table = pd.read_csv(out / "scoreboard.csv").set_index("method")
     assert list(table.index) == ["raw LS", "TDoA LS", "EKF-RF", "EKF-RF ranges", *AUTHORS]
     assert table.loc["EKF-RF ranges", "coverage"] > 0.9
@@ -83,7 +85,9 @@ def test_the_score_command_on_a_real_hanyang_case(tmp_path, capsys):
     case = hanyang_dynamic.dynamic_cases(root.parent)[0]
     out = tmp_path / "out"
     rc = cli.main(["score", str(root / "Dynamic_measurements" / case), "--out", str(out), "--fast", "--quiet"])
-    assert rc == 0, capsys.readouterr().err
+    printed = capsys.readouterr()
+    assert rc == 0, printed.err
+    assert ": 2-D," in printed.out          # the reference's z wanders, yet the ground robot's board is 2-D (as in 06)
     table = pd.read_csv(out / "scoreboard.csv").set_index("method")
     assert set(AUTHORS + RANGE_EKFS + TDOA) <= set(table.index)
     assert (table.loc[list(AUTHORS), "kind"] == "input").all() and (table.loc[list(AUTHORS), "coverage"] > 0.5).all()
@@ -92,3 +96,18 @@ def test_the_score_command_on_a_real_hanyang_case(tmp_path, capsys):
     assert table.loc[["loose", "tight"], "note"].str.startswith("not run: needs an IMU").all()
     # the range EKFs are the board's working filters here: each within a factor 2 of the authors' LS
     assert (table.loc[list(RANGE_EKFS), "rmse_m"] < 2 * table.loc["authors LS (external)", "rmse_m"]).all()
+
+
+def test_a_recording_that_declares_its_dimension_gets_it():
+    """A truth whose height wanders by 0.5 m is 3-D by the planar rule, 2-D where the loader declares a ground robot
+    (``meta["board_dim"]``, as the Hanyang loader does)."""
+    from dataclasses import replace
+
+    from uwbwb.scoreboard.protocol import fit_calibration
+
+    rec = syn.simulate(syn.SyntheticConfig(duration_s=10.0), rng=np.random.default_rng(1))
+    tr = rec.truth["tag"]
+    wavy = replace(tr, pos_m=tr.pos_m + np.c_[0 * tr.pos_m[:, :2], 0.25 * np.sin(tr.t_s)])
+    rec = replace(rec, truth={"tag": wavy})
+    assert fit_calibration(rec).dim == 3
+    assert fit_calibration(replace(rec, meta={**rec.meta, "board_dim": 2})).dim == 2

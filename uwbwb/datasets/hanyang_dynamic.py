@@ -443,7 +443,8 @@ def load_dynamic_case(case: PathLike, data_dir: PathLike | None = None, *, tag_h
         the first range stamp. ``meta``: ``t0_unix_ns``, ``source``, ``condition``,
         ``trajectory``, ``case``, ``epochs`` (grouping info), ``rssi_dbm`` and
         ``rssi_fp_dbm`` (``(T, n_anchors)`` like the ranges), ``receive_lag_s``
-        (median ``%time − field.stamp``), ``heading_deg`` (of the reference), and when
+        (median ``%time − field.stamp``), ``heading_deg`` (of the reference), ``board_dim`` (2: a
+        ground robot; :func:`uwbwb.scoreboard.protocol.fit_calibration` reads it), and when
         registered ``registration`` (:class:`~uwbwb.datasets.registration.Registration`),
         ``reference_time_offset_s`` (``Δt``, ``t_ranges = t_ref + Δt``),
         ``tag_height_fit_m`` (this case's ``T_z``), ``tag_height_m`` and
@@ -494,7 +495,10 @@ def load_dynamic_case(case: PathLike, data_dir: PathLike | None = None, *, tag_h
                                                "trajectory": str(traj_path)},
                   **_case_fields(name), "epochs": info, "rssi_dbm": rssi, "rssi_fp_dbm": rssi_fp,
                   "receive_lag_s": float(np.median(np.concatenate([f.receive_lag_ns for f in anchors_read]))) / 1e9,
-                  "heading_deg": heading, "registered": bool(register)}
+                  "heading_deg": heading, "registered": bool(register),
+                  # a ground robot: every board solves in 2-D at the tag height (the GNSS reference's z wanders by
+                  # more than the planar threshold of uwbwb.scoreboard.protocol, which would make the board 3-D)
+                  "board_dim": 2}
     if register:
         try:
             reg = register_truth(ranges, anchors, ref, fit_range_bias=True, max_offset_s=MAX_OFFSET_S)

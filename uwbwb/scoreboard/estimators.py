@@ -38,7 +38,7 @@ from .. import bounds, geometry
 from ..filters import alignment, imu_calibration
 from ..filters.ekf import Ekf, TdoaEkf
 from ..filters.ekf.ranges import RangeMeasurement
-from ..filters.gating import AnchorDropping, gate_from_prob
+from ..filters.gating import AnchorDropping, NoGate, Robust, gate_from_prob
 from ..filters.kalman import Gaussian
 from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import RandomForce, make_motion_model
@@ -49,7 +49,7 @@ from .protocol import Calibration
 from .setnoise_nls import NLS_WINDOWS_S, SetNoiseFilter, WindowNls
 
 __all__ = ["RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "RangeEkfEstimator", "UwbInsFilter", "ExternalEstimates", "INS_GRID", "INS_GRID_FAST",
-           "default_estimators"]
+           "UPDATES", "default_estimators", "update_variants"]
 
 # ----------------------------------------------------------------------------- snapshot methods
 
@@ -116,6 +116,12 @@ class TdoaLs(BaseEstimator):
 
 #: Driving-noise grids searched on the calibration part (model units: m/s, m/s², m/s³).
 EKF_GRIDS = {"RW": np.geomspace(0.05, 5.0, 9), "RF": np.geomspace(0.05, 20.0, 9), "RJ": np.geomspace(0.05, 100.0, 9)}
+#: The measurement updates an EKF of the board can run (its ``update`` field), each with the suffix its row name
+#: gets: ``"gate"`` the filter's χ² gate (the default, no suffix: anchor dropping at ``gate_prob``), ``"none"`` every
+#: measurement used, ``"robust"`` / ``"cauchy"`` the M-estimation update (:class:`~uwbwb.filters.gating.Robust`,
+#: Huber / Cauchy weights at their declared constants) of every measurement, ``"both"`` the χ² gate first, then the
+#: Huber update of the rows it keeps.
+UPDATES = {"gate": "", "none": "no gate", "robust": "Huber", "cauchy": "Cauchy", "both": "gate + Huber"}
 
 
 @dataclass(frozen=True)
@@ -125,14 +131,29 @@ class _MotionEkf(BaseEstimator):
     minimising the mean RMSE, or the mean CEP95 with ``criterion="cep95"``, notebook 03's thesis Table 1
     procedure; both means and each tag's scores are kept at every grid value), and a bound that is the
     posterior CRLB with the same motion model (tuned driving noise), the information of the filter's
-    measurements at every epoch and its initial covariance as prior, from the filter's first epoch. A subclass
-    gives the filter (:meth:`_filter`), its run (:meth:`_run`), its initial covariance (:meth:`_prior`) and the
-    information (:meth:`_information`)."""
+    measurements at every epoch and its initial covariance as prior, from the filter's first epoch. ``update``
+    picks the measurement update (:data:`UPDATES`; a variant's row name carries its suffix, the default
+    ``"gate"`` none), so an ablation row is one argument. A subclass gives the filter (:meth:`_filter`), its run
+    (:meth:`_run`), its initial covariance (:meth:`_prior`) and the information (:meth:`_information`)."""
 
     model: str = "RF"
     gate_prob: float | None = 0.9999
     grid: tuple[float, ...] | None = None
     criterion: str = "rmse"
+    update: str = "gate"
+
+    def __post_init__(self):
+        if self.update not in UPDATES:
+            raise ValueError(f"{type(self).__name__}.update must be one of {sorted(UPDATES)}, got {self.update!r}")
+
+    @property
+    def _suffix(self) -> str:
+        return f" ({UPDATES[self.update]})" if UPDATES[self.update] else ""
+
+    def _policy(self, gate):
+        """The update policy :data:`UPDATES` names, from the filter's χ² ``gate``."""
+        return {"gate": gate, "none": NoGate(gate.max_gated), "robust": Robust(), "cauchy": Robust("cauchy"),
+                "both": Robust(gate=gate)}[self.update]
 
     def _motion(self, cal: Calibration, sigma_w: float):
         return make_motion_model(self.model, sigma=sigma_w, dt_s=1.0 / cal.rate_hz, dim=cal.dim)
@@ -178,7 +199,7 @@ class TdoaEkfEstimator(_MotionEkf):
 
     @property
     def name(self) -> str:
-        return f"EKF-{self.model}"
+        return f"EKF-{self.model}{self._suffix}"
 
     @property
     def _bound_kind(self) -> str:
@@ -188,8 +209,9 @@ class TdoaEkfEstimator(_MotionEkf):
         return tdoa_geometry_note(cal, tag)
 
     def _filter(self, rec, tag, cal, sigma_w) -> TdoaEkf:
-        return TdoaEkf(self._motion(cal, sigma_w), _tdoa_model(rec, tag, cal, self.correlated),
-                       gate_prob=self.gate_prob)
+        motion, model = self._motion(cal, sigma_w), _tdoa_model(rec, tag, cal, self.correlated)
+        ekf = TdoaEkf(motion, model, gate_prob=self.gate_prob)
+        return ekf if self.update == "gate" else TdoaEkf(motion, model, gate=self._policy(ekf.gate))
 
     def _run(self, rec, tag, cal, sigma_w) -> Estimates:
         log = TdoaLog.from_ranges(calibrated_log(rec, tag, cal), self.ref)
@@ -216,7 +238,7 @@ class RangeEkfEstimator(_MotionEkf):
 
     @property
     def name(self) -> str:
-        return f"EKF-{self.model} ranges"
+        return f"EKF-{self.model} ranges{self._suffix}"
 
     @property
     def _bound_kind(self) -> str:
@@ -226,7 +248,7 @@ class RangeEkfEstimator(_MotionEkf):
         motion = self._motion(cal, sigma_w)
         meas = RangeMeasurement(rec.anchors.pos_m, cal.sigma(tag), motion, cal.height(tag))
         gate = gate_from_prob(self.gate_prob, 10, self.name, kind=AnchorDropping, min_rows=2)
-        return Ekf(motion, meas, vel_index=motion.layout.vel_index, gate=gate)
+        return Ekf(motion, meas, vel_index=motion.layout.vel_index, gate=self._policy(gate))
 
     def _run(self, rec, tag, cal, sigma_w) -> Estimates:
         log = calibrated_log(rec, tag, cal)
@@ -496,3 +518,11 @@ def default_estimators(*, fast: bool = False, seed: int = 0, ins_kinds: tuple[st
             SetNoiseFilter("KF", seed=seed), SetNoiseFilter("PF", n_particles=200 if fast else 1000, seed=seed),
             WindowNls(windows_s=NLS_WINDOWS_S[1:] if fast else NLS_WINDOWS_S),
             *(UwbInsFilter(kind, ins_cache, ins_grid, ins_settings) for kind in ins_kinds)]
+
+
+def update_variants(model: str = "RF", *, fast: bool = False) -> list[RangeEkfEstimator]:
+    """The range EKF with motion model ``model`` once per measurement update of :data:`UPDATES` (the default χ² gate
+    first), each with the board's tuning grid (FAST: every other value, as :func:`default_estimators`): the rows of
+    an update ablation, tuned alike."""
+    grid = tuple(float(g) for g in EKF_GRIDS[model][::2]) if fast else None
+    return [RangeEkfEstimator(model, grid=grid, update=u) for u in UPDATES]

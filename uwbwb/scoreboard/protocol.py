@@ -159,7 +159,8 @@ def fit_calibration(rec: Recording, tags: Sequence[str] | None = None, *, rate_h
     rate_hz
         Rate the methods will run at (default the native rate); ``rec`` is thinned to it first.
     dim
-        Force 2 or 3 (default: from the calibration truth's height spread).
+        Force 2 or 3 (default: ``rec.meta["board_dim"]`` where the loader declares it, e.g. a ground robot's 2-D,
+        else from the calibration truth's height spread).
     floor_m
         Lower limit of the range-noise standard deviation (resolution, unmodelled effects).
     tag_height_m
@@ -184,6 +185,8 @@ def fit_calibration(rec: Recording, tags: Sequence[str] | None = None, *, rate_h
             raise ValueError(f"{rec.label}: truth of tag {t!r} is 2-D; give its mounting height (tag_height_m)")
     if tag_height_m is not None:
         heights.update({t: float(tag_height_m[t]) for t in tags if t in tag_height_m})
+    if dim is None and rec.meta.get("board_dim") in (2, 3):      # a recording that declares its problem's dimension
+        dim = int(rec.meta["board_dim"])
     if dim is None:
         dim = 2 if not spreads or max(spreads) < PLANAR_SPREAD_M else 3
     if dim == 3 and any(sub.truth[t].dim != 3 for t in tags):

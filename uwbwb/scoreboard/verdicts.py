@@ -159,11 +159,14 @@ def pair_rng(seed: int, label: str, a: str, b: str) -> np.random.Generator:
 def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, str]], *,
                      seed: int) -> pd.DataFrame:
     """:func:`difference_facts` of every pair ``(A, B)`` that ran on each board, one row each: recording, A, B,
-    epochs both covered, blocks, both RMSEs, A − B and its 95 % interval (mm), the rule and the verdict. Each
-    row's bootstrap draws from :func:`pair_rng` (``seed``, the recording, A, B)."""
+    each one's coverage (share of the scoring epochs with a position, where the board has it), epochs both covered,
+    blocks, both RMSEs, A − B and its 95 % interval (mm), the rule and the verdict. Each row's bootstrap draws from
+    :func:`pair_rng` (``seed``, the recording, A, B)."""
     rows = []
     for label, board in boards.items():
-        ran = set(board.table().query("n_scored > 0")["method"])
+        tab = board.table().query("n_scored > 0").set_index("method")
+        ran = set(tab.index)
+        cov = tab["coverage"] if "coverage" in tab else pd.Series(np.nan, tab.index)
         for a, b in pairs:
             if a not in ran or b not in ran:
                 continue
@@ -173,7 +176,8 @@ def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, st
                 verdict = "no epochs both covered"
             elif f["n_blocks"] < MIN_BLOCKS:
                 verdict = f"no verdict (fewer than {MIN_BLOCKS} blocks)"
-            rows.append({"recording": label, "A": a, "B": b, "epochs": f["n_epochs"], "blocks": f["n_blocks"],
+            rows.append({"recording": label, "A": a, "B": b, "coverage A": float(cov[a]), "coverage B": float(cov[b]),
+                         "epochs": f["n_epochs"], "blocks": f["n_blocks"],
                          "RMSE A (m)": f["rmse_a_m"], "RMSE B (m)": f["rmse_b_m"], "A − B (mm)": 1000 * f["diff_m"],
                          "95 % low (mm)": 1000 * f["lo_m"], "95 % high (mm)": 1000 * f["hi_m"], "rule": DIFFERENCE_RULE,
                          "verdict": verdict})

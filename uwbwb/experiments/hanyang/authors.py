@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ... import bounds, geometry, metrics
+from ... import geometry, metrics
 from ...datasets import hanyang_dynamic
 from ...errors import DataFormatError, DataNotFoundError
 from ...scoreboard.interface import BaseEstimator, _range_bound
@@ -165,10 +165,6 @@ def reproduce_authors(case: PathLike, data_dir: PathLike | None = None) -> pd.Da
 # 2. estimators of this study
 # --------------------------------------------------------------------------------------------
 
-def _nan_bound(t_s, dim: int, kind: str) -> bounds.Bound:
-    return bounds.Bound(t_s, np.full((len(t_s), dim, dim), np.nan), kind)
-
-
 @dataclass(frozen=True)
 class AuthorsEstimator(BaseEstimator):
     """The dataset authors' own estimates (``LS.csv``, ``ESKF.csv``) as a row of the board, *external*.
@@ -178,7 +174,8 @@ class AuthorsEstimator(BaseEstimator):
     output or across a gap over :data:`AUTHORS_MAX_GAP_S`), on their own stamps (the loader's
     ``authors_lag_s`` is their latency: not corrected) moved by ``shift_s`` (0 by default; a sensitivity
     row sets it to the lag measured on the *tuning* case, which removes their output latency).
-    Their ESKF also used the robot's IMU. No bound (kind ``"none (external)"``).
+    Their ESKF also used the robot's IMU. No bound (the board shows "—"), as
+    :class:`~uwbwb.scoreboard.estimators.ExternalEstimates`.
     """
 
     #: read by the board: rows of outside estimates go to the summary as *input*, not *reproduced*
@@ -211,7 +208,7 @@ class AuthorsEstimator(BaseEstimator):
         return Estimates(t, pos, np.where(ok, _UP, _NONE).astype(np.int8), self.name)
 
     def bound(self, rec, tag, cal, est):
-        return _nan_bound(est.t_s, cal.dim, "none (external)")
+        return None
 
 
 def authors_estimators(rec: Recording) -> list[AuthorsEstimator]:

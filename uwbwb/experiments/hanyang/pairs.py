@@ -1,14 +1,19 @@
 """Ours vs theirs on the Hanyang boards: errors on the epochs a pair of methods both covered, a
-hold-last-position variant and a clock-offset sensitivity. Their intervals are the package's one rule,
+hold-last-position variant. Their intervals are the package's one rule,
 :func:`uwbwb.metrics.block_bootstrap_difference` (its ``ratio_lo`` / ``ratio_hi``).
 """
 
 from __future__ import annotations
 
+import zlib
+from typing import Sequence
+
 import numpy as np
+import pandas as pd
 
 from ... import metrics
 from ...scoreboard import Board
+from . import facts
 
 def _external(name: str) -> bool:
     return "external" in name
@@ -54,24 +59,22 @@ def held_errors(board: Board, method: str, reference: str, tag: str = "tag") -> 
             "n_held": int((keep & ~a.scored).sum())}
 
 
-def offset_ratio(board: Board, method: str, reference: str, delta_s: float, tag: str = "tag") -> float:
-    """RMSE_2d ratio ``method`` / ``reference`` on the epochs both covered, with the reference track's clock
-    offset changed by ``delta_s`` (truth'(t) = truth(t − delta_s), interpolated linearly between the board's
-    epochs; epochs it does not reach are left out). A sensitivity check of the registration."""
-    ran = {e.method: e for e in board.ran(tag)}
-    if method not in ran or reference not in ran:
-        return float("nan")
-    a, b = ran[method], ran[reference]
-    t = a.estimates.t_s
-    have = a.scoring
-    if have.sum() < 2:
-        return float("nan")
-    tq = t - delta_s
-    inside = (tq >= t[have][0]) & (tq <= t[have][-1])
-    truth = np.column_stack([np.interp(tq, t[have], a.truth_pos_m[have, k]) for k in range(2)])
-    both = a.scored & b.scored & inside
-    if not both.any():
-        return float("nan")
-    ea = np.hypot(*(a.estimates.pos_m[both, :2] - truth[both]).T)
-    eb = np.hypot(*(b.estimates.pos_m[both, :2] - truth[both]).T)
-    return metrics.rmse(ea) / metrics.rmse(eb)
+def ablation(board: Board, pairs: Sequence[tuple[str, str]], *, low: str, high: str, neither: str,
+             seed: int = 0) -> pd.DataFrame:
+    """RMSE_2d of ``method`` vs ``reference`` on the epochs both covered (:func:`~.pairs.pair_errors`), both
+    coverages, the ratio, its block-bootstrap interval (:func:`uwbwb.metrics.block_bootstrap_difference`) and the verdict (``low``
+    below 1, ``high`` above, ``neither`` otherwise; none with too few independent blocks)."""
+    rows = []
+    for m, ref in pairs:
+        p = pair_errors(board, m, ref)
+        if p is None or not p["err_m"].size:
+            continue
+        rng = np.random.default_rng([seed, zlib.crc32(f"{board.label}/{m}/{ref}".encode())])
+        iv = metrics.block_bootstrap_difference(p["err_m"], p["err_ref_m"], rng=rng)
+        r_m, r_ref = metrics.rmse(p["err_m"]), metrics.rmse(p["err_ref_m"])
+        rows.append({"method": m, "coverage": p["coverage"], "reference": ref, "reference_coverage": p["coverage_ref"],
+                     "n_common": int(p["err_m"].size), "rmse_2d_m": r_m, "reference_rmse_2d_m": r_ref,
+                     "ratio": r_m / r_ref, "ratio_lo": iv["ratio_lo"], "ratio_hi": iv["ratio_hi"],
+                     "n_blocks": iv["n_blocks"],
+                     "verdict": facts.pair_verdict(iv["ratio_lo"], iv["ratio_hi"], iv["n_blocks"], low, high, neither)})
+    return pd.DataFrame(rows)

@@ -8,7 +8,8 @@ section with ``absent`` set (the notebook prints it); a case *name* that a prese
 not hold is an error.
 
 * :func:`scoreboard_section` (notebook 06): the authors' numbers reproduced, a board per case
-  (their LS/ESKF as external rows), the summary ours / theirs across cases, the static range
+  (their LS/ESKF as external rows), the summary ours / theirs across cases, the method declared before scoring
+  against their LS and ESKF (:func:`~.study.declared_method_table`), the static range
   model's effect, and each board's methods against the common bound and their own bounds
   (:func:`~uwbwb.scoreboard.verdicts.placement_table`, :func:`~uwbwb.scoreboard.verdicts.own_bound_table`);
 * :func:`pruning_section` (notebook 02): NLS with and without the pruning heuristics of paper 001
@@ -20,14 +21,12 @@ not hold is an error.
 from __future__ import annotations
 
 import os
-import zlib
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
 
-from ... import metrics
 from ...datasets import dataset_available, hanyang_dynamic
 from ...errors import DataNotFoundError
 from ...scoreboard import Board
@@ -35,9 +34,9 @@ from ...scoreboard.estimators import RawLs, default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S, WindowNls
 from ...scoreboard.verdicts import own_bound_table, placement_table
 from . import authors, estimators, facts, study
-from .pairs import pair_errors
+from .pairs import ablation
 
-__all__ = ["BOARD_COLUMNS", "Section", "ablation", "board_table", "motion_section", "pruning_section",
+__all__ = ["BOARD_COLUMNS", "Section", "board_table", "motion_section", "pruning_section",
            "scoreboard_section"]
 
 PathLike = str | os.PathLike
@@ -105,27 +104,6 @@ def _cases(data_dir, wanted: Sequence[str] | None) -> tuple[list[str], list[str]
     return available, list(wanted), None
 
 
-def ablation(board: Board, pairs: Sequence[tuple[str, str]], *, low: str, high: str, neither: str,
-             seed: int = 0) -> pd.DataFrame:
-    """RMSE_2d of ``method`` vs ``reference`` on the epochs both covered (:func:`~.pairs.pair_errors`), both
-    coverages, the ratio, its block-bootstrap interval (:func:`uwbwb.metrics.block_bootstrap_difference`) and the verdict (``low``
-    below 1, ``high`` above, ``neither`` otherwise; none with too few independent blocks)."""
-    rows = []
-    for m, ref in pairs:
-        p = pair_errors(board, m, ref)
-        if p is None or not p["err_m"].size:
-            continue
-        rng = np.random.default_rng([seed, zlib.crc32(f"{board.label}/{m}/{ref}".encode())])
-        iv = metrics.block_bootstrap_difference(p["err_m"], p["err_ref_m"], rng=rng)
-        r_m, r_ref = metrics.rmse(p["err_m"]), metrics.rmse(p["err_ref_m"])
-        rows.append({"method": m, "coverage": p["coverage"], "reference": ref, "reference_coverage": p["coverage_ref"],
-                     "n_common": int(p["err_m"].size), "rmse_2d_m": r_m, "reference_rmse_2d_m": r_ref,
-                     "ratio": r_m / r_ref, "ratio_lo": iv["ratio_lo"], "ratio_hi": iv["ratio_hi"],
-                     "n_blocks": iv["n_blocks"],
-                     "verdict": facts.pair_verdict(iv["ratio_lo"], iv["ratio_hi"], iv["n_blocks"], low, high, neither)})
-    return pd.DataFrame(rows)
-
-
 #: The board columns a section shows (:func:`board_table`): errors, the common bound as on every board of notebook
 #: 06 (one per recording, :mod:`uwbwb.scoreboard.reference`) and on the common epochs, the own bound with its
 #: geometry factor and the check at the measured noise, the tuning pick, the time and the note.
@@ -177,7 +155,16 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
     static_f = facts.static_facts(effect)
     rows = _Rows(summary)
     facts.summary_rows(comp, rows)
-    tables = {"reproduction": comp.reproduction, "ratios": comp.ratios, "static_effect": effect,
+    declared = study.declared_method_table(list(comp.boards), data_dir, fast=fast, seed=seed, boards=comp.boards)
+    for r in declared.itertuples(index=False):
+        theirs = r.reference.split(" (")[0]
+        if r.case.startswith("mean over"):
+            rows.add(quantity=f"RMSE_2d ratio ours (declared before scoring: {r.method}) / {theirs}, mean over the "
+                     f"cases scored", value=r.ratio, unit="", data=f"{NAME}/{r.case.split()[-2]} cases", kind="reproduced")
+        else:
+            rows.add(quantity=f"RMSE_2d ratio ours (declared before scoring: {r.method}) / {theirs}", value=r.ratio,
+                     unit="", data=r.data, kind="reproduced")
+    tables = {"reproduction": comp.reproduction, "ratios": comp.ratios, "declared": declared, "static_effect": effect,
               "static_models": pd.Series([m.describe() for m in comp.static_models], name="static range model",
                                          dtype=object).to_frame(),
               "verdicts": facts.verdict_table(repro_f, {"chosen": chosen_f, "best": ratio_f}, static_f),
