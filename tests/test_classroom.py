@@ -295,8 +295,15 @@ def test_a_table_pandas_cut_is_named_and_a_whole_one_is_not():
     research = _code(outputs=[_display(cut)])
     research.metadata["tags"] = ["research"]
     nb = _notebook(_md("front"), _code(outputs=[_display(whole)]), research)
-    assert classroom.cut_tables(nb) == ["cell 2: a table printed cut (1 rows × 30 columns)"]
+    assert classroom.cut_tables(nb) == ["cell 2: a table printed with columns hidden (1 rows × 30 columns)"]
     assert classroom.cut_tables(_notebook(_md("front"), _code(outputs=[_display(whole)]))) == []
+    long = pd.DataFrame({"a": range(200), "b": range(200)})
+    with pd.option_context("display.max_columns", None):
+        rows_cut = {"text/html": long._repr_html_(), "text/plain": repr(long)}
+    assert "200 rows" in rows_cut["text/html"]
+    assert classroom.cut_tables(_notebook(_md("front"), _code(outputs=[_display(rows_cut)]))) == []   # head and tail
+    plain = _notebook(_md("front"), _code(outputs=[_display({"text/plain": cut["text/plain"]})]))
+    assert classroom.cut_tables(plain) == ["cell 1: a table printed with columns hidden (1 rows × 30 columns)"]
 
 
 def test_the_answer_key_fills_each_prediction_and_refuses_a_cell_it_cannot_read():
@@ -307,3 +314,12 @@ def test_the_answer_key_fills_each_prediction_and_refuses_a_cell_it_cannot_read(
     assert nb.cells[1].source.startswith("PREDICTION_1 = None")                 # the student's copy is unchanged
     with pytest.raises(ValueError, match="PREDICTION"):
         classroom.answer_key(_notebook(_code("PREDICTION_1 = 'up'", "prediction")))
+
+
+def test_class_limits_name_an_empty_section_and_a_reference_to_a_research_cell():
+    nb = _notebook(_md("front"), _md("See the protocol. Details: next cell."), _md("protocol", "research"),
+                   _md("## 2 · Real data"), _code("x", "research"), _md("## 3 · Next"), _code("y"))
+    assert classroom.class_limits(nb) == ["cell 1: refers to the next cell, a research cell left out in class",
+                                          "cell 3: section '## 2 · Real data' is empty without its research cells"]
+    ok = _notebook(_md("front"), _md("Details: next cell."), _code("x"), _md("## 2 · Real data"), _code("x"))
+    assert classroom.class_limits(ok) == []

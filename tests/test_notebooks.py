@@ -231,7 +231,8 @@ def test_scoreboard_runs_unchanged_on_another_lias_recording(tmp_path):
     rows = _run_on("06_scoreboard.ipynb", tmp_path, data_dir, LIAS_RECORDING="medium", HANYANG_CASES=[chosen])
     ours = f"hanyang-outdoor-uwb/{chosen}"
     assert {r["data"] for r in rows} == {"synthetic", "lias-planar-uwb/medium", ours,
-                                         f"{ours} (external: authors' estimates)"}
+                                         f"{ours} (external: authors' estimates)",
+                                         "hanyang-outdoor-uwb/1 cases"}          # the declared method's mean row
     assert {r["mode"] for r in rows} == {"FAST"}
     assert {r["kind"] for r in rows if not r["data"].startswith("hanyang")} == {"reproduced"}
     assert {r["kind"] for r in rows if "(external" in r["data"]} == {"input"}

@@ -152,19 +152,23 @@ def _html_rows(html: str) -> int:
 
 
 _CUT_TABLE = re.compile(r"\[?(\d+) rows [x×] (\d+) columns\]?")
+_CUT_HEADER = re.compile(r"<thead>.*?<th>\.\.\.</th>.*?</thead>", flags=re.S)
 
 
 def cut_tables(nb) -> list[str]:
-    """Tables pandas printed cut (its ``N rows × M columns`` footer, written only when it hides rows or
-    columns), one sentence each naming the cell, research cells included: a table a notebook discusses must
-    print whole (``pd.set_option("display.max_columns", None)``) or select the columns it shows."""
+    """Tables pandas printed with columns hidden (the ``...`` column of its header; a long table cut to its head
+    and tail rows is fine), one sentence each naming the cell, research cells included: a table a notebook
+    discusses must show every column (``pd.set_option("display.max_columns", None)``) or select those it shows."""
     problems = []
     for i, k in source_indices(nb).items():
         for out in nb.cells[i].get("outputs", []) if nb.cells[i].cell_type == "code" else ():
             data = out.get("data", {})
-            text = _text(data.get("text/html", "")) or _text(data.get("text/plain", ""))
-            for m in _CUT_TABLE.finditer(text):
-                problems.append(f"cell {k}: a table printed cut ({m.group(1)} rows × {m.group(2)} columns)")
+            html, plain = _text(data.get("text/html", "")), _text(data.get("text/plain", ""))
+            header = plain.strip("\n").splitlines()[0].split() if plain.strip() else []
+            if (html and _CUT_HEADER.search(html)) or (not html and "..." in header):
+                m = _CUT_TABLE.search(html or plain)
+                size = f" ({m.group(1)} rows × {m.group(2)} columns)" if m else ""
+                problems.append(f"cell {k}: a table printed with columns hidden{size}")
     return problems
 
 
@@ -220,6 +224,28 @@ def class_limits(nb) -> list[str]:
                     words += _words("\n".join(lines))
         if words > MAX_OUTPUT_WORDS:
             problems.append(f"cell {k}: {words} words of printed output (limit {MAX_OUTPUT_WORDS})")
+    return problems + _class_gaps(nb)
+
+
+_HEADING = re.compile(r"^\s*#{1,3} ")
+_NEXT_CELL = re.compile(r"\b(next cell|cell below|the cell after)\b", flags=re.I)
+
+
+def _class_gaps(nb) -> list[str]:
+    """What a handout (no ``research`` cells) loses around them: a Markdown cell that sends the reader to the next
+    cell when that cell is a research cell, and a section whose heading cell is followed, once research cells are
+    left out, by the next heading (an empty section)."""
+    cells = [(k, nb.cells[i]) for i, k in source_indices(nb).items()]
+    problems = []
+    for n, (k, cell) in enumerate(cells):
+        if cell.cell_type != "markdown" or RESEARCH_TAG in _tags(cell):
+            continue
+        if _NEXT_CELL.search(cell.source) and n + 1 < len(cells) and RESEARCH_TAG in _tags(cells[n + 1][1]):
+            problems.append(f"cell {k}: refers to the next cell, a research cell left out in class")
+        if _HEADING.match(cell.source) and len(cell.source.strip().splitlines()) == 1:
+            rest = [c for _, c in cells[n + 1:] if RESEARCH_TAG not in _tags(c)]
+            if not rest or (rest[0].cell_type == "markdown" and _HEADING.match(rest[0].source)):
+                problems.append(f"cell {k}: section {cell.source.strip()!r} is empty without its research cells")
     return problems
 
 
