@@ -505,7 +505,7 @@ def default_estimators(*, fast: bool = False, seed: int = 0, ins_kinds: tuple[st
     ``"tight (ranges)"`` and ``"INS-only"``), all with ``ins_settings``; they share one IMU calibration.
 
     ``fast`` shrinks what costs time (particles, tuning grids) for CI-sized runs: every other value
-    of each tuning grid (the EKFs' σ_w, on TDoAs and on ranges: 5 of 9; the UWB/INS (q, r) pairs: :data:`INS_GRID_FAST`, 4 of 16); the NLS windows: 2 of 3 (1 and
+    of each tuning grid (the EKFs' σ_w, on TDoAs and on ranges: 5 of 9; the UWB/INS (q, r) pairs: :data:`INS_GRID_FAST`, 4 of 30); the NLS windows: 2 of 3 (1 and
     2 s: a 0.5 s window holds too few epochs at the low rates FAST runs use); the set-noise KF's σ_d grid
     is searched in full.
     """
