@@ -151,6 +151,15 @@ def test_study(office_runs):
     assert study.nis().index.names == ["run/tag", "model"] and len(study.nis()) == 6
     with pytest.raises(KeyError, match="no test result"):
         study.result_for("office", "tag9")
+    pairs = study.model_pairs(rng=np.random.default_rng(0))
+    assert [(r.A, r.B) for r in pairs.itertuples()] == [("EKF-RW", "EKF-RF"), ("EKF-RW", "EKF-RJ"), ("EKF-RF", "EKF-RJ")]
+    errs = [res.common_errors() for res in study.results]
+    rw_rf = np.median(np.concatenate([e["EKF-RW"] for e in errs])) - np.median(np.concatenate([e["EKF-RF"] for e in errs]))
+    assert pairs.loc[0, "median A − B (m)"] == pytest.approx(rw_rf)
+    for _, r in pairs.iterrows():                                       # the verdict follows the interval's side
+        side = metrics.interval_side(r["lo (m)"], r["hi (m)"])
+        assert r.verdict == {"below": f"{r.A} lower", "above": f"{r.B} lower", "contains": "not significant",
+                             "none": "no interval (too few blocks)"}[side]
     with pytest.raises(ValueError, match="no calibration run"):
         mm.run_study(cal[:1], test, grids=grids, gate_prob=None, progress=False)
     with pytest.raises(ValueError, match="one per tag"):

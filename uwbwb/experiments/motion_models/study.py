@@ -39,7 +39,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ... import parallel
+from ... import metrics, parallel
 from ...calibration import empirical_tdoa_covariance, fit_range_sigma
 from ...models.motion import MOTION_MODELS
 from ...models.tdoa import TdoaModel
@@ -204,6 +204,11 @@ def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: fl
     return TagResults(run, Board(run.data, run.key, cal, entries, tuple(ests)), gate_prob)
 
 
+#: A pair's verdict from the side of 0 its interval lies on.
+_PAIR_VERDICT = {"below": "{a} lower", "above": "{b} lower", "contains": "not significant",
+                 "none": "no interval (too few blocks)"}
+
+
 @dataclass(frozen=True)
 class Study:
     """Calibrate on some runs, test on others.
@@ -250,6 +255,23 @@ class Study:
     def nis(self, prob: float = 0.95) -> pd.DataFrame:
         """NIS verdict per test run and EKF (:func:`nis_table`)."""
         return nis_table(self.results, prob)
+
+    def model_pairs(self, *, rng: np.random.Generator, models: Sequence[str] = MODELS) -> pd.DataFrame:
+        """Each pair of motion models ``(A, B)`` over the test runs together: ``median(A) − median(B)`` of the
+        horizontal errors on each run's common epochs, its 95 % block-bootstrap interval (the package's one rule,
+        :func:`uwbwb.metrics.block_bootstrap_difference`, ``statistic="median"``, one series per test run) and the
+        verdict from its side of 0 (:func:`uwbwb.metrics.interval_side`): the interval a count of "best in" lacks."""
+        errs = [res.common_errors() for res in self.results]
+        names = [ekf_name(m) for m in models]
+        rows = []
+        for i, a in enumerate(names):
+            for b in names[i + 1:]:
+                d = metrics.block_bootstrap_difference([e[a] for e in errs], [e[b] for e in errs], rng=rng,
+                                                       statistic="median")
+                side = metrics.interval_side(d["lo_m"], d["hi_m"])
+                rows.append({"A": a, "B": b, "median A − B (m)": d["diff_m"], "lo (m)": d["lo_m"], "hi (m)": d["hi_m"],
+                             "blocks": d["n_blocks"], "verdict": _PAIR_VERDICT[side].format(a=a, b=b)})
+        return pd.DataFrame(rows)
 
     def result_for(self, name: str, tag: str) -> TagResults:
         """The test result of run ``name`` and ``tag``."""
