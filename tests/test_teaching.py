@@ -7,6 +7,7 @@ followed by a check cell. Every acronym in any notebook's Markdown must have a g
 
 from __future__ import annotations
 
+import ast
 import re
 from pathlib import Path
 
@@ -186,6 +187,25 @@ def test_taught_notebook_has_checked_exercises(stem):
 
 
 @pytest.mark.parametrize("stem", TAUGHT)
+def test_class_mode_leaves_no_pointer_to_a_hidden_cell_and_no_empty_section(stem):
+    # research cells are folded in a student copy and dropped from the handout: a visible cell may not send the
+    # reader to one ("Details: next cell"), and a visible heading may not head nothing but research cells
+    cells = nbformat.read(NOTEBOOK_DIR / f"{stem}.ipynb", as_version=4).cells
+    hidden = ["research" in c.metadata.get("tags", []) for c in cells]
+    for i, c in enumerate(cells[:-1]):
+        if c.cell_type == "markdown" and not hidden[i] and hidden[i + 1]:
+            assert not re.search(r"next cell|cell below|Details:", c.source), \
+                f"{stem}: cell {i} points at the next cell, which class mode hides"
+    visible = [c for c, h in zip(cells, hidden) if not h]
+    for c, nxt in zip(visible, visible[1:] + [None]):
+        head = re.match(r"(#+)\s", c.source) if c.cell_type == "markdown" else None
+        if head and "\n" not in c.source.strip():                      # a heading alone in its cell
+            nxt_head = re.match(r"(#+)\s", nxt.source) if nxt is not None and nxt.cell_type == "markdown" else None
+            assert nxt is not None and not (nxt_head and len(nxt_head.group(1)) <= len(head.group(1))), \
+                f"{stem}: section {c.source.strip()!r} holds only research cells: empty in class mode"
+
+
+@pytest.mark.parametrize("stem", TAUGHT)
 def test_taught_notebook_panels_say_what_to_see(stem):
     cells = nbformat.read(NOTEBOOK_DIR / f"{stem}.ipynb", as_version=4).cells
     for i, c in enumerate(cells):
@@ -222,6 +242,19 @@ def assert_reads_predictions(check):
     assert check.against(None).right is None and "Numbers:" in check.against(None, reveal=True)._repr_markdown_()
     with pytest.raises(ValueError, match="PREDICTION"):
         check.against("perhaps")
+
+
+def test_every_exercise_function_is_read_against_predictions_in_a_test():
+    # each function of the package that returns an ExerciseCheck is called in a test module that feeds its checks
+    # a right, a wrong and no prediction (assert_reads_predictions)
+    defined = [(path.parent.name, node.name) for path in sorted((ROOT / "uwbwb").rglob("exercises.py"))
+               for node in ast.parse(path.read_text()).body
+               if isinstance(node, ast.FunctionDef) and ast.unparse(node.returns or ast.Constant(None)) == "ExerciseCheck"]
+    assert len(defined) >= 14, defined                                   # two per taught notebook
+    tests = [p.read_text() for p in (ROOT / "tests").rglob("test_*.py")]
+    untested = [f"{unit}.{f}" for unit, f in defined
+                if not any("assert_reads_predictions(" in t and re.search(rf"\.{f}\(", t) for t in tests)]
+    assert not untested, f"exercise checks never read against a right and a wrong prediction: {untested}"
 
 
 def test_exercise_check_shows_its_verdict_and_reads_a_prediction():
