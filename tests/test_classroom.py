@@ -306,14 +306,24 @@ def test_a_table_pandas_cut_is_named_and_a_whole_one_is_not():
     assert classroom.cut_tables(plain) == ["cell 1: a table printed with columns hidden (1 rows × 30 columns)"]
 
 
-def test_the_answer_key_fills_each_prediction_and_refuses_a_cell_it_cannot_read():
-    pred = _code('PREDICTION_1 = None  # write "up" or "down"', "prediction")
+def test_the_answer_key_writes_the_claim_and_a_check_that_disagrees_is_named():
+    from uwbwb.widgets import ExerciseCheck
+
+    pred = _code('PREDICTION_1 = None  # write "up" or "not up": the error', "prediction")
     nb = _notebook(_md("front"), pred, _code("check.against(PREDICTION_1, reveal=not CLASS)"))
     key = classroom.answer_key(nb)
-    assert key.cells[1].source == 'PREDICTION_1 = \'answer key\'  # write "up" or "down"'
+    assert key.cells[1].source == 'PREDICTION_1 = "up"  # write "up" or "not up": the error'
     assert nb.cells[1].source.startswith("PREDICTION_1 = None")                 # the student's copy is unchanged
-    with pytest.raises(ValueError, match="PREDICTION"):
-        classroom.answer_key(_notebook(_code("PREDICTION_1 = 'up'", "prediction")))
+    for bad in ("PREDICTION_1 = 'up'", "PREDICTION_1 = None  # up or down"):
+        with pytest.raises(ValueError, match="PREDICTION"):
+            classroom.answer_key(_notebook(_code(bad, "prediction")))
+    # executed: the check's Markdown output says right when the run shows the claim, and not when it does not
+    for holds, expected in ((True, []), (False, ['cell 1: PREDICTION_1 = "up" is not what its check shows'])):
+        shown = ExerciseCheck("error up", holds, {"e (m)": 1.0}, ("up", "not up")).against("up")
+        key.cells[2].outputs = [nbformat.from_dict({"output_type": "execute_result", "execution_count": 1,
+                                                    "metadata": {}, "data": {"text/markdown": shown._repr_markdown_()}})]
+        assert classroom.wrong_predictions(key) == expected
+    assert classroom.wrong_predictions(_notebook(key.cells[1])) == ["cell 0: no check cell reads PREDICTION_1"]
 
 
 def test_class_limits_name_an_empty_section_and_a_reference_to_a_research_cell():

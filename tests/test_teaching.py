@@ -7,6 +7,7 @@ followed by a check cell. Every acronym in any notebook's Markdown must have a g
 
 from __future__ import annotations
 
+import ast
 import re
 from pathlib import Path
 
@@ -175,8 +176,9 @@ def test_taught_notebook_has_checked_exercises(stem):
         pred, nxt = cells[i + 1], cells[i + 2]
         assert pred.cell_type == "code" and "prediction" in pred.metadata.get("tags", []), \
             f"{stem}: exercise in cell {i} is not followed by a cell tagged 'prediction'"
-        assert re.fullmatch(rf"PREDICTION_{k} = None  # write .+", pred.source.strip()), \
-            f"{stem}: cell {i + 1} must be 'PREDICTION_{k} = None  # write <the choices>', got {pred.source!r}"
+        assert re.fullmatch(rf'PREDICTION_{k} = None  # write "[^"]+" or "[^"]+"(: .+)?', pred.source.strip()), \
+            f"{stem}: cell {i + 1} must be 'PREDICTION_{k} = None  # write \"<the claim>\" or \"<its opposite>\": " \
+            f"<what>' (the answer key writes the first), got {pred.source!r}"
         assert nxt.cell_type == "code" and re.search(r"^assert \w+\.holds", nxt.source, flags=re.M), \
             f"{stem}: exercise in cell {i} is not followed by a check cell asserting it"
         assert nxt.source.strip().endswith(f".against(PREDICTION_{k}, reveal=not CLASS)"), \
@@ -206,10 +208,8 @@ def test_what_you_should_see_limits():
 
 
 def assert_reads_predictions(check):
-    """``check`` read against its right answer, its wrong one, none (numbers hidden, unless revealed), the answer
-    key and a prediction that is not a choice. Called on a check from every exercise function of the package."""
-    from uwbwb.widgets import ANSWER_KEY
-
+    """``check`` read against its right answer, its wrong one, none (numbers hidden, unless revealed) and a
+    prediction that is not a choice. Called on a check from every exercise function of the package."""
     right, wrong = check.outcome, next(c for c in check.choices if c != check.outcome)
     assert check.outcome == check.choices[0 if check.holds else 1]
     yes, no = check.against(right), check.against(wrong)
@@ -217,13 +217,25 @@ def assert_reads_predictions(check):
     assert no.right is False and "Not what the run shows" in no._repr_markdown_()
     assert f"the run shows **{right}**" in no._repr_markdown_() and "Numbers:" in no._repr_markdown_()
     hidden = check.against(None)._repr_markdown_()
+    assert repr(check.against(None)) == hidden                      # the notebook's text/plain output: no number
     assert "Write your prediction first" in hidden and "Numbers:" not in hidden and right in hidden and wrong in hidden
     assert not any(name in hidden for name in check.numbers)
     assert check.against(None).right is None and "Numbers:" in check.against(None, reveal=True)._repr_markdown_()
-    key = check.against(ANSWER_KEY)._repr_markdown_()
-    assert key.startswith("**Answer key:**") and f"**{right}**" in key
     with pytest.raises(ValueError, match="PREDICTION"):
         check.against("perhaps")
+
+
+def test_every_exercise_function_is_read_against_predictions_in_a_test():
+    # each function of the package that returns an ExerciseCheck is called in a test module that feeds its checks
+    # a right, a wrong and no prediction (assert_reads_predictions)
+    defined = [(path.parent.name, node.name) for path in sorted((ROOT / "uwbwb").rglob("exercises.py"))
+               for node in ast.parse(path.read_text()).body
+               if isinstance(node, ast.FunctionDef) and ast.unparse(node.returns or ast.Constant(None)) == "ExerciseCheck"]
+    assert len(defined) >= 14, defined                                   # two per taught notebook
+    tests = [p.read_text() for p in (ROOT / "tests").rglob("test_*.py")]
+    untested = [f"{unit}.{f}" for unit, f in defined
+                if not any("assert_reads_predictions(" in t and re.search(rf"\.{f}\(", t) for t in tests)]
+    assert not untested, f"exercise checks never read against a right and a wrong prediction: {untested}"
 
 
 def test_exercise_check_shows_its_verdict_and_reads_a_prediction():
@@ -240,6 +252,6 @@ def test_exercise_check_shows_its_verdict_and_reads_a_prediction():
         assert_reads_predictions(check)
     with pytest.raises(TypeError):
         no.numbers["A (cm)"] = 3.0                                   # frozen numbers
-    for bad in (("above",), ("x", "x"), ("answer key", "no")):
+    for bad in (("above",), ("x", "x")):
         with pytest.raises(ValueError, match="choices"):
             ExerciseCheck("A above B", True, {}, bad)

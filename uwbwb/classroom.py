@@ -12,8 +12,9 @@
   ``make lab LAB_DIR=class/student``; the package finds the datasets wherever the notebook runs from
   (:mod:`uwbwb.datasets.discovery` searches relative to the package, not the working directory).
 * ``class/answers/`` — what the lecturer keeps: each student notebook executed *as handed out*
-  (a Run All in ``class/student/``, no injected parameters) except that its coding exercise is answered
-  (:func:`answer_key`), its HTML handout, ``TEACHING.md`` (from the folder above the notebooks) and the
+  (a Run All in ``class/student/``, no injected parameters) except that its coding exercise is answered and
+  each prediction written (:func:`answer_key`; a check that then does not say "right" fails the notebook:
+  :func:`wrong_predictions`), its HTML handout, ``TEACHING.md`` (from the folder above the notebooks) and the
   glossary as ``GLOSSARY.md`` and ``GLOSSARY.html``.
 
 A handout (:func:`handout_html`) is the executed notebook without its ``research`` cells, readable
@@ -74,7 +75,6 @@ from pathlib import Path
 
 from . import reproduce
 from .coding import EXERCISE_TAG, answer_cell
-from .widgets import ANSWER_KEY
 
 __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "MATH_SCALE", "MAX_CODE_LINES",
            "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS", "MAX_OUTPUT_WORDS", "MAX_TABLE_ROWS", "RESEARCH_TAG",
@@ -83,7 +83,7 @@ __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "M
            "image_count", "install_figure_recorder", "main", "markdown_page_html", "math_svg", "mathtext_source",
            "notebook_links", "record_figure", "relative_links", "relink_notebook", "run_class", "set_parameters",
            "source_indices", "static_panels", "static_widget_html", "student_notebook", "unresolved_links",
-           "write_student_folder"]
+           "write_student_folder", "wrong_predictions"]
 
 #: Tag of the research-bookkeeping cells: folded in class notebooks, dropped from handouts.
 RESEARCH_TAG = "research"
@@ -530,24 +530,46 @@ def student_notebook(nb, values: Mapping[str, object]):
     return fold_research(nb)
 
 
-#: Tag of the cell where a student writes an exercise's prediction (``PREDICTION_1 = None  # ...``).
+#: Tag of the cell where a student writes an exercise's prediction (``PREDICTION_1 = None  # write "a" or "b": ...``).
 PREDICTION_TAG = "prediction"
-_PREDICTION = re.compile(r"^(PREDICTION_\w+\s*=\s*)None\b", flags=re.M)
+#: The student's line: its first quoted choice is the claim the notebook asserts, so the answer key writes it.
+_PREDICTION = re.compile(r'^(PREDICTION_\w+)(\s*=\s*)None(\s*#\s*write\s+("[^"\n]+")\s+or\s+"[^"\n]+")', flags=re.M)
+_PREDICTION_NAME = re.compile(r"^(PREDICTION_\w+)\s*=\s*(.+?)\s*(#|$)", flags=re.M)
 
 
 def answer_key(nb):
     """``nb`` with the stub of each coding exercise (cells tagged :data:`uwbwb.coding.EXERCISE_TAG`) replaced by
-    its answer (:func:`uwbwb.coding.answer_cell`), and each prediction (cells tagged :data:`PREDICTION_TAG`) set
-    to :data:`uwbwb.widgets.ANSWER_KEY`, so that its check shows the run's answer; ``nb`` itself is not changed."""
+    its answer (:func:`uwbwb.coding.answer_cell`), and each prediction (cells tagged :data:`PREDICTION_TAG`,
+    ``PREDICTION_k = None  # write "claim" or "its opposite": ...``) set to its first choice, the claim that the
+    check cell asserts; ``nb`` itself is not changed."""
     nb = copy.deepcopy(nb)
     for cell in nb.cells:
         if cell.cell_type == "code" and EXERCISE_TAG in _tags(cell):
             cell.source = answer_cell(cell.source)
         elif cell.cell_type == "code" and PREDICTION_TAG in _tags(cell):
-            cell.source, n = _PREDICTION.subn(rf"\g<1>{ANSWER_KEY!r}", cell.source)
+            cell.source, n = _PREDICTION.subn(r"\g<1>\g<2>\g<4>\g<3>", cell.source)
             if n != 1:
-                raise ValueError(f"a cell tagged {PREDICTION_TAG!r} must set one PREDICTION_… = None, got:\n{cell.source}")
+                raise ValueError(f"a cell tagged {PREDICTION_TAG!r} must set one "
+                                 f'PREDICTION_… = None  # write "…" or "…", got:\n{cell.source}')
     return nb
+
+
+def wrong_predictions(nb) -> list[str]:
+    """The predictions of an executed answer key (:func:`answer_key`) whose check cell (the next code cell that
+    reads it) does not say "✔ Right", one sentence each; empty when every check agrees with its answer."""
+    problems = []
+    for i, cell in enumerate(nb.cells):
+        m = _PREDICTION_NAME.match(cell.source) if PREDICTION_TAG in _tags(cell) else None
+        if m is None:
+            continue
+        reads = re.compile(rf"\({m.group(1)}\b")
+        check = next((c for c in nb.cells[i + 1:] if c.cell_type == "code" and reads.search(c.source)), None)
+        shown = "" if check is None else " ".join(_text(o.get("data", {}).get("text/markdown", ""))
+                                                  for o in check.get("outputs", []))
+        if "✔ Right" not in shown:
+            problems.append(f"cell {i}: {m.group(1)} = {m.group(2)} is not what its check shows"
+                            if check is not None else f"cell {i}: no check cell reads {m.group(1)}")
+    return problems
 
 
 # ---------------------------------------------------------------- relative links
@@ -1141,6 +1163,8 @@ def run_class(notebooks: Iterable[Path], out_dir: Path, *, kernel_name: str = re
         if executed.is_file():
             nb = nbformat.read(executed, as_version=4)
             limits = class_limits(nb)
+            wrong = wrong_predictions(nb) if error is None else []
+            error = f"answer key: {'; '.join(wrong)}" if wrong else error
             nbformat.write(fold_research(nb), executed)
             html.write_text(handout_html(nb, name=source.stem, path=answers_dir, link_map=link_map,
                                          tex_left=tex_left), encoding="utf-8")

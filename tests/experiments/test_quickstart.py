@@ -119,6 +119,37 @@ def test_exercise_fewer_anchors(synthetic):
         qs.exercises.fewer_anchors(rec, tag, tag_height_m=z, keep=[0, 1])
 
 
+class _LongDroppedAnchors:
+    """A calibration that leaves the anchors the exercise drops (1, 3, 5, 7) reading 0.5 m long."""
+
+    def apply(self, log):
+        r = np.array(log.range_m)
+        r[:, 1::2] += 0.5
+        return dataclasses.replace(log, range_m=r)
+
+
+def test_exercise_fewer_anchors_can_fail_when_the_dropped_anchors_are_the_bad_ones(synthetic):
+    rec, tag = synthetic.dynamic, synthetic.dynamic.tags[0]
+    z = synthetic.tag_height.per_tag_m[tag]
+    check = qs.exercises.fewer_anchors(rec, tag, tag_height_m=z, calibration=_LongDroppedAnchors())
+    n = check.numbers
+    assert n["HDOP, 4 anchors"] > n["HDOP, all anchors"]                 # the geometry is as weak as before ...
+    assert not check.holds and n["CEP95 4 anchors (m)"] < n["CEP95 all (m)"]      # ... but the biased ranges go
+    assert_reads_predictions(check)
+    assert check.against("higher").right is False and check.against("not higher").right is True
+
+
+def test_exercise_noisier_ranges_can_fail_when_the_noise_added_is_negligible(synthetic):
+    rec, tag = synthetic.dynamic, synthetic.dynamic.tags[0]
+    z = synthetic.tag_height.per_tag_m[tag]
+    checks = [qs.exercises.noisier_ranges(rec, tag, tag_height_m=z, sigma_m=1e-4, rng=np.random.default_rng(s))
+              for s in range(4)]
+    assert {c.holds for c in checks} == {True, False}                     # 0.1 mm: CEP50 moves either way
+    for c in checks:
+        assert c.holds == (c.numbers["CEP50 after (m)"] > c.numbers["CEP50 before (m)"])
+        assert_reads_predictions(c)
+
+
 def test_exercise_noisier_ranges_matches_the_first_order_prediction(synthetic, compared):
     cal = compared[0]
     rec, tag = synthetic.dynamic, synthetic.dynamic.tags[0]

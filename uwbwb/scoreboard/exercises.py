@@ -3,7 +3,8 @@
 Each function runs both settings with the same seeds (the same tracks; the noise drawn from the same
 numbers, scaled) through :func:`.synthetic.monte_carlo` and returns a
 :class:`uwbwb.widgets.ExerciseCheck`: the direction the student predicts, whether this run shows it,
-and the numbers. The answers, with the reasoning, are in ``TEACHING.md``.
+and the numbers. The reasoning is the check's ``why``, shown
+once the student has predicted; ``TEACHING.md`` gives one run's numbers.
 """
 
 from __future__ import annotations

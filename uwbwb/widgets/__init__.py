@@ -52,9 +52,9 @@ Modules: :mod:`.panel` (controls, readouts, :class:`PanelFigure`, :class:`Panel`
 :class:`ExerciseCheck`); every name importable from here.
 """
 
-from .notes import ANSWER_KEY, SEE_MAX_CHARS, ExerciseCheck, PredictionCheck, data_banner, what_you_should_see  # noqa: F401 (SEE_MAX_CHARS: tests)
+from .notes import SEE_MAX_CHARS, ExerciseCheck, PredictionCheck, data_banner, what_you_should_see  # noqa: F401 (SEE_MAX_CHARS: tests)
 from .panel import Panel, PanelFigure, dropdown, float_slider, int_slider, seed_box
 
 
 __all__ = ["Panel", "PanelFigure", "float_slider", "int_slider", "dropdown", "seed_box", "data_banner",
-           "ExerciseCheck", "PredictionCheck", "ANSWER_KEY", "what_you_should_see"]
+           "ExerciseCheck", "PredictionCheck", "what_you_should_see"]

@@ -87,10 +87,6 @@ def what_you_should_see(text: str):
     return Markdown("**What you should see.** " + " ".join(ln.strip() for ln in lines))
 
 
-#: What the answer-key copy of a notebook writes in place of a prediction (``make class``, class/answers).
-ANSWER_KEY = "answer key"
-
-
 @dataclass(frozen=True)
 class ExerciseCheck:
     """What an exercise's run shows, and the student's prediction read against it.
@@ -127,7 +123,7 @@ class ExerciseCheck:
         object.__setattr__(self, "holds", bool(self.holds))
         object.__setattr__(self, "numbers", MappingProxyType(dict(self.numbers)))
         choices = tuple(str(c) for c in self.choices)
-        if len(choices) != 2 or choices[0] == choices[1] or ANSWER_KEY in choices:
+        if len(choices) != 2 or choices[0] == choices[1]:
             raise ValueError(f"choices: two different answers (the claim, its opposite), got {self.choices!r}")
         object.__setattr__(self, "choices", choices)
 
@@ -149,22 +145,23 @@ class ExerciseCheck:
     def against(self, prediction: str | None, *, reveal: bool = False) -> "PredictionCheck":
         """The student's ``prediction`` (one of :attr:`choices`, or None before they write one) read against the
         run. With None the result asks for a prediction and shows no number, unless ``reveal`` (a research run,
-        where nobody predicts); :data:`ANSWER_KEY` shows the run's answer as the answer key.
+        where nobody predicts). The answer key (``make class``) writes the claim, ``choices[0]``, and reads "right".
 
         Raises
         ------
         ValueError
             A prediction that is not one of the choices (the message lists them).
         """
-        if prediction is not None and prediction != ANSWER_KEY and prediction not in self.choices:
+        if prediction is not None and prediction not in self.choices:
             raise ValueError(f"PREDICTION: write one of {list(self.choices)} (as a string), or None; "
                              f"got {prediction!r}")
         return PredictionCheck(self, prediction, bool(reveal))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class PredictionCheck:
-    """A prediction read against an :class:`ExerciseCheck` (:meth:`ExerciseCheck.against`); shown as Markdown."""
+    """A prediction read against an :class:`ExerciseCheck` (:meth:`ExerciseCheck.against`); shown as Markdown,
+    and its ``repr`` (a notebook's text/plain output) is the same text, so no number shows before a prediction."""
 
     check: ExerciseCheck
     prediction: str | None
@@ -172,8 +169,8 @@ class PredictionCheck:
 
     @property
     def right(self) -> bool | None:
-        """Whether the prediction is what the run shows (None: no prediction, or the answer key)."""
-        if self.prediction is None or self.prediction == ANSWER_KEY:
+        """Whether the prediction is what the run shows (None: no prediction)."""
+        if self.prediction is None:
             return None
         return self.prediction == self.check.outcome
 
@@ -185,11 +182,11 @@ class PredictionCheck:
                     "then run this cell again; it says whether the run agrees, why, and shows the numbers.")
         if self.prediction is None:
             head = f"**No prediction written.** The run shows **{c.outcome}**"
-        elif self.prediction == ANSWER_KEY:
-            head = f"**Answer key:** the run shows **{c.outcome}**"
         elif self.right:
             head = f"**✔ Right:** you predicted {self.prediction!r} and the run shows **{c.outcome}**"
         else:
             head = f"**✘ Not what the run shows:** you predicted {self.prediction!r}; the run shows **{c.outcome}**"
         why = f" {c.why}" if c.why else ""
         return f"{head} ({c.claim}: {'holds' if c.holds else 'does not hold'}).{why}\n\nNumbers: {c._numbers()}"
+
+    __repr__ = _repr_markdown_

@@ -1,5 +1,7 @@
 """Notebook 03's exercises, panel back end and headline rows/checks."""
 
+import dataclasses
+
 import matplotlib
 import numpy as np
 import pytest
@@ -43,6 +45,22 @@ def test_reference_anchor_exercise_correlated_sigma_is_invariant(fitted):
         exercises.reference_anchor(run, sigma_m, SIGMAS, refs=(1, 1))
     with pytest.raises(ValueError, match="refs"):
         exercises.reference_anchor(run, sigma_m, SIGMAS, refs=(0, 99))
+
+
+def test_reference_anchor_exercise_fails_on_exact_ranges(fitted):
+    # exact ranges (the truth's distances, the run's gaps kept) and 1 cm of assumed noise: every weighting gives
+    # the true fixes, so the diagonal Σ's CEP95 no longer depends on the reference either
+    run, _ = fitted
+    t = run.ranges.t_s
+    pos = np.stack([np.interp(t, run.truth.t_s, run.truth.pos_m[:, k]) for k in range(3)], axis=1)
+    exact = np.linalg.norm(pos[:, None, :] - run.anchors.pos_m[None], axis=2)
+    exact = np.where(np.isfinite(run.ranges.range_m), exact, np.nan)
+    clean = dataclasses.replace(run, ranges=dataclasses.replace(run.ranges, range_m=exact))
+    check = exercises.reference_anchor(clean, np.full(len(run.anchors.ids), 0.01), SIGMAS, refs=(0, 2), window_s=15.0)
+    n = check.numbers
+    assert not check.holds, check
+    assert n["LS spread, diagonal Σ (cm)"] < 1e-3 and n["EKF-RW spread, diagonal Σ (cm)"] < exercises.REFERENCE_SPREAD_CM
+    assert_reads_predictions(check)
 
 
 def test_overconfident_exercise_raises_cep95_and_nis(fitted):

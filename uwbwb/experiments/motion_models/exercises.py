@@ -2,7 +2,8 @@
 
 Each exercise runs both settings on the same window of the same test run and returns a
 :class:`uwbwb.widgets.ExerciseCheck`: the direction the student is asked to predict, whether this
-run shows it, and the numbers. The answers, with the reasoning, are in ``TEACHING.md``.
+run shows it, and the numbers. The reasoning is the check's ``why``, shown
+once the student has predicted; ``TEACHING.md`` gives one run's numbers.
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 
 Each runs both settings on the same simulated run and returns a
 :class:`uwbwb.widgets.ExerciseCheck` (the direction to predict, whether this run shows it, the
-numbers). The answers, with the reasoning, are in ``TEACHING.md``.
+numbers). The reasoning is the check's ``why``, shown
+once the student has predicted; ``TEACHING.md`` gives one run's numbers.
 """
 
 from __future__ import annotations
