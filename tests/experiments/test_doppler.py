@@ -301,6 +301,8 @@ def test_filter_comparison_verdict_follows_the_interval_of_differences():
     assert _verdict(t, ALL) == "no significant difference"
     f, t = _table(kf_minus_pf=[-0.2, -0.3, -0.1, -0.25, -0.15])      # all negative, but under 5 mm
     assert _verdict(t, ALL) == "equal within 5 mm"
+    f, t = _table(kf_minus_pf=[-0.2, 3.0, -2.5, 0.1, -0.3])          # small median, wide interval: not equality
+    assert abs(f["kf_minus_pf_cm[Doppler]"][0]) < facts.EQUAL_CM and _verdict(t, ALL) == "no significant difference"
     assert _table(kf_minus_pf=[-0.6, -0.7, -0.55, -0.65, -0.8])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
 
 
@@ -392,6 +394,17 @@ def test_lab_row_says_reconstruction():
     assert lab and all("reconstruction" in r["quantity"] for r in lab)
     assert len({r["quantity"] for r in rows}) == len(rows)
     assert {r["kind"] for r in rows} <= {"reproduced", "target", "input"}
+
+
+def test_cep50_row_carries_the_paper_value_only_once_converged_in_particles():
+    q = "PF snapshot CEP50, reconstructed lab, median over recordings"
+    assert headlines.JUDGED_IF_CONVERGED == {q}
+    f, _ = _table(floor=[40.0, 38.0, 30.0, 27.0], floor_drop_ci=(2.0, 4.0))     # not converged
+    row = next(r for r in headlines.rows(f) if r["quantity"] == q)
+    assert row["paper_value"] is None
+    f, _ = _table(floor=[40.0, 38.0, 30.0, 29.5])                               # converged
+    assert f["particles_converged"]
+    assert next(r for r in headlines.rows(f) if r["quantity"] == q)["paper_value"] == 25
 
 
 def test_checks_report_what_fails():
