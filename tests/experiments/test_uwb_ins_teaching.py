@@ -121,6 +121,33 @@ def test_the_real_data_tables_read_the_boards_tuning_and_estimates(tmp_path):
         UwbInsFilter("EKF + gate")
 
 
+def test_difference_and_clock_rows_are_the_cells_of_the_tables_shown():
+    import pandas as pd
+
+    from uwbwb.experiments.uwb_ins import realfair
+
+    v = pd.DataFrame([{"recording": "iasl-uwb-imu/scenario2", "A": "tight", "B": "loose", "A − B (mm)": -0.96,
+                       "95 % low (mm)": -3.7, "95 % high (mm)": 3.1, "verdict": "not significant"}])
+    rows = {r["quantity"]: r for r in realfair.difference_rows(v, rate_hz=5.0)}
+    q = "horizontal RMSE difference tight − loose (scoreboard, 5 Hz)"
+    assert {k: r["value"] for k, r in rows.items()} == {q: -0.96, q + ", 95 % interval low": -3.7,
+                                                        q + ", 95 % interval high": 3.1}
+    assert {r["data"] for r in rows.values()} == {"iasl-uwb-imu/scenario2"}
+    table = pd.DataFrame({"change (mm)": [-0.61, 0.07], "lo (mm)": [-1.2, -0.5], "hi (mm)": [-0.1, 0.6]},
+                         index=["tight", "INS-only"])
+    clock = {"offsets": {"truth_s": 0.0, "ranges_s": -0.0356}, "table": table}
+    rows = {r["quantity"]: r["value"] for r in realfair.summary_rows(_NoTuning(), clock, data="x", cal_label="s1")}
+    q = "horizontal RMSE change of tight with the IMU clock from the ranges"
+    assert {k: v for k, v in rows.items() if k.startswith(q)} == {q: -0.61, q + ", 95 % interval low": -1.2,
+                                                                 q + ", 95 % interval high": -0.1}
+    assert not any("INS-only" in k for k in rows)
+
+
+class _NoTuning:
+    """A board with no tuned method (the clock's rows only)."""
+    methods = ()
+
+
 def test_the_clock_verdict_follows_the_interval_of_the_change():
     from uwbwb.experiments.uwb_ins import realfair
 
