@@ -294,7 +294,22 @@ def test_knobs_break_near_ties_towards_the_models_own_noise_flag_the_edge_and_na
     t.loc["c", (10.0, 1.0)] = 5.0
     assert not len(ab.choose_knobs(t).loc["c", "blowups"])
     assert ab.FULL_GRID[0] == 0.01 and ab.FULL_GRID[-1] == 100.0 and len(ab.FULL_GRID) == 9
-    assert ab.R_GRID == (0.3, 1.0, 3.0, 10.0) and ab.AblationConfig().r_grid == ab.R_GRID
+    assert ab.R_GRID == (0.3, 1.0, 3.0, 10.0, 30.0, 100.0) and ab.AblationConfig().r_grid == ab.R_GRID
+
+
+def test_a_ladder_step_whose_pick_lies_on_a_grid_edge_is_edge_bound():
+    pairs = [(q, r) for q in (0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0)]
+    centre = [2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0, 2.0]        # best at (1, 1): inside the grid
+    top_r = [2.0, 2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0]         # best at (1, 3): on the R edge
+    t = pd.DataFrame({p: {"EKF": centre[i], "EKF + gate": centre[i], "loose": top_r[i], "loose + gate": centre[i]}
+                      for i, p in enumerate(pairs)})
+    t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
+    base = _fake(GOOD)
+    f = facts.facts(ab.AblationResult(base.config, True, t, {}, base.scores, base.counts))
+    loose = f["ladder"]["outlier handling (gate), loose"]["dyn_rmse"]["verdict"]
+    assert loose.startswith("edge-bound: helps") and "loose R ×" in loose
+    assert f["ladder"]["outlier handling (gate), EKF"]["dyn_rmse"]["verdict"] == "helps"
+    assert facts.facts(base)["ladder"]["outlier handling (gate), loose"]["dyn_rmse"]["verdict"] == "helps"
 
 
 def test_the_measurement_noise_knob_reaches_every_tuned_filter():

@@ -15,6 +15,9 @@ Rules
   after the outage (mean over the case's seeds) exceeds :data:`DIVERGED_FACTOR` × its matched
   value on the same seeds *and* the re-acquisition limit :data:`~.scoring.RECOVERY_MAX_M`: a failure,
   not a degradation, and named as such (a centimetre error ten times a millimetre one is not a failure).
+* A ladder step's verdict is **edge-bound** when either side's tuning pick lies on an edge of its grid
+  (:func:`~.ablation.choose_knobs`): the ratio then compares a filter whose best knob may lie off the grid, and
+  the interval's reading is given only as at the picks.
 * A tuning-grid entry **blew up** when its RMSE exceeds 10× the row's lowest on the grid
   (:func:`~.ablation.choose_knobs`): the filter fails at that knob.
 * Eq. 4 **can fire** in the matched world when the smallest excess that trips it anywhere on the
@@ -137,9 +140,13 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
                              "excess_m": tuple(float(x) for x in cfg.model.outlier_excess_m)}
     for what, a, b in LADDER:
         f["ladder"][what] = {}
+        edge = [f"{x} {k} ×" for x in (a, b) for k in f["tuning"].get(x, {}).get("edge", "—").split(", ")
+                if k in ("Q", "R")]
         for m in _METRIC_WORDS:
             r = pair_rmse(res, what, m)
-            f["ladder"][what][m] = {**r, "verdict": verdict(r["lo"], r["hi"])}
+            v = verdict(r["lo"], r["hi"])
+            f["ladder"][what][m] = {**r, "verdict": f"edge-bound: {v} at the picks ({', '.join(edge)} on the grid's "
+                                                    "edge)" if edge and v != "undetermined" else v}
     for other in _VERSUS:
         f["outage"][other] = _ratio(res, other, "tight + gate", "outage_max")
     gated = [r for r in ("LS + gate", "EKF + gate", EKF_TDOA_GATE, "loose + gate", "tight + gate")]
