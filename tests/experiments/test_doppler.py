@@ -396,6 +396,27 @@ def test_lab_row_says_reconstruction():
     assert {r["kind"] for r in rows} <= {"reproduced", "target", "input"}
 
 
+def test_summary_rows_are_the_cells_of_the_tables_the_notebook_shows():
+    f, t = _table()
+    rows = {r["quantity"]: r for r in headlines.rows(f)}
+    lab = ", reconstructed lab"
+    fig = facts.fig6_table(f)
+    for variant, tag in (("Doppler", ""), ("Doppler + ranges", " with ranges")):
+        for q, name in (("snapshot CEP50 (cm)", f"PF snapshot CEP50{tag}{lab}, median over recordings"),
+                        ("shared offset (cm)", f"PF snapshot shared offset, median over recordings{tag}{lab}"),
+                        ("run-to-run CEP50 (cm)", f"PF snapshot run-to-run CEP50, median over recordings{tag}{lab}")):
+            cell = fig[(fig["variant"] == variant) & (fig["quantity"] == q)]["median"].iloc[0]
+            assert rows[name]["value"] == cell, (variant, q)
+    for corner in f["corners"]:
+        cell = fig[fig["quantity"] == f"along / across, {corner}"]["median"].iloc[0]
+        assert rows[f"PF along/across-track ratio, {corner} corner{lab}, median over recordings"]["value"] == cell
+    for r in f["readings"]:
+        ours = t.loc[t["claim"] == f"ΔP_ref of beacons 0 and 7 (ms), {r}", "ours"].iloc[0]
+        assert ours == f"{rows[f'ΔP_ref beacon 0 ({r})']['value']:.2f}, {rows[f'ΔP_ref beacon 7 ({r})']['value']:.2f}"
+        ours = t.loc[t["claim"] == f"fraction of the 6-D space with δ < 15 cm, cubic (%), {r}", "ours"].iloc[0]
+        assert ours == f"{rows[f'fraction δ < 15 cm, cubic layout ({r})']['value']:.3g}"
+
+
 def test_cep50_row_carries_the_paper_value_only_once_converged_in_particles():
     q = "PF snapshot CEP50, reconstructed lab, median over recordings"
     assert headlines.JUDGED_IF_CONVERGED == {q}

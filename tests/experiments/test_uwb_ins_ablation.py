@@ -361,6 +361,25 @@ def test_the_summary_ladder_rows_are_the_numbers_the_ladder_table_shows():
     assert rows[q] == table.loc[step, ("dyn_rmse", "ratio")] == pytest.approx(1.0)
 
 
+def test_every_ablation_ratio_row_is_the_cell_of_the_table_it_comes_from():
+    res = _fake(GOOD, case_ratios={"UWB σ 2×": {**GOOD, "loose + gate": 0.8}})
+    rows = {r["quantity"]: r["value"] for r in headlines.ablation_rows(res)}
+    table = ladder.ladder_table(res)
+    f = facts.facts(res)
+    for what, a, b in ab.LADDER:
+        for m, label in (("dyn_rmse", "dynamic RMSE"), ("outage_max", "outage max error")):
+            q = [k for k in rows if k.startswith(f"ablation ratio {a} / {b}, {label} ({what};")]
+            if q:
+                assert rows[q[0]] == table.loc[what, (m, "ratio")] == f["ladder"][what][m]["ratio"]
+    for case in res.config.cases[1:]:
+        for other in ("EKF + gate", "loose + gate"):
+            (q,) = [k for k in rows if k.startswith(f"mismatch '{case}': outage max error {other} / tight + gate")]
+            assert rows[q] == f["survival"][case][other]["ratio"]
+        t = res.table(case)
+        assert rows[f"mismatch '{case}': dynamic RMSE, tight + gate (mean of {int(t.loc['tight + gate', 'seeds'])} "
+                    "seeds)"] == t.loc["tight + gate", "dyn_rmse"]
+
+
 def test_a_matched_failure_to_reacquire_is_named():
     res = _fake(GOOD)
     t = facts.verdict_table(facts.facts(res))
