@@ -174,7 +174,7 @@ def _share(share: float) -> str:
     """The share of the matched advantage a case keeps, as words: a negative share is a reversal, not "−51 %"."""
     if not np.isfinite(share):
         return ""
-    return f", share kept {100 * share:.0f} %" if share >= 0 else ", none kept (tight now behind)"
+    return f", share kept {100 * share:.0f} %" if share >= 0 else ", none kept"
 
 
 def _interval(r: dict) -> str:
