@@ -121,7 +121,7 @@ def test_the_real_data_tables_read_the_boards_tuning_and_estimates(tmp_path):
         UwbInsFilter("EKF + gate")
 
 
-def test_difference_and_clock_rows_are_the_cells_of_the_tables_shown():
+def test_difference_rows_are_the_cells_of_the_table_shown():
     import pandas as pd
 
     from uwbwb.experiments.uwb_ins import realfair
@@ -133,19 +133,6 @@ def test_difference_and_clock_rows_are_the_cells_of_the_tables_shown():
     assert {k: r["value"] for k, r in rows.items()} == {q: -0.96, q + ", 95 % interval low": -3.7,
                                                         q + ", 95 % interval high": 3.1}
     assert {r["data"] for r in rows.values()} == {"iasl-uwb-imu/scenario2"}
-    table = pd.DataFrame({"change (mm)": [-0.61, 0.07], "lo (mm)": [-1.2, -0.5], "hi (mm)": [-0.1, 0.6]},
-                         index=["tight", "INS-only"])
-    clock = {"offsets": {"truth_s": 0.0, "ranges_s": -0.0356}, "table": table}
-    rows = {r["quantity"]: r["value"] for r in realfair.summary_rows(_NoTuning(), clock, data="x", cal_label="s1")}
-    q = "horizontal RMSE change of tight with the IMU clock from the ranges"
-    assert {k: v for k, v in rows.items() if k.startswith(q)} == {q: -0.61, q + ", 95 % interval low": -1.2,
-                                                                 q + ", 95 % interval high": -0.1}
-    assert not any("INS-only" in k for k in rows)
-
-
-class _NoTuning:
-    """A board with no tuned method (the clock's rows only)."""
-    methods = ()
 
 
 def test_the_clock_verdict_follows_the_interval_of_the_change():
@@ -168,7 +155,10 @@ def test_the_clock_verdict_follows_the_interval_of_the_change():
     class NoTuning:                                         # a board whose methods tuned nothing
         methods = ()
     rows = realfair.summary_rows(NoTuning(), res((0.1, -0.2, 0.5), (2.5, 1.0, 4.0)), data="x", cal_label="c")
-    assert [r["unit"] for r in rows] == ["ms", "mm", "mm"] and rows[0]["value"] == pytest.approx(-40.0)
+    assert [r["unit"] for r in rows] == ["ms"] + ["mm"] * 6 and rows[0]["value"] == pytest.approx(-40.0)
+    q = "horizontal RMSE change of tight with the IMU clock from the ranges"     # the table's cells, interval too
+    assert {r["quantity"]: r["value"] for r in rows if r["quantity"].startswith(q)} == {
+        q: 0.1, q + ", 95 % interval low": -0.2, q + ", 95 % interval high": 0.5}
 
 
 def test_figures_draw_truth_only_where_it_exists_and_keep_uwb_spikes_off_the_axes():
