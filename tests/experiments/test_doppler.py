@@ -301,6 +301,8 @@ def test_filter_comparison_verdict_follows_the_interval_of_differences():
     assert _verdict(t, ALL) == "no significant difference"
     f, t = _table(kf_minus_pf=[-0.2, -0.3, -0.1, -0.25, -0.15])      # all negative, but under 5 mm
     assert _verdict(t, ALL) == "equal within 5 mm"
+    f, t = _table(kf_minus_pf=[-0.2, 3.0, -2.5, 0.1, -0.3])          # small median, wide interval: not equality
+    assert abs(f["kf_minus_pf_cm[Doppler]"][0]) < facts.EQUAL_CM and _verdict(t, ALL) == "no significant difference"
     assert _table(kf_minus_pf=[-0.6, -0.7, -0.55, -0.65, -0.8])[0]["kf_vs_pf[Doppler]"] == "MH-EKF better"
 
 
@@ -392,6 +394,38 @@ def test_lab_row_says_reconstruction():
     assert lab and all("reconstruction" in r["quantity"] for r in lab)
     assert len({r["quantity"] for r in rows}) == len(rows)
     assert {r["kind"] for r in rows} <= {"reproduced", "target", "input"}
+
+
+def test_summary_rows_are_the_cells_of_the_tables_the_notebook_shows():
+    f, t = _table()
+    rows = {r["quantity"]: r for r in headlines.rows(f)}
+    lab = ", reconstructed lab"
+    fig = facts.fig6_table(f)
+    for variant, tag in (("Doppler", ""), ("Doppler + ranges", " with ranges")):
+        for q, name in (("snapshot CEP50 (cm)", f"PF snapshot CEP50{tag}{lab}, median over recordings"),
+                        ("shared offset (cm)", f"PF snapshot shared offset, median over recordings{tag}{lab}"),
+                        ("run-to-run CEP50 (cm)", f"PF snapshot run-to-run CEP50, median over recordings{tag}{lab}")):
+            cell = fig[(fig["variant"] == variant) & (fig["quantity"] == q)]["median"].iloc[0]
+            assert rows[name]["value"] == cell, (variant, q)
+    for corner in f["corners"]:
+        cell = fig[fig["quantity"] == f"along / across, {corner}"]["median"].iloc[0]
+        assert rows[f"PF along/across-track ratio, {corner} corner{lab}, median over recordings"]["value"] == cell
+    for r in f["readings"]:
+        ours = t.loc[t["claim"] == f"ΔP_ref of beacons 0 and 7 (ms), {r}", "ours"].iloc[0]
+        assert ours == f"{rows[f'ΔP_ref beacon 0 ({r})']['value']:.2f}, {rows[f'ΔP_ref beacon 7 ({r})']['value']:.2f}"
+        ours = t.loc[t["claim"] == f"fraction of the 6-D space with δ < 15 cm, cubic (%), {r}", "ours"].iloc[0]
+        assert ours == f"{rows[f'fraction δ < 15 cm, cubic layout ({r})']['value']:.3g}"
+
+
+def test_cep50_row_carries_the_paper_value_only_once_converged_in_particles():
+    q = "PF snapshot CEP50, reconstructed lab, median over recordings"
+    assert headlines.JUDGED_IF_CONVERGED == {q}
+    f, _ = _table(floor=[40.0, 38.0, 30.0, 27.0], floor_drop_ci=(2.0, 4.0))     # not converged
+    row = next(r for r in headlines.rows(f) if r["quantity"] == q)
+    assert row["paper_value"] is None
+    f, _ = _table(floor=[40.0, 38.0, 30.0, 29.5])                               # converged
+    assert f["particles_converged"]
+    assert next(r for r in headlines.rows(f) if r["quantity"] == q)["paper_value"] == 25
 
 
 def test_checks_report_what_fails():

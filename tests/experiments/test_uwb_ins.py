@@ -91,7 +91,19 @@ def test_real_data_path_runs_on_any_scenario_by_name(tmp_path, names):
     assert {"vertical RMSE (m)", "3-D RMSE (m)"} <= set(e.columns) and (e["common epochs"] > 100).all()
     c = realdata.consistency_table(comp)
     assert {"tight", "loose", "EKF + gate", "UWB-only"} <= set(c.index)
-    assert len({r["quantity"] for r in realdata.summary_rows(comp, cal_label=names[0])}) > 10
+    rows = realdata.summary_rows(comp, cal_label=names[0])
+    assert len({r["quantity"] for r in rows}) == len(rows) > 10
+    # every RMSE row is the cell of the common-epoch table the notebook shows (not each method's own epochs)
+    for r in rows:
+        for col in ("horizontal RMSE (m)", "vertical RMSE (m)", "3-D RMSE (m)"):
+            for m in e.index:
+                if r["quantity"] == f"{col.split(' (')[0]} {m}, common epochs (calibrated on {names[0]})":
+                    assert r["value"] == e.loc[m, col]
+        if r["quantity"].startswith("RMSE "):
+            m = r["quantity"][5:].split(f" (calibrated on {names[0]})")[0]
+            assert r["value"] == e.loc[m, "horizontal RMSE (m)"]
+    assert {r["quantity"] for r in rows if r["quantity"].startswith("RMSE ")} == {
+        f"RMSE {m} (calibrated on {names[0]})" for m in e.index}
 
 
 @pytest.mark.realdata

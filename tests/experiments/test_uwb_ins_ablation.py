@@ -209,12 +209,27 @@ def test_ladder_and_headline_verdicts_flip_at_ratio_one():
 def test_survival_rows_say_where_the_outage_advantage_is_kept_or_lost():
     lost = {**GOOD, "EKF + gate": 1.0}
     f = facts.facts(_fake(GOOD, case_ratios={"UWB σ 2×": lost, "IMU 10× worse": {**GOOD, "EKF + gate": 0.7}}))
-    assert _row(f, "UWB σ 2×: EKF + gate / tight + gate").verdict == "not significant"
-    assert _row(f, "IMU 10× worse: EKF + gate / tight + gate").verdict == "reversed"
-    assert _row(f, "multipath up to 12 m: EKF + gate / tight + gate").verdict == "survives"
+    assert _row(f, "UWB σ 2×: EKF + gate / tight + gate, max outage error").verdict == "not significant"
+    assert _row(f, "IMU 10× worse: EKF + gate / tight + gate, max outage error").verdict == "reversed"
+    assert _row(f, "multipath up to 12 m: EKF + gate / tight + gate, max outage error").verdict == "survives"
     assert f["survival"]["UWB σ 2×"]["EKF + gate"]["share"] == pytest.approx(0.0, abs=0.1)
-    assert "share kept" in _row(f, "multipath up to 12 m: EKF + gate / tight + gate").ours
+    assert "share kept" in _row(f, "multipath up to 12 m: EKF + gate / tight + gate, max outage error").ours
     assert _row(f, "matched: injected-multipath TDoAs that eq. 4 removed").ours == "0 of 100"
+
+
+def test_survival_covers_the_dynamic_rmse_and_a_reversal_reads_as_none_kept():
+    # the steady-state lead on the dynamic RMSE is judged by the same rule as the outage maximum
+    sc = _fake(GOOD, case_ratios={"UWB σ 2×": {**GOOD, "loose + gate": 1.0}})
+    f = facts.facts(sc)
+    assert set(f["survival_dyn"]["UWB σ 2×"]) == {"loose + gate", "EKF + gate"}
+    assert _row(f, "UWB σ 2×: loose + gate / tight + gate, dynamic RMSE").verdict == "not significant"
+    assert _row(f, "multipath up to 12 m: loose + gate / tight + gate, dynamic RMSE").verdict == "survives"
+    hit = (sc.scores["case"] == "IMU 10× worse") & (sc.scores["method"] == "tight + gate")
+    sc.scores.loc[hit, "dyn_rmse"] *= 3.0                 # tight's lead reversed on the dynamic RMSE only
+    f = facts.facts(sc)
+    r = _row(f, "IMU 10× worse: EKF + gate / tight + gate, dynamic RMSE")
+    assert r.verdict == "reversed" and "none kept" in r.ours and "-" not in r.ours.split("×")[1]
+    assert _row(f, "IMU 10× worse: EKF + gate / tight + gate, max outage error").verdict == "survives"
 
 
 def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
@@ -230,8 +245,8 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     d = f["diverged"]["IMU 10× worse"]
     assert [(x["row"], x["metric"]) for x in d] == [("tight + gate", "dyn_rmse")]
     assert _row(f, "IMU 10× worse: tight + gate diverged (dyn_rmse)").verdict == "diverged"
-    assert _row(f, "IMU 10× worse: loose + gate / tight + gate").verdict.startswith("a row diverged")
-    assert "share kept" not in _row(f, "IMU 10× worse: loose + gate / tight + gate").ours
+    assert _row(f, "IMU 10× worse: loose + gate / tight + gate, max outage error").verdict.startswith("a row diverged")
+    assert "share kept" not in _row(f, "IMU 10× worse: loose + gate / tight + gate, max outage error").ours
     assert headlines.checks(bad) == []                      # mismatch divergence is reported, not a check
     small = _fake(GOOD)                                     # 20× the matched error but still centimetres: not a failure
     hs = (small.scores["case"] == "UWB σ 2×") & (small.scores["method"] == "tight + gate")
@@ -279,7 +294,22 @@ def test_knobs_break_near_ties_towards_the_models_own_noise_flag_the_edge_and_na
     t.loc["c", (10.0, 1.0)] = 5.0
     assert not len(ab.choose_knobs(t).loc["c", "blowups"])
     assert ab.FULL_GRID[0] == 0.01 and ab.FULL_GRID[-1] == 100.0 and len(ab.FULL_GRID) == 9
-    assert ab.R_GRID == (0.3, 1.0, 3.0, 10.0) and ab.AblationConfig().r_grid == ab.R_GRID
+    assert ab.R_GRID == (0.3, 1.0, 3.0, 10.0, 30.0, 100.0) and ab.AblationConfig().r_grid == ab.R_GRID
+
+
+def test_a_ladder_step_whose_pick_lies_on_a_grid_edge_is_edge_bound():
+    pairs = [(q, r) for q in (0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0)]
+    centre = [2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0, 2.0]        # best at (1, 1): inside the grid
+    top_r = [2.0, 2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0]         # best at (1, 3): on the R edge
+    t = pd.DataFrame({p: {"EKF": centre[i], "EKF + gate": centre[i], "loose": top_r[i], "loose + gate": centre[i]}
+                      for i, p in enumerate(pairs)})
+    t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
+    base = _fake(GOOD)
+    f = facts.facts(ab.AblationResult(base.config, True, t, {}, base.scores, base.counts))
+    loose = f["ladder"]["outlier handling (gate), loose"]["dyn_rmse"]["verdict"]
+    assert loose.startswith("edge-bound: helps") and "loose R ×" in loose
+    assert f["ladder"]["outlier handling (gate), EKF"]["dyn_rmse"]["verdict"] == "helps"
+    assert facts.facts(base)["ladder"]["outlier handling (gate), loose"]["dyn_rmse"]["verdict"] == "helps"
 
 
 def test_the_measurement_noise_knob_reaches_every_tuned_filter():
@@ -329,6 +359,25 @@ def test_the_summary_ladder_rows_are_the_numbers_the_ladder_table_shows():
     rows = {r["quantity"]: r["value"] for r in headlines.ablation_rows(res)}
     (q,) = [k for k in rows if k.startswith("ablation ratio LS / LS + gate, dynamic RMSE")]
     assert rows[q] == table.loc[step, ("dyn_rmse", "ratio")] == pytest.approx(1.0)
+
+
+def test_every_ablation_ratio_row_is_the_cell_of_the_table_it_comes_from():
+    res = _fake(GOOD, case_ratios={"UWB σ 2×": {**GOOD, "loose + gate": 0.8}})
+    rows = {r["quantity"]: r["value"] for r in headlines.ablation_rows(res)}
+    table = ladder.ladder_table(res)
+    f = facts.facts(res)
+    for what, a, b in ab.LADDER:
+        for m, label in (("dyn_rmse", "dynamic RMSE"), ("outage_max", "outage max error")):
+            q = [k for k in rows if k.startswith(f"ablation ratio {a} / {b}, {label} ({what};")]
+            if q:
+                assert rows[q[0]] == table.loc[what, (m, "ratio")] == f["ladder"][what][m]["ratio"]
+    for case in res.config.cases[1:]:
+        for other in ("EKF + gate", "loose + gate"):
+            (q,) = [k for k in rows if k.startswith(f"mismatch '{case}': outage max error {other} / tight + gate")]
+            assert rows[q] == f["survival"][case][other]["ratio"]
+        t = res.table(case)
+        assert rows[f"mismatch '{case}': dynamic RMSE, tight + gate (mean of {int(t.loc['tight + gate', 'seeds'])} "
+                    "seeds)"] == t.loc["tight + gate", "dyn_rmse"]
 
 
 def test_a_matched_failure_to_reacquire_is_named():

@@ -121,6 +121,20 @@ def test_the_real_data_tables_read_the_boards_tuning_and_estimates(tmp_path):
         UwbInsFilter("EKF + gate")
 
 
+def test_difference_rows_are_the_cells_of_the_table_shown():
+    import pandas as pd
+
+    from uwbwb.experiments.uwb_ins import realfair
+
+    v = pd.DataFrame([{"recording": "iasl-uwb-imu/scenario2", "A": "tight", "B": "loose", "A − B (mm)": -0.96,
+                       "95 % low (mm)": -3.7, "95 % high (mm)": 3.1, "verdict": "not significant"}])
+    rows = {r["quantity"]: r for r in realfair.difference_rows(v, rate_hz=5.0)}
+    q = "horizontal RMSE difference tight − loose (scoreboard, 5 Hz)"
+    assert {k: r["value"] for k, r in rows.items()} == {q: -0.96, q + ", 95 % interval low": -3.7,
+                                                        q + ", 95 % interval high": 3.1}
+    assert {r["data"] for r in rows.values()} == {"iasl-uwb-imu/scenario2"}
+
+
 def test_the_clock_verdict_follows_the_interval_of_the_change():
     from uwbwb.experiments.uwb_ins import realfair
 
@@ -141,7 +155,10 @@ def test_the_clock_verdict_follows_the_interval_of_the_change():
     class NoTuning:                                         # a board whose methods tuned nothing
         methods = ()
     rows = realfair.summary_rows(NoTuning(), res((0.1, -0.2, 0.5), (2.5, 1.0, 4.0)), data="x", cal_label="c")
-    assert [r["unit"] for r in rows] == ["ms", "mm", "mm"] and rows[0]["value"] == pytest.approx(-40.0)
+    assert [r["unit"] for r in rows] == ["ms"] + ["mm"] * 6 and rows[0]["value"] == pytest.approx(-40.0)
+    q = "horizontal RMSE change of tight with the IMU clock from the ranges"     # the table's cells, interval too
+    assert {r["quantity"]: r["value"] for r in rows if r["quantity"].startswith(q)} == {
+        q: 0.1, q + ", 95 % interval low": -0.2, q + ", 95 % interval high": 0.5}
 
 
 def test_figures_draw_truth_only_where_it_exists_and_keep_uwb_spikes_off_the_axes():

@@ -31,8 +31,8 @@ Rules
   of its median entirely above 0.5 → ``"offset"``, below → ``"spread"``, else ``"comparable"``.
 * Corner dependence of the ratio: per recording, ratio at the first corner minus at the
   second; its median's bootstrap interval excludes 0 → ``"depends"``, else ``"same"``.
-* MH-EKF vs PF: |median per-recording difference of CEP50| < 0.5 cm → ``"equal within 5 mm"``;
-  else its bootstrap interval excludes 0 → one is better; else ``"no significant difference"``; with no
+* MH-EKF vs PF: the bootstrap interval of the median per-recording difference of CEP50 inside ±0.5 cm →
+  ``"equal within 5 mm"`` (equivalence); else that interval excludes 0 → one is better; else ``"no significant difference"``; with no
   interval (fewer than 3 recordings) ``"no interval"``, and ``"no recording"`` when none qualifies. Decided
   twice: on the recordings where both filters keep track (``kf_vs_pf_tracked``, the statement about
   accuracy), and on all recordings with the count of lost tracks beside it (``kf_vs_pf``), since a
@@ -80,7 +80,8 @@ DP_TOLERANCE_MS = 0.05
 GHOST_ANGLE_DEG = 20.0
 #: Share offset² / (offset² + spread²) that the median's interval must exclude to name one part the larger.
 OFFSET_SHARE = 0.5
-#: |median MH-EKF − PF| (cm) under which the filters count as equal in practice.
+#: Half-width (cm) of the band the interval of the median MH-EKF − PF must lie inside for the filters to count as
+#: equal in practice (an equivalence rule: a small median with a wide interval is not equality).
 EQUAL_CM = 0.5
 #: Half-width (cm) of the band that the interval of the CEP50's drop from 4× the particles must lie inside for the
 #: particle count to count as converged (and wholly outside for "not converged").
@@ -309,7 +310,7 @@ def facts(res: Results) -> dict:
             side = interval_side(lo, hi)
             f[f"kf_vs_pf{key}[{variant}]"] = (
                 "no recording" if not sel.any() else "no interval" if side == "none" else
-                "equal within 5 mm" if abs(m) < EQUAL_CM else
+                "equal within 5 mm" if -EQUAL_CM < lo and hi < EQUAL_CM else
                 {"above": "PF better", "below": "MH-EKF better", "contains": "no significant difference"}[side])
         f[f"both_keep_track[{variant}]"] = (int(both.sum()), int(both.size))
         runs = d["PF runs"].sum()
@@ -442,7 +443,7 @@ def verdict_table(f: dict) -> pd.DataFrame:
             continue
         lost = f[f"lost_track[{v}]"]
         n_both, n_rec = f[f"both_keep_track[{v}]"]
-        rule = f"|median| < {EQUAL_CM:g} cm: equal (whatever the interval); else the interval excludes 0"
+        rule = f"interval inside ±{EQUAL_CM:g} cm: equal; else one that excludes 0 names the better filter"
         m, lo, hi = f[f"kf_minus_pf_cm[{v}]"]
         add(f"MH-EKF − PF CEP50 on the scored epochs per recording, {v}, all recordings (cm)", "—",
             f"{m:+.1f}; lost track: PF {len(lost['PF'])}, MH-EKF {len(lost['MH-EKF'])} of {n_rec}",

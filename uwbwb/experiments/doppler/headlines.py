@@ -12,7 +12,7 @@ import numpy as np
 from .study import PAPER, READINGS
 from ...metrics import Headline
 
-__all__ = ["HEADLINES", "rows", "publish", "checks"]
+__all__ = ["HEADLINES", "JUDGED_IF_CONVERGED", "rows", "publish", "checks"]
 
 
 def _headlines() -> tuple[Headline, ...]:
@@ -65,11 +65,20 @@ def _headlines() -> tuple[Headline, ...]:
 
 
 HEADLINES = _headlines()
+#: Rows set beside the paper's value only where the particle count has converged (facts' ``particles_verdict``):
+#: until then the notebook does not judge the PF's CEP50 against the paper's, and neither does the summary.
+JUDGED_IF_CONVERGED = frozenset(h.quantity for h in HEADLINES if h.quantity.startswith("PF snapshot CEP50")
+                                and h.paper is not None)
 
 
 def rows(f: dict) -> list[dict]:
-    """The summary rows: ``quantity, value, unit, paper_value, kind`` (data: synthetic)."""
-    return [h.row(f) for h in HEADLINES]
+    """The summary rows: ``quantity, value, unit, paper_value, kind`` (data: synthetic); the paper's value is left
+    out of :data:`JUDGED_IF_CONVERGED` rows unless ``f["particles_converged"]``."""
+    out = [h.row(f) for h in HEADLINES]
+    for r in out:
+        if r["quantity"] in JUDGED_IF_CONVERGED and not f["particles_converged"]:
+            r["paper_value"] = None
+    return out
 
 
 def publish(f: dict, summary, path=None, *, sigma_range_m: float) -> None:

@@ -86,9 +86,10 @@ TIE_REL = 0.02
 FULL_GRID = tuple(float(round(10 ** (k / 2), 4)) for k in range(-4, 5))
 #: FAST grid: three decades only (a smoke test; edge knobs are flagged, not resolved).
 FAST_GRID = (0.1, 1.0, 10.0)
-#: Measurement-noise multipliers of the full run, tried with every process-noise multiplier (four of the six of
-#: the real-data grid, :data:`uwbwb.scoreboard.estimators.INS_GRID`: the simulated world's noise is known).
-R_GRID = (0.3, 1.0, 3.0, 10.0)
+#: Measurement-noise multipliers of the full run, tried with every process-noise multiplier: 0.3–100 (the
+#: ungated filters' picks reached 10, the top of the earlier 0.3–10; their outliers inflate the best R well above the
+#: model's, so the grid reaches a decade past it).
+R_GRID = (0.3, 1.0, 3.0, 10.0, 30.0, 100.0)
 #: FAST measurement-noise multipliers (those of :data:`uwbwb.scoreboard.estimators.INS_GRID_FAST`).
 FAST_R_GRID = (1.0, 3.0)
 #: Seconds after an outage scored as "recovery" (not as "dynamic"); also the re-acquisition deadline
@@ -183,7 +184,7 @@ class AblationConfig:
 
     @classmethod
     def fast(cls, **kw) -> "AblationConfig":
-        """FAST (smoke-test) sizes: 2 seeds, a 3 × 2 grid (:data:`FAST_GRID` × :data:`FAST_R_GRID`, not the full 9 × 4), a 10 s static run, 3 legs, and three
+        """FAST (smoke-test) sizes: 2 seeds, a 3 × 2 grid (:data:`FAST_GRID` × :data:`FAST_R_GRID`, not the full 9 × 6), a 10 s static run, 3 legs, and three
         mismatch cases (those the checks read: IMU 10×, UWB σ 2×, multipath up to 12 m) on 1 seed and
         the dynamic run only."""
         base = dict(seeds=2, grid=FAST_GRID, r_grid=FAST_R_GRID, static_s=10.0, legs=3, mismatch_seeds=1, mismatch_static=False,

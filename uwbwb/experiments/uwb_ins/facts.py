@@ -7,14 +7,17 @@ Rules
   seeds) lies above 1, **hurts** when it lies below 1, and is **not significant** otherwise;
   with one seed there is no interval and the verdict is **undetermined**.
 * Tight coupling's outage advantage over a method **survives** a mismatch case when the ratio
-  (that method's max outage error / tight's) has its interval above 1 in that case, is **not
+  (that method's max outage error / tight's; likewise its steady-state lead, on the dynamic RMSE) has its interval above 1 in that case, is **not
   significant** when the interval includes 1 and **reversed** when it lies below 1; its
-  *share kept* is ``log(ratio_case) / log(ratio_matched)`` (1: all of it, 0: none, < 0: reversed),
+  *share kept* is ``log(ratio_case) / log(ratio_matched)`` (1: all of it, 0: none; < 0 prints as none kept),
   both ratios over the same seeds (the case's).
 * A row **diverged** in a mismatch case when its dynamic RMSE or its max error in the recovery
   after the outage (mean over the case's seeds) exceeds :data:`DIVERGED_FACTOR` × its matched
   value on the same seeds *and* the re-acquisition limit :data:`~.scoring.RECOVERY_MAX_M`: a failure,
   not a degradation, and named as such (a centimetre error ten times a millimetre one is not a failure).
+* A ladder step's verdict is **edge-bound** when either side's tuning pick lies on an edge of its grid
+  (:func:`~.ablation.choose_knobs`): the ratio then compares a filter whose best knob may lie off the grid, and
+  the interval's reading is given only as at the picks.
 * A tuning-grid entry **blew up** when its RMSE exceeds 10× the row's lowest on the grid
   (:func:`~.ablation.choose_knobs`): the filter fails at that knob.
 * Eq. 4 **can fire** in the matched world when the smallest excess that trips it anywhere on the
@@ -111,7 +114,8 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
     Returns a dict with ``mode`` ("FAST" or "full"), ``seeds``, ``outage_s``, ``ladder``
     (step → metric → ratio/lo/hi/n/verdict), ``outage`` (versus "loose + gate" and "EKF + gate":
     the matched ratio of max outage errors and its verdict), ``survival`` (case → versus →
-    ratio/lo/hi/verdict/share), ``winners`` (case → metric → best gated row) and ``eq4``
+    ratio/lo/hi/verdict/share, on the max outage error), ``survival_dyn`` (the same on the dynamic RMSE,
+    versus "loose + gate" and "EKF + gate"), ``winners`` (case → metric → best gated row) and ``eq4``
     (counts per case, and ``eq4_geometry``: the smallest excess that fires eq. 4 on the path, its
     pair and side, and the matched world's excess range), ``diverged`` (case → list of
     row/metric/value/matched) and ``tuning`` (row → Q ×/R ×/rmse/edge/blowups; empty without a
@@ -136,9 +140,13 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
                              "excess_m": tuple(float(x) for x in cfg.model.outlier_excess_m)}
     for what, a, b in LADDER:
         f["ladder"][what] = {}
+        edge = [f"{x} {k} ×" for x in (a, b) for k in f["tuning"].get(x, {}).get("edge", "—").split(", ")
+                if k in ("Q", "R")]
         for m in _METRIC_WORDS:
             r = pair_rmse(res, what, m)
-            f["ladder"][what][m] = {**r, "verdict": verdict(r["lo"], r["hi"])}
+            v = verdict(r["lo"], r["hi"])
+            f["ladder"][what][m] = {**r, "verdict": f"edge-bound: {v} at the picks ({', '.join(edge)} on the grid's "
+                                                    "edge)" if edge and v != "undetermined" else v}
     for other in _VERSUS:
         f["outage"][other] = _ratio(res, other, "tight + gate", "outage_max")
     gated = [r for r in ("LS + gate", "EKF + gate", EKF_TDOA_GATE, "loose + gate", "tight + gate")]
@@ -150,15 +158,23 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
         if case == "matched":
             continue
         f["diverged"][case] = _diverged(res, case)
-        f["survival"][case] = {}
         seeds = res.case(case).index.get_level_values("seed").unique()
-        for other in _VERSUS:
-            r = _ratio(res, other, "tight + gate", "outage_max", case)
-            r0 = _ratio(res, other, "tight + gate", "outage_max", "matched", seeds=seeds)["ratio"]
-            r["share"] = (math.log(r["ratio"]) / math.log(r0)
-                          if np.isfinite(r["ratio"]) and np.isfinite(r0) and r0 > 1 else np.nan)
-            f["survival"][case][other] = r
+        for key, metric, versus in (("survival", "outage_max", _VERSUS), ("survival_dyn", "dyn_rmse", _VERSUS[:2])):
+            f.setdefault(key, {})[case] = {}
+            for other in versus:
+                r = _ratio(res, other, "tight + gate", metric, case)
+                r0 = _ratio(res, other, "tight + gate", metric, "matched", seeds=seeds)["ratio"]
+                r["share"] = (math.log(r["ratio"]) / math.log(r0)
+                              if np.isfinite(r["ratio"]) and np.isfinite(r0) and r0 > 1 else np.nan)
+                f[key][case][other] = r
     return f
+
+
+def _share(share: float) -> str:
+    """The share of the matched advantage a case keeps, as words: a negative share is a reversal, not "−51 %"."""
+    if not np.isfinite(share):
+        return ""
+    return f", share kept {100 * share:.0f} %" if share >= 0 else ", none kept"
 
 
 def _interval(r: dict) -> str:
@@ -172,8 +188,8 @@ def verdict_table(f: dict) -> pd.DataFrame:
     """Notebook 05's ablation verdicts, one row each: ``claim, ours, interval, seeds, rule, verdict``.
 
     Rows: each ladder step on the dynamic RMSE and the max outage error (without / with the ingredient); the
-    headline (the others' max outage error over tight's, matched); how much of that advantage each mismatch
-    case keeps (``share kept`` in log ratio) — *a row diverged* instead of a verdict where tight or the other
+    headline (the others' max outage error over tight's, matched); how much of that advantage, and of tight's
+    lead on the dynamic RMSE, each mismatch case keeps (``share kept`` in log ratio; none where reversed) — *a row diverged* instead of a verdict where tight or the other
     row diverged in that case (the ratio then measures a failure); every diverged row; every gated row that
     failed to re-acquire in the matched world; where eq. 4 can fire and what it removed."""
     rows = []
@@ -195,14 +211,15 @@ def verdict_table(f: dict) -> pd.DataFrame:
             f"{r['ratio']:.2f}×", _interval(r), r["n"], _RATIO_RULE, r["verdict"])
     words = {"helps": "survives", "hurts": "reversed", "not significant": "not significant",
              "undetermined": "undetermined"}
-    for case, by_other in f["survival"].items():
-        gone = {d["row"] for d in f["diverged"].get(case, [])}
-        for other, r in by_other.items():
-            failure = bool({other, "tight + gate"} & gone)          # the ratio measures a failure: no share
-            share = f", share kept {100 * r['share']:.0f} %" if np.isfinite(r["share"]) and not failure else ""
-            v = "a row diverged (the ratio measures a failure)" if failure else words[r["verdict"]]
-            add(f"{case}: {other} / tight + gate, max outage error", f"{r['ratio']:.2f}×{share}", _interval(r),
-                r["n"], _RATIO_RULE + " (above 1: the advantage survives)", v)
+    for key, what in (("survival", "max outage error"), ("survival_dyn", "dynamic RMSE")):
+        for case, by_other in f.get(key, {}).items():
+            gone = {d["row"] for d in f["diverged"].get(case, [])}
+            for other, r in by_other.items():
+                failure = bool({other, "tight + gate"} & gone)          # the ratio measures a failure: no share
+                v = "a row diverged (the ratio measures a failure)" if failure else words[r["verdict"]]
+                add(f"{case}: {other} / tight + gate, {what}",
+                    f"{r['ratio']:.2f}×{'' if failure else _share(r['share'])}", _interval(r), r["n"],
+                    _RATIO_RULE + " (above 1: the advantage survives)", v)
     for case, ds in f["diverged"].items():
         for d in ds:
             add(f"{case}: {d['row']} diverged ({d['metric']})", f"{d['value']:.3g} m against {d['matched']:.3g} m "

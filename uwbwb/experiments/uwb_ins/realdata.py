@@ -108,10 +108,12 @@ def consistency_table(comp: Comparison, methods=None, *, prob: float = 0.95) -> 
 
 def summary_rows(comp: Comparison, *, cal_label: str) -> list[dict]:
     """Summary rows of one real recording: horizontal / vertical / 3-D RMSE per method on the
-    common epochs and each method's mean NEES (the verdicts between methods are the scoreboard's)."""
+    common epochs (``RMSE {method} (calibrated on …)``: the horizontal one, as :func:`error_table` shows it, not
+    on each method's own epochs) and each method's mean NEES (the verdicts between methods are the scoreboard's)."""
     data = comp.label
-    out = []
     t = error_table(comp)
+    out = [dict(quantity=f"RMSE {m} (calibrated on {cal_label})", value=v, unit="m", data=data, kind="reproduced")
+           for m, v in t["horizontal RMSE (m)"].items() if np.isfinite(v)]
     for m in t.index:
         for col in ("horizontal RMSE (m)", "vertical RMSE (m)", "3-D RMSE (m)"):
             if col in t.columns and np.isfinite(t.loc[m, col]):

@@ -18,7 +18,7 @@ from ...scoreboard import Board, score
 from ...types import Recording
 from .realdata import board_comparison
 
-__all__ = ["IMU_FILTERS", "tuning_table", "imu_clock_sensitivity", "clock_verdict", "summary_rows"]
+__all__ = ["IMU_FILTERS", "tuning_table", "imu_clock_sensitivity", "clock_verdict", "summary_rows", "difference_rows"]
 
 #: The rows whose inputs include the IMU (the clock's sensitivity is read on them).
 IMU_FILTERS = ("tight", "tight (ranges)", "loose", "INS-only")
@@ -103,7 +103,9 @@ def clock_verdict(lo_mm: float, hi_mm: float) -> str:
 
 def summary_rows(board: Board, clock: dict | None, *, data: str, cal_label: str, cal_data: str | None = None) -> list[dict]:
     """Summary rows: each UWB/INS filter's tuned multipliers (procedure named in the row; ``data`` the
-    calibration recording ``cal_data`` they come from, default ``data``) and the IMU clock's effect on ``data``."""
+    calibration recording ``cal_data`` they come from, default ``data``; kind *reproduced* — it came out of the
+    board's tuning, not from the paper — and "a tuning output" in the quantity) and the IMU clock's effect on
+    ``data`` with its 95 % interval (the columns of ``clock["table"]``)."""
     out = []
     for name in board.methods:
         p = board.calibration.params(name)
@@ -117,8 +119,23 @@ def summary_rows(board: Board, clock: dict | None, *, data: str, cal_label: str,
         o = clock["offsets"]
         out.append(dict(quantity="IMU clock offset from the ranges minus from the motion capture", unit="ms",
                         value=(o["ranges_s"] - o["truth_s"]) * 1e3, data=data, kind="reproduced"))
-        for m, v in clock["table"]["change (mm)"].items():
-            if m in IMU_FILTERS and m != "INS-only" and np.isfinite(v):
-                out.append(dict(quantity=f"horizontal RMSE change of {m} with the IMU clock from the ranges",
-                                value=float(v), unit="mm", data=data, kind="reproduced"))
+        for m, r in clock["table"].iterrows():
+            if m in IMU_FILTERS and m != "INS-only" and np.isfinite(r["change (mm)"]):
+                q = f"horizontal RMSE change of {m} with the IMU clock from the ranges"
+                out += [dict(quantity=q + tail, value=float(r[col]), unit="mm", data=data, kind="reproduced")
+                        for tail, col in (("", "change (mm)"), (", 95 % interval low", "lo (mm)"),
+                                          (", 95 % interval high", "hi (mm)")) if np.isfinite(r[col])]
+    return out
+
+
+def difference_rows(verdicts: pd.DataFrame, *, rate_hz: float) -> list[dict]:
+    """Summary rows of the scoreboard's RMSE differences (:func:`uwbwb.scoreboard.verdicts.difference_table`, as
+    the notebook shows it): per pair ``A − B`` (mm) and the ends of its 95 % interval (the verdict is the
+    table's, read from that interval)."""
+    out = []
+    for _, r in verdicts.iterrows():
+        q = f"horizontal RMSE difference {r['A']} − {r['B']} (scoreboard, {rate_hz:g} Hz)"
+        out += [dict(quantity=q + tail, value=float(r[col]), unit="mm", data=r["recording"], kind="reproduced")
+                for tail, col in (("", "A − B (mm)"), (", 95 % interval low", "95 % low (mm)"),
+                                  (", 95 % interval high", "95 % high (mm)")) if np.isfinite(r[col])]
     return out
