@@ -310,7 +310,8 @@ def facts(res: Results) -> dict:
             side = interval_side(lo, hi)
             f[f"kf_vs_pf{key}[{variant}]"] = (
                 "no recording" if not sel.any() else "no interval" if side == "none" else
-                "equal within 5 mm" if -EQUAL_CM < lo and hi < EQUAL_CM else
+                "equal within 5 mm" if (interval_side(lo, hi, -EQUAL_CM), interval_side(lo, hi, EQUAL_CM)) == (
+                    "above", "below") else                # the interval inside ±EQUAL_CM: an equivalence rule
                 {"above": "PF better", "below": "MH-EKF better", "contains": "no significant difference"}[side])
         f[f"both_keep_track[{variant}]"] = (int(both.sum()), int(both.size))
         runs = d["PF runs"].sum()
