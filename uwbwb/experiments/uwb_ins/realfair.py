@@ -121,21 +121,23 @@ def summary_rows(board: Board, clock: dict | None, *, data: str, cal_label: str,
                         value=(o["ranges_s"] - o["truth_s"]) * 1e3, data=data, kind="reproduced"))
         for m, r in clock["table"].iterrows():
             if m in IMU_FILTERS and m != "INS-only" and np.isfinite(r["change (mm)"]):
-                q = f"horizontal RMSE change of {m} with the IMU clock from the ranges"
-                out += [dict(quantity=q + tail, value=float(r[col]), unit="mm", data=data, kind="reproduced")
-                        for tail, col in (("", "change (mm)"), (", 95 % interval low", "lo (mm)"),
-                                          (", 95 % interval high", "hi (mm)")) if np.isfinite(r[col])]
+                out += _interval_rows(f"horizontal RMSE change of {m} with the IMU clock from the ranges", r,
+                                      ("change (mm)", "lo (mm)", "hi (mm)"), data)
     return out
+
+
+def _interval_rows(quantity: str, row, columns: tuple[str, str, str], data: str) -> list[dict]:
+    """A value (mm) and the ends of its 95 % interval as three summary rows (``quantity``, then ``…, 95 % interval
+    low`` / ``high``), read from ``row[columns]`` (value, low, high); a non-finite one is left out."""
+    tails = ("", ", 95 % interval low", ", 95 % interval high")
+    return [dict(quantity=quantity + tail, value=float(row[col]), unit="mm", data=data, kind="reproduced")
+            for tail, col in zip(tails, columns) if np.isfinite(row[col])]
 
 
 def difference_rows(verdicts: pd.DataFrame, *, rate_hz: float) -> list[dict]:
     """Summary rows of the scoreboard's RMSE differences (:func:`uwbwb.scoreboard.verdicts.difference_table`, as
     the notebook shows it): per pair ``A − B`` (mm) and the ends of its 95 % interval (the verdict is the
     table's, read from that interval)."""
-    out = []
-    for _, r in verdicts.iterrows():
-        q = f"horizontal RMSE difference {r['A']} − {r['B']} (scoreboard, {rate_hz:g} Hz)"
-        out += [dict(quantity=q + tail, value=float(r[col]), unit="mm", data=r["recording"], kind="reproduced")
-                for tail, col in (("", "A − B (mm)"), (", 95 % interval low", "95 % low (mm)"),
-                                  (", 95 % interval high", "95 % high (mm)")) if np.isfinite(r[col])]
-    return out
+    return [row for _, r in verdicts.iterrows()
+            for row in _interval_rows(f"horizontal RMSE difference {r['A']} − {r['B']} (scoreboard, {rate_hz:g} Hz)",
+                                      r, ("A − B (mm)", "95 % low (mm)", "95 % high (mm)"), r["recording"])]
