@@ -75,6 +75,7 @@ from pathlib import Path
 
 from . import reproduce
 from .coding import EXERCISE_TAG, answer_cell
+from .widgets.notes import RIGHT
 
 __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "MATH_SCALE", "MAX_CODE_LINES",
            "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS", "MAX_OUTPUT_WORDS", "MAX_TABLE_ROWS", "RESEARCH_TAG",
@@ -556,7 +557,7 @@ def answer_key(nb):
 
 def wrong_predictions(nb) -> list[str]:
     """The predictions of an executed answer key (:func:`answer_key`) whose check cell (the next code cell that
-    reads it) does not say "✔ Right", one sentence each; empty when every check agrees with its answer."""
+    reads it) does not say :data:`uwbwb.widgets.notes.RIGHT`, one sentence each; empty when every check agrees with its answer."""
     problems = []
     for i, cell in enumerate(nb.cells):
         m = _PREDICTION_NAME.match(cell.source) if PREDICTION_TAG in _tags(cell) else None
@@ -566,7 +567,7 @@ def wrong_predictions(nb) -> list[str]:
         check = next((c for c in nb.cells[i + 1:] if c.cell_type == "code" and reads.search(c.source)), None)
         shown = "" if check is None else " ".join(_text(o.get("data", {}).get("text/markdown", ""))
                                                   for o in check.get("outputs", []))
-        if "✔ Right" not in shown:
+        if RIGHT not in shown:
             problems.append(f"cell {i}: {m.group(1)} = {m.group(2)} is not what its check shows"
                             if check is not None else f"cell {i}: no check cell reads {m.group(1)}")
     return problems

@@ -87,6 +87,11 @@ def what_you_should_see(text: str):
     return Markdown("**What you should see.** " + " ".join(ln.strip() for ln in lines))
 
 
+#: How a check says that a prediction is what the run shows (the answer key's audit reads it:
+#: :func:`uwbwb.classroom.wrong_predictions`).
+RIGHT = "✔ Right"
+
+
 @dataclass(frozen=True)
 class ExerciseCheck:
     """What an exercise's run shows, and the student's prediction read against it.
@@ -183,7 +188,7 @@ class PredictionCheck:
         if self.prediction is None:
             head = f"**No prediction written.** The run shows **{c.outcome}**"
         elif self.right:
-            head = f"**✔ Right:** you predicted {self.prediction!r} and the run shows **{c.outcome}**"
+            head = f"**{RIGHT}:** you predicted {self.prediction!r} and the run shows **{c.outcome}**"
         else:
             head = f"**✘ Not what the run shows:** you predicted {self.prediction!r}; the run shows **{c.outcome}**"
         why = f" {c.why}" if c.why else ""
