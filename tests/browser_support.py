@@ -45,6 +45,9 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 #: Parameters the browser test injects (the same as CI's papermill runs).
 FAST_PARAMETERS = {"FAST": True}
+#: Sizes below FAST for the runs whose point is a path, not a number (the browser session, the runs on generated
+#: recordings): the smallest that still run every section and panel. Notebooks not named run at FAST sizes.
+SMALLEST = {"03_ekf_motion_models": {"SIM_DURATION_S": 40.0, "GRID_POINTS": 3}}
 #: Longest time one notebook may take to run all its cells.
 RUN_TIMEOUT_S = float(os.environ.get("UWBWB_BROWSER_TIMEOUT_S", "600"))
 #: Longest time JupyterLab may take to open a notebook and start its kernel.

@@ -14,7 +14,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from tests.browser_support import (CHROMIUM, FAST_PARAMETERS, NOTEBOOK_DIR, OUTPUT_DIR,
+from tests.browser_support import (CHROMIUM, FAST_PARAMETERS, NOTEBOOK_DIR, OUTPUT_DIR, SMALLEST,
                                    check_notebook, lab_session, prepare_notebook,
                                    project_notebooks, widget_manager_versions)
 
@@ -67,13 +67,15 @@ def test_kernel_and_widget_manager_come_from_this_environment(lab):
     NOTEBOOKS or [pytest.param(None, marks=pytest.mark.skip(reason=f"no notebooks in {NOTEBOOK_DIR} yet"))],
     ids=[p.stem for p in NOTEBOOKS] or ["no-notebooks"])
 def test_notebook_in_jupyterlab(notebook, lab, lab_root, tmp_path, cluster_address):
-    """Run every cell in the browser with the FAST parameters and the sweeps on a LocalCluster, move a control
+    """Run every cell in the browser with the FAST parameters (sizes from ``SMALLEST`` where a notebook has them) and
+    the sweeps on a LocalCluster, move a control
     of every panel; the notebook must join the cluster and publish its FAST summary."""
     from uwbwb.reproduce import read_summary
 
     server, browser = lab
     summary = tmp_path / f"{notebook.stem}.summary.json"
-    parameters = {**FAST_PARAMETERS, "SUMMARY_PATH": str(summary), "DASK_SCHEDULER": cluster_address}
+    parameters = {**FAST_PARAMETERS, **SMALLEST.get(notebook.stem, {}), "SUMMARY_PATH": str(summary),
+                  "DASK_SCHEDULER": cluster_address}
     prepare_notebook(notebook, lab_root, parameters)
     report = check_notebook(server, browser, notebook.name, out_dir=OUTPUT_DIR / notebook.stem)
     assert report.panels, f"{notebook.name}: no panel was checked"

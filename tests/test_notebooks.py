@@ -9,6 +9,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
+from tests.browser_support import SMALLEST
 from uwbwb.reproduce import read_summary
 
 NOTEBOOK_DIR = Path(__file__).resolve().parents[1] / "notebooks"
@@ -202,7 +203,8 @@ def test_motion_models_runs_unchanged_on_other_recordings(tmp_path):
     fx_iasl.write_dataset(data_dir / "iasl-uwb-imu", rng=rng, duration_s=30.0)
     hfx.write_dataset(data_dir / "hanyang-outdoor-uwb", rng=rng, distances_m=(2, 4, 10, 20))
     case = hfx.write_dynamic_tree(data_dir / "hanyang-outdoor-uwb", rng=rng, speed_mps=4.0)[1].name
-    rows = _run_on("03_ekf_motion_models.ipynb", tmp_path, data_dir, RECORDING="medium", HANYANG_CASE=case)
+    rows = _run_on("03_ekf_motion_models.ipynb", tmp_path, data_dir, RECORDING="medium", HANYANG_CASE=case,
+                   **SMALLEST["03_ekf_motion_models"])
     assert {r["data"] for r in rows} == {"synthetic", "lias-planar-uwb/medium", "iasl-uwb-imu/scenario2",
                                          f"hanyang-outdoor-uwb/{case}"}
     assert any(r["quantity"] == "RMSE_2d ratio EKF-RW ranges / raw LS" for r in rows
