@@ -1,4 +1,4 @@
-"""Notebook 06's teaching pieces: the exercises' checks, the class-size outputs and the computed notes."""
+"""Notebook 06's teaching pieces: the exercises' checks, the class-size board and the panel."""
 
 from __future__ import annotations
 
@@ -75,28 +75,8 @@ def test_short_table_keeps_the_main_columns_of_the_methods_that_ran(board):
     np.testing.assert_allclose(t["rmse_m"], board.table().set_index("method").loc[t.index, "rmse_m"], atol=5e-4)
 
 
-def test_panel_note_quotes_the_board(board):
-    df = board.table().set_index("method")
-    best = df["rmse_m"].idxmin()
-    note = sbt.panel_note(board)
-    assert f"{best}, RMSE {df.loc[best, 'rmse_m']:.3f} m" in note and len(note.splitlines()) <= 3
-    above = int((df["rmse_over_common"] > 1).sum())
-    assert f"{above} of {len(df)} methods stand above it" in note
-    assert f"best LS, {df.loc['LS', 'rmse_m']:.3f} m" in note or f"best raw LS, {df.loc['raw LS', 'rmse_m']:.3f} m" in note
-
-
 def test_panel_offers_only_the_tags_the_boards_have(board):
     panel = sbt.panel({"synthetic": board})
     assert len(panel.controls["tag_index"].options) == len(board.tags) == 1
     panel.set(methods="per-epoch fixes (LS family)")
     assert "methods shown" in panel.readout_text
-
-
-def test_figure_note_counts_epochs_under_the_band(board):
-    mc_eff = syn.efficiency_summary(syn.monte_carlo(2, CONFIG, seed=2))
-    note = sbt.figure_note(board, mc_eff)
-    e = board.entry("EKF-RF", "tag")
-    band = np.sqrt(e.bound_trace_m2)
-    ok = e.scored & np.isfinite(band)
-    assert f"at {np.mean(e.error_m[ok] <= band[ok]):.0%} of the epochs" in note
-    assert "EKF-RF" in note.splitlines()[0] and len(note.splitlines()) <= 3

@@ -6,14 +6,13 @@ Cramér–Rao bounds (notebook 06 and ``python -m uwbwb score``).
 * :mod:`.estimators` — the adapters of every method (LS, TDoA, EKFs, UWB/INS, external estimates);
 * :mod:`.setnoise_nls` — the set-noise filters and the windowed trajectory NLS as adapters;
 * :mod:`.board` — scoring, the table, Markdown/CSV output;
-* :mod:`.explain` — why a method beats its own bound (the scoring part's diagnostics);
 * :mod:`.figures` — error CDFs, RMSE vs bound, error over time with the bound's band;
 * :mod:`.synthetic` — a run whose truth and noise are known exactly;
 * :mod:`.sources` — recordings named on the command line;
 * :mod:`.reference` — the common bound (one per recording, the same for every method);
 * :mod:`.checks` — is a recording scorable (measured vs predicted ranges, with a diagnosis);
 * :mod:`.verdicts` — verdict tables computed from differences with block-bootstrap intervals;
-* :mod:`.teaching` — notebook 06's class-size board, panel and computed notes;
+* :mod:`.teaching` — notebook 06's class-size board and panel;
 * :mod:`.exercises` — notebook 06's checked exercises on the synthetic hall.
 """
 

@@ -30,7 +30,8 @@
     RMSE over those epochs divided by ``bound_m`` (the textbook *efficiency* is the inverse,
     bound / RMSE): a consistency check of each method against its own model — near 1 the
     method does what its model promises; below 1 by more than 2 standard errors it *beats* its own
-    bound (the ``note`` says so; :meth:`Board.diagnostics_table` holds the measurements that explain it). Not comparable across methods (a poor model has a loose bound).
+    bound (:func:`.verdicts.own_bound_table` gives the verdict beside the next columns). Not comparable across
+    methods (a poor model has a loose bound).
 ``bound_measured_m``, ``rmse_over_bound_measured``, ``rmse_over_bound_measured_se``
     The own bound re-evaluated with its noise assumption replaced by what the scored part's truth
     measures (:meth:`~.interface.BaseEstimator.measured_noise_bound`: the scored part's robust range σ;
@@ -41,7 +42,7 @@
     geometry) over the epochs of ``bound_m`` where it is finite, and the own bound over it on those epochs: far
     above 1 the method's own
     measurement model (e.g. range differences of a small anchor cluster) carries far less information than the
-    ranges (the note gives the factor above :data:`.explain.GEOMETRY_FACTOR`).
+    ranges.
 ``bias_share``
     The constant part of the error: ``sqrt(Σ_tag n |mean error vector|² / Σ n) / RMSE`` over the scored epochs
     (0: no constant offset; 1: all of the error is one offset per tag). A Cramér–Rao bound holds for unbiased
@@ -67,7 +68,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -80,9 +81,8 @@ from ..types import Estimates, Recording
 from . import checks as _checks
 from .estimators import default_estimators
 from .interface import GEOMETRY, Estimator, _range_bound, measurement_geometry, truth_at
-from .explain import bound_note, diagnostics, diagnostics_table
 from .protocol import Calibration, fit_calibration, scored_tags
-from .reference import REFERENCE, common_bound, describe as describe_reference, fit_reference_motion
+from .reference import REFERENCE, common_bound, fit_reference_motion
 from .verdicts import block_se_ratio
 
 __all__ = ["Board", "Entry", "calibrate", "score", "TABLE_COLUMNS"]
@@ -260,9 +260,6 @@ class Board:
         One :class:`Entry` per (method, tag).
     methods
         Method names in board order.
-    diagnostics
-        Per tag, what the scoring part's truth says about the noise and the motion
-        (:meth:`diagnostics_table`: read it for a method that beats its bound).
     fast
         Whether CI-sized settings were used (numbers are then smoke tests).
     checks
@@ -278,7 +275,6 @@ class Board:
     calibration: Calibration
     entries: tuple[Entry, ...]
     methods: tuple[str, ...]
-    diagnostics: Mapping[str, Mapping] = field(default_factory=dict)
     fast: bool = False
     checks: tuple[str, ...] = ()
     external: tuple[str, ...] = ()
@@ -411,7 +407,6 @@ class Board:
         base = df.loc[df["method"] == "raw LS", "us_per_epoch"]
         if len(base) and np.isfinite(base.iloc[0]) and base.iloc[0] > 0:
             df["time_ratio"] = df["us_per_epoch"] / base.iloc[0]
-        df["note"] = [r.note or bound_note(r) for r in df.itertuples(index=False)]
         return df
 
     def by_tag(self) -> pd.DataFrame:
@@ -424,11 +419,6 @@ class Board:
                 rows.append({"tag": tag, **row})
         return pd.DataFrame(rows)
 
-    def diagnostics_table(self) -> pd.DataFrame:
-        """What the scoring part's truth says beside what the methods were told, per tag
-        (:func:`.explain.diagnostics_table`): read it for a method that beats its own bound."""
-        return diagnostics_table(self.diagnostics, self.calibration)
-
     # ------------------------------------------------------------------ output
     def markdown(self) -> str:
         """The table as Markdown (the bound in its own column), with a header saying what it is."""
@@ -439,16 +429,16 @@ class Board:
         lines = [f"# Scoreboard: {self.label} ({self.mode} mode; {kinds})", "",
                  f"Calibration and tuning on {self.calibration.source}; scored on {self.part}, "
                  f"tags {', '.join(self.tags)}; {self.calibration.dim}-D, {self.calibration.rate_hz:.3g} Hz. "
-                 "Errors are horizontal. *Common bound*: one bound for every method (below). RMSE / common "
+                 "Errors are horizontal. *Common bound*: one bound for every method, the posterior CRLB of the "
+                 "motion model most likely on the calibration truth (model and σ_w in the calibration block below; "
+                 "none where it has none), every range at the calibrated robust noise treated as Gaussian, along the "
+                 "scored true track; it bounds causal estimators only. RMSE / common "
                  "bound on the common epochs (those every method covered) is the figure to rank methods by: one "
                  "bound on one set of epochs; RMSE / common bound on a method's own epochs places it with its "
                  "coverage (a method that skips hard epochs is placed on easier ones). *Own bound*: each method's Cramér–Rao bound under its "
                  "own noise and motion model (its kind in the next column); RMSE / own bound checks the method "
                  "against its own model and is not comparable across methods (the textbook efficiency is its "
                  "inverse). Both are bounds only under their stated Gaussian noise and motion models.", ""]
-        common = describe_reference(self.calibration)
-        lines += [(common[0].upper() + common[1:] + "." if common else
-                   "No common bound (the calibration has no motion model fitted)."), ""]
         if self.fast:
             lines += ["FAST mode: CI-sized tuning grids and particle counts — smoke-test numbers.", ""]
         head = ["method", "coverage", "RMSE (m)", "CEP50 (m)", "CEP95 (m)", "RMSE common epochs (m)",
@@ -476,13 +466,6 @@ class Board:
                                               f(r.bias_share, ".2f"), nees, nis,
                                               f(r.us_per_epoch, ".0f"), f(r.time_ratio, ".1f"),
                                               r.tuning_pick, r.note or ""]) + " |")
-        diag = self.diagnostics_table()
-        if not diag.empty:
-            cols = ["tag", *diag.columns]
-            lines += ["", "Diagnostics of the scoring part (what its truth says beside what the methods were told):", "",
-                      "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-            lines += ["| " + " | ".join([str(t), *(f(float(v), ".3g") for v in r)]) + " |"
-                      for t, r in zip(diag.index, diag.to_numpy())]
         lines += ["", "```", self.calibration.describe(), *self.checks, "```", ""]
         return "\n".join(lines)
 
@@ -708,7 +691,6 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
             truth = truth_at(rec, tag, out.t_s, out.dim)
             entries.append(Entry(est.name, tag, out, b, truth, seconds, common=commons[tag], bound_measured=measured,
                                  ranges_crlb=ranges_crlb[tag]))
-    diag = {t: diagnostics(rec, t, calibration) for t in tags}
     external = tuple(e.name for e in estimators if getattr(e, "external", False))
-    return Board(label or test_rec.label, test_rec.label, calibration, tuple(entries), tuple(names), diag, fast,
-                 tuple(notes), external)
+    return Board(label or test_rec.label, test_rec.label, calibration, tuple(entries), tuple(names), fast, tuple(notes),
+                 external)

@@ -92,20 +92,6 @@ def fit_reference_motion(rec: Recording, tags: Sequence[str], cal: Calibration,
             "sigma_w_per_model": {m: v[0] for m, v in best.items()}}
 
 
-def describe(cal: Calibration) -> str:
-    """What the common bound is, in one sentence (empty if the calibration has none)."""
-    p = cal.params(REFERENCE)
-    if "model" not in p:
-        return ""
-    unit = {"RW": "m/s", "RF": "m/s²", "RJ": "m/s³"}[p["model"]]
-    others = ", ".join(f"{m} {v:+.2f}" for m, v in p["loglik_per_epoch"].items())
-    return (f"common bound: posterior CRLB of the {p['model']} model, σ_w = {p['sigma_w']:.3g} {unit} (highest "
-            f"likelihood of the calibration truth over {p['n_epochs']} epochs; log-likelihood per epoch {others}), "
-            f"with every range at the calibrated per-anchor range noise (the robust MAD σ, treated as Gaussian: an "
-            f"assumption), evaluated along the one realised true track of the scored part. It bounds causal "
-            f"estimators (filters) only: smoothers such as the windowed NLS and methods with an IMU may go below it")
-
-
 def common_bound(rec: Recording, tag: str, cal: Calibration, t_s: np.ndarray | None = None) -> bounds.Bound | None:
     """The common bound along ``tag``'s epochs of the scoring part ``rec`` (None if ``cal`` has no model).
 

@@ -133,17 +133,10 @@ class SetNoiseFilter(BaseEstimator):
         if len(fixes) == 0:
             return bounds.Bound(est.t_s, C, kind)
         _, sd = model_noise(fixes, model)
-        dt = np.diff(fixes.t_s, prepend=fixes.t_s[0])
-        motion = VelocityKick(sigma_d_mps)
-        here = motion.layout.axis_major()                                    # state x, ẋ, y, ẏ here
-        F = motion.layout.reorder_matrix(motion.F(dt), here)
-        Q = motion.layout.reorder_matrix(motion.Q(dt), here)
-        pos = list(here.pos_index)
-        info = np.zeros((len(fixes), 4, 4))
-        info[:, pos, pos] = 1 / sd ** 2
-        P0 = np.diag([1e4, 1.0, 1e4, 1.0])       # position from the first fix, velocity ~ 1 m/s
-        full = bounds.pcrlb(P0, F, Q, info)
-        C[idx] = full[:, pos][:, :, pos]
+        info = np.zeros((len(fixes), 2, 2))
+        info[:, [0, 1], [0, 1]] = 1 / sd ** 2                          # per-axis σ of each fix's set
+        P0 = np.diag([1e4, 1e4, 1.0, 1.0])       # position from the first fix, velocity ~ 1 m/s
+        C[idx] = bounds.tracking_bound(VelocityKick(sigma_d_mps), fixes.t_s, info, P0)
         have = np.all(np.isfinite(truth_at(rec, tag, est.t_s, 2)), axis=1)
         C[~have] = np.nan
         return bounds.Bound(est.t_s, C, kind)

@@ -48,7 +48,7 @@ class SyntheticConfig:
         Range noise standard deviation (every anchor), metres.
     psd_m2ps3
         PSD of the tag's white acceleration (random-force model), m²/s³; the model itself is
-        :attr:`motion` (:meth:`with_motion` sets it from a model object).
+        :attr:`motion`.
     init_vel_sigma_mps
         Standard deviation of the initial velocity per axis, m/s.
     tag_height_m
@@ -74,14 +74,6 @@ class SyntheticConfig:
         """The tag's motion model, a 2-D random force with PSD ``psd_m2ps3``."""
         return RandomForce(psd_m2ps3=self.psd_m2ps3, dim=2)
 
-    def with_motion(self, motion: RandomForce | None) -> "SyntheticConfig":
-        """This configuration with the tag moved by ``motion`` (a 2-D :class:`RandomForce`; None: unchanged)."""
-        if motion is None:
-            return self
-        if not isinstance(motion, RandomForce) or motion.dim != 2:
-            raise ValueError(f"SyntheticConfig: motion must be a 2-D RandomForce, got {motion!r}")
-        return replace(self, psd_m2ps3=motion.psd)
-
     def anchors(self) -> Anchors:
         h = self.hall_m / 2
         xy = [(-h, -h), (h, -h), (h, h), (-h, h), (0, -h), (h, 0), (0, h), (-h, 0)]
@@ -90,13 +82,8 @@ class SyntheticConfig:
 
 
 def simulate(config: SyntheticConfig = SyntheticConfig(), *, rng: np.random.Generator,
-             name: str = "cv", motion: RandomForce | None = None) -> Recording:
-    """One run (tag ``"tag"``) with its truth; ``dataset`` is ``"synthetic"``.
-
-    ``motion`` (a 2-D :class:`~uwbwb.models.motion.RandomForce`) moves the tag instead of
-    ``config.motion``; ``meta["config"]`` then holds it (:meth:`SyntheticConfig.with_motion`).
-    """
-    config = config.with_motion(motion)
+             name: str = "cv") -> Recording:
+    """One run (tag ``"tag"``) with its truth; ``dataset`` is ``"synthetic"``."""
     t = np.arange(0.0, config.duration_s, 1.0 / config.rate_hz)
     motion = config.motion
     x0 = motion.initial_state(np.zeros(2), config.init_vel_sigma_mps * rng.standard_normal(2))
