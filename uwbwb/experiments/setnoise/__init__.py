@@ -13,7 +13,7 @@ from . import exercises, headlines, panels
 from .figures import (plot_facility, plot_fixes, plot_pf_kf_gap, plot_set_ellipses, plot_set_frequency,
                       plot_sweep, plot_trace)
 from .real import Emulation, RealStudy, emulate_fixes, modelled_share, real_inputs, real_study
-from .diagnostics import (FACILITY_WIDE, PAPER_SIGMA_RULE, POOLED_SIGMA_RULE, normalised_residuals, pf_kf_gap,
+from .diagnostics import (FACILITY_WIDE, PAPER_SIGMA_RULE, POOLED_SIGMA_RULE, pf_kf_gap,
                           resampler_check, residual_table, trace)
 from .headlines import headline_rows
 from .study import (BAND_MPS, BASE_KF, BASE_PF, FILTERS, INPUT, OFF_TRACK_XY_M, PAPER, RAW, REPRODUCED, SET_KF,
@@ -26,7 +26,7 @@ __all__ = [
     "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "RAW", "REPRODUCED", "SET_KF", "SET_KF_POOLED", "SET_PF",
     "SIGMA_D_GRID_MPS", "TARGET", "Emulation", "RealStudy", "SweepConfig", "SyntheticStudy", "band_summary",
     "calibration_proximity", "emulate_fixes", "exercises", "headline_rows", "headlines", "mean_over_recordings",
-    "modelled_share", "normalised_residuals", "panels", "pf_kf_gap", "plot_facility", "plot_fixes", "plot_pf_kf_gap",
+    "modelled_share", "panels", "pf_kf_gap", "plot_facility", "plot_fixes", "plot_pf_kf_gap",
     "plot_set_ellipses", "plot_set_frequency", "plot_sweep", "plot_trace", "raw_error_m", "real_inputs", "real_study",
     "resampler_check", "residual_table", "set_shares", "sweep", "synthetic_study", "table1", "trace",
 ]
