@@ -33,10 +33,6 @@ def window(run: TagRun, window_s: float = WINDOW_S) -> TagRun:
     return run.between(t0, t0 + window_s)
 
 
-def _spread_cm(values: Sequence[float]) -> float:
-    return 100.0 * (max(values) - min(values))
-
-
 def reference_anchor(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, refs: Sequence[int] = (0, 2),
                      model: str = "RW", window_s: float = WINDOW_S) -> ExerciseCheck:
     """Exercise: use the diagonal TDoA covariance and change the reference anchor; predict CEP95.
@@ -77,7 +73,8 @@ def reference_anchor(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, refs:
             c = estimate(part, sigma_m, {model: sigmas[model]}, ref=ref, gate_prob=None, correlated=correlated,
                          models=(model,)).cep95()
             cep[correlated, ref] = (c["LS"], c[name])
-    spread = {(corr, k): _spread_cm([cep[corr, r][k] for r in refs]) for corr in (True, False) for k in (0, 1)}
+    spread = {(corr, k): 100.0 * (max(cep[corr, r][k] for r in refs) - min(cep[corr, r][k] for r in refs))
+              for corr in (True, False) for k in (0, 1)}
     holds = spread[False, 0] > REFERENCE_SPREAD_CM and spread[False, 1] > REFERENCE_SPREAD_CM
     return ExerciseCheck(
         f"{part.key}, first {window_s:g} s, reference anchor {' vs '.join(map(str, refs))}: with the diagonal Σ the "
