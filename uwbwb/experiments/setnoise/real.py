@@ -120,10 +120,6 @@ class RealStudy:
     tests: tuple[SetFixLog, ...]
     reports: pd.DataFrame = field(repr=False)
 
-    @property
-    def label(self) -> str:
-        return "calibrated ranges" if self.range_calibration is not None else "raw ranges"
-
     def coverage(self) -> pd.DataFrame:
         """Per role (calibration / test): fixes, decimated epochs with truth, coverage."""
         g = self.reports.groupby("role")[["kept_after_decimation", "no_truth", "fixes"]].sum()
