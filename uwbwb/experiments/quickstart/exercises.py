@@ -27,12 +27,6 @@ def _errors(rec: Recording, tag: str, range_m: np.ndarray, z_m: float, mask=None
     return metrics.errors_vs_truth(est, rec.truth[tag], horizontal=True)
 
 
-def _common(a: metrics.ErrorSeries, b: metrics.ErrorSeries) -> tuple[np.ndarray, np.ndarray]:
-    """Errors of ``a`` and ``b`` on the epochs both fixed (same times: same range log)."""
-    ok = np.isfinite(a.err_m) & np.isfinite(b.err_m)
-    return a.err_m[ok], b.err_m[ok]
-
-
 def _ranges(rec: Recording, tag: str, calibration: RangeCalibration | None) -> np.ndarray:
     log = rec.ranges[tag] if calibration is None else calibration.apply(rec.ranges[tag])
     return log.range_m
@@ -71,7 +65,8 @@ def fewer_anchors(rec: Recording, tag: str, *, tag_height_m: float, calibration:
     r = _ranges(rec, tag, calibration)
     full = _errors(rec, tag, r, tag_height_m)
     part = _errors(rec, tag, r, tag_height_m, mask)
-    e_full, e_part = _common(full, part)
+    common = metrics.score_epochs({"all": full.err_m, "part": part.err_m})          # the epochs both fixed
+    e_full, e_part = common["all"].common_m, common["part"].common_m
     path = rec.truth[tag].pos_m[:, :2]
     h_full = float(np.median(geometry.gdop(path, rec.anchors.pos_m, z_m=tag_height_m)))
     h_part = float(np.median(geometry.gdop(path, rec.anchors.pos_m, z_m=tag_height_m, mask=mask)))
@@ -106,7 +101,9 @@ def noisier_ranges(rec: Recording, tag: str, *, tag_height_m: float, calibration
     sigma_m = validate.number("sigma_m", sigma_m, minimum=0.0, strict_minimum=True)
     r = _ranges(rec, tag, calibration)
     noisy = r + rng.normal(0.0, sigma_m, size=r.shape)
-    before, after = _common(_errors(rec, tag, r, tag_height_m), _errors(rec, tag, noisy, tag_height_m))
+    common = metrics.score_epochs({"before": _errors(rec, tag, r, tag_height_m).err_m,
+                                   "after": _errors(rec, tag, noisy, tag_height_m).err_m})   # the epochs both fixed
+    before, after = common["before"].common_m, common["after"].common_m
     hdop = float(np.median(geometry.gdop(rec.truth[tag].pos_m[:, :2], rec.anchors.pos_m, z_m=tag_height_m)))
     rmse_b, rmse_a = metrics.rmse(before), metrics.rmse(after)
     return ExerciseCheck(
