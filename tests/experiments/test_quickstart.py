@@ -3,6 +3,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from uwbwb.calibration import fit_range_calibration, tag_mount_height
 from uwbwb.experiments import quickstart as qs
 from uwbwb.metrics import MIN_BLOCKS
 from uwbwb.widgets import data_banner
@@ -16,22 +17,28 @@ def synthetic(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def compared(synthetic):
-    cal = qs.calibrate(synthetic)
-    return cal, *qs.compare_calibration(synthetic.dynamic, cal, tag_height_m=synthetic.tag_height.per_tag_m)
+def heights(synthetic):
+    return tag_mount_height(synthetic.static).per_tag_m
+
+
+@pytest.fixture(scope="module")
+def compared(synthetic, heights):
+    cal = fit_range_calibration(list(synthetic.static))
+    return cal, *qs.compare_calibration(synthetic.dynamic, cal, tag_height_m=heights)
 
 
 def test_absent_data_gives_a_labelled_synthetic_stand_in(synthetic):
     assert synthetic.synthetic and synthetic.data_label == "synthetic"
-    assert "not found" in synthetic.room.reason
-    assert "synthetic stand-in" in data_banner(**synthetic.room.banner_args()).data
+    assert "not found" in synthetic.reason
+    assert "synthetic stand-in" in data_banner(**synthetic.banner_args()).data
     assert len(synthetic.static) == 30
     assert all(r.meta["decimated"] == 10 for r in synthetic.static)          # FAST thins the static poses
 
 
 def test_tag_height_comes_from_the_static_poses(synthetic):
-    assert synthetic.tag_height.z_m == pytest.approx(0.97, abs=0.01)
-    assert "static" in synthetic.tag_height.source
+    height = tag_mount_height(synthetic.static)
+    assert height.z_m == pytest.approx(0.97, abs=0.01)
+    assert "static" in height.source
 
 
 def test_calibration_fitted_on_static_improves_the_dynamic_run(compared):
@@ -45,7 +52,7 @@ def test_calibration_fitted_on_static_improves_the_dynamic_run(compared):
     assert set(errors) == {"raw", "calibrated"}
 
 
-def test_both_variants_are_scored_on_the_same_epochs(synthetic):
+def test_both_variants_are_scored_on_the_same_epochs(synthetic, compared):
     """An epoch only one variant fixes is left out of both variants' CEP, and coverage says so."""
     rec = synthetic.dynamic
     tag = rec.tags[0]
@@ -53,20 +60,11 @@ def test_both_variants_are_scored_on_the_same_epochs(synthetic):
     r = np.array(log.range_m)
     r[:50, 2:] = np.nan                                   # two anchors left: no 2-D fix on raw or calibrated
     holed = dataclasses.replace(rec, ranges={**rec.ranges, tag: dataclasses.replace(log, range_m=r)})
-    cal = qs.calibrate(synthetic)
-    table, _ = qs.compare_calibration(holed, cal, tag_height_m=synthetic.tag_height.z_m)
+    table, _ = qs.compare_calibration(holed, compared[0], tag_height_m=tag_mount_height(synthetic.static).z_m)
     row = table[table.tag == tag].set_index("variant")
     assert (row.fixes == len(log) - 50).all()
     assert row.coverage.iloc[0] == pytest.approx((len(log) - 50) / len(log))
     assert (row.compared == len(log) - 50).all()
-
-
-def test_truth_height_of_the_dynamic_run_is_not_used(synthetic):
-    lifted = {t: Trajectory(tr.t_s, tr.pos_m + [0.0, 0.0, 0.4], name=tr.name)
-              for t, tr in synthetic.dynamic.truth.items()}
-    moved = dataclasses.replace(synthetic, room=dataclasses.replace(
-        synthetic.room, dynamic=dataclasses.replace(synthetic.dynamic, truth=lifted)))
-    assert moved.tag_height == synthetic.tag_height
 
 
 def test_verdicts_say_whether_calibration_helps_on_both_sides_of_the_rule(compared):
@@ -103,11 +101,11 @@ def test_headline_rows_carry_kind_and_coverage(compared):
     assert sum(r["quantity"].startswith("coverage") for r in rows) == len(table)
 
 
-# --------------------------------------------------------------------------- exercises and notes
+# --------------------------------------------------------------------------- exercises and the panel
 
-def test_exercise_fewer_anchors(synthetic):
+def test_exercise_fewer_anchors(synthetic, heights):
     rec, tag = synthetic.dynamic, synthetic.dynamic.tags[0]
-    z = synthetic.tag_height.per_tag_m[tag]
+    z = heights[tag]
     check = qs.exercises.fewer_anchors(rec, tag, tag_height_m=z)
     n = check.numbers
     assert check.holds, check
@@ -128,9 +126,9 @@ class _LongDroppedAnchors:
         return dataclasses.replace(log, range_m=r)
 
 
-def test_exercise_fewer_anchors_can_fail_when_the_dropped_anchors_are_the_bad_ones(synthetic):
+def test_exercise_fewer_anchors_can_fail_when_the_dropped_anchors_are_the_bad_ones(synthetic, heights):
     rec, tag = synthetic.dynamic, synthetic.dynamic.tags[0]
-    z = synthetic.tag_height.per_tag_m[tag]
+    z = heights[tag]
     check = qs.exercises.fewer_anchors(rec, tag, tag_height_m=z, calibration=_LongDroppedAnchors())
     n = check.numbers
     assert n["HDOP, 4 anchors"] > n["HDOP, all anchors"]                 # the geometry is as weak as before ...
@@ -139,9 +137,9 @@ def test_exercise_fewer_anchors_can_fail_when_the_dropped_anchors_are_the_bad_on
     assert check.against("higher").right is False and check.against("not higher").right is True
 
 
-def test_exercise_noisier_ranges_can_fail_when_the_noise_added_is_negligible(synthetic):
+def test_exercise_noisier_ranges_can_fail_when_the_noise_added_is_negligible(synthetic, heights):
     rec, tag = synthetic.dynamic, synthetic.dynamic.tags[0]
-    z = synthetic.tag_height.per_tag_m[tag]
+    z = heights[tag]
     checks = [qs.exercises.noisier_ranges(rec, tag, tag_height_m=z, sigma_m=1e-4, rng=np.random.default_rng(s))
               for s in range(4)]
     assert {c.holds for c in checks} == {True, False}                     # 0.1 mm: CEP50 moves either way
@@ -150,10 +148,10 @@ def test_exercise_noisier_ranges_can_fail_when_the_noise_added_is_negligible(syn
         assert_reads_predictions(c)
 
 
-def test_exercise_noisier_ranges_matches_the_first_order_prediction(synthetic, compared):
+def test_exercise_noisier_ranges_matches_the_first_order_prediction(synthetic, heights, compared):
     cal = compared[0]
     rec, tag = synthetic.dynamic, synthetic.dynamic.tags[0]
-    check = qs.exercises.noisier_ranges(rec, tag, tag_height_m=synthetic.tag_height.per_tag_m[tag], calibration=cal,
+    check = qs.exercises.noisier_ranges(rec, tag, tag_height_m=heights[tag], calibration=cal,
                                         sigma_m=0.2, rng=np.random.default_rng(3))
     n = check.numbers
     assert check.holds, check
@@ -163,33 +161,11 @@ def test_exercise_noisier_ranges_matches_the_first_order_prediction(synthetic, c
         qs.exercises.noisier_ranges(rec, tag, tag_height_m=1.0, sigma_m=0.0, rng=np.random.default_rng(3))
 
 
-def test_notes_follow_the_numbers(synthetic, compared):
-    from uwbwb.widgets import what_you_should_see
-
-    cal, table, errors = compared
-    tag = synthetic.dynamic.tags[0]
-    note = qs.exercises.explorer_note(errors, tag, 0.0, 20.0)
-    assert "(smaller)" in note                                       # biases dominate the stand-in's raw fixes
-    flipped = {"raw": errors["calibrated"], "calibrated": errors["raw"]}
-    assert "(not smaller)" in qs.exercises.explorer_note(flipped, tag, 0.0, 20.0)
-    cdf = qs.exercises.cdf_note(table)
-    assert f"for {len(synthetic.dynamic.tags)} of {len(synthetic.dynamic.tags)} tags" in cdf
-    what_you_should_see(note), what_you_should_see(cdf)             # both fit the note's limits
-
-
-def test_plan_note_words_the_geometry(synthetic):
-    rec, tag = synthetic.dynamic, synthetic.dynamic.tags[0]
-    note = qs.exercises.plan_note(rec, tag, tag_height_m=1.0)
-    assert f"the {len(rec.anchors.pos_m)} anchors" in note and "good geometry" in note   # tag inside the ring
-    far = dataclasses.replace(rec, anchors=dataclasses.replace(rec.anchors, pos_m=rec.anchors.pos_m * [0.05, 0.05, 1] + [20, 20, 0]))
-    assert "weak geometry" in qs.exercises.plan_note(far, tag, tag_height_m=1.0)   # anchors bunched far away
-
-
-def test_explorer_panel_draws_a_window_and_its_readout(synthetic, compared):
+def test_explorer_panel_draws_a_window_and_its_readout(synthetic, heights, compared):
     from uwbwb.classroom import axes_problems, axes_record
 
     cal = compared[0]
-    ex = qs.panels.Explorer(synthetic, cal)
+    ex = qs.panels.Explorer(synthetic.dynamic, heights, cal)
     tag = synthetic.dynamic.tags[0]
     fig, readout = ex.render(tag, "calibrated", 0.0, 20.0)
     est, err = ex.track(tag, "calibrated")
@@ -199,5 +175,5 @@ def test_explorer_panel_draws_a_window_and_its_readout(synthetic, compared):
     assert all(axes_problems(axes_record(ax)) == [] for ax in fig.axes)
     fig, readout = ex.render(tag, "raw", ex.span_s + 10.0, 5.0)         # a window past the end: a note says so
     assert readout == {"fixes in window": 0} and "no fix" in fig.axes[0].texts[-1].get_text()
-    panel = qs.panels.explorer(synthetic, cal)
+    panel = qs.panels.explorer(synthetic.dynamic, heights, cal)
     assert set(panel.values) == {"tag", "variant", "start_s", "window_s"}

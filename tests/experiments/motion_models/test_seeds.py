@@ -19,9 +19,6 @@ def test_the_seeds_interval_is_the_student_t_interval_over_seeds():
     assert (t["lo"], t["hi"]) == (pytest.approx(0.3 - h), pytest.approx(0.3 + h))
     one = metrics.seeds_interval([0.5, np.nan])                               # one finite seed: a mean, no interval
     assert one["n"] == 1 and one["mean"] == 0.5 and np.isnan(one["lo"]) and np.isnan(one["hi"])
-    assert mm.scoring_seeds(7, 3) == (7, 8, 9)
-    with pytest.raises(ValueError, match="at least one"):
-        mm.scoring_seeds(0, 0)
 
 
 def _study(rw, rf, seeds=(0, 1, 2, 3)):
@@ -32,7 +29,7 @@ def _study(rw, rf, seeds=(0, 1, 2, 3)):
             rows.append({"seed": s, "run": "office", "tag": tag, "raw": 1.2, "LS": 1.0, "EKF-RJ": 1.0,
                          "EKF-RW": rw[k], "EKF-RF": rf[k]})
     t = pd.DataFrame(rows).set_index(["seed", "run", "tag"])[list(mm.METHODS)]
-    return mm.SeedStudy(t, {"synthetic office": ("office",)}, tuple(seeds))
+    return mm.seeds.SeedStudy(t, {"synthetic office": ("office",)}, tuple(seeds))
 
 
 @pytest.mark.parametrize("rf, verdict, order", [
@@ -45,14 +42,14 @@ def test_pair_verdict_follows_the_interval_over_seeds(rf, verdict, order):
     row = _study(rw, rf).pairs([("EKF-RW", "EKF-RF")]).iloc[0]
     d = np.subtract(rw, rf)
     assert row["seeds"] == 4 and row["A − B (m)"] == pytest.approx(d.mean())
-    assert row["verdict"] == verdict and row["vs thesis"] == order and row["rule"] == mm.SEED_RULE
+    assert row["verdict"] == verdict and row["vs thesis"] == order and row["rule"] == mm.seeds.SEED_RULE
     assert row["thesis A − B (m, input)"] == pytest.approx(np.mean([0.41 - 0.77, 0.48 - 1.13]))   # Table 3
 
 
 def test_one_seed_gives_no_verdict_and_no_interval_rows():
     s = _study((0.4,), (0.6,), seeds=(0,))
     assert s.pairs([("EKF-RW", "EKF-RF")]).iloc[0]["verdict"] == "no interval (one seed)"
-    rows = mm.seed_rows(s, [("EKF-RW", "EKF-RF")])
+    rows = mm.seeds.seed_rows(s, [("EKF-RW", "EKF-RF")])
     assert [r["quantity"] for r in rows] == ["CEP95 EKF-RW minus EKF-RF, mean over test seeds (synthetic office)"]
 
 
@@ -71,7 +68,7 @@ def test_seed_study_runs_the_study_filters_and_its_first_seed_is_the_study(offic
     cal, test = office_runs                                          # seed 1, 25 s
     study = mm.run_study(cal, test, grids={"RW": [1.0], "RF": [1.0, 3.0], "RJ": [3.0]}, gate_prob=None,
                          progress=False)
-    s = mm.seed_study({"synthetic office": (study, ("office",))}, mm.scoring_seeds(1, 2), gate_prob=None,
+    s = mm.seed_study({"synthetic office": (study, ("office",))}, (1, 2), gate_prob=None,
                       duration_s=25.0)
     assert s.seeds == (1, 2) and list(s.cep95.columns) == list(mm.METHODS)
     pd.testing.assert_frame_equal(s.base(), study.table(mm.METHODS))   # the same filters on the same acquisition
@@ -98,7 +95,7 @@ def test_pairs_per_tag_run_split_what_the_data_set_pools():
         rows.append({"seed": s, "run": "office", "tag": "tag2", "raw": 1.0, "LS": 1.0, "EKF-RJ": 1.0,
                      "EKF-RW": 0.37 + 0.005 * s, "EKF-RF": 0.50 - 0.004 * s})
     t = pd.DataFrame(rows).set_index(["seed", "run", "tag"])[list(mm.METHODS)]
-    s = mm.SeedStudy(t, {"synthetic office": ("office",)}, (0, 1, 2, 3))
+    s = mm.seeds.SeedStudy(t, {"synthetic office": ("office",)}, (0, 1, 2, 3))
     pooled = s.pairs(mm.MODEL_PAIRS[:1]).iloc[0]
     per = s.pairs(mm.MODEL_PAIRS[:1], by="tag-run").set_index("data")
     assert pooled["verdict"] == "EKF-RW better" and list(per.index) == ["office tag1", "office tag2"]

@@ -78,13 +78,6 @@ def test_overconfident_exercise_raises_cep95_and_nis(fitted):
         exercises.overconfident_driving_noise(run, sigma_m, SIGMAS, factor=0.0)
 
 
-def test_explorer_note_follows_the_readout():
-    readout = {"run / tag": "office/tag1", "CEP95 EKF-RW (m)": 0.40, "CEP95 LS (m)": 0.50, "mean NIS / dof": 0.8,
-               "NIS verdict": "consistent"}
-    assert "is below LS's (0.50 m)" in exercises.explorer_note(readout, "RW")
-    assert "is not below" in exercises.explorer_note({**readout, "CEP95 EKF-RW (m)": 0.6}, "RW")
-
-
 # --------------------------------------------------------------------------- panel back end
 
 def test_explorer_offers_only_what_the_data_has(small_study):

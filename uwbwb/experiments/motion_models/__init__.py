@@ -7,21 +7,16 @@
 as ``mm``.
 """
 
-from . import exercises, panels, real, seeds
+from . import exercises, headlines, panels, real, results, seeds
 from .figures import calibration_figure, cdf_figure, covariance_figure, paths_figure, scenario_figure
-from .headlines import Results, SIGMA_KIND, checks, headline_rows, record, sigma_rows, summary_rows
-from .results import (METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, cep95_table,
-                      coverage_table, ekf_name, nis_table, paper_table, ranking)
-from .seeds import MODEL_PAIRS, SEED_PAIRS, SEED_RULE, SeedStudy, scoring_seeds, seed_rows, seed_study
-from .study import (Study, estimate, ranging_summary, run_study, synthetic_acquisition, tag_runs,
-                    tdoa_noise_check)
+from .headlines import Results, SIGMA_KIND, checks, headline_rows
+from .results import METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, ekf_name, ranking
+from .seeds import MODEL_PAIRS, seed_study
+from .study import Study, estimate, ranging_summary, run_study, synthetic_acquisition, tag_runs
 
 __all__ = [
-    "METHODS", "MODEL_PAIRS", "MODELS", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95",
-    "PAPER_SIGMA", "Results", "SEED_PAIRS", "SEED_RULE", "SIGMA_KIND", "SeedStudy", "Study", "TagResults",
-    "calibration_figure", "cdf_figure", "cep95_table", "checks", "covariance_figure",
-    "coverage_table", "ekf_name", "estimate", "exercises", "headline_rows",
-    "nis_table", "panels", "paper_table", "paths_figure", "ranging_summary", "ranking", "real",
-    "record", "run_study", "scenario_figure", "scoring_seeds", "seed_rows", "seed_study", "seeds",
-    "sigma_rows", "summary_rows", "synthetic_acquisition", "tag_runs", "tdoa_noise_check",
+    "METHODS", "MODEL_PAIRS", "MODELS", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "PAPER_SIGMA", "Results",
+    "SIGMA_KIND", "Study", "calibration_figure", "cdf_figure", "checks", "covariance_figure", "ekf_name", "estimate",
+    "exercises", "headline_rows", "headlines", "panels", "paths_figure", "ranging_summary", "ranking", "real",
+    "results", "run_study", "scenario_figure", "seed_study", "seeds", "synthetic_acquisition", "tag_runs",
 ]

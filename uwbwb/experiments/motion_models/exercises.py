@@ -1,4 +1,4 @@
-"""Exercises of notebook 03 ("change X, predict Y") and the note under its panel.
+"""Exercises of notebook 03 ("change X, predict Y").
 
 Each exercise runs both settings on the same window of the same test run and returns a
 :class:`uwbwb.widgets.ExerciseCheck`: the direction the student is asked to predict, whether this
@@ -17,7 +17,7 @@ from ...widgets import ExerciseCheck
 from .results import ekf_name
 from .study import estimate
 
-__all__ = ["WINDOW_S", "explorer_note", "overconfident_driving_noise", "reference_anchor", "window"]
+__all__ = ["WINDOW_S", "overconfident_driving_noise", "reference_anchor", "window"]
 
 #: Seconds of a test run the exercises and the panel filter (from its first epoch): short enough
 #: that a check takes about a second.
@@ -31,10 +31,6 @@ def window(run: TagRun, window_s: float = WINDOW_S) -> TagRun:
     window_s = validate.number("window_s", window_s, minimum=0.0, strict_minimum=True)
     t0 = float(run.ranges.t_s[0])
     return run.between(t0, t0 + window_s)
-
-
-def _spread_cm(values: Sequence[float]) -> float:
-    return 100.0 * (max(values) - min(values))
 
 
 def reference_anchor(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, refs: Sequence[int] = (0, 2),
@@ -77,7 +73,8 @@ def reference_anchor(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, refs:
             c = estimate(part, sigma_m, {model: sigmas[model]}, ref=ref, gate_prob=None, correlated=correlated,
                          models=(model,)).cep95()
             cep[correlated, ref] = (c["LS"], c[name])
-    spread = {(corr, k): _spread_cm([cep[corr, r][k] for r in refs]) for corr in (True, False) for k in (0, 1)}
+    spread = {(corr, k): 100.0 * (max(cep[corr, r][k] for r in refs) - min(cep[corr, r][k] for r in refs))
+              for corr in (True, False) for k in (0, 1)}
     holds = spread[False, 0] > REFERENCE_SPREAD_CM and spread[False, 1] > REFERENCE_SPREAD_CM
     return ExerciseCheck(
         f"{part.key}, first {window_s:g} s, reference anchor {' vs '.join(map(str, refs))}: with the diagonal Σ the "
@@ -131,14 +128,3 @@ def overconfident_driving_noise(run: TagRun, sigma_m, sigmas: Mapping[str, float
         "Too little driving noise tells the filter the tag moves almost exactly as modelled: it trusts its "
         "prediction, lags behind every turn, and its innovations come out larger than its covariance claims "
         "(NIS/dof above the calibrated filter's: over-confidence).")
-
-
-def explorer_note(readout: Mapping[str, float], model: str) -> str:
-    """"What you should see" under the explorer panel, from its default readout (:meth:`.panels.Explorer.render`)."""
-    name = ekf_name(model)
-    ekf, ls = float(readout[f"CEP95 {name} (m)"]), float(readout["CEP95 LS (m)"])
-    order = "below" if ekf < ls else "not below"
-    nis = float(readout["mean NIS / dof"])
-    return (f"On {readout['run / tag']} the {name}'s CEP95 ({ekf:.2f} m) is {order} LS's ({ls:.2f} m) (compare the paths on the left); "
-            f"mean NIS/dof {nis:.2f} ({readout['NIS verdict']}). "
-            "Switch to the diagonal Σ and move the reference anchor: the numbers change; with the correlated Σ they do not.")

@@ -9,7 +9,6 @@ from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from ... import metrics
 from ...models.motion import MOTION_MODELS
 from .results import METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, ekf_name
 from .seeds import SeedStudy, seed_rows
@@ -17,7 +16,7 @@ from .seeds import SeedStudy, seed_rows
 if TYPE_CHECKING:
     from .study import Study
 
-__all__ = ["LS_MARGIN", "Results", "SIGMA_KIND", "SYNTHETIC_LS_MARGIN", "checks", "headline_rows", "record", "sigma_rows",
+__all__ = ["LS_MARGIN", "Results", "SIGMA_KIND", "SYNTHETIC_LS_MARGIN", "checks", "headline_rows", "sigma_rows",
            "summary_rows"]
 
 #: Kind of each calibrated driving σ in the summary. The simulated targets move at a speed
@@ -77,12 +76,6 @@ def summary_rows(results: Iterable[TagResults], *, data: str, label: str = "{run
                 rows.append({"quantity": f"mean NIS/dof {name(ekf_name(m))}", "value": float(v), "unit": "",
                              "data": data, "paper_value": None, "kind": "reproduced"})
     return rows
-
-
-def record(summary: metrics.Summary, rows: Iterable[dict]) -> None:
-    """Add :func:`summary_rows` / :func:`sigma_rows` rows to a :class:`~uwbwb.metrics.Summary`."""
-    for r in rows:
-        summary.add(**r)
 
 
 @dataclass(frozen=True)

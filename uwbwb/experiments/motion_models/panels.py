@@ -44,7 +44,7 @@ class Explorer:
         self.runs = {}
         for study in studies:
             for res in study.results:
-                self.runs[res.run.key] = (window(res.run, self.window_s), study.sigma_m[res.run.tag])
+                self.runs[res.run.key] = (window(res.run, self.window_s), study.calibration.sigma(res.run.tag))
         if not self.runs:
             raise ValueError("studies: no test result to explore")
         self._estimate = lru_cache(maxsize=64)(self._run)

@@ -33,8 +33,8 @@ class LiasSection:
         ``{"calibrated ranges": Study, "raw ranges": Study}``; empty when the data is absent.
     label
         The recording's label (``"lias-planar-uwb/<run>"``), or ``""``.
-    markdown
-        What was used: tags and heights, the range calibration, the two parts of the run.
+    mount, range_calibration
+        The tag heights and the per-pair range calibration, both fitted on the static poses (None when absent).
     cleaning_report
         The loader's cleaning report of the dynamic run.
     """
@@ -42,7 +42,8 @@ class LiasSection:
     banner: Any
     studies: Mapping[str, Study] = field(default_factory=dict)
     label: str = ""
-    markdown: str = ""
+    mount: Any = None
+    range_calibration: Any = None
     cleaning_report: str = ""
 
 
@@ -72,13 +73,8 @@ def lias_section(data_dir, recording: str, static_session: str, *, tags: Sequenc
                                         name=p.name.replace("[", "").replace("]", "")) for p in parts)
         g = grids if not studies else {m: [s] for m, s in studies["calibrated ranges"].best.items()}
         studies[variant] = run_study(cal_runs, test_runs, grids=g, ref=ref, gate_prob=gate_prob, scheduler=scheduler)
-    bias = range_cal.bias_m
-    md = (f"`{rec.label}`: {len(rec.tags)} tags; tag heights "
-          + ", ".join(f"{t} {z:.3f} m" for t, z in mount.per_tag_m.items()) + f" ({mount.source}); "
-          f"range calibration fitted on {len(static)} static recordings of session {static_session}, "
-          f"per-pair biases {bias.min():+.2f} to {bias.max():+.2f} m (median {np.median(bias):+.2f} m); "
-          f"calibration part `{cal_runs[0].name}`, test part `{test_runs[0].name}`, {rate_hz:g} Hz.")
-    return LiasSection(widgets.data_banner(**room.banner_args()), studies, rec.label, md, rec.cleaning_report())
+    return LiasSection(widgets.data_banner(**room.banner_args()), studies, rec.label, mount, range_cal,
+                       rec.cleaning_report())
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ rankings), beside the thesis' values.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable, Mapping, Sequence
+from typing import Iterable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -17,7 +17,7 @@ from ...types import EstimateStatus, Estimates, TagRun, Trajectory
 
 
 __all__ = ["MODELS", "METHODS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "TagResults",
-           "cep95_table", "coverage_table", "ekf_name", "nis_table", "paper_table", "ranking"]
+           "cep95_table", "coverage_table", "ekf_name", "nis_table", "ranking"]
 
 #: Motion models in the thesis' order.
 MODELS = ("RW", "RF", "RJ")
@@ -191,9 +191,3 @@ def ranking(table: pd.DataFrame, models: Sequence[str] = MODELS) -> pd.Series:
         return " < ".join(m for _, m in ranked)
 
     return table.apply(order, axis=1).rename("ranking")
-
-
-def paper_table(paper: Mapping, keys: Sequence[tuple[str, str]], methods: Sequence[str]) -> pd.DataFrame:
-    """The thesis' CEP95 values for ``keys`` (scenario, tag) in the layout of :func:`cep95_table`."""
-    rows = [{"run": k[0], "tag": k[1], **{m: paper.get(k, {}).get(m, np.nan) for m in methods}} for k in keys]
-    return pd.DataFrame(rows).set_index(["run", "tag"])

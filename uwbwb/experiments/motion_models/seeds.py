@@ -24,7 +24,7 @@ from ...metrics import interval_side, seeds_interval
 from .results import METHODS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, cep95_table
 from .study import Study, estimate, synthetic_acquisition
 
-__all__ = ["MODEL_PAIRS", "SEED_PAIRS", "SEED_RULE", "SeedStudy", "scoring_seeds", "seed_rows", "seed_study"]
+__all__ = ["MODEL_PAIRS", "SEED_PAIRS", "SEED_RULE", "SeedStudy", "seed_rows", "seed_study"]
 
 #: Pairs ``(A, B)`` the seeds verdict compares: the motion models among themselves (Tables 3, 5), each EKF
 #: against LS and LS against the raw output (Tables 2, 4).
@@ -34,14 +34,6 @@ SEED_PAIRS = (("EKF-RW", "EKF-RF"), ("EKF-RW", "EKF-RJ"), ("EKF-RF", "EKF-RJ"), 
 MODEL_PAIRS = SEED_PAIRS[:3]
 #: The rule the verdict table states beside each verdict.
 SEED_RULE = "95 % Student-t interval over test seeds of CEP95(A) − CEP95(B) excludes 0"
-
-
-def scoring_seeds(seed: int, n: int) -> tuple[int, ...]:
-    """The test seeds of a study made with ``seed``: ``seed`` itself (the single-seed tables), then the next
-    ``n − 1``."""
-    if int(n) < 1:
-        raise ValueError(f"at least one test seed is needed, got {n!r}")
-    return tuple(range(int(seed), int(seed) + int(n)))
 
 
 def _thesis(key: tuple[str, str], a: str, b: str) -> float:
@@ -136,9 +128,9 @@ def seed_study(studies: Mapping[str, tuple[Study, Sequence[str]]], seeds: Sequen
     ----------
     studies
         Data-set label → ``(study, scenario names)``: the study whose calibration is used (:attr:`Study.best`,
-        :attr:`Study.sigma_m`) and the scenarios (:func:`~.study.synthetic_acquisition` names) it tests on.
+        :meth:`~uwbwb.scoreboard.protocol.Calibration.sigma` of its calibration) and the scenarios (:func:`~.study.synthetic_acquisition` names) it tests on.
     seeds
-        Test seeds (:func:`scoring_seeds`); each seed's test acquisition is drawn with ``role="test"``, so it
+        Test seeds, the study's own first (its rows are then the single-seed tables); each seed's test acquisition is drawn with ``role="test"``, so it
         never shares noise with a calibration acquisition.
     gate_prob, duration_s, rate_hz, ref
         As for the study (the χ² gate is required, as there).
@@ -151,7 +143,7 @@ def seed_study(studies: Mapping[str, tuple[Study, Sequence[str]]], seeds: Sequen
         for study, names in studies.values():
             for name in names:
                 runs, _ = synthetic_acquisition(name, seed=s, duration_s=duration_s, rate_hz=rate_hz, role="test")
-                res = [estimate(r, study.sigma_m[r.tag], study.best, gate_prob=gate_prob, ref=ref) for r in runs]
+                res = [estimate(r, study.calibration.sigma(r.tag), study.best, gate_prob=gate_prob, ref=ref) for r in runs]
                 frames[(s, name)] = cep95_table(res, METHODS)
     table = pd.concat({s: pd.concat([frames[(s, n)] for _, names in studies.values() for n in names])
                        for s in seeds}, names=["seed"])

@@ -39,10 +39,9 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ... import metrics, parallel
-from ...calibration import empirical_tdoa_covariance, fit_range_sigma
+from ... import parallel
+from ...calibration import fit_range_sigma
 from ...models.motion import MOTION_MODELS
-from ...models.tdoa import TdoaModel
 from ...scoreboard.board import Board, Entry
 from ...scoreboard.estimators import ExternalEstimates, RawLs, TdoaEkfEstimator, TdoaLs
 from ...scoreboard.protocol import Calibration
@@ -51,7 +50,7 @@ from ...types import Recording, TagRun, Trajectory
 
 from .results import METHODS, MODELS, TagResults, cep95_table, coverage_table, ekf_name, nis_table
 
-__all__ = ["tag_runs", "synthetic_acquisition", "ranging_summary", "estimate", "Study", "run_study", "tdoa_noise_check"]
+__all__ = ["tag_runs", "synthetic_acquisition", "ranging_summary", "estimate", "Study", "run_study"]
 
 
 # --------------------------------------------------------------------------- inputs
@@ -204,11 +203,6 @@ def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: fl
     return TagResults(run, Board(run.data, run.key, cal, entries, tuple(ests)), gate_prob)
 
 
-#: A pair's verdict from the side of 0 its interval lies on.
-_PAIR_VERDICT = {"below": "{a} lower", "above": "{b} lower", "contains": "not significant",
-                 "none": "no interval (too few blocks)"}
-
-
 @dataclass(frozen=True)
 class Study:
     """Calibrate on some runs, test on others.
@@ -216,19 +210,17 @@ class Study:
     Attributes
     ----------
     calibration
-        The protocol's calibration of the calibration runs (:func:`run_study`): range σ per anchor and tag, and
-        per EKF (``"EKF-RW"`` ...) what its ``tune`` kept (σ_w, the grid, each tag's CEP95 and RMSE there).
+        The protocol's calibration of the calibration runs (:func:`run_study`): range σ per anchor and tag
+        (``calibration.sigma(tag)``, fitted on the calibration runs), and per EKF (``"EKF-RW"`` ...) what its
+        ``tune`` kept (σ_w, the grid, each tag's CEP95 and RMSE there).
     best
         Driving standard deviation per model.
-    sigma_m
-        Range-noise standard deviation per anchor, per tag, fitted on the calibration runs.
     results
         One :class:`TagResults` per test run.
     """
 
     calibration: Calibration
     best: dict
-    sigma_m: dict
     results: list
 
     @property
@@ -255,23 +247,6 @@ class Study:
     def nis(self, prob: float = 0.95) -> pd.DataFrame:
         """NIS verdict per test run and EKF (:func:`nis_table`)."""
         return nis_table(self.results, prob)
-
-    def model_pairs(self, *, rng: np.random.Generator, models: Sequence[str] = MODELS) -> pd.DataFrame:
-        """Each pair of motion models ``(A, B)`` over the test runs together: ``median(A) − median(B)`` of the
-        horizontal errors on each run's common epochs, its 95 % block-bootstrap interval (the package's one rule,
-        :func:`uwbwb.metrics.block_bootstrap_difference`, ``statistic="median"``, one series per test run) and the
-        verdict from its side of 0 (:func:`uwbwb.metrics.interval_side`): the interval a count of "best in" lacks."""
-        errs = [res.common_errors() for res in self.results]
-        names = [ekf_name(m) for m in models]
-        rows = []
-        for i, a in enumerate(names):
-            for b in names[i + 1:]:
-                d = metrics.block_bootstrap_difference([e[a] for e in errs], [e[b] for e in errs], rng=rng,
-                                                       statistic="median")
-                side = metrics.interval_side(d["lo_m"], d["hi_m"])
-                rows.append({"A": a, "B": b, "median A − B (m)": d["diff_m"], "lo (m)": d["lo_m"], "hi (m)": d["hi_m"],
-                             "blocks": d["n_blocks"], "verdict": _PAIR_VERDICT[side].format(a=a, b=b)})
-        return pd.DataFrame(rows)
 
     def result_for(self, name: str, tag: str) -> TagResults:
         """The test result of run ``name`` and ``tag``."""
@@ -318,18 +293,4 @@ def run_study(cal_runs: Sequence[TagRun], test_runs: Sequence[TagRun], *, gate_p
         cal = cal.with_tuned(ekfs[task.params["model"]].name, params)
     best = {m: cal.params(ekfs[m].name)["sigma_w"] for m in models}
     ests = [estimate(r, fits[r.tag], best, ref=ref, gate_prob=gate_prob, models=models) for r in test_runs]
-    return Study(cal, best, fits, ests)
-
-
-def tdoa_noise_check(run: TagRun, sigma_m, *, ref: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Empirical covariance of the TDoA errors of ``run`` next to the model's ``diag(σ_j²) + σ_ref² 11ᵀ``.
-
-    Uses the epochs where every anchor was measured (reference ``ref``); rows and
-    columns are the anchors other than ``ref``. Returns ``(empirical, model)``, m².
-    """
-    log = run.tdoa(ref)
-    true = run.true_range_m()
-    true_tdoa = true - true[:, [ref]]
-    empirical = empirical_tdoa_covariance(log.tdoa_m, true_tdoa, ref)
-    others = np.delete(np.arange(len(run.anchors)), ref)
-    return empirical, TdoaModel.for_tag(run, sigma_m).covariance(others, ref)
+    return Study(cal, best, ests)

@@ -1,4 +1,4 @@
-"""Exercises of notebook 00 ("change X, predict Y") and the notes under its panel and figures.
+"""Exercises of notebook 00 ("change X, predict Y").
 
 Each exercise function runs both settings on the same epochs and returns a
 :class:`uwbwb.widgets.ExerciseCheck`: the direction the student is asked to predict, whether
@@ -9,7 +9,6 @@ once the student has predicted; ``TEACHING.md`` gives one run's numbers.
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
 from ... import geometry, metrics
 from ...calibration import RangeCalibration
@@ -26,12 +25,6 @@ def _errors(rec: Recording, tag: str, range_m: np.ndarray, z_m: float, mask=None
     fix = geometry.multilaterate(r, rec.anchors.pos_m, dim=2, z_m=z_m)
     est = fix.to_trajectory(rec.ranges[tag].t_s, name="fix")
     return metrics.errors_vs_truth(est, rec.truth[tag], horizontal=True)
-
-
-def _common(a: metrics.ErrorSeries, b: metrics.ErrorSeries) -> tuple[np.ndarray, np.ndarray]:
-    """Errors of ``a`` and ``b`` on the epochs both fixed (same times: same range log)."""
-    ok = np.isfinite(a.err_m) & np.isfinite(b.err_m)
-    return a.err_m[ok], b.err_m[ok]
 
 
 def _ranges(rec: Recording, tag: str, calibration: RangeCalibration | None) -> np.ndarray:
@@ -72,7 +65,8 @@ def fewer_anchors(rec: Recording, tag: str, *, tag_height_m: float, calibration:
     r = _ranges(rec, tag, calibration)
     full = _errors(rec, tag, r, tag_height_m)
     part = _errors(rec, tag, r, tag_height_m, mask)
-    e_full, e_part = _common(full, part)
+    common = metrics.score_epochs({"all": full.err_m, "part": part.err_m})          # the epochs both fixed
+    e_full, e_part = common["all"].common_m, common["part"].common_m
     path = rec.truth[tag].pos_m[:, :2]
     h_full = float(np.median(geometry.gdop(path, rec.anchors.pos_m, z_m=tag_height_m)))
     h_part = float(np.median(geometry.gdop(path, rec.anchors.pos_m, z_m=tag_height_m, mask=mask)))
@@ -107,7 +101,9 @@ def noisier_ranges(rec: Recording, tag: str, *, tag_height_m: float, calibration
     sigma_m = validate.number("sigma_m", sigma_m, minimum=0.0, strict_minimum=True)
     r = _ranges(rec, tag, calibration)
     noisy = r + rng.normal(0.0, sigma_m, size=r.shape)
-    before, after = _common(_errors(rec, tag, r, tag_height_m), _errors(rec, tag, noisy, tag_height_m))
+    common = metrics.score_epochs({"before": _errors(rec, tag, r, tag_height_m).err_m,
+                                   "after": _errors(rec, tag, noisy, tag_height_m).err_m})   # the epochs both fixed
+    before, after = common["before"].common_m, common["after"].common_m
     hdop = float(np.median(geometry.gdop(rec.truth[tag].pos_m[:, :2], rec.anchors.pos_m, z_m=tag_height_m)))
     rmse_b, rmse_a = metrics.rmse(before), metrics.rmse(after)
     return ExerciseCheck(
@@ -119,45 +115,3 @@ def noisier_ranges(rec: Recording, tag: str, *, tag_height_m: float, calibration
         ("higher", "not higher"),
         "Independent errors add in quadrature: the RMSE grows to about √(RMSE² + (σ · HDOP)²), the predicted "
         "value among the numbers.")
-
-
-def explorer_note(errors: dict, tag: str, start_s: float, window_s: float) -> str:
-    """"What you should see" under the multilateration panel, from its default window's numbers.
-
-    Parameters
-    ----------
-    errors
-        ``{variant: {tag: ErrorSeries}}`` as returned by :func:`.study.compare_calibration`.
-    tag, start_s, window_s
-        The panel's default tag and window, seconds.
-    """
-    cep = {}
-    for v in ("raw", "calibrated"):
-        e = errors[v][tag]
-        m = (e.t_s >= start_s) & (e.t_s < start_s + window_s) & np.isfinite(e.err_m)
-        cep[v] = metrics.cep50(e.err_m[m]) if m.any() else float("nan")
-    change = ("smaller" if cep["calibrated"] < cep["raw"] else "not smaller")
-    return (f"Tag {tag}'s fixes, one per epoch (raw: grey dots, calibrated: green line), against the black "
-            f"motion-capture path; triangles are anchors. In the default window ({start_s:g}–{start_s + window_s:g} s) CEP50 is "
-            f"{100 * cep['raw']:.1f} cm on raw ranges and {100 * cep['calibrated']:.1f} cm calibrated ({change}): "
-            "switch *ranges* and watch the cloud's offset from the path.")
-
-
-def cdf_note(table: pd.DataFrame) -> str:
-    """"What you should see" under the error CDFs: which curve lies left, from the table's CEPs."""
-    raw = table[table.variant == "raw"].set_index("tag")
-    cal = table[table.variant == "calibrated"].set_index("tag")
-    better = [t for t in raw.index if cal.loc[t, "cep50_m"] < raw.loc[t, "cep50_m"]]
-    return (f"A curve further left is better. The calibrated curve lies left of the raw one at its median for "
-            f"{len(better)} of {len(raw)} tags (CEP50 {100 * raw.cep50_m.mean():.1f} → "
-            f"{100 * cal.cep50_m.mean():.1f} cm, mean over tags); the tails (CEP95) say how far the worst 5 % reach.")
-
-
-def plan_note(rec: Recording, tag: str, *, tag_height_m: float) -> str:
-    """"What you should see" under the floor plan: anchors, the path's duration and its median GDOP."""
-    path = rec.truth[tag]
-    g = float(np.median(geometry.gdop(path.pos_m[:, :2], rec.anchors.pos_m, z_m=tag_height_m)))
-    word = "good geometry: range errors shrink" if g < 1 else "weak geometry: range errors grow"
-    return (f"Triangles are the {len(rec.anchors.pos_m)} anchors, the black line tag {tag}'s motion-capture path over "
-            f"{path.t_s[-1] - path.t_s[0]:.0f} s. Its median horizontal GDOP is {g:.2f} ({word} into position "
-            "errors).")

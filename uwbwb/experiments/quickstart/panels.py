@@ -13,17 +13,18 @@ import matplotlib.pyplot as plt
 
 from ... import metrics, plotting, widgets
 from ...calibration import RangeCalibration
-from .study import QuickstartData, multilaterate_tags
+from ...types import Recording
+from .study import multilaterate_tags
 
 __all__ = ["Explorer", "explorer"]
 
 
 class Explorer:
-    """Fixes of every tag of ``data.dynamic`` with raw and calibrated ranges, and the panel's render."""
+    """Fixes of every tag of ``rec`` (tag heights ``heights``, metres) with raw and calibrated ranges, and the
+    panel's render."""
 
-    def __init__(self, data: QuickstartData, calibration: RangeCalibration):
-        self.rec = data.dynamic
-        heights = data.tag_height.per_tag_m
+    def __init__(self, rec: Recording, heights, calibration: RangeCalibration):
+        self.rec = rec
         self.fixes = {v: multilaterate_tags(self.rec, tag_height_m=heights, calibration=c)
                       for v, c in (("raw", None), ("calibrated", calibration))}
         self.span_s = float(self.rec.ranges[self.rec.tags[0]].t_s[-1])
@@ -49,9 +50,9 @@ class Explorer:
         return fig, {"fixes in window": e.size, "CEP50 (m)": metrics.cep50(e), "CEP95 (m)": metrics.cep95(e)}
 
 
-def explorer(data: QuickstartData, calibration: RangeCalibration) -> widgets.Panel:
+def explorer(rec: Recording, heights, calibration: RangeCalibration) -> widgets.Panel:
     """Widget: a tag's fixes (raw or calibrated ranges) against motion capture in a time window."""
-    ex = Explorer(data, calibration)
+    ex = Explorer(rec, heights, calibration)
     tags = list(ex.rec.tags)
     return widgets.Panel("Multilateration vs motion capture", {
         "tag": widgets.dropdown("tag", tags, tags[0]),

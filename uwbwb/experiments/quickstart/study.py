@@ -5,14 +5,14 @@ fitted on other recordings of the same room.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 
 from ... import geometry, metrics
 from ...metrics import interval_side
-from ...calibration import MountHeight, RangeCalibration, fit_range_calibration, range_residuals, tag_mount_height
+from ...calibration import RangeCalibration, range_residuals
 from ...datasets.standin import RoomData, load_lias_room
 from ...sim import rig
 from ...types import Recording
@@ -21,41 +21,8 @@ from ...types import Recording
 VARIANTS = ("raw", "calibrated")
 
 
-@dataclass(frozen=True)
-class QuickstartData:
-    """The recordings notebook 00 works on.
-
-    Attributes
-    ----------
-    room
-        The dynamic run, the static calibration poses and where they came from.
-    tag_height
-        The tags' mount height, from the static poses (never from the dynamic run's truth).
-    """
-
-    room: RoomData
-    tag_height: MountHeight
-
-    @property
-    def dynamic(self) -> Recording:
-        return self.room.dynamic
-
-    @property
-    def static(self) -> tuple[Recording, ...]:
-        return self.room.static
-
-    @property
-    def synthetic(self) -> bool:
-        return self.room.synthetic
-
-    @property
-    def data_label(self) -> str:
-        """The ``data`` field of summary rows: ``synthetic`` or ``dataset/recording``."""
-        return self.room.data_label
-
-
 def load(data_dir=None, recording: str = "fast", static_session: str = "8.14", *, seed: int = 0,
-         fast: bool = False) -> QuickstartData:
+         fast: bool = False) -> RoomData:
     """The LIAS dynamic run + static poses, or the synthetic rig when they are absent.
 
     Under ``fast`` the static recordings are decimated 10× (calibration needs far
@@ -65,10 +32,8 @@ def load(data_dir=None, recording: str = "fast", static_session: str = "8.14", *
     room = load_lias_room(data_dir, recording, static_session, stand_in=stand_in,
                           static_duration_s=5.0 if fast else 30.0, rng=np.random.default_rng(seed))
     if fast:
-        from dataclasses import replace
-
         room = replace(room, static=tuple(r.decimate(10) for r in room.static))
-    return QuickstartData(room, tag_mount_height(room.static))
+    return room
 
 
 def multilaterate_tags(rec: Recording, *, tag_height_m, calibration: RangeCalibration | None = None
@@ -82,16 +47,6 @@ def multilaterate_tags(rec: Recording, *, tag_height_m, calibration: RangeCalibr
         z = tag_height_m[tag] if isinstance(tag_height_m, dict) else float(tag_height_m)
         log = rec.ranges[tag] if calibration is None else calibration.apply(rec.ranges[tag])
         out[tag] = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=2, z_m=z)
-    return out
-
-
-def tag_errors(rec: Recording, fixes: dict[str, geometry.MultilaterationResult], name: str
-               ) -> dict[str, metrics.ErrorSeries]:
-    """Horizontal errors of each tag's fixes against its ground truth (epochs with a fix and truth)."""
-    out = {}
-    for tag, res in fixes.items():
-        est = res.to_trajectory(rec.ranges[tag].t_s, name=name)
-        out[tag] = metrics.errors_vs_truth(est, rec.truth[tag], horizontal=True)
     return out
 
 
@@ -116,7 +71,8 @@ def compare_calibration(rec: Recording, calibration: RangeCalibration, *, tag_he
     errors, resid = {}, {}
     for variant, cal in zip(VARIANTS, (None, calibration)):
         fixes = multilaterate_tags(rec, tag_height_m=tag_height_m, calibration=cal)
-        errors[variant] = tag_errors(rec, fixes, variant)
+        errors[variant] = {tag: metrics.errors_vs_truth(res.to_trajectory(rec.ranges[tag].t_s, name=variant),
+                                                        rec.truth[tag]) for tag, res in fixes.items()}
         resid[variant] = range_residuals(rec, cal)
     rows = []
     for tag in rec.tags:
@@ -134,11 +90,6 @@ def compare_calibration(rec: Recording, calibration: RangeCalibration, *, tag_he
                          "rmse_m": metrics.rmse(cmp),
                          "median_abs_range_resid_m": float(r.loc[r.tag_id == tag, "median_m"].abs().median())})
     return pd.DataFrame(rows), errors
-
-
-def calibrate(data: QuickstartData) -> RangeCalibration:
-    """Fit the per-pair range calibration on the static recordings only."""
-    return fit_range_calibration(list(data.static))
 
 
 def headline_rows(table: pd.DataFrame) -> list[dict]:

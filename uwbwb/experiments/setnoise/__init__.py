@@ -12,25 +12,21 @@ table of the comparison with the paper, and
 from . import exercises, headlines, panels
 from .figures import (plot_facility, plot_fixes, plot_pf_kf_gap, plot_set_ellipses, plot_set_frequency,
                       plot_sweep, plot_trace)
-from .real import (Emulation, RealStudy, emulate_fixes, modelled_share, range_bias_span_m, real_inputs,
-                   real_study)
-from .diagnostics import (FACILITY_WIDE, PAPER_SIGMA_RULE, POOLED_SIGMA_RULE, normalised_residuals, pf_kf_gap,
+from .real import Emulation, RealStudy, emulate_fixes, modelled_share, real_inputs, real_study
+from .diagnostics import (FACILITY_WIDE, PAPER_SIGMA_RULE, POOLED_SIGMA_RULE, pf_kf_gap,
                           resampler_check, residual_table, trace)
-from .headlines import fix_rates_hz, headline_rows, paper_targets
+from .headlines import headline_rows
 from .study import (BAND_MPS, BASE_KF, BASE_PF, FILTERS, INPUT, OFF_TRACK_XY_M, PAPER, RAW, REPRODUCED, SET_KF,
-                    SET_KF_POOLED, SET_PF, SIGMA_D_GRID_MPS, TARGET, SweepConfig, SyntheticStudy, band_sigmas,
-                    band_summary, best_sigma, calibration_proximity, mean_over_recordings, raw_error_m, set_shares,
-                    sweep, synthetic_study, table1)
-
-LIAS = "lias-planar-uwb"
+                    SET_KF_POOLED, SET_PF, SIGMA_D_GRID_MPS, TARGET, SweepConfig, SyntheticStudy, band_summary,
+                    calibration_proximity, mean_over_recordings, raw_error_m, set_shares, sweep, synthetic_study,
+                    table1)
 
 __all__ = [
-    "BAND_MPS", "BASE_KF", "BASE_PF", "FACILITY_WIDE", "FILTERS", "INPUT", "LIAS", "OFF_TRACK_XY_M", "PAPER",
+    "BAND_MPS", "BASE_KF", "BASE_PF", "FACILITY_WIDE", "FILTERS", "INPUT", "OFF_TRACK_XY_M", "PAPER",
     "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "RAW", "REPRODUCED", "SET_KF", "SET_KF_POOLED", "SET_PF",
-    "SIGMA_D_GRID_MPS", "TARGET", "Emulation", "RealStudy", "SweepConfig", "SyntheticStudy", "band_sigmas",
-    "band_summary", "best_sigma", "calibration_proximity", "emulate_fixes", "exercises", "fix_rates_hz",
-    "headline_rows", "headlines", "mean_over_recordings", "modelled_share", "normalised_residuals", "panels", "paper_targets",
-    "pf_kf_gap", "plot_facility", "plot_fixes", "plot_pf_kf_gap", "plot_set_ellipses", "plot_set_frequency",
-    "plot_sweep", "plot_trace", "range_bias_span_m", "raw_error_m", "real_inputs", "real_study",
+    "SIGMA_D_GRID_MPS", "TARGET", "Emulation", "RealStudy", "SweepConfig", "SyntheticStudy", "band_summary",
+    "calibration_proximity", "emulate_fixes", "exercises", "headline_rows", "headlines", "mean_over_recordings",
+    "modelled_share", "panels", "pf_kf_gap", "plot_facility", "plot_fixes", "plot_pf_kf_gap",
+    "plot_set_ellipses", "plot_set_frequency", "plot_sweep", "plot_trace", "raw_error_m", "real_inputs", "real_study",
     "resampler_check", "residual_table", "set_shares", "sweep", "synthetic_study", "table1", "trace",
 ]

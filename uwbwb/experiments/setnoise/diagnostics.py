@@ -14,7 +14,7 @@ from ...models.setnoise import SetNoiseModel
 from ...types import SetFixLog
 from .study import BASE_KF, BASE_PF, RAW, SET_KF, SET_PF, SweepConfig, _noise, sweep
 
-__all__ = ["FACILITY_WIDE", "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "normalised_residuals", "pf_kf_gap",
+__all__ = ["FACILITY_WIDE", "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "pf_kf_gap",
            "resampler_check", "residual_table", "trace"]
 
 
@@ -75,8 +75,8 @@ def resampler_check(log: SetFixLog, model: SetNoiseModel, config: SweepConfig, *
     -------
     dict
         ``recording, sigma_d_mps, n_trials, n_particles``; ``error_cm`` and ``se_cm``
-        (resampler → value); ``diff_cm`` (first − second), ``se_diff_cm`` (its
-        standard error) and ``z`` (|diff| in standard errors).
+        (resampler → value); ``diff_cm`` (first − second) and ``se_diff_cm`` (its
+        standard error; the verdict is :func:`.headlines.verdicts`' row).
     """
     if len(resamplers) != 2:
         raise ValueError(f"compare exactly two resamplers, got {resamplers}")
@@ -91,7 +91,7 @@ def resampler_check(log: SetFixLog, model: SetNoiseModel, config: SweepConfig, *
     se_diff = float(np.hypot(se[a], se[b]))
     return {"recording": log.name, "sigma_d_mps": tuple(config.sigma_d_mps), "n_trials": config.n_trials,
             "n_particles": config.n_particles, "resamplers": tuple(resamplers), "error_cm": err, "se_cm": se,
-            "diff_cm": diff, "se_diff_cm": se_diff, "z": abs(diff) / se_diff}
+            "diff_cm": diff, "se_diff_cm": se_diff}
 
 
 # --------------------------------------------------------------------------- consistency of the noise models
@@ -101,7 +101,8 @@ FACILITY_WIDE, PAPER_SIGMA_RULE, POOLED_SIGMA_RULE = "facility-wide", "set-noise
 
 
 def residual_table(logs, model: SetNoiseModel, pooled: SetNoiseModel) -> pd.DataFrame:
-    """Mean squared normalised residuals of the facility-wide, paper-σ and pooled-σ models.
+    """Mean squared normalised fix residuals ``((z − x − μ)/σ)²`` of the facility-wide, paper-σ and pooled-σ models
+    (1 when σ is right).
 
     Returns
     -------
@@ -110,13 +111,8 @@ def residual_table(logs, model: SetNoiseModel, pooled: SetNoiseModel) -> pd.Data
         one column per log (1 where σ is right, above 1 where the model is overconfident).
     """
     models = {FACILITY_WIDE: model.facility_only(), PAPER_SIGMA_RULE: model, POOLED_SIGMA_RULE: pooled}
-    return pd.DataFrame({log.name: normalised_residuals(log, models) for log in logs})
-
-
-def normalised_residuals(log: SetFixLog, models: dict) -> dict:
-    """Mean squared normalised fix residual ``((z − x − μ)/σ)²`` per model (1 when σ is right)."""
     out = {}
-    for name, m in models.items():
-        mu, sd, _ = m.lookup(log.set_id)
-        out[name] = float(np.mean(((log.error_m - mu) / sd) ** 2))
-    return out
+    for log in logs:
+        looked_up = {name: m.lookup(log.set_id)[:2] for name, m in models.items()}
+        out[log.name] = {name: float(np.mean(((log.error_m - mu) / sd) ** 2)) for name, (mu, sd) in looked_up.items()}
+    return pd.DataFrame(out)

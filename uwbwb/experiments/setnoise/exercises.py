@@ -1,4 +1,4 @@
-"""Exercises of notebook 01 ("change X, predict Y") and the notes under its panel and Fig. 9.
+"""Exercises of notebook 01 ("change X, predict Y").
 
 Each exercise runs both settings on the same recording and set-noise model and returns a
 :class:`uwbwb.widgets.ExerciseCheck` (the direction to predict, whether this run shows it, the
@@ -8,10 +8,7 @@ once the student has predicted; ``TEACHING.md`` gives one run's numbers.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
 import numpy as np
-import pandas as pd
 
 from ... import validate
 from ...models.setnoise import SetNoiseModel
@@ -19,7 +16,7 @@ from ...filters import setnoise as filt
 from ...types import SetFixLog
 from ...widgets import ExerciseCheck
 from .diagnostics import pf_kf_gap
-from .study import BAND_MPS, RAW, SET_KF, SET_PF, raw_error_m
+from .study import raw_error_m
 
 
 def few_particles(log: SetFixLog, model: SetNoiseModel, *, sigma_d_mps: float = 0.02, reference_mps: float = 0.30,
@@ -96,32 +93,3 @@ def no_resampling(log: SetFixLog, model: SetNoiseModel, *, sigma_d_mps: float = 
         ("above both", "not above both"),
         "Without resampling the weights pile up on one particle (the ESS falls to 1): the filter then follows one "
         "hypothesis that drifts away, worse than the raw fixes it is given.")
-
-
-def explorer_note(errors_cm: Mapping[str, float], sigma_d_cmps: float) -> str:
-    """"What you should see" under the explorer panel, from its default readout.
-
-    ``errors_cm`` is the panel's readout ``{"<estimator> mean error (cm)": value}``.
-    """
-    e = {k.replace(" mean error (cm)", ""): float(v) for k, v in errors_cm.items()}
-    order = "lies below" if e[SET_PF] < e[RAW] else "does not lie below"
-    return (f"Grey dots are raw fixes, the black line the truth; at σ_d = {sigma_d_cmps:g} cm/s the set-noise PF "
-            f"({e[SET_PF]:.1f} cm) {order} the raw fixes ({e[RAW]:.1f} cm) and near the exact KF "
-            f"({e[SET_KF]:.1f} cm). Drag σ_d to 2 cm/s with K = 50: the PF overshoots at the turns.")
-
-
-def sweep_note(df: pd.DataFrame, recording: str, band=BAND_MPS) -> str:
-    """"What you should see" under Fig. 9, from one recording's (or the mean's) curves.
-
-    ``df`` is a :func:`.study.sweep` frame (with ``recording`` rows for ``recording``).
-    """
-    d = df[df["recording"] == recording]
-    by = {name: g.sort_values("sigma_d_mps") for name, g in d.groupby("filter")}
-    lo = float(by[SET_PF]["sigma_d_mps"].iloc[0])
-    pf_lo = 100 * float(by[SET_PF]["mean_error_m"].iloc[0])
-    kf_lo = 100 * float(by[SET_KF].set_index("sigma_d_mps").loc[lo, "mean_error_m"])
-    in_band = lambda g: 100 * float(g[g["sigma_d_mps"].between(*band)]["mean_error_m"].mean())
-    raw = 100 * float(by[RAW]["mean_error_m"].mean())
-    return (f"In the grey band ({100 * band[0]:g}–{100 * band[1]:g} cm/s) the set-noise PF averages "
-            f"{in_band(by[SET_PF]):.1f} cm against {raw:.1f} cm raw ({recording}). At σ_d = {100 * lo:g} cm/s the PF "
-            f"reaches {pf_lo:.1f} cm while the exact KF stays at {kf_lo:.1f} cm (▲: off the axes; the box gives the values).")

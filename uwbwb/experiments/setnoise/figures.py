@@ -143,12 +143,6 @@ def plot_trace(estimates: dict, ax=None, *, index=None, axis: int = 0, unit: str
     return ax
 
 
-def _sweep_style(name: str) -> tuple[str, str]:
-    """Colour and line style of a Fig. 9 curve: each estimator its own colour, Kalman filters dashed."""
-    dash = {BASE_KF: "--", SET_KF: "--", SET_KF_POOLED: ":"}.get(name, "-")
-    return plotting.color_for(name), dash
-
-
 def plot_sweep(df: pd.DataFrame, recording: str, ax=None, *, names=FILTERS, unit: str = "cm", band=BAND_MPS,
                y_max=None):
     """Fig. 9 (one recording): mean error against σ_d; PF curves with ±2 standard errors.
@@ -167,7 +161,7 @@ def plot_sweep(df: pd.DataFrame, recording: str, ax=None, *, names=FILTERS, unit
             continue
         x = g["sigma_d_mps"].to_numpy() * 100
         y = g["mean_error_m"].to_numpy() * s
-        colour, dash = _sweep_style(name)
+        colour, dash = plotting.color_for(name), {BASE_KF: "--", SET_KF: "--", SET_KF_POOLED: ":"}.get(name, "-")
         ax.plot(x, y, color=colour, label=name, linestyle=dash, marker="" if name == RAW else ".")
         e = 2 * g["sem_error_m"].to_numpy() * s
         if np.any(e > 0):

@@ -1,7 +1,7 @@
 """Notebook 01's real-data summary rows and the checks the method must pass (looser under FAST).
 
-The synthetic rows are :func:`headline_rows` (with :func:`paper_targets`, the synthetic numbers aimed at
-or taken from the paper); :func:`real_rows` adds the real-data rows
+The synthetic rows are :func:`headline_rows` (without ``improvement``: the synthetic numbers aimed at or
+taken from the paper alone); :func:`real_rows` adds the real-data rows
 (raw error, coverage and each filter's improvement per range variant, all *reproduced*), and
 :func:`checks` raises ``AssertionError`` naming the first check that fails. The set shares, raw
 errors and fix counts are targets and inputs: nothing here asserts the paper's value on them.
@@ -19,7 +19,7 @@ from .real import RealStudy
 from .study import (BAND_MPS, BASE_KF, BASE_PF, INPUT, PAPER, RAW, REPRODUCED, SET_KF, SET_KF_POOLED, SET_PF,
                     TARGET)
 
-__all__ = ["checks", "fix_rates_hz", "headline_rows", "paper_targets", "real_rows", "verdicts"]
+__all__ = ["checks", "headline_rows", "real_rows", "verdicts"]
 
 
 def real_rows(real_band: pd.DataFrame, studies: Mapping[str, RealStudy], data_label: str) -> list[dict]:
@@ -73,50 +73,7 @@ def checks(*, shares: Mapping, improvement: pd.DataFrame, off_improvement: pd.Da
 
 # --------------------------------------------------------------------------- the synthetic rows
 
-def fix_rates_hz() -> tuple:
-    """Fix rates implied by the paper's Table I: fixes ÷ (1750 cm at the stated speed), Hz.
-
-    The paper states no rate; :data:`uwbwb.sim.setnoise.FacilityConfig.rate_hz`
-    (9.4 Hz) is the mean of these five (9.36 Hz) to one decimal.
-    """
-    length_cm = 1750.0
-    return tuple(n / (length_cm / v) for n, v in zip(PAPER["n_fixes"], PAPER["speed_cmps"]))
-
-
-def paper_targets(shares: dict, table1: pd.DataFrame) -> pd.DataFrame:
-    """The synthetic numbers that were aimed at or taken from the paper, beside the paper's values.
-
-    None of these is a reproduction: the simulator's selection defaults were chosen so
-    that the Fig. 3 location's set shares resemble Fig. 4, its error defaults so that
-    raw errors resemble Table I (both *target*), and the fix counts follow from the
-    track, the speeds and the fix rate taken from the paper (*input*).
-
-    Returns
-    -------
-    DataFrame
-        ``quantity, ours, paper, unit, kind, how``.
-    """
-    rows = [
-        {"quantity": "top set share at the Fig. 3 location", "ours": 100 * shares["top1_share"],
-         "paper": PAPER["top1_share_max_pct"], "unit": "% (paper: below)", "kind": TARGET,
-         "how": "wall loss and fading defaults chosen to resemble Fig. 4"},
-        {"quantity": "top-5 set share at the Fig. 3 location", "ours": 100 * shares["top5_share"],
-         "paper": PAPER["top5_share_pct"], "unit": "%", "kind": TARGET,
-         "how": "wall loss and fading defaults chosen to resemble Fig. 4"},
-    ]
-    for i, r in table1.reset_index(drop=True).iterrows():
-        if "paper_raw_error_cm" not in r or pd.isna(r.get("paper_raw_error_cm")):
-            continue
-        rows.append({"quantity": f"raw error, recording {i + 1}", "ours": r["raw_error_cm"],
-                     "paper": r["paper_raw_error_cm"], "unit": "cm", "kind": TARGET,
-                     "how": "range-error defaults chosen so that raw errors average about the paper's"})
-        rows.append({"quantity": f"fixes, recording {i + 1}", "ours": r["n_fixes"], "paper": r["paper_n_fixes"],
-                     "unit": "", "kind": INPUT,
-                     "how": "track length, speed and fix rate taken from the paper"})
-    return pd.DataFrame(rows)
-
-
-def headline_rows(*, shares: dict, table1: pd.DataFrame, improvement: pd.DataFrame,
+def headline_rows(*, shares: dict, table1: pd.DataFrame, improvement: pd.DataFrame | None = None,
                   off_improvement: pd.DataFrame | None = None) -> list[dict]:
     """Summary rows of the synthetic part of notebook 01, each with its ``kind``.
 
@@ -126,7 +83,10 @@ def headline_rows(*, shares: dict, table1: pd.DataFrame, improvement: pd.DataFra
         :func:`set_shares` at the Fig. 3 location and :func:`table1`.
     improvement
         Band improvements of the mean over recordings, indexed by filter, columns
-        ``improvement_pct, improvement_cm`` (:func:`band_summary` rows of ``"mean"``).
+        ``improvement_pct, improvement_cm`` (:func:`band_summary` rows of ``"mean"``); None: the *target* and
+        *input* rows alone (none of them a reproduction: the simulator's selection defaults were chosen so that
+        the Fig. 3 location's set shares resemble Fig. 4, its error defaults so that the raw errors resemble
+        Table I, and the fix counts follow from the track, the speeds and the fix rate taken from the paper).
     off_improvement
         The same for the off-calibration track, or None.
 
@@ -147,7 +107,7 @@ def headline_rows(*, shares: dict, table1: pd.DataFrame, improvement: pd.DataFra
                      paper_value=PAPER["top5_share_pct"], kind=TARGET))
     rows.append(dict(quantity="top set share at the Fig. 3 location (paper: below 45 %)",
                      value=100 * shares["top1_share"], unit="%", paper_value=None, kind=TARGET))
-    for name in (SET_PF, BASE_PF, SET_KF, BASE_KF, SET_KF_POOLED):
+    for name in (SET_PF, BASE_PF, SET_KF, BASE_KF, SET_KF_POOLED) if improvement is not None else ():
         paper = name == SET_PF
         rows.append(dict(quantity=f"{name} improvement over raw, sigma_d 30-50 cm/s, mean of 5 recordings",
                          value=improvement.loc[name, "improvement_pct"], unit="%",

@@ -17,26 +17,15 @@ from ... import widgets
 from ...models.setnoise import SetNoiseModel
 from ...types import SetFixLog
 from .figures import plot_trace
-from .real import RealStudy
 from .diagnostics import trace
-from .study import BASE_PF, RAW, SET_KF, SET_PF, SyntheticStudy
+from .study import BASE_PF, RAW, SET_KF, SET_PF
 
-__all__ = ["Explorer", "explorer_logs"]
-
-
-def explorer_logs(study: SyntheticStudy, real: RealStudy, *, data_label: str,
-                  variant: str) -> dict[str, tuple[SetFixLog, SetNoiseModel]]:
-    """``{label: (recording, model)}``: the synthetic recordings on both tracks (with their speed) and each
-    tag of the real run (``variant``: the ranges its model was fitted on)."""
-    speeds = 2 * tuple(study.facility.config.speeds_mps)
-    logs = {f"{r.name} ({100 * v:.0f} cm/s, synthetic)": (r, study.model)
-            for r, v in zip(study.recordings + study.off_recordings, speeds)}
-    logs.update({f"{t.name} ({data_label}, {variant} ranges)": (t, real.model) for t in real.tests})
-    return logs
+__all__ = ["Explorer"]
 
 
 class Explorer:
-    """Every estimator on one recording at one setting (cached), its mean errors and its figure."""
+    """Every estimator on one recording at one setting (cached), its mean errors and its figure; ``logs`` is
+    ``{label: (recording, set-noise model)}``."""
 
     def __init__(self, logs: Mapping[str, tuple[SetFixLog, SetNoiseModel]]):
         self.logs = dict(logs)

@@ -120,10 +120,6 @@ class RealStudy:
     tests: tuple[SetFixLog, ...]
     reports: pd.DataFrame = field(repr=False)
 
-    @property
-    def label(self) -> str:
-        return "calibrated ranges" if self.range_calibration is not None else "raw ranges"
-
     def coverage(self) -> pd.DataFrame:
         """Per role (calibration / test): fixes, decimated epochs with truth, coverage."""
         g = self.reports.groupby("role")[["kept_after_decimation", "no_truth", "fixes"]].sum()
@@ -168,12 +164,3 @@ def real_study(inputs: RoomData, emulation: Emulation = Emulation(), *, range_ca
 def modelled_share(log: SetFixLog, model: SetNoiseModel) -> float:
     """Fraction of fixes whose set has its own model (the rest use the facility-wide default)."""
     return float(model.lookup(log.set_id)[2].mean())
-
-
-def range_bias_span_m(study: RealStudy) -> tuple[float, float] | None:
-    """Smallest and largest fitted per-pair range bias, metres (None without range calibration)."""
-    if study.range_calibration is None:
-        return None
-    b = np.asarray(study.range_calibration.bias_m, float)
-    b = b[np.isfinite(b)]
-    return float(b.min()), float(b.max())

@@ -307,27 +307,6 @@ def band_summary(df: pd.DataFrame, band=BAND_MPS) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-def best_sigma(df: pd.DataFrame) -> pd.DataFrame:
-    """Per recording and estimator, the σ_d with the lowest mean error (chosen on the data itself).
-
-    Returns
-    -------
-    DataFrame
-        ``recording, filter, sigma_d_mps, mean_error_m``.
-    """
-    idx = df.groupby(["recording", "filter"], sort=False)["mean_error_m"].idxmin()
-    return df.loc[idx, ["recording", "filter", "sigma_d_mps", "mean_error_m"]].reset_index(drop=True)
-
-
-def band_sigmas(config: SweepConfig, band=BAND_MPS) -> tuple:
-    """The σ_d values of ``config`` inside the band, m/s (for a smaller sweep scored like the full one)."""
-    s = np.asarray(config.sigma_d_mps, float)
-    inside = s[(s >= band[0] - 1e-12) & (s <= band[1] + 1e-12)]
-    if inside.size == 0:
-        raise ValueError(f"no σ_d value of the sweep lies in the band {band} m/s")
-    return tuple(float(v) for v in inside)
-
-
 # --------------------------------------------------------------------------- what kind each number is
 
 #: Kinds of headline numbers (as in :class:`uwbwb.metrics.Summary`).

@@ -22,13 +22,16 @@ In a notebook::
     from uwbwb.experiments import template as tp
     res = tp.run_study(fast=FAST, seed=SEED)
     assert not tp.checks(res, FAST), tp.checks(res, FAST)
-    display(tp.verdict_table(tp.facts.facts(res)))
+    f = tp.facts.facts(res)
+    display(tp.verdict_table(f))
+    for row in tp.rows(f):
+        summary.add(**row)          # summary = uw.metrics.Summary(<notebook>, fast=FAST)
 """
 
 from . import facts, figures, headlines, panels, study
 from .facts import verdict_table
-from .headlines import HEADLINES, checks, publish, rows
+from .headlines import HEADLINES, checks, rows
 from .study import FAST, FULL, METHODS, Config, Results, run_study
 
 __all__ = ["Config", "FAST", "FULL", "HEADLINES", "METHODS", "Results", "checks", "facts", "figures", "headlines",
-           "panels", "publish", "rows", "run_study", "study", "verdict_table"]
+           "panels", "rows", "run_study", "study", "verdict_table"]

@@ -24,8 +24,7 @@ from ... import metrics
 from ...metrics import interval_side
 from .study import Results
 
-__all__ = ["LEVEL", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "rmse_difference", "verdict",
-           "verdict_table"]
+__all__ = ["LEVEL", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "verdict", "verdict_table"]
 
 #: Bootstrap replicates.
 N_BOOT = 2000
@@ -33,13 +32,6 @@ N_BOOT = 2000
 LEVEL = 0.95
 #: Mean NIS/dof band of a consistent filter.
 NIS_BAND = (0.5, 2.0)
-
-
-def rmse_difference(err_a, err_b, *, rng: np.random.Generator) -> dict:
-    """``RMSE(a) − RMSE(b)`` of paired errors and its interval: the package's one block bootstrap
-    (:func:`uwbwb.metrics.block_bootstrap_difference`) at this experiment's sizes — reuse the
-    package's statistics rather than writing another copy."""
-    return metrics.block_bootstrap_difference(err_a, err_b, rng=rng, n_boot=N_BOOT, level=LEVEL)
 
 
 def verdict(lo_m: float, hi_m: float) -> str:
@@ -68,7 +60,8 @@ def facts(res: Results) -> dict:
     for s in scores:
         f[f"coverage[{s.name}]"] = s.coverage
         f[f"rmse_m[{s.name}]"] = s.stats(common={"rmse": metrics.rmse})["rmse"]
-    d = rmse_difference(scores["EKF-RF"].common_m, scores["LS"].common_m, rng=np.random.default_rng(res.seed))
+    d = metrics.block_bootstrap_difference(scores["EKF-RF"].common_m, scores["LS"].common_m,   # the package's one rule
+                                           rng=np.random.default_rng(res.seed), n_boot=N_BOOT, level=LEVEL)
     f.update(diff_m=d["diff_m"], lo_m=d["lo_m"], hi_m=d["hi_m"], verdict=verdict(d["lo_m"], d["hi_m"]))
     nis = res.nis_per_dof[np.isfinite(res.nis_per_dof)]
     f["nis_per_dof"] = float(nis.mean()) if nis.size else np.nan

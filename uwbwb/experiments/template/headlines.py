@@ -13,7 +13,7 @@ from .facts import facts
 from .study import METHODS, Results
 from ...metrics import Headline
 
-__all__ = ["HEADLINES", "PAPER", "checks", "publish", "rows"]
+__all__ = ["HEADLINES", "PAPER", "checks", "rows"]
 
 #: What the paper states (a copied package puts its paper's printed values here). The template's
 #: "paper" states the range noise the simulator is given, so that row is an *input*.
@@ -34,13 +34,6 @@ HEADLINES: tuple[Headline, ...] = (
 def rows(f: dict) -> list[dict]:
     """Summary rows (keyword arguments of :meth:`uwbwb.metrics.Summary.add`) from :func:`.facts.facts`."""
     return [h.row(f) for h in HEADLINES]
-
-
-def publish(res: Results, summary, path=None):
-    """Add every headline row to ``summary`` (:class:`uwbwb.metrics.Summary`) and publish it to ``path``."""
-    for row in rows(facts(res)):
-        summary.add(**row)
-    return summary.publish(path)
 
 
 #: Smallest coverage of either method (FAST, full).
