@@ -24,40 +24,6 @@ def test_layouts_name_every_component_with_its_unit():
         np.testing.assert_array_equal(m.layout.pos_index, np.arange(m.layout.dim))   # derivative-major
 
 
-def test_axis_major_layout_groups_each_axis():
-    a = StateLayout.kinematic(2, 3).axis_major()
-    assert a.labels == ("x_m", "vx_mps", "ax_mps2", "y_m", "vy_mps", "ay_mps2")
-    assert a == StateLayout.kinematic(2, 3, axis_major=True)
-    assert a.pos_index == (0, 3) and a.vel_index == (1, 4)
-    assert a.derivative_major() == StateLayout.kinematic(2, 3)
-
-
-@pytest.mark.parametrize("model", FAMILY, ids=lambda m: type(m).__name__)
-def test_permutation_round_trips(model):
-    here, there = model.layout, model.layout.axis_major()
-    p, q = here.permutation(there), there.permutation(here)
-    np.testing.assert_array_equal(p[q], np.arange(model.n_x))
-    x = np.random.default_rng(0).standard_normal((5, model.n_x))
-    y = here.reorder_state(x, there)
-    assert [there.labels[i] for i in range(model.n_x)] == [here.labels[i] for i in p]
-    np.testing.assert_array_equal(there.reorder_state(y, here), x)
-    Q = model.Q(DT)
-    np.testing.assert_array_equal(there.reorder_matrix(here.reorder_matrix(Q, there), here), Q)
-    P = np.eye(model.n_x)[p]                                          # permutation matrix: M' = Π M Πᵀ
-    np.testing.assert_array_equal(here.reorder_matrix(Q, there), P @ Q @ P.T)
-
-
-def test_reordered_velocity_kick_equals_the_hand_written_axis_major_order():
-    kick = mm.VelocityKick(0.4)
-    order = [0, 2, 1, 3]                                              # x, ẋ, y, ẏ
-    to = kick.layout.axis_major()
-    np.testing.assert_array_equal(to.permutation(kick.layout), order)
-    np.testing.assert_array_equal(kick.layout.permutation(to), order)
-    for M in (kick.F(DT), kick.Q(DT)):
-        np.testing.assert_array_equal(kick.layout.reorder_matrix(M, to), M[:, order][:, :, order])
-    assert to.pos_index == (0, 2)
-
-
 def test_layout_rejects_what_is_not_a_kinematic_state():
     with pytest.raises(ValueError, match="not kinematic labels"):
         StateLayout(("x_m", "y_m", "speed"), 2)
@@ -65,8 +31,6 @@ def test_layout_rejects_what_is_not_a_kinematic_state():
         StateLayout(("x_m", "vx_mps", "vy_mps"), 2)
     with pytest.raises(ValueError, match="distinct"):
         StateLayout(("x_m", "x_m"), 1)
-    with pytest.raises(ValueError, match="different components"):
-        StateLayout.kinematic(2, 2).permutation(StateLayout.kinematic(2, 3))
     with pytest.raises(ValueError, match="not kinematic labels"):
         StateLayout(("x_m", "y_m", "z_m"), 2)
 

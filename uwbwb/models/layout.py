@@ -9,12 +9,7 @@ A kinematic state is a vector of positions and their time derivatives. Its
 
     x = [p_x, p_y, (p_z), v_x, v_y, (v_z), (a_x, \\dots)],
 
-so the position is ``x[..., :dim]`` whatever the model. Some computations want
-the *axis-major* order ``[p_x, v_x, p_y, v_y, ...]`` (one block per axis);
-:meth:`StateLayout.permutation` gives the index array ``π`` that maps one order
-onto the other, ``x' = x[π]``, and for a matrix ``M' = M[π][:, π]``
-(i.e. ``M' = Π M Πᵀ`` with the permutation matrix ``Π``). Re-ordering only copies
-elements, so the numbers are unchanged to the bit.
+so the position is ``x[..., :dim]`` whatever the model.
 
 :class:`KinematicModel` is the protocol of the family (``n_x``, ``layout``,
 ``F(dt)``, ``Q(dt)``, ``step``, ``sample_path``); the members and their formulas
@@ -82,16 +77,13 @@ class StateLayout:
             raise ValueError(f"StateLayout: the position components {missing} are missing from {labels!r}")
 
     @classmethod
-    def kinematic(cls, dim: int, order: int, *, axis_major: bool = False) -> "StateLayout":
-        """Layout of ``order`` derivative blocks (1: position; 2: + velocity; 3: + acceleration) in ``dim`` axes.
-
-        Derivative-major by default (``x, y, vx, vy``); ``axis_major=True`` gives ``x, vx, y, vy``.
-        """
+    def kinematic(cls, dim: int, order: int) -> "StateLayout":
+        """Layout of ``order`` derivative blocks (1: position; 2: + velocity; 3: + acceleration) in ``dim`` axes,
+        derivative-major (``x, y, vx, vy``)."""
         for name, value in (("order", order), ("dim", dim)):
             if not _one_two_three(value):
                 raise ValueError(f"StateLayout.kinematic: {name} must be 1, 2 or 3, got {value!r}")
-        pairs = [(k, a) for a in range(dim) for k in range(order)] if axis_major else \
-            [(k, a) for k in range(order) for a in range(dim)]
+        pairs = [(k, a) for k in range(order) for a in range(dim)]
         return cls(tuple(f"{DERIVATIVES[k][0]}{_AXES[a]}{DERIVATIVES[k][1]}" for k, a in pairs), dim)
 
     @property
@@ -120,35 +112,6 @@ class StateLayout:
     def vel_index(self) -> tuple[int, ...] | None:
         """State components that are the velocity, in axis order; None when the state has no velocity."""
         return self._derivative_index(1)
-
-    def axis_major(self) -> "StateLayout":
-        """The same components grouped by axis (``x, vx, y, vy``), derivatives in order within each axis."""
-        key = {v: _parse(v) for v in self.labels}
-        return StateLayout(tuple(sorted(self.labels, key=lambda v: key[v][::-1])), self.dim)
-
-    def derivative_major(self) -> "StateLayout":
-        """The same components grouped by derivative (``x, y, vx, vy``), axes in order within each."""
-        key = {v: _parse(v) for v in self.labels}
-        return StateLayout(tuple(sorted(self.labels, key=lambda v: key[v])), self.dim)
-
-    def permutation(self, to: "StateLayout") -> np.ndarray:
-        """Index array ``π`` with ``to.labels[i] == self.labels[π[i]]``, shape ``(n_x,)``.
-
-        A state in this layout becomes one in ``to`` as ``x[π]``; a matrix (``F``, ``Q``, ``P``)
-        as ``M[π][:, π]``. Both layouts must hold the same components.
-        """
-        if sorted(to.labels) != sorted(self.labels):
-            raise ValueError(f"StateLayout.permutation: {to.labels!r} and {self.labels!r} hold different components")
-        return np.array(self.index(to.labels), int)
-
-    def reorder_state(self, x, to: "StateLayout") -> np.ndarray:
-        """States ``(..., n_x)`` in this layout, re-ordered into ``to`` (a copy; same numbers)."""
-        return np.asarray(x)[..., self.permutation(to)]
-
-    def reorder_matrix(self, M, to: "StateLayout") -> np.ndarray:
-        """Matrices ``(..., n_x, n_x)`` in this layout (``F``, ``Q``, ``P``), re-ordered into ``to``: ``Π M Πᵀ``."""
-        p = self.permutation(to)
-        return np.asarray(M)[..., p, :][..., :, p]
 
 
 @runtime_checkable
