@@ -99,8 +99,8 @@ def test_distinct_counts_do_not_count_resampled_copies():
 
 # ------------------------------------------------------------------ facts and sentences on both sides of each rule
 
-def _results(**change) -> facts.Results:
-    """A hand-made Results whose numbers the tests set (no sampler, no filter)."""
+def _results(**change) -> dict:
+    """Hand-made arguments of facts.facts whose numbers the tests set (no sampler, no filter)."""
     ref = pd.DataFrame({f"ΔP_ref (ms), {R_MODEL}": [1.06] + [0.0] * 6 + [-1.17],
                         f"P (ms), {R_MODEL}": 501 + 6 * np.arange(8.0),
                         f"ΔP_ref (ms), {R_500}": [1.06] + [0.0] * 6 + [-1.08], f"P (ms), {R_500}": np.full(8, 500.0)})
@@ -146,11 +146,11 @@ def _results(**change) -> facts.Results:
                 cut_minima=change.pop("cut_minima", {"V = V_ref": (0.0, 0.0), "V = 0.8 V_ref": (0.4, 13.5)}),
                 snap=snap, scores=scores, floor=floor)
     base.update(change)
-    return facts.Results(**base)
+    return base
 
 
 def _table(**change) -> tuple[dict, pd.DataFrame]:
-    f = facts.facts(_results(**change))
+    f = facts.facts(**_results(**change))
     return f, facts.verdict_table(f)
 
 
@@ -170,10 +170,10 @@ def test_dp_verdict_names_the_reading_that_reproduces_the_printed_values():
     assert f["dp_reproduces"] == [R_MODEL]
     assert _verdict(t, f"ΔP_ref of beacons 0 and 7 (ms), {R_MODEL}") == "reproduces"
     assert _verdict(t, f"ΔP_ref of beacons 0 and 7 (ms), {R_500}") == "does not reproduce"
-    ref = _results().ref_table.copy()
+    ref = _results()["ref_table"].copy()
     ref.loc[ref.index[7], f"ΔP_ref (ms), {R_500}"] = -1.16          # inside ±0.05 ms of −1.2
     ref.loc[ref.index[7], f"ΔP_ref (ms), {R_MODEL}"] = -1.26        # outside
-    f = facts.facts(replace(_results(), ref_table=ref))
+    f = facts.facts(**_results(ref_table=ref))
     assert f["dp_reproduces"] == [R_500]
     t = facts.verdict_table(f)
     assert _verdict(t, f"ΔP_ref of beacons 0 and 7 (ms), {R_500}") == "reproduces"
@@ -262,7 +262,7 @@ def test_keeps_track_verdict_flips_at_both_thresholds():
 
 
 def test_keeps_track_is_applied_to_each_filter_on_each_recording():
-    scores = _results(in_track=0.96, kf_in_track=[0.25, 0.95, 0.94, 1.0, 1.0]).scores
+    scores = _results(in_track=0.96, kf_in_track=[0.25, 0.95, 0.94, 1.0, 1.0])["scores"]
     scores.loc[scores["recording"] == 3, "PF runs restarted"] = 1         # 1 of 10 runs: over 5 %
     pf, kf = scoring.keeps_track(scores)
     d = scores.assign(pf=pf, kf=kf)[scores["variant"] == "Doppler"]
@@ -331,12 +331,13 @@ def test_a_better_filter_that_lost_track_is_named_with_its_recordings_and_fig6s(
 def test_coverage_is_low_for_an_overconfident_posterior():
     rng = np.random.default_rng(3)
     err = rng.normal(0.0, 0.1, (4000, 2))
-    honest = scoring.in_region_95(err, np.broadcast_to(0.01 * np.eye(2), (4000, 2, 2)))
-    assert 0.93 < honest.mean() < 0.97
-    collapsed = scoring.in_region_95(err, np.broadcast_to(1e-6 * np.eye(2), (4000, 2, 2)))
-    assert collapsed.mean() < 0.01
-    assert not scoring.in_region_95(err[:1], np.zeros((1, 2, 2)))[0]          # singular: covers nothing
-    assert not scoring.in_region_95(err[:1], np.full((1, 2, 2), np.nan))[0]
+    assert 0.93 < scoring.coverage_95(err, np.broadcast_to(0.01 * np.eye(2), (4000, 2, 2))) < 0.97
+    assert scoring.coverage_95(err, np.broadcast_to(1e-6 * np.eye(2), (4000, 2, 2))) < 0.01
+    runs = np.stack([err[:2000], err[2000:]])                                   # (runs, epochs, 2) as the PF's
+    assert 0.93 < scoring.coverage_95(runs, np.broadcast_to(0.01 * np.eye(2), (2, 2000, 2, 2))) < 0.97
+    assert scoring.coverage_95(err[:1], np.zeros((1, 2, 2))) == 0.0            # singular: covers nothing
+    assert scoring.coverage_95(err[:1], np.full((1, 2, 2), np.nan)) == 0.0
+    assert scoring.coverage_95(np.full((1, 2), np.nan), 0.01 * np.eye(2)[None]) == 0.0
 
 
 def test_floor_verdict_is_read_from_the_interval_of_the_particle_step():
@@ -371,7 +372,7 @@ def test_ghost_rules_flip():
 
 
 def test_lab_row_says_reconstruction():
-    rows = headlines.rows(facts.facts(_results()))
+    rows = headlines.rows(facts.facts(**_results()))
     names = [r["quantity"] for r in rows]
     # the zero-noise CEP50 is a floor only once converged in particles: not named one, and its 4× row beside it
     assert not any("floor" in n for n in names)
@@ -416,7 +417,7 @@ def test_cep50_row_carries_the_paper_value_only_once_converged_in_particles():
 
 
 def test_checks_report_what_fails():
-    f = facts.facts(_results())
+    f = facts.facts(**_results())
     assert headlines.checks(f, fast=False) == []
     bad = dict(f, fig_empty_panels=[("cubic", 0.02)], estimators_agree=False)
     fails = headlines.checks(bad, fast=False)
@@ -444,10 +445,10 @@ def test_small_study_end_to_end(cfg):
     # the fraction falls with the period (≈ P⁻⁶): 500 ms for all gives more than 501 + 6i ms
     both = readings[readings["layout"] == "cubic"].set_index("reading")["fraction (%)"]
     assert both[R_500] > both[R_MODEL]
-    tracks = study.track_studies("lab", cfg)
+    tracks = [study.track_study("lab", cfg, seed_offset=k, pf_runs=(3, 2)[k]) for k in range(2)]    # as the notebook
     assert len(tracks) == 2 and tracks[0].pf["Doppler"].n_runs == 3 and tracks[1].pf["Doppler"].n_runs == 2
     t_a, t_b = tracks[0].snapshots_s
-    snap = scoring.snapshot_table(tracks)
+    snap = pd.concat([st.snapshot_errors(v).assign(recording=k, variant=v) for k, st in enumerate(tracks) for v in st.pf])
     assert set(snap["corner"]) == {"bottom-left", "top-left"} and len(snap) == 2 * 2 * 2
     # the error about the truth is the offset and the spread about the cloud's centre combined
     assert np.all(snap["CEP50 (cm)"] <= snap["offset (cm)"] + snap["run-to-run CEP50 (cm)"] + 1e-9)

@@ -1,9 +1,9 @@
 """Notebook 04's results as numbers and computed verdicts (paper 003).
 
-:class:`Results` holds what the notebook computed; :func:`facts` turns it into a flat ``dict`` of numbers and
-verdict labels; :func:`verdict_table` and :func:`fig6_table` lay them out as the notebook's verdict tables and
-:mod:`.headlines` reads the summary rows from them, so a test can feed numbers on either side of each threshold
-and see the verdict flip.
+:func:`facts` turns what the notebook computed into a flat ``dict`` of numbers and verdict labels;
+:func:`verdict_table` and :func:`fig6_table` lay them out as the notebook's verdict tables and :mod:`.headlines`
+reads the summary rows from them, so a test can feed numbers on either side of each threshold and see the verdict
+flip.
 
 Every interval verdict is :func:`uwbwb.metrics.interval_side` of an interval against a stated value, named by one
 mapping of its sides to words per claim; "no interval" where there is none. Intervals over recordings (which are
@@ -37,8 +37,6 @@ Rules
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pandas as pd
 
@@ -46,7 +44,7 @@ from ...metrics import interval_side, seeds_interval
 from .scoring import KEEPS_TRACK, keeps_track
 from .study import PAPER, READINGS
 
-__all__ = ["Results", "facts", "fig6_table", "verdict_table", "DP_TOLERANCE_MS", "GHOST_ANGLE_DEG", "OFFSET_SHARE",
+__all__ = ["facts", "fig6_table", "verdict_table", "DP_TOLERANCE_MS", "GHOST_ANGLE_DEG", "OFFSET_SHARE",
            "EQUAL_CM", "PARTICLE_STEP_CM", "NOT_CONVERGED", "NOT_JUDGED", "ASYMMETRY"]
 
 #: Half of the last printed digit of the paper's ΔP_ref (ms).
@@ -91,37 +89,24 @@ def _over_recordings(x) -> dict:
     return {"median": float(np.median(x)), **seeds_interval(x), "min": float(x.min()), "max": float(x.max())}
 
 
-@dataclass(frozen=True)
-class Results:
-    """Everything notebook 04 computed that its verdict tables and summary read.
+def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_counts: dict, geometry: dict,
+          cut_minima: dict, snap: pd.DataFrame, scores: pd.DataFrame, floor: pd.DataFrame) -> dict:
+    """Numbers and verdicts of notebook 04 (see the module docstring for every rule), from what it computed.
 
     ``ref_table``: :func:`~.study.reference_table`; ``readings``: :func:`~.study.period_readings`; ``at15``:
     ``{layout: {"conditional" | "brute force" | "ranges": FractionEstimate}}`` at 15 cm; ``fig_counts``:
     ``{layout: {threshold: (distinct samples, distinct positions, FractionEstimate)}}``; ``geometry``:
-    :func:`~.ghosts.ghost_geometry`; ``cut_minima``: ``{curve: (s (m), δ (cm)) at the minimum}`` of Fig 5; ``snap``,
-    ``scores``, ``floor``: :func:`~.scoring.snapshot_table`, :func:`~.scoring.filter_scores`, :func:`~.study.error_floor`.
+    :func:`~.ghosts.ghost_geometry`; ``cut_minima``: ``{curve: (s (m), δ (cm)) at the minimum}`` of Fig 5; ``snap``:
+    :meth:`~.scoring.TrackStudy.snapshot_errors` of every recording and variant (columns ``recording``,
+    ``variant``); ``scores``: :func:`~.scoring.filter_scores`; ``floor``: :func:`~.study.error_floor`.
     """
-
-    ref_table: pd.DataFrame
-    readings: pd.DataFrame
-    at15: dict
-    fig_counts: dict
-    geometry: dict
-    cut_minima: dict
-    snap: pd.DataFrame
-    scores: pd.DataFrame
-    floor: pd.DataFrame
-
-
-def facts(res: Results) -> dict:
-    """Numbers and verdicts of notebook 04 (see the module docstring for every rule)."""
     f: dict = {"readings": list(READINGS), "dp_reproduces": []}
     for r in READINGS:
         for b in (0, 7):
-            f[f"dp_ms[{r}][{b}]"] = float(res.ref_table[f"ΔP_ref (ms), {r}"].iloc[b])
+            f[f"dp_ms[{r}][{b}]"] = float(ref_table[f"ΔP_ref (ms), {r}"].iloc[b])
         if all(abs(f[f"dp_ms[{r}][{b}]"] - PAPER["dp_ref_ms"][b]) <= DP_TOLERANCE_MS + 1e-12 for b in (0, 7)):
             f["dp_reproduces"].append(r)
-    for _, row in res.readings.iterrows():
+    for _, row in readings.iterrows():
         key = f"[{row['layout']}][{row['reading']}]"
         f[f"frac_pct{key}"], f[f"frac_lo_pct{key}"], f[f"frac_hi_pct{key}"] = (
             float(row[c]) for c in ("fraction (%)", "95 % low (%)", "95 % high (%)"))
@@ -130,26 +115,25 @@ def facts(res: Results) -> dict:
                                             PAPER["fraction_15cm_pct"]["cubic"], FRACTION)
 
     # --- estimators, the lab, Figs 3-5
-    c, lab = res.at15["cubic"], res.at15["lab"]
+    c, lab = at15["cubic"], at15["lab"]
     f["brute_frac_pct"] = 100 * c["brute force"].fraction
     f["brute_draws"] = int(c["brute force"].n_draws)
     f["estimators_agree"] = bool(all(
         e["conditional"].ci_low <= e["brute force"].ci_high and e["brute force"].ci_low <= e["conditional"].ci_high
-        for e in res.at15.values()))
+        for e in at15.values()))
     f["lab_over_cubic"] = float(lab["conditional"].fraction / c["conditional"].fraction)
     f["lab_over_cubic_paper"] = PAPER["fraction_15cm_pct"]["lab"] / PAPER["fraction_15cm_pct"]["cubic"]
     f["lab_same_order"] = bool(abs(np.log10(f["lab_over_cubic"] / f["lab_over_cubic_paper"])) < 0.5)
-    f["ranges_frac_pct"] = {k: 100 * v["ranges"].fraction for k, v in res.at15.items()}
-    f["fig_empty_panels"] = [(lay, t) for lay, d in res.fig_counts.items() for t, (n, _, _) in d.items() if n == 0]
-    f["plane_angle_deg"] = float(res.geometry["angle(position plane normal, V) (°)"])
-    f["vel_axis_angle_deg"] = float(res.geometry["angle(velocity main axis, V) (°)"])
+    f["ranges_frac_pct"] = {k: 100 * v["ranges"].fraction for k, v in at15.items()}
+    f["fig_empty_panels"] = [(lay, t) for lay, d in fig_counts.items() for t, (n, _, _) in d.items() if n == 0]
+    f["plane_angle_deg"] = float(geometry["angle(position plane normal, V) (°)"])
+    f["vel_axis_angle_deg"] = float(geometry["angle(velocity main axis, V) (°)"])
     f["ghost_shape_holds"] = bool(max(f["plane_angle_deg"], f["vel_axis_angle_deg"]) < GHOST_ANGLE_DEG)
-    f["cut_min_cm"] = {k: float(v[1]) for k, v in res.cut_minima.items()}
+    f["cut_min_cm"] = {k: float(v[1]) for k, v in cut_minima.items()}
     f["cut_verdict"] = {k: "the reference itself" if abs(s) < REFERENCE_S_M and d < REFERENCE_DELTA_CM else
-                        "a ghost" if d < GHOST_CUT_CM else "not a ghost" for k, (s, d) in res.cut_minima.items()}
+                        "a ghost" if d < GHOST_CUT_CM else "not a ghost" for k, (s, d) in cut_minima.items()}
 
     # --- Fig 6 over recordings
-    snap = res.snap
     f["n_recordings"] = int(snap["recording"].nunique())
     per_rec = snap.groupby(["variant", "recording"])[["CEP50 (cm)", "offset (cm)", "run-to-run CEP50 (cm)"]].mean()
     for variant in per_rec.index.unique(0):
@@ -180,7 +164,7 @@ def facts(res: Results) -> dict:
         f["corner_dependence"] = _side(f["corner_diff"]["lo"], f["corner_diff"]["hi"], 0.0, CORNERS)
 
     # --- filters: accuracy, keeping track, coverage
-    for variant, d in res.scores.groupby("variant"):
+    for variant, d in scores.groupby("variant"):
         pf_ok, kf_ok = keeps_track(d)
         both = (pf_ok & kf_ok).to_numpy()
         lost = {who: [int(r) for r in d.loc[~ok, "recording"]] for who, ok in (("PF", pf_ok), ("MH-EKF", kf_ok))}
@@ -211,9 +195,9 @@ def facts(res: Results) -> dict:
         f[f"kf_keeps_track[{variant}]"] = bool(f[f"kf_in_track[{variant}]"] >= KEEPS_TRACK[0])
 
     # --- the particle count (zero noise, exact ΔP, 1× and 4× the particles)
-    fl = res.floor["CEP50, scored epochs (cm)"]
+    fl = floor["CEP50, scored epochs (cm)"]
     f["floor_cm"] = {k: float(v) for k, v in fl.items()}
-    lo, hi = (float(res.floor.iloc[-1].get(c, np.nan)) for c in ("drop 95 % low (cm)", "drop 95 % high (cm)"))
+    lo, hi = (float(floor.iloc[-1].get(c, np.nan)) for c in ("drop 95 % low (cm)", "drop 95 % high (cm)"))
     f["floor_particles_step"] = (float(fl.iloc[-2] - fl.iloc[-1]), lo, hi)
     up, down = interval_side(lo, hi, PARTICLE_STEP_CM), interval_side(lo, hi, -PARTICLE_STEP_CM)
     f["particles_verdict"] = (NO_INTERVAL if up == "none" else "converged" if (up, down) == ("below", "above") else

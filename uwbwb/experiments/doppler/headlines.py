@@ -74,11 +74,8 @@ JUDGED_IF_CONVERGED = frozenset(h.quantity for h in HEADLINES if h.quantity.star
 def rows(f: dict) -> list[dict]:
     """The summary rows: ``quantity, value, unit, paper_value, kind`` (data: synthetic); the paper's value is left
     out of :data:`JUDGED_IF_CONVERGED` rows unless ``f["particles_converged"]``."""
-    out = [h.row(f) for h in HEADLINES]
-    for r in out:
-        if r["quantity"] in JUDGED_IF_CONVERGED and not f["particles_converged"]:
-            r["paper_value"] = None
-    return out
+    return [dict(h.row(f), paper_value=None) if h.quantity in JUDGED_IF_CONVERGED and not f["particles_converged"]
+            else h.row(f) for h in HEADLINES]
 
 
 def checks(f: dict, *, fast: bool) -> list[str]:

@@ -1,9 +1,9 @@
 """Notebook 04's filter results and their scores: one recording's runs and the tables over recordings.
 
 Fig 6 and the filter comparison: :class:`TrackStudy` (the PF runs and the MH-EKF on one simulated
-recording, its snapshot errors), :func:`in_region_95` (coverage of a filter's own 95 % region),
-:func:`snapshot_table` and :func:`filter_scores` (PF and MH-EKF on the same epochs, with the keeps-track
-rule :data:`KEEPS_TRACK` applied to each per recording).
+recording, its snapshot errors), :func:`coverage_95` (coverage of a filter's own 95 % region) and
+:func:`filter_scores` (PF and MH-EKF on the same epochs, with the keeps-track rule :data:`KEEPS_TRACK` applied
+to each per recording).
 :mod:`.study` runs the filters and builds the :class:`TrackStudy`.
 """
 
@@ -13,13 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from scipy.stats import chi2
 
 from ... import metrics
 from ...calibration import MAD_TO_SIGMA
 from ...models import doppler as dm
 from ...sim import chirps as sc
 
-__all__ = ["TrackStudy", "in_region_95", "snapshot_table", "filter_scores", "keeps_track", "KEEPS_TRACK", "LOST_M"]
+__all__ = ["TrackStudy", "coverage_95", "filter_scores", "keeps_track", "KEEPS_TRACK", "LOST_M"]
 
 #: A filter *keeps track* on a recording when at least ``KEEPS_TRACK[0]`` of its scored epochs have a
 #: horizontal error under :data:`LOST_M` (the PF: pooled over its runs) and, for the PF, at most
@@ -81,33 +82,14 @@ class TrackStudy:
         return np.linalg.norm(runs.pos_m[:, keep, :2] - self.track.pos_m(runs.t_s[keep])[:, :2], axis=-1)
 
 
-def in_region_95(err_m: np.ndarray, cov_m2: np.ndarray) -> np.ndarray:
-    """Whether each error lies in the filter's own 95 % region: ``eᵀ Σ⁻¹ e ≤ χ²_d(0.95)``.
-
-    ``err_m`` shape ``(..., d)`` (estimate − truth), ``cov_m2`` shape ``(..., d, d)``. A
-    singular or non-finite covariance covers nothing (returns False there).
-    """
-    from scipy.stats import chi2
-
-    err_m, cov_m2 = np.asarray(err_m, float), np.asarray(cov_m2, float)
+def coverage_95(err_m: np.ndarray, cov_m2: np.ndarray) -> float:
+    """Share of errors ``(..., d)`` inside the filter's own 95 % region, :func:`uwbwb.metrics.nees` ``≤ χ²_d(0.95)``
+    on its covariances ``(..., d, d)``; a non-finite or singular covariance covers nothing."""
     d = err_m.shape[-1]
-    ok = np.all(np.isfinite(cov_m2), axis=(-2, -1)) & np.all(np.isfinite(err_m), axis=-1)
-    ok &= np.linalg.det(np.where(ok[..., None, None], cov_m2, np.eye(d))) > 1e-300
-    safe = np.where(ok[..., None, None], cov_m2, np.eye(d))
-    m2 = np.einsum("...i,...i->...", err_m, np.linalg.solve(safe, np.where(ok[..., None], err_m, 0.0)[..., None])[..., 0])
-    return ok & (m2 <= chi2.ppf(0.95, d))
-
-
-def snapshot_table(studies: list[TrackStudy]) -> pd.DataFrame:
-    """:meth:`TrackStudy.snapshot_errors` of every recording and variant, one row per (recording, variant, corner)."""
-    parts = []
-    for k, st in enumerate(studies):
-        for v in st.pf:
-            df = st.snapshot_errors(v)
-            df.insert(0, "variant", v)
-            df.insert(0, "recording", k)
-            parts.append(df)
-    return pd.concat(parts, ignore_index=True)
+    e, P = np.reshape(err_m, (-1, d)), np.reshape(cov_m2, (-1, d, d))
+    ok = np.all(np.isfinite(P), axis=(1, 2))
+    ok[ok] = np.linalg.det(P[ok]) > 1e-300
+    return float(np.mean(metrics.nees(e, P, where=ok) <= chi2.ppf(0.95, d)))
 
 
 def filter_scores(studies: list[TrackStudy], *, lost_m: float = LOST_M) -> pd.DataFrame:
@@ -115,7 +97,7 @@ def filter_scores(studies: list[TrackStudy], *, lost_m: float = LOST_M) -> pd.Da
 
     CEP50/CEP95 pool all PF runs; the MH-EKF is deterministic (one run). Beside accuracy:
     ``coverage`` (share of scored epochs whose horizontal truth lies in the filter's own
-    95 % region, :func:`in_region_95` on the x–y block of its position covariance: the
+    95 % region, :func:`coverage_95` on the x–y block of its position covariance: the
     MH-EKF's ``pos_cov_m2``, the PF run's weighted particle covariance), ``with an
     estimate`` (share of scored epochs with a finite estimate), ``in track`` (share of scored
     epochs with horizontal error under ``lost_m``) and, for the PF, its restarts (runs
@@ -139,10 +121,8 @@ def filter_scores(studies: list[TrackStudy], *, lost_m: float = LOST_M) -> pd.Da
             rows.append({"recording": k, "variant": variant, "epochs": int(keep.sum()), "PF runs": runs.n_runs,
                          "PF CEP50 (cm)": 100 * metrics.cep50(e_pf), "MH-EKF CEP50 (cm)": 100 * metrics.cep50(e_kf),
                          "PF CEP95 (cm)": 100 * metrics.cep95(e_pf), "MH-EKF CEP95 (cm)": 100 * metrics.cep95(e_kf),
-                         "PF coverage": float(np.mean(in_region_95(
-                             runs.pos_m[:, keep, :2] - truth, runs.pos_cov_m2[:, keep, :2, :2]))),
-                         "MH-EKF coverage": float(np.mean(in_region_95(
-                             kf.pos_m[idx, :2] - truth, kf.pos_cov_m2[idx, :2, :2]))),
+                         "PF coverage": coverage_95(runs.pos_m[:, keep, :2] - truth, runs.pos_cov_m2[:, keep, :2, :2]),
+                         "MH-EKF coverage": coverage_95(kf.pos_m[idx, :2] - truth, kf.pos_cov_m2[idx, :2, :2]),
                          "PF with an estimate": float(np.mean(np.all(np.isfinite(runs.pos_m[:, keep]), axis=-1))),
                          "MH-EKF with an estimate": float(np.mean(np.all(np.isfinite(kf.pos_m[idx]), axis=-1))),
                          "PF in track": float(np.mean(e_pf < lost_m)), "MH-EKF in track": float(np.mean(e_kf < lost_m)),

@@ -23,7 +23,7 @@ from .scoring import TrackStudy
 
 __all__ = ["PAPER", "StudyConfig", "LAYOUTS", "ROOMS", "READINGS", "make_model", "reference_table", "SpaceMap",
            "map_space", "period_readings", "figure_samples", "fraction_table", "make_filters",
-           "track_study", "track_studies", "error_floor"]
+           "track_study", "error_floor"]
 
 #: Numbers quoted by the paper (inputs, never targets of a tuning).
 PAPER = {
@@ -317,15 +317,6 @@ def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs:
             kf_out[variant] = mh.run(log, kf_prior(layout), ranges_m=r)
     dirs = (np.array([-1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))    # arriving along the bottom, then the left side
     return TrackStudy(model, track, rec, log, pf_out, kf_out, (t_a, t_b), dirs, t_score_s=min(8.0, t_a / 2))
-
-
-def track_studies(layout: str, cfg: StudyConfig, *, workers: int = 1, progress: bool = False,
-                  scheduler=None) -> list[TrackStudy]:
-    """``cfg.n_recordings`` independent recordings: the first with ``cfg.pf_runs`` PF runs (Fig 6's cloud),
-    the others with ``cfg.compare_runs``."""
-    return [track_study(layout, cfg, seed_offset=k, pf_runs=cfg.pf_runs if k == 0 else cfg.compare_runs,
-                        workers=workers, progress=progress and k == 0, scheduler=scheduler)
-            for k in range(cfg.n_recordings)]
 
 
 #: Conditions of :func:`error_floor`: (label, simulate noise, ΔP from eq 1 at the true state, particles factor).
