@@ -11,28 +11,19 @@ independent) are :func:`uwbwb.metrics.seeds_interval`: the Student-t 95 % interv
 
 Rules
 -----
-* ΔP_ref (a deterministic number per reading): the paper prints one decimal in ms, so a value *reproduces the
-  printed number* when it lies within ±0.05 ms of it.
-* Fraction under 15 cm, cubic (the paper: "less than 0.0005 %"): 95 % interval below the bound → agrees; above →
-  disagrees; else undecided at this sample size.
+Each claim of :func:`verdict_table` states its rule in the table's ``rule`` column; the constants below set them.
+Those of :func:`fig6_table`:
+
 * Fig 6 CEP50 (paper ≈ 25 cm, from *one* recording): judged against the spread of single recordings ([min, max]
-  over ≥ 3 recordings: consistent, or above / below), and the interval of the mean recording separately — but only
-  once the particle count has converged (below); else :data:`NOT_CONVERGED` or :data:`NOT_JUDGED`.
+  over ≥ 3 recordings: consistent, or above / below), and against the interval of the mean separately — but only
+  once the particle count has converged (the drop of the CEP50 with 4× the particles inside ±1 cm); else
+  :data:`NOT_CONVERGED` or :data:`NOT_JUDGED`.
 * The along/across ratio per corner (paper ≈ 0.5) claims an asymmetry, so the interval of the mean ratio over
   recordings gets two verdicts, each of which it can reject: *asymmetry (≠ 1)* (:data:`ASYMMETRY`) and *the paper's
   0.5* inside or outside. Reproduced when every corner detects an asymmetry below 1 and holds 0.5; "no asymmetry
   detected" when no corner detects one (a range that holds 0.5 and 1 alike rejects nothing).
-* Offset or spread: per recording ``offset² / (offset² + spread²)``; interval above 0.5 → offset, below → spread.
-* Corner dependence: per recording, ratio at the first corner minus at the second; interval excludes 0 → depends.
-* MH-EKF vs PF: the interval of the mean per-recording difference of CEP50 inside ±0.5 cm → equal within 5 mm (an
-  equivalence rule); else one that excludes 0 names the better filter. Decided on the recordings where both keep
-  track and on all recordings; there a better filter that lost track on some recordings is named with them
-  (recording 0 is the one Fig 6 draws).
-* A filter *keeps track* by :data:`~.scoring.KEEPS_TRACK` (:func:`~.scoring.keeps_track`), per recording and pooled.
-* The particle count has *converged* when the 95 % interval of the CEP50's drop with 4× the particles
-  (:func:`~.study.error_floor`, zero noise and exact ΔP on the first recording) lies inside ±1 cm; *not converged*
-  when wholly outside; else *undecided*. Only then is the zero-noise CEP50 a floor.
-* Fig 5: a cut's minimum at s = 0 with δ = 0 is the reference itself, not a ghost.
+* MH-EKF vs PF on all recordings: a better filter that lost track (:func:`~.scoring.keeps_track`) is named with
+  the recordings it lost (recording 0 is the one Fig 6 draws).
 """
 
 from __future__ import annotations

@@ -187,6 +187,10 @@ def map_space(layout: str, cfg: StudyConfig, *, workers: int = 2, progress: bool
     return SpaceMap(layout, model, brute, cond, rang, seconds, np.nan if scheduler is not None else peak)
 
 
+def _percent(e: smp.FractionEstimate) -> dict:
+    return {"fraction (%)": 100 * e.fraction, "95 % low (%)": 100 * e.ci_low, "95 % high (%)": 100 * e.ci_high}
+
+
 def period_readings(cfg: StudyConfig, maps: dict[str, SpaceMap] | None = None, *, threshold_m: float = 0.15,
                     workers: int = 2, scheduler=None) -> pd.DataFrame:
     """Fraction under ``threshold_m`` by the conditional estimator for every layout and period reading.
@@ -205,9 +209,8 @@ def period_readings(cfg: StudyConfig, maps: dict[str, SpaceMap] | None = None, *
                 e = smp.conditional(make_model(layout, cfg, reading), *ref, cfg.n_positions,
                                     seed=np.random.SeedSequence(cfg.seed).spawn(3)[1], thresholds_m=(threshold_m,),
                                     workers=workers, scheduler=scheduler).estimates[0]
-            rows.append({"layout": layout, "reading": reading, "fraction (%)": 100 * e.fraction,
-                         "95 % low (%)": 100 * e.ci_low, "95 % high (%)": 100 * e.ci_high,
-                         "positions": e.n_positions, "paper (%)": PAPER["fraction_15cm_pct"][layout]})
+            rows.append({"layout": layout, "reading": reading, **_percent(e), "positions": e.n_positions,
+                         "paper (%)": PAPER["fraction_15cm_pct"][layout]})
     return pd.DataFrame(rows)
 
 
@@ -249,10 +252,8 @@ def fraction_table(maps: dict[str, SpaceMap], per_threshold: dict[str, dict] | N
         runs += [("conditional, per threshold", r, np.nan) for r in (per_threshold or {}).get(name, {}).values()]
         for label, res, sec in runs:
             for e in res.estimates:
-                rows.append({"layout": name, "estimator": label, "δ < (cm)": round(100 * e.threshold_m),
-                             "fraction (%)": 100 * e.fraction, "95 % low (%)": 100 * e.ci_low,
-                             "95 % high (%)": 100 * e.ci_high, "hits": e.n_hits, "exact δ evaluations": e.n_draws,
-                             "seconds": sec})
+                rows.append({"layout": name, "estimator": label, "δ < (cm)": round(100 * e.threshold_m), **_percent(e),
+                             "hits": e.n_hits, "exact δ evaluations": e.n_draws, "seconds": sec})
     return pd.DataFrame(rows)
 
 
