@@ -181,9 +181,10 @@ def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_co
         f[f"pf_cep95_cm[{variant}]"] = float(d["PF CEP95 (cm)"].median())
         f[f"pf_restarted_runs[{variant}]"] = (int(d["PF runs restarted"].sum()), int(runs))
         f[f"pf_restarted_share[{variant}]"] = float(d["PF runs restarted"].sum() / runs)
-        f[f"pf_keeps_track[{variant}]"] = bool(f[f"pf_in_track[{variant}]"] >= KEEPS_TRACK[0]
-                                              and f[f"pf_restarted_share[{variant}]"] <= KEEPS_TRACK[1])
-        f[f"kf_keeps_track[{variant}]"] = bool(f[f"kf_in_track[{variant}]"] >= KEEPS_TRACK[0])
+        pooled = pd.DataFrame([{"PF in track": f[f"pf_in_track[{variant}]"], "PF runs": runs,
+                                "PF runs restarted": d["PF runs restarted"].sum(),
+                                "MH-EKF in track": f[f"kf_in_track[{variant}]"]}])      # the same rule, pooled
+        f[f"pf_keeps_track[{variant}]"], f[f"kf_keeps_track[{variant}]"] = (bool(k.iloc[0]) for k in keeps_track(pooled))
 
     # --- the particle count (zero noise, exact ΔP, 1× and 4× the particles)
     fl = floor["CEP50, scored epochs (cm)"]
