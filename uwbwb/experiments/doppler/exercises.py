@@ -65,12 +65,7 @@ def pseudo_ranges(cfg: study.StudyConfig, *, layout: str = "lab", seed_offset: i
     """
     n_runs = validate.integer("n_runs", n_runs, minimum=1)
     st = study.track_study(layout, cfg, seed_offset=seed_offset, pf_runs=n_runs, kf=False)
-    cep = {}
-    for variant, runs in st.pf.items():
-        keep = runs.t_s > st.t_score_s
-        err = np.linalg.norm(runs.pos_m[:, keep, :2] - st.track.pos_m(runs.t_s[keep])[:, :2], axis=-1)
-        cep[variant] = 100 * metrics.cep50(err.ravel())
-    d, r = cep["Doppler"], cep["Doppler + ranges"]
+    d, r = (100 * metrics.cep50(st.pf_errors_m(v).ravel()) for v in ("Doppler", "Doppler + ranges"))
     return ExerciseCheck(
         f"PF ({n_runs} runs × {cfg.n_particles} particles, one fresh walk): pseudo-ranges cut CEP50 at least "
         f"{factor:g}×", ranging_verdict(d, r, factor=factor),

@@ -10,7 +10,7 @@ from ...models import doppler as dm
 from ...plotting import color_for
 
 __all__ = ["ghost_panel", "space_figure", "cuts_figure", "tracks_figure", "clouds_figure", "NEAR_REFERENCE",
-           "far_positions"]
+           "far_positions", "lap", "plan", "no_samples"]
 
 _GHOST = "#3182bd"
 #: Share of a panel's half-width within which a sample counts as *at* the reference: a panel whose samples all
@@ -35,15 +35,19 @@ def _ax(ax):
     return plt.subplots(figsize=(4, 4))[1] if ax is None else ax
 
 
-def _lap(ax, study, label=None):
-    """One lap of the study's track in the truth colour (the base of Fig 6 a and b)."""
+def lap(ax, study, label=None, *, beacons: bool = False):
+    """One lap of the study's track in the truth colour (the base of Fig 6 a and b, and of the filter panel), and
+    the beacons as stars when ``beacons``."""
     t = np.linspace(0, study.track.length_m / study.track.speed_mps, 400)
     lap = study.track.pos_m(t)
     ax.plot(lap[:, 0], lap[:, 1], color="#000000", linewidth=1.0, label=label)
+    if beacons:
+        b = study.model.beacons.pos_m
+        ax.plot(b[:, 0], b[:, 1], "*", color="#000000", markersize=9, label="beacons")
     return ax
 
 
-def _plan(ax, title: str):
+def plan(ax, title: str):
     """Finish a Fig 6 plan view: equal axes in metres, the title, the legend."""
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
@@ -156,13 +160,18 @@ def space_figure(runs_by_threshold: dict[float, smp.SamplerResult], model: dm.Do
         axes[1, j].set_title(f"{n_s} distinct samples, {n_p} positions,\n{far}\nfraction {100 * e.fraction:.2g} %{iv}",
                              fontsize=8)
         if n_s == 0:
-            for ax in axes[:, j]:
-                ax.text(0.5, 0.5, "no sample under\nthis threshold", transform=ax.transAxes, ha="center",
-                        va="center", fontsize=9, color="#d62728")
+            no_samples(axes[:, j])
     if suptitle:
         fig.suptitle(suptitle, fontsize=10)
     fig.tight_layout()
     return fig
+
+
+def no_samples(axes):
+    """Write "no sample under this threshold" across each of ``axes``."""
+    for ax in axes:
+        ax.text(0.5, 0.5, "no sample under\nthis threshold", transform=ax.transAxes, ha="center", va="center",
+                fontsize=9, color="#d62728")
 
 
 def cuts_figure(df, *, threshold_cm: float = 6.0, ax=None):
@@ -179,29 +188,36 @@ def cuts_figure(df, *, threshold_cm: float = 6.0, ax=None):
     return ax
 
 
-def tracks_figure(study, variant: str = "Doppler", *, n_runs: int = 5, ax=None):
-    """Fig 6(a): the rectangle (clockwise), five PF runs between the two corners, and the MH-EKF."""
-    ax = _lap(_ax(ax), study, label="truth (clockwise)")
+def tracks_figure(study, variant: str = "Doppler", *, kept=None, n_runs: int = 5, ax=None):
+    """Fig 6(a): the rectangle (clockwise), five PF runs between the two corners, and the MH-EKF.
+
+    ``kept`` (``{"PF keeps track": bool, "MH-EKF keeps track": bool}``, a row of
+    :func:`~.scoring.filter_scores` for this recording) puts into each filter's legend entry whether it kept track
+    on this recording, and into the title which one lost it."""
+    kept = {} if kept is None else dict(kept)
+    said = {m: "" if f"{m} keeps track" not in kept else " (kept track)" if kept[f"{m} keeps track"] else
+            " (lost track on this recording)" for m in ("PF", "MH-EKF")}
+    ax = lap(_ax(ax), study, label="truth (clockwise)", beacons=True)
     runs = study.pf[variant]
     t0, t1 = study.snapshots_s
     sel = (runs.t_s >= t0 - 1.5) & (runs.t_s <= t1 + 0.5)
     for r in range(min(n_runs, runs.n_runs)):
         ax.plot(runs.pos_m[r, sel, 0], runs.pos_m[r, sel, 1], color=color_for("PF"), linewidth=0.8, alpha=0.8,
-                label="PF runs" if r == 0 else "_nolegend_")
+                label=f"PF runs{said['PF']}" if r == 0 else "_nolegend_")
     kf = study.kf[variant]
     selk = (kf.t_s >= t0 - 1.5) & (kf.t_s <= t1 + 0.5)
-    ax.plot(kf.pos_m[selk, 0], kf.pos_m[selk, 1], color=color_for("MH-EKF"), linewidth=1.0, label="MH-EKF")
-    b = study.model.beacons.pos_m
-    ax.plot(b[:, 0], b[:, 1], "*", color="#000000", markersize=9, label="beacons")
+    ax.plot(kf.pos_m[selk, 0], kf.pos_m[selk, 1], color=color_for("MH-EKF"), linewidth=1.0,
+            label=f"MH-EKF{said['MH-EKF']}")
     for k, tk in enumerate(study.snapshots_s):
         p = study.track.pos_m(tk)
         ax.plot(p[0], p[1], "o", markerfacecolor="none", markeredgecolor="#000000", markersize=10)
-    return _plan(ax, f"{variant}: tracks between the two corners")
+    lost = [m for m, v in said.items() if "lost" in v]
+    return plan(ax, f"{variant}: tracks between the two corners" + (f"; {' and '.join(lost)} lost track" if lost else ""))
 
 
 def clouds_figure(study, variant: str = "Doppler", *, ax=None):
     """Fig 6(b): every run's position at the two snapshots (3 s apart), with the truth."""
-    ax = _lap(_ax(ax), study)
+    ax = lap(_ax(ax), study)
     colors = ("#3182bd", "#31a354")
     for k, tk in enumerate(study.snapshots_s):
         c = study.cloud(variant, k)
@@ -209,4 +225,4 @@ def clouds_figure(study, variant: str = "Doppler", *, ax=None):
         ax.plot(c[:, 0], c[:, 1], ".", color=colors[k], markersize=2, alpha=0.6,
                 label=f"t = {tk:.1f} s ({c.shape[0]} runs)")
         ax.plot(p[0], p[1], "x", color="#000000", markersize=10, markeredgewidth=2)
-    return _plan(ax, f"{variant}: PF positions at two corners")
+    return plan(ax, f"{variant}: PF positions at two corners")

@@ -16,14 +16,16 @@ from ...models import doppler as dm
 __all__ = ["band_direction", "cuts", "fisher_analysis", "ghost_geometry"]
 
 
+def _principal_axes(pts: np.ndarray, weight: np.ndarray):
+    """Eigenvalues (ascending) and axes (columns) of the weighted covariance of ``pts``."""
+    w = weight / weight.sum()
+    c = pts - w @ pts
+    return np.linalg.eigh(c.T @ (c * w[:, None]))
+
+
 def band_direction(samples: smp.GhostSamples) -> np.ndarray:
     """Unit x–y direction of the longest axis of the (weighted) position cloud (Fig 3d's diagonal band)."""
-    w = samples.weight / samples.weight.sum()
-    xy = samples.pos_m[:, :2]
-    mean = w @ xy
-    cov = (xy - mean).T @ ((xy - mean) * w[:, None])
-    vals, vecs = np.linalg.eigh(cov)
-    d = vecs[:, -1]
+    d = _principal_axes(samples.pos_m[:, :2], samples.weight)[1][:, -1]
     return np.array([d[0], d[1], 0.0]) * (1 if d[0] >= 0 else -1)
 
 
@@ -66,12 +68,10 @@ def _angle(a, b) -> float:
 def ghost_geometry(samples: smp.GhostSamples) -> dict:
     """Shape of a ghost cloud: the normal of the plane the positions lie on (smallest principal axis)
     and the main axis of the velocities, each with its angle to ``V_ref`` (degrees)."""
-    w = samples.weight / samples.weight.sum()
     v_hat = dm.REFERENCE_VEL_MPS / np.linalg.norm(dm.REFERENCE_VEL_MPS)
     out = {}
     for name, pts, axis in (("position plane normal", samples.pos_m, 0), ("velocity main axis", samples.vel_mps, -1)):
-        c = pts - w @ pts
-        vals, vecs = np.linalg.eigh(c.T @ (c * w[:, None]))
+        vals, vecs = _principal_axes(pts, samples.weight)
         d = vecs[:, axis]
         out[name] = d
         out[f"angle({name}, V) (°)"] = min(_angle(d, v_hat), _angle(-d, v_hat))

@@ -12,7 +12,7 @@ import numpy as np
 from .study import PAPER, READINGS
 from ...metrics import Headline
 
-__all__ = ["HEADLINES", "JUDGED_IF_CONVERGED", "rows", "publish", "checks"]
+__all__ = ["HEADLINES", "JUDGED_IF_CONVERGED", "rows", "checks"]
 
 
 def _headlines() -> tuple[Headline, ...]:
@@ -41,7 +41,7 @@ def _headlines() -> tuple[Headline, ...]:
                                  ("spread", "run-to-run CEP50, median over recordings", None)):
             out.append(Headline(f"PF snapshot CEP50{tag}{lab}, {name}" if key == "cep50" else
                                 f"PF snapshot {name}{tag}{lab}", "cm", "reproduced",
-                                lambda f, k=f"{key}_cm[{v}]": f[k][0], paper))
+                                lambda f, k=f"{key}_cm[{v}]": f[k]["median"], paper))
         for flt, key in (("PF", "pf"), ("MH-EKF", "kf")):
             out.append(Headline(f"{flt} CEP50, scored epochs{tag}{lab}, median over recordings", "cm", "reproduced",
                                 lambda f, v=v, k=key: f[f"{k}_cep50_cm[{v}]"]))
@@ -55,7 +55,7 @@ def _headlines() -> tuple[Headline, ...]:
                             lambda f, v=v: f[f"pf_in_track[{v}]"]))
     for corner in ("bottom-left", "top-left"):
         out.append(Headline(f"PF along/across-track ratio, {corner} corner{lab}, median over recordings", "",
-                            "reproduced", lambda f, c=corner: f["corners"][c][0] if c in f["corners"] else np.nan,
+                            "reproduced", lambda f, c=corner: f["corners"][c]["median"] if c in f["corners"] else np.nan,
                             PAPER["along_over_cross"]))
     # not called a floor: it is one only where 4× the particles no longer change it (facts: particles_verdict)
     for cond, more in (("zero noise, exact eq-1 ΔP", ""), ("zero noise, exact eq-1 ΔP, 4× particles", ", 4× particles")):
@@ -74,21 +74,8 @@ JUDGED_IF_CONVERGED = frozenset(h.quantity for h in HEADLINES if h.quantity.star
 def rows(f: dict) -> list[dict]:
     """The summary rows: ``quantity, value, unit, paper_value, kind`` (data: synthetic); the paper's value is left
     out of :data:`JUDGED_IF_CONVERGED` rows unless ``f["particles_converged"]``."""
-    out = [h.row(f) for h in HEADLINES]
-    for r in out:
-        if r["quantity"] in JUDGED_IF_CONVERGED and not f["particles_converged"]:
-            r["paper_value"] = None
-    return out
-
-
-def publish(f: dict, summary, path=None, *, sigma_range_m: float) -> None:
-    """Add every headline row to ``summary`` (:class:`uwbwb.metrics.Summary`), plus the simulator's timing jitter
-    (an *input*: the paper's 1–2 cm), and publish it to ``path``."""
-    for row in rows(f):
-        summary.add(**row)
-    summary.add(quantity="timing jitter of one chirp (simulator setting)", value=100 * sigma_range_m, unit="cm",
-                paper_value=None, data="synthetic", kind="input")
-    summary.publish(path)
+    return [dict(h.row(f), paper_value=None) if h.quantity in JUDGED_IF_CONVERGED and not f["particles_converged"]
+            else h.row(f) for h in HEADLINES]
 
 
 def checks(f: dict, *, fast: bool) -> list[str]:
@@ -105,8 +92,8 @@ def checks(f: dict, *, fast: bool) -> list[str]:
     if not (f["cut_min_cm"].get("V = V_ref", np.inf) < 1e-4):
         fail.append("the cut with V_ref must reach δ = 0 at the reference")
     limit = 100 if fast else 60
-    if not 0 < f["cep50_cm[Doppler]"][0] < limit:
+    if not 0 < f["cep50_cm[Doppler]"]["median"] < limit:
         fail.append(f"PF snapshot CEP50 outside (0, {limit}) cm")
-    if not f["cep50_cm[Doppler + ranges]"][0] < f["cep50_cm[Doppler]"][0]:
+    if not f["cep50_cm[Doppler + ranges]"]["median"] < f["cep50_cm[Doppler]"]["median"]:
         fail.append("pseudo-ranges must lower the PF's snapshot CEP50")
     return fail

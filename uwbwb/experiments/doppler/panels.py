@@ -48,9 +48,7 @@ def space_panel(cfg: study.StudyConfig):
                             title=f"{layout}: positions with δ < {threshold_cm:g} cm (stars: beacons)")
         figures.ghost_panel(s, "velocity", ax=axes[1], title="their velocities (red ring: V_ref)")
         if len(s.pos_m) == 0:
-            for ax in axes:
-                ax.text(0.5, 0.5, "no sample under\nthis threshold", transform=ax.transAxes, ha="center",
-                        va="center", fontsize=9, color="#d62728")
+            figures.no_samples(axes)
         axes[1].plot(v_ref[0], v_ref[1], "o", markerfacecolor="none", markeredgecolor="#d62728", markersize=12)
         n_s, n_p = study.distinct_counts(s)
         fig = view.done()
@@ -85,14 +83,12 @@ def filter_run(track: scoring.TrackStudy, cfg: study.StudyConfig, method: str, n
     r = fd.clock_pseudo_ranges(log, model, track.recording.phase_s) if ranges else None
     motion = ReceiverMotion((sigma_xy, sigma_xy, 0.2))
     variant = "Doppler + ranges" if ranges else "Doppler"
+    pf, kf = study.make_filters(layout, cfg, model, motion, n_particles=int(n_particles))
     if method == "PF":
-        lo, hi = study.ROOMS[layout]
-        pf = fd.DopplerPf(model, motion, n_particles=int(n_particles), room_lo_m=lo, room_hi_m=hi)
         est = pf.run(log, n_runs=1, rng=np.random.default_rng(cfg.seed), ranges_m=r).estimates(0)
     elif sigma_xy == 2.0 and variant in track.kf:          # the run of the notebook, already computed
         est = track.kf[variant]
     else:
-        kf = fd.ScaatMhEkf(model, motion, p_detect=1 - cfg.p_miss, spurious_rate_hz=max(cfg.spurious_rate_hz, 1e-3))
         est = kf.run(log, study.kf_prior(layout), ranges_m=r)
     _FILTER_RUNS[key] = (track, est)
     return est
@@ -119,17 +115,10 @@ def filter_panel(track: scoring.TrackStudy, cfg: study.StudyConfig, *, layout: s
         err = np.linalg.norm(est.pos_m[:, :2] - track.track.pos_m(est.t_s)[:, :2], axis=1)
         late = est.t_s > track.t_score_s
         axes = view.clear()
-        lap = track.track.pos_m(np.linspace(0, track.track.length_m / track.track.speed_mps, 300))
-        axes[0].plot(lap[:, 0], lap[:, 1], color="#000000", linewidth=1.0, label="truth")
+        figures.lap(axes[0], track, label="truth", beacons=True)
         axes[0].plot(est.pos_m[late, 0], est.pos_m[late, 1], color=color_for("PF" if method == "PF" else "MH-EKF"),
                      label=f"{method} after {track.t_score_s:g} s")
-        b = track.model.beacons.pos_m
-        axes[0].plot(b[:, 0], b[:, 1], "*", color="#000000", markersize=9, label="beacons")
-        axes[0].set_aspect("equal")
-        axes[0].set_xlabel("x (m)")
-        axes[0].set_ylabel("y (m)")
-        axes[0].set_title(f"{method}, {'Doppler + pseudo-ranges' if ranges else 'Doppler only'}: track", fontsize=9)
-        axes[0].legend(fontsize=8, loc="upper right")
+        figures.plan(axes[0], f"{method}, {'Doppler + pseudo-ranges' if ranges else 'Doppler only'}: track")
         axes[1].plot(est.t_s, 100 * err, color="#636363")
         axes[1].axvspan(est.t_s[0], track.t_score_s, color="#d9d9d9", alpha=0.6, label="start-up (not scored)")
         axes[1].set_xlabel("t (s)")

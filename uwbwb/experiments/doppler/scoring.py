@@ -1,11 +1,9 @@
 """Notebook 04's filter results and their scores: one recording's runs and the tables over recordings.
 
 Fig 6 and the filter comparison: :class:`TrackStudy` (the PF runs and the MH-EKF on one simulated
-recording, its snapshot errors), :func:`in_region_95` (coverage of a filter's own 95 % region),
-:func:`snapshot_table`, :func:`bootstrap_median`, :func:`bootstrap_run_cep50` (a CEP50 pooled over
-runs, resampled by run), :func:`fig6_summary`, :func:`corner_ratios` (the distribution over recordings)
-and :func:`filter_scores` (PF and MH-EKF on the same epochs, with the keeps-track rule
-:data:`KEEPS_TRACK` applied to each per recording).
+recording, its snapshot errors), :func:`coverage_95` (coverage of a filter's own 95 % region) and
+:func:`filter_scores` (PF and MH-EKF on the same epochs, with the keeps-track rule :data:`KEEPS_TRACK` applied
+to each per recording).
 :mod:`.study` runs the filters and builds the :class:`TrackStudy`.
 """
 
@@ -15,14 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from scipy.stats import chi2
 
 from ... import metrics
 from ...calibration import MAD_TO_SIGMA
 from ...models import doppler as dm
 from ...sim import chirps as sc
 
-__all__ = ["TrackStudy", "in_region_95", "snapshot_table", "bootstrap_median", "bootstrap_run_cep50", "fig6_summary",
-           "corner_ratios", "filter_scores", "keeps_track", "KEEPS_TRACK", "LOST_M"]
+__all__ = ["TrackStudy", "coverage_95", "filter_scores", "keeps_track", "KEEPS_TRACK", "LOST_M"]
 
 #: A filter *keeps track* on a recording when at least ``KEEPS_TRACK[0]`` of its scored epochs have a
 #: horizontal error under :data:`LOST_M` (the PF: pooled over its runs) and, for the PF, at most
@@ -76,103 +74,22 @@ class TrackStudy:
         df["along / across"] = df["along (cm)"] / df["across (cm)"]
         return df
 
-    def headline(self, variant: str) -> dict:
-        """CEP50 (cm) of both snapshot clouds pooled."""
-        errs = [np.linalg.norm(self.cloud(variant, k)[:, :2] - self.track.pos_m(t)[:2], axis=1)
-                for k, t in enumerate(self.snapshots_s)]
-        return {"cep50_cm": 100 * metrics.cep50(np.concatenate(errs))}
+    def pf_errors_m(self, variant: str) -> np.ndarray:
+        """Horizontal errors (m) of every PF run on the scored epochs (its update times after ``t_score_s``),
+        shape ``(runs, epochs)``."""
+        runs = self.pf[variant]
+        keep = runs.t_s > self.t_score_s
+        return np.linalg.norm(runs.pos_m[:, keep, :2] - self.track.pos_m(runs.t_s[keep])[:, :2], axis=-1)
 
 
-def in_region_95(err_m: np.ndarray, cov_m2: np.ndarray) -> np.ndarray:
-    """Whether each error lies in the filter's own 95 % region: ``eᵀ Σ⁻¹ e ≤ χ²_d(0.95)``.
-
-    ``err_m`` shape ``(..., d)`` (estimate − truth), ``cov_m2`` shape ``(..., d, d)``. A
-    singular or non-finite covariance covers nothing (returns False there).
-    """
-    from scipy.stats import chi2
-
-    err_m, cov_m2 = np.asarray(err_m, float), np.asarray(cov_m2, float)
+def coverage_95(err_m: np.ndarray, cov_m2: np.ndarray) -> float:
+    """Share of errors ``(..., d)`` inside the filter's own 95 % region, :func:`uwbwb.metrics.nees` ``≤ χ²_d(0.95)``
+    on its covariances ``(..., d, d)``; a non-finite or singular covariance covers nothing."""
     d = err_m.shape[-1]
-    ok = np.all(np.isfinite(cov_m2), axis=(-2, -1)) & np.all(np.isfinite(err_m), axis=-1)
-    ok &= np.linalg.det(np.where(ok[..., None, None], cov_m2, np.eye(d))) > 1e-300
-    safe = np.where(ok[..., None, None], cov_m2, np.eye(d))
-    m2 = np.einsum("...i,...i->...", err_m, np.linalg.solve(safe, np.where(ok[..., None], err_m, 0.0)[..., None])[..., 0])
-    return ok & (m2 <= chi2.ppf(0.95, d))
-
-
-def snapshot_table(studies: list[TrackStudy]) -> pd.DataFrame:
-    """:meth:`TrackStudy.snapshot_errors` of every recording and variant, one row per (recording, variant, corner)."""
-    parts = []
-    for k, st in enumerate(studies):
-        for v in st.pf:
-            df = st.snapshot_errors(v)
-            df.insert(0, "variant", v)
-            df.insert(0, "recording", k)
-            parts.append(df)
-    return pd.concat(parts, ignore_index=True)
-
-
-def bootstrap_median(values, *, rng: np.random.Generator, n_boot: int = 4000, confidence: float = 0.95):
-    """Median of ``values`` and its percentile-bootstrap interval (resampling the values: one per recording).
-
-    Returns ``(median, low, high)``; the interval is NaN with fewer than 3 values.
-    """
-    v = np.asarray(values, float)
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return np.nan, np.nan, np.nan
-    med = float(np.median(v))
-    if v.size < 3:
-        return med, np.nan, np.nan
-    boot = np.median(v[rng.integers(0, v.size, (n_boot, v.size))], axis=1)
-    a = (1 - confidence) / 2
-    return med, float(np.quantile(boot, a)), float(np.quantile(boot, 1 - a))
-
-
-def bootstrap_run_cep50(err_m, *, rng: np.random.Generator, n_boot: int = 2000, chunk: int = 250) -> np.ndarray:
-    """Bootstrap replicates (cm) of the CEP50 of errors pooled over runs, resampling whole runs.
-
-    ``err_m`` shape ``(runs, epochs)``: the runs are the independent replicates (one recording, a
-    fresh random stream each), the epochs of one run are not. Returns ``n_boot`` values, or an
-    empty array with fewer than 3 runs (no interval).
-    """
-    e = np.asarray(err_m, float)
-    if e.ndim != 2 or e.shape[0] < 3:
-        return np.empty(0)
-    k = int(np.ceil(0.5 * e.size)) - 1          # metrics.cep50's rule: the ceil(N / 2)-th smallest error
-    out = []
-    for start in range(0, n_boot, chunk):
-        pick = rng.integers(0, e.shape[0], (min(chunk, n_boot - start), e.shape[0]))
-        out.append(100 * np.partition(e[pick].reshape(len(pick), -1), k, axis=1)[:, k])
-    return np.concatenate(out)
-
-
-def fig6_summary(snap: pd.DataFrame, *, rng: np.random.Generator) -> pd.DataFrame:
-    """Distribution over recordings of the snapshot numbers, per variant (both corners pooled per recording).
-
-    Per recording: CEP50 of the pooled corner clouds is read as the mean of the two
-    corners' CEP50 (same runs at both corners); offset and run-to-run CEP50 likewise.
-    Returned per variant and quantity: median over recordings with its bootstrap 95 %
-    interval, and the range (min–max).
-    """
-    rows = []
-    per_rec = snap.groupby(["variant", "recording"])[["CEP50 (cm)", "offset (cm)", "run-to-run CEP50 (cm)"]].mean()
-    for variant, df in per_rec.groupby(level=0):
-        for q in df.columns:
-            med, lo, hi = bootstrap_median(df[q].to_numpy(), rng=rng)
-            rows.append({"variant": variant, "quantity": q, "recordings": len(df), "median": med, "95 % low": lo,
-                         "95 % high": hi, "min": float(df[q].min()), "max": float(df[q].max())})
-    return pd.DataFrame(rows)
-
-
-def corner_ratios(snap: pd.DataFrame, *, rng: np.random.Generator, variant: str = "Doppler") -> pd.DataFrame:
-    """Along / across-track ratio per corner over recordings: median, bootstrap 95 % interval, range."""
-    rows = []
-    for corner, df in snap[snap["variant"] == variant].groupby("corner", sort=False):
-        med, lo, hi = bootstrap_median(df["along / across"].to_numpy(), rng=rng)
-        rows.append({"corner": corner, "recordings": len(df), "median": med, "95 % low": lo, "95 % high": hi,
-                     "min": float(df["along / across"].min()), "max": float(df["along / across"].max())})
-    return pd.DataFrame(rows)
+    e, P = np.reshape(err_m, (-1, d)), np.reshape(cov_m2, (-1, d, d))
+    ok = np.all(np.isfinite(P), axis=(1, 2))
+    ok[ok] = np.linalg.det(P[ok]) > 1e-300
+    return float(np.mean(metrics.nees(e, P, where=ok) <= chi2.ppf(0.95, d)))
 
 
 def filter_scores(studies: list[TrackStudy], *, lost_m: float = LOST_M) -> pd.DataFrame:
@@ -180,7 +97,7 @@ def filter_scores(studies: list[TrackStudy], *, lost_m: float = LOST_M) -> pd.Da
 
     CEP50/CEP95 pool all PF runs; the MH-EKF is deterministic (one run). Beside accuracy:
     ``coverage`` (share of scored epochs whose horizontal truth lies in the filter's own
-    95 % region, :func:`in_region_95` on the x–y block of its position covariance: the
+    95 % region, :func:`coverage_95` on the x–y block of its position covariance: the
     MH-EKF's ``pos_cov_m2``, the PF run's weighted particle covariance), ``with an
     estimate`` (share of scored epochs with a finite estimate), ``in track`` (share of scored
     epochs with horizontal error under ``lost_m``) and, for the PF, its restarts (runs
@@ -195,7 +112,7 @@ def filter_scores(studies: list[TrackStudy], *, lost_m: float = LOST_M) -> pd.Da
             keep = runs.t_s > st.t_score_s
             t = runs.t_s[keep]
             truth = st.track.pos_m(t)[:, :2]
-            e_pf = np.linalg.norm(runs.pos_m[:, keep, :2] - truth, axis=-1).ravel()
+            e_pf = st.pf_errors_m(variant).ravel()
             kf = st.kf[variant]
             idx = np.searchsorted(kf.t_s, t)
             e_kf = np.linalg.norm(kf.pos_m[idx, :2] - truth, axis=-1)
@@ -204,10 +121,8 @@ def filter_scores(studies: list[TrackStudy], *, lost_m: float = LOST_M) -> pd.Da
             rows.append({"recording": k, "variant": variant, "epochs": int(keep.sum()), "PF runs": runs.n_runs,
                          "PF CEP50 (cm)": 100 * metrics.cep50(e_pf), "MH-EKF CEP50 (cm)": 100 * metrics.cep50(e_kf),
                          "PF CEP95 (cm)": 100 * metrics.cep95(e_pf), "MH-EKF CEP95 (cm)": 100 * metrics.cep95(e_kf),
-                         "PF coverage": float(np.mean(in_region_95(
-                             runs.pos_m[:, keep, :2] - truth, runs.pos_cov_m2[:, keep, :2, :2]))),
-                         "MH-EKF coverage": float(np.mean(in_region_95(
-                             kf.pos_m[idx, :2] - truth, kf.pos_cov_m2[idx, :2, :2]))),
+                         "PF coverage": coverage_95(runs.pos_m[:, keep, :2] - truth, runs.pos_cov_m2[:, keep, :2, :2]),
+                         "MH-EKF coverage": coverage_95(kf.pos_m[idx, :2] - truth, kf.pos_cov_m2[idx, :2, :2]),
                          "PF with an estimate": float(np.mean(np.all(np.isfinite(runs.pos_m[:, keep]), axis=-1))),
                          "MH-EKF with an estimate": float(np.mean(np.all(np.isfinite(kf.pos_m[idx]), axis=-1))),
                          "PF in track": float(np.mean(e_pf < lost_m)), "MH-EKF in track": float(np.mean(e_kf < lost_m)),

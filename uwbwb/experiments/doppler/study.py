@@ -19,12 +19,11 @@ from ...filters.kalman import Gaussian
 from ...models import doppler as dm
 from ...models.motion import ReceiverMotion
 from ...sim import chirps as sc
-from .ghosts import cuts
-from .scoring import TrackStudy, bootstrap_run_cep50
+from .scoring import TrackStudy
 
 __all__ = ["PAPER", "StudyConfig", "LAYOUTS", "ROOMS", "READINGS", "make_model", "reference_table", "SpaceMap",
            "map_space", "period_readings", "figure_samples", "fraction_table", "make_filters",
-           "filter_settings", "track_study", "track_studies", "error_floor"]
+           "track_study", "error_floor"]
 
 #: Numbers quoted by the paper (inputs, never targets of a tuning).
 PAPER = {
@@ -154,25 +153,6 @@ class SpaceMap:
     peak_traced_bytes: float = np.nan
 
 
-def _traced(fn):
-    """``(fn(), peak bytes allocated meanwhile)`` by :mod:`tracemalloc` (numpy buffers included)."""
-    import tracemalloc
-
-    started = not tracemalloc.is_tracing()
-    if started:
-        tracemalloc.start()
-    else:
-        tracemalloc.reset_peak()
-    base = tracemalloc.get_traced_memory()[0]
-    try:
-        out = fn()
-        peak = tracemalloc.get_traced_memory()[1] - base
-    finally:
-        if started:
-            tracemalloc.stop()
-    return out, float(peak)
-
-
 def map_space(layout: str, cfg: StudyConfig, *, workers: int = 2, progress: bool = False,
               scheduler=None) -> SpaceMap:
     """Fractions of the 6-D box under each threshold, by both estimators, and with the ranging term.
@@ -181,12 +161,15 @@ def map_space(layout: str, cfg: StudyConfig, *, workers: int = 2, progress: bool
     on the Dask cluster ``scheduler`` (:mod:`uwbwb.parallel`; the numbers do not depend on it).
     """
     import time
+    import tracemalloc
 
     model = make_model(layout, cfg)
     ref = (dm.REFERENCE_POS_M, dm.REFERENCE_VEL_MPS)
     seeds = np.random.SeedSequence(cfg.seed).spawn(3)
-
-    def run():
+    started = not tracemalloc.is_tracing()          # the peak of the allocations meanwhile (numpy buffers included)
+    tracemalloc.start() if started else tracemalloc.reset_peak()
+    base = tracemalloc.get_traced_memory()[0]
+    try:
         t0 = time.perf_counter()
         brute = smp.brute_force(model, *ref, cfg.n_brute, seed=seeds[0], keep_below_m=0.15, workers=workers,
                                 progress=progress, scheduler=scheduler)
@@ -196,11 +179,16 @@ def map_space(layout: str, cfg: StudyConfig, *, workers: int = 2, progress: bool
         t2 = time.perf_counter()
         rang = smp.conditional(model, *ref, cfg.n_positions, seed=seeds[2], workers=workers, ranges=True,
                                progress=progress, scheduler=scheduler)
-        t3 = time.perf_counter()
-        return brute, cond, rang, {"brute force": t1 - t0, "conditional": t2 - t1, "conditional + ranges": t3 - t2}
-
-    (brute, cond, rang, seconds), peak = _traced(run)
+        seconds = {"brute force": t1 - t0, "conditional": t2 - t1, "conditional + ranges": time.perf_counter() - t2}
+        peak = float(tracemalloc.get_traced_memory()[1] - base)
+    finally:
+        if started:
+            tracemalloc.stop()
     return SpaceMap(layout, model, brute, cond, rang, seconds, np.nan if scheduler is not None else peak)
+
+
+def _percent(e: smp.FractionEstimate) -> dict:
+    return {"fraction (%)": 100 * e.fraction, "95 % low (%)": 100 * e.ci_low, "95 % high (%)": 100 * e.ci_high}
 
 
 def period_readings(cfg: StudyConfig, maps: dict[str, SpaceMap] | None = None, *, threshold_m: float = 0.15,
@@ -217,17 +205,12 @@ def period_readings(cfg: StudyConfig, maps: dict[str, SpaceMap] | None = None, *
         for reading in READINGS:
             if maps is not None and layout in maps and READINGS[reading] is None:
                 e = maps[layout].conditional.estimate(threshold_m)
-                rows.append({"layout": layout, "reading": reading, "fraction (%)": 100 * e.fraction,
-                             "95 % low (%)": 100 * e.ci_low, "95 % high (%)": 100 * e.ci_high,
-                             "positions": e.n_positions, "paper (%)": PAPER["fraction_15cm_pct"][layout]})
-                continue
-            res = smp.conditional(make_model(layout, cfg, reading), *ref, cfg.n_positions,
-                                  seed=np.random.SeedSequence(cfg.seed).spawn(3)[1], thresholds_m=(threshold_m,),
-                                  workers=workers, scheduler=scheduler)
-            e = res.estimates[0]
-            rows.append({"layout": layout, "reading": reading, "fraction (%)": 100 * e.fraction,
-                         "95 % low (%)": 100 * e.ci_low, "95 % high (%)": 100 * e.ci_high,
-                         "positions": e.n_positions, "paper (%)": PAPER["fraction_15cm_pct"][layout]})
+            else:
+                e = smp.conditional(make_model(layout, cfg, reading), *ref, cfg.n_positions,
+                                    seed=np.random.SeedSequence(cfg.seed).spawn(3)[1], thresholds_m=(threshold_m,),
+                                    workers=workers, scheduler=scheduler).estimates[0]
+            rows.append({"layout": layout, "reading": reading, **_percent(e), "positions": e.n_positions,
+                         "paper (%)": PAPER["fraction_15cm_pct"][layout]})
     return pd.DataFrame(rows)
 
 
@@ -269,10 +252,8 @@ def fraction_table(maps: dict[str, SpaceMap], per_threshold: dict[str, dict] | N
         runs += [("conditional, per threshold", r, np.nan) for r in (per_threshold or {}).get(name, {}).values()]
         for label, res, sec in runs:
             for e in res.estimates:
-                rows.append({"layout": name, "estimator": label, "δ < (cm)": round(100 * e.threshold_m),
-                             "fraction (%)": 100 * e.fraction, "95 % low (%)": 100 * e.ci_low,
-                             "95 % high (%)": 100 * e.ci_high, "hits": e.n_hits, "exact δ evaluations": e.n_draws,
-                             "seconds": sec})
+                rows.append({"layout": name, "estimator": label, "δ < (cm)": round(100 * e.threshold_m), **_percent(e),
+                             "hits": e.n_hits, "exact δ evaluations": e.n_draws, "seconds": sec})
     return pd.DataFrame(rows)
 
 
@@ -285,9 +266,6 @@ def kf_prior(layout: str) -> Gaussian:
                     np.diag(np.concatenate([(hi - lo) ** 2 / 12, np.full(3, 3.0 ** 2 / 12)])))
 
 
-_kf_prior = kf_prior
-
-
 def make_filters(layout: str, cfg: StudyConfig, model: dm.DopplerModel, motion: ReceiverMotion = ReceiverMotion(),
                  *, n_particles: int | None = None) -> tuple[fd.DopplerPf, fd.ScaatMhEkf]:
     """The particle filter and the MH-EKF of :func:`track_study`, as configured for ``layout`` and ``cfg``."""
@@ -295,13 +273,6 @@ def make_filters(layout: str, cfg: StudyConfig, model: dm.DopplerModel, motion: 
     pf = fd.DopplerPf(model, motion, n_particles=n_particles or cfg.n_particles, room_lo_m=lo, room_hi_m=hi)
     mh = fd.ScaatMhEkf(model, motion, p_detect=1 - cfg.p_miss, spurious_rate_hz=max(cfg.spurious_rate_hz, 1e-3))
     return pf, mh
-
-
-def filter_settings(layout: str, cfg: StudyConfig) -> dict:
-    """What differs in the information and outlier handling the two filters get (read from :func:`make_filters`)."""
-    pf, mh = make_filters(layout, cfg, make_model(layout, cfg))
-    return {"pf_outlier": pf.outlier_prob, "pf_use_ambiguous": pf.use_ambiguous, "pf_temper_ess": pf.temper_ess,
-            "pf_particles": pf.n_particles, "kf_p_detect": mh.p_detect, "kf_clutter_hz": mh.spurious_rate_hz}
 
 
 def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs: int | None = None,
@@ -349,19 +320,6 @@ def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs:
     return TrackStudy(model, track, rec, log, pf_out, kf_out, (t_a, t_b), dirs, t_score_s=min(8.0, t_a / 2))
 
 
-def replace_name(runs: fd.PfRuns, name: str) -> fd.PfRuns:
-    return replace(runs, name=name)
-
-
-def track_studies(layout: str, cfg: StudyConfig, *, workers: int = 1, progress: bool = False,
-                  scheduler=None) -> list[TrackStudy]:
-    """``cfg.n_recordings`` independent recordings: the first with ``cfg.pf_runs`` PF runs (Fig 6's cloud),
-    the others with ``cfg.compare_runs``."""
-    return [track_study(layout, cfg, seed_offset=k, pf_runs=cfg.pf_runs if k == 0 else cfg.compare_runs,
-                        workers=workers, progress=progress and k == 0, scheduler=scheduler)
-            for k in range(cfg.n_recordings)]
-
-
 #: Conditions of :func:`error_floor`: (label, simulate noise, ΔP from eq 1 at the true state, particles factor).
 FLOOR_CONDITIONS = (("as simulated", True, False, 1), ("zero noise", False, False, 1),
                     ("zero noise, exact eq-1 ΔP", False, True, 1), ("zero noise, exact eq-1 ΔP, 4× particles",
@@ -377,40 +335,31 @@ def error_floor(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, workers:
     eq 1 at the true state (removes the model error of reading a period-averaged ΔP as one
     state); and that with four times the particles (the particle count's share). Each row:
     snapshot CEP50 (both corners pooled), offset and run-to-run CEP50 (mean of the corners),
-    CEP50 over all scored epochs with its 95 % interval (bootstrap over the ``cfg.floor_runs``
-    runs, :func:`~.scoring.bootstrap_run_cep50`), and the drop of that CEP50 from the row above
-    with its interval (the two rows' runs resampled independently; NaN with fewer than 3 runs).
-    The last condition's CEP50 is a floor only if the drop to it is nil within its interval.
+    CEP50 over all scored epochs, and its drop from the row above with the 95 % interval of
+    :func:`uwbwb.metrics.block_bootstrap_difference` (medians, each run one block) where the two rows'
+    runs share their epochs (not across the noise step, whose chirps differ; NaN also with fewer runs than
+    :data:`uwbwb.metrics.MIN_BLOCKS`). The last condition's CEP50 is a floor only if that drop is nil within its
+    interval.
     """
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 5, seed_offset]))
-    rows, boots = [], []
+    rows, errs = [], []
     for label, noise, exact, factor in FLOOR_CONDITIONS:
         st = track_study(layout, cfg, seed_offset=seed_offset, pf_runs=cfg.floor_runs, noise=noise, exact_dp=exact,
                          n_particles=factor * cfg.n_particles, variants=("Doppler",), kf=False, workers=workers,
                          scheduler=scheduler)
-        snap = st.snapshot_errors("Doppler")
-        runs = st.pf["Doppler"]
-        keep = runs.t_s > st.t_score_s
-        e = np.linalg.norm(runs.pos_m[:, keep, :2] - st.track.pos_m(runs.t_s[keep])[:, :2], axis=-1)
-        boots.append(bootstrap_run_cep50(e, rng=rng))
-        lo, hi = _quantiles(boots[-1])
-        rows.append({"condition": label, "particles": factor * cfg.n_particles, "runs": runs.n_runs,
-                     "snapshot CEP50 (cm)": st.headline("Doppler")["cep50_cm"],
+        snap, e = st.snapshot_errors("Doppler"), st.pf_errors_m("Doppler")
+        clouds = [st.cloud("Doppler", k)[:, :2] - st.track.pos_m(t)[:2] for k, t in enumerate(st.snapshots_s)]
+        drop = (metrics.block_bootstrap_difference(list(errs[-1]), list(e), rng=rng, statistic="median",
+                                                    blocks="segment") if errs and errs[-1].shape == e.shape else {})
+        errs.append(e)
+        rows.append({"condition": label, "particles": factor * cfg.n_particles, "runs": e.shape[0],
+                     "snapshot CEP50 (cm)": 100 * metrics.cep50(np.linalg.norm(np.concatenate(clouds), axis=1)),
                      "offset (cm)": float(snap["offset (cm)"].mean()),
                      "run-to-run CEP50 (cm)": float(snap["run-to-run CEP50 (cm)"].mean()),
                      "CEP50, scored epochs (cm)": 100 * metrics.cep50(e.ravel()),
-                     "CEP50 95 % low (cm)": lo, "CEP50 95 % high (cm)": hi})
+                     "drop 95 % low (cm)": 100 * drop.get("lo_m", np.nan),
+                     "drop 95 % high (cm)": 100 * drop.get("hi_m", np.nan)})
     df = pd.DataFrame(rows).set_index("condition")
-    df["drop from the row above (cm)"] = -df["CEP50, scored epochs (cm)"].diff()
-    drops = [(np.nan, np.nan)] + [_quantiles(a - b if a.size and b.size else np.empty(0))
-                                  for a, b in zip(boots[:-1], boots[1:])]
-    df["drop 95 % low (cm)"], df["drop 95 % high (cm)"] = zip(*drops)
+    df.insert(df.columns.get_loc("drop 95 % low (cm)"), "drop from the row above (cm)",
+              -df["CEP50, scored epochs (cm)"].diff())
     return df
-
-
-def _quantiles(boot: np.ndarray, confidence: float = 0.95) -> tuple[float, float]:
-    """Percentile interval of bootstrap replicates (NaN, NaN when there are none)."""
-    if not boot.size:
-        return np.nan, np.nan
-    a = (1 - confidence) / 2
-    return float(np.quantile(boot, a)), float(np.quantile(boot, 1 - a))
