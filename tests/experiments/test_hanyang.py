@@ -175,7 +175,8 @@ def test_case_board_scores_ours_and_theirs_on_the_same_epochs(tree):
     assert board.calibration.tag_height_m["tag"] == pytest.approx(1.0 + 0.0, abs=0.1)
     df = board.table().set_index("method")
     assert (df["coverage"].between(0, 1)).all() and df.loc["authors LS (external)", "n_scored"] > 0
-    t0, t1 = study.board_epochs(hd.load_dynamic_case(case, data))
+    scored = hd.load_dynamic_case(case, data)
+    t0, t1 = authors.authors_window(scored.truth["tag"], scored.meta["trajectory"])
     e = board.entry("raw LS", "tag")
     assert e.estimates.t_s[0] >= t0 and e.estimates.t_s[-1] < min(t1, t0 + study.FAST_SPAN_S)
     ratios = study.ratio_table({case: board})
@@ -247,14 +248,12 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     assert set(effect["A"]) == {"LS static LOS model", "LS static NLOS model"} and set(effect["B"]) == {"raw LS", "LS"}
     assert sec.facts["tuning"][cases[0].name] != cases[0].name
     # the boards carry the common bound of every board of notebook 06 (one per recording, fitted on the tuning
-    # case's truth), shown by the section's table and placed by the one placement rule
+    # case's truth), placed by the one placement rule
     board = sec.boards[cases[0].name]
-    shown, full = sections.board_table(board), board.table().set_index("method")
+    full = board.table().set_index("method")
     ran = full[full["n_scored"] > 0]
     assert board.calibration.params("common bound")["model"] in ("RW", "RF", "RJ")
     assert (ran["common_bound_m"] > 0).all() and ran["common_bound_common_m"].nunique() == 1
-    cols = ["common_bound_m", "rmse_over_common", "common_bound_common_m", "rmse_common_over_common"]
-    pd.testing.assert_frame_equal(shown.loc[ran.index, cols], ran[cols])
     assert set(sec.tables["placement"]["method"]) == set(ran.index)
     assert set(sec.tables["own_bound"]["method"]) == set(ran.index[ran["bound_m"] > 0])
     # the TDoA methods do not run on the 2 m cluster: the calibration part's TDoA CRLB against the ranges', in the note

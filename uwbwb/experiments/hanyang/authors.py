@@ -203,10 +203,9 @@ class AuthorsEstimator(BaseEstimator):
         src = rec.meta["authors_estimates"][self.method].to_trajectory()
         src = Trajectory(src.t_s + self.shift_s, src.pos_m) if self.shift_s else src
         t = rec.ranges[tag].t_s
-        d = cal.dim
-        pos = np.column_stack([np.interp(t, src.t_s, src.pos_m[:, k]) for k in range(d)])
+        pos = src.interp(t)[:, :cal.dim]                 # NaN beyond their first / last output
         i = np.clip(np.searchsorted(src.t_s, t, side="right"), 1, max(len(src) - 1, 1))
-        ok = (t >= src.t_s[0]) & (t <= src.t_s[-1]) if len(src) else np.zeros(t.size, bool)
+        ok = (t >= src.t_s[0]) & (t <= src.t_s[-1])
         if len(src) > 1:
             ok &= (src.t_s[i] - src.t_s[i - 1] <= AUTHORS_MAX_GAP_S) | np.isin(t, src.t_s)
         pos[~ok] = np.nan

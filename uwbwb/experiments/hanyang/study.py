@@ -21,21 +21,11 @@ Three steps, each a function the notebooks call:
 4. :func:`declared_method_table` runs the one method declared before any case was scored with it
    (:data:`DECLARED_METHOD`) unchanged on every case, against the authors' LS and ESKF.
 
-Front ends differ, so outlier handling is *not* equal between their LS and ours: the authors' LS
-(``Technical_validation/``) rejects a per-anchor range that jumps by more than 0.5 m from that
-anchor's previous accepted range (up to 4 consecutive rejections, then accepts), holds each anchor's
-latest range for up to 0.3 s, solves in 3-D warm-started from its previous solution and outputs on a
-10 Hz timer; our LS/NLS solve each epoch's ranges independently (no jump gate, no hold, no warm
-start), in 2-D at the calibrated height. The filters and pruned NLS have their own gates. Their
-output stamps also lag the reference (``meta["authors_lag_s"]``); that latency is left in.
-
 :func:`static_range_model` fits the static part's bias vs distance and
-:class:`StaticModelLs` applies it to the dynamic ranges (does it help? against raw LS on the board).
+:class:`StaticModelLs` applies it to the dynamic ranges (does it help? against raw LS on the board). Outlier
+handling differs between the authors' LS and ours (:class:`AuthorsFrontEndLs`); every method of ours solves in
+2-D at the tag height of the tuning case (:func:`case_board`).
 
-Height is handled the same way for every method: the tag's height above the reference track is
-fitted on the *tuning* case (:func:`~uwbwb.datasets.hanyang_dynamic.load_dynamic_case`'s registration)
-and given as a calibration to the scored case; every method then solves in 2-D at that height
-(``dim=2``). The authors' LS solved in 3-D (z free); their estimates are used as published.
 """
 
 from __future__ import annotations
@@ -54,13 +44,12 @@ from ...scoreboard import Board, score
 from ...scoreboard.estimators import EKF_GRIDS, RangeEkfEstimator, default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S
 from ...scoreboard.protocol import between
-from ...types import Recording
 from ...scoreboard.verdicts import difference_table, pair_rng
 from .authors import AuthorsEstimator, AuthorsFrontEndLs, authors_window
 from .estimators import PrunedNls, StaticModelLs, StaticRangeModel
 
 
-__all__ = ["DECLARED_METHOD", "FAST_SPAN_S", "board_epochs", "case_board", "declared_method",
+__all__ = ["DECLARED_METHOD", "FAST_SPAN_S", "case_board", "declared_method",
            "declared_method_table", "held_ratio", "pick_on_tuning_case", "ratio_table", "tuning_case"]
 
 PathLike = str | os.PathLike
@@ -94,12 +83,6 @@ def tuning_case(case: str, cases: Sequence[str]) -> str:
     return sorted(others, key=key)[0]
 
 
-def board_epochs(rec: Recording) -> tuple[float, float]:
-    """The authors' window of a registered case on the ranges' clock (their rules on the reference)."""
-    ref = rec.truth["tag"]
-    return authors_window(ref, rec.meta["trajectory"])
-
-
 def study_estimators(*, fast: bool = False, static_models: Sequence[StaticRangeModel] = ()) -> list:
     """The board of this study: every method of the package (:func:`~uwbwb.scoreboard.estimators.default_estimators`,
     the EKFs RW/RF/RJ on ranges among them; the methods that do not apply stay on the board, where their rows say
@@ -129,8 +112,8 @@ def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: 
         raise ValueError(f"{case}: tuning on the scored case is not allowed; give another case")
     cal_rec = hanyang_dynamic.load_dynamic_case(tune, data_dir)   # its tag height calibrates the scored case
     test_rec = hanyang_dynamic.load_dynamic_case(case, data_dir, tag_height_m=cal_rec.meta["tag_height_fit_m"])
-    t0, t1 = board_epochs(test_rec)
-    c0, c1 = board_epochs(cal_rec)
+    t0, t1 = authors_window(test_rec.truth["tag"], test_rec.meta["trajectory"])
+    c0, c1 = authors_window(cal_rec.truth["tag"], cal_rec.meta["trajectory"])
     if fast:
         t1, c1 = min(t1, t0 + FAST_SPAN_S), min(c1, c0 + FAST_SPAN_S)
     test = between(test_rec, t0, t1, f"{test_rec.name} [authors' window{' , FAST part' if fast else ''}]")
@@ -150,10 +133,6 @@ def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: 
 THEIRS = AuthorsEstimator("LS").name
 
 
-def _ours(board: Board) -> list[str]:
-    return [e.method for e in board.ran("tag") if e.method not in board.external]
-
-
 def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bool = False,
                         estimators: Sequence | None = None, static_models: Sequence[StaticRangeModel] = (),
                         progress: bool = False) -> tuple[str | None, Board]:
@@ -162,11 +141,11 @@ def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bo
     The authors' window of ``tune`` (FAST: its first :data:`FAST_SPAN_S` s) is split in time: its
     first half calibrates and tunes every method (:func:`~uwbwb.scoreboard.score`), its second half
     scores them beside the authors' LS; the pick is the method with the lowest RMSE_2d ratio to the
-    authors' LS on the epochs both covered (:func:`~uwbwb.scoreboard.verdicts.difference_table`). Nothing of the
+    authors' LS on the epochs both covered (``best`` of :func:`ratio_table`). Nothing of the
     scored case enters (its tag height, ranges and truth are not read). Returns ``(method or None, board)``.
     """
     rec = hanyang_dynamic.load_dynamic_case(tune, data_dir)
-    c0, c1 = board_epochs(rec)
+    c0, c1 = authors_window(rec.truth["tag"], rec.meta["trajectory"])
     if fast:
         c1 = min(c1, c0 + FAST_SPAN_S)
     mid = 0.5 * (c0 + c1)
@@ -178,9 +157,8 @@ def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bo
         est.append(AuthorsEstimator("LS"))
     board = score(second, first, estimators=est, rate_hz=None, dim=2, fast=fast, progress=progress,
                   label=f"{rec.label} [pick: tuned on first half, scored on second]")
-    t = difference_table({board.label: board}, [(m, THEIRS) for m in _ours(board)], seed=0)
-    t = t[t["epochs"] > 0] if len(t) else t
-    return (t.loc[t["A / B"].idxmin(), "A"] if len(t) else None), board
+    t = ratio_table({tune: board})
+    return (t.loc[t["best"], "A"].iloc[0] if len(t) else None), board
 
 
 def held_ratio(board: Board, method: str, *, seed: int) -> dict:
@@ -212,9 +190,9 @@ def ratio_table(boards: Mapping[str, Board], *, picks: Mapping[str, str | None] 
     ``picks[case]`` (:func:`pick_on_tuning_case`: made on the tuning case alone), the fair one."""
     parts = []
     for case, board in boards.items():
+        ours = [e.method for e in board.ran("tag") if e.method not in board.external]
         nolat = [m for m in board.external if m.startswith("authors LS, latency removed")]
-        t = difference_table({board.label: board}, [(m, ref) for ref in (THEIRS, *nolat) for m in _ours(board)],
-                             seed=seed)
+        t = difference_table({board.label: board}, [(m, ref) for ref in (THEIRS, *nolat) for m in ours], seed=seed)
         t = t[t["epochs"] > 0] if len(t) else t
         if not len(t):
             continue
@@ -239,7 +217,7 @@ def ratio_table(boards: Mapping[str, Board], *, picks: Mapping[str, str | None] 
 #: square and in the 2 m anchor cluster, that gate was as accurate as or more accurate than the robust updates.
 DECLARED_METHOD = RangeEkfEstimator("RF", update="gate")
 #: The authors' rows it is set against (names of :class:`AuthorsEstimator` rows).
-AUTHORS_ROWS = (AuthorsEstimator("LS").name, AuthorsEstimator("ESKF").name)
+AUTHORS_ROWS = (THEIRS, AuthorsEstimator("ESKF").name)
 
 
 def declared_method(*, fast: bool = False) -> RangeEkfEstimator:
