@@ -215,3 +215,21 @@ def test_score_prints_no_runtime_warning_on_sound_recordings(tmp_path, capsys):
             assert cli.main([*argv, "--out", str(tmp_path / f"out{k}"), "--fast", "--quiet"]) == 0, capsys.readouterr().err
         assert not [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)], argv
         assert "Warning" not in capsys.readouterr().err
+
+
+def test_score_puts_the_authors_estimates_of_a_hanyang_case_folder_on_the_board_as_external_rows(tmp_path, capsys):
+    """A Hanyang case folder (or its name) brings the dataset authors' LS and ESKF: external rows of the board,
+    scored beside the methods asked for, their numbers *input*."""
+    from tests.fixtures import hanyang as fx
+
+    cases = fx.write_dynamic_tree(tmp_path / "hanyang-outdoor-uwb", rng=np.random.default_rng(8),
+                                  cases=fx.DYNAMIC_CASES[:1], speed_mps=4.0)
+    for k, target in enumerate((str(cases[0].folder), f"hanyang-outdoor-uwb/{cases[0].name}")):
+        out = tmp_path / f"out{k}"
+        assert cli.main(["score", target, "--data-dir", str(tmp_path), "--methods", "raw LS", "--fast", "--quiet",
+                         "--out", str(out)]) == 0, capsys.readouterr().err
+        board = pd.read_csv(out / "scoreboard.csv").set_index("method")
+        theirs = ["authors LS (external)", "authors ESKF (external, +IMU)"]
+        assert list(board.index) == ["raw LS", *theirs]
+        assert (board.loc[theirs, "n_scored"] > 0).all() and set(board.loc[theirs, "kind"]) == {"input"}
+        assert board.loc["raw LS", "kind"] == "reproduced"

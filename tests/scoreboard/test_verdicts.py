@@ -162,3 +162,21 @@ def test_a_pairs_interval_does_not_depend_on_what_else_the_table_holds():
     assert (row["95 % low (mm)"], row["95 % high (mm)"]) == (alone["95 % low (mm)"], alone["95 % high (mm)"])
     other = difference_table({"flight": board}, [("A", "B")], seed=1).iloc[0]
     assert other["95 % low (mm)"] != alone["95 % low (mm)"]                # the seed still matters
+
+
+def test_the_difference_table_gives_the_ratio_and_its_interval_from_the_same_replicates():
+    """A / B is RMSE A / RMSE B on the epochs both covered, and its interval is the one rule's (the same draws as the
+    difference): it lies below 1 exactly where the difference's lies below 0, on either side of 1 where that holds 0."""
+    from uwbwb.metrics import block_bootstrap_difference
+
+    rng = np.random.default_rng(3)
+    n = 400
+    for scale, side in ((0.5, "below"), (1.0, "contains")):
+        b = np.abs(rng.normal(0.10, 0.02, n))
+        a = scale * b + (0 if scale < 1 else 1e-3 * rng.normal(0, 1, n))
+        row = difference_table({"r": _fake_board(np.abs(a), b)}, [("A", "B")], seed=0).iloc[0]
+        d = block_bootstrap_difference(np.abs(a), b, rng=pair_rng(0, "r", "A", "B"))
+        assert row["A / B"] == pytest.approx(d["rmse_a_m"] / d["rmse_b_m"])
+        assert (row["A / B 95 % low"], row["A / B 95 % high"]) == (d["ratio_lo"], d["ratio_hi"])
+        assert (row["A / B 95 % high"] < 1) == (side == "below") == (row["95 % high (mm)"] < 0)
+        assert (row["A / B 95 % low"] <= 1 <= row["A / B 95 % high"]) == (side == "contains")

@@ -70,7 +70,8 @@ def difference_facts(board, a: str, b: str, *, n_boot: int = N_BOOT, rng: np.ran
     dict
         ``a, b, n_epochs, n_blocks, rmse_a_m, rmse_b_m, diff_m, lo_m, hi_m, verdict`` (``"a"``,
         ``"b"`` or ``"none"``: which is more accurate, by the rule that the interval excludes 0; no
-        interval and ``"none"`` with fewer than :data:`MIN_BLOCKS` blocks), ``mode``.
+        interval and ``"none"`` with fewer than :data:`MIN_BLOCKS` blocks), ``mode``, and the interval of
+        ``RMSE(a) / RMSE(b)`` from the same replicates, ``ratio_lo``, ``ratio_hi``.
     """
     sa, sb = [], []
     for tag in board.tags:
@@ -85,7 +86,8 @@ def difference_facts(board, a: str, b: str, *, n_boot: int = N_BOOT, rng: np.ran
     d = block_bootstrap_difference(sa, sb, rng=rng, n_boot=n_boot)
     verdict = {"below": "a", "above": "b"}.get(interval_side(d["lo_m"], d["hi_m"]), "none")
     return {"a": a, "b": b, "mode": board.mode, "n_epochs": d["n"], "n_blocks": d["n_blocks"], "rmse_a_m": d["rmse_a_m"],
-            "rmse_b_m": d["rmse_b_m"], "diff_m": d["diff_m"], "lo_m": d["lo_m"], "hi_m": d["hi_m"], "verdict": verdict}
+            "rmse_b_m": d["rmse_b_m"], "diff_m": d["diff_m"], "lo_m": d["lo_m"], "hi_m": d["hi_m"], "verdict": verdict,
+            "ratio_lo": d["ratio_lo"], "ratio_hi": d["ratio_hi"]}
 
 
 def placement_facts(row) -> dict:
@@ -160,7 +162,8 @@ def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, st
                      seed: int) -> pd.DataFrame:
     """:func:`difference_facts` of every pair ``(A, B)`` that ran on each board, one row each: recording, A, B,
     each one's coverage (share of the scoring epochs with a position, where the board has it), epochs both covered,
-    blocks, both RMSEs, A − B and its 95 % interval (mm), the rule and the verdict. Each row's bootstrap draws from
+    blocks, both RMSEs, A − B and its 95 % interval (mm), A / B and its 95 % interval (the same replicates), the rule
+    and the verdict. Each row's bootstrap draws from
     :func:`pair_rng` (``seed``, the recording, A, B)."""
     rows = []
     for label, board in boards.items():
@@ -179,8 +182,9 @@ def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, st
             rows.append({"recording": label, "A": a, "B": b, "coverage A": float(cov[a]), "coverage B": float(cov[b]),
                          "epochs": f["n_epochs"], "blocks": f["n_blocks"],
                          "RMSE A (m)": f["rmse_a_m"], "RMSE B (m)": f["rmse_b_m"], "A − B (mm)": 1000 * f["diff_m"],
-                         "95 % low (mm)": 1000 * f["lo_m"], "95 % high (mm)": 1000 * f["hi_m"], "rule": DIFFERENCE_RULE,
-                         "verdict": verdict})
+                         "95 % low (mm)": 1000 * f["lo_m"], "95 % high (mm)": 1000 * f["hi_m"],
+                         "A / B": np.divide(f["rmse_a_m"], f["rmse_b_m"]), "A / B 95 % low": f["ratio_lo"],
+                         "A / B 95 % high": f["ratio_hi"], "rule": DIFFERENCE_RULE, "verdict": verdict})
     return pd.DataFrame(rows)
 
 

@@ -30,6 +30,8 @@ AUTHORS_Z_LIMIT_M = 0.5
 #: meeting ``end``.
 WINDOW_RULES = {"A": {"start": lambda x, y: (x > 49.3) & (y > -5), "end": lambda x, y: (x <= 12) & (y > 3.4)},
                 "B": {"start": lambda x, y: (x < 8.6) & (y < -7), "end": lambda x, y: (x > 8.6) & (y < -7)}}
+#: Largest difference between our recomputation and the authors' published RMSE called agreement, m.
+REPRO_TOL_M = 0.01
 #: Gap between two of the authors' outputs beyond which nothing is interpolated, seconds.
 AUTHORS_MAX_GAP_S = 0.5
 
@@ -140,7 +142,8 @@ def reproduce_authors(case: PathLike, data_dir: PathLike | None = None) -> pd.Da
     The case is loaded *unregistered* (the script compares raw stamps and the unlifted
     reference). One row per (method, metric): ``reproduced_m`` (*reproduced*), ``published_m``
     (*input*, from ``RMSD_results.txt``; NaN if absent), ``diff_m``, ``n_epochs``, ``window_s``,
-    ``n_z_dropped``.
+    ``n_z_dropped``, and ``verdict``: ``agree`` when ``|diff_m|`` is at most :data:`REPRO_TOL_M`, else
+    ``DISAGREE`` (``no published value`` without one).
     """
     rec = hanyang_dynamic.load_dynamic_case(case, data_dir, register=False)
     shape = rec.meta["trajectory"]
@@ -157,7 +160,9 @@ def reproduce_authors(case: PathLike, data_dir: PathLike | None = None) -> pd.Da
             theirs = published.get(method, {}).get(key, float("nan"))
             rows.append({"data": rec.label, "method": method, "metric": metric, "reproduced_m": mine,
                          "published_m": theirs, "diff_m": mine - theirs, "n_epochs": int(err.size),
-                         "window_s": float(e["window_s"][1] - e["window_s"][0]), "n_z_dropped": e["n_z_dropped"]})
+                         "window_s": float(e["window_s"][1] - e["window_s"][0]), "n_z_dropped": e["n_z_dropped"],
+                         "verdict": ("agree" if abs(mine - theirs) <= REPRO_TOL_M else "DISAGREE")
+                         if np.isfinite(theirs) else "no published value"})
     return pd.DataFrame(rows)
 
 
@@ -198,10 +203,9 @@ class AuthorsEstimator(BaseEstimator):
         src = rec.meta["authors_estimates"][self.method].to_trajectory()
         src = Trajectory(src.t_s + self.shift_s, src.pos_m) if self.shift_s else src
         t = rec.ranges[tag].t_s
-        d = cal.dim
-        pos = np.column_stack([np.interp(t, src.t_s, src.pos_m[:, k]) for k in range(d)])
+        pos = src.interp(t)[:, :cal.dim]                 # NaN beyond their first / last output
         i = np.clip(np.searchsorted(src.t_s, t, side="right"), 1, max(len(src) - 1, 1))
-        ok = (t >= src.t_s[0]) & (t <= src.t_s[-1]) if len(src) else np.zeros(t.size, bool)
+        ok = (t >= src.t_s[0]) & (t <= src.t_s[-1])
         if len(src) > 1:
             ok &= (src.t_s[i] - src.t_s[i - 1] <= AUTHORS_MAX_GAP_S) | np.isin(t, src.t_s)
         pos[~ok] = np.nan

@@ -84,11 +84,6 @@ class StaticRangeModel:
         """Ranges with the static bias removed: ``(r − bias) / scale``."""
         return (np.asarray(range_m, float) - self.bias_m) / self.scale
 
-    def describe(self) -> str:
-        return (f"static {self.condition} model: range = {self.scale:.4f}·d {self.bias_m:+.3f} m "
-                f"({self.n_files} files, {self.n_samples} samples, d {self.span_m[0]:g}–{self.span_m[1]:g} m, "
-                f"file-median residual σ {self.resid_sigma_m:.3f} m)")
-
 
 def static_range_model(condition: str = "LOS", data_dir: PathLike | None = None,
                        min_samples: int = 10) -> StaticRangeModel:

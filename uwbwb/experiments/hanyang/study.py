@@ -11,39 +11,27 @@ Three steps, each a function the notebooks call:
    tuning fitted on *another* case (:func:`tuning_case`: same condition, the other trajectory
    shape), the authors' LS and ESKF as rows marked *external* (:class:`AuthorsEstimator`), all
    on the same epochs (the range epochs inside the authors' window).
-3. :func:`compare_cases` runs the boards of several cases and gives, per case and method of ours,
-   its RMSE_2d and the authors' LS's on the epochs *that pair* covered (:func:`pair_errors`; both
-   coverages beside; not the board's all-method common epochs, which depend on what else is on the
-   board), the ratio with a block-bootstrap interval whose block length comes from the data
-   (:func:`uwbwb.metrics.block_bootstrap_difference`; no verdict with fewer than
-   :data:`uwbwb.metrics.MIN_BLOCKS` blocks), and a full-coverage variant with ours holding its last position (:func:`held_errors`;
-   :func:`ratio_table`). The method set against theirs is picked on the tuning case alone
-   (:func:`pick_on_tuning_case`); :mod:`.facts` turns them into verdicts.
+3. :func:`ratio_table` sets each method of ours against the authors' LS with the board's one difference rule
+   (:func:`uwbwb.scoreboard.verdicts.difference_table`: the epochs *that pair* covered, both coverages beside,
+   not the board's all-method common epochs, which depend on what else is on the board; RMSE difference and
+   ratio with 95 % block-bootstrap intervals whose blocks come from the data; no verdict with fewer than
+   :data:`uwbwb.metrics.MIN_BLOCKS` blocks), with a full-coverage variant, ours holding its last position
+   (:func:`held_ratio`). The method set against theirs is picked on the tuning case alone
+   (:func:`pick_on_tuning_case`).
 4. :func:`declared_method_table` runs the one method declared before any case was scored with it
    (:data:`DECLARED_METHOD`) unchanged on every case, against the authors' LS and ESKF.
 
-Front ends differ, so outlier handling is *not* equal between their LS and ours: the authors' LS
-(``Technical_validation/``) rejects a per-anchor range that jumps by more than 0.5 m from that
-anchor's previous accepted range (up to 4 consecutive rejections, then accepts), holds each anchor's
-latest range for up to 0.3 s, solves in 3-D warm-started from its previous solution and outputs on a
-10 Hz timer; our LS/NLS solve each epoch's ranges independently (no jump gate, no hold, no warm
-start), in 2-D at the calibrated height. The filters and pruned NLS have their own gates. Their
-output stamps also lag the reference (``meta["authors_lag_s"]``); that latency is left in.
-
 :func:`static_range_model` fits the static part's bias vs distance and
-:class:`StaticModelLs` applies it to the dynamic ranges (does it help? :func:`static_model_effect`).
+:class:`StaticModelLs` applies it to the dynamic ranges (does it help? against raw LS on the board). Outlier
+handling differs between the authors' LS and ours (:class:`AuthorsFrontEndLs`); every method of ours solves in
+2-D at the tag height of the tuning case (:func:`case_board`).
 
-Height is handled the same way for every method: the tag's height above the reference track is
-fitted on the *tuning* case (:func:`~uwbwb.datasets.hanyang_dynamic.load_dynamic_case`'s registration)
-and given as a calibration to the scored case; every method then solves in 2-D at that height
-(``dim=2``). The authors' LS solved in 3-D (z free); their estimates are used as published.
 """
 
 from __future__ import annotations
 
 import os
-import zlib
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -56,15 +44,13 @@ from ...scoreboard import Board, score
 from ...scoreboard.estimators import EKF_GRIDS, RangeEkfEstimator, default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S
 from ...scoreboard.protocol import between
-from ...types import Recording
-from .pairs import _external, ablation, held_errors, pair_errors
-from .authors import AuthorsEstimator, AuthorsFrontEndLs, authors_window, reproduce_authors
-from .estimators import PrunedNls, StaticModelLs, StaticRangeModel, static_range_model
+from ...scoreboard.verdicts import difference_table, pair_rng
+from .authors import AuthorsEstimator, AuthorsFrontEndLs, authors_window
+from .estimators import PrunedNls, StaticModelLs, StaticRangeModel
 
 
-__all__ = ["CaseComparison", "DECLARED_METHOD", "FAST_SPAN_S", "board_epochs", "case_board", "compare_cases",
-           "declared_method", "declared_method_table", "load_pair", "pick_on_tuning_case", "ratio_table",
-           "static_model_effect", "tuning_case"]
+__all__ = ["DECLARED_METHOD", "FAST_SPAN_S", "case_board", "declared_method",
+           "declared_method_table", "held_ratio", "pick_on_tuning_case", "ratio_table", "tuning_case"]
 
 PathLike = str | os.PathLike
 
@@ -97,20 +83,6 @@ def tuning_case(case: str, cases: Sequence[str]) -> str:
     return sorted(others, key=key)[0]
 
 
-def board_epochs(rec: Recording) -> tuple[float, float]:
-    """The authors' window of a registered case on the ranges' clock (their rules on the reference)."""
-    ref = rec.truth["tag"]
-    return authors_window(ref, rec.meta["trajectory"])
-
-
-def load_pair(case: str, tune: str, data_dir: PathLike | None = None) -> tuple[Recording, Recording]:
-    """``(scored, tuning)`` recordings: the tuning case with its own fitted tag height, the scored case
-    with the *tuning case's* height (a calibration)."""
-    cal_rec = hanyang_dynamic.load_dynamic_case(tune, data_dir)
-    test_rec = hanyang_dynamic.load_dynamic_case(case, data_dir, tag_height_m=cal_rec.meta["tag_height_fit_m"])
-    return test_rec, cal_rec
-
-
 def study_estimators(*, fast: bool = False, static_models: Sequence[StaticRangeModel] = ()) -> list:
     """The board of this study: every method of the package (:func:`~uwbwb.scoreboard.estimators.default_estimators`,
     the EKFs RW/RF/RJ on ranges among them; the methods that do not apply stay on the board, where their rows say
@@ -138,9 +110,10 @@ def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: 
     """
     if case == tune:
         raise ValueError(f"{case}: tuning on the scored case is not allowed; give another case")
-    test_rec, cal_rec = load_pair(case, tune, data_dir)
-    t0, t1 = board_epochs(test_rec)
-    c0, c1 = board_epochs(cal_rec)
+    cal_rec = hanyang_dynamic.load_dynamic_case(tune, data_dir)   # its tag height calibrates the scored case
+    test_rec = hanyang_dynamic.load_dynamic_case(case, data_dir, tag_height_m=cal_rec.meta["tag_height_fit_m"])
+    t0, t1 = authors_window(test_rec.truth["tag"], test_rec.meta["trajectory"])
+    c0, c1 = authors_window(cal_rec.truth["tag"], cal_rec.meta["trajectory"])
     if fast:
         t1, c1 = min(t1, t0 + FAST_SPAN_S), min(c1, c0 + FAST_SPAN_S)
     test = between(test_rec, t0, t1, f"{test_rec.name} [authors' window{' , FAST part' if fast else ''}]")
@@ -157,28 +130,7 @@ def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: 
 
 
 
-@dataclass(frozen=True)
-class CaseComparison:
-    """Boards and reproductions of several cases (:func:`compare_cases`)."""
-
-    boards: Mapping[str, Board]
-    tuning: Mapping[str, str]
-    reproduction: pd.DataFrame
-    ratios: pd.DataFrame
-    fast: bool
-    static_models: tuple = ()
-    picks: Mapping[str, str | None] = field(default_factory=dict)
-
-    @property
-    def mode(self) -> str:
-        return "FAST" if self.fast else "full"
-
-
-THEIRS = "authors LS (external)"
-
-
-def _ours(board: Board) -> list[str]:
-    return [e.method for e in board.ran("tag") if not _external(e.method)]
+THEIRS = AuthorsEstimator("LS").name
 
 
 def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bool = False,
@@ -189,11 +141,11 @@ def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bo
     The authors' window of ``tune`` (FAST: its first :data:`FAST_SPAN_S` s) is split in time: its
     first half calibrates and tunes every method (:func:`~uwbwb.scoreboard.score`), its second half
     scores them beside the authors' LS; the pick is the method with the lowest RMSE_2d ratio to the
-    authors' LS on the epochs both covered (:func:`pair_errors`). Nothing of the scored case enters
-    (its tag height, ranges and truth are not read). Returns ``(method or None, board)``.
+    authors' LS on the epochs both covered (``best`` of :func:`ratio_table`). Nothing of the
+    scored case enters (its tag height, ranges and truth are not read). Returns ``(method or None, board)``.
     """
     rec = hanyang_dynamic.load_dynamic_case(tune, data_dir)
-    c0, c1 = board_epochs(rec)
+    c0, c1 = authors_window(rec.truth["tag"], rec.meta["trajectory"])
     if fast:
         c1 = min(c1, c0 + FAST_SPAN_S)
     mid = 0.5 * (c0 + c1)
@@ -205,119 +157,52 @@ def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bo
         est.append(AuthorsEstimator("LS"))
     board = score(second, first, estimators=est, rate_hz=None, dim=2, fast=fast, progress=progress,
                   label=f"{rec.label} [pick: tuned on first half, scored on second]")
-    score_of = {}
-    for m in _ours(board):
-        p = pair_errors(board, m, THEIRS)
-        if p is not None and p["err_m"].size:
-            score_of[m] = metrics.rmse(p["err_m"]) / metrics.rmse(p["err_ref_m"])
-    return (min(score_of, key=score_of.get) if score_of else None), board
+    t = ratio_table({tune: board})
+    return (t.loc[t["best"], "A"].iloc[0] if len(t) else None), board
 
 
-def _ratio_cols(prefix: str, p: dict | None, case: str, m: str, seed: int) -> dict:
-    if p is None or not p["err_m"].size:
-        return {}
-    rng = np.random.default_rng([seed, zlib.crc32(f"{case}/{m}/{prefix}".encode())])
-    iv = metrics.block_bootstrap_difference(p["err_m"], p["err_ref_m"], rng=rng)
-    r_ours, r_theirs = metrics.rmse(p["err_m"]), metrics.rmse(p["err_ref_m"])
-    return {f"{prefix}n": int(p["err_m"].size), f"{prefix}rmse_2d_m": r_ours,
-            f"{prefix}authors_ls_rmse_2d_m": r_theirs, f"{prefix}ratio": r_ours / r_theirs,
-            f"{prefix}ratio_lo": iv["ratio_lo"], f"{prefix}ratio_hi": iv["ratio_hi"],
-            f"{prefix}n_blocks": iv["n_blocks"]}
+def held_ratio(board: Board, method: str, *, seed: int) -> dict:
+    """``method`` against the authors' LS on *every* epoch theirs covered, ``method`` holding its last position
+    where it has none (none before its first): RMSE_2d ratio and its interval by the one rule
+    (:func:`uwbwb.metrics.block_bootstrap_difference`), epochs, blocks and the epochs filled by holding."""
+    a, b = board.entry(method, "tag"), board.entry(THEIRS, "tag")
+    has = a.estimates.has_estimate
+    last = np.maximum.accumulate(np.where(has, np.arange(has.size), -1))
+    pos = np.where((last >= 0)[:, None], a.estimates.pos_m[np.maximum(last, 0)], np.nan)
+    d = pos[:, :2] - a.truth_pos_m[:, :2]
+    err = np.sqrt(np.sum(d * d, axis=1))
+    keep = b.scored & np.isfinite(err)
+    iv = metrics.block_bootstrap_difference(err[keep], b.error_m[keep],
+                                            rng=pair_rng(seed, board.label, f"{method}, held", THEIRS))
+    return {"held A / B": np.divide(iv["rmse_a_m"], iv["rmse_b_m"]), "held 95 % low": iv["ratio_lo"],
+            "held 95 % high": iv["ratio_hi"], "held epochs": iv["n"], "held blocks": iv["n_blocks"],
+            "held filled": int((keep & ~a.scored).sum())}
 
 
-def ratio_table(boards: Mapping[str, Board], reproduction: pd.DataFrame, *, picks: Mapping[str, str | None] | None = None,
+def ratio_table(boards: Mapping[str, Board], *, picks: Mapping[str, str | None] | None = None,
                 seed: int = 0) -> pd.DataFrame:
-    """Per case and our ranges-only method: RMSE_2d of ours and of the authors' LS on the epochs *that
-    pair* covered (both have a position; independent of the other methods on the board), the ratio
-    ours / theirs and its 95 % block-bootstrap interval (:func:`uwbwb.metrics.block_bootstrap_difference`:
-    blocks from the data, ``n_blocks`` beside it), with both coverages (``coverage``: ours, ``coverage_authors_ls``:
-    theirs, each over the scoring epochs). Columns ``held_*``: the same on *every* epoch the authors'
-    LS covered, ours holding its last position where it has none (full-coverage variant). Columns
-    ``nolat_*`` (when the board has it): against the authors' LS with its latency removed (sensitivity).
-
-    Two picks: ``best`` marks the lowest ratio on the scored case itself (optimistic: made after seeing
-    the scores); ``chosen`` marks ``picks[case]`` (:func:`pick_on_tuning_case`: made on the tuning case
-    alone), the fair one to compare with the authors."""
-    rows = []
+    """Per case, each of our methods against the authors' LS (and against their LS with its latency removed, where
+    the board has that row): the board's :func:`~uwbwb.scoreboard.verdicts.difference_table` (the epochs *that
+    pair* covered, independent of the other methods on the board; both coverages; RMSE_2d of both, their
+    difference and ratio with 95 % block-bootstrap intervals; the verdict), with ``case`` and ``tuned_on``.
+    Against their LS also :func:`held_ratio` (``held *``: the full-coverage variant) and two picks: ``best`` marks
+    the lowest ratio on the scored case itself (optimistic: made after seeing the scores); ``chosen`` marks
+    ``picks[case]`` (:func:`pick_on_tuning_case`: made on the tuning case alone), the fair one."""
+    parts = []
     for case, board in boards.items():
-        pub = reproduction[(reproduction["data"] == board.label) & (reproduction["method"] == "LS")
-                           & (reproduction["metric"] == "RMSE 2-D")]
-        case_rows = []
-        for m in _ours(board):
-            p = pair_errors(board, m, THEIRS)
-            if p is None or not p["err_m"].size:
-                continue
-            row = {"data": board.label, "case": case, "tuned_on": board.calibration.source, "method": m,
-                   "epochs": f"{m} ∩ authors LS", "coverage": p["coverage"], "coverage_authors_ls": p["coverage_ref"],
-                   "n_scoring": p["n_scoring"]}
-            row.update(_ratio_cols("", p, case, m, seed))
-            nolat = [n for n in (e.method for e in board.ran("tag")) if n.startswith("authors LS, latency removed")]
-            if nolat:
-                row.update(_ratio_cols("nolat_", pair_errors(board, m, nolat[0]), case, m, seed))
-            h = held_errors(board, m, THEIRS)
-            row.update(_ratio_cols("held_", h, case, m, seed))
-            row["held_n_filled"] = h["n_held"] if h is not None else 0
-            row.update(authors_ls_published_2d_m=float(pub["published_m"].iloc[0]) if len(pub) else np.nan,
-                       authors_ls_reproduced_2d_m=float(pub["reproduced_m"].iloc[0]) if len(pub) else np.nan)
-            case_rows.append(row)
-        if case_rows:
-            best = min(case_rows, key=lambda r: r["ratio"])["method"]
-            for r in case_rows:
-                r["best"], r["chosen"] = r["method"] == best, r["method"] == (picks or {}).get(case)
-        rows += case_rows
-    return pd.DataFrame(rows)
-
-
-def compare_cases(cases: Sequence[str] | None = None, data_dir: PathLike | None = None, *, fast: bool = False,
-                  static: bool = True, seed: int = 0, progress: bool = False) -> CaseComparison:
-    """Reproduction and board of every case (default: all present), each tuned on :func:`tuning_case`,
-    and per tuning case the pick of :func:`pick_on_tuning_case`."""
-    available = hanyang_dynamic.dynamic_cases(data_dir)
-    cases = list(available if cases is None else cases)
-    if not cases:
-        raise DataNotFoundError("no Hanyang dynamic case in the data directories")
-    models = []
-    if static:
-        for cond in ("LOS", "NLOS"):
-            try:
-                models.append(static_range_model(cond, data_dir))
-            except (DataNotFoundError, ValueError):
-                pass
-    repro = pd.concat([reproduce_authors(c, data_dir) for c in cases], ignore_index=True)
-    boards, tuning, pick_of_tune, picks = {}, {}, {}, {}
-    for c in cases:
-        tuning[c] = tuning_case(c, available)
-        boards[c] = case_board(c, tuning[c], data_dir, fast=fast, static_models=models, progress=progress)
-        if tuning[c] not in pick_of_tune:
-            pick_of_tune[tuning[c]] = pick_on_tuning_case(tuning[c], data_dir, fast=fast, static_models=models,
-                                                          progress=progress)[0]
-        picks[c] = pick_of_tune[tuning[c]]
-    return CaseComparison(boards, tuning, repro, ratio_table(boards, repro, picks=picks, seed=seed), fast,
-                          tuple(models), picks)
-
-
-def static_model_effect(boards: Mapping[str, Board], *, seed: int = 0) -> pd.DataFrame:
-    """Per case and static model: RMSE_2d of ``LS static <cond> model`` vs ``raw LS`` (the same solver
-    on uncorrected ranges) and vs ``LS`` (per-pair calibration from the tuning case), each pair on the
-    epochs both covered, with block-bootstrap intervals of the ratios (``*_n_blocks`` beside them)."""
-    rows = []
-    for case, board in boards.items():
-        for m in [m for m in _ours(board) if m.startswith("LS static")]:
-            row = {"data": board.label, "case": case, "method": m}
-            for ref in ("raw LS", "LS"):
-                p = pair_errors(board, m, ref)
-                if p is None or not p["err_m"].size:
-                    continue
-                rng = np.random.default_rng([seed, zlib.crc32(f"{case}/{m}/{ref}".encode())])
-                iv = metrics.block_bootstrap_difference(p["err_m"], p["err_ref_m"], rng=rng)
-                key = ref.replace(" ", "_").lower()
-                row.setdefault("rmse_2d_m", metrics.rmse(p["err_m"]))
-                row.update({f"{key}_rmse_2d_m": metrics.rmse(p["err_ref_m"]),
-                            f"ratio_vs_{key}": metrics.rmse(p["err_m"]) / metrics.rmse(p["err_ref_m"]),
-                            f"ratio_vs_{key}_lo": iv["ratio_lo"], f"ratio_vs_{key}_hi": iv["ratio_hi"],
-                            f"ratio_vs_{key}_n_blocks": iv["n_blocks"]})
-            rows.append(row)
-    return pd.DataFrame(rows)
+        ours = [e.method for e in board.ran("tag") if e.method not in board.external]
+        nolat = [m for m in board.external if m.startswith("authors LS, latency removed")]
+        t = difference_table({board.label: board}, [(m, ref) for ref in (THEIRS, *nolat) for m in ours], seed=seed)
+        t = t[t["epochs"] > 0] if len(t) else t
+        if not len(t):
+            continue
+        vs = t["B"] == THEIRS
+        held = pd.DataFrame([held_ratio(board, m, seed=seed) for m in t.loc[vs, "A"]], index=t.index[vs])
+        t = t.join(held).assign(case=case, tuned_on=board.calibration.source)
+        t["best"] = vs & (t.index == t.loc[vs, "A / B"].idxmin())
+        t["chosen"] = vs & (t["A"] == (picks or {}).get(case))
+        parts.append(t)
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
 
 
 # --------------------------------------------------------------------------------------------
@@ -332,7 +217,7 @@ def static_model_effect(boards: Mapping[str, Board], *, seed: int = 0) -> pd.Dat
 #: square and in the 2 m anchor cluster, that gate was as accurate as or more accurate than the robust updates.
 DECLARED_METHOD = RangeEkfEstimator("RF", update="gate")
 #: The authors' rows it is set against (names of :class:`AuthorsEstimator` rows).
-AUTHORS_ROWS = (AuthorsEstimator("LS").name, AuthorsEstimator("ESKF").name)
+AUTHORS_ROWS = (THEIRS, AuthorsEstimator("ESKF").name)
 
 
 def declared_method(*, fast: bool = False) -> RangeEkfEstimator:
@@ -351,11 +236,11 @@ def declared_method_table(cases: Sequence[str] | None = None, data_dir: PathLike
     ``cases``: names or case folders of the upstream format (default: every case present); ``tuning[case]``
     the case it is tuned on (default :func:`tuning_case` among the cases present). One board per case
     (:func:`case_board`: the method and the authors' two rows; ``boards[case]`` instead where given, e.g. the
-    section's boards, which hold the same method tuned alike), then per case and reference one row of
-    :func:`~.pairs.ablation`: RMSE_2d of both on the epochs both covered, both coverages, the ratio ours / theirs,
-    its 95 % block-bootstrap interval and the verdict (``better`` below 1, ``worse`` above, ``not significant``);
-    last, per reference, the mean ratio over the cases (``case`` ``"mean over N cases"``; no interval: its
-    ``verdict`` counts the per-case ones).
+    section's boards, which hold the same method tuned alike), then per case and reference one row of the board's
+    :func:`~uwbwb.scoreboard.verdicts.difference_table`: RMSE_2d of both on the epochs both covered, both
+    coverages, the difference and the ratio ours / theirs with their 95 % block-bootstrap intervals and the
+    verdict; last, per reference, the mean ratio over the cases (``case`` ``"mean over N cases"``; no interval:
+    its ``verdict`` counts the per-case ones).
     """
     available = hanyang_dynamic.dynamic_cases(data_dir)
     cases = list(available if cases is None else cases)
@@ -367,16 +252,11 @@ def declared_method_table(cases: Sequence[str] | None = None, data_dir: PathLike
         tune = (tuning or {}).get(c) or tuning_case(c, available)
         board = (boards or {}).get(c) or case_board(c, tune, data_dir, fast=fast,
                                                     estimators=[method, *map(AuthorsEstimator, ("LS", "ESKF"))])
-        t = ablation(board, [(method.name, ref) for ref in AUTHORS_ROWS], low="better", high="worse",
-                     neither="not significant", seed=seed)
-        parts.append(t.assign(case=c, data=board.label, tuned_on=board.calibration.source))
+        t = difference_table({board.label: board}, [(method.name, ref) for ref in AUTHORS_ROWS], seed=seed)
+        parts.append(t.assign(case=c, tuned_on=board.calibration.source))
     table = pd.concat(parts, ignore_index=True)
-    means = []
-    for ref, g in table.groupby("reference", sort=False):
-        n = {v: int((g["verdict"] == v).sum()) for v in ("better", "worse", "not significant")}
-        rest = len(g) - sum(n.values())
-        means.append({"case": f"mean over {len(g)} cases", "method": method.name, "reference": ref,
-                      "ratio": float(g["ratio"].mean()),
-                      "verdict": ", ".join(f"{v} {k}" for v, k in n.items()) + (f", no verdict {rest}" if rest else "")})
+    means = [{"case": f"mean over {len(g)} cases", "A": method.name, "B": ref, "A / B": float(g["A / B"].mean()),
+              "verdict": ", ".join(f"{v}: {k}" for v, k in g["verdict"].value_counts().items())}
+             for ref, g in table.groupby("B", sort=False)]
     table = pd.concat([table, pd.DataFrame(means)], ignore_index=True)
-    return table[["case", "tuned_on", *[c for c in table if c not in ("case", "tuned_on", "data")], "data"]]
+    return table[["case", "tuned_on", *[c for c in table if c not in ("case", "tuned_on")]]]
