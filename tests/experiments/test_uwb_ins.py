@@ -83,27 +83,7 @@ def test_real_data_path_runs_on_any_scenario_by_name(tmp_path, names):
     assert comp.label.endswith(names[1])
     assert t.loc["tight", "coverage"] > 0.99 and np.isfinite(t.loc["tight", "RMSE (m)"])
     assert t.loc["tight", "RMSE (m)"] < 2 * t.loc["UWB-only", "RMSE (m)"] + 0.05
-    # the gated IMU-free EKF runs beside them, and the real-data table scores everyone on common epochs
-    from uwbwb.experiments.uwb_ins import realdata
-
-    assert t.loc["EKF + gate", "coverage"] > 0.99
-    e = realdata.error_table(comp)
-    assert {"vertical RMSE (m)", "3-D RMSE (m)"} <= set(e.columns) and (e["common epochs"] > 100).all()
-    c = realdata.consistency_table(comp)
-    assert {"tight", "loose", "EKF + gate", "UWB-only"} <= set(c.index)
-    rows = realdata.summary_rows(comp, cal_label=names[0])
-    assert len({r["quantity"] for r in rows}) == len(rows) > 10
-    # every RMSE row is the cell of the common-epoch table the notebook shows (not each method's own epochs)
-    for r in rows:
-        for col in ("horizontal RMSE (m)", "vertical RMSE (m)", "3-D RMSE (m)"):
-            for m in e.index:
-                if r["quantity"] == f"{col.split(' (')[0]} {m}, common epochs (calibrated on {names[0]})":
-                    assert r["value"] == e.loc[m, col]
-        if r["quantity"].startswith("RMSE "):
-            m = r["quantity"][5:].split(f" (calibrated on {names[0]})")[0]
-            assert r["value"] == e.loc[m, "horizontal RMSE (m)"]
-    assert {r["quantity"] for r in rows if r["quantity"].startswith("RMSE ")} == {
-        f"RMSE {m} (calibrated on {names[0]})" for m in e.index}
+    assert t.loc["EKF + gate", "coverage"] > 0.99                  # the gated IMU-free EKF runs beside them
 
 
 @pytest.mark.realdata

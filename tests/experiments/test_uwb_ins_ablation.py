@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from uwbwb.experiments.uwb_ins import ablation as ab
-from uwbwb.experiments.uwb_ins import facts, headlines, ladder, scoring
+from uwbwb.experiments.uwb_ins import facts, headlines, ladder
 from uwbwb.filters import alignment
 from uwbwb.models.tdoa import TdoaModel, triangle_outliers
 from uwbwb.sim import robot
@@ -434,26 +434,30 @@ def test_block_bootstrap_difference_and_its_side_flip_with_the_interval():
         block_bootstrap_difference(base, base[:-1], rng=np.random.default_rng(0))
 
 
-def test_consistency_table_nees_is_chi2_for_honest_covariances_and_scales_with_them():
-    from uwbwb.experiments.uwb_ins import realdata, study
-    from uwbwb.types import Trajectory
+def test_common_table_nees_is_chi2_for_honest_covariances_and_scales_with_them():
+    from uwbwb.experiments.uwb_ins import realdata
+    from uwbwb.scoreboard import Board, Calibration
+    from uwbwb.scoreboard.board import Entry
 
     rng = np.random.default_rng(4)
     T = 4000
-    truth = Trajectory(np.arange(T) * 0.02, np.zeros((T, 3)), name="truth")
+    t = np.arange(T) * 0.02
     P = np.tile(np.diag([0.01, 0.04, 0.09]), (T, 1, 1))
     e = rng.normal(0, 1, (T, 3)) * np.sqrt([0.01, 0.04, 0.09])
     st = np.full(T, EstimateStatus.UPDATED, np.int8)
-    est = {"honest": Estimates(truth.t_s, e, st, "honest", P),
-           "over-confident": Estimates(truth.t_s, e, st, "over-confident", P / 4)}
-    comp = alignment.Comparison("test", truth, est, {}, {"scored": np.ones(T, bool)}, {}, 3)
-    c = realdata.consistency_table(comp)
+    ents = tuple(Entry(m, "tag", Estimates(t, e, st, m, P / s), None, np.zeros((T, 3)))
+                 for m, s in (("honest", 1.0), ("over-confident", 4.0)))
+    board = Board("test/x", "x", Calibration("test/x", 3, {}, None, {}, 50.0), ents, ("honest", "over-confident"))
+    c = realdata.common_table(board)
     assert c.loc["honest", "mean NEES"] == pytest.approx(3.0, rel=0.05)
     assert c.loc["honest", "inside own 95% ellipse"] == pytest.approx(0.95, abs=0.01)
-    assert c.loc["over-confident", "covariance inflation for mean NEES = dof"] == pytest.approx(4.0, rel=0.05)
-    t = realdata.error_table(comp)
-    assert t.loc["honest", "vertical RMSE (m)"] == pytest.approx(0.3, rel=0.05)
-    assert t.loc["honest", "3-D RMSE (m)"] == pytest.approx(np.sqrt(0.14), rel=0.05)
+    assert c.loc["over-confident", "covariance inflation"] == pytest.approx(4.0, rel=0.05)
+    assert c.loc["honest", "vertical RMSE (m)"] == pytest.approx(0.3, rel=0.05)
+    assert c.loc["honest", "3-D RMSE (m)"] == pytest.approx(np.sqrt(0.14), rel=0.05)
+    assert c.loc["honest", "horizontal RMSE (m)"] == board.table().set_index("method").loc["honest", "rmse_common_m"]
+    f = realdata.nees_inflation(board, board, "over-confident")          # fitted and applied on one board: exact
+    assert f["k"] == pytest.approx(c.loc["over-confident", "covariance inflation"]) and f["scaled_consistent"]
+    assert f["nees_test_scaled"] == pytest.approx(3.0) and f["inside_test"] < 0.95 - realdata.CONSISTENT_POINTS
 
 
 def test_outage_spec_of_reproduce_is_the_longest_outage_the_run_holds():
@@ -484,19 +488,19 @@ def test_error_range_assumption_is_read_off_the_simulated_world():
 def test_reacquisition_time_is_the_start_of_the_first_stretch_below_the_limit_that_holds():
     t = np.arange(0.0, 12.0, 0.5)                           # outage ends at t = 3 s; UWB returns at 3.5 s
     e = np.full(t.size, 0.1)
-    assert scoring.reacquisition_s(t, e, 3.0) == 0.0
+    assert ab.reacquisition_s(t, e, 3.0) == 0.0
     e[(t > 3.0) & (t < 5.0)] = 0.8                          # drift found on the return, gone at 5 s
-    assert scoring.reacquisition_s(t, e, 3.0) == pytest.approx(1.5)
+    assert ab.reacquisition_s(t, e, 3.0) == pytest.approx(1.5)
     e[t == 9.0] = np.nan                                    # a missing estimate later counts as not re-acquired
-    assert scoring.reacquisition_s(t, e, 3.0) == pytest.approx(6.0)
+    assert ab.reacquisition_s(t, e, 3.0) == pytest.approx(6.0)
     e[-1] = 0.5                                             # at the limit on the last epoch: never
-    assert scoring.reacquisition_s(t, e, 3.0) == math.inf
-    assert math.isnan(scoring.reacquisition_s(t, e, 20.0))       # nothing after the outage
-    assert scoring.reacquisition_s(t, np.full(t.size, 0.3), 3.0, limit_m=0.2) == math.inf
+    assert ab.reacquisition_s(t, e, 3.0) == math.inf
+    assert math.isnan(ab.reacquisition_s(t, e, 20.0))       # nothing after the outage
+    assert ab.reacquisition_s(t, np.full(t.size, 0.3), 3.0, limit_m=0.2) == math.inf
     late = np.full(t.size, 0.1)
     late[t >= 10.0] = 0.9                                   # an excursion after a 6.5 s hold is not a failure
-    assert scoring.reacquisition_s(t, late, 3.0) == 0.0
-    assert scoring.reacquisition_s(t, late, 3.0, hold_s=7.0) == math.inf
+    assert ab.reacquisition_s(t, late, 3.0) == 0.0
+    assert ab.reacquisition_s(t, late, 3.0, hold_s=7.0) == math.inf
 
 
 def test_gated_loose_filter_re_acquires_with_a_ten_times_worse_imu(monkeypatch):

@@ -1,12 +1,17 @@
-"""Notebook 05's teaching pieces and real-data protocol helpers: exercises (the claim and its flip),
-the panel back end, the loose-filter tuning, the covariance inflation and the board reconciliation."""
+"""Notebook 05's teaching pieces and its real-data section: exercises (the claim and its flip), the panel back end,
+the fusion filters' scales, and one board of the i-ASL flight shared with notebook 06."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from tests.fixtures import iasl as fx
-from uwbwb.experiments.uwb_ins import exercises, panels, realtune
+import json
+from pathlib import Path
+
+from uwbwb import scoreboard as sb
+from uwbwb.datasets import iasl
+from uwbwb.experiments.uwb_ins import exercises, panels, realdata
 from uwbwb.filters import alignment, imu_calibration
 from uwbwb.types import Estimates, Trajectory
 from tests.test_teaching import assert_reads_predictions
@@ -46,27 +51,6 @@ def test_panel_offers_the_notebooks_outage_and_says_what_to_see():
                            gate_prob=0.999, loose_window=5, stations_m=np.zeros((4, 3)))
 
 
-def _fake(nees_scale: float, nis: float, n: int = 400, seed: int = 0) -> alignment.Comparison:
-    """A comparison whose "tight" errors are drawn with covariance ``nees_scale`` × its reported one."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) * 0.02
-    P = np.tile(np.eye(3) * 1e-4, (n, 1, 1))
-    e = rng.normal(size=(n, 3)) * np.sqrt(1e-4 * nees_scale)
-    truth = Trajectory(t, np.zeros((n, 3)), name="truth")
-    est = Estimates(t, e, np.full(n, 1, np.int8), "tight", P, info={"nis": np.full(n, nis), "dof": np.ones(n)})
-    return alignment.Comparison("fake", truth, {"tight": est}, {}, {"scored": np.ones(n, bool)})
-
-
-def test_inflation_is_fitted_on_one_comparison_and_applied_on_the_other():
-    f = realtune.nees_inflation(_fake(20.0, 2.0, seed=1), _fake(20.0, 2.0, seed=2))
-    assert f["k"] == pytest.approx(20.0, rel=0.15) and f["nees_test"] == pytest.approx(60.0, rel=0.15)
-    assert f["nees_test_scaled"] == pytest.approx(3.0, rel=0.2) and f["inside_test_scaled"] > 0.85 > f["inside_test"]
-    assert f["scaled_consistent"]
-    # a scale that does not transfer is said so
-    h = realtune.nees_inflation(_fake(2.0, 1.0, seed=1), _fake(40.0, 1.0, seed=2))
-    assert not h["scaled_consistent"] and h["inside_test_scaled"] < f["prob"] - realtune.CONSISTENT_POINTS
-
-
 def test_each_filters_scales_touch_only_itself(tmp_path):
     from uwbwb.datasets import iasl
 
@@ -85,80 +69,80 @@ def test_each_filters_scales_touch_only_itself(tmp_path):
     one = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={n: (1.0, 1.0) for n in alignment.TUNABLE})
     for other in base.estimates:                                      # (1, 1) is the untuned filter, bit for bit
         np.testing.assert_array_equal(one.estimates[other].pos_m, base.estimates[other].pos_m)
-    assert realtune.summary_rows({"k": 2.0, "nees_test_scaled": 3.0}, data="x", cal_label="a")[0]["value"] == 2.0
     with pytest.raises(ValueError, match="unknown filters"):
         alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={"UWB-only": (1.0, 1.0)})
 
 
-def test_the_real_data_tables_read_the_boards_tuning_and_estimates(tmp_path):
-    """Notebook 05's real-data section is one scoreboard: its tuning table, summary rows and Comparison come from it."""
-    from uwbwb import scoreboard as sb
-    from uwbwb.datasets import iasl
-    from uwbwb.experiments.uwb_ins import realdata, realfair
-    from uwbwb.scoreboard.estimators import CalibratedLs, UwbInsFilter
+def _iasl_cell(notebook: str) -> str:
+    """The code of the notebook's cell that builds its i-ASL board."""
+    nb = json.loads((Path(__file__).parents[2] / "notebooks" / notebook).read_text(encoding="utf-8"))
+    cells = ["".join(c["source"]) for c in nb["cells"] if c["cell_type"] == "code"]
+    return next(c for c in cells if "sb.score(" in c and "iasl.load_scenario(IASL_SCENARIO" in c)
 
+
+#: Notebook 05's real-data rows and the pairs of its verdict table.
+ROWS_05 = ("LS", "EKF-RF", "loose", "tight", "tight (ranges)", "INS-only")
+PAIRS_05 = (("tight", "loose"), ("tight", "EKF-RF"), ("loose", "EKF-RF"), ("EKF-RF", "LS"))
+
+
+def test_05_and_06_score_the_flight_on_one_board_and_print_the_same_verdicts(tmp_path):
+    """Notebook 05's board (its rows, its four fusion filters) and notebook 06's (every method) of one flight give
+    the same tuning, the same estimates and the same difference table; every filter is tuned on one (Q ×, R ×) grid;
+    05's tables and summary rows are cells of that board."""
+    for nb in ("05_uwb_ins_fusion.ipynb", "06_scoreboard.ipynb"):       # the cells build them as this test does
+        assert "equal_knobs=True" in _iasl_cell(nb) and "rate_hz=RATE_HZ" in _iasl_cell(nb)
     fx.write_dataset(tmp_path / "iasl-uwb-imu", rng=np.random.default_rng(8), duration_s=30.0)
-    cal_rec, test = iasl.load_scenario("scenario1", tmp_path), iasl.load_scenario("scenario2", tmp_path)
-    grid, cache = ((0.1, 1.0), (1.0, 1.0), (10.0, 1.0)), {}
-    ests = [CalibratedLs(), *(UwbInsFilter(k, cache, grid) for k in ("loose", "tight", "INS-only"))]
-    b = sb.score(test, cal_rec, estimators=ests, rate_hz=10.0, fast=True)
-    table = realfair.tuning_table(b)
-    assert list(table.index) == ["loose", "tight"]                   # LS and INS-only tune nothing
-    for name in table.index:
-        p = b.calibration.params(name)
-        assert (table.loc[name, "Q ×"], table.loc[name, "R ×"]) == (p["q_scale"], p["r_scale"])
-        assert table.loc[name, "RMSE picked (m)"] == min(p["grid_rmse_m"]) <= table.loc[name, "RMSE at Q × 1, R × 1 (m)"]
-        assert table.loc[name, "edge"] == ("on the edge" if p["grid_edge"] else "—")
-    rows = realfair.summary_rows(b, None, data="x", cal_label="scenario1", cal_data="cal")
-    assert [r["value"] for r in rows[:2]] == [b.calibration.params("loose")["q_scale"], b.calibration.params("loose")["r_scale"]]
-    assert len(rows) == 4 and all("3-point grid" in r["quantity"] and r["data"] == "cal" for r in rows)
-    comp = realdata.board_comparison(b)
-    assert list(comp.estimates) == ["LS", "loose", "tight", "INS-only"] and b.entry("INS-only", "tag").bound is None
-    for e in b.ran("tag"):                                            # the board's errors, epoch for epoch
+    cal, test = iasl.load_scenario("scenario1", tmp_path), iasl.load_scenario("scenario2", tmp_path)
+    est05 = [e for e in sb.default_estimators(fast=True, ins_kinds=("loose", "tight", "tight (ranges)", "INS-only"),
+                                              ins_settings=alignment.FusionSettings(), equal_knobs=True)
+             if e.name in ROWS_05]
+    b05 = sb.score(test, cal, estimators=est05, rate_hz=5.0, fast=True)
+    b06 = sb.score(test, cal, estimators=sb.default_estimators(fast=True, equal_knobs=True), rate_hz=5.0, fast=True)
+    v05, v06 = (sb.verdicts.difference_table({test.label: b}, PAIRS_05, seed=0) for b in (b05, b06))
+    assert len(v05) == len(PAIRS_05)
+    pd.testing.assert_frame_equal(v05, v06)
+    for m in ("EKF-RF", "loose", "tight"):
+        p05, p06 = b05.calibration.params(m), b06.calibration.params(m)
+        assert p05["grid"] == p06["grid"] == sb.estimators.INS_GRID_FAST      # one grid of (Q ×, R ×) for all
+        assert (p05["q_scale"], p05["r_scale"]) == (p06["q_scale"], p06["r_scale"])
+        assert "R ×" in b05.table().set_index("method").loc[m, "tuning_pick"]
+    # 05's tables read that board: the common-epoch RMSE is the board's, each summary row a cell of a table shown
+    t = realdata.common_table(b05)
+    board_t = b05.table().set_index("method")
+    np.testing.assert_array_equal(t["horizontal RMSE (m)"], board_t.loc[t.index, "rmse_common_m"])
+    rows = {r["quantity"]: r for r in realdata.summary_rows(b05, cal_label="scenario1", cal_data=cal.label, rate_hz=5.0,
+                                                            verdicts=v05)}
+    for m in t.index:
+        assert rows[f"RMSE {m} (calibrated on scenario1)"]["value"] == t.loc[m, "horizontal RMSE (m)"]
+        assert rows[f"3-D RMSE {m}, common epochs (calibrated on scenario1)"]["value"] == t.loc[m, "3-D RMSE (m)"]
+    q = [k for k in rows if k.startswith("EKF-RF R multiplier")]
+    assert len(q) == 1 and rows[q[0]]["value"] == b05.calibration.params("EKF-RF")["r_scale"] and rows[q[0]]["data"] == cal.label
+    for _, r in v05.iterrows():
+        key = f"horizontal RMSE difference {r['A']} − {r['B']} (scoreboard, 5 Hz)"
+        assert rows[key]["value"] == r["A − B (mm)"]
+        if np.isfinite(r["95 % low (mm)"]):
+            assert rows[key + ", 95 % interval low"]["value"] == r["95 % low (mm)"]
+    comp = realdata.board_comparison(b05)
+    assert list(comp.estimates) == list(ROWS_05) and b05.entry("INS-only", "tag").bound is None
+    for e in b05.ran("tag"):                                            # the board's errors, epoch for epoch
         np.testing.assert_array_equal(comp.errors(e.method)[e.scoring], e.error_m[e.scoring])
-    assert comp.rejected["eq4"] == int(np.sum(b.entry("tight", "tag").estimates.info["n_outliers"]))
+    assert comp.rejected["eq4"] == int(np.sum(b05.entry("tight", "tag").estimates.info["n_outliers"]))
     with pytest.raises(ValueError, match="kind"):
-        UwbInsFilter("EKF + gate")
+        sb.estimators.UwbInsFilter("EKF + gate")
 
 
-def test_difference_rows_are_the_cells_of_the_table_shown():
-    import pandas as pd
-
-    from uwbwb.experiments.uwb_ins import realfair
-
-    v = pd.DataFrame([{"recording": "iasl-uwb-imu/scenario2", "A": "tight", "B": "loose", "A − B (mm)": -0.96,
-                       "95 % low (mm)": -3.7, "95 % high (mm)": 3.1, "verdict": "not significant"}])
-    rows = {r["quantity"]: r for r in realfair.difference_rows(v, rate_hz=5.0)}
-    q = "horizontal RMSE difference tight − loose (scoreboard, 5 Hz)"
-    assert {k: r["value"] for k, r in rows.items()} == {q: -0.96, q + ", 95 % interval low": -3.7,
-                                                        q + ", 95 % interval high": 3.1}
-    assert {r["data"] for r in rows.values()} == {"iasl-uwb-imu/scenario2"}
-
-
-def test_the_clock_verdict_follows_the_interval_of_the_change():
-    from uwbwb.experiments.uwb_ins import realfair
-
-    assert realfair.clock_verdict(-0.9, 0.4) == "no detectable change"
-    assert realfair.clock_verdict(1.0, 4.0) == "worse without the motion capture"
-    assert realfair.clock_verdict(-3.0, -1.0) == "better without the motion capture"
-    assert realfair.clock_verdict(np.nan, np.nan).startswith("no verdict")
-
-    def res(tight, loose):
-        rows = {"UWB-only": (0.01, -0.02, 0.03), "EKF + gate": (0.02, -0.01, 0.04), "tight": tight, "loose": loose,
-                "INS-only": (200.0, 100.0, 300.0)}
-        t = pd.DataFrame({m: {"motion-capture clock (m)": 0.05, "ranges clock (m)": 0.05 + c / 1e3, "change (mm)": c,
-                              "lo (mm)": lo, "hi (mm)": hi, "epochs": 900} for m, (c, lo, hi) in rows.items()}).T
-        return {"offsets": {"truth_s": -0.44, "ranges_s": -0.48, "peak": 0.8, "rival": 0.6, "halves_s": (-0.47, -0.49)},
-                "start_s": (22.0, 22.05),
-                "table": t}
-
-    class NoTuning:                                         # a board whose methods tuned nothing
-        methods = ()
-    rows = realfair.summary_rows(NoTuning(), res((0.1, -0.2, 0.5), (2.5, 1.0, 4.0)), data="x", cal_label="c")
-    assert [r["unit"] for r in rows] == ["ms"] + ["mm"] * 6 and rows[0]["value"] == pytest.approx(-40.0)
-    q = "horizontal RMSE change of tight with the IMU clock from the ranges"     # the table's cells, interval too
+def test_clock_rows_are_the_cells_of_the_clock_table():
+    """The IMU clock's rows: the offset, and per IMU filter but INS-only the change (ranges clock − motion capture)
+    with its interval ends, read from the board's difference table of ``m (ranges clock)`` against ``m``."""
+    clock = pd.DataFrame([{"A": f"{m} (ranges clock)", "B": m, "A − B (mm)": c, "95 % low (mm)": lo,
+                           "95 % high (mm)": hi} for m, (c, lo, hi) in
+                          {"loose": (2.5, np.nan, np.nan), "tight": (0.1, -0.2, 0.5), "INS-only": (9.0, 1.0, 20.0)}.items()])
+    rows = realdata._clock_rows(clock, -40.0, "x")
+    assert [r["unit"] for r in rows] == ["ms", "mm", "mm", "mm", "mm"] and rows[0]["value"] == -40.0
+    q = "horizontal RMSE change of tight with the IMU clock from the ranges"
     assert {r["quantity"]: r["value"] for r in rows if r["quantity"].startswith(q)} == {
         q: 0.1, q + ", 95 % interval low": -0.2, q + ", 95 % interval high": 0.5}
+    assert not any("INS-only" in r["quantity"] for r in rows)
 
 
 def test_figures_draw_truth_only_where_it_exists_and_keep_uwb_spikes_off_the_axes():

@@ -97,3 +97,36 @@ def test_uwb_ins_adapter_estimates_equal_notebook_05s_comparison(tmp_path):
         assert want.has_estimate.sum() > 50 and not np.delete(got.has_estimate, idx).any()
         np.testing.assert_array_equal(got.pos_m[idx], want.pos_m, err_msg=est.kind)
         np.testing.assert_array_equal(got.status[idx], want.status, err_msg=est.kind)
+
+
+def test_an_ekf_with_knobs_tunes_the_fusion_filters_pairs_about_its_fitted_motion_and_the_calibrated_noise():
+    """``knobs``: each (Q ×, R ×) point is the EKF at σ_w = √(Q ×) × the σ_w fitted to the calibration truth, with
+    every range σ × √(R ×); the pick is the lowest mean RMSE, its edge knobs named; ``estimate`` runs the pick."""
+    from uwbwb.scoreboard.estimators import INS_GRID, RangeEkfEstimator, default_estimators, edge_knobs
+    from uwbwb.scoreboard.reference import REFERENCE
+
+    rec, cal = _office()
+    tags = list(rec.tags)
+    with pytest.raises(ValueError, match="fitted to the calibration truth"):
+        TdoaEkfEstimator("RW", gate_prob=None, knobs=((1.0, 1.0),)).tune(rec, tags, cal)
+    cal = cal.with_tuned(REFERENCE, {"sigma_w_per_model": {"RW": 0.5}})
+    grid = ((0.1, 1.0), (1.0, 1.0), (1.0, 2.25), (1.0, 4.0), (100.0, 4.0))
+    p = TdoaEkfEstimator("RW", gate_prob=None, knobs=grid).tune(rec, tags, cal)
+    for (q, r), rmse in zip(grid, p["grid_rmse_m"]):
+        noisier = replace(cal, range_sigma_m={t: s * np.sqrt(r) for t, s in cal.range_sigma_m.items()})
+        plain = TdoaEkfEstimator("RW", gate_prob=None, grid=(0.5 * np.sqrt(q),)).tune(rec, tags, noisier)
+        assert rmse == pytest.approx(plain["grid_rmse_m"][0], rel=1e-12)
+    best = int(np.argmin(p["grid_rmse_m"]))
+    assert (p["q_scale"], p["r_scale"]) == grid[best] and p["sigma_w"] == pytest.approx(0.5 * np.sqrt(grid[best][0]))
+    assert p["edge_knobs"] == edge_knobs(grid, best) and p["grid_edge"] == bool(p["edge_knobs"])
+    assert edge_knobs(grid, 2) == () and edge_knobs(grid, 4) == ("Q × at its highest", "R × at its highest")
+    assert edge_knobs(grid, 1) == ("R × at its lowest",)
+    ekf = TdoaEkfEstimator("RW", gate_prob=None, knobs=grid)
+    tuned = cal.with_tuned(ekf.name, {**p, "q_scale": 1.0, "r_scale": 4.0, "sigma_w": 0.5})
+    noisier = replace(cal.with_tuned(ekf.name, {"sigma_w": 0.5}), range_sigma_m={t: 2.0 * s for t, s in cal.range_sigma_m.items()})
+    np.testing.assert_array_equal(ekf.estimate(rec, tags[0], tuned).pos_m,
+                                  TdoaEkfEstimator("RW", gate_prob=None).estimate(rec, tags[0], noisier).pos_m)
+    ests = default_estimators(fast=False, equal_knobs=True)              # every EKF on the fusion filters' grid
+    ekfs = [e for e in ests if isinstance(e, (TdoaEkfEstimator, RangeEkfEstimator))]
+    assert len(ekfs) == 6 and all(e.knobs == INS_GRID for e in ekfs)
+    assert all(e.knobs is None for e in default_estimators() if isinstance(e, (TdoaEkfEstimator, RangeEkfEstimator)))

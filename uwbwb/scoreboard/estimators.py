@@ -29,6 +29,7 @@ windowed NLS, which run on parts of a recording, place their parts on its epochs
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Mapping
 
@@ -46,6 +47,7 @@ from ..types import Estimates, TdoaLog, Trajectory
 from .interface import (BaseEstimator, Estimator, TUNING_CRITERIA, _NONE, _UP, _range_bound, _tdoa_information,
                         _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge, tdoa_geometry_note, truth_at)
 from .protocol import Calibration
+from .reference import REFERENCE
 from .setnoise_nls import NLS_WINDOWS_S, SetNoiseFilter, WindowNls
 
 __all__ = ["RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "RangeEkfEstimator", "UwbInsFilter", "ExternalEstimates", "INS_GRID", "INS_GRID_FAST",
@@ -124,6 +126,22 @@ EKF_GRIDS = {"RW": np.geomspace(0.05, 5.0, 9), "RF": np.geomspace(0.05, 20.0, 9)
 UPDATES = {"gate": "", "none": "no gate", "robust": "Huber", "cauchy": "Cauchy", "both": "gate + Huber"}
 
 
+def _noisier(cal: Calibration, r_scale: float) -> Calibration:
+    """``cal`` with every range variance multiplied by ``r_scale`` (itself at 1)."""
+    if r_scale == 1.0:
+        return cal
+    return replace(cal, range_sigma_m={t: np.asarray(s, float) * math.sqrt(r_scale) for t, s in cal.range_sigma_m.items()})
+
+
+def edge_knobs(grid: tuple[tuple[float, float], ...], best: int) -> tuple[str, ...]:
+    """The knobs of the pick ``grid[best]`` (a ``(Q ×, R ×)`` pair) that lie on their grid's edge, each named with
+    the end it sits on (``"R × at its highest"``); empty where the pick is inside on both."""
+    q, r = grid[best]
+    qs, rs = sorted({g[0] for g in grid}), sorted({g[1] for g in grid})
+    return tuple(f"{label} at its {'lowest' if v == vals[0] else 'highest'}"
+                 for label, v, vals in (("Q ×", q, qs), ("R ×", r, rs)) if on_grid_edge(vals.index(v), len(vals)))
+
+
 @dataclass(frozen=True)
 class _MotionEkf(BaseEstimator):
     """What the TDoA and the range EKFs share: motion model ``model`` (RW, RF, RJ of notebook 03), its
@@ -134,13 +152,20 @@ class _MotionEkf(BaseEstimator):
     measurements at every epoch and its initial covariance as prior, from the filter's first epoch. ``update``
     picks the measurement update (:data:`UPDATES`; a variant's row name carries its suffix, the default
     ``"gate"`` none), so an ablation row is one argument. A subclass gives the filter (:meth:`_filter`), its run
-    (:meth:`_run`), its initial covariance (:meth:`_prior`) and the information (:meth:`_information`)."""
+    (:meth:`_run`), its initial covariance (:meth:`_prior`) and the information (:meth:`_information`).
+
+    ``knobs``: tune instead the UWB/INS filters' two knobs on their grid of ``(Q ×, R ×)`` pairs (:data:`INS_GRID`),
+    multipliers on the calibrated noise: ``σ_w² = Q × · σ_w,fit²`` (σ_w,fit: this motion model fitted to the
+    calibration truth, :func:`~.reference.fit_reference_motion`) and the range variance ``R × · σ²`` of the board's
+    calibration. ``R ×`` scales the filter's measurement noise only; its bound keeps the calibrated σ (as the UWB/INS
+    filters' bound does)."""
 
     model: str = "RF"
     gate_prob: float | None = 0.9999
     grid: tuple[float, ...] | None = None
     criterion: str = "rmse"
     update: str = "gate"
+    knobs: tuple[tuple[float, float], ...] | None = None
 
     def __post_init__(self):
         if self.update not in UPDATES:
@@ -161,17 +186,32 @@ class _MotionEkf(BaseEstimator):
     def tune(self, rec, tags, cal):
         if self.criterion not in TUNING_CRITERIA:
             raise ValueError(f"{self.name}: criterion must be one of {TUNING_CRITERIA}, got {self.criterion!r}")
-        grid = EKF_GRIDS[self.model] if self.grid is None else np.asarray(self.grid, float)
-        scores = [[_tuning_scores(self._run(rec, t, cal, s), rec, t) for t in tags] for s in grid]
+        if self.knobs is None:
+            grid = EKF_GRIDS[self.model] if self.grid is None else np.asarray(self.grid, float)
+            points = [(float(s), 1.0) for s in grid]
+        else:
+            s0 = cal.params(REFERENCE).get("sigma_w_per_model", {}).get(self.model)
+            if s0 is None:
+                raise ValueError(f"{self.name}: (Q ×, R ×) knobs need the {self.model} model fitted to the calibration "
+                                 "truth (the common bound's fit found too little truth)")
+            grid = tuple((float(q), float(r)) for q, r in self.knobs)
+            points = [(s0 * math.sqrt(q), r) for q, r in grid]
+        scores = [[_tuning_scores(self._run(rec, t, _noisier(cal, r), s), rec, t) for t in tags] for s, r in points]
         mean = {c: tuple(float(np.mean([sc[c] for sc in row])) for row in scores) for c in TUNING_CRITERIA}
         best = int(np.argmin(mean[self.criterion]))
-        return {"sigma_w": float(grid[best]), "grid": tuple(float(g) for g in grid), "criterion": self.criterion,
-                "grid_rmse_m": mean["rmse"], "grid_cep95_m": mean["cep95"], "grid_edge": on_grid_edge(best, len(grid)),
-                "grid_by_tag": {t: {c: tuple(row[k][c] for row in scores) for c in TUNING_CRITERIA}
-                                for k, t in enumerate(tags)}}
+        out = {"sigma_w": points[best][0], "grid": tuple(grid) if self.knobs else tuple(float(g) for g in grid),
+               "criterion": self.criterion, "grid_rmse_m": mean["rmse"], "grid_cep95_m": mean["cep95"],
+               "grid_edge": on_grid_edge(best, len(grid)),
+               "grid_by_tag": {t: {c: tuple(row[k][c] for row in scores) for c in TUNING_CRITERIA}
+                               for k, t in enumerate(tags)}}
+        if self.knobs:
+            knobs = edge_knobs(grid, best)
+            out.update(q_scale=grid[best][0], r_scale=grid[best][1], grid_edge=bool(knobs), edge_knobs=knobs)
+        return out
 
     def estimate(self, rec, tag, cal):
-        return self._run(rec, tag, cal, cal.params(self.name)["sigma_w"])
+        p = cal.params(self.name)
+        return self._run(rec, tag, _noisier(cal, p.get("r_scale", 1.0)), p["sigma_w"])
 
     def bound(self, rec, tag, cal, est):
         log = calibrated_log(rec, tag, cal)
@@ -282,7 +322,8 @@ class RangeEkfEstimator(_MotionEkf):
 INS_REST_S, INS_ALIGN_S = 2.0, 20.0
 #: ``(q_scale, r_scale)`` pairs the UWB/INS filters search on the calibration part (here and in notebook 05):
 #: multipliers on the IMU process-noise (Q × 0.01–100) and the UWB measurement-noise variances (R × 0.1–30), 30
-#: pairs of two knobs where the EKFs search 9 values of one. On the i-ASL drone the former grid (Q × 1–1000,
+#: pairs of two knobs (the EKFs search the same pairs where ``default_estimators(equal_knobs=True)``, else 9 values
+#: of σ_w). On the i-ASL drone the former grid (Q × 1–1000,
 #: R × 1–10) put both filters' picks on its lower Q edge, and a 4 × 4 one (Q × 0.01–10, R × 0.3–10) put them on an
 #: R edge; on this one loose picks (10, 10) and tight (0.1, 0.3), both inside.
 INS_GRID = tuple((q, r) for q in (0.01, 0.1, 1.0, 10.0, 100.0) for r in (0.1, 0.3, 1.0, 3.0, 10.0, 30.0))
@@ -299,7 +340,7 @@ class UwbInsFilter(BaseEstimator):
     ``tune`` is notebook 05's IMU calibration on the calibration recording (each filter keeps its own copy)
     (:func:`~uwbwb.filters.imu_calibration.calibrate_iasl`: sensor axes, accelerometer scale,
     noise densities), then the ``(q_scale, r_scale)`` pair of :data:`INS_GRID` (``grid``; 30 pairs of two knobs,
-    where the EKFs search 9 values of one and have no R ×) that minimises the filter's horizontal
+    which the EKFs search too with ``default_estimators(equal_knobs=True)``) that minimises the filter's horizontal
     RMSE on the calibration part (mean over every usable tag, as the EKFs; the IMU calibration itself
     uses the first tag's truth: one IMU); the ranges are the board's calibrated ones with the board's range
     noise, so the fusion filters get the same UWB information as every other method. ``estimate`` runs
@@ -358,9 +399,7 @@ class UwbInsFilter(BaseEstimator):
                 for q, r in self.grid]
         best = int(np.argmin(cost))
         q, r = self.grid[best]
-        qs, rs = sorted({g[0] for g in self.grid}), sorted({g[1] for g in self.grid})
-        knobs = tuple(f"{label} at its {'lowest' if v == vals[0] else 'highest'}"
-                      for label, v, vals in (("Q ×", q, qs), ("R ×", r, rs)) if on_grid_edge(vals.index(v), len(vals)))
+        knobs = edge_knobs(self.grid, best)
         return {"calibration": imu_cal, "q_scale": float(q), "r_scale": float(r), "grid": tuple(self.grid),
                 "grid_rmse_m": tuple(float(c) for c in cost), "grid_edge": bool(knobs), "edge_knobs": knobs}
 
@@ -495,7 +534,8 @@ class ExternalEstimates(BaseEstimator):
 
 
 def default_estimators(*, fast: bool = False, seed: int = 0, ins_kinds: tuple[str, ...] = ("loose", "tight"),
-                       ins_settings: alignment.FusionSettings = alignment.FusionSettings()) -> list[Estimator]:
+                       ins_settings: alignment.FusionSettings = alignment.FusionSettings(),
+                       equal_knobs: bool = False) -> list[Estimator]:
     """Every method of the package, in the board's order: the snapshot fixes (raw LS, LS, TDoA LS), the EKFs
     RW/RF/RJ on TDoAs and on ranges, the set-noise filters, NLS and the UWB/INS filters. Each says where it does
     not run (the TDoA methods where the TDoAs are uninformative: :func:`~.interface.tdoa_geometry_note`; the
@@ -503,17 +543,20 @@ def default_estimators(*, fast: bool = False, seed: int = 0, ins_kinds: tuple[st
 
     ``ins_kinds`` are the UWB/INS filters on the board (:class:`UwbInsFilter` kinds; notebook 05 adds
     ``"tight (ranges)"`` and ``"INS-only"``), all with ``ins_settings``; they share one IMU calibration.
+    ``equal_knobs``: the EKFs tune the UWB/INS filters' ``(Q ×, R ×)`` pairs (:class:`_MotionEkf` ``knobs``) instead
+    of σ_w alone, so that on a recording with an IMU every filter is tuned on the same two knobs and grid.
 
     ``fast`` shrinks what costs time (particles, tuning grids) for CI-sized runs: every other value
     of each tuning grid (the EKFs' σ_w, on TDoAs and on ranges: 5 of 9; the UWB/INS (q, r) pairs: :data:`INS_GRID_FAST`, 4 of 30); the NLS windows: 2 of 3 (1 and
     2 s: a 0.5 s window holds too few epochs at the low rates FAST runs use); the set-noise KF's σ_d grid
     is searched in full.
     """
+    ins_grid = INS_GRID_FAST if fast else INS_GRID
     ekfs = []
     for kind in (TdoaEkfEstimator, RangeEkfEstimator):
-        ekfs += [kind(m, grid=tuple(float(g) for g in EKF_GRIDS[m][::2]) if fast else None) for m in ("RW", "RF", "RJ")]
+        ekfs += [kind(m, grid=tuple(float(g) for g in EKF_GRIDS[m][::2]) if fast else None,
+                      knobs=ins_grid if equal_knobs else None) for m in ("RW", "RF", "RJ")]
     ins_cache: dict = {}
-    ins_grid = INS_GRID_FAST if fast else INS_GRID
     return [RawLs(), CalibratedLs(), TdoaLs(), *ekfs,
             SetNoiseFilter("KF", seed=seed), SetNoiseFilter("PF", n_particles=200 if fast else 1000, seed=seed),
             WindowNls(windows_s=NLS_WINDOWS_S[1:] if fast else NLS_WINDOWS_S),

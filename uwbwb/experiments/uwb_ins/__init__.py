@@ -1,7 +1,7 @@
 """Notebook 05 (paper 004, UWB/INS fusion): :mod:`.study` (what the notebook runs),
 :mod:`.ablation` (what each ingredient adds, over seeds and model-mismatch cases),
 :mod:`.facts` (the verdicts, computed), :mod:`.headlines` (summary rows and checks),
-:mod:`.realdata` (the real-data table: common epochs, bootstrap differences, NEES/NIS),
+:mod:`.realdata` (the real-data tables, read from the scoreboard),
 :mod:`.figures` (the paper's figures and ours)."""
 
 from . import ablation, facts, headlines, realdata, study

@@ -63,11 +63,10 @@ from ...sim import mismatch as mm
 from ...sim import robot
 from ...types import EstimateStatus, Estimates
 from ...validate import integer, number, probability
-from .scoring import _error_m, _masks, _reacq
 from .study import OUTAGE_START_S
 
 __all__ = ["R_GRID", "FAST_R_GRID", "BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "METRICS", "LADDER", "EKF_Q0",
-           "RECOVERY_S", "AblationConfig", "AblationResult", "check_outage", "check_parameters", "notebook_config",
+           "RECOVERY_S", "RECOVERY_MAX_M", "HOLD_S", "reacquisition_s", "AblationConfig", "AblationResult", "check_outage", "check_parameters", "notebook_config",
            "legs_for_outage", "simulate", "ls_gate", "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci",
            "choose_knobs", "TIE_REL", "FULL_GRID", "FAST_GRID"]
 
@@ -93,8 +92,11 @@ R_GRID = (0.3, 1.0, 3.0, 10.0, 30.0, 100.0)
 #: FAST measurement-noise multipliers (those of :data:`uwbwb.scoreboard.estimators.INS_GRID_FAST`).
 FAST_R_GRID = (1.0, 3.0)
 #: Seconds after an outage scored as "recovery" (not as "dynamic"); also the re-acquisition deadline
-#: (error below :data:`RECOVERY_MAX_M` within this, then held for :data:`~.scoring.HOLD_S`).
+#: (error below :data:`RECOVERY_MAX_M` within this, then held for :data:`HOLD_S`).
 RECOVERY_S = 5.0
+#: Error (m) a filter must get below, and stay below for :data:`HOLD_S` seconds, within :data:`RECOVERY_S` of UWB's
+#: return after the outage to count as re-acquired (:func:`reacquisition_s`; matched world, every seed).
+RECOVERY_MAX_M, HOLD_S = 0.5, 5.0
 #: Scores per row and seed (m; coverage as a fraction of the scored epochs).
 METRICS = ("static_rmse", "static_cov", "dyn_rmse", "dyn_cov", "outage_max", "outage_rmse", "outage_cov",
            "recovery_max", "reacq_s", "nis")
@@ -271,6 +273,49 @@ def gate_table(cfg: AblationConfig) -> pd.DataFrame:
                          "max_gated": pd.Series({r: v[1] for r, v in rows.items()}, dtype="Int64")})
 
 
+def _masks(run: robot.RobotRun, k0: int, recovery_s: float) -> dict:
+    T = len(run.truth)
+    scored = np.arange(T) >= k0
+    if not run.outage.any():
+        return {"all": scored}
+    t = run.truth.t_s
+    t_end = t[run.outage][-1]
+    rec = (t > t_end) & (t <= t_end + recovery_s)
+    return {"all": scored & ~run.outage & ~rec, "outage": scored & run.outage, "recovery": scored & rec}
+
+
+def reacquisition_s(t_s: np.ndarray, err_m: np.ndarray, t_end_s: float, limit_m: float = RECOVERY_MAX_M,
+                    hold_s: float = HOLD_S) -> float:
+    """Seconds from UWB's return after an outage until the error gets below ``limit_m`` and holds.
+
+    UWB returns at the first epoch after ``t_end_s`` (the outage's last epoch); the filter has
+    re-acquired at the first epoch from which the error stays below ``limit_m`` for ``hold_s``
+    seconds, or to the end of the run if that comes first (a missing, non-finite error counts as
+    not below). Returns 0 when it holds from the return, ``inf`` when no such stretch starts
+    (never re-acquired), NaN when no epoch follows the outage. The drift UWB finds on its return
+    is the outage's own score (``outage_max``) and a later excursion the dynamic score's: this is
+    the time to re-acquire, neither the error at return nor what happens long after.
+
+    Parameters
+    ----------
+    t_s, err_m
+        Epoch times (s) and errors (m), shape ``(T,)``, scored epochs only.
+    """
+    t_s, err_m = np.asarray(t_s, float), np.asarray(err_m, float)
+    after = t_s > t_end_s
+    if not after.any():
+        return np.nan
+    t, e = t_s[after], err_m[after]
+    ok = e < limit_m
+    # stretches of consecutive epochs below the limit: [starts[i], ends[i]) in epoch indices
+    edge = np.diff(np.r_[0, ok.astype(np.int8), 0])
+    starts, ends = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1)
+    held = (t[ends - 1] - t[starts] >= hold_s) | (ends == t.size)
+    if not held.any():
+        return math.inf
+    return float(t[starts[np.argmax(held)]] - t[0])
+
+
 def simulate(scenario: str, world: robot.RobotConfig, cfg: AblationConfig, seed: int) -> robot.RobotRun:
     """The ``"static"`` or ``"dynamic"`` (with outage) run of scoring/tuning seed ``seed`` in ``world``.
 
@@ -405,7 +450,7 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, tuple[float, float]], c
         pos, k0, counts[scen] = run_methods(run, model, knobs, cfg, rows)
         masks = _masks(run, k0, cfg.recovery_s)
         truth = run.truth.pos_m[:, :2]
-        err = {r: _error_m(pos[r], truth) for r in pos}
+        err = {r: np.linalg.norm(pos[r] - truth, axis=1) for r in pos}      # NaN where the row has no estimate
         for what, a, b in LADDER:
             if a in pos and b in pos:
                 p = pairs.setdefault(what, {})
@@ -426,7 +471,8 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, tuple[float, float]], c
                 o = own["outage"].stats(own={"rmse": rmse, "max": np.max})
                 s["outage_rmse"], s["outage_max"], s["outage_cov"] = o["rmse"], o["max"], own["outage"].coverage
                 s["recovery_max"] = own["recovery"].stats(own={"max": np.max})["max"]
-                s["reacq_s"] = _reacq(run, k0, pos[r], truth)
+                if run.outage.any():
+                    s["reacq_s"] = reacquisition_s(run.truth.t_s[k0:], err[r][k0:], float(run.truth.t_s[run.outage][-1]))
                 s["nis"] = counts[scen]["nis"].get(r, np.nan)
     return {"scores": scores, "counts": counts, "pairs": pairs}
 
@@ -438,7 +484,7 @@ def _tune_task(row: str, knob: tuple[float, float], cfg: AblationConfig, seed: i
     for scen in ("static", "dynamic"):
         run = simulate(scen, cfg.model, cfg, seed)
         pos, k0, counts = run_methods(run, cfg.model, {row: knob}, cfg, (row,))
-        parts.append(score_epochs({row: _error_m(pos[row], run.truth.pos_m[:, :2])},
+        parts.append(score_epochs({row: np.linalg.norm(pos[row] - run.truth.pos_m[:, :2], axis=1)},
                                   _masks(run, k0, cfg.recovery_s)["all"]))
         if scen == "dynamic":
             nis = float(counts["nis"].get(row, np.nan))

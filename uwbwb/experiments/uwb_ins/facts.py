@@ -13,7 +13,7 @@ Rules
   both ratios over the same seeds (the case's).
 * A row **diverged** in a mismatch case when its dynamic RMSE or its max error in the recovery
   after the outage (mean over the case's seeds) exceeds :data:`DIVERGED_FACTOR` × its matched
-  value on the same seeds *and* the re-acquisition limit :data:`~.scoring.RECOVERY_MAX_M`: a failure,
+  value on the same seeds *and* the re-acquisition limit :data:`~.ablation.RECOVERY_MAX_M`: a failure,
   not a degradation, and named as such (a centimetre error ten times a millimetre one is not a failure).
 * A ladder step's verdict is **edge-bound** when either side's tuning pick lies on an edge of its grid
   (:func:`~.ablation.choose_knobs`): the ratio then compares a filter whose best knob may lie off the grid, and
@@ -33,9 +33,8 @@ import numpy as np
 import pandas as pd
 
 from ...metrics import interval_side
-from .ablation import AblationResult, EKF_TDOA_GATE, LADDER, choose_knobs
+from .ablation import HOLD_S, RECOVERY_MAX_M, AblationResult, EKF_TDOA_GATE, LADDER, choose_knobs
 from .ladder import eq4_path, eq4_thresholds, pair_rmse
-from .scoring import HOLD_S, RECOVERY_MAX_M
 
 __all__ = ["DIVERGED_FACTOR", "verdict", "facts", "verdict_table"]
 
@@ -64,7 +63,7 @@ def _gated(rows) -> list:
 
 
 def _matched_failures(res: AblationResult) -> dict:
-    """Gated rows that did not re-acquire (:func:`~.scoring.reacquisition_s`) within the recovery
+    """Gated rows that did not re-acquire (:func:`~.ablation.reacquisition_s`) within the recovery
     time on some matched seed: row → per-seed re-acquisition times (s)."""
     rec = res.case("matched")["reacq_s"].unstack("method")
     lim = res.config.recovery_s

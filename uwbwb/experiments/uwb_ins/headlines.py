@@ -13,9 +13,8 @@ import numpy as np
 
 from ...models.imu import GRADES
 from ...sim import robot
-from .ablation import DEFAULT_OUTAGE_S, EKF_TDOA_GATE, LADDER, ROWS, AblationResult
+from .ablation import DEFAULT_OUTAGE_S, EKF_TDOA_GATE, HOLD_S, LADDER, RECOVERY_MAX_M, ROWS, AblationResult
 from .ladder import pair_rmse
-from .scoring import HOLD_S, RECOVERY_MAX_M
 
 __all__ = ["ERROR_RANGE_ASSUMPTION", "error_range_assumption", "ablation_rows", "checks", "comparison_rows",
            "comparison_checks"]
@@ -100,7 +99,7 @@ def checks(res: AblationResult) -> list[str]:
        gain: on the epochs both keep, LS and LS + gate are the same fixes (the ladder's ratio 1).
     6. Re-acquisition: in the matched world every gated filter gets below :data:`RECOVERY_MAX_M`
        within :data:`~.ablation.RECOVERY_S` of UWB's return after the outage and holds it for
-       :data:`~.scoring.HOLD_S` (:func:`~.scoring.reacquisition_s`), on every seed: a filter that
+       :data:`~.ablation.HOLD_S` (:func:`~.ablation.reacquisition_s`), on every seed: a filter that
        diverges after the outage fails it however good its mean is. The error UWB finds on its
        return (the outage's drift) is the outage's own score, not this check's; the check's earlier
        reading (max error in the recovery window) is reported beside it by the notebook's sentence. The

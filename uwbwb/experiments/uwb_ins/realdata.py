@@ -1,10 +1,7 @@
-"""Notebook 05's real-data tables (``iasl-uwb-imu``): horizontal, vertical and 3-D error on common
-epochs, and consistency (NEES, NIS), of the methods on a scoreboard (:func:`board_comparison`: the board
-runs and tunes them; these tables read its estimates). Which method is more accurate is the scoreboard's
-verdict (:func:`uwbwb.scoreboard.verdicts.difference_table`), not this module's.
-
-Every method of a :class:`~uwbwb.filters.alignment.Comparison` is scored on the **common epochs**: those
-where the truth exists and every method has an estimate.
+"""Notebook 05's real-data tables (``iasl-uwb-imu``), read from the scoreboard that tunes, runs and scores the
+methods (:func:`uwbwb.scoreboard.score`, the board notebook 06 builds): horizontal, vertical and 3-D error and
+consistency (NEES, NIS) on the board's common epochs, the tight filter's covariance scale, and the summary rows.
+Which method is more accurate is the board's verdict (:func:`uwbwb.scoreboard.verdicts.difference_table`).
 """
 
 from __future__ import annotations
@@ -18,109 +15,124 @@ from ...filters.alignment import Comparison
 from ...scoreboard import Board
 from ...types import Trajectory
 
-__all__ = ["board_comparison", "summary_rows", "common_epochs", "error_table", "consistency_table"]
+__all__ = ["CONSISTENT_POINTS", "board_comparison", "common_table", "nees_inflation", "summary_rows"]
+
+#: The scaled covariance is consistent when its share of epochs inside the ellipse is within this of the level.
+CONSISTENT_POINTS = 0.10
 
 
-def board_comparison(board: Board, tag: str = "tag", methods=None) -> Comparison:
-    """The board's estimates of ``methods`` (default: every method that ran) on ``tag`` as a
-    :class:`~uwbwb.filters.alignment.Comparison` (the container notebook 05's tables and figures read):
-    truth at the board's epochs (``masks["scored"]``: where it exists), and the TDoAs eq. 4 and the tight
-    filter's gate rejected (``rejected``, where the board has a ``tight`` row)."""
-    ents = [e for e in board.ran(tag) if methods is None or e.method in methods]
-    if not ents:
-        raise ValueError(f"{board.label}: no method ran on {tag!r}")
-    t = ents[0].estimates.t_s
+def board_comparison(board: Board, tag: str = "tag") -> Comparison:
+    """The board's estimates on ``tag`` as the :class:`~uwbwb.filters.alignment.Comparison` notebook 05's figures
+    draw: truth where the board scores (``masks["scored"]``), and the TDoAs eq. 4 and the tight filter's gate
+    rejected (``rejected``, where the board has a ``tight`` row)."""
+    ents = board.ran(tag)
     have = ents[0].scoring
-    truth = Trajectory(t, np.where(have[:, None], ents[0].truth_pos_m, 0.0), name="truth")
+    truth = Trajectory(ents[0].estimates.t_s, np.where(have[:, None], ents[0].truth_pos_m, 0.0), name="truth")
     est = {e.method: e.estimates for e in ents}
-    rejected = {}
-    if "tight" in est:
-        info = est["tight"].info
-        rejected = {"eq4": int(np.sum(info.get("n_outliers", 0))), "gated": int(np.sum(info.get("n_gated", 0)))}
-    first = {m: e.t_s[e.has_estimate][0] for m, e in est.items() if e.has_estimate.any()}
+    info = est["tight"].info if "tight" in est else {}
+    rejected = {k: int(np.sum(info[n])) for k, n in (("eq4", "n_outliers"), ("gated", "n_gated")) if n in info}
+    first = [e.t_s[e.has_estimate][0] for e in est.values() if e.has_estimate.any()]
     return Comparison(board.data_label, truth, est, {}, {"scored": have}, rejected, 2,
-                      {"start_s": float(max(first.values())) if first else np.nan})
+                      {"start_s": float(max(first)) if first else np.nan})
 
 
-def common_epochs(comp: Comparison, methods=None) -> np.ndarray:
-    """Epochs scored for every method in ``methods`` (default: all): truth present, estimate present."""
-    sel = comp.masks.get("scored", np.ones(len(comp.truth), bool)).copy()
-    for m in methods or comp.estimates:
-        sel &= np.all(np.isfinite(comp.estimates[m].pos_m), axis=1)
-    return sel
-
-
-def _err(comp: Comparison, m: str) -> np.ndarray:
-    est = comp.estimates[m].pos_m
-    d = est.shape[1]
-    return est - comp.truth.pos_m[:, :d]
-
-
-def error_table(comp: Comparison, methods=None) -> pd.DataFrame:
-    """Horizontal, vertical and 3-D RMSE per method on the common epochs (m), with each method's
-    own coverage of the scored epochs and the common-epoch count: :func:`uwbwb.metrics.score_epochs`."""
-    methods = list(methods or comp.estimates)
-    scored = comp.masks.get("scored", np.ones(len(comp.truth), bool))
-    common = common_epochs(comp, methods)
-    err = {m: _err(comp, m) for m in methods}
-    parts = {"horizontal RMSE (m)": {m: np.linalg.norm(e[:, :2], axis=1) for m, e in err.items()}}
-    if comp.truth.pos_m.shape[1] == 3 and all(e.shape[1] == 3 for e in err.values()):
-        parts["vertical RMSE (m)"] = {m: np.abs(e[:, 2]) for m, e in err.items()}
-        parts["3-D RMSE (m)"] = {m: np.linalg.norm(e, axis=1) for m, e in err.items()}
-    cols = [metrics.score_epochs(e, common).table(common={col: metrics.rmse})[col] for col, e in parts.items()]
-    own = metrics.score_epochs(parts["horizontal RMSE (m)"], scored)
-    return pd.concat(cols + [pd.Series({m.name: m.coverage for m in own}, name="coverage"),
-                             pd.Series(int(common.sum()), index=methods, name="common epochs")], axis=1).rename_axis(None)
-
-
-def consistency_table(comp: Comparison, methods=None, *, prob: float = 0.95) -> pd.DataFrame:
-    """Position NEES (3 dof where the estimate is 3-D) and NIS of every method with a covariance.
-
-    NEES ``eᵀP⁻¹e`` of the position error against the method's own position covariance on the
-    common epochs: its mean (``dof`` if the covariance is honest) and the share of epochs inside
-    the method's own ``prob`` ellipse (``prob`` if honest); and the mean NIS per degree of
-    freedom of its updates (1 if honest) where the method keeps one. The inflation that makes
-    the mean NEES equal to its dof is ``mean NEES / dof`` (a covariance scale).
-    """
-    methods = list(methods or comp.estimates)
-    sel = common_epochs(comp, methods)
+def common_table(board: Board, tag: str = "tag", *, prob: float = 0.95) -> pd.DataFrame:
+    """Per method, on the board's common epochs (truth present, every method has an estimate:
+    :meth:`Board.scores`): horizontal, vertical and 3-D RMSE (:func:`uwbwb.metrics.score_epochs`; the horizontal
+    one is the board's ``rmse_common_m``), the common-epoch count, and for a method with a covariance its mean
+    position NEES (``dof`` if honest: :attr:`~uwbwb.scoreboard.board.Entry.nees`), the share of epochs inside its
+    own ``prob`` ellipse, the inflation ``mean NEES / dof`` and the mean NIS per dof of its updates."""
+    ents = board.ran(tag)
+    common = board.scores(tag).methods[0].common
+    err = {e.method: e.estimates.pos_m - e.truth_pos_m for e in ents}
+    parts = {"horizontal RMSE (m)": {m: np.linalg.norm(d[:, :2], axis=1) for m, d in err.items()},
+             "vertical RMSE (m)": {m: np.abs(d[:, 2]) for m, d in err.items()},
+             "3-D RMSE (m)": {m: np.linalg.norm(d, axis=1) for m, d in err.items()}}
+    t = pd.concat([metrics.score_epochs(e, common).table(common={c: metrics.rmse})[c] for c, e in parts.items()], axis=1)
+    t["common epochs"] = int(common.sum())
     rows = {}
-    for m in methods:
-        est = comp.estimates[m]
-        if est.pos_cov_m2 is None:
+    for e in ents:
+        nees = e.nees[common]
+        if e.estimates.pos_cov_m2 is None or not np.isfinite(nees).any():
             continue
-        e = _err(comp, m)[sel]
-        P = est.pos_cov_m2[sel]
-        ok = np.all(np.isfinite(P.reshape(len(P), -1)), axis=1)
-        if not ok.any():
-            continue
-        dof = e.shape[1]
-        nees = metrics.nees(e, P, ok)[ok]
-        row = {"dof": dof, "mean NEES": float(nees.mean()),
-               f"inside own {prob:.0%} ellipse": float(np.mean(nees <= stats.chi2.ppf(prob, dof))),
-               "covariance inflation for mean NEES = dof": float(nees.mean() / dof)}
-        nis, ndof = est.info.get("nis"), est.info.get("dof")
-        if nis is not None and ndof is not None:
-            row["mean NIS / dof"] = metrics.nis_consistency(nis, ndof, prob)["mean_nis_over_dof"]
-        rows[m] = row
-    return pd.DataFrame(rows).T
+        dof, nees, info = e.estimates.dim, nees[np.isfinite(nees)], e.estimates.info
+        rows[e.method] = {"dof": dof, "mean NEES": nees.mean(), f"inside own {prob:.0%} ellipse":
+                          np.mean(nees <= stats.chi2.ppf(prob, dof)), "covariance inflation": nees.mean() / dof,
+                          "mean NIS / dof": metrics.nis_consistency(info["nis"], info["dof"], prob)["mean_nis_over_dof"]
+                          if "nis" in info else np.nan}
+    return t.join(pd.DataFrame(rows, index=["dof", "mean NEES", f"inside own {prob:.0%} ellipse",
+                                             "covariance inflation", "mean NIS / dof"]).T).rename_axis(None)
 
 
-def summary_rows(comp: Comparison, *, cal_label: str) -> list[dict]:
-    """Summary rows of one real recording: horizontal / vertical / 3-D RMSE per method on the
-    common epochs (``RMSE {method} (calibrated on …)``: the horizontal one, as :func:`error_table` shows it, not
-    on each method's own epochs) and each method's mean NEES (the verdicts between methods are the scoreboard's)."""
-    data = comp.label
-    t = error_table(comp)
-    out = [dict(quantity=f"RMSE {m} (calibrated on {cal_label})", value=v, unit="m", data=data, kind="reproduced")
-           for m, v in t["horizontal RMSE (m)"].items() if np.isfinite(v)]
-    for m in t.index:
-        for col in ("horizontal RMSE (m)", "vertical RMSE (m)", "3-D RMSE (m)"):
-            if col in t.columns and np.isfinite(t.loc[m, col]):
-                out.append(dict(quantity=f"{col.split(' (')[0]} {m}, common epochs (calibrated on {cal_label})",
-                                value=t.loc[m, col], unit="m", data=data, kind="reproduced"))
-    c = consistency_table(comp)
-    for m in c.index:
-        out.append(dict(quantity=f"mean position NEES {m} ({int(c.loc[m, 'dof'])} dof)", value=c.loc[m, "mean NEES"],
-                        unit="", data=data, kind="reproduced"))
+def nees_inflation(cal_board: Board, board: Board, method: str = "tight", tag: str = "tag", *,
+                   prob: float = 0.95) -> dict:
+    """The scale ``k`` on ``method``'s position covariance that brings its mean NEES to its dof on the calibration
+    scenario (``cal_board``: the board's ``method`` run there with the board's calibration), applied unchanged on
+    the scored one (``board``, its common epochs): ``k``, the mean NEES before and after the scale, the share inside
+    the ``prob`` ellipse before and after, and ``scaled_consistent`` (that share within :data:`CONSISTENT_POINTS` of
+    ``prob``: the scale transfers)."""
+    cal, test = cal_board.entry(method, tag), board.entry(method, tag)
+    n_cal, n_test = cal.nees[cal.scored], test.nees[board.scores(tag).methods[0].common]
+    n_cal, n_test = n_cal[np.isfinite(n_cal)], n_test[np.isfinite(n_test)]
+    dof, lim = test.estimates.dim, stats.chi2.ppf(prob, test.estimates.dim)
+    k = float(n_cal.mean() / dof)
+    inside = float(np.mean(n_test / k <= lim))
+    return {"dof": dof, "k": k, "nees_cal": float(n_cal.mean()), "nees_test": float(n_test.mean()),
+            "nees_test_scaled": float(n_test.mean() / k), "inside_test": float(np.mean(n_test <= lim)),
+            "inside_test_scaled": inside, "prob": prob, "scaled_consistent": bool(abs(inside - prob) <= CONSISTENT_POINTS)}
+
+
+def _interval_rows(quantity: str, row, columns: tuple[str, str, str], data: str) -> list[dict]:
+    """A value (mm) and the ends of its 95 % interval as three summary rows (``quantity``, then ``…, 95 % interval
+    low`` / ``high``), read from ``row[columns]`` (value, low, high); a non-finite one is left out."""
+    tails = ("", ", 95 % interval low", ", 95 % interval high")
+    return [dict(quantity=quantity + tail, value=float(row[col]), unit="mm", data=data, kind="reproduced")
+            for tail, col in zip(tails, columns) if np.isfinite(row[col])]
+
+
+def _clock_rows(clock: pd.DataFrame, offset_ms: float, data: str) -> list[dict]:
+    """The IMU clock offset from the ranges minus from the motion capture (ms), and each IMU filter's RMSE change
+    with the ranges' clock, with its interval ends: the cells of ``clock`` (a difference table of ``m (ranges
+    clock)`` against ``m``; INS-only, no UWB, left out)."""
+    out = [dict(quantity="IMU clock offset from the ranges minus from the motion capture", value=float(offset_ms),
+                unit="ms", data=data, kind="reproduced")]
+    for _, r in clock[clock["B"] != "INS-only"].iterrows():
+        out += _interval_rows(f"horizontal RMSE change of {r['B']} with the IMU clock from the ranges", r,
+                              ("A − B (mm)", "95 % low (mm)", "95 % high (mm)"), data)
+    return out
+
+
+def summary_rows(board: Board, *, cal_label: str, cal_data: str, rate_hz: float, verdicts=None, clock=None,
+                 clock_offset_ms: float = np.nan, inflation: dict | None = None) -> list[dict]:
+    """Summary rows of the real-data section, each a cell of a table the notebook shows (kind *reproduced*):
+    :func:`common_table`'s RMSEs and mean NEES, each tuned filter's ``Q ×`` and ``R ×`` (a tuning output on
+    ``cal_data``), the covariance scale (:func:`nees_inflation`), the TDoAs the tight filter rejected, the IMU clock
+    offset from the ranges and each IMU filter's RMSE change with it (``clock``: a difference table of ``m (ranges
+    clock)`` against ``m``), and the board's differences (``verdicts``), each with its 95 % interval ends."""
+    data, t = board.data_label, common_table(board)
+
+    def add(quantity, value, unit="m", d=data):
+        return dict(quantity=quantity, value=float(value), unit=unit, data=d, kind="reproduced")
+
+    out = [add(f"RMSE {m} (calibrated on {cal_label})", v) for m, v in t["horizontal RMSE (m)"].items() if np.isfinite(v)]
+    out += [add(f"{c.split(' (')[0]} {m}, common epochs (calibrated on {cal_label})", t.loc[m, c]) for m in t.index
+            for c in ("horizontal RMSE (m)", "vertical RMSE (m)", "3-D RMSE (m)") if np.isfinite(t.loc[m, c])]
+    out += [add(f"mean position NEES {m} ({int(r['dof'])} dof)", r["mean NEES"], "") for m, r in t.iterrows()
+            if np.isfinite(r.get("mean NEES", np.nan))]
+    for name in board.methods:
+        p = board.calibration.params(name)
+        out += [add(f"{name} {knob} multiplier (lowest horizontal RMSE on {cal_label} over a {len(p['grid'])}-point "
+                    f"grid{', on its edge' if p['grid_edge'] else ''}: a tuning output)", p[key], "", cal_data)
+                for knob, key in (("Q", "q_scale"), ("R", "r_scale")) if key in p]
+    if inflation:
+        out += [add(f"tight covariance scale for mean NEES = dof (fitted on {cal_label}: mean NEES / dof there)",
+                    inflation["k"], ""), add("mean position NEES tight after that scale", inflation["nees_test_scaled"], "")]
+    rej = board_comparison(board).rejected
+    if rej:
+        out.append(add("TDoAs rejected by eq4 + gate", rej["eq4"] + rej["gated"], ""))
+    if clock is not None:
+        out += _clock_rows(clock, clock_offset_ms, data)
+    for _, r in (verdicts.iterrows() if verdicts is not None else ()):
+        out += _interval_rows(f"horizontal RMSE difference {r['A']} − {r['B']} (scoreboard, {rate_hz:g} Hz)", r,
+                              ("A − B (mm)", "95 % low (mm)", "95 % high (mm)"), r["recording"])
     return out
