@@ -4,7 +4,7 @@ piece of a LIAS dynamic run as a walk.
 :func:`run_static_poses` localises every tag of every pose with every heuristic and the point-based
 baseline at the tag's mount height; :func:`run_dynamic_segments` fits ``(P0, v)`` to each straight
 piece (:func:`uwbwb.geometry.straight_segments`). Both return an epoch table for
-:func:`.scoring.epoch_summary`.
+:func:`uwbwb.metrics.epoch_summary`.
 """
 
 from __future__ import annotations

@@ -1,10 +1,9 @@
-"""Notebook 02's scoring: estimator names, coverage beside accuracy, the per-estimator tables.
+"""Notebook 02's scoring: estimator names and the per-estimator table.
 
 Every comparison of notebook 02 scores its estimators on one *epoch table* (one row per estimator
-and scored epoch, ``err_m`` NaN where the estimator produced nothing); :func:`epoch_summary` turns
-it into coverage beside accuracy, :func:`heuristic_summary` condenses stops, walks and packets per
-estimator, :func:`rank_heuristics` ranks the paper's three heuristics and :func:`wins_table` says
-which estimator wins where.
+and scored epoch, ``err_m`` NaN where the estimator produced nothing); :func:`uwbwb.metrics.epoch_summary`
+(``by="heuristic", order=ESTIMATORS``) turns it into coverage beside accuracy, :func:`heuristic_summary`
+condenses stops, walks and packets per estimator.
 """
 
 from __future__ import annotations
@@ -15,8 +14,8 @@ import pandas as pd
 from ... import metrics
 from ...filters.pruning import HEURISTICS, LABELS as HEURISTIC_LABELS
 
-__all__ = ["ESTIMATORS", "LABELS", "MIN_SEGMENT_RANGES", "PAPER_RANKING", "POINT", "bearing_deg", "epoch_summary",
-           "hanyang_table", "heading_err_deg", "heuristic_summary", "rank_heuristics", "wins_table"]
+__all__ = ["ESTIMATORS", "LABELS", "MIN_SEGMENT_RANGES", "PAPER_RANKING", "POINT", "bearing_deg", "heading_err_deg",
+           "heuristic_summary"]
 
 #: The point-based baseline's name in the tables: one multilateration per packet/epoch.
 POINT = "point"
@@ -28,15 +27,6 @@ LABELS = {**HEURISTIC_LABELS, POINT: "point-based (per packet)"}
 PAPER_RANKING = ("residual", "robust_mean", "percentile")
 #: Fewer ranges than this in a segment: no NLS fit (the segment's epochs count as not covered).
 MIN_SEGMENT_RANGES = 12
-
-
-def epoch_summary(epochs: pd.DataFrame) -> pd.DataFrame:
-    """Coverage beside accuracy per estimator (:func:`uwbwb.metrics.epoch_summary`, :data:`ESTIMATORS` order).
-
-    ``epochs`` has one row per estimator (column ``heuristic``) and scored epoch, with
-    ``err_m`` NaN where the estimator produced no position.
-    """
-    return metrics.epoch_summary(epochs, by="heuristic", order=ESTIMATORS)
 
 
 def bearing_deg(dxy: np.ndarray) -> np.ndarray:
@@ -59,7 +49,7 @@ def heuristic_summary(stops: pd.DataFrame, moves: pd.DataFrame | None = None,
     ``stop_err_z_median_m`` (median absolute height error), ``stop_err_z_bias_m``
     (median signed, positive = too high) and ``stop_err_3d_median_m`` when the stops
     carry height errors); with ``moves``: ``n_walks, vel_err_median_mps, speed_ratio_median,
-    heading_err_median_deg``; with ``track`` (see :func:`epoch_summary`):
+    heading_err_median_deg``; with ``track`` (see :func:`uwbwb.metrics.epoch_summary`):
     ``n_epochs, coverage, all_median_m, all_p90_m, all_p90_failed_counted_m`` over
     every packet of stops and walks (stops only for the 5th percentile, which
     ``all_includes_walks`` says), ``walk_median_m, walk_p90_m`` and
@@ -85,7 +75,7 @@ def heuristic_summary(stops: pd.DataFrame, moves: pd.DataFrame | None = None,
                        heading_err_median_deg=m.heading_err_deg.abs().median())
         if track is not None and len(track) and h in set(track["heuristic"]):
             tr = track[track.heuristic == h]
-            s = epoch_summary(tr).iloc[0]
+            s = metrics.epoch_summary(tr, by="heuristic").iloc[0]
             row.update(n_epochs=int(s.n_epochs), coverage=s.coverage, all_median_m=s.median_m, all_p90_m=s.p90_m,
                        all_p90_failed_counted_m=s.p90_failed_counted_m,
                        all_includes_walks=bool((tr["kind"] == "move").any()))
@@ -97,39 +87,3 @@ def heuristic_summary(stops: pd.DataFrame, moves: pd.DataFrame | None = None,
                 row.update(stop_packet_median_m=np.median(sp))
         rows.append(row)
     return pd.DataFrame(rows).set_index("heuristic")
-
-
-def rank_heuristics(table: pd.DataFrame, column: str = "stop_median_m") -> pd.Series:
-    """Rank (1 = best) of the three heuristics present in ``table`` by ``column`` (plain NLS and the
-    point-based baseline excluded, as in the paper's ranking)."""
-    three = [h for h in PAPER_RANKING if h in table.index and np.isfinite(table.loc[h, column])]
-    return table.loc[three, column].rank()
-
-
-
-def hanyang_table(pct: pd.DataFrame) -> pd.DataFrame:
-    """Per condition present (LOS, NLOS): number of files and the median over files of
-    ``median_err_m, pq_err_m, frac_over_1m`` (empty when no file had enough samples)."""
-    cols = ["median_err_m", "pq_err_m", "frac_over_1m"]
-    if pct.empty:
-        return pd.DataFrame(columns=["n_files", *cols])
-    t = pct.groupby("condition")[cols].median()
-    t.insert(0, "n_files", pct.groupby("condition").size())
-    return t
-
-
-# =========================================================================== tables for the notebook
-
-
-def wins_table(entries: dict) -> pd.DataFrame:
-    """Which estimator wins where: ``entries`` maps a row name to a Series of errors per estimator.
-
-    Adds ``best of all`` (every estimator present) and ``best heuristic`` (among the
-    three heuristics) columns, by label.
-    """
-    t = pd.DataFrame(entries).T
-    t = t.reindex(columns=[h for h in ESTIMATORS if h in t.columns])
-    t["best of all"] = t[[h for h in ESTIMATORS if h in t.columns]].idxmin(axis=1).map(LABELS)
-    three = [h for h in PAPER_RANKING if h in t.columns]
-    t["best heuristic"] = t[three].idxmin(axis=1).map(LABELS)
-    return t

@@ -15,13 +15,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ... import validate
+from ... import metrics, validate
 from ...calibration import fit_range_calibration, tag_mount_height
 from ...filters.pruning import PruningConfig
 from ...geometry import straight_segments
 from ...types import Recording
 from .real import DynamicResult, run_dynamic_segments, run_static_poses
-from .scoring import epoch_summary, heuristic_summary
+from .scoring import ESTIMATORS, heuristic_summary
 from .study import loso_calibrations, range_error_stats
 
 __all__ = ["LiasDynamic", "LiasStatic", "lias_dynamic", "lias_static"]
@@ -112,7 +112,7 @@ def lias_static(recordings, *, label: str, tags, config: PruningConfig, stride: 
         runs["calibrated (LOSO)"] = run_static_poses(recs, calibrations=loso_calibrations(recs, stride=10), **kw)
     return LiasStatic(label, recs, mount, range_error_stats(recs, tags=tags), runs,
                       pd.concat({k: heuristic_summary(v.poses) for k, v in runs.items()}),
-                      {k: epoch_summary(v.epochs) for k, v in runs.items()})
+                      {k: metrics.epoch_summary(v.epochs, by="heuristic", order=ESTIMATORS) for k, v in runs.items()})
 
 
 @dataclass(frozen=True)
@@ -157,10 +157,6 @@ class LiasDynamic:
         return first + "\ncalibration from the static poses: " + (
             "yes" if self.calibration is not None else "no (anchors differ, or not asked for)")
 
-    def coverage_table(self) -> pd.DataFrame:
-        """Epoch summaries of every run with the run coverage beside them."""
-        return pd.concat({k: e.assign(run_coverage=c) for k, (e, c) in self.epochs.items()})
-
 
 def lias_dynamic(recording: Recording, static: LiasStatic, *, tags, config: PruningConfig, stride: int,
                  calibrated: bool = True) -> LiasDynamic:
@@ -193,6 +189,7 @@ def lias_dynamic(recording: Recording, static: LiasStatic, *, tags, config: Prun
     runs = {k: v for k, v in runs.items() if len(v.pieces)}
     cols = ["start_err_m", "mean_err_m", "vel_err_mps", "speed_ratio"]
     table = pd.concat({k: v.pieces.groupby("heuristic")[cols].median() for k, v in runs.items()}) if runs else None
-    epochs = {k: (epoch_summary(v.epochs), v.run_coverage) for k, v in runs.items()}
+    epochs = {k: (metrics.epoch_summary(v.epochs, by="heuristic", order=ESTIMATORS), v.run_coverage)
+              for k, v in runs.items()}
     return LiasDynamic(recording, segs, cal, runs, table, epochs)
 

@@ -19,7 +19,7 @@ Everything the notebook computes, grouped by data:
 Every estimator of one comparison gets the same geometry (node height known, or not
 at all) and is scored on the same epochs: each result carries an *epoch table* (one
 row per estimator and scored epoch, ``err_m`` NaN where the estimator produced
-nothing) that :func:`epoch_summary` turns into coverage beside accuracy.
+nothing) that :func:`uwbwb.metrics.epoch_summary` turns into coverage beside accuracy.
 """
 
 
@@ -36,10 +36,10 @@ from ...filters.pruning import HEURISTICS, PruningConfig, localize
 from ...geometry import point_fixes
 from ...sim import tours as tours_mod
 from ...types import RangeLog, RangeSamples, Recording
-from .scoring import MIN_SEGMENT_RANGES, POINT, bearing_deg, heading_err_deg, heuristic_summary
+from .scoring import MIN_SEGMENT_RANGES, POINT, bearing_deg, heading_err_deg
 
-__all__ = ["SyntheticConfig", "SyntheticResult", "loso_calibrations", "outlier_free_control", "range_error_stats", "run_recordings", "run_synthetic",
-           "run_tour", "segment_ranges", "sensitivity", "EXCESS_FACTORS", "nlos_excess_sensitivity"]
+__all__ = ["EXCESS_FACTORS", "SyntheticConfig", "SyntheticResult", "loso_calibrations", "nlos_excess_sensitivity",
+           "range_error_stats", "run_recordings", "run_synthetic", "run_tour", "sensitivity"]
 
 # =========================================================================== synthetic
 
@@ -122,13 +122,6 @@ class SyntheticResult:
     dim: int = 2
 
 
-def segment_ranges(log: RangeLog, seg: tours_mod.Segment, *, period_s: float, skip_first_packet: bool = True
-                   ) -> RangeLog:
-    """The packets stamped inside a segment (optionally without the first one)."""
-    start = seg.t_start_s + (period_s if skip_first_packet else 0.0)
-    return log.between(start, seg.t_end_s)
-
-
 def _track_rows(rec, tag, seg, kind, h, t_s, err_m, err_z_m) -> pd.DataFrame:
     n = len(t_s)
     return pd.DataFrame({"experiment": rec.name, "tag": tag, "segment": seg.index, "kind": kind, "heuristic": h,
@@ -154,8 +147,8 @@ def run_tour(rec: Recording, truth: tours_mod.TourTruth, config: SyntheticConfig
     for tag in tags:
         z_known = float(rec.meta["node_heights_m"][tag]) if dim == 2 else None
         for seg in truth.segments:
-            log = segment_ranges(rec.ranges[tag], seg, period_s=tcfg.period_s,
-                                 skip_first_packet=config.skip_first_packet)
+            log = rec.ranges[tag].between(seg.t_start_s + (tcfg.period_s if config.skip_first_packet else 0.0),
+                                          seg.t_end_s)
             if len(log) == 0:
                 continue
             still = seg.kind == "stop"
@@ -251,20 +244,17 @@ def run_synthetic(config: SyntheticConfig = SyntheticConfig(), *, rng: np.random
 
 
 def sensitivity(config: SyntheticConfig, dwell_s=(0.0, 3.0, 30.0), *, seed: int) -> pd.DataFrame:
-    """Median stationary error per mean NLOS episode length (rows, seconds) and heuristic (columns).
+    """The stops (:attr:`SyntheticResult.stops`, column ``nlos_dwell_s`` added) per mean NLOS episode length.
 
-    Each row simulates the configured tours afresh with ``nlos_dwell_s`` replaced
-    (same seed for every row); the geometry is ``config.pruning.dim``.
+    Each length simulates the configured tours afresh with ``nlos_dwell_s`` replaced (same seed for every
+    length); the geometry is ``config.pruning.dim``.
     """
-    out = {}
+    out = []
     for d in dwell_s:
         c = dataclasses.replace(config, point_baseline=False,
                                 tour=dataclasses.replace(config.tour, nlos_dwell_s=float(d)))
-        r = run_synthetic(c, rng=np.random.default_rng(seed))
-        out[float(d)] = heuristic_summary(r.stops)["stop_median_m"]
-    table = pd.DataFrame(out).T
-    table.index.name = "nlos_dwell_s"
-    return table
+        out.append(run_synthetic(c, rng=np.random.default_rng(seed)).stops.assign(nlos_dwell_s=float(d)))
+    return pd.concat(out, ignore_index=True)
 
 
 #: Factors on the simulated NLOS excess (``TourConfig.nlos_mean_m``) of :func:`nlos_excess_sensitivity`: half,
@@ -277,36 +267,20 @@ def nlos_excess_sensitivity(config: SyntheticConfig, factors=EXCESS_FACTORS, *, 
     """All distance errors of one heuristic as the simulated NLOS excess is scaled.
 
     The mean NLOS excess of the range-error model (``config.tour.nlos_mean_m``, an assumption of the
-    simulator, not a number of the paper) is multiplied by each factor; every row simulates the configured
-    tours afresh from ``seed`` (the same draws whatever the factor), so the row of factor 1 is the
-    comparison's own number when ``seed`` is the comparison's. Returns one row per factor, indexed by
-    ``nlos_mean_m``: ``factor``, ``all_p90_m``, ``all_median_m`` (:func:`heuristic_summary`).
+    simulator, not a number of the paper) is multiplied by each factor; every factor simulates the configured
+    tours afresh from ``seed`` (the same draws whatever the factor), so factor 1 gives the comparison's own
+    packets when ``seed`` is the comparison's. Returns the epoch tables (:attr:`SyntheticResult.track`) of
+    ``heuristic``, one after the other, with columns ``factor`` and ``nlos_mean_m`` added.
     """
-    rows = {}
+    out = []
     for k in factors:
         if not k > 0:
             raise ValueError(f"excess factors must be positive, got {k!r}")
         tour = dataclasses.replace(config.tour, nlos_mean_m=float(k) * config.tour.nlos_mean_m)
         c = dataclasses.replace(config, tour=tour, heuristics=(heuristic,), point_baseline=False)
         r = run_synthetic(c, rng=np.random.default_rng(seed))
-        t = heuristic_summary(r.stops, r.moves, r.track)
-        rows[tour.nlos_mean_m] = {"factor": float(k), "all_p90_m": float(t.loc[heuristic, "all_p90_m"]),
-                                  "all_median_m": float(t.loc[heuristic, "all_median_m"])}
-    table = pd.DataFrame.from_dict(rows, orient="index")
-    table.index.name = "nlos_mean_m"
-    return table
-
-
-def outlier_free_control(config: SyntheticConfig, *, seed: int) -> pd.DataFrame:
-    """The same tours without NLOS (LOS noise, biases and failed ranges kept): what pruning costs
-    when there is nothing to prune.
-
-    Returns :func:`heuristic_summary` (stops, walks, packets) of a fresh simulation
-    with ``p_nlos_in = p_nlos_out = 0``, same geometry, no point-based baseline.
-    """
-    tour = dataclasses.replace(config.tour, p_nlos_in=0.0, p_nlos_out=0.0)
-    r = run_synthetic(dataclasses.replace(config, tour=tour, point_baseline=False), rng=np.random.default_rng(seed))
-    return heuristic_summary(r.stops, r.moves, r.track)
+        out.append(r.track.assign(factor=float(k), nlos_mean_m=tour.nlos_mean_m))
+    return pd.concat(out, ignore_index=True)
 
 
 # =========================================================================== LIAS static poses: calibration
