@@ -67,7 +67,6 @@ def test_pruning_beats_plain_nls_with_nlos_and_same_seed_same_numbers():
         assert table.loc[h, "all_p90_m"] < table.loc["none", "all_p90_m"]
     assert np.isnan(table.loc["percentile", "vel_err_median_mps"])
     assert not table.loc["percentile", "all_includes_walks"] and table.loc["residual", "all_includes_walks"]
-    assert table.loc["residual", "walk_p90_m"] > 0
     best = table.loc[["percentile", "robust_mean", "residual"], "stop_median_m"].min()
     assert best < table.loc["none", "stop_median_m"]
     # every estimator that covers walks is scored on the same packets
@@ -122,32 +121,6 @@ def test_segments_with_too_few_ranges_count_as_not_covered():
     assert cov["none"] < 1.0 and cov["point"] < 1.0
 
 
-def test_sensitivity_returns_the_stops_of_each_episode_length():
-    cfg = _small()
-    sens = ex.study.sensitivity(dataclasses.replace(cfg, heuristics=("none", "residual")), dwell_s=(0.0, 30.0), seed=1)
-    assert sorted(set(sens.nlos_dwell_s)) == [0.0, 30.0] and set(sens.heuristic) == {"none", "residual"}
-    first = sens[sens.nlos_dwell_s == 0.0].drop(columns="nlos_dwell_s").reset_index(drop=True)
-    same = ex.study.run_synthetic(dataclasses.replace(cfg, heuristics=("none", "residual"), point_baseline=False,
-                                                      tour=dataclasses.replace(cfg.tour, nlos_dwell_s=0.0)),
-                                  rng=np.random.default_rng(1)).stops
-    pd.testing.assert_frame_equal(first, same)                      # the same seed at every length
-
-
-def test_nlos_excess_sensitivity_scales_only_the_excess():
-    cfg = _small()
-    ex_t = ex.study.nlos_excess_sensitivity(cfg, (0.5, 1.0, 2.0), seed=1)
-    base = cfg.tour.nlos_mean_m
-    assert sorted(set(ex_t.nlos_mean_m)) == [0.5 * base, base, 2 * base] and sorted(set(ex_t.factor)) == [0.5, 1.0, 2.0]
-    assert set(ex_t.heuristic) == {"residual"}
-    r = ex.study.run_synthetic(cfg, rng=np.random.default_rng(1))        # the same seed: factor 1 gives its packets
-    own = ex.scoring.heuristic_summary(r.stops, r.moves, r.track).loc["residual", "all_p90_m"]
-    p90 = ex_t.groupby("nlos_mean_m")["err_m"].quantile(0.9)
-    assert p90[base] == pytest.approx(own, rel=1e-12)
-    assert p90.is_monotonic_increasing                                   # the same draws, a larger excess
-    with pytest.raises(ValueError, match="positive"):
-        ex.study.nlos_excess_sensitivity(cfg, (0.0,), seed=1)
-
-
 def test_summary_on_a_constructed_table():
     stops = pd.DataFrame({"heuristic": ["none"] * 3 + ["residual"] * 3 + ["percentile"] * 3,
                           "err_m": [1.0, 2.0, 3.0, 0.1, 0.2, 0.3, 0.5, 0.6, 0.9]})
@@ -199,20 +172,6 @@ def test_static_poses_raw_vs_leave_one_site_out_calibration(rng):
         ex.real.run_static_poses(recs, heights_m=None)
 
 
-def test_range_error_stats_find_the_bias_and_the_long_outliers(rng):
-    recs = _static_recordings(rng)
-    st = ex.study.range_error_stats(recs, stride=1)
-    assert len(st) == 6 and (st.bias_m > 0.05).all() and (st.frac_long == 0).all()
-    long = []
-    for r in recs:
-        log = r.ranges["t0"]
-        R = log.range_m.copy()
-        R[::10, 0] += 2.0                                              # 10 % NLOS-like excess on anchor a0
-        long.append(dataclasses.replace(r, ranges={"t0": RangeLog(log.t_s, R, log.anchor_ids, "t0")}))
-    st = ex.study.range_error_stats(long, stride=1).set_index("anchor")
-    assert st.loc["a0", "frac_long"] == pytest.approx(0.1, abs=0.01) and st.loc["a1", "frac_long"] == 0
-
-
 def test_dynamic_segments_on_a_noise_free_tour():
     rec, truth = tours.simulate_tour(dataclasses.replace(tours.TourConfig(tour=1, pace="slow"), **QUIET),
                                      rng=np.random.default_rng(3))
@@ -247,8 +206,6 @@ def test_figures_draw():
     log = rec.ranges["H"].between(0.13, 10.0)
     r = localize(log, rec.anchors, "robust_mean", stationary=True, z_m=2.0)
     ex.figures.plot_robust_mean_cloud(r, truth_xy=tours.TOURS[1][0])
-    assert len(ex.figures.error_cdf_by_heuristic(res.stops)) == 4
-    assert list(ex.figures.error_cdf_by_heuristic(res.track)) == [ex.scoring.LABELS[h] for h in ex.scoring.ESTIMATORS]
     assert ex.figures.heuristic_color("point") != ex.figures.heuristic_color("none")
 
 
@@ -376,7 +333,7 @@ def test_residual_pruning_against_the_point_fixes_on_common_packets(offset_m, ve
     t = ex.verdicts.verdict_table(_syn(track=track))
     row = _row(t, "residual pruning (fixed in advance) vs the point-based fixes")
     assert row.verdict == verdict, row.ours
-    assert "(324 packets; coverage 90 %, 100 %)" in row.ours                    # plain NLS is lower, not picked
+    assert "(324 packets); coverage 90 %, 100 %" in row.ours                    # plain NLS is lower, not picked
     one = ex.verdicts.verdict_table(_syn(track=track[track.experiment == "e0"]))
     assert _row(one, "residual pruning (fixed in advance)").verdict == "no interval"
 
@@ -415,7 +372,7 @@ def test_the_scaled_excess_row_decides_each_excess_by_its_interval(levels_m, ver
 
 @pytest.mark.parametrize("gap_m, dz_m, same, height", [(0.3, 0.8, "same", "too high"),
                                                        (-0.3, -0.8, "changes", "too low"),
-                                                       (None, None, "not resolved", "not resolved")])
+                                                       (None, None, "not resolved", "not significant")])
 def test_the_3d_rows_decide_the_known_order_and_the_height_error_by_intervals(gap_m, dz_m, same, height):
     known = _long({"none": 1.0, "residual": 0.0, "percentile": 0.3})                # known order: residual < percentile
     three = _long({"none": 1.0, "residual": 0.0, "percentile": gap_m}, seed=6)
@@ -432,7 +389,7 @@ def test_the_persistence_row_asks_whether_the_best_stays_best(gap_m, verdict):
     base = _long({"percentile": 0.0, "residual": 0.3, "robust_mean": 0.4}).assign(nlos_dwell_s=3.0)
     long = _long({"percentile": 0.0, "residual": gap_m, "robust_mean": 0.6}, seed=7).assign(nlos_dwell_s=30.0)
     t = ex.verdicts.verdict_table(_syn(), persistence=pd.concat([base, long]))
-    row = _row(t, "the best heuristic at 3 s NLOS episodes (the 5th percentile) still best at 30 s")
+    row = _row(t, "the best heuristic at 3 s NLOS episodes (5th percentile) still best at 30 s")
     assert row.verdict == verdict, row.ours
 
 

@@ -53,11 +53,11 @@ def test_lias_sections_run_the_same_comparison_as_the_runs_they_call(room):
     direct = ex.real.run_static_poses(static, heights_m=st.heights_m, tags=("t0",), config=cfg, stride=50)
     pd.testing.assert_frame_equal(st.table.loc["raw"], ex.scoring.heuristic_summary(direct.poses))
     assert set(st.epochs["raw"].n_epochs) == {st.epochs["raw"].n_epochs.iloc[0]}     # same epochs for all
-    assert "sites ['0', '1']" in st.report()
+    assert set(st.range_stats.tag_id) == {"t0"} and {"median_m", "sigma_m"} <= set(st.range_stats.columns)
     raw_only = ex.sections.lias_static(static, label="x", tags=("t0",), config=cfg, stride=50, loso=False)
-    assert list(raw_only.runs) == ["raw"] and "raw ranges only" in raw_only.report()
+    assert list(raw_only.runs) == ["raw"]
     dy = ex.sections.lias_dynamic(dynamic, raw_only, tags=("t0",), config=cfg, stride=20, calibrated=False)
-    assert dy.calibration is None and list(dy.runs) == ["raw"] and "not asked for" in dy.report()
+    assert dy.calibration is None and list(dy.runs) == ["raw"]
     assert set(dy.table.index.get_level_values(0)) == {"raw"}
     assert dy.label == dynamic.label
     with pytest.raises(ValueError, match="recordings"):

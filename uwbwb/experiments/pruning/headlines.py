@@ -61,10 +61,6 @@ class Results:
     tour: TourConfig | None = None
 
 
-def _fin(x) -> bool:
-    return x is not None and np.isfinite(x)
-
-
 def _ranks(table: pd.DataFrame) -> pd.Series:
     """Rank (1 = best) by median stop error of the paper's three heuristics present (plain NLS and the point-based
     baseline are not ranked, as in the paper)."""
@@ -83,7 +79,7 @@ def rows(results: Results) -> list[dict]:
     out = []
 
     def add(quantity, value, unit, data, paper_value=None):
-        if _fin(value):
+        if value is not None and np.isfinite(value):
             out.append({"quantity": quantity, "value": float(value), "unit": unit, "data": data,
                         "kind": "reproduced", "paper_value": paper_value})
 

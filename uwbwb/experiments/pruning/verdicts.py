@@ -23,11 +23,12 @@ __all__ = ["COLUMNS", "assumption", "noise", "paired", "verdict_table", "wins_ta
 #: The columns of :func:`verdict_table`.
 COLUMNS = ["claim", "paper", "paper kind", "ours", "ours kind", "assumption", "rule", "verdict"]
 
-_NAMES = {"none": "plain NLS", "percentile": "the 5th percentile", "robust_mean": "the robust mean",
-          "residual": "residual pruning", POINT: "the point-based fixes"}
+def _sides(below: str, above: str) -> dict:
+    """Verdicts of a difference ``a − b`` from the side of its interval (:func:`uwbwb.metrics.interval_side`)."""
+    return {"below": below, "above": above, "contains": "not significant", "none": "no interval"}
 
-#: Verdicts of a difference ``a − b`` of two estimators from the side of its interval (``a``: the trajectory fit).
-_NLS = {"below": "NLS better", "above": "NLS worse", "contains": "not significant", "none": "no interval"}
+
+_NLS = _sides("NLS better", "NLS worse")
 #: Verdicts of "90 % of all distance errors under 4 m" from the side of its interval against 4 m.
 _UNDER = {"below": "agrees", "above": "differs", "contains": "not resolved", "none": "no interval"}
 #: The scaled-excess row's verdict from the sides of its intervals (any other mix: not resolved).
@@ -37,10 +38,6 @@ _EXCESS = {frozenset({"below"}): "agrees at each", frozenset({"above"}): "differ
 _PAIRED_RULE = "95 % block-bootstrap interval of the median difference vs 0"
 _SEEDS_RULE = ("95 % Student-t interval, over the simulated experiments (independent draws), of their 90th "
                "percentile vs 4 m")
-
-
-def _name(h: str) -> str:
-    return _NAMES.get(h, LABELS.get(h, h))
 
 
 def paired(table: pd.DataFrame, a: str, b: str, series: list[str], *, at: str = "t_s", by: str = "heuristic",
@@ -60,6 +57,12 @@ def _iv(d: dict, digits: int = 2) -> str:
     return f"[{d['lo_m']:+.{digits}f}, {d['hi_m']:+.{digits}f}]" if d["side"] != "none" else "(no interval)"
 
 
+def _pair_text(d: dict, what: str, digits: int = 3) -> str:
+    a, b = (LABELS.get(d[k], d[k]) for k in ("a", "b"))
+    return (f"{a} {d['median_a_m']:.{digits}f}, {b} {d['median_b_m']:.{digits}f}: {d['diff_m']:+.{digits}f} "
+            f"{_iv(d, digits)} ({d['n']} {what})")
+
+
 def _steps(stops: pd.DataFrame, order, rng, column: str = "err_m") -> list[dict]:
     """Each step ``a < b`` of ``order`` (best first) on the stops both fitted: one series per experiment and node,
     each resampled whole (its stops share the experiment's per-pair range biases)."""
@@ -68,7 +71,7 @@ def _steps(stops: pd.DataFrame, order, rng, column: str = "err_m") -> list[dict]
 
 
 def _steps_text(steps: list[dict]) -> str:
-    return "; ".join(f"{_name(s['a'])} − {_name(s['b'])} {s['diff_m']:+.2f} m {_iv(s)}" for s in steps) + (
+    return "; ".join(f"{LABELS[s['a']]} − {LABELS[s['b']]} {s['diff_m']:+.2f} m {_iv(s)}" for s in steps) + (
         f" ({steps[0]['n']} stops)" if steps else "")
 
 
@@ -130,9 +133,11 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
     tour
         The simulator configuration (named in the ``assumption`` column; None: named without its values).
     persistence
-        :func:`~.study.sensitivity`'s stops (column ``nlos_dwell_s``).
+        Stops (:attr:`~.study.SyntheticResult.stops`) of runs that differ in ``TourConfig.nlos_dwell_s``, which
+        column ``nlos_dwell_s`` holds.
     excess
-        :func:`~.study.nlos_excess_sensitivity`'s packets (column ``nlos_mean_m``).
+        Residual pruning's packets (:attr:`~.study.SyntheticResult.track`) of runs that differ in
+        ``TourConfig.nlos_mean_m``, which column ``nlos_mean_m`` holds.
     lias, lias_dyn
         :func:`~.sections.lias_static` and :func:`~.sections.lias_dynamic` (None: no LIAS rows).
     hanyang
@@ -157,7 +162,7 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
     names = set(syn.stops["heuristic"])
     steps = _steps(syn.stops, [h for h in PAPER_RANKING if h in names], rng)
     add(f"ranking of the heuristics by median stop error, synthetic ({geo})",
-        " < ".join(_name(h) for h in PAPER_RANKING), _steps_text(steps),
+        " < ".join(LABELS[h] for h in PAPER_RANKING), _steps_text(steps),
         "each step of the paper's order: 95 % bootstrap interval of the median difference (block-bootstrap rule, "
         "each experiment's series of stops one block) below 0 (all: as in the paper; one above 0: differs)",
         _steps_verdict([s["side"] for s in steps], "as in the paper", "differs"), syn_a)
@@ -166,9 +171,8 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
         d = paired(track, "residual", POINT, ["experiment", "tag"], blocks="segment", rng=rng)
         cov = track.groupby("heuristic")["err_m"].apply(lambda e: e.notna().mean())
         add("residual pruning (fixed in advance) vs the point-based fixes, median of all distance errors on the "
-            "packets both covered (m)", "a slight improvement",
-            f"{d['median_a_m']:.2f} vs {d['median_b_m']:.2f}: {d['diff_m']:+.2f} {_iv(d)} ({d['n']} packets; "
-            f"coverage {100 * cov['residual']:.0f} %, {100 * cov[POINT]:.0f} %)",
+            "packets both covered (m)", "a slight improvement", _pair_text(d, "packets", 2)
+            + f"; coverage {100 * cov['residual']:.0f} %, {100 * cov[POINT]:.0f} %",
             _PAIRED_RULE + " (each experiment and node one block)", _NLS[d["side"]], syn_a)
     if "residual" in set(track["heuristic"]):
         pooled, s = _p90(track[track["heuristic"] == "residual"])
@@ -199,8 +203,7 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
             d["side"] = metrics.interval_side(d["lo_m"], d["hi_m"])
             add("5th percentile in 3-D: median height error (m; > 0: the node sits too high)", "—",
                 f"{d['diff_m']:+.2f} {_iv(d)} ({d['n']} stops)", _PAIRED_RULE + " (each experiment's stops one block)",
-                {"above": "too high", "below": "too low", "contains": "not resolved", "none": "no interval"}[d["side"]],
-                syn_a)
+                _sides("too low", "too high")[d["side"]], syn_a)
     if persistence is not None and persistence["nlos_dwell_s"].nunique() >= 2:
         dwell = sorted(persistence["nlos_dwell_s"].unique())
         base, long = (3.0 if 3.0 in dwell else dwell[0]), dwell[-1]
@@ -209,41 +212,35 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
         best = at[base][at[base]["heuristic"].isin(three)].groupby("heuristic")["err_m"].median().idxmin()
         steps = [paired(at[long], best, h, ["experiment", "tag"], at="segment", blocks="segment", rng=rng)
                  for h in three if h != best]
-        add(f"the best heuristic at {base:g} s NLOS episodes ({_name(best)}) still best at {long:g} s", "—",
+        add(f"the best heuristic at {base:g} s NLOS episodes ({LABELS[best]}) still best at {long:g} s", "—",
             _steps_text(steps), "95 % bootstrap interval of its median difference to each other heuristic at "
             f"{long:g} s (each experiment's stops one block): all below 0 same, one above 0 changes",
             _steps_verdict([s["side"] for s in steps], "same", "changes"), assumption(tour, "dwell"))
+    pairs = []                              # (claim, paired difference, what is counted, rule, verdicts)
     for k, run in (lias.runs.items() if lias is not None else ()):
-        d = paired(run.epochs, "none", POINT, ["recording", "tag"], blocks="segment", rng=rng)
-        add(f"LIAS static, {k} ranges: plain NLS (fixed in advance) vs point fixes, median error on common epochs (m)",
-            "—", f"{d['median_a_m']:.3f} vs {d['median_b_m']:.3f}: {d['diff_m']:+.3f} {_iv(d, 3)} ({d['n']} epochs)",
-            _PAIRED_RULE + " (each pose one block)", _NLS[d["side"]])
+        pairs.append((f"LIAS static, {k} ranges: plain NLS (fixed in advance) vs point fixes, median error on common "
+                      "epochs (m)", paired(run.epochs, "none", POINT, ["recording", "tag"], blocks="segment", rng=rng),
+                      "epochs", " (each pose one block)", _NLS))
     if lias is not None and "calibrated (LOSO)" in lias.runs:
-        poses = pd.concat([lias.runs["calibrated (LOSO)"].poses.query("heuristic == 'none'").assign(heuristic="cal"),
+        poses = pd.concat([lias.runs["calibrated (LOSO)"].poses.query("heuristic == 'none'").assign(heuristic="calibrated"),
                            lias.runs["raw"].poses.query("heuristic == 'residual'")])
-        d = paired(poses, "cal", "residual", ["recording"], at="tag", blocks="segment", rng=rng)
-        add("LIAS static: range calibration (plain NLS) vs residual pruning (raw ranges, fixed in advance), median "
-            "error on the same poses (m)", "—",
-            f"{d['median_a_m']:.3f} vs {d['median_b_m']:.3f}: {d['diff_m']:+.3f} {_iv(d, 3)} ({d['n']} poses)",
-            _PAIRED_RULE + " (each pose one block)",
-            {"below": "calibration better", "above": "pruning better", "contains": "not significant",
-             "none": "no interval"}[d["side"]])
+        pairs.append(("LIAS static: range calibration (plain NLS) vs residual pruning (raw ranges, fixed in advance), "
+                      "median error on the same poses (m)",
+                      paired(poses, "calibrated", "residual", ["recording"], at="tag", blocks="segment", rng=rng),
+                      "poses", " (each pose one block)", _sides("calibration better", "pruning better")))
     for k, run in (lias_dyn.runs.items() if lias_dyn is not None else ()):
-        for a, b, word in (("residual", "none", "residual pruning (fixed in advance) vs plain NLS"),
-                           ("none", POINT, "plain NLS (fixed in advance) vs point fixes")):
-            d = paired(run.epochs, a, b, ["segment", "tag"], rng=rng)
-            add(f"LIAS dynamic, {k} ranges: {word}, median error on common epochs (m)", "—",
-                f"{_name(a)} {d['median_a_m']:.3f}, {_name(b)} {d['median_b_m']:.3f}: {d['diff_m']:+.3f} "
-                f"{_iv(d, 3)} ({d['n']} epochs)", _PAIRED_RULE,
-                _NLS[d["side"]] if b == POINT else {"below": "residual pruning better", "above": "plain NLS better",
-                                                    "contains": "not significant", "none": "no interval"}[d["side"]])
+        pairs += [(f"LIAS dynamic, {k} ranges: residual pruning (fixed in advance) vs plain NLS, median error on "
+                   "common epochs (m)", paired(run.epochs, "residual", "none", ["segment", "tag"], rng=rng), "epochs",
+                   "", _sides("residual pruning better", "plain NLS better")),
+                  (f"LIAS dynamic, {k} ranges: plain NLS (fixed in advance) vs point fixes, median error on common "
+                   "epochs (m)", paired(run.epochs, "none", POINT, ["segment", "tag"], rng=rng), "epochs", "", _NLS)]
     if hanyang is not None and {"LOS", "NLOS"} <= set(hanyang["condition"]):
-        d = paired(hanyang, "NLOS", "LOS", ["height_m"], at="true_range_m", by="condition", column="median_err_m",
-                   blocks="segment", rng=rng)
-        add("Hanyang static: NLOS − LOS median range error, files paired by height and range (m)", "—",
-            f"{d['diff_m']:+.2f} {_iv(d)} ({d['n']} pairs)", _PAIRED_RULE + " (each height one block)",
-            {"above": "NLOS larger", "below": "NLOS smaller", "contains": "not significant",
-             "none": "no interval"}[d["side"]])
+        pairs.append(("Hanyang static: NLOS − LOS median range error, files paired by height and range (m)",
+                      paired(hanyang, "NLOS", "LOS", ["height_m"], at="true_range_m", by="condition",
+                             column="median_err_m", blocks="segment", rng=rng), "pairs", " (each height one block)",
+                      _sides("NLOS smaller", "NLOS larger")))
+    for claim, d, what, blocks, words in pairs:
+        add(claim, "—", _pair_text(d, what), _PAIRED_RULE + blocks, words[d["side"]])
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
