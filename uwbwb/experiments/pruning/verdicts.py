@@ -23,6 +23,7 @@ __all__ = ["COLUMNS", "assumption", "noise", "paired", "verdict_table", "wins_ta
 #: The columns of :func:`verdict_table`.
 COLUMNS = ["claim", "paper", "paper kind", "ours", "ours kind", "assumption", "rule", "verdict"]
 
+
 def _sides(below: str, above: str) -> dict:
     """Verdicts of a difference ``a − b`` from the side of its interval (:func:`uwbwb.metrics.interval_side`)."""
     return {"below": below, "above": above, "contains": "not significant", "none": "no interval"}
@@ -94,7 +95,7 @@ def _p90(track: pd.DataFrame) -> tuple[float, dict]:
 
 def _p90_text(pooled: float, s: dict) -> str:
     per = (f"[{s['lo']:.2f}, {s['hi']:.2f}]" if s["side"] != "none" else "(no interval)")
-    return f"{pooled:.2f} m; mean of {s['n']} experiments' {s['mean']:.2f} m {per}"
+    return f"{pooled:.2f} m; per experiment (n = {s['n']}) {s['mean']:.2f} m {per}"
 
 
 def assumption(tour: TourConfig | None, what: str = "errors") -> str:
