@@ -30,7 +30,7 @@ def _close_figures():
 
 
 def _small():
-    return ex.SyntheticConfig(tours=(2,), paces=("fast",), tags=("H",),
+    return ex.study.SyntheticConfig(tours=(2,), paces=("fast",), tags=("H",),
                               pruning=PruningConfig(dim=2, res_dropout=0.02, rm_dropout=0.05))
 
 
@@ -48,22 +48,22 @@ def room():
 def test_lias_sections_run_the_same_comparison_as_the_runs_they_call(room):
     dynamic, static = room
     cfg = PruningConfig(dim=2)
-    st = ex.lias_static(static, label="lias-planar-uwb/x", tags=("t0",), config=cfg, stride=50)
+    st = ex.sections.lias_static(static, label="lias-planar-uwb/x", tags=("t0",), config=cfg, stride=50)
     assert list(st.runs) == ["raw", "calibrated (LOSO)"] and st.heights_m == pytest.approx({"t0": 0.97}, abs=0.01)
-    direct = ex.run_static_poses(static, heights_m=st.heights_m, tags=("t0",), config=cfg, stride=50)
-    pd.testing.assert_frame_equal(st.table.loc["raw"], ex.heuristic_summary(direct.poses))
+    direct = ex.real.run_static_poses(static, heights_m=st.heights_m, tags=("t0",), config=cfg, stride=50)
+    pd.testing.assert_frame_equal(st.table.loc["raw"], ex.scoring.heuristic_summary(direct.poses))
     assert set(st.epochs["raw"].n_epochs) == {st.epochs["raw"].n_epochs.iloc[0]}     # same epochs for all
-    assert "sites ['0', '1']" in st.report()
-    raw_only = ex.lias_static(static, label="x", tags=("t0",), config=cfg, stride=50, loso=False)
-    assert list(raw_only.runs) == ["raw"] and "raw ranges only" in raw_only.report()
-    dy = ex.lias_dynamic(dynamic, raw_only, tags=("t0",), config=cfg, stride=20, calibrated=False)
-    assert dy.calibration is None and list(dy.runs) == ["raw"] and "not asked for" in dy.report()
+    assert set(st.range_stats.tag_id) == {"t0"} and {"median_m", "sigma_m"} <= set(st.range_stats.columns)
+    raw_only = ex.sections.lias_static(static, label="x", tags=("t0",), config=cfg, stride=50, loso=False)
+    assert list(raw_only.runs) == ["raw"]
+    dy = ex.sections.lias_dynamic(dynamic, raw_only, tags=("t0",), config=cfg, stride=20, calibrated=False)
+    assert dy.calibration is None and list(dy.runs) == ["raw"]
     assert set(dy.table.index.get_level_values(0)) == {"raw"}
-    assert "run_coverage" in dy.coverage_table() and dy.label == dynamic.label
+    assert dy.label == dynamic.label
     with pytest.raises(ValueError, match="recordings"):
-        ex.lias_static([], label="x", tags=("t0",), config=cfg, stride=50)
+        ex.sections.lias_static([], label="x", tags=("t0",), config=cfg, stride=50)
     with pytest.raises(ValueError, match="stride"):
-        ex.lias_static(static, label="x", tags=("t0",), config=cfg, stride=0)
+        ex.sections.lias_static(static, label="x", tags=("t0",), config=cfg, stride=0)
 
 
 # --------------------------------------------------------------------------- headlines
@@ -74,14 +74,14 @@ def _results(*, converged=True, same_walks=True, pruning_wins=True, control_ok=T
     moves = pd.DataFrame({"heuristic": ["none", "residual"], "converged": [True, converged]})
     n = 3 if same_walks else 2
     track = pd.DataFrame({"kind": "move", "heuristic": ["none"] * 3 + ["residual"] * n, "err_m": 0.3})
-    syn = ex.SyntheticResult(stops, moves, track, {})
+    syn = ex.study.SyntheticResult(stops, moves, track, {})
     table = pd.DataFrame({"stop_median_m": [1.0, 0.5, 0.8] if pruning_wins else [1.0, 1.5, 1.2]},
                          index=pd.Index(["none", "residual", "percentile"], name="heuristic"))
     control = pd.DataFrame({"all_median_m": [0.2, 0.22 if control_ok else 0.4, 0.3],
                             "stop_median_m": [0.2, 0.2, 0.5 if control_ok else 0.1]},
                            index=pd.Index(["none", "residual", "percentile"], name="heuristic"))
     epochs = pd.DataFrame({"n_epochs": [10, 10 if lias_same else 9]}, index=["none", "point"])
-    lias = ex.LiasStatic("x", [], None, pd.DataFrame(), {"raw": None}, pd.DataFrame(), {"raw": epochs})
+    lias = ex.sections.LiasStatic("x", [], None, pd.DataFrame(), {"raw": None}, pd.DataFrame(), {"raw": epochs})
     return headlines.Results(syn, table, 2, None, control, lias_static=lias)
 
 
@@ -95,16 +95,16 @@ def test_checks_pass_and_each_one_can_fail():
     assert len(headlines.checks(_results(control_ok=False), fast=True)) == 2      # residual and percentile
 
 
-def test_rows_of_results_are_the_headline_rows():
+def test_rows_of_results_say_their_kind_and_the_3d_rows_only_beside_a_2d_run():
     syn_table = pd.DataFrame({"stop_median_m": [1.2, 0.5, 0.6, 0.4], "all_p90_m": [3.0, 2.0, 2.5, np.nan]},
                              index=pd.Index(["none", "percentile", "robust_mean", "residual"], name="heuristic"))
-    res = headlines.Results(ex.SyntheticResult(pd.DataFrame(), pd.DataFrame(), pd.DataFrame(), {}), syn_table, 2,
-                            syn_table, syn_table)
+    res = headlines.Results(ex.study.SyntheticResult(pd.DataFrame(), pd.DataFrame(), pd.DataFrame(), {}), syn_table,
+                            2, syn_table, syn_table)
     rows = headlines.rows(res)
-    assert rows == ex.headline_rows(synthetic=syn_table, synthetic_dim=2, synthetic_3d=syn_table)
     assert {r["kind"] for r in rows} == {"reproduced"}
     s = uw.metrics.Summary("02_pruning_nls", fast=True)
-    headlines.add_rows(res, s)
+    for r in rows:
+        s.add(**r)
     assert len(s) == len(rows)
     three_d = dataclasses.replace(res, synthetic_dim=3)
     assert not any("(3-D, no height)" in r["quantity"] and "known" in r["quantity"] for r in headlines.rows(three_d))
@@ -164,7 +164,7 @@ def test_polar_note_names_the_worst_stop_and_the_best_heuristic():
 
 def test_panels_offer_only_what_the_run_has():
     cfg = dataclasses.replace(_small(), heuristics=("none", "residual"))
-    xp = ex.TourExplorer(ex.SyntheticResult(pd.DataFrame(), pd.DataFrame(), pd.DataFrame(), {}), cfg, seed=0)
+    xp = ex.panels.TourExplorer(ex.study.SyntheticResult(pd.DataFrame(), pd.DataFrame(), pd.DataFrame(), {}), cfg, seed=0)
     p = panels.tour_panel(xp, res_retention=0.9, rm_retention=0.5)
     opts = {k: c.options for k, c in p.controls.items() if hasattr(c, "options")}
     assert [v for _, v in opts["heuristic"]] == ["none", "residual"]             # the run's heuristics only
@@ -210,7 +210,7 @@ def test_without_nlos_the_fifth_percentile_loses_to_plain_nls():
 def test_polar_charts_state_their_unit_and_angle_convention():
     stops = pd.DataFrame({"heuristic": ["none", "residual"] * 2, "label": ["K0", "K0", "K1", "K1"],
                           "err_m": [0.5, 0.2, 1.0, 0.3], "bearing_deg": [0.0, 90.0, 180.0, -90.0]})
-    fig = ex.plot_polar_errors(stops)
+    fig = ex.figures.plot_polar_errors(stops)
     for ax in fig.axes:
         assert ax.get_title() and "(m)" in ax.get_ylabel() and "°" in ax.get_xlabel()
         assert ax.get_theta_offset() == 0.0 and ax.get_theta_direction() == 1     # 0° = +x, counter-clockwise
@@ -223,7 +223,7 @@ def test_hanyang_histogram_spans_the_data_and_has_a_y_label():
     e = np.r_[rng.normal(0.2, 0.05, 400), rng.normal(0.3, 0.05, 400)]
     samples = pd.DataFrame({"condition": ["LOS"] * 400 + ["NLOS"] * 400, "range_error_m": e, "height_m": 1.0,
                             "true_range_m": 10.0, "range_m": 10.0 + e, "file": ["a"] * 400 + ["b"] * 400})
-    axes = ex.plot_hanyang(samples, calibration.percentile_by_file(samples))
+    axes = ex.figures.plot_hanyang(samples, calibration.percentile_by_file(samples))
     lo, hi = axes[0].get_xlim()
     assert hi - lo < 1.5 * (e.max() - e.min()) and lo < np.percentile(e, 1) and hi > np.percentile(e, 99)
     for ax in axes:
@@ -235,8 +235,8 @@ def test_robust_mean_cloud_draws_the_anchors_when_given(tour2):
 
     rec, truth = tour2
     stop = [s for s in truth.segments if s.kind == "stop"][0]
-    log = ex.segment_ranges(rec.ranges["H"], stop, period_s=rec.meta["config"].period_s)
+    log = rec.ranges["H"].between(stop.t_start_s + rec.meta["config"].period_s, stop.t_end_s)
     r = localize(log, rec.anchors, "robust_mean", PruningConfig(dim=2), stationary=True, z_m=2.0)
-    ax = ex.plot_robust_mean_cloud(r, truth_xy=stop.start_xy_m, anchors=rec.anchors)
+    ax = ex.figures.plot_robust_mean_cloud(r, truth_xy=stop.start_xy_m, anchors=rec.anchors)
     assert "anchors" in [ln.get_label() for ln in ax.lines]
-    assert "anchors" not in [ln.get_label() for ln in ex.plot_robust_mean_cloud(r).lines]
+    assert "anchors" not in [ln.get_label() for ln in ex.figures.plot_robust_mean_cloud(r).lines]

@@ -13,7 +13,7 @@ from ...plotting import color_for, floor_plan
 from ...sim import tours as tours_mod
 from .scoring import ESTIMATORS, LABELS, POINT
 
-__all__ = ["HEURISTIC_MARKERS", "error_cdf_by_heuristic", "heuristic_color", "plot_coverage",
+__all__ = ["HEURISTIC_MARKERS", "heuristic_color", "plot_coverage",
            "plot_error_cdf_percentile", "plot_error_histogram", "plot_hanyang", "plot_polar_errors",
            "plot_robust_mean_cloud", "plot_segment_fits"]
 
@@ -206,13 +206,6 @@ def plot_segment_fits(moves: pd.DataFrame, stops: pd.DataFrame | None = None, ax
     ax.set_ylabel("y (m)")
     ax.legend(fontsize="small", loc="best")
     return ax
-
-
-def error_cdf_by_heuristic(errors: pd.DataFrame, column: str = "err_m") -> dict:
-    """``{label: errors}`` for :func:`uwbwb.plotting.error_cdf`, in estimator order (epochs without a
-    position left out: coverage is reported beside the curves, not drawn)."""
-    return {LABELS[h]: errors.loc[errors.heuristic == h, column].dropna().to_numpy()
-            for h in ESTIMATORS if h in set(errors.heuristic)}
 
 
 def plot_hanyang(samples: pd.DataFrame, pct: pd.DataFrame, axes=None, *, q: float = 5.0) -> np.ndarray:

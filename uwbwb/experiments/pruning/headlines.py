@@ -1,10 +1,9 @@
 """Notebook 02's summary rows and its checks, from one :class:`Results` record of the run.
 
-:func:`headline_rows` declares the rows (quantity, value, unit, data, kind, paper value): every
+:func:`rows` declares the rows (quantity, value, unit, data, kind, paper value): every
 value came out of the method on the run's data (*reproduced*); the paper's statements sit beside
 them as ``paper_value``, never as a pass bound. :func:`checks` lists what the methods must do
-whatever the noise levels (none of them is the paper's number); :func:`add_rows` fills a
-:class:`uwbwb.metrics.Summary`.
+whatever the noise levels (none of them is the paper's number).
 """
 
 from __future__ import annotations
@@ -14,11 +13,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .scoring import LABELS, PAPER_RANKING, POINT, rank_heuristics
+from ...sim.tours import TourConfig
+from .scoring import LABELS, PAPER_RANKING, POINT
 from .sections import LiasDynamic, LiasStatic
 from .study import SyntheticResult
+from .verdicts import noise
 
-__all__ = ["Results", "add_rows", "checks", "headline_rows", "rows"]
+__all__ = ["Results", "checks", "rows"]
 
 
 @dataclass(frozen=True)
@@ -36,13 +37,16 @@ class Results:
     other_table
         The same packets in the other geometry (None: not run).
     control
-        :func:`.study.outlier_free_control` of the same configuration.
+        :func:`.scoring.heuristic_summary` of the same tours without NLOS (the outlier-free control).
     lias_static, lias_dynamic
         :func:`.sections.lias_static` / :func:`.sections.lias_dynamic` (None: no LIAS data).
     hanyang
-        :func:`.scoring.hanyang_table` of the Hanyang static files (None: no data).
+        Per condition (LOS, NLOS) of the Hanyang static files, the median over files of ``median_err_m`` and
+        ``pq_err_m`` (:func:`uwbwb.calibration.percentile_by_file`; None: no data).
     hanyang_label
         Its data label.
+    tour
+        The simulator configuration of the synthetic comparison (its noise is named beside the paper's 4 m).
     """
 
     synthetic: SyntheticResult = field(repr=False)
@@ -54,46 +58,35 @@ class Results:
     lias_dynamic: LiasDynamic | None = field(default=None, repr=False)
     hanyang: pd.DataFrame | None = field(default=None, repr=False)
     hanyang_label: str | None = None
+    tour: TourConfig | None = None
 
 
-def _fin(x) -> bool:
-    return x is not None and np.isfinite(x)
+def _ranks(table: pd.DataFrame) -> pd.Series:
+    """Rank (1 = best) by median stop error of the paper's three heuristics present (plain NLS and the point-based
+    baseline are not ranked, as in the paper)."""
+    three = [h for h in PAPER_RANKING if h in table.index and np.isfinite(table.loc[h, "stop_median_m"])]
+    return table.loc[three, "stop_median_m"].rank()
 
 
-def headline_rows(*, synthetic: pd.DataFrame, synthetic_dim: int, synthetic_3d: pd.DataFrame | None = None,
-                  lias_static: dict | None = None, static_label: str | None = None,
-                  lias_dynamic: dict | None = None, dyn_label: str | None = None,
-                  hanyang: pd.DataFrame | None = None, hy_label: str | None = None) -> list[dict]:
-    """The notebook's headline numbers as ``Summary.add`` keyword dicts, each with its ``kind``.
+def rows(results: Results) -> list[dict]:
+    """The notebook's headline numbers as :meth:`uwbwb.metrics.Summary.add` keyword dicts, each with its kind.
 
-    Every value here came out of the method on the run's data (``kind="reproduced"``);
-    the paper's statements sit beside them as ``paper_value`` (the ranking, "90 %
-    under 4 m"), never as a pass bound.
-
-    Parameters
-    ----------
-    synthetic
-        :func:`heuristic_summary` of the fair synthetic comparison (stops, walks, track).
-    synthetic_dim
-        Its geometry (2: known mount height, 3: no height).
-    synthetic_3d
-        Optionally the other geometry's summary (3-D rows: horizontal and height errors).
-    lias_static
-        ``{"raw": (heuristic_summary, epoch_summary), "LOSO calibrated": (...)}``.
-    lias_dynamic
-        ``{ranges: (pieces median table, epoch_summary, run_coverage)}``.
-    hanyang
-        :func:`hanyang_table`.
+    Every value came out of the method on the run's data (``kind="reproduced"``); the paper's statements sit
+    beside them as ``paper_value`` (the ranking, "90 % under 4 m"), never as a pass bound. Residual pruning's
+    90th percentile, set beside the paper's 4 m, names the simulated noise it follows from. The 3-D rows come only
+    when the ranked comparison is 2-D (``other_table`` is then 3-D).
     """
-    rows = []
+    out = []
 
     def add(quantity, value, unit, data, paper_value=None):
-        if _fin(value):
-            rows.append({"quantity": quantity, "value": float(value), "unit": unit, "data": data,
-                         "kind": "reproduced", "paper_value": paper_value})
+        if value is not None and np.isfinite(value):
+            out.append({"quantity": quantity, "value": float(value), "unit": unit, "data": data,
+                        "kind": "reproduced", "paper_value": paper_value})
 
-    geo = "known height" if synthetic_dim == 2 else "3-D, no height"
-    t = synthetic
+    geo = "known height" if results.synthetic_dim == 2 else "3-D, no height"
+    t = results.synthetic_table
+    assumed = "; follows from assumed noise: " + (noise(results.tour) if results.tour is not None else
+                                                   "our simulator's (uw.sim.tours.TourConfig)")
     for h, r in t.iterrows():
         lab = LABELS[h]
         add(f"median stationary error, {lab} ({geo})", r.get("stop_median_m"), "m", "synthetic")
@@ -101,19 +94,20 @@ def headline_rows(*, synthetic: pd.DataFrame, synthetic_dim: int, synthetic_3d: 
         add(f"median walk velocity error, {lab} ({geo})", r.get("vel_err_median_mps"), "m/s", "synthetic")
         add(f"median walk speed ratio (estimated / true), {lab} ({geo})", r.get("speed_ratio_median"), "",
             "synthetic")
-        add(f"90 % of all distance errors under, {lab} ({geo}, covered packets)", r.get("all_p90_m"), "m",
-            "synthetic", 4.0 if h == "residual" else None)
+        add(f"90 % of all distance errors under, {lab} ({geo}, covered packets{assumed if h == 'residual' else ''})",
+            r.get("all_p90_m"), "m", "synthetic", 4.0 if h == "residual" else None)
         add(f"median of all distance errors, {lab} ({geo}, covered packets)", r.get("all_median_m"), "m",
             "synthetic")
         add(f"packet coverage, {lab} ({geo})", r.get("coverage"), "", "synthetic")
-    for h, v in rank_heuristics(t).items():
-        add(f"rank by median stationary error among the three heuristics (1 = best), {LABELS[h]} ({geo})", v, "",
-            "synthetic", {"residual": 1, "robust_mean": 2, "percentile": 3}[h])
+    rank = "rank by median stationary error among the three heuristics (1 = best)"
+    paper_rank = {"residual": 1, "robust_mean": 2, "percentile": 3}
+    for h, v in _ranks(t).items():
+        add(f"{rank}, {LABELS[h]} ({geo})", v, "", "synthetic", paper_rank[h])
     if {"residual", POINT} <= set(t.index):
         add(f"90 % of all distance errors, residual pruning minus point-based ({geo})",
             t.loc["residual", "all_p90_m"] - t.loc[POINT, "all_p90_m"], "m", "synthetic")
-    if synthetic_3d is not None:
-        for h, r in synthetic_3d.iterrows():
+    if results.synthetic_dim == 2 and results.other_table is not None:
+        for h, r in results.other_table.iterrows():
             lab = LABELS[h]
             add(f"median stationary error, {lab} (3-D, no height)", r.get("stop_median_m"), "m", "synthetic")
             add(f"median stationary height error |dz|, {lab} (3-D, no height)", r.get("stop_err_z_median_m"),
@@ -122,54 +116,34 @@ def headline_rows(*, synthetic: pd.DataFrame, synthetic_dim: int, synthetic_3d: 
                 "synthetic")
             add(f"90 % of all distance errors under, {lab} (3-D, no height, covered packets)", r.get("all_p90_m"),
                 "m", "synthetic")
-    if lias_static is not None:
-        for k, (hs, es) in lias_static.items():
-            for h, r in hs.iterrows():
-                add(f"median stationary error, {LABELS[h]}, {k}", r.get("stop_median_m"), "m", static_label)
-                add(f"90th-percentile stationary error, {LABELS[h]}, {k}", r.get("stop_p90_m"), "m", static_label)
-            for h, v in rank_heuristics(hs).items():
-                add(f"rank by median stationary error among the three heuristics (1 = best), {LABELS[h]}, {k}",
-                    v, "", static_label, {"residual": 1, "robust_mean": 2, "percentile": 3}[h])
-            for h, r in es.iterrows():
-                add(f"median per-epoch error, {LABELS[h]}, {k}", r.median_m, "m", static_label)
-                add(f"epoch coverage, {LABELS[h]}, {k}", r.coverage, "", static_label)
-    if lias_dynamic is not None:
-        for k, (pt, es, cov) in lias_dynamic.items():
-            for h, r in pt.iterrows():
-                add(f"median segment position error, {LABELS[h]}, {k}", r.mean_err_m, "m", dyn_label)
-                add(f"median segment velocity error, {LABELS[h]}, {k}", r.vel_err_mps, "m/s", dyn_label)
-                add(f"median speed ratio (estimated / true), {LABELS[h]}, {k}", r.speed_ratio, "", dyn_label)
-            for h, r in es.iterrows():
-                add(f"median per-epoch error on the straight pieces, {LABELS[h]}, {k}", r.median_m, "m", dyn_label)
-                add(f"90th-percentile per-epoch error on the straight pieces, {LABELS[h]}, {k}", r.p90_m, "m",
-                    dyn_label)
-            for h, v in cov.items():
-                add(f"fraction of the run's epochs with a position, {LABELS[h]}, {k}", v, "", dyn_label)
-    if hanyang is not None:
-        for cond, r in hanyang.iterrows():
-            add(f"median per-file 5th-percentile range error, {cond}", r.pq_err_m, "m", hy_label)
-            add(f"median per-file median range error, {cond}", r.median_err_m, "m", hy_label)
-    return rows
-
-
-def rows(results: Results) -> list[dict]:
-    """:func:`headline_rows` of a :class:`Results` (the 3-D rows only when the ranked comparison is 2-D)."""
-    st, dy = results.lias_static, results.lias_dynamic
-    dy_runs = dy.runs if dy is not None else {}
-    return headline_rows(
-        synthetic=results.synthetic_table, synthetic_dim=results.synthetic_dim,
-        synthetic_3d=results.other_table if results.synthetic_dim == 2 else None,
-        lias_static={k: (st.table.loc[k], st.epochs[k]) for k in st.runs} if st is not None else None,
-        static_label=st.label if st is not None else None,
-        lias_dynamic={k: (dy.table.loc[k], *dy.epochs[k]) for k in dy_runs} if dy_runs else None,
-        dyn_label=dy.label if dy_runs else None,
-        hanyang=results.hanyang, hy_label=results.hanyang_label)
-
-
-def add_rows(results: Results, summary) -> None:
-    """Add every headline row of ``results`` to ``summary`` (:class:`uwbwb.metrics.Summary`)."""
-    for row in rows(results):
-        summary.add(**row)
+    st = results.lias_static
+    for k in (st.runs if st is not None else ()):
+        hs, es = st.table.loc[k], st.epochs[k]
+        for h, r in hs.iterrows():
+            add(f"median stationary error, {LABELS[h]}, {k}", r.get("stop_median_m"), "m", st.label)
+            add(f"90th-percentile stationary error, {LABELS[h]}, {k}", r.get("stop_p90_m"), "m", st.label)
+        for h, v in _ranks(hs).items():
+            add(f"{rank}, {LABELS[h]}, {k}", v, "", st.label, paper_rank[h])
+        for h, r in es.iterrows():
+            add(f"median per-epoch error, {LABELS[h]}, {k}", r.median_m, "m", st.label)
+            add(f"epoch coverage, {LABELS[h]}, {k}", r.coverage, "", st.label)
+    dy = results.lias_dynamic
+    for k in (dy.runs if dy is not None else ()):
+        pt, (es, cov) = dy.table.loc[k], dy.epochs[k]
+        for h, r in pt.iterrows():
+            add(f"median segment position error, {LABELS[h]}, {k}", r.mean_err_m, "m", dy.label)
+            add(f"median segment velocity error, {LABELS[h]}, {k}", r.vel_err_mps, "m/s", dy.label)
+            add(f"median speed ratio (estimated / true), {LABELS[h]}, {k}", r.speed_ratio, "", dy.label)
+        for h, r in es.iterrows():
+            add(f"median per-epoch error on the straight pieces, {LABELS[h]}, {k}", r.median_m, "m", dy.label)
+            add(f"90th-percentile per-epoch error on the straight pieces, {LABELS[h]}, {k}", r.p90_m, "m",
+                dy.label)
+        for h, v in cov.items():
+            add(f"fraction of the run's epochs with a position, {LABELS[h]}, {k}", v, "", dy.label)
+    for cond, r in (results.hanyang.iterrows() if results.hanyang is not None else ()):
+        add(f"median per-file 5th-percentile range error, {cond}", r.pq_err_m, "m", results.hanyang_label)
+        add(f"median per-file median range error, {cond}", r.median_err_m, "m", results.hanyang_label)
+    return out
 
 
 def checks(results: Results, fast: bool) -> list[str]:

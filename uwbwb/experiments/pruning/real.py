@@ -4,7 +4,7 @@ piece of a LIAS dynamic run as a walk.
 :func:`run_static_poses` localises every tag of every pose with every heuristic and the point-based
 baseline at the tag's mount height; :func:`run_dynamic_segments` fits ``(P0, v)`` to each straight
 piece (:func:`uwbwb.geometry.straight_segments`). Both return an epoch table for
-:func:`.scoring.epoch_summary`.
+:func:`uwbwb.metrics.epoch_summary`.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ...filters.pruning import HEURISTICS, PruningConfig, localize
+from ...filters.pruning import HEURISTICS, PruningConfig
 from ...geometry import line_fit, point_fixes
 from ...types import RangeSamples, Recording
-from .scoring import MIN_SEGMENT_RANGES, POINT, bearing_deg, heading_err_deg
+from .scoring import MIN_SEGMENT_RANGES, POINT, fit_segment
 
 __all__ = ["DynamicResult", "StaticResult", "run_dynamic_segments", "run_static_poses"]
 
@@ -29,8 +29,9 @@ class StaticResult:
     Attributes
     ----------
     poses
-        One row per (pose, tag, heuristic): ``recording, site, yaw_deg, tag, heuristic,
-        true_x_m, true_y_m, x_m, y_m, err_m, bearing_deg, n_used, n_epochs, calibrated``.
+        One row per (pose, tag, heuristic): ``recording, site, yaw_deg, tag``, the row of
+        :func:`.scoring.fit_segment` (``x0_m, y0_m, err_m, bearing_deg, n_used``...), ``true_x_m, true_y_m,
+        n_epochs, calibrated``.
     epochs
         The epoch table: every estimator's horizontal error at every (thinned) range
         epoch of every pose -- a heuristic's one position per pose scored at each of
@@ -54,7 +55,7 @@ def _check_heights(heights_m, tags) -> dict:
 
 def run_static_poses(recordings, *, heights_m: dict, tags=None, heuristics=HEURISTICS,
                      config: PruningConfig = PruningConfig(dim=2), stride: int = 10,
-                     calibrations: dict | None = None, point_baseline: bool = True,
+                     calibrations: dict | None = None,
                      progress: bool = False) -> StaticResult:
     """Each static pose file is a stationary segment: localise every tag with every heuristic.
 
@@ -80,13 +81,9 @@ def run_static_poses(recordings, *, heights_m: dict, tags=None, heuristics=HEURI
     calibrations
         Optional ``{site: RangeCalibration}`` applied to the poses of that site
         (see :func:`loso_calibrations`); None for raw ranges.
-    point_baseline
-        Also fix every epoch by multilateration at the same height.
     progress
         ``tqdm`` bar over the poses.
     """
-    if stride < 1 or int(stride) != stride:
-        raise ValueError(f"stride must be a positive integer, got {stride!r}")
     it = recordings
     if progress:
         from tqdm.auto import tqdm
@@ -105,20 +102,16 @@ def run_static_poses(recordings, *, heights_m: dict, tags=None, heuristics=HEURI
             z = heights[tag]
             true = rec.truth[tag].pos_m[0]
             ep = {"recording": rec.name, "site": site, "tag": tag, "t_s": log.t_s}
-            if point_baseline:
-                P = point_fixes(log.range_m, rec.anchors, dim=2, z_m=z)
-                epochs.append(pd.DataFrame({**ep, "heuristic": POINT,
-                                            "err_m": np.linalg.norm(P[:, :2] - true[:2], axis=1)}))
+            P = point_fixes(log.range_m, rec.anchors, dim=2, z_m=z)       # every epoch fixed at the same height
+            epochs.append(pd.DataFrame({**ep, "heuristic": POINT, "err_m": np.linalg.norm(P[:, :2] - true[:2], axis=1)}))
             samples = RangeSamples.from_ranges(log)
             for h in heuristics:
-                res = localize(samples, rec.anchors, h, config, stationary=True, z_m=z)
-                d = res.p0_m[:2] - true[:2]
-                rows.append({"recording": rec.name, "site": site, "yaw_deg": rec.meta.get("yaw_deg"),
-                             "tag": tag, "heuristic": h, "true_x_m": true[0], "true_y_m": true[1],
-                             "x_m": res.p0_m[0], "y_m": res.p0_m[1], "err_m": float(np.hypot(*d)),
-                             "bearing_deg": float(bearing_deg(d)), "n_used": res.n_used,
-                             "n_epochs": len(log), "calibrated": cal is not None})
-                epochs.append(pd.DataFrame({**ep, "heuristic": h, "err_m": float(np.hypot(*d))}))
+                row, err, _ = fit_segment(samples, rec.anchors, h, config, still=True, z_m=z, t_s=log.t_s,
+                                          true_xy=true[:2])
+                rows.append({"recording": rec.name, "site": site, "yaw_deg": rec.meta.get("yaw_deg"), "tag": tag,
+                             **row, "true_x_m": true[0], "true_y_m": true[1], "n_epochs": len(log),
+                             "calibrated": cal is not None})
+                epochs.append(pd.DataFrame({**ep, "heuristic": h, "err_m": err}))
     ep_df = pd.concat(epochs, ignore_index=True) if epochs else pd.DataFrame(
         columns=["recording", "site", "tag", "t_s", "heuristic", "err_m"])
     return StaticResult(pd.DataFrame(rows), ep_df)
@@ -210,19 +203,9 @@ def run_dynamic_segments(rec: Recording, segments: pd.DataFrame, *, heights_m: d
             n_fit += len(log)
             _, v_true, _ = line_fit(log.t_s, true)
             for h in heuristics:
-                res = localize(samples, rec.anchors, h, config, stationary=False, z_m=z)
-                est = res.position_at(log.t_s)[:, :2]
-                err = np.linalg.norm(est - true, axis=1)
-                v_est = res.vel_mps[:2]
-                rows.append({"segment": seg.segment, "tag": tag, "heuristic": h, "t0_s": res.t0_s,
-                             "t_end_s": res.t_end_s, "duration_s": res.t_end_s - res.t0_s,
-                             "x0_m": res.p0_m[0], "y0_m": res.p0_m[1], "vx_mps": v_est[0], "vy_mps": v_est[1],
-                             "true_vx_mps": v_true[0], "true_vy_mps": v_true[1],
-                             "start_err_m": float(err[0]), "mean_err_m": float(err.mean()),
-                             "vel_err_mps": float(np.linalg.norm(v_est - v_true)),
-                             "speed_ratio": float(np.linalg.norm(v_est) / np.linalg.norm(v_true)),
-                             "heading_err_deg": heading_err_deg(v_est, v_true),
-                             "n_used": res.n_used, "calibrated": calibration is not None})
+                row, err, _ = fit_segment(samples, rec.anchors, h, config, still=False, z_m=z, t_s=log.t_s,
+                                            true_xy=true, v_true=v_true)
+                rows.append({"segment": seg.segment, "tag": tag, **row, "calibrated": calibration is not None})
                 epochs.append(pd.DataFrame({**ep, "heuristic": h, "err_m": err}))
         for h in heuristics:
             cover.setdefault(h, [0, 0])

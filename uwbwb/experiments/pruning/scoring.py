@@ -1,10 +1,9 @@
-"""Notebook 02's scoring: estimator names, coverage beside accuracy, the per-estimator tables.
+"""Notebook 02's scoring: estimator names and the per-estimator table.
 
 Every comparison of notebook 02 scores its estimators on one *epoch table* (one row per estimator
-and scored epoch, ``err_m`` NaN where the estimator produced nothing); :func:`epoch_summary` turns
-it into coverage beside accuracy, :func:`heuristic_summary` condenses stops, walks and packets per
-estimator, :func:`rank_heuristics` ranks the paper's three heuristics and :func:`wins_table` says
-which estimator wins where.
+and scored epoch, ``err_m`` NaN where the estimator produced nothing); :func:`uwbwb.metrics.epoch_summary`
+(``by="heuristic", order=ESTIMATORS``) turns it into coverage beside accuracy, :func:`heuristic_summary`
+condenses stops, walks and packets per estimator.
 """
 
 from __future__ import annotations
@@ -13,10 +12,10 @@ import numpy as np
 import pandas as pd
 
 from ... import metrics
-from ...filters.pruning import HEURISTICS, LABELS as HEURISTIC_LABELS
+from ...filters.pruning import HEURISTICS, LABELS as HEURISTIC_LABELS, localize
 
-__all__ = ["ESTIMATORS", "LABELS", "MIN_SEGMENT_RANGES", "PAPER_RANKING", "POINT", "bearing_deg", "epoch_summary",
-           "hanyang_table", "heading_err_deg", "heuristic_summary", "rank_heuristics", "wins_table"]
+__all__ = ["ESTIMATORS", "LABELS", "MIN_SEGMENT_RANGES", "PAPER_RANKING", "POINT", "bearing_deg", "fit_segment",
+           "heading_err_deg", "heuristic_summary"]
 
 #: The point-based baseline's name in the tables: one multilateration per packet/epoch.
 POINT = "point"
@@ -30,15 +29,6 @@ PAPER_RANKING = ("residual", "robust_mean", "percentile")
 MIN_SEGMENT_RANGES = 12
 
 
-def epoch_summary(epochs: pd.DataFrame) -> pd.DataFrame:
-    """Coverage beside accuracy per estimator (:func:`uwbwb.metrics.epoch_summary`, :data:`ESTIMATORS` order).
-
-    ``epochs`` has one row per estimator (column ``heuristic``) and scored epoch, with
-    ``err_m`` NaN where the estimator produced no position.
-    """
-    return metrics.epoch_summary(epochs, by="heuristic", order=ESTIMATORS)
-
-
 def bearing_deg(dxy: np.ndarray) -> np.ndarray:
     """Direction of ``dxy`` (..., 2) in degrees, counter-clockwise from +x (the polar charts' convention)."""
     return np.rad2deg(np.arctan2(dxy[..., 1], dxy[..., 0]))
@@ -50,6 +40,31 @@ def heading_err_deg(v_est, v_true) -> float:
     return float((ang + 180.0) % 360.0 - 180.0)
 
 
+def fit_segment(samples, anchors, heuristic: str, config, *, still: bool, z_m, t_s, true_xy, v_true=None):
+    """Fit one segment's ranges with ``heuristic`` (:func:`uwbwb.filters.pruning.localize`) and score it.
+
+    ``true_xy`` is the stop's true position (2,) or the walk's at ``t_s`` (n, 2); ``v_true`` the walk's true
+    velocity. Returns ``(row, err_m, result)``: the row (fit, ``err_m`` and ``bearing_deg`` of a stop; start,
+    end and mean error, velocity error, speed ratio and heading error of a walk), the horizontal error at each
+    epoch of ``t_s`` and the :class:`~uwbwb.filters.pruning.LocalizationResult`.
+    """
+    res = localize(samples, anchors, heuristic, config, stationary=still, z_m=z_m)
+    row = {"heuristic": heuristic, "t0_s": res.t0_s, "t_end_s": res.t_end_s, "x0_m": res.p0_m[0], "y0_m": res.p0_m[1],
+           "z0_m": res.p0_m[2], "vx_mps": res.vel_mps[0], "vy_mps": res.vel_mps[1], "vz_mps": res.vel_mps[2],
+           "n_used": res.n_used, "converged": bool(res.fit.converged) if res.fit is not None else True}
+    if still:
+        d = res.p0_m[:2] - np.asarray(true_xy)
+        row.update(err_m=float(np.hypot(*d)), bearing_deg=float(bearing_deg(d)))
+        return row, np.full(len(t_s), row["err_m"]), res
+    err = np.linalg.norm(res.position_at(t_s)[:, :2] - true_xy, axis=1)
+    v_est, v_true = res.vel_mps[:2], np.asarray(v_true)
+    row.update(true_vx_mps=v_true[0], true_vy_mps=v_true[1], start_err_m=float(err[0]), end_err_m=float(err[-1]),
+               mean_err_m=float(err.mean()), vel_err_mps=float(np.linalg.norm(v_est - v_true)),
+               speed_ratio=float(np.linalg.norm(v_est) / np.linalg.norm(v_true)),
+               heading_err_deg=heading_err_deg(v_est, v_true))
+    return row, err, res
+
+
 def heuristic_summary(stops: pd.DataFrame, moves: pd.DataFrame | None = None,
                       track: pd.DataFrame | None = None) -> pd.DataFrame:
     """Per estimator: stationary error, walk velocity error, and all distance errors with coverage.
@@ -59,77 +74,33 @@ def heuristic_summary(stops: pd.DataFrame, moves: pd.DataFrame | None = None,
     ``stop_err_z_median_m`` (median absolute height error), ``stop_err_z_bias_m``
     (median signed, positive = too high) and ``stop_err_3d_median_m`` when the stops
     carry height errors); with ``moves``: ``n_walks, vel_err_median_mps, speed_ratio_median,
-    heading_err_median_deg``; with ``track`` (see :func:`epoch_summary`):
+    heading_err_median_deg``; with ``track`` (see :func:`uwbwb.metrics.epoch_summary`):
     ``n_epochs, coverage, all_median_m, all_p90_m, all_p90_failed_counted_m`` over
     every packet of stops and walks (stops only for the 5th percentile, which
-    ``all_includes_walks`` says), ``walk_median_m, walk_p90_m`` and
-    ``stop_packet_median_m`` (the per-packet error on stops).
+    ``all_includes_walks`` says).
     """
-    names = set(stops["heuristic"]) if len(stops) else set()
+    parts = []
+    if len(stops):
+        g = stops.groupby("heuristic")
+        parts.append(pd.DataFrame({"n_stops": g.size(), "stop_median_m": g["err_m"].median(),
+                                   "stop_p90_m": g["err_m"].agg(lambda e: np.quantile(e, 0.9)),
+                                   "stop_max_m": g["err_m"].max()}))
+        if "err_z_m" in stops:
+            parts.append(pd.DataFrame({"stop_err_z_median_m": g["err_z_m"].agg(lambda z: z.abs().median()),
+                                       "stop_err_z_bias_m": g["err_z_m"].median(),
+                                       "stop_err_3d_median_m": g["err_3d_m"].median()}))
+    if moves is not None and len(moves):
+        m = moves.groupby("heuristic")
+        parts.append(pd.DataFrame({"n_walks": m.size(), "vel_err_median_mps": m["vel_err_mps"].median(),
+                                   "speed_ratio_median": m["speed_ratio"].median(),
+                                   "heading_err_median_deg": m["heading_err_deg"].agg(lambda a: a.abs().median())}))
     if track is not None and len(track):
-        names |= set(track["heuristic"])
-    rows = []
-    for h in [h for h in ESTIMATORS if h in names]:
-        row = {"heuristic": h, "label": LABELS[h]}
-        e = stops.loc[stops.heuristic == h, "err_m"].to_numpy() if len(stops) else np.array([])
-        if e.size:
-            row.update(n_stops=e.size, stop_median_m=np.median(e), stop_p90_m=np.quantile(e, 0.9), stop_max_m=e.max())
-            if "err_z_m" in stops:
-                s = stops[stops.heuristic == h]
-                row.update(stop_err_z_median_m=s.err_z_m.abs().median(), stop_err_z_bias_m=s.err_z_m.median(),
-                           stop_err_3d_median_m=s.err_3d_m.median())
-        if moves is not None and len(moves) and h in set(moves["heuristic"]):
-            m = moves[moves.heuristic == h]
-            row.update(n_walks=len(m), vel_err_median_mps=m.vel_err_mps.median(),
-                       speed_ratio_median=m.speed_ratio.median(),
-                       heading_err_median_deg=m.heading_err_deg.abs().median())
-        if track is not None and len(track) and h in set(track["heuristic"]):
-            tr = track[track.heuristic == h]
-            s = epoch_summary(tr).iloc[0]
-            row.update(n_epochs=int(s.n_epochs), coverage=s.coverage, all_median_m=s.median_m, all_p90_m=s.p90_m,
-                       all_p90_failed_counted_m=s.p90_failed_counted_m,
-                       all_includes_walks=bool((tr["kind"] == "move").any()))
-            w = tr.loc[tr["kind"] == "move", "err_m"].dropna().to_numpy()
-            if w.size:
-                row.update(walk_median_m=np.median(w), walk_p90_m=np.quantile(w, 0.9))
-            sp = tr.loc[tr["kind"] == "stop", "err_m"].dropna().to_numpy()
-            if sp.size:
-                row.update(stop_packet_median_m=np.median(sp))
-        rows.append(row)
-    return pd.DataFrame(rows).set_index("heuristic")
-
-
-def rank_heuristics(table: pd.DataFrame, column: str = "stop_median_m") -> pd.Series:
-    """Rank (1 = best) of the three heuristics present in ``table`` by ``column`` (plain NLS and the
-    point-based baseline excluded, as in the paper's ranking)."""
-    three = [h for h in PAPER_RANKING if h in table.index and np.isfinite(table.loc[h, column])]
-    return table.loc[three, column].rank()
-
-
-
-def hanyang_table(pct: pd.DataFrame) -> pd.DataFrame:
-    """Per condition present (LOS, NLOS): number of files and the median over files of
-    ``median_err_m, pq_err_m, frac_over_1m`` (empty when no file had enough samples)."""
-    cols = ["median_err_m", "pq_err_m", "frac_over_1m"]
-    if pct.empty:
-        return pd.DataFrame(columns=["n_files", *cols])
-    t = pct.groupby("condition")[cols].median()
-    t.insert(0, "n_files", pct.groupby("condition").size())
-    return t
-
-
-# =========================================================================== tables for the notebook
-
-
-def wins_table(entries: dict) -> pd.DataFrame:
-    """Which estimator wins where: ``entries`` maps a row name to a Series of errors per estimator.
-
-    Adds ``best of all`` (every estimator present) and ``best heuristic`` (among the
-    three heuristics) columns, by label.
-    """
-    t = pd.DataFrame(entries).T
-    t = t.reindex(columns=[h for h in ESTIMATORS if h in t.columns])
-    t["best of all"] = t[[h for h in ESTIMATORS if h in t.columns]].idxmin(axis=1).map(LABELS)
-    three = [h for h in PAPER_RANKING if h in t.columns]
-    t["best heuristic"] = t[three].idxmin(axis=1).map(LABELS)
+        s = metrics.epoch_summary(track, by="heuristic")
+        parts.append(pd.DataFrame({"n_epochs": s.n_epochs, "coverage": s.coverage, "all_median_m": s.median_m,
+                                   "all_p90_m": s.p90_m, "all_p90_failed_counted_m": s.p90_failed_counted_m,
+                                   "all_includes_walks": track["kind"].eq("move").groupby(track["heuristic"]).any()}))
+    names = (set(stops["heuristic"]) if len(stops) else set()) | (set(track["heuristic"]) if track is not None else set())
+    t = pd.concat(parts, axis=1).reindex([h for h in ESTIMATORS if h in names])
+    t.insert(0, "label", t.index.map(LABELS))
+    t.index.name = "heuristic"
     return t

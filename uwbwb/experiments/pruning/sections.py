@@ -4,8 +4,7 @@
 calibration when the session has two sites or more) at the tags' mount height from the same
 poses; :func:`lias_dynamic` cuts the dynamic run into straight pieces and fits each (raw ranges,
 and calibrated from the static poses of the same room when the anchors match). Each returns a
-frozen record of everything the notebook's tables, figures, checks and verdict table read, with a
-short printed report.
+frozen record of everything the notebook's tables, figures, checks and verdict table read.
 """
 
 from __future__ import annotations
@@ -15,14 +14,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ... import validate
-from ...calibration import fit_range_calibration, tag_mount_height
+from ... import metrics, validate
+from ...calibration import fit_range_calibration, range_residuals, tag_mount_height
 from ...filters.pruning import PruningConfig
 from ...geometry import straight_segments
 from ...types import Recording
 from .real import DynamicResult, run_dynamic_segments, run_static_poses
-from .scoring import epoch_summary, heuristic_summary
-from .study import loso_calibrations, range_error_stats
+from .scoring import ESTIMATORS, heuristic_summary
+from .study import loso_calibrations
 
 __all__ = ["LiasDynamic", "LiasStatic", "lias_dynamic", "lias_static"]
 
@@ -40,7 +39,7 @@ class LiasStatic:
     mount
         :class:`uwbwb.calibration.MountHeight` of the tags, from these poses.
     range_stats
-        :func:`.study.range_error_stats` of the poses' ranges.
+        :func:`uwbwb.calibration.range_residuals` of every pose (every 10th epoch), the tags localised only.
     runs
         ``{"raw": StaticResult, "calibrated (LOSO)": StaticResult}`` (the second only with two sites or more).
     table
@@ -61,21 +60,6 @@ class LiasStatic:
     def heights_m(self) -> dict:
         """``{tag: mount height (m)}`` every estimator solves at."""
         return self.mount.per_tag_m
-
-    def report(self) -> str:
-        """Three lines: poses and sites, mount heights and their source, why the geometry is 2-D."""
-        recs, tag = self.recordings, next(iter(self.heights_m))
-        pose_s = [np.ptp(r.ranges[tag].t_s) for r in recs]
-        a = recs[0].anchors.pos_m
-        s = self.mount.range_slope
-        lines = [f"{len(recs)} poses of {self.label}, sites {sorted({str(r.meta.get('site')) for r in recs})}, "
-                 f"{np.median(pose_s):.0f} s each (median)",
-                 f"mount heights {', '.join(f'{t} {z:.3f} m' for t, z in self.heights_m.items())}: {self.mount.source}",
-                 f"anchor heights {a[:, 2].min():.3f}-{a[:, 2].max():.3f} m; largest |dz|/range {s:.3f}: a height "
-                 f"error dz changes a range by at most {s:.3f}·dz — unobservable, so 2-D"]
-        if "calibrated (LOSO)" not in self.runs:
-            lines.append("raw ranges only: no leave-one-site-out calibration (one site, or not asked for)")
-        return "\n".join(lines)
 
 
 def lias_static(recordings, *, label: str, tags, config: PruningConfig, stride: int, loso: bool = True,
@@ -110,9 +94,10 @@ def lias_static(recordings, *, label: str, tags, config: PruningConfig, stride: 
     runs = {"raw": run_static_poses(recs, **kw)}
     if loso and len({r.meta.get("site") for r in recs}) >= 2:
         runs["calibrated (LOSO)"] = run_static_poses(recs, calibrations=loso_calibrations(recs, stride=10), **kw)
-    return LiasStatic(label, recs, mount, range_error_stats(recs, tags=tags), runs,
+    stats = pd.concat([range_residuals(r.decimate(10)) for r in recs], ignore_index=True)
+    return LiasStatic(label, recs, mount, stats[stats["tag_id"].isin(tags)], runs,
                       pd.concat({k: heuristic_summary(v.poses) for k, v in runs.items()}),
-                      {k: epoch_summary(v.epochs) for k, v in runs.items()})
+                      {k: metrics.epoch_summary(v.epochs, by="heuristic", order=ESTIMATORS) for k, v in runs.items()})
 
 
 @dataclass(frozen=True)
@@ -147,20 +132,6 @@ class LiasDynamic:
     def label(self) -> str:
         return self.recording.label
 
-    def report(self) -> str:
-        """Two lines: the straight pieces (how much of the run they cover) and the calibration used."""
-        segs, tr = self.segments, self.recording.truth[next(iter(self.recording.truth))]
-        first = f"{len(segs)} straight pieces covering {segs.duration_s.sum():.0f} s of {np.ptp(tr.t_s):.0f} s"
-        if len(segs):
-            first += (f"; median {segs.duration_s.median():.1f} s, {segs.length_m.median():.2f} m, "
-                      f"{segs.speed_mps.median():.2f} m/s")
-        return first + "\ncalibration from the static poses: " + (
-            "yes" if self.calibration is not None else "no (anchors differ, or not asked for)")
-
-    def coverage_table(self) -> pd.DataFrame:
-        """Epoch summaries of every run with the run coverage beside them."""
-        return pd.concat({k: e.assign(run_coverage=c) for k, (e, c) in self.epochs.items()})
-
 
 def lias_dynamic(recording: Recording, static: LiasStatic, *, tags, config: PruningConfig, stride: int,
                  calibrated: bool = True) -> LiasDynamic:
@@ -193,6 +164,7 @@ def lias_dynamic(recording: Recording, static: LiasStatic, *, tags, config: Prun
     runs = {k: v for k, v in runs.items() if len(v.pieces)}
     cols = ["start_err_m", "mean_err_m", "vel_err_mps", "speed_ratio"]
     table = pd.concat({k: v.pieces.groupby("heuristic")[cols].median() for k, v in runs.items()}) if runs else None
-    epochs = {k: (epoch_summary(v.epochs), v.run_coverage) for k, v in runs.items()}
+    epochs = {k: (metrics.epoch_summary(v.epochs, by="heuristic", order=ESTIMATORS), v.run_coverage)
+              for k, v in runs.items()}
     return LiasDynamic(recording, segs, cal, runs, table, epochs)
 

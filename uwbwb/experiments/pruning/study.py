@@ -10,7 +10,7 @@ Everything the notebook computes, grouped by data:
   without height information); :func:`heuristic_summary` condenses them.
 * **LIAS static poses**: :func:`run_static_poses` treats each pose file as one
   stationary segment; :func:`loso_calibrations` fits range calibrations leaving
-  each site out; :func:`range_error_stats` describes the ranges (bias, long outliers).
+  each site out.
 * **LIAS dynamic run**: :func:`uwbwb.geometry.straight_segments` cuts the motion-capture track into
   constant-velocity pieces; :func:`run_dynamic_segments` fits ``(P0, v)`` per piece.
 * **Hanyang static**: :func:`uwbwb.calibration.percentile_by_file` -- where the 5th percentile of a
@@ -19,7 +19,7 @@ Everything the notebook computes, grouped by data:
 Every estimator of one comparison gets the same geometry (node height known, or not
 at all) and is scored on the same epochs: each result carries an *epoch table* (one
 row per estimator and scored epoch, ``err_m`` NaN where the estimator produced
-nothing) that :func:`epoch_summary` turns into coverage beside accuracy.
+nothing) that :func:`uwbwb.metrics.epoch_summary` turns into coverage beside accuracy.
 """
 
 
@@ -31,15 +31,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ...calibration import MAD_TO_SIGMA, fit_range_calibration, pair_samples
-from ...filters.pruning import HEURISTICS, PruningConfig, localize
+from ...calibration import fit_range_calibration
+from ...filters.pruning import HEURISTICS, PruningConfig
 from ...geometry import point_fixes
 from ...sim import tours as tours_mod
-from ...types import RangeLog, RangeSamples, Recording
-from .scoring import MIN_SEGMENT_RANGES, POINT, bearing_deg, heading_err_deg, heuristic_summary
+from ...types import RangeSamples, Recording
+from .scoring import MIN_SEGMENT_RANGES, POINT, fit_segment
 
-__all__ = ["SyntheticConfig", "SyntheticResult", "loso_calibrations", "outlier_free_control", "range_error_stats", "run_recordings", "run_synthetic",
-           "run_tour", "segment_ranges", "sensitivity", "EXCESS_FACTORS", "nlos_excess_sensitivity"]
+__all__ = ["SyntheticConfig", "SyntheticResult", "loso_calibrations", "run_recordings", "run_synthetic", "run_tour"]
 
 # =========================================================================== synthetic
 
@@ -62,10 +61,8 @@ class SyntheticConfig:
         3 -- every estimator solves in 3-D without any height information (the
         robust mean cannot: a triplet fix needs the height, so it must be left out).
     tour
-        Base simulator configuration (its ``tour``/``pace`` are replaced).
-    skip_first_packet
-        Leave out a segment's first packet: its ranges were measured in the
-        130 ms *before* its time stamp, i.e. partly in the previous segment.
+        Base simulator configuration (its ``tour``/``pace`` are replaced). A segment's first packet is left
+        out: its ranges were measured in the 130 ms *before* its time stamp, partly in the previous segment.
     point_baseline
         Also score the point-based baseline on the same packets.
     """
@@ -76,7 +73,6 @@ class SyntheticConfig:
     heuristics: tuple = HEURISTICS
     pruning: PruningConfig = PruningConfig(dim=2)
     tour: tours_mod.TourConfig = tours_mod.TourConfig()
-    skip_first_packet: bool = True
     point_baseline: bool = True
 
     def __post_init__(self):
@@ -122,13 +118,6 @@ class SyntheticResult:
     dim: int = 2
 
 
-def segment_ranges(log: RangeLog, seg: tours_mod.Segment, *, period_s: float, skip_first_packet: bool = True
-                   ) -> RangeLog:
-    """The packets stamped inside a segment (optionally without the first one)."""
-    start = seg.t_start_s + (period_s if skip_first_packet else 0.0)
-    return log.between(start, seg.t_end_s)
-
-
 def _track_rows(rec, tag, seg, kind, h, t_s, err_m, err_z_m) -> pd.DataFrame:
     n = len(t_s)
     return pd.DataFrame({"experiment": rec.name, "tag": tag, "segment": seg.index, "kind": kind, "heuristic": h,
@@ -148,19 +137,16 @@ def run_tour(rec: Recording, truth: tours_mod.TourTruth, config: SyntheticConfig
     dim = config.pruning.dim
     tags = config.tags if tags is None else tags
     heuristics = config.heuristics if heuristics is None else heuristics
-    if dim == 3 and "robust_mean" in heuristics:
-        raise ValueError("the robust mean needs the node height: leave it out of a 3-D comparison")
     stops, moves, track = [], [], []
     for tag in tags:
         z_known = float(rec.meta["node_heights_m"][tag]) if dim == 2 else None
         for seg in truth.segments:
-            log = segment_ranges(rec.ranges[tag], seg, period_s=tcfg.period_s,
-                                 skip_first_packet=config.skip_first_packet)
+            log = rec.ranges[tag].between(seg.t_start_s + tcfg.period_s, seg.t_end_s)   # see SyntheticConfig
             if len(log) == 0:
                 continue
             still = seg.kind == "stop"
             t_pk = log.t_s
-            true_xy, true_v = tours_mod.tour_xy(truth.segments, t_pk)
+            true_xy, _ = tours_mod.tour_xy(truth.segments, t_pk)
             true_z = rec.truth[tag].interp(t_pk)[:, 2]
             if config.point_baseline:
                 P = point_fixes(log.range_m, rec.anchors, dim=dim, z_m=z_known)
@@ -177,32 +163,17 @@ def run_tour(rec: Recording, truth: tours_mod.TourTruth, config: SyntheticConfig
                     "keypoint": seg.keypoint, "label": seg.label, "coverage": int(truth.coverage[seg.keypoint]),
                     "dim": dim}
             for h in run:
-                res = localize(samples, rec.anchors, h, config.pruning, stationary=still, z_m=z_known)
-                conv = bool(res.fit.converged) if res.fit is not None else True
-                common = {**base, "heuristic": h, "t0_s": res.t0_s, "t_end_s": res.t_end_s,
-                          "x0_m": res.p0_m[0], "y0_m": res.p0_m[1], "z0_m": res.p0_m[2],
-                          "vx_mps": res.vel_mps[0], "vy_mps": res.vel_mps[1], "vz_mps": res.vel_mps[2],
-                          "n_used": res.n_used, "converged": conv}
+                row, err, res = fit_segment(samples, rec.anchors, h, config.pruning, still=still, z_m=z_known, t_s=t_pk,
+                                            true_xy=seg.start_xy_m if still else true_xy, v_true=seg.vel_xy_mps)
                 if still:
                     d = res.p0_m[:2] - np.asarray(seg.start_xy_m)
                     dz = float(res.p0_m[2] - np.median(true_z))
-                    stops.append({**common, "true_x_m": seg.start_xy_m[0], "true_y_m": seg.start_xy_m[1],
-                                  "err_m": float(np.hypot(*d)), "bearing_deg": float(bearing_deg(d)),
+                    stops.append({**base, **row, "true_x_m": seg.start_xy_m[0], "true_y_m": seg.start_xy_m[1],
                                   "err_z_m": dz, "err_3d_m": float(np.sqrt(d @ d + dz * dz))})
-                    track.append(_track_rows(rec, tag, seg, "stop", h, t_pk, np.hypot(*d), res.p0_m[2] - true_z))
+                    track.append(_track_rows(rec, tag, seg, "stop", h, t_pk, row["err_m"], res.p0_m[2] - true_z))
                     continue
-                est = res.position_at(t_pk)
-                err = np.linalg.norm(est[:, :2] - true_xy, axis=1)
-                v_true = np.asarray(seg.vel_xy_mps)
-                v_est = res.vel_mps[:2]
-                moves.append({**common, "true_x0_m": true_xy[0, 0], "true_y0_m": true_xy[0, 1],
-                              "true_vx_mps": v_true[0], "true_vy_mps": v_true[1],
-                              "start_err_m": float(err[0]), "end_err_m": float(err[-1]),
-                              "mean_err_m": float(err.mean()),
-                              "vel_err_mps": float(np.linalg.norm(v_est - v_true)),
-                              "speed_ratio": float(np.linalg.norm(v_est) / np.linalg.norm(v_true)),
-                              "heading_err_deg": heading_err_deg(v_est, v_true)})
-                track.append(_track_rows(rec, tag, seg, "move", h, t_pk, err, est[:, 2] - true_z))
+                moves.append({**base, **row, "true_x0_m": true_xy[0, 0], "true_y0_m": true_xy[0, 1]})
+                track.append(_track_rows(rec, tag, seg, "move", h, t_pk, err, res.position_at(t_pk)[:, 2] - true_z))
     return stops, moves, track
 
 
@@ -250,65 +221,6 @@ def run_synthetic(config: SyntheticConfig = SyntheticConfig(), *, rng: np.random
 
 
 
-def sensitivity(config: SyntheticConfig, dwell_s=(0.0, 3.0, 30.0), *, seed: int) -> pd.DataFrame:
-    """Median stationary error per mean NLOS episode length (rows, seconds) and heuristic (columns).
-
-    Each row simulates the configured tours afresh with ``nlos_dwell_s`` replaced
-    (same seed for every row); the geometry is ``config.pruning.dim``.
-    """
-    out = {}
-    for d in dwell_s:
-        c = dataclasses.replace(config, point_baseline=False,
-                                tour=dataclasses.replace(config.tour, nlos_dwell_s=float(d)))
-        r = run_synthetic(c, rng=np.random.default_rng(seed))
-        out[float(d)] = heuristic_summary(r.stops)["stop_median_m"]
-    table = pd.DataFrame(out).T
-    table.index.name = "nlos_dwell_s"
-    return table
-
-
-#: Factors on the simulated NLOS excess (``TourConfig.nlos_mean_m``) of :func:`nlos_excess_sensitivity`: half,
-#: the configured value, double.
-EXCESS_FACTORS = (0.5, 1.0, 2.0)
-
-
-def nlos_excess_sensitivity(config: SyntheticConfig, factors=EXCESS_FACTORS, *, seed: int,
-                            heuristic: str = "residual") -> pd.DataFrame:
-    """All distance errors of one heuristic as the simulated NLOS excess is scaled.
-
-    The mean NLOS excess of the range-error model (``config.tour.nlos_mean_m``, an assumption of the
-    simulator, not a number of the paper) is multiplied by each factor; every row simulates the configured
-    tours afresh from ``seed`` (the same draws whatever the factor), so the row of factor 1 is the
-    comparison's own number when ``seed`` is the comparison's. Returns one row per factor, indexed by
-    ``nlos_mean_m``: ``factor``, ``all_p90_m``, ``all_median_m`` (:func:`heuristic_summary`).
-    """
-    rows = {}
-    for k in factors:
-        if not k > 0:
-            raise ValueError(f"excess factors must be positive, got {k!r}")
-        tour = dataclasses.replace(config.tour, nlos_mean_m=float(k) * config.tour.nlos_mean_m)
-        c = dataclasses.replace(config, tour=tour, heuristics=(heuristic,), point_baseline=False)
-        r = run_synthetic(c, rng=np.random.default_rng(seed))
-        t = heuristic_summary(r.stops, r.moves, r.track)
-        rows[tour.nlos_mean_m] = {"factor": float(k), "all_p90_m": float(t.loc[heuristic, "all_p90_m"]),
-                                  "all_median_m": float(t.loc[heuristic, "all_median_m"])}
-    table = pd.DataFrame.from_dict(rows, orient="index")
-    table.index.name = "nlos_mean_m"
-    return table
-
-
-def outlier_free_control(config: SyntheticConfig, *, seed: int) -> pd.DataFrame:
-    """The same tours without NLOS (LOS noise, biases and failed ranges kept): what pruning costs
-    when there is nothing to prune.
-
-    Returns :func:`heuristic_summary` (stops, walks, packets) of a fresh simulation
-    with ``p_nlos_in = p_nlos_out = 0``, same geometry, no point-based baseline.
-    """
-    tour = dataclasses.replace(config.tour, p_nlos_in=0.0, p_nlos_out=0.0)
-    r = run_synthetic(dataclasses.replace(config, tour=tour, point_baseline=False), rng=np.random.default_rng(seed))
-    return heuristic_summary(r.stops, r.moves, r.track)
-
-
 # =========================================================================== LIAS static poses: calibration
 
 
@@ -326,35 +238,3 @@ def loso_calibrations(recordings, *, stride: int = 1, **fit_kw) -> dict:
     if len(sites) < 2:
         raise ValueError("leave-one-site-out calibration needs poses from at least two sites")
     return {s: fit_range_calibration([r for r in recordings if r.meta["site"] != s], **fit_kw) for s in sites}
-
-
-def range_error_stats(recordings, *, tags=None, stride: int = 10, long_m: float = 0.5) -> pd.DataFrame:
-    """What the static poses' ranges look like: per anchor--tag pair bias and long outliers.
-
-    Range error = measured range minus the range from the pose's true tag position
-    (:func:`uwbwb.calibration.pair_samples`, pooled over the poses, every ``stride``-th
-    epoch). Per pair: ``bias_m`` (median error), ``spread_m`` (1.4826 × median absolute
-    deviation), ``frac_long`` (fraction of errors more than ``long_m`` above the pair's
-    median: the positive excess NLOS would add).
-
-    Returns
-    -------
-    pandas.DataFrame
-        One row per ``(anchor, tag)`` with samples: ``n, bias_m, spread_m, frac_long``.
-    """
-
-    anchor_ids, tag_ids, true_m, meas_m = pair_samples([r.decimate(int(stride)) for r in recordings])
-    err = meas_m - true_m                                                    # (N, n_tags, n_anchors)
-    rows = []
-    for k, tag in enumerate(tag_ids):
-        if tags is not None and tag not in tags:
-            continue
-        for j, a in enumerate(anchor_ids):
-            e = err[:, k, j][np.isfinite(err[:, k, j])]
-            if not e.size:
-                continue
-            med = np.median(e)
-            rows.append({"anchor": a, "tag": tag, "n": e.size, "bias_m": med,
-                         "spread_m": MAD_TO_SIGMA * np.median(np.abs(e - med)),
-                         "frac_long": float(np.mean(e > med + long_m))})
-    return pd.DataFrame(rows)
