@@ -45,7 +45,7 @@ reproduce: $(STAMP)
 ## Class mode (CLASS=True, FAST=True), for a lecturer: class/student/ holds the notebooks to hand out (no outputs,
 ## CLASS = True in the parameters cell, research cells folded, the glossary beside them; `make lab
 ## LAB_DIR=class/student`), class/answers/ the same notebooks run from there, offline HTML handouts (no research
-## cells), TEACHING.md and the glossary. Prints run times (the measured ones: make times) and class-limit violations.
+## cells), TEACHING.md and the glossary. Prints run times and class-limit violations (the times the docs quote: make times).
 ## CLASS_ARGS="--only 00 01 --kernel python3" picks notebooks and the kernel.
 class: $(STAMP)
 	$(PY) -m uwbwb.classroom $(CLASS_ARGS)
