@@ -45,11 +45,12 @@ HEADER = """# Notebook run times
 The one table of the notebooks' run times: the notebook fronts, `README.md` and `TEACHING.md` quote it, and
 `tests/test_classroom_times.py` fails when one of them disagrees with it. Written by `python
 benchmarks/run_times.py` (`make times`), which runs each notebook alone, one after the other, in a fresh kernel
-(kernel start included; the numba kernels compiled into their cache beforehand, as at install): **class mode** is a student's Run All of the copy `make class` hands out (`FAST = True`,
-`CLASS = True`), **FAST** is `reproduce --quick --only NN`, **full** is `reproduce --only NN` (measured only with
-`--full`). Rows the command did not measure are kept as they are, with their own date and source. Every time is
-a wall time on the machine named in its row; the load average is the machine's when the notebook started (on a
-shared machine other work slows a run: compare rows under similar load).
+(kernel start included; the numba kernels compiled into their cache beforehand, as at install): **class mode** is
+a student's Run All of the copy `make class` hands out (`FAST = True`, `CLASS = True`), **FAST** is `reproduce
+--quick --only NN`, **full** is `reproduce --only NN` (measured only with `--full`). Rows the command did not
+measure are kept as they are, with their own date and source. Every time is a wall time on the machine named in its
+row; the load average is the machine's when the notebook started (on a shared machine other work slows a run:
+compare rows under similar load).
 
 | notebook | class mode | FAST | full |
 |---|---|---|---|
