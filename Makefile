@@ -10,7 +10,7 @@ LAB_PORT ?= 8888
 # JupyterLab refuses to start as root unless told; containers and CI machines often run as root.
 LAB_ROOT := $(if $(filter 0,$(shell id -u)),--allow-root,)
 
-.PHONY: lab test reproduce class bench env clean
+.PHONY: lab test reproduce class times bench env clean
 
 $(STAMP): environment.txt pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -45,10 +45,15 @@ reproduce: $(STAMP)
 ## Class mode (CLASS=True, FAST=True), for a lecturer: class/student/ holds the notebooks to hand out (no outputs,
 ## CLASS = True in the parameters cell, research cells folded, the glossary beside them; `make lab
 ## LAB_DIR=class/student`), class/answers/ the same notebooks run from there, offline HTML handouts (no research
-## cells), TEACHING.md and the glossary. Prints run times and class-limit violations.
+## cells), TEACHING.md and the glossary. Prints run times and class-limit violations (the times the docs quote: make times).
 ## CLASS_ARGS="--only 00 01 --kernel python3" picks notebooks and the kernel.
 class: $(STAMP)
 	$(PY) -m uwbwb.classroom $(CLASS_ARGS)
+
+## Measure each notebook's class-mode and FAST run time (one at a time) into docs/run_times.md, the one table the
+## notebook fronts, README and TEACHING.md quote (TIMES_ARGS="--only 00 03", "--full" adds full fidelity: long).
+times: $(STAMP)
+	$(PY) benchmarks/run_times.py $(TIMES_ARGS)
 
 bench: $(TEST_STAMP)
 	@for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

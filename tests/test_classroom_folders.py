@@ -56,6 +56,7 @@ def _offline_problems(html: str) -> list[str]:
     """What an HTML page would fetch or need a script for."""
     found = [f"script loaded from {m}" for m in re.findall(r"<script\b[^>]*\bsrc\s*=\s*[\"']([^\"']*)", html, re.I)]
     found += [f"stylesheet from {m}" for m in re.findall(r"<link\b[^>]*\bhref\s*=\s*[\"'](https?:[^\"']*)", html, re.I)]
+    found += [f"CSS loads {m}" for m in re.findall(r"(?:@import\s*|url\(\s*[\"']?)(https?:[^\"')\s;]*)", html, re.I)]
     found += ["mentions MathJax"] * ("mathjax" in html.lower())
     found += ["holds widget views"] * (WIDGET_VIEW in html or WIDGET_STATE in html)
     return found
@@ -64,6 +65,19 @@ def _offline_problems(html: str) -> list[str]:
 def _formulas(html: str) -> list[str]:
     """The formulas an HTML page draws as inline SVG (their ARIA labels)."""
     return re.findall(r"<svg\b[^>]*\baria-label=\"([^\"]*)\"[^>]*\bclass=\"uwbwb-math\"", html)
+
+
+def _static_panels(html: str) -> list[str]:
+    """The HTML of each static panel of a handout (its whole ``<div class="uwbwb-static-panel">``)."""
+    panels = []
+    for m in re.finditer(r'<div class="uwbwb-static-panel">', html):
+        depth = 0
+        for tag in re.finditer(r"<(/?)div\b[^>]*>", html[m.start():]):
+            depth += -1 if tag.group(1) else 1
+            if depth == 0:
+                panels.append(html[m.start():m.start() + tag.end()])
+                break
+    return panels
 
 
 def _relative_hrefs(html: str) -> list[str]:
@@ -272,13 +286,16 @@ def test_class_folders_of_notebook_00(tmp_path):
     assert not any("injected-parameters" in c.metadata.get("tags", []) for c in executed.cells)
     assert classroom.image_count(executed) > 0
     assert {p.name for p in answers.iterdir()} == {"00_quickstart.ipynb", "00_quickstart.html", "TEACHING.md",
-                                                   "GLOSSARY.md", "GLOSSARY.html"}
+                                                   "GLOSSARY.md", "GLOSSARY.html", "docs"}
+    assert (student / "docs" / "run_times.md").is_file()                  # the front's run-time table, linked
     assert classroom.unresolved_links(answers) == []                      # TEACHING.md's glossary link too
     html = (answers / "00_quickstart.html").read_text(encoding="utf-8")
     assert _offline_problems(html) == []
-    assert 'class="uwbwb-static-panel"' in html and _formulas(html)
+    assert _formulas(html) and not re.search(r"\$[^$<]+\$", _plain(html))          # formulas drawn, no TeX left
+    panels = _static_panels(html)
+    assert panels and all(re.search(r'<img\b[^>]*\bsrc="data:image/png;base64,', p) for p in panels)  # its figure
     text = " ".join(_plain(html).split())
-    assert "CLASS = True" in text and "CLASS = False" not in text
+    assert "CLASS = True" in text and "CLASS = False" not in text and "FAST = True" in text
     hrefs = _relative_hrefs(html)
     assert hrefs and all((answers / h.partition("#")[0]).is_file() for h in hrefs), hrefs
     assert _offline_problems((answers / "GLOSSARY.html").read_text(encoding="utf-8")) == []
