@@ -10,7 +10,8 @@ Each selected notebook runs once per mode, one notebook at a time, in a fresh ke
 The numba kernels are compiled into their cache first (``python -m uwbwb.filters.twins``, as ``make env`` does at
 install time), so no notebook's time includes compiling them. Every (notebook, mode) row of the table carries its wall time, the date, the machine (CPU and cores) and the
 load average when that notebook started (it includes this command's previous notebook). A run of some notebooks
-or modes replaces those rows and keeps the others. The notebook fronts, README.md and TEACHING.md quote the table;
+or modes replaces those rows and keeps the others. It then writes the table's times into the notebook fronts'
+*Run time* lines, README.md's and TEACHING.md's quoted lists and the routes' timing tables (:func:`write_quotes`);
 ``tests/test_classroom_times.py`` fails when one of them disagrees with it.
 
 A script beside the benchmarks rather than a ``uwbwb`` command: it measures the workbench, it is not part of
@@ -158,6 +159,78 @@ def measure(notebook: Path, mode: str, out: Path) -> float:
     return result.runs[0].seconds
 
 
+TIME = r"\d+ min(?: \d+ s)?|\d+ s"
+#: A quoted list in README.md / TEACHING.md: ``class mode: 00 28 s, 01 34 s, ...`` (also ``FAST:`` and ``full:``).
+QUOTED_LIST = re.compile(rf"\b(class mode|FAST|full):(\s*)((?:0\d (?:{TIME}|not measured)(?:,\s*)?)+)", re.I)
+QUOTED_ITEM = re.compile(rf"\b(0\d) ({TIME}|not measured)")
+#: A front's *Run time* line: ``class mode 41 s, [FAST](GLOSSARY.md#fast) 1 min 2 s, [full](...) 34 min``.
+FRONT_ITEM = re.compile(rf"(\bclass mode |\[FAST\]\([^)]*\) |\[full\]\([^)]*\) )({TIME}|not measured)")
+_MODE_OF = {"class mode": "class", "fast": "fast", "full": "full"}
+
+
+def _minutes(time: str) -> int:
+    m = re.fullmatch(r"(?:(\d+) min)?(?: ?(\d+) s)?", time)
+    return math.ceil((60 * int(m.group(1) or 0) + int(m.group(2) or 0)) / 60)
+
+
+def quote(text: str, by_nb: dict[str, dict[str, str]]) -> str:
+    """``text`` (README.md, TEACHING.md) with every quoted list's times set to the table's, and each route's timing
+    table (TEACHING.md) re-added: a block's minutes are its Run All (rounded up) plus its assumed minutes."""
+    def one_list(m):
+        mode = _MODE_OF[m.group(1).lower()]
+        items = QUOTED_ITEM.sub(lambda i: f"{i.group(1)} {by_nb[i.group(1)][mode]}", m.group(3))
+        return f"{m.group(1)}:{m.group(2)}{items}"
+
+    text = QUOTED_LIST.sub(one_list, text)
+    out, clock = [], None
+    for line in text.split("\n"):
+        cells = _cells(line) if line.startswith("| ") else []
+        if len(cells) == 6 and cells[0] in ("1", "") and cells[1] in ("introduction", "total"):
+            clock = 0 if cells[1] == "introduction" else clock
+        if len(cells) == 6 and clock is not None and line.startswith("| "):
+            block, what, run, assumed, minutes, span = cells
+            if what == "total":
+                line, clock = f"| | total | | | {clock} | |", None
+            else:
+                nb = re.match(r"\*?\*?(0\d)\b", what)
+                run = by_nb[nb.group(1)]["class"] if nb else run
+                minutes = (_minutes(run) if nb else 0) + int(re.match(r"(\d+) min", assumed).group(1))
+                start, clock = clock, clock + minutes
+                line = (f"| {block} | {what} | {run} | {assumed} | {minutes} | "
+                        f"{start // 60}:{start % 60:02d}–{clock // 60}:{clock % 60:02d} |")
+        out.append(line)
+    return "\n".join(out)
+
+
+def quote_front(front: str, times_of_nb: dict[str, str]) -> str:
+    """A notebook front with its *Run time* line set to the table's times."""
+    mode = {"class mode ": "class"}
+    return "\n".join(FRONT_ITEM.sub(lambda m: m.group(1) + times_of_nb[mode.get(m.group(1)) or
+                                                                      ("fast" if "FAST" in m.group(1) else "full")],
+                                     ln) if "Run time" in ln else ln for ln in front.split("\n"))
+
+
+def write_quotes(entries: list[Entry]) -> list[Path]:
+    """Write the table's times into the notebook fronts, README.md and TEACHING.md; the files changed."""
+    import json
+
+    by_nb = {nb[:2]: row for nb, row in times(entries).items()}
+    changed = []
+    for path in (ROOT / "README.md", ROOT / "TEACHING.md"):
+        old = path.read_text(encoding="utf-8")
+        if (new := quote(old, by_nb)) != old:
+            path.write_text(new, encoding="utf-8")
+            changed.append(path)
+    for path in sorted((ROOT / "notebooks").glob("*.ipynb")):
+        nb = json.loads(path.read_text(encoding="utf-8"))
+        front = "".join(nb["cells"][0]["source"])
+        if (new := quote_front(front, by_nb[path.stem[:2]])) != front:
+            nb["cells"][0]["source"] = new.splitlines(keepends=True)
+            path.write_text(json.dumps(nb, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
+            changed.append(path)
+    return changed
+
+
 def main(argv: list[str] | None = None) -> int:
     from uwbwb import reproduce
 
@@ -184,7 +257,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{nb.stem:24s} {mode:6s} {format_time(seconds):>10s}  (load at start {load})", flush=True)
                 entries = merge(entries, [entry])
                 args.table.write_text(render(entries), encoding="utf-8")     # each row as soon as it is measured
-    print(f"written: {args.table}")
+    changed = write_quotes(entries)
+    print(f"written: {args.table}; the times quoted in {', '.join(p.name for p in changed) or 'no file (all agree)'}")
     return 0
 
 

@@ -177,3 +177,22 @@ def test_the_checks_see_a_time_that_disagrees():
     assert route_problems("R", late, times) == ["R: 126 min, over the two hours"]
     wrong = [rows[0], ["2", "**00** x", "28 s", "20 min", "20", "0:05–0:25"], ["", "total", "", "", "25", ""]]
     assert len(route_problems("R", wrong, times)) == 1
+
+
+def test_the_command_writes_the_quotes_the_checks_read():
+    """``run_times.quote`` / ``quote_front`` put another table's times into README, TEACHING and a front so that
+    every check agrees with that table (and the texts as committed already agree with this one)."""
+    entries = rt.parse((ROOT / "docs" / "run_times.md").read_text("utf-8"))
+    other = [rt.Entry(e.notebook, e.mode, e.seconds / 3 + 7, e.date, e.machine, e.load, e.source) for e in entries]
+    here = {nb[:2]: row for nb, row in rt.times(entries).items()}
+    there = {nb[:2]: row for nb, row in rt.times(other).items()}
+    teaching = (ROOT / "TEACHING.md").read_text("utf-8")
+    for name in ("README.md", "TEACHING.md"):
+        text = (ROOT / name).read_text("utf-8")
+        assert rt.quote(text, here) == text
+        assert quote_problems(name, rt.quote(text, there), there) == []
+        assert quote_problems(name, rt.quote(text, there), here) != []
+    for route, rows in route_tables(rt.quote(teaching, there)).items():
+        assert route_problems(route, rows, there) == []
+    front = nbformat.read(NOTEBOOKS[1], as_version=4).cells[0].source
+    assert front_problems(NOTEBOOKS[1].stem, rt.quote_front(front, there["01"]), there) == []
