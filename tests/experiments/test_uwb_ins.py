@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import real_dataset
+from tests.filters.test_eskf_recovery import fusion_errors, rmse_and_coverage
 from tests.fixtures import iasl as fx
 from uwbwb.experiments.uwb_ins import study
 from uwbwb.filters import alignment, imu_calibration
@@ -78,12 +79,12 @@ def test_real_data_path_runs_on_any_scenario_by_name(tmp_path, names):
     # the fixture's accelerometer reads 1.056 × the specific force, z down (as upstream)
     assert cal.notes["accelerometer scale (flight fit, cross-check)"] == pytest.approx(1 / 1.056, rel=0.03)
     np.testing.assert_allclose(np.diag(cal.convention.R_body_sensor), [1, -1, -1])
-    comp = alignment.compare_iasl(iasl.load_scenario(names[1], data), cal, still_s=1.0, align_s=15.0)
-    t = comp.table()
-    assert comp.label.endswith(names[1])
-    assert t.loc["tight", "coverage"] > 0.99 and np.isfinite(t.loc["tight", "RMSE (m)"])
-    assert t.loc["tight", "RMSE (m)"] < 2 * t.loc["UWB-only", "RMSE (m)"] + 0.05
-    assert t.loc["EKF + gate", "coverage"] > 0.99                  # the gated IMU-free EKF runs beside them
+    rec = iasl.load_scenario(names[1], data)
+    assert rec.label.endswith(names[1])
+    _, err, have = fusion_errors(rec, cal, ("UWB-only", "tight"), still_s=1.0, align_s=15.0)
+    (uwb, _), (tight, tight_cov) = (rmse_and_coverage(err[n], have) for n in err)
+    assert tight_cov > 0.99 and np.isfinite(tight)
+    assert tight < 2 * uwb + 0.05
 
 
 @pytest.mark.realdata
@@ -93,7 +94,7 @@ def test_real_iasl_calibration_transfers():
     real_dataset("iasl-uwb-imu")
     cal = imu_calibration.calibrate_iasl(iasl.load_scenario("scenario1"))
     assert 0.93 < cal.convention.acc_scale < 0.96              # ≈ 9.81 / 10.3
-    comp = alignment.compare_iasl(iasl.load_scenario("scenario2"), cal, duration_s=20.0, align_s=15.0)
-    t = comp.table()
-    assert t.loc["tight", "RMSE (m)"] < 1.2 * t.loc["UWB-only", "RMSE (m)"]
-    assert t.loc["EKF + gate", "coverage"] > 0.99             # the gated IMU-free EKF scores beside them
+    _, err, have = fusion_errors(iasl.load_scenario("scenario2"), cal, ("UWB-only", "tight"), duration_s=20.0,
+                                 align_s=15.0)
+    (uwb, _), (tight, _) = (rmse_and_coverage(err[n], have) for n in err)
+    assert tight < 1.2 * uwb
