@@ -7,6 +7,7 @@ import pytest
 from tests.conftest import real_dataset
 from tests.filters.test_eskf_recovery import fusion_errors, rmse_and_coverage
 from tests.fixtures import iasl as fx
+from uwbwb.experiments.uwb_ins import ablation as ab
 from uwbwb.experiments.uwb_ins import study
 from uwbwb.filters import alignment, imu_calibration
 from uwbwb.models.tdoa import TdoaModel
@@ -37,6 +38,29 @@ def test_methods_subset_and_unknown_method(short_dynamic):
     assert list(comp.estimates) == ["UWB-only", "loose"]
     with pytest.raises(ValueError, match="unknown methods"):
         study.compare_synthetic(run, methods=("EKF",))
+
+
+def test_the_cell_the_sections_and_the_ablation_run_one_builders_filters():
+    """``study.fusion_filters`` from ``study.start`` is what notebook 05's cell runs; the ablation's loose and tight
+    rows and the sections' comparison are the same filters (the paper's loose one ungated there)."""
+    cfg = ab.AblationConfig.fast(seeds=1)
+    run = ab.simulate("dynamic", cfg.model, cfg, 5)
+    s = study.start(run, cfg.model, cfg.outlier_c_m)
+    settings = alignment.FusionSettings(cfg.outlier_c_m, cfg.gate_prob, loose_window=cfg.loose_window)
+    tight, loose = study.fusion_filters(cfg.model, settings)
+    cell = {"tight + gate": tight.run(s.imu, run.tdoa, s.x0, heading=run.heading),
+            "loose + gate": loose.run(s.imu, s.fixes, s.x0, heading=run.heading)}
+    rows = tuple(cell)
+    pos, k0, _ = ab.run_methods(run, cfg.model, dict.fromkeys(rows, (1.0, 1.0)), cfg, rows=rows)
+    assert k0 == s.k0
+    for r in rows:
+        np.testing.assert_array_equal(pos[r][k0:], cell[r].to_estimates(dim=2).pos_m[k0:])
+    comp = study.compare_synthetic(run, settings)
+    np.testing.assert_array_equal(comp.estimates["tight"].pos_m, cell["tight + gate"].to_estimates(dim=2).pos_m)
+    ungated = study.fusion_filters(cfg.model, settings, gate_loose=False)[1]
+    assert loose.gate_prob == cfg.gate_prob and ungated.gate_prob is None
+    np.testing.assert_array_equal(comp.estimates["loose"].pos_m,
+                                  ungated.run(s.imu, s.fixes, s.x0, heading=run.heading).to_estimates(dim=2).pos_m)
 
 
 def test_error_ranges_are_min_and_max_of_the_signed_errors(short_dynamic):
