@@ -65,7 +65,7 @@ from ...validate import integer, number, probability
 from .study import OUTAGE_START_S, fusion_filters, injected, start
 
 __all__ = ["R_GRID", "FAST_R_GRID", "BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "METRICS", "LADDER", "EKF_Q0",
-           "RECOVERY_S", "RECOVERY_MAX_M", "HOLD_S", "reacquisition_s", "AblationConfig", "AblationResult", "check_outage", "check_parameters", "notebook_config",
+           "RECOVERY_S", "RECOVERY_MAX_M", "HOLD_S", "reacquisition_s", "AblationConfig", "AblationResult", "check_outage", "notebook_config",
            "legs_for_outage", "simulate", "ls_gate", "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci",
            "choose_knobs", "TIE_REL", "FULL_GRID", "FAST_GRID"]
 
@@ -211,22 +211,6 @@ def check_outage(outage_s: float, recovery_s: float, motion: robot.RobotMotion, 
         raise ValueError(f"{name} = {outage_s:g} s cannot hold: the outage starts at {OUTAGE_START_S:g} s and the "
                          f"run lasts {motion.duration_s:.1f} s, so with {recovery_s:g} s of recovery scored after it "
                          f"{name} must be at most {motion.duration_s - OUTAGE_START_S - recovery_s:.1f} s")
-
-
-def check_parameters(*, outage_s: float, static_s: float, outlier_rate: float, gate_prob: float,
-                     nlos_bias_m: float, loose_window: int, seeds: int) -> None:
-    """Notebook 05's parameters, checked before anything runs: a ``ValueError`` names the parameter.
-
-    ``OUTAGE_S`` must fit, with :data:`RECOVERY_S` of recovery scored after it, in the paper's
-    broken line from :data:`~.study.OUTAGE_START_S` (:func:`check_outage`).
-    """
-    number("STATIC_S", static_s, minimum=1.0)
-    number("OUTLIER_RATE", outlier_rate, minimum=0.0, maximum=1.0)
-    probability("GATE_PROB", gate_prob)
-    number("NLOS_BIAS_M", nlos_bias_m, minimum=0.0)
-    integer("LOOSE_WINDOW", loose_window, minimum=1)
-    integer("SEEDS", seeds, minimum=2)
-    check_outage(outage_s, RECOVERY_S, robot.broken_line(), name="OUTAGE_S")
 
 
 def notebook_config(*, fast: bool, seeds: int, outage_s: float, gate_prob: float, outlier_c_m: float | None,
@@ -460,12 +444,12 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, tuple[float, float]], c
     return {"scores": scores, "counts": counts, "pairs": pairs}
 
 
-def _tune_task(row: str, knob: tuple[float, float], cfg: AblationConfig, seed: int) -> tuple[float, float]:
+def _tune_task(*, row: str, knob: tuple[float, float], cfg: AblationConfig, tuning_seed: int) -> tuple[float, float]:
     """RMSE over the tuning seed's scored epochs (no outage, no recovery), and the row's mean NIS per dof on its
     dynamic run (NaN for rows without one)."""
     parts, nis = [], np.nan
     for scen in ("static", "dynamic"):
-        run = simulate(scen, cfg.model, cfg, seed)
+        run = simulate(scen, cfg.model, cfg, tuning_seed)
         pos, k0, counts = run_methods(run, cfg.model, {row: knob}, cfg, (row,))
         parts.append(score_epochs({row: np.linalg.norm(pos[row] - run.truth.pos_m[:, :2], axis=1)},
                                   _masks(run, k0, cfg.recovery_s)["all"]))
@@ -485,7 +469,7 @@ def tune(cfg: AblationConfig, *, tuning_seed: int, scheduler=None,
     pairs = [(float(q), float(r)) for q in cfg.grid for r in cfg.r_grid]
     tasks = [parallel.Task({"row": row, "knob": pair}) for row in _TUNED for pair in pairs]
     res = {(t.params["row"], t.params["knob"]): v for t, v in parallel.imap(
-        _tune_task_shared, tasks, shared={"cfg": cfg, "tuning_seed": tuning_seed}, scheduler=scheduler,
+        _tune_task, tasks, shared={"cfg": cfg, "tuning_seed": tuning_seed}, scheduler=scheduler,
         workers=workers, desc="ablation tuning", unit="run")}
     tables = []
     for i in (0, 1):
@@ -517,10 +501,6 @@ def choose_knobs(tuning: pd.DataFrame, *, tie_rel: float = TIE_REL) -> pd.DataFr
         out[row] = {"Q ×": q, "R ×": r, "rmse": float(v[pairs.index((q, r))]), "edge": ", ".join(edges) or "—",
                     "blowups": tuple(p for p, x in zip(pairs, v) if not x <= 10 * best)}
     return pd.DataFrame(out).T
-
-
-def _tune_task_shared(*, row, knob, cfg, tuning_seed):
-    return _tune_task(row, knob, cfg, tuning_seed)
 
 
 def _score_task(*, case, run_seed, knobs, cfg, rows, scenarios):
