@@ -102,14 +102,18 @@ def test_ratio_ci_is_the_paired_geometric_mean_with_a_t_interval():
 
 # ---------------------------------------------------------------- parameters refused up front
 def test_an_outage_longer_than_the_run_is_refused_naming_the_parameter():
-    kw = dict(static_s=20.0, outlier_rate=0.02, gate_prob=0.999, nlos_bias_m=0.4, loose_window=5, seeds=10)
-    ab.check_parameters(outage_s=5.0, **kw)
-    with pytest.raises(ValueError, match=r"OUTAGE_S = 30 s cannot hold.*at most 18\.7 s"):
-        ab.check_parameters(outage_s=30.0, **kw)
+    from uwbwb.notebook_params import SPECS
+
+    spec = SPECS["05_uwb_ins_fusion"]                        # what the notebook's first cell checks
+    assert spec["OUTAGE_S"].validate(5.0, "OUTAGE_S") == 5.0
+    with pytest.raises(ValueError, match=r"OUTAGE_S=30.*≤ 18\.6"):
+        spec["OUTAGE_S"].validate(30.0, "OUTAGE_S")
     with pytest.raises(ValueError, match="OUTAGE_S"):
-        ab.check_parameters(outage_s=-1.0, **kw)
+        spec["OUTAGE_S"].validate(-1.0, "OUTAGE_S")
     with pytest.raises(ValueError, match="SEEDS"):
-        ab.check_parameters(outage_s=5.0, **{**kw, "seeds": 1})
+        spec["SEEDS"].validate(1, "SEEDS")
+    with pytest.raises(ValueError, match=r"OUTAGE_S = 30 s cannot hold.*at most 18\.7 s"):
+        ab.legs_for_outage(30.0, after_s=ab.RECOVERY_S)
     with pytest.raises(ValueError, match="outage_s"):
         ab.AblationConfig(legs=2, outage_s=5.0)
     # FAST drives as many legs as the outage and its recovery need
@@ -480,7 +484,8 @@ def test_outage_spec_of_reproduce_is_the_longest_outage_the_run_holds():
 def test_error_range_assumption_is_read_off_the_simulated_world():
     from uwbwb.models.imu import GRADES
 
-    assert "3 cm arrival-time σ, 2 % multipath of 0.3–4 m, consumer IMU" in headlines.ERROR_RANGE_ASSUMPTION
+    assert headlines.error_range_assumption(robot.RobotConfig()).endswith(
+        "3 cm arrival-time σ, 2 % multipath of 0.3–4 m, consumer IMU")
     w = robot.RobotConfig(imu=GRADES["tactical"], outlier_rate=0.05, sigma_toa_m=0.05)
     assert headlines.error_range_assumption(w).endswith("5 cm arrival-time σ, 5 % multipath of 0.3–4 m, tactical IMU")
 

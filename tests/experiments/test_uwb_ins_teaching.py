@@ -51,7 +51,7 @@ def test_panel_offers_the_notebooks_outage_and_says_what_to_see():
                            gate_prob=0.999, loose_window=5, stations_m=np.zeros((4, 3)))
 
 
-def test_each_filters_scales_touch_only_itself(tmp_path):
+def test_each_filters_scales_reach_it_and_the_start_is_shared(tmp_path):
     from uwbwb.datasets import iasl
 
     root = tmp_path / "iasl-uwb-imu"
@@ -60,17 +60,15 @@ def test_each_filters_scales_touch_only_itself(tmp_path):
     fx.write_scenario(root / "flight_a", rng=np.random.default_rng(8), duration_s=30.0)
     rec = iasl.load_scenario("flight_a", tmp_path)
     cal = imu_calibration.calibrate_iasl(rec)
-    base = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0)
-    for name in alignment.TUNABLE:                                     # (q, r) moves that filter and no other
-        comp = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={name: (10.0, 3.0)})
-        for other in base.estimates:
-            same = np.array_equal(comp.estimates[other].pos_m, base.estimates[other].pos_m, equal_nan=True)
-            assert same == (other != name), (name, other)
-    one = alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={n: (1.0, 1.0) for n in alignment.TUNABLE})
-    for other in base.estimates:                                      # (1, 1) is the untuned filter, bit for bit
-        np.testing.assert_array_equal(one.estimates[other].pos_m, base.estimates[other].pos_m)
-    with pytest.raises(ValueError, match="unknown filters"):
-        alignment.compare_iasl(rec, cal, still_s=1.0, align_s=10.0, scales={"UWB-only": (1.0, 1.0)})
+    start = alignment.align_iasl(rec, cal, still_s=1.0, align_s=10.0)
+    for name in alignment.TUNABLE + ("INS-only",):                     # (q, r) moves every tunable filter
+        base = alignment.run_fusion_filter(name, start, rec, cal)[1]
+        scaled = alignment.run_fusion_filter(name, start, rec, cal, scales=(10.0, 3.0))[1]
+        assert base.t_s[0] == rec.ranges["tag"].t_s[start.k0]          # every filter starts where the alignment ends
+        same = np.array_equal(scaled.pos_m, base.pos_m, equal_nan=True)
+        assert same == (name == "INS-only"), name                     # INS-only has no knob
+    with pytest.raises(ValueError, match="name must be one of"):
+        alignment.run_fusion_filter("UWB-only", start, rec, cal)
 
 
 def _iasl_cell(notebook: str) -> str:
@@ -157,7 +155,7 @@ def test_figures_draw_truth_only_where_it_exists_and_keep_uwb_spikes_off_the_axe
     t = np.arange(n) * 0.1
     truth = np.column_stack([np.linspace(1, 3, n), np.full(n, 2.0)])
     scored = np.arange(n) >= 5
-    truth[~scored] = 0.0                                     # as compare_iasl stores epochs without truth
+    truth[~scored] = 0.0                                     # as board_comparison stores epochs without truth
     uwb = truth + 0.005
     uwb[20] = [40.0, -30.0]                                  # one multipath spike
     est = {"UWB-only": Estimates(t, uwb, np.ones(n, np.int8), "UWB-only"),

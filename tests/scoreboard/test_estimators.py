@@ -1,5 +1,4 @@
-"""The board's adapters: the EKFs' tuning criterion, and the UWB/INS adapters (what they run per grid point, and
-that they equal notebook 05's comparison)."""
+"""The board's adapters: the EKFs' tuning criterion, and the UWB/INS adapters (what they run per grid point)."""
 
 from __future__ import annotations
 
@@ -15,7 +14,6 @@ from uwbwb.scoreboard import Calibration, calibrate
 from uwbwb.scoreboard.estimators import INS_GRID_FAST, TdoaEkfEstimator, TdoaLs, UwbInsFilter
 from uwbwb.scoreboard.interface import calibrated_log
 from uwbwb.sim import walk
-from uwbwb.types import Trajectory
 
 
 def _office(sigma_m=0.1):
@@ -77,26 +75,6 @@ def test_uwb_ins_tuning_aligns_once_and_runs_only_its_own_filter_per_grid_point(
     calibrate(cal_rec, [UwbInsFilter("tight", {}, INS_GRID_FAST)], rate_hz=None)
     assert calls["align"] == 1                                   # one start-up for the whole grid
     assert calls["filters"] == ["tight"] * len(INS_GRID_FAST)    # one filter run per grid point, its own
-
-
-def test_uwb_ins_adapter_estimates_equal_notebook_05s_comparison(tmp_path):
-    """Declared twin: the adapter's estimate is the comparison's filter of the same name, bit for bit."""
-    cal_rec, test = _flights(tmp_path)
-    ests = [UwbInsFilter(k, {}, ((10.0, 3.0),)) for k in ("loose", "tight")]
-    cal = calibrate(cal_rec, ests, rate_hz=None)
-    imu_cal = cal.params("tight")["calibration"]
-    log = calibrated_log(test, "tag", cal)
-    hidden = Trajectory(log.t_s[[0, -1]], np.full((2, 3), np.nan), name="truth (hidden)")
-    comp = alignment.compare_iasl(replace(test, ranges={"tag": log}, truth={"tag": hidden}),
-                                  replace(imu_cal, range_sigma_m=cal.sigma("tag"), range_bias_m=0.0),
-                                  still_s=2.0, align_s=20.0, scales={k: (10.0, 3.0) for k in ("loose", "tight")})
-    for est in ests:
-        got = est.estimate(test, "tag", cal)
-        want = comp.estimates[est.kind]
-        idx = np.searchsorted(got.t_s, want.t_s)
-        assert want.has_estimate.sum() > 50 and not np.delete(got.has_estimate, idx).any()
-        np.testing.assert_array_equal(got.pos_m[idx], want.pos_m, err_msg=est.kind)
-        np.testing.assert_array_equal(got.status[idx], want.status, err_msg=est.kind)
 
 
 def test_an_ekf_with_knobs_tunes_the_fusion_filters_pairs_about_its_fitted_motion_and_the_calibrated_noise():

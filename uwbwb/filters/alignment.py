@@ -1,34 +1,31 @@
-"""Start-up and comparison of the UWB/INS filters on one recording: the eq-4 screen, levelling
-and gyro bias at rest, the initial state from the UWB fixes, the in-motion heading alignment,
-and every fusion filter run from the aligned state on the same epochs (:func:`compare_iasl`).
+"""Start-up of the UWB/INS filters on one recording: the eq-4 screen, levelling and gyro bias at
+rest, the initial state from the UWB fixes, the in-motion heading alignment (:func:`align_iasl`),
+and each fusion filter run from the aligned state (:func:`run_fusion_filter`).
 
-Used by notebook 05 (:mod:`uwbwb.experiments.uwb_ins`) and by the scoreboard's UWB/INS
-adapters; :class:`Comparison` is the result both read.
+Used by notebook 05 (:mod:`uwbwb.experiments.uwb_ins`, whose result type is :class:`Comparison`)
+and by the scoreboard's UWB/INS adapters.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from ..metrics import rmse, score_epochs
 from ..models.ins import NavState, dcm_from_euler, dcm_to_quat
-from ..models.motion import RandomForce
 from ..models.tdoa import TdoaModel, triangle_outliers
 from ..validate import number
 from ..types import EstimateStatus, Estimates, ImuLog, Recording, TdoaLog, Trajectory
 from . import eskf
-from .ekf import TdoaEkf
 from .imu_calibration import RealCalibration
 from .tdoa_ls import tdoa_least_squares
 
 __all__ = ["FusionSettings", "screened_tdoa", "ls_estimates", "Comparison", "initial_state", "imu_after",
-           "level_attitude", "IASL_EKF_PSD_M2PS3", "AlignedStart", "align_iasl", "loose_filter", "compare_iasl",
-           "TUNABLE", "run_fusion_filter", "handover_covariance",
-           "scored_truth"]
+           "level_attitude", "AlignedStart", "align_iasl", "loose_filter",
+           "TUNABLE", "run_fusion_filter", "handover_covariance"]
 
 
 @dataclass(frozen=True)
@@ -40,7 +37,8 @@ class FusionSettings:
     outlier_c_m
         ``C`` of eq. (4), m; None: no eq-4 test.
     gate_prob
-        χ²(1) gate probability of the tight filter per TDoA; None: no gate.
+        χ² gate probability of the tight filter per TDoA (and of the loose filter per fix where it is
+        gated); None: no gate.
     q_scale, r_scale
         Multipliers on the process and measurement noise of both filters.
     feedback
@@ -180,22 +178,14 @@ def level_attitude(imu: ImuLog, t0: float, still_s: float, *, max_rate_radps: fl
     return roll, pitch, imu.gyro_radps[sel].mean(axis=0), True
 
 
-#: Random-force spectral density of the IMU-free EKF on the drone recordings, m²/s³: an
-#: **assumption** (about 1 m/s² of unmodelled acceleration per second), not tuned on any scenario.
-IASL_EKF_PSD_M2PS3 = 1.0
-
-
 @dataclass(frozen=True)
 class AlignedStart:
     """The common start of every UWB/INS filter on one recording (:func:`align_iasl`).
 
     Attributes
     ----------
-    log, tdoa, screened
-        The ranges (cut to the run's length), their TDoAs against the reference anchor, and the
-        TDoAs after the eq-4 screen.
-    n_eq4
-        TDoAs removed by eq. 4 per epoch, shape ``(T,)``.
+    log, tdoa
+        The ranges (cut to the run's length) and their TDoAs against the reference anchor.
     model
         The 3-D TDoA model with the calibrated range noise.
     fixes
@@ -207,13 +197,11 @@ class AlignedStart:
     gyro_bias0_radps
         Gyro bias from the rest interval (zeros when not at rest).
     alignment
-        The alignment filter's run; ``meta``: rest, roll, pitch, yaw after alignment, start time.
+        The alignment filter's run.
     """
 
     log: object
     tdoa: TdoaLog
-    screened: TdoaLog
-    n_eq4: np.ndarray
     model: TdoaModel
     fixes: Estimates
     k0: int
@@ -221,7 +209,6 @@ class AlignedStart:
     imu: ImuLog
     gyro_bias0_radps: np.ndarray
     alignment: object
-    meta: dict
 
     @property
     def after(self) -> np.ndarray:
@@ -232,8 +219,24 @@ class AlignedStart:
 def align_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings = FusionSettings(), *,
                ref_anchor: int = 0, still_s: float = 2.0, align_s: float = 20.0,
                duration_s: float | None = None) -> AlignedStart:
-    """Steps 1–2 of :func:`compare_iasl` (rest, then in-motion heading alignment): the state and
-    epoch every filter starts from, and the screened TDoAs and fixes they share."""
+    """The start of every UWB/INS filter on one ``iasl-uwb-imu`` recording, from ``cal`` (fitted on
+    another recording) and this recording's measurements only (no truth, no magnetometer — this
+    log has none): the state and epoch every filter starts from, and the screened TDoAs and
+    3-D TDoA least-squares fixes they share.
+
+    1. *Rest* (the first ``still_s`` s): roll and pitch by levelling, gyro bias by averaging
+       (:func:`level_attitude`; if the platform is not at rest, level and zero bias with a 10°
+       tilt uncertainty instead).
+    2. *In-motion heading alignment* (the next ``align_s`` s): the tight range filter runs from
+       the first UWB fix with yaw 0 and a 60° yaw uncertainty; heading is observable once the
+       drone accelerates, and the filter's state at the end of the window (position, velocity,
+       attitude) starts **every** filter (:func:`run_fusion_filter`) — the tight filters with
+       the alignment's variances of those states where larger than their own
+       (:func:`handover_covariance`). Scoring starts there, for every method.
+
+    The tag's lever arm from the IMU is unknown and taken as zero (an assumption); so are the
+    accelerometer biases (zero at start). ``duration_s`` cuts the ranges that long after the
+    alignment (None: the whole recording)."""
     if rec.imu is None:
         raise ValueError(f"{rec.label}: no IMU log")
     for name, value in (("still_s", still_s), ("align_s", align_s), ("duration_s", duration_s)):
@@ -251,9 +254,8 @@ def align_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings = 
     imu = cal.convention.to_body(rec.imu)
     anchors = rec.anchors.pos_m
     tdoa = TdoaLog.from_ranges(log, ref_anchor)
-    screened, n_eq4 = screened_tdoa(tdoa, anchors, settings.outlier_c_m)
     m3 = TdoaModel(anchors, cal.range_sigma_m, dim=3)
-    fixes = ls_estimates(screened, m3)
+    fixes = ls_estimates(screened_tdoa(tdoa, anchors, settings.outlier_c_m)[0], m3)
     roll, pitch, bg0, at_rest = level_attitude(imu, t_start, still_s)
     tilt_sigma = (2.0 if at_rest else 10.0) * math.pi / 180
     ranges_update = eskf.RangeUpdate(anchors, cal.range_sigma_m, cal.range_bias_m)
@@ -265,10 +267,7 @@ def align_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings = 
     al = aligner.run(imu_after(imu, log.t_s[k_a]), log.select(win), x_a, gyro_bias0=bg0)
     k0 = int(win[-1])
     x0 = NavState(al.pos_m[-1], al.vel_mps[-1], al.quat[-1])
-    meta = {"at_rest": at_rest, "roll0_deg": math.degrees(roll), "pitch0_deg": math.degrees(pitch),
-            "yaw_after_alignment_deg": math.degrees(float(al.euler_rad[-1, 2])), "gyro_bias0_radps": bg0,
-            "start_s": float(log.t_s[k0]), "alignment": al}
-    return AlignedStart(log, tdoa, screened, n_eq4, m3, fixes, k0, x0, imu_after(imu, log.t_s[k0]), bg0, al, meta)
+    return AlignedStart(log, tdoa, m3, fixes, k0, x0, imu_after(imu, log.t_s[k0]), bg0, al)
 
 
 def _common(settings: FusionSettings) -> dict:
@@ -287,8 +286,8 @@ def loose_filter(cal: RealCalibration, settings: FusionSettings = FusionSettings
                             sigma_r_vel_mps=0.5, q_vel_mps_rts=0.3)
 
 
-#: The filters of :func:`compare_iasl` that have process/measurement-noise knobs (:func:`run_fusion_filter`).
-TUNABLE = ("EKF + gate", "loose", "tight", "tight (ranges)")
+#: The filters of :func:`run_fusion_filter` that have process/measurement-noise knobs.
+TUNABLE = ("loose", "tight", "tight (ranges)")
 
 
 def handover_covariance(f: eskf.TightEskf, P_align: np.ndarray) -> np.ndarray:
@@ -308,18 +307,16 @@ def handover_covariance(f: eskf.TightEskf, P_align: np.ndarray) -> np.ndarray:
 
 
 def run_fusion_filter(name: str, a: AlignedStart, rec: Recording, cal: RealCalibration,
-                      settings: FusionSettings = FusionSettings(), *, scales: tuple[float, float] = (1.0, 1.0),
-                      ekf_psd_m2ps3: float = IASL_EKF_PSD_M2PS3):
-    """One filter of :func:`compare_iasl` from the aligned start ``a``; returns ``(run, Estimates)``.
+                      settings: FusionSettings = FusionSettings(), *, scales: tuple[float, float] = (1.0, 1.0)):
+    """One filter from the aligned start ``a`` (:func:`align_iasl`), on the epochs from ``a.k0`` on; returns
+    ``(run, Estimates)``.
 
-    ``name`` is one of :data:`TUNABLE`, or ``"INS-only"`` (the mechanization alone, nothing to scale). ``scales = (q, r)`` multiply that filter's process and
-    measurement noise only (on top of ``settings``' common scales): the tight filters' ``q_scale``
-    and ``r_scale``, the loose filter's Q and R (:func:`loose_filter`), the EKF's random-force
-    spectral density and its TDoA variance. ``(1, 1)`` is the untuned filter. ``settings``' common
-    ``q_scale``/``r_scale`` (the widget's knobs) act on the IMU filters only, as before; the EKF
-    takes its own ``scales``. Only the tight filters inherit the alignment's uncertainty
-    (:func:`handover_covariance`); the loose filter starts from its own (velocity σ 0.5 m/s) and
-    the EKF from its own (1 m, 1 m/s).
+    ``name`` is one of :data:`TUNABLE`, or ``"INS-only"`` (the mechanization alone, nothing to scale).
+    ``scales = (q, r)`` multiply that filter's process and measurement noise only (on top of
+    ``settings``' common scales): the tight filters' ``q_scale`` and ``r_scale``, the loose filter's
+    Q and R (:func:`loose_filter`). ``(1, 1)`` is the untuned filter. Only the tight filters inherit
+    the alignment's uncertainty (:func:`handover_covariance`); the loose filter starts from its own
+    (velocity σ 0.5 m/s).
     """
     q, r = scales
     after = a.after
@@ -337,68 +334,7 @@ def run_fusion_filter(name: str, a: AlignedStart, rec: Recording, cal: RealCalib
     if name == "loose":
         run = loose_filter(cal, settings, loose_scales=scales).run(a.imu, a.fixes.select(after), a.x0)
         return run, run.to_estimates(dim=3, name=name)
-    if name == "EKF + gate":
-        model = a.model if r == 1.0 else TdoaModel(rec.anchors.pos_m, np.asarray(cal.range_sigma_m) * math.sqrt(r), dim=3)
-        ekf = TdoaEkf(RandomForce(ekf_psd_m2ps3 * q, dim=3), model,
-                      gate_prob=settings.gate_prob)
-        run = ekf.run(a.screened.select(after), x0=ekf.init(a.x0.pos_m, a.x0.vel_mps))
-        return run, replace(run.to_estimates(), name=name)
     if name == "INS-only":                               # no aiding and no knob: the scales are ignored
         run = eskf.dead_reckon(a.imu, a.x0, a.log.select(after).t_s, gyro_bias=a.gyro_bias0_radps)
         return run, run.to_estimates(dim=3, name=name)
     raise ValueError(f"name must be one of {TUNABLE + ('INS-only',)}, got {name!r}")
-
-
-def compare_iasl(rec: Recording, cal: RealCalibration, settings: FusionSettings = FusionSettings(), *,
-                 ref_anchor: int = 0, still_s: float = 2.0, align_s: float = 20.0,
-                 duration_s: float | None = None, ekf_psd_m2ps3: float = IASL_EKF_PSD_M2PS3,
-                 loose_scales: tuple[float, float] = (1.0, 1.0), scales: dict | None = None) -> Comparison:
-    """UWB-only (3-D TDoA LS), the gated IMU-free TDoA EKF of notebook 03 (random force,
-    ``ekf_psd_m2ps3``, the same χ² probability as the tight filter's gate), INS-only, loose
-    (6 states), tight on TDoA and tight on ranges, on one ``iasl-uwb-imu`` recording, using only
-    ``cal`` (from another recording) and this recording's measurements; its truth only scores.
-
-    Start-up, common to every filter (no truth, no magnetometer — this log has none):
-
-    1. *Rest* (the first ``still_s`` s): roll and pitch by levelling, gyro bias by averaging
-       (:func:`level_attitude`; if the platform is not at rest, level and zero bias with a 10°
-       tilt uncertainty instead).
-    2. *In-motion heading alignment* (the next ``align_s`` s): the tight range filter runs from
-       the first UWB fix with yaw 0 and a 60° yaw uncertainty; heading is observable once the
-       drone accelerates, and the filter's state at the end of the window (position, velocity,
-       attitude) starts **every** filter — the tight filters with the alignment's variances of
-       those states where larger than their own (:func:`handover_covariance`). Scoring starts
-       there, for every method.
-
-    The tag's lever arm from the IMU is unknown and taken as zero (an assumption); so are the
-    accelerometer biases (zero at start). ``scales`` maps a filter of :data:`TUNABLE` to its own
-    ``(q, r)`` multipliers (e.g. tuned on the calibration recording; :func:`run_fusion_filter`);
-    ``loose_scales`` is the loose filter's entry (kept for callers that tune only that one).
-    """
-    a = align_iasl(rec, cal, settings, ref_anchor=ref_anchor, still_s=still_s, align_s=align_s,
-                   duration_s=duration_s)
-    scales = {"loose": loose_scales, **(scales or {})}
-    unknown = set(scales) - set(TUNABLE)
-    if unknown:
-        raise ValueError(f"scales: unknown filters {sorted(unknown)}; tunable: {TUNABLE}")
-    # 3. the comparison, all from x0 at epoch k0
-    runs, est = {}, {"UWB-only": a.fixes.select(a.after)}
-    for name in ("EKF + gate", "tight", "tight (ranges)", "loose", "INS-only"):
-        runs[name], est[name] = run_fusion_filter(name, a, rec, cal, settings, scales=scales.get(name, (1.0, 1.0)),
-                                                  ekf_psd_m2ps3=ekf_psd_m2ps3)
-    sub = a.log.select(a.after)
-    runs = {k: runs[k] for k in ("tight", "tight (ranges)", "loose", "INS-only", "EKF + gate")}
-    est = {k: est[k] for k in ("UWB-only", "EKF + gate", "tight", "tight (ranges)", "loose", "INS-only")}
-    truth, have = scored_truth(rec, sub.t_s)
-    rejected = {"eq4": int(a.n_eq4[a.after].sum()), "gated": int(runs["tight"].n_gated.sum()),
-                "tdoas": int(a.tdoa.n_tdoa[a.after].sum())}
-    return Comparison(rec.label, truth, est, runs, {"scored": have}, rejected, 2, {**a.meta, "scales": dict(scales)})
-
-
-def scored_truth(rec: Recording, t_s: np.ndarray) -> tuple[Trajectory, np.ndarray]:
-    """The tag's truth at ``t_s`` and where it exists (``(T,)`` bool); positions without truth are
-    set to 0 and must be read through that mask (figures and tables do)."""
-    pos = rec.truth["tag"].interp(t_s)
-    have = np.all(np.isfinite(pos), axis=1)
-    pos[~have] = 0.0
-    return Trajectory(t_s, pos, name="truth"), have

@@ -318,7 +318,7 @@ class RangeEkfEstimator(_MotionEkf):
 # ----------------------------------------------------------------------------- UWB/INS
 
 #: Rest at the start of a flight (levelling) and in-motion heading alignment before the fusion
-#: filters start, seconds (:func:`uwbwb.filters.alignment.compare_iasl`).
+#: filters start, seconds (:func:`uwbwb.filters.alignment.align_iasl`).
 INS_REST_S, INS_ALIGN_S = 2.0, 20.0
 #: ``(q_scale, r_scale)`` pairs the UWB/INS filters search on the calibration part (here and in notebook 05):
 #: multipliers on the IMU process-noise (Q × 0.01–100) and the UWB measurement-noise variances (R × 0.1–30), 30
@@ -347,8 +347,7 @@ class UwbInsFilter(BaseEstimator):
     notebook 05's start-up (rest levelling, in-motion heading alignment over the first
     :data:`INS_ALIGN_S` s: :func:`~uwbwb.filters.alignment.align_iasl`, untuned: the pair scales the fusion
     filters only, so every grid point and both filters start from one state), then this adapter's filter
-    only (:func:`~uwbwb.filters.alignment.run_fusion_filter`, as :func:`~uwbwb.filters.alignment.compare_iasl`
-    runs it); no estimate before the alignment ends. The start-up is run once per recording and tag (each
+    only (:func:`~uwbwb.filters.alignment.run_fusion_filter`); no estimate before the alignment ends. The start-up is run once per recording and tag (each
     adapter its own: its time is part of the adapter's). The filters never see the scored
     truth: the start-up is handed a hidden (all-NaN) truth, and the board scores the estimates itself.
 

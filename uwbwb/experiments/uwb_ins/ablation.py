@@ -50,8 +50,7 @@ import pandas as pd
 from scipy import stats
 
 from ... import parallel
-from ...filters import eskf
-from ...filters.alignment import imu_after, initial_state, ls_estimates, screened_tdoa
+from ...filters.alignment import FusionSettings
 from ...filters.ekf import TdoaEkf
 from ...filters.gating import ChiSquarePerMeasurement
 from ...models.imu import GRADES
@@ -63,10 +62,10 @@ from ...sim import mismatch as mm
 from ...sim import robot
 from ...types import EstimateStatus, Estimates
 from ...validate import integer, number, probability
-from .study import OUTAGE_START_S
+from .study import OUTAGE_START_S, fusion_filters, injected, start
 
 __all__ = ["R_GRID", "FAST_R_GRID", "BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "METRICS", "LADDER", "EKF_Q0",
-           "RECOVERY_S", "RECOVERY_MAX_M", "HOLD_S", "reacquisition_s", "AblationConfig", "AblationResult", "check_outage", "check_parameters", "notebook_config",
+           "RECOVERY_S", "RECOVERY_MAX_M", "HOLD_S", "reacquisition_s", "AblationConfig", "AblationResult", "check_outage", "notebook_config",
            "legs_for_outage", "simulate", "ls_gate", "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci",
            "choose_knobs", "TIE_REL", "FULL_GRID", "FAST_GRID"]
 
@@ -214,22 +213,6 @@ def check_outage(outage_s: float, recovery_s: float, motion: robot.RobotMotion, 
                          f"{name} must be at most {motion.duration_s - OUTAGE_START_S - recovery_s:.1f} s")
 
 
-def check_parameters(*, outage_s: float, static_s: float, outlier_rate: float, gate_prob: float,
-                     nlos_bias_m: float, loose_window: int, seeds: int) -> None:
-    """Notebook 05's parameters, checked before anything runs: a ``ValueError`` names the parameter.
-
-    ``OUTAGE_S`` must fit, with :data:`RECOVERY_S` of recovery scored after it, in the paper's
-    broken line from :data:`~.study.OUTAGE_START_S` (:func:`check_outage`).
-    """
-    number("STATIC_S", static_s, minimum=1.0)
-    number("OUTLIER_RATE", outlier_rate, minimum=0.0, maximum=1.0)
-    probability("GATE_PROB", gate_prob)
-    number("NLOS_BIAS_M", nlos_bias_m, minimum=0.0)
-    integer("LOOSE_WINDOW", loose_window, minimum=1)
-    integer("SEEDS", seeds, minimum=2)
-    check_outage(outage_s, RECOVERY_S, robot.broken_line(), name="OUTAGE_S")
-
-
 def notebook_config(*, fast: bool, seeds: int, outage_s: float, gate_prob: float, outlier_c_m: float | None,
                     grade: str, outlier_rate: float, loose_window: int, static_s: float) -> AblationConfig:
     """The ablation of notebook 05 for its parameters: full sizes, or :meth:`AblationConfig.fast`
@@ -261,9 +244,7 @@ def gate_table(cfg: AblationConfig) -> pd.DataFrame:
     ekf = TdoaEkf(RandomForce(EKF_Q0, dim=2), m2, gate_prob=cfg.gate_prob)
     ekf_t = TdoaEkf(RandomForce(EKF_Q0, dim=2), m2,
                     gate=ChiSquarePerMeasurement(cfg.gate_prob, max_gated=EKF_TDOA_MAX_GATED))
-    loose = eskf.LooseFilter(height_m=m.tag_height_m, lever_arm_m=m.lever_arm_m, gate_prob=cfg.gate_prob)
-    tight = eskf.TightEskf(m.imu, eskf.TdoaUpdate(m.tdoa_model(), cfg.outlier_c_m), lever_arm_m=m.lever_arm_m,
-                           gate_prob=cfg.gate_prob, height_m=m.tag_height_m)
+    tight, loose = fusion_filters(m, FusionSettings(cfg.outlier_c_m, cfg.gate_prob, loose_window=cfg.loose_window))
     rows = {"LS + gate": ("χ²(m − 2) on the fix's weighted residuals; the epoch is dropped", pd.NA),
             "EKF + gate": ("anchor dropping, χ²(m) per epoch", ekf.max_gated),
             EKF_TDOA_GATE: ("χ²(1) per TDoA", ekf_t.max_gated),
@@ -363,7 +344,8 @@ def ls_gate(fixes: Estimates, tdoa, model: TdoaModel, gate_prob: float) -> tuple
 def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[str, tuple[float, float]],
                 cfg: AblationConfig, rows: Sequence[str] = ROWS) -> tuple[dict, int, dict]:
     """Every row of ``rows`` on one run, with the filters' ``model`` (not the run's world) and each tuned row's
-    ``knobs[row] = (Q ×, R ×)``.
+    ``knobs[row] = (Q ×, R ×)``, all from :func:`~.study.start`; the loose and tight rows are the filters of
+    :func:`~.study.fusion_filters` (notebook 05's cell) at that pair and gate.
 
     Returns ``(positions, k0, counts)``: row → horizontal tag position ``(T, 2)`` (NaN where the
     row has no estimate), the first scored epoch, and counts (``eq4`` TDoAs removed by eq. 4,
@@ -372,14 +354,9 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
     NIS check reads; whether a filter re-acquires after the outage is the re-acquisition check's (a filter
     that never does would otherwise fail the NIS check too, naming no parameter) —, NaN for LS).
     """
-    anchors = np.asarray(model.stations_m, float)
-    screened, n_eq4 = screened_tdoa(run.tdoa, anchors, cfg.outlier_c_m)
-    m2 = TdoaModel(anchors, model.sigma_toa_m, dim=2, z_m=model.tag_height_m)
-    fixes = ls_estimates(screened, m2, "LS")
-    yaw0 = float(run.heading.yaw_rad[int(np.flatnonzero(fixes.has_estimate)[0])])
-    x0, k0 = initial_state(fixes, height_m=model.tag_height_m, lever_m=model.lever_arm_m, yaw_rad=yaw0)
-    imu = imu_after(run.imu, run.truth.t_s[k0])
-    tag0 = x0.pos_m + quat_to_dcm(x0.quat) @ np.asarray(model.lever_arm_m, float)
+    s = start(run, model, cfg.outlier_c_m)
+    k0 = s.k0
+    tag0 = s.x0.pos_m + quat_to_dcm(s.x0.quat) @ np.asarray(model.lever_arm_m, float)
     keep = _masks(run, k0, cfg.recovery_s)["all"]              # scored epochs, and only those before an outage:
     if run.outage.any():                                       # after it, re-acquisition is check 6's to judge
         keep &= run.truth.t_s < run.truth.t_s[run.outage][0]
@@ -390,33 +367,25 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
         base = row.split(" ")[0]
         q, r = knobs[row] if base != "LS" else (1.0, 1.0)
         if base == "LS":
-            est, gated[row] = ls_gate(fixes, screened, m2, gate) if g else (fixes, 0)
+            est, gated[row] = ls_gate(s.fixes, s.screened, s.tdoa2, gate) if g else (s.fixes, 0)
             pos = est.pos_m
         elif base == "EKF":
-            m2r = TdoaModel(anchors, model.sigma_toa_m * math.sqrt(r), dim=2, z_m=model.tag_height_m)
+            m2r = replace(s.tdoa2, sigma_m=s.tdoa2.sigma_m * math.sqrt(r))
             if row == EKF_TDOA_GATE:
                 ekf = TdoaEkf(RandomForce(EKF_Q0 * q, dim=2), m2r,
                               gate=ChiSquarePerMeasurement(g, max_gated=EKF_TDOA_MAX_GATED))
             else:
                 ekf = TdoaEkf(RandomForce(EKF_Q0 * q, dim=2), m2r, gate_prob=g)
-            kr = ekf.run(screened.select(slice(k0, None)), x0=ekf.init(tag0[:2]))
+            kr = ekf.run(s.screened.select(slice(k0, None)), x0=ekf.init(tag0[:2]))
             pos = np.full((len(run.truth), 2), np.nan)
             pos[k0:] = np.where(kr.started[:, None], kr.pos_m, np.nan)
             gated[row] = 0 if kr.n_rejected is None else int(kr.n_rejected.sum())
             up = (kr.status == EstimateStatus.UPDATED) & keep[k0:]
             nis[row] = nis_consistency(kr.nis[up], kr.dof[up])["mean_nis_over_dof"]
-        elif base == "loose":
-            f = eskf.LooseFilter(height_m=model.tag_height_m, lever_arm_m=model.lever_arm_m, q_scale=q, r_scale=r,
-                                 vel_window=cfg.loose_window, sigma_r_pos_m=2 * model.sigma_toa_m, gate_prob=g)
-            fr = f.run(imu, fixes, x0, heading=run.heading)
-            pos = fr.to_estimates(dim=2).pos_m
-            gated[row] = int(fr.n_gated.sum())
-            nis[row] = nis_consistency(fr.nis[keep], fr.dof[keep])["mean_nis_over_dof"]
-        elif base == "tight":
-            f = eskf.TightEskf(model.imu, eskf.TdoaUpdate(model.tdoa_model(), cfg.outlier_c_m),
-                               lever_arm_m=model.lever_arm_m, gate_prob=g, q_scale=q, r_scale=r,
-                               height_m=model.tag_height_m)
-            fr = f.run(imu, run.tdoa, x0, heading=run.heading)
+        elif base in ("loose", "tight"):
+            tight, loose = fusion_filters(model, FusionSettings(cfg.outlier_c_m, g, q, r, loose_window=cfg.loose_window))
+            fr = (tight.run(s.imu, run.tdoa, s.x0, heading=run.heading) if base == "tight"
+                  else loose.run(s.imu, s.fixes, s.x0, heading=run.heading))
             pos = fr.to_estimates(dim=2).pos_m
             gated[row] = int(fr.n_gated.sum())
             nis[row] = nis_consistency(fr.nis[keep], fr.dof[keep])["mean_nis_over_dof"]
@@ -425,12 +394,10 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
         pos = np.array(pos, float)
         pos[:k0] = np.nan
         out[row] = pos
-    ref = run.tdoa.ref
-    bad = run.outlier | run.outlier[np.arange(len(ref)), np.clip(ref, 0, None)][:, None]
-    bad &= np.isfinite(run.tdoa.tdoa_m)
-    bad[np.arange(len(ref)), ref] = False
-    counts = {"eq4": int(n_eq4.sum()), "injected": int(bad.sum()), "gated": gated, "nis": nis,
-              "eq4_on_injected": int((triangle_outliers(run.tdoa.tdoa_m, ref, anchors, cfg.outlier_c_m) & bad).sum())
+    bad = injected(run)
+    counts = {"eq4": int(s.n_eq4.sum()), "injected": int(bad.sum()), "gated": gated, "nis": nis,
+              "eq4_on_injected": int((triangle_outliers(run.tdoa.tdoa_m, run.tdoa.ref, s.tdoa2.anchor_pos_m,
+                                                        cfg.outlier_c_m) & bad).sum())
               if cfg.outlier_c_m is not None else 0}
     return out, k0, counts
 
@@ -477,12 +444,12 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, tuple[float, float]], c
     return {"scores": scores, "counts": counts, "pairs": pairs}
 
 
-def _tune_task(row: str, knob: tuple[float, float], cfg: AblationConfig, seed: int) -> tuple[float, float]:
+def _tune_task(*, row: str, knob: tuple[float, float], cfg: AblationConfig, tuning_seed: int) -> tuple[float, float]:
     """RMSE over the tuning seed's scored epochs (no outage, no recovery), and the row's mean NIS per dof on its
     dynamic run (NaN for rows without one)."""
     parts, nis = [], np.nan
     for scen in ("static", "dynamic"):
-        run = simulate(scen, cfg.model, cfg, seed)
+        run = simulate(scen, cfg.model, cfg, tuning_seed)
         pos, k0, counts = run_methods(run, cfg.model, {row: knob}, cfg, (row,))
         parts.append(score_epochs({row: np.linalg.norm(pos[row] - run.truth.pos_m[:, :2], axis=1)},
                                   _masks(run, k0, cfg.recovery_s)["all"]))
@@ -502,7 +469,7 @@ def tune(cfg: AblationConfig, *, tuning_seed: int, scheduler=None,
     pairs = [(float(q), float(r)) for q in cfg.grid for r in cfg.r_grid]
     tasks = [parallel.Task({"row": row, "knob": pair}) for row in _TUNED for pair in pairs]
     res = {(t.params["row"], t.params["knob"]): v for t, v in parallel.imap(
-        _tune_task_shared, tasks, shared={"cfg": cfg, "tuning_seed": tuning_seed}, scheduler=scheduler,
+        _tune_task, tasks, shared={"cfg": cfg, "tuning_seed": tuning_seed}, scheduler=scheduler,
         workers=workers, desc="ablation tuning", unit="run")}
     tables = []
     for i in (0, 1):
@@ -534,10 +501,6 @@ def choose_knobs(tuning: pd.DataFrame, *, tie_rel: float = TIE_REL) -> pd.DataFr
         out[row] = {"Q ×": q, "R ×": r, "rmse": float(v[pairs.index((q, r))]), "edge": ", ".join(edges) or "—",
                     "blowups": tuple(p for p, x in zip(pairs, v) if not x <= 10 * best)}
     return pd.DataFrame(out).T
-
-
-def _tune_task_shared(*, row, knob, cfg, tuning_seed):
-    return _tune_task(row, knob, cfg, tuning_seed)
 
 
 def _score_task(*, case, run_seed, knobs, cfg, rows, scenarios):

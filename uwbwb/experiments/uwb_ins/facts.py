@@ -80,16 +80,6 @@ def _return_errors(res: AblationResult, limit_m: float) -> dict:
             if not (rec[r] < limit_m).all()}
 
 
-def _slowest_reacquisition(res: AblationResult) -> dict:
-    """The slowest matched re-acquisition among the gated rows: row, seed, seconds (empty if none)."""
-    rec = res.case("matched")["reacq_s"].unstack("method")[_gated(res.case("matched").index.unique("method"))]
-    st = rec.stack()
-    if st.empty or not np.isfinite(st.to_numpy(float)).any():
-        return {}
-    (seed, row), v = st.idxmax(), float(st.max())
-    return {"row": str(row), "seed": int(seed), "s": v}
-
-
 def _diverged(res: AblationResult, case: str) -> list[dict]:
     """Rows of ``case`` whose dyn RMSE or recovery max exceeds DIVERGED_FACTOR × matched (same seeds) and
     RECOVERY_MAX_M."""
@@ -107,30 +97,26 @@ def _diverged(res: AblationResult, case: str) -> list[dict]:
     return out
 
 
-def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
+def facts(res: AblationResult) -> dict:
     """Numbers and rule outcomes behind notebook 05's ablation verdict table.
 
-    Returns a dict with ``mode`` ("FAST" or "full"), ``seeds``, ``outage_s``, ``ladder``
+    Returns a dict with ``seeds``, ``mismatch_seeds``, ``outage_s``, ``ladder``
     (step → metric → ratio/lo/hi/n/verdict), ``outage`` (versus "loose + gate" and "EKF + gate":
     the matched ratio of max outage errors and its verdict), ``survival`` (case → versus →
     ratio/lo/hi/verdict/share, on the max outage error), ``survival_dyn`` (the same on the dynamic RMSE,
-    versus "loose + gate" and "EKF + gate"), ``winners`` (case → metric → best gated row) and ``eq4``
-    (counts per case, and ``eq4_geometry``: the smallest excess that fires eq. 4 on the path, its
-    pair and side, and the matched world's excess range), ``diverged`` (case → list of
-    row/metric/value/matched) and ``tuning`` (row → Q ×/R ×/rmse/edge/blowups; empty without a
-    tuning table).
+    versus "loose + gate" and "EKF + gate"), ``eq4`` (counts per case, and ``eq4_geometry``: the smallest
+    excess that fires eq. 4 on the path, its pair and side, and the matched world's excess range),
+    ``diverged`` (case → list of row/metric/value/matched), ``tuning`` (row → Q ×/R ×/rmse/edge/blowups; empty
+    without a tuning table), and the re-acquisition failures (``matched_failures``, ``return_errors``, with
+    ``recovery_max_m`` and ``recovery_s``).
     """
     cfg = res.config
-    f = {"mode": "FAST" if res.fast else "full", "seeds": cfg.seeds,
-         "mismatch_seeds": min(cfg.mismatch_seeds, cfg.seeds),
-         "outage_s": cfg.outage_s if outage_s is None else outage_s, "ladder": {}, "outage": {},
-         "survival": {}, "winners": {}, "eq4": dict(res.counts), "diverged": {},
+    f = {"seeds": cfg.seeds, "mismatch_seeds": min(cfg.mismatch_seeds, cfg.seeds), "outage_s": cfg.outage_s,
+         "ladder": {}, "outage": {}, "survival": {}, "eq4": dict(res.counts), "diverged": {},
          "tuning": ({} if res.tuning.empty else
                     {r: dict(v) for r, v in choose_knobs(res.tuning).to_dict("index").items()}),
-         "grid": tuple(float(g) for g in cfg.grid),
          "matched_failures": _matched_failures(res), "recovery_max_m": RECOVERY_MAX_M,
-         "recovery_s": cfg.recovery_s, "slowest_reacq": _slowest_reacquisition(res),
-         "return_errors": _return_errors(res, RECOVERY_MAX_M)}
+         "recovery_s": cfg.recovery_s, "return_errors": _return_errors(res, RECOVERY_MAX_M)}
     if cfg.outlier_c_m is not None:
         th = eq4_thresholds(cfg.model, eq4_path(cfg), cfg.outlier_c_m).iloc[:, 1:]
         pair, side = th.stack().idxmin()
@@ -148,14 +134,7 @@ def facts(res: AblationResult, *, outage_s: float | None = None) -> dict:
                                                     "edge)" if edge and v != "undetermined" else v}
     for other in _VERSUS:
         f["outage"][other] = _ratio(res, other, "tight + gate", "outage_max")
-    gated = [r for r in ("LS + gate", "EKF + gate", EKF_TDOA_GATE, "loose + gate", "tight + gate")]
-    for case in cfg.cases:
-        t = res.table(case)
-        rows = [r for r in gated if r in t.index]
-        f["winners"][case] = {m: (str(t.loc[rows, m].idxmin()) if t.loc[rows, m].notna().any() else None)
-                              for m in ("static_rmse", "dyn_rmse", "outage_max")}
-        if case == "matched":
-            continue
+    for case in cfg.cases[1:]:                                  # the first is "matched"
         f["diverged"][case] = _diverged(res, case)
         seeds = res.case(case).index.get_level_values("seed").unique()
         for key, metric, versus in (("survival", "outage_max", _VERSUS), ("survival_dyn", "dyn_rmse", _VERSUS[:2])):

@@ -16,8 +16,7 @@ from ...sim import robot
 from .ablation import DEFAULT_OUTAGE_S, EKF_TDOA_GATE, HOLD_S, LADDER, RECOVERY_MAX_M, ROWS, AblationResult
 from .ladder import pair_rmse
 
-__all__ = ["ERROR_RANGE_ASSUMPTION", "error_range_assumption", "ablation_rows", "checks", "comparison_rows",
-           "comparison_checks"]
+__all__ = ["error_range_assumption", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
 
 def error_range_assumption(world: robot.RobotConfig) -> str:
     """What the synthetic error ranges follow from, read off the simulated world ``world``."""
@@ -27,8 +26,6 @@ def error_range_assumption(world: robot.RobotConfig) -> str:
             f"{world.outlier_rate * 100:g} % multipath of {lo:g}–{hi:g} m, {grade} IMU")
 
 
-#: What the synthetic error ranges follow from in the default world (named in their summary rows).
-ERROR_RANGE_ASSUMPTION = error_range_assumption(robot.RobotConfig())
 _GATED = ("EKF + gate", "loose + gate", "tight + gate")
 #: The gated rows with the IMU: asked to re-acquire after any outage the notebook accepts.
 _GATED_IMU = ("loose + gate", "tight + gate")
@@ -102,7 +99,7 @@ def checks(res: AblationResult) -> list[str]:
        :data:`~.ablation.HOLD_S` (:func:`~.ablation.reacquisition_s`), on every seed: a filter that
        diverges after the outage fails it however good its mean is. The error UWB finds on its
        return (the outage's drift) is the outage's own score, not this check's; the check's earlier
-       reading (max error in the recovery window) is reported beside it by the notebook's sentence. The
+       reading (max error in the recovery window) is a row of the verdict table beside it. The
        IMU-free EKF + gate is held to it at the default outage (:data:`~.ablation.DEFAULT_OUTAGE_S`) only:
        coasting a longer one on a single TDoA per epoch is beyond what it is asked to bridge (at 18.6 s it
        never re-acquires on 5 of 10 seeds), and its failure there is a "failed" row of
@@ -161,11 +158,10 @@ def checks(res: AblationResult) -> list[str]:
 
 
 def comparison_rows(comps, static_ranges: dict, dyn_ranges: dict, *, outage_s: float, paper: dict,
-                    world: robot.RobotConfig | None = None) -> list[dict]:
+                    world: robot.RobotConfig) -> list[dict]:
     """Summary rows of the paper re-creation: RMSE per method and run, the outage maxima, the
     outlier counts, and the paper's error ranges beside ours — labelled as following from the
-    assumed noise of ``world`` (:func:`error_range_assumption`; None: the default world,
-    :data:`ERROR_RANGE_ASSUMPTION`), since the paper gives none of it."""
+    assumed noise of the simulated ``world`` (:func:`error_range_assumption`), since the paper gives none of it."""
     out = []
     for comp in comps:
         t = comp.table()
@@ -182,7 +178,7 @@ def comparison_rows(comps, static_ranges: dict, dyn_ranges: dict, *, outage_s: f
                  data="synthetic", kind="reproduced"),
             dict(quantity=f"TDoAs rejected by the tight filter's gate ({degraded.label} run)", value=rej["gated"],
                  unit="", data="synthetic", kind="reproduced")]
-    a = ERROR_RANGE_ASSUMPTION if world is None else error_range_assumption(world)
+    a = error_range_assumption(world)
     for name, r in static_ranges.items():
         for key, q, pv in (("E_min", "static E error min", paper["static_E_m"][0]),
                            ("E_max", "static E error max", paper["static_E_m"][1]),
