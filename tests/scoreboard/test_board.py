@@ -22,13 +22,38 @@ def test_filters_reach_their_bound_where_truth_and_noise_are_known():
     """Synthetic runs from the model itself, exact noise: LS, TDoA LS and the EKF with the true
     motion model must meet their Cramér–Rao bounds within Monte Carlo error (30 runs)."""
     mc = syn.monte_carlo(30, seed=7)
-    eff = syn.efficiency_summary(mc).set_index("method")
+    eff = syn.efficiency_summary(mc, prob=0.997).set_index("method")
     assert set(eff.index) == {"LS", "TDoA LS", "EKF-RF"}
     for m, r in eff.iterrows():
-        assert abs(r.z) < 3.0, f"{m}: efficiency {r.efficiency:.3f} ± {r.efficiency_se:.3f} is not 1 within MC error"
+        assert r.verdict == "on its bound", f"{m}: efficiency {r.efficiency:.3f} [{r.efficiency_lo:.3f}, {r.efficiency_hi:.3f}]"
         assert 0.9 < r.efficiency < 1.1, f"{m}: efficiency {r.efficiency:.3f}"
     # the tracking filter uses its motion model: well below the snapshot fixes
     assert eff.loc["EKF-RF", "rmse_m"] < 0.9 * eff.loc["LS", "rmse_m"]
+
+
+def _runs(factor, bounds_m2, rng):
+    """Monte Carlo rows of one method whose mean squared error is ``factor`` × its bound, with 10 % run-to-run noise."""
+    b = np.asarray(bounds_m2, float)
+    return pd.DataFrame({"run": np.arange(b.size), "method": "M", "bound_kind": "CRLB", "n": 100,
+                         "mse_m2": factor * b * (1 + 0.1 * rng.standard_normal(b.size)), "bound_m2": b})
+
+
+@pytest.mark.parametrize("factor, verdict", [(0.8, "below its bound"), (1.0, "on its bound"),
+                                             (1.25, "above its bound")])
+def test_the_monte_carlo_verdict_is_the_seeds_interval_of_the_ratio_against_1(factor, verdict):
+    """The interval over runs is metrics.seeds_interval's (with equal bounds in every run: of mse / bound, square-
+    rooted), and its side against 1 is the verdict: it says above or below where the error is off its bound."""
+    from uwbwb.metrics import seeds_interval
+
+    rng = np.random.default_rng(3)
+    mc = _runs(factor, np.full(40, 0.01), rng)
+    r = syn.efficiency_summary(mc).iloc[0]
+    ci = seeds_interval(mc["mse_m2"] / mc["bound_m2"])
+    assert (r.efficiency_lo, r.efficiency_hi) == pytest.approx((np.sqrt(ci["lo"]), np.sqrt(ci["hi"])), rel=1e-12)
+    assert r.efficiency == pytest.approx(np.sqrt(mc["mse_m2"].sum() / mc["bound_m2"].sum()), rel=1e-12)
+    assert r.verdict == verdict
+    strict = syn.efficiency_summary(mc, prob=0.997).iloc[0]            # the notebook's check: a wider interval
+    assert strict.efficiency_lo < r.efficiency_lo < r.efficiency < r.efficiency_hi < strict.efficiency_hi
 
 
 def test_default_estimators_fit_the_interface():
