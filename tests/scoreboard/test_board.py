@@ -448,6 +448,45 @@ def test_the_common_bound_is_one_yardstick_fitted_on_the_calibration_truth():
     assert "common bound: model = RF" in b.markdown()
 
 
+def test_a_board_fits_the_common_bound_a_given_calibration_lacks_or_says_in_one_line_why_it_has_none():
+    """A calibration made elsewhere without the common bound's model gets it fitted on the calibration part, as
+    calibrate does; a board whose calibration has none says why in one fixed line (and shows no common bound)."""
+    from uwbwb.scoreboard.reference import NO_COMMON_BOUND, REFERENCE
+
+    cfg = syn.SyntheticConfig(duration_s=10.0)
+    ests = [CalibratedLs()]
+    rec = syn.simulate(cfg, rng=np.random.default_rng(21))
+    cal = calibrate(rec, ests, rate_hz=None, dim=2)
+    bare = replace(cal, tuned={k: v for k, v in cal.tuned.items() if k != REFERENCE})
+    b = score(rec, rec, estimators=ests, rate_hz=None, calibration=bare)
+    assert b.calibration.params(REFERENCE) == cal.params(REFERENCE)
+    assert np.isfinite(b.table().set_index("method").loc["LS", "common_bound_m"])
+    assert NO_COMMON_BOUND not in b.markdown()
+    none = replace(b, calibration=bare, entries=tuple(replace(e, common=None) for e in b.entries))
+    assert NO_COMMON_BOUND in none.markdown().splitlines()
+    assert not np.isfinite(none.table().set_index("method").loc["LS", "common_bound_m"])
+
+
+def test_a_method_that_ran_never_shows_zero_time():
+    """The time columns round a run's time for display, never to 0: a lookup-fast method shows its few significant
+    digits (an outside method's estimates, looked up, took 1–2 µs/epoch, 0.0 × raw LS on notebook 06's Hanyang
+    board)."""
+    from uwbwb.scoreboard.estimators import ExternalEstimates, RawLs
+
+    rec = syn.simulate(syn.SyntheticConfig(duration_s=10.0), rng=np.random.default_rng(6))
+    ests = [RawLs(), CalibratedLs(), ExternalEstimates("vendor", {"tag": rec.truth["tag"]})]
+    b = score(rec, rec, estimators=ests, rate_hz=None, calibration=calibrate(rec, ests, rate_hz=None, dim=2))
+    n = len(b.entry("LS", "tag").estimates)
+    quick = replace(b, entries=tuple(replace(e, seconds=2e-7 * n if e.method == "LS" else 1e-3 * n)
+                                     for e in b.entries))      # LS 0.2 µs/epoch, the others 1000 µs/epoch
+    head = next(x for x in quick.markdown().splitlines() if x.startswith("| method"))
+    cols = [c.strip() for c in head.strip("|").split("|")]
+    row = next(x for x in quick.markdown().splitlines() if x.startswith("| LS "))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[cols.index("µs/epoch")] == "0.2" and cells[cols.index("time × raw LS")] == "0.0002"
+    assert float(cells[cols.index("µs/epoch")]) == pytest.approx(quick.table().set_index("method").loc["LS", "us_per_epoch"])
+
+
 def test_uwb_ins_filters_are_tuned_like_the_ekfs_and_checked_against_their_bound(tmp_path):
     """Generated i-ASL flights (not in ../shared), another seed than the command-line test: the fusion
     filters pick (q_scale, r_scale) on the calibration scenario from the board's grid (both knobs over three

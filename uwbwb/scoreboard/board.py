@@ -82,7 +82,7 @@ from . import checks as _checks
 from .estimators import default_estimators
 from .interface import GEOMETRY, Estimator, _range_bound, measurement_geometry, truth_at
 from .protocol import Calibration, fit_calibration, scored_tags
-from .reference import REFERENCE, common_bound, fit_reference_motion
+from .reference import NO_COMMON_BOUND, REFERENCE, common_bound, fit_reference_motion
 from .verdicts import block_se_ratio
 
 __all__ = ["Board", "Entry", "calibrate", "score", "TABLE_COLUMNS"]
@@ -441,6 +441,8 @@ class Board:
                  "inverse). Both are bounds only under their stated Gaussian noise and motion models.", ""]
         if self.fast:
             lines += ["FAST mode: CI-sized tuning grids and particle counts — smoke-test numbers.", ""]
+        if "model" not in self.calibration.params(REFERENCE):
+            lines += [NO_COMMON_BOUND, ""]
         head = ["method", "coverage", "RMSE (m)", "CEP50 (m)", "CEP95 (m)", "RMSE common epochs (m)",
                 "common bound (m)", "RMSE / common bound", "RMSE / common bound, common epochs", "own bound (m)", "own bound kind", "RMSE / own bound",
                 "RMSE / own bound at measured noise", "own bound / ranges' CRLB", "bias share",
@@ -449,6 +451,9 @@ class Board:
 
         def f(x, fmt=".3f"):
             return "—" if x is None or (isinstance(x, float) and not np.isfinite(x)) else format(x, fmt)
+
+        def took(x, fmt):                  # a time: a method that ran took some, so it never shows as 0
+            return f(x, ".2g" if x > 0 and float(format(x, fmt)) == 0 else fmt)
 
         for r in df.itertuples(index=False):
             eff = (f"{r.rmse_over_bound:.2f} ± {r.rmse_over_bound_se:.2f}" if np.isfinite(r.rmse_over_bound_se)
@@ -464,7 +469,7 @@ class Board:
                                               f(r.rmse_common_over_common, ".2f"), f(r.bound_m),
                                               r.bound_kind or "—", eff, meas, f(r.bound_over_ranges_crlb, ".3g"),
                                               f(r.bias_share, ".2f"), nees, nis,
-                                              f(r.us_per_epoch, ".0f"), f(r.time_ratio, ".1f"),
+                                              took(r.us_per_epoch, ".0f"), took(r.time_ratio, ".1f"),
                                               r.tuning_pick, r.note or ""]) + " |")
         lines += ["", "```", self.calibration.describe(), *self.checks, "```", ""]
         return "\n".join(lines)
@@ -653,9 +658,14 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
         known = {**(given or {}), **heights} if (tag_height_m is not None or how) else None
         calibration = calibrate(cal_rec, estimators, tags, rate_hz=rate_hz, dim=dim, progress=progress,
                                 tag_height_m=known)
-    elif GEOMETRY not in calibration.tuned:            # a calibration made elsewhere: the geometry of this one's part
+    elif GEOMETRY not in calibration.tuned or REFERENCE not in calibration.tuned:
+        # a calibration made elsewhere: the geometry and the common bound's model of this one's part, as calibrate
         thinned = cal_rec if rate_hz is None else cal_rec.decimate(rate_hz=rate_hz)
-        calibration = calibration.with_tuned(GEOMETRY, measurement_geometry(thinned, tags, calibration))
+        if GEOMETRY not in calibration.tuned:
+            calibration = calibration.with_tuned(GEOMETRY, measurement_geometry(thinned, tags, calibration))
+        reference = {} if REFERENCE in calibration.tuned else fit_reference_motion(thinned, tags, calibration)
+        if reference:
+            calibration = calibration.with_tuned(REFERENCE, reference)
     rec = test_rec if rate_hz is None else test_rec.decimate(rate_hz=rate_hz)
     commons = {t: common_bound(rec, t, calibration) for t in tags}
     ranges_crlb = {t: _range_bound(rec, t, calibration, rec.ranges[t], "CRLB of the ranges") for t in tags}

@@ -43,7 +43,8 @@ from ..types import Recording
 from .interface import calibrated_log, truth_at
 from .protocol import Calibration
 
-__all__ = ["REFERENCE", "REFERENCE_GRIDS", "TRUTH_SIGMA_M", "common_bound", "fit_reference_motion"]
+__all__ = ["MIN_STRETCH_EPOCHS", "MIN_TRUTH_EPOCHS", "NO_COMMON_BOUND", "REFERENCE", "REFERENCE_GRIDS", "TRUTH_SIGMA_M",
+           "common_bound", "fit_reference_motion"]
 
 #: Key of the common bound's motion model in :attr:`Calibration.tuned`.
 REFERENCE = "common bound"
@@ -53,6 +54,12 @@ REFERENCE_GRIDS = {"RW": np.geomspace(0.01, 10.0, 13), "RF": np.geomspace(0.01, 
 #: Observation noise of the truth assumed when fitting the motion model, metres (an assumption:
 #: motion capture is good to millimetres; a larger value favours smoother models).
 TRUTH_SIGMA_M = 0.005
+#: The motion model is fitted on stretches of truth longer than :data:`MIN_STRETCH_EPOCHS` epochs (split at truth gaps),
+#: at least :data:`MIN_TRUTH_EPOCHS` epochs in all; with fewer there is no common bound.
+MIN_STRETCH_EPOCHS, MIN_TRUTH_EPOCHS = 5, 10
+#: What a board without a common bound says, in one line.
+NO_COMMON_BOUND = (f"No common bound: the calibration part has fewer than {MIN_TRUTH_EPOCHS} epochs of truth in "
+                   f"stretches longer than {MIN_STRETCH_EPOCHS} epochs, too few to fit its motion model.")
 
 
 def _truth_runs(rec: Recording, tag: str, cal: Calibration) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -61,7 +68,7 @@ def _truth_runs(rec: Recording, tag: str, cal: Calibration) -> list[tuple[np.nda
     pos = truth_at(rec, tag, t, cal.dim)
     ok = np.all(np.isfinite(pos), axis=1)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(int), [0]])))
-    return [(t[a:b], pos[a:b]) for a, b in zip(edges[::2], edges[1::2]) if b - a > 5]
+    return [(t[a:b], pos[a:b]) for a, b in zip(edges[::2], edges[1::2]) if b - a > MIN_STRETCH_EPOCHS]
 
 
 def fit_reference_motion(rec: Recording, tags: Sequence[str], cal: Calibration,
@@ -72,12 +79,13 @@ def fit_reference_motion(rec: Recording, tags: Sequence[str], cal: Calibration,
     -------
     dict
         ``model`` and ``sigma_w`` chosen; ``loglik_per_epoch`` per model (at its best σ_w) and
-        ``sigma_w_per_model``; ``n_epochs`` used. Empty if no tag has 10 epochs of truth.
+        ``sigma_w_per_model``; ``n_epochs`` used. Empty with fewer than :data:`MIN_TRUTH_EPOCHS` epochs of truth
+        (:data:`NO_COMMON_BOUND`).
     """
     grids = REFERENCE_GRIDS if grids is None else grids
     runs = [r for t in tags for r in _truth_runs(rec, t, cal)]
     n = sum(r[0].size for r in runs)
-    if n < 10:
+    if n < MIN_TRUTH_EPOCHS:
         return {}
     dt = 1.0 / cal.rate_hz
     best = {}
