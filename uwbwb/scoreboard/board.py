@@ -2,7 +2,7 @@
 
 :func:`score` runs the protocol of :mod:`.protocol` with the estimators of
 :mod:`.estimators` and returns a :class:`Board`. Per method (rows of
-:meth:`Board.table`; all tags pooled, per tag in :meth:`Board.by_tag`):
+:meth:`Board.table`, all tags pooled):
 
 ``coverage``
     Share of the scoring epochs (those with truth) where the method gave a position.
@@ -80,7 +80,7 @@ from .. import metrics
 from ..types import Estimates, Recording
 from . import checks as _checks
 from .estimators import default_estimators
-from .interface import GEOMETRY, Estimator, _range_bound, measurement_geometry, truth_at
+from .interface import GEOMETRY, Estimator, _range_bound, measurement_geometry
 from .protocol import Calibration, fit_calibration, scored_tags
 from .reference import NO_COMMON_BOUND, REFERENCE, common_bound, fit_reference_motion
 from .verdicts import block_se_ratio
@@ -409,16 +409,6 @@ class Board:
             df["time_ratio"] = df["us_per_epoch"] / base.iloc[0]
         return df
 
-    def by_tag(self) -> pd.DataFrame:
-        """One row per (tag, method)."""
-        rows = []
-        for tag in self.tags:
-            for m in self.methods:
-                ents = [e for e in self.entries if e.method == m and e.tag == tag]
-                row = self._row(m, [e for e in ents if e.skipped is None], [e for e in ents if e.skipped])
-                rows.append({"tag": tag, **row})
-        return pd.DataFrame(rows)
-
     # ------------------------------------------------------------------ output
     def markdown(self) -> str:
         """The table as Markdown (the bound in its own column), with a header saying what it is."""
@@ -522,19 +512,14 @@ TUNED_KNOBS = (("sigma_w", "σ_w", ""), ("q_scale", "Q ×", ""), ("r_scale", "R 
                ("sigma_d_mps", "σ_d", " m/s"), ("window_s", "window", " s"))
 
 
-def _pick(edge) -> str:
-    if edge is None or (isinstance(edge, float) and not np.isfinite(edge)):
-        return "—"
-    return "on the grid's edge" if edge else "inside the grid"
-
-
 def pick_label(params: Mapping) -> str:
     """A method's tuning pick as the board shows it: the picked knob values (:data:`TUNED_KNOBS`) and whether
     they lie on the grid's edge, naming the knob(s) there where the tuning records them (``edge_knobs``);
     "—" for a method that tunes nothing (no ``grid_edge``)."""
-    where = _pick(params.get("grid_edge"))
-    if where == "—":
-        return where
+    edge = params.get("grid_edge")
+    if edge is None or (isinstance(edge, float) and not np.isfinite(edge)):
+        return "—"
+    where = "on the grid's edge" if edge else "inside the grid"
     values = ", ".join(f"{label} {float(params[k]):.3g}{unit}" for k, label, unit in TUNED_KNOBS if k in params)
     knobs = params.get("edge_knobs") or ()
     if params.get("grid_edge") and knobs:
@@ -698,7 +683,7 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
                 except Exception as exc:                # a measurement that cannot be made is "not measured"
                     warnings.warn(f"{est.name} on {rec.label}/{tag}: its bound at the measured noise raised "
                                   f"{type(exc).__name__}: {exc}; left out", RuntimeWarning, stacklevel=2)
-            truth = truth_at(rec, tag, out.t_s, out.dim)
+            truth = rec.truth_at(tag, out.t_s, out.dim)
             entries.append(Entry(est.name, tag, out, b, truth, seconds, common=commons[tag], bound_measured=measured,
                                  ranges_crlb=ranges_crlb[tag]))
     external = tuple(e.name for e in estimators if getattr(e, "external", False))
