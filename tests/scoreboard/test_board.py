@@ -25,14 +25,14 @@ def test_filters_reach_their_bound_where_truth_and_noise_are_known():
     eff = syn.efficiency_summary(mc, prob=0.997).set_index("method")
     assert set(eff.index) == {"LS", "TDoA LS", "EKF-RF"}
     for m, r in eff.iterrows():
-        assert r.verdict == "on its bound", f"{m}: efficiency {r.efficiency:.3f} [{r.efficiency_lo:.3f}, {r.efficiency_hi:.3f}]"
+        assert r.verdict == "on its bound", f"{m}: {r.efficiency:.3f} [{r.efficiency_lo:.3f}, {r.efficiency_hi:.3f}]"
         assert 0.9 < r.efficiency < 1.1, f"{m}: efficiency {r.efficiency:.3f}"
     # the tracking filter uses its motion model: well below the snapshot fixes
     assert eff.loc["EKF-RF", "rmse_m"] < 0.9 * eff.loc["LS", "rmse_m"]
 
 
 def _runs(factor, bounds_m2, rng):
-    """Monte Carlo rows of one method whose mean squared error is ``factor`` × its bound, with 10 % run-to-run noise."""
+    """Monte Carlo rows of one method whose mean squared error is ``factor`` × its bound (10 % run-to-run noise)."""
     b = np.asarray(bounds_m2, float)
     return pd.DataFrame({"run": np.arange(b.size), "method": "M", "bound_kind": "CRLB", "n": 100,
                          "mse_m2": factor * b * (1 + 0.1 * rng.standard_normal(b.size)), "bound_m2": b})

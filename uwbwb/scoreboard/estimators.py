@@ -45,7 +45,8 @@ from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import RandomForce, make_motion_model
 from ..types import Estimates, TdoaLog, Trajectory
 from .interface import (BaseEstimator, Estimator, TUNING_CRITERIA, _NONE, _UP, _range_bound, _range_information,
-                        _tdoa_information, _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge, tdoa_geometry_note)
+                        _tdoa_information, _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge,
+                        tdoa_geometry_note)
 from .protocol import Calibration
 from .reference import REFERENCE
 from .setnoise_nls import NLS_WINDOWS_S, SetNoiseFilter, WindowNls
