@@ -52,6 +52,31 @@ def test_own_bound_verdict_flips_at_two_standard_errors_and_names_no_cause_it_di
     assert t.loc[0, "verdict"] == expected and t.loc[0, "bias share"] == 0.1
 
 
+@pytest.mark.parametrize("ratio, se, where", [(1.30, 0.10, "above"), (1.15, 0.10, "on"), (0.70, 0.10, "below"),
+                                              (0.85, 0.10, "on")])
+def test_placement_and_own_bound_decide_through_the_one_interval_rule(monkeypatch, ratio, se, where):
+    """Both facts hand the interval ratio ± 2 se to metrics.interval_side (null 1) and take its side: a stand-in
+    rule that answers the opposite side turns their verdicts over."""
+    from uwbwb.metrics import interval_side
+    from uwbwb.scoreboard import verdicts
+
+    row = SimpleNamespace(method="M", rmse_over_common=ratio, rmse_over_common_se=se, rmse_over_bound=ratio,
+                          rmse_over_bound_se=se)
+    calls = []
+
+    def spy(lo, hi, null=0.0):
+        calls.append((lo, hi, null))
+        return interval_side(lo, hi, null)
+
+    monkeypatch.setattr(verdicts, "interval_side", spy)
+    assert verdicts.placement_facts(row)["where"] == where
+    assert calls == [(pytest.approx(ratio - 2 * se), pytest.approx(ratio + 2 * se), 1.0)]
+    assert verdicts.own_bound_facts(row)["where"] == ("below" if where == "below" else "not below")
+    flipped = {"above": "below", "below": "above", "contains": "contains", "none": "none"}
+    monkeypatch.setattr(verdicts, "interval_side", lambda lo, hi, null=0.0: flipped[interval_side(lo, hi, null)])
+    assert verdicts.placement_facts(row)["where"] == {"above": "below", "below": "above"}.get(where, where)
+
+
 def _board(offset_m):
     """LS against an outside method whose estimates are the truth plus a known constant offset."""
     cfg = syn.SyntheticConfig(duration_s=20.0)

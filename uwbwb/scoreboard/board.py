@@ -2,7 +2,7 @@
 
 :func:`score` runs the protocol of :mod:`.protocol` with the estimators of
 :mod:`.estimators` and returns a :class:`Board`. Per method (rows of
-:meth:`Board.table`; all tags pooled, per tag in :meth:`Board.by_tag`):
+:meth:`Board.table`, all tags pooled):
 
 ``coverage``
     Share of the scoring epochs (those with truth) where the method gave a position.
@@ -80,9 +80,9 @@ from .. import metrics
 from ..types import Estimates, Recording
 from . import checks as _checks
 from .estimators import default_estimators
-from .interface import GEOMETRY, Estimator, _range_bound, measurement_geometry, truth_at
+from .interface import GEOMETRY, Estimator, _range_bound, measurement_geometry
 from .protocol import Calibration, fit_calibration, scored_tags
-from .reference import REFERENCE, common_bound, fit_reference_motion
+from .reference import NO_COMMON_BOUND, REFERENCE, common_bound, fit_reference_motion
 from .verdicts import block_se_ratio
 
 __all__ = ["Board", "Entry", "calibrate", "score", "TABLE_COLUMNS"]
@@ -409,16 +409,6 @@ class Board:
             df["time_ratio"] = df["us_per_epoch"] / base.iloc[0]
         return df
 
-    def by_tag(self) -> pd.DataFrame:
-        """One row per (tag, method)."""
-        rows = []
-        for tag in self.tags:
-            for m in self.methods:
-                ents = [e for e in self.entries if e.method == m and e.tag == tag]
-                row = self._row(m, [e for e in ents if e.skipped is None], [e for e in ents if e.skipped])
-                rows.append({"tag": tag, **row})
-        return pd.DataFrame(rows)
-
     # ------------------------------------------------------------------ output
     def markdown(self) -> str:
         """The table as Markdown (the bound in its own column), with a header saying what it is."""
@@ -441,6 +431,8 @@ class Board:
                  "inverse). Both are bounds only under their stated Gaussian noise and motion models.", ""]
         if self.fast:
             lines += ["FAST mode: CI-sized tuning grids and particle counts — smoke-test numbers.", ""]
+        if "model" not in self.calibration.params(REFERENCE):
+            lines += [NO_COMMON_BOUND, ""]
         head = ["method", "coverage", "RMSE (m)", "CEP50 (m)", "CEP95 (m)", "RMSE common epochs (m)",
                 "common bound (m)", "RMSE / common bound", "RMSE / common bound, common epochs", "own bound (m)", "own bound kind", "RMSE / own bound",
                 "RMSE / own bound at measured noise", "own bound / ranges' CRLB", "bias share",
@@ -449,6 +441,9 @@ class Board:
 
         def f(x, fmt=".3f"):
             return "—" if x is None or (isinstance(x, float) and not np.isfinite(x)) else format(x, fmt)
+
+        def took(x, fmt):                  # a time: a method that ran took some, so it never shows as 0
+            return f(x, ".2g" if x > 0 and float(format(x, fmt)) == 0 else fmt)
 
         for r in df.itertuples(index=False):
             eff = (f"{r.rmse_over_bound:.2f} ± {r.rmse_over_bound_se:.2f}" if np.isfinite(r.rmse_over_bound_se)
@@ -464,7 +459,7 @@ class Board:
                                               f(r.rmse_common_over_common, ".2f"), f(r.bound_m),
                                               r.bound_kind or "—", eff, meas, f(r.bound_over_ranges_crlb, ".3g"),
                                               f(r.bias_share, ".2f"), nees, nis,
-                                              f(r.us_per_epoch, ".0f"), f(r.time_ratio, ".1f"),
+                                              took(r.us_per_epoch, ".0f"), took(r.time_ratio, ".1f"),
                                               r.tuning_pick, r.note or ""]) + " |")
         lines += ["", "```", self.calibration.describe(), *self.checks, "```", ""]
         return "\n".join(lines)
@@ -517,19 +512,14 @@ TUNED_KNOBS = (("sigma_w", "σ_w", ""), ("q_scale", "Q ×", ""), ("r_scale", "R 
                ("sigma_d_mps", "σ_d", " m/s"), ("window_s", "window", " s"))
 
 
-def _pick(edge) -> str:
-    if edge is None or (isinstance(edge, float) and not np.isfinite(edge)):
-        return "—"
-    return "on the grid's edge" if edge else "inside the grid"
-
-
 def pick_label(params: Mapping) -> str:
     """A method's tuning pick as the board shows it: the picked knob values (:data:`TUNED_KNOBS`) and whether
     they lie on the grid's edge, naming the knob(s) there where the tuning records them (``edge_knobs``);
     "—" for a method that tunes nothing (no ``grid_edge``)."""
-    where = _pick(params.get("grid_edge"))
-    if where == "—":
-        return where
+    edge = params.get("grid_edge")
+    if edge is None or (isinstance(edge, float) and not np.isfinite(edge)):
+        return "—"
+    where = "on the grid's edge" if edge else "inside the grid"
     values = ", ".join(f"{label} {float(params[k]):.3g}{unit}" for k, label, unit in TUNED_KNOBS if k in params)
     knobs = params.get("edge_knobs") or ()
     if params.get("grid_edge") and knobs:
@@ -653,9 +643,14 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
         known = {**(given or {}), **heights} if (tag_height_m is not None or how) else None
         calibration = calibrate(cal_rec, estimators, tags, rate_hz=rate_hz, dim=dim, progress=progress,
                                 tag_height_m=known)
-    elif GEOMETRY not in calibration.tuned:            # a calibration made elsewhere: the geometry of this one's part
+    elif GEOMETRY not in calibration.tuned or REFERENCE not in calibration.tuned:
+        # a calibration made elsewhere: the geometry and the common bound's model of this one's part, as calibrate
         thinned = cal_rec if rate_hz is None else cal_rec.decimate(rate_hz=rate_hz)
-        calibration = calibration.with_tuned(GEOMETRY, measurement_geometry(thinned, tags, calibration))
+        if GEOMETRY not in calibration.tuned:
+            calibration = calibration.with_tuned(GEOMETRY, measurement_geometry(thinned, tags, calibration))
+        reference = {} if REFERENCE in calibration.tuned else fit_reference_motion(thinned, tags, calibration)
+        if reference:
+            calibration = calibration.with_tuned(REFERENCE, reference)
     rec = test_rec if rate_hz is None else test_rec.decimate(rate_hz=rate_hz)
     commons = {t: common_bound(rec, t, calibration) for t in tags}
     ranges_crlb = {t: _range_bound(rec, t, calibration, rec.ranges[t], "CRLB of the ranges") for t in tags}
@@ -688,7 +683,7 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
                 except Exception as exc:                # a measurement that cannot be made is "not measured"
                     warnings.warn(f"{est.name} on {rec.label}/{tag}: its bound at the measured noise raised "
                                   f"{type(exc).__name__}: {exc}; left out", RuntimeWarning, stacklevel=2)
-            truth = truth_at(rec, tag, out.t_s, out.dim)
+            truth = rec.truth_at(tag, out.t_s, out.dim)
             entries.append(Entry(est.name, tag, out, b, truth, seconds, common=commons[tag], bound_measured=measured,
                                  ranges_crlb=ranges_crlb[tag]))
     external = tuple(e.name for e in estimators if getattr(e, "external", False))

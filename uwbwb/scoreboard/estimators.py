@@ -44,8 +44,9 @@ from ..filters.kalman import Gaussian
 from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import RandomForce, make_motion_model
 from ..types import Estimates, TdoaLog, Trajectory
-from .interface import (BaseEstimator, Estimator, TUNING_CRITERIA, _NONE, _UP, _range_bound, _tdoa_information,
-                        _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge, tdoa_geometry_note, truth_at)
+from .interface import (BaseEstimator, Estimator, TUNING_CRITERIA, _NONE, _UP, _range_bound, _range_information,
+                        _tdoa_information, _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge,
+                        tdoa_geometry_note)
 from .protocol import Calibration
 from .reference import REFERENCE
 from .setnoise_nls import NLS_WINDOWS_S, SetNoiseFilter, WindowNls
@@ -306,13 +307,7 @@ class RangeEkfEstimator(_MotionEkf):
         return ekf.transition.initial_covariance(s, s, s)
 
     def _information(self, rec, tag, cal, log):
-        pos = truth_at(rec, tag, log.t_s, cal.dim)
-        have = np.all(np.isfinite(pos), axis=1)
-        info = np.zeros((len(log), cal.dim, cal.dim))
-        if have.any():
-            info[have] = bounds.range_information(pos[have], rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
-                                                  mask=np.isfinite(log.range_m[have]))
-        return info, have
+        return _range_information(rec, tag, cal, log)
 
 
 # ----------------------------------------------------------------------------- UWB/INS

@@ -2,7 +2,7 @@
 
 A method joins the board by implementing :class:`Estimator` (see :mod:`.estimators` for what each
 member means); :class:`BaseEstimator` gives the defaults. The helpers place truth on a tag's
-epochs (:func:`truth_at`, one gap rule: :data:`MAX_TRUTH_GAP_S`), apply the shared range
+epochs (:meth:`~uwbwb.types.Recording.truth_at`, one gap rule: :data:`MAX_TRUTH_GAP_S`), apply the shared range
 calibration (:func:`calibrated_log`) and evaluate the range and TDoA information the adapters'
 bounds are built from.
 
@@ -27,7 +27,7 @@ from ..types import EstimateStatus, Estimates, MAX_TRUTH_GAP_S, RangeLog, Record
 from .protocol import Calibration
 
 __all__ = ["Estimator", "BaseEstimator", "GEOMETRY", "MAX_TDOA_OVER_RANGES", "MIN_NOISE_SAMPLES", "TUNING_CRITERIA",
-           "calibrated_log", "measured_noise_calibration", "measurement_geometry", "tdoa_geometry_note", "truth_at",
+           "calibrated_log", "measured_noise_calibration", "measurement_geometry", "tdoa_geometry_note",
            "on_grid_edge"]
 
 #: Fewest range residuals of an anchor on the scored part for its noise to be measured there
@@ -92,12 +92,6 @@ def calibrated_log(rec: Recording, tag: str, cal: Calibration) -> RangeLog:
     return rec.ranges[tag] if cal.range_calibration is None else cal.range_calibration.apply(rec.ranges[tag])
 
 
-def truth_at(rec: Recording, tag: str, t_s: np.ndarray, dim: int) -> np.ndarray:
-    """True positions ``(T, dim)`` at ``t_s`` by the one truth rule (:meth:`uwbwb.types.Recording.truth_at`:
-    NaN outside the truth or in gaps over :data:`~uwbwb.types.MAX_TRUTH_GAP_S`)."""
-    return rec.truth_at(tag, t_s, dim)
-
-
 def measured_noise_calibration(rec: Recording, tag: str, cal: Calibration) -> Calibration:
     """``cal`` with ``tag``'s range σ replaced by the robust σ (1.4826 × MAD, as the calibration's) of the
     calibrated ranges of ``rec`` against the true ranges (truth at the calibrated tag height on a 2-D board);
@@ -106,7 +100,7 @@ def measured_noise_calibration(rec: Recording, tag: str, cal: Calibration) -> Ca
     log = calibrated_log(rec, tag, cal)
     if tag not in rec.truth:
         return cal
-    pos = truth_at(rec, tag, log.t_s, 3 if rec.truth[tag].dim == 3 else 2)
+    pos = rec.truth_at(tag, log.t_s, 3 if rec.truth[tag].dim == 3 else 2)
     if pos.shape[1] == 2:
         h = cal.height(tag)
         if h is None:
@@ -121,14 +115,23 @@ def measured_noise_calibration(rec: Recording, tag: str, cal: Calibration) -> Ca
     return replace(cal, range_sigma_m={**cal.range_sigma_m, tag: sigma})
 
 
-def _range_bound(rec, tag, cal, log: RangeLog, kind="CRLB ranges") -> bounds.Bound:
-    pos = truth_at(rec, tag, log.t_s, cal.dim)
+def _range_information(rec, tag, cal, log: RangeLog) -> tuple[np.ndarray, np.ndarray]:
+    """Range information ``(T, dim, dim)`` at the true positions (the epoch's ranges at the calibrated noise; zero
+    where no truth), and where truth exists ``(T,)``."""
+    pos = rec.truth_at(tag, log.t_s, cal.dim)
     have = np.all(np.isfinite(pos), axis=1)
+    info = np.zeros((len(log), cal.dim, cal.dim))
+    if have.any():
+        info[have] = bounds.range_information(pos[have], rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
+                                              mask=np.isfinite(log.range_m[have]))
+    return info, have
+
+
+def _range_bound(rec, tag, cal, log: RangeLog, kind="CRLB ranges") -> bounds.Bound:
+    info, have = _range_information(rec, tag, cal, log)
     C = np.full((len(log), cal.dim, cal.dim), np.nan)
     if have.any():
-        info = bounds.range_information(pos[have], rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
-                                        mask=np.isfinite(log.range_m[have]))
-        C[have] = bounds.crlb(info)
+        C[have] = bounds.crlb(info[have])
     return bounds.Bound(log.t_s, C, kind)
 
 
@@ -138,7 +141,7 @@ def _tdoa_model(rec, tag, cal, correlated: bool = True) -> TdoaModel:
 
 def _tdoa_information(rec, tag, cal, log: RangeLog) -> tuple[np.ndarray, np.ndarray]:
     """TDoA information ``(T, dim, dim)`` at the true positions, and where truth exists ``(T,)``."""
-    pos = truth_at(rec, tag, log.t_s, cal.dim)
+    pos = rec.truth_at(tag, log.t_s, cal.dim)
     have = np.all(np.isfinite(pos), axis=1)
     info = np.zeros((len(log), cal.dim, cal.dim))
     if have.any():
@@ -170,10 +173,7 @@ def measurement_geometry(rec: Recording, tags: Sequence[str], cal: Calibration) 
         info_t, have = _tdoa_information(rec, tag, cal, log)
         if not have.any():
             continue
-        pos = truth_at(rec, tag, log.t_s[have], cal.dim)
-        info_r = bounds.range_information(pos, rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
-                                          mask=np.isfinite(log.range_m[have]))
-        r, t = _median_position_sd(info_r), _median_position_sd(info_t[have])
+        r, t = _median_position_sd(_range_information(rec, tag, cal, log)[0][have]), _median_position_sd(info_t[have])
         out[tag] = {"crlb_ranges_m": r, "crlb_tdoa_m": t, "tdoa_over_ranges": t / r if r > 0 else float("nan"),
                     "n_epochs": int(have.sum())}
     return out

@@ -28,15 +28,12 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..calibration import RangeCalibration, fit_range_calibration
-from ..types import MAX_TRUTH_GAP_S, Recording
+from ..types import Recording
 
-__all__ = ["Calibration", "between", "PLANAR_SPREAD_M", "TRUTH_PAD_S", "fit_calibration", "scored_tags", "split_in_time"]
+__all__ = ["Calibration", "between", "PLANAR_SPREAD_M", "fit_calibration", "scored_tags", "split_in_time"]
 
 #: Calibration truth whose height (5th–95th percentile) spans less than this is a planar problem.
 PLANAR_SPREAD_M = 0.15
-#: Truth kept beyond each cut so that interpolation at the part's first/last epoch works, seconds (the one
-#: truth-gap constant of :mod:`uwbwb.types`).
-TRUTH_PAD_S = MAX_TRUTH_GAP_S
 
 
 def scored_tags(rec: Recording, tags: Sequence[str] | None = None) -> tuple[str, ...]:
@@ -53,7 +50,7 @@ def scored_tags(rec: Recording, tags: Sequence[str] | None = None) -> tuple[str,
 
 
 def between(rec: Recording, t0: float, t1: float, name: str | None = None) -> Recording:
-    """The epochs ``t0 <= t < t1`` of every tag (truth padded by :data:`TRUTH_PAD_S`, IMU cut alike):
+    """The epochs ``t0 <= t < t1`` of every tag (truth padded by :data:`~uwbwb.types.MAX_TRUTH_GAP_S`, IMU cut alike):
     :meth:`uwbwb.types.Recording.between`."""
     return rec.between(t0, t1, name)
 

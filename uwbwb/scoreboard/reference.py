@@ -40,10 +40,11 @@ import numpy as np
 from .. import bounds
 from ..models.motion import make_motion_model
 from ..types import Recording
-from .interface import calibrated_log, truth_at
+from .interface import _range_information, calibrated_log
 from .protocol import Calibration
 
-__all__ = ["REFERENCE", "REFERENCE_GRIDS", "TRUTH_SIGMA_M", "common_bound", "fit_reference_motion"]
+__all__ = ["MIN_STRETCH_EPOCHS", "MIN_TRUTH_EPOCHS", "NO_COMMON_BOUND", "REFERENCE", "REFERENCE_GRIDS", "TRUTH_SIGMA_M",
+           "common_bound", "fit_reference_motion"]
 
 #: Key of the common bound's motion model in :attr:`Calibration.tuned`.
 REFERENCE = "common bound"
@@ -53,15 +54,21 @@ REFERENCE_GRIDS = {"RW": np.geomspace(0.01, 10.0, 13), "RF": np.geomspace(0.01, 
 #: Observation noise of the truth assumed when fitting the motion model, metres (an assumption:
 #: motion capture is good to millimetres; a larger value favours smoother models).
 TRUTH_SIGMA_M = 0.005
+#: The motion model is fitted on stretches of truth longer than :data:`MIN_STRETCH_EPOCHS` epochs (split at truth gaps),
+#: at least :data:`MIN_TRUTH_EPOCHS` epochs in all; with fewer there is no common bound.
+MIN_STRETCH_EPOCHS, MIN_TRUTH_EPOCHS = 5, 10
+#: What a board without a common bound says, in one line.
+NO_COMMON_BOUND = (f"No common bound: the calibration part has fewer than {MIN_TRUTH_EPOCHS} epochs of truth in "
+                   f"stretches longer than {MIN_STRETCH_EPOCHS} epochs, too few to fit its motion model.")
 
 
 def _truth_runs(rec: Recording, tag: str, cal: Calibration) -> list[tuple[np.ndarray, np.ndarray]]:
     """Contiguous stretches of truth at the tag's epochs (split at truth gaps), ``(t_s, pos_m)``."""
     t = rec.ranges[tag].t_s
-    pos = truth_at(rec, tag, t, cal.dim)
+    pos = rec.truth_at(tag, t, cal.dim)
     ok = np.all(np.isfinite(pos), axis=1)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(int), [0]])))
-    return [(t[a:b], pos[a:b]) for a, b in zip(edges[::2], edges[1::2]) if b - a > 5]
+    return [(t[a:b], pos[a:b]) for a, b in zip(edges[::2], edges[1::2]) if b - a > MIN_STRETCH_EPOCHS]
 
 
 def fit_reference_motion(rec: Recording, tags: Sequence[str], cal: Calibration,
@@ -72,12 +79,13 @@ def fit_reference_motion(rec: Recording, tags: Sequence[str], cal: Calibration,
     -------
     dict
         ``model`` and ``sigma_w`` chosen; ``loglik_per_epoch`` per model (at its best σ_w) and
-        ``sigma_w_per_model``; ``n_epochs`` used. Empty if no tag has 10 epochs of truth.
+        ``sigma_w_per_model``; ``n_epochs`` used. Empty with fewer than :data:`MIN_TRUTH_EPOCHS` epochs of truth
+        (:data:`NO_COMMON_BOUND`).
     """
     grids = REFERENCE_GRIDS if grids is None else grids
     runs = [r for t in tags for r in _truth_runs(rec, t, cal)]
     n = sum(r[0].size for r in runs)
-    if n < 10:
+    if n < MIN_TRUTH_EPOCHS:
         return {}
     dt = 1.0 / cal.rate_hz
     best = {}
@@ -102,14 +110,10 @@ def common_bound(rec: Recording, tag: str, cal: Calibration, t_s: np.ndarray | N
     if "model" not in p:
         return None
     log = calibrated_log(rec, tag, cal)
-    pos = truth_at(rec, tag, log.t_s, cal.dim)
-    have = np.all(np.isfinite(pos), axis=1)
+    info, have = _range_information(rec, tag, cal, log)
     C = np.full((len(log), cal.dim, cal.dim), np.nan)
     kind = f"PCRLB {p['model']} (common)"
     if have.any():
-        info = np.zeros((len(log), cal.dim, cal.dim))
-        info[have] = bounds.range_information(pos[have], rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
-                                              mask=np.isfinite(log.range_m[have]))
         motion = make_motion_model(p["model"], sigma=p["sigma_w"], dt_s=1.0 / cal.rate_hz, dim=cal.dim)
         k0 = int(np.flatnonzero(have)[0])
         C[k0:] = bounds.tracking_bound(motion, log.t_s[k0:], info[k0:], motion.initial_covariance(1.0, 1.0, 1.0))

@@ -18,7 +18,7 @@ from ..filters.setnoise import model_noise, run_set_noise_kf, run_set_noise_pf
 from ..models.motion import VelocityKick
 from ..sim.setnoise import SetEmulation, emulate_set_fixes
 from ..types import Estimates, RangeLog, RangeSamples
-from .interface import _NONE, _UP, BaseEstimator, _tuning_scores, calibrated_log, on_grid_edge, truth_at
+from .interface import _NONE, _UP, BaseEstimator, _tuning_scores, calibrated_log, on_grid_edge
 
 __all__ = ["SIGMA_D_GRID_MPS", "SetNoiseFilter", "NLS_WINDOWS_S", "WindowNls"]
 
@@ -61,7 +61,7 @@ class SetNoiseFilter(BaseEstimator):
 
     def _fixes(self, rec, tag, cal, truth: bool = False):
         log = calibrated_log(rec, tag, cal)
-        t = truth_at(rec, tag, log.t_s, 2) if truth else None
+        t = rec.truth_at(tag, log.t_s, 2) if truth else None
         em = emulate_set_fixes(log, rec.anchors.pos_m, cal.height(tag), self.emulation, rng=self._rng(rec, tag),
                                truth_m=t, name=f"{rec.label}/{tag}")
         return em.fixes, em.row
@@ -137,7 +137,7 @@ class SetNoiseFilter(BaseEstimator):
         info[:, [0, 1], [0, 1]] = 1 / sd ** 2                          # per-axis σ of each fix's set
         P0 = np.diag([1e4, 1e4, 1.0, 1.0])       # position from the first fix, velocity ~ 1 m/s
         C[idx] = bounds.tracking_bound(VelocityKick(sigma_d_mps), fixes.t_s, info, P0)
-        have = np.all(np.isfinite(truth_at(rec, tag, est.t_s, 2)), axis=1)
+        have = np.all(np.isfinite(rec.truth_at(tag, est.t_s, 2)), axis=1)
         C[~have] = np.nan
         return bounds.Bound(est.t_s, C, kind)
 
@@ -200,7 +200,7 @@ class WindowNls(BaseEstimator):
 
     def bound(self, rec, tag, cal, est):
         log = calibrated_log(rec, tag, cal)
-        pos = truth_at(rec, tag, log.t_s, cal.dim)
+        pos = rec.truth_at(tag, log.t_s, cal.dim)
         C = np.full((len(log), cal.dim, cal.dim), np.nan)
         win = np.asarray(est.info["window"])
         for k in np.unique(win):

@@ -8,14 +8,17 @@ and a table over many of them (tests feed values on both sides of each threshold
   (blocks from :func:`block_ids`, so that the correlation of a tracking filter's errors is kept).
   The verdict is "A more accurate" / "B more accurate" when the interval excludes 0, else "no
   significant difference"; with fewer than :data:`MIN_BLOCKS` blocks no interval and no verdict.
-* :func:`own_bound_facts` / :func:`own_bound_table` — a method below its *own* bound (RMSE / own bound
-  + 2 se < 1), and whether it is still below that bound re-evaluated at the noise the scored part's truth
-  measures (:meth:`~.interface.BaseEstimator.measured_noise_bound`): not below it, the measured noise accounts for
-  the gap; still below it, or not measured, "cause not measured" — the table claims no other reason.
+* :func:`own_bound_facts` / :func:`own_bound_table` — a method below its *own* bound (the interval RMSE / own
+  bound ± 2 se lies below 1), and whether it is still below that bound re-evaluated at the noise the scored part's
+  truth measures (:meth:`~.interface.BaseEstimator.measured_noise_bound`): not below it, the measured noise accounts
+  for the gap; still below it, or not measured, "cause not measured" — the table claims no other reason.
 * :func:`placement_facts` / :func:`placement_table` — a method against the recording's common
-  bound (:mod:`.reference`): RMSE / common bound with its block standard error; "above" when
-  ``ratio − 2 se > 1``, "below" when ``ratio + 2 se < 1``, else "on the bound"; no verdict when the
-  standard error could not be formed (fewer than :data:`MIN_BLOCKS` blocks).
+  bound (:mod:`.reference`): the interval RMSE / common bound ± 2 block standard errors; "above" or "below" where
+  it excludes 1, else "on the bound"; no verdict when the standard error could not be formed (fewer than
+  :data:`MIN_BLOCKS` blocks).
+
+Every verdict is :func:`uwbwb.metrics.interval_side` of an interval (the bootstrap's, or ratio ± 2 se) against its
+null (0 for a difference, 1 for a ratio to a bound): the package's one interval → verdict rule.
 
 The package's one block rule serves both (and :meth:`uwbwb.scoreboard.Board.table`'s standard errors):
 :func:`uwbwb.metrics.block_ids` over the paired difference ``e_a² − e_b²`` (in
@@ -40,9 +43,9 @@ __all__ = ["DIFFERENCE_RULE", "N_BOOT", "OWN_BOUND_RULE", "PLACEMENT_RULE", "blo
 N_BOOT = 2000
 #: The rules the tables state beside each verdict.
 DIFFERENCE_RULE = "95 % block-bootstrap interval of RMSE(A) − RMSE(B) on common epochs excludes 0"
-PLACEMENT_RULE = "RMSE / common bound ± 2 block standard errors excludes 1"
-OWN_BOUND_RULE = ("below: RMSE / own bound + 2 block standard errors < 1; then the same against the own bound at the "
-                  "scored part's measured noise")
+PLACEMENT_RULE = "the interval RMSE / common bound ± 2 block standard errors excludes 1 (above or below), else on"
+OWN_BOUND_RULE = ("below: the interval RMSE / own bound ± 2 block standard errors lies below 1; then the same against "
+                  "the own bound at the scored part's measured noise")
 
 
 def block_se_ratio(sq_err: list[np.ndarray], trace: list[np.ndarray]) -> tuple[float, int]:
@@ -93,21 +96,17 @@ def difference_facts(board, a: str, b: str, *, n_boot: int = N_BOOT, rng: np.ran
 def placement_facts(row) -> dict:
     """Where one board row (:meth:`Board.table`) sits against the common bound: ``above``, ``on``, ``below`` or ``none``."""
     r, se = float(row.rmse_over_common), float(row.rmse_over_common_se)
-    if not np.isfinite(r):
-        where = "none"
-    elif not np.isfinite(se):
-        where = "few blocks"                     # fewer than MIN_BLOCKS blocks: no standard error, no verdict
-    else:
-        where = "above" if r - 2 * se > 1 else ("below" if r + 2 * se < 1 else "on")
-    return {"method": row.method, "ratio": r, "se": se, "where": where}
+    where = _side(r, se)
+    return {"method": row.method, "ratio": r, "se": se, "where": "on" if where == "contains" else where}
 
 
 def _side(r: float, se: float) -> str:
+    """:func:`~uwbwb.metrics.interval_side` of the interval ``r ± 2 se`` against 1; ``"none"`` where ``r`` is not
+    finite (no bound), ``"few blocks"`` where ``se`` is not (fewer than :data:`MIN_BLOCKS` blocks: no verdict)."""
     if not np.isfinite(r):
         return "none"
-    if not np.isfinite(se):
-        return "few blocks"
-    return "below" if r + 2 * se < 1 else "not below"
+    side = interval_side(r - 2 * se, r + 2 * se, 1.0)
+    return "few blocks" if side == "none" else side
 
 
 def own_bound_facts(row) -> dict:
@@ -117,7 +116,7 @@ def own_bound_facts(row) -> dict:
     r, se = float(row.rmse_over_bound), float(row.rmse_over_bound_se)
     rm = float(getattr(row, "rmse_over_bound_measured", np.nan))
     sm = float(getattr(row, "rmse_over_bound_measured_se", np.nan))
-    where, measured = _side(r, se), _side(rm, sm)
+    where, measured = ({"above": "not below", "contains": "not below"}.get(w, w) for w in (_side(r, se), _side(rm, sm)))
     if where == "none":
         verdict = "no own bound"
     elif where == "few blocks":
