@@ -33,7 +33,7 @@ from uwbwb.models.motion import RandomForce
 from uwbwb.scoreboard.board import calibrate
 from uwbwb.scoreboard.estimators import RangeEkfEstimator, TdoaEkfEstimator, default_estimators
 from uwbwb.scoreboard.interface import BaseEstimator, _tdoa_model, calibrated_log
-from uwbwb.scoreboard.protocol import between, scored_tags, split_in_time
+from uwbwb.scoreboard.protocol import scored_tags, split_in_time
 from uwbwb.types import EstimateStatus, Estimates, TdoaLog, pseudo_tdoa
 
 RATE_HZ = 10.0
@@ -97,7 +97,7 @@ def trees(tmp_path_factory):
     ready = {}
     for key, (cal_rec, test) in out.items():
         tag = scored_tags(test)[0]
-        cal_rec = between(cal_rec, -np.inf, np.inf)
+        cal_rec = cal_rec.between(-np.inf, np.inf)
         cal = calibrate(cal_rec, registry(), [tag], rate_hz=RATE_HZ)
         ready[key] = (test.decimate(rate_hz=RATE_HZ), tag, cal)
     return ready

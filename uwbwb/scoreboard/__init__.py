@@ -20,8 +20,8 @@ from .board import Board, Entry, calibrate, score
 from .estimators import ExternalEstimates, default_estimators
 from .interface import BaseEstimator, Estimator
 from .reference import common_bound
-from .protocol import Calibration, between, fit_calibration, split_in_time
+from .protocol import Calibration, fit_calibration, split_in_time
 
 __all__ = ["BaseEstimator", "Board", "Calibration", "Entry", "Estimator", "ExternalEstimates", "calibrate",
            "common_bound", "default_estimators",
-           "between", "fit_calibration", "score", "split_in_time"]
+           "fit_calibration", "score", "split_in_time"]

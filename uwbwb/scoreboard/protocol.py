@@ -30,7 +30,7 @@ import numpy as np
 from ..calibration import RangeCalibration, fit_range_calibration
 from ..types import Recording
 
-__all__ = ["Calibration", "between", "PLANAR_SPREAD_M", "fit_calibration", "scored_tags", "split_in_time"]
+__all__ = ["PLANAR_SPREAD_M", "fit_calibration", "scored_tags", "split_in_time"]
 
 #: Calibration truth whose height (5th–95th percentile) spans less than this is a planar problem.
 PLANAR_SPREAD_M = 0.15
@@ -49,12 +49,6 @@ def scored_tags(rec: Recording, tags: Sequence[str] | None = None) -> tuple[str,
     return tuple(str(t) for t in tags)
 
 
-def between(rec: Recording, t0: float, t1: float, name: str | None = None) -> Recording:
-    """The epochs ``t0 <= t < t1`` of every tag (truth padded by :data:`~uwbwb.types.MAX_TRUTH_GAP_S`, IMU cut alike):
-    :meth:`uwbwb.types.Recording.between`."""
-    return rec.between(t0, t1, name)
-
-
 def split_in_time(rec: Recording, fraction: float = 0.5) -> tuple[Recording, Recording]:
     """``(calibration part, scoring part)``: the first ``fraction`` of the run's span and the rest.
 
@@ -69,8 +63,8 @@ def split_in_time(rec: Recording, fraction: float = 0.5) -> tuple[Recording, Rec
         raise ValueError(f"{rec.label}: no ranges to split")
     t0, t1 = float(min(starts)), float(max(ends))
     tm = t0 + fraction * (t1 - t0)
-    return (between(rec, t0, tm, f"{rec.name} [{t0:.0f}–{tm:.0f} s]"),
-            between(rec, tm, t1 + 1e-9, f"{rec.name} [{tm:.0f}–{t1:.0f} s]"))
+    return (rec.between(t0, tm, f"{rec.name} [{t0:.0f}–{tm:.0f} s]"),
+            rec.between(tm, t1 + 1e-9, f"{rec.name} [{tm:.0f}–{t1:.0f} s]"))
 
 
 @dataclass(frozen=True)

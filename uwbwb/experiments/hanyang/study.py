@@ -43,7 +43,6 @@ from ...errors import DataNotFoundError
 from ...scoreboard import Board, score
 from ...scoreboard.estimators import EKF_GRIDS, RangeEkfEstimator, default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S
-from ...scoreboard.protocol import between
 from ...scoreboard.verdicts import difference_table, pair_rng
 from .authors import AuthorsEstimator, AuthorsFrontEndLs, authors_window
 from .estimators import PrunedNls, StaticModelLs, StaticRangeModel
@@ -116,8 +115,8 @@ def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: 
     c0, c1 = authors_window(cal_rec.truth["tag"], cal_rec.meta["trajectory"])
     if fast:
         t1, c1 = min(t1, t0 + FAST_SPAN_S), min(c1, c0 + FAST_SPAN_S)
-    test = between(test_rec, t0, t1, f"{test_rec.name} [authors' window{' , FAST part' if fast else ''}]")
-    cal = between(cal_rec, c0, c1, f"{cal_rec.name} [authors' window]") if fast else cal_rec
+    test = test_rec.between(t0, t1, f"{test_rec.name} [authors' window{' , FAST part' if fast else ''}]")
+    cal = cal_rec.between(c0, c1, f"{cal_rec.name} [authors' window]") if fast else cal_rec
     if estimators is None:
         est = study_estimators(fast=fast, static_models=static_models)
         lag = cal_rec.meta.get("authors_lag_s", {}).get("LS")
@@ -149,8 +148,8 @@ def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bo
     if fast:
         c1 = min(c1, c0 + FAST_SPAN_S)
     mid = 0.5 * (c0 + c1)
-    first = between(rec, c0, mid, f"{rec.name} [authors' window, first half]")
-    second = between(rec, mid, c1, f"{rec.name} [authors' window, second half]")
+    first = rec.between(c0, mid, f"{rec.name} [authors' window, first half]")
+    second = rec.between(mid, c1, f"{rec.name} [authors' window, second half]")
     est = study_estimators(fast=fast, static_models=static_models) if estimators is None else list(estimators)
     est = [e for e in est if not isinstance(e, AuthorsEstimator) or e.method == "LS"]
     if not any(isinstance(e, AuthorsEstimator) for e in est):
