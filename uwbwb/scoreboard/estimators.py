@@ -359,7 +359,7 @@ class UwbInsFilter(BaseEstimator):
     settings: alignment.FusionSettings = alignment.FusionSettings()
 
     def __post_init__(self):
-        if self.kind not in alignment.TUNABLE + ("INS-only",) or self.kind == "EKF + gate":
+        if self.kind not in alignment.TUNABLE + ("INS-only",):
             raise ValueError(f"UwbInsFilter kind must be loose, tight, tight (ranges) or INS-only, got {self.kind!r}")
 
     @property
