@@ -642,7 +642,7 @@ def _registry() -> tuple[Twin, ...]:
                "P_post": Tol(ulps=256), "nis": Tol(ulps=2048), **{f: BIT for f in _EKF_INTS}}
     ekf_kernels = tuple(f"uwbwb.filters.ekf.kernels.{f}" for f in (
         "_loop", "_reference", "_linearise", "_mul", "_mul_t", "_symmetric", "_predict", "_lu", "_lu_solve",
-        "_quadratic", "_nis", "_update"))
+        "_quadratic", "_nis", "_update", "_add_into"))
     for case, motion, gate, correlated, gated, dropped in (
             ("no gate, RW 2-D", RandomWalk(0.3, dim=2), NoGate(), True, False, False),
             ("χ² epoch, RF 2-D, diagonal Σ", RandomForce(0.5, dim=2), ChiSquareEpoch(0.999), False, True, False),

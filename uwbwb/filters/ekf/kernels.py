@@ -263,14 +263,19 @@ def _predict(x, P, F, Q):
         for b in range(n):
             acc += F[a, b] * x[b]
         xn[a] = acc
-    return xn, _symmetric(_mul_t(_mul(F, P, n, n, n), F, n, n, n) + Q)
+    FPF = _mul_t(_mul(F, P, n, n, n), F, n, n, n)
+    _add_into(FPF, Q, n, n)
+    return xn, _symmetric(FPF)
 
 
 @numba.njit(cache=True, nogil=True)
 def _lu(A, m):
     """LU factorisation with partial pivoting of ``A[:m, :m]`` (LAPACK ``getf2``'s steps), a copy; raises
     FloatingPointError for a zero pivot (numpy's ``LinAlgError``)."""
-    LU = A[:m, :m].copy()
+    LU = np.empty((m, m))
+    for i in range(m):
+        for c in range(m):
+            LU[i, c] = A[i, c]
     piv = np.empty(m, np.int64)
     for j in range(m):
         p = j
@@ -310,7 +315,7 @@ def _lu_solve(LU, piv, b):
 def _quadratic(S, y, m):
     """``yᵀ S⁻¹ y``."""
     LU, piv = _lu(S, m)
-    w = y[:m].copy()
+    w = y.copy()
     _lu_solve(LU, piv, w)
     acc = 0.0
     for a in range(m):
@@ -322,8 +327,12 @@ def _quadratic(S, y, m):
 def _nis(P, z, h, H, R, m):
     """The gates' epoch NIS: ``y = z − h``, ``S = (H P) Hᵀ + R``, ``yᵀ S⁻¹ y``."""
     n = P.shape[0]
-    S = _mul_t(_mul(H, P, m, n, n), H, m, n, m) + R[:m, :m]
-    return _quadratic(S, z[:m] - h[:m], m)
+    S = _mul_t(_mul(H, P, m, n, n), H, m, n, m)
+    _add_into(S, R, m, m)
+    y = np.empty(m)
+    for a in range(m):
+        y[a] = z[a] - h[a]
+    return _quadratic(S, y, m)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -331,17 +340,15 @@ def _update(x, P, z, h, H, R, m):
     """:func:`~uwbwb.filters.kalman.update` with ``h_x = h``: the posterior ``(x, P)`` and its NIS. Raises
     FloatingPointError where that function raises (``S`` not positive definite)."""
     n = x.size
-    Hx = np.empty(m)
-    for a in range(m):
+    y = np.empty(m)
+    for a in range(m):                          # y = (z − h + H x) − H x, as filterpy sees z − h
         acc = 0.0
         for b in range(n):
             acc += H[a, b] * x[b]
-        Hx[a] = acc
-    y = np.empty(m)
-    for a in range(m):
-        y[a] = ((z[a] - h[a]) + Hx[a]) - Hx[a]
+        y[a] = ((z[a] - h[a]) + acc) - acc
     PHT = _mul_t(P, H, n, n, m)
-    S = _mul(H, PHT, m, n, m) + R[:m, :m]
+    S = _mul(H, PHT, m, n, m)
+    _add_into(S, R, m, m)
     Ss = _symmetric(S)
     for i in range(m):                          # Cholesky of the symmetric part: positive definite?
         for j in range(i + 1):
@@ -355,13 +362,15 @@ def _update(x, P, z, h, H, R, m):
             else:
                 Ss[i, j] = acc / Ss[j, j]
     LU, piv = _lu(S, m)
-    SI = np.zeros((m, m))
+    SI = np.empty((m, m))
     col = np.empty(m)
-    for c in range(m):
-        col[:] = 0.0
+    for c in range(m):                          # S⁻¹, column by column
+        for a in range(m):
+            col[a] = 0.0
         col[c] = 1.0
         _lu_solve(LU, piv, col)
-        SI[:, c] = col
+        for a in range(m):
+            SI[a, c] = col[a]
     K = _mul(PHT, SI, n, m, m)
     xn = np.empty(n)
     for a in range(n):
@@ -369,8 +378,28 @@ def _update(x, P, z, h, H, R, m):
         for e in range(m):
             acc += K[a, e] * y[e]
         xn[a] = x[a] + acc
-    IKH = -_mul(K, H, n, m, n)
+    IKH = _mul(K, H, n, m, n)
     for a in range(n):
-        IKH[a, a] += 1.0
-    Pn = _mul_t(_mul(IKH, P, n, n, n), IKH, n, n, n) + _mul_t(_mul(K, R, n, m, m), K, n, m, n)
+        for b in range(n):
+            IKH[a, b] = (1.0 if a == b else 0.0) - IKH[a, b]
+    A = _mul(IKH, P, n, n, n)
+    KR = _mul(K, R, n, m, m)
+    Pn = np.empty((n, n))
+    for a in range(n):                          # ((I − K H) P) (I − K H)ᵀ + (K R) Kᵀ
+        for b in range(n):
+            t1 = 0.0
+            for c in range(n):
+                t1 += A[a, c] * IKH[b, c]
+            t2 = 0.0
+            for e in range(m):
+                t2 += KR[a, e] * K[b, e]
+            Pn[a, b] = t1 + t2
     return xn, _symmetric(Pn), _quadratic(_symmetric(S), y, m)
+
+
+@numba.njit(cache=True, nogil=True)
+def _add_into(A, B, m, n):
+    """``A[:m, :n] += B[:m, :n]``."""
+    for a in range(m):
+        for b in range(n):
+            A[a, b] += B[a, b]
