@@ -60,13 +60,19 @@ def test_every_covered_name_is_a_compiled_function():
             assert isinstance(obj, CPUDispatcher), (twin.name, qual)
 
 
+#: Twins of a whole filter run compared in ULP: the filter carries a rounding difference from epoch to epoch as it
+#: carries a one-ulp change of its prior (the TDoA EKF's Python loop moves by up to 750 ULP for one; see its twin).
+RUNS_IN_ULPS = "ekf.TdoaEkf.run["
+
+
 def test_every_twin_names_its_test_and_keeps_tight_tolerances():
     for twin in TWINS.values():
         assert twin.tolerance, twin.name
         assert twin.held_by.startswith("tests/") and "::" in twin.held_by, twin.name
+        ulps = 2048 if twin.name.startswith(RUNS_IN_ULPS) else 64
         for key, tol in twin.tolerance.items():
             # the loosest exactness test in the suite: batched Gauss-Newton against scipy, per epoch
-            assert isinstance(tol, Tol) and tol.rtol <= 1e-4 and tol.atol <= 1e-6 and tol.ulps <= 64, \
+            assert isinstance(tol, Tol) and tol.rtol <= 1e-4 and tol.atol <= 1e-6 and tol.ulps <= ulps, \
                 (twin.name, key, tol)
 
 

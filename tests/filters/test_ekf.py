@@ -1,8 +1,12 @@
+import copy
+
 import numpy as np
 import pytest
 
 from uwbwb.filters import kalman
-from uwbwb.filters.ekf import TdoaEkf, run_tdoa_ekf
+from uwbwb.filters.ekf import Ekf, TdoaEkf, TdoaMeasurement, kernels, run_tdoa_ekf
+from uwbwb.filters.gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate, Robust
+from uwbwb.filters.twins import TWINS
 from uwbwb.models.motion import RandomForce, RandomJerk, RandomWalk
 from uwbwb.models.tdoa import TdoaModel
 from uwbwb.types import EstimateStatus, TdoaLog, pseudo_tdoa
@@ -217,3 +221,68 @@ def test_gated_epochs_are_reported_as_such_in_the_common_result(rng):
     assert (est.status[50:52] == EstimateStatus.PREDICTED).all()
     np.testing.assert_array_equal(res.x_post[100], res.x_prior[100])
     assert est.status_counts()["updated"] == t.size - 3
+
+
+# ------------------------------------------------------------------ the compiled loop (uwbwb.filters.ekf.kernels)
+EKF_TWINS = [n for n in TWINS if n.startswith("ekf.TdoaEkf.run[")]
+
+
+def _fields(run):
+    return {f: getattr(run, f) for f in ("x_prior", "P_prior", "x_post", "P_post", "F", "nis", "dof", "status",
+                                         "n_rejected")}
+
+
+@pytest.mark.parametrize("name", EKF_TWINS)
+def test_compiled_run_equals_the_python_loop(name, monkeypatch):
+    # from the default start (the first LS fix, after five epochs without TDoAs), not only from a given prior
+    # (the twin): the kernel's run against the Python loop it declines to (kernels.run returns None)
+    twin = TWINS[name]
+    ekf, log, _ = twin.inputs()
+    d, ref = log.tdoa_m.copy(), log.ref.copy()
+    d[:5], ref[:5] = np.nan, -1
+    log = TdoaLog(log.t_s, d, ref, log.anchor_ids)
+    fast = ekf.run(log)
+    declined = []
+    monkeypatch.setattr(kernels, "run", lambda *args: declined.append(args[3]) or None)
+    slow = ekf.run(log)
+    assert declined == [5] and np.isnan(fast.x_post[:5]).all() and (fast.status[:5] == EstimateStatus.NO_ESTIMATE).all()
+    assert not twin.mismatches(_fields(fast), _fields(slow))
+    assert (fast.name, fast.pos_index, fast.vel_index) == (slow.name, slow.pos_index, slow.vel_index)
+
+
+@pytest.mark.parametrize("gate,compiled", [
+    (NoGate(), True), (ChiSquareEpoch(0.999), True), (ChiSquarePerMeasurement(0.999, 2), True),
+    (AnchorDropping(0.999, 2), True), (None, True),
+    (Robust(), False), (Robust(gate=AnchorDropping(0.999, 2)), False), ("sequential", False)])
+def test_the_compiled_loop_runs_exactly_where_it_applies(gate, compiled, monkeypatch, rng):
+    model = TdoaModel(ANCHORS, 0.1, dim=2, z_m=1.0)
+    t = np.arange(0, 5, 0.1)
+    log = _log(model, np.column_stack([5 + 0.5 * t, 10 + 0.2 * t]), t, sigma=0.1, rng=rng, p_missing=0.1)
+    if gate == "sequential":
+        ekf = copy.copy(TdoaEkf(RandomForce(0.1), model))
+        object.__setattr__(ekf, "sequential", True)
+    else:
+        ekf = TdoaEkf(RandomForce(0.1), model) if gate is None else TdoaEkf(RandomForce(0.1), model, gate=gate)
+    calls = []
+    real = kernels.run
+    monkeypatch.setattr(kernels, "run", lambda *args: calls.append(1) or real(*args))
+    x0 = ekf.init([5.2, 9.9])
+    got = ekf.run(log, x0=x0)
+    assert ekf.compiled == compiled and bool(calls) == compiled
+    want = Ekf.run(ekf, log.t_s, TdoaMeasurement.epochs(log), x0)
+    np.testing.assert_allclose(got.x_post, want.x_post, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(got.status, want.status)
+    if not compiled:                        # the Python loop itself: the same numbers, bit for bit
+        np.testing.assert_array_equal(got.P_post, want.P_post)
+
+
+def test_where_the_compiled_loop_stops_the_python_loop_decides():
+    # a prior with a NaN: the kernel stops at the first update and the Python loop raises its own error
+    model = TdoaModel(ANCHORS, 0.1, dim=2, z_m=1.0)
+    t = np.arange(0, 2, 0.1)
+    log = _log(model, np.tile([12.0, 17.0], (t.size, 1)), t)
+    ekf = TdoaEkf(RandomWalk(0.1), model, gate=NoGate())
+    x0 = kalman.Gaussian(np.array([np.nan, 17.0]), np.eye(2))
+    assert ekf.compiled and kernels.run(ekf, log, x0, 0, "EKF-RW") is None
+    with pytest.raises(ValueError, match="non-finite"):
+        ekf.run(log, x0=x0)

@@ -33,8 +33,9 @@ Modules
 -------
 :mod:`.core` (:class:`Ekf`, :class:`KalmanRun`, :class:`Linearisation`, the model protocols,
 :func:`nis_consistency`), :mod:`.tdoa` (:class:`TdoaEkf`, :class:`TdoaMeasurement`,
-:func:`run_tdoa_ekf`) and :mod:`.ranges` (:class:`RangeMeasurement`: the ranges themselves as the
-measurement); every name importable from here.
+:func:`run_tdoa_ekf`), :mod:`.kernels` (:meth:`TdoaEkf.run`'s compiled loop, twin of :meth:`Ekf.run`) and
+:mod:`.ranges` (:class:`RangeMeasurement`: the ranges themselves as the measurement); every name importable from
+here.
 """
 
 from ..gating import UpdateInfo

@@ -13,6 +13,7 @@ from ...validate import number
 from ..gating import AnchorDropping, GatePolicy, gate_from_prob
 from ..kalman import Gaussian
 from ..tdoa_ls import tdoa_least_squares
+from . import kernels
 from .core import _DEFAULT_GATE, Ekf, KalmanRun, Linearisation
 
 
@@ -200,7 +201,19 @@ class TdoaEkf(Ekf):
                     k = int(np.flatnonzero(ls.ok)[0])
                     start, x0 = lo + k, self.init(ls.pos_m[k])
                     break
-        return super().run(log.t_s, TdoaMeasurement.epochs(log), x0, start=start, name=name or self.name)
+        name = name or self.name
+        fast = kernels.run(self, log, x0, start, name) if self.compiled else None
+        return fast if fast is not None else super().run(log.t_s, TdoaMeasurement.epochs(log), x0, start=start,
+                                                           name=name)
+
+    @property
+    def compiled(self) -> bool:
+        """Whether :meth:`run` takes the compiled loop (:mod:`.kernels`: the Python :meth:`Ekf.run`'s
+        decisions, its numbers to rounding, within its twin's stated tolerance): a gate of :data:`.kernels.GATE_KINDS`, the
+        batch update (not ``sequential``) and the TDoA measurement of a :class:`MotionModel`. Any other
+        filter (e.g. a :class:`~uwbwb.filters.gating.Robust` update) runs the Python loop."""
+        return (type(self.gate) in kernels.GATE_KINDS and not self.sequential
+                and type(self.measurement) is TdoaMeasurement and isinstance(self.measurement.motion, MotionModel))
 
 
 def run_tdoa_ekf(log: TdoaLog, motion: MotionModel, measurement: TdoaModel, *, gate_prob: float | None = 0.9999,
