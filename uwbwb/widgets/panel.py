@@ -399,10 +399,6 @@ class Panel:
         if self._dirty:
             self._render()
 
-    def refresh(self) -> None:
-        """Render again with the current values."""
-        self._render()
-
     def show(self) -> None:
         """Display the panel (same as ``display(panel)``)."""
         from IPython.display import display
