@@ -160,26 +160,20 @@ class Spec:
         stripped = text.strip()
         if self.none is not None and stripped == "None":
             return None
-
+        value = text               # text that is no literal stays text: only "any" accepts it
+        if self.kind == "bool":
+            value = {"True": True, "true": True, "False": False, "false": False}.get(stripped, text)
+        elif self.kind != "str":
+            try:
+                value = ast.literal_eval(stripped)
+            except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+                pass
         try:
-            if self.kind == "str":
-                value = text
-            elif self.kind == "bool":
-                value = {"True": True, "true": True, "False": False, "false": False}.get(stripped, _BAD)
-            else:
-                try:
-                    value = ast.literal_eval(stripped)
-                except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
-                    value = text if self.kind == "any" else _BAD
-            out = _BAD if value is _BAD else self._convert(value)
-            if out is _BAD:
-                raise ValueError(f"expected {self.expected()}")
-            if self.check is not None and out is not None:
-                self.check(out, name)
+            return self.validate(value, name)
         except ValueError as exc:
-            msg = str(exc).split(": ", 1)[1] if str(exc).startswith(f"{name}=") else str(exc)
+            msg = str(exc).removeprefix(f"{name}={_short(value)}: ")
+            msg = msg.split(": ", 1)[1] if msg.startswith(f"{name}=") else msg
             raise ValueError(f"-p {name} {_short(text, quote=False)}: {msg}") from None
-        return out
 
     def _convert(self, value: Any) -> Any:
         # NumPy scalars and paths, as a Python caller passes them, are the plain values they stand for
@@ -343,7 +337,6 @@ COMMON: dict[str, Spec] = {
 }
 
 _RECORDING = text()          # a recording or folder name of the dataset; the loader says which exist
-_COUNT = integer(lo=1)
 
 #: Per notebook stem: every parameter of its ``parameters`` cell beyond :data:`COMMON`.
 SPECS: dict[str, dict[str, Spec]] = {

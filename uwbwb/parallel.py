@@ -339,14 +339,13 @@ def probe(scheduler: str, *, timeout_s: float | None = None) -> str:
     return address
 
 
-def connect(scheduler, *, announce: bool = True, timeout_s: float | None = None):
+def connect(scheduler, *, timeout_s: float | None = None):
     """The :class:`distributed.Client` for ``scheduler`` (None for ``None``: run in this process).
 
     ``"local"`` starts a :func:`local_cluster` with Dask's defaults for this
     machine (one worker process per few cores); an address connects to that
     scheduler; a ``Client`` is used as given. Clients made here are kept and reused
-    for the same value; the first connection prints the cluster and its dashboard
-    link (unless ``announce`` is False).
+    for the same value; :func:`describe` says where they run.
 
     Parameters
     ----------
@@ -381,8 +380,6 @@ def connect(scheduler, *, announce: bool = True, timeout_s: float | None = None)
                 _probe(address, timeout_s)
                 client = distributed.Client(address, set_as_default=False, timeout=timeout_s)
             _CLIENTS[key] = client
-            if announce:
-                print(describe(client), flush=True)
     return client
 
 
@@ -390,7 +387,7 @@ def describe(scheduler) -> str:
     """One line on where sweeps run: this process, or the cluster with its workers and dashboard link."""
     if scheduler is None:
         return "Sweeps run in this process (no Dask scheduler given)."
-    client = connect(scheduler, announce=False)
+    client = connect(scheduler)
     threads = client.nthreads()
     link = client.dashboard_link if getattr(client, "dashboard_link", None) else "none (install bokeh)"
     return (f"Sweeps run on the Dask cluster at {client.scheduler.address}: {len(threads)} workers, "

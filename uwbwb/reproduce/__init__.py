@@ -72,17 +72,16 @@ from typing import Any, Callable, Iterable, Mapping
 from .. import parallel
 from ..datasets.text import READ_LOG_ENV
 from . import cache
-from .params import (INJECTED_TAG, RESERVED_PARAMETERS, SCHEDULER_PARAMETER, injected_source,  # noqa: F401
-                     notebook_parameters, parameter_specs, parameterized, parse_parameter_value, resolve_parameters)
-from .report import FAST_MARK, summary_markdown  # noqa: F401
-from .running import (KERNEL_NAME, SUMMARY_KEYS, NotebookRun, ReproduceResult, _published, _run_on_cluster,  # noqa: F401
-                      ipc_kernel_manager, read_summary, run_notebook)
+from .params import (INJECTED_TAG, RESERVED_PARAMETERS, SCHEDULER_PARAMETER, injected_source, notebook_parameters,
+                     parameterized, resolve_parameters)
+from .report import summary_markdown
+from .running import (KERNEL_NAME, NotebookRun, ReproduceResult, _published, _run_on_cluster, ipc_kernel_manager,
+                      read_summary, run_notebook)
 
-__all__ = ["FAST_MARK", "INJECTED_TAG", "KERNEL_NAME", "NOTEBOOKS_DIR", "NotebookRun", "REPORTS_DIR",
-           "RESERVED_PARAMETERS", "ReproduceResult", "SCHEDULER_PARAMETER", "SUMMARY_KEYS", "injected_source",
-           "ipc_kernel_manager",
-           "notebook_parameters", "parameter_specs", "parameterized", "parse_parameter_value", "read_summary",
-           "reproduce", "resolve_parameters", "run_notebook", "select_notebooks", "summary_markdown"]
+__all__ = ["INJECTED_TAG", "KERNEL_NAME", "NOTEBOOKS_DIR", "NotebookRun", "REPORTS_DIR", "RESERVED_PARAMETERS",
+           "ReproduceResult", "SCHEDULER_PARAMETER", "injected_source", "ipc_kernel_manager", "notebook_parameters",
+           "parameterized", "read_summary", "reproduce", "resolve_parameters", "run_notebook", "select_notebooks",
+           "summary_markdown"]
 
 #: Notebooks run by default: ``notebooks/`` in the working directory (the project root, where
 #: ``make reproduce`` and ``python -m uwbwb reproduce`` are run).
@@ -148,7 +147,7 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         Output folder; default :data:`REPORTS_DIR` (``reports/`` in the working directory).
     parameters
         Extra notebook parameters as Python values, checked by each notebook's spec
-        (:func:`parameter_specs`); each goes to the selected notebooks that declare it.
+        (:func:`uwbwb.notebook_params.specs_for`); each goes to the selected notebooks that declare it.
     text_parameters
         Extra notebook parameters as typed on the command line, typed by each
         notebook's declared default (see :func:`resolve_parameters`).
@@ -266,12 +265,13 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_
     run can be reused (:mod:`.cache`) is not executed unless ``force``."""
     if client is not None:
         try:
-            runs.extend(_run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env))
+            for run in _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env):
+                runs.append(run)
+                _log_end(log, len(runs), len(notebooks), run)
+            return
         finally:
             if isinstance(scheduler, str) and scheduler.strip() == "local":   # the cluster started for this run
                 parallel.shutdown(scheduler)
-    if client is not None:
-        return
     digest, order = cache.package_digest(), {nb: i for i, nb in enumerate(notebooks, 1)}
     todo = []
     for source in notebooks:

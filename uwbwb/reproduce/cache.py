@@ -28,19 +28,12 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..datasets.discovery import PROJECT_ROOT, data_dirs
+from ..datasets.manifest import sha256_file
 
 __all__ = ["CACHE_SUFFIX", "forget", "notebook_key", "package_digest", "read_log_path", "valid_entry", "write_entry"]
 
 CACHE_SUFFIX = ".cache.json"
 _SKIP_PARAMETERS = ("SUMMARY_PATH",)
-
-
-def _sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _tree_digest(root: Path) -> str:
@@ -49,7 +42,7 @@ def _tree_digest(root: Path) -> str:
     if root.is_dir():
         for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
             h.update(path.relative_to(root).as_posix().encode())
-            h.update(_sha256_file(path).encode())
+            h.update(sha256_file(path).encode())
     return h.hexdigest()
 
 
@@ -97,7 +90,7 @@ def write_entry(out_dir: Path, stem: str, key: str, seconds: float) -> None:
     log = read_log_path(out_dir, stem)
     paths = sorted(set(log.read_text(encoding="utf-8").splitlines())) if log.is_file() else []
     log.unlink(missing_ok=True)
-    inputs = {p: _sha256_file(Path(p)) for p in paths if Path(p).is_file()}
+    inputs = {p: sha256_file(Path(p)) for p in paths if Path(p).is_file()}
     entry = {"key": key, "inputs": inputs, "seconds": seconds}
     (out_dir / f"{stem}{CACHE_SUFFIX}").write_text(json.dumps(entry, indent=1) + "\n", encoding="utf-8")
 
@@ -115,7 +108,7 @@ def valid_entry(out_dir: Path, stem: str, key: str) -> dict | None:
     if not all((out_dir / f"{stem}{ext}").is_file() for ext in (".ipynb", ".html", ".summary.json")):
         return None
     for p, digest in dict(entry.get("inputs", {})).items():
-        if not Path(p).is_file() or _sha256_file(Path(p)) != digest:
+        if not Path(p).is_file() or sha256_file(Path(p)) != digest:
             return None
     return entry
 

@@ -19,15 +19,12 @@ from .. import parallel
 from ..metrics import Summary
 from .params import notebook_parameters, parameterized
 
-__all__ = ["KERNEL_NAME", "NotebookRun", "ReproduceResult", "SUMMARY_KEYS", "ipc_kernel_manager", "read_summary",
+__all__ = ["KERNEL_NAME", "NotebookRun", "ReproduceResult", "ipc_kernel_manager", "read_summary",
            "run_notebook"]
 
 
 #: Kernel the notebooks are executed with.
 KERNEL_NAME = "python3"
-
-#: Keys of every summary row, in display order.
-SUMMARY_KEYS = Summary.COLUMNS
 
 
 @dataclass(frozen=True)
@@ -135,9 +132,9 @@ def read_summary(path: Path, notebook: str, mode: str | None = None) -> tuple[li
     if not isinstance(rows, list) or not rows:
         return [], f"summary file {path.name} must hold a non-empty JSON list of rows"
     for i, row in enumerate(rows):
-        if not isinstance(row, dict) or set(row) != set(SUMMARY_KEYS):
+        if not isinstance(row, dict) or set(row) != set(Summary.COLUMNS):
             keys = sorted(row) if isinstance(row, dict) else type(row).__name__
-            return [], f"summary file {path.name}, row {i}: keys must be {', '.join(SUMMARY_KEYS)}, got {keys}"
+            return [], f"summary file {path.name}, row {i}: keys must be {', '.join(Summary.COLUMNS)}, got {keys}"
         if row["notebook"] != notebook:
             return [], f"summary file {path.name}, row {i}: names notebook {row['notebook']!r}, not {notebook!r}"
         if row["kind"] not in Summary.KINDS:
@@ -147,7 +144,7 @@ def read_summary(path: Path, notebook: str, mode: str | None = None) -> tuple[li
         if mode is not None and row["mode"] != mode:
             return [], (f"summary file {path.name}, row {i}: mode {row['mode']!r}, but the notebook ran with "
                         f"FAST={mode == 'FAST'} (pass fast=FAST to uw.metrics.Summary)")
-    return [{k: row[k] for k in SUMMARY_KEYS} for row in rows], None
+    return [{k: row[k] for k in Summary.COLUMNS} for row in rows], None
 
 
 def _export_html(executed: Path, html: Path) -> None:
@@ -360,21 +357,18 @@ def _papermill_job(job: str) -> None:
         Path(job).with_suffix(".error").write_text(_first_line(exc), encoding="utf-8")
 
 
-def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log,
-                    kernel_env=None) -> list[NotebookRun]:
-    """Every notebook a task on the cluster, as many at once as it has threads; runs in notebook order."""
+def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env=None):
+    """Every notebook a task on the cluster, as many at once as it has threads; yields the runs in notebook order."""
     tasks = [parallel.Task({"name": nb.stem, "text": nb.read_text(encoding="utf-8"), "cwd": str(nb.parent),
                             "parameters": resolved[nb]}) for nb in notebooks]
     by_name = {nb.stem: nb for nb in notebooks}
-    runs = []
     slots = max(sum(client.nthreads().values()), 1)
     if log:
-        log(f"running {len(notebooks)} notebooks on the Dask cluster at {client.scheduler.address}, "
-            f"up to {slots} at once")
-    for i, (task, out) in enumerate(parallel.imap(
+        log(f"{parallel.describe(client)}; {len(notebooks)} notebooks, up to {slots} at once")
+    for task, out in parallel.imap(
             _notebook_task, tasks, shared={"timeout_s": timeout_s, "kernel_name": kernel_name,
                                            "kernel_env": kernel_env}, scheduler=client,
-            progress=False, desc="notebooks", unit="notebook", max_pending=slots), 1):
+            progress=False, desc="notebooks", unit="notebook", max_pending=slots):
         source = by_name[task.params["name"]]
         executed, _, summary = _outputs(source, out_dir)
         text, summary_text, error, seconds = out
@@ -382,9 +376,4 @@ def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name
             executed.write_text(text, encoding="utf-8")
         if summary_text is not None:
             summary.write_text(summary_text, encoding="utf-8")
-        run = _finish(source, out_dir, resolved[source], error, seconds)
-        runs.append(run)
-        if log:
-            log(f"[{i}/{len(notebooks)}] {run.notebook}: {run.status} ({run.seconds:.1f} s)"
-                + (f" — {run.error}" if run.error else ""))
-    return runs
+        yield _finish(source, out_dir, resolved[source], error, seconds)
