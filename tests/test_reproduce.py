@@ -113,15 +113,10 @@ def test_summary_markdown_has_numbers_and_status(ran):
     assert "1 of 2 notebooks ok." in md
 
 
-def test_notebook_without_summary_counts_as_failed(tmp_path, monkeypatch):
-    import papermill
-
-    def fake_execute(source, executed, **kwargs):  # "runs" without publishing anything
-        nbformat.write(nbformat.read(source, as_version=4), executed)
-
-    monkeypatch.setattr(papermill, "execute_notebook", fake_execute)
-    _notebook(tmp_path / "03_silent.ipynb", GOOD_PARAMS, "x = 1 + 1")
-    result = rp.reproduce(notebooks_dir=tmp_path, out=tmp_path / "out")
+@pytest.mark.notebook
+def test_notebook_without_summary_counts_as_failed(tmp_path):
+    _notebook(tmp_path / "03_silent.ipynb", GOOD_PARAMS, "x = 1 + 1")     # runs without publishing anything
+    result = rp.reproduce(notebooks_dir=tmp_path, out=tmp_path / "out", timeout_s=120)
     (run,) = result.runs
     assert not run.ok and run.error.startswith("no summary file") and "03_silent.summary.json" in run.error
     assert result.exit_code == 1 and (tmp_path / "out" / "03_silent.html").exists()

@@ -330,6 +330,7 @@ def _reaches_the_band(value: tuple, name: str) -> None:
 #: Parameters every notebook declares.
 COMMON: dict[str, Spec] = {
     "FAST": flag(),
+    "CLASS": flag(),     # a lecturer's run: FAST sizes or smaller, short output (``make class``)
     "SEED": integer(lo=0),
     "DATA_DIR": text(none="the usual search: $UWBWB_DATA, data/external, ../shared/datasets", check=_existing_folder),
     "SUMMARY_PATH": text(none="publish no summary"),
@@ -341,12 +342,10 @@ _RECORDING = text()          # a recording or folder name of the dataset; the lo
 #: Per notebook stem: every parameter of its ``parameters`` cell beyond :data:`COMMON`.
 SPECS: dict[str, dict[str, Spec]] = {
     "00_quickstart": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "RECORDING": _RECORDING,
         "STATIC_SESSION": _RECORDING,
     },
     "01_set_noise_pf": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "RECORDING": _RECORDING,
         "STATIC_SESSION": _RECORDING,
         "N_TRIALS": integer(lo=1, fast="runs its own CI-sized sweep (SweepConfig.fast())"),
@@ -360,7 +359,6 @@ SPECS: dict[str, dict[str, Spec]] = {
         "FADING_DB": real(lo=0, hi=100),
     },
     "02_pruning_nls": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "STATIC_SESSION": _RECORDING,
         "RECORDING": _RECORDING,
         "TOURS": seq(integer(choices=(1, 2, 3)), fast="runs tour 2 only"),
@@ -375,7 +373,6 @@ SPECS: dict[str, dict[str, Spec]] = {
         "HANYANG_CASE": text(none="the first NLOS case of hanyang-outdoor-uwb"),
     },
     "03_ekf_motion_models": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, 40 s walks, 4 grid points, short output (``make class``)
         "RECORDING": _RECORDING,
         "STATIC_SESSION": _RECORDING,
         "LIAS_TAGS": seq(text(), none="every tag of the run"),
@@ -389,7 +386,6 @@ SPECS: dict[str, dict[str, Spec]] = {
         "GATE_PROB": real(lo=0, hi=1, lo_open=True, hi_open=True, none="no gate"),
     },
     "04_doppler_beacons": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "N_BRUTE": integer(lo=1, none="1e9 draws (full), 2e7 (FAST)"),
         "N_POSITIONS": integer(lo=1, none="2e6 positions (full), 1e5 (FAST)"),
         "PF_RUNS": integer(lo=1, none="200 runs on the first recording (full), 8 (FAST)"),
@@ -400,7 +396,6 @@ SPECS: dict[str, dict[str, Spec]] = {
         "WORKERS": integer(lo=1, hi=1024),
     },
     "05_uwb_ins_fusion": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "IASL_CAL_SCENARIO": _RECORDING,
         "IASL_SCENARIO": _RECORDING,
         "GRADE": text(choices=("consumer", "industrial", "tactical")),
@@ -417,7 +412,6 @@ SPECS: dict[str, dict[str, Spec]] = {
         "SEEDS": integer(lo=2, hi=100_000, fast="scores the ablation on 2 seeds (AblationConfig.fast)"),
     },
     "06_scoreboard": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "LIAS_RECORDING": _RECORDING,
         "IASL_CAL_SCENARIO": _RECORDING,
         "IASL_SCENARIO": _RECORDING,

@@ -69,7 +69,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
-from .. import parallel
+from .. import notebook_params, parallel
 from ..datasets.text import READ_LOG_ENV
 from . import cache
 from .params import (INJECTED_TAG, RESERVED_PARAMETERS, SCHEDULER_PARAMETER, injected_source, notebook_parameters,
@@ -176,7 +176,7 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         Execute every notebook, even one whose last successful run into ``out`` can be reused (:mod:`.cache`).
     jobs
         Notebooks executed at once on this machine, each in its own process (None: one per core,
-        ``os.cpu_count()``; 1: one after the other in this process). Each notebook is seeded by its parameters, so
+        ``os.cpu_count()``; 1: one after the other). Each notebook is seeded by its parameters, so
         the numbers do not depend on it. Ignored with ``scheduler`` (the cluster decides).
 
     Returns
@@ -209,10 +209,6 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     kernel_env = {}
     if scheduler_timeout_s is not None:
         kernel_env[parallel.TIMEOUT_ENV] = repr(parallel.connect_timeout_s(scheduler_timeout_s))
-    client = None
-    if isinstance(scheduler, str) and scheduler.strip().startswith("inproc://"):
-        raise ValueError(f"scheduler {scheduler!r}: an inproc:// address lives inside one Python process and cannot "
-                         "be reached from the notebooks' kernels; give 'local' or a tcp:// address")
     if scheduler is not None:
         if SCHEDULER_PARAMETER in given or SCHEDULER_PARAMETER in (text_parameters or {}):
             raise ValueError(f"give the cluster once: scheduler={scheduler!r} sets {SCHEDULER_PARAMETER} itself")
@@ -220,15 +216,15 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         if lacking:
             raise ValueError(f"--scheduler sets {SCHEDULER_PARAMETER}, which {', '.join(lacking)} does not declare "
                              f"in its parameters cell")
-        resolve_parameters(notebooks, given, text=text_parameters, quick=quick)   # bad values first
-        client = parallel.connect(scheduler, timeout_s=scheduler_timeout_s)
-        given[SCHEDULER_PARAMETER] = client.scheduler.address
-    resolved = resolve_parameters(notebooks, given, text=text_parameters, quick=quick)
-    addresses = {params[SCHEDULER_PARAMETER] for params in resolved.values()
-                 if params.get(SCHEDULER_PARAMETER) not in (None, "local")}
-    if client is None and addresses:      # a cluster given as a parameter: check it answers before any notebook runs
-        for address in sorted(addresses):
-            parallel.probe(address, timeout_s=scheduler_timeout_s)
+        if isinstance(scheduler, str):      # checked as the notebooks' DASK_SCHEDULER is (no inproc:// address)
+            notebook_params.COMMON[SCHEDULER_PARAMETER].validate(scheduler, "scheduler")
+    resolved = resolve_parameters(notebooks, given, text=text_parameters, quick=quick)   # bad values first
+    client = None if scheduler is None else parallel.connect(scheduler, timeout_s=scheduler_timeout_s)
+    for params in resolved.values():
+        if client is not None:
+            params[SCHEDULER_PARAMETER] = client.scheduler.address
+        elif params.get(SCHEDULER_PARAMETER) not in (None, "local"):   # a cluster given as a parameter answers
+            parallel.probe(params[SCHEDULER_PARAMETER], timeout_s=scheduler_timeout_s)
     if log:
         for name in ({"FAST": True} if quick else {}) | dict(given) | dict(text_parameters or {}):
             receivers = [nb.stem for nb in notebooks if name in resolved[nb]]
@@ -282,8 +278,7 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_
         else:
             runs.append(run)
             _log_end(log, order[source], len(notebooks), run)
-    processes = set() if jobs > 1 and len(todo) > 1 else None
-    stopping, finished = threading.Event(), []
+    processes, stopping, finished = set(), threading.Event(), []
 
     def one(source: Path, key: str) -> NotebookRun:
         if log:
@@ -299,21 +294,18 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_
             finished.append(run)
         return run
 
-    if processes is None:
-        runs.extend(one(source, key) for source, key in todo)
-    else:
-        pool = ThreadPoolExecutor(max_workers=min(jobs, len(todo)), thread_name_prefix="notebook")
-        try:
-            for future in as_completed([pool.submit(one, source, key) for source, key in todo]):
-                future.result()
-        except BaseException:                  # Ctrl-C or SIGTERM: stop the notebooks still running, then report
-            stopping.set()                     # the ones that finished before it
-            pool.shutdown(wait=False, cancel_futures=True)
-            _stop(processes)
-            runs.extend(finished)
-            raise
-        pool.shutdown()
+    pool = ThreadPoolExecutor(max_workers=max(min(jobs, len(todo)), 1), thread_name_prefix="notebook")
+    try:
+        for future in as_completed([pool.submit(one, source, key) for source, key in todo]):
+            future.result()
+    except BaseException:                  # Ctrl-C or SIGTERM: stop the notebooks still running, then report
+        stopping.set()                     # the ones that finished before it
+        pool.shutdown(wait=False, cancel_futures=True)
+        _stop(processes)
         runs.extend(finished)
+        raise
+    pool.shutdown()
+    runs.extend(finished)
     runs.sort(key=lambda r: order[r.source])
 
 

@@ -162,22 +162,14 @@ def run_notebook(source: Path, out_dir: Path, parameters: Mapping[str, Any], *,
 
     ``parameters`` go to the notebook's injected cell as given (see
     :func:`resolve_parameters` for checking them first); ``kernel_env`` is added to
-    the kernel's environment. With ``processes`` (a set the caller watches) papermill runs in a child process
-    that is added to it while it lives, so that several notebooks can run at once from threads and a caller
-    that is interrupted can stop them; without, in this process.
+    the kernel's environment. Papermill runs in a child process, which is in ``processes`` (a set the caller
+    watches) while it lives, so that several notebooks can run at once from threads and a caller that is
+    interrupted can stop them.
     """
     executed, html, summary = _outputs(source, out_dir)
-    params = {**parameters, "SUMMARY_PATH": str(summary)}
-    error = None
     t0 = time.perf_counter()
-    if processes is not None:
-        error = _papermill_in_subprocess(source, executed, params, source.parent, timeout_s, kernel_name, kernel_env,
-                                         processes=processes)
-    else:
-        try:
-            _papermill(source, executed, params, source.parent, timeout_s, kernel_name, kernel_env)
-        except Exception as exc:  # any failure of one notebook is reported; the others still run
-            error = _first_line(exc)
+    error = _papermill_in_subprocess(source, executed, {**parameters, "SUMMARY_PATH": str(summary)}, source.parent,
+                                     timeout_s, kernel_name, kernel_env, processes=processes)
     return _finish(source, out_dir, parameters, error, time.perf_counter() - t0)
 
 
