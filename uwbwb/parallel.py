@@ -376,9 +376,7 @@ def connect(scheduler, *, timeout_s: float | None = None):
             if key == LOCAL:
                 client = distributed.Client(local_cluster(), set_as_default=False)
             else:
-                address = check_scheduler_address(key)
-                _probe(address, timeout_s)
-                client = distributed.Client(address, set_as_default=False, timeout=timeout_s)
+                client = distributed.Client(probe(key, timeout_s=timeout_s), set_as_default=False, timeout=timeout_s)
             _CLIENTS[key] = client
     return client
 

@@ -201,10 +201,11 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise ValueError(f"jobs must be a whole number ≥ 1 (notebooks at once), got {jobs!r}")
     notebooks = select_notebooks(notebooks_dir, only)
-    if quick:
-        lacking = [nb.stem for nb in notebooks if "FAST" not in notebook_parameters(nb)]
+    for option, name, on in (("--quick", "FAST", quick), ("--scheduler", SCHEDULER_PARAMETER, scheduler is not None)):
+        lacking = [nb.stem for nb in notebooks if on and name not in notebook_parameters(nb)]
         if lacking:
-            raise ValueError(f"--quick sets FAST, which {', '.join(lacking)} does not declare in its parameters cell")
+            raise ValueError(f"{option} sets {name}, which {', '.join(lacking)} does not declare in its "
+                             "parameters cell")
     given = dict(parameters or {})
     kernel_env = {}
     if scheduler_timeout_s is not None:
@@ -212,10 +213,6 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     if scheduler is not None:
         if SCHEDULER_PARAMETER in given or SCHEDULER_PARAMETER in (text_parameters or {}):
             raise ValueError(f"give the cluster once: scheduler={scheduler!r} sets {SCHEDULER_PARAMETER} itself")
-        lacking = [nb.stem for nb in notebooks if SCHEDULER_PARAMETER not in notebook_parameters(nb)]
-        if lacking:
-            raise ValueError(f"--scheduler sets {SCHEDULER_PARAMETER}, which {', '.join(lacking)} does not declare "
-                             f"in its parameters cell")
         if isinstance(scheduler, str):      # checked as the notebooks' DASK_SCHEDULER is (no inproc:// address)
             notebook_params.COMMON[SCHEDULER_PARAMETER].validate(scheduler, "scheduler")
     resolved = resolve_parameters(notebooks, given, text=text_parameters, quick=quick)   # bad values first

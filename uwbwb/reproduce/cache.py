@@ -33,7 +33,6 @@ from ..datasets.manifest import sha256_file
 __all__ = ["CACHE_SUFFIX", "forget", "notebook_key", "package_digest", "read_log_path", "valid_entry", "write_entry"]
 
 CACHE_SUFFIX = ".cache.json"
-_SKIP_PARAMETERS = ("SUMMARY_PATH",)
 
 
 def _tree_digest(root: Path) -> str:
@@ -63,7 +62,7 @@ def notebook_key(source: Path, parameters: Mapping[str, Any], *, package_digest:
     """The key of one notebook run (module docstring); ``package_digest`` from :func:`package_digest`."""
     h = hashlib.sha256()
     h.update(Path(source).read_bytes())
-    shown = {k: repr(v) for k, v in sorted(parameters.items()) if k not in _SKIP_PARAMETERS}
+    shown = {k: repr(v) for k, v in sorted(parameters.items())}
     h.update(json.dumps(shown, sort_keys=True).encode())
     h.update(package_digest.encode())
     h.update("\n".join(_data_locations(parameters.get("DATA_DIR"))).encode())

@@ -166,11 +166,11 @@ def run_notebook(source: Path, out_dir: Path, parameters: Mapping[str, Any], *,
     watches) while it lives, so that several notebooks can run at once from threads and a caller that is
     interrupted can stop them.
     """
-    executed, html, summary = _outputs(source, out_dir)
+    outputs = executed, _, summary = _outputs(source, out_dir)
     t0 = time.perf_counter()
     error = _papermill_in_subprocess(source, executed, {**parameters, "SUMMARY_PATH": str(summary)}, source.parent,
                                      timeout_s, kernel_name, kernel_env, processes=processes)
-    return _finish(source, out_dir, parameters, error, time.perf_counter() - t0)
+    return _finish(source, outputs, parameters, error, time.perf_counter() - t0)
 
 
 def _outputs(source: Path, out_dir: Path) -> tuple[Path, Path, Path]:
@@ -234,12 +234,11 @@ def ipc_kernel_manager(env: Mapping[str, str] | None = None):
     return IpcKernelManager
 
 
-def _finish(source: Path, out_dir: Path, parameters: Mapping[str, Any], error: str | None,
+def _finish(source: Path, outputs: tuple[Path, Path, Path], parameters: Mapping[str, Any], error: str | None,
             seconds: float) -> NotebookRun:
-    """Render the executed notebook and read its summary into a :class:`NotebookRun`."""
-    stem = source.stem
-    executed, html, summary = (out_dir / f"{stem}.ipynb", out_dir / f"{stem}.html",
-                               out_dir / f"{stem}.summary.json")
+    """Render the executed notebook and read its summary (``outputs`` from :func:`_outputs`) into a
+    :class:`NotebookRun`."""
+    executed, html, summary = outputs
     if executed.is_file():
         try:
             _export_html(executed, html)
@@ -251,7 +250,7 @@ def _finish(source: Path, out_dir: Path, parameters: Mapping[str, Any], error: s
     rows, problem = _published(source, summary, parameters)
     if error is None:
         error = problem
-    return NotebookRun(notebook=stem, source=source, executed=executed, html=html, summary=summary,
+    return NotebookRun(notebook=source.stem, source=source, executed=executed, html=html, summary=summary,
                        seconds=seconds, error=error, rows=tuple(rows))
 
 
@@ -362,10 +361,10 @@ def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name
                                            "kernel_env": kernel_env}, scheduler=client,
             progress=False, desc="notebooks", unit="notebook", max_pending=slots):
         source = by_name[task.params["name"]]
-        executed, _, summary = _outputs(source, out_dir)
+        outputs = executed, _, summary = _outputs(source, out_dir)
         text, summary_text, error, seconds = out
         if text is not None:
             executed.write_text(text, encoding="utf-8")
         if summary_text is not None:
             summary.write_text(summary_text, encoding="utf-8")
-        yield _finish(source, out_dir, resolved[source], error, seconds)
+        yield _finish(source, outputs, resolved[source], error, seconds)

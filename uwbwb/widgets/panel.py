@@ -404,13 +404,6 @@ class Panel:
         from IPython.display import display
         display(self.widget)
 
-    def close(self) -> None:
-        """Stop reacting to the controls and close all widgets of the panel."""
-        for control in self._controls.values():
-            control.unobserve(self._on_change, names="value")
-        for w in (*self._children_ok, self.error_box, *self._controls.values(), self.widget):
-            w.close()
-
     def _repr_mimebundle_(self, **kwargs):
         bundle = self.widget._repr_mimebundle_(**kwargs)
         # Front ends without widgets (saved papermill outputs, consoles) show the numbers.
