@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import ast
 import json
-import os
 import socket
 import subprocess
 import sys
@@ -457,12 +456,19 @@ def test_reproduce_takes_the_notebooks_from_a_folder_given_on_the_command_line(n
 def test_a_second_run_into_the_same_folder_is_refused_while_the_first_lives(no_run, tmp_path):
     out = tmp_path / "out"
     out.mkdir()
-    (out / ".reproduce.lock").write_text(str(os.getppid()))          # a live process holds it
-    with pytest.raises(ValueError, match=r"another reproduce \(process \d+\) is writing into this folder"):
-        rp.reproduce(only=["00"], out=out)
-    assert not no_run
-    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
-    (out / ".reproduce.lock").write_text(dead.stdout.strip())         # its process is gone: taken over
+    hold = ("import fcntl, os, sys, time; f = open(sys.argv[1], 'a+'); fcntl.flock(f, fcntl.LOCK_EX); "
+            "f.write(str(os.getpid())); f.flush(); print('held', flush=True); time.sleep(60)")
+    holder = subprocess.Popen([sys.executable, "-c", hold, str(out / ".reproduce.lock")], stdout=subprocess.PIPE,
+                              text=True)                               # a live run holds the folder
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(ValueError, match=rf"another reproduce \(process {holder.pid}\) is writing into this"):
+            rp.reproduce(only=["00"], out=out)
+        assert not no_run
+    finally:
+        holder.kill()
+        holder.wait()
+    assert (out / ".reproduce.lock").exists()                         # left by a run that was killed: taken over
     rp.reproduce(only=["00"], out=out)
     assert list(no_run) == ["00_quickstart"] and not (out / ".reproduce.lock").exists()
 

@@ -434,12 +434,6 @@ def _exit_text(exc: BaseException) -> str:
 EMBED_BYTES = 1 << 20
 
 
-def _pickled_size(obj) -> int:
-    import cloudpickle
-
-    return len(cloudpickle.dumps(obj))
-
-
 def _error(desc: str, index: int, n: int, task: Task, exc: BaseException) -> TaskError:
     if isinstance(exc, _TaskExit):
         name, text = exc.args
@@ -528,7 +522,9 @@ def _pipelined(fn, tasks, shared, client, workers, desc, bar, max_pending):
         slots = max(sum(client.nthreads().values()), 1)
         names = list(shared)
         inputs = shared
-        if names and _pickled_size(shared) > EMBED_BYTES:
+        import cloudpickle                      # comes with dask.distributed
+
+        if names and len(cloudpickle.dumps(shared)) > EMBED_BYTES:
             scattered = dict(zip(names, client.scatter([shared[k] for k in names], hash=False, broadcast=True)))
             inputs = scattered
         prefix = re.sub(r"[^0-9A-Za-z_]+", "_", desc).strip("_") or "task"

@@ -59,6 +59,7 @@ Modules: :mod:`.params` (what a notebook declares; checking and typing values), 
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import signal
@@ -346,44 +347,31 @@ def _write_atomic(path: Path, text: str) -> None:
 
 
 class _OutLock:
-    """``<out>/.reproduce.lock`` held for one run: a second run into the same folder is refused while the first
-    one's process lives (a lock left by a process that no longer exists is taken over)."""
+    """``<out>/.reproduce.lock`` held (``flock``) for one run: a second run into the same folder is refused while the
+    first one's process lives (the system releases the lock when that process ends, however it ends)."""
 
     def __init__(self, out_dir: Path):
         self.path = out_dir / ".reproduce.lock"
 
     def __enter__(self):
-        for _ in range(2):
-            try:
-                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-            except FileExistsError:
-                try:
-                    pid = int(self.path.read_text().strip() or 0)
-                except (OSError, ValueError):
-                    pid = 0
-                if pid > 0 and _alive(pid):
-                    raise ValueError(f"{self.path.parent}: another reproduce (process {pid}) is writing into this "
-                                     "folder; wait for it to finish or give another --out") from None
-                self.path.unlink(missing_ok=True)         # stale: its process is gone
-                continue
-            with os.fdopen(fd, "w") as f:
-                f.write(str(os.getpid()))
-            return self
-        raise ValueError(f"{self.path}: could not take the output folder's lock")
+        self.file = open(self.path, "a+")
+        try:
+            fcntl.flock(self.file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            self.file.seek(0)
+            pid = self.file.read().strip()
+            self.file.close()
+            raise ValueError(f"{self.path.parent}: another reproduce (process {pid}) is writing into this folder; "
+                             "wait for it to finish or give another --out") from None
+        self.file.truncate(0)
+        self.file.write(str(os.getpid()))
+        self.file.flush()
+        return self
 
     def __exit__(self, *exc):
         self.path.unlink(missing_ok=True)
+        self.file.close()
         return False
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 class _sigterm_interrupts:
