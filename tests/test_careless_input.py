@@ -19,6 +19,7 @@ import pytest
 from uwbwb import cli
 from uwbwb import notebook_params as nbp
 from uwbwb import reproduce as rp
+from tests.test_reproduce import _notebook
 from uwbwb.datasets.discovery import PROJECT_ROOT
 
 NOTEBOOKS_DIR = PROJECT_ROOT / "notebooks"
@@ -400,12 +401,7 @@ with open(SUMMARY_PATH, "w") as fh:
 def test_reproduce_prints_no_kernel_transport_warning_and_tuples_arrive_as_tuples(tmp_path, monkeypatch, capfd):
     folder = tmp_path / "notebooks"
     folder.mkdir()
-    nb = nbformat.v4.new_notebook()
-    cell = nbformat.v4.new_code_cell(TINY_PARAMS)
-    cell.metadata["tags"] = ["parameters"]
-    nb.cells = [nbformat.v4.new_markdown_cell("# tiny"), cell, nbformat.v4.new_code_cell(TINY_BODY)]
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    nbformat.write(nb, folder / "01_tiny.ipynb")
+    _notebook(folder / "01_tiny.ipynb", TINY_PARAMS, TINY_BODY)
     monkeypatch.setattr(rp, "NOTEBOOKS_DIR", folder)
     out = tmp_path / "out"
     code = cli.main(["reproduce", "--quick", "--out", str(out), "-p", "TOURS", "(1, 2)", "-p", "TAGS", "('a', 'b')",
