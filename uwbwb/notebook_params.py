@@ -19,7 +19,7 @@ Notebooks not in the table (your own) get a spec inferred from each default
 FAST mode: ``fast`` says that the notebook replaces an explicit value under
 ``FAST=True`` (e.g. its own short tour list); ``fast_cap`` that it caps the value
 at that number. An explicit value FAST would replace or lower is refused under
-FAST (``--quick``), never silently dropped (:func:`fast_conflict`).
+FAST (``--quick``), never silently dropped (:func:`conflict`).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ import numpy as np
 
 from .parallel import check_scheduler_address
 
-__all__ = ["COMMON", "INT_MAX", "SPECS", "Spec", "class_conflict", "fast_conflict", "flag", "infer", "integer", "real", "seq",
+__all__ = ["COMMON", "INT_MAX", "SPECS", "Spec", "conflict", "flag", "infer", "integer", "real", "seq",
            "specs_for", "text"]
 
 #: Largest integer a count may take (the int64 range NumPy sizes and seeds live in).
@@ -77,7 +77,7 @@ class Spec:
     fast, fast_cap
         What the notebook does to an explicit value under ``FAST=True``: replaces it
         (``fast`` says with what), or caps it at ``fast_cap`` (a larger value, or None,
-        is lowered). See :func:`fast_conflict`.
+        is lowered). See :func:`conflict`.
     check
         Further check ``check(value, name)`` raising ``ValueError`` (e.g. an address format).
     """
@@ -436,24 +436,20 @@ def specs_for(stem: str, declared: Mapping[str, Any]) -> dict[str, Spec]:
     return {name: known[name] if name in known else infer(default) for name, default in declared.items()}
 
 
-def fast_conflict(stem: str, name: str, value: Any, spec: Spec) -> str | None:
-    """Why an explicit ``name=value`` cannot hold when notebook ``stem`` runs with ``FAST=True`` (None if it can)."""
-    if spec.fast is not None:
-        return (f"{stem}: {name}={value!r} would not be used: with FAST=True the notebook {spec.fast}. "
-                f"Run without --quick / FAST=True to use it, or drop -p {name}")
-    if spec.fast_cap is not None and (value is None or value > spec.fast_cap):
-        return (f"{stem}: {name}={value!r} would not be used: with FAST=True the notebook lowers {name} to "
-                f"{_fmt(spec.fast_cap)}. Run without --quick / FAST=True, or give at most {_fmt(spec.fast_cap)}")
-    return None
-
-
-def class_conflict(stem: str, name: str, value: Any, spec: Spec) -> str | None:
-    """Why an explicit ``name=value`` cannot hold when notebook ``stem`` runs with ``CLASS=True`` (None if it can).
+def conflict(mode: str, stem: str, name: str, value: Any, spec: Spec) -> str | None:
+    """Why an explicit ``name=value`` cannot hold when notebook ``stem`` runs with ``mode=True``, ``mode`` being
+    ``"FAST"`` or ``"CLASS"`` (None if it can).
 
     Class mode runs at FAST sizes or smaller ones of its own (e.g. shorter walks, a coarser grid), so every
     parameter that FAST replaces or caps is set by the notebook there: an explicit value is refused.
     """
-    if spec.fast is not None or spec.fast_cap is not None:
+    if mode == "CLASS" and (spec.fast is not None or spec.fast_cap is not None):
         return (f"{stem}: {name}={value!r} would not be used: with CLASS=True the notebook picks its own "
                 f"lecture sizes for {name} (FAST's or smaller). Run without CLASS=True to use it, or drop -p {name}")
+    if mode == "FAST" and spec.fast is not None:
+        return (f"{stem}: {name}={value!r} would not be used: with FAST=True the notebook {spec.fast}. "
+                f"Run without --quick / FAST=True to use it, or drop -p {name}")
+    if mode == "FAST" and spec.fast_cap is not None and (value is None or value > spec.fast_cap):
+        return (f"{stem}: {name}={value!r} would not be used: with FAST=True the notebook lowers {name} to "
+                f"{_fmt(spec.fast_cap)}. Run without --quick / FAST=True, or give at most {_fmt(spec.fast_cap)}")
     return None

@@ -103,8 +103,8 @@ def resolve_parameters(notebooks: Iterable[str | os.PathLike], parameters: Mappi
         A reserved name, a name that no selected notebook declares (the message lists
         the valid names), a value that does not satisfy its spec, ``FAST=False`` with
         ``quick``, or (when the notebook will run with ``FAST=True``) an explicit value
-        that its FAST mode replaces or lowers (see :func:`uwbwb.notebook_params.fast_conflict`), or (with
-        ``CLASS=True``) one that class mode sets itself (:func:`~uwbwb.notebook_params.class_conflict`).
+        that its FAST mode replaces or lowers, or (with ``CLASS=True``) one that class mode sets itself (see
+        :func:`uwbwb.notebook_params.conflict`).
     """
     notebooks = [Path(nb) for nb in notebooks]
     parameters, text = dict(parameters or {}), dict(text or {})
@@ -137,10 +137,10 @@ def resolve_parameters(notebooks: Iterable[str | os.PathLike], parameters: Mappi
                 raise ValueError(f"--quick sets FAST=True, but FAST={params['FAST']!r} was given too: "
                                  f"drop --quick or the FAST value")
             params = {"FAST": True} | params
-        for mode, conflict in (("FAST", notebook_params.fast_conflict), ("CLASS", notebook_params.class_conflict)):
+        for mode in ("FAST", "CLASS"):
             if params.get(mode, defaults.get(mode)) is True:
                 for name, value in params.items():
-                    problem = conflict(nb.stem, name, value, specs[name])
+                    problem = notebook_params.conflict(mode, nb.stem, name, value, specs[name])
                     if problem is not None:
                         raise ValueError(problem)
         resolved[nb] = params
