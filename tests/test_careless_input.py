@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import ast
 import json
-import os
 import socket
 import subprocess
 import sys
@@ -20,6 +19,7 @@ import pytest
 from uwbwb import cli
 from uwbwb import notebook_params as nbp
 from uwbwb import reproduce as rp
+from tests.test_reproduce import _notebook
 from uwbwb.datasets.discovery import PROJECT_ROOT
 
 NOTEBOOKS_DIR = PROJECT_ROOT / "notebooks"
@@ -401,12 +401,7 @@ with open(SUMMARY_PATH, "w") as fh:
 def test_reproduce_prints_no_kernel_transport_warning_and_tuples_arrive_as_tuples(tmp_path, monkeypatch, capfd):
     folder = tmp_path / "notebooks"
     folder.mkdir()
-    nb = nbformat.v4.new_notebook()
-    cell = nbformat.v4.new_code_cell(TINY_PARAMS)
-    cell.metadata["tags"] = ["parameters"]
-    nb.cells = [nbformat.v4.new_markdown_cell("# tiny"), cell, nbformat.v4.new_code_cell(TINY_BODY)]
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    nbformat.write(nb, folder / "01_tiny.ipynb")
+    _notebook(folder / "01_tiny.ipynb", TINY_PARAMS, TINY_BODY)
     monkeypatch.setattr(rp, "NOTEBOOKS_DIR", folder)
     out = tmp_path / "out"
     code = cli.main(["reproduce", "--quick", "--out", str(out), "-p", "TOURS", "(1, 2)", "-p", "TAGS", "('a', 'b')",
@@ -457,12 +452,19 @@ def test_reproduce_takes_the_notebooks_from_a_folder_given_on_the_command_line(n
 def test_a_second_run_into_the_same_folder_is_refused_while_the_first_lives(no_run, tmp_path):
     out = tmp_path / "out"
     out.mkdir()
-    (out / ".reproduce.lock").write_text(str(os.getppid()))          # a live process holds it
-    with pytest.raises(ValueError, match=r"another reproduce \(process \d+\) is writing into this folder"):
-        rp.reproduce(only=["00"], out=out)
-    assert not no_run
-    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
-    (out / ".reproduce.lock").write_text(dead.stdout.strip())         # its process is gone: taken over
+    hold = ("import fcntl, os, sys, time; f = open(sys.argv[1], 'a+'); fcntl.flock(f, fcntl.LOCK_EX); "
+            "f.write(str(os.getpid())); f.flush(); print('held', flush=True); time.sleep(60)")
+    holder = subprocess.Popen([sys.executable, "-c", hold, str(out / ".reproduce.lock")], stdout=subprocess.PIPE,
+                              text=True)                               # a live run holds the folder
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(ValueError, match=rf"another reproduce \(process {holder.pid}\) is writing into this"):
+            rp.reproduce(only=["00"], out=out)
+        assert not no_run
+    finally:
+        holder.kill()
+        holder.wait()
+    assert (out / ".reproduce.lock").exists()                         # left by a run that was killed: taken over
     rp.reproduce(only=["00"], out=out)
     assert list(no_run) == ["00_quickstart"] and not (out / ".reproduce.lock").exists()
 

@@ -126,17 +126,3 @@ def test_error_cdf_units_nan_and_series():
     with pytest.raises(ValueError):
         plotting.error_cdf({"LS": [0.1]}, unit="mm")
 
-
-def test_error_vs_time():
-    t = np.arange(10.0)
-    ax = plotting.error_vs_time(t, {"LS": np.ones(10), "PF": np.full(10, 0.5)})
-    assert isinstance(ax, Axes) and len(_lines(ax)) == 2
-    assert _legend_texts(ax) == ["LS", "PF"]
-    assert ax.get_xlabel() == "time (s)" and ax.get_ylabel() == "error (m)"
-    series = metrics.ErrorSeries("EKF", np.array([1.0, 2.0]), np.array([0.1, 0.2]))
-    ax = plotting.error_vs_time(None, {"EKF": series}, unit="cm")
-    np.testing.assert_allclose(_lines(ax)[0].get_ydata(), [10.0, 20.0])
-    with pytest.raises(ValueError):
-        plotting.error_vs_time(t, {"LS": np.ones(3)})
-    with pytest.raises(ValueError):
-        plotting.error_vs_time(None, {"LS": np.ones(10)})

@@ -10,7 +10,9 @@ import nbformat
 import pytest
 
 from uwbwb import cli
+from uwbwb import notebook_params as nbp
 from uwbwb import reproduce as rp
+from uwbwb.metrics import Summary
 
 PROJECT = Path(__file__).resolve().parents[1]
 
@@ -84,7 +86,7 @@ def test_parameters_reach_the_notebook_and_summary_is_aggregated(ran):
     _, out = ran
     rows = json.loads((out / "summary.json").read_text())
     assert [r["quantity"] for r in rows] == ["doubled N", "fast | flag"]
-    assert all(list(r) == list(rp.SUMMARY_KEYS) for r in rows)
+    assert all(list(r) == list(Summary.COLUMNS) for r in rows)
     assert rows[0]["value"] == 10.0            # -p N 4 parsed as an int
     assert rows[0]["data"] == "synthetic run"  # -p LABEL ... kept as a string
     assert rows[1]["value"] is True            # --quick sets FAST=True
@@ -111,15 +113,10 @@ def test_summary_markdown_has_numbers_and_status(ran):
     assert "1 of 2 notebooks ok." in md
 
 
-def test_notebook_without_summary_counts_as_failed(tmp_path, monkeypatch):
-    import papermill
-
-    def fake_execute(source, executed, **kwargs):  # "runs" without publishing anything
-        nbformat.write(nbformat.read(source, as_version=4), executed)
-
-    monkeypatch.setattr(papermill, "execute_notebook", fake_execute)
-    _notebook(tmp_path / "03_silent.ipynb", GOOD_PARAMS, "x = 1 + 1")
-    result = rp.reproduce(notebooks_dir=tmp_path, out=tmp_path / "out")
+@pytest.mark.notebook
+def test_notebook_without_summary_counts_as_failed(tmp_path):
+    _notebook(tmp_path / "03_silent.ipynb", GOOD_PARAMS, "x = 1 + 1")     # runs without publishing anything
+    result = rp.reproduce(notebooks_dir=tmp_path, out=tmp_path / "out", timeout_s=120)
     (run,) = result.runs
     assert not run.ok and run.error.startswith("no summary file") and "03_silent.summary.json" in run.error
     assert result.exit_code == 1 and (tmp_path / "out" / "03_silent.html").exists()
@@ -127,8 +124,10 @@ def test_notebook_without_summary_counts_as_failed(tmp_path, monkeypatch):
     assert "No notebook published a summary." in result.summary_md.read_text()
 
 
-def test_parse_parameter_value_takes_the_type_of_the_default():
-    parse = rp.parse_parameter_value
+def test_a_value_typed_for_a_notebook_outside_the_table_takes_the_type_of_the_default():
+    def parse(text, default):
+        return nbp.infer(default).parse(text, "NAME")
+
     assert parse("8.20", "8.14") == "8.20"                   # a string default keeps the text as typed
     assert parse("None", "fast") == "None" and parse("", "x") == ""
     assert parse("True", False) is True and parse("false", True) is False
@@ -151,9 +150,9 @@ def test_parse_parameter_value_takes_the_type_of_the_default():
     ("slow,fast", ("slow", "fast"), "a tuple of distinct values, each text"),
     ("(1, 'x')", (1, 2), "a tuple"),
 ])
-def test_parse_parameter_value_rejects_values_that_do_not_fit(text, default, expected):
-    with pytest.raises(ValueError, match=rf"-p NAME .*expected {re.escape(expected)}.*default of NAME"):
-        rp.parse_parameter_value(text, default, name="NAME")
+def test_a_typed_value_that_does_not_fit_the_default_is_refused(text, default, expected):
+    with pytest.raises(ValueError, match=rf"-p NAME .*expected {re.escape(expected)}"):
+        nbp.infer(default).parse(text, "NAME")
 
 
 def test_resolve_parameters_checks_names_and_types_per_notebook(tmp_path):
@@ -166,7 +165,7 @@ def test_resolve_parameters_checks_names_and_types_per_notebook(tmp_path):
     assert rp.resolve_parameters([a, c], text={"ONLY_HERE": "2"}) == {a: {}, c: {"ONLY_HERE": 2}}
     with pytest.raises(ValueError, match="unknown parameter.*NO_SUCH_PARAM.*valid names: DATA_DIR, FAST, LABEL"):
         rp.resolve_parameters([a, b], text={"NO_SUCH_PARAM": "1"})
-    with pytest.raises(ValueError, match="01_a: -p FAST maybe: expected True or False"):
+    with pytest.raises(ValueError, match=r"01_a: -p FAST maybe: expected True or False \(the default of FAST is False\)"):
         rp.resolve_parameters([a], text={"FAST": "maybe"})
     with pytest.raises(ValueError, match="01_a: parameter N='4': expected an integer"):
         rp.resolve_parameters([a], {"N": "4"})
@@ -247,11 +246,11 @@ def test_reproduce_rejects_bad_settings_before_running(tmp_path):
     ("{not json", "not valid JSON"),
     ("[]", "non-empty JSON list"),
     ('[{"notebook": "nb", "quantity": "q", "value": 1}]', "keys must be"),
-    (json.dumps([dict.fromkeys(rp.SUMMARY_KEYS, "") | {"notebook": "other"}]), "names notebook 'other'"),
-    (json.dumps([dict.fromkeys(rp.SUMMARY_KEYS, "") | {"notebook": "nb", "kind": "guess"}]), "kind must be"),
-    (json.dumps([dict.fromkeys(rp.SUMMARY_KEYS, "") | {"notebook": "nb", "kind": "input", "mode": "quick"}]),
+    (json.dumps([dict.fromkeys(Summary.COLUMNS, "") | {"notebook": "other"}]), "names notebook 'other'"),
+    (json.dumps([dict.fromkeys(Summary.COLUMNS, "") | {"notebook": "nb", "kind": "guess"}]), "kind must be"),
+    (json.dumps([dict.fromkeys(Summary.COLUMNS, "") | {"notebook": "nb", "kind": "input", "mode": "quick"}]),
      "mode must be"),
-    (json.dumps([dict.fromkeys(rp.SUMMARY_KEYS, "") | {"notebook": "nb", "kind": "input", "mode": "full"}]),
+    (json.dumps([dict.fromkeys(Summary.COLUMNS, "") | {"notebook": "nb", "kind": "input", "mode": "full"}]),
      "mode 'full', but the notebook ran with FAST=True"),
 ])
 def test_read_summary_reports_problems(tmp_path, content, problem):

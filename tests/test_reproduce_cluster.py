@@ -5,9 +5,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import nbformat
 import pytest
 
+from tests.test_reproduce import _notebook as notebook
 from uwbwb import cli
 from uwbwb import reproduce as rp
 
@@ -30,14 +30,7 @@ with open(SUMMARY_PATH, "w") as fh:
 
 
 def _notebook(path: Path, params: str, body: str) -> Path:
-    nb = nbformat.v4.new_notebook()
-    cell = nbformat.v4.new_code_cell(params)
-    cell.metadata["tags"] = ["parameters"]
-    nb.cells = [nbformat.v4.new_markdown_cell("# test"), cell,
-                nbformat.v4.new_code_cell(f"NAME = {path.stem!r}\n" + body)]
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    nbformat.write(nb, path)
-    return path
+    return notebook(path, params, f"NAME = {path.stem!r}\n" + body)
 
 
 @pytest.fixture(scope="module")

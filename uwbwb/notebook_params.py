@@ -19,7 +19,7 @@ Notebooks not in the table (your own) get a spec inferred from each default
 FAST mode: ``fast`` says that the notebook replaces an explicit value under
 ``FAST=True`` (e.g. its own short tour list); ``fast_cap`` that it caps the value
 at that number. An explicit value FAST would replace or lower is refused under
-FAST (``--quick``), never silently dropped (:func:`fast_conflict`).
+FAST (``--quick``), never silently dropped (:func:`conflict`).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ import numpy as np
 
 from .parallel import check_scheduler_address
 
-__all__ = ["COMMON", "INT_MAX", "SPECS", "Spec", "class_conflict", "fast_conflict", "flag", "infer", "integer", "real", "seq",
+__all__ = ["COMMON", "INT_MAX", "SPECS", "Spec", "conflict", "flag", "infer", "integer", "real", "seq",
            "specs_for", "text"]
 
 #: Largest integer a count may take (the int64 range NumPy sizes and seeds live in).
@@ -77,7 +77,7 @@ class Spec:
     fast, fast_cap
         What the notebook does to an explicit value under ``FAST=True``: replaces it
         (``fast`` says with what), or caps it at ``fast_cap`` (a larger value, or None,
-        is lowered). See :func:`fast_conflict`.
+        is lowered). See :func:`conflict`.
     check
         Further check ``check(value, name)`` raising ``ValueError`` (e.g. an address format).
     """
@@ -160,26 +160,20 @@ class Spec:
         stripped = text.strip()
         if self.none is not None and stripped == "None":
             return None
-
+        value = text               # text that is no literal stays text: only "any" accepts it
+        if self.kind == "bool":
+            value = {"True": True, "true": True, "False": False, "false": False}.get(stripped, text)
+        elif self.kind != "str":
+            try:
+                value = ast.literal_eval(stripped)
+            except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+                pass
         try:
-            if self.kind == "str":
-                value = text
-            elif self.kind == "bool":
-                value = {"True": True, "true": True, "False": False, "false": False}.get(stripped, _BAD)
-            else:
-                try:
-                    value = ast.literal_eval(stripped)
-                except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
-                    value = text if self.kind == "any" else _BAD
-            out = _BAD if value is _BAD else self._convert(value)
-            if out is _BAD:
-                raise ValueError(f"expected {self.expected()}")
-            if self.check is not None and out is not None:
-                self.check(out, name)
+            return self.validate(value, name)
         except ValueError as exc:
-            msg = str(exc).split(": ", 1)[1] if str(exc).startswith(f"{name}=") else str(exc)
+            msg = str(exc).removeprefix(f"{name}={_short(value)}: ")
+            msg = msg.split(": ", 1)[1] if msg.startswith(f"{name}=") else msg
             raise ValueError(f"-p {name} {_short(text, quote=False)}: {msg}") from None
-        return out
 
     def _convert(self, value: Any) -> Any:
         # NumPy scalars and paths, as a Python caller passes them, are the plain values they stand for
@@ -336,6 +330,7 @@ def _reaches_the_band(value: tuple, name: str) -> None:
 #: Parameters every notebook declares.
 COMMON: dict[str, Spec] = {
     "FAST": flag(),
+    "CLASS": flag(),     # a lecturer's run: FAST sizes or smaller, short output (``make class``)
     "SEED": integer(lo=0),
     "DATA_DIR": text(none="the usual search: $UWBWB_DATA, data/external, ../shared/datasets", check=_existing_folder),
     "SUMMARY_PATH": text(none="publish no summary"),
@@ -343,17 +338,14 @@ COMMON: dict[str, Spec] = {
 }
 
 _RECORDING = text()          # a recording or folder name of the dataset; the loader says which exist
-_COUNT = integer(lo=1)
 
 #: Per notebook stem: every parameter of its ``parameters`` cell beyond :data:`COMMON`.
 SPECS: dict[str, dict[str, Spec]] = {
     "00_quickstart": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "RECORDING": _RECORDING,
         "STATIC_SESSION": _RECORDING,
     },
     "01_set_noise_pf": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "RECORDING": _RECORDING,
         "STATIC_SESSION": _RECORDING,
         "N_TRIALS": integer(lo=1, fast="runs its own CI-sized sweep (SweepConfig.fast())"),
@@ -367,7 +359,6 @@ SPECS: dict[str, dict[str, Spec]] = {
         "FADING_DB": real(lo=0, hi=100),
     },
     "02_pruning_nls": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "STATIC_SESSION": _RECORDING,
         "RECORDING": _RECORDING,
         "TOURS": seq(integer(choices=(1, 2, 3)), fast="runs tour 2 only"),
@@ -382,7 +373,6 @@ SPECS: dict[str, dict[str, Spec]] = {
         "HANYANG_CASE": text(none="the first NLOS case of hanyang-outdoor-uwb"),
     },
     "03_ekf_motion_models": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, 40 s walks, 4 grid points, short output (``make class``)
         "RECORDING": _RECORDING,
         "STATIC_SESSION": _RECORDING,
         "LIAS_TAGS": seq(text(), none="every tag of the run"),
@@ -396,7 +386,6 @@ SPECS: dict[str, dict[str, Spec]] = {
         "GATE_PROB": real(lo=0, hi=1, lo_open=True, hi_open=True, none="no gate"),
     },
     "04_doppler_beacons": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "N_BRUTE": integer(lo=1, none="1e9 draws (full), 2e7 (FAST)"),
         "N_POSITIONS": integer(lo=1, none="2e6 positions (full), 1e5 (FAST)"),
         "PF_RUNS": integer(lo=1, none="200 runs on the first recording (full), 8 (FAST)"),
@@ -407,7 +396,6 @@ SPECS: dict[str, dict[str, Spec]] = {
         "WORKERS": integer(lo=1, hi=1024),
     },
     "05_uwb_ins_fusion": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "IASL_CAL_SCENARIO": _RECORDING,
         "IASL_SCENARIO": _RECORDING,
         "GRADE": text(choices=("consumer", "industrial", "tactical")),
@@ -424,7 +412,6 @@ SPECS: dict[str, dict[str, Spec]] = {
         "SEEDS": integer(lo=2, hi=100_000, fast="scores the ablation on 2 seeds (AblationConfig.fast)"),
     },
     "06_scoreboard": {
-        "CLASS": flag(),     # a lecturer's run: FAST sizes, short output (``make class``)
         "LIAS_RECORDING": _RECORDING,
         "IASL_CAL_SCENARIO": _RECORDING,
         "IASL_SCENARIO": _RECORDING,
@@ -449,24 +436,20 @@ def specs_for(stem: str, declared: Mapping[str, Any]) -> dict[str, Spec]:
     return {name: known[name] if name in known else infer(default) for name, default in declared.items()}
 
 
-def fast_conflict(stem: str, name: str, value: Any, spec: Spec) -> str | None:
-    """Why an explicit ``name=value`` cannot hold when notebook ``stem`` runs with ``FAST=True`` (None if it can)."""
-    if spec.fast is not None:
-        return (f"{stem}: {name}={value!r} would not be used: with FAST=True the notebook {spec.fast}. "
-                f"Run without --quick / FAST=True to use it, or drop -p {name}")
-    if spec.fast_cap is not None and (value is None or value > spec.fast_cap):
-        return (f"{stem}: {name}={value!r} would not be used: with FAST=True the notebook lowers {name} to "
-                f"{_fmt(spec.fast_cap)}. Run without --quick / FAST=True, or give at most {_fmt(spec.fast_cap)}")
-    return None
-
-
-def class_conflict(stem: str, name: str, value: Any, spec: Spec) -> str | None:
-    """Why an explicit ``name=value`` cannot hold when notebook ``stem`` runs with ``CLASS=True`` (None if it can).
+def conflict(mode: str, stem: str, name: str, value: Any, spec: Spec) -> str | None:
+    """Why an explicit ``name=value`` cannot hold when notebook ``stem`` runs with ``mode=True``, ``mode`` being
+    ``"FAST"`` or ``"CLASS"`` (None if it can).
 
     Class mode runs at FAST sizes or smaller ones of its own (e.g. shorter walks, a coarser grid), so every
     parameter that FAST replaces or caps is set by the notebook there: an explicit value is refused.
     """
-    if spec.fast is not None or spec.fast_cap is not None:
+    if mode == "CLASS" and (spec.fast is not None or spec.fast_cap is not None):
         return (f"{stem}: {name}={value!r} would not be used: with CLASS=True the notebook picks its own "
                 f"lecture sizes for {name} (FAST's or smaller). Run without CLASS=True to use it, or drop -p {name}")
+    if mode == "FAST" and spec.fast is not None:
+        return (f"{stem}: {name}={value!r} would not be used: with FAST=True the notebook {spec.fast}. "
+                f"Run without --quick / FAST=True to use it, or drop -p {name}")
+    if mode == "FAST" and spec.fast_cap is not None and (value is None or value > spec.fast_cap):
+        return (f"{stem}: {name}={value!r} would not be used: with FAST=True the notebook lowers {name} to "
+                f"{_fmt(spec.fast_cap)}. Run without --quick / FAST=True, or give at most {_fmt(spec.fast_cap)}")
     return None

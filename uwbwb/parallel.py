@@ -339,14 +339,13 @@ def probe(scheduler: str, *, timeout_s: float | None = None) -> str:
     return address
 
 
-def connect(scheduler, *, announce: bool = True, timeout_s: float | None = None):
+def connect(scheduler, *, timeout_s: float | None = None):
     """The :class:`distributed.Client` for ``scheduler`` (None for ``None``: run in this process).
 
     ``"local"`` starts a :func:`local_cluster` with Dask's defaults for this
     machine (one worker process per few cores); an address connects to that
     scheduler; a ``Client`` is used as given. Clients made here are kept and reused
-    for the same value; the first connection prints the cluster and its dashboard
-    link (unless ``announce`` is False).
+    for the same value; :func:`describe` says where they run.
 
     Parameters
     ----------
@@ -377,12 +376,8 @@ def connect(scheduler, *, announce: bool = True, timeout_s: float | None = None)
             if key == LOCAL:
                 client = distributed.Client(local_cluster(), set_as_default=False)
             else:
-                address = check_scheduler_address(key)
-                _probe(address, timeout_s)
-                client = distributed.Client(address, set_as_default=False, timeout=timeout_s)
+                client = distributed.Client(probe(key, timeout_s=timeout_s), set_as_default=False, timeout=timeout_s)
             _CLIENTS[key] = client
-            if announce:
-                print(describe(client), flush=True)
     return client
 
 
@@ -390,7 +385,7 @@ def describe(scheduler) -> str:
     """One line on where sweeps run: this process, or the cluster with its workers and dashboard link."""
     if scheduler is None:
         return "Sweeps run in this process (no Dask scheduler given)."
-    client = connect(scheduler, announce=False)
+    client = connect(scheduler)
     threads = client.nthreads()
     link = client.dashboard_link if getattr(client, "dashboard_link", None) else "none (install bokeh)"
     return (f"Sweeps run on the Dask cluster at {client.scheduler.address}: {len(threads)} workers, "
@@ -437,12 +432,6 @@ def _exit_text(exc: BaseException) -> str:
 #: on another worker when one is lost; larger ones are sent once to every worker (``scatter``), which
 #: survives the loss of some workers but not of all that hold them.
 EMBED_BYTES = 1 << 20
-
-
-def _pickled_size(obj) -> int:
-    import cloudpickle
-
-    return len(cloudpickle.dumps(obj))
 
 
 def _error(desc: str, index: int, n: int, task: Task, exc: BaseException) -> TaskError:
@@ -533,7 +522,9 @@ def _pipelined(fn, tasks, shared, client, workers, desc, bar, max_pending):
         slots = max(sum(client.nthreads().values()), 1)
         names = list(shared)
         inputs = shared
-        if names and _pickled_size(shared) > EMBED_BYTES:
+        import cloudpickle                      # comes with dask.distributed
+
+        if names and len(cloudpickle.dumps(shared)) > EMBED_BYTES:
             scattered = dict(zip(names, client.scatter([shared[k] for k in names], hash=False, broadcast=True)))
             inputs = scattered
         prefix = re.sub(r"[^0-9A-Za-z_]+", "_", desc).strip("_") or "task"

@@ -17,7 +17,7 @@ import numpy as np
 from . import metrics
 from .types import Anchors, Trajectory
 
-__all__ = ["COLORS", "color_for", "error_cdf", "error_vs_time", "floor_plan", "trajectories"]
+__all__ = ["COLORS", "color_for", "error_cdf", "floor_plan", "trajectories"]
 
 #: One fixed colour per estimator name, used by every notebook.
 COLORS: dict[str, str] = {
@@ -215,41 +215,3 @@ def _pct(p: float) -> str:
     v = 100 * p
     return f"{v:.0f}" if abs(v - round(v)) < 1e-9 else f"{v:g}"
 
-
-def error_vs_time(t_s, errors: Mapping[str, object], ax=None, *, unit: str = "m"):
-    """Error of each estimator against time.
-
-    Parameters
-    ----------
-    t_s
-        Common times ``(T,)`` in seconds for every array in ``errors``; or None
-        when every value of ``errors`` is an :class:`~uwbwb.metrics.ErrorSeries`
-        (which carries its own times).
-    errors
-        Name -> errors ``(T,)`` in metres (NaN leaves a gap) or ErrorSeries.
-    ax
-        Axes to draw into; a new figure if None.
-    unit
-        ``"m"`` or ``"cm"``.
-
-    Returns
-    -------
-    matplotlib.axes.Axes
-    """
-    scale = _scale(unit)
-    ax = _axes(ax)
-    t_common = None if t_s is None else np.asarray(t_s, dtype=float)
-    for name, err in errors.items():
-        if isinstance(err, metrics.ErrorSeries):
-            t, e = err.t_s, err.err_m
-        else:
-            if t_common is None:
-                raise ValueError(f"errors[{name!r}] is an array: give the common t_s")
-            t, e = t_common, np.asarray(err, dtype=float)
-        if e.shape != t.shape:
-            raise ValueError(f"errors[{name!r}] has shape {e.shape}, times have shape {t.shape}")
-        ax.plot(t, e * scale, color=color_for(name), label=str(name), linewidth=1.0)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel(f"error ({unit})")
-    ax.legend(loc="upper right", fontsize="small")
-    return ax

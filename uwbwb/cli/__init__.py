@@ -303,8 +303,6 @@ def cmd_fetch(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser, *,
                   notebooks_dir: str | Path | None = None, reports_dir: str | Path | None = None) -> int:
-    if args.jobs is not None and args.jobs < 1:
-        parser.error(f"--jobs {args.jobs}: give a whole number ≥ 1 (notebooks at once)")
     if args.notebooks_dir is not None:
         notebooks_dir = Path(args.notebooks_dir)
         if not notebooks_dir.is_dir():
@@ -313,28 +311,21 @@ def cmd_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser, *,
     for key, value in args.parameter:
         if not key.isidentifier():
             parser.error(f"-p {key}: parameter names must be Python identifiers")
-        if key in rp.RESERVED_PARAMETERS:
-            parser.error(f"-p {key}: set by the runner (one summary file per notebook in --out)")
         if key in text:
             parser.error(f"-p {key} given twice")
         text[key] = value
-    try:  # every problem with the selection or the parameters is reported before any notebook runs
-        rp.resolve_parameters(rp.select_notebooks(notebooks_dir, only=args.only), text=text, quick=args.quick)
-    except ValueError as exc:
-        parser.error(str(exc))
     if args.scheduler is not None:
-        if rp.SCHEDULER_PARAMETER in text:
-            parser.error(f"-p {rp.SCHEDULER_PARAMETER} and --scheduler: give the cluster once (--scheduler sets it)")
         try:
             import distributed  # noqa: F401
         except ImportError:
             parser.error("--scheduler needs dask.distributed: pip install 'uwbwb[dask]'")
-
-    result = rp.reproduce(quick=args.quick, only=args.only, out=args.out or reports_dir, text_parameters=text,
-                          notebooks_dir=notebooks_dir,
-                          timeout_s=args.timeout, scheduler=args.scheduler,
-                          scheduler_timeout_s=args.scheduler_timeout, log=lambda line: print(line, flush=True),
-                          force=args.force, jobs=args.jobs)
+    try:  # every problem with the selection, the settings or the parameters is reported before any notebook runs
+        result = rp.reproduce(quick=args.quick, only=args.only, out=args.out or reports_dir, text_parameters=text,
+                              notebooks_dir=notebooks_dir, timeout_s=args.timeout, scheduler=args.scheduler,
+                              scheduler_timeout_s=args.scheduler_timeout, log=lambda line: print(line, flush=True),
+                              force=args.force, jobs=args.jobs)
+    except ValueError as exc:
+        parser.error(str(exc))
     print(f"wrote {result.summary_md} and {result.summary_json}")
     for run in result.failed:
         print(f"FAILED {run.notebook}: {run.error}", file=sys.stderr)

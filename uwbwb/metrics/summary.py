@@ -139,32 +139,6 @@ class Summary:
             path.write_text(json.dumps(self._rows, indent=2, allow_nan=False) + "\n", encoding="utf-8")
         return self.frame()
 
-    @classmethod
-    def from_json(cls, path: str | os.PathLike) -> "Summary":
-        """Read a file written by :meth:`publish` (rows are validated again)."""
-        path = Path(path)
-        try:
-            rows = json.loads(path.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{path}: not valid JSON ({exc})") from None
-        if not isinstance(rows, list) or not rows or not all(isinstance(r, dict) for r in rows):
-            raise ValueError(f"{path}: expected a non-empty JSON list of objects")
-        for i, r in enumerate(rows):
-            if set(r) != set(cls.COLUMNS):
-                raise ValueError(f"{path}: row {i} has keys {sorted(r)}, expected {list(cls.COLUMNS)}")
-        names = {r["notebook"] for r in rows}
-        if len(names) != 1:
-            raise ValueError(f"{path}: rows from several notebooks {sorted(map(str, names))}")
-        modes = {r["mode"] for r in rows}
-        if len(modes) != 1 or not modes <= set(cls.MODES):
-            raise ValueError(f"{path}: mode must be one of {', '.join(cls.MODES)} and the same in every row, "
-                             f"got {sorted(map(str, modes))}")
-        s = cls(rows[0]["notebook"], fast=rows[0]["mode"] == "FAST")
-        for r in rows:
-            s.add(quantity=r["quantity"], value=r["value"], unit=r["unit"], data=r["data"], kind=r["kind"],
-                  paper_value=r["paper_value"])
-        return s
-
 
 def _is_recording_label(data: str) -> bool:
     dataset, _, recording = data.partition("/")

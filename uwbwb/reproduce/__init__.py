@@ -59,6 +59,7 @@ Modules: :mod:`.params` (what a notebook declares; checking and typing values), 
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import signal
@@ -69,20 +70,19 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
-from .. import parallel
+from .. import notebook_params, parallel
 from ..datasets.text import READ_LOG_ENV
 from . import cache
-from .params import (INJECTED_TAG, RESERVED_PARAMETERS, SCHEDULER_PARAMETER, injected_source,  # noqa: F401
-                     notebook_parameters, parameter_specs, parameterized, parse_parameter_value, resolve_parameters)
-from .report import FAST_MARK, summary_markdown  # noqa: F401
-from .running import (KERNEL_NAME, SUMMARY_KEYS, NotebookRun, ReproduceResult, _published, _run_on_cluster,  # noqa: F401
-                      ipc_kernel_manager, read_summary, run_notebook)
+from .params import (INJECTED_TAG, RESERVED_PARAMETERS, SCHEDULER_PARAMETER, injected_source, notebook_parameters,
+                     parameterized, resolve_parameters)
+from .report import summary_markdown
+from .running import (KERNEL_NAME, NotebookRun, ReproduceResult, _published, _run_on_cluster, ipc_kernel_manager,
+                      read_summary, run_notebook)
 
-__all__ = ["FAST_MARK", "INJECTED_TAG", "KERNEL_NAME", "NOTEBOOKS_DIR", "NotebookRun", "REPORTS_DIR",
-           "RESERVED_PARAMETERS", "ReproduceResult", "SCHEDULER_PARAMETER", "SUMMARY_KEYS", "injected_source",
-           "ipc_kernel_manager",
-           "notebook_parameters", "parameter_specs", "parameterized", "parse_parameter_value", "read_summary",
-           "reproduce", "resolve_parameters", "run_notebook", "select_notebooks", "summary_markdown"]
+__all__ = ["INJECTED_TAG", "KERNEL_NAME", "NOTEBOOKS_DIR", "NotebookRun", "REPORTS_DIR", "RESERVED_PARAMETERS",
+           "ReproduceResult", "SCHEDULER_PARAMETER", "injected_source", "ipc_kernel_manager", "notebook_parameters",
+           "parameterized", "read_summary", "reproduce", "resolve_parameters", "run_notebook", "select_notebooks",
+           "summary_markdown"]
 
 #: Notebooks run by default: ``notebooks/`` in the working directory (the project root, where
 #: ``make reproduce`` and ``python -m uwbwb reproduce`` are run).
@@ -148,7 +148,7 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         Output folder; default :data:`REPORTS_DIR` (``reports/`` in the working directory).
     parameters
         Extra notebook parameters as Python values, checked by each notebook's spec
-        (:func:`parameter_specs`); each goes to the selected notebooks that declare it.
+        (:func:`uwbwb.notebook_params.specs_for`); each goes to the selected notebooks that declare it.
     text_parameters
         Extra notebook parameters as typed on the command line, typed by each
         notebook's declared default (see :func:`resolve_parameters`).
@@ -177,7 +177,7 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         Execute every notebook, even one whose last successful run into ``out`` can be reused (:mod:`.cache`).
     jobs
         Notebooks executed at once on this machine, each in its own process (None: one per core,
-        ``os.cpu_count()``; 1: one after the other in this process). Each notebook is seeded by its parameters, so
+        ``os.cpu_count()``; 1: one after the other). Each notebook is seeded by its parameters, so
         the numbers do not depend on it. Ignored with ``scheduler`` (the cluster decides).
 
     Returns
@@ -202,34 +202,27 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise ValueError(f"jobs must be a whole number ≥ 1 (notebooks at once), got {jobs!r}")
     notebooks = select_notebooks(notebooks_dir, only)
-    if quick:
-        lacking = [nb.stem for nb in notebooks if "FAST" not in notebook_parameters(nb)]
+    for option, name, on in (("--quick", "FAST", quick), ("--scheduler", SCHEDULER_PARAMETER, scheduler is not None)):
+        lacking = [nb.stem for nb in notebooks if on and name not in notebook_parameters(nb)]
         if lacking:
-            raise ValueError(f"--quick sets FAST, which {', '.join(lacking)} does not declare in its parameters cell")
+            raise ValueError(f"{option} sets {name}, which {', '.join(lacking)} does not declare in its "
+                             "parameters cell")
     given = dict(parameters or {})
     kernel_env = {}
     if scheduler_timeout_s is not None:
         kernel_env[parallel.TIMEOUT_ENV] = repr(parallel.connect_timeout_s(scheduler_timeout_s))
-    client = None
-    if isinstance(scheduler, str) and scheduler.strip().startswith("inproc://"):
-        raise ValueError(f"scheduler {scheduler!r}: an inproc:// address lives inside one Python process and cannot "
-                         "be reached from the notebooks' kernels; give 'local' or a tcp:// address")
     if scheduler is not None:
         if SCHEDULER_PARAMETER in given or SCHEDULER_PARAMETER in (text_parameters or {}):
             raise ValueError(f"give the cluster once: scheduler={scheduler!r} sets {SCHEDULER_PARAMETER} itself")
-        lacking = [nb.stem for nb in notebooks if SCHEDULER_PARAMETER not in notebook_parameters(nb)]
-        if lacking:
-            raise ValueError(f"--scheduler sets {SCHEDULER_PARAMETER}, which {', '.join(lacking)} does not declare "
-                             f"in its parameters cell")
-        resolve_parameters(notebooks, given, text=text_parameters, quick=quick)   # bad values first
-        client = parallel.connect(scheduler, timeout_s=scheduler_timeout_s)
-        given[SCHEDULER_PARAMETER] = client.scheduler.address
-    resolved = resolve_parameters(notebooks, given, text=text_parameters, quick=quick)
-    addresses = {params[SCHEDULER_PARAMETER] for params in resolved.values()
-                 if params.get(SCHEDULER_PARAMETER) not in (None, "local")}
-    if client is None and addresses:      # a cluster given as a parameter: check it answers before any notebook runs
-        for address in sorted(addresses):
-            parallel.probe(address, timeout_s=scheduler_timeout_s)
+        if isinstance(scheduler, str):      # checked as the notebooks' DASK_SCHEDULER is (no inproc:// address)
+            notebook_params.COMMON[SCHEDULER_PARAMETER].validate(scheduler, "scheduler")
+    resolved = resolve_parameters(notebooks, given, text=text_parameters, quick=quick)   # bad values first
+    client = None if scheduler is None else parallel.connect(scheduler, timeout_s=scheduler_timeout_s)
+    for params in resolved.values():
+        if client is not None:
+            params[SCHEDULER_PARAMETER] = client.scheduler.address
+        elif params.get(SCHEDULER_PARAMETER) not in (None, "local"):   # a cluster given as a parameter answers
+            parallel.probe(params[SCHEDULER_PARAMETER], timeout_s=scheduler_timeout_s)
     if log:
         for name in ({"FAST": True} if quick else {}) | dict(given) | dict(text_parameters or {}):
             receivers = [nb.stem for nb in notebooks if name in resolved[nb]]
@@ -266,12 +259,13 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_
     run can be reused (:mod:`.cache`) is not executed unless ``force``."""
     if client is not None:
         try:
-            runs.extend(_run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env))
+            for run in _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env):
+                runs.append(run)
+                _log_end(log, len(runs), len(notebooks), run)
+            return
         finally:
             if isinstance(scheduler, str) and scheduler.strip() == "local":   # the cluster started for this run
                 parallel.shutdown(scheduler)
-    if client is not None:
-        return
     digest, order = cache.package_digest(), {nb: i for i, nb in enumerate(notebooks, 1)}
     todo = []
     for source in notebooks:
@@ -282,8 +276,7 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_
         else:
             runs.append(run)
             _log_end(log, order[source], len(notebooks), run)
-    processes = set() if jobs > 1 and len(todo) > 1 else None
-    stopping, finished = threading.Event(), []
+    processes, stopping, finished = set(), threading.Event(), []
 
     def one(source: Path, key: str) -> NotebookRun:
         if log:
@@ -299,21 +292,18 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_
             finished.append(run)
         return run
 
-    if processes is None:
-        runs.extend(one(source, key) for source, key in todo)
-    else:
-        pool = ThreadPoolExecutor(max_workers=min(jobs, len(todo)), thread_name_prefix="notebook")
-        try:
-            for future in as_completed([pool.submit(one, source, key) for source, key in todo]):
-                future.result()
-        except BaseException:                  # Ctrl-C or SIGTERM: stop the notebooks still running, then report
-            stopping.set()                     # the ones that finished before it
-            pool.shutdown(wait=False, cancel_futures=True)
-            _stop(processes)
-            runs.extend(finished)
-            raise
-        pool.shutdown()
+    pool = ThreadPoolExecutor(max_workers=max(min(jobs, len(todo)), 1), thread_name_prefix="notebook")
+    try:
+        for future in as_completed([pool.submit(one, source, key) for source, key in todo]):
+            future.result()
+    except BaseException:                  # Ctrl-C or SIGTERM: stop the notebooks still running, then report
+        stopping.set()                     # the ones that finished before it
+        pool.shutdown(wait=False, cancel_futures=True)
+        _stop(processes)
         runs.extend(finished)
+        raise
+    pool.shutdown()
+    runs.extend(finished)
     runs.sort(key=lambda r: order[r.source])
 
 
@@ -357,44 +347,31 @@ def _write_atomic(path: Path, text: str) -> None:
 
 
 class _OutLock:
-    """``<out>/.reproduce.lock`` held for one run: a second run into the same folder is refused while the first
-    one's process lives (a lock left by a process that no longer exists is taken over)."""
+    """``<out>/.reproduce.lock`` held (``flock``) for one run: a second run into the same folder is refused while the
+    first one's process lives (the system releases the lock when that process ends, however it ends)."""
 
     def __init__(self, out_dir: Path):
         self.path = out_dir / ".reproduce.lock"
 
     def __enter__(self):
-        for _ in range(2):
-            try:
-                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-            except FileExistsError:
-                try:
-                    pid = int(self.path.read_text().strip() or 0)
-                except (OSError, ValueError):
-                    pid = 0
-                if pid > 0 and _alive(pid):
-                    raise ValueError(f"{self.path.parent}: another reproduce (process {pid}) is writing into this "
-                                     "folder; wait for it to finish or give another --out") from None
-                self.path.unlink(missing_ok=True)         # stale: its process is gone
-                continue
-            with os.fdopen(fd, "w") as f:
-                f.write(str(os.getpid()))
-            return self
-        raise ValueError(f"{self.path}: could not take the output folder's lock")
+        self.file = open(self.path, "a+")
+        try:
+            fcntl.flock(self.file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            self.file.seek(0)
+            pid = self.file.read().strip()
+            self.file.close()
+            raise ValueError(f"{self.path.parent}: another reproduce (process {pid}) is writing into this folder; "
+                             "wait for it to finish or give another --out") from None
+        self.file.truncate(0)
+        self.file.write(str(os.getpid()))
+        self.file.flush()
+        return self
 
     def __exit__(self, *exc):
         self.path.unlink(missing_ok=True)
+        self.file.close()
         return False
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 class _sigterm_interrupts:

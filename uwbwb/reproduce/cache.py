@@ -28,19 +28,11 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..datasets.discovery import PROJECT_ROOT, data_dirs
+from ..datasets.manifest import sha256_file
 
 __all__ = ["CACHE_SUFFIX", "forget", "notebook_key", "package_digest", "read_log_path", "valid_entry", "write_entry"]
 
 CACHE_SUFFIX = ".cache.json"
-_SKIP_PARAMETERS = ("SUMMARY_PATH",)
-
-
-def _sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _tree_digest(root: Path) -> str:
@@ -49,7 +41,7 @@ def _tree_digest(root: Path) -> str:
     if root.is_dir():
         for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
             h.update(path.relative_to(root).as_posix().encode())
-            h.update(_sha256_file(path).encode())
+            h.update(sha256_file(path).encode())
     return h.hexdigest()
 
 
@@ -70,7 +62,7 @@ def notebook_key(source: Path, parameters: Mapping[str, Any], *, package_digest:
     """The key of one notebook run (module docstring); ``package_digest`` from :func:`package_digest`."""
     h = hashlib.sha256()
     h.update(Path(source).read_bytes())
-    shown = {k: repr(v) for k, v in sorted(parameters.items()) if k not in _SKIP_PARAMETERS}
+    shown = {k: repr(v) for k, v in sorted(parameters.items())}
     h.update(json.dumps(shown, sort_keys=True).encode())
     h.update(package_digest.encode())
     h.update("\n".join(_data_locations(parameters.get("DATA_DIR"))).encode())
@@ -97,7 +89,7 @@ def write_entry(out_dir: Path, stem: str, key: str, seconds: float) -> None:
     log = read_log_path(out_dir, stem)
     paths = sorted(set(log.read_text(encoding="utf-8").splitlines())) if log.is_file() else []
     log.unlink(missing_ok=True)
-    inputs = {p: _sha256_file(Path(p)) for p in paths if Path(p).is_file()}
+    inputs = {p: sha256_file(Path(p)) for p in paths if Path(p).is_file()}
     entry = {"key": key, "inputs": inputs, "seconds": seconds}
     (out_dir / f"{stem}{CACHE_SUFFIX}").write_text(json.dumps(entry, indent=1) + "\n", encoding="utf-8")
 
@@ -115,7 +107,7 @@ def valid_entry(out_dir: Path, stem: str, key: str) -> dict | None:
     if not all((out_dir / f"{stem}{ext}").is_file() for ext in (".ipynb", ".html", ".summary.json")):
         return None
     for p, digest in dict(entry.get("inputs", {})).items():
-        if not Path(p).is_file() or _sha256_file(Path(p)) != digest:
+        if not Path(p).is_file() or sha256_file(Path(p)) != digest:
             return None
     return entry
 

@@ -15,10 +15,9 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from .. import notebook_params
-from ..notebook_params import Spec
 
 __all__ = ["INJECTED_TAG", "RESERVED_PARAMETERS", "SCHEDULER_PARAMETER", "injected_source", "notebook_parameters",
-           "parameter_specs", "parameterized", "parse_parameter_value", "resolve_parameters"]
+           "parameterized", "resolve_parameters"]
 
 
 #: Parameters set by the runner itself; they cannot be overridden.
@@ -75,39 +74,6 @@ def notebook_parameters(notebook: str | os.PathLike) -> dict[str, Any]:
     return declared
 
 
-def parameter_specs(notebook: str | os.PathLike) -> dict[str, Spec]:
-    """The :class:`~uwbwb.notebook_params.Spec` of every parameter a notebook declares.
-
-    From :data:`uwbwb.notebook_params.SPECS` for the project's notebooks (by stem); inferred
-    from each default for other notebooks (:func:`uwbwb.notebook_params.infer`).
-    """
-    path = Path(notebook)
-    return notebook_params.specs_for(path.stem, notebook_parameters(path))
-
-
-def parse_parameter_value(text: str, default: Any = None, *, name: str = "value", spec: Spec | None = None) -> Any:
-    """A ``-p NAME VALUE`` value, checked and typed by the parameter's spec.
-
-    ``spec`` defaults to the one inferred from ``default``
-    (:func:`uwbwb.notebook_params.infer`): a string default keeps the text exactly as
-    typed (``"8.20"`` stays ``"8.20"``); a bool takes ``True``/``False`` (also lower
-    case); an int, float or tuple reads the text as a Python literal of that type (an
-    int is accepted for a float, an integral float such as ``1e9`` for an int; a tuple's
-    elements must fit the default's elements when those share one type); None: any
-    Python literal, else the text. See :meth:`uwbwb.notebook_params.Spec.parse`.
-
-    Raises
-    ------
-    ValueError
-        A value that does not fit, naming the parameter, what was expected and the default.
-    """
-    spec = notebook_params.infer(default) if spec is None else spec
-    try:
-        return spec.parse(text, name)
-    except ValueError as exc:
-        raise ValueError(f"{exc} (the default of {name} is {default!r})") from None
-
-
 def resolve_parameters(notebooks: Iterable[str | os.PathLike], parameters: Mapping[str, Any] | None = None,
                        *, text: Mapping[str, str] | None = None, quick: bool = False) -> dict[Path, dict[str, Any]]:
     """The parameters each notebook will receive, checked against what it declares.
@@ -118,10 +84,10 @@ def resolve_parameters(notebooks: Iterable[str | os.PathLike], parameters: Mappi
         The selected notebooks.
     parameters
         Python values (e.g. ``{"FAST": True, "N_TRIALS": 5}``): each must satisfy the
-        notebook's spec (see :func:`parameter_specs`).
+        notebook's spec (:func:`uwbwb.notebook_params.specs_for`).
     text
         Values as typed on the command line (``-p NAME VALUE``): parsed by each
-        notebook's spec (see :func:`parse_parameter_value`). A name in both wins from ``text``.
+        notebook's spec (:meth:`uwbwb.notebook_params.Spec.parse`). A name in both wins from ``text``.
     quick
         Every notebook runs with ``FAST=True`` (``--quick``); an explicit ``FAST=False`` is refused.
 
@@ -137,8 +103,8 @@ def resolve_parameters(notebooks: Iterable[str | os.PathLike], parameters: Mappi
         A reserved name, a name that no selected notebook declares (the message lists
         the valid names), a value that does not satisfy its spec, ``FAST=False`` with
         ``quick``, or (when the notebook will run with ``FAST=True``) an explicit value
-        that its FAST mode replaces or lowers (see :func:`uwbwb.notebook_params.fast_conflict`), or (with
-        ``CLASS=True``) one that class mode sets itself (:func:`~uwbwb.notebook_params.class_conflict`).
+        that its FAST mode replaces or lowers, or (with ``CLASS=True``) one that class mode sets itself (see
+        :func:`uwbwb.notebook_params.conflict`).
     """
     notebooks = [Path(nb) for nb in notebooks]
     parameters, text = dict(parameters or {}), dict(text or {})
@@ -161,24 +127,20 @@ def resolve_parameters(notebooks: Iterable[str | os.PathLike], parameters: Mappi
             if name not in defaults:
                 continue
             try:
-                if name in text:
-                    params[name] = parse_parameter_value(text[name], defaults[name], name=name, spec=specs[name])
-                else:
-                    try:
-                        params[name] = specs[name].validate(parameters[name], name)
-                    except ValueError as exc:
-                        raise ValueError(f"parameter {exc} (the default of {name} is {defaults[name]!r})") from None
+                params[name] = (specs[name].parse(text[name], name) if name in text
+                                else specs[name].validate(parameters[name], name))
             except ValueError as exc:
-                raise ValueError(f"{nb.stem}: {exc}") from None
+                what = "" if name in text else "parameter "
+                raise ValueError(f"{nb.stem}: {what}{exc} (the default of {name} is {defaults[name]!r})") from None
         if quick and "FAST" in defaults:
             if params.get("FAST", True) is not True:
                 raise ValueError(f"--quick sets FAST=True, but FAST={params['FAST']!r} was given too: "
                                  f"drop --quick or the FAST value")
             params = {"FAST": True} | params
-        for mode, conflict in (("FAST", notebook_params.fast_conflict), ("CLASS", notebook_params.class_conflict)):
+        for mode in ("FAST", "CLASS"):
             if params.get(mode, defaults.get(mode)) is True:
                 for name, value in params.items():
-                    problem = conflict(nb.stem, name, value, specs[name])
+                    problem = notebook_params.conflict(mode, nb.stem, name, value, specs[name])
                     if problem is not None:
                         raise ValueError(problem)
         resolved[nb] = params

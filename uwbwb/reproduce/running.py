@@ -19,15 +19,12 @@ from .. import parallel
 from ..metrics import Summary
 from .params import notebook_parameters, parameterized
 
-__all__ = ["KERNEL_NAME", "NotebookRun", "ReproduceResult", "SUMMARY_KEYS", "ipc_kernel_manager", "read_summary",
+__all__ = ["KERNEL_NAME", "NotebookRun", "ReproduceResult", "ipc_kernel_manager", "read_summary",
            "run_notebook"]
 
 
 #: Kernel the notebooks are executed with.
 KERNEL_NAME = "python3"
-
-#: Keys of every summary row, in display order.
-SUMMARY_KEYS = Summary.COLUMNS
 
 
 @dataclass(frozen=True)
@@ -135,9 +132,9 @@ def read_summary(path: Path, notebook: str, mode: str | None = None) -> tuple[li
     if not isinstance(rows, list) or not rows:
         return [], f"summary file {path.name} must hold a non-empty JSON list of rows"
     for i, row in enumerate(rows):
-        if not isinstance(row, dict) or set(row) != set(SUMMARY_KEYS):
+        if not isinstance(row, dict) or set(row) != set(Summary.COLUMNS):
             keys = sorted(row) if isinstance(row, dict) else type(row).__name__
-            return [], f"summary file {path.name}, row {i}: keys must be {', '.join(SUMMARY_KEYS)}, got {keys}"
+            return [], f"summary file {path.name}, row {i}: keys must be {', '.join(Summary.COLUMNS)}, got {keys}"
         if row["notebook"] != notebook:
             return [], f"summary file {path.name}, row {i}: names notebook {row['notebook']!r}, not {notebook!r}"
         if row["kind"] not in Summary.KINDS:
@@ -147,7 +144,7 @@ def read_summary(path: Path, notebook: str, mode: str | None = None) -> tuple[li
         if mode is not None and row["mode"] != mode:
             return [], (f"summary file {path.name}, row {i}: mode {row['mode']!r}, but the notebook ran with "
                         f"FAST={mode == 'FAST'} (pass fast=FAST to uw.metrics.Summary)")
-    return [{k: row[k] for k in SUMMARY_KEYS} for row in rows], None
+    return [{k: row[k] for k in Summary.COLUMNS} for row in rows], None
 
 
 def _export_html(executed: Path, html: Path) -> None:
@@ -165,23 +162,15 @@ def run_notebook(source: Path, out_dir: Path, parameters: Mapping[str, Any], *,
 
     ``parameters`` go to the notebook's injected cell as given (see
     :func:`resolve_parameters` for checking them first); ``kernel_env`` is added to
-    the kernel's environment. With ``processes`` (a set the caller watches) papermill runs in a child process
-    that is added to it while it lives, so that several notebooks can run at once from threads and a caller
-    that is interrupted can stop them; without, in this process.
+    the kernel's environment. Papermill runs in a child process, which is in ``processes`` (a set the caller
+    watches) while it lives, so that several notebooks can run at once from threads and a caller that is
+    interrupted can stop them.
     """
-    executed, html, summary = _outputs(source, out_dir)
-    params = {**parameters, "SUMMARY_PATH": str(summary)}
-    error = None
+    outputs = executed, _, summary = _outputs(source, out_dir)
     t0 = time.perf_counter()
-    if processes is not None:
-        error = _papermill_in_subprocess(source, executed, params, source.parent, timeout_s, kernel_name, kernel_env,
-                                         processes=processes)
-    else:
-        try:
-            _papermill(source, executed, params, source.parent, timeout_s, kernel_name, kernel_env)
-        except Exception as exc:  # any failure of one notebook is reported; the others still run
-            error = _first_line(exc)
-    return _finish(source, out_dir, parameters, error, time.perf_counter() - t0)
+    error = _papermill_in_subprocess(source, executed, {**parameters, "SUMMARY_PATH": str(summary)}, source.parent,
+                                     timeout_s, kernel_name, kernel_env, processes=processes)
+    return _finish(source, outputs, parameters, error, time.perf_counter() - t0)
 
 
 def _outputs(source: Path, out_dir: Path) -> tuple[Path, Path, Path]:
@@ -245,12 +234,11 @@ def ipc_kernel_manager(env: Mapping[str, str] | None = None):
     return IpcKernelManager
 
 
-def _finish(source: Path, out_dir: Path, parameters: Mapping[str, Any], error: str | None,
+def _finish(source: Path, outputs: tuple[Path, Path, Path], parameters: Mapping[str, Any], error: str | None,
             seconds: float) -> NotebookRun:
-    """Render the executed notebook and read its summary into a :class:`NotebookRun`."""
-    stem = source.stem
-    executed, html, summary = (out_dir / f"{stem}.ipynb", out_dir / f"{stem}.html",
-                               out_dir / f"{stem}.summary.json")
+    """Render the executed notebook and read its summary (``outputs`` from :func:`_outputs`) into a
+    :class:`NotebookRun`."""
+    executed, html, summary = outputs
     if executed.is_file():
         try:
             _export_html(executed, html)
@@ -262,7 +250,7 @@ def _finish(source: Path, out_dir: Path, parameters: Mapping[str, Any], error: s
     rows, problem = _published(source, summary, parameters)
     if error is None:
         error = problem
-    return NotebookRun(notebook=stem, source=source, executed=executed, html=html, summary=summary,
+    return NotebookRun(notebook=source.stem, source=source, executed=executed, html=html, summary=summary,
                        seconds=seconds, error=error, rows=tuple(rows))
 
 
@@ -360,31 +348,23 @@ def _papermill_job(job: str) -> None:
         Path(job).with_suffix(".error").write_text(_first_line(exc), encoding="utf-8")
 
 
-def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log,
-                    kernel_env=None) -> list[NotebookRun]:
-    """Every notebook a task on the cluster, as many at once as it has threads; runs in notebook order."""
+def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env=None):
+    """Every notebook a task on the cluster, as many at once as it has threads; yields the runs in notebook order."""
     tasks = [parallel.Task({"name": nb.stem, "text": nb.read_text(encoding="utf-8"), "cwd": str(nb.parent),
                             "parameters": resolved[nb]}) for nb in notebooks]
     by_name = {nb.stem: nb for nb in notebooks}
-    runs = []
     slots = max(sum(client.nthreads().values()), 1)
     if log:
-        log(f"running {len(notebooks)} notebooks on the Dask cluster at {client.scheduler.address}, "
-            f"up to {slots} at once")
-    for i, (task, out) in enumerate(parallel.imap(
+        log(f"{parallel.describe(client)}; {len(notebooks)} notebooks, up to {slots} at once")
+    for task, out in parallel.imap(
             _notebook_task, tasks, shared={"timeout_s": timeout_s, "kernel_name": kernel_name,
                                            "kernel_env": kernel_env}, scheduler=client,
-            progress=False, desc="notebooks", unit="notebook", max_pending=slots), 1):
+            progress=False, desc="notebooks", unit="notebook", max_pending=slots):
         source = by_name[task.params["name"]]
-        executed, _, summary = _outputs(source, out_dir)
+        outputs = executed, _, summary = _outputs(source, out_dir)
         text, summary_text, error, seconds = out
         if text is not None:
             executed.write_text(text, encoding="utf-8")
         if summary_text is not None:
             summary.write_text(summary_text, encoding="utf-8")
-        run = _finish(source, out_dir, resolved[source], error, seconds)
-        runs.append(run)
-        if log:
-            log(f"[{i}/{len(notebooks)}] {run.notebook}: {run.status} ({run.seconds:.1f} s)"
-                + (f" — {run.error}" if run.error else ""))
-    return runs
+        yield _finish(source, outputs, resolved[source], error, seconds)

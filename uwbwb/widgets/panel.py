@@ -399,21 +399,10 @@ class Panel:
         if self._dirty:
             self._render()
 
-    def refresh(self) -> None:
-        """Render again with the current values."""
-        self._render()
-
     def show(self) -> None:
         """Display the panel (same as ``display(panel)``)."""
         from IPython.display import display
         display(self.widget)
-
-    def close(self) -> None:
-        """Stop reacting to the controls and close all widgets of the panel."""
-        for control in self._controls.values():
-            control.unobserve(self._on_change, names="value")
-        for w in (*self._children_ok, self.error_box, *self._controls.values(), self.widget):
-            w.close()
 
     def _repr_mimebundle_(self, **kwargs):
         bundle = self.widget._repr_mimebundle_(**kwargs)
