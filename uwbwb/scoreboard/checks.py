@@ -484,7 +484,9 @@ def check_ranges_against_truth(rec: Recording, tag: str, *, max_residual_m: floa
           "and anchors must share one frame"] = at
     costs[f"the truth clock is offset: truth time = range time {off:+.2f} s (shift the truth, e.g. "
           f"--truth-offset-s {off:.2f})"] = at_off
-    best = min(costs, key=costs.get)
+    # defects the ranges cannot tell apart (x/y swapped in the truth or in the anchors: the same distances) tie up to
+    # rounding; within a nanometre the first tried is named
+    best = min(costs, key=lambda k: round(costs[k], 9))
     head = (f"{where}: measured ranges of tag {tag!r} do not fit the ranges predicted from the anchors and the "
             f"truth (median |residual| {base:.2f} m over {idx.size} epochs, worst anchor {np.nanmax(per):.2f} m; "
             f"at most {max_residual_m:g} m expected)")
