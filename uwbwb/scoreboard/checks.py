@@ -352,18 +352,14 @@ def _offset(t: np.ndarray, r: np.ndarray, tr: Trajectory, a: np.ndarray, max_off
     """The truth clock offset minimising the median range residual (the registration's
     :func:`~uwbwb.datasets.registration.residual_spread`, statistic ``median_abs``): 0.1 s grid, then 5 ms around the
     best; an offset at which the truth covers fewer than 20 % (or 10) of the epochs does not count."""
-    if len(tr) < 2:
-        return 0.0, float("inf")
-    n = int(np.floor(max_offset_s / 0.1 + 1e-9))
-    best, cost = 0.0, float("inf")
-    for grid in (np.arange(-n, n + 1) * 0.1, None):                  # multiples of 0.1 s, 0 among them
-        grid = best + np.arange(-20, 21) * 0.005 if grid is None else grid
-        c = residual_spread(t, r[:, :, None], a, tr.t_s, tr.pos_m[:, None, :], grid, max(0.2, 10 / t.size),
+    n, best, c = int(np.floor(max_offset_s / 0.1 + 1e-9)), 0.0, np.full(1, np.inf)
+    for grid in (np.arange(-n, n + 1) * 0.1, np.arange(-20, 21) * 0.005) if len(tr) > 1 else ():
+        c = residual_spread(t, r[:, :, None], a, tr.t_s, tr.pos_m[:, None, :], best + grid, max(0.2, 10 / t.size),
                             statistic="median_abs")[:, 0]
         if not np.isfinite(c).any():
             return 0.0, float("inf")
-        best, cost = float(grid[int(np.argmin(c))]), float(np.min(c))
-    return best, cost
+        best = float(best + grid[int(np.argmin(c))])
+    return best, float(np.min(c))
 
 
 #: Slowest truth speed at which the track's course is read as the platform's heading, m/s.
