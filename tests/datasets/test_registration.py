@@ -134,3 +134,27 @@ def test_the_loader_names_the_imu_file_whose_clock_it_cannot_fix(tmp_path):
     with pytest.raises(DataFormatError, match=rf"{path}: cannot align the IMU clock: the gyro-rate correlation is "
                                               r"too weak .* best peak is 0\.\d+"):
         iasl.load_scenario("scenario1", data_dir=tmp_path)
+
+
+def test_residual_spread_median_abs_keeps_the_bias_per_candidate():
+    # the input checks' statistic: per candidate truth, the median over anchors of each anchor's median |residual|
+    residual_spread = registration.residual_spread
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 20.0, 201)
+    pos = np.column_stack([np.cos(t / 3), np.sin(t / 3), np.full(t.size, 1.0)]) * [4.0, 3.0, 1.0]
+    a = np.array([[0.0, 0.0, 2.5], [8.0, 0.0, 2.5], [0.0, 6.0, 2.5], [8.0, 6.0, 0.5]])
+    true_r = np.linalg.norm(pos[:, None] - a[None], axis=-1)
+    r = true_r + [0.2, 0.0, -0.1, 0.3] + 0.01 * rng.standard_normal(true_r.shape)   # per-anchor biases
+    shifts = np.array([[0.0, 0.0, 0.0], [0.5, -0.5, 0.0]])
+    pts = pos[:, None, :] + shifts[None]
+    got = residual_spread(t, np.broadcast_to(r[..., None], (*r.shape, 2)), a, t, pts, [0.0, 1.0], 0.6,
+                          statistic="median_abs")
+    assert got.shape == (2, 2)
+    want = [np.median(np.median(np.abs(r - np.linalg.norm(pos[:, None] + s - a[None], axis=-1)), axis=0))
+            for s in shifts]
+    np.testing.assert_allclose(got[0], want, rtol=1e-9)
+    assert got[0, 0] == pytest.approx(0.15, abs=0.02)      # the biases stay in (the spread would remove them)
+    assert np.isfinite(got[1]).all() and (got[1] > got[0]).all()
+    assert np.isinf(residual_spread(t, r[..., None], a, t, pos[:, None], [15.0], 0.6, statistic="median_abs")).all()
+    with pytest.raises(ValueError, match="statistic"):
+        residual_spread(t, r[..., None], a, t, pos[:, None], [0.0], 0.6, statistic="mean")

@@ -9,7 +9,7 @@ from tests.fixtures import lias as fx_lias
 from uwbwb import Recording
 from uwbwb.datasets import load_lias_room, registry
 from uwbwb.datasets import open as open_recording
-from uwbwb.datasets import open_or_standin, open_pair
+from uwbwb.datasets import open_pair
 from uwbwb.errors import DataNotFoundError
 from uwbwb.sim.rig import RigConfig
 
@@ -60,29 +60,6 @@ def test_open_pair_refuses_to_calibrate_on_the_scored_recording(data_dir):
     assert cal.name.endswith("scenario1") and test.name.endswith("scenario2")
     with pytest.raises(ValueError, match="another recording"):
         open_pair("iasl-uwb-imu/scenario2", "iasl-uwb-imu/scenario2", data_dir)
-
-
-def test_stand_in_only_for_an_absent_dataset_and_only_when_asked(tmp_path, data_dir):
-    calls = []
-
-    def stand_in():
-        calls.append(1)
-        return "synthetic recording"
-
-    got = open_or_standin("iasl-uwb-imu/scenario2", data_dir, stand_in=stand_in)
-    assert got.real and not got.synthetic and got.data_label == "iasl-uwb-imu/scenario2" and "found in" in got.reason
-    with pytest.raises(DataNotFoundError, match="scenario1"):
-        open_or_standin("iasl-uwb-imu/scenario9", data_dir, stand_in=stand_in)
-    assert not calls                                              # never for a wrong name
-    empty = tmp_path / "empty"
-    empty.mkdir()
-    got = open_or_standin("iasl-uwb-imu/scenario2", empty, stand_in=stand_in)
-    assert got.synthetic and got.data == "synthetic recording" and "not found" in got.reason and calls == [1]
-    assert got.data_label == "synthetic"
-    none = open_or_standin("iasl-uwb-imu/scenario2", empty)
-    assert not none.available
-    with pytest.raises(ValueError, match="no data"):
-        none.data_label
 
 
 def test_lias_room_wrong_recording_is_an_error_not_synthetic_data(tmp_path, data_dir):

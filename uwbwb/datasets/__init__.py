@@ -2,9 +2,9 @@
 loader module per format.
 
 ``uw.datasets.open("iasl-uwb-imu/scenario2")`` loads a recording by name (a wrong name is an
-error listing the names present); :func:`open_pair` a calibration and a test recording;
-:func:`open_or_standin` uses a caller's stand-in only where the dataset is absent and says
-why (:mod:`.registry`). Loader modules: :mod:`.lias` (lias-planar-uwb), :mod:`.iasl`
+error listing the names present); :func:`open_pair` a calibration and a test recording
+(:mod:`.registry`); :func:`load_lias_room` uses a caller's stand-in only where the dataset is absent and
+says why (:mod:`.standin`). Loader modules: :mod:`.lias` (lias-planar-uwb), :mod:`.iasl`
 (iasl-uwb-imu), :mod:`.hanyang` (hanyang-outdoor-uwb static), :mod:`.tidy` (your own data in a
 generic tidy CSV), :mod:`.chirps` (ultrasonic chirp logs as tidy CSV).
 """
@@ -22,9 +22,9 @@ from .manifest import DatasetInfo, load_datasets_info, load_manifest, verify
 
 # ``fetch`` stays a sub-module (``uw.datasets.fetch.fetch(name)``), not shadowed by the function.
 __all__ += ["DatasetInfo", "load_datasets_info", "load_manifest", "overview", "verify"]
-from .registry import Opened, Source, names, open, open_or_standin, open_pair, register  # noqa: A004
+from .registry import Source, names, open, open_pair, register  # noqa: A004
 
-__all__ += ["Opened", "Source", "names", "open", "open_or_standin", "open_pair", "register"]
+__all__ += ["Source", "names", "open", "open_pair", "register"]
 __all__ += ["RoomData", "load_lias_room"]
 
 _LAZY = {"RoomData": "standin", "load_lias_room": "standin"}

@@ -67,7 +67,7 @@ from ..errors import DataFormatError, DataNotFoundError
 from ..types import CleaningStep, _natural_key
 from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 from .discovery import find_dataset
-from .text import _decode_lines, _numbers, _read_bytes
+from .text import NUMBER_RE, _decode_lines, _numbers, _read_bytes
 
 NAME = "hanyang-outdoor-uwb"
 STATIC_DIR = "Static_measurements"
@@ -269,7 +269,7 @@ def _summary_value(path: PathLike, text: str, line: int) -> float | None:
         value = float(text)
     except ValueError:
         value = float("nan")
-    if np.isnan(value) or not re.fullmatch(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|-inf|inf", text):
+    if np.isnan(value) or not re.fullmatch(rf"{NUMBER_RE}|-inf|inf", text):
         raise DataFormatError(path, f"summary value is not a number: {text!r}", line=line)
     return value
 

@@ -109,7 +109,7 @@ from .text import _decode_lines, _numbers, _read_bytes, _split_rows
 
 __all__ = ["ANCHOR_COLUMNS", "AUTHORS_FILES", "AnchorFile", "DYNAMIC_DIR", "ESTIMATE_COLUMNS", "MAX_OFFSET_S",
            "TRAJECTORY_COLUMNS", "TRIM", "authors_estimates", "case_dir", "dynamic_cases", "group_epochs",
-           "load_dynamic_case", "read_anchor_file", "read_estimates", "read_trajectory", "registration_of"]
+           "load_dynamic_case", "read_anchor_file", "read_estimates", "read_trajectory"]
 
 DYNAMIC_DIR = "Dynamic_measurements"
 ANCHOR_COLUMNS = ("%time", "field.stamp", "field.id", "field.x", "field.y", "field.z", "field.distanceFromTag",
@@ -558,8 +558,3 @@ def _check_registration(reg: Registration, path: Path) -> None:
     if problems:
         raise DataFormatError(path, "the reference does not fit the ranges — " + "; ".join(problems) + " — check its "
                               "units (metres), axes and time stamps")
-
-
-def registration_of(rec: Recording) -> Registration | None:
-    """The reference registration of a loaded case (None if loaded unregistered)."""
-    return rec.meta.get("registration")

@@ -19,7 +19,7 @@ from ..errors import DataFormatError
 from ..types import CleaningStep, ImuLog, RangeLog, Trajectory
 from .cleaning import MAX_RANGE_M, check_ranges, order_rows
 from .imu_checks import ImuChecks, check_imu_samples, check_second_counts
-from .text import _decode_lines, _numbers, _read_bytes, _split_rows
+from .text import NUMBER_RE, _decode_lines, _numbers, _read_bytes, _split_rows
 
 PathLike = str | os.PathLike
 
@@ -28,7 +28,6 @@ UWB_COLUMNS = ("Local Time", "System Time", "Position X", "Position Y", "Positio
 IMU_COLUMNS = ("Time", "Linear acceleration X", "Linear acceleration Y", "Linear acceleration Z",
                "Angular velocity X", "Angular velocity Y", "Angular velocity Z")
 GT_COLUMNS = ("Time", "Position X", "Position Y", "Position Z") + tuple(f"Rotation[{k}]" for k in range(9))
-_NUMBER = re.compile(r"\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*")
 
 
 def _norm(name: str) -> str:
@@ -65,7 +64,7 @@ def _read_tab(path: PathLike, what: str, columns: Callable[[int], tuple[str, ...
     if names is None:
         raise DataFormatError(path, f"{len(first_fields)} tab-separated fields; {what} columns are: {expected}",
                               line=first_line)
-    if not _NUMBER.fullmatch(first_fields[0]):  # a header row
+    if not re.fullmatch(NUMBER_RE, first_fields[0]):  # a header row
         if tuple(_norm(f) for f in first_fields) != tuple(_norm(n) for n in names):
             raise DataFormatError(path, f"header {first!r} does not name the {what} columns: {expected}",
                                   line=first_line)

@@ -17,8 +17,8 @@ import pandas as pd
 
 from ..errors import DataFormatError
 from ..types import CleaningStep
-from .cleaning import MAX_RANGE_M, check_ranges, order_rows
-from .text import _read_bytes
+from .cleaning import MAX_RANGE_M, check_ranges, lines_text, order_rows
+from .text import NUMBER_RE, _decode_lines, _read_bytes
 
 __all__ = ["read_mocap_csv", "read_uwb_csv"]
 
@@ -27,7 +27,6 @@ _N_TAGS = 3
 _STAMP_RE = r"\d{4}-\d{1,2}-\d{1,2} \d{1,2}:\d{2}:\d{2}(?:\.\d{1,6})?"
 _STAMP_FORMAT = "%Y-%m-%d %H:%M:%S.%f"
 _MOCAP_HEADER = "time,x,y,z,rotation,,,"
-_NUMBER_RE = r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*"
 _PLAIN_TEXT = re.compile(r"[0-9.,:\-+eE \n]*")
 
 
@@ -40,13 +39,7 @@ def _read_lines(path: Path) -> list[str]:
     raw = _read_bytes(path)
     if not raw.strip():
         raise DataFormatError(path, "file is empty (expected CSV rows)", line=1)
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = raw[: exc.start].count(b"\n") + 1
-        raise DataFormatError(path, f"bytes that are not UTF-8 text ({exc.reason})", line=line) from None
-    lines = text.split("\n")
-    lines = [ln[:-1] if ln.endswith("\r") else ln for ln in lines]
+    lines = _decode_lines(path, raw)
     while lines and not lines[-1].strip():
         lines.pop()
     for i, ln in enumerate(lines):
@@ -87,7 +80,7 @@ def _read_table(path: Path, lines: list[str], first_line: int, width: int, col_n
     fields = cells[:, 1:]
     filled = fields != ""
     tokens = pd.Series(fields[filled], dtype=object)
-    ok = tokens.str.fullmatch(_NUMBER_RE).to_numpy(bool)
+    ok = tokens.str.fullmatch(NUMBER_RE).to_numpy(bool)
     if not ok.all():
         i, j = (int(k[np.flatnonzero(~ok)[0]]) for k in np.nonzero(filled))
         raise DataFormatError(path, f"{fields[i, j]!r} is not a number", line=first_line + i,
@@ -128,12 +121,6 @@ def _column_label(names, j: int, offset: int) -> str:
 
 def _pair_labels(n_anchors: int, n_tags: int) -> list[str]:
     return [f"a{a}-t{t}" for a in range(n_anchors) for t in range(n_tags)]
-
-
-def _ordinal_lines(mask: np.ndarray, first_line: int, limit: int = 5) -> str:
-    idx = np.flatnonzero(mask)[:limit] + first_line
-    more = ", ..." if mask.sum() > limit else ""
-    return ", ".join(str(int(i)) for i in idx) + more
 
 
 # ----------------------------------------------------------------------------- UWB files
@@ -218,7 +205,7 @@ def read_uwb_csv(path: str | os.PathLike, *, n_anchors: int = _N_ANCHORS, n_tags
             "incomplete UWB rows", int((~complete).sum()),
             f"rows with fewer than {n_pairs} ranges: the logger leaves out anchors that did not "
             f"answer and shifts the rest left, so the values cannot be assigned to anchors; "
-            f"dropped (lines {_ordinal_lines(~complete, 1)})"))
+            f"dropped (lines {lines_text(np.flatnonzero(~complete) + 1)})"))
     extra = complete & (n_val > n_pairs)
     if extra.sum() > 0.5 * complete.sum():
         i = int(np.flatnonzero(extra)[0])
@@ -230,7 +217,7 @@ def read_uwb_csv(path: str | os.PathLike, *, n_anchors: int = _N_ANCHORS, n_tags
             "extra range slots ignored", int(extra.sum()),
             f"rows with values in the slots after the {n_pairs} ranges (anchors not in the "
             f"tables); the {n_pairs} ranges kept, the extra values ignored "
-            f"(lines {_ordinal_lines(extra, 1)})"))
+            f"(lines {lines_text(np.flatnonzero(extra) + 1)})"))
     keep = np.flatnonzero(complete)
     if keep.size == 0:
         raise DataFormatError(path, f"no row holds all {n_pairs} ranges", line=1)
@@ -302,7 +289,7 @@ def read_mocap_csv(path: str | os.PathLike, *, return_cleaning: bool = False):
     if dropout.any():
         cleaning.append(CleaningStep("motion-capture dropouts", int(dropout.sum()),
                                      "rows of all zeros (tracking lost); dropped "
-                                     f"(lines {_ordinal_lines(dropout, 2)})"))
+                                     f"(lines {lines_text(np.flatnonzero(dropout) + 2)})"))
     far = ~dropout[:, None] & (np.abs(values[:, :3]) > 1e3)
     if far.any():
         i, j = (int(k[0]) for k in np.nonzero(far))

@@ -17,8 +17,7 @@ import pandas as pd
 
 from ..errors import DataFormatError, DataNotFoundError
 from ..types import Anchors
-from .lias_files import _NUMBER_RE
-from .text import _read_bytes
+from .text import NUMBER_RE, _read_bytes
 
 __all__ = ["LiasTables", "read_tables"]
 
@@ -116,7 +115,7 @@ def _sections(readme: Path, lines: list[str]) -> dict[str, tuple[int, int]]:
 def _numbers(readme: Path, line: int, cells: list[str], names: list[str]) -> list[float]:
     out = []
     for c, name in zip(cells, names):
-        v = float(c) if re.fullmatch(_NUMBER_RE, c) else np.nan
+        v = float(c) if re.fullmatch(NUMBER_RE, c) else np.nan
         if not np.isfinite(v):
             raise DataFormatError(readme, f"{c!r} is not a number", line=line, column=name)
         out.append(v)

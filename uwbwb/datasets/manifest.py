@@ -25,9 +25,7 @@ sub-folder per dataset; never edit the CSV by hand)::
 With ``--dataset`` only those datasets are rescanned; the rows of the others
 are kept from the existing output file.
 
-Check a local copy against the manifest::
-
-    python -m uwbwb.datasets.manifest verify NAME [ROOT]
+A local copy is checked against the manifest by ``python -m uwbwb datasets`` (:func:`verify`).
 """
 
 from __future__ import annotations
@@ -320,34 +318,24 @@ def build(src_dir: str | os.PathLike, out: str | os.PathLike | None = None,
 
 def _main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m uwbwb.datasets.manifest",
-                                     description="Build or check the dataset manifest.")
+                                     description="Build the dataset manifest (python -m uwbwb datasets "
+                                                 "checks a copy against it).")
     sub = parser.add_subparsers(dest="command", required=True)
     p_build = sub.add_parser("build", help="regenerate the manifest from SRC_DIR/<dataset>/ folders")
     p_build.add_argument("src_dir", metavar="SRC_DIR")
     p_build.add_argument("--out", default=None, help=f"output CSV (default {MANIFEST_PATH})")
     p_build.add_argument("--dataset", action="append", default=None, metavar="NAME",
                          help="rescan only this dataset (repeatable); other rows are kept")
-    p_verify = sub.add_parser("verify", help="check a local copy against the manifest")
-    p_verify.add_argument("name", metavar="NAME")
-    p_verify.add_argument("root", metavar="ROOT", nargs="?", default=None,
-                          help="dataset root (default: found through the data discovery order)")
     args = parser.parse_args(argv)
     try:
-        if args.command == "build":
-            df = build(args.src_dir, args.out, args.dataset)
-            counts = df.groupby("dataset", sort=False).agg(files=("path", "size"), bytes=("size_bytes", "sum"))
-            print(counts.to_string())
-            print(f"wrote {Path(args.out or MANIFEST_PATH)}")
-            return 0
-        report = verify(args.name, args.root)
+        df = build(args.src_dir, args.out, args.dataset)
     except (ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    bad = report[report["status"] != "ok"]
-    print(report["status"].value_counts(sort=False).to_string())
-    if not bad.empty:
-        print(bad.to_string(index=False))
-    return 0 if bad.empty else 1
+    counts = df.groupby("dataset", sort=False).agg(files=("path", "size"), bytes=("size_bytes", "sum"))
+    print(counts.to_string())
+    print(f"wrote {Path(args.out or MANIFEST_PATH)}")
+    return 0
 
 
 if __name__ == "__main__":

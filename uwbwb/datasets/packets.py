@@ -48,7 +48,7 @@ import pandas as pd
 from ..errors import DataFormatError
 from ..types import Anchors, CleaningStep, RangeLog, Recording, Trajectory, _natural_key
 from .cleaning import MAX_RANGE_M, check_ranges, order_rows
-from .text import _decode_lines, _read_bytes
+from .text import NUMBER_RE, _decode_lines, _read_bytes
 
 __all__ = ["HEADER", "PacketLog", "load_recording", "read_packets", "write_packets"]
 
@@ -58,7 +58,6 @@ _STATUSES = ("OK", "ERR")
 _MAX_MS = 2 ** 62  # keeps time stamps and their differences inside int64
 _INT_RE = re.compile(r"[0-9]+")
 _ID_RE = re.compile(r"\S+")
-_FLOAT_RE = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
 
 
 @dataclass(frozen=True)
@@ -98,13 +97,6 @@ class PacketLog:
     @property
     def anchor_ids(self) -> tuple[str, ...]:
         return self.ranges.anchor_ids
-
-    def report(self) -> str:
-        """One line per cleaning step (or a note that nothing was cleaned)."""
-        name = self.path.name if self.path is not None else "packets"
-        if not self.cleaning:
-            return f"{name}: {self.n_packets} packets, nothing cleaned"
-        return "\n".join(f"{name}: {s}" for s in self.cleaning)
 
 
 def _split(line: str) -> list[str]:
@@ -182,7 +174,7 @@ def read_packets(path: str | os.PathLike, *, anchor_ids=None, tag_id: str | None
                                   line=i, column="anchor ID")
         if status not in _STATUSES:
             raise DataFormatError(path, f"status {status!r} is neither 'OK' nor 'ERR'", line=i, column="status")
-        if not _FLOAT_RE.fullmatch(rng_txt):
+        if not re.fullmatch(NUMBER_RE, rng_txt):
             raise DataFormatError(path, f"ranging {rng_txt!r} is not a number (metres)", line=i, column="ranging")
         stamps.append(int(ts))
         ids.append(aid)

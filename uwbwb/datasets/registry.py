@@ -11,10 +11,6 @@ A recording is named ``"<dataset>/<name>"``, e.g. ``"iasl-uwb-imu/scenario2"``,
   Nothing is ever replaced by synthetic data here.
 * :func:`open_pair` loads a calibration and a test recording and refuses to calibrate on
   the recording it scores.
-* :func:`open_or_standin` is the one place where a stand-in may be used, and only when the
-  caller passes one (a function building it) *and* the dataset is absent; the result says
-  which data it is and why (:class:`Opened`). A wrong name in a present dataset is still an
-  error.
 
 Registering a loader
 --------------------
@@ -27,23 +23,20 @@ formats; any other code may register more)::
 :mod:`uwbwb.datasets.discovery`, raising :class:`~uwbwb.errors.DataNotFoundError` when the
 dataset is absent); ``load(name, data_dir, **options)`` loads one. Several sources may
 serve one dataset (its static and dynamic parts); a name belongs to the source that lists
-it. The built-in sources are resolved lazily by module path, so a loader module that is
-not installed is simply not offered (:func:`sources` says which are).
+it. The built-in loader modules are imported on first use.
 """
 
 from __future__ import annotations
 
-import importlib
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
 from ..errors import DataNotFoundError
-from .discovery import dataset_available, find_dataset
+from .discovery import find_dataset
 
-__all__ = ["Opened", "Source", "datasets", "names", "open", "open_or_standin", "open_pair", "register",
-           "sources", "split_name"]
+__all__ = ["Source", "datasets", "names", "open", "open_pair", "register", "sources", "split_name"]
 
 PathLike = str | os.PathLike
 
@@ -76,29 +69,6 @@ class Source:
             raise ValueError(f"Source {self.dataset!r}: names and load must be callables")
 
 
-@dataclass(frozen=True)
-class _Lazy:
-    """A function named by module path, imported on first call (``None`` when the module is absent)."""
-
-    module: str
-    function: str
-
-    def resolve(self):
-        try:
-            mod = importlib.import_module(self.module)
-        except ModuleNotFoundError as exc:
-            if exc.name == self.module:
-                return None
-            raise
-        return getattr(mod, self.function, None)
-
-    def __call__(self, *args, **kwargs):
-        fn = self.resolve()
-        if fn is None:
-            raise DataNotFoundError(f"the loader {self.module}.{self.function} is not installed")
-        return fn(*args, **kwargs)
-
-
 _SOURCES: list[Source] = []
 
 
@@ -111,9 +81,8 @@ def register(source: Source) -> Source:
 
 
 def sources() -> list[Source]:
-    """The registered sources whose loader is installed."""
-    return [s for s in _SOURCES
-            if not isinstance(s.names, _Lazy) or (s.names.resolve() is not None and s.load.resolve() is not None)]
+    """The registered sources."""
+    return list(_SOURCES)
 
 
 def datasets() -> list[str]:
@@ -229,79 +198,6 @@ def open_pair(calibration: PathLike, test: PathLike, data_dir: PathLike | None =
     return cal, tst
 
 
-@dataclass(frozen=True)
-class Opened:
-    """What :func:`open_or_standin` found: the data, whether it is a stand-in, and why.
-
-    Attributes
-    ----------
-    spec
-        The name that was asked for.
-    data
-        The recording (real or stand-in), or None when the dataset is absent and no
-        stand-in was asked for.
-    synthetic
-        True when the stand-in is used.
-    reason
-        Why: where the real data was found, or why it was not.
-    """
-
-    spec: str
-    data: Any
-    synthetic: bool
-    reason: str
-    details: dict = field(default_factory=dict)
-
-    @property
-    def real(self) -> bool:
-        """Whether the real recording was loaded."""
-        return self.data is not None and not self.synthetic
-
-    @property
-    def available(self) -> bool:
-        """Whether there is anything to run on."""
-        return self.data is not None
-
-    @property
-    def data_label(self) -> str:
-        """The ``data`` field of summary rows: ``synthetic`` or ``dataset/name``."""
-        if self.data is None:
-            raise ValueError(f"{self.spec}: no data was loaded ({self.reason})")
-        return "synthetic" if self.synthetic else self.spec
-
-
-def open_or_standin(spec: str, data_dir: PathLike | None = None, *, stand_in: Callable[[], Any] | None = None,
-                    **options) -> Opened:
-    """The recording ``spec`` if its dataset is here, else the caller's stand-in (if any), and why.
-
-    Parameters
-    ----------
-    spec
-        ``"dataset/name"`` (see :func:`open`).
-    data_dir
-        Folder holding dataset folders (None: the package's search order).
-    stand_in
-        ``stand_in() -> data``, called only when the *dataset* is absent. None: no data
-        (``Opened.available`` False).
-    options
-        Passed to the loader.
-
-    Raises
-    ------
-    DataNotFoundError
-        The dataset is present but holds no recording ``spec`` (never replaced by a stand-in).
-    """
-    dataset, _ = split_name(spec)
-    _sources_of(dataset)
-    if dataset_available(dataset, data_dir):
-        data = open(spec, data_dir, **options)
-        return Opened(str(spec), data, False, f"found in {find_dataset(dataset, data_dir)}")
-    reason = f"{dataset} was not found in the data folders"
-    if stand_in is None:
-        return Opened(str(spec), None, False, reason)
-    return Opened(str(spec), stand_in(), True, reason)
-
-
 # ---------------------------------------------------------------------------------- built-in sources
 
 def _lias_names(data_dir):
@@ -355,6 +251,17 @@ register(Source("lias-planar-uwb", _lias_names, _lias_load,
 register(Source("iasl-uwb-imu", _iasl_names, _iasl_load, "a scenario folder (scenario1, scenario2, ...)"))
 register(Source("hanyang-outdoor-uwb", _hanyang_static_names, _hanyang_static_load,
                 "the static sample table: static, static/LOS or static/NLOS"))
-register(Source("hanyang-outdoor-uwb", _Lazy("uwbwb.datasets.hanyang_dynamic", "dynamic_cases"),
-                _Lazy("uwbwb.datasets.hanyang_dynamic", "load_dynamic_case"),
+def _hanyang_dynamic_names(data_dir):
+    from . import hanyang_dynamic
+
+    return hanyang_dynamic.dynamic_cases(data_dir)
+
+
+def _hanyang_dynamic_load(name, data_dir, **options):
+    from . import hanyang_dynamic
+
+    return hanyang_dynamic.load_dynamic_case(name, data_dir, **options)
+
+
+register(Source("hanyang-outdoor-uwb", _hanyang_dynamic_names, _hanyang_dynamic_load,
                 "a dynamic case CONDITION/Trajectory_X/Case_N"))

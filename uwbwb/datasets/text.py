@@ -23,6 +23,8 @@ PathLike = str | os.PathLike
 #: Environment variable naming a file to which every data file a loader reads is appended (one absolute path a
 #: line): how ``reproduce`` learns which files an executed notebook depends on (:mod:`uwbwb.reproduce.cache`).
 READ_LOG_ENV = "UWBWB_READ_LOG"
+#: A decimal number as the text formats write one (optional sign and exponent; no ``nan`` or ``inf``), spaces around.
+NUMBER_RE = r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*"
 
 
 def _read_bytes(path: PathLike) -> bytes:

@@ -315,8 +315,29 @@ def read_anchors_csv(path: PathLike) -> Anchors:
     return Anchors(tuple(ids), pos)
 
 
-def _read_ranges(path: PathLike, anchors: Anchors | None, max_range_m: float = MAX_RANGE_M
-                 ) -> tuple[dict[str, RangeLog], tuple[CleaningStep, ...]]:
+def read_ranges_csv(path: PathLike, anchors: Anchors | None = None, *, with_cleaning: bool = False,
+                    max_range_m: float = MAX_RANGE_M):
+    """Range logs, one per tag, from a ranges file.
+
+    Parameters
+    ----------
+    path
+        The ranges CSV (see the module docstring for the format).
+    anchors
+        If given, every ``anchor_id`` must be one of them and each log's columns
+        follow ``anchors.ids``; otherwise the columns are the identifiers found
+        in the file, in natural order (``A2`` before ``A10``).
+    with_cleaning
+        Also return the cleaning steps (``ERR`` rows, ranges above ``max_range_m``).
+    max_range_m
+        Ranges above this become NaN (counted).
+
+    Returns
+    -------
+    dict[str, RangeLog] or (dict[str, RangeLog], tuple[CleaningStep, ...])
+        Keyed by tag id in order of first appearance. ``range_m`` has shape
+        ``(T, n_anchors)`` with NaN where a tag–anchor pair has no range.
+    """
     table = _typed_table(path, RANGES_HEADERS, "ranges", ("t_s", "range_m"), empty_ok=("range_m",))
     header, line_no = table.header, table.line_no
     t_s, range_m = table.floats["t_s"], table.floats["range_m"]
@@ -369,34 +390,7 @@ def _read_ranges(path: PathLike, anchors: Anchors | None, max_range_m: float = M
     if err.any():
         cleaning.insert(0, CleaningStep("ERR status rows", int(err.sum()),
                                         f"{Path(path).name}: ranges marked ERR are missing (NaN)"))
-    return logs, tuple(cleaning)
-
-
-def read_ranges_csv(path: PathLike, anchors: Anchors | None = None, *, with_cleaning: bool = False,
-                    max_range_m: float = MAX_RANGE_M):
-    """Range logs, one per tag, from a ranges file.
-
-    Parameters
-    ----------
-    path
-        The ranges CSV (see the module docstring for the format).
-    anchors
-        If given, every ``anchor_id`` must be one of them and each log's columns
-        follow ``anchors.ids``; otherwise the columns are the identifiers found
-        in the file, in natural order (``A2`` before ``A10``).
-    with_cleaning
-        Also return the cleaning steps (``ERR`` rows, ranges above ``max_range_m``).
-    max_range_m
-        Ranges above this become NaN (counted).
-
-    Returns
-    -------
-    dict[str, RangeLog] or (dict[str, RangeLog], tuple[CleaningStep, ...])
-        Keyed by tag id in order of first appearance. ``range_m`` has shape
-        ``(T, n_anchors)`` with NaN where a tag–anchor pair has no range.
-    """
-    logs, cleaning = _read_ranges(path, anchors, max_range_m)
-    return (logs, cleaning) if with_cleaning else logs
+    return (logs, tuple(cleaning)) if with_cleaning else logs
 
 
 def read_truth_csv(path: PathLike) -> dict[str, Trajectory]:
@@ -462,7 +456,7 @@ def load_recording(ranges_csv: PathLike, anchors_csv: PathLike, truth_csv: PathL
         module docstring).
     """
     anchors = read_anchors_csv(anchors_csv)
-    ranges, cleaning = _read_ranges(ranges_csv, anchors, max_range_m)
+    ranges, cleaning = read_ranges_csv(ranges_csv, anchors, with_cleaning=True, max_range_m=max_range_m)
     truth: dict[str, Trajectory] = {}
     if truth_csv is not None:
         truth = read_truth_csv(truth_csv)

@@ -32,6 +32,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..datasets.registration import residual_spread
 from ..models.imu import RATE_SCALE_DEG_LIMIT
 from ..types import CleaningStep, RangeLog, Recording, Trajectory
 
@@ -318,58 +319,47 @@ MIN_REPORTED_SHIFT_M = 0.3
 REPORT_GAIN = 0.5
 
 
-def _search_shift(r: np.ndarray, pos: np.ndarray, a: np.ndarray,
+def _cost(t: np.ndarray, r: np.ndarray, pos: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """Median over anchors of the per-anchor median ``|r − ‖p − a‖|`` for each candidate truth ``pos`` (``(K, 3)``
+    or ``(K, S, 3)`` on the epochs ``t``): the registration's statistic without its bias removal, ``(S,)``."""
+    pts = pos if pos.ndim == 3 else pos[:, None, :]
+    if t.size < 2:
+        return np.full(pts.shape[1], np.inf)
+    meas = np.broadcast_to(r[:, :, None], (*r.shape, pts.shape[1]))
+    return residual_spread(t, meas, a, t, pts, [0.0], 0.0, statistic="median_abs")[0]
+
+
+def _search_shift(t: np.ndarray, r: np.ndarray, pos: np.ndarray, a: np.ndarray,
                   stages: Sequence[tuple[float, float]]) -> tuple[tuple[float, float], float]:
     """The horizontal truth translation minimising the median range residual, coarse to fine: each stage
     ``(half, step)`` searches ±``half`` in steps of ``step`` around the previous stage's best."""
     centre, cost = (0.0, 0.0), float("inf")
     for half, step in stages:
         grid = np.arange(-half, half + 1e-9, step)
-        c = {(float(centre[0] + dx), float(centre[1] + dy)): _cost(r, _predicted(pos + [centre[0] + dx, centre[1] + dy,
-                                                                                       0.0], a))
-             for dx in grid for dy in grid}
-        centre = min(c, key=c.get)
-        cost = c[centre]
+        c = np.array([_cost(t, r, pos[:, None, :] + np.column_stack([np.full(grid.size, centre[0] + dx),
+                                                                      centre[1] + grid, np.zeros(grid.size)]), a)
+                      for dx in grid])                                   # (dx, dy)
+        i, j = np.unravel_index(int(np.argmin(c)), c.shape)
+        centre, cost = (float(centre[0] + grid[i]), float(centre[1] + grid[j])), float(c[i, j])
     return centre, cost
-
-
-def _shift(log: RangeLog, tr: Trajectory, a: np.ndarray, idx: np.ndarray) -> tuple[tuple[float, float], float]:
-    """The horizontal truth translation (±1 m; 20, 4, then 1 cm grids) minimising the median range residual
-    (on at most 400 of the epochs)."""
-    idx = idx[:: max(1, idx.size // 400)]
-    return _search_shift(log.range_m[idx], tr.interp(log.t_s[idx]), a, ((1.0, 0.2), (0.2, 0.04), (0.04, 0.01)))
 
 
 #: Largest horizontal truth translation a diagnosis tries, metres (a reference frame whose origin is elsewhere).
 MAX_DIAGNOSED_SHIFT_M = 5.0
 
 
-def _cost(r: np.ndarray, pred: np.ndarray) -> float:
-    per = np.nanmedian(np.abs(r - pred), axis=0)
-    return float(np.nanmedian(per)) if np.isfinite(per).any() else float("inf")
-
-
-def _offset(log: RangeLog, tr: Trajectory, a: np.ndarray, idx: np.ndarray, max_offset_s: float) -> tuple[float, float]:
-    """The truth clock offset minimising the residual: 0.1 s grid, then 5 ms around the best."""
-    r = log.range_m[idx]
-    t = log.t_s[idx]
-
-    def cost(tau):
-        ok = (t + tau >= tr.t_s[0]) & (t + tau <= tr.t_s[-1])
-        if ok.sum() < max(10, 0.2 * t.size):
-            return np.inf
-        return _cost(r[ok], _predicted(tr.interp(t[ok] + tau), a))
-
-    n = int(np.floor(max_offset_s / 0.1 + 1e-9))
-    coarse = np.arange(-n, n + 1) * 0.1                 # multiples of 0.1 s, 0 among them
-    c = np.array([cost(x) for x in coarse])
-    if not np.isfinite(c).any():
-        return 0.0, float("inf")
-    best = coarse[int(np.argmin(c))]
-    fine = best + np.arange(-20, 21) * 0.005
-    f = np.array([cost(x) for x in fine])
-    k = int(np.argmin(f))
-    return float(fine[k]), float(f[k])
+def _offset(t: np.ndarray, r: np.ndarray, tr: Trajectory, a: np.ndarray, max_offset_s: float) -> tuple[float, float]:
+    """The truth clock offset minimising the median range residual (the registration's
+    :func:`~uwbwb.datasets.registration.residual_spread`, statistic ``median_abs``): 0.1 s grid, then 5 ms around the
+    best; an offset at which the truth covers fewer than 20 % (or 10) of the epochs does not count."""
+    n, best, c = int(np.floor(max_offset_s / 0.1 + 1e-9)), 0.0, np.full(1, np.inf)
+    for grid in (np.arange(-n, n + 1) * 0.1, np.arange(-20, 21) * 0.005) if len(tr) > 1 else ():
+        c = residual_spread(t, r[:, :, None], a, tr.t_s, tr.pos_m[:, None, :], best + grid, max(0.2, 10 / t.size),
+                            statistic="median_abs")[:, 0]
+        if not np.isfinite(c).any():
+            return 0.0, float("inf")
+        best = float(best + grid[int(np.argmin(c))])
+    return best, float(np.min(c))
 
 
 #: Slowest truth speed at which the track's course is read as the platform's heading, m/s.
@@ -452,8 +442,13 @@ def check_ranges_against_truth(rec: Recording, tag: str, *, max_residual_m: floa
     else:
         per, base = np.full(len(a), np.nan), float("inf")
     all_idx = np.arange(len(log))[:: max(1, len(log) // 1500)]
-    off, at_off = _offset(log, tr, a, all_idx, max_offset_s)
-    shift, at_shift = _shift(log, tr, a, idx) if ok_offset else ((0.0, 0.0), np.nan)
+    off, at_off = _offset(log.t_s[all_idx], log.range_m[all_idx], tr, a, max_offset_s)
+    if ok_offset:   # ±1 m on 20, 4, then 1 cm grids, on at most 400 of the epochs
+        few = idx[:: max(1, idx.size // 400)]
+        shift, at_shift = _search_shift(log.t_s[few], log.range_m[few], tr.interp(log.t_s[few]), a,
+                                        ((1.0, 0.2), (0.2, 0.04), (0.04, 0.01)))
+    else:
+        shift, at_shift = (0.0, 0.0), np.nan
     check = RangeCheck(tag, base, dict(zip(rec.anchors.ids, per.tolist())), off, at_off, int(idx.size),
                        (-shift[0] + 0.0, -shift[1] + 0.0), at_shift)
     if base <= max_residual_m and not np.any(per > max_residual_m):
@@ -462,30 +457,32 @@ def check_ranges_against_truth(rec: Recording, tag: str, *, max_residual_m: floa
         raise ValueError(f"{where}: the truth of tag {tag!r} ({tr.t_s[0]:.2f}–{tr.t_s[-1]:.2f} s) does not overlap "
                          f"its ranges ({log.t_s[0]:.2f}–{log.t_s[-1]:.2f} s), even {max_offset_s:g} s apart")
     # which single defect explains the residuals?
-    r = log.range_m[idx]
-    pos = tr.interp(log.t_s[idx])
+    t, r = log.t_s[idx], log.range_m[idx]
+    pos = tr.interp(t)
     trials = {
-        "the ranges look like millimetres (range_m must be metres)": (r / 1000.0, _predicted(pos, a)),
-        "the ranges look like centimetres (range_m must be metres)": (r / 100.0, _predicted(pos, a)),
-        "the anchor positions look like millimetres (x_m, y_m, z_m must be metres)": (r, _predicted(pos, a / 1000.0)),
-        "the truth positions look like millimetres (x_m, y_m, z_m must be metres)": (r, _predicted(pos / 1000.0, a)),
-        "x and y of the truth look swapped relative to the anchors": (r, _predicted(pos[:, [1, 0, 2]], a)),
-        "x and y of the anchors look swapped relative to the truth": (r, _predicted(pos, a[:, [1, 0, 2]])),
+        "the ranges look like millimetres (range_m must be metres)": (r / 1000.0, pos, a),
+        "the ranges look like centimetres (range_m must be metres)": (r / 100.0, pos, a),
+        "the anchor positions look like millimetres (x_m, y_m, z_m must be metres)": (r, pos, a / 1000.0),
+        "the truth positions look like millimetres (x_m, y_m, z_m must be metres)": (r, pos / 1000.0, a),
+        "x and y of the truth look swapped relative to the anchors": (r, pos[:, [1, 0, 2]], a),
+        "x and y of the anchors look swapped relative to the truth": (r, pos, a[:, [1, 0, 2]]),
     }
-    costs = {k: _cost(*v) for k, v in trials.items()} if base > max_residual_m else {}
+    costs = {k: float(_cost(t, *v)[0]) for k, v in trials.items()} if base > max_residual_m else {}
     # defects of the truth's frame: they move every anchor's residual, so they are tried before blaming anchors.csv
     for axis, name in ((1, "y"), (0, "x")):
         flip = np.ones(3)
         flip[axis] = -1.0
         costs[f"the {name} axis of the truth looks mirrored relative to the anchors' ({name} → −{name}): truth and "
-              "anchors must share one frame"] = _cost(r, _predicted(pos * flip, a))
+              "anchors must share one frame"] = float(_cost(t, r, pos * flip, a)[0])
     # a reference frame whose origin is elsewhere: ±MAX_DIAGNOSED_SHIFT_M on 50, 10, then 2 cm grids
-    (dx, dy), at = _search_shift(r, pos, a, ((MAX_DIAGNOSED_SHIFT_M, 0.5), (0.5, 0.1), (0.1, 0.02)))
+    (dx, dy), at = _search_shift(t, r, pos, a, ((MAX_DIAGNOSED_SHIFT_M, 0.5), (0.5, 0.1), (0.1, 0.02)))
     costs[f"the truth looks shifted by ({-dx + 0.0:+.2f}, {-dy + 0.0:+.2f}) m from the anchors' frame (another origin?): truth "
           "and anchors must share one frame"] = at
     costs[f"the truth clock is offset: truth time = range time {off:+.2f} s (shift the truth, e.g. "
           f"--truth-offset-s {off:.2f})"] = at_off
-    best = min(costs, key=costs.get)
+    # defects the ranges cannot tell apart (x/y swapped in the truth or in the anchors: the same distances) tie up to
+    # rounding; within a nanometre the first tried is named
+    best = min(costs, key=lambda k: round(costs[k], 9))
     head = (f"{where}: measured ranges of tag {tag!r} do not fit the ranges predicted from the anchors and the "
             f"truth (median |residual| {base:.2f} m over {idx.size} epochs, worst anchor {np.nanmax(per):.2f} m; "
             f"at most {max_residual_m:g} m expected)")
