@@ -108,7 +108,7 @@ def times(entries: list[Entry]) -> dict[str, dict[str, str]]:
     """``{notebook: {mode: "1 min 5 s" or "not measured"}}``, as the table of times shows them."""
     out: dict[str, dict[str, str]] = {}
     for e in entries:
-        out.setdefault(e.notebook, {m: NOT_MEASURED for m in MODES})[e.mode] = format_time(e.seconds)
+        out.setdefault(e.notebook, {m: NOT_MEASURED for m in MODES})[e.mode] = format_time(round(e.seconds, 1))  # as written
     return out
 
 

@@ -131,6 +131,8 @@ def test_time_format_and_a_partial_run_keeps_the_other_rows():
     assert sorted(merged, key=lambda e: e.mode) == [new, b]
     assert rt.parse(rt.render(merged)) == sorted(merged, key=lambda e: rt.MODES.index(e.mode))
     assert rt.times(merged) == {"00_x": {"class": "20 s", "fast": "not measured", "full": "15 min"}}
+    odd = rt.Entry("00_x", "fast", 46.52, "2026-01-02 00:00", "cpu, 2 cores", "1.00, 1.00, 1.00", "`x`")
+    assert rt.times(rt.parse(rt.render([odd]))) == rt.times([odd])     # the grid is what the written row gives
 
 
 # ------------------------------------------------------------------ the quotes
