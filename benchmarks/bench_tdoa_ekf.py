@@ -21,7 +21,6 @@ Run:  python benchmarks/bench_tdoa_ekf.py [--repeat N] [--duration S]
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 
@@ -32,15 +31,7 @@ from uwbwb.filters.kalman import Gaussian
 from uwbwb.models import motion
 from uwbwb.models.tdoa import TdoaModel
 
-
-def _best(fn, repeat: int):
-    """Best wall and CPU time of ``repeat`` calls (CPU time is less sensitive to a loaded machine), and the result."""
-    best, cpu, out = np.inf, np.inf, None
-    for _ in range(repeat):
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        best, cpu = min(best, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
-    return best, cpu, out
+from bench_eskf import _time as _best     # best wall and CPU time of N calls: one timer for the benchmarks (run from benchmarks/)
 
 
 def main() -> None:
