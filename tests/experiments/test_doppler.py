@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from uwbwb import sampling as smp
-from uwbwb.experiments.doppler import facts, figures, ghosts, headlines, scoring, study
+from uwbwb.experiments.doppler import facts, figures, ghosts, headlines, study
 from uwbwb.models import doppler as dm
 from tests.test_teaching import assert_reads_predictions
 
@@ -133,6 +133,8 @@ def _results(**change) -> dict:
                             "PF in track": in_track, "MH-EKF in track": kf_in_track[k], "PF restarts": restarted,
                             "PF runs restarted": restarted, "MH-EKF restarts": 0, "PF tempered updates": 0.01}
                            for k in range(5) for v in ("Doppler", "Doppler + ranges")])
+    scores["PF keeps track"], scores["MH-EKF keeps track"] = study.keeps_track(
+        scores["PF in track"], scores["PF runs"], scores["PF runs restarted"], scores["MH-EKF in track"])
     drop_lo, drop_hi = change.pop("floor_drop_ci", (-0.4, 0.9))     # interval of the drop with 4× the particles
     floor = pd.DataFrame({"CEP50, scored epochs (cm)": change.pop("floor", [40.0, 38.0, 30.0, 29.5]),
                           "particles": [1000, 1000, 1000, 4000], "drop 95 % low (cm)": [np.nan, 1.0, 7.0, drop_lo],
@@ -264,7 +266,8 @@ def test_keeps_track_verdict_flips_at_both_thresholds():
 def test_keeps_track_is_applied_to_each_filter_on_each_recording():
     scores = _results(in_track=0.96, kf_in_track=[0.25, 0.95, 0.94, 1.0, 1.0])["scores"]
     scores.loc[scores["recording"] == 3, "PF runs restarted"] = 1         # 1 of 10 runs: over 5 %
-    pf, kf = scoring.keeps_track(scores)
+    pf, kf = study.keeps_track(scores["PF in track"], scores["PF runs"], scores["PF runs restarted"],
+                               scores["MH-EKF in track"])
     d = scores.assign(pf=pf, kf=kf)[scores["variant"] == "Doppler"]
     assert d["pf"].tolist() == [True, True, True, False, True]
     assert d["kf"].tolist() == [False, True, False, True, True]
@@ -331,13 +334,13 @@ def test_a_better_filter_that_lost_track_is_named_with_its_recordings_and_fig6s(
 def test_coverage_is_low_for_an_overconfident_posterior():
     rng = np.random.default_rng(3)
     err = rng.normal(0.0, 0.1, (4000, 2))
-    assert 0.93 < scoring.coverage_95(err, np.broadcast_to(0.01 * np.eye(2), (4000, 2, 2))) < 0.97
-    assert scoring.coverage_95(err, np.broadcast_to(1e-6 * np.eye(2), (4000, 2, 2))) < 0.01
+    assert 0.93 < study.coverage_95(err, np.broadcast_to(0.01 * np.eye(2), (4000, 2, 2))) < 0.97
+    assert study.coverage_95(err, np.broadcast_to(1e-6 * np.eye(2), (4000, 2, 2))) < 0.01
     runs = np.stack([err[:2000], err[2000:]])                                   # (runs, epochs, 2) as the PF's
-    assert 0.93 < scoring.coverage_95(runs, np.broadcast_to(0.01 * np.eye(2), (2, 2000, 2, 2))) < 0.97
-    assert scoring.coverage_95(err[:1], np.zeros((1, 2, 2))) == 0.0            # singular: covers nothing
-    assert scoring.coverage_95(err[:1], np.full((1, 2, 2), np.nan)) == 0.0
-    assert scoring.coverage_95(np.full((1, 2), np.nan), 0.01 * np.eye(2)[None]) == 0.0
+    assert 0.93 < study.coverage_95(runs, np.broadcast_to(0.01 * np.eye(2), (2, 2000, 2, 2))) < 0.97
+    assert study.coverage_95(err[:1], np.zeros((1, 2, 2))) == 0.0            # singular: covers nothing
+    assert study.coverage_95(err[:1], np.full((1, 2, 2), np.nan)) == 0.0
+    assert study.coverage_95(np.full((1, 2), np.nan), 0.01 * np.eye(2)[None]) == 0.0
 
 
 def test_floor_verdict_is_read_from_the_interval_of_the_particle_step():
@@ -452,7 +455,7 @@ def test_small_study_end_to_end(cfg):
     assert set(snap["corner"]) == {"bottom-left", "top-left"} and len(snap) == 2 * 2 * 2
     # the error about the truth is the offset and the spread about the cloud's centre combined
     assert np.all(snap["CEP50 (cm)"] <= snap["offset (cm)"] + snap["run-to-run CEP50 (cm)"] + 1e-9)
-    scores = scoring.filter_scores(tracks)
+    scores = study.filter_scores(tracks)
     assert (scores["epochs"] > 50).all() and (scores["PF with an estimate"] == 1).all()
     assert scores[["PF coverage", "MH-EKF coverage"]].apply(lambda c: c.between(0, 1)).all().all()
     assert tracks[0].pf["Doppler"].pos_cov_m2.shape == tracks[0].pf["Doppler"].pos_m.shape + (3,)

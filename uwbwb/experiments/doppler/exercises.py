@@ -14,7 +14,7 @@ import numpy as np
 
 from ... import metrics, validate
 from ...widgets import ExerciseCheck
-from . import panels, scoring, study
+from . import panels, study
 
 __all__ = ["slower_receiver", "pseudo_ranges", "ranging_verdict", "space_note", "filter_note"]
 
@@ -60,7 +60,7 @@ def pseudo_ranges(cfg: study.StudyConfig, *, layout: str = "lab", seed_offset: i
     One fresh simulated walk (``seed_offset`` 100: not one of the notebook's recordings), the
     PF of :func:`.study.make_filters` (``cfg.n_particles`` particles) run ``n_runs`` times with
     and without the pseudo-ranges of an exact clock model, scored as in
-    :func:`.scoring.filter_scores` (horizontal CEP50 of all runs after ``t_score_s``). The
+    :func:`.study.filter_scores` (horizontal CEP50 of all runs after ``t_score_s``). The
     claim: the ranges cut CEP50 at least ``factor``-fold (:func:`ranging_verdict`).
     """
     n_runs = validate.integer("n_runs", n_runs, minimum=1)
@@ -85,7 +85,7 @@ def space_note(cfg: study.StudyConfig, values: Mapping) -> str:
             "Halve |V| / |V_ref| or raise δ and watch the band widen.")
 
 
-def filter_note(track: scoring.TrackStudy, cfg: study.StudyConfig, values: Mapping) -> str:
+def filter_note(track: study.TrackStudy, cfg: study.StudyConfig, values: Mapping) -> str:
     """"What you should see" under the filter panel: its setting against the same filter with pseudo-ranges."""
     v = dict(values)
     now = panels.filter_readout(track, panels.filter_run(track, cfg, v["method"], v["n_particles"], v["sigma_xy"],

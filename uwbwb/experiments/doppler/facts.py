@@ -22,7 +22,7 @@ Those of :func:`fig6_table`:
   recordings gets two verdicts, each of which it can reject: *asymmetry (≠ 1)* (:data:`ASYMMETRY`) and *the paper's
   0.5* inside or outside. Reproduced when every corner detects an asymmetry below 1 and holds 0.5; "no asymmetry
   detected" when no corner detects one (a range that holds 0.5 and 1 alike rejects nothing).
-* MH-EKF vs PF on all recordings: a better filter that lost track (:func:`~.scoring.keeps_track`) is named with
+* MH-EKF vs PF on all recordings: a better filter that lost track (:func:`~.study.keeps_track`) is named with
   the recordings it lost (recording 0 is the one Fig 6 draws).
 """
 
@@ -32,8 +32,7 @@ import numpy as np
 import pandas as pd
 
 from ...metrics import interval_side, seeds_interval
-from .scoring import KEEPS_TRACK, keeps_track
-from .study import PAPER, READINGS
+from .study import KEEPS_TRACK, PAPER, READINGS, keeps_track
 
 __all__ = ["facts", "fig6_table", "verdict_table", "DP_TOLERANCE_MS", "GHOST_ANGLE_DEG", "OFFSET_SHARE",
            "EQUAL_CM", "PARTICLE_STEP_CM", "NOT_CONVERGED", "NOT_JUDGED", "ASYMMETRY"]
@@ -88,8 +87,8 @@ def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_co
     ``{layout: {"conditional" | "brute force" | "ranges": FractionEstimate}}`` at 15 cm; ``fig_counts``:
     ``{layout: {threshold: (distinct samples, distinct positions, FractionEstimate)}}``; ``geometry``:
     :func:`~.ghosts.ghost_geometry`; ``cut_minima``: ``{curve: (s (m), δ (cm)) at the minimum}`` of Fig 5; ``snap``:
-    :meth:`~.scoring.TrackStudy.snapshot_errors` of every recording and variant (columns ``recording``,
-    ``variant``); ``scores``: :func:`~.scoring.filter_scores`; ``floor``: :func:`~.study.error_floor`.
+    :meth:`~.study.TrackStudy.snapshot_errors` of every recording and variant (columns ``recording``,
+    ``variant``); ``scores``: :func:`~.study.filter_scores`; ``floor``: :func:`~.study.error_floor`.
     """
     f: dict = {"readings": list(READINGS), "dp_reproduces": []}
     for r in READINGS:
@@ -156,7 +155,7 @@ def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_co
 
     # --- filters: accuracy, keeping track, coverage
     for variant, d in scores.groupby("variant"):
-        pf_ok, kf_ok = keeps_track(d)
+        pf_ok, kf_ok = d["PF keeps track"], d["MH-EKF keeps track"]
         both = (pf_ok & kf_ok).to_numpy()
         lost = {who: [int(r) for r in d.loc[~ok, "recording"]] for who, ok in (("PF", pf_ok), ("MH-EKF", kf_ok))}
         diff = (d["MH-EKF CEP50 (cm)"] - d["PF CEP50 (cm)"]).to_numpy()
@@ -181,10 +180,8 @@ def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_co
         f[f"pf_cep95_cm[{variant}]"] = float(d["PF CEP95 (cm)"].median())
         f[f"pf_restarted_runs[{variant}]"] = (int(d["PF runs restarted"].sum()), int(runs))
         f[f"pf_restarted_share[{variant}]"] = float(d["PF runs restarted"].sum() / runs)
-        pooled = pd.DataFrame([{"PF in track": f[f"pf_in_track[{variant}]"], "PF runs": runs,
-                                "PF runs restarted": d["PF runs restarted"].sum(),
-                                "MH-EKF in track": f[f"kf_in_track[{variant}]"]}])      # the same rule, pooled
-        f[f"pf_keeps_track[{variant}]"], f[f"kf_keeps_track[{variant}]"] = (bool(k.iloc[0]) for k in keeps_track(pooled))
+        f[f"pf_keeps_track[{variant}]"], f[f"kf_keeps_track[{variant}]"] = (bool(k) for k in keeps_track(   # pooled
+            f[f"pf_in_track[{variant}]"], runs, d["PF runs restarted"].sum(), f[f"kf_in_track[{variant}]"]))
 
     # --- the particle count (zero noise, exact ΔP, 1× and 4× the particles)
     fl = floor["CEP50, scored epochs (cm)"]

@@ -192,7 +192,7 @@ def tracks_figure(study, variant: str = "Doppler", *, kept=None, n_runs: int = 5
     """Fig 6(a): the rectangle (clockwise), five PF runs between the two corners, and the MH-EKF.
 
     ``kept`` (``{"PF keeps track": bool, "MH-EKF keeps track": bool}``, a row of
-    :func:`~.scoring.filter_scores` for this recording) puts into each filter's legend entry whether it kept track
+    :func:`~.study.filter_scores` for this recording) puts into each filter's legend entry whether it kept track
     on this recording, and into the title which one lost it."""
     kept = {} if kept is None else dict(kept)
     said = {m: "" if f"{m} keeps track" not in kept else " (kept track)" if kept[f"{m} keeps track"] else

@@ -17,7 +17,7 @@ from ...filters import doppler as fd
 from ...models import doppler as dm
 from ...models.motion import ReceiverMotion
 from ...plotting import color_for
-from . import figures, scoring, study
+from . import figures, study
 
 __all__ = ["ghost_map", "space_panel", "filter_run", "filter_readout", "filter_panel"]
 
@@ -70,7 +70,7 @@ def space_panel(cfg: study.StudyConfig):
 _FILTER_RUNS: dict = {}
 
 
-def filter_run(track: scoring.TrackStudy, cfg: study.StudyConfig, method: str, n_particles: int, sigma_xy: float,
+def filter_run(track: study.TrackStudy, cfg: study.StudyConfig, method: str, n_particles: int, sigma_xy: float,
                ranges: bool, *, layout: str = "lab"):
     """One run of the PF (``method="PF"``, one run of ``n_particles``) or the MH-EKF on ``track``'s recording,
     with acceleration σ ``sigma_xy`` (x, y; m/s²) and with or without pseudo-ranges: its
@@ -94,7 +94,7 @@ def filter_run(track: scoring.TrackStudy, cfg: study.StudyConfig, method: str, n
     return est
 
 
-def filter_readout(track: scoring.TrackStudy, est) -> dict:
+def filter_readout(track: study.TrackStudy, est) -> dict:
     """CEP50 / CEP95 of the horizontal error after the start-up (``track.t_score_s``), and the epochs scored."""
     err = np.linalg.norm(est.pos_m[:, :2] - track.track.pos_m(est.t_s)[:, :2], axis=1)
     late = est.t_s > track.t_score_s
@@ -102,7 +102,7 @@ def filter_readout(track: scoring.TrackStudy, est) -> dict:
             "CEP95 after the start-up (cm)": 100 * metrics.cep95(err[late]), "epochs": int(late.sum())}
 
 
-def filter_panel(track: scoring.TrackStudy, cfg: study.StudyConfig, *, layout: str = "lab"):
+def filter_panel(track: study.TrackStudy, cfg: study.StudyConfig, *, layout: str = "lab"):
     """Widget: the PF (one run) or the MH-EKF on ``track``'s recording, with or without pseudo-ranges.
 
     Left: the track after the start-up in the room (x–y, metres) with the beacons and the truth;

@@ -13,17 +13,20 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
+from scipy.stats import chi2
+
 from ... import metrics, sampling as smp
+from ...calibration import MAD_TO_SIGMA
 from ...filters import doppler as fd
 from ...filters.kalman import Gaussian
 from ...models import doppler as dm
 from ...models.motion import ReceiverMotion
 from ...sim import chirps as sc
-from .scoring import TrackStudy
 
 __all__ = ["PAPER", "StudyConfig", "LAYOUTS", "ROOMS", "READINGS", "make_model", "reference_table", "SpaceMap",
            "map_space", "period_readings", "figure_samples", "fraction_table", "make_filters",
-           "track_study", "error_floor"]
+           "TrackStudy", "track_study", "coverage_95", "filter_scores", "keeps_track", "KEEPS_TRACK", "LOST_M",
+           "error_floor"]
 
 #: Numbers quoted by the paper (inputs, never targets of a tuning).
 PAPER = {
@@ -42,6 +45,12 @@ READINGS = {"per-beacon 501 + 6i ms": None, "500 ms for all": 0.5}
 #: reconstructed lab (6 m × 5 m, floor 1.2 m below the receiver's carrying height z = 0,
 #: ceiling at 1.5 m).
 ROOMS = {"cubic": ((-2.0, -2.0, -2.0), (2.0, 2.0, 2.0)), "lab": ((-3.0, -2.5, -1.2), (3.0, 2.5, 1.5))}
+#: A filter *keeps track* on a recording when at least ``KEEPS_TRACK[0]`` of its scored epochs have a
+#: horizontal error under :data:`LOST_M` (the PF: pooled over its runs) and, for the PF, at most
+#: ``KEEPS_TRACK[1]`` of its runs restarted (the MH-EKF does not restart).
+KEEPS_TRACK = (0.95, 0.05)
+#: Horizontal error (m) beyond which an epoch counts as off the track.
+LOST_M = 0.5
 
 
 @dataclass(frozen=True)
@@ -275,6 +284,56 @@ def make_filters(layout: str, cfg: StudyConfig, model: dm.DopplerModel, motion: 
     return pf, mh
 
 
+@dataclass(frozen=True)
+class TrackStudy:
+    """Fig 6 on one simulated recording (:func:`track_study`): PF runs, the MH-EKF, with and without pseudo-ranges."""
+
+    model: dm.DopplerModel
+    track: sc.LoopTrack
+    recording: sc.ChirpRecording
+    log: object
+    pf: dict                      # "Doppler" / "Doppler + ranges" -> PfRuns
+    kf: dict                      # same keys -> Estimates
+    snapshots_s: tuple[float, float]
+    along_dirs: tuple[np.ndarray, np.ndarray]
+    t_score_s: float
+
+    def cloud(self, variant: str, k: int) -> np.ndarray:
+        """PF position estimates of every run at snapshot ``k``, shape ``(R, 3)``."""
+        return self.pf[variant].at(self.snapshots_s[k])
+
+    def snapshot_errors(self, variant: str) -> pd.DataFrame:
+        """Per snapshot (corner): the run cloud's error, split into the shared offset and the run-to-run spread.
+
+        ``CEP50`` is about the truth; ``offset`` is the distance from the truth to the
+        cloud's centre (coordinate-wise median of the runs: what every run shares, the
+        recording's own bias); ``run-to-run CEP50`` is about that centre. Along and
+        across are robust spreads about the truth, ``1.4826 · median |e|`` per component
+        along / across the direction of travel, and their ratio.
+        """
+        rows = []
+        for k, t in enumerate(self.snapshots_s):
+            e = self.cloud(variant, k)[:, :2] - self.track.pos_m(t)[:2]
+            a = self.along_dirs[k][:2]
+            centre = np.median(e, axis=0)
+            rows.append({"corner": ("bottom-left", "top-left")[k], "t (s)": t, "runs": e.shape[0],
+                         "CEP50 (cm)": 100 * metrics.cep50(np.linalg.norm(e, axis=1)),
+                         "offset (cm)": 100 * float(np.linalg.norm(centre)),
+                         "run-to-run CEP50 (cm)": 100 * metrics.cep50(np.linalg.norm(e - centre, axis=1)),
+                         "along (cm)": 100 * MAD_TO_SIGMA * np.median(np.abs(e @ a)),
+                         "across (cm)": 100 * MAD_TO_SIGMA * np.median(np.abs(e @ np.array([-a[1], a[0]])))})
+        df = pd.DataFrame(rows)
+        df["along / across"] = df["along (cm)"] / df["across (cm)"]
+        return df
+
+    def pf_errors_m(self, variant: str) -> np.ndarray:
+        """Horizontal errors (m) of every PF run on the scored epochs (its update times after ``t_score_s``),
+        shape ``(runs, epochs)``."""
+        runs = self.pf[variant]
+        keep = runs.t_s > self.t_score_s
+        return np.linalg.norm(runs.pos_m[:, keep, :2] - self.track.pos_m(runs.t_s[keep])[:, :2], axis=-1)
+
+
 def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs: int | None = None,
                 n_particles: int | None = None, motion: ReceiverMotion = ReceiverMotion(),
                 noise: bool = True, exact_dp: bool = False, variants=("Doppler", "Doppler + ranges"),
@@ -318,6 +377,69 @@ def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs:
             kf_out[variant] = mh.run(log, kf_prior(layout), ranges_m=r)
     dirs = (np.array([-1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))    # arriving along the bottom, then the left side
     return TrackStudy(model, track, rec, log, pf_out, kf_out, (t_a, t_b), dirs, t_score_s=min(8.0, t_a / 2))
+
+
+def coverage_95(err_m: np.ndarray, cov_m2: np.ndarray) -> float:
+    """Share of errors ``(..., d)`` inside the filter's own 95 % region, :func:`uwbwb.metrics.nees` ``≤ χ²_d(0.95)``
+    on its covariances ``(..., d, d)``; a non-finite or singular covariance covers nothing."""
+    d = err_m.shape[-1]
+    e, P = np.reshape(err_m, (-1, d)), np.reshape(cov_m2, (-1, d, d))
+    ok = np.all(np.isfinite(P), axis=(1, 2))
+    ok[ok] = np.linalg.det(P[ok]) > 1e-300
+    return float(np.mean(metrics.nees(e, P, where=ok) <= chi2.ppf(0.95, d)))
+
+
+def filter_scores(studies: list[TrackStudy], *, lost_m: float = LOST_M) -> pd.DataFrame:
+    """PF and MH-EKF on the same epochs (PF update times after ``t_score_s``), per recording and variant.
+
+    Scored by :func:`uwbwb.metrics.score_epochs`, each filter on its own epochs (the PF's runs pooled; the MH-EKF is
+    deterministic, one run): CEP50/CEP95 on the epochs with an estimate, ``with an estimate`` (its ``coverage``),
+    ``in track`` (share of scored epochs with horizontal error under ``lost_m``, a missing estimate off the track).
+    Beside them ``coverage`` (share of scored epochs whose horizontal truth lies in the filter's own 95 % region,
+    :func:`coverage_95` on the x–y block of its position covariance: the MH-EKF's ``pos_cov_m2``, the PF run's
+    weighted particle covariance), for the PF its restarts (runs whose particles had all left the room) and the
+    share of tempered updates (the MH-EKF has no restart mechanism: its column is 0 by construction), and
+    ``PF keeps track`` / ``MH-EKF keeps track`` (:func:`keeps_track`).
+    """
+    stats = {"own": {"CEP50 (cm)": lambda e: 100 * metrics.cep50(e), "CEP95 (cm)": lambda e: 100 * metrics.cep95(e)},
+             "failed_counted": {"in track": lambda e: float(np.mean(e < lost_m))}}
+    rows = []
+    for k, st in enumerate(studies):
+        for variant, runs in st.pf.items():
+            keep = runs.t_s > st.t_score_s
+            t = runs.t_s[keep]
+            kf = st.kf[variant]
+            idx = np.searchsorted(kf.t_s, t)
+            fit = {"PF": (runs.pos_m[:, keep], runs.pos_cov_m2[:, keep], runs.vel_mps[:, keep]),
+                   "MH-EKF": (kf.pos_m[idx], kf.pos_cov_m2[idx], kf.vel_mps[idx])}
+            err = {m: p[..., :2] - st.track.pos_m(t)[:, :2] for m, (p, _, _) in fit.items()}
+            tab = metrics.score_epochs({m: np.linalg.norm(e, axis=-1).ravel() for m, e in err.items()},
+                                       compare=False).table(**stats)
+            tab["coverage 95"] = [coverage_95(err[m], fit[m][1][..., :2, :2]) for m in fit]
+            row = {"recording": k, "variant": variant, "epochs": int(keep.sum()), "PF runs": runs.n_runs}
+            for col, name in (("CEP50 (cm)", "CEP50 (cm)"), ("CEP95 (cm)", "CEP95 (cm)"), ("coverage 95", "coverage"),
+                              ("coverage", "with an estimate"), ("in track", "in track")):
+                row.update({f"{m} {name}": float(tab.loc[m, col]) for m in fit})
+            row.update({"PF restarts": int(runs.restarts.sum()), "PF runs restarted": int(np.count_nonzero(runs.restarts)),
+                        "MH-EKF restarts": 0, "PF tempered updates": float(np.mean(runs.meta.get("tempered", np.zeros(1)))),
+                        **{f"{m} median |V err| (m/s)": float(np.median(np.linalg.norm(v - st.track.vel(t), axis=-1)))
+                           for m, (_, _, v) in fit.items()}})
+            rows.append(row)
+    df = pd.DataFrame(rows)
+    if len(df):
+        pf, kf = keeps_track(df["PF in track"], df["PF runs"], df["PF runs restarted"], df["MH-EKF in track"])
+        df.insert(df.columns.get_loc("PF in track"), "PF keeps track", pf)
+        df.insert(df.columns.get_loc("PF in track"), "MH-EKF keeps track", kf)
+    return df
+
+
+def keeps_track(pf_in_track, pf_runs, pf_runs_restarted, kf_in_track):
+    """:data:`KEEPS_TRACK` on one recording and variant (or on Series of them, or on the pooled shares):
+    ``(PF keeps track, MH-EKF keeps track)``. The PF keeps track when its share of scored epochs within
+    :data:`LOST_M` (pooled over runs) is at least ``KEEPS_TRACK[0]`` and at most ``KEEPS_TRACK[1]`` of its runs
+    restarted; the MH-EKF on its share alone."""
+    return ((pf_in_track >= KEEPS_TRACK[0]) & (pf_runs_restarted <= KEEPS_TRACK[1] * pf_runs),
+            kf_in_track >= KEEPS_TRACK[0])
 
 
 #: Conditions of :func:`error_floor`: (label, simulate noise, ΔP from eq 1 at the true state, particles factor).
