@@ -133,17 +133,10 @@ class GhostSamples:
 
 @dataclass(frozen=True)
 class SamplerResult:
-    """Fractions per threshold and the kept samples of one sampler run.
-
-    ``peak_bytes`` is a *computed* size, not a measurement: the buffers of the chunks
-    in flight plus the kept samples (a lower bound on what the run held; measure with
-    :mod:`tracemalloc` around the call for the real peak, as notebook 04 does).
-    """
+    """Fractions per threshold and the kept samples of one sampler run."""
 
     estimates: tuple[FractionEstimate, ...]
     samples: GhostSamples
-    n_chunks: int
-    peak_bytes: int
     overflow: int = 0
     meta: dict = field(default_factory=dict)
 
@@ -152,14 +145,6 @@ class SamplerResult:
             if math.isclose(e.threshold_m, threshold_m):
                 return e
         raise KeyError(f"no estimate for threshold {threshold_m} m; have {[e.threshold_m for e in self.estimates]}")
-
-    def to_frame(self):
-        import pandas as pd
-
-        return pd.DataFrame([{"threshold_cm": 100 * e.threshold_m, "fraction_pct": 100 * e.fraction,
-                              "ci_low_pct": 100 * e.ci_low, "ci_high_pct": 100 * e.ci_high,
-                              "hits": e.n_hits, "draws": e.n_draws, "positions": e.n_positions,
-                              "estimator": e.estimator} for e in self.estimates])
 
 
 def clopper_pearson(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
@@ -368,9 +353,7 @@ def brute_force(model: DopplerModel, ref_pos_m, ref_vel_mps, n_draws: int, *, se
     estimates = tuple(FractionEstimate(float(t), int(c) / n, *clopper_pearson(int(c), n, confidence), confidence,
                                        "brute force", n, n, int(c)) for t, c in zip(tau, counts))
     samples = GhostSamples(kept[:, :3], kept[:, 3:6], kept[:, 6], np.full(len(kept), 1.0 / n))
-    peak = min(workers, len(plan)) * cap * 7 * 8 + kept.nbytes
-    return SamplerResult(estimates, samples, len(plan), int(peak), overflow,
-                         {"seed": seed, "chunk_size": chunk_size, "ranges": ranges})
+    return SamplerResult(estimates, samples, overflow, {"seed": seed, "chunk_size": chunk_size, "ranges": ranges})
 
 
 # ----------------------------------------------------------------------------------- conditional
@@ -480,8 +463,6 @@ def conditional(model: DopplerModel, ref_pos_m, ref_vel_mps, n_positions: int, *
                                        float(m + h), confidence, "conditional", n_draws, n, k)
                       for t, m, h, k in zip(tau, mean, half, hits))
     samples = GhostSamples(kept[:, :3], kept[:, 3:6], kept[:, 6], kept[:, 7] / n)
-    per_chunk = chunk_size * (model.n_beacons * 3 * 8 * 4 + draws_per_position * 8 * 16)
-    peak = min(workers, len(plan)) * per_chunk + kept.nbytes
-    return SamplerResult(estimates, samples, len(plan), int(peak), 0,
+    return SamplerResult(estimates, samples, 0,
                          {"seed": seed, "chunk_size": chunk_size, "ranges": ranges,
                           "position region volume (m³)": None if region is None else region[3]})

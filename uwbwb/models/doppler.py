@@ -42,13 +42,11 @@ from ..types import Anchors
 from ..validate import integer, number
 
 __all__ = ["speed_of_sound_mps", "DopplerModel", "cubic_layout", "lab_layout", "beacon_periods_s", "REFERENCE_POS_M",
-           "REFERENCE_VEL_MPS", "PAPER_DP_REF_S"]
+           "REFERENCE_VEL_MPS"]
 
 #: Reference pair of section 3.1 (metres, metres per second).
 REFERENCE_POS_M = np.array([-0.5, 0.5, 0.4])
 REFERENCE_VEL_MPS = np.array([0.5, 0.7, 0.1])
-#: ΔP_ref the paper quotes for beacon 0 at (−2, −2, −2) and beacon 7 at (2, 2, 2) (input, seconds).
-PAPER_DP_REF_S = {0: 1.1e-3, 7: -1.2e-3}
 
 
 def speed_of_sound_mps(temperature_c: float = 20.0) -> float:
@@ -148,11 +146,6 @@ class DopplerModel:
     @property
     def n_beacons(self) -> int:
         return len(self.beacons)
-
-    @property
-    def sigma_jitter_dp_s(self) -> float:
-        """Standard deviation of the timing part of one measured ΔP, ``√2 σ_t`` (two jittered arrivals)."""
-        return float(np.sqrt(2.0) * self.sigma_t_s)
 
     def sigma_dp_s(self, beacon=None) -> np.ndarray:
         """Standard deviation the filters give one ΔP of ``beacon`` (all beacons if None), seconds.

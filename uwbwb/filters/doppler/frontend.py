@@ -14,26 +14,15 @@ from __future__ import annotations
 import numpy as np
 
 from ...models.doppler import DopplerModel
-from ...models.motion import ReceiverMotion
 from ...types import ChirpFlag, ChirpLog
 from ...validate import integer, number
 
 __all__ = ["assign_chirps", "clock_pseudo_ranges"]
 
 
-def _check_model(owner: str, model) -> None:
-    if not isinstance(model, DopplerModel):
-        raise ValueError(f"{owner}: model must be a DopplerModel, got {type(model).__name__}")
-
-
-def _check_motion(owner: str, motion) -> None:
-    if not isinstance(motion, ReceiverMotion):
-        raise ValueError(f"{owner}: motion must be a ReceiverMotion, got {type(motion).__name__}")
-
-
-def _check_log(owner: str, log) -> None:
-    if not isinstance(log, ChirpLog):
-        raise ValueError(f"{owner}: log must be a ChirpLog, got {type(log).__name__}")
+def _check(owner: str, name: str, value, cls: type) -> None:
+    if not isinstance(value, cls):
+        raise ValueError(f"{owner}: {name} must be a {cls.__name__}, got {type(value).__name__}")
 
 
 def _per_row(name: str, values, n: int) -> np.ndarray:
@@ -71,7 +60,7 @@ def assign_chirps(t_s, model: DopplerModel, *, window_s: float = 0.004, max_gap:
     max_gap
         Largest number of periods bridged over missed chirps.
     """
-    _check_model("assign_chirps", model)
+    _check("assign_chirps", "model", model, DopplerModel)
     window_s = number("window_s", window_s, minimum=0.0, strict_minimum=True)
     max_gap = integer("max_gap", max_gap, minimum=1)
     t_s = np.asarray(t_s, float)
@@ -125,8 +114,8 @@ def clock_pseudo_ranges(log: ChirpLog, model: DopplerModel, phase_s) -> np.ndarr
     ``phase_s[i]`` and period ``P_i``) places last before the arrival (flights last
     tens of milliseconds, far less than a period). NaN where the row has no beacon.
     """
-    _check_log("clock_pseudo_ranges", log)
-    _check_model("clock_pseudo_ranges", model)
+    _check("clock_pseudo_ranges", "log", log, ChirpLog)
+    _check("clock_pseudo_ranges", "model", model, DopplerModel)
     phase = np.asarray(phase_s, float)
     if phase.shape != (model.n_beacons,) or not np.all(np.isfinite(phase)):
         raise ValueError(f"phase_s must hold one finite phase per beacon, shape ({model.n_beacons},), "

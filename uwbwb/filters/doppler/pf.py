@@ -21,7 +21,7 @@ from ...models.motion import ReceiverMotion
 from ...types import ChirpFlag, ChirpLog, EstimateStatus, EstimatesBatch
 from ...validate import integer, number, probability
 from ..particle import ParticleFilter
-from .frontend import _check_log, _check_model, _check_motion, _per_row
+from .frontend import _check, _per_row
 
 __all__ = ["DopplerPf", "PfRuns"]
 
@@ -165,8 +165,8 @@ class DopplerPf:
     name: str = "PF"
 
     def __post_init__(self):
-        _check_model("DopplerPf", self.model)
-        _check_motion("DopplerPf", self.motion)
+        _check("DopplerPf", "model", self.model, DopplerModel)
+        _check("DopplerPf", "motion", self.motion, ReceiverMotion)
         object.__setattr__(self, "n_particles", integer("n_particles", self.n_particles, minimum=2))
         room = []
         for name in ("room_lo_m", "room_hi_m"):
@@ -219,7 +219,7 @@ class DopplerPf:
             Threads in this process, or a Dask scheduler (``"local"``, an address or a
             ``distributed.Client``): where the blocks run (:mod:`uwbwb.parallel`).
         """
-        _check_log("DopplerPf.run", log)
+        _check("DopplerPf.run", "log", log, ChirpLog)
         if not isinstance(rng, np.random.Generator):
             raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         n_runs = integer("n_runs", n_runs, minimum=1)

@@ -22,7 +22,7 @@ from ...types import ChirpFlag, ChirpLog, EstimateStatus, Estimates
 from ...validate import integer, number, probability
 from ..ekf import Ekf, Linearisation
 from ..kalman import Gaussian
-from .frontend import _check_log, _check_model, _check_motion, _per_row
+from .frontend import _check, _per_row
 
 __all__ = ["DopplerMeasurement", "ScaatMhEkf"]
 
@@ -39,7 +39,7 @@ class DopplerMeasurement:
     model: DopplerModel
 
     def __post_init__(self):
-        _check_model("DopplerMeasurement", self.model)
+        _check("DopplerMeasurement", "model", self.model, DopplerModel)
 
     def linearise(self, x: np.ndarray, measurement) -> Linearisation | None:
         """:class:`Linearisation` at state ``x = [X, V]`` (6,); None when nothing usable was measured."""
@@ -96,8 +96,8 @@ class ScaatMhEkf:
     name: str = "MH-EKF"
 
     def __post_init__(self):
-        _check_model("ScaatMhEkf", self.model)
-        _check_motion("ScaatMhEkf", self.motion)
+        _check("ScaatMhEkf", "model", self.model, DopplerModel)
+        _check("ScaatMhEkf", "motion", self.motion, ReceiverMotion)
         p = probability("p_detect", self.p_detect, open_interval=False)
         if p <= 0.0:
             raise ValueError(f"p_detect must be a number in (0, 1], got {self.p_detect!r}")
@@ -125,7 +125,7 @@ class ScaatMhEkf:
             detection, PREDICTED where it read it as noise. ``info``: ``n_hypotheses``,
             ``beacon`` (the best hypothesis' assignment, −1 for noise).
         """
-        _check_log("ScaatMhEkf.run", log)
+        _check("ScaatMhEkf.run", "log", log, ChirpLog)
         if not isinstance(x0, Gaussian) or np.shape(x0.x) != (6,):
             raise ValueError(f"x0 must be a Gaussian over [X, V] (6 components), got {x0!r}")
         ekf = self.ekf
