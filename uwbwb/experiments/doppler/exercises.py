@@ -1,4 +1,4 @@
-"""Exercises of notebook 04 ("change X, predict Y") and the notes under its two panels.
+"""Exercises of notebook 04 ("change X, predict Y").
 
 Each exercise computes both settings with the package's own functions and returns a
 :class:`uwbwb.widgets.ExerciseCheck` (the direction to predict, whether this run shows it, the
@@ -8,15 +8,13 @@ once the student has predicted; ``TEACHING.md`` gives one run's numbers.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
 import numpy as np
 
 from ... import metrics, validate
 from ...widgets import ExerciseCheck
 from . import panels, study
 
-__all__ = ["slower_receiver", "pseudo_ranges", "ranging_verdict", "space_note", "filter_note"]
+__all__ = ["slower_receiver", "pseudo_ranges", "ranging_verdict"]
 
 
 def slower_receiver(cfg: study.StudyConfig, *, layout: str = "cubic", threshold_cm: float = 15.0,
@@ -74,26 +72,3 @@ def pseudo_ranges(cfg: study.StudyConfig, *, layout: str = "lab", seed_offset: i
         "A range pins the distance to each beacon, which the Doppler ghosts (same velocity pattern, shifted "
         "position) do not keep: the cloud collapses onto the true position.")
 
-
-def space_note(cfg: study.StudyConfig, values: Mapping) -> str:
-    """"What you should see" under the space panel, from its settings ``values`` (:attr:`Panel.values`)."""
-    v = dict(values)
-    e = panels.ghost_map(cfg, v["layout"], v["threshold_cm"], v["speed_scale"], v["turn_deg"],
-                         v["n_positions"])[2].estimates[0]
-    return (f"At δ < {v['threshold_cm']:g} cm ({v['layout']}) the ghosts fill {100 * e.fraction:.2g} % of the 6-D box: "
-            "blue dots spread in a band through the reference (open circle), not around every beacon. "
-            "Halve |V| / |V_ref| or raise δ and watch the band widen.")
-
-
-def filter_note(track: study.TrackStudy, cfg: study.StudyConfig, values: Mapping) -> str:
-    """"What you should see" under the filter panel: its setting against the same filter with pseudo-ranges."""
-    v = dict(values)
-    now = panels.filter_readout(track, panels.filter_run(track, cfg, v["method"], v["n_particles"], v["sigma_xy"],
-                                                         v["ranges"]))
-    other = panels.filter_readout(track, panels.filter_run(track, cfg, v["method"], v["n_particles"], v["sigma_xy"],
-                                                           not v["ranges"]))
-    with_r, without = (now, other) if v["ranges"] else (other, now)
-    return (f"The {v['method']} track after the start-up follows the black rectangle with a CEP50 of "
-            f"{without['CEP50 after the start-up (cm)']:.0f} cm on Doppler alone and "
-            f"{with_r['CEP50 after the start-up (cm)']:.1f} cm with pseudo-ranges (same settings); "
-            "the error plot shows the start-up (grey) converge.")

@@ -79,13 +79,13 @@ def _over_recordings(x) -> dict:
     return {"median": float(np.median(x)), **seeds_interval(x), "min": float(x.min()), "max": float(x.max())}
 
 
-def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_counts: dict, geometry: dict,
+def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_runs: dict, geometry: dict,
           cut_minima: dict, snap: pd.DataFrame, scores: pd.DataFrame, floor: pd.DataFrame) -> dict:
     """Numbers and verdicts of notebook 04 (see the module docstring for every rule), from what it computed.
 
     ``ref_table``: :func:`~.study.reference_table`; ``readings``: :func:`~.study.period_readings`; ``at15``:
-    ``{layout: {"conditional" | "brute force" | "ranges": FractionEstimate}}`` at 15 cm; ``fig_counts``:
-    ``{layout: {threshold: (distinct samples, distinct positions, FractionEstimate)}}``; ``geometry``:
+    ``{layout: {"conditional" | "brute force" | "ranges": FractionEstimate}}`` at 15 cm; ``fig_runs``:
+    :func:`~.study.figure_samples` per layout; ``geometry``:
     :func:`~.ghosts.ghost_geometry`; ``cut_minima``: ``{curve: (s (m), δ (cm)) at the minimum}`` of Fig 5; ``snap``:
     :meth:`~.study.TrackStudy.snapshot_errors` of every recording and variant (columns ``recording``,
     ``variant``); ``scores``: :func:`~.study.filter_scores`; ``floor``: :func:`~.study.error_floor`.
@@ -115,7 +115,8 @@ def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_co
     f["lab_over_cubic_paper"] = PAPER["fraction_15cm_pct"]["lab"] / PAPER["fraction_15cm_pct"]["cubic"]
     f["lab_same_order"] = bool(abs(np.log10(f["lab_over_cubic"] / f["lab_over_cubic_paper"])) < 0.5)
     f["ranges_frac_pct"] = {k: 100 * v["ranges"].fraction for k, v in at15.items()}
-    f["fig_empty_panels"] = [(lay, t) for lay, d in fig_counts.items() for t, (n, _, _) in d.items() if n == 0]
+    f["fig_empty_panels"] = [(lay, t) for lay, runs in fig_runs.items() for t, r in runs.items()
+                             if len(r.samples.below(t)) == 0]
     f["plane_angle_deg"] = float(geometry["angle(position plane normal, V) (°)"])
     f["vel_axis_angle_deg"] = float(geometry["angle(velocity main axis, V) (°)"])
     f["ghost_shape_holds"] = bool(max(f["plane_angle_deg"], f["vel_axis_angle_deg"]) < GHOST_ANGLE_DEG)

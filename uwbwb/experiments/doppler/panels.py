@@ -19,7 +19,7 @@ from ...models.motion import ReceiverMotion
 from ...plotting import color_for
 from . import figures, study
 
-__all__ = ["ghost_map", "space_panel", "filter_run", "filter_readout", "filter_panel"]
+__all__ = ["ghost_map", "space_panel", "filter_run", "filter_panel"]
 
 
 @functools.lru_cache(maxsize=32)
@@ -94,14 +94,6 @@ def filter_run(track: study.TrackStudy, cfg: study.StudyConfig, method: str, n_p
     return est
 
 
-def filter_readout(track: study.TrackStudy, est) -> dict:
-    """CEP50 / CEP95 of the horizontal error after the start-up (``track.t_score_s``), and the epochs scored."""
-    err = np.linalg.norm(est.pos_m[:, :2] - track.track.pos_m(est.t_s)[:, :2], axis=1)
-    late = est.t_s > track.t_score_s
-    return {"CEP50 after the start-up (cm)": 100 * metrics.cep50(err[late]),
-            "CEP95 after the start-up (cm)": 100 * metrics.cep95(err[late]), "epochs": int(late.sum())}
-
-
 def filter_panel(track: study.TrackStudy, cfg: study.StudyConfig, *, layout: str = "lab"):
     """Widget: the PF (one run) or the MH-EKF on ``track``'s recording, with or without pseudo-ranges.
 
@@ -125,7 +117,8 @@ def filter_panel(track: study.TrackStudy, cfg: study.StudyConfig, *, layout: str
         axes[1].set_ylabel("horizontal error (cm)")
         axes[1].set_title("horizontal error against time", fontsize=9)
         axes[1].legend(fontsize=8)
-        return view.done(), filter_readout(track, est)
+        return view.done(), {"CEP50 after the start-up (cm)": 100 * metrics.cep50(err[late]),
+                             "CEP95 after the start-up (cm)": 100 * metrics.cep95(err[late]), "epochs": int(late.sum())}
 
     return widgets.Panel("Doppler filters on the Fig 6 recording", {
         "n_particles": widgets.int_slider("PF particles", 400, 200, 1000, 200),
