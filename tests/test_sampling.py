@@ -93,13 +93,6 @@ def test_clopper_pearson_edges():
         smp.clopper_pearson(5, 3)
 
 
-def test_resampled_ghosts_follow_the_weights():
-    g = smp.GhostSamples(np.zeros((2, 3)), np.zeros((2, 3)), np.array([0.01, 0.02]), np.array([1.0, 3.0]))
-    r = g.resample(4000, rng=np.random.default_rng(0))
-    assert np.mean(r.delta_m == 0.02) == pytest.approx(0.75, abs=0.03)
-    assert r.weight.sum() == pytest.approx(4.0)
-
-
 @pytest.mark.parametrize("layout", ["cubic", "lab"])
 def test_ranging_region_holds_every_position_under_the_threshold(layout):
     model = dm.DopplerModel.for_layout(getattr(dm, f"{layout}_layout")())

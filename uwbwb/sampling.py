@@ -92,11 +92,6 @@ class FractionEstimate:
     n_positions: int
     n_hits: int
 
-    def __str__(self) -> str:
-        return (f"δ < {100 * self.threshold_m:g} cm: {100 * self.fraction:.3g} % "
-                f"[{100 * self.ci_low:.3g}, {100 * self.ci_high:.3g}] % ({self.estimator}, "
-                f"{self.n_draws:.3g} draws, {self.n_hits} hits)")
-
 
 @dataclass(frozen=True)
 class GhostSamples:
@@ -118,17 +113,6 @@ class GhostSamples:
     def below(self, threshold_m: float) -> "GhostSamples":
         m = self.delta_m < threshold_m
         return GhostSamples(self.pos_m[m], self.vel_mps[m], self.delta_m[m], self.weight[m])
-
-    def resample(self, n: int, *, rng: np.random.Generator) -> "GhostSamples":
-        """``n`` samples drawn with probability ∝ weight: points of the uniform density on the kept set.
-
-        Each returned sample carries weight ``sum(weight) / n``.
-        """
-        if len(self) == 0 or n < 1:
-            return GhostSamples(self.pos_m[:0], self.vel_mps[:0], self.delta_m[:0], self.weight[:0])
-        idx = rng.choice(len(self), size=int(n), p=self.weight / self.weight.sum())
-        return GhostSamples(self.pos_m[idx], self.vel_mps[idx], self.delta_m[idx],
-                            np.full(idx.size, self.weight.sum() / idx.size))
 
 
 @dataclass(frozen=True)

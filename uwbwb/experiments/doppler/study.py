@@ -241,7 +241,7 @@ def figure_samples(layout: str, cfg: StudyConfig, *, workers: int = 2, scheduler
 
 
 def distinct_counts(samples: smp.GhostSamples) -> tuple[int, int]:
-    """``(distinct (X, V) samples, distinct positions X)`` of a sample set (resampled copies count once)."""
+    """``(distinct (X, V) samples, distinct positions X)`` of a sample set (copies of a sample count once)."""
     if len(samples) == 0:
         return 0, 0
     pairs = np.unique(np.concatenate([samples.pos_m, samples.vel_mps], axis=1), axis=0)
