@@ -71,4 +71,3 @@ def pseudo_ranges(cfg: study.StudyConfig, *, layout: str = "lab", seed_offset: i
         (f"several-fold (at least {factor:g}×)", f"less than {factor:g}×"),
         "A range pins the distance to each beacon, which the Doppler ghosts (same velocity pattern, shifted "
         "position) do not keep: the cloud collapses onto the true position.")
-

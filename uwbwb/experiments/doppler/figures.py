@@ -8,6 +8,7 @@ import numpy as np
 from ... import sampling as smp
 from ...models import doppler as dm
 from ...plotting import color_for
+from .study import distinct_counts
 
 __all__ = ["ghost_panel", "space_figure", "cuts_figure", "tracks_figure", "clouds_figure", "NEAR_REFERENCE",
            "far_positions", "lap", "plan", "no_samples"]
@@ -144,8 +145,6 @@ def space_figure(runs_by_threshold: dict[float, smp.SamplerResult], model: dm.Do
     (:func:`far_positions`; the reference itself is no sample) and the fraction with its 95 %
     interval. A panel without samples says so.
     """
-    from .study import distinct_counts
-
     n = len(runs_by_threshold)
     fig, axes = plt.subplots(2, n, figsize=(3.3 * n, 7.2), squeeze=False)
     for j, (tau, res) in enumerate(runs_by_threshold.items()):
