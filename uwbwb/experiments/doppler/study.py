@@ -420,8 +420,9 @@ def filter_scores(studies: list[TrackStudy], *, lost_m: float = LOST_M) -> pd.Da
             for col, name in (("CEP50 (cm)", "CEP50 (cm)"), ("CEP95 (cm)", "CEP95 (cm)"), ("coverage 95", "coverage"),
                               ("coverage", "with an estimate"), ("in track", "in track")):
                 row.update({f"{m} {name}": float(tab.loc[m, col]) for m in fit})
-            row.update({"PF restarts": int(runs.restarts.sum()), "PF runs restarted": int(np.count_nonzero(runs.restarts)),
-                        "MH-EKF restarts": 0, "PF tempered updates": float(np.mean(runs.meta.get("tempered", np.zeros(1)))),
+            row.update({"PF restarts": int(runs.restarts.sum()),
+                        "PF runs restarted": int(np.count_nonzero(runs.restarts)), "MH-EKF restarts": 0,
+                        "PF tempered updates": float(np.mean(runs.meta.get("tempered", np.zeros(1)))),
                         **{f"{m} median |V err| (m/s)": float(np.median(np.linalg.norm(v - st.track.vel(t), axis=-1)))
                            for m, (_, _, v) in fit.items()}})
             rows.append(row)
