@@ -243,7 +243,9 @@ def test_piece_explorer_uses_the_given_height_not_the_truth():
     segs = geometry.straight_segments(rec.truth["L"], tol_m=0.05)
     xp = ex.panels.PieceExplorer(rec, segs, heights_m={"L": 1.3}, config=PruningConfig(dim=2, res_dropout=0.02), stride=2)
     fig, out = xp.render(0, "L", "none", 0.9, 0.5, 2.0, "raw")
-    assert out["mean error (m)"] < 0.1 and xp.range_options == ["raw"]
+    assert out["mean error (m)"] < 0.1
+    ranges = ex.panels.piece_panel(xp, tags=["L"], res_retention=0.9, rm_retention=0.5).controls["ranges"].options
+    assert [v for _, v in ranges] == ["raw"]                                # no calibration: raw ranges only
     wrong = ex.panels.PieceExplorer(rec, segs, heights_m={"L": 0.3}, config=PruningConfig(dim=2), stride=2)
     assert wrong.render(0, "L", "none", 0.9, 0.5, 2.0, "raw")[1]["mean error (m)"] > out["mean error (m)"]
     with pytest.raises(ValueError, match="calibration"):
@@ -494,8 +496,9 @@ def test_the_wins_table_names_a_leader_only_when_its_interval_lies_below_0(gap_m
 def test_headline_rows_say_their_kind_and_name_the_noise_beside_the_paper_4_m():
     t = pd.DataFrame({"stop_median_m": [1.157, 0.321, 0.515, 0.604, np.nan], "all_p90_m": [1.9, 0.6, 1.5, 1.7, 2.9],
                       "coverage": 1.0}, index=pd.Index([*HS, "point"], name="heuristic"))
-    res = ex.headlines.Results(_syn(), t, 2, t.loc[["none", "percentile", "residual"]].assign(stop_err_z_median_m=1.0),
-                               t, tour=tours.TourConfig(nlos_mean_m=2.5, p_nlos_out=0.3))
+    res = dict(synthetic=_syn(), synthetic_table=t, synthetic_dim=2, control=t, tour=tours.TourConfig(
+        nlos_mean_m=2.5, p_nlos_out=0.3), other_table=t.loc[["none", "percentile", "residual"]].assign(
+        stop_err_z_median_m=1.0))
     rows = ex.headlines.rows(res)
     assert rows and {r["kind"] for r in rows} == {"reproduced"} and all(np.isfinite(r["value"]) for r in rows)
     four = [r for r in rows if r["paper_value"] == 4.0]
@@ -507,7 +510,7 @@ def test_headline_rows_say_their_kind_and_name_the_noise_beside_the_paper_4_m():
     assert {r["paper_value"] for r in rows if r["quantity"].startswith("rank")} == {1, 2, 3}
     assert q["90 % of all distance errors, residual pruning minus point-based (known height)"] == pytest.approx(-1.2)
     assert "median stationary height error |dz|, 5th percentile (3-D, no height)" in q
-    assert not any("3-D" in r["quantity"] for r in ex.headlines.rows(dataclasses.replace(res, synthetic_dim=3))
+    assert not any("3-D" in r["quantity"] for r in ex.headlines.rows({**res, "synthetic_dim": 3})
                    if "(3-D, no height)" in r["quantity"] and "known" in r["quantity"])
     s = metrics.Summary("02_pruning_nls", fast=True)
     for r in rows:

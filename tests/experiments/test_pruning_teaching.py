@@ -1,4 +1,4 @@
-"""Notebook 02's sections, headlines, panels, notes and exercises (uwbwb.experiments.pruning)."""
+"""Notebook 02's sections, headlines, panels and exercises (uwbwb.experiments.pruning)."""
 
 from __future__ import annotations
 
@@ -49,8 +49,8 @@ def test_lias_sections_run_the_same_comparison_as_the_runs_they_call(room):
     dynamic, static = room
     cfg = PruningConfig(dim=2)
     st = ex.sections.lias_static(static, label="lias-planar-uwb/x", tags=("t0",), config=cfg, stride=50)
-    assert list(st.runs) == ["raw", "calibrated (LOSO)"] and st.heights_m == pytest.approx({"t0": 0.97}, abs=0.01)
-    direct = ex.real.run_static_poses(static, heights_m=st.heights_m, tags=("t0",), config=cfg, stride=50)
+    assert list(st.runs) == ["raw", "calibrated (LOSO)"] and st.mount.per_tag_m == pytest.approx({"t0": 0.97}, abs=0.01)
+    direct = ex.real.run_static_poses(static, heights_m=st.mount.per_tag_m, tags=("t0",), config=cfg, stride=50)
     pd.testing.assert_frame_equal(st.table.loc["raw"], ex.scoring.heuristic_summary(direct.poses))
     assert set(st.epochs["raw"].n_epochs) == {st.epochs["raw"].n_epochs.iloc[0]}     # same epochs for all
     assert set(st.range_stats.tag_id) == {"t0"} and {"median_m", "sigma_m"} <= set(st.range_stats.columns)
@@ -82,7 +82,7 @@ def _results(*, converged=True, same_walks=True, pruning_wins=True, control_ok=T
                            index=pd.Index(["none", "residual", "percentile"], name="heuristic"))
     epochs = pd.DataFrame({"n_epochs": [10, 10 if lias_same else 9]}, index=["none", "point"])
     lias = ex.sections.LiasStatic("x", [], None, pd.DataFrame(), {"raw": None}, pd.DataFrame(), {"raw": epochs})
-    return headlines.Results(syn, table, 2, None, control, lias_static=lias)
+    return dict(synthetic=syn, synthetic_table=table, synthetic_dim=2, control=control, lias_static=lias)
 
 
 def test_checks_pass_and_each_one_can_fail():
@@ -98,68 +98,19 @@ def test_checks_pass_and_each_one_can_fail():
 def test_rows_of_results_say_their_kind_and_the_3d_rows_only_beside_a_2d_run():
     syn_table = pd.DataFrame({"stop_median_m": [1.2, 0.5, 0.6, 0.4], "all_p90_m": [3.0, 2.0, 2.5, np.nan]},
                              index=pd.Index(["none", "percentile", "robust_mean", "residual"], name="heuristic"))
-    res = headlines.Results(ex.study.SyntheticResult(pd.DataFrame(), pd.DataFrame(), pd.DataFrame(), {}), syn_table,
-                            2, syn_table, syn_table)
+    res = dict(synthetic_table=syn_table, synthetic_dim=2, other_table=syn_table)
     rows = headlines.rows(res)
     assert {r["kind"] for r in rows} == {"reproduced"}
     s = uw.metrics.Summary("02_pruning_nls", fast=True)
     for r in rows:
         s.add(**r)
     assert len(s) == len(rows)
-    three_d = dataclasses.replace(res, synthetic_dim=3)
+    three_d = {**res, "synthetic_dim": 3}
     assert not any("(3-D, no height)" in r["quantity"] and "known" in r["quantity"] for r in headlines.rows(three_d))
     assert len(headlines.rows(three_d)) < len(rows)                  # no second geometry when the first is 3-D
 
 
-# --------------------------------------------------------------------------- panels and notes
-
-
-class _StubTour:
-    """Stands in for TourExplorer.rows: the median stop error per heuristic."""
-
-    def __init__(self, err):
-        self.err = err
-
-    def rows(self, tour, pace, node, heuristic, *rest):
-        st = pd.DataFrame({"err_m": [self.err[heuristic]] * 3})
-        return st, pd.DataFrame()
-
-
-VALUES = {"heuristic": "residual", "res_retention": 0.9, "res_dropout_pct": 0.5, "rm_retention": 0.5,
-          "rm_dropout_pct": 1.0, "tour": 2, "pace": "fast", "node": "H"}
-
-
-def test_tour_note_quotes_the_readout_and_flips_with_it():
-    good = panels.tour_note(_StubTour({"residual": 0.4, "none": 1.1}), VALUES)
-    assert "0.40 m" in good and "1.10 m" in good and ", below plain" in good
-    bad = panels.tour_note(_StubTour({"residual": 1.3, "none": 1.1}), VALUES)
-    assert "not below" in bad
-    uw.widgets.what_you_should_see(good)                                # within the note's limits
-
-
-def test_piece_note_says_when_a_piece_has_no_fit():
-    class Stub:
-        def __init__(self, frame):
-            self.frame = frame
-
-        def piece(self, *args):
-            return self.frame
-
-    values = {"segment": 3, "tag": "t0", "heuristic": "residual", "res_retention": 0.9, "rm_retention": 0.5,
-              "dropout_pct": 0.5, "ranges": "raw"}
-    assert "too few ranges" in panels.piece_note(Stub(pd.DataFrame()), values)
-    note = panels.piece_note(Stub(pd.DataFrame({"mean_err_m": [0.123], "speed_ratio": [0.98]})), values)
-    assert "Piece 3" in note and "0.12 m" in note and "0.98" in note
-    uw.widgets.what_you_should_see(note)
-
-
-def test_polar_note_names_the_worst_stop_and_the_best_heuristic():
-    stops = pd.DataFrame({"heuristic": ["none", "none", "residual", "residual", "percentile", "percentile"],
-                          "label": ["K0", "K1"] * 3, "coverage": [4, 1] * 3,
-                          "err_m": [0.3, 1.5, 0.2, 0.4, 0.5, 0.6]})
-    note = panels.polar_note(stops)
-    assert "K1 (1.50 m, covered by 1 anchors)" in note and "0.30 m for residual pruning" in note
-    uw.widgets.what_you_should_see(note)
+# --------------------------------------------------------------------------- panels
 
 
 def test_panels_offer_only_what_the_run_has():

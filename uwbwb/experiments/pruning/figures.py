@@ -122,7 +122,7 @@ def plot_polar_errors(stops: pd.DataFrame, *, by: str = "label", ncols: int = 5,
 
     The radius is the horizontal error (m, the tick labels carry the unit); the angle is the
     direction of the error vector estimate − truth, 0° along +x, counter-clockwise (as
-    :func:`.scoring.bearing_deg`). Both are written under the charts.
+    :func:`.scoring.score_segment`). Both are written under the charts.
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
-"""Notebook 02's summary rows and its checks, from one :class:`Results` record of the run.
+"""Notebook 02's summary rows and its checks, from one dict of the run's results.
 
-:func:`rows` declares the rows (quantity, value, unit, data, kind, paper value): every
+:func:`rows` reads the rows declared as data (quantity, column, unit; the kind and paper value beside): every
 value came out of the method on the run's data (*reproduced*); the paper's statements sit beside
 them as ``paper_value``, never as a pass bound. :func:`checks` lists what the methods must do
 whatever the noise levels (none of them is the paper's number).
@@ -8,57 +8,13 @@ whatever the noise levels (none of them is the paper's number).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 import pandas as pd
 
-from ...sim.tours import TourConfig
 from .scoring import LABELS, PAPER_RANKING, POINT
-from .sections import LiasDynamic, LiasStatic
-from .study import SyntheticResult
 from .verdicts import noise
 
-__all__ = ["Results", "checks", "rows"]
-
-
-@dataclass(frozen=True)
-class Results:
-    """What notebook 02's checks and summary read.
-
-    Attributes
-    ----------
-    synthetic
-        The ranked synthetic comparison (:func:`.study.run_synthetic`).
-    synthetic_table
-        Its :func:`.scoring.heuristic_summary` (stops, walks, packets).
-    synthetic_dim
-        Its geometry (2: known mount height, 3: no height).
-    other_table
-        The same packets in the other geometry (None: not run).
-    control
-        :func:`.scoring.heuristic_summary` of the same tours without NLOS (the outlier-free control).
-    lias_static, lias_dynamic
-        :func:`.sections.lias_static` / :func:`.sections.lias_dynamic` (None: no LIAS data).
-    hanyang
-        Per condition (LOS, NLOS) of the Hanyang static files, the median over files of ``median_err_m`` and
-        ``pq_err_m`` (:func:`uwbwb.calibration.percentile_by_file`; None: no data).
-    hanyang_label
-        Its data label.
-    tour
-        The simulator configuration of the synthetic comparison (its noise is named beside the paper's 4 m).
-    """
-
-    synthetic: SyntheticResult = field(repr=False)
-    synthetic_table: pd.DataFrame = field(repr=False)
-    synthetic_dim: int
-    other_table: pd.DataFrame | None = field(repr=False)
-    control: pd.DataFrame = field(repr=False)
-    lias_static: LiasStatic | None = field(default=None, repr=False)
-    lias_dynamic: LiasDynamic | None = field(default=None, repr=False)
-    hanyang: pd.DataFrame | None = field(default=None, repr=False)
-    hanyang_label: str | None = None
-    tour: TourConfig | None = None
+__all__ = ["checks", "rows"]
 
 
 def _ranks(table: pd.DataFrame) -> pd.Series:
@@ -68,13 +24,46 @@ def _ranks(table: pd.DataFrame) -> pd.Series:
     return table.loc[three, "stop_median_m"].rank()
 
 
-def rows(results: Results) -> list[dict]:
+#: The summary rows per estimator, declared as data: (quantity, column of its table, unit); ``{lab}`` is the
+#: estimator (or the Hanyang condition), ``{geo}`` the geometry, ``{k}`` the LIAS run, ``{note}`` the assumed noise beside the paper's 4 m.
+SYNTHETIC = (("median stationary error, {lab} ({geo})", "stop_median_m", "m"),
+             ("90th-percentile stationary error, {lab} ({geo})", "stop_p90_m", "m"),
+             ("median walk velocity error, {lab} ({geo})", "vel_err_median_mps", "m/s"),
+             ("median walk speed ratio (estimated / true), {lab} ({geo})", "speed_ratio_median", ""),
+             ("90 % of all distance errors under, {lab} ({geo}, covered packets{note})", "all_p90_m", "m"),
+             ("median of all distance errors, {lab} ({geo}, covered packets)", "all_median_m", "m"),
+             ("packet coverage, {lab} ({geo})", "coverage", ""))
+THREE_D = (("median stationary error, {lab} (3-D, no height)", "stop_median_m", "m"),
+           ("median stationary height error |dz|, {lab} (3-D, no height)", "stop_err_z_median_m", "m"),
+           ("median stationary 3-D error, {lab} (3-D, no height)", "stop_err_3d_median_m", "m"),
+           ("90 % of all distance errors under, {lab} (3-D, no height, covered packets)", "all_p90_m", "m"))
+LIAS_POSES = (("median stationary error, {lab}, {k}", "stop_median_m", "m"),
+              ("90th-percentile stationary error, {lab}, {k}", "stop_p90_m", "m"))
+LIAS_EPOCHS = (("median per-epoch error, {lab}, {k}", "median_m", "m"), ("epoch coverage, {lab}, {k}", "coverage", ""))
+LIAS_PIECES = (("median segment position error, {lab}, {k}", "mean_err_m", "m"),
+               ("median segment velocity error, {lab}, {k}", "vel_err_mps", "m/s"),
+               ("median speed ratio (estimated / true), {lab}, {k}", "speed_ratio", ""))
+LIAS_PIECE_EPOCHS = (("median per-epoch error on the straight pieces, {lab}, {k}", "median_m", "m"),
+                     ("90th-percentile per-epoch error on the straight pieces, {lab}, {k}", "p90_m", "m"))
+HANYANG = (("median per-file 5th-percentile range error, {lab}", "pq_err_m", "m"),
+           ("median per-file median range error, {lab}", "median_err_m", "m"))
+#: The paper's statements beside our rows: its ranking, and "90 % of all distance errors under 4 m" (residual).
+PAPER_RANK = {"residual": 1, "robust_mean": 2, "percentile": 3}
+PAPER_P90_M = {"residual": 4.0}
+
+
+def rows(results: dict) -> list[dict]:
     """The notebook's headline numbers as :meth:`uwbwb.metrics.Summary.add` keyword dicts, each with its kind.
 
-    Every value came out of the method on the run's data (``kind="reproduced"``); the paper's statements sit
-    beside them as ``paper_value`` (the ranking, "90 % under 4 m"), never as a pass bound. Residual pruning's
-    90th percentile, set beside the paper's 4 m, names the simulated noise it follows from. The 3-D rows come only
-    when the ranked comparison is 2-D (``other_table`` is then 3-D).
+    ``results`` holds ``synthetic_table`` (:func:`.scoring.heuristic_summary` of the ranked synthetic comparison),
+    ``synthetic_dim`` (its geometry: 2, known mount height; 3, no height) and, where run, ``other_table`` (the same
+    packets in the other geometry), ``lias_static`` and ``lias_dynamic`` (:mod:`.sections`), ``hanyang`` (per
+    condition, the median over the static files of ``median_err_m`` and ``pq_err_m``) with ``hanyang_label``, and
+    ``tour`` (the simulator configuration). Every value came out of the method on the run's data
+    (``kind="reproduced"``); the paper's statements sit beside them as ``paper_value`` (the ranking, "90 % under
+    4 m"), never as a pass bound. Residual pruning's 90th percentile, set beside the paper's 4 m, names the
+    simulated noise it follows from. The 3-D rows come only when the ranked comparison is 2-D (``other_table`` is
+    then 3-D).
     """
     out = []
 
@@ -83,76 +72,51 @@ def rows(results: Results) -> list[dict]:
             out.append({"quantity": quantity, "value": float(value), "unit": unit, "data": data,
                         "kind": "reproduced", "paper_value": paper_value})
 
-    geo = "known height" if results.synthetic_dim == 2 else "3-D, no height"
-    t = results.synthetic_table
-    assumed = "; follows from assumed noise: " + (noise(results.tour) if results.tour is not None else
-                                                   "our simulator's (uw.sim.tours.TourConfig)")
-    for h, r in t.iterrows():
-        lab = LABELS[h]
-        add(f"median stationary error, {lab} ({geo})", r.get("stop_median_m"), "m", "synthetic")
-        add(f"90th-percentile stationary error, {lab} ({geo})", r.get("stop_p90_m"), "m", "synthetic")
-        add(f"median walk velocity error, {lab} ({geo})", r.get("vel_err_median_mps"), "m/s", "synthetic")
-        add(f"median walk speed ratio (estimated / true), {lab} ({geo})", r.get("speed_ratio_median"), "",
-            "synthetic")
-        add(f"90 % of all distance errors under, {lab} ({geo}, covered packets{assumed if h == 'residual' else ''})",
-            r.get("all_p90_m"), "m", "synthetic", 4.0 if h == "residual" else None)
-        add(f"median of all distance errors, {lab} ({geo}, covered packets)", r.get("all_median_m"), "m",
-            "synthetic")
-        add(f"packet coverage, {lab} ({geo})", r.get("coverage"), "", "synthetic")
+    def table(t, decl, data, note="", **fmt):
+        for h, r in t.iterrows():
+            for q, col, unit in decl:
+                add(q.format(lab=LABELS.get(h, h), note=note if h == "residual" else "", **fmt), r.get(col), unit,
+                    data, PAPER_P90_M.get(h) if "{note}" in q else None)
+
+    geo = "known height" if results["synthetic_dim"] == 2 else "3-D, no height"
+    t, tour = results["synthetic_table"], results.get("tour")
+    table(t, SYNTHETIC, "synthetic", geo=geo, note="; follows from assumed noise: " + (
+        noise(tour) if tour is not None else "our simulator's (uw.sim.tours.TourConfig)"))
     rank = "rank by median stationary error among the three heuristics (1 = best)"
-    paper_rank = {"residual": 1, "robust_mean": 2, "percentile": 3}
     for h, v in _ranks(t).items():
-        add(f"{rank}, {LABELS[h]} ({geo})", v, "", "synthetic", paper_rank[h])
+        add(f"{rank}, {LABELS[h]} ({geo})", v, "", "synthetic", PAPER_RANK[h])
     if {"residual", POINT} <= set(t.index):
         add(f"90 % of all distance errors, residual pruning minus point-based ({geo})",
             t.loc["residual", "all_p90_m"] - t.loc[POINT, "all_p90_m"], "m", "synthetic")
-    if results.synthetic_dim == 2 and results.other_table is not None:
-        for h, r in results.other_table.iterrows():
-            lab = LABELS[h]
-            add(f"median stationary error, {lab} (3-D, no height)", r.get("stop_median_m"), "m", "synthetic")
-            add(f"median stationary height error |dz|, {lab} (3-D, no height)", r.get("stop_err_z_median_m"),
-                "m", "synthetic")
-            add(f"median stationary 3-D error, {lab} (3-D, no height)", r.get("stop_err_3d_median_m"), "m",
-                "synthetic")
-            add(f"90 % of all distance errors under, {lab} (3-D, no height, covered packets)", r.get("all_p90_m"),
-                "m", "synthetic")
-    st = results.lias_static
+    if results["synthetic_dim"] == 2 and results.get("other_table") is not None:
+        table(results["other_table"], THREE_D, "synthetic")
+    st = results.get("lias_static")
     for k in (st.runs if st is not None else ()):
-        hs, es = st.table.loc[k], st.epochs[k]
-        for h, r in hs.iterrows():
-            add(f"median stationary error, {LABELS[h]}, {k}", r.get("stop_median_m"), "m", st.label)
-            add(f"90th-percentile stationary error, {LABELS[h]}, {k}", r.get("stop_p90_m"), "m", st.label)
-        for h, v in _ranks(hs).items():
-            add(f"{rank}, {LABELS[h]}, {k}", v, "", st.label, paper_rank[h])
-        for h, r in es.iterrows():
-            add(f"median per-epoch error, {LABELS[h]}, {k}", r.median_m, "m", st.label)
-            add(f"epoch coverage, {LABELS[h]}, {k}", r.coverage, "", st.label)
-    dy = results.lias_dynamic
+        table(st.table.loc[k], LIAS_POSES, st.label, k=k)
+        for h, v in _ranks(st.table.loc[k]).items():
+            add(f"{rank}, {LABELS[h]}, {k}", v, "", st.label, PAPER_RANK[h])
+        table(st.epochs[k], LIAS_EPOCHS, st.label, k=k)
+    dy = results.get("lias_dynamic")
     for k in (dy.runs if dy is not None else ()):
-        pt, (es, cov) = dy.table.loc[k], dy.epochs[k]
-        for h, r in pt.iterrows():
-            add(f"median segment position error, {LABELS[h]}, {k}", r.mean_err_m, "m", dy.label)
-            add(f"median segment velocity error, {LABELS[h]}, {k}", r.vel_err_mps, "m/s", dy.label)
-            add(f"median speed ratio (estimated / true), {LABELS[h]}, {k}", r.speed_ratio, "", dy.label)
-        for h, r in es.iterrows():
-            add(f"median per-epoch error on the straight pieces, {LABELS[h]}, {k}", r.median_m, "m", dy.label)
-            add(f"90th-percentile per-epoch error on the straight pieces, {LABELS[h]}, {k}", r.p90_m, "m",
-                dy.label)
+        es, cov = dy.epochs[k]
+        table(dy.table.loc[k], LIAS_PIECES, dy.label, k=k)
+        table(es, LIAS_PIECE_EPOCHS, dy.label, k=k)
         for h, v in cov.items():
             add(f"fraction of the run's epochs with a position, {LABELS[h]}, {k}", v, "", dy.label)
-    for cond, r in (results.hanyang.iterrows() if results.hanyang is not None else ()):
-        add(f"median per-file 5th-percentile range error, {cond}", r.pq_err_m, "m", results.hanyang_label)
-        add(f"median per-file median range error, {cond}", r.median_err_m, "m", results.hanyang_label)
+    if results.get("hanyang") is not None:
+        table(results["hanyang"], HANYANG, results["hanyang_label"])
     return out
 
 
-def checks(results: Results, fast: bool) -> list[str]:
+def checks(results: dict, fast: bool) -> list[str]:
     """What the methods must do whatever the noise levels; returns the failures (empty: all hold).
 
-    None of these is the paper's number. ``fast`` is accepted for the common signature: the
-    checks are directions and coverage rules, the same in both modes.
+    ``results`` as in :func:`rows`, with ``synthetic`` (:class:`~.study.SyntheticResult` of the ranked comparison)
+    and ``control`` (:func:`.scoring.heuristic_summary` of the same tours without NLOS). None of these is the
+    paper's number. ``fast`` is accepted for the common signature: the checks are directions and coverage rules,
+    the same in both modes.
     """
-    syn, t, control = results.synthetic, results.synthetic_table, results.control
+    syn, t, control = results["synthetic"], results["synthetic_table"], results["control"]
     fail = []
     if not (syn.stops.converged.mean() > 0.95 and syn.moves.converged.mean() > 0.95):
         fail.append("the resolution routine converges on more than 95 % of stops and walks")
@@ -170,8 +134,8 @@ def checks(results: Results, fast: bool) -> list[str]:
                                               > control.loc["none", "stop_median_m"]):
         fail.append("a 5th percentile of a symmetric error is short by design: on outlier-free ranges it must lose "
                     "to plain NLS")
-    if results.lias_static is not None:
-        for k, e in results.lias_static.epochs.items():
+    if results.get("lias_static") is not None:
+        for k, e in results["lias_static"].epochs.items():
             if e.n_epochs.nunique() != 1:
                 fail.append(f"LIAS static {k}: every estimator scored on the same epochs")
     return fail

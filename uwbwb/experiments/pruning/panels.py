@@ -1,10 +1,9 @@
-"""Back ends of notebook 02's panels (cached; they also run headless) and the notes under them.
+"""Back ends of notebook 02's panels (cached; they also run headless).
 
 :class:`TourExplorer` serves the synthetic-tour panel (the run's own settings from its results,
 other retention/dropout values re-solved, cached); :class:`PieceExplorer` one straight piece of
 the LIAS dynamic run. :func:`tour_panel` and :func:`piece_panel` build the panels with options
-the data has; :func:`tour_note` and :func:`piece_note` write the "what you should see" under
-them from the panels' default readouts.
+the data has.
 """
 
 from __future__ import annotations
@@ -26,17 +25,7 @@ from .real import run_dynamic_segments
 from .scoring import LABELS
 from .study import SyntheticConfig, SyntheticResult, run_tour
 
-__all__ = ["PieceExplorer", "TourExplorer", "piece_note", "piece_panel", "polar_note", "readout", "tour_note",
-           "tour_panel"]
-
-
-def readout(stops: pd.DataFrame, moves: pd.DataFrame) -> dict:
-    """The tour panel's numbers for one tour, node and heuristic: stop errors, walk velocity and speed ratio."""
-    out = {"median stop error (m)": stops.err_m.median(), "90th pct stop error (m)": stops.err_m.quantile(0.9)}
-    if len(moves):
-        out.update({"median walk velocity error (m/s)": moves.vel_err_mps.median(),
-                    "median speed ratio": moves.speed_ratio.median()})
-    return out
+__all__ = ["PieceExplorer", "TourExplorer", "piece_panel", "tour_panel"]
 
 
 class TourExplorer:
@@ -86,7 +75,7 @@ class TourExplorer:
         return pd.DataFrame(s), pd.DataFrame(m)
 
     def render(self, heuristic, res_retention, res_dropout_pct, rm_retention, rm_dropout_pct, tour, pace, node):
-        """Figure (Fig 9 style) and readout for the panel's values."""
+        """Figure (Fig 9 style) and readout (stop errors, walk velocity and speed ratio) for the panel's values."""
         st, mv = self.rows(tour, pace, node, heuristic, res_retention, res_dropout_pct, rm_retention,
                            rm_dropout_pct)
         rec, _ = self.experiment(tour, pace)
@@ -95,7 +84,11 @@ class TourExplorer:
         plot_segment_fits(mv if len(mv) else empty, st, ax=ax, truth_xy=rec.truth[node].pos_m, anchors=rec.anchors,
                           heuristic=heuristic)
         ax.set_title(f"tour {tour}, {pace}, node {node} ({rec.meta['node_heights_m'][node]} m): {LABELS[heuristic]}")
-        return fig, readout(st, mv)
+        out = {"median stop error (m)": st.err_m.median(), "90th pct stop error (m)": st.err_m.quantile(0.9)}
+        if len(mv):
+            out.update({"median walk velocity error (m/s)": mv.vel_err_mps.median(),
+                        "median speed ratio": mv.speed_ratio.median()})
+        return fig, out
 
 
 class PieceExplorer:
@@ -118,10 +111,6 @@ class PieceExplorer:
         self.rec, self.segments, self.heights_m = rec, segments, dict(heights_m)
         self.config, self.stride, self.calibration = config, int(stride), calibration
         self.piece = functools.lru_cache(maxsize=64)(self._piece)
-
-    @property
-    def range_options(self) -> list[str]:
-        return ["raw", "calibrated"] if self.calibration is not None else ["raw"]
 
     def _piece(self, segment, tag, heuristic, res_retention, rm_retention, dropout_pct, ranges):
         if ranges == "calibrated" and self.calibration is None:
@@ -171,18 +160,6 @@ def tour_panel(explorer: TourExplorer, *, res_retention: float, rm_retention: fl
     }, explorer.render)
 
 
-def tour_note(explorer: TourExplorer, values: dict) -> str:
-    """"What you should see" under the tour panel, from its readout at ``values`` and plain NLS's beside it."""
-    v = dict(values)
-    keys = ("tour", "pace", "node", "heuristic", "res_retention", "res_dropout_pct", "rm_retention", "rm_dropout_pct")
-    ours = readout(*explorer.rows(*(v[k] for k in keys)))["median stop error (m)"]
-    plain = readout(*explorer.rows(*({**v, "heuristic": "none"}[k] for k in keys)))["median stop error (m)"]
-    word = "below" if ours < plain else "not below"
-    return (f"Black: the true path; arrows: fitted walks ($P_0 \\to P_0 + vT$, fainter = earlier); markers: stop "
-            f"estimates; triangles: anchors. Median stop error {ours:.2f} m with {LABELS[v['heuristic']]}, {word} "
-            f"plain NLS's {plain:.2f} m here. Set the residual retention to 1.0 (no pruning) and watch the stops move.")
-
-
 def piece_panel(explorer: PieceExplorer, *, tags, res_retention: float, rm_retention: float) -> widgets.Panel:
     """The LIAS dynamic panel: the run's straight pieces and tags, the heuristics that apply to motion,
     and the range options the run has (calibrated only when a calibration was fitted)."""
@@ -195,28 +172,5 @@ def piece_panel(explorer: PieceExplorer, *, tags, res_retention: float, rm_reten
         "res_retention": widgets.float_slider("residual pruning: retention", res_retention, 0.5, 1.0, 0.05),
         "rm_retention": widgets.float_slider("robust mean: retention", rm_retention, 0.1, 1.0, 0.05),
         "dropout_pct": widgets.float_slider("dropout step", 0.5, 0.25, 5.0, 0.25, unit="%"),
-        "ranges": widgets.dropdown("ranges", explorer.range_options, "raw"),
+        "ranges": widgets.dropdown("ranges", ["raw", "calibrated"][:1 + (explorer.calibration is not None)], "raw"),
     }, explorer.render)
-
-
-def piece_note(explorer: PieceExplorer, values: dict) -> str:
-    """"What you should see" under the LIAS piece panel, from its readout at ``values``."""
-    keys = ("segment", "tag", "heuristic", "res_retention", "rm_retention", "dropout_pct", "ranges")
-    row = explorer.piece(*(values[k] for k in keys))
-    if row.empty:
-        return "This piece has too few ranges for a fit: pick another piece with the slider."
-    r = row.iloc[0]
-    return (f"Grey dots: per-epoch point fixes; black: the motion-capture truth; arrow: the fitted line. Piece "
-            f"{values['segment']}: mean error {r.mean_err_m:.2f} m, speed ratio {r.speed_ratio:.2f} (1 = true "
-            "speed). Compare the arrow with the spread of the grey dots.")
-
-
-def polar_note(stops: pd.DataFrame) -> str:
-    """"What you should see" under the Fig 8 polar charts, from their rows (one experiment and node)."""
-    med = stops.groupby("heuristic")["err_m"].median()
-    plain = stops[stops.heuristic == "none"]
-    worst = plain.loc[plain.err_m.idxmax()]
-    best = min((h for h in med.index if h != "none"), key=lambda h: med[h])
-    return (f"One chart per stop: the distance from the centre is the horizontal error. Plain NLS's worst stop is "
-            f"{worst.label} ({worst.err_m:.2f} m, covered by {int(worst.coverage)} anchors); median over the stops "
-            f"{med['none']:.2f} m for plain NLS, {med[best]:.2f} m for {LABELS[best]} (the lowest here).")

@@ -15,9 +15,9 @@ import numpy as np
 import pandas as pd
 
 from ...filters.pruning import HEURISTICS, PruningConfig
-from ...geometry import line_fit, point_fixes
-from ...types import RangeSamples, Recording
-from .scoring import MIN_SEGMENT_RANGES, POINT, fit_segment
+from ...geometry import point_fixes
+from ...types import Recording
+from .scoring import POINT, score_segment
 
 __all__ = ["DynamicResult", "StaticResult", "run_dynamic_segments", "run_static_poses"]
 
@@ -30,7 +30,7 @@ class StaticResult:
     ----------
     poses
         One row per (pose, tag, heuristic): ``recording, site, yaw_deg, tag``, the row of
-        :func:`.scoring.fit_segment` (``x0_m, y0_m, err_m, bearing_deg, n_used``...), ``true_x_m, true_y_m,
+        :func:`.scoring.score_segment` (``x0_m, y0_m, err_m, bearing_deg, n_used``...), ``true_x_m, true_y_m,
         n_epochs, calibrated``.
     epochs
         The epoch table: every estimator's horizontal error at every (thinned) range
@@ -99,19 +99,13 @@ def run_static_poses(recordings, *, heights_m: dict, tags=None, heuristics=HEURI
         for tag in use:
             log = rec.ranges[tag] if cal is None else cal.apply(rec.ranges[tag])
             log = log.select(slice(None, None, int(stride)))
-            z = heights[tag]
             true = rec.truth[tag].pos_m[0]
-            ep = {"recording": rec.name, "site": site, "tag": tag, "t_s": log.t_s}
-            P = point_fixes(log.range_m, rec.anchors, dim=2, z_m=z)       # every epoch fixed at the same height
-            epochs.append(pd.DataFrame({**ep, "heuristic": POINT, "err_m": np.linalg.norm(P[:, :2] - true[:2], axis=1)}))
-            samples = RangeSamples.from_ranges(log)
-            for h in heuristics:
-                row, err, _ = fit_segment(samples, rec.anchors, h, config, still=True, z_m=z, t_s=log.t_s,
-                                          true_xy=true[:2])
-                rows.append({"recording": rec.name, "site": site, "yaw_deg": rec.meta.get("yaw_deg"), "tag": tag,
-                             **row, "true_x_m": true[0], "true_y_m": true[1], "n_epochs": len(log),
-                             "calibrated": cal is not None})
-                epochs.append(pd.DataFrame({**ep, "heuristic": h, "err_m": err}))
+            fits, ep = score_segment(log, rec.anchors, heuristics, config, still=True, z_m=heights[tag],
+                                     true_xy=true[:2], keys={"recording": rec.name, "site": site, "tag": tag})
+            epochs += ep
+            rows += [{"recording": rec.name, "site": site, "yaw_deg": rec.meta.get("yaw_deg"), "tag": tag, **row,
+                      "true_x_m": true[0], "true_y_m": true[1], "n_epochs": len(log), "calibrated": cal is not None}
+                     for row, _ in fits]
     ep_df = pd.concat(epochs, ignore_index=True) if epochs else pd.DataFrame(
         columns=["recording", "site", "tag", "t_s", "heuristic", "err_m"])
     return StaticResult(pd.DataFrame(rows), ep_df)
@@ -169,7 +163,8 @@ def run_dynamic_segments(rec: Recording, segments: pd.DataFrame, *, heights_m: d
     """
     if "percentile" in heuristics:
         raise ValueError("the percentile heuristic applies to stationary segments only")
-    rows, epochs, cover = [], [], {}
+    rows, epochs, n_run = [], [], 0
+    n_pos = dict.fromkeys([POINT] * point_baseline + list(heuristics), 0)    # the run's epochs with a position
     use = rec.tags if tags is None else tags
     heights = _check_heights(heights_m, use)
     for tag in use:
@@ -178,40 +173,23 @@ def run_dynamic_segments(rec: Recording, segments: pd.DataFrame, *, heights_m: d
         tr = rec.truth[tag]
         full = full.between(tr.t_s[0], tr.t_s[-1])              # epochs with truth
         z = heights[tag]
-        n_run = len(full)
-        n_fit = 0
-        if point_baseline and n_run:
+        n_run += len(full)
+        if point_baseline and len(full):
             P_all = point_fixes(full.range_m, rec.anchors, dim=2, z_m=z)
-            cover.setdefault(POINT, [0, 0])
-            cover[POINT][0] += int(np.isfinite(P_all[:, 0]).sum())
-            cover[POINT][1] += n_run
+            n_pos[POINT] += int(np.isfinite(P_all[:, 0]).sum())
         for seg in segments.itertuples(index=False):
             sel = (full.t_s >= seg.t_start_s) & (full.t_s <= seg.t_end_s)
             log = full.select(sel)
             if len(log) == 0:
                 continue
-            true = tr.interp(log.t_s)[:, :2]
-            ep = {"segment": seg.segment, "tag": tag, "t_s": log.t_s}
-            if point_baseline:
-                epochs.append(pd.DataFrame({**ep, "heuristic": POINT,
-                                            "err_m": np.linalg.norm(P_all[sel, :2] - true, axis=1)}))
-            samples = RangeSamples.from_ranges(log)
-            if len(samples) < MIN_SEGMENT_RANGES:
-                for h in heuristics:
-                    epochs.append(pd.DataFrame({**ep, "heuristic": h, "err_m": np.nan}))
-                continue
-            n_fit += len(log)
-            _, v_true, _ = line_fit(log.t_s, true)
-            for h in heuristics:
-                row, err, _ = fit_segment(samples, rec.anchors, h, config, still=False, z_m=z, t_s=log.t_s,
-                                            true_xy=true, v_true=v_true)
+            fits, ep = score_segment(log, rec.anchors, heuristics, config, still=False, z_m=z,
+                                     true_xy=tr.interp(log.t_s)[:, :2], keys={"segment": seg.segment, "tag": tag},
+                                     point=point_baseline, fixes=P_all[sel] if point_baseline else None)
+            epochs += ep
+            for row, _ in fits:
+                n_pos[row["heuristic"]] += len(log)
                 rows.append({"segment": seg.segment, "tag": tag, **row, "calibrated": calibration is not None})
-                epochs.append(pd.DataFrame({**ep, "heuristic": h, "err_m": err}))
-        for h in heuristics:
-            cover.setdefault(h, [0, 0])
-            cover[h][0] += n_fit
-            cover[h][1] += n_run
     ep_df = pd.concat(epochs, ignore_index=True) if epochs else pd.DataFrame(
         columns=["segment", "tag", "t_s", "heuristic", "err_m"])
-    run_cov = pd.Series({h: c[0] / c[1] if c[1] else np.nan for h, c in cover.items()}, name="run_coverage")
+    run_cov = pd.Series({h: n / n_run if n_run else np.nan for h, n in n_pos.items()}, name="run_coverage")
     return DynamicResult(pd.DataFrame(rows), ep_df, run_cov)

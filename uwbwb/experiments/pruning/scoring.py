@@ -1,7 +1,8 @@
-"""Notebook 02's scoring: estimator names and the per-estimator table.
+"""Notebook 02's scoring: estimator names, the one scorer of a segment, and the per-estimator table.
 
 Every comparison of notebook 02 scores its estimators on one *epoch table* (one row per estimator
-and scored epoch, ``err_m`` NaN where the estimator produced nothing); :func:`uwbwb.metrics.epoch_summary`
+and scored epoch, ``err_m`` NaN where the estimator produced nothing), built segment by segment by
+:func:`score_segment`; :func:`uwbwb.metrics.epoch_summary`
 (``by="heuristic", order=ESTIMATORS``) turns it into coverage beside accuracy, :func:`heuristic_summary`
 condenses stops, walks and packets per estimator.
 """
@@ -13,9 +14,11 @@ import pandas as pd
 
 from ... import metrics
 from ...filters.pruning import HEURISTICS, LABELS as HEURISTIC_LABELS, localize
+from ...geometry import line_fit, point_fixes
+from ...types import RangeSamples
 
-__all__ = ["ESTIMATORS", "LABELS", "MIN_SEGMENT_RANGES", "PAPER_RANKING", "POINT", "bearing_deg", "fit_segment",
-           "heading_err_deg", "heuristic_summary"]
+__all__ = ["ESTIMATORS", "LABELS", "MIN_SEGMENT_RANGES", "PAPER_RANKING", "POINT", "heuristic_summary",
+           "score_segment"]
 
 #: The point-based baseline's name in the tables: one multilateration per packet/epoch.
 POINT = "point"
@@ -29,40 +32,62 @@ PAPER_RANKING = ("residual", "robust_mean", "percentile")
 MIN_SEGMENT_RANGES = 12
 
 
-def bearing_deg(dxy: np.ndarray) -> np.ndarray:
-    """Direction of ``dxy`` (..., 2) in degrees, counter-clockwise from +x (the polar charts' convention)."""
-    return np.rad2deg(np.arctan2(dxy[..., 1], dxy[..., 0]))
+def score_segment(log, anchors, heuristics, config, *, still: bool, z_m, true_xy, keys: dict, v_true=None,
+                  epoch_xy=None, true_z=None, point: bool = True, fixes=None) -> tuple[list, list[pd.DataFrame]]:
+    """Every estimator on one segment's ranges ``log`` (:class:`~uwbwb.types.RangeLog`), scored at each of its epochs.
 
+    The point-based baseline fixes each epoch in ``config.dim`` (``fixes``: fixed already; ``point=False``: not
+    run); each heuristic fits the segment (:func:`uwbwb.filters.pruning.localize`, at height ``z_m``), none with
+    fewer than :data:`MIN_SEGMENT_RANGES` ranges (its epochs count as not covered). ``true_xy`` is the stop's true
+    position (2,) or the walk's at each epoch (n, 2), ``epoch_xy`` the truth the point fixes are scored against
+    (default ``true_xy``), ``v_true`` the walk's true velocity (default: the slope of
+    :func:`uwbwb.geometry.line_fit` through ``true_xy``), ``true_z`` the true height at each epoch (given: the
+    epoch tables hold the height error ``err_z_m``).
 
-def heading_err_deg(v_est, v_true) -> float:
-    """Signed angle (degrees, in [-180, 180)) from the true heading ``v_true`` to the estimated ``v_est``."""
-    ang = np.rad2deg(np.arctan2(v_est[1], v_est[0]) - np.arctan2(v_true[1], v_true[0]))
-    return float((ang + 180.0) % 360.0 - 180.0)
-
-
-def fit_segment(samples, anchors, heuristic: str, config, *, still: bool, z_m, t_s, true_xy, v_true=None):
-    """Fit one segment's ranges with ``heuristic`` (:func:`uwbwb.filters.pruning.localize`) and score it.
-
-    ``true_xy`` is the stop's true position (2,) or the walk's at ``t_s`` (n, 2); ``v_true`` the walk's true
-    velocity. Returns ``(row, err_m, result)``: the row (fit, ``err_m`` and ``bearing_deg`` of a stop; start,
-    end and mean error, velocity error, speed ratio and heading error of a walk), the horizontal error at each
-    epoch of ``t_s`` and the :class:`~uwbwb.filters.pruning.LocalizationResult`.
+    Returns ``(fits, epochs)``: ``(row, result)`` per fitted heuristic (the row: the fit, and the horizontal error
+    ``err_m`` and its direction ``bearing_deg`` (degrees, counter-clockwise from +x) of a stop; start, end and mean
+    error, velocity error, speed ratio and heading error (degrees, in [-180, 180)) of a walk; ``result`` the
+    :class:`~uwbwb.filters.pruning.LocalizationResult`), and the epoch tables: ``keys``, ``heuristic, t_s, err_m``
+    (NaN where an estimator has no position).
     """
-    res = localize(samples, anchors, heuristic, config, stationary=still, z_m=z_m)
-    row = {"heuristic": heuristic, "t0_s": res.t0_s, "t_end_s": res.t_end_s, "x0_m": res.p0_m[0], "y0_m": res.p0_m[1],
-           "z0_m": res.p0_m[2], "vx_mps": res.vel_mps[0], "vy_mps": res.vel_mps[1], "vz_mps": res.vel_mps[2],
-           "n_used": res.n_used, "converged": bool(res.fit.converged) if res.fit is not None else True}
-    if still:
-        d = res.p0_m[:2] - np.asarray(true_xy)
-        row.update(err_m=float(np.hypot(*d)), bearing_deg=float(bearing_deg(d)))
-        return row, np.full(len(t_s), row["err_m"]), res
-    err = np.linalg.norm(res.position_at(t_s)[:, :2] - true_xy, axis=1)
-    v_est, v_true = res.vel_mps[:2], np.asarray(v_true)
-    row.update(true_vx_mps=v_true[0], true_vy_mps=v_true[1], start_err_m=float(err[0]), end_err_m=float(err[-1]),
-               mean_err_m=float(err.mean()), vel_err_mps=float(np.linalg.norm(v_est - v_true)),
-               speed_ratio=float(np.linalg.norm(v_est) / np.linalg.norm(v_true)),
-               heading_err_deg=heading_err_deg(v_est, v_true))
-    return row, err, res
+    t_s, fits, epochs = log.t_s, [], []
+
+    def add(h, err_m, z=np.nan):
+        ep = {**keys, "heuristic": h, "t_s": t_s, "err_m": np.broadcast_to(np.asarray(err_m, float), t_s.shape)}
+        if true_z is not None:
+            ep["err_z_m"] = np.broadcast_to(np.asarray(z - true_z, float), t_s.shape)
+        epochs.append(pd.DataFrame(ep))
+
+    if point:
+        P = point_fixes(log.range_m, anchors, dim=config.dim, z_m=z_m) if fixes is None else fixes
+        add(POINT, np.linalg.norm(P[:, :2] - (true_xy if epoch_xy is None else epoch_xy), axis=1), P[:, 2])
+    samples = RangeSamples.from_ranges(log)
+    for h in heuristics:
+        if len(samples) < MIN_SEGMENT_RANGES:
+            add(h, np.nan)
+            continue
+        res = localize(samples, anchors, h, config, stationary=still, z_m=z_m)
+        row = {"heuristic": h, "t0_s": res.t0_s, "t_end_s": res.t_end_s, "x0_m": res.p0_m[0], "y0_m": res.p0_m[1],
+               "z0_m": res.p0_m[2], "vx_mps": res.vel_mps[0], "vy_mps": res.vel_mps[1], "vz_mps": res.vel_mps[2],
+               "n_used": res.n_used, "converged": bool(res.fit.converged) if res.fit is not None else True}
+        if still:
+            d = res.p0_m[:2] - np.asarray(true_xy)
+            row.update(err_m=float(np.hypot(*d)), bearing_deg=float(np.rad2deg(np.arctan2(d[1], d[0]))))
+            fits.append((row, res))
+            add(h, row["err_m"], res.p0_m[2])
+            continue
+        pos = res.position_at(t_s)
+        err = np.linalg.norm(pos[:, :2] - true_xy, axis=1)
+        v_est = res.vel_mps[:2]
+        v = np.asarray(line_fit(t_s, true_xy)[1] if v_true is None else v_true)
+        turn = np.rad2deg(np.arctan2(v_est[1], v_est[0]) - np.arctan2(v[1], v[0]))
+        row.update(true_vx_mps=v[0], true_vy_mps=v[1], start_err_m=float(err[0]), end_err_m=float(err[-1]),
+                   mean_err_m=float(err.mean()), vel_err_mps=float(np.linalg.norm(v_est - v)),
+                   speed_ratio=float(np.linalg.norm(v_est) / np.linalg.norm(v)),
+                   heading_err_deg=float((turn + 180.0) % 360.0 - 180.0))
+        fits.append((row, res))
+        add(h, err, pos[:, 2])
+    return fits, epochs
 
 
 def heuristic_summary(stops: pd.DataFrame, moves: pd.DataFrame | None = None,

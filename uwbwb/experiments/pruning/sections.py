@@ -56,11 +56,6 @@ class LiasStatic:
     table: pd.DataFrame = field(repr=False)
     epochs: dict = field(repr=False)
 
-    @property
-    def heights_m(self) -> dict:
-        """``{tag: mount height (m)}`` every estimator solves at."""
-        return self.mount.per_tag_m
-
 
 def lias_static(recordings, *, label: str, tags, config: PruningConfig, stride: int, loso: bool = True,
                 progress: bool = False) -> LiasStatic:
@@ -157,7 +152,7 @@ def lias_dynamic(recording: Recording, static: LiasStatic, *, tags, config: Prun
     cal = fit_range_calibration([r.decimate(10) for r in static.recordings]) if same_room and calibrated else None
     runs: dict[str, DynamicResult] = {}
     if len(segs):
-        kw = dict(heights_m=static.heights_m, tags=tags, config=config, stride=stride)
+        kw = dict(heights_m=static.mount.per_tag_m, tags=tags, config=config, stride=stride)
         runs["raw"] = run_dynamic_segments(recording, segs, **kw)
         if cal is not None:
             runs["calibrated"] = run_dynamic_segments(recording, segs, calibration=cal, **kw)

@@ -33,10 +33,9 @@ import pandas as pd
 
 from ...calibration import fit_range_calibration
 from ...filters.pruning import HEURISTICS, PruningConfig
-from ...geometry import point_fixes
 from ...sim import tours as tours_mod
-from ...types import RangeSamples, Recording
-from .scoring import MIN_SEGMENT_RANGES, POINT, fit_segment
+from ...types import Recording
+from .scoring import score_segment
 
 __all__ = ["SyntheticConfig", "SyntheticResult", "loso_calibrations", "run_recordings", "run_synthetic", "run_tour"]
 
@@ -118,13 +117,6 @@ class SyntheticResult:
     dim: int = 2
 
 
-def _track_rows(rec, tag, seg, kind, h, t_s, err_m, err_z_m) -> pd.DataFrame:
-    n = len(t_s)
-    return pd.DataFrame({"experiment": rec.name, "tag": tag, "segment": seg.index, "kind": kind, "heuristic": h,
-                         "t_s": t_s, "err_m": np.broadcast_to(np.asarray(err_m, float), (n,)),
-                         "err_z_m": np.broadcast_to(np.asarray(err_z_m, float), (n,))})
-
-
 def run_tour(rec: Recording, truth: tours_mod.TourTruth, config: SyntheticConfig, *, tags=None,
              heuristics=None) -> tuple[list[dict], list[dict], list[pd.DataFrame]]:
     """Localise every segment of one simulated experiment; rows for :class:`SyntheticResult`.
@@ -145,35 +137,26 @@ def run_tour(rec: Recording, truth: tours_mod.TourTruth, config: SyntheticConfig
             if len(log) == 0:
                 continue
             still = seg.kind == "stop"
-            t_pk = log.t_s
-            true_xy, _ = tours_mod.tour_xy(truth.segments, t_pk)
-            true_z = rec.truth[tag].interp(t_pk)[:, 2]
-            if config.point_baseline:
-                P = point_fixes(log.range_m, rec.anchors, dim=dim, z_m=z_known)
-                track.append(_track_rows(rec, tag, seg, seg.kind, POINT, t_pk,
-                                         np.linalg.norm(P[:, :2] - true_xy, axis=1), P[:, 2] - true_z))
-            samples = RangeSamples.from_ranges(log)
-            run = [h for h in heuristics if still or h != "percentile"]
-            if len(samples) < MIN_SEGMENT_RANGES:
-                for h in run:                       # no fit: these packets count as not covered
-                    track.append(_track_rows(rec, tag, seg, seg.kind, h, t_pk, np.nan, np.nan))
-                continue
+            true_xy, _ = tours_mod.tour_xy(truth.segments, log.t_s)
+            true_z = rec.truth[tag].interp(log.t_s)[:, 2]
+            fits, ep = score_segment(log, rec.anchors, [h for h in heuristics if still or h != "percentile"],
+                                     config.pruning, still=still, z_m=z_known, v_true=seg.vel_xy_mps,
+                                     true_xy=seg.start_xy_m if still else true_xy, epoch_xy=true_xy, true_z=true_z,
+                                     point=config.point_baseline,
+                                     keys={"experiment": rec.name, "tag": tag, "segment": seg.index, "kind": seg.kind})
+            track += ep
             base = {"experiment": rec.name, "tour": tcfg.tour, "pace": tcfg.pace, "tag": tag,
                     "height_m": float(rec.meta["node_heights_m"][tag]), "segment": seg.index,
                     "keypoint": seg.keypoint, "label": seg.label, "coverage": int(truth.coverage[seg.keypoint]),
                     "dim": dim}
-            for h in run:
-                row, err, res = fit_segment(samples, rec.anchors, h, config.pruning, still=still, z_m=z_known, t_s=t_pk,
-                                            true_xy=seg.start_xy_m if still else true_xy, v_true=seg.vel_xy_mps)
+            for row, res in fits:
                 if still:
                     d = res.p0_m[:2] - np.asarray(seg.start_xy_m)
                     dz = float(res.p0_m[2] - np.median(true_z))
                     stops.append({**base, **row, "true_x_m": seg.start_xy_m[0], "true_y_m": seg.start_xy_m[1],
                                   "err_z_m": dz, "err_3d_m": float(np.sqrt(d @ d + dz * dz))})
-                    track.append(_track_rows(rec, tag, seg, "stop", h, t_pk, row["err_m"], res.p0_m[2] - true_z))
-                    continue
-                moves.append({**base, **row, "true_x0_m": true_xy[0, 0], "true_y0_m": true_xy[0, 1]})
-                track.append(_track_rows(rec, tag, seg, "move", h, t_pk, err, res.position_at(t_pk)[:, 2] - true_z))
+                else:
+                    moves.append({**base, **row, "true_x0_m": true_xy[0, 0], "true_y0_m": true_xy[0, 1]})
     return stops, moves, track
 
 

@@ -64,26 +64,21 @@ def _pair_text(d: dict, what: str, digits: int = 3) -> str:
             f"{_iv(d, digits)} ({d['n']} {what})")
 
 
-def _steps(stops: pd.DataFrame, order, rng, column: str = "err_m") -> list[dict]:
-    """Each step ``a < b`` of ``order`` (best first) on the stops both fitted: one series per experiment and node,
-    each resampled whole (its stops share the experiment's per-pair range biases)."""
-    return [paired(stops, a, b, ["experiment", "tag"], at="segment", column=column, blocks="segment", rng=rng)
-            for a, b in zip(order[:-1], order[1:])]
-
-
-def _steps_text(steps: list[dict]) -> str:
-    return "; ".join(f"{LABELS[s['a']]} − {LABELS[s['b']]} {s['diff_m']:+.2f} m {_iv(s)}" for s in steps) + (
-        f" ({steps[0]['n']} stops)" if steps else "")
-
-
-def _steps_verdict(sides: list[str], holds: str, fails: str) -> str:
-    """Every step below 0: ``holds``; one step above 0: ``fails``; no interval at all: "no interval"; else not
+def _steps(stops: pd.DataFrame, pairs, rng, holds: str, fails: str, column: str = "err_m") -> tuple[str, str]:
+    """Each pair ``a < b`` of ``pairs`` on the stops both fitted (one series per experiment and node, each resampled
+    whole: its stops share the experiment's per-pair range biases): the differences with their intervals, and the
+    verdict: every interval below 0, ``holds``; one above 0, ``fails``; no interval at all, "no interval"; else not
     resolved."""
-    if sides and all(s == "below" for s in sides):
-        return holds
+    steps = [paired(stops, a, b, ["experiment", "tag"], at="segment", column=column, blocks="segment", rng=rng)
+             for a, b in pairs]
+    sides = [s["side"] for s in steps]
+    text = "; ".join(f"{LABELS[s['a']]} − {LABELS[s['b']]} {s['diff_m']:+.2f} m {_iv(s)}" for s in steps) + (
+        f" ({steps[0]['n']} stops)" if steps else "")
+    if sides and all(x == "below" for x in sides):
+        return text, holds
     if "above" in sides:
-        return fails
-    return "no interval" if all(s == "none" for s in sides) else "not resolved"
+        return text, fails
+    return text, ("no interval" if all(x == "none" for x in sides) else "not resolved")
 
 
 def _p90(track: pd.DataFrame) -> tuple[float, dict]:
@@ -98,17 +93,16 @@ def _p90_text(pooled: float, s: dict) -> str:
     return f"{pooled:.2f} m; per experiment (n = {s['n']}) {s['mean']:.2f} m {per}"
 
 
-def assumption(tour: TourConfig | None, what: str = "errors") -> str:
+#: Whose range errors a synthetic row rests on.
+_OURS = "our simulator (uw.sim.tours.TourConfig), not the paper's"
+
+
+def assumption(tour: TourConfig | None) -> str:
     """The simulator assumption a synthetic row rests on, with its values when the configuration was given."""
-    tail = "our simulator (uw.sim.tours.TourConfig), not the paper's"
     if tour is None:
-        return f"simulated range errors: {tail}"
-    if what == "excess":
-        return f"nlos_mean_m scaled, the rest as above: {tail}"
-    if what == "dwell":
-        return f"nlos_dwell_s varied, the rest as above: {tail}"
+        return f"simulated range errors: {_OURS}"
     return (f"{noise(tour)} ({100 * tour.p_nlos_in:.0f} % inside), per-pair bias "
-            f"{tour.bias_range_m[0]:g}–{tour.bias_range_m[1]:g} m: {tail}")
+            f"{tour.bias_range_m[0]:g}–{tour.bias_range_m[1]:g} m: {_OURS}")
 
 
 def noise(tour: TourConfig) -> str:
@@ -160,13 +154,13 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
 
     syn_a = assumption(tour)
     geo = "known mount height" if dim == 2 else "3-D, no height"
-    names = set(syn.stops["heuristic"])
-    steps = _steps(syn.stops, [h for h in PAPER_RANKING if h in names], rng)
+    order = [h for h in PAPER_RANKING if h in set(syn.stops["heuristic"])]
+    text, verdict = _steps(syn.stops, zip(order[:-1], order[1:]), rng, "as in the paper", "differs")
     add(f"ranking of the heuristics by median stop error, synthetic ({geo})",
-        " < ".join(LABELS[h] for h in PAPER_RANKING), _steps_text(steps),
+        " < ".join(LABELS[h] for h in PAPER_RANKING), text,
         "each step of the paper's order: 95 % bootstrap interval of the median difference (block-bootstrap rule, "
         "each experiment's series of stops one block) below 0 (all: as in the paper; one above 0: differs)",
-        _steps_verdict([s["side"] for s in steps], "as in the paper", "differs"), syn_a)
+        verdict, syn_a)
     track = syn.track
     if {"residual", POINT} <= set(track["heuristic"]):
         d = paired(track, "residual", POINT, ["experiment", "tag"], blocks="segment", rng=rng)
@@ -185,23 +179,20 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
         add("residual pruning: 90 % of all distance errors under 4 m, as the simulated NLOS excess is scaled",
             "yes (the paper's cafeteria)", " / ".join(f"{m:g} m: {_p90_text(*v)}" for m, v in p.items()),
             _SEEDS_RULE + ", at each mean excess", _EXCESS.get(frozenset(sides), "not resolved"),
-            assumption(tour, "excess"))
+            f"nlos_mean_m scaled, the rest as above: {_OURS}")
     if other is not None:
         three_d, known = (other, syn) if dim == 2 else (syn, other)
         present = set(three_d.stops["heuristic"])
         med = known.stops.groupby("heuristic")["err_m"].median()
         order = [h for h in med[[h for h in PAPER_RANKING if h in present and h in med.index]].sort_values().index]
-        steps = _steps(three_d.stops, order, rng, column="err_3d_m")
+        text, verdict = _steps(three_d.stops, zip(order[:-1], order[1:]), rng, "same", "changes", "err_3d_m")
         add("the known-height ranking in 3-D without a height, by 3-D median error (the robust mean has no 3-D "
-            "version)", "—", _steps_text(steps), "each step of the known-height order: 95 % bootstrap interval of "
-            "the 3-D median difference (each experiment's stops one block) below 0",
-            _steps_verdict([s["side"] for s in steps], "same", "changes"), syn_a)
+            "version)", "—", text, "each step of the known-height order: 95 % bootstrap interval of the 3-D median "
+            "difference (each experiment's stops one block) below 0", verdict, syn_a)
         if "percentile" in present:
-            dz = three_d.stops[three_d.stops["heuristic"] == "percentile"].sort_values(["experiment", "tag", "segment"])
-            g = [x["err_z_m"].to_numpy() for _, x in dz.groupby(["experiment", "tag"])]
-            d = metrics.block_bootstrap_difference(g, [np.zeros_like(x) for x in g], rng=rng, statistic="median",
-                                                   blocks="segment")
-            d["side"] = metrics.interval_side(d["lo_m"], d["hi_m"])
+            dz = three_d.stops[three_d.stops["heuristic"] == "percentile"]
+            d = paired(pd.concat([dz, dz.assign(heuristic="0", err_z_m=0.0)]), "percentile", "0",
+                       ["experiment", "tag"], at="segment", column="err_z_m", blocks="segment", rng=rng)
             add("5th percentile in 3-D: median height error (m; > 0: the node sits too high)", "—",
                 f"{d['diff_m']:+.2f} {_iv(d)} ({d['n']} stops)", _PAIRED_RULE + " (each experiment's stops one block)",
                 _sides("too low", "too high")[d["side"]], syn_a)
@@ -211,12 +202,11 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
         at = {w: persistence[persistence["nlos_dwell_s"] == w] for w in (base, long)}
         three = [h for h in PAPER_RANKING if h in set(persistence["heuristic"])]
         best = at[base][at[base]["heuristic"].isin(three)].groupby("heuristic")["err_m"].median().idxmin()
-        steps = [paired(at[long], best, h, ["experiment", "tag"], at="segment", blocks="segment", rng=rng)
-                 for h in three if h != best]
-        add(f"the best heuristic at {base:g} s NLOS episodes ({LABELS[best]}) still best at {long:g} s", "—",
-            _steps_text(steps), "95 % bootstrap interval of its median difference to each other heuristic at "
-            f"{long:g} s (each experiment's stops one block): all below 0 same, one above 0 changes",
-            _steps_verdict([s["side"] for s in steps], "same", "changes"), assumption(tour, "dwell"))
+        text, verdict = _steps(at[long], [(best, h) for h in three if h != best], rng, "same", "changes")
+        add(f"the best heuristic at {base:g} s NLOS episodes ({LABELS[best]}) still best at {long:g} s", "—", text,
+            f"95 % bootstrap interval of its median difference to each other heuristic at {long:g} s (each "
+            "experiment's stops one block): all below 0 same, one above 0 changes", verdict,
+            f"nlos_dwell_s varied, the rest as above: {_OURS}")
     pairs = []                              # (claim, paired difference, what is counted, rule, verdicts)
     for k, run in (lias.runs.items() if lias is not None else ()):
         pairs.append((f"LIAS static, {k} ranges: plain NLS (fixed in advance) vs point fixes, median error on common "
