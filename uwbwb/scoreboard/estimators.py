@@ -99,6 +99,8 @@ class TdoaLs(BaseEstimator):
     name: str = "TDoA LS"
     ref: int = 0
     correlated: bool = True
+    #: on pseudo-TDoAs: notebook 03 runs every estimator of :func:`default_estimators` that says so
+    tdoa = True
 
     def applies(self, rec, tag, cal):
         return tdoa_geometry_note(cal, tag)
@@ -237,6 +239,7 @@ class TdoaEkfEstimator(_MotionEkf):
 
     ref: int = 0
     correlated: bool = True
+    tdoa = True                                # on pseudo-TDoAs (notebook 03 runs it, as :class:`TdoaLs`)
 
     @property
     def name(self) -> str:

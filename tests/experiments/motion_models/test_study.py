@@ -65,7 +65,7 @@ def test_raw_multilateration_is_exact_on_exact_ranges():
     pos = np.column_stack([2 + 0.5 * t, 3 + 0.2 * t, np.full(t.size, 1.2)])
     r = np.linalg.norm(pos[:, None] - anchors.pos_m, axis=-1)
     run = TagRun("synthetic", "x", "t", RangeLog(t, r, anchors.ids, "t"), Trajectory(t, pos), anchors, 2, 1.2)
-    raw = mm.estimate(run, 0.1, {"RW": 1.0}, gate_prob=None, models=("RW",)).trajectories["raw"]   # no device output
+    raw = mm.estimate(run, 0.1, {"RW": 1.0}, gate_prob=None, models=("RW",)).estimates("raw")   # no device output
     np.testing.assert_allclose(raw.pos_m, pos[:, :2], atol=1e-6)
 
 
@@ -91,16 +91,16 @@ def test_estimate_calibrate_and_tables(office_runs):
     np.testing.assert_array_equal(study.calibration.sigma("tag1"), fit_range_sigma(cal[0]))
 
     est = mm.estimate(test[0], study.calibration.sigma("tag1"), best, gate_prob=None)
-    assert set(est.trajectories) == {"raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ"} and est.gate_prob is None
+    assert est.methods == ("raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ") == mm.METHODS
     c = est.cep95()
     assert all(0 < v < 3 for v in c.values())
     assert c["EKF-RW"] < c["raw"]
     assert min(est.coverage().values()) > 0.95
     nis = est.nis()
-    assert list(nis.index) == ["RW", "RF", "RJ"] and (nis["n"] > 200).all()
+    assert list(nis.index) == ["EKF-RW", "EKF-RF", "EKF-RJ"] and (nis["n"] > 200).all()
     assert set(nis["verdict"]) <= {"consistent", "over-confident", "under-confident"}
     assert (nis["mean_lo"] < 1).all() and (nis["mean_hi"] > 1).all()
-    table = mm.results.cep95_table([est], ["raw", "LS", "EKF-RW"])
+    table = study.table(["raw", "LS", "EKF-RW"])
     assert table.loc[("office", "tag1"), "LS"] == pytest.approx(c["LS"])
 
 
@@ -150,7 +150,7 @@ def test_study(office_runs):
     assert list(table.columns) == ["raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ"] and len(table) == 2
     assert study.result_for("office", "tag2").run.tag == "tag2"
     assert list(study.coverage().columns) == [*mm.METHODS, "common"]
-    assert study.nis().index.names == ["run/tag", "model"] and len(study.nis()) == 6
+    assert study.nis().index.names == ["run/tag", "method"] and len(study.nis()) == 6
     with pytest.raises(KeyError, match="no test result"):
         study.result_for("office", "tag9")
     with pytest.raises(ValueError, match="no calibration run"):
@@ -185,7 +185,7 @@ def test_scoring_on_common_epochs_with_coverage_beside(office_runs):
     assert common["EKF-RW"].size == ekf_own.sum() - in_outage.sum()        # ... and is scored without them
     own = est.cep95(common=False)
     assert own["LS"] == pytest.approx(est.cep95()["LS"])                     # LS's own epochs are the common ones
-    table = mm.results.coverage_table([est])
+    table = mm.Study(None, {}, [est]).coverage()
     assert table.loc[("office", "tag1"), "LS"] == pytest.approx(100 * cov["LS"])
     with pytest.raises(ValueError, match="no epoch where every estimator"):
         mm.estimate(_outage(test[0], -1.0, 1e9), fit_range_sigma(cal[0]), {"RW": 1.0}, gate_prob=None,
@@ -199,7 +199,7 @@ def test_nis_verdict_follows_the_noise_level(los_run):
     verdict = {}
     for k in (1 / 3, 1.0, 3.0):
         est = mm.estimate(los_run, sig * k, {"RW": 1.0}, gate_prob=None, models=("RW",))
-        verdict[k] = est.nis().loc["RW"]
+        verdict[k] = est.nis().loc["EKF-RW"]
     assert verdict[3.0]["verdict"] == "under-confident" and verdict[1 / 3]["verdict"] == "over-confident"
     assert verdict[3.0]["mean_nis_over_dof"] < verdict[1.0]["mean_nis_over_dof"] < verdict[1 / 3]["mean_nis_over_dof"]
     assert 0.5 < verdict[1.0]["mean_nis_over_dof"] < 2.0
@@ -222,3 +222,26 @@ def test_summary_rows_say_their_kind(office_runs):
     assert sig["driving sigma RW (office)"]["kind"] == "target"               # the simulated speed equals it
     assert sig["driving sigma RF (office)"]["kind"] == "reproduced"
     assert sig["driving sigma RW (office)"]["paper_value"] == 0.83 and sig["driving sigma RJ (office)"]["unit"] == "m/s³"
+
+
+def test_a_new_tdoa_estimator_of_the_registry_joins_every_table(office_runs, monkeypatch):
+    """Notebook 03 takes its methods from the one registry: an estimator added there with ``tdoa = True`` is
+    tuned, run, scored and summarised by the study without a change to this package."""
+    from dataclasses import dataclass
+
+    from uwbwb.scoreboard import estimators as registry
+
+    @dataclass(frozen=True)
+    class Twin(registry.TdoaLs):           # a newcomer's TDoA method: here the LS fix under another name
+        name: str = "TDoA LS twin"
+
+    board = registry.default_estimators()
+    monkeypatch.setattr(mm.results, "default_estimators", lambda: [*board, Twin()])
+    cal, test = office_runs
+    study = mm.run_study(cal, test, grids={"RW": [1.0], "RF": [3.0], "RJ": [10.0]}, gate_prob=None, progress=False)
+    table = study.table()
+    assert list(table.columns) == [*mm.METHODS, "TDoA LS twin"]
+    np.testing.assert_array_equal(table["TDoA LS twin"], table["LS"])
+    assert "TDoA LS twin" in study.coverage().columns
+    rows = {r["quantity"] for r in mm.headline_rows(mm.Results(synthetic={"office": study}))}
+    assert {"CEP95 office tag1 TDoA LS twin", "coverage office tag2 TDoA LS twin"} <= rows

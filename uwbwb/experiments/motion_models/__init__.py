@@ -1,6 +1,7 @@
 """Notebook 03 (De Angelis, paper 002): TDoA EKF with random-walk / random-force / random-jerk models.
 
-``study`` calibrates and runs the estimators (``results``: what one tag-run gives and the tables),
+``study`` calibrates and runs the estimators (``results``: its methods, the registry's estimators on
+pseudo-TDoAs, and what one tag-run gives),
 ``real`` runs the real-data sections, ``headlines`` declares the summary rows and the checks,
 ``seeds`` runs the synthetic tables over several test seeds (a verdict per pair), ``figures`` draws,
 ``panels`` is the explorer's back end, ``exercises`` the checked exercises. The notebook imports this package

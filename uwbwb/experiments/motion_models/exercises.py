@@ -117,7 +117,7 @@ def overconfident_driving_noise(run: TagRun, sigma_m, sigmas: Mapping[str, float
     out = {}
     for label, s in (("calibrated", float(sigmas[model])), ("small", factor * float(sigmas[model]))):
         est = estimate(part, sigma_m, {model: s}, ref=ref, gate_prob=None, models=(model,))
-        out[label] = (s, est.cep95()[name], float(est.nis().loc[model, "mean_nis_over_dof"]))
+        out[label] = (s, est.cep95()[name], float(est.nis().loc[name, "mean_nis_over_dof"]))
     cal, small = out["calibrated"], out["small"]
     return ExerciseCheck(
         f"{part.key}, first {window_s:g} s: {name} with σ_w × {factor:g} has a higher CEP95 and a higher mean NIS/dof",

@@ -92,8 +92,7 @@ def calibration_figure(curves: pd.DataFrame, *, best: Mapping[str, float] | None
 def paths_figure(res: TagResults, names: Sequence[str] = ("EKF-RW", "LS", "raw"), *, ax=None,
                  t_range_s: tuple[float, float] | None = None):
     """Paths of the chosen estimators against truth on the floor plan (thesis Figs 5, 7, 9 / 6, 8, 10)."""
-    trajs = {"truth": res.run.truth}
-    trajs.update({n: res.trajectories[n] for n in names})
+    trajs = {"truth": res.run.truth, **{n: res.estimates(n).to_trajectory(n) for n in names}}
     if t_range_s is not None:
         trajs = {k: v.between(*t_range_s) for k, v in trajs.items()}
     ax = plotting.trajectories(trajs, ax=ax, anchors=res.run.anchors)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
 import numpy as np
 
 from ...models.motion import MOTION_MODELS
-from .results import METHODS, MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, ekf_name
+from .results import MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, PAPER_SIGMA, TagResults, ekf_name
 from .seeds import SeedStudy, seed_rows
 
 if TYPE_CHECKING:
@@ -73,7 +73,7 @@ def summary_rows(results: Iterable[TagResults], *, data: str, label: str = "{run
                          "paper_value": None, "kind": "reproduced"})
         for m, v in nis.items():
             if np.isfinite(v):
-                rows.append({"quantity": f"mean NIS/dof {name(ekf_name(m))}", "value": float(v), "unit": "",
+                rows.append({"quantity": f"mean NIS/dof {name(m)}", "value": float(v), "unit": "",
                              "data": data, "paper_value": None, "kind": "reproduced"})
     return rows
 
@@ -162,8 +162,8 @@ def checks(results: Results, fast: bool) -> list[str]:
     if results.seeds is not None:
         base = results.seeds.base()
         for study in results.synthetic.values():
-            t = study.table(METHODS)
+            t = study.table()
             t = t[t.index.isin(base.index)]
-            if len(t) == 0 or not np.array_equal(t.to_numpy(), base.loc[t.index, list(METHODS)].to_numpy()):
+            if len(t) == 0 or not np.array_equal(t.to_numpy(), base.loc[t.index, list(t.columns)].to_numpy()):
                 problems.append(f"the seeds study's first seed does not reproduce the single-seed table {list(t.index)}")
     return problems

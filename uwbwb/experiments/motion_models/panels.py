@@ -47,7 +47,6 @@ class Explorer:
                 self.runs[res.run.key] = (window(res.run, self.window_s), study.calibration.sigma(res.run.tag))
         if not self.runs:
             raise ValueError("studies: no test result to explore")
-        self._estimate = lru_cache(maxsize=64)(self._run)
 
     @property
     def choices(self) -> list[str]:
@@ -59,11 +58,7 @@ class Explorer:
         """Largest reference-anchor index valid on every run (smallest anchor count − 1)."""
         return min(len(run.anchors) for run, _ in self.runs.values()) - 1
 
-    def _run(self, key, model, sigma, ref, gate, correlated) -> TagResults:
-        run, sigma_m = self.runs[key]
-        return estimate(run, sigma_m, {model: sigma}, ref=ref, gate_prob=gate or None, correlated=correlated,
-                        models=(model,))
-
+    @lru_cache(maxsize=64)
     def estimate(self, key: str, model: str, sigma: float, ref: int, gate: float, correlated: bool) -> TagResults:
         """LS, raw output and the EKF with ``model`` at driving σ ``sigma`` on run ``key`` (cached).
 
@@ -72,15 +67,17 @@ class Explorer:
         ValueError
             ``key`` not offered, ``model`` unknown, or ``ref`` not an anchor index of every run.
         """
-        validate.choice("key", key, self.runs)
+        run, sigma_m = self.runs[validate.choice("key", key, self.runs)]
         validate.choice("model", model, MODELS)
-        validate.integer("ref", ref, minimum=0, maximum=self.max_ref)
-        return self._estimate(key, model, float(sigma), int(ref), float(gate), bool(correlated))
+        ref = validate.integer("ref", ref, minimum=0, maximum=self.max_ref)
+        return estimate(run, sigma_m, {model: float(sigma)}, ref=ref, gate_prob=float(gate) or None,
+                        correlated=bool(correlated), models=(model,))
 
     def readout(self, key, model, sigma, ref, gate, correlated) -> dict:
         """Headline numbers of one setting (CEP95 on common epochs, coverage, NIS)."""
         est = self.estimate(key, model, sigma, ref, gate, correlated)
-        name, c, nis = ekf_name(model), est.cep95(), est.nis().iloc[0]
+        name, c = ekf_name(model), est.cep95()
+        nis = est.nis().loc[name]
         return {"run / tag": est.run.key, f"CEP95 {name} (m)": c[name], "CEP95 LS (m)": c["LS"],
                 "CEP95 raw (m)": c["raw"], "epochs scored (%)": 100 * est.coverage()["common"],
                 "mean NIS / dof": nis["mean_nis_over_dof"], "NIS verdict": nis["verdict"],

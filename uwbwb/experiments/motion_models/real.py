@@ -18,25 +18,26 @@ from ...errors import DataNotFoundError
 from ...scoreboard.protocol import split_in_time
 from .study import Study, run_study, tag_runs
 
-__all__ = ["IaslSection", "LiasSection", "iasl_section", "lias_section"]
+__all__ = ["Section", "iasl_section", "lias_section"]
 
 
 @dataclass(frozen=True)
-class LiasSection:
-    """The LIAS study of notebook 03 (:func:`lias_section`).
+class Section:
+    """A real-data section of notebook 03 (:func:`lias_section`, :func:`iasl_section`).
 
     Attributes
     ----------
     banner
         Whether the data was found (HTML, for ``display``).
     studies
-        ``{"calibrated ranges": Study, "raw ranges": Study}``; empty when the data is absent.
+        Variant → study: LIAS ``{"calibrated ranges": Study, "raw ranges": Study}``, IASL ``{"3-D": Study}``;
+        empty when the data is absent.
     label
-        The recording's label (``"lias-planar-uwb/<run>"``), or ``""``.
+        The recording's label (``"lias-planar-uwb/<run>"``, the IASL test scenario's), or ``""``.
     mount, range_calibration
-        The tag heights and the per-pair range calibration, both fitted on the static poses (None when absent).
+        LIAS: the tag heights and the per-pair range calibration, both fitted on the static poses (None when absent).
     cleaning_report
-        The loader's cleaning report of the dynamic run.
+        LIAS: the loader's cleaning report of the dynamic run.
     """
 
     banner: Any
@@ -48,7 +49,7 @@ class LiasSection:
 
 
 def lias_section(data_dir, recording: str, static_session: str, *, tags: Sequence[str] | None, rate_hz: float,
-                 fast: bool, grids, ref: int, gate_prob: float | None, scheduler=None) -> LiasSection:
+                 fast: bool, grids, ref: int, gate_prob: float | None, scheduler=None) -> Section:
     """Calibrate on the first half of the LIAS dynamic run ``recording`` and test on the second half.
 
     Two range variants: calibrated per anchor–tag pair (fitted on the static poses of
@@ -59,7 +60,7 @@ def lias_section(data_dir, recording: str, static_session: str, *, tags: Sequenc
     """
     room = datasets.load_lias_room(data_dir, recording, static_session)
     if not room.real:
-        return LiasSection(widgets.data_banner(**room.banner_args()))
+        return Section(widgets.data_banner(**room.banner_args()))
     rec, static = room.dynamic, list(room.static)
     if fast:   # every 20th epoch, keeping at least 100 per static recording (short files are used whole)
         static = [r.decimate(max(1, min(20, min(len(log) for log in r.ranges.values()) // 100))) for r in static]
@@ -73,22 +74,13 @@ def lias_section(data_dir, recording: str, static_session: str, *, tags: Sequenc
                                         name=p.name.replace("[", "").replace("]", "")) for p in parts)
         g = grids if not studies else {m: [s] for m, s in studies["calibrated ranges"].best.items()}
         studies[variant] = run_study(cal_runs, test_runs, grids=g, ref=ref, gate_prob=gate_prob, scheduler=scheduler)
-    return LiasSection(widgets.data_banner(**room.banner_args()), studies, rec.label, mount, range_cal,
+    return Section(widgets.data_banner(**room.banner_args()), studies, rec.label, mount, range_cal,
                        rec.cleaning_report())
 
 
-@dataclass(frozen=True)
-class IaslSection:
-    """The IASL study of notebook 03 (:func:`iasl_section`): ``study`` is None when the data is absent."""
-
-    banner: Any
-    study: Study | None = None
-    label: str = ""
-
-
 def iasl_section(data_dir, cal_scenario: str, scenario: str, *, rate_hz: float, grids, ref: int,
-                 gate_prob: float | None, scheduler=None) -> IaslSection:
-    """Calibrate the 3-D filters on IASL ``cal_scenario`` and test them on ``scenario``."""
+                 gate_prob: float | None, scheduler=None) -> Section:
+    """Calibrate the 3-D filters on IASL ``cal_scenario`` and test them on ``scenario`` (variant ``"3-D"``)."""
     absent = "not found in the data folders"
     if datasets.dataset_available("iasl-uwb-imu", data_dir):
         try:
@@ -101,5 +93,5 @@ def iasl_section(data_dir, cal_scenario: str, scenario: str, *, rate_hz: float, 
                                          f"{scenario}; {len(z)} anchors at heights {np.unique(z.round(2))} m")
             study = run_study(tag_runs(cal, dim=3, rate_hz=rate_hz), tag_runs(test, dim=3, rate_hz=rate_hz),
                               grids=grids, ref=ref, gate_prob=gate_prob, scheduler=scheduler)
-            return IaslSection(banner, study, test.label)
-    return IaslSection(widgets.data_banner("iasl-uwb-imu", False, detail=absent))
+            return Section(banner, {"3-D": study}, test.label)
+    return Section(widgets.data_banner("iasl-uwb-imu", False, detail=absent))

@@ -1,29 +1,53 @@
-"""Notebook 03's results: every estimator's output for one tag-run, held and scored on common epochs by the
-board (:class:`~uwbwb.scoreboard.board.Board`), and the tables built from it (CEP95, coverage, NIS verdicts,
-rankings), beside the thesis' values.
+"""Notebook 03's results: its methods (the registry's estimators on pseudo-TDoAs, :func:`estimators`), every
+estimator's output for one tag-run, held and scored on common epochs by the board
+(:class:`~uwbwb.scoreboard.board.Board`), and the ranking of the motion models, beside the thesis' values.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Iterable, Sequence
+from dataclasses import dataclass, fields, replace
+from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
 
 from ... import metrics
 from ...scoreboard.board import Board
-from ...types import EstimateStatus, Estimates, TagRun, Trajectory
+from ...scoreboard.estimators import default_estimators
+from ...types import EstimateStatus, Estimates, TagRun
 
 
-__all__ = ["MODELS", "METHODS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "TagResults",
-           "cep95_table", "coverage_table", "ekf_name", "nis_table", "ranking"]
+__all__ = ["LABELS", "MODELS", "METHODS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "TagResults",
+           "ekf_name", "estimators", "ranking"]
 
 #: Motion models in the thesis' order.
 MODELS = ("RW", "RF", "RJ")
 
-#: Every estimator of a :class:`TagResults`, in table order.
-METHODS = ("raw", "LS", "EKF-RW", "EKF-RF", "EKF-RJ")
+#: The thesis' names of the registry's methods where they differ (the board's name → this notebook's).
+LABELS = {"TDoA LS": "LS"}
+
+
+def estimators(*, gate_prob: float | None, ref: int = 0, correlated: bool = True, grids: Mapping | None = None,
+               models: Sequence[str] = MODELS) -> dict:
+    """This notebook's methods, name → estimator: every estimator of the one registry
+    (:func:`~uwbwb.scoreboard.estimators.default_estimators`) that runs on pseudo-TDoAs (``tdoa = True``), the
+    EKFs among them with a motion model in ``models``, named as in the thesis (:data:`LABELS`). Each gets, where it
+    has that setting, the reference anchor ``ref``, the TDoA covariance (``correlated``), the χ² gate ``gate_prob``
+    (None: none), the CEP95 tuning criterion (thesis Table 1) and the driving-σ grid ``grids[model]`` (None: the
+    board's)."""
+    out = {}
+    for e in default_estimators():
+        if getattr(e, "tdoa", False) and getattr(e, "model", models[0]) in models:
+            have = {f.name for f in fields(e)}
+            grid = None if grids is None or "model" not in have else tuple(map(float, grids[e.model]))
+            opts = {"gate_prob": gate_prob, "ref": ref, "correlated": correlated, "criterion": "cep95", "grid": grid}
+            e = replace(e, **{k: v for k, v in opts.items() if k in have})
+            out[LABELS.get(e.name, e.name)] = e
+    return out
+
+
+#: Every estimator of a :class:`TagResults`, in table order: the raw output, then :func:`estimators`.
+METHODS = ("raw", *estimators(gate_prob=None))
 
 #: Thesis Table 1: driving-process standard deviation per model and scenario (m/s, m/s², m/s³).
 #: The AGV row prints "1 m/" for RW; read as 1 m/s.
@@ -72,9 +96,7 @@ class TagResults:
         estimator (``"raw"``, ``"LS"``, ``"EKF-RW"`` ...) with its :class:`~uwbwb.types.Estimates` on the run's
         epochs (NaN where it has no position: LS with too few anchors or no convergence, an EKF before its
         first LS fix) and the truth there, scored by :meth:`~uwbwb.scoreboard.board.Board.scores`
-        (:func:`uwbwb.metrics.score_epochs`); its calibration holds the range σ and the EKFs' driving σ.
-    gate_prob
-        The EKFs' χ² gate (None: every measurement used).
+        (:func:`uwbwb.metrics.score_epochs`); its calibration holds the range σ and what each estimator tuned.
 
     Notes
     -----
@@ -88,7 +110,6 @@ class TagResults:
 
     run: TagRun
     board: Board
-    gate_prob: float | None
 
     @property
     def methods(self) -> tuple[str, ...]:
@@ -99,11 +120,6 @@ class TagResults:
         return self.board.entry(name, self.run.tag).estimates
 
     @property
-    def trajectories(self) -> dict[str, Trajectory]:
-        """Name → the epochs with a position."""
-        return {n: self.estimates(n).to_trajectory(n) for n in self.methods}
-
-    @property
     def scores(self) -> metrics.EpochScores:
         """Every estimator on the run's epochs (:meth:`~uwbwb.scoreboard.board.Board.scores`)."""
         return self.board.scores(self.run.tag)
@@ -112,7 +128,7 @@ class TagResults:
         """Name → horizontal errors (m) on the common epochs, the same epochs for every estimator."""
         scores = self.scores
         if scores.methods[0].n_common == 0:
-            cov = {k: f"{100 * v:.0f} %" for k, v in self.coverage_own().items()}
+            cov = {k: f"{100 * v:.0f} %" for k, v in self.coverage().items() if k != "common"}
             raise ValueError(f"{self.run.key}: no epoch where every estimator of {list(self.methods)} has a position "
                              f"and truth exists (coverage {cov}); nothing can be scored on common epochs")
         return {n: scores[n].common_m for n in self.methods}
@@ -123,16 +139,14 @@ class TagResults:
             return {k: metrics.cep95(e) for k, e in self.common_errors().items()}
         return {n: metrics.cep95(self.scores[n].own_m) for n in self.methods}
 
-    def coverage_own(self) -> dict[str, float]:
-        """Name → fraction of the run's epochs with a position."""
-        return {n: int(self.estimates(n).has_estimate.sum()) / len(self.run.ranges) for n in self.methods}
-
     def coverage(self) -> dict[str, float]:
-        """:meth:`coverage_own`, and ``"common"``: the share of epochs the tables score."""
-        return {**self.coverage_own(), "common": self.scores.methods[0].n_common / len(self.run.ranges)}
+        """Name → fraction of the run's epochs with a position, and ``"common"``: the share the tables score."""
+        n = len(self.run.ranges)
+        return {**{m: int(self.estimates(m).has_estimate.sum()) / n for m in self.methods},
+                "common": self.scores.methods[0].n_common / n}
 
     def nis(self, prob: float = 0.95) -> pd.DataFrame:
-        """NIS consistency per EKF over its updates (:func:`uwbwb.metrics.nis_consistency`).
+        """NIS consistency per filter (every method with a NIS) over its updates (:func:`uwbwb.metrics.nis_consistency`).
 
         Under right noise models the NIS summed over the ``n`` updates is χ² with
         ``sum_dof`` degrees of freedom; the verdict compares it with the central
@@ -141,45 +155,18 @@ class TagResults:
         *Over-confident*: errors larger than the filter's covariance says.
         """
         rows = []
-        for m in (m for m in MODELS if ekf_name(m) in self.methods):
-            est = self.estimates(ekf_name(m))
+        for m in self.methods:
+            est = self.estimates(m)
+            if "nis" not in est.info:
+                continue
             up = est.status == EstimateStatus.UPDATED
             c = metrics.nis_consistency(est.info["nis"][up], est.info["dof"][up], prob)
             dof = max(c["sum_dof"], 1)
-            rows.append({"model": m, "n": c["n"], "mean_nis_over_dof": c["mean_nis_over_dof"],
+            rows.append({"method": m, "n": c["n"], "mean_nis_over_dof": c["mean_nis_over_dof"],
                          "mean_lo": c["sum_lo"] / dof, "mean_hi": c["sum_hi"] / dof,
                          "fraction_inside": c["fraction_inside"], "verdict": c["verdict"],
-                         "n_rejected": int(est.info["n_rejected"].sum())})
-        return pd.DataFrame(rows).set_index("model")
-
-
-def cep95_table(results: Iterable[TagResults], methods: Sequence[str] = METHODS, *,
-                common: bool = True) -> pd.DataFrame:
-    """CEP95 (m) per run/tag (rows) and method (columns).
-
-    ``common=True`` (default): every method on the epochs where all of a run's
-    estimators have a position (:meth:`TagResults.common_errors`); False: each
-    method over its own epochs (see :func:`coverage_table` for how many).
-    """
-    rows = []
-    for res in results:
-        c = res.cep95(common=common)
-        rows.append({"run": res.run.name, "tag": res.run.tag, **{m: c[m] for m in methods}})
-    return pd.DataFrame(rows).set_index(["run", "tag"])
-
-
-def coverage_table(results: Iterable[TagResults], methods: Sequence[str] = METHODS) -> pd.DataFrame:
-    """Coverage (%) per run/tag and method, and ``common``: the share of epochs the CEP95 tables score."""
-    rows = []
-    for res in results:
-        c = res.coverage()
-        rows.append({"run": res.run.name, "tag": res.run.tag, **{m: 100 * c[m] for m in (*methods, "common")}})
-    return pd.DataFrame(rows).set_index(["run", "tag"])
-
-
-def nis_table(results: Iterable[TagResults], prob: float = 0.95) -> pd.DataFrame:
-    """:meth:`TagResults.nis` of several runs, rows ``(run/tag, model)``."""
-    return pd.concat({res.run.key: res.nis(prob) for res in results}, names=["run/tag"])
+                         "n_rejected": int(np.sum(est.info.get("n_rejected", 0)))})
+        return pd.DataFrame(rows).set_index("method")
 
 
 def ranking(table: pd.DataFrame, models: Sequence[str] = MODELS) -> pd.Series:

@@ -14,14 +14,14 @@ one calibration acquisition.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
 
 from ...metrics import interval_side, seeds_interval
-from .results import METHODS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, cep95_table
+from .results import PAPER_METHODS_CEP95, PAPER_MODELS_CEP95
 from .study import Study, estimate, synthetic_acquisition
 
 __all__ = ["MODEL_PAIRS", "SEED_PAIRS", "SEED_RULE", "SeedStudy", "seed_rows", "seed_study"]
@@ -54,7 +54,7 @@ class SeedStudy:
     Attributes
     ----------
     cep95
-        CEP95 (m) on common epochs, rows ``(seed, run, tag)``, columns :data:`~.results.METHODS`.
+        CEP95 (m) on common epochs, rows ``(seed, run, tag)``, columns the studies' methods (:data:`~.results.METHODS`).
     datasets
         Data-set label → the scenario names (runs) it pools, e.g. ``{"synthetic AGV": ("agv1", "agv2")}``.
     seeds
@@ -69,13 +69,13 @@ class SeedStudy:
         """The first seed's rows, indexed ``(run, tag)``: the single-seed tables' numbers."""
         return self.cep95.xs(self.seeds[0], level="seed")
 
-    def table(self, methods: Sequence[str] = METHODS, *, prob: float = 0.95) -> pd.DataFrame:
+    def table(self, methods: Sequence[str] | None = None, *, prob: float = 0.95) -> pd.DataFrame:
         """Per ``(run, tag)``: the mean CEP95 over the seeds of every method and the half-width of its
         Student-t interval (columns ``(method, "mean")``, ``(method, "± 95 %")``), and the seed count."""
         out = {}
         for key, g in self.cep95.groupby(level=["run", "tag"], sort=False):
             row = {}
-            for m in methods:
+            for m in self.cep95.columns if methods is None else methods:
                 t = seeds_interval(g[m], prob=prob)
                 row[(m, "mean")], row[(m, "± 95 %")] = t["mean"], (t["hi"] - t["lo"]) / 2
             row[("seeds", "")] = len(g)
@@ -143,8 +143,9 @@ def seed_study(studies: Mapping[str, tuple[Study, Sequence[str]]], seeds: Sequen
         for study, names in studies.values():
             for name in names:
                 runs, _ = synthetic_acquisition(name, seed=s, duration_s=duration_s, rate_hz=rate_hz, role="test")
-                res = [estimate(r, study.calibration.sigma(r.tag), study.best, gate_prob=gate_prob, ref=ref) for r in runs]
-                frames[(s, name)] = cep95_table(res, METHODS)
+                res = [estimate(r, study.calibration.sigma(r.tag), study.best, gate_prob=gate_prob, ref=ref,
+                                tuned=study.calibration.tuned) for r in runs]
+                frames[(s, name)] = replace(study, results=res).table()
     table = pd.concat({s: pd.concat([frames[(s, n)] for _, names in studies.values() for n in names])
                        for s in seeds}, names=["seed"])
     return SeedStudy(table, {k: tuple(v) for k, (_, v) in studies.items()}, seeds)

@@ -12,17 +12,16 @@ The pipeline for one tag of one recording (:class:`~uwbwb.types.TagRun`):
 2. range-noise level per anchor from a *calibration* run with truth
    (:func:`uwbwb.calibration.fit_range_sigma`; by default the part of the range error that does
    not cancel in a TDoA) → TDoA covariance ``Σ = diag(σ_j²) + σ_ref² 11ᵀ``;
-3. driving-noise calibration by the board's protocol: the range-noise fits form a
-   :class:`~uwbwb.scoreboard.protocol.Calibration` of the calibration run (ranges as logged), and each EKF's
-   board estimator (:class:`~uwbwb.scoreboard.estimators.TdoaEkfEstimator`) tunes its driving σ over the
-   notebook's grid with the CEP95 criterion (``criterion="cep95"``, mean over the tags; :func:`run_study`);
-4. on a *different* test run: raw output, LS and the three EKFs, the board's estimators on the
-   protocol's calibration of that run (:func:`estimate`), held as a board of its tag and scored by it
+3. tuning by the board's protocol: the range-noise fits form a
+   :class:`~uwbwb.scoreboard.protocol.Calibration` of the calibration run (ranges as logged), and each of the
+   notebook's methods — the registry's estimators on pseudo-TDoAs (:func:`~.results.estimators`) — tunes itself
+   on it: each EKF (:class:`~uwbwb.scoreboard.estimators.TdoaEkfEstimator`) its driving σ over the notebook's
+   grid with the CEP95 criterion (``criterion="cep95"``, mean over the tags; :func:`run_study`);
+4. on a *different* test run: raw output and those estimators on the protocol's calibration of that run
+   (:func:`estimate`), held as a board of its tag and scored by it
    (:meth:`~uwbwb.scoreboard.board.Board.scores`) on the epochs where *every* estimator has a position
-   (:meth:`TagResults.common_errors`), with each one's coverage beside it (:func:`cep95_table`,
-   :func:`coverage_table`), and the NIS χ² verdict of each EKF (:meth:`TagResults.nis`);
-5. headline rows for the reproduction summary, each with its kind
-   (:func:`summary_rows`).
+   (:meth:`TagResults.common_errors`), with each one's coverage beside it (:meth:`Study.table`,
+   :meth:`Study.coverage`), and the NIS χ² verdict of each filter (:meth:`TagResults.nis`).
 
 Driving "variances" follow the thesis' Table 1 units (m/s, m/s², m/s³): they
 are the standard deviation ``σ_w`` of the white driving process over one step
@@ -43,12 +42,12 @@ from ... import parallel
 from ...calibration import fit_range_sigma
 from ...models.motion import MOTION_MODELS
 from ...scoreboard.board import Board, Entry
-from ...scoreboard.estimators import ExternalEstimates, RawLs, TdoaEkfEstimator, TdoaLs
+from ...scoreboard.estimators import ExternalEstimates, RawLs
 from ...scoreboard.protocol import Calibration
 from ...sim import walk
 from ...types import Recording, TagRun, Trajectory
 
-from .results import METHODS, MODELS, TagResults, cep95_table, coverage_table, ekf_name, nis_table
+from .results import MODELS, TagResults, ekf_name, estimators
 
 __all__ = ["tag_runs", "synthetic_acquisition", "ranging_summary", "estimate", "Study", "run_study"]
 
@@ -169,14 +168,14 @@ def _protocol(runs: Sequence[TagRun], sigma_m: Mapping[str, np.ndarray]) -> tupl
 
 
 def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: float | None, ref: int = 0,
-             correlated: bool = True, models: Sequence[str] = MODELS) -> TagResults:
-    """Raw output, TDoA LS and the EKFs on one run: the board's estimators, held and scored as a board of its tag.
+             correlated: bool = True, models: Sequence[str] = MODELS, tuned: Mapping | None = None) -> TagResults:
+    """Raw output and the notebook's estimators (:func:`~.results.estimators`) on one run, held and scored as a
+    board of its tag.
 
     ``raw`` is the device's own output where the run has one (an outside estimate,
     :class:`~uwbwb.scoreboard.estimators.ExternalEstimates`), else per-epoch multilateration of the ranges
-    (:class:`~uwbwb.scoreboard.estimators.RawLs`); ``LS`` is :class:`~uwbwb.scoreboard.estimators.TdoaLs` and
-    ``EKF-<model>`` :class:`~uwbwb.scoreboard.estimators.TdoaEkfEstimator`, both on pseudo-TDoAs. The estimators
-    see the ranges, never the truth.
+    (:class:`~uwbwb.scoreboard.estimators.RawLs`); the others (``LS``, ``EKF-<model>`` ...) run on pseudo-TDoAs.
+    The estimators see the ranges, never the truth.
 
     Parameters
     ----------
@@ -192,15 +191,17 @@ def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: fl
         χ² gate of the EKFs (None: no gating); required.
     correlated
         Model the reference correlation of the TDoA noise (False: the diagonal shortcut).
+    tuned
+        What the estimators tuned on the calibration runs, by estimator name (:attr:`Study.calibration`'s
+        ``tuned``); ``sigmas`` replaces the EKFs' driving σ there.
     """
     rec, cal = _protocol([run], {run.tag: sigma_m})
-    cal = replace(cal, tuned={ekf_name(m): {"sigma_w": float(sigmas[m])} for m in models})
+    cal = replace(cal, tuned={**(tuned or {}), **{ekf_name(m): {"sigma_w": float(sigmas[m])} for m in models}})
     ests = {"raw": RawLs("raw") if run.raw is None else ExternalEstimates("device", {run.tag: run.raw}),
-            "LS": TdoaLs("LS", ref, correlated),
-            **{ekf_name(m): TdoaEkfEstimator(m, gate_prob=gate_prob, ref=ref, correlated=correlated) for m in models}}
+            **estimators(gate_prob=gate_prob, ref=ref, correlated=correlated, models=models)}
     blind, truth = replace(rec, truth={}), rec.truth_at(run.tag, run.ranges.t_s, run.dim)
     entries = tuple(Entry(n, run.tag, e.estimate(blind, run.tag, cal), None, truth) for n, e in ests.items())
-    return TagResults(run, Board(run.data, run.key, cal, entries, tuple(ests)), gate_prob)
+    return TagResults(run, Board(run.data, run.key, cal, entries, tuple(ests)))
 
 
 @dataclass(frozen=True)
@@ -236,17 +237,27 @@ class Study:
                          for s, c, r in zip(p["grid"], sc["cep95"], sc["rmse"])]
         return pd.DataFrame(rows)
 
-    def table(self, methods: Sequence[str] = METHODS, *, common: bool = True) -> pd.DataFrame:
-        """CEP95 per test run (rows) and method (columns), metres (:func:`cep95_table`)."""
-        return cep95_table(self.results, methods, common=common)
+    def _per_run(self, values, columns) -> pd.DataFrame:
+        rows = []
+        for r in self.results:
+            v = values(r)
+            rows.append({"run": r.run.name, "tag": r.run.tag, **{c: v[c] for c in (v if columns is None else columns)}})
+        return pd.DataFrame(rows).set_index(["run", "tag"])
 
-    def coverage(self, methods: Sequence[str] = METHODS) -> pd.DataFrame:
-        """Coverage (%) per test run and method (:func:`coverage_table`)."""
-        return coverage_table(self.results, methods)
+    def table(self, methods: Sequence[str] | None = None, *, common: bool = True) -> pd.DataFrame:
+        """CEP95 (m) per test run/tag (rows) and method (columns; None: every method, in table order): every method
+        on the epochs where all of a run's estimators have a position (:meth:`TagResults.common_errors`), or
+        (``common=False``) each over its own epochs (see :meth:`coverage` for how many)."""
+        return self._per_run(lambda r: r.cep95(common=common), methods)
+
+    def coverage(self, methods: Sequence[str] | None = None) -> pd.DataFrame:
+        """Coverage (%) per test run/tag and method, and ``common``: the share of epochs the CEP95 tables score."""
+        return self._per_run(lambda r: {k: 100 * v for k, v in r.coverage().items()},
+                             None if methods is None else (*methods, "common"))
 
     def nis(self, prob: float = 0.95) -> pd.DataFrame:
-        """NIS verdict per test run and EKF (:func:`nis_table`)."""
-        return nis_table(self.results, prob)
+        """:meth:`TagResults.nis` of every test run, rows ``(run/tag, method)``."""
+        return pd.concat({r.run.key: r.nis(prob) for r in self.results}, names=["run/tag"])
 
     def result_for(self, name: str, tag: str) -> TagResults:
         """The test result of run ``name`` and ``tag``."""
@@ -256,24 +267,25 @@ class Study:
         raise KeyError(f"no test result for {name}/{tag}; have {[e.run.key for e in self.results]}")
 
 
-def _tune(model: str, estimators, rec: Recording, tags, cal: Calibration) -> dict:
-    """One EKF's ``tune`` on the calibration recording (a task of :func:`run_study`'s sweep)."""
-    return estimators[model].tune(rec, tags, cal)
+def _tune(name: str, estimators, rec: Recording, tags, cal: Calibration) -> dict:
+    """One estimator's ``tune`` on the calibration recording (a task of :func:`run_study`'s sweep)."""
+    return estimators[name].tune(rec, tags, cal)
 
 
 def run_study(cal_runs: Sequence[TagRun], test_runs: Sequence[TagRun], *, gate_prob: float | None, grids=None,
               models: Sequence[str] = MODELS, ref: int = 0, sigma_method: str = "tdoa", progress: bool = True,
               scheduler=None) -> Study:
-    """Fit range noise and driving noise on ``cal_runs`` (one run per tag of one recording), then run every
+    """Fit range noise and tune every estimator on ``cal_runs`` (one run per tag of one recording), then run every
     estimator on ``test_runs``.
 
     The range σ per anchor of each tag is :func:`~uwbwb.calibration.fit_range_sigma` (``sigma_method``) on its
     calibration run; with the tag heights and the runs' rate it forms the protocol's
-    :class:`~uwbwb.scoreboard.protocol.Calibration` (ranges as logged). The driving σ per model is one value for
-    all tags: the board's :class:`~uwbwb.scoreboard.estimators.TdoaEkfEstimator` tunes it on the calibration runs
-    over ``grids[model]`` (None: the board's :data:`~uwbwb.scoreboard.estimators.EKF_GRIDS`) with the CEP95
-    criterion (thesis Table 1), with the χ² gate ``gate_prob`` (None for none; required) and reference anchor
-    ``ref``. ``scheduler`` says where the sweep runs, one task per model (:mod:`uwbwb.parallel`; None: in this
+    :class:`~uwbwb.scoreboard.protocol.Calibration` (ranges as logged). On it each of the notebook's estimators
+    (:func:`~.results.estimators`, with the χ² gate ``gate_prob`` (None for none; required) and reference anchor
+    ``ref``) tunes itself: the driving σ per model is one value for all tags, which the board's
+    :class:`~uwbwb.scoreboard.estimators.TdoaEkfEstimator` picks on the calibration runs over ``grids[model]``
+    (None: the board's :data:`~uwbwb.scoreboard.estimators.EKF_GRIDS`) with the CEP95 criterion (thesis Table 1).
+    ``scheduler`` says where the sweep runs, one task per estimator (:mod:`uwbwb.parallel`; None: in this
     process); the result does not depend on where it ran.
     """
     tags = [r.tag for r in cal_runs]
@@ -284,13 +296,12 @@ def run_study(cal_runs: Sequence[TagRun], test_runs: Sequence[TagRun], *, gate_p
     if missing:
         raise ValueError(f"test tags {missing} have no calibration run")
     rec, cal = _protocol(cal_runs, fits)
-    ekfs = {m: TdoaEkfEstimator(m, gate_prob=gate_prob, grid=None if grids is None else tuple(map(float, grids[m])),
-                                criterion="cep95", ref=ref) for m in models}
-    tasks = [parallel.Task({"model": m}) for m in models]
-    for task, params in parallel.imap(_tune, tasks, shared={"estimators": ekfs, "rec": rec, "tags": tags, "cal": cal},
-                                      scheduler=scheduler, progress=progress, desc="driving-noise calibration",
-                                      unit="motion model"):
-        cal = cal.with_tuned(ekfs[task.params["model"]].name, params)
-    best = {m: cal.params(ekfs[m].name)["sigma_w"] for m in models}
-    ests = [estimate(r, fits[r.tag], best, ref=ref, gate_prob=gate_prob, models=models) for r in test_runs]
-    return Study(cal, best, ests)
+    ests = estimators(gate_prob=gate_prob, ref=ref, grids=grids, models=models)
+    for task, params in parallel.imap(_tune, [parallel.Task({"name": n}) for n in ests],
+                                      shared={"estimators": ests, "rec": rec, "tags": tags, "cal": cal},
+                                      scheduler=scheduler, progress=progress, desc="tuning", unit="estimator"):
+        if params:
+            cal = cal.with_tuned(ests[task.params["name"]].name, params)
+    best = {m: cal.params(ekf_name(m))["sigma_w"] for m in models}
+    return Study(cal, best, [estimate(r, fits[r.tag], best, ref=ref, gate_prob=gate_prob, models=models,
+                                      tuned=cal.tuned) for r in test_runs])
