@@ -26,10 +26,11 @@ import numpy as np
 
 from uwbwb.experiments.uwb_ins import study
 from uwbwb.filters import eskf
+from uwbwb.sim import robot
 
 
 def _setup(seed: int):
-    run = study.simulate_case("dynamic", seed=seed, legs=3)
+    run = study.simulate("dynamic", robot.RobotConfig(), rng=np.random.default_rng(seed), legs=3)
     cfg = run.config
     filt = eskf.TightEskf(cfg.imu, eskf.TdoaUpdate(cfg.tdoa_model(), 0.1), lever_arm_m=cfg.lever_arm_m,
                           height_m=cfg.tag_height_m)

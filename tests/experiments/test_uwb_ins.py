@@ -11,12 +11,13 @@ from uwbwb.experiments.uwb_ins import ablation as ab
 from uwbwb.experiments.uwb_ins import study
 from uwbwb.filters import alignment, imu_calibration
 from uwbwb.models.tdoa import TdoaModel
+from uwbwb.sim import robot
 from uwbwb.types import TdoaLog
 
 
 @pytest.fixture(scope="module")
 def short_dynamic():
-    run = study.simulate_case("dynamic", seed=3, legs=2, outage_s=3.0)
+    run = study.simulate("dynamic", robot.RobotConfig(), rng=np.random.default_rng(3), legs=2, outage_s=3.0)
     return run, study.compare_synthetic(run)
 
 

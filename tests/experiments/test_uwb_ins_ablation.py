@@ -125,7 +125,7 @@ def test_an_outage_longer_than_the_run_is_refused_naming_the_parameter():
 
 
 # ---------------------------------------------------------------- eq. 4
-def test_eq4_thresholds_are_where_the_test_starts_to_fire():
+def test_eq4_thresholds_are_where_the_test_starts_to_fire(monkeypatch):
     cfg = robot.RobotConfig()
     a = np.asarray(cfg.stations_m, float)
     p = np.array([3.5, 2.0, cfg.tag_height_m])
@@ -144,14 +144,11 @@ def test_eq4_thresholds_are_where_the_test_starts_to_fire():
     per_point = np.array([ladder.eq4_thresholds(cfg, q, 0.1).iloc[:, 1:].to_numpy().min() for q in path])
     assert over.to_numpy().min() == pytest.approx(per_point.min())           # the minimum over the path
     assert over.to_numpy().min() < cfg.outlier_excess_m[1]      # somewhere on it the 0.3–4 m multipath can fire
-    g = facts.facts(_fake(GOOD))["eq4_geometry"]
-    assert g["min_m"] == pytest.approx(over.to_numpy().min())
-    f = facts.facts(_fake(GOOD))
+    assert _row(_fake(GOOD), "eq. 4 can fire on the path").ours == f"{over.to_numpy().min():.2f} m"
     for min_m, verdict in ((3.0, "can fire"), (5.0, "cannot fire")):
-        f["eq4_geometry"] = {**g, "min_m": min_m, "excess_m": (0.3, 4.0)}
-        t = facts.verdict_table(f)
-        row = t[t["claim"].str.startswith("eq. 4 can fire on the path")].iloc[0]
-        assert row.verdict == verdict and row.ours == f"{min_m:.2f} m"
+        monkeypatch.setattr(facts, "eq4_thresholds", lambda *a, m=min_m: ladder.eq4_thresholds(cfg, p, 0.1) * 0 + m)
+        row = _row(_fake(GOOD), "eq. 4 can fire on the path")
+        assert row.verdict == verdict and row.ours == f"{min_m:.2f} m" and "(4 m)" in row.rule
 
 
 # ---------------------------------------------------------------- verdicts flip with the numbers
@@ -189,22 +186,22 @@ def _fake(ratios: dict, *, case_ratios: dict | None = None, fast=False, nis=None
 GOOD = {"LS": 30.0, "LS + gate": 5.0, "EKF": 20.0, "EKF + gate": 1.5, "loose": 15.0, "loose + gate": 1.4}
 
 
-def _row(f: dict, start: str) -> pd.Series:
-    t = facts.verdict_table(f)
+def _row(res: ab.AblationResult, start: str) -> pd.Series:
+    t = facts.verdict_table(res)
     rows = t[t["claim"].str.startswith(start)]
     assert len(rows) == 1, (start, list(t["claim"]))
     return rows.iloc[0]
 
 
 def test_ladder_and_headline_verdicts_flip_at_ratio_one():
-    f = facts.facts(_fake(GOOD))
+    f = _fake(GOOD)
     r = _row(f, "tight vs loose (gated): dynamic RMSE")
     assert r.verdict == "helps" and r.ours.endswith("×") and 1.3 < float(r.ours[:-1]) < 1.5
     assert _row(f, "headline: EKF + gate / tight + gate").verdict == "helps"
-    flat = facts.facts(_fake({**GOOD, "loose + gate": 1.0, "EKF + gate": 1.0}))
+    flat = _fake({**GOOD, "loose + gate": 1.0, "EKF + gate": 1.0})
     assert _row(flat, "tight vs loose (gated): dynamic RMSE").verdict == "not significant"
     assert _row(flat, "headline: loose + gate / tight + gate").verdict == "not significant"
-    worse = facts.facts(_fake({**GOOD, "loose + gate": 0.7, "EKF + gate": 0.7}))
+    worse = _fake({**GOOD, "loose + gate": 0.7, "EKF + gate": 0.7})
     assert _row(worse, "tight vs loose (gated): dynamic RMSE").verdict == "hurts"
     assert _row(worse, "headline: loose + gate / tight + gate").verdict == "hurts"
     assert facts.verdict(np.nan, np.nan) == "undetermined"
@@ -212,42 +209,41 @@ def test_ladder_and_headline_verdicts_flip_at_ratio_one():
 
 def test_survival_rows_say_where_the_outage_advantage_is_kept_or_lost():
     lost = {**GOOD, "EKF + gate": 1.0}
-    f = facts.facts(_fake(GOOD, case_ratios={"UWB σ 2×": lost, "IMU 10× worse": {**GOOD, "EKF + gate": 0.7}}))
+    f = _fake(GOOD, case_ratios={"UWB σ 2×": lost, "IMU 10× worse": {**GOOD, "EKF + gate": 0.7}})
     assert _row(f, "UWB σ 2×: EKF + gate / tight + gate, max outage error").verdict == "not significant"
     assert _row(f, "IMU 10× worse: EKF + gate / tight + gate, max outage error").verdict == "reversed"
     assert _row(f, "multipath up to 12 m: EKF + gate / tight + gate, max outage error").verdict == "survives"
-    assert f["survival"]["UWB σ 2×"]["EKF + gate"]["share"] == pytest.approx(0.0, abs=0.1)
+    assert facts.kept(f, "EKF + gate", "outage_max", "UWB σ 2×")["share"] == pytest.approx(0.0, abs=0.1)
     assert "share kept" in _row(f, "multipath up to 12 m: EKF + gate / tight + gate, max outage error").ours
     assert _row(f, "matched: injected-multipath TDoAs that eq. 4 removed").ours == "0 of 100"
 
 
 def test_survival_covers_the_dynamic_rmse_and_a_reversal_reads_as_none_kept():
     # the steady-state lead on the dynamic RMSE is judged by the same rule as the outage maximum
-    sc = _fake(GOOD, case_ratios={"UWB σ 2×": {**GOOD, "loose + gate": 1.0}})
-    f = facts.facts(sc)
-    assert set(f["survival_dyn"]["UWB σ 2×"]) == {"loose + gate", "EKF + gate"}
+    f = sc = _fake(GOOD, case_ratios={"UWB σ 2×": {**GOOD, "loose + gate": 1.0}})
+    t = facts.verdict_table(f)
+    assert set(t["claim"][t["claim"].str.startswith("UWB σ 2×:") & t["claim"].str.endswith("dynamic RMSE")]) == {
+        "UWB σ 2×: loose + gate / tight + gate, dynamic RMSE", "UWB σ 2×: EKF + gate / tight + gate, dynamic RMSE"}
     assert _row(f, "UWB σ 2×: loose + gate / tight + gate, dynamic RMSE").verdict == "not significant"
     assert _row(f, "multipath up to 12 m: loose + gate / tight + gate, dynamic RMSE").verdict == "survives"
     hit = (sc.scores["case"] == "IMU 10× worse") & (sc.scores["method"] == "tight + gate")
     sc.scores.loc[hit, "dyn_rmse"] *= 3.0                 # tight's lead reversed on the dynamic RMSE only
-    f = facts.facts(sc)
     r = _row(f, "IMU 10× worse: EKF + gate / tight + gate, dynamic RMSE")
     assert r.verdict == "reversed" and "none kept" in r.ours and "-" not in r.ours.split("×")[1]
     assert _row(f, "IMU 10× worse: EKF + gate / tight + gate, max outage error").verdict == "survives"
 
 
 def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
-    f = facts.facts(_fake(GOOD))
-    assert f["diverged"] == {c: [] for c in ("UWB σ 2×", "IMU 10× worse", "multipath up to 12 m")}
+    f = _fake(GOOD)
     assert not facts.verdict_table(f)["verdict"].eq("diverged").any()
     bad = _fake(GOOD, nis={"UWB σ 2×": 3.0})
     sc = bad.scores
     hit = (sc["case"] == "IMU 10× worse") & (sc["method"] == "tight + gate")
     sc.loc[hit, "dyn_rmse"] *= 50.0
     sc.loc[hit, "recovery_max"] *= 9.0                     # below the factor: not named for this metric
-    f = facts.facts(bad)
-    d = f["diverged"]["IMU 10× worse"]
-    assert [(x["row"], x["metric"]) for x in d] == [("tight + gate", "dyn_rmse")]
+    f = bad
+    t = facts.verdict_table(bad)
+    assert list(t["claim"][t["verdict"] == "diverged"]) == ["IMU 10× worse: tight + gate diverged (dyn_rmse)"]
     assert _row(f, "IMU 10× worse: tight + gate diverged (dyn_rmse)").verdict == "diverged"
     assert _row(f, "IMU 10× worse: loose + gate / tight + gate, max outage error").verdict.startswith("a row diverged")
     assert "share kept" not in _row(f, "IMU 10× worse: loose + gate / tight + gate, max outage error").ours
@@ -257,7 +253,8 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     small.scores.loc[hs, "recovery_max"] = 20 * small.scores.loc[(small.scores["case"] == "matched")
                                                                   & (small.scores["method"] == "tight + gate"),
                                                                   "recovery_max"].mean()
-    assert small.scores.loc[hs, "recovery_max"].max() < 0.5 and facts.facts(small)["diverged"]["UWB σ 2×"] == []
+    assert small.scores.loc[hs, "recovery_max"].max() < 0.5
+    assert not facts.verdict_table(small)["verdict"].eq("diverged").any()
     rows = headlines.ablation_rows(bad)
     q = [r for r in rows if r["quantity"].startswith("mismatch 'IMU 10× worse': dynamic RMSE, tight + gate")]
     assert len(q) == 1 and q[0]["value"] > 0.1
@@ -272,7 +269,7 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     long = ab.AblationResult(replace(bad.config, outage_s=18.6), bad.fast, bad.tuning, {}, sc, bad.counts,
                              tuning_nis=bad.tuning_nis)
     assert not any("recovery" in x for x in headlines.checks(long))
-    assert _row(facts.facts(long), "matched: EKF + gate re-acquires after the outage").verdict == "failed"
+    assert _row(long, "matched: EKF + gate re-acquires after the outage").verdict == "failed"
     t = (sc["case"] == "matched") & (sc["method"] == "tight + gate") & (sc["seed"] == 2)
     sc.loc[t, "reacq_s"] = math.inf                         # the IMU-aided ones are, after any outage
     assert any("recovery: tight + gate" in x for x in headlines.checks(long))
@@ -291,10 +288,7 @@ def test_knobs_break_near_ties_towards_the_models_own_noise_flag_the_edge_and_na
     assert (k.loc["b", "Q ×"], k.loc["b", "R ×"], k.loc["b", "edge"]) == (1.0, 1.0, "R")
     assert (k.loc["d", "Q ×"], k.loc["d", "R ×"], k.loc["d", "edge"]) == (10.0, 1.0, "Q, R")
     assert (k.loc["c", "Q ×"], k.loc["c", "edge"]) == (0.1, "Q, R") and k.loc["c", "blowups"] == ((10.0, 1.0),)
-    res = _fake(GOOD)
-    res = ab.AblationResult(res.config, True, t, {}, res.scores, res.counts)
-    tuning = facts.facts(res)["tuning"]
-    assert tuning["c"]["edge"] == "Q, R" and tuning["c"]["blowups"] == ((10.0, 1.0),) and not tuning["a"]["blowups"]
+    assert not k.loc["a", "blowups"]
     t.loc["c", (10.0, 1.0)] = 5.0
     assert not len(ab.choose_knobs(t).loc["c", "blowups"])
     assert ab.FULL_GRID[0] == 0.01 and ab.FULL_GRID[-1] == 100.0 and len(ab.FULL_GRID) == 9
@@ -309,11 +303,11 @@ def test_a_ladder_step_whose_pick_lies_on_a_grid_edge_is_edge_bound():
                       for i, p in enumerate(pairs)})
     t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
     base = _fake(GOOD)
-    f = facts.facts(ab.AblationResult(base.config, True, t, {}, base.scores, base.counts))
-    loose = f["ladder"]["outlier handling (gate), loose"]["dyn_rmse"]["verdict"]
+    f = ab.AblationResult(base.config, True, t, {}, base.scores, base.counts)
+    loose = _row(f, "outlier handling (gate), loose: dynamic RMSE").verdict
     assert loose.startswith("edge-bound: helps") and "loose R ×" in loose
-    assert f["ladder"]["outlier handling (gate), EKF"]["dyn_rmse"]["verdict"] == "helps"
-    assert facts.facts(base)["ladder"]["outlier handling (gate), loose"]["dyn_rmse"]["verdict"] == "helps"
+    assert _row(f, "outlier handling (gate), EKF: dynamic RMSE").verdict == "helps"
+    assert _row(base, "outlier handling (gate), loose: dynamic RMSE").verdict == "helps"
 
 
 def test_the_measurement_noise_knob_reaches_every_tuned_filter():
@@ -340,7 +334,7 @@ def test_ladder_ratios_use_the_epochs_both_rows_cover_and_show_each_coverage():
     assert t.loc[step, ("dyn_rmse", "ratio")] == pytest.approx(2.0)
     assert t.loc[step, ("dyn_rmse", "cov without")] == pytest.approx(0.8)
     assert t.loc[step, ("dyn_rmse", "cov with")] == 1.0 and t.loc[step, ("dyn_rmse", "cov both")] == pytest.approx(0.8)
-    assert _row(facts.facts(res), f"{step}: dynamic RMSE").ours == "2.00×"
+    assert _row(res, f"{step}: dynamic RMSE").ours == "2.00×"
     # the EKF → tight step compares equal gates: the per-TDoA χ² gate with the tight filter's release
     (_, a, b), = [x for x in ab.LADDER if x[0].startswith("IMU, tightly")]
     g = ab.gate_table(res.config)
@@ -369,16 +363,19 @@ def test_every_ablation_ratio_row_is_the_cell_of_the_table_it_comes_from():
     res = _fake(GOOD, case_ratios={"UWB σ 2×": {**GOOD, "loose + gate": 0.8}})
     rows = {r["quantity"]: r["value"] for r in headlines.ablation_rows(res)}
     table = ladder.ladder_table(res)
-    f = facts.facts(res)
     for what, a, b in ab.LADDER:
         for m, label in (("dyn_rmse", "dynamic RMSE"), ("outage_max", "outage max error")):
             q = [k for k in rows if k.startswith(f"ablation ratio {a} / {b}, {label} ({what};")]
             if q:
-                assert rows[q[0]] == table.loc[what, (m, "ratio")] == f["ladder"][what][m]["ratio"]
+                r = ladder.pair_rmse(res, what, m)["ratio"]
+                assert rows[q[0]] == table.loc[what, (m, "ratio")] == r
+                assert _row(res, f"{what}: {facts._METRIC_WORDS[m]}").ours == f"{r:.2f}×"
     for case in res.config.cases[1:]:
         for other in ("EKF + gate", "loose + gate"):
             (q,) = [k for k in rows if k.startswith(f"mismatch '{case}': outage max error {other} / tight + gate")]
-            assert rows[q] == f["survival"][case][other]["ratio"]
+            r = facts.kept(res, other, "outage_max", case)["ratio"]
+            assert rows[q] == r and _row(res, f"{case}: {other} / tight + gate, max outage error").ours.startswith(
+                f"{r:.2f}×")
         t = res.table(case)
         assert rows[f"mismatch '{case}': dynamic RMSE, tight + gate (mean of {int(t.loc['tight + gate', 'seeds'])} "
                     "seeds)"] == t.loc["tight + gate", "dyn_rmse"]
@@ -386,16 +383,17 @@ def test_every_ablation_ratio_row_is_the_cell_of_the_table_it_comes_from():
 
 def test_a_matched_failure_to_reacquire_is_named():
     res = _fake(GOOD)
-    t = facts.verdict_table(facts.facts(res))
+    t = facts.verdict_table(res)
     assert not t["verdict"].isin(["failed", "drift found on the return"]).any()
     m = (res.scores["case"] == "matched") & (res.scores["method"] == ab.EKF_TDOA_GATE) & (res.scores["seed"] == 3)
     r9 = (res.scores["case"] == "matched") & (res.scores["method"] == "loose + gate") & (res.scores["seed"] == 2)
     res.scores.loc[r9, "recovery_max"] = 0.83              # drift found on the return
-    r = _row(facts.facts(res), "matched: loose + gate, max error")
+    r = _row(res, "matched: loose + gate, max error")
     assert r.verdict == "drift found on the return" and r.ours == "seed 2: 0.83 m"
     res.scores.loc[m, "reacq_s"] = math.inf
-    f = facts.facts(res)
-    assert list(f["matched_failures"]) == [ab.EKF_TDOA_GATE] and f["matched_failures"][ab.EKF_TDOA_GATE][3] == math.inf
+    f = res
+    t = facts.verdict_table(res)
+    assert list(t["claim"][t["verdict"] == "failed"]) == [f"matched: {ab.EKF_TDOA_GATE} re-acquires after the outage"]
     r = _row(f, f"matched: {ab.EKF_TDOA_GATE} re-acquires")
     assert r.verdict == "failed" and "seed 3: never" in r.ours
     tight_step = next(w for w, a, b in ab.LADDER if w.startswith("IMU, tightly"))

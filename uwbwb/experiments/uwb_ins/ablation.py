@@ -62,6 +62,7 @@ from ...sim import mismatch as mm
 from ...sim import robot
 from ...types import EstimateStatus, Estimates
 from ...validate import integer, number, probability
+from . import study
 from .study import OUTAGE_START_S, fusion_filters, injected, start
 
 __all__ = ["R_GRID", "FAST_R_GRID", "BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "METRICS", "LADDER", "EKF_Q0",
@@ -298,18 +299,14 @@ def reacquisition_s(t_s: np.ndarray, err_m: np.ndarray, t_end_s: float, limit_m:
 
 
 def simulate(scenario: str, world: robot.RobotConfig, cfg: AblationConfig, seed: int) -> robot.RobotRun:
-    """The ``"static"`` or ``"dynamic"`` (with outage) run of scoring/tuning seed ``seed`` in ``world``.
+    """The ``"static"`` or ``"dynamic"`` (with outage) run of scoring/tuning seed ``seed`` in ``world``
+    (:func:`~.study.simulate` at ``cfg``'s sizes).
 
     The random stream depends on the seed and the scenario only, so the mismatch cases of one seed
     share their draws (paired comparisons across cases).
     """
-    if scenario == "static":
-        motion = robot.hold(duration_s=cfg.static_s)
-        world = replace(world, outage_start_s=None, outage_s=0.0)
-    else:
-        motion = robot.broken_line(robot.PAPER_WAYPOINTS_M[: cfg.legs + 1])
-        world = replace(world, outage_start_s=OUTAGE_START_S, outage_s=cfg.outage_s)
-    return robot.simulate(motion, world, rng=np.random.default_rng([seed, 0 if scenario == "static" else 1]))
+    return study.simulate(scenario, world, rng=np.random.default_rng([seed, 0 if scenario == "static" else 1]),
+                          static_s=cfg.static_s, legs=cfg.legs, outage_s=cfg.outage_s if scenario == "dynamic" else 0.0)
 
 
 def ls_gate(fixes: Estimates, tdoa, model: TdoaModel, gate_prob: float) -> tuple[Estimates, int]:

@@ -12,6 +12,8 @@ import numpy as np
 
 from ... import validate
 from ...filters import alignment
+from ...models.imu import GRADES
+from ...sim import robot
 from ...widgets import ExerciseCheck
 from . import study
 from .ablation import legs_for_outage
@@ -30,8 +32,8 @@ def outage_loose_vs_tight(*, seed: int, outage_s: float = 5.0, grade: str = "con
     """
     outage_s = validate.number("outage_s", outage_s, minimum=0.0, strict_minimum=True)
     factor = validate.number("factor", factor, minimum=1.0)
-    run = study.simulate_case("dynamic", seed=seed, grade=grade, outlier_rate=outlier_rate, outage_s=outage_s,
-                              legs=legs_for_outage(outage_s))
+    run = study.simulate("dynamic", robot.RobotConfig(imu=GRADES[grade], outlier_rate=outlier_rate),
+                         rng=np.random.default_rng(seed), outage_s=outage_s, legs=legs_for_outage(outage_s))
     comp = study.compare_synthetic(run, alignment.FusionSettings(), label="outage", methods=("UWB-only", "loose", "tight"))
     t = comp.table("outage")
     loose, tight = float(t.loc["loose", "max (m)"]), float(t.loc["tight", "max (m)"])
@@ -53,7 +55,8 @@ def gate_off(*, seed: int, outlier_rate: float = 0.1, duration_s: float = 8.0, g
     """
     outlier_rate = validate.number("outlier_rate", outlier_rate, minimum=0.0, maximum=1.0)
     duration_s = validate.number("duration_s", duration_s, minimum=1.0)
-    run = study.simulate_case("static", seed=seed, grade=grade, outlier_rate=outlier_rate, static_s=duration_s)
+    run = study.simulate("static", robot.RobotConfig(imu=GRADES[grade], outlier_rate=outlier_rate),
+                         rng=np.random.default_rng(seed), static_s=duration_s)
     rmse = {}
     for g in (gate_prob, None):
         comp = study.compare_synthetic(run, alignment.FusionSettings(gate_prob=g), label="static",

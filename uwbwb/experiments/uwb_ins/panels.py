@@ -14,6 +14,7 @@ import numpy as np
 from ... import validate
 from ...filters import alignment
 from ...models.imu import GRADES
+from ...sim import robot
 from ...widgets import Panel, PanelFigure, dropdown, float_slider
 from . import figures, study
 from .ablation import legs_for_outage
@@ -27,8 +28,9 @@ PANEL_STATIC_S = 8.0
 @functools.lru_cache(maxsize=16)
 def panel_run(scenario: str, grade: str, outlier_rate: float, outage_s: float, *, seed: int, legs: int):
     """One short simulated run (cached per scenario, grade, multipath rate, outage, seed and legs)."""
-    return study.simulate_case(scenario, seed=seed, grade=grade, outlier_rate=outlier_rate,
-                               outage_s=outage_s if scenario == "dynamic" else 0.0, static_s=PANEL_STATIC_S, legs=legs)
+    return study.simulate(scenario, robot.RobotConfig(imu=GRADES[grade], outlier_rate=outlier_rate),
+                          rng=np.random.default_rng(seed), outage_s=outage_s if scenario == "dynamic" else 0.0,
+                          static_s=PANEL_STATIC_S, legs=legs)
 
 
 @functools.lru_cache(maxsize=64)

@@ -13,19 +13,18 @@ board that tunes and scores them on a recording in :mod:`uwbwb.scoreboard` (note
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ...filters import eskf
-from ...models.imu import GRADES
 from ...models.ins import NavState
 from ...models.tdoa import TdoaModel
 from ...sim import robot
 from ...types import Estimates, ImuLog, TdoaLog, Trajectory
 from ...filters.alignment import Comparison, FusionSettings, imu_after, initial_state, ls_estimates, screened_tdoa
 
-__all__ = ["PAPER", "METHODS", "simulate_case", "Start", "start", "fusion_filters", "injected", "compare_synthetic",
+__all__ = ["PAPER", "METHODS", "simulate", "Start", "start", "fusion_filters", "injected", "compare_synthetic",
            "error_ranges"]
 
 #: Numbers quoted from paper 004 (kind "input"): error ranges (m) and the summary bounds.
@@ -41,28 +40,28 @@ METHODS = ("UWB-only", "INS-only", "loose", "tight")
 OUTAGE_START_S, NLOS_START_S, NLOS_S = 8.0, 18.0, 6.0
 
 
-def simulate_case(scenario: str, *, seed: int, grade: str = "consumer",
-                  outlier_rate: float = 0.02, outage_s: float = 0.0, nlos_bias_m: float = 0.0,
-                  static_s: float = 60.0, legs: int | None = None) -> robot.RobotRun:
-    """One synthetic run: ``"static"`` at (3.5, 2) m or ``"dynamic"`` along the paper's broken line.
+def simulate(scenario: str, world: robot.RobotConfig, *, rng: np.random.Generator, static_s: float = 60.0,
+             legs: int = 5, outage_s: float = 0.0, nlos_bias_m: float = 0.0) -> robot.RobotRun:
+    """One synthetic run in ``world``: ``"static"`` at (3.5, 2) m for ``static_s`` or ``"dynamic"`` along the
+    first ``legs`` legs of the paper's broken line, drawn from ``rng``.
 
     ``outage_s`` > 0 silences every station but BS1 and BS2 from :data:`OUTAGE_START_S` on (one
     TDoA per epoch: no position fix); ``nlos_bias_m`` > 0 adds that excess to station BS3 for
-    :data:`NLOS_S` seconds from :data:`NLOS_START_S`; ``legs`` drives only the first legs of the
-    broken line (the interactive panel's short runs).
+    :data:`NLOS_S` seconds from :data:`NLOS_START_S`. Notebook 05's sections draw from their seed
+    (``default_rng(seed)``), the ablation from ``default_rng([seed, 0 static / 1 dynamic])``
+    (:func:`~.ablation.simulate`).
     """
     if scenario not in ("static", "dynamic"):
         raise ValueError(f"scenario must be 'static' or 'dynamic', got {scenario!r}")
     motion = robot.hold(duration_s=static_s) if scenario == "static" \
-        else robot.broken_line(robot.PAPER_WAYPOINTS_M[: (legs or 5) + 1])
+        else robot.broken_line(robot.PAPER_WAYPOINTS_M[: legs + 1])
     if outage_s > 0 and OUTAGE_START_S + outage_s > motion.duration_s:
         raise ValueError(f"outage_s = {outage_s:g} s cannot hold: the outage starts at {OUTAGE_START_S:g} s and "
                          f"this {scenario} run lasts {motion.duration_s:.1f} s")
-    cfg = robot.RobotConfig(imu=GRADES[grade], outlier_rate=outlier_rate,
-                            outage_start_s=OUTAGE_START_S if outage_s > 0 else None, outage_s=outage_s,
-                            nlos_station=2 if nlos_bias_m > 0 else None, nlos_bias_m=nlos_bias_m,
-                            nlos_start_s=NLOS_START_S, nlos_s=NLOS_S)
-    return robot.simulate(motion, cfg, rng=np.random.default_rng(seed))
+    world = replace(world, outage_start_s=OUTAGE_START_S if outage_s > 0 else None, outage_s=outage_s)
+    if nlos_bias_m > 0:
+        world = replace(world, nlos_station=2, nlos_bias_m=nlos_bias_m, nlos_start_s=NLOS_START_S, nlos_s=NLOS_S)
+    return robot.simulate(motion, world, rng=rng)
 
 
 @dataclass(frozen=True)
