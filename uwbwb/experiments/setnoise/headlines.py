@@ -16,8 +16,7 @@ import pandas as pd
 
 from ...metrics import interval_side
 from .real import RealStudy
-from .study import (BAND_MPS, BASE_KF, BASE_PF, INPUT, PAPER, RAW, REPRODUCED, SET_KF, SET_KF_POOLED, SET_PF,
-                    TARGET)
+from .study import BASE_KF, BASE_PF, INPUT, PAPER, RAW, REPRODUCED, SET_KF, SET_KF_POOLED, SET_PF, TARGET
 
 __all__ = ["checks", "headline_rows", "real_rows", "verdicts"]
 
