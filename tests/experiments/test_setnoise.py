@@ -85,6 +85,10 @@ def test_band_summary_hand_case():
     assert b.loc[("a", E.SET_PF), "improvement_pct"] == pytest.approx(30.0)
     assert b.loc[("mean", E.SET_PF), "error_cm"] == pytest.approx(10.5)
     assert b.loc[("mean", E.SET_PF), "improvement_cm"] == pytest.approx(4.5)
+    # standard errors: the RMS over σ_d per recording (1 cm), over two independent recordings 1/√2 cm; raw has none
+    assert b.loc[("a", E.SET_PF), "se_cm"] == pytest.approx(1.0)
+    assert b.loc[("mean", E.SET_PF), "se_cm"] == pytest.approx(np.sqrt(2) / 2)
+    assert b.loc[("mean", E.RAW), "se_cm"] == 0
     m = E.mean_over_recordings(df)
     assert m.loc[(m["filter"] == E.SET_PF) & (m["sigma_d_mps"] == 0.3), "mean_error_m"].item() == pytest.approx(0.12)
     assert m.loc[(m["filter"] == E.SET_PF) & (m["sigma_d_mps"] == 0.3), "sem_error_m"].item() == pytest.approx(
@@ -145,9 +149,9 @@ def test_real_inputs_fall_back_to_the_rig(rig_inputs):
 
 def test_emulated_sets(rig_inputs):
     rec = rig_inputs.static[0]
-    emu = E.Emulation(set_size=5, fading_db=0.0, decimate=4)
+    emu = S.SetEmulation(set_size=5, fading_db=0.0)
     z = float(rec.truth["t0"].pos_m[0, 2])
-    fixes, rep = E.emulate_fixes(rec, "t0", emu, tag_height_m=z, rng=np.random.default_rng(0))
+    fixes, rep = E.emulate_fixes(rec, "t0", emu, tag_height_m=z, rng=np.random.default_rng(0), decimate=4)
     assert rep["kept_after_decimation"] == -(-rep["epochs"] // 4)
     assert rep["coverage"] == pytest.approx(rep["fixes"] / (rep["kept_after_decimation"] - rep["no_truth"]))
     assert rep["fixes"] == len(fixes) == rep["kept_after_decimation"] - rep["no_truth"] - rep["too_few_ranges"] \
@@ -160,14 +164,14 @@ def test_emulated_sets(rig_inputs):
     np.testing.assert_array_equal(np.sort(np.flatnonzero(used[0])), np.sort(shortest[0]))
     assert fixes.name == f"{rec.name}/t0"
     # fading makes a static tag switch sets
-    faded, _ = E.emulate_fixes(rec, "t0", E.Emulation(decimate=4), tag_height_m=z, rng=np.random.default_rng(0))
+    faded, _ = E.emulate_fixes(rec, "t0", tag_height_m=z, rng=np.random.default_rng(0), decimate=4)
     assert len(np.unique(faded.set_id)) > 3
-    with pytest.raises(ValueError):
-        E.Emulation(set_size=2)
+    with pytest.raises(ValueError, match="decimate"):
+        E.emulate_fixes(rec, "t0", tag_height_m=z, rng=np.random.default_rng(0), decimate=0)
 
 
 def test_real_study_on_the_rig(rig_inputs):
-    st = E.real_study(rig_inputs, E.Emulation(decimate=4), rng=np.random.default_rng(0))
+    st = E.real_study(rig_inputs, decimate=4, rng=np.random.default_rng(0))
     assert st.range_calibration is not None
     assert len(st.tests) == len(rig_inputs.dynamic.tags)
     assert len(st.calibration) == len(rig_inputs.static) * len(rig_inputs.dynamic.tags)
@@ -175,7 +179,7 @@ def test_real_study_on_the_rig(rig_inputs):
     assert len(st.model) > 0 and all(E.modelled_share(t, st.model) > 0.3 for t in st.tests)
     raw = [E.raw_error_m(t) for t in st.tests]
     assert all(0 < e < 0.3 for e in raw)
-    uncal = E.real_study(rig_inputs, E.Emulation(decimate=4), range_calibration=False, rng=np.random.default_rng(0))
+    uncal = E.real_study(rig_inputs, decimate=4, range_calibration=False, rng=np.random.default_rng(0))
     assert uncal.range_calibration is None
     assert np.mean([E.raw_error_m(t) for t in uncal.tests]) > np.mean(raw)      # the rig has per-pair biases
     # the mount height comes from the static poses, the coverage is reported per role
@@ -193,8 +197,8 @@ def test_the_test_run_truth_height_does_not_reach_the_fixes(rig_inputs):
     lifted = {t: Trajectory(tr.t_s, tr.pos_m + [0.0, 0.0, 0.3], name=tr.name)
               for t, tr in rig_inputs.dynamic.truth.items()}
     moved = dc.replace(rig_inputs, dynamic=dc.replace(rig_inputs.dynamic, truth=lifted))
-    a = E.real_study(rig_inputs, E.Emulation(decimate=8), rng=np.random.default_rng(2))
-    b = E.real_study(moved, E.Emulation(decimate=8), rng=np.random.default_rng(2))
+    a = E.real_study(rig_inputs, decimate=8, rng=np.random.default_rng(2))
+    b = E.real_study(moved, decimate=8, rng=np.random.default_rng(2))
     for x, y in zip(a.tests, b.tests):
         np.testing.assert_array_equal(x.pos_m, y.pos_m)
 
@@ -204,7 +208,7 @@ def test_real_study_on_lias():
     root = real_dataset("lias-planar-uwb")
     inputs = E.real_inputs(root.parent, "fast", "8.14", fast=True)
     assert not inputs.synthetic and inputs.data_label == "lias-planar-uwb/fast"
-    st = E.real_study(inputs, E.Emulation(decimate=20), rng=np.random.default_rng(0))
+    st = E.real_study(inputs, decimate=20, rng=np.random.default_rng(0))
     raw = [E.raw_error_m(t) for t in st.tests]
     assert all(0.01 < e < 0.2 for e in raw), raw
     assert all(E.modelled_share(t, st.model) > 0.5 for t in st.tests)
@@ -222,7 +226,13 @@ def _sweep_frame(errors_cm: dict, sem_cm: float = 0.1, sigmas=(0.02, 0.3, 0.5), 
                                        "n_trials"])
 
 
-RESAMPLER = {"recording": "rec2", "resamplers": ("systematic", "multinomial"), "diff_cm": -0.05, "se_diff_cm": 0.1}
+def _resampler(systematic_cm: float, multinomial_cm: float, sem_cm: float = 0.1) -> dict:
+    """Band tables of the set-noise PF on one recording under the two resamplers (errors in the band, cm)."""
+    return {r: E.band_summary(_sweep_frame({E.RAW: (20, 20), E.SET_PF: (90, e)}, sem_cm, recordings=("rec2",)))
+            for r, e in (("systematic", systematic_cm), ("multinomial", multinomial_cm))}
+
+
+RESAMPLER = _resampler(17.0, 17.05)
 
 
 def _verdict(table: pd.DataFrame, start: str) -> pd.Series:
@@ -240,7 +250,7 @@ def test_verdicts_follow_the_intervals_on_both_sides_of_each_rule():
                        E.SET_KF: (24, 15.8)}, sem_cm=0.1)
     off = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (60, 17), E.SET_PF: (90, 17.05), E.BASE_KF: (25, 16.5),
                         E.SET_KF: (24, 17.0)}, sem_cm=0.1)
-    t = E.headlines.verdicts(on, off, RESAMPLER)
+    t = E.headlines.verdicts(E.band_summary(on), E.band_summary(off), RESAMPLER)
     assert list(t.columns) == ["claim", "paper", "ours", "low", "high", "rule", "verdict"]
     pct = _verdict(t, "set-noise PF improvement over raw")
     assert pct["ours"] == pytest.approx(15.0) and pct["verdict"] == "agrees"       # 3 cm of 20: the paper's 15 %
@@ -255,12 +265,13 @@ def test_verdicts_follow_the_intervals_on_both_sides_of_each_rule():
     assert _verdict(t, f"{E.SET_PF} vs {E.BASE_PF}: error reduction, σ_d 30-50 cm/s, track").verdict == "not significant"
     kf = _verdict(t, f"{E.SET_KF} vs {E.SET_PF}")
     assert kf["ours"] == pytest.approx(1.2) and kf["verdict"] == "better"
-    res = _verdict(t, "systematic vs multinomial")
+    res = _verdict(t, "systematic vs multinomial resampling: set-noise PF error reduction, rec2")
     assert res["ours"] == pytest.approx(0.05) and res["verdict"] == "not significant"
+    assert res["high"] - res["ours"] == pytest.approx(2 * np.hypot(0.1, 0.1))        # one recording each
     # the same table with a clear resampler difference and a set-noise PF beating its baseline
     better = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (60, 17), E.SET_PF: (90, 16.0), E.BASE_KF: (25, 16.5),
                            E.SET_KF: (24, 15.8)}, sem_cm=0.1)
-    t2 = E.headlines.verdicts(better, off, dict(RESAMPLER, diff_cm=0.5))
+    t2 = E.headlines.verdicts(E.band_summary(better), E.band_summary(off), _resampler(17.5, 17.0))
     assert _verdict(t2, f"{E.SET_PF} vs {E.BASE_PF}: error reduction, σ_d 30-50 cm/s, paper's").verdict == "better"
     assert _verdict(t2, "systematic vs multinomial").verdict == "worse"
     assert _verdict(t2, "set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (%)").verdict == \
@@ -270,16 +281,10 @@ def test_verdicts_follow_the_intervals_on_both_sides_of_each_rule():
 def test_one_trial_gives_no_interval_and_no_verdict():
     one = _sweep_frame({E.RAW: (20, 20), E.BASE_PF: (60, 17), E.SET_PF: (90, 16.0), E.BASE_KF: (25, 16.5),
                         E.SET_KF: (24, 15.8)}, sem_cm=np.nan)
-    t = E.headlines.verdicts(one, one, RESAMPLER)
+    t = E.headlines.verdicts(E.band_summary(one), E.band_summary(one), RESAMPLER)
     pf_rows = t[t["claim"].str.contains("PF") & ~t["claim"].str.startswith("systematic")]   # the sweep's rows
     assert (pf_rows["verdict"] == "no interval (fewer than two trials)").all()
     assert pf_rows["low"].isna().all()
-
-
-def test_verdicts_refuse_a_sweep_without_the_band():
-    narrow = _sweep_frame({E.RAW: (20, 20), E.SET_PF: (90, 17)}, sigmas=(0.02, 0.06))
-    with pytest.raises(ValueError, match="band"):
-        E.headlines.verdicts(narrow, narrow, RESAMPLER)
 
 
 # --------------------------------------------------------------------------- kinds, the second track, the resampler
@@ -316,16 +321,6 @@ def test_second_track_keeps_away_from_the_calibration_locations(study):
     alone = E.synthetic_study(SMALL, rng=np.random.default_rng(0), off_track_xy_m=None)
     assert alone.off_recordings == ()
     np.testing.assert_array_equal(alone.recordings[1].pos_m, study.recordings[1].pos_m)
-
-
-def test_resampler_check_reports_its_scope(study):
-    cfg = E.SweepConfig(sigma_d_mps=(0.3, 0.5), n_trials=3, n_particles=100)
-    chk = E.resampler_check(study.recordings[0], study.model, cfg, rng=np.random.default_rng(0))
-    assert chk["recording"] == "rec1" and chk["sigma_d_mps"] == (0.3, 0.5) and chk["n_trials"] == 3
-    assert chk["diff_cm"] == pytest.approx(chk["error_cm"]["systematic"] - chk["error_cm"]["multinomial"])
-    with pytest.raises(ValueError, match="exactly two"):
-        E.resampler_check(study.recordings[0], study.model, cfg, rng=np.random.default_rng(0),
-                          resamplers=("systematic",))
 
 
 # --------------------------------------------------------------------------- exercises and notes
@@ -375,7 +370,7 @@ def test_plot_sweep_marks_points_above_the_axes():
 def test_explorer_offers_every_recording_and_reads_out_its_errors(study, rig_inputs):
     from uwbwb.classroom import axes_problems, axes_record
 
-    real = E.real_study(rig_inputs, E.Emulation(decimate=8), tags=("t0",), rng=np.random.default_rng(0))
+    real = E.real_study(rig_inputs, decimate=8, tags=("t0",), rng=np.random.default_rng(0))
     speeds = 2 * tuple(study.facility.config.speeds_mps)                  # as the notebook builds them
     logs = {f"{r.name} ({100 * v:.0f} cm/s, synthetic)": (r, study.model)
             for r, v in zip(study.recordings + study.off_recordings, speeds)}
@@ -414,9 +409,11 @@ def test_real_rows_and_checks():
     band_table = pd.DataFrame({E.SET_PF: [12.0], E.SET_KF: [11.0]}, index=["mean"])
     gap = pd.DataFrame({"rms_gap_m": [0.10, 0.02]})
     kw = dict(shares={"n_sets": 5, "top1_share": 0.4}, improvement=imp, off_improvement=imp, band_table=band_table,
-              gap=gap, resampler={"diff_cm": 0.1, "se_diff_cm": 0.2}, real_band=real_band, studies=studies)
+              gap=gap, resampler=_resampler(17.1, 17.0), real_band=real_band, studies=studies)
     E.headlines.checks(**kw, fast=True)
     with pytest.raises(AssertionError, match="differ by 1.00 cm"):          # 1 cm apart: fine in FAST only
         E.headlines.checks(**kw, fast=False)
     with pytest.raises(AssertionError, match="approach the KF"):
         E.headlines.checks(**dict(kw, gap=pd.DataFrame({"rms_gap_m": [0.10, 0.09]})), fast=True)
+    with pytest.raises(AssertionError, match="resamplers differ"):          # 1 cm apart, standard error 0.1 cm
+        E.headlines.checks(**dict(kw, resampler=_resampler(18.0, 17.0)), fast=True)

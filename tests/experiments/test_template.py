@@ -64,31 +64,25 @@ def test_each_check_fails_on_a_result_doctored_to_break_it(res, what):
     (1e-6, 0.02, "worse"),
     (np.nan, np.nan, "no interval"),
 ])
-def test_the_verdict_flips_at_zero(res, lo, hi, verdict):
+def test_the_verdict_flips_at_zero(lo, hi, verdict):
     assert F.verdict(lo, hi) == verdict
-    f = dict(F.facts(res), lo_m=lo, hi_m=hi, verdict=F.verdict(lo, hi))
-    assert F.verdict_table(f)["verdict"].iloc[0] == verdict
 
 
 @pytest.mark.parametrize("nis, inside", [(0.49, False), (0.5, True), (2.0, True), (2.01, False)])
-def test_the_nis_verdict_flips_at_the_band_edges(res, nis, inside):
-    f = dict(F.facts(res), nis_per_dof=nis, nis_verdict=F.nis_verdict(nis))
-    assert (f["nis_verdict"] == "consistent") == inside
-    assert F.verdict_table(f)["verdict"].iloc[1] == ("consistent" if inside else "inconsistent")
+def test_the_nis_verdict_flips_at_the_band_edges(nis, inside):
+    assert F.nis_verdict(nis) == ("consistent" if inside else "inconsistent")
 
 
 def test_the_verdict_follows_the_method_not_just_the_numbers_fed_in():
     # an EKF told a driving σ far too small lags the walk: it loses to LS and its NIS says so — on the full walk;
     # the FAST walk holds too few independent stretches of its slowly varying lag for any interval
-    lagging = F.facts(tp.panels.run(0.1, 0.10, fast=False))
+    lagging = F.facts(tp.run_study(fast=False, config=replace(tp.FULL, driving_sigma_mps2=0.1)))
     assert lagging["verdict"] == "worse" and lagging["nis_verdict"] == "inconsistent"
-    assert F.facts(tp.panels.run(0.1, 0.10))["verdict"] == "no interval"
-    assert tp.panels.readout(0.1, 0.10, fast=False)["verdict"].iloc[0] == "worse"
-    assert tp.panels.readout(0.5, 0.10)["verdict"].iloc[0] == "better"
+    assert F.facts(tp.run_study(fast=True, config=replace(tp.FAST, driving_sigma_mps2=0.1)))["verdict"] == "no interval"
 
 
 def test_headlines_are_data_with_a_kind_and_are_published(res):
-    rows = tp.rows(F.facts(res))
+    rows = [h.row(F.facts(res)) for h in tp.HEADLINES]
     assert len(rows) == len(tp.HEADLINES)
     assert {r["kind"] for r in rows} == {"reproduced", "input"}
     assert all(np.isfinite(r["value"]) for r in rows)
@@ -101,10 +95,10 @@ def test_headlines_are_data_with_a_kind_and_are_published(res):
         tp.headlines.Headline("x", "m", "guessed", lambda f: 0.0)
 
 
-def test_the_panel_is_cached_and_draws_headless():
-    assert tp.panels.run(0.5, 0.10) is tp.panels.run(0.5, 0.10)
-    axes = tp.panels.draw(0.5, 0.10)
-    assert "300 common epochs" in axes[1].get_title()
+def test_the_figures_draw_headless(res):
+    _, axes = plt.subplots(1, 2)
+    assert len(tp.figures.paths_figure(res, axes[0]).lines) >= 3          # truth and both methods
+    assert "300 common epochs" in tp.figures.cdf_figure(res, axes[1]).get_title()
     plt.close("all")
     with pytest.raises(ValueError, match="sigma_range_m"):
-        tp.panels.run(0.5, -0.1)
+        replace(tp.FAST, sigma_range_m=-0.1)

@@ -1,10 +1,7 @@
 """Notebook 01's diagnostics of the synthetic study: one run of every estimator (Fig. 8), the set-noise PF
-approaching the exact KF as K grows, systematic against multinomial resampling, and how well each noise
-model's σ explains the fix residuals."""
+approaching the exact KF as K grows, and how well each noise model's σ explains the fix residuals."""
 
 from __future__ import annotations
-
-from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -12,16 +9,15 @@ import pandas as pd
 from ...filters import setnoise as filt
 from ...models.setnoise import SetNoiseModel
 from ...types import SetFixLog
-from .study import BASE_KF, BASE_PF, RAW, SET_KF, SET_PF, SweepConfig, _noise, sweep
+from .study import BASE_KF, BASE_PF, RAW, SET_KF, SET_PF, _noise
 
-__all__ = ["FACILITY_WIDE", "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "pf_kf_gap",
-           "resampler_check", "residual_table", "trace"]
+__all__ = ["FACILITY_WIDE", "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "pf_kf_gap", "residual_table", "trace"]
 
 
 # --------------------------------------------------------------------------- Fig. 8 and PF → KF
 
 def trace(log: SetFixLog, model: SetNoiseModel, sigma_d_mps: float, *, rng: np.random.Generator,
-          n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "systematic") -> dict:
+          n_particles: int = 1000, ess_fraction: float = 0.5) -> dict:
     """One run of every estimator on one recording (Fig. 8).
 
     Returns
@@ -32,7 +28,7 @@ def trace(log: SetFixLog, model: SetNoiseModel, sigma_d_mps: float, *, rng: np.r
     mu, sd = _noise(log, model)
     x0 = log.truth_m[0]
     pf = filt.pf_sweep(log.t_s, log.pos_m, mu, sd, x0, sigma_d_mps, rng=rng, n_particles=n_particles,
-                       ess_fraction=ess_fraction, resampler=resampler)
+                       ess_fraction=ess_fraction)
     kf = filt.kf_sweep(log.t_s, log.pos_m, mu, sd, x0, sigma_d_mps)
     return {"truth": log.truth_m, RAW: log.pos_m, BASE_PF: pf.pos_m[0, 0, 0], SET_PF: pf.pos_m[1, 0, 0],
             BASE_KF: kf.pos_m[0, 0], SET_KF: kf.pos_m[1, 0]}
@@ -60,38 +56,6 @@ def pf_kf_gap(log: SetFixLog, model: SetNoiseModel, sigma_d_mps: float, n_partic
                      "pf_error_m": float(pf.mean_error_m(log.truth_m).mean()),
                      "kf_error_m": float(kf.mean_error_m(log.truth_m)[0])})
     return pd.DataFrame(rows)
-
-
-# --------------------------------------------------------------------------- the resampler
-
-def resampler_check(log: SetFixLog, model: SetNoiseModel, config: SweepConfig, *, rng: np.random.Generator,
-                    resamplers=("systematic", "multinomial")) -> dict:
-    """Set-noise PF error under two resamplers, on one recording and the σ_d values of ``config``.
-
-    The runs share ``rng`` in the order of ``resamplers``; each error is the mean over
-    ``config``'s σ_d values of the trial-mean error, with its standard error.
-
-    Returns
-    -------
-    dict
-        ``recording, sigma_d_mps, n_trials, n_particles``; ``error_cm`` and ``se_cm``
-        (resampler → value); ``diff_cm`` (first − second) and ``se_diff_cm`` (its
-        standard error; the verdict is :func:`.headlines.verdicts`' row).
-    """
-    if len(resamplers) != 2:
-        raise ValueError(f"compare exactly two resamplers, got {resamplers}")
-    err, se = {}, {}
-    for r in resamplers:
-        d = sweep([log], model, replace(config, resampler=r), rng=rng, progress=False)
-        d = d[d["filter"] == SET_PF]
-        err[r] = float(100 * d["mean_error_m"].mean())
-        se[r] = float(100 * np.sqrt(np.mean(d["sem_error_m"] ** 2)))
-    a, b = resamplers
-    diff = err[a] - err[b]
-    se_diff = float(np.hypot(se[a], se[b]))
-    return {"recording": log.name, "sigma_d_mps": tuple(config.sigma_d_mps), "n_trials": config.n_trials,
-            "n_particles": config.n_particles, "resamplers": tuple(resamplers), "error_cm": err, "se_cm": se,
-            "diff_cm": diff, "se_diff_cm": se_diff}
 
 
 # --------------------------------------------------------------------------- consistency of the noise models

@@ -11,13 +11,6 @@ from ...types import SetFixLog
 from ...sim import setnoise as sim
 from .study import BAND_MPS, BASE_KF, BASE_PF, FILTERS, RAW, SET_KF, SET_KF_POOLED, SET_PF, set_shares
 
-def _ax(ax):
-    if ax is None:
-        import matplotlib.pyplot as plt
-
-        _, ax = plt.subplots()
-    return ax
-
 
 def _set_colours(n: int):
     import matplotlib
@@ -33,7 +26,7 @@ def plot_facility(facility: sim.Facility, ax=None, *, off_track_xy_m=None):
     """
     from matplotlib.patches import Circle
 
-    ax = _ax(ax)
+    ax = plotting._axes(ax)
     cfg = facility.config
     x0, x1, y0, y1 = cfg.lab_m
     ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color="#bdbdbd", linewidth=1, label="lab")
@@ -61,8 +54,8 @@ def plot_facility(facility: sim.Facility, ax=None, *, off_track_xy_m=None):
 
 def plot_fixes(log: SetFixLog, ax=None, *, n_sets: int = 5, unit: str = "cm"):
     """Fig. 3: fixes of a static tag, coloured by their (most frequent) sets; truth as '+'."""
-    ax = _ax(ax)
-    s = 100.0 if unit == "cm" else 1.0
+    ax = plotting._axes(ax)
+    s = plotting._scale(unit)
     fr = log.set_frequency()
     top = fr["set_id"].iloc[:n_sets].tolist()
     other = ~np.isin(log.set_id, top)
@@ -82,7 +75,7 @@ def plot_fixes(log: SetFixLog, ax=None, *, n_sets: int = 5, unit: str = "cm"):
 
 def plot_set_frequency(log: SetFixLog, ax=None, *, n_bars: int = 12):
     """Fig. 4: how often each set occurs, most frequent first, with the top-five share."""
-    ax = _ax(ax)
+    ax = plotting._axes(ax)
     fr = log.set_frequency().iloc[:n_bars]
     colours = _set_colours(5) + ["#bdbdbd"] * max(0, len(fr) - 5)
     ax.bar(range(len(fr)), fr["count"], color=colours[:len(fr)])
@@ -104,8 +97,8 @@ def plot_set_ellipses(log: SetFixLog, ax=None, *, n_sets: int = 4, n_sigma: floa
     """
     from matplotlib.patches import Ellipse
 
-    ax = _ax(ax)
-    s = 100.0 if unit == "cm" else 1.0
+    ax = plotting._axes(ax)
+    s = plotting._scale(unit)
     st = location_statistics(log.error_m, log.set_id, np.zeros(len(log))).iloc[:n_sets]
     truth = log.truth_m[0]
     ax.plot(log.pos_m[:, 0] * s, log.pos_m[:, 1] * s, ".", color="#d9d9d9", markersize=2, label="fixes")
@@ -128,8 +121,8 @@ def plot_set_ellipses(log: SetFixLog, ax=None, *, n_sets: int = 4, n_sigma: floa
 def plot_trace(estimates: dict, ax=None, *, index=None, axis: int = 0, unit: str = "cm",
                names=(RAW, BASE_PF, SET_PF)):
     """Fig. 8: one coordinate (default X) against measurement index for truth, raw and filters."""
-    ax = _ax(ax)
-    s = 100.0 if unit == "cm" else 1.0
+    ax = plotting._axes(ax)
+    s = plotting._scale(unit)
     n = len(estimates["truth"])
     idx = np.arange(n) if index is None else np.arange(n)[index]
     ax.plot(idx, estimates["truth"][idx, axis] * s, color=plotting.color_for("truth"), linewidth=1.5, label="truth")
@@ -151,8 +144,8 @@ def plot_sweep(df: pd.DataFrame, recording: str, ax=None, *, names=FILTERS, unit
     as ▲ on the top edge, and a box in the upper right says, per curve, how high they go and at
     which σ_d, so a breakdown (the PF at small σ_d) stays visible.
     """
-    ax = _ax(ax)
-    s = 100.0 if unit == "cm" else 1.0
+    ax = plotting._axes(ax)
+    s = plotting._scale(unit)
     d = df[df["recording"] == recording]
     off = []                                     # curves with points above y_max: what the box says
     for name in names:
@@ -185,8 +178,8 @@ def plot_sweep(df: pd.DataFrame, recording: str, ax=None, *, names=FILTERS, unit
 
 def plot_pf_kf_gap(df: pd.DataFrame, ax=None, *, unit: str = "cm"):
     """RMS distance between the set-noise PF and the exact KF against K, with a 1/√K guide."""
-    ax = _ax(ax)
-    s = 100.0 if unit == "cm" else 1.0
+    ax = plotting._axes(ax)
+    s = plotting._scale(unit)
     K = df["n_particles"].to_numpy(float)
     g = df["rms_gap_m"].to_numpy() * s
     ax.loglog(K, g, "o-", color="#bcbd22", label="set-noise PF − set-noise KF (RMS)")

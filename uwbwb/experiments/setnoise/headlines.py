@@ -16,8 +16,7 @@ import pandas as pd
 
 from ...metrics import interval_side
 from .real import RealStudy
-from .study import (BAND_MPS, BASE_KF, BASE_PF, INPUT, PAPER, RAW, REPRODUCED, SET_KF, SET_KF_POOLED, SET_PF,
-                    TARGET)
+from .study import BASE_KF, BASE_PF, INPUT, PAPER, RAW, REPRODUCED, SET_KF, SET_KF_POOLED, SET_PF, TARGET
 
 __all__ = ["checks", "headline_rows", "real_rows", "verdicts"]
 
@@ -43,13 +42,13 @@ def real_rows(real_band: pd.DataFrame, studies: Mapping[str, RealStudy], data_la
 
 
 def checks(*, shares: Mapping, improvement: pd.DataFrame, off_improvement: pd.DataFrame,
-           band_table: pd.DataFrame, gap: pd.DataFrame, resampler: Mapping, real_band: pd.DataFrame,
+           band_table: pd.DataFrame, gap: pd.DataFrame, resampler: Mapping[str, pd.DataFrame], real_band: pd.DataFrame,
            studies: Mapping[str, RealStudy], fast: bool) -> None:
     """What the method must do; raises ``AssertionError`` with the failing quantity.
 
     ``improvement``/``off_improvement``: band improvements of the mean recording per filter (paper's
     track, second track); ``band_table``: band errors per recording and filter (cm); ``gap``:
-    :func:`.diagnostics.pf_kf_gap`; ``resampler``: :func:`.diagnostics.resampler_check`. The PF–KF tolerance is
+    :func:`.diagnostics.pf_kf_gap`; ``resampler``: as in :func:`verdicts`. The PF–KF tolerance is
     3 cm under ``fast`` and 1 cm otherwise.
     """
     assert shares["n_sets"] > 1 and shares["top1_share"] < 1, f"no set switching at the Fig. 3 location: {shares}"
@@ -61,7 +60,8 @@ def checks(*, shares: Mapping, improvement: pd.DataFrame, off_improvement: pd.Da
     pf_kf = abs(band_table.loc["mean", SET_PF] - band_table.loc["mean", SET_KF])
     assert pf_kf < (3.0 if fast else 1.0), f"set-noise PF and KF differ by {pf_kf:.2f} cm in the band"
     assert gap["rms_gap_m"].iloc[-1] < 0.5 * gap["rms_gap_m"].iloc[0], f"PF does not approach the KF as K grows: {gap}"
-    assert abs(resampler["diff_cm"]) < 4 * resampler["se_diff_cm"] + 0.3, resampler
+    (ea, sa), (eb, sb) = (_mean(t, SET_PF) for t in resampler.values())
+    assert abs(ea - eb) < 4 * np.hypot(sa, sb) + 0.3, f"the resamplers differ: {ea:.2f} against {eb:.2f} cm"
     for variant in studies:
         raw = real_band.loc[(variant, RAW), "error_cm"]
         assert 0 < raw < 50, f"real data, {variant} ranges: raw error {raw} cm"
@@ -129,24 +129,18 @@ def headline_rows(*, shares: dict, table1: pd.DataFrame, improvement: pd.DataFra
 VERDICT_RULE_SE = 2.0
 
 
-def _band(sweep: pd.DataFrame, name: str, band=BAND_MPS) -> tuple[float, float]:
-    """Band error of ``name`` averaged over σ_d values and recordings, cm, and its Monte Carlo standard error.
-
-    Per recording the σ_d values share their process-noise draws (common random numbers), so their
-    standard errors are combined as their RMS (no smaller than their mean, the fully correlated case);
-    recordings are independent. NaN when a point has one trial."""
-    d = sweep[(sweep["filter"] == name) & sweep["sigma_d_mps"].between(band[0] - 1e-12, band[1] + 1e-12)]
-    if d.empty:
-        raise ValueError(f"no {name!r} rows with σ_d in the band {band} m/s")
-    per_rec = d.groupby("recording", sort=False)
-    err = per_rec["mean_error_m"].mean()
-    se = per_rec["sem_error_m"].apply(lambda x: float(np.sqrt(np.mean(np.square(x.to_numpy(float))))))
-    return 100 * float(err.mean()), 100 * float(np.sqrt(np.sum(se.to_numpy(float) ** 2)) / len(err))  # NaN: 1 trial
+def _mean(band: pd.DataFrame, name: str) -> tuple[float, float]:
+    """``(error_cm, se_cm)`` of ``name`` in the ``"mean"`` row of a :func:`.study.band_summary` table."""
+    row = band[(band["recording"] == "mean") & (band["filter"] == name)].iloc[0]
+    return float(row["error_cm"]), float(row["se_cm"])
 
 
-def verdicts(sweep: pd.DataFrame, off_sweep: pd.DataFrame, resampler: Mapping) -> pd.DataFrame:
+def verdicts(band: pd.DataFrame, off_band: pd.DataFrame, resampler: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     """Notebook 01's claims as a table: ``claim, paper, ours, low, high, rule, verdict``.
 
+    ``band``, ``off_band``: :func:`.study.band_summary` of the sweeps on the paper's track and away from the
+    calibration locations; ``resampler``: resampler → :func:`.study.band_summary` of the set-noise PF on one
+    recording (two resamplers; the row compares the first with the second).
     Every interval is ours ± :data:`VERDICT_RULE_SE` Monte Carlo standard errors over the PF's trials (the
     Kalman filters and the raw fixes have none): it covers the particle filter's randomness, not the draw
     of the simulated recordings. A difference between two estimators takes the standard error of a
@@ -155,10 +149,10 @@ def verdicts(sweep: pd.DataFrame, off_sweep: pd.DataFrame, resampler: Mapping) -
     (*exact filters*); with one trial per point no row has an interval.
     Rules: a paper value *agrees* when it lies in the interval, else *differs*; a difference "A vs B: error
     reduction" (B's error minus A's) is *better* (A better) or *worse* when its interval excludes 0, else *not
-    significant*. ``resampler`` is :func:`.diagnostics.resampler_check` (first resampler minus second).
+    significant*.
     """
     k = VERDICT_RULE_SE
-    raw, _ = _band(sweep, RAW)
+    raw, _ = _mean(band, RAW)
     rows = []
 
     def add(claim, paper, ours, se, rule):
@@ -175,21 +169,22 @@ def verdicts(sweep: pd.DataFrame, off_sweep: pd.DataFrame, resampler: Mapping) -
         rows.append({"claim": claim, "paper": paper, "ours": ours, "low": lo, "high": hi, "rule": rule,
                      "verdict": verdict})
 
-    pf, pf_se = _band(sweep, SET_PF)
+    pf, pf_se = _mean(band, SET_PF)
     add("set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (%)", PAPER["improvement_pct"],
         100 * (raw - pf) / raw, 100 * pf_se / raw, "paper in interval")
     add("set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (cm)", PAPER["improvement_cm"],
         raw - pf, pf_se, "paper in interval")
-    for label, data in (("paper's track", sweep), ("track away from calibration", off_sweep)):
+    for label, data in (("paper's track", band), ("track away from calibration", off_band)):
         for a, b in ((SET_PF, BASE_PF), (SET_KF, BASE_KF)):
-            ea, sa = _band(data, a)
-            eb, sb = _band(data, b)
+            ea, sa = _mean(data, a)
+            eb, sb = _mean(data, b)
             add(f"{a} vs {b}: error reduction, σ_d 30-50 cm/s, {label} (cm)", np.nan, eb - ea, float(np.hypot(sa, sb)),
                 "difference excludes 0")
-    kf, _ = _band(sweep, SET_KF)
+    kf, _ = _mean(band, SET_KF)
     add(f"{SET_KF} vs {SET_PF}: error reduction, σ_d 30-50 cm/s, paper's track (cm)", np.nan, pf - kf, pf_se,
         "difference excludes 0")
-    a, b = resampler["resamplers"]
-    add(f"{a} vs {b} resampling: set-noise PF error reduction, {resampler['recording']} (cm)", np.nan,
-        -resampler["diff_cm"], resampler["se_diff_cm"], "difference excludes 0")
+    (a, (ea, sa)), (b, (eb, sb)) = ((r, _mean(t, SET_PF)) for r, t in resampler.items())
+    recording = resampler[a]["recording"].iloc[0]
+    add(f"{a} vs {b} resampling: set-noise PF error reduction, {recording} (cm)", np.nan, eb - ea,
+        float(np.hypot(sa, sb)), "difference excludes 0")
     return pd.DataFrame(rows)

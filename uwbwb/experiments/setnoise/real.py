@@ -1,7 +1,8 @@
 """The real-range part of notebook 01: sensor sets emulated on ``lias-planar-uwb`` two-way ranges.
 
 LIAS has no sensor sets, so :func:`emulate_fixes` makes them
-(:func:`uwbwb.sim.setnoise.emulate_set_fixes` on every ``decimate``-th epoch): per epoch the
+(:func:`uwbwb.sim.setnoise.emulate_set_fixes` on every ``decimate``-th epoch; LIAS ranges come at ~100 Hz,
+10 gives about the paper's fix rate): per epoch the
 ``set_size`` anchors with the strongest emulated received power (path loss plus
 fading, the simulator's selection rule) form the set, and the fix is the 2-D
 least-squares position from that set's ranges at the tag's mount height, which
@@ -17,6 +18,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
+from ... import validate
 from ...calibration import (MountHeight, RangeCalibration, fit_range_calibration, fit_set_noise_from_fixes,
                            tag_mount_height)
 from ...datasets.standin import RoomData, load_lias_room
@@ -24,26 +26,6 @@ from ...models.setnoise import SetNoiseModel
 from ...sim import rig
 from ...sim import setnoise as sim
 from ...types import Recording, SetFixLog
-
-
-@dataclass(frozen=True)
-class Emulation(sim.SetEmulation):
-    """How sensor sets are emulated on LIAS two-way ranges: :class:`uwbwb.sim.setnoise.SetEmulation`
-    (``set_size``, ``fading_db``, ``path_loss_exponent``) on every ``decimate``-th epoch.
-
-    Attributes
-    ----------
-    decimate
-        Keep every ``decimate``-th epoch (LIAS ranges come at ~100 Hz; 10 gives
-        about the paper's fix rate).
-    """
-
-    decimate: int = 10
-
-    def __post_init__(self):
-        super().__post_init__()
-        if self.decimate < 1:
-            raise ValueError(f"decimate must be >= 1, got {self.decimate}")
 
 
 def real_inputs(data_dir=None, recording: str = "fast", static_session: str = "8.14", *, seed: int = 0,
@@ -64,10 +46,10 @@ def real_inputs(data_dir=None, recording: str = "fast", static_session: str = "8
     return room
 
 
-def emulate_fixes(rec: Recording, tag: str, emulation: Emulation = Emulation(), *, tag_height_m: float,
-                  rng: np.random.Generator, calibration: RangeCalibration | None = None,
+def emulate_fixes(rec: Recording, tag: str, emulation: sim.SetEmulation = sim.SetEmulation(), *, tag_height_m: float,
+                  rng: np.random.Generator, decimate: int = 10, calibration: RangeCalibration | None = None,
                   name: str | None = None) -> tuple[SetFixLog, dict]:
-    """Position fixes of one tag from emulated sensor sets (see :class:`Emulation`).
+    """Position fixes of one tag from sensor sets emulated on every ``decimate``-th epoch.
 
     Parameters
     ----------
@@ -92,7 +74,7 @@ def emulate_fixes(rec: Recording, tag: str, emulation: Emulation = Emulation(), 
     log = rec.ranges[tag]
     if calibration is not None:
         log = calibration.apply(log)
-    log = log.select(slice(None, None, emulation.decimate))
+    log = log.select(slice(None, None, validate.integer("decimate", decimate, minimum=1)))
     truth_xyz = rec.truth[tag].interp(log.t_s)
     has_truth = np.all(np.isfinite(truth_xyz), axis=1)
     em = sim.emulate_set_fixes(log.select(has_truth), rec.anchors.pos_m, tag_height_m, emulation, rng=rng,
@@ -111,7 +93,7 @@ class RealStudy:
     """The set-noise model calibrated on static poses and the dynamic run's fixes per tag."""
 
     inputs: RoomData
-    emulation: Emulation
+    emulation: sim.SetEmulation
     range_calibration: RangeCalibration | None
     tag_height: MountHeight
     calibration: tuple[SetFixLog, ...]
@@ -128,8 +110,8 @@ class RealStudy:
         return g[["scorable", "fixes", "coverage"]]
 
 
-def real_study(inputs: RoomData, emulation: Emulation = Emulation(), *, range_calibration: bool = True,
-               tags=None, rng: np.random.Generator) -> RealStudy:
+def real_study(inputs: RoomData, emulation: sim.SetEmulation = sim.SetEmulation(), *, decimate: int = 10,
+               range_calibration: bool = True, tags=None, rng: np.random.Generator) -> RealStudy:
     """Calibrate the set-noise model on the static poses and emulate the dynamic run's fixes.
 
     Every (static pose, tag) is one calibration location. With ``range_calibration``
@@ -140,14 +122,14 @@ def real_study(inputs: RoomData, emulation: Emulation = Emulation(), *, range_ca
     """
     cal = None
     if range_calibration:
-        cal = fit_range_calibration([rec.decimate(emulation.decimate) for rec in inputs.static])
+        cal = fit_range_calibration([rec.decimate(decimate) for rec in inputs.static])
     tags = tuple(inputs.dynamic.tags if tags is None else tags)
     height = tag_mount_height(inputs.static, tags=tags)
     logs, rows = [], []
     for rec in inputs.static:
         for tag in tags:
             fixes, rep = emulate_fixes(rec, tag, emulation, tag_height_m=height.per_tag_m[tag], rng=rng,
-                                       calibration=cal, name=f"{rec.name}/{tag}")
+                                       decimate=decimate, calibration=cal, name=f"{rec.name}/{tag}")
             logs.append(fixes)
             rows.append({"recording": rec.name, "tag": tag, "role": "calibration", **rep})
     model = fit_set_noise_from_fixes(logs)
@@ -155,7 +137,7 @@ def real_study(inputs: RoomData, emulation: Emulation = Emulation(), *, range_ca
     tests = []
     for tag in tags:
         fixes, rep = emulate_fixes(inputs.dynamic, tag, emulation, tag_height_m=height.per_tag_m[tag], rng=rng,
-                                   calibration=cal)
+                                   decimate=decimate, calibration=cal)
         tests.append(fixes)
         rows.append({"recording": inputs.dynamic.name, "tag": tag, "role": "test", **rep})
     return RealStudy(inputs, emulation, cal, height, tuple(logs), model, pooled, tuple(tests), pd.DataFrame(rows))

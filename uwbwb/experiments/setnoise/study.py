@@ -7,9 +7,8 @@ campaign (6 locations × 1000 fixes), the calibrated
 plus the same five recordings on a track away from the calibration locations;
 :func:`table1` and :func:`set_shares` give Table I and the Fig. 4 statistics,
 :func:`sweep` Fig. 9 and :func:`band_summary` the improvement in the paper's σ_d
-band. Fig. 8, the PF approaching the exact KF and the resampler check are in
-:mod:`.diagnostics`; the summary rows, each with its kind (reproduced, target or
-input), in :mod:`.headlines`.
+band. Fig. 8 and the PF approaching the exact KF are in :mod:`.diagnostics`; the
+summary rows, each with its kind (reproduced, target or input), in :mod:`.headlines`.
 """
 
 from __future__ import annotations
@@ -193,15 +192,12 @@ def raw_error_m(log: SetFixLog) -> float:
     return float(np.linalg.norm(log.error_m, axis=1).mean())
 
 
-def table1(recordings, speeds_mps=None) -> pd.DataFrame:
-    """Table I: fixes, speed and raw error per recording, with the paper's values beside ours.
-
-    ``speeds_mps`` defaults to the ground-truth speed of each recording (path length / duration).
-    """
+def table1(recordings) -> pd.DataFrame:
+    """Table I: fixes, speed (ground truth: path length / duration) and raw error per recording, with the paper's
+    values beside ours."""
     rows = []
     for i, r in enumerate(recordings):
-        steps = np.linalg.norm(np.diff(r.truth_m, axis=0), axis=1)
-        v = steps.sum() / (r.t_s[-1] - r.t_s[0]) if speeds_mps is None else speeds_mps[i]
+        v = np.linalg.norm(np.diff(r.truth_m, axis=0), axis=1).sum() / (r.t_s[-1] - r.t_s[0])
         row = {"recording": r.name, "n_fixes": len(r), "speed_cmps": 100 * v, "raw_error_cm": 100 * raw_error_m(r)}
         if i < len(PAPER["n_fixes"]):
             row.update(paper_n_fixes=PAPER["n_fixes"][i], paper_speed_cmps=PAPER["speed_cmps"][i],
@@ -283,26 +279,33 @@ def mean_over_recordings(df: pd.DataFrame, name: str = "mean") -> pd.DataFrame:
 
 
 def band_summary(df: pd.DataFrame, band=BAND_MPS) -> pd.DataFrame:
-    """Mean error in the σ_d band and the improvement over the raw fixes.
+    """Mean error in the σ_d band, its Monte Carlo standard error, and the improvement over the raw fixes.
+
+    Per recording the σ_d values share their process-noise draws (common random numbers), so their
+    standard errors are combined as their RMS (no smaller than their mean, the fully correlated case);
+    recordings are independent. NaN when a point has one trial.
 
     Returns
     -------
     DataFrame
         One row per recording and estimator, plus recording ``"mean"`` (average over
-        recordings): ``recording, filter, error_cm, raw_cm, improvement_cm, improvement_pct``.
+        recordings): ``recording, filter, error_cm, se_cm, raw_cm, improvement_cm, improvement_pct``.
     """
     lo, hi = band
     sel = df[(df["sigma_d_mps"] >= lo - 1e-12) & (df["sigma_d_mps"] <= hi + 1e-12)]
     if sel.empty:
         raise ValueError(f"no σ_d values in the band {band} m/s")
-    g = sel.groupby(["recording", "filter"], sort=False)["mean_error_m"].mean().unstack("filter")
+    by = sel.groupby(["recording", "filter"], sort=False)
+    g = by["mean_error_m"].mean().unstack("filter")
+    se = by["sem_error_m"].apply(lambda x: float(np.sqrt(np.mean(np.square(x.to_numpy(float)))))).unstack("filter")
     g.loc["mean"] = g.mean(axis=0)
+    se.loc["mean"] = np.sqrt((se ** 2).sum(axis=0, skipna=False)) / len(se)
     raw = g[RAW]
     out = []
     for rec, row in g.iterrows():
         for name in g.columns:
-            out.append({"recording": rec, "filter": name, "error_cm": 100 * row[name], "raw_cm": 100 * raw[rec],
-                        "improvement_cm": 100 * (raw[rec] - row[name]),
+            out.append({"recording": rec, "filter": name, "error_cm": 100 * row[name], "se_cm": 100 * se.loc[rec, name],
+                        "raw_cm": 100 * raw[rec], "improvement_cm": 100 * (raw[rec] - row[name]),
                         "improvement_pct": 100 * (raw[rec] - row[name]) / raw[rec]})
     return pd.DataFrame(out)
 

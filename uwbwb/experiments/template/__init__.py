@@ -6,11 +6,10 @@ simulated walk — laid out the way every experiment package is:
 * ``study`` — what the notebook runs: the settings (a frozen :class:`~.study.Config`, FAST and full),
   the data (:func:`~.study.simulate`), the estimators (built from ``filters/``, each returning
   :class:`~uwbwb.types.Estimates`), and the one :class:`~.study.Results` the other modules read;
-* ``facts`` — :func:`~.facts.facts` (numbers and verdicts, each from a stated rule on an interval)
-  and :func:`~.facts.verdict_table` (those verdicts with their rules, as a table);
+* ``facts`` — :func:`~.facts.facts` (numbers and verdicts, each from a stated rule on an interval);
 * ``headlines`` — the summary rows as data (quantity, unit, kind, paper value) and
   :func:`~.headlines.checks` ``(results, fast)``, which returns what fails;
-* ``figures`` — the figures (``ax=`` in, Axes out); ``panels`` — the widget back end (cached).
+* ``figures`` — the figures (``ax=`` in, Axes out).
 
 ``tests/experiments/test_template.py`` shows what each piece is held to: every check failing on a
 doctored result, the verdict flipping across its threshold, same seed same numbers. To add a method:
@@ -23,15 +22,13 @@ In a notebook::
     res = tp.run_study(fast=FAST, seed=SEED)
     assert not tp.checks(res, FAST), tp.checks(res, FAST)
     f = tp.facts.facts(res)
-    display(tp.verdict_table(f))
-    for row in tp.rows(f):
-        summary.add(**row)          # summary = uw.metrics.Summary(<notebook>, fast=FAST)
+    for h in tp.HEADLINES:
+        summary.add(**h.row(f))     # summary = uw.metrics.Summary(<notebook>, fast=FAST)
 """
 
-from . import facts, figures, headlines, panels, study
-from .facts import verdict_table
-from .headlines import HEADLINES, checks, rows
+from . import facts, figures, headlines, study
+from .headlines import HEADLINES, checks
 from .study import FAST, FULL, METHODS, Config, Results, run_study
 
 __all__ = ["Config", "FAST", "FULL", "HEADLINES", "METHODS", "Results", "checks", "facts", "figures", "headlines",
-           "panels", "rows", "run_study", "study", "verdict_table"]
+           "run_study", "study"]

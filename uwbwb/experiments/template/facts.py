@@ -1,6 +1,5 @@
 """The template's numbers and computed verdicts: :func:`facts` turns :class:`~.study.Results` into a
-flat ``dict``; :func:`verdict_table` shows its verdicts with their rules (the words around them are the
-notebook's, written by hand).
+flat ``dict`` (the words around its verdicts are the notebook's, written by hand).
 
 Rules
 -----
@@ -18,13 +17,12 @@ Rules
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
 from ... import metrics
 from ...metrics import interval_side
 from .study import Results
 
-__all__ = ["LEVEL", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "verdict", "verdict_table"]
+__all__ = ["LEVEL", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "verdict"]
 
 #: Bootstrap replicates.
 N_BOOT = 2000
@@ -68,15 +66,3 @@ def facts(res: Results) -> dict:
     f["nis_verdict"] = nis_verdict(f["nis_per_dof"])
     return f
 
-
-def verdict_table(f: dict) -> pd.DataFrame:
-    """The verdicts of :func:`facts` as a table: claim, ours, 95 % interval, rule, verdict (one row each)."""
-    lo, hi = NIS_BAND
-    return pd.DataFrame([
-        {"claim": "EKF-RF against LS: RMSE(EKF-RF) − RMSE(LS), common epochs (m)", "ours": f["diff_m"],
-         "interval": (f["lo_m"], f["hi_m"]),
-         "rule": f"{LEVEL:.0%} block-bootstrap interval below 0: better; above 0: worse",
-         "verdict": f["verdict"]},
-        {"claim": "EKF-RF's covariance matches its innovations: mean NIS per dof", "ours": f["nis_per_dof"],
-         "interval": None, "rule": f"inside [{lo:g}, {hi:g}]", "verdict": f["nis_verdict"]},
-    ]).set_index("claim")

@@ -13,7 +13,7 @@ from .facts import facts
 from .study import METHODS, Results
 from ...metrics import Headline
 
-__all__ = ["HEADLINES", "PAPER", "checks", "rows"]
+__all__ = ["HEADLINES", "PAPER", "checks"]
 
 #: What the paper states (a copied package puts its paper's printed values here). The template's
 #: "paper" states the range noise the simulator is given, so that row is an *input*.
@@ -29,11 +29,6 @@ HEADLINES: tuple[Headline, ...] = (
     Headline("range noise σ (simulator setting)", "cm", "input", lambda f: 100 * f["sigma_range_m"],
              100 * PAPER["sigma_range_m"]),
 )
-
-
-def rows(f: dict) -> list[dict]:
-    """Summary rows (keyword arguments of :meth:`uwbwb.metrics.Summary.add`) from :func:`.facts.facts`."""
-    return [h.row(f) for h in HEADLINES]
 
 
 #: Smallest coverage of either method (FAST, full).

@@ -81,10 +81,6 @@ class Config:
         h = self.anchor_height_m
         return Anchors(("a0", "a1", "a2", "a3"), np.array([[0, 0, h], [x, 0, h], [x, y, h], [0, y, h]], float))
 
-    def motion(self):
-        """The EKF's random-force motion model."""
-        return make_motion_model("RF", sigma=self.driving_sigma_mps2, dt_s=self.dt_s, dim=2)
-
 
 #: The FAST (CI) and full settings.
 FAST = Config(duration_s=30.0)
@@ -145,7 +141,8 @@ def run_estimators(cfg: Config, t_s, range_m) -> dict[str, Estimates]:
     tdoa, ref = pseudo_tdoa(range_m, 0)
     log = TdoaLog(t_s, tdoa, ref, anchors.ids)
     model = TdoaModel(anchors.pos_m, cfg.sigma_range_m, dim=2, z_m=cfg.tag_height_m)
-    ekf = TdoaEkf(cfg.motion(), model, gate_prob=None).run(log, name="EKF-RF")
+    motion = make_motion_model("RF", sigma=cfg.driving_sigma_mps2, dt_s=cfg.dt_s, dim=2)      # random force
+    ekf = TdoaEkf(motion, model, gate_prob=None).run(log, name="EKF-RF")
     return {"LS": ls.to_estimates(t_s, name="LS"), "EKF-RF": ekf.to_estimates()}
 
 
