@@ -308,6 +308,17 @@ def test_a_ladder_step_whose_pick_lies_on_a_grid_edge_is_edge_bound():
     assert loose.startswith("edge-bound: helps") and "loose R ×" in loose
     assert _row(f, "outlier handling (gate), EKF: dynamic RMSE").verdict == "helps"
     assert _row(base, "outlier handling (gate), loose: dynamic RMSE").verdict == "helps"
+    # the headline and the mismatch rows on the same pair carry the same qualifier, not a bare verdict
+    assert _row(f, "headline: loose + gate / tight + gate").verdict == "helps"       # loose's edge is not theirs
+    t = pd.DataFrame({p: {"EKF": centre[i], "EKF + gate": centre[i], "loose": centre[i], "loose + gate": top_r[i]}
+                      for i, p in enumerate(pairs)})
+    t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
+    g = ab.AblationResult(base.config, True, t, {}, base.scores, base.counts)
+    for claim in ("headline: loose + gate / tight + gate", "UWB σ 2×: loose + gate / tight + gate, max outage error"):
+        v = _row(g, claim).verdict
+        assert v.startswith("edge-bound: ") and "loose + gate R ×" in v, (claim, v)
+        assert _row(base, claim).verdict in ("helps", "survives"), claim
+    assert _row(g, "headline: EKF + gate / tight + gate").verdict == "helps"
 
 
 def test_the_measurement_noise_knob_reaches_every_tuned_filter():

@@ -15,9 +15,10 @@ Rules
   after the outage (mean over the case's seeds) exceeds :data:`DIVERGED_FACTOR` × its matched
   value on the same seeds *and* the re-acquisition limit :data:`~.ablation.RECOVERY_MAX_M`: a failure,
   not a degradation, and named as such (a centimetre error ten times a millimetre one is not a failure).
-* A ladder step's verdict is **edge-bound** when either side's tuning pick lies on an edge of its grid
-  (:func:`~.ablation.choose_knobs`): the ratio then compares a filter whose best knob may lie off the grid, and
-  the interval's reading is given only as at the picks.
+* A verdict on two rows (a ladder step, the headline, a mismatch case) is **edge-bound** when either row's
+  tuning pick lies on an edge of its grid (:func:`~.ablation.choose_knobs`): the ratio then compares a filter whose
+  best knob may lie off the grid, and the interval's reading is given only as at the picks. A ladder or headline
+  verdict also names a row that failed to re-acquire after the outage in the matched world.
 * Eq. 4 **can fire** in the matched world when the smallest excess that trips it anywhere on the
   ablation's path (:func:`~.ladder.eq4_thresholds`) lies below the largest excess the matched
   simulator draws.
@@ -110,20 +111,26 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
     failed = {str(r): {int(k): float(v) for k, v in rec[r].items()} for r in _gated(rec.columns)
               if not (rec[r] <= cfg.recovery_s).all()}
     picks = {} if res.tuning.empty else choose_knobs(res.tuning).to_dict("index")
+
+    def qualified(v: str, pair, reacquired: bool = True) -> str:
+        """``v`` with the qualifiers every verdict on the rows of ``pair`` carries: edge-bound tuning picks and, in
+        the matched world, a failure to re-acquire after the outage."""
+        edge = [f"{x} {k} ×" for x in pair for k in picks.get(x, {}).get("edge", "—").split(", ") if k in ("Q", "R")]
+        bad = [x for x in pair if x in failed] if reacquired else []
+        if edge and v != "undetermined":
+            v = f"edge-bound: {v} at the picks ({', '.join(edge)} on the grid's edge)"
+        return v + (f" ({', '.join(bad)} failed to re-acquire)" if bad else "")
+
     for what, a, b in LADDER:
-        edge = [f"{x} {k} ×" for x in (a, b) for k in picks.get(x, {}).get("edge", "—").split(", ") if k in ("Q", "R")]
-        bad = [x for x in (a, b) if x in failed]
         for metric in ("dyn_rmse", "outage_max"):
             r = pair_rmse(res, what, metric)
-            v = verdict(r["lo"], r["hi"])
-            if edge and v != "undetermined":
-                v = f"edge-bound: {v} at the picks ({', '.join(edge)} on the grid's edge)"
             add(f"{what}: {_METRIC_WORDS[metric]}, without / with", f"{r['ratio']:.2f}×", _interval(r), r["n"],
-                _RATIO_RULE, v + (f" ({', '.join(bad)} failed to re-acquire)" if bad else ""))
+                _RATIO_RULE, qualified(verdict(r["lo"], r["hi"]), (a, b)))
     for other in _VERSUS:
         r = res.ratio(other, "tight + gate", "outage_max")
         add(f"headline: {other} / tight + gate, max error in the {cfg.outage_s:g} s outage, matched",
-            f"{r['ratio']:.2f}×", _interval(r), r["n"], _RATIO_RULE, verdict(r["lo"], r["hi"]))
+            f"{r['ratio']:.2f}×", _interval(r), r["n"], _RATIO_RULE,
+            qualified(verdict(r["lo"], r["hi"]), (other, "tight + gate")))
     words = {"helps": "survives", "hurts": "reversed", "not significant": "not significant",
              "undetermined": "undetermined"}
     diverged = {case: _diverged(res, case) for case in cfg.cases[1:]}          # the first is "matched"
@@ -137,7 +144,8 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
                     f", share kept {100 * r['share']:.0f} %" if r["share"] >= 0 else ", none kept"
                 add(f"{case}: {other} / tight + gate, {what}", f"{r['ratio']:.2f}×{share}", _interval(r), r["n"],
                     _RATIO_RULE + " (above 1: the advantage survives)",
-                    "a row diverged (the ratio measures a failure)" if failure else words[verdict(r["lo"], r["hi"])])
+                    "a row diverged (the ratio measures a failure)" if failure else
+                    qualified(words[verdict(r["lo"], r["hi"])], (other, "tight + gate"), reacquired=False))
     for case, ds in diverged.items():
         for d in ds:
             add(f"{case}: {d['row']} diverged ({d['metric']})", f"{d['value']:.3g} m against {d['matched']:.3g} m "
