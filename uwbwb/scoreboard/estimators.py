@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 
@@ -59,13 +59,17 @@ __all__ = ["RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "RangeEkfEstim
 @dataclass(frozen=True)
 class RawLs(BaseEstimator):
     """Per-epoch Gauss–Newton multilateration of the raw ranges (:func:`uwbwb.geometry.multilaterate`),
-    unweighted, no range calibration: the baseline."""
+    unweighted, no range calibration: the baseline. ``front_end`` (``(t_s, range_m) → range_m``), where given,
+    transforms the raw ranges first (the Hanyang authors' jump gate and hold; a static range model's correction);
+    the bound stays the CRLB of the raw ranges."""
 
     name: str = "raw LS"
+    front_end: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
 
     def estimate(self, rec, tag, cal):
         log = rec.ranges[tag]
-        res = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag), t_s=log.t_s,
+        r = log.range_m if self.front_end is None else self.front_end(log.t_s, log.range_m)
+        res = geometry.multilaterate(r, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag), t_s=log.t_s,
                                      name=self.name)
         return res.to_estimates()
 
@@ -476,29 +480,30 @@ class UwbInsFilter(BaseEstimator):
 
 @dataclass(frozen=True, eq=False)
 class ExternalEstimates(BaseEstimator):
-    """Estimates made outside the workbench (another group's method, a vendor's RTLS output), scored on
-    the board as they are: no tuning (it happened elsewhere, on data the board cannot check), no own
-    bound (shown as "—"), placed against the recording's common bound like every method. Its numbers are
+    """Estimates made outside the workbench (another group's method, a vendor's RTLS output, the Hanyang authors'
+    LS/ESKF), scored on the board as they are: no tuning (it happened elsewhere, on data the board cannot check), no
+    own bound (shown as "—"), placed against the recording's common bound like every method. Its numbers are
     *inputs* (made elsewhere), not reproduced: the board's summary rows and CSV say so.
 
     Parameters
     ----------
     name
-        Label on the board; ``" (external)"`` is appended unless already there.
+        Label on the board; ``" (external)"`` is appended unless it already says ``(external``.
     tracks
         Per tag, the outside method's positions (:class:`~uwbwb.types.Trajectory`, 2-D or 3-D, on the
         recording's clock).
-    max_dt_s
-        An epoch of the tag takes the outside estimate nearest in time within this tolerance
-        (default half the tag's median epoch step); epochs with none have no estimate (coverage).
+    max_gap_s
+        An epoch of the tag takes the outside position interpolated linearly between its two neighbouring outputs,
+        or the output at that very time; none beyond the first/last output or across a gap over ``max_gap_s``
+        (0: outputs at the tag's own epochs only). Epochs with none have no estimate (coverage).
     """
 
     name: str = "external"
     tracks: Mapping = field(default_factory=dict)
-    max_dt_s: float | None = None
+    max_gap_s: float = 0.5
 
     def __post_init__(self):
-        if not str(self.name).endswith("(external)"):
+        if "(external" not in str(self.name):
             object.__setattr__(self, "name", f"{self.name} (external)")
 
     external = True
@@ -507,21 +512,16 @@ class ExternalEstimates(BaseEstimator):
         return None if tag in self.tracks else f"no outside estimates for tag {tag!r}"
 
     def estimate(self, rec, tag, cal):
-        log, tr = rec.ranges[tag], self.tracks[tag]
-        T, d = len(log), cal.dim
-        pos, status = np.full((T, d), np.nan), np.full(T, _NONE, np.int8)
-        if len(tr) and T:
-            tol = self.max_dt_s if self.max_dt_s is not None else (
-                0.5 * float(np.median(np.diff(log.t_s))) if T > 1 else np.inf)
-            j = np.clip(np.searchsorted(tr.t_s, log.t_s), 1, max(len(tr) - 1, 1)) if len(tr) > 1 else np.zeros(T, int)
-            if len(tr) > 1:
-                j = np.where(np.abs(tr.t_s[j - 1] - log.t_s) <= np.abs(tr.t_s[j] - log.t_s), j - 1, j)
-            ok = np.abs(tr.t_s[j] - log.t_s) <= tol
-            p = tr.pos_m[j[ok]]
-            if p.shape[1] < d:
-                raise ValueError(f"{self.name}: 2-D outside estimates cannot be scored on a 3-D board")
-            pos[ok], status[ok] = p[:, :d], _UP
-        return Estimates(log.t_s, pos, status, self.name)
+        src, t = self.tracks[tag], rec.ranges[tag].t_s
+        if len(src) and src.pos_m.shape[1] < cal.dim:
+            raise ValueError(f"{self.name}: 2-D outside estimates cannot be scored on a 3-D board")
+        pos = src.interp(t)[:, :cal.dim] if len(src) else np.full((len(t), cal.dim), np.nan)
+        i = np.clip(np.searchsorted(src.t_s, t, side="right"), 1, max(len(src) - 1, 1))
+        ok = (t >= src.t_s[0]) & (t <= src.t_s[-1]) if len(src) else np.zeros(len(t), bool)
+        if len(src) > 1:
+            ok &= (src.t_s[i] - src.t_s[i - 1] <= self.max_gap_s) | np.isin(t, src.t_s)
+        pos[~ok] = np.nan
+        return Estimates(t, pos, np.where(ok, _UP, _NONE).astype(np.int8), self.name)
 
     def bound(self, rec, tag, cal, est):
         return None

@@ -195,7 +195,7 @@ def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: fl
     """
     rec, cal = _protocol([run], {run.tag: sigma_m})
     cal = replace(cal, tuned={ekf_name(m): {"sigma_w": float(sigmas[m])} for m in models})
-    ests = {"raw": RawLs("raw") if run.raw is None else ExternalEstimates("device", {run.tag: run.raw}),
+    ests = {"raw": RawLs("raw") if run.raw is None else ExternalEstimates("device", {run.tag: run.raw}, max_gap_s=0.0),
             "LS": TdoaLs("LS", ref, correlated),
             **{ekf_name(m): TdoaEkfEstimator(m, gate_prob=gate_prob, ref=ref, correlated=correlated) for m in models}}
     blind, truth = replace(rec, truth={}), rec.truth_at(run.tag, run.ranges.t_s, run.dim)
