@@ -45,7 +45,7 @@ from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import RandomForce, make_motion_model
 from ..types import Estimates, TdoaLog, Trajectory
 from .interface import (BaseEstimator, Estimator, TUNING_CRITERIA, _NONE, _UP, _range_bound, _range_information,
-                        _tdoa_information, _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge,
+                        _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge,
                         tdoa_geometry_note)
 from .protocol import Calibration
 from .reference import REFERENCE
@@ -115,7 +115,7 @@ class TdoaLs(BaseEstimator):
 
     def bound(self, rec, tag, cal, est):
         log = calibrated_log(rec, tag, cal)
-        info, _ = _tdoa_information(rec, tag, cal, log)
+        info, _ = _range_information(rec, tag, cal, log, tdoa=True)
         return bounds.Bound(log.t_s, bounds.crlb(info), "CRLB TDoA")
 
 
@@ -157,7 +157,7 @@ class _MotionEkf(BaseEstimator):
     measurements at every epoch and its initial covariance as prior, from the filter's first epoch. ``update``
     picks the measurement update (:data:`UPDATES`; a variant's row name carries its suffix, the default
     ``"gate"`` none), so an ablation row is one argument. A subclass gives the filter (:meth:`_filter`), its run
-    (:meth:`_run`), its initial covariance (:meth:`_prior`) and the information (:meth:`_information`).
+    (:meth:`_run`) and its initial covariance (:meth:`_prior`); the information is that of its measurements.
 
     ``knobs``: tune instead the UWB/INS filters' two knobs on their grid of ``(Q ×, R ×)`` pairs (:data:`INS_GRID`),
     multipliers on the calibrated noise: ``σ_w² = Q × · σ_w,fit²`` (σ_w,fit: this motion model fitted to the
@@ -176,9 +176,11 @@ class _MotionEkf(BaseEstimator):
         if self.update not in UPDATES:
             raise ValueError(f"{type(self).__name__}.update must be one of {sorted(UPDATES)}, got {self.update!r}")
 
+    _domain = ""                  # what the filter measures, beside its model in its name and bound: TDoAs, " ranges"
+
     @property
-    def _suffix(self) -> str:
-        return f" ({UPDATES[self.update]})" if UPDATES[self.update] else ""
+    def name(self) -> str:
+        return f"EKF-{self.model}{self._domain}" + (f" ({UPDATES[self.update]})" if UPDATES[self.update] else "")
 
     def _policy(self, gate):
         """The update policy :data:`UPDATES` names, from the filter's χ² ``gate``."""
@@ -220,7 +222,7 @@ class _MotionEkf(BaseEstimator):
 
     def bound(self, rec, tag, cal, est):
         log = calibrated_log(rec, tag, cal)
-        info, have = self._information(rec, tag, cal, log)
+        info, have = _range_information(rec, tag, cal, log, tdoa=not self._domain)
         start = np.flatnonzero(est.has_estimate)
         C = np.full((len(log), cal.dim, cal.dim), np.nan)
         if start.size:
@@ -228,7 +230,7 @@ class _MotionEkf(BaseEstimator):
             ekf = self._filter(rec, tag, cal, cal.params(self.name)["sigma_w"])
             C[k0:] = bounds.tracking_bound(ekf.transition, log.t_s[k0:], info[k0:], self._prior(ekf))
             C[~have] = np.nan                     # no truth there: the bound is not evaluated
-        return bounds.Bound(log.t_s, C, self._bound_kind)
+        return bounds.Bound(log.t_s, C, f"PCRLB {self.model}{self._domain}")
 
 
 @dataclass(frozen=True)
@@ -241,14 +243,6 @@ class TdoaEkfEstimator(_MotionEkf):
 
     ref: int = 0
     correlated: bool = True
-
-    @property
-    def name(self) -> str:
-        return f"EKF-{self.model}{self._suffix}"
-
-    @property
-    def _bound_kind(self) -> str:
-        return f"PCRLB {self.model}"
 
     def applies(self, rec, tag, cal):
         return tdoa_geometry_note(cal, tag)
@@ -265,9 +259,6 @@ class TdoaEkfEstimator(_MotionEkf):
     def _prior(self, ekf):
         return ekf.motion.initial_covariance(ekf.init_pos_sigma_m, ekf.init_vel_sigma_mps, ekf.init_acc_sigma_mps2)
 
-    def _information(self, rec, tag, cal, log):
-        return _tdoa_information(rec, tag, cal, log)
-
 
 @dataclass(frozen=True)
 class RangeEkfEstimator(_MotionEkf):
@@ -280,14 +271,7 @@ class RangeEkfEstimator(_MotionEkf):
     """
 
     init_sigma: float = 1.0
-
-    @property
-    def name(self) -> str:
-        return f"EKF-{self.model} ranges{self._suffix}"
-
-    @property
-    def _bound_kind(self) -> str:
-        return f"PCRLB {self.model} ranges"
+    _domain = " ranges"
 
     def _filter(self, rec, tag, cal, sigma_w) -> Ekf:
         motion = self._motion(cal, sigma_w)
@@ -309,9 +293,6 @@ class RangeEkfEstimator(_MotionEkf):
     def _prior(self, ekf):
         s = self.init_sigma
         return ekf.transition.initial_covariance(s, s, s)
-
-    def _information(self, rec, tag, cal, log):
-        return _range_information(rec, tag, cal, log)
 
 
 # ----------------------------------------------------------------------------- UWB/INS
@@ -461,7 +442,7 @@ class UwbInsFilter(BaseEstimator):
         if self.kind == "INS-only":                         # no UWB, no model of its own drift: no bound
             return None
         log = calibrated_log(rec, tag, cal)
-        info, have = _tdoa_information(rec, tag, cal, log)
+        info, have = _range_information(rec, tag, cal, log, tdoa=True)
         C = np.full((len(log), cal.dim, cal.dim), np.nan)
         kind = "PCRLB INS (white acc. noise; attitude, biases known)"
         start = np.flatnonzero(est.has_estimate)
@@ -561,5 +542,5 @@ def update_variants(model: str = "RF", *, fast: bool = False) -> list[RangeEkfEs
     """The range EKF with motion model ``model`` once per measurement update of :data:`UPDATES` (the default χ² gate
     first), each with the board's tuning grid (FAST: every other value, as :func:`default_estimators`): the rows of
     an update ablation, tuned alike."""
-    grid = tuple(float(g) for g in EKF_GRIDS[model][::2]) if fast else None
-    return [RangeEkfEstimator(model, grid=grid, update=u) for u in UPDATES]
+    (base,) = [e for e in default_estimators(fast=fast) if e.name == f"EKF-{model} ranges"]
+    return [replace(base, update=u) for u in UPDATES]

@@ -67,7 +67,7 @@ def external_estimators(rec: Recording, authors: tuple[str, ...] = ("LS", "ESKF"
     (``meta["external_estimates"]``: method → tag → trajectory, as :func:`uwbwb.datasets.tidy.load_recording` reads
     its ``external/*.csv``), then the Hanyang authors' ``authors`` a case folder holds (``meta["authors_estimates"]``,
     ``LS.csv`` / ``ESKF.csv``; their ESKF also used the robot's IMU); none when it has none."""
-    theirs = rec.meta.get("authors_estimates", {})
-    return ([ExternalEstimates(method, dict(tracks)) for method, tracks in rec.meta.get("external_estimates", {}).items()]
+    theirs, given = rec.meta.get("authors_estimates", {}), rec.meta.get("external_estimates", {})
+    return ([ExternalEstimates(method, dict(tracks)) for method, tracks in given.items()]
             + [ExternalEstimates(f"authors {m} (external{', +IMU' if m == 'ESKF' else ''})",
                                  {"tag": theirs[m].to_trajectory()}) for m in authors if m in theirs])

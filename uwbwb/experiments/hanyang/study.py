@@ -50,7 +50,8 @@ from .authors import AUTHORS_FRONT_END_LS, authors_window
 from .estimators import PrunedNls, StaticRangeModel, static_model_ls
 
 
-__all__ = ["DECLARED_METHOD", "FAST_SPAN_S", "case_board", "declared_method_table", "held_ratio", "pick_on_tuning_case", "ratio_table", "tuning_case"]
+__all__ = ["DECLARED_METHOD", "FAST_SPAN_S", "case_board", "declared_method_table", "held_ratio", "pick_on_tuning_case",
+           "ratio_table", "tuning_case"]
 
 PathLike = str | os.PathLike
 
