@@ -11,6 +11,7 @@ from uwbwb.datasets import hanyang_dynamic as hd
 from uwbwb.errors import DataFormatError
 from uwbwb.experiments.hanyang import authors, estimators, sections, study
 from uwbwb.scoreboard.interface import GEOMETRY, MAX_TDOA_OVER_RANGES
+from uwbwb.scoreboard.sources import external_estimators
 from uwbwb.scoreboard.verdicts import DIFFERENCE_RULE
 from uwbwb.types import EstimateStatus, Estimates
 
@@ -117,14 +118,15 @@ def test_external_rows_are_interpolated_onto_the_board_epochs_without_extrapolat
     rec = replace(rec, meta={**rec.meta, "authors_estimates": {"LS": est}})
     cal = fit_calibration(rec, dim=2)
     log = rec.ranges["tag"]
-    out = authors.AuthorsEstimator("LS").estimate(rec, "tag", cal)
+    (theirs,) = external_estimators(rec, ("LS", "ESKF"))     # the case holds no ESKF here: no row
+    assert theirs.name == "authors LS (external)" and theirs.external
+    out = theirs.estimate(rec, "tag", cal)
     assert np.array_equal(out.t_s, log.t_s)
     inside = (log.t_s >= 1.0) & (log.t_s <= 1.2)
     np.testing.assert_allclose(out.pos_m[inside], np.column_stack([log.t_s[inside], 2 * log.t_s[inside]]))
     gap = (log.t_s > 1.2) & (log.t_s < 2.0)                 # 0.8 s between two outputs: no estimate
     assert gap.any() and np.all(out.status[gap] == EstimateStatus.NO_ESTIMATE)
     assert np.all(out.status[log.t_s > 2.1] == EstimateStatus.NO_ESTIMATE)
-    assert authors.AuthorsEstimator("ESKF").applies(rec, "tag", cal) is not None
 
 
 def test_the_ratio_interval_of_the_one_block_bootstrap_brackets_the_truth():
@@ -167,8 +169,8 @@ def test_case_board_scores_ours_and_theirs_on_the_same_epochs(tree):
     tune = study.tuning_case(case, [c.name for c in cases])
     assert tune == cases[3].name
     est = [e for e in study.study_estimators(fast=True) if e.name in
-           ("raw LS", "LS", "EKF-RF ranges", "NLS residual pruning")] + [authors.AuthorsEstimator("LS")]
-    board = study.case_board(case, tune, data, fast=True, estimators=est)
+           ("raw LS", "LS", "EKF-RF ranges", "NLS residual pruning")]
+    board = study.case_board(case, tune, data, fast=True, estimators=est, authors=("LS",))
     assert board.label == f"hanyang-outdoor-uwb/{case}" and tune in board.calibration.source
     assert board.calibration.dim == 2
     # the tag height is the tuning case's, given to the scored case
@@ -350,10 +352,10 @@ def test_the_fair_pick_is_made_on_the_tuning_case_alone(tree, tmp_path):
 
     data, cases = tree
     case, tune = cases[2].name, cases[3].name
-    est = [e for e in study.study_estimators(fast=True) if e.name in ("raw LS", "LS")] + [authors.AuthorsEstimator("LS")]
+    est = [e for e in study.study_estimators(fast=True) if e.name in ("raw LS", "LS")]
 
     def run(d):
-        board = study.case_board(case, tune, d, fast=True, estimators=est)
+        board = study.case_board(case, tune, d, fast=True, estimators=est, authors=("LS",))
         pick, pick_board = study.pick_on_tuning_case(tune, d, fast=True, estimators=est)
         return board, pick, pick_board
 
@@ -384,11 +386,12 @@ def test_the_fair_pick_is_made_on_the_tuning_case_alone(tree, tmp_path):
 
 def test_the_declared_method_is_written_down_before_scoring():
     """The rule itself: the board's range EKF-RF with its χ² gate, the board's grid (FAST: every other value)."""
-    from uwbwb.scoreboard.estimators import EKF_GRIDS, RangeEkfEstimator
+    from uwbwb.scoreboard.estimators import EKF_GRIDS, RangeEkfEstimator, default_estimators
 
     assert study.DECLARED_METHOD == RangeEkfEstimator("RF", update="gate")
-    assert study.declared_method(fast=False) is study.DECLARED_METHOD
-    assert study.declared_method(fast=True).grid == tuple(EKF_GRIDS["RF"][::2])
+    assert study.DECLARED_METHOD in default_estimators(fast=False)
+    (fast,) = [e for e in default_estimators(fast=True) if e.name == study.DECLARED_METHOD.name]
+    assert fast.grid == tuple(EKF_GRIDS["RF"][::2])
     assert study.AUTHORS_ROWS == ("authors LS (external)", "authors ESKF (external, +IMU)")
 
 
@@ -398,7 +401,12 @@ def test_declared_method_table_per_case_and_reference_with_its_verdict_rule_and_
     (not a name) runs with its tuning case given."""
     data, cases = tree
     names = [c.name for c in cases[:2]]
-    table = study.declared_method_table(names, data, fast=True, seed=0)
+    (method,) = [e for e in study.study_estimators(fast=True) if e.name == study.DECLARED_METHOD.name]
+
+    def board(case, tune):
+        return study.case_board(case, tune, data, fast=True, estimators=[method])
+
+    table = study.declared_method_table({n: board(n, study.tuning_case(n, names)) for n in names}, seed=0)
     per = table[~table["case"].str.startswith("mean")]
     assert list(per["case"]) == [n for n in names for _ in range(2)]
     assert list(per["B"]) == list(study.AUTHORS_ROWS) * 2 and (per["A"] == "EKF-RF ranges").all()
@@ -412,6 +420,5 @@ def test_declared_method_table_per_case_and_reference_with_its_verdict_rule_and_
         counts = g["verdict"].value_counts()
         assert mean.loc[ref, "verdict"] == ", ".join(f"{v}: {k}" for v, k in counts.items())
 
-    folder = study.declared_method_table([str(cases[0].folder)], data, tuning={str(cases[0].folder): names[1]},
-                                         fast=True, seed=0)
+    folder = study.declared_method_table({str(cases[0].folder): board(str(cases[0].folder), names[1])}, seed=0)
     np.testing.assert_allclose(folder["A / B"].iloc[:2], per["A / B"].iloc[:2])

@@ -442,7 +442,7 @@ def test_the_common_bound_is_one_yardstick_fitted_on_the_calibration_truth():
     assert ref["sigma_w"] == pytest.approx(np.sqrt(cfg.psd_m2ps3 * cfg.rate_hz), rel=0.5)
     b = score(rec, rec, estimators=ests, rate_hz=None, calibration=syn.exact_calibration(cfg, cal))
     df = b.table().set_index("method")
-    np.testing.assert_allclose(b.entry("LS", "tag").common_trace_m2, b.entry("EKF-RF", "tag").common_trace_m2)
+    np.testing.assert_allclose(b.entry("LS", "tag").trace_m2("common"), b.entry("EKF-RF", "tag").trace_m2("common"))
     assert df.loc["LS", "rmse_over_common"] > 1.1 * df.loc["EKF-RF", "rmse_over_common"]
     assert 0.8 < df.loc["EKF-RF", "rmse_over_common"] < 1.3
     assert "common bound: model = RF" in b.markdown()

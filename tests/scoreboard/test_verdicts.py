@@ -1,4 +1,4 @@
-"""Verdicts follow from the intervals: each flips when a value crosses its threshold, in the facts and in the tables."""
+"""Verdicts follow from the intervals: each flips when a value crosses its threshold, in the tables."""
 
 from __future__ import annotations
 
@@ -11,8 +11,7 @@ from uwbwb.scoreboard import calibrate, score
 from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, ExternalEstimates
 from uwbwb.metrics.errors import BLOCK_LAG_FACTOR, MIN_BLOCKS, block_length
-from uwbwb.scoreboard.verdicts import (difference_facts, difference_table, own_bound_table, pair_rng,
-                                       placement_table)
+from uwbwb.scoreboard.verdicts import difference_table, own_bound_table, pair_rng, placement_table
 from uwbwb.types import Trajectory
 
 
@@ -55,13 +54,17 @@ def test_own_bound_verdict_flips_at_two_standard_errors_and_names_no_cause_it_di
 @pytest.mark.parametrize("ratio, se, where", [(1.30, 0.10, "above"), (1.15, 0.10, "on"), (0.70, 0.10, "below"),
                                               (0.85, 0.10, "on")])
 def test_placement_and_own_bound_decide_through_the_one_interval_rule(monkeypatch, ratio, se, where):
-    """Both facts hand the interval ratio ± 2 se to metrics.interval_side (null 1) and take its side: a stand-in
+    """Both tables hand the interval ratio ± 2 se to metrics.interval_side (null 1) and take its side: a stand-in
     rule that answers the opposite side turns their verdicts over."""
+    import pandas as pd
+
     from uwbwb.metrics import interval_side
     from uwbwb.scoreboard import verdicts
 
-    row = SimpleNamespace(method="M", rmse_over_common=ratio, rmse_over_common_se=se, rmse_over_bound=ratio,
-                          rmse_over_bound_se=se)
+    df = pd.DataFrame([{"method": "M", "n_scored": 5, "rmse_over_common": ratio, "rmse_over_common_se": se,
+                        "rmse_over_bound": ratio, "rmse_over_bound_se": se, "bias_share": 0.0}])
+    boards = {"rec": SimpleNamespace(table=lambda: df)}
+    words = {"above": "above the bound", "below": "below the bound", "on": "on the bound"}
     calls = []
 
     def spy(lo, hi, null=0.0):
@@ -69,12 +72,12 @@ def test_placement_and_own_bound_decide_through_the_one_interval_rule(monkeypatc
         return interval_side(lo, hi, null)
 
     monkeypatch.setattr(verdicts, "interval_side", spy)
-    assert verdicts.placement_facts(row)["where"] == where
+    assert placement_table(boards).loc[0, "verdict"] == words[where]
     assert calls == [(pytest.approx(ratio - 2 * se), pytest.approx(ratio + 2 * se), 1.0)]
-    assert verdicts.own_bound_facts(row)["where"] == ("below" if where == "below" else "not below")
+    assert own_bound_table(boards).loc[0, "verdict"].startswith("below" if where == "below" else "not below")
     flipped = {"above": "below", "below": "above", "contains": "contains", "none": "none"}
     monkeypatch.setattr(verdicts, "interval_side", lambda lo, hi, null=0.0: flipped[interval_side(lo, hi, null)])
-    assert verdicts.placement_facts(row)["where"] == {"above": "below", "below": "above"}.get(where, where)
+    assert placement_table(boards).loc[0, "verdict"] == words[{"above": "below", "below": "above"}.get(where, where)]
 
 
 def _board(offset_m):
@@ -89,20 +92,19 @@ def _board(offset_m):
 
 
 @pytest.mark.parametrize("offset_m, verdict", [(0.005, "b"), (0.2, "a")])
-def test_difference_facts_on_a_board_follow_the_errors(offset_m, verdict):
+def test_the_difference_table_on_a_board_follows_the_errors(offset_m, verdict):
     """An outside method 5 mm off beats LS (σ 5 cm); 20 cm off it loses — and the interval says so, in the
-    facts and in the table's verdict column."""
+    table's verdict column."""
     b = _board(offset_m)
     ext = "shifted truth (external)"
-    f = difference_facts(b, "LS", ext, rng=pair_rng(0, "syn", "LS", ext))
-    assert f["n_epochs"] == len(b.entry("LS", "tag").estimates)
-    assert f["verdict"] == verdict and f["lo_m"] <= f["diff_m"] <= f["hi_m"]
-    assert f["diff_m"] == pytest.approx(f["rmse_a_m"] - f["rmse_b_m"])
     t = difference_table({"syn": b}, [("LS", ext), ("LS", "not on this board")], seed=0)
     assert len(t) == 1                                    # a pair that did not run has no row
-    assert t.loc[0, "verdict"] == ("LS more accurate" if verdict == "a" else f"{ext} more accurate")
-    assert t.loc[0, "95 % low (mm)"] == pytest.approx(1000 * f["lo_m"])
-    assert t.loc[0, "A − B (mm)"] == pytest.approx(1000 * f["diff_m"])
+    f = t.iloc[0]
+    assert f["epochs"] == len(b.entry("LS", "tag").estimates)
+    assert f["verdict"] == ("LS more accurate" if verdict == "a" else f"{ext} more accurate")
+    assert f["95 % low (mm)"] <= f["A − B (mm)"] <= f["95 % high (mm)"]
+    assert f["A − B (mm)"] == pytest.approx(1000 * (f["RMSE A (m)"] - f["RMSE B (m)"]))
+    assert (f["95 % high (mm)"] < 0) == (verdict == "a") and (f["95 % low (mm)"] > 0) == (verdict == "b")
 
 
 def test_block_length_follows_the_autocorrelation():
@@ -131,10 +133,8 @@ def test_difference_verdict_needs_min_blocks(n, verdict):
     than MIN_BLOCKS blocks and a verdict with enough."""
     rng = np.random.default_rng(2)
     a, b = np.abs(rng.normal(0.03, 0.005, n)), np.abs(rng.normal(0.10, 0.005, n))
-    f = difference_facts(_fake_board(a, b), "A", "B", rng=np.random.default_rng(0))
-    assert f["verdict"] == verdict
-    assert (f["n_blocks"] >= MIN_BLOCKS) == (verdict != "none")
     row = difference_table({"r": _fake_board(a, b)}, [("A", "B")], seed=0).iloc[0]
+    assert (row["blocks"] >= MIN_BLOCKS) == (verdict != "none")
     assert row["verdict"] == ("A more accurate" if verdict == "a" else f"no verdict (fewer than {MIN_BLOCKS} blocks)")
 
 
@@ -164,10 +164,8 @@ def test_no_common_epochs_give_a_row_that_says_so_not_an_error():
 
     board = SimpleNamespace(tags=("t",), mode="FAST", entry=lambda m, tag: ent[m],
                             table=lambda: pd.DataFrame({"method": ["A", "B"], "n_scored": [25, 25]}))
-    f = difference_facts(board, "A", "B", rng=np.random.default_rng(0))
-    assert f["n_epochs"] == 0 and f["verdict"] == "none" and np.isnan(f["lo_m"])
-    assert difference_table({"r": board}, [("A", "B")], seed=0).loc[0, "verdict"] == \
-        "no epochs both covered"
+    row = difference_table({"r": board}, [("A", "B")], seed=0).iloc[0]
+    assert row["epochs"] == 0 and np.isnan(row["95 % low (mm)"]) and row["verdict"] == "no epochs both covered"
 
 
 def test_a_pairs_interval_does_not_depend_on_what_else_the_table_holds():

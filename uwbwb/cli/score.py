@@ -6,7 +6,6 @@ import argparse
 import math
 from pathlib import Path
 
-from ..experiments.hanyang.authors import authors_estimators
 from ..scoreboard import default_estimators, score, split_in_time
 from ..scoreboard.sources import external_estimators, load_target
 
@@ -32,7 +31,7 @@ def cmd_score(args: argparse.Namespace, parser: argparse.ArgumentParser, *,
         estimators = [e for e in estimators if e.name in args.methods]
     rec = load_target(args.target, args.data_dir)
     # outside estimates the recording brings join as external rows, whatever --methods says (nothing runs)
-    estimators += [*external_estimators(rec), *authors_estimators(rec)]
+    estimators += external_estimators(rec)
     if args.calibrate_on is not None:
         cal, test = load_target(args.calibrate_on, args.data_dir), rec
     else:

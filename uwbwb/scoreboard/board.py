@@ -97,6 +97,11 @@ TABLE_COLUMNS = ("method", "coverage", "n_scored", "rmse_m", "cep50_m", "cep95_m
                  "nis_verdict", "us_per_epoch", "time_ratio", "grid_edge", "tuning_pick", "note")
 
 
+#: Bound → its board column and the RMSE-over-it column (its block standard error: that name + ``_se``).
+_BOUND_COLUMNS = {"common": ("common_bound_m", "rmse_over_common"), "bound": ("bound_m", "rmse_over_bound"),
+                  "bound_measured": ("bound_measured_m", "rmse_over_bound_measured")}
+
+
 @dataclass(frozen=True)
 class Entry:
     """One method on one tag of the scoring part.
@@ -151,25 +156,13 @@ class Entry:
         """Epochs with truth and an estimate, bool ``(T,)``."""
         return self.scoring & self.estimates.has_estimate
 
-    @property
-    def bound_trace_m2(self) -> np.ndarray:
-        """Horizontal trace of the method's own bound per epoch, ``(T,)``, m² (NaN where none)."""
-        return _trace(self.bound, len(self.estimates))
-
-    @property
-    def common_trace_m2(self) -> np.ndarray:
-        """Horizontal trace of the common bound per epoch, ``(T,)``, m² (NaN where none)."""
-        return _trace(self.common, len(self.estimates))
-
-    @property
-    def bound_measured_trace_m2(self) -> np.ndarray:
-        """Horizontal trace of the own bound at the measured noise per epoch, ``(T,)``, m² (NaN where none)."""
-        return _trace(self.bound_measured, len(self.estimates))
-
-    @property
-    def ranges_crlb_trace_m2(self) -> np.ndarray:
-        """Horizontal trace of the ranges' snapshot CRLB per epoch, ``(T,)``, m² (NaN where none)."""
-        return _trace(self.ranges_crlb, len(self.estimates))
+    def trace_m2(self, which: str = "bound") -> np.ndarray:
+        """Horizontal trace per epoch, ``(T,)``, m², of the bound ``which`` names: ``"bound"`` (its own),
+        ``"common"``, ``"bound_measured"`` or ``"ranges_crlb"`` (NaN where there is none)."""
+        b = getattr(self, which)
+        if b is None:
+            return np.full(len(self.estimates), np.nan)
+        return np.trace(b.pos_cov_m2[:, :2, :2], axis1=1, axis2=2)
 
     @property
     def nees(self) -> np.ndarray:
@@ -183,22 +176,16 @@ class Entry:
         return metrics.nees(est.pos_m - self.truth_pos_m, est.pos_cov_m2, ok)
 
 
-def _se(ents: list[Entry], trace: str) -> float:
+def _se(ents: list[Entry], which: str) -> float:
     """Block standard error of RMSE / bound over the entries' scored epochs with that bound
     (:func:`.verdicts.block_se_ratio`: the board's one block rule, blocks cut per tag)."""
     sq, tr = [], []
     for e in ents:
-        t = getattr(e, trace)[e.scored]
+        t = e.trace_m2(which)[e.scored]
         have = np.isfinite(t)
         sq.append(e.error_m[e.scored][have] ** 2)
         tr.append(t[have])
     return block_se_ratio(sq, tr)[0]
-
-
-def _trace(bound, n: int) -> np.ndarray:
-    if bound is None:
-        return np.full(n, np.nan)
-    return np.trace(bound.pos_cov_m2[:, :2, :2], axis1=1, axis2=2)
 
 
 def _run_estimate(est: Estimator, rec: Recording, tag: str, cal: Calibration) -> tuple[Estimates | None, str]:
@@ -215,6 +202,15 @@ def _run_estimate(est: Estimator, rec: Recording, tag: str, cal: Calibration) ->
     return out, ""
 
 
+def _with_reference_and_geometry(rec: Recording, tags: Sequence[str], cal: Calibration) -> Calibration:
+    """``cal`` with what it lacks of the common bound's motion model (:func:`.reference.fit_reference_motion`) and
+    the measurement geometry (:func:`.interface.measurement_geometry`), both fitted on ``rec``."""
+    reference = {} if REFERENCE in cal.tuned else fit_reference_motion(rec, tags, cal)
+    if reference:
+        cal = cal.with_tuned(REFERENCE, reference)
+    return cal if GEOMETRY in cal.tuned else cal.with_tuned(GEOMETRY, measurement_geometry(rec, tags, cal))
+
+
 def calibrate(cal_rec: Recording, estimators: Sequence[Estimator], tags: Sequence[str] | None = None, *,
               rate_hz: float | None = None, dim: int | None = None, progress: bool = False,
               tag_height_m: Mapping[str, float] | None = None) -> Calibration:
@@ -224,10 +220,7 @@ def calibrate(cal_rec: Recording, estimators: Sequence[Estimator], tags: Sequenc
     tags = scored_tags(cal_rec, tags)
     cal = fit_calibration(cal_rec, tags, rate_hz=rate_hz, dim=dim, tag_height_m=tag_height_m)
     rec = cal_rec if rate_hz is None else cal_rec.decimate(rate_hz=rate_hz)
-    reference = fit_reference_motion(rec, tags, cal)
-    if reference:
-        cal = cal.with_tuned(REFERENCE, reference)
-    cal = cal.with_tuned(GEOMETRY, measurement_geometry(rec, tags, cal))
+    cal = _with_reference_and_geometry(rec, tags, cal)
     for est in estimators:
         usable = [t for t in tags if est.applies(rec, t, cal) is None]
         if not usable:
@@ -311,16 +304,13 @@ class Board:
     @cached_property
     def _scores_by_tag(self) -> dict[str, metrics.EpochScores]:
         # scored once per board (the entries are frozen), not once per table cell
-        return {tag: self._score(tag) for tag in self.tags}
-
-    def _score(self, tag: str) -> metrics.EpochScores:
-        ents = self.ran(tag)
-        return metrics.score_epochs({e.method: e.error_m for e in ents}, {e.method: e.scoring for e in ents})
+        return {tag: metrics.score_epochs({e.method: e.error_m for e in self.ran(tag)},
+                                          {e.method: e.scoring for e in self.ran(tag)}) for tag in self.tags}
 
     def scores(self, tag: str) -> metrics.EpochScores:
         """The methods that ran on ``tag`` on its epochs (:func:`uwbwb.metrics.score_epochs`: each
         scored where truth exists and it has an estimate; common = every method that ran there)."""
-        return self._scores_by_tag[tag] if tag in self._scores_by_tag else self._score(tag)
+        return self._scores_by_tag[tag]
 
     def _pooled(self, ents: list[Entry]) -> metrics.MethodEpochs:
         """One method's entries pooled over their tags, in the entries' order."""
@@ -352,35 +342,23 @@ class Board:
         row.update(pooled.stats(own={"rmse_m": metrics.rmse, "cep50_m": metrics.cep50, "cep95_m": metrics.cep95},
                                 common={"rmse_common_m": metrics.rmse}))
         if pooled.n_common:
-            cc = np.concatenate([e.common_trace_m2[self._common(e.tag)] for e in ents])
+            cc = np.concatenate([e.trace_m2("common")[self._common(e.tag)] for e in ents])
             if np.isfinite(cc).all():
                 row["common_bound_common_m"] = float(np.sqrt(np.mean(cc)))
                 row["rmse_common_over_common"] = row["rmse_common_m"] / row["common_bound_common_m"]
-        ctr = np.concatenate([e.common_trace_m2[e.scored] for e in ents])
-        have = np.isfinite(ctr)
-        if have.any():
-            row["common_bound_m"] = float(np.sqrt(np.mean(ctr[have])))
-            row["rmse_over_common"] = float(np.sqrt(np.mean(err[have] ** 2)) / row["common_bound_m"])
-            row["rmse_over_common_se"] = _se(ents, "common_trace_m2")
-        tr = np.concatenate([e.bound_trace_m2[e.scored] for e in ents])
-        have = np.isfinite(tr)
         row["bound_kind"] = ents[0].bound.kind if ents[0].bound is not None else ""
-        row["n_bound"] = int(have.sum())
-        if have.any():
-            row["bound_m"] = float(np.sqrt(np.mean(tr[have])))
-            row["rmse_over_bound"] = float(np.sqrt(np.mean(err[have] ** 2)) / row["bound_m"])
-            row["rmse_over_bound_se"] = _se(ents, "bound_trace_m2")
-            rc = np.concatenate([e.ranges_crlb_trace_m2[e.scored] for e in ents])
-            both = have & np.isfinite(rc)          # epochs whose ranges alone fix the position
-            if both.any():
-                row["ranges_crlb_m"] = float(np.sqrt(np.mean(rc[both])))
-                row["bound_over_ranges_crlb"] = float(np.sqrt(np.mean(tr[both]))) / row["ranges_crlb_m"]
-        tm = np.concatenate([e.bound_measured_trace_m2[e.scored] for e in ents])
-        have = np.isfinite(tm)
-        if have.any():
-            row["bound_measured_m"] = float(np.sqrt(np.mean(tm[have])))
-            row["rmse_over_bound_measured"] = float(np.sqrt(np.mean(err[have] ** 2)) / row["bound_measured_m"])
-            row["rmse_over_bound_measured_se"] = _se(ents, "bound_measured_trace_m2")
+        tr = {w: np.concatenate([e.trace_m2(w)[e.scored] for e in ents]) for w in (*_BOUND_COLUMNS, "ranges_crlb")}
+        row["n_bound"] = int(np.isfinite(tr["bound"]).sum())
+        for w, (col, ratio) in _BOUND_COLUMNS.items():     # each bound over the epochs where it exists
+            have = np.isfinite(tr[w])
+            if have.any():
+                row[col] = float(np.sqrt(np.mean(tr[w][have])))
+                row[ratio] = float(np.sqrt(np.mean(err[have] ** 2)) / row[col])
+                row[ratio + "_se"] = _se(ents, w)
+        both = np.isfinite(tr["bound"]) & np.isfinite(tr["ranges_crlb"])   # epochs whose ranges alone fix the position
+        if both.any():
+            row["ranges_crlb_m"] = float(np.sqrt(np.mean(tr["ranges_crlb"][both])))
+            row["bound_over_ranges_crlb"] = float(np.sqrt(np.mean(tr["bound"][both]))) / row["ranges_crlb_m"]
         row["bias_share"] = _bias_share(ents)
         nees = np.concatenate([e.nees[e.scored] for e in ents])
         nees = nees[np.isfinite(nees)]
@@ -502,9 +480,11 @@ class Board:
                             (f"efficiency RMSE/bound, {m}", r.rmse_over_bound, ""),
                             (f"common bound, {m}", r.common_bound_m, "m"),
                             (f"RMSE/common bound, {m}", r.rmse_over_common, ""), (f"coverage, {m}", r.coverage, "")):
-                if np.isfinite(v):
-                    _add(summary, quantity=q, value=float(v), unit=u, data=self.data_label,
-                         external=m in self.external, label=self.label)
+                if np.isfinite(v) and m in self.external:      # an outside method's numbers: input
+                    summary.add(quantity=q, value=float(v), unit=u, data=f"{self.label} (external estimates)",
+                                kind="input")
+                elif np.isfinite(v):
+                    summary.add(quantity=q, value=float(v), unit=u, data=self.data_label, kind="reproduced")
 
 
 #: Tuned knobs the board names in its *tuning pick* column: key in the tuned parameters, label, unit.
@@ -537,15 +517,6 @@ def _bias_share(ents: list[Entry]) -> float:
             b2 += len(d) * float(np.sum(d.mean(axis=0) ** 2))
             e2 += float(np.sum(d * d))
     return float(np.sqrt(b2 / e2)) if n and e2 > 0 else float("nan")
-
-
-def _add(summary, *, external: bool, label: str, **row) -> None:
-    """A board's numbers are *reproduced* (they come out of the methods run here), except those of an
-    external method: *input*, with ``data`` marked ``(external estimates)``."""
-    if external:
-        summary.add(kind="input", **{**row, "data": f"{label} (external estimates)"})
-    else:
-        summary.add(kind="reproduced", **row)
 
 
 def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estimator] | None = None,
@@ -643,14 +614,9 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
         known = {**(given or {}), **heights} if (tag_height_m is not None or how) else None
         calibration = calibrate(cal_rec, estimators, tags, rate_hz=rate_hz, dim=dim, progress=progress,
                                 tag_height_m=known)
-    elif GEOMETRY not in calibration.tuned or REFERENCE not in calibration.tuned:
-        # a calibration made elsewhere: the geometry and the common bound's model of this one's part, as calibrate
-        thinned = cal_rec if rate_hz is None else cal_rec.decimate(rate_hz=rate_hz)
-        if GEOMETRY not in calibration.tuned:
-            calibration = calibration.with_tuned(GEOMETRY, measurement_geometry(thinned, tags, calibration))
-        reference = {} if REFERENCE in calibration.tuned else fit_reference_motion(thinned, tags, calibration)
-        if reference:
-            calibration = calibration.with_tuned(REFERENCE, reference)
+    else:      # a calibration made elsewhere: what it lacks of calibrate's fits, on this one's calibration part
+        calibration = _with_reference_and_geometry(cal_rec if rate_hz is None else cal_rec.decimate(rate_hz=rate_hz),
+                                                   tags, calibration)
     rec = test_rec if rate_hz is None else test_rec.decimate(rate_hz=rate_hz)
     commons = {t: common_bound(rec, t, calibration) for t in tags}
     ranges_crlb = {t: _range_bound(rec, t, calibration, rec.ranges[t], "CRLB of the ranges") for t in tags}

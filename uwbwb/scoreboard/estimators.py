@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 
@@ -45,7 +45,7 @@ from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import RandomForce, make_motion_model
 from ..types import Estimates, TdoaLog, Trajectory
 from .interface import (BaseEstimator, Estimator, TUNING_CRITERIA, _NONE, _UP, _range_bound, _range_information,
-                        _tdoa_information, _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge,
+                        _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge,
                         tdoa_geometry_note)
 from .protocol import Calibration
 from .reference import REFERENCE
@@ -59,13 +59,17 @@ __all__ = ["RawLs", "CalibratedLs", "TdoaLs", "TdoaEkfEstimator", "RangeEkfEstim
 @dataclass(frozen=True)
 class RawLs(BaseEstimator):
     """Per-epoch Gauss–Newton multilateration of the raw ranges (:func:`uwbwb.geometry.multilaterate`),
-    unweighted, no range calibration: the baseline."""
+    unweighted, no range calibration: the baseline. ``front_end`` (``(t_s, range_m) → range_m``), where given,
+    transforms the raw ranges first (the Hanyang authors' jump gate and hold; a static range model's correction);
+    the bound stays the CRLB of the raw ranges."""
 
     name: str = "raw LS"
+    front_end: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
 
     def estimate(self, rec, tag, cal):
         log = rec.ranges[tag]
-        res = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag), t_s=log.t_s,
+        r = log.range_m if self.front_end is None else self.front_end(log.t_s, log.range_m)
+        res = geometry.multilaterate(r, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag), t_s=log.t_s,
                                      name=self.name)
         return res.to_estimates()
 
@@ -113,7 +117,7 @@ class TdoaLs(BaseEstimator):
 
     def bound(self, rec, tag, cal, est):
         log = calibrated_log(rec, tag, cal)
-        info, _ = _tdoa_information(rec, tag, cal, log)
+        info, _ = _range_information(rec, tag, cal, log, tdoa=True)
         return bounds.Bound(log.t_s, bounds.crlb(info), "CRLB TDoA")
 
 
@@ -155,7 +159,7 @@ class _MotionEkf(BaseEstimator):
     measurements at every epoch and its initial covariance as prior, from the filter's first epoch. ``update``
     picks the measurement update (:data:`UPDATES`; a variant's row name carries its suffix, the default
     ``"gate"`` none), so an ablation row is one argument. A subclass gives the filter (:meth:`_filter`), its run
-    (:meth:`_run`), its initial covariance (:meth:`_prior`) and the information (:meth:`_information`).
+    (:meth:`_run`) and its initial covariance (:meth:`_prior`); the information is that of its measurements.
 
     ``knobs``: tune instead the UWB/INS filters' two knobs on their grid of ``(Q ×, R ×)`` pairs (:data:`INS_GRID`),
     multipliers on the calibrated noise: ``σ_w² = Q × · σ_w,fit²`` (σ_w,fit: this motion model fitted to the
@@ -174,9 +178,11 @@ class _MotionEkf(BaseEstimator):
         if self.update not in UPDATES:
             raise ValueError(f"{type(self).__name__}.update must be one of {sorted(UPDATES)}, got {self.update!r}")
 
+    _domain = ""                  # what the filter measures, beside its model in its name and bound: TDoAs, " ranges"
+
     @property
-    def _suffix(self) -> str:
-        return f" ({UPDATES[self.update]})" if UPDATES[self.update] else ""
+    def name(self) -> str:
+        return f"EKF-{self.model}{self._domain}" + (f" ({UPDATES[self.update]})" if UPDATES[self.update] else "")
 
     def _policy(self, gate):
         """The update policy :data:`UPDATES` names, from the filter's χ² ``gate``."""
@@ -218,7 +224,7 @@ class _MotionEkf(BaseEstimator):
 
     def bound(self, rec, tag, cal, est):
         log = calibrated_log(rec, tag, cal)
-        info, have = self._information(rec, tag, cal, log)
+        info, have = _range_information(rec, tag, cal, log, tdoa=not self._domain)
         start = np.flatnonzero(est.has_estimate)
         C = np.full((len(log), cal.dim, cal.dim), np.nan)
         if start.size:
@@ -226,7 +232,7 @@ class _MotionEkf(BaseEstimator):
             ekf = self._filter(rec, tag, cal, cal.params(self.name)["sigma_w"])
             C[k0:] = bounds.tracking_bound(ekf.transition, log.t_s[k0:], info[k0:], self._prior(ekf))
             C[~have] = np.nan                     # no truth there: the bound is not evaluated
-        return bounds.Bound(log.t_s, C, self._bound_kind)
+        return bounds.Bound(log.t_s, C, f"PCRLB {self.model}{self._domain}")
 
 
 @dataclass(frozen=True)
@@ -240,14 +246,6 @@ class TdoaEkfEstimator(_MotionEkf):
     ref: int = 0
     correlated: bool = True
     tdoa = True                                # on pseudo-TDoAs (notebook 03 runs it, as :class:`TdoaLs`)
-
-    @property
-    def name(self) -> str:
-        return f"EKF-{self.model}{self._suffix}"
-
-    @property
-    def _bound_kind(self) -> str:
-        return f"PCRLB {self.model}"
 
     def applies(self, rec, tag, cal):
         return tdoa_geometry_note(cal, tag)
@@ -264,9 +262,6 @@ class TdoaEkfEstimator(_MotionEkf):
     def _prior(self, ekf):
         return ekf.motion.initial_covariance(ekf.init_pos_sigma_m, ekf.init_vel_sigma_mps, ekf.init_acc_sigma_mps2)
 
-    def _information(self, rec, tag, cal, log):
-        return _tdoa_information(rec, tag, cal, log)
-
 
 @dataclass(frozen=True)
 class RangeEkfEstimator(_MotionEkf):
@@ -279,14 +274,7 @@ class RangeEkfEstimator(_MotionEkf):
     """
 
     init_sigma: float = 1.0
-
-    @property
-    def name(self) -> str:
-        return f"EKF-{self.model} ranges{self._suffix}"
-
-    @property
-    def _bound_kind(self) -> str:
-        return f"PCRLB {self.model} ranges"
+    _domain = " ranges"
 
     def _filter(self, rec, tag, cal, sigma_w) -> Ekf:
         motion = self._motion(cal, sigma_w)
@@ -308,9 +296,6 @@ class RangeEkfEstimator(_MotionEkf):
     def _prior(self, ekf):
         s = self.init_sigma
         return ekf.transition.initial_covariance(s, s, s)
-
-    def _information(self, rec, tag, cal, log):
-        return _range_information(rec, tag, cal, log)
 
 
 # ----------------------------------------------------------------------------- UWB/INS
@@ -460,7 +445,7 @@ class UwbInsFilter(BaseEstimator):
         if self.kind == "INS-only":                         # no UWB, no model of its own drift: no bound
             return None
         log = calibrated_log(rec, tag, cal)
-        info, have = _tdoa_information(rec, tag, cal, log)
+        info, have = _range_information(rec, tag, cal, log, tdoa=True)
         C = np.full((len(log), cal.dim, cal.dim), np.nan)
         kind = "PCRLB INS (white acc. noise; attitude, biases known)"
         start = np.flatnonzero(est.has_estimate)
@@ -479,29 +464,30 @@ class UwbInsFilter(BaseEstimator):
 
 @dataclass(frozen=True, eq=False)
 class ExternalEstimates(BaseEstimator):
-    """Estimates made outside the workbench (another group's method, a vendor's RTLS output), scored on
-    the board as they are: no tuning (it happened elsewhere, on data the board cannot check), no own
-    bound (shown as "—"), placed against the recording's common bound like every method. Its numbers are
+    """Estimates made outside the workbench (another group's method, a vendor's RTLS output, the Hanyang authors'
+    LS/ESKF), scored on the board as they are: no tuning (it happened elsewhere, on data the board cannot check), no
+    own bound (shown as "—"), placed against the recording's common bound like every method. Its numbers are
     *inputs* (made elsewhere), not reproduced: the board's summary rows and CSV say so.
 
     Parameters
     ----------
     name
-        Label on the board; ``" (external)"`` is appended unless already there.
+        Label on the board; ``" (external)"`` is appended unless it already says ``(external``.
     tracks
         Per tag, the outside method's positions (:class:`~uwbwb.types.Trajectory`, 2-D or 3-D, on the
         recording's clock).
-    max_dt_s
-        An epoch of the tag takes the outside estimate nearest in time within this tolerance
-        (default half the tag's median epoch step); epochs with none have no estimate (coverage).
+    max_gap_s
+        An epoch of the tag takes the outside position interpolated linearly between its two neighbouring outputs,
+        or the output at that very time; none beyond the first/last output or across a gap over ``max_gap_s``
+        (0: outputs at the tag's own epochs only). Epochs with none have no estimate (coverage).
     """
 
     name: str = "external"
     tracks: Mapping = field(default_factory=dict)
-    max_dt_s: float | None = None
+    max_gap_s: float = 0.5
 
     def __post_init__(self):
-        if not str(self.name).endswith("(external)"):
+        if "(external" not in str(self.name):
             object.__setattr__(self, "name", f"{self.name} (external)")
 
     external = True
@@ -510,21 +496,16 @@ class ExternalEstimates(BaseEstimator):
         return None if tag in self.tracks else f"no outside estimates for tag {tag!r}"
 
     def estimate(self, rec, tag, cal):
-        log, tr = rec.ranges[tag], self.tracks[tag]
-        T, d = len(log), cal.dim
-        pos, status = np.full((T, d), np.nan), np.full(T, _NONE, np.int8)
-        if len(tr) and T:
-            tol = self.max_dt_s if self.max_dt_s is not None else (
-                0.5 * float(np.median(np.diff(log.t_s))) if T > 1 else np.inf)
-            j = np.clip(np.searchsorted(tr.t_s, log.t_s), 1, max(len(tr) - 1, 1)) if len(tr) > 1 else np.zeros(T, int)
-            if len(tr) > 1:
-                j = np.where(np.abs(tr.t_s[j - 1] - log.t_s) <= np.abs(tr.t_s[j] - log.t_s), j - 1, j)
-            ok = np.abs(tr.t_s[j] - log.t_s) <= tol
-            p = tr.pos_m[j[ok]]
-            if p.shape[1] < d:
-                raise ValueError(f"{self.name}: 2-D outside estimates cannot be scored on a 3-D board")
-            pos[ok], status[ok] = p[:, :d], _UP
-        return Estimates(log.t_s, pos, status, self.name)
+        src, t = self.tracks[tag], rec.ranges[tag].t_s
+        if len(src) and src.pos_m.shape[1] < cal.dim:
+            raise ValueError(f"{self.name}: 2-D outside estimates cannot be scored on a 3-D board")
+        pos = src.interp(t)[:, :cal.dim] if len(src) else np.full((len(t), cal.dim), np.nan)
+        i = np.clip(np.searchsorted(src.t_s, t, side="right"), 1, max(len(src) - 1, 1))
+        ok = (t >= src.t_s[0]) & (t <= src.t_s[-1]) if len(src) else np.zeros(len(t), bool)
+        if len(src) > 1:
+            ok &= (src.t_s[i] - src.t_s[i - 1] <= self.max_gap_s) | np.isin(t, src.t_s)
+        pos[~ok] = np.nan
+        return Estimates(t, pos, np.where(ok, _UP, _NONE).astype(np.int8), self.name)
 
     def bound(self, rec, tag, cal, est):
         return None
@@ -564,5 +545,5 @@ def update_variants(model: str = "RF", *, fast: bool = False) -> list[RangeEkfEs
     """The range EKF with motion model ``model`` once per measurement update of :data:`UPDATES` (the default χ² gate
     first), each with the board's tuning grid (FAST: every other value, as :func:`default_estimators`): the rows of
     an update ablation, tuned alike."""
-    grid = tuple(float(g) for g in EKF_GRIDS[model][::2]) if fast else None
-    return [RangeEkfEstimator(model, grid=grid, update=u) for u in UPDATES]
+    (base,) = [e for e in default_estimators(fast=fast) if e.name == f"EKF-{model} ranges"]
+    return [replace(base, update=u) for u in UPDATES]

@@ -70,11 +70,11 @@ def error_over_time(board, method: str, tag: str | None = None, ax=None, *, unit
         _, ax = plt.subplots(figsize=(7, 3))
     t = e.estimates.t_s
     err = np.where(e.scored, e.error_m, np.nan) * scale
-    bnd = np.sqrt(e.bound_trace_m2) * scale
+    bnd = np.sqrt(e.trace_m2("bound")) * scale
     if e.bound is not None:
         ax.fill_between(t, 0, bnd, color="#bdbdbd", alpha=0.6, step="mid", label=f"its own bound ({e.bound.kind})")
     if e.common is not None:
-        ax.plot(t, np.sqrt(e.common_trace_m2) * scale, color="black", linewidth=0.8, linestyle="--",
+        ax.plot(t, np.sqrt(e.trace_m2("common")) * scale, color="black", linewidth=0.8, linestyle="--",
                 label=f"common bound ({e.common.kind})")
     ax.plot(t, err, color=plotting.color_for(method), linewidth=0.9, label=f"{method} error")
     ax.set_xlabel("time (s)")

@@ -115,13 +115,18 @@ def measured_noise_calibration(rec: Recording, tag: str, cal: Calibration) -> Ca
     return replace(cal, range_sigma_m={**cal.range_sigma_m, tag: sigma})
 
 
-def _range_information(rec, tag, cal, log: RangeLog) -> tuple[np.ndarray, np.ndarray]:
-    """Range information ``(T, dim, dim)`` at the true positions (the epoch's ranges at the calibrated noise; zero
-    where no truth), and where truth exists ``(T,)``."""
+def _range_information(rec, tag, cal, log: RangeLog, tdoa: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Information ``(T, dim, dim)`` of the epoch's ranges at the calibrated noise (``tdoa``: of their
+    reference-correlated pseudo-TDoAs, zero at an epoch with fewer than two ranges) at the true positions (zero where
+    no truth), and where truth exists ``(T,)``."""
     pos = rec.truth_at(tag, log.t_s, cal.dim)
     have = np.all(np.isfinite(pos), axis=1)
     info = np.zeros((len(log), cal.dim, cal.dim))
-    if have.any():
+    if have.any() and tdoa:
+        mask = np.isfinite(log.range_m[have])
+        info[have] = np.where((mask.sum(axis=1) >= 2)[:, None, None],
+                              bounds.tdoa_information(pos[have], _tdoa_model(rec, tag, cal), mask=mask), 0.0)
+    elif have.any():
         info[have] = bounds.range_information(pos[have], rec.anchors.pos_m, cal.sigma(tag), z_m=cal.height(tag),
                                               mask=np.isfinite(log.range_m[have]))
     return info, have
@@ -137,18 +142,6 @@ def _range_bound(rec, tag, cal, log: RangeLog, kind="CRLB ranges") -> bounds.Bou
 
 def _tdoa_model(rec, tag, cal, correlated: bool = True) -> TdoaModel:
     return TdoaModel(rec.anchors.pos_m, cal.sigma(tag), dim=cal.dim, z_m=cal.height(tag) or 0.0, correlated=correlated)
-
-
-def _tdoa_information(rec, tag, cal, log: RangeLog) -> tuple[np.ndarray, np.ndarray]:
-    """TDoA information ``(T, dim, dim)`` at the true positions, and where truth exists ``(T,)``."""
-    pos = rec.truth_at(tag, log.t_s, cal.dim)
-    have = np.all(np.isfinite(pos), axis=1)
-    info = np.zeros((len(log), cal.dim, cal.dim))
-    if have.any():
-        mask = np.isfinite(log.range_m[have])
-        info[have] = np.where((mask.sum(axis=1) >= 2)[:, None, None],
-                              bounds.tdoa_information(pos[have], _tdoa_model(rec, tag, cal), mask=mask), 0.0)
-    return info, have
 
 
 def _median_position_sd(info: np.ndarray) -> float:
@@ -170,7 +163,7 @@ def measurement_geometry(rec: Recording, tags: Sequence[str], cal: Calibration) 
     out = {}
     for tag in tags:
         log = calibrated_log(rec, tag, cal)
-        info_t, have = _tdoa_information(rec, tag, cal, log)
+        info_t, have = _range_information(rec, tag, cal, log, tdoa=True)
         if not have.any():
             continue
         r, t = _median_position_sd(_range_information(rec, tag, cal, log)[0][have]), _median_position_sd(info_t[have])

@@ -159,9 +159,26 @@ class WindowNls(BaseEstimator):
 
     name: str = "NLS"
     windows_s: tuple[float, ...] = NLS_WINDOWS_S
+    _covariance = True                        # a subclass whose window fits give no covariance sets False
 
     def _windows(self, log: RangeLog, w: float) -> np.ndarray:
         return np.floor((log.t_s - log.t_s[0]) / w).astype(int) if len(log) else np.zeros(0, int)
+
+    def _fit(self, part: RangeLog, rec, tag, cal) -> tuple[np.ndarray, np.ndarray | None] | None:
+        """One window's positions (and covariances) at its epochs, or None where it does not fit."""
+        d = cal.dim
+        samples = RangeSamples.from_ranges(part)
+        if len(samples) < 2 * d + 2:
+            return None
+        try:
+            fit = fit_trajectory(samples, rec.anchors, dim=d, z_m=cal.height(tag))
+        except ValueError:
+            return None
+        if not fit.converged:
+            return None
+        tau = part.t_s - fit.t0_s
+        A = np.concatenate([np.broadcast_to(np.eye(d), (len(part), d, d)), tau[:, None, None] * np.eye(d)], axis=-1)
+        return fit.position_at(part.t_s)[:, :d], np.einsum("kij,jl,kml->kim", A, fit.cov, A)
 
     def _run(self, rec, tag, cal, w) -> Estimates:
         log = calibrated_log(rec, tag, cal)
@@ -171,22 +188,13 @@ class WindowNls(BaseEstimator):
         win = self._windows(log, w)
         for k in np.unique(win):
             idx = np.flatnonzero(win == k)
-            part = log.select(idx)
-            samples = RangeSamples.from_ranges(part)
-            if idx.size < 3 or len(samples) < 2 * d + 2:
+            got = self._fit(log.select(idx), rec, tag, cal) if idx.size >= 3 else None
+            if got is None:
                 continue
-            try:
-                fit = fit_trajectory(samples, rec.anchors, dim=d, z_m=cal.height(tag))
-            except ValueError:
-                continue
-            if not fit.converged:
-                continue
-            tau = part.t_s - fit.t0_s
-            pos[idx] = fit.position_at(part.t_s)[:, :d]
-            A = np.concatenate([np.broadcast_to(np.eye(d), (idx.size, d, d)), tau[:, None, None] * np.eye(d)], axis=-1)
-            cov[idx] = np.einsum("kij,jl,kml->kim", A, fit.cov, A)
-            status[idx] = _UP
-        return Estimates(log.t_s, pos, status, self.name, cov, None, {"window": win})
+            pos[idx], status[idx] = got[0], _UP
+            if got[1] is not None:
+                cov[idx] = got[1]
+        return Estimates(log.t_s, pos, status, self.name, cov if self._covariance else None, None, {"window": win})
 
     def tune(self, rec, tags, cal):
         cost = [np.mean([_tuning_scores(self._run(rec, t, cal, w), rec, t)["rmse"] for t in tags])

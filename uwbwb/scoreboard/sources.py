@@ -6,7 +6,7 @@ name that a present dataset does not hold is an error listing the names it does 
 is ever replaced by synthetic data.
 
 :func:`external_estimators` gives the *external* rows a loaded recording brings (a tidy folder's
-``external/*.csv``, :mod:`uwbwb.datasets.tidy`).
+``external/*.csv``, :mod:`uwbwb.datasets.tidy`; a Hanyang case's authors' LS/ESKF).
 """
 
 from __future__ import annotations
@@ -62,8 +62,12 @@ def load_target(spec: str, data_dir: str | os.PathLike | None = None) -> Recordi
     return datasets.open(spec, data_dir)
 
 
-def external_estimators(rec: Recording) -> list[ExternalEstimates]:
-    """One *external* row per outside method of ``rec`` (``meta["external_estimates"]``: method → tag →
-    trajectory, as :func:`uwbwb.datasets.tidy.load_recording` reads a tidy folder's ``external/*.csv``), in the
-    order given; none when it has none."""
-    return [ExternalEstimates(method, dict(tracks)) for method, tracks in rec.meta.get("external_estimates", {}).items()]
+def external_estimators(rec: Recording, authors: tuple[str, ...] = ("LS", "ESKF")) -> list[ExternalEstimates]:
+    """One *external* row per outside method of ``rec``, in the order given: a tidy folder's
+    (``meta["external_estimates"]``: method → tag → trajectory, as :func:`uwbwb.datasets.tidy.load_recording` reads
+    its ``external/*.csv``), then the Hanyang authors' ``authors`` a case folder holds (``meta["authors_estimates"]``,
+    ``LS.csv`` / ``ESKF.csv``; their ESKF also used the robot's IMU); none when it has none."""
+    theirs, given = rec.meta.get("authors_estimates", {}), rec.meta.get("external_estimates", {})
+    return ([ExternalEstimates(method, dict(tracks)) for method, tracks in given.items()]
+            + [ExternalEstimates(f"authors {m} (external{', +IMU' if m == 'ESKF' else ''})",
+                                 {"tag": theirs[m].to_trajectory()}) for m in authors if m in theirs])

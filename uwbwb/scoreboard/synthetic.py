@@ -147,7 +147,7 @@ def monte_carlo(n_runs: int, config: SyntheticConfig = SyntheticConfig(), *, see
             cal = exact_calibration(config, calibrate(rec, estimators, rate_hz=None, dim=2))
         board = score(rec, rec, estimators=estimators, rate_hz=None, calibration=cal, check=False)
         for e in board.ran():
-            tr = e.bound_trace_m2
+            tr = e.trace_m2("bound")
             ok = e.scored & np.isfinite(tr)
             rows.append({"run": k, "method": e.method, "bound_kind": e.bound.kind, "n": int(ok.sum()),
                          "mse_m2": float(np.mean(e.error_m[ok] ** 2)), "bound_m2": float(np.mean(tr[ok]))})

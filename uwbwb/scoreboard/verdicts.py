@@ -1,18 +1,17 @@
 """Verdicts of a board, computed from intervals into tables (notebook 06's "what the boards say").
 
-Two kinds of statement, each a ``facts`` function returning the numbers and the verdict by its rule,
-and a table over many of them (tests feed values on both sides of each threshold):
+Three tables, each the numbers and the verdict by its rule (tests feed values on both sides of each threshold):
 
-* :func:`difference_facts` / :func:`difference_table` — method A against method B: the
+* :func:`difference_table` — method A against method B: the
   difference of their RMSEs on the epochs *both* covered, with a 95 % block-bootstrap interval
   (blocks from :func:`block_ids`, so that the correlation of a tracking filter's errors is kept).
   The verdict is "A more accurate" / "B more accurate" when the interval excludes 0, else "no
   significant difference"; with fewer than :data:`MIN_BLOCKS` blocks no interval and no verdict.
-* :func:`own_bound_facts` / :func:`own_bound_table` — a method below its *own* bound (the interval RMSE / own
+* :func:`own_bound_table` — a method below its *own* bound (the interval RMSE / own
   bound ± 2 se lies below 1), and whether it is still below that bound re-evaluated at the noise the scored part's
   truth measures (:meth:`~.interface.BaseEstimator.measured_noise_bound`): not below it, the measured noise accounts
   for the gap; still below it, or not measured, "cause not measured" — the table claims no other reason.
-* :func:`placement_facts` / :func:`placement_table` — a method against the recording's common
+* :func:`placement_table` — a method against the recording's common
   bound (:mod:`.reference`): the interval RMSE / common bound ± 2 block standard errors; "above" or "below" where
   it excludes 1, else "on the bound"; no verdict when the standard error could not be formed (fewer than
   :data:`MIN_BLOCKS` blocks).
@@ -36,8 +35,8 @@ import pandas as pd
 
 from ..metrics.errors import MIN_BLOCKS, block_bootstrap_difference, block_ids, interval_side
 
-__all__ = ["DIFFERENCE_RULE", "N_BOOT", "OWN_BOUND_RULE", "PLACEMENT_RULE", "block_se_ratio", "difference_facts",
-           "difference_table", "own_bound_facts", "own_bound_table", "pair_rng", "placement_facts", "placement_table"]
+__all__ = ["DIFFERENCE_RULE", "N_BOOT", "OWN_BOUND_RULE", "PLACEMENT_RULE", "block_se_ratio", "difference_table",
+           "own_bound_table", "pair_rng", "placement_table"]
 
 #: Bootstrap resamples of a difference.
 N_BOOT = 2000
@@ -65,41 +64,6 @@ def block_se_ratio(sq_err: list[np.ndarray], trace: list[np.ndarray]) -> tuple[f
     return (float(np.sqrt(var_r2) / (2 * np.sqrt(r2))) if r2 > 0 else float("nan")), nb
 
 
-def difference_facts(board, a: str, b: str, *, n_boot: int = N_BOOT, rng: np.random.Generator) -> dict:
-    """RMSE of ``a`` minus RMSE of ``b`` on the epochs both covered, with its 95 % block-bootstrap interval.
-
-    Returns
-    -------
-    dict
-        ``a, b, n_epochs, n_blocks, rmse_a_m, rmse_b_m, diff_m, lo_m, hi_m, verdict`` (``"a"``,
-        ``"b"`` or ``"none"``: which is more accurate, by the rule that the interval excludes 0; no
-        interval and ``"none"`` with fewer than :data:`MIN_BLOCKS` blocks), ``mode``, and the interval of
-        ``RMSE(a) / RMSE(b)`` from the same replicates, ``ratio_lo``, ``ratio_hi``.
-    """
-    sa, sb = [], []
-    for tag in board.tags:
-        ea, eb = board.entry(a, tag), board.entry(b, tag)
-        if ea.skipped or eb.skipped:
-            continue
-        both = ea.scored & eb.scored
-        if both.sum() < 2:
-            continue
-        sa.append(ea.error_m[both])
-        sb.append(eb.error_m[both])
-    d = block_bootstrap_difference(sa, sb, rng=rng, n_boot=n_boot)
-    verdict = {"below": "a", "above": "b"}.get(interval_side(d["lo_m"], d["hi_m"]), "none")
-    return {"a": a, "b": b, "mode": board.mode, "n_epochs": d["n"], "n_blocks": d["n_blocks"], "rmse_a_m": d["rmse_a_m"],
-            "rmse_b_m": d["rmse_b_m"], "diff_m": d["diff_m"], "lo_m": d["lo_m"], "hi_m": d["hi_m"], "verdict": verdict,
-            "ratio_lo": d["ratio_lo"], "ratio_hi": d["ratio_hi"]}
-
-
-def placement_facts(row) -> dict:
-    """Where one board row (:meth:`Board.table`) sits against the common bound: ``above``, ``on``, ``below`` or ``none``."""
-    r, se = float(row.rmse_over_common), float(row.rmse_over_common_se)
-    where = _side(r, se)
-    return {"method": row.method, "ratio": r, "se": se, "where": "on" if where == "contains" else where}
-
-
 def _side(r: float, se: float) -> str:
     """:func:`~uwbwb.metrics.interval_side` of the interval ``r ± 2 se`` against 1; ``"none"`` where ``r`` is not
     finite (no bound), ``"few blocks"`` where ``se`` is not (fewer than :data:`MIN_BLOCKS` blocks: no verdict)."""
@@ -109,44 +73,33 @@ def _side(r: float, se: float) -> str:
     return "few blocks" if side == "none" else side
 
 
-def own_bound_facts(row) -> dict:
-    """One board row (:meth:`Board.table`) against its own bound (``where``: ``below``, ``not below``, ``few blocks``,
-    ``none``) and, where below, against the own bound at the measured noise (``measured``: the same sides;
-    ``none`` where not measured). ``verdict``: the table's words (module docstring)."""
-    r, se = float(row.rmse_over_bound), float(row.rmse_over_bound_se)
-    rm = float(getattr(row, "rmse_over_bound_measured", np.nan))
-    sm = float(getattr(row, "rmse_over_bound_measured_se", np.nan))
-    where, measured = ({"above": "not below", "contains": "not below"}.get(w, w) for w in (_side(r, se), _side(rm, sm)))
-    if where == "none":
-        verdict = "no own bound"
-    elif where == "few blocks":
-        verdict = f"no verdict (fewer than {MIN_BLOCKS} blocks)"
-    elif where == "not below":
-        verdict = "not below its own bound"
-    elif measured == "not below":
-        verdict = "below its own bound; not below it at the measured noise"
-    elif measured == "below":
-        verdict = "below its own bound, also at the measured noise: cause not measured"
-    else:
-        verdict = "below its own bound; noise not measured: cause not measured"
-    return {"method": row.method, "ratio": r, "se": se, "ratio_measured": rm, "se_measured": sm, "where": where,
-            "measured": measured, "verdict": verdict}
-
-
 def own_bound_table(boards: Mapping[str, object]) -> pd.DataFrame:
-    """:func:`own_bound_facts` of every method with an own bound on each board: recording, method, RMSE / own bound
-    and its standard error, the same at the scored part's measured noise, the bias share (a Cramér–Rao bound holds
-    for unbiased estimators), the rule and the verdict."""
+    """Every method with an own bound on each board against it (module docstring): recording, method, RMSE / own
+    bound and its standard error, the same at the scored part's measured noise, the bias share (a Cramér–Rao bound
+    holds for unbiased estimators), the rule and the verdict."""
     rows = []
     for label, board in boards.items():
         for r in board.table().query("n_scored > 0").itertuples():
-            f = own_bound_facts(r)
-            if f["where"] == "none":
+            rm = float(getattr(r, "rmse_over_bound_measured", np.nan))
+            sm = float(getattr(r, "rmse_over_bound_measured_se", np.nan))
+            where, measured = ({"above": "not below", "contains": "not below"}.get(w, w)
+                               for w in (_side(float(r.rmse_over_bound), float(r.rmse_over_bound_se)), _side(rm, sm)))
+            if where == "none":
                 continue
-            rows.append({"recording": label, "method": f["method"], "RMSE / own bound": f["ratio"],
-                         "standard error": f["se"], "at measured noise": f["ratio_measured"],
-                         "its standard error": f["se_measured"], "bias share": float(r.bias_share),
-                         "rule": OWN_BOUND_RULE, "verdict": f["verdict"]})
+            if where == "few blocks":
+                verdict = f"no verdict (fewer than {MIN_BLOCKS} blocks)"
+            elif where == "not below":
+                verdict = "not below its own bound"
+            elif measured == "not below":
+                verdict = "below its own bound; not below it at the measured noise"
+            elif measured == "below":
+                verdict = "below its own bound, also at the measured noise: cause not measured"
+            else:
+                verdict = "below its own bound; noise not measured: cause not measured"
+            rows.append({"recording": label, "method": r.method, "RMSE / own bound": float(r.rmse_over_bound),
+                         "standard error": float(r.rmse_over_bound_se), "at measured noise": rm,
+                         "its standard error": sm, "bias share": float(r.bias_share), "rule": OWN_BOUND_RULE,
+                         "verdict": verdict})
     return pd.DataFrame(rows)
 
 
@@ -157,13 +110,12 @@ def pair_rng(seed: int, label: str, a: str, b: str) -> np.random.Generator:
     return np.random.default_rng([int(seed), zlib.crc32(f"{label}\x00{a}\x00{b}".encode())])
 
 
-def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, str]], *,
-                     seed: int) -> pd.DataFrame:
-    """:func:`difference_facts` of every pair ``(A, B)`` that ran on each board, one row each: recording, A, B,
-    each one's coverage (share of the scoring epochs with a position, where the board has it), epochs both covered,
-    blocks, both RMSEs, A − B and its 95 % interval (mm), A / B and its 95 % interval (the same replicates), the rule
-    and the verdict. Each row's bootstrap draws from
-    :func:`pair_rng` (``seed``, the recording, A, B)."""
+def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, str]], *, seed: int,
+                     n_boot: int = N_BOOT) -> pd.DataFrame:
+    """Every pair ``(A, B)`` that ran on each board (module docstring), one row each: recording, A, B, each one's
+    coverage (share of the scoring epochs with a position, where the board has it), epochs both covered, blocks,
+    both RMSEs, A − B and its 95 % interval (mm), A / B and its 95 % interval (the same replicates), the rule and the
+    verdict. Each row's bootstrap draws from :func:`pair_rng` (``seed``, the recording, A, B)."""
     rows = []
     for label, board in boards.items():
         tab = board.table().query("n_scored > 0").set_index("method")
@@ -172,30 +124,39 @@ def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, st
         for a, b in pairs:
             if a not in ran or b not in ran:
                 continue
-            f = difference_facts(board, a, b, rng=pair_rng(seed, label, a, b))
-            verdict = {"a": f"{a} more accurate", "b": f"{b} more accurate"}.get(f["verdict"], "not significant")
-            if f["n_epochs"] < 2:
+            sa, sb = [], []
+            for tag in board.tags:
+                ea, eb = board.entry(a, tag), board.entry(b, tag)
+                both = ea.scored & eb.scored if not (ea.skipped or eb.skipped) else np.zeros(0, bool)
+                if both.sum() >= 2:
+                    sa.append(ea.error_m[both])
+                    sb.append(eb.error_m[both])
+            d = block_bootstrap_difference(sa, sb, rng=pair_rng(seed, label, a, b), n_boot=n_boot)
+            side = interval_side(d["lo_m"], d["hi_m"])
+            verdict = {"below": f"{a} more accurate", "above": f"{b} more accurate"}.get(side, "not significant")
+            if d["n"] < 2:
                 verdict = "no epochs both covered"
-            elif f["n_blocks"] < MIN_BLOCKS:
+            elif d["n_blocks"] < MIN_BLOCKS:
                 verdict = f"no verdict (fewer than {MIN_BLOCKS} blocks)"
             rows.append({"recording": label, "A": a, "B": b, "coverage A": float(cov[a]), "coverage B": float(cov[b]),
-                         "epochs": f["n_epochs"], "blocks": f["n_blocks"],
-                         "RMSE A (m)": f["rmse_a_m"], "RMSE B (m)": f["rmse_b_m"], "A − B (mm)": 1000 * f["diff_m"],
-                         "95 % low (mm)": 1000 * f["lo_m"], "95 % high (mm)": 1000 * f["hi_m"],
-                         "A / B": np.divide(f["rmse_a_m"], f["rmse_b_m"]), "A / B 95 % low": f["ratio_lo"],
-                         "A / B 95 % high": f["ratio_hi"], "rule": DIFFERENCE_RULE, "verdict": verdict})
+                         "epochs": d["n"], "blocks": d["n_blocks"],
+                         "RMSE A (m)": d["rmse_a_m"], "RMSE B (m)": d["rmse_b_m"], "A − B (mm)": 1000 * d["diff_m"],
+                         "95 % low (mm)": 1000 * d["lo_m"], "95 % high (mm)": 1000 * d["hi_m"],
+                         "A / B": np.divide(d["rmse_a_m"], d["rmse_b_m"]), "A / B 95 % low": d["ratio_lo"],
+                         "A / B 95 % high": d["ratio_hi"], "rule": DIFFERENCE_RULE, "verdict": verdict})
     return pd.DataFrame(rows)
 
 
 def placement_table(boards: Mapping[str, object]) -> pd.DataFrame:
-    """:func:`placement_facts` of every method that ran on each board: recording, method, RMSE / common bound,
-    its block standard error, the rule and the verdict (above / on / below the bound, or none)."""
+    """Every method that ran on each board against the recording's common bound (module docstring): recording,
+    method, RMSE / common bound, its block standard error, the rule and the verdict."""
     rows = []
     for label, board in boards.items():
         for r in board.table().query("n_scored > 0").itertuples():
-            f = placement_facts(r)
-            verdict = {"above": "above the bound", "below": "below the bound", "on": "on the bound",
-                       "none": "no common bound on its epochs"}.get(f["where"], f"no verdict (fewer than {MIN_BLOCKS} blocks)")
-            rows.append({"recording": label, "method": f["method"], "RMSE / common bound": f["ratio"],
-                         "standard error": f["se"], "rule": PLACEMENT_RULE, "verdict": verdict})
+            ratio, se = float(r.rmse_over_common), float(r.rmse_over_common_se)
+            verdict = {"above": "above the bound", "below": "below the bound", "contains": "on the bound",
+                       "none": "no common bound on its epochs"}.get(_side(ratio, se),
+                                                                    f"no verdict (fewer than {MIN_BLOCKS} blocks)")
+            rows.append({"recording": label, "method": r.method, "RMSE / common bound": ratio, "standard error": se,
+                         "rule": PLACEMENT_RULE, "verdict": verdict})
     return pd.DataFrame(rows)

@@ -1,5 +1,5 @@
-"""The Hanyang dataset authors' numbers and estimates: their RMSE definition reproduced, their
-published LS/ESKF as *external* rows of a board, and their LS range front end.
+"""The Hanyang dataset authors' numbers: their RMSE definition reproduced and their LS range front end (their
+published LS/ESKF join a board as *external* rows: :func:`uwbwb.scoreboard.sources.external_estimators`).
 See :mod:`.study` for the whole study.
 """
 
@@ -7,17 +7,16 @@ from __future__ import annotations
 
 import os
 import re
-from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ... import geometry, metrics
+from ... import metrics
 from ...datasets import hanyang_dynamic
 from ...errors import DataFormatError, DataNotFoundError
-from ...scoreboard.interface import BaseEstimator, _range_bound
-from ...types import EstimateStatus, Estimates, Recording, Trajectory
+from ...scoreboard.estimators import RawLs
+from ...types import Estimates, Trajectory
 
 PathLike = str | os.PathLike
 
@@ -32,11 +31,6 @@ WINDOW_RULES = {"A": {"start": lambda x, y: (x > 49.3) & (y > -5), "end": lambda
                 "B": {"start": lambda x, y: (x < 8.6) & (y < -7), "end": lambda x, y: (x > 8.6) & (y < -7)}}
 #: Largest difference between our recomputation and the authors' published RMSE called agreement, m.
 REPRO_TOL_M = 0.01
-#: Gap between two of the authors' outputs beyond which nothing is interpolated, seconds.
-AUTHORS_MAX_GAP_S = 0.5
-
-
-_UP, _NONE = int(EstimateStatus.UPDATED), int(EstimateStatus.NO_ESTIMATE)
 
 
 # --------------------------------------------------------------------------------------------
@@ -166,63 +160,6 @@ def reproduce_authors(case: PathLike, data_dir: PathLike | None = None) -> pd.Da
     return pd.DataFrame(rows)
 
 
-# --------------------------------------------------------------------------------------------
-# 2. estimators of this study
-# --------------------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class AuthorsEstimator(BaseEstimator):
-    """The dataset authors' own estimates (``LS.csv``, ``ESKF.csv``) as a row of the board, *external*.
-
-    Nothing is run or tuned: their published positions are placed on the board's epochs by
-    linear interpolation between their two neighbouring outputs (none beyond their first/last
-    output or across a gap over :data:`AUTHORS_MAX_GAP_S`), on their own stamps (the loader's
-    ``authors_lag_s`` is their latency: not corrected) moved by ``shift_s`` (0 by default; a sensitivity
-    row sets it to the lag measured on the *tuning* case, which removes their output latency).
-    Their ESKF also used the robot's IMU. No bound (the board shows "—"), as
-    :class:`~uwbwb.scoreboard.estimators.ExternalEstimates`.
-    """
-
-    #: read by the board: rows of outside estimates go to the summary as *input*, not *reproduced*
-    external = True
-    method: str = "LS"
-    shift_s: float = 0.0
-
-    @property
-    def name(self) -> str:
-        if self.shift_s:
-            return f"authors {self.method}, latency removed ({self.shift_s:+.2f} s, tuning case) (external)"
-        return f"authors {self.method} (external{', +IMU' if self.method == 'ESKF' else ''})"
-
-    def applies(self, rec, tag, cal):
-        if self.method not in rec.meta.get("authors_estimates", {}):
-            return f"no authors' {self.method} estimates in this recording"
-        return None
-
-    def estimate(self, rec, tag, cal):
-        src = rec.meta["authors_estimates"][self.method].to_trajectory()
-        src = Trajectory(src.t_s + self.shift_s, src.pos_m) if self.shift_s else src
-        t = rec.ranges[tag].t_s
-        pos = src.interp(t)[:, :cal.dim]                 # NaN beyond their first / last output
-        i = np.clip(np.searchsorted(src.t_s, t, side="right"), 1, max(len(src) - 1, 1))
-        ok = (t >= src.t_s[0]) & (t <= src.t_s[-1])
-        if len(src) > 1:
-            ok &= (src.t_s[i] - src.t_s[i - 1] <= AUTHORS_MAX_GAP_S) | np.isin(t, src.t_s)
-        pos[~ok] = np.nan
-        return Estimates(t, pos, np.where(ok, _UP, _NONE).astype(np.int8), self.name)
-
-    def bound(self, rec, tag, cal, est):
-        return None
-
-
-def authors_estimators(rec: Recording) -> list[AuthorsEstimator]:
-    """The external rows a recording brings (the authors' LS and ESKF, those its case folder holds: ``LS.csv``,
-    ``ESKF.csv``); none for a recording of another dataset. What ``uwbwb score`` adds to a Hanyang board."""
-    have = rec.meta.get("authors_estimates", {})
-    return [AuthorsEstimator(m) for m in ("LS", "ESKF") if m in have]
-
-
-
 #: *Input* (the authors' LS front end, ``Technical_validation/``): a range differing from its anchor's
 #: previous accepted range by more than this is rejected ...
 AUTHORS_JUMP_M = 0.5
@@ -279,23 +216,8 @@ def authors_front_end(t_s: np.ndarray, range_m: np.ndarray, *, jump_m: float = A
     return out, {"n_rejected": n_rej, "n_held": n_held}
 
 
-@dataclass(frozen=True)
-class AuthorsFrontEndLs(BaseEstimator):
-    """``raw LS`` (per-epoch unweighted multilateration, no calibration, 2-D at the calibrated height) on the
-    ranges after the authors' LS front end (:func:`authors_front_end`: jump gate and hold), so that outlier
-    handling matches theirs. Their warm-started 3-D solve and 10 Hz output timer are not copied.
-    Bound: the CRLB of the ranges (as ``raw LS``)."""
-
-    name: str = "raw LS, authors' front end (jump gate + hold)"
-
-    def estimate(self, rec, tag, cal):
-        log = rec.ranges[tag]
-        r, report = authors_front_end(log.t_s, log.range_m)
-        res = geometry.multilaterate(r, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag), t_s=log.t_s,
-                                     name=self.name)
-        est = res.to_estimates()
-        return replace(est, info={**est.info, **report})
-
-    def bound(self, rec, tag, cal, est):
-        return _range_bound(rec, tag, cal, rec.ranges[tag])
-
+#: ``raw LS`` (per-epoch unweighted multilateration, no calibration, 2-D at the calibrated height) on the ranges after
+#: the authors' LS front end (:func:`authors_front_end`: jump gate and hold), so that outlier handling matches theirs.
+#: Their warm-started 3-D solve and 10 Hz output timer are not copied. Bound: the CRLB of the ranges (as ``raw LS``).
+AUTHORS_FRONT_END_LS = RawLs("raw LS, authors' front end (jump gate + hold)",
+                             lambda t_s, range_m: authors_front_end(t_s, range_m)[0])

@@ -10,17 +10,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ... import geometry
 from ...datasets import hanyang
 from ...filters.pruning import LABELS as PRUNING_LABELS, PruningConfig, localize
-from ...scoreboard.interface import BaseEstimator, _range_bound, calibrated_log
+from ...scoreboard.estimators import RawLs
 from ...scoreboard.setnoise_nls import WindowNls
-from ...types import EstimateStatus, Estimates
 
 PathLike = str | os.PathLike
-
-
-_UP, _NONE = int(EstimateStatus.UPDATED), int(EstimateStatus.NO_ESTIMATE)
 
 
 @dataclass(frozen=True)
@@ -34,6 +29,7 @@ class PrunedNls(WindowNls):
 
     heuristic: str = "residual"
     name: str = ""
+    _covariance = False
 
     def __post_init__(self):
         if self.heuristic not in ("residual", "robust_mean"):
@@ -41,27 +37,17 @@ class PrunedNls(WindowNls):
         if not self.name:
             object.__setattr__(self, "name", f"NLS {PRUNING_LABELS[self.heuristic]}")
 
-    def _run(self, rec, tag, cal, w) -> Estimates:
-        log = calibrated_log(rec, tag, cal)
-        T, d = len(log), cal.dim
-        pos = np.full((T, d), np.nan)
-        status = np.full(T, _NONE, np.int8)
-        win = self._windows(log, w)
-        config = PruningConfig(dim=d)
-        for k in np.unique(win):
-            idx = np.flatnonzero(win == k)
-            part = log.select(idx)
-            if idx.size < 3 or np.isfinite(part.range_m).sum() < 2 * d + 2:
-                continue
-            try:
-                res = localize(part, rec.anchors, self.heuristic, config, stationary=False, z_m=cal.height(tag))
-            except ValueError:
-                continue
-            if res.fit is not None and not res.fit.converged:
-                continue
-            pos[idx] = res.position_at(part.t_s)[:, :d]
-            status[idx] = _UP
-        return Estimates(log.t_s, pos, status, self.name, None, None, {"window": win})
+    def _fit(self, part, rec, tag, cal):
+        if np.isfinite(part.range_m).sum() < 2 * cal.dim + 2:
+            return None
+        try:
+            res = localize(part, rec.anchors, self.heuristic, PruningConfig(dim=cal.dim), stationary=False,
+                           z_m=cal.height(tag))
+        except ValueError:
+            return None
+        if res.fit is not None and not res.fit.converged:
+            return None
+        return res.position_at(part.t_s)[:, :cal.dim], None
 
 
 @dataclass(frozen=True)
@@ -104,27 +90,7 @@ def static_range_model(condition: str = "LOS", data_dir: PathLike | None = None,
                             (float(med["d"].min()), float(med["d"].max())), float(np.std(resid, ddof=2)))
 
 
-@dataclass(frozen=True)
-class StaticModelLs(BaseEstimator):
-    """Unweighted multilateration (as ``raw LS``) of the ranges corrected by a static range model
-    (:class:`StaticRangeModel`) instead of the board's per-pair calibration: does the static part's
-    bias-vs-distance help the dynamic runs? Bound: the CRLB of the ranges (as ``raw LS``)."""
-
-    model: StaticRangeModel | None = None
-    name: str = ""
-
-    def __post_init__(self):
-        if self.model is None:
-            raise ValueError("StaticModelLs needs a StaticRangeModel (static_range_model(...))")
-        if not self.name:
-            object.__setattr__(self, "name", f"LS static {self.model.condition} model")
-
-    def estimate(self, rec, tag, cal):
-        log = rec.ranges[tag]
-        r = self.model.correct(log.range_m)
-        res = geometry.multilaterate(np.maximum(r, 0.0), rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag),
-                                     t_s=log.t_s, name=self.name)
-        return res.to_estimates()
-
-    def bound(self, rec, tag, cal, est):
-        return _range_bound(rec, tag, cal, rec.ranges[tag])
+def static_model_ls(model: StaticRangeModel) -> RawLs:
+    """``raw LS`` on the ranges corrected by a static range model instead of the board's per-pair calibration:
+    does the static part's bias-vs-distance help the dynamic runs?"""
+    return RawLs(f"LS static {model.condition} model", lambda t_s, range_m: np.maximum(model.correct(range_m), 0.0))

@@ -127,10 +127,10 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
         scored = boards[c].table().set_index("method").loc[study.THEIRS, "n_scored"]
         assert scored > 0, f"{c}: the authors' LS was not scored"
     ratios = study.ratio_table(boards, picks={c: picks[t] for c, t in tuning.items()}, seed=seed)
-    static = [m.name for m in map(estimators.StaticModelLs, models)]
+    static = [m.name for m in map(estimators.static_model_ls, models)]
     effect = difference_table({b.label: b for b in boards.values()},
                               [(m, ref) for m in static for ref in ("raw LS", "LS")], seed=seed)
-    declared = study.declared_method_table(list(boards), data_dir, fast=fast, seed=seed, boards=boards)
+    declared = study.declared_method_table(boards, seed=seed)
     rows = []
     for r in repro[repro["metric"] == "RMSE 2-D"].itertuples(index=False):
         if np.isfinite(r.published_m):
@@ -187,8 +187,8 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
     tune = study.tuning_case(case, available)
     windows = (1.0,) if fast else NLS_WINDOWS_S
     est = [RawLs(), WindowNls(windows_s=windows), estimators.PrunedNls(windows_s=windows, heuristic="residual"),
-           estimators.PrunedNls(windows_s=windows, heuristic="robust_mean"), authors.AuthorsEstimator("LS")]
-    board = study.case_board(case, tune, data_dir, fast=fast, estimators=est)
+           estimators.PrunedNls(windows_s=windows, heuristic="robust_mean")]
+    board = study.case_board(case, tune, data_dir, fast=fast, estimators=est, authors=("LS",))
     pairs = [("NLS residual pruning", "NLS"), ("NLS robust mean", "NLS"), ("NLS", "raw LS"),
              ("NLS residual pruning", study.THEIRS), ("NLS robust mean", study.THEIRS)]
     table = difference_table({board.label: board}, pairs, seed=seed)
@@ -216,8 +216,8 @@ def motion_section(case: str | None = None, data_dir: PathLike | None = None, *,
     tune = study.tuning_case(case, available)
     board_est = {e.name: e for e in default_estimators(fast=fast)}
     names = ["EKF-RF", "EKF-RW ranges", "EKF-RF ranges", "EKF-RJ ranges"]
-    est = [board_est["raw LS"], *[board_est[m] for m in names], authors.AuthorsEstimator("ESKF")]
-    board = study.case_board(case, tune, data_dir, fast=fast, estimators=est)
+    est = [board_est["raw LS"], *[board_est[m] for m in names]]
+    board = study.case_board(case, tune, data_dir, fast=fast, estimators=est, authors=("ESKF",))
     table = difference_table({board.label: board}, [(m, "raw LS") for m in names], seed=seed)
     table["sigma_w"] = [board.calibration.params(m).get("sigma_w", np.nan) for m in table["A"]]
     rows = []

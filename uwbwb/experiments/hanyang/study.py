@@ -9,7 +9,8 @@ Three steps, each a function the notebooks call:
    ``RMSD_results.txt``.
 2. :func:`case_board` scores every method of the board on one case with the calibration and
    tuning fitted on *another* case (:func:`tuning_case`: same condition, the other trajectory
-   shape), the authors' LS and ESKF as rows marked *external* (:class:`AuthorsEstimator`), all
+   shape), the authors' LS and ESKF as rows marked *external*
+   (:class:`~uwbwb.scoreboard.estimators.ExternalEstimates`), all
    on the same epochs (the range epochs inside the authors' window).
 3. :func:`ratio_table` sets each method of ours against the authors' LS with the board's one difference rule
    (:func:`uwbwb.scoreboard.verdicts.difference_table`: the epochs *that pair* covered, both coverages beside,
@@ -22,8 +23,8 @@ Three steps, each a function the notebooks call:
    (:data:`DECLARED_METHOD`) unchanged on every case, against the authors' LS and ESKF.
 
 :func:`static_range_model` fits the static part's bias vs distance and
-:class:`StaticModelLs` applies it to the dynamic ranges (does it help? against raw LS on the board). Outlier
-handling differs between the authors' LS and ours (:class:`AuthorsFrontEndLs`); every method of ours solves in
+:func:`static_model_ls` applies it to the dynamic ranges (does it help? against raw LS on the board). Outlier
+handling differs between the authors' LS and ours (:data:`AUTHORS_FRONT_END_LS`); every method of ours solves in
 2-D at the tag height of the tuning case (:func:`case_board`).
 
 """
@@ -31,7 +32,6 @@ handling differs between the authors' LS and ours (:class:`AuthorsFrontEndLs`); 
 from __future__ import annotations
 
 import os
-from dataclasses import replace
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -41,15 +41,17 @@ from ... import metrics
 from ...datasets import hanyang_dynamic
 from ...errors import DataNotFoundError
 from ...scoreboard import Board, score
-from ...scoreboard.estimators import EKF_GRIDS, RangeEkfEstimator, default_estimators
+from ...types import Trajectory
+from ...scoreboard.estimators import ExternalEstimates, RangeEkfEstimator, default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S
+from ...scoreboard.sources import external_estimators
 from ...scoreboard.verdicts import difference_table, pair_rng
-from .authors import AuthorsEstimator, AuthorsFrontEndLs, authors_window
-from .estimators import PrunedNls, StaticModelLs, StaticRangeModel
+from .authors import AUTHORS_FRONT_END_LS, authors_window
+from .estimators import PrunedNls, StaticRangeModel, static_model_ls
 
 
-__all__ = ["DECLARED_METHOD", "FAST_SPAN_S", "case_board", "declared_method",
-           "declared_method_table", "held_ratio", "pick_on_tuning_case", "ratio_table", "tuning_case"]
+__all__ = ["DECLARED_METHOD", "FAST_SPAN_S", "case_board", "declared_method_table", "held_ratio", "pick_on_tuning_case",
+           "ratio_table", "tuning_case"]
 
 PathLike = str | os.PathLike
 
@@ -87,19 +89,19 @@ def study_estimators(*, fast: bool = False, static_models: Sequence[StaticRangeM
     the EKFs RW/RF/RJ on ranges among them; the methods that do not apply stay on the board, where their rows say
     why: the TDoA methods, whose range differences from a 2 m anchor cluster do not locate a tag tens of metres
     away, and the UWB/INS filters, which need an IMU this dataset does not provide), NLS with residual pruning and
-    with the robust mean, LS on ranges corrected by each static model, raw LS behind the authors' front end
-    (:class:`AuthorsFrontEndLs`), then the authors' LS and ESKF (*external*)."""
+    with the robust mean, LS on ranges corrected by each static model and raw LS behind the authors' front end
+    (:data:`AUTHORS_FRONT_END_LS`); :func:`case_board` adds the authors' LS and ESKF (*external*)."""
     windows = (1.0,) if fast else NLS_WINDOWS_S
     return [*default_estimators(fast=fast), PrunedNls(windows_s=windows, heuristic="residual"),
             PrunedNls(windows_s=windows, heuristic="robust_mean"),
-            *[StaticModelLs(m) for m in static_models], AuthorsFrontEndLs(), AuthorsEstimator("LS"),
-            AuthorsEstimator("ESKF")]
+            *map(static_model_ls, static_models), AUTHORS_FRONT_END_LS]
 
 
 def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: bool = False,
                estimators: Sequence | None = None, static_models: Sequence[StaticRangeModel] = (),
-               progress: bool = False) -> Board:
-    """The board of ``case`` with calibration and tuning on ``tune`` (never the scored case).
+               authors: tuple[str, ...] = ("LS", "ESKF"), progress: bool = False) -> Board:
+    """The board of ``case`` with calibration and tuning on ``tune`` (never the scored case): ``estimators``
+    (default :func:`study_estimators`), then the authors' ``authors`` rows of ``case`` (*external*).
 
     Scored epochs: the range epochs inside the authors' window of ``case`` (FAST: its first
     :data:`FAST_SPAN_S` s, and the tuning case cut to as many seconds of its own window).
@@ -117,19 +119,20 @@ def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: 
         t1, c1 = min(t1, t0 + FAST_SPAN_S), min(c1, c0 + FAST_SPAN_S)
     test = test_rec.between(t0, t1, f"{test_rec.name} [authors' window{' , FAST part' if fast else ''}]")
     cal = cal_rec.between(c0, c1, f"{cal_rec.name} [authors' window]") if fast else cal_rec
-    if estimators is None:
-        est = study_estimators(fast=fast, static_models=static_models)
-        lag = cal_rec.meta.get("authors_lag_s", {}).get("LS")
-        if lag is not None and np.isfinite(lag) and lag != 0:  # sensitivity: their latency, measured on the tuning case
-            est.append(AuthorsEstimator("LS", shift_s=float(lag)))
-    else:
-        est = list(estimators)
+    est = [*(study_estimators(fast=fast, static_models=static_models) if estimators is None else estimators),
+           *external_estimators(test_rec, authors)]
+    lag = cal_rec.meta.get("authors_lag_s", {}).get("LS")
+    theirs = test_rec.meta.get("authors_estimates", {}).get("LS")
+    if estimators is None and theirs is not None and lag is not None and np.isfinite(lag) and lag != 0:
+        tr = theirs.to_trajectory()      # sensitivity: their latency, measured on the tuning case, removed
+        est.append(ExternalEstimates(f"authors LS, latency removed ({lag:+.2f} s, tuning case) (external)",
+                                     {"tag": Trajectory(tr.t_s + float(lag), tr.pos_m)}))
     return score(test, cal, estimators=est, rate_hz=None, dim=2, fast=fast, progress=progress,
                  label=test_rec.label, other_anchors=True)   # the two trajectories place the same anchors apart
 
 
 
-THEIRS = AuthorsEstimator("LS").name
+THEIRS = "authors LS (external)"
 
 
 def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bool = False,
@@ -150,10 +153,8 @@ def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bo
     mid = 0.5 * (c0 + c1)
     first = rec.between(c0, mid, f"{rec.name} [authors' window, first half]")
     second = rec.between(mid, c1, f"{rec.name} [authors' window, second half]")
-    est = study_estimators(fast=fast, static_models=static_models) if estimators is None else list(estimators)
-    est = [e for e in est if not isinstance(e, AuthorsEstimator) or e.method == "LS"]
-    if not any(isinstance(e, AuthorsEstimator) for e in est):
-        est.append(AuthorsEstimator("LS"))
+    est = study_estimators(fast=fast, static_models=static_models) if estimators is None else estimators
+    est = [*(e for e in est if not getattr(e, "external", False)), *external_estimators(rec, ("LS",))]
     board = score(second, first, estimators=est, rate_hz=None, dim=2, fast=fast, progress=progress,
                   label=f"{rec.label} [pick: tuned on first half, scored on second]")
     t = ratio_table({tune: board})
@@ -215,46 +216,26 @@ def ratio_table(boards: Mapping[str, Board], *, picks: Mapping[str, str | None] 
 #: the range epochs inside the authors' window. On generated ranges with 5–20 % NLOS-like outliers, in the
 #: square and in the 2 m anchor cluster, that gate was as accurate as or more accurate than the robust updates.
 DECLARED_METHOD = RangeEkfEstimator("RF", update="gate")
-#: The authors' rows it is set against (names of :class:`AuthorsEstimator` rows).
-AUTHORS_ROWS = (THEIRS, AuthorsEstimator("ESKF").name)
+#: The authors' rows it is set against.
+AUTHORS_ROWS = (THEIRS, "authors ESKF (external, +IMU)")
 
 
-def declared_method(*, fast: bool = False) -> RangeEkfEstimator:
-    """:data:`DECLARED_METHOD` with the board's tuning grid (FAST: every other value, as
-    :func:`~uwbwb.scoreboard.estimators.default_estimators`)."""
-    if not fast:
-        return DECLARED_METHOD
-    return replace(DECLARED_METHOD, grid=tuple(float(g) for g in EKF_GRIDS[DECLARED_METHOD.model][::2]))
-
-
-def declared_method_table(cases: Sequence[str] | None = None, data_dir: PathLike | None = None, *,
-                          tuning: Mapping[str, str] | None = None, fast: bool = False, seed: int = 0,
-                          boards: Mapping[str, Board] | None = None) -> pd.DataFrame:
+def declared_method_table(boards: Mapping[str, Board], *, seed: int = 0) -> pd.DataFrame:
     """:data:`DECLARED_METHOD`, unchanged, on every case against the authors' LS and ESKF.
 
-    ``cases``: names or case folders of the upstream format (default: every case present); ``tuning[case]``
-    the case it is tuned on (default :func:`tuning_case` among the cases present). One board per case
-    (:func:`case_board`: the method and the authors' two rows; ``boards[case]`` instead where given, e.g. the
-    section's boards, which hold the same method tuned alike), then per case and reference one row of the board's
-    :func:`~uwbwb.scoreboard.verdicts.difference_table`: RMSE_2d of both on the epochs both covered, both
-    coverages, the difference and the ratio ours / theirs with their 95 % block-bootstrap intervals and the
-    verdict; last, per reference, the mean ratio over the cases (``case`` ``"mean over N cases"``; no interval:
-    its ``verdict`` counts the per-case ones).
+    ``boards``: per case, its :func:`case_board` holding the method (FAST: with the board's FAST grid, as in
+    :func:`~uwbwb.scoreboard.estimators.default_estimators`) and the authors' two rows; per case and reference one
+    row of the board's :func:`~uwbwb.scoreboard.verdicts.difference_table`: RMSE_2d of both on the epochs both
+    covered, both coverages, the difference and the ratio ours / theirs with their 95 % block-bootstrap intervals
+    and the verdict; last, per reference, the mean ratio over the cases (``case`` ``"mean over N cases"``; no
+    interval: its ``verdict`` counts the per-case ones).
     """
-    available = hanyang_dynamic.dynamic_cases(data_dir)
-    cases = list(available if cases is None else cases)
-    if not cases:
-        raise DataNotFoundError("no Hanyang dynamic case in the data directories")
-    method = declared_method(fast=fast)
-    parts = []
-    for c in cases:
-        tune = (tuning or {}).get(c) or tuning_case(c, available)
-        board = (boards or {}).get(c) or case_board(c, tune, data_dir, fast=fast,
-                                                    estimators=[method, *map(AuthorsEstimator, ("LS", "ESKF"))])
-        t = difference_table({board.label: board}, [(method.name, ref) for ref in AUTHORS_ROWS], seed=seed)
-        parts.append(t.assign(case=c, tuned_on=board.calibration.source))
-    table = pd.concat(parts, ignore_index=True)
-    means = [{"case": f"mean over {len(g)} cases", "A": method.name, "B": ref, "A / B": float(g["A / B"].mean()),
+    if not boards:
+        raise DataNotFoundError("no Hanyang dynamic case board to set the declared method on")
+    name = DECLARED_METHOD.name
+    table = pd.concat([difference_table({b.label: b}, [(name, ref) for ref in AUTHORS_ROWS], seed=seed)
+                       .assign(case=c, tuned_on=b.calibration.source) for c, b in boards.items()], ignore_index=True)
+    means = [{"case": f"mean over {len(g)} cases", "A": name, "B": ref, "A / B": float(g["A / B"].mean()),
               "verdict": ", ".join(f"{v}: {k}" for v, k in g["verdict"].value_counts().items())}
              for ref, g in table.groupby("B", sort=False)]
     table = pd.concat([table, pd.DataFrame(means)], ignore_index=True)

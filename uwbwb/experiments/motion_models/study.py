@@ -197,7 +197,8 @@ def estimate(run: TagRun, sigma_m, sigmas: Mapping[str, float], *, gate_prob: fl
     """
     rec, cal = _protocol([run], {run.tag: sigma_m})
     cal = replace(cal, tuned={**(tuned or {}), **{ekf_name(m): {"sigma_w": float(sigmas[m])} for m in models}})
-    ests = {"raw": RawLs("raw") if run.raw is None else ExternalEstimates("device", {run.tag: run.raw}),
+    ests = {"raw": RawLs("raw") if run.raw is None else ExternalEstimates("device", {run.tag: run.raw},
+                                                                                  max_gap_s=0.0),
             **estimators(gate_prob=gate_prob, ref=ref, correlated=correlated, models=models)}
     blind, truth = replace(rec, truth={}), rec.truth_at(run.tag, run.ranges.t_s, run.dim)
     entries = tuple(Entry(n, run.tag, e.estimate(blind, run.tag, cal), None, truth) for n, e in ests.items())
