@@ -108,7 +108,7 @@ from .registration import Registration, RegistrationError, register_truth
 from .text import _decode_lines, _numbers, _read_bytes, _split_rows
 
 __all__ = ["ANCHOR_COLUMNS", "AUTHORS_FILES", "AnchorFile", "DYNAMIC_DIR", "ESTIMATE_COLUMNS", "MAX_OFFSET_S",
-           "TRAJECTORY_COLUMNS", "TRIM", "authors_estimates", "case_dir", "dynamic_cases", "group_epochs",
+           "TRAJECTORY_COLUMNS", "TRIM", "case_dir", "dynamic_cases", "group_epochs",
            "load_dynamic_case", "read_anchor_file", "read_estimates", "read_trajectory"]
 
 DYNAMIC_DIR = "Dynamic_measurements"
@@ -529,12 +529,6 @@ def load_dynamic_case(case: PathLike, data_dir: PathLike | None = None, *, tag_h
     meta.update(authors_estimates=authors, authors_lag_s=lags)
     meta["source"].update({m: str(folder / f) for m, f in AUTHORS_FILES.items() if m in authors})
     return Recording(NAME, name, anchors, {"tag": ranges}, {"tag": truth}, None, tuple(cleaning), meta)
-
-
-def authors_estimates(case: PathLike | Recording, data_dir: PathLike | None = None) -> dict[str, Estimates]:
-    """The authors' estimates of a case (``{"LS": ..., "ESKF": ...}``, those present), on the case's clock."""
-    rec = case if isinstance(case, Recording) else load_dynamic_case(case, data_dir, register=False)
-    return dict(rec.meta.get("authors_estimates", {}))
 
 
 def _check_registration(reg: Registration, path: Path) -> None:

@@ -110,7 +110,7 @@ import pandas as pd
 from ..errors import DataFormatError
 from ..types import Anchors, CleaningStep, RangeLog, Recording, Trajectory, _natural_key
 from .cleaning import MAX_RANGE_M, check_ranges, order_rows
-from .text import PathLike, _csv_table, _identifiers, _numbers, _read_bytes
+from .text import PathLike, _csv_table, _numbers, _read_bytes
 
 NAME = "tidy"
 
@@ -304,15 +304,14 @@ def read_anchors_csv(path: PathLike) -> Anchors:
         Bad header, field count, number or identifier, a repeated identifier,
         or no anchors at all.
     """
-    _, cols, line_no = _csv_table(path, (ANCHORS_HEADER,), "anchors")
-    ids = _identifiers(path, cols["anchor_id"], line_no, "anchor_id")
-    seen: dict[str, int] = {}
-    for i, a in enumerate(ids):
-        if a in seen:
-            raise DataFormatError(path, f"repeated anchor_id {a!r} (first on line {seen[a]})", line=int(line_no[i]))
-        seen[a] = int(line_no[i])
-    pos = np.column_stack([_numbers(path, cols[c], line_no, c) for c in ("x_m", "y_m", "z_m")])
-    return Anchors(tuple(ids), pos)
+    table = _typed_table(path, (ANCHORS_HEADER,), "anchors", ANCHORS_HEADER[1:])
+    code, names = _identifier_codes(path, table, "anchor_id")
+    repeated = np.flatnonzero(pd.Series(code).duplicated().to_numpy())
+    if repeated.size:
+        i = int(repeated[0])
+        raise DataFormatError(path, f"repeated anchor_id {names[code[i]]!r} (first on line "
+                                    f"{table.line_no[np.argmax(code == code[i])]})", line=int(table.line_no[i]))
+    return Anchors(tuple(names[c] for c in code), np.column_stack([table.floats[c] for c in ANCHORS_HEADER[1:]]))
 
 
 def read_ranges_csv(path: PathLike, anchors: Anchors | None = None, *, with_cleaning: bool = False,
