@@ -114,7 +114,7 @@ def test_blank_lines_are_counted(tmp_path):
     text = TABLE_1.replace("OK\n1452967702636\t1", "OK\n\n1452967702636\t1")
     pk = packets.read_packets(_write(tmp_path, text))
     assert {s.name: s.n_affected for s in pk.cleaning}["blank lines skipped"] == 1
-    assert pk.n_packets == 2
+    assert len(pk.ranges) == 2
 
 
 @pytest.mark.parametrize("line, problem, column", [

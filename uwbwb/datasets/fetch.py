@@ -101,11 +101,6 @@ class FetchReport:
     skipped: tuple[str, ...] = ()
     bytes_downloaded: int = 0
 
-    @property
-    def complete(self) -> bool:
-        """True when every manifest file is now present and verified."""
-        return len(self.downloaded) + len(self.skipped) == self.n_files
-
     def __str__(self) -> str:
         resumed = f", {len(self.resumed)} resumed" if self.resumed else ""
         return (f"{self.dataset}: {len(self.downloaded)} file(s) downloaded "

@@ -91,10 +91,6 @@ class PacketLog:
     path: Path | None = None
 
     @property
-    def n_packets(self) -> int:
-        return len(self.ranges)
-
-    @property
     def anchor_ids(self) -> tuple[str, ...]:
         return self.ranges.anchor_ids
 
