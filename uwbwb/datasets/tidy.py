@@ -170,22 +170,6 @@ def _header(path: PathLike, data: bytes, headers: Sequence[tuple[str, ...]], wha
     raise DataFormatError(path, f"empty {what} file: expected a header line {','.join(headers[-1])!r} and data lines")
 
 
-class _Tail(io.RawIOBase):
-    """A read-only stream over ``data[start:]`` that copies only the chunks the parser asks for."""
-
-    def __init__(self, data: bytes, start: int):
-        self._view, self._pos = memoryview(data), start
-
-    def readable(self) -> bool:
-        return True
-
-    def readinto(self, buffer) -> int:
-        n = min(len(buffer), len(self._view) - self._pos)
-        buffer[:n] = self._view[self._pos:self._pos + n]
-        self._pos += n
-        return n
-
-
 def _body_line_numbers(data: bytes, start: int, first_line: int, n_rows: int) -> np.ndarray | None:
     """File lines of the data rows in ``data[start:]`` (the bytes after the header), skipping empty and
     comment lines as the format says; None if they do not add up to ``n_rows``."""
@@ -208,7 +192,9 @@ def _fast_table(path: PathLike, data: bytes, start: int, header: tuple[str, ...]
     names = list(header) + ["__extra__"]
     dtype = {c: (float if c in numeric else "category") for c in names}
     try:
-        frame = pd.read_csv(io.BufferedReader(_Tail(data, start)), header=None, names=names, dtype=dtype,
+        body = io.BytesIO(data)   # shares ``data``: the parser copies only the chunks it reads
+        body.seek(start)
+        frame = pd.read_csv(body, header=None, names=names, dtype=dtype,
                             engine="c", encoding="utf-8", keep_default_na=False,
                             na_values={c: [""] for c in empty_ok}, skipinitialspace=True, skip_blank_lines=True,
                             comment="#", index_col=False, quoting=csv.QUOTE_NONE)
