@@ -386,11 +386,6 @@ def _case_fields(name: str) -> dict:
     return {"condition": m["c"], "trajectory": m["t"], "case": int(m["n"])}
 
 
-def _estimates_on(stamp_ns: np.ndarray, pos_m: np.ndarray, t0_ns: int, name: str) -> Estimates:
-    t = (stamp_ns - t0_ns) / 1e9
-    return Estimates(t, pos_m, np.full(t.size, int(EstimateStatus.UPDATED), np.int8), name)
-
-
 def _best_lag(est: Estimates, truth: Trajectory, max_lag_s: float = 1.0, step_s: float = 0.01) -> float:
     """Lag ``d`` minimising the trimmed mean squared horizontal distance of ``est(t)`` to ``truth(t + d)``, s
     (the smallest :data:`TRIM` share of the squared distances: robust to the estimates' outliers); NaN when the
@@ -523,7 +518,8 @@ def load_dynamic_case(case: PathLike, data_dir: PathLike | None = None, *, tag_h
             continue
         stamp, pos, steps = read_estimates(p)
         cleaning += steps
-        authors[method] = _estimates_on(stamp, pos, t0, method)
+        authors[method] = Estimates((stamp - t0) / 1e9, pos, np.full(stamp.size, int(EstimateStatus.UPDATED), np.int8),
+                                    method)
         if register:
             lags[method] = _best_lag(authors[method], ref)
     meta.update(authors_estimates=authors, authors_lag_s=lags)
