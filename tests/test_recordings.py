@@ -91,7 +91,7 @@ def test_mount_height_of_lias_static_poses_is_the_declared_rig_height(tmp_path):
 
 def test_absent_lias_gives_the_stand_in_with_the_reason(tmp_path):
     room = load_lias_room(tmp_path, stand_in=SMALL_RIG, static_duration_s=1.0, rng=np.random.default_rng(0))
-    assert room.synthetic and not room.real and room.available
+    assert room.synthetic and not room.real and room.dynamic is not None
     assert room.data_label == "synthetic"
     assert "not found" in room.reason
     assert len(room.static) == 30 and room.dynamic.dataset == "synthetic"
@@ -101,7 +101,7 @@ def test_absent_lias_gives_the_stand_in_with_the_reason(tmp_path):
 
 def test_absent_lias_without_stand_in_gives_nothing(tmp_path):
     room = load_lias_room(tmp_path)
-    assert not room.available and room.dynamic is None
+    assert room.dynamic is None and not room.static
     assert "skipped" in data_banner(**room.banner_args()).data
     with pytest.raises(ValueError, match="no data"):
         room.data_label

@@ -110,14 +110,14 @@ def test_read_mocap_csv(tree):
     assert "motion-capture" in cleaning[0].detail and d.mocap_path.name in cleaning[0].detail
 
 
-def test_quaternion_to_rot_orders_agree():
+def test_frame_rotation_quaternion_orders_agree():
     q = np.array([[np.cos(0.3), 0.0, 0.0, np.sin(0.3)]])
-    rz = registration.quaternion_to_rot(q, "wxyz")[0]
+    rz = registration.frame_rotation(q, "wxyz", "none")[0]
     np.testing.assert_allclose(rz, [[np.cos(0.6), -np.sin(0.6), 0], [np.sin(0.6), np.cos(0.6), 0], [0, 0, 1]],
                                atol=1e-12)
-    np.testing.assert_allclose(registration.quaternion_to_rot(q[:, [1, 2, 3, 0]], "xyzw")[0], rz, atol=1e-12)
+    np.testing.assert_allclose(registration.frame_rotation(q[:, [1, 2, 3, 0]], "xyzw", "none")[0], rz, atol=1e-12)
     with pytest.raises(ValueError):
-        registration.quaternion_to_rot(q, "zyxw")
+        registration.frame_rotation(q, "zyxw", "none")
 
 
 def test_read_tables_parses_every_section(tree):

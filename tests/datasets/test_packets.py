@@ -114,20 +114,20 @@ def test_blank_lines_are_counted(tmp_path):
     text = TABLE_1.replace("OK\n1452967702636\t1", "OK\n\n1452967702636\t1")
     pk = packets.read_packets(_write(tmp_path, text))
     assert {s.name: s.n_affected for s in pk.cleaning}["blank lines skipped"] == 1
-    assert pk.n_packets == 2
+    assert len(pk.ranges) == 2
 
 
 @pytest.mark.parametrize("line, problem, column", [
     ("1452967702506.5\t1\t2.00\tOK", "integer number of milliseconds", "timestamp"),
     ("-5\t1\t2.00\tOK", "integer number of milliseconds", "timestamp"),
     ("99999999999999999999999\t1\t2.00\tOK", "out of range", "timestamp"),
-    ("1452967702506\t1\tabc\tOK", "not a number", "ranging"),
-    ("1452967702506\t1\tnan\tOK", "not a number", "ranging"),
+    ("1452967702506\t1\tabc\tOK", "not a finite number", "ranging"),
+    ("1452967702506\t1\tnan\tOK", "not a finite number", "ranging"),
     ("1452967702506\t1\t-2.00\tOK", "negative range", "ranging"),
     ("1452967702506\t1\t2.00\tok", "neither 'OK' nor 'ERR'", "status"),
-    ("1452967702506\t1\t2.00", "4 tab-separated fields", None),
-    ("1452967702506\t1\t2.00\tOK\textra", "4 tab-separated fields", None),
-    ("1452967702506 1 2.00 OK", "4 tab-separated fields", None),
+    ("1452967702506\t1\t2.00", "3 tab-separated fields, expected 4", None),
+    ("1452967702506\t1\t2.00\tOK\textra", "5 tab-separated fields, expected 4", None),
+    ("1452967702506 1 2.00 OK", "1 tab-separated fields, expected 4", None),
     ("1452967702506\t\t2.00\tOK", "empty or contains white space", "anchor ID"),
 ])
 def test_bad_rows_name_file_line_and_problem(tmp_path, line, problem, column):

@@ -77,7 +77,7 @@ def test_lias_room_wrong_recording_is_an_error_not_synthetic_data(tmp_path, data
                           rng=np.random.default_rng(0))
     assert room.synthetic and room.data_label == "synthetic" and "not found" in room.reason
     assert room.banner_args()["found"] is False and "stand-in" in room.banner_args()["instead"]
-    assert not load_lias_room(empty).available
+    assert load_lias_room(empty).dynamic is None
 
 
 def test_quickstart_with_a_misspelt_recording_raises(data_dir):

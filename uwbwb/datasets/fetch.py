@@ -101,11 +101,6 @@ class FetchReport:
     skipped: tuple[str, ...] = ()
     bytes_downloaded: int = 0
 
-    @property
-    def complete(self) -> bool:
-        """True when every manifest file is now present and verified."""
-        return len(self.downloaded) + len(self.skipped) == self.n_files
-
     def __str__(self) -> str:
         resumed = f", {len(self.resumed)} resumed" if self.resumed else ""
         return (f"{self.dataset}: {len(self.downloaded)} file(s) downloaded "
@@ -118,13 +113,6 @@ def file_url(base_url: str, path: str) -> str:
     return base_url.rstrip("/") + "/" + urllib.parse.quote(path, safe="/")
 
 
-def _open(url: str, offset: int, timeout_s: float):
-    headers = {"User-Agent": _USER_AGENT, "Accept-Encoding": "identity"}
-    if offset:
-        headers["Range"] = f"bytes={offset}-"
-    return urllib.request.urlopen(urllib.request.Request(url, headers=headers), timeout=timeout_s)
-
-
 def _stream(url: str, rel: str, part: Path, size_bytes: int, timeout_s: float,
             on_bytes) -> bool:
     """Append the rest of the file to ``part`` (or rewrite it from the start).
@@ -133,8 +121,11 @@ def _stream(url: str, rel: str, part: Path, size_bytes: int, timeout_s: float,
     ``part`` bytes were kept (the server honoured the ``Range`` request).
     """
     offset = part.stat().st_size if part.exists() else 0
+    headers = {"User-Agent": _USER_AGENT, "Accept-Encoding": "identity"}
+    if offset:
+        headers["Range"] = f"bytes={offset}-"
     try:
-        resp = _open(url, offset, timeout_s)
+        resp = urllib.request.urlopen(urllib.request.Request(url, headers=headers), timeout=timeout_s)
     except urllib.error.HTTPError as exc:
         exc.close()  # an HTTPError holds the open error response
         if exc.code == 416 and offset:

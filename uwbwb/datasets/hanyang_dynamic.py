@@ -108,7 +108,7 @@ from .registration import Registration, RegistrationError, register_truth
 from .text import _decode_lines, _numbers, _read_bytes, _split_rows
 
 __all__ = ["ANCHOR_COLUMNS", "AUTHORS_FILES", "AnchorFile", "DYNAMIC_DIR", "ESTIMATE_COLUMNS", "MAX_OFFSET_S",
-           "TRAJECTORY_COLUMNS", "TRIM", "authors_estimates", "case_dir", "dynamic_cases", "group_epochs",
+           "TRAJECTORY_COLUMNS", "TRIM", "case_dir", "dynamic_cases", "group_epochs",
            "load_dynamic_case", "read_anchor_file", "read_estimates", "read_trajectory"]
 
 DYNAMIC_DIR = "Dynamic_measurements"
@@ -386,11 +386,6 @@ def _case_fields(name: str) -> dict:
     return {"condition": m["c"], "trajectory": m["t"], "case": int(m["n"])}
 
 
-def _estimates_on(stamp_ns: np.ndarray, pos_m: np.ndarray, t0_ns: int, name: str) -> Estimates:
-    t = (stamp_ns - t0_ns) / 1e9
-    return Estimates(t, pos_m, np.full(t.size, int(EstimateStatus.UPDATED), np.int8), name)
-
-
 def _best_lag(est: Estimates, truth: Trajectory, max_lag_s: float = 1.0, step_s: float = 0.01) -> float:
     """Lag ``d`` minimising the trimmed mean squared horizontal distance of ``est(t)`` to ``truth(t + d)``, s
     (the smallest :data:`TRIM` share of the squared distances: robust to the estimates' outliers); NaN when the
@@ -523,18 +518,13 @@ def load_dynamic_case(case: PathLike, data_dir: PathLike | None = None, *, tag_h
             continue
         stamp, pos, steps = read_estimates(p)
         cleaning += steps
-        authors[method] = _estimates_on(stamp, pos, t0, method)
+        authors[method] = Estimates((stamp - t0) / 1e9, pos, np.full(stamp.size, int(EstimateStatus.UPDATED), np.int8),
+                                    method)
         if register:
             lags[method] = _best_lag(authors[method], ref)
     meta.update(authors_estimates=authors, authors_lag_s=lags)
     meta["source"].update({m: str(folder / f) for m, f in AUTHORS_FILES.items() if m in authors})
     return Recording(NAME, name, anchors, {"tag": ranges}, {"tag": truth}, None, tuple(cleaning), meta)
-
-
-def authors_estimates(case: PathLike | Recording, data_dir: PathLike | None = None) -> dict[str, Estimates]:
-    """The authors' estimates of a case (``{"LS": ..., "ESKF": ...}``, those present), on the case's clock."""
-    rec = case if isinstance(case, Recording) else load_dynamic_case(case, data_dir, register=False)
-    return dict(rec.meta.get("authors_estimates", {}))
 
 
 def _check_registration(reg: Registration, path: Path) -> None:

@@ -119,10 +119,6 @@ def _column_label(names, j: int, offset: int) -> str:
     return f"{j + offset} ({name})"
 
 
-def _pair_labels(n_anchors: int, n_tags: int) -> list[str]:
-    return [f"a{a}-t{t}" for a in range(n_anchors) for t in range(n_tags)]
-
-
 # ----------------------------------------------------------------------------- UWB files
 
 def read_uwb_csv(path: str | os.PathLike, *, n_anchors: int = _N_ANCHORS, n_tags: int = _N_TAGS,
@@ -170,7 +166,7 @@ def read_uwb_csv(path: str | os.PathLike, *, n_anchors: int = _N_ANCHORS, n_tags
             raise ValueError(f"{name} must be a positive integer, got {n!r}")
     path = Path(path)
     n_pairs = n_anchors * n_tags
-    names = _pair_labels(n_anchors, n_tags)
+    names = [f"a{a}-t{t}" for a in range(n_anchors) for t in range(n_tags)]
     lines = _read_lines(path)
     n_fields = lines[0].count(",") + 1
     if n_fields - 1 < n_pairs or (n_fields - 1) % n_tags:

@@ -48,7 +48,7 @@ import pandas as pd
 from ..errors import DataFormatError
 from ..types import Anchors, CleaningStep, RangeLog, Recording, Trajectory, _natural_key
 from .cleaning import MAX_RANGE_M, check_ranges, order_rows
-from .text import NUMBER_RE, _decode_lines, _read_bytes
+from .text import _decode_lines, _numbers, _read_bytes, _split_rows
 
 __all__ = ["HEADER", "PacketLog", "load_recording", "read_packets", "write_packets"]
 
@@ -91,16 +91,8 @@ class PacketLog:
     path: Path | None = None
 
     @property
-    def n_packets(self) -> int:
-        return len(self.ranges)
-
-    @property
     def anchor_ids(self) -> tuple[str, ...]:
         return self.ranges.anchor_ids
-
-
-def _split(line: str) -> list[str]:
-    return line.rstrip("\r\n").split("\t")
 
 
 def read_packets(path: str | os.PathLike, *, anchor_ids=None, tag_id: str | None = None,
@@ -139,7 +131,7 @@ def read_packets(path: str | os.PathLike, *, anchor_ids=None, tag_id: str | None
     lines = _decode_lines(path, _read_bytes(path))
     if not lines or not lines[0].strip():
         raise DataFormatError(path, f"empty file; expected the header {'<TAB>'.join(HEADER)!r}", line=1)
-    head = [h.strip() for h in _split(lines[0])]
+    head = [h.strip() for h in lines[0].split("\t")]
     if tuple(head) != HEADER:
         raise DataFormatError(path, f"header is {lines[0]!r}; expected the tab-separated fields {list(HEADER)}",
                               line=1)
@@ -149,45 +141,31 @@ def read_packets(path: str | os.PathLike, *, anchor_ids=None, tag_id: str | None
             raise ValueError(f"anchor_ids must be unique, got {anchor_ids}")
         known = set(anchor_ids)
 
-    stamps, ids, values, ok, line_no = [], [], [], [], []
-    n_blank = 0
-    for i, raw in enumerate(lines[1:], start=2):
-        if not raw.strip():
-            n_blank += 1
-            continue
-        fields = [f.strip() for f in _split(raw)]
-        if len(fields) != len(HEADER):
-            raise DataFormatError(path, f"expected {len(HEADER)} tab-separated fields "
-                                        f"({', '.join(HEADER)}), found {len(fields)}: {raw!r}", line=i)
-        ts, aid, rng_txt, status = fields
-        if not _INT_RE.fullmatch(ts):
-            raise DataFormatError(path, f"timestamp {ts!r} is not an integer number of milliseconds",
-                                  line=i, column="timestamp")
-        if int(ts) >= _MAX_MS:
-            raise DataFormatError(path, f"timestamp {ts!r} is out of range (milliseconds below {_MAX_MS})",
-                                  line=i, column="timestamp")
+    body = [(i, ln) for i, ln in enumerate(lines[1:], start=2) if ln.strip()]
+    if not body:
+        raise DataFormatError(path, "the file holds a header but no packets", line=len(lines))
+    n_blank = len(lines) - 1 - len(body)
+    fields, line_no = _split_rows(path, body, "\t", HEADER, what="packet", header_line=1)
+    ts, ids, status = ([f[k].strip() for f in fields] for k in (0, 1, 3))
+    for i, (stamp, aid, state) in enumerate(zip(ts, ids, status)):
+        line = int(line_no[i])
+        if not _INT_RE.fullmatch(stamp):
+            raise DataFormatError(path, f"timestamp {stamp!r} is not an integer number of milliseconds",
+                                  line=line, column="timestamp")
+        if int(stamp) >= _MAX_MS:
+            raise DataFormatError(path, f"timestamp {stamp!r} is out of range (milliseconds below {_MAX_MS})",
+                                  line=line, column="timestamp")
         if not _ID_RE.fullmatch(aid):
-            raise DataFormatError(path, f"anchor ID {aid!r} is empty or contains white space",
-                                  line=i, column="anchor ID")
+            raise DataFormatError(path, f"anchor ID {aid!r} is empty or contains white space", line=line,
+                                  column="anchor ID")
         if anchor_ids is not None and aid not in known:
             raise DataFormatError(path, f"anchor ID {aid!r} is not one of the expected {list(anchor_ids)}",
-                                  line=i, column="anchor ID")
-        if status not in _STATUSES:
-            raise DataFormatError(path, f"status {status!r} is neither 'OK' nor 'ERR'", line=i, column="status")
-        if not re.fullmatch(NUMBER_RE, rng_txt):
-            raise DataFormatError(path, f"ranging {rng_txt!r} is not a number (metres)", line=i, column="ranging")
-        stamps.append(int(ts))
-        ids.append(aid)
-        values.append(float(rng_txt))
-        ok.append(status == "OK")
-        line_no.append(i)
-    if not stamps:
-        raise DataFormatError(path, "the file holds a header but no packets", line=len(lines))
-
-    ms = np.asarray(stamps, dtype=np.int64)
-    okv = np.asarray(ok, bool)
-    line_no = np.asarray(line_no, np.int64)
-    range_m = np.asarray(values, float)
+                                  line=line, column="anchor ID")
+        if state not in _STATUSES:
+            raise DataFormatError(path, f"status {state!r} is neither 'OK' nor 'ERR'", line=line, column="status")
+    range_m = _numbers(path, [f[2] for f in fields], line_no, "ranging")
+    ms = np.array([int(v) for v in ts], dtype=np.int64)
+    okv = np.array(status) == "OK"
     cleaning: list[CleaningStep] = []
     if n_blank:
         cleaning.append(CleaningStep("blank lines skipped", n_blank, "empty lines between packets"))

@@ -30,13 +30,14 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from importlib import import_module
 from pathlib import Path
 from typing import Any, Callable
 
 from ..errors import DataNotFoundError
 from .discovery import find_dataset
 
-__all__ = ["Source", "datasets", "names", "open", "open_pair", "register", "sources", "split_name"]
+__all__ = ["Source", "datasets", "names", "open", "open_pair", "register"]
 
 PathLike = str | os.PathLike
 
@@ -80,24 +81,13 @@ def register(source: Source) -> Source:
     return source
 
 
-def sources() -> list[Source]:
-    """The registered sources."""
-    return list(_SOURCES)
-
-
 def datasets() -> list[str]:
     """Names of the datasets that have a registered loader."""
-    return list(dict.fromkeys(s.dataset for s in sources()))
-
-
-def split_name(spec: str) -> tuple[str, str]:
-    """``"dataset/name"`` → ``("dataset", "name")``; a bare dataset gives an empty name."""
-    dataset, _, name = str(spec).strip("/").partition("/")
-    return dataset, name
+    return list(dict.fromkeys(s.dataset for s in _SOURCES))
 
 
 def _sources_of(dataset: str) -> list[Source]:
-    found = [s for s in sources() if s.dataset == dataset]
+    found = [s for s in _SOURCES if s.dataset == dataset]
     if not found:
         raise ValueError(f"no loader for a dataset called {dataset!r}; known datasets: {datasets()} "
                          f"(or give a folder holding ranges.csv and anchors.csv)")
@@ -117,21 +107,6 @@ def names(dataset: str, data_dir: PathLike | None = None) -> list[str]:
     for s in _sources_of(dataset):
         out += [f"{dataset}/{n}" for n in s.names(data_dir)]
     return out
-
-
-def _tidy_folder(spec: PathLike) -> Path | None:
-    path = Path(spec).expanduser()
-    return path if path.is_dir() and (path / "ranges.csv").is_file() else None
-
-
-def _open_tidy(path: Path):
-    from . import tidy
-
-    anchors, truth = path / "anchors.csv", path / "truth.csv"
-    if not anchors.is_file():
-        raise DataNotFoundError(f"{path}: a tidy recording folder needs ranges.csv and anchors.csv "
-                                f"(and truth.csv to be scored); see uwbwb/datasets/tidy.py")
-    return tidy.load_recording(path / "ranges.csv", anchors, truth if truth.is_file() else None, name=path.name)
 
 
 def open(spec: PathLike, data_dir: PathLike | None = None, **options):  # noqa: A001 (uw.datasets.open)
@@ -155,12 +130,19 @@ def open(spec: PathLike, data_dir: PathLike | None = None, **options):  # noqa: 
     ValueError
         No loader for that dataset, or no name given.
     """
-    folder = _tidy_folder(spec)
-    if folder is not None:
+    folder = Path(spec).expanduser()
+    if folder.is_dir() and (folder / "ranges.csv").is_file():
+        from . import tidy
+
+        anchors, truth = folder / "anchors.csv", folder / "truth.csv"
         if options:
             raise ValueError(f"open: a tidy folder takes no loader options, got {sorted(options)}")
-        return _open_tidy(folder)
-    dataset, name = split_name(spec)
+        if not anchors.is_file():
+            raise DataNotFoundError(f"{folder}: a tidy recording folder needs ranges.csv and anchors.csv "
+                                    f"(and truth.csv to be scored); see uwbwb/datasets/tidy.py")
+        return tidy.load_recording(folder / "ranges.csv", anchors, truth if truth.is_file() else None,
+                                   name=folder.name)
+    dataset, _, name = str(spec).strip("/").partition("/")
     candidates = _sources_of(dataset)
     if not name:
         raise ValueError(f"open: {spec!r} names a dataset but no recording; its names: {names(dataset, data_dir)}")
@@ -200,6 +182,11 @@ def open_pair(calibration: PathLike, test: PathLike, data_dir: PathLike | None =
 
 # ---------------------------------------------------------------------------------- built-in sources
 
+def _lazy(module: str, function: str):
+    """``function`` of the loader module ``module``, imported on the first call."""
+    return lambda *args, **options: getattr(import_module(f".{module}", __package__), function)(*args, **options)
+
+
 def _lias_names(data_dir):
     from . import lias
 
@@ -223,12 +210,6 @@ def _iasl_names(data_dir):
     return list(table.loc[table["has_uwb"], "name"])
 
 
-def _iasl_load(name, data_dir, **options):
-    from . import iasl
-
-    return iasl.load_scenario(name, data_dir, **options)
-
-
 def _hanyang_static_names(data_dir):
     from . import hanyang
 
@@ -248,20 +229,9 @@ def _hanyang_static_load(name, data_dir, **options):
 
 register(Source("lias-planar-uwb", _lias_names, _lias_load,
                 "a dynamic run (fast, medium, ...) or a static pose SESSION/posK_deg_YAW"))
-register(Source("iasl-uwb-imu", _iasl_names, _iasl_load, "a scenario folder (scenario1, scenario2, ...)"))
+register(Source("iasl-uwb-imu", _iasl_names, _lazy("iasl", "load_scenario"),
+                "a scenario folder (scenario1, scenario2, ...)"))
 register(Source("hanyang-outdoor-uwb", _hanyang_static_names, _hanyang_static_load,
                 "the static sample table: static, static/LOS or static/NLOS"))
-def _hanyang_dynamic_names(data_dir):
-    from . import hanyang_dynamic
-
-    return hanyang_dynamic.dynamic_cases(data_dir)
-
-
-def _hanyang_dynamic_load(name, data_dir, **options):
-    from . import hanyang_dynamic
-
-    return hanyang_dynamic.load_dynamic_case(name, data_dir, **options)
-
-
-register(Source("hanyang-outdoor-uwb", _hanyang_dynamic_names, _hanyang_dynamic_load,
-                "a dynamic case CONDITION/Trajectory_X/Case_N"))
+register(Source("hanyang-outdoor-uwb", _lazy("hanyang_dynamic", "dynamic_cases"),
+                _lazy("hanyang_dynamic", "load_dynamic_case"), "a dynamic case CONDITION/Trajectory_X/Case_N"))

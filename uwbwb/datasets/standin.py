@@ -65,11 +65,6 @@ class RoomData:
         return self.dynamic is not None and not self.synthetic
 
     @property
-    def available(self) -> bool:
-        """Whether there is anything to run on (real data or a stand-in)."""
-        return self.dynamic is not None
-
-    @property
     def data_label(self) -> str:
         """The ``data`` field of summary rows: ``synthetic`` or ``dataset/recording``."""
         if self.dynamic is None:
@@ -104,7 +99,7 @@ def load_lias_room(data_dir=None, recording: str = "fast", static_session: str =
         Load only these nominal yaws of every site (default: all).
     stand_in
         A :class:`uwbwb.sim.rig.RigConfig`: simulate that rig when the dataset is
-        absent. None: return no data (``available`` False) instead.
+        absent. None: return no data (``dynamic`` None) instead.
     static_duration_s
         Length of each simulated static pose, seconds.
     rng

@@ -111,16 +111,6 @@ def _to_float(value) -> float:
         return math.nan
 
 
-def _identifiers(path: PathLike, values: Sequence[str], line_no: np.ndarray, column: str) -> list[str]:
-    """Stripped identifiers; empty or non-printable ones raise."""
-    out = [v.strip() for v in values]
-    for i, v in enumerate(out):
-        if not v or not v.isprintable():
-            raise DataFormatError(path, f"{column} must be a non-empty printable identifier, got {values[i]!r}",
-                                  line=int(line_no[i]), column=column)
-    return out
-
-
 def _split_rows(path: PathLike, numbered: Sequence[tuple[int, str]], sep: str, names: Sequence[str], *,
                 what: str, header_line: int) -> tuple[list[list[str]], np.ndarray]:
     """Fields and 1-based line numbers of the data lines ``(line_no, text)`` after a header.

@@ -110,7 +110,7 @@ import pandas as pd
 from ..errors import DataFormatError
 from ..types import Anchors, CleaningStep, RangeLog, Recording, Trajectory, _natural_key
 from .cleaning import MAX_RANGE_M, check_ranges, order_rows
-from .text import PathLike, _csv_table, _identifiers, _numbers, _read_bytes
+from .text import PathLike, _csv_table, _numbers, _read_bytes
 
 NAME = "tidy"
 
@@ -170,22 +170,6 @@ def _header(path: PathLike, data: bytes, headers: Sequence[tuple[str, ...]], wha
     raise DataFormatError(path, f"empty {what} file: expected a header line {','.join(headers[-1])!r} and data lines")
 
 
-class _Tail(io.RawIOBase):
-    """A read-only stream over ``data[start:]`` that copies only the chunks the parser asks for."""
-
-    def __init__(self, data: bytes, start: int):
-        self._view, self._pos = memoryview(data), start
-
-    def readable(self) -> bool:
-        return True
-
-    def readinto(self, buffer) -> int:
-        n = min(len(buffer), len(self._view) - self._pos)
-        buffer[:n] = self._view[self._pos:self._pos + n]
-        self._pos += n
-        return n
-
-
 def _body_line_numbers(data: bytes, start: int, first_line: int, n_rows: int) -> np.ndarray | None:
     """File lines of the data rows in ``data[start:]`` (the bytes after the header), skipping empty and
     comment lines as the format says; None if they do not add up to ``n_rows``."""
@@ -208,7 +192,9 @@ def _fast_table(path: PathLike, data: bytes, start: int, header: tuple[str, ...]
     names = list(header) + ["__extra__"]
     dtype = {c: (float if c in numeric else "category") for c in names}
     try:
-        frame = pd.read_csv(io.BufferedReader(_Tail(data, start)), header=None, names=names, dtype=dtype,
+        body = io.BytesIO(data)   # shares ``data``: the parser copies only the chunks it reads
+        body.seek(start)
+        frame = pd.read_csv(body, header=None, names=names, dtype=dtype,
                             engine="c", encoding="utf-8", keep_default_na=False,
                             na_values={c: [""] for c in empty_ok}, skipinitialspace=True, skip_blank_lines=True,
                             comment="#", index_col=False, quoting=csv.QUOTE_NONE)
@@ -304,15 +290,14 @@ def read_anchors_csv(path: PathLike) -> Anchors:
         Bad header, field count, number or identifier, a repeated identifier,
         or no anchors at all.
     """
-    _, cols, line_no = _csv_table(path, (ANCHORS_HEADER,), "anchors")
-    ids = _identifiers(path, cols["anchor_id"], line_no, "anchor_id")
-    seen: dict[str, int] = {}
-    for i, a in enumerate(ids):
-        if a in seen:
-            raise DataFormatError(path, f"repeated anchor_id {a!r} (first on line {seen[a]})", line=int(line_no[i]))
-        seen[a] = int(line_no[i])
-    pos = np.column_stack([_numbers(path, cols[c], line_no, c) for c in ("x_m", "y_m", "z_m")])
-    return Anchors(tuple(ids), pos)
+    table = _typed_table(path, (ANCHORS_HEADER,), "anchors", ANCHORS_HEADER[1:])
+    code, names = _identifier_codes(path, table, "anchor_id")
+    repeated = np.flatnonzero(pd.Series(code).duplicated().to_numpy())
+    if repeated.size:
+        i = int(repeated[0])
+        raise DataFormatError(path, f"repeated anchor_id {names[code[i]]!r} (first on line "
+                                    f"{table.line_no[np.argmax(code == code[i])]})", line=int(table.line_no[i]))
+    return Anchors(tuple(names[c] for c in code), np.column_stack([table.floats[c] for c in ANCHORS_HEADER[1:]]))
 
 
 def read_ranges_csv(path: PathLike, anchors: Anchors | None = None, *, with_cleaning: bool = False,

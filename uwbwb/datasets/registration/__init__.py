@@ -25,17 +25,17 @@ assumes an offset of zero.
 
 Modules
 -------
-:mod:`.clock` (quaternions, frame conventions, :func:`residual_spread`,
+:mod:`.clock` (frame conventions, :func:`residual_spread`,
 :func:`fit_clock_offset_and_convention`, :class:`RegistrationError`), :mod:`.truth`
 (:func:`register_truth`, :class:`Registration`) and :mod:`.imu` (:func:`align_imu`, :func:`align_imu_to_ranges`,
 :class:`ImuAlignment`); every name importable from here.
 """
 
 from .clock import (BODY_FLIPS, GRAVITY_MPS2, QUAT_ORDERS, ClockFrameFit, RegistrationError, body_points,
-                    fit_clock_offset_and_convention, frame_rotation, quaternion_to_rot, residual_spread)
+                    fit_clock_offset_and_convention, frame_rotation, residual_spread)
 from .imu import ImuAlignment, align_imu, align_imu_to_ranges
 from .truth import Registration, register_truth
 
 __all__ = ["BODY_FLIPS", "GRAVITY_MPS2", "QUAT_ORDERS", "ClockFrameFit", "ImuAlignment", "Registration",
            "RegistrationError", "align_imu", "align_imu_to_ranges", "body_points", "fit_clock_offset_and_convention", "frame_rotation",
-           "quaternion_to_rot", "register_truth", "residual_spread"]
+           "register_truth", "residual_spread"]

@@ -11,6 +11,7 @@ import numpy as np
 
 from ...calibration import MAD_TO_SIGMA
 from ...errors import DataFormatError
+from ...models.ins import quat_convert, quat_to_dcm
 
 #: Standard gravity used for the specific-force cross-check, m/s².
 GRAVITY_MPS2 = 9.80665
@@ -27,32 +28,6 @@ class RegistrationError(ValueError):
 # --------------------------------------------------------------------------------------------
 # Rigid-body motion capture: quaternions, clock offset and frame convention from the ranges
 # --------------------------------------------------------------------------------------------
-
-def quaternion_to_rot(quat: np.ndarray, order: str = "wxyz") -> np.ndarray:
-    """Body-to-world rotation matrices from unit quaternions.
-
-    Parameters
-    ----------
-    quat
-        Quaternions, shape ``(T, 4)``, components in ``order``; normalised here.
-    order
-        ``"wxyz"`` (scalar first) or ``"xyzw"`` (scalar last).
-
-    Returns
-    -------
-    ndarray, shape (T, 3, 3)
-    """
-    if order not in QUAT_ORDERS:
-        raise ValueError(f"order must be one of {QUAT_ORDERS}, got {order!r}")
-    q = np.asarray(quat, float)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q if order == "wxyz" else q[..., [3, 0, 1, 2]], -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
-
 
 def _nanmedian(x: np.ndarray, axis: int) -> np.ndarray:
     """Median ignoring NaN along ``axis``; NaN where nothing is finite (and no warning)."""
@@ -122,8 +97,9 @@ def body_points(pos_m, rot, offsets_m) -> np.ndarray:
 
 
 def frame_rotation(quat, order: str, flip: str) -> np.ndarray:
-    """Tag-frame-to-world rotations ``R(q) @ F`` for a quaternion order and body-frame turn."""
-    return quaternion_to_rot(quat, order) * np.asarray(BODY_FLIPS[flip])[None, None, :]
+    """Tag-frame-to-world rotations ``R(q) @ F`` for a quaternion order (``"wxyz"`` or ``"xyzw"``) and body-frame
+    turn."""
+    return quat_to_dcm(quat_convert(quat, order, "wxyz")) * np.asarray(BODY_FLIPS[flip])[None, None, :]
 
 
 def _parabola_vertex(x: np.ndarray, y: np.ndarray) -> float:

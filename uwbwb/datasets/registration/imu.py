@@ -50,14 +50,6 @@ class ImuAlignment:
     method: str = ""
     half_offsets_s: tuple[float, float] | None = None
 
-    def as_dict(self) -> dict:
-        return {"offset_s": self.offset_s, "peak_corr": self.peak_corr,
-                "second_peak_corr": self.second_peak_corr, "acc_offset_s": self.acc_offset_s,
-                "acc_corr": self.acc_corr,
-                "gyro_axes_corr": None if self.gyro_axes_corr is None else np.round(self.gyro_axes_corr, 3).tolist(),
-                "method": self.method,
-                "half_offsets_s": None if self.half_offsets_s is None else list(self.half_offsets_s)}
-
 
 def _pearson(x: np.ndarray, y: np.ndarray) -> float:
     ok = np.isfinite(x) & np.isfinite(y)

@@ -99,16 +99,6 @@ class Registration:
         rot = None if truth.rot is None else np.einsum("ij,tjk->tik", r, truth.rot)
         return Trajectory(truth.t_s + self.time_offset_s, pos, vel, rot, name or truth.name)
 
-    def as_dict(self) -> dict:
-        """Plain numbers and lists, for reports and JSON."""
-        return {"time_offset_s": self.time_offset_s, "translation_m": [float(v) for v in self.translation_m],
-                "yaw_deg": float(np.degrees(self.yaw_rad)), "range_bias_m": self.range_bias_m,
-                "rms_m": self.rms_m, "robust_sigma_m": self.robust_sigma_m, "median_abs_m": self.median_abs_m,
-                "per_anchor_median_m": dict(self.per_anchor_median_m), "std": dict(self.std),
-                "half_offsets_s": list(self.half_offsets_s), "coarse_time_offset_s": self.coarse_time_offset_s,
-                "yaw_check_deg": self.yaw_check_deg, "yaw_check_rms_m": self.yaw_check_rms_m,
-                "n_epochs": self.n_epochs, "n_residuals": self.n_residuals, "method": self.method}
-
 
 def _lag_grid(lo: float, hi: float, step: float, max_points: int) -> np.ndarray:
     step = max(step, (hi - lo) / max_points)

@@ -147,7 +147,7 @@ def reproduce_authors(case: PathLike, data_dir: PathLike | None = None) -> pd.Da
     path = Path(rec.meta["source"]["folder"]) / "RMSD_results.txt"
     published = read_rmsd_results(path) if path.is_file() else {}
     rows = []
-    for method, est in hanyang_dynamic.authors_estimates(rec).items():
+    for method, est in rec.meta["authors_estimates"].items():
         e = authors_errors(rec.truth["tag"], est, shape)
         for metric, key, err in (("RMSE 3-D", "rmse_m", e["err_3d_m"]), ("RMSE 2-D", "rmse_2d_m", e["err_2d_m"])):
             mine = metrics.rmse(err) if err.size else float("nan")
