@@ -366,7 +366,7 @@ def test_the_summary_ladder_rows_are_the_numbers_the_ladder_table_shows():
     assert res.ratio("LS", "LS + gate", "dyn_rmse")["ratio"] == pytest.approx(3.0)
     table = ladder.ladder_table(res, metrics=("dyn_rmse",))
     rows = {r["quantity"]: r["value"] for r in headlines.ablation_rows(res)}
-    (q,) = [k for k in rows if k.startswith("ablation ratio LS / LS + gate, dynamic RMSE")]
+    (q,) = [k for k in rows if k.startswith("ablation ratio LS / LS + gate, dynamic RMSE") and "95 %" not in k]
     assert rows[q] == table.loc[step, ("dyn_rmse", "ratio")] == pytest.approx(1.0)
 
 
@@ -376,15 +376,23 @@ def test_every_ablation_ratio_row_is_the_cell_of_the_table_it_comes_from():
     table = ladder.ladder_table(res)
     for what, a, b in ab.LADDER:
         for m, label in (("dyn_rmse", "dynamic RMSE"), ("outage_max", "outage max error")):
-            q = [k for k in rows if k.startswith(f"ablation ratio {a} / {b}, {label} ({what};")]
+            q = [k for k in rows if k.startswith(f"ablation ratio {a} / {b}, {label} ({what};") and "95 %" not in k]
             if q:
-                r = ladder.pair_rmse(res, what, m)["ratio"]
+                p = ladder.pair_rmse(res, what, m)
+                r = p["ratio"]
                 assert rows[q[0]] == table.loc[what, (m, "ratio")] == r
                 assert _row(res, f"{what}: {facts._METRIC_WORDS[m]}").ours == f"{r:.2f}×"
+                # the interval ends beside it are the table's (and the verdict row's)
+                assert (rows[f"{q[0]}, 95 % low"], rows[f"{q[0]}, 95 % high"]) == (
+                    table.loc[what, (m, "lo")], table.loc[what, (m, "hi")]) == (p["lo"], p["hi"])
+                assert _row(res, f"{what}: {facts._METRIC_WORDS[m]}").interval == f"[{p['lo']:.2f}, {p['hi']:.2f}]"
     for case in res.config.cases[1:]:
         for other in ("EKF + gate", "loose + gate"):
-            (q,) = [k for k in rows if k.startswith(f"mismatch '{case}': outage max error {other} / tight + gate")]
-            r = facts.kept(res, other, "outage_max", case)["ratio"]
+            (q,) = [k for k in rows if k.startswith(f"mismatch '{case}': outage max error {other} / tight + gate")
+                    and "95 %" not in k]
+            kr = facts.kept(res, other, "outage_max", case)
+            r = kr["ratio"]
+            assert (rows[f"{q}, 95 % low"], rows[f"{q}, 95 % high"]) == (kr["lo"], kr["hi"])
             assert rows[q] == r and _row(res, f"{case}: {other} / tight + gate, max outage error").ours.startswith(
                 f"{r:.2f}×")
         t = res.table(case)

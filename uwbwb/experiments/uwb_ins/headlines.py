@@ -35,7 +35,8 @@ def ablation_rows(res: AblationResult) -> list[dict]:
     """Summary rows (keyword arguments of :meth:`uwbwb.metrics.Summary.add`) of the ablation:
     mean scores per row (matched), the ladder ratios on the dynamic RMSE and the outage — each the number
     :func:`~.ladder.ladder_table` shows, both rows scored on the epochs both cover (:func:`~.ladder.pair_rmse`) —,
-    the outage ratio of tight coupling under each mismatch case, and the eq-4 counts."""
+    the outage ratio of tight coupling under each mismatch case, each ratio with its 95 % interval ends over seeds
+    (the verdict table's), and the eq-4 counts."""
     cfg = res.config
     n = cfg.seeds
     out = []
@@ -53,12 +54,18 @@ def ablation_rows(res: AblationResult) -> list[dict]:
             out.append(dict(quantity=f"ablation: slowest re-acquisition after the outage, {r} (time to get below "
                                      f"{RECOVERY_MAX_M:g} m and hold {HOLD_S:g} s; worst of {n} seeds, matched model)",
                             value=float(rec[r].max()), unit="s", data="synthetic", kind="reproduced"))
+    def ratio_rows(quantity: str, r: dict) -> list[dict]:
+        """The ratio and, where the seeds give one, its 95 % interval ends (the verdict table's numbers)."""
+        rows = [(quantity, r["ratio"])] + [(f"{quantity}, 95 % {end}", r[key]) for end, key in (("low", "lo"),
+                                                                                             ("high", "hi"))
+                                           if np.isfinite(r["lo"]) and np.isfinite(r["hi"])]
+        return [dict(quantity=q, value=v, unit="", data="synthetic", kind="reproduced") for q, v in rows]
+
     for what, a, b in LADDER:
         for m, label in (("dyn_rmse", "dynamic RMSE"), ("outage_max", "outage max error")):
             r = pair_rmse(res, what, m)
             if np.isfinite(r["ratio"]):
-                out.append(dict(quantity=f"ablation ratio {a} / {b}, {label} ({what}; geometric mean of {r['n']} "
-                                         f"seeds)", value=r["ratio"], unit="", data="synthetic", kind="reproduced"))
+                out += ratio_rows(f"ablation ratio {a} / {b}, {label} ({what}; geometric mean of {r['n']} seeds)", r)
     for case in cfg.cases[1:]:
         t = res.table(case)
         for r in t.index:
@@ -70,9 +77,7 @@ def ablation_rows(res: AblationResult) -> list[dict]:
         for other in ("EKF + gate", EKF_TDOA_GATE, "loose + gate"):
             r = res.ratio(other, "tight + gate", "outage_max", case)
             if np.isfinite(r["ratio"]):
-                out.append(dict(quantity=f"mismatch '{case}': outage max error {other} / tight + gate "
-                                         f"({r['n']} seeds)", value=r["ratio"], unit="", data="synthetic",
-                                kind="reproduced"))
+                out += ratio_rows(f"mismatch '{case}': outage max error {other} / tight + gate ({r['n']} seeds)", r)
     for case, c in res.counts.items():
         out.append(dict(quantity=f"ablation '{case}': injected multipath TDoAs removed by eq. 4",
                         value=c["eq4_on_injected"], unit="", data="synthetic", kind="reproduced"))
