@@ -41,7 +41,7 @@ def profile(notebook: Path, params: dict, out_dir: Path) -> tuple[float, Path]:
     nbformat.write(nb, source)
     t0 = time.perf_counter()
     _papermill(source, out_dir / f"{notebook.stem}.executed.ipynb", {**params, "SUMMARY_PATH": str(
-        out_dir / f"{notebook.stem}.summary.json")}, notebook.parent, None, rp.KERNEL_NAME)
+        out_dir / f"{notebook.stem}.summary.json")}, notebook.parent, None)
     return time.perf_counter() - t0, stats
 
 

@@ -198,8 +198,6 @@ def test_bad_arguments_are_reported():
         list(par.imap(_draw, _tasks(), shared={"i": 1, "scale": 1.0}))
     with pytest.raises(ValueError, match="scheduler must be"):
         par.connect(42)
-    assert "2 tasks, 30 draw in all, 10–20 draw per task" == par.plan_summary(
-        [par.Task(size=10), par.Task(size=20)], unit="draw")
 
 
 # --------------------------------------------------------------------------- connecting to a scheduler

@@ -65,8 +65,8 @@ def test_floor_plan():
     assert ax.get_aspect() == 1.0
     assert ax.get_xlabel() == "x (m)" and ax.get_ylabel() == "y (m)"
     _, ax2 = plt.subplots()
-    assert plotting.floor_plan(ANCHORS.pos_m[:, :2], ax2, annotate=False) is ax2
-    assert len(ax2.texts) == 0
+    assert plotting.floor_plan(ANCHORS.pos_m[:, :2], ax2) is ax2
+    assert [t.get_text() for t in ax2.texts] == ["0", "1", "2", "3"]
     with pytest.raises(ValueError):
         plotting.floor_plan(np.zeros(3))
 

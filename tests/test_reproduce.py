@@ -100,7 +100,7 @@ def test_summary_markdown_has_numbers_and_status(ran):
     assert "| 01_good | doubled N | 10 (FAST) | m |  | reproduced | FAST | synthetic run |" in md  # blank paper value
     assert r"| 01_good | fast \| flag | True (FAST) |  | 1 | target | FAST | synthetic |" in md
     head = md.split("## Headline numbers")[0]
-    assert "**FAST mode.** All rows come from FAST runs (01_good)" in head
+    assert "**FAST mode.** Rows marked (FAST) come from FAST runs" in head
     status = {}
     for line in md.splitlines():
         cells = line.removeprefix("| ").removesuffix(" |").split(" | ")
@@ -274,7 +274,7 @@ def test_summary_markdown_formats_values():
     assert "`FAST=False`" in md and "All 1 notebooks ok." in md
     md = rp.summary_markdown([rp.NotebookRun(**{**run.__dict__, "rows": (row, fast)})])
     assert "| nb | CEP50 | 0.1235 (FAST) | m | 0.1 | target | FAST | sim |" in md
-    assert md.index("**FAST mode.** 1 of 2 rows come from FAST runs (nb)") < md.index("## Headline numbers")
+    assert md.index("**FAST mode.** Rows marked (FAST) come from FAST runs") < md.index("## Headline numbers")
 
 
 def test_reproduce_says_which_notebooks_get_a_parameter_only_some_declare(tmp_path, monkeypatch):

@@ -74,6 +74,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from . import reproduce
+from .reproduce import INJECTED_TAG
 from .coding import EXERCISE_TAG, answer_cell
 from .widgets.notes import RIGHT
 
@@ -82,7 +83,7 @@ __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "M
            "PREDICTION_TAG", "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "answer_key", "axes_problems", "axes_record",
            "class_limits", "class_values", "code_rules", "cut_tables", "figure_audit", "fold_research", "handout_html", "hook_cell",
            "image_count", "install_figure_recorder", "main", "markdown_page_html", "math_svg", "mathtext_source",
-           "notebook_links", "record_figure", "relative_links", "relink_notebook", "run_class", "set_parameters",
+           "notebook_links", "record_figure", "relative_links", "run_class", "set_parameters",
            "source_indices", "static_panels", "static_widget_html", "student_notebook", "unresolved_links",
            "write_student_folder", "wrong_predictions"]
 
@@ -90,8 +91,6 @@ __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "M
 RESEARCH_TAG = "research"
 #: Tag of the cell :func:`hook_cell` adds to a copy of a notebook (not a cell of the notebook).
 AUDIT_HOOK_TAG = "audit-hook"
-#: papermill's tag of the cell holding the parameters it injected.
-INJECTED_TAG = "injected-parameters"
 MAX_MARKDOWN_WORDS = 200
 MAX_FRONT_WORDS = 150
 MAX_TABLE_ROWS = 25
@@ -712,15 +711,6 @@ class _Companions:
         return written
 
 
-def relink_notebook(nb, companions: _Companions, source_dir: Path, out_dir: Path):
-    """Relink the Markdown cells of ``nb`` (in place) for a copy in ``out_dir`` (see :class:`_Companions`)."""
-    out_dir = Path(out_dir).resolve()
-    for cell in nb.cells:
-        if cell.cell_type == "markdown":
-            cell.source = companions.relink(cell.source, source_dir, out_dir, out_dir)
-    return nb
-
-
 # ---------------------------------------------------------------- handouts: math and panels
 
 _SIMPLE_TEX = [(r"\\[bB]igg?[lrm]?(?![A-Za-z])", ""), (r"\\[lr]Vert(?![A-Za-z])", r"\\Vert "),
@@ -869,8 +859,6 @@ def static_widget_html(model_id: str, state: Mapping[str, dict]) -> str:
         return f'<div class="{html_mod.escape(classes)}">{s.get("value", "")}</div>'
     if name == "OutputModel":
         return "".join(_static_output(o) for o in s.get("outputs", []))
-    if name == "ButtonModel":
-        return ""
     if name in ("FloatProgressModel", "IntProgressModel"):       # e.g. a tqdm bar, at its end
         return (f'<progress value="{_format_value(s.get("value", 0), None)}" '
                 f'max="{_format_value(s.get("max", 100), None)}"></progress>')
@@ -1082,7 +1070,10 @@ def write_student_folder(notebooks: Iterable[Path], student_dir: Path) -> tuple[
     for source, nb in sources.items():
         copies[source] = student_dir / source.name
         student = student_notebook(nb, class_values(reproduce.notebook_parameters(source)))
-        nbformat.write(relink_notebook(student, companions, source_dir, student_dir), copies[source])
+        for cell in student.cells:           # links follow the copies (see _Companions)
+            if cell.cell_type == "markdown":
+                cell.source = companions.relink(cell.source, source_dir, student_dir.resolve(), student_dir.resolve())
+        nbformat.write(student, copies[source])
     return companions, copies
 
 
@@ -1112,16 +1103,11 @@ def _answer_companions(companions: _Companions, answers_dir: Path, teaching: Pat
 
 
 def run_class(notebooks: Iterable[Path], out_dir: Path, *, kernel_name: str = reproduce.KERNEL_NAME,
-              timeout_s: float | None = 600, teaching: Path | None = None, log=print) -> list[dict]:
+              timeout_s: float | None = 600, log=print) -> list[dict]:
     """Write the class folders of ``notebooks`` under ``out_dir`` (see the module docstring): the
     student folder first (:func:`write_student_folder`), then each student copy executed in that folder
-    into the answers folder, with its handout.
-
-    Parameters
-    ----------
-    teaching
-        The lecturer's notes copied into the answers folder; default ``TEACHING.md`` in the folder above
-        the notebooks' (skipped, with a note, when there is none).
+    into the answers folder, with its handout. The lecturer's notes are ``TEACHING.md`` in the folder above
+    the notebooks' (skipped, with a note, when there is none).
 
     Returns
     -------
@@ -1137,13 +1123,11 @@ def run_class(notebooks: Iterable[Path], out_dir: Path, *, kernel_name: str = re
     out_dir = Path(out_dir)
     student_dir, answers_dir = out_dir / STUDENT_DIR, out_dir / ANSWERS_DIR
     answers_dir.mkdir(parents=True, exist_ok=True)
-    for source in notebooks:     # the single-folder layout this one replaced, and this run's earlier output
-        for stale in (out_dir / f"{source.stem}.ipynb", out_dir / f"{source.stem}.html",
-                      answers_dir / f"{source.stem}.ipynb", answers_dir / f"{source.stem}.html"):
+    for source in notebooks:     # this run's earlier output
+        for stale in (answers_dir / f"{source.stem}.ipynb", answers_dir / f"{source.stem}.html"):
             stale.unlink(missing_ok=True)
     companions, copies = write_student_folder(notebooks, student_dir)
-    teaching = (companions.root.parent / TEACHING_NAME) if teaching is None else Path(teaching)
-    link_map = _answer_companions(companions, answers_dir, teaching, log)
+    link_map = _answer_companions(companions, answers_dir, companions.root.parent / TEACHING_NAME, log)
 
     runs = []
     for source in notebooks:

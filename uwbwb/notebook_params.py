@@ -48,8 +48,6 @@ def _fmt(x) -> str:
         return f"{x:.0e}"
     if isinstance(x, int) and x == INT_MAX:
         return "2**63 - 1"
-    if isinstance(x, int) and x == -INT_MAX - 1:
-        return "-2**63"
     return f"{x:g}" if isinstance(x, float) else repr(x)
 
 

@@ -63,7 +63,7 @@ import numpy as np
 
 __all__ = ["LOCAL", "WORKER_ENVIRON", "CONNECT_TIMEOUT_S", "Task", "TaskError", "TaskInterrupted",
            "SchedulerUnreachable", "spawn", "imap", "connect", "probe", "connect_timeout_s", "check_scheduler_address",
-           "describe", "local_cluster", "plan_summary", "shutdown"]
+           "describe", "local_cluster", "shutdown"]
 
 #: The ``scheduler`` value that starts a :class:`distributed.LocalCluster` sized to the machine.
 LOCAL = "local"
@@ -148,16 +148,6 @@ def spawn(seed, n: int) -> list[np.random.SeedSequence]:
     else:
         root = np.random.SeedSequence(seed)
     return root.spawn(int(n))
-
-
-def plan_summary(tasks: Iterable[Task], *, unit: str = "task") -> str:
-    """A dry run: how many tasks a sweep has and how the work is split (nothing is computed)."""
-    tasks = list(tasks)
-    sizes = np.array([t.size for t in tasks], float)
-    if not tasks:
-        return "0 tasks"
-    return (f"{len(tasks)} tasks, {sizes.sum():.3g} {unit} in all, {sizes.min():.3g}–{sizes.max():.3g} "
-            f"{unit} per task")
 
 
 # --------------------------------------------------------------------------- clusters

@@ -87,8 +87,8 @@ def _scale(unit: str) -> float:
     return _UNIT_SCALE[unit]
 
 
-def floor_plan(anchors, ax=None, *, annotate: bool = True):
-    """Anchor positions seen from above.
+def floor_plan(anchors, ax=None):
+    """Anchor positions seen from above, each labelled with its id.
 
     Parameters
     ----------
@@ -97,8 +97,6 @@ def floor_plan(anchors, ax=None, *, annotate: bool = True):
         (labelled by index).
     ax
         Axes to draw into; a new figure if None.
-    annotate
-        Write each anchor's id beside it.
 
     Returns
     -------
@@ -114,9 +112,8 @@ def floor_plan(anchors, ax=None, *, annotate: bool = True):
     ax = _axes(ax)
     ax.plot(pos[:, 0], pos[:, 1], linestyle="none", marker="^", markersize=9, color="#000000",
             markerfacecolor="#ffffff", label="anchors", zorder=4)
-    if annotate:
-        for i, (x, y) in zip(ids, pos[:, :2]):
-            ax.annotate(i, (x, y), xytext=(5, 5), textcoords="offset points", fontsize="small")
+    for i, (x, y) in zip(ids, pos[:, :2]):
+        ax.annotate(i, (x, y), xytext=(5, 5), textcoords="offset points", fontsize="small")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")

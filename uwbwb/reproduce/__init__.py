@@ -131,7 +131,7 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
               out: str | os.PathLike | None = None, parameters: Mapping[str, Any] | None = None,
               text_parameters: Mapping[str, str] | None = None,
               timeout_s: float | None = None, notebooks_dir: str | os.PathLike | None = None,
-              kernel_name: str = KERNEL_NAME, scheduler=None, scheduler_timeout_s: float | None = None,
+              scheduler=None, scheduler_timeout_s: float | None = None,
               log: Callable[[str], None] | None = None, force: bool = False,
               jobs: int | None = None) -> ReproduceResult:
     """Execute the notebooks and aggregate their summaries.
@@ -156,8 +156,6 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
         Execution timeout per cell, in seconds (None: no limit).
     notebooks_dir
         Folder of notebooks; default :data:`NOTEBOOKS_DIR` (``notebooks/`` in the working directory).
-    kernel_name
-        Jupyter kernel to execute with.
     scheduler
         None: the notebooks run one after the other in this process's machine.
         ``"local"`` (a :class:`distributed.LocalCluster` sized to the machine), a
@@ -237,8 +235,8 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
                                   "that stopped leaves this text and no summary.json.\n")
         runs: list = []
         try:
-            _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_name, log, kernel_env, runs,
-                     force, jobs or os.cpu_count() or 1)
+            _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, log, kernel_env, runs, force,
+                     jobs or os.cpu_count() or 1)
         except KeyboardInterrupt:
             done = ", ".join(f"{r.notebook} ({r.status})" for r in runs) or "none"
             _write_atomic(summary_md, f"# Reproduction INTERRUPTED\n\nStopped by the user or a signal; notebooks "
@@ -252,14 +250,14 @@ def reproduce(*, quick: bool = False, only: Iterable[str] | None = None,
     return result
 
 
-def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_name, log, kernel_env,
-             runs: list, force: bool = False, jobs: int = 1) -> None:
+def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, log, kernel_env, runs: list,
+             force: bool = False, jobs: int = 1) -> None:
     """Run the notebooks (on the cluster when ``client`` is given, else up to ``jobs`` at once), appending each
     run to ``runs`` as it ends, then putting ``runs`` in notebook order; without a cluster, a notebook whose last
     run can be reused (:mod:`.cache`) is not executed unless ``force``."""
     if client is not None:
         try:
-            for run in _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env):
+            for run in _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, log, kernel_env):
                 runs.append(run)
                 _log_end(log, len(runs), len(notebooks), run)
             return
@@ -283,8 +281,8 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, kernel_
             log(f"[{order[source]}/{len(notebooks)}] {source.stem} ...")
         cache.forget(out_dir, source.stem)
         env = {**kernel_env, READ_LOG_ENV: str(cache.read_log_path(out_dir, source.stem))}
-        run = run_notebook(source, out_dir, resolved[source], timeout_s=timeout_s, kernel_name=kernel_name,
-                           kernel_env=env, processes=processes)
+        run = run_notebook(source, out_dir, resolved[source], timeout_s=timeout_s, kernel_env=env,
+                           processes=processes)
         if run.ok and run.executed.is_file():
             cache.write_entry(out_dir, source.stem, key, run.seconds)
         _log_end(log, order[source], len(notebooks), run)

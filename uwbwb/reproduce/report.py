@@ -34,9 +34,9 @@ FAST_MARK = "(FAST)"
 def summary_markdown(runs: Iterable[NotebookRun], parameters: Mapping[str, Any] | None = None) -> str:
     """The ``summary.md`` text: headline numbers, then the run status of every notebook.
 
-    When any row comes from a FAST run, a note at the top says so, and each FAST
-    row's value is followed by :data:`FAST_MARK` (smoke-test numbers: they must
-    not be read as a reproduction of the paper's value beside them).
+    When any row comes from a FAST run, a fixed note at the top says what FAST numbers are, and each
+    FAST row's value is followed by :data:`FAST_MARK` (smoke-test numbers: they must not be read as a
+    reproduction of the paper's value beside them).
     """
     runs = list(runs)
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -45,13 +45,9 @@ def summary_markdown(runs: Iterable[NotebookRun], parameters: Mapping[str, Any] 
     if parameters:
         out.append("Parameters: " + ", ".join(f"`{k}={v!r}`" for k, v in parameters.items()) + ".")
     all_rows = [row for run in runs for row in run.rows]
-    fast_notebooks = list(dict.fromkeys(row["notebook"] for row in all_rows if row["mode"] == "FAST"))
-    if fast_notebooks:
-        n_fast = sum(row["mode"] == "FAST" for row in all_rows)
-        scope = "All rows" if n_fast == len(all_rows) else f"{n_fast} of {len(all_rows)} rows"
-        out += ["", f"**FAST mode.** {scope} come from FAST runs ({', '.join(fast_notebooks)}): small, "
-                    f"CI-sized experiments whose numbers are smoke tests, not reproductions. "
-                    f"Their values are marked {FAST_MARK}; do not compare them with the paper's values."]
+    if any(row["mode"] == "FAST" for row in all_rows):
+        out += ["", f"**FAST mode.** Rows marked {FAST_MARK} come from FAST runs: small, CI-sized experiments "
+                    "whose numbers are smoke tests, not reproductions; do not compare them with the paper's values."]
     out += ["", "## Headline numbers", "",
             "Kind: *reproduced* came out of the method; *target* is a number a simulator parameter "
             "was chosen to hit; *input* is taken from the paper.", ""]

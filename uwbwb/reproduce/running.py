@@ -156,8 +156,8 @@ def _export_html(executed: Path, html: Path) -> None:
 
 
 def run_notebook(source: Path, out_dir: Path, parameters: Mapping[str, Any], *,
-                 timeout_s: float | None = None, kernel_name: str = KERNEL_NAME,
-                 kernel_env: Mapping[str, str] | None = None, processes: set | None = None) -> NotebookRun:
+                 timeout_s: float | None = None, kernel_env: Mapping[str, str] | None = None,
+                 processes: set | None = None) -> NotebookRun:
     """Execute one notebook into ``out_dir`` and read its summary (see :func:`reproduce`).
 
     ``parameters`` go to the notebook's injected cell as given (see
@@ -169,7 +169,7 @@ def run_notebook(source: Path, out_dir: Path, parameters: Mapping[str, Any], *,
     outputs = executed, _, summary = _outputs(source, out_dir)
     t0 = time.perf_counter()
     error = _papermill_in_subprocess(source, executed, {**parameters, "SUMMARY_PATH": str(summary)}, source.parent,
-                                     timeout_s, kernel_name, kernel_env, processes=processes)
+                                     timeout_s, kernel_env, processes=processes)
     return _finish(source, outputs, parameters, error, time.perf_counter() - t0)
 
 
@@ -182,7 +182,7 @@ def _outputs(source: Path, out_dir: Path) -> tuple[Path, Path, Path]:
     return paths
 
 
-def _papermill(source, executed, params, cwd, timeout_s, kernel_name, kernel_env=None) -> None:
+def _papermill(source, executed, params, cwd, timeout_s, kernel_env=None) -> None:
     """Execute ``source`` into ``executed`` with ``params`` in an injected cell (:func:`parameterized`),
     on a kernel over IPC transport (:func:`ipc_kernel_manager`) with ``kernel_env`` added to its environment."""
     import tempfile
@@ -195,7 +195,7 @@ def _papermill(source, executed, params, cwd, timeout_s, kernel_name, kernel_env
         prepared = Path(tmp, Path(source).name)
         nbformat.write(nb, str(prepared))
         try:
-            pm.execute_notebook(str(prepared), str(executed), parameters=None, kernel_name=kernel_name,
+            pm.execute_notebook(str(prepared), str(executed), parameters=None, kernel_name=KERNEL_NAME,
                                 cwd=str(cwd), progress_bar=False, log_output=False, execution_timeout=timeout_s,
                                 kernel_manager_class=ipc_kernel_manager(kernel_env))
         finally:
@@ -261,8 +261,7 @@ def _published(source: Path, summary: Path, parameters: Mapping[str, Any]) -> tu
 
 
 def _notebook_task(name: str, text: str, cwd: str, parameters: Mapping[str, Any], timeout_s: float | None,
-                   kernel_name: str, kernel_env: Mapping[str, str] | None = None
-                   ) -> tuple[str | None, str | None, str | None, float]:
+                   kernel_env: Mapping[str, str] | None = None) -> tuple[str | None, str | None, str | None, float]:
     """Execute one notebook where this task runs (a Dask worker) in a scratch folder.
 
     The notebook's text travels with the task and the executed notebook and its
@@ -290,7 +289,7 @@ def _notebook_task(name: str, text: str, cwd: str, parameters: Mapping[str, Any]
             source.write_text(text, encoding="utf-8")
             t0 = time.perf_counter()
             error = _papermill_in_subprocess(source, executed, {**parameters, "SUMMARY_PATH": str(summary)},
-                                             cwd if os.path.isdir(cwd) else tmp, timeout_s, kernel_name, kernel_env)
+                                             cwd if os.path.isdir(cwd) else tmp, timeout_s, kernel_env)
             seconds = time.perf_counter() - t0
             read = (lambda p: p.read_text(encoding="utf-8") if p.is_file() else None)
             return read(executed), read(summary), error, seconds
@@ -299,7 +298,7 @@ def _notebook_task(name: str, text: str, cwd: str, parameters: Mapping[str, Any]
             rejoin()
 
 
-def _papermill_in_subprocess(source, executed, params, cwd, timeout_s, kernel_name, kernel_env=None, *,
+def _papermill_in_subprocess(source, executed, params, cwd, timeout_s, kernel_env=None, *,
                              processes: set | None = None) -> str | None:
     """:func:`_papermill` in a child Python process; the first line of its error, or None.
 
@@ -314,7 +313,7 @@ def _papermill_in_subprocess(source, executed, params, cwd, timeout_s, kernel_na
     job = Path(executed).with_suffix(".job")
     failure = job.with_suffix(".error")
     failure.unlink(missing_ok=True)
-    job.write_bytes(pickle.dumps((str(source), str(executed), dict(params), str(cwd), timeout_s, kernel_name,
+    job.write_bytes(pickle.dumps((str(source), str(executed), dict(params), str(cwd), timeout_s,
                                   dict(kernel_env or {}))))
     code = "import sys; from uwbwb.reproduce.running import _papermill_job; _papermill_job(sys.argv[1])"
     child = subprocess.Popen([sys.executable, "-c", code, str(job)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -341,14 +340,14 @@ def _papermill_job(job: str) -> None:
     """Entry point of :func:`_papermill_in_subprocess`'s child: run the pickled job, write the error line if any."""
     import pickle
 
-    source, executed, params, cwd, timeout_s, kernel_name, kernel_env = pickle.loads(Path(job).read_bytes())
+    source, executed, params, cwd, timeout_s, kernel_env = pickle.loads(Path(job).read_bytes())
     try:
-        _papermill(source, executed, params, cwd, timeout_s, kernel_name, kernel_env)
+        _papermill(source, executed, params, cwd, timeout_s, kernel_env)
     except Exception as exc:  # reported by the parent as the run's status
         Path(job).with_suffix(".error").write_text(_first_line(exc), encoding="utf-8")
 
 
-def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name, log, kernel_env=None):
+def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, log, kernel_env=None):
     """Every notebook a task on the cluster, as many at once as it has threads; yields the runs in notebook order."""
     tasks = [parallel.Task({"name": nb.stem, "text": nb.read_text(encoding="utf-8"), "cwd": str(nb.parent),
                             "parameters": resolved[nb]}) for nb in notebooks]
@@ -357,8 +356,7 @@ def _run_on_cluster(notebooks, out_dir, resolved, client, timeout_s, kernel_name
     if log:
         log(f"{parallel.describe(client)}; {len(notebooks)} notebooks, up to {slots} at once")
     for task, out in parallel.imap(
-            _notebook_task, tasks, shared={"timeout_s": timeout_s, "kernel_name": kernel_name,
-                                           "kernel_env": kernel_env}, scheduler=client,
+            _notebook_task, tasks, shared={"timeout_s": timeout_s, "kernel_env": kernel_env}, scheduler=client,
             progress=False, desc="notebooks", unit="notebook", max_pending=slots):
         source = by_name[task.params["name"]]
         outputs = executed, _, summary = _outputs(source, out_dir)

@@ -23,7 +23,7 @@ the control values and returns what to show::
         "n_anchors": uw.widgets.int_slider("anchors", 4, 3, 8),
         "seed": uw.widgets.seed_box(0),
     }, render)
-    panel                                      # or panel.show()
+    panel                                      # or display(panel)
 
 ``render`` may return a matplotlib ``Figure``, a readout (headline numbers), or
 a tuple ``(figure, readout)``. A readout is a ``str`` (shown as plain,

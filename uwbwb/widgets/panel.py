@@ -121,10 +121,10 @@ def dropdown(label: str, options: Sequence[Any] | Mapping[str, Any], value: Any 
                             style=_CONTROL_STYLE, layout=widgets.Layout(**_CONTROL_LAYOUT))
 
 
-def seed_box(value: int = 0, *, label: str = "seed") -> widgets.BoundedIntText:
+def seed_box(value: int = 0) -> widgets.BoundedIntText:
     """Integer box for the seed of ``numpy.random.default_rng`` (0 … 2**31 - 1)."""
-    _check_in_range(label, value, 0, 2**31 - 1)
-    return widgets.BoundedIntText(description=label, value=value, min=0, max=2**31 - 1,
+    _check_in_range("seed", value, 0, 2**31 - 1)
+    return widgets.BoundedIntText(description="seed", value=value, min=0, max=2**31 - 1,
                                   continuous_update=False, style=_CONTROL_STYLE,
                                   layout=widgets.Layout(width="16em"))
 
@@ -398,11 +398,6 @@ class Panel:
             self._holding = False
         if self._dirty:
             self._render()
-
-    def show(self) -> None:
-        """Display the panel (same as ``display(panel)``)."""
-        from IPython.display import display
-        display(self.widget)
 
     def _repr_mimebundle_(self, **kwargs):
         bundle = self.widget._repr_mimebundle_(**kwargs)
