@@ -203,3 +203,19 @@ def test_the_difference_table_gives_the_ratio_and_its_interval_from_the_same_rep
         assert (row["A / B 95 % low"], row["A / B 95 % high"]) == (d["ratio_lo"], d["ratio_hi"])
         assert (row["A / B 95 % high"] < 1) == (side == "below") == (row["95 % high (mm)"] < 0)
         assert (row["A / B 95 % low"] <= 1 <= row["A / B 95 % high"]) == (side == "contains")
+
+
+def test_a_difference_whose_tuning_pick_lies_on_a_grid_edge_is_edge_bound(monkeypatch):
+    """The same rule as notebook 05's ablation: a verdict at a pick on its grid's edge says so (and names the pick);
+    a pick inside the grid leaves the verdict bare."""
+    b = _board(0.2)
+    ext = "shifted truth (external)"
+    bare = difference_table({"syn": b}, [("LS", ext)], seed=0).loc[0, "verdict"]
+    assert bare == "LS more accurate"
+    table = b.table()
+    for edge, expected in ((False, bare), (True, f"edge-bound: {bare} at the picks (LS: Q × 3: on the grid's edge)")):
+        t = table.copy()
+        t["grid_edge"] = [edge if m == "LS" else None for m in t["method"]]
+        t["tuning_pick"] = ["Q × 3: on the grid's edge" if m == "LS" else "—" for m in t["method"]]
+        monkeypatch.setattr(type(b), "table", lambda self, t=t: t)
+        assert difference_table({"syn": b}, [("LS", ext)], seed=0).loc[0, "verdict"] == expected

@@ -6,7 +6,9 @@ Three tables, each the numbers and the verdict by its rule (tests feed values on
   difference of their RMSEs on the epochs *both* covered, with a 95 % block-bootstrap interval
   (blocks from :func:`block_ids`, so that the correlation of a tracking filter's errors is kept).
   The verdict is "A more accurate" / "B more accurate" when the interval excludes 0, else "no
-  significant difference"; with fewer than :data:`MIN_BLOCKS` blocks no interval and no verdict.
+  significant difference"; with fewer than :data:`MIN_BLOCKS` blocks no interval and no verdict. It reads
+  "edge-bound: … at the picks" when either method's tuning pick lies on its grid's edge (the board's
+  ``grid_edge``): the difference then holds at those picks, and a wider grid might change it.
 * :func:`own_bound_table` — a method below its *own* bound (the interval RMSE / own
   bound ± 2 se lies below 1), and whether it is still below that bound re-evaluated at the noise the scored part's
   truth measures (:meth:`~.interface.BaseEstimator.measured_noise_bound`): not below it, the measured noise accounts
@@ -138,6 +140,10 @@ def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, st
                 verdict = "no epochs both covered"
             elif d["n_blocks"] < MIN_BLOCKS:
                 verdict = f"no verdict (fewer than {MIN_BLOCKS} blocks)"
+            else:
+                edge = [f"{m}: {tab.loc[m, 'tuning_pick']}" for m in (a, b) if _on_edge(tab, m)]
+                if edge:
+                    verdict = f"edge-bound: {verdict} at the picks ({'; '.join(edge)})"
             rows.append({"recording": label, "A": a, "B": b, "coverage A": float(cov[a]), "coverage B": float(cov[b]),
                          "epochs": d["n"], "blocks": d["n_blocks"],
                          "RMSE A (m)": d["rmse_a_m"], "RMSE B (m)": d["rmse_b_m"], "A − B (mm)": 1000 * d["diff_m"],
@@ -145,6 +151,12 @@ def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, st
                          "A / B": np.divide(d["rmse_a_m"], d["rmse_b_m"]), "A / B 95 % low": d["ratio_lo"],
                          "A / B 95 % high": d["ratio_hi"], "rule": DIFFERENCE_RULE, "verdict": verdict})
     return pd.DataFrame(rows)
+
+
+def _on_edge(tab: pd.DataFrame, method: str) -> bool:
+    """Whether ``method``'s tuning pick on the calibration part lies on its grid's edge (the board's ``grid_edge``)."""
+    v = tab.loc[method, "grid_edge"] if "grid_edge" in tab else None
+    return isinstance(v, (bool, np.bool_)) and bool(v)
 
 
 def placement_table(boards: Mapping[str, object]) -> pd.DataFrame:
