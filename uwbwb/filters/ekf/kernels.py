@@ -5,8 +5,8 @@ Python :meth:`~.core.Ekf.run` (``uwbwb/filters/twins.py``).
 
 Each epoch repeats the Python steps in their order: the prediction of
 :func:`~uwbwb.filters.kalman.predict` (``F x``, ``(F P) Fᵀ + Q``, symmetrised), the linearisation of
-:meth:`~uwbwb.models.tdoa.TdoaModel.epoch` or of :class:`~.ranges.RangeMeasurement`, the gate's decision (``(H P) Hᵀ + R`` and ``yᵀ S⁻¹ y`` as
-:mod:`~uwbwb.filters.gating` forms them) and filterpy's Joseph-form update as
+:meth:`~uwbwb.models.tdoa.TdoaModel.epoch` or of :class:`~.ranges.RangeMeasurement`, the gate's decision
+(``(H P) Hᵀ + R`` and ``yᵀ S⁻¹ y`` as :mod:`~uwbwb.filters.gating` forms them) and filterpy's Joseph-form update as
 :func:`~uwbwb.filters.kalman.update` calls it (``y = (z − h + H x) − H x``, ``S = H (P Hᵀ) + R``,
 ``K = P Hᵀ S⁻¹``, ``P = ((I − K H) P) (I − K H)ᵀ + (K R) Kᵀ``, symmetrised; NIS with the symmetrised
 ``S``). Products are plain loops and ``S⁻¹`` an LU factorisation with partial pivoting, where the
@@ -81,8 +81,8 @@ def _loop(steps, epochs, model, z_m, settings, x, P, outputs):
     """The epochs ``start..T−1`` of :meth:`~.core.Ekf.run` with the TDoA or range measurement and a gate of
     :data:`GATE_KINDS`. ``steps = (F_all, Q_all)``, ``epochs = (tdoa_m, ref)`` or ``(range_m, −1)``,
     ``model = (anchors, σ², χ² quantiles by degrees of freedom)``, ``settings`` = (gate kind, min_rows,
-    max_gated, dim, correlated, start, UPDATED, PREDICTED, GATED, ranges); outputs written in place. Raises FloatingPointError where the
-    Python path would raise (or meets a NaN statistic)."""
+    max_gated, dim, correlated, start, UPDATED, PREDICTED, GATED, ranges); outputs written in place. Raises
+    FloatingPointError where the Python path would raise (or meets a NaN statistic)."""
     F_all, Q_all = steps
     tdoa, refs = epochs
     anchors, var, thr = model
