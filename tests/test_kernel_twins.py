@@ -62,7 +62,7 @@ def test_every_covered_name_is_a_compiled_function():
 
 #: Twins of a whole filter run compared in ULP: the filter carries a rounding difference from epoch to epoch as it
 #: carries a one-ulp change of its prior (the TDoA EKF's Python loop moves by up to 750 ULP for one; see its twin).
-RUNS_IN_ULPS = "ekf.TdoaEkf.run["
+RUNS_IN_ULPS = ("ekf.TdoaEkf.run[", "ekf.RangeEkf.run[")
 
 
 def test_every_twin_names_its_test_and_keeps_tight_tolerances():

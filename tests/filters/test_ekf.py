@@ -243,7 +243,7 @@ def test_compiled_run_equals_the_python_loop(name, monkeypatch):
     log = TdoaLog(log.t_s, d, ref, log.anchor_ids)
     fast = ekf.run(log)
     declined = []
-    monkeypatch.setattr(kernels, "run", lambda *args: declined.append(args[3]) or None)
+    monkeypatch.setattr(kernels, "run", lambda *args: declined.append(args[5]) or None)
     slow = ekf.run(log)
     assert declined == [5] and np.isnan(fast.x_post[:5]).all() and (fast.status[:5] == EstimateStatus.NO_ESTIMATE).all()
     assert not twin.mismatches(_fields(fast), _fields(slow))
@@ -283,6 +283,6 @@ def test_where_the_compiled_loop_stops_the_python_loop_decides():
     log = _log(model, np.tile([12.0, 17.0], (t.size, 1)), t)
     ekf = TdoaEkf(RandomWalk(0.1), model, gate=NoGate())
     x0 = kalman.Gaussian(np.array([np.nan, 17.0]), np.eye(2))
-    assert ekf.compiled and kernels.run(ekf, log, x0, 0, "EKF-RW") is None
+    assert ekf.compiled and kernels.run(ekf, log.t_s, log.tdoa_m, log.ref, x0, 0, "EKF-RW") is None
     with pytest.raises(ValueError, match="non-finite"):
         ekf.run(log, x0=x0)

@@ -3,9 +3,12 @@
 import numpy as np
 import pytest
 
-from uwbwb.filters.ekf.ranges import RangeMeasurement
+from uwbwb.filters.ekf import Ekf, kernels
+from uwbwb.filters.ekf.ranges import RangeMeasurement, run_ranges
+from uwbwb.filters.gating import Robust
+from uwbwb.filters.twins import TWINS
 from uwbwb.models.motion import make_motion_model
-from uwbwb.types import RangeLog
+from uwbwb.types import EstimateStatus, RangeLog
 
 ANCHORS_M = np.array([[0.0, 0.0, 1.0], [2.0, 0.0, 1.2], [2.0, 2.0, 1.0], [0.0, 2.0, 1.4]])
 
@@ -40,3 +43,26 @@ def test_a_2d_range_model_needs_the_tag_height_and_epochs_are_the_rows():
                    ("A0", "A1", "A2", "A3"), "tag")
     rows = RangeMeasurement.epochs(log)
     assert len(rows) == 2 and np.array_equal(rows[1], log.range_m[1], equal_nan=True)
+
+
+@pytest.mark.parametrize("name", [n for n in TWINS if n.startswith("ekf.RangeEkf.run[")])
+def test_compiled_run_equals_the_python_loop(name, monkeypatch):
+    # from a later start through run_ranges (the twin starts at 0 in the kernel): the compiled run against the
+    # Python loop it declines to (kernels.run returns None)
+    twin = TWINS[name]
+    ekf, log, x0 = twin.inputs()
+    fast = run_ranges(ekf, log, x0, start=5, name="R")
+    declined = []
+    monkeypatch.setattr(kernels, "run", lambda *args: declined.append(args[5]) or None)
+    slow = run_ranges(ekf, log, x0, start=5, name="R")
+    assert declined == [5] and np.isnan(fast.x_post[:5]).all() and (fast.status[:5] == EstimateStatus.NO_ESTIMATE).all()
+    fields = ("x_prior", "P_prior", "x_post", "P_post", "F", "nis", "dof", "status", "n_rejected")
+    assert not twin.mismatches({f: getattr(fast, f) for f in fields}, {f: getattr(slow, f) for f in fields})
+    assert (fast.name, fast.pos_index, fast.vel_index) == (slow.name, slow.pos_index, slow.vel_index)
+
+
+def test_a_robust_update_takes_the_python_loop():
+    ekf, log, x0 = TWINS["ekf.RangeEkf.run[anchor dropping, RF 2-D]"].inputs()
+    robust = Ekf(ekf.transition, ekf.measurement, gate=Robust(gate=ekf.gate))
+    assert kernels.run(robust, log.t_s, log.range_m, None, x0, 0, "R") is None
+    assert kernels.run(ekf, log.t_s, log.range_m, None, x0, 0, "R") is not None

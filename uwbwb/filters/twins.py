@@ -38,9 +38,10 @@ from ..models.motion import RandomForce, RandomJerk, RandomWalk, VelocityKick
 from ..models.setnoise import SetNoiseModel
 from ..models.tdoa import TdoaModel
 from ..sim import robot
-from ..types import EstimateStatus, TdoaLog, pseudo_tdoa
+from ..types import EstimateStatus, RangeLog, TdoaLog, pseudo_tdoa
 from . import kalman, particle
-from .ekf import Ekf, Linearisation, TdoaEkf, TdoaMeasurement
+from .ekf import Ekf, Linearisation, RangeMeasurement, TdoaEkf, TdoaMeasurement
+from .ekf import kernels as ekf_kernels
 from .eskf import TdoaUpdate, TightEskf, _tag_jacobian
 from .eskf import kernels as eskf_kernels
 from .gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate
@@ -508,12 +509,13 @@ def _multilaterate(method: str):
     return run
 
 
-# ---------------------------------------------------------------- the TDoA EKF's epoch loop
-def _tdoa_ekf_inputs(motion, gate, correlated: bool = True):
+# ---------------------------------------------------------------- the EKF's epoch loop (TDoAs or ranges)
+def _tdoa_ekf_inputs(motion, gate, correlated: bool = True, ranges: bool = False):
     """A 40 s walk at about 10 Hz (a Lissajous figure at walking speed, 1 m ± 0.3 m high) in a 30 m square
     of eight anchors: 10 cm range noise per anchor, 15 % of the ranges missing, 5 % with a 0.5–4 m excess,
     3 s with fewer than two anchors and a 2 s burst of 5–10 m outliers: every branch of the gates (updated,
-    gated, released, predicted, anchors dropped, the reference among them). ``(filter, log, prior)``."""
+    gated, released, predicted, anchors dropped, the reference among them). ``(filter, log, prior)``; ``ranges``:
+    the range EKF (:class:`Ekf` with :class:`RangeMeasurement`) on the ranges themselves, prior σ 1 m (m/s, m/s²)."""
     def build():
         rng = np.random.default_rng(8)
         anchors = np.array([[0.0, 0.0, 3.0], [30.0, 0.0, 0.5], [30.0, 30.0, 3.0], [0.0, 30.0, 0.5],
@@ -528,6 +530,10 @@ def _tdoa_ekf_inputs(motion, gate, correlated: bool = True):
         r[rng.random(r.shape) < 0.15] = np.nan
         r[150:180, 2:] = np.nan
         r[250:270] += rng.uniform(5.0, 10.0, (20, 8)) * (rng.random((20, 8)) < 0.6)
+        if ranges:
+            ekf = Ekf(motion, RangeMeasurement(anchors, model.sigma_m, motion, 1.0), gate=gate)
+            prior = kalman.Gaussian(motion.initial_state(pos[0] + 0.5), motion.initial_covariance(1.0, 1.0, 1.0))
+            return ekf, RangeLog(t, r, tuple(f"a{i}" for i in range(8)), "tag"), prior
         d, ref = pseudo_tdoa(r, 0)
         ekf = TdoaEkf(motion, model, gate=gate)
         return ekf, TdoaLog(t, d, ref, tuple(f"a{i}" for i in range(8))), ekf.init(pos[0] + 0.5)
@@ -540,6 +546,11 @@ _EKF_INTS = ("F", "dof", "status", "n_rejected")
 
 def _tdoa_ekf_fast(a):
     ekf, log, x0 = a
+    if isinstance(log, RangeLog):
+        run = ekf_kernels.run(ekf, log.t_s, log.range_m, None, x0, 0, "EKF")
+        if run is None:
+            raise AssertionError(f"{ekf.gate!r}: the range EKF takes its Python loop")
+        return _run_outputs(run, _EKF_FLOATS, _EKF_INTS)
     if not ekf.compiled:
         raise AssertionError(f"{ekf.gate!r}: the TDoA EKF takes its Python loop")
     return _run_outputs(ekf.run(log, x0=x0), _EKF_FLOATS, _EKF_INTS)
@@ -548,7 +559,8 @@ def _tdoa_ekf_fast(a):
 def _tdoa_ekf_definition(a):
     """:meth:`Ekf.run`, the Python loop (filterpy's predict and update, the gate policy's own decision)."""
     ekf, log, x0 = a
-    return _run_outputs(Ekf.run(ekf, log.t_s, TdoaMeasurement.epochs(log), x0), _EKF_FLOATS, _EKF_INTS)
+    epochs = RangeMeasurement.epochs(log) if isinstance(log, RangeLog) else TdoaMeasurement.epochs(log)
+    return _run_outputs(Ekf.run(ekf, log.t_s, epochs, x0), _EKF_FLOATS, _EKF_INTS)
 
 
 def _tdoa_ekf_exercised(gated: bool, dropped: bool):
@@ -637,7 +649,8 @@ def _registry() -> tuple[Twin, ...]:
     # epoch to epoch and grows it where its gain is high (the first epochs, re-acquiring after a gap), as it
     # carries a one-ulp change of its prior: on these cases the Python loop itself moves by up to 750 ULP of the
     # largest element for such a change, the compiled loop differs by up to 710 (states), 30 (covariances), 560
-    # (NIS); the bounds below are those with a margin for other CPUs' kernels. The decisions are equal.
+    # (NIS) with the TDoAs, 82, 135, 283 with the ranges (whose lengths are the same operations as numpy's norm);
+    # the bounds below are those with a margin for other CPUs' kernels. The decisions are equal.
     ekf_tol = {"x_prior": Tol(ulps=2048), "x_post": Tol(ulps=2048), "P_prior": Tol(ulps=256),
                "P_post": Tol(ulps=256), "nis": Tol(ulps=2048), **{f: BIT for f in _EKF_INTS}}
     ekf_kernels = tuple(f"uwbwb.filters.ekf.kernels.{f}" for f in (
@@ -652,6 +665,15 @@ def _registry() -> tuple[Twin, ...]:
         twins.append(Twin(f"ekf.TdoaEkf.run[{case}]", _tdoa_ekf_fast, _tdoa_ekf_definition,
                           _tdoa_ekf_inputs(motion, gate, correlated), ekf_tol,
                           "tests/filters/test_ekf.py::test_compiled_run_equals_the_python_loop", ekf_kernels,
+                          _tdoa_ekf_exercised(gated, dropped)))
+    for case, motion, gate, gated, dropped in (
+            ("no gate, RF 2-D", RandomForce(0.5, dim=2), NoGate(), False, False),
+            ("χ² epoch, RW 2-D", RandomWalk(0.3, dim=2), ChiSquareEpoch(0.999), True, False),
+            ("anchor dropping, RF 2-D", RandomForce(0.5, dim=2), AnchorDropping(0.9999, 2), True, True),
+            ("anchor dropping, RJ 3-D", RandomJerk(1.0, dim=3), AnchorDropping(0.999, 3), True, True)):
+        twins.append(Twin(f"ekf.RangeEkf.run[{case}]", _tdoa_ekf_fast, _tdoa_ekf_definition,
+                          _tdoa_ekf_inputs(motion, gate, ranges=True), ekf_tol,
+                          "tests/filters/test_ekf_ranges.py::test_compiled_run_equals_the_python_loop", ekf_kernels,
                           _tdoa_ekf_exercised(gated, dropped)))
     return tuple(twins)
 

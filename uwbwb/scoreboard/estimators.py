@@ -38,7 +38,7 @@ import numpy as np
 from .. import bounds, geometry
 from ..filters import alignment, imu_calibration
 from ..filters.ekf import Ekf, TdoaEkf
-from ..filters.ekf.ranges import RangeMeasurement
+from ..filters.ekf.ranges import RangeMeasurement, run_ranges
 from ..filters.gating import AnchorDropping, NoGate, Robust, gate_from_prob
 from ..filters.kalman import Gaussian
 from ..filters.tdoa_ls import tdoa_least_squares
@@ -291,7 +291,7 @@ class RangeEkfEstimator(_MotionEkf):
             T = len(log)
             return Estimates(log.t_s, np.full((T, cal.dim), np.nan), np.full(T, _NONE, np.int8), self.name)
         x0 = Gaussian(ekf.transition.initial_state(fix.pos_m[ok[0], : cal.dim]), self._prior(ekf))
-        return ekf.run(log.t_s, RangeMeasurement.epochs(log), x0, start=int(ok[0]), name=self.name).to_estimates()
+        return run_ranges(ekf, log, x0, start=int(ok[0]), name=self.name).to_estimates()
 
     def _prior(self, ekf):
         s = self.init_sigma

@@ -1,11 +1,12 @@
-"""The TDoA EKF's epoch loop compiled: :meth:`~.tdoa.TdoaEkf.run` for the gates :class:`NoGate`,
-:class:`ChiSquareEpoch`, :class:`ChiSquarePerMeasurement` and :class:`AnchorDropping` with the batch
-update. Declared twin: the Python :meth:`~.core.Ekf.run` (``uwbwb/filters/twins.py``).
+"""The EKF's epoch loop compiled for the TDoA measurement (:meth:`~.tdoa.TdoaEkf.run`) and the range
+measurement (:func:`~.ranges.run_ranges`), for the gates :class:`NoGate`, :class:`ChiSquareEpoch`,
+:class:`ChiSquarePerMeasurement` and :class:`AnchorDropping` with the batch update. Declared twin: the
+Python :meth:`~.core.Ekf.run` (``uwbwb/filters/twins.py``).
 
 Each epoch repeats the Python steps in their order: the prediction of
 :func:`~uwbwb.filters.kalman.predict` (``F x``, ``(F P) Fᵀ + Q``, symmetrised), the linearisation of
-:meth:`~uwbwb.models.tdoa.TdoaModel.epoch`, the gate's decision (``(H P) Hᵀ + R`` and ``yᵀ S⁻¹ y`` as
-:mod:`~uwbwb.filters.gating` forms them) and filterpy's Joseph-form update as
+:meth:`~uwbwb.models.tdoa.TdoaModel.epoch` or of :class:`~.ranges.RangeMeasurement`, the gate's decision
+(``(H P) Hᵀ + R`` and ``yᵀ S⁻¹ y`` as :mod:`~uwbwb.filters.gating` forms them) and filterpy's Joseph-form update as
 :func:`~uwbwb.filters.kalman.update` calls it (``y = (z − h + H x) − H x``, ``S = H (P Hᵀ) + R``,
 ``K = P Hᵀ S⁻¹``, ``P = ((I − K H) P) (I − K H)ᵀ + (K R) Kᵀ``, symmetrised; NIS with the symmetrised
 ``S``). Products are plain loops and ``S⁻¹`` an LU factorisation with partial pivoting, where the
@@ -30,13 +31,16 @@ from .core import KalmanRun
 GATE_KINDS = {NoGate: 0, ChiSquareEpoch: 1, ChiSquarePerMeasurement: 2, AnchorDropping: 3}
 
 
-def run(ekf, log, x0, start: int, name: str) -> KalmanRun | None:
-    """:meth:`~.core.Ekf.run` of the TDoA filter ``ekf`` on ``log`` from epoch ``start`` (prior ``x0``),
-    compiled. None where the Python run must decide: an input :meth:`~.core.Ekf.run` refuses, or an
-    epoch where the kernel stopped (see the module)."""
-    t_s = np.asarray(log.t_s, float)
+def run(ekf, t_s, rows, refs, x0, start: int, name: str) -> KalmanRun | None:
+    """:meth:`~.core.Ekf.run` of ``ekf`` on epochs at ``t_s`` from epoch ``start`` (prior ``x0``), compiled:
+    ``rows`` the TDoAs of a :class:`~.tdoa.TdoaEkf` with ``refs`` their reference anchors, or (``refs`` None)
+    the ranges of an :class:`~.core.Ekf` with a :class:`~.ranges.RangeMeasurement`. None where the Python run
+    must decide: a gate not in :data:`GATE_KINDS`, the sequential update, an input :meth:`~.core.Ekf.run`
+    refuses, or an epoch where the kernel stopped (see the module)."""
+    t_s = np.asarray(t_s, float)
     T, n = t_s.size, x0.x.size
-    if (T > 1 and np.any(np.diff(t_s) <= 0)) or n != ekf.transition.n_x or not 0 <= start <= T:
+    if (type(ekf.gate) not in GATE_KINDS or ekf.sequential or (T > 1 and np.any(np.diff(t_s) <= 0))
+            or n != ekf.transition.n_x or not 0 <= start <= T or len(rows) != T):
         return None
     xm, Pm = np.full((T, n), np.nan), np.full((T, n, n), np.nan)
     xp, Pp = np.full((T, n), np.nan), np.full((T, n, n), np.nan)
@@ -49,17 +53,23 @@ def run(ekf, log, x0, start: int, name: str) -> KalmanRun | None:
         F_all = np.array(ekf.transition.F(dt), float, order="C").reshape(-1, n, n)
         Q_all = np.array(ekf.transition.Q(dt), float, order="C").reshape(-1, n, n)
         F[start], F[start + 1:] = np.eye(n), F_all
-        model, gate = ekf.tdoa_model, ekf.gate
+        gate, m, ranges = ekf.gate, ekf.measurement, refs is None
+        if ranges:                        # RangeMeasurement: anchors, σ, tag height of a 2-D model
+            model = (m.anchors_m, m.sigma_m, np.nan if m.z_m is None else m.z_m, m.motion.dim, False)
+            refs = np.full(T, -1)
+        else:
+            m = ekf.tdoa_model
+            model = (m.anchor_pos_m, m.sigma_m, m.z_m, m.dim, m.correlated)
         prob = getattr(gate, "prob", None)
-        thr = np.array([np.nan] + [float(_chi2_ppf(prob, m)) if prob is not None else np.inf
-                                   for m in range(1, model.n_anchors + 1)])
-        settings = np.array([GATE_KINDS[type(gate)], getattr(gate, "min_rows", 1), gate.max_gated, model.dim,
-                             model.correlated, start, EstimateStatus.UPDATED, EstimateStatus.PREDICTED,
-                             EstimateStatus.GATED], np.int64)
+        thr = np.array([np.nan] + [float(_chi2_ppf(prob, k)) if prob is not None else np.inf
+                                   for k in range(1, len(model[0]) + 1)])
+        settings = np.array([GATE_KINDS[type(gate)], getattr(gate, "min_rows", 1), gate.max_gated, model[3],
+                             model[4], start, EstimateStatus.UPDATED, EstimateStatus.PREDICTED,
+                             EstimateStatus.GATED, ranges], np.int64)
         try:
-            _loop((F_all, Q_all), (np.array(log.tdoa_m, float, order="C"), np.array(log.ref, np.int64)),
-                  (np.array(model.anchor_pos_m, float, order="C"), np.array(model.sigma_m ** 2, float), thr),
-                  float(model.z_m), settings, np.array(x0.x, float), np.array(x0.P, float, order="C"),
+            _loop((F_all, Q_all), (np.array(rows, float, order="C"), np.array(refs, np.int64)),
+                  (np.array(model[0], float, order="C"), np.array(model[1] ** 2, float), thr),
+                  float(model[2]), settings, np.array(x0.x, float), np.array(x0.P, float, order="C"),
                   (xm, Pm, xp, Pp, nis, dof, n_rej, status))
         except FloatingPointError:
             return None
@@ -68,17 +78,17 @@ def run(ekf, log, x0, start: int, name: str) -> KalmanRun | None:
 
 @numba.njit(cache=True, nogil=True)
 def _loop(steps, epochs, model, z_m, settings, x, P, outputs):
-    """The epochs ``start..T−1`` of :meth:`~.core.Ekf.run` with the TDoA measurement and a gate of
-    :data:`GATE_KINDS`. ``steps = (F_all, Q_all)``, ``epochs = (tdoa_m, ref)``, ``model = (anchors, σ²,
-    χ² quantiles by degrees of freedom)``, ``settings`` = (gate kind, min_rows, max_gated, dim, correlated,
-    start, UPDATED, PREDICTED, GATED); outputs written in place. Raises FloatingPointError where the
-    Python path would raise (or meets a NaN statistic)."""
+    """The epochs ``start..T−1`` of :meth:`~.core.Ekf.run` with the TDoA or range measurement and a gate of
+    :data:`GATE_KINDS`. ``steps = (F_all, Q_all)``, ``epochs = (tdoa_m, ref)`` or ``(range_m, −1)``,
+    ``model = (anchors, σ², χ² quantiles by degrees of freedom)``, ``settings`` = (gate kind, min_rows,
+    max_gated, dim, correlated, start, UPDATED, PREDICTED, GATED, ranges); outputs written in place. Raises
+    FloatingPointError where the Python path would raise (or meets a NaN statistic)."""
     F_all, Q_all = steps
     tdoa, refs = epochs
     anchors, var, thr = model
     xm, Pm, xp, Pp, nis_o, dof_o, rej_o, status_o = outputs
     kind, min_rows, max_gated, dim, correlated = settings[0], settings[1], settings[2], settings[3], settings[4] != 0
-    start, updated, predicted, gated_st = settings[5], settings[6], settings[7], settings[8]
+    start, updated, predicted, gated_st, ranges = settings[5], settings[6], settings[7], settings[8], settings[9] != 0
     T, n_a = tdoa.shape
     n = x.size
     comp = np.empty(n_a, np.int64)
@@ -98,10 +108,11 @@ def _loop(steps, epochs, model, z_m, settings, x, P, outputs):
                 comp[nc] = j
                 nc += 1
         nis, dof, rej, st = np.nan, 0, 0, predicted
-        if ref >= 0 and nc >= 2:
-            if ref >= n_a or not np.isfinite(row[ref]) or not (np.isfinite(x).all() and np.isfinite(P).all()):
+        if (nc >= 1) if ranges else (ref >= 0 and nc >= 2):
+            if not (ranges or 0 <= ref < n_a and np.isfinite(row[ref])) or not (np.isfinite(x).all()
+                                                                               and np.isfinite(P).all()):
                 raise FloatingPointError("the Python path decides")
-            m = _linearise(x, row, ref, comp, nc, anchors, var, z_m, dim, correlated, z, h, H, R)
+            m = _linearise(x, row, ref, comp, nc, anchors, var, z_m, dim, correlated, ranges, z, h, H, R)
             st, dof = updated, m
             if kind == 0 or run >= max_gated:
                 x, P, nis = _update(x, P, z, h, H, R, m)
@@ -156,7 +167,7 @@ def _loop(steps, epochs, model, z_m, settings, x, P, outputs):
                                 sub[ns] = keep[j]
                                 ns += 1
                         m2 = _linearise(x, row, _reference(ref, sub, ns), sub, ns, anchors, var, z_m, dim,
-                                        correlated, z2, h2, H2, R2)
+                                        correlated, ranges, z2, h2, H2, R2)
                         v = _nis(P, z2, h2, H2, R2, m2)
                         if not np.isfinite(v):
                             raise FloatingPointError("the Python path decides")
@@ -166,7 +177,7 @@ def _loop(steps, epochs, model, z_m, settings, x, P, outputs):
                         keep[j] = keep[j + 1]
                     nk -= 1
                     m = _linearise(x, row, _reference(ref, keep, nk), keep, nk, anchors, var, z_m, dim, correlated,
-                                   z, h, H, R)
+                                   ranges, z, h, H, R)
                     rej += 1
                 if drop:
                     st, dof = gated_st, 0
@@ -187,12 +198,25 @@ def _reference(ref, keep, nk):
 
 
 @numba.njit(cache=True, nogil=True)
-def _linearise(x, row, ref, keep, nk, anchors, var, z_m, dim, correlated, z, h, H, R):
+def _linearise(x, row, ref, keep, nk, anchors, var, z_m, dim, correlated, ranges, z, h, H, R):
     """:meth:`~uwbwb.models.tdoa.TdoaModel.epoch` from anchors ``keep[:nk]`` (``ref`` among them) at the
-    position ``x[:dim]``, lifted to the state (``H_pos = [I 0 …]``): ``z, h, H, R`` in place; returns ``m``."""
+    position ``x[:dim]``, lifted to the state (``H_pos = [I 0 …]``): ``z, h, H, R`` in place; returns ``m``.
+    ``ranges``: :class:`~.ranges.RangeMeasurement`'s instead (``h_i = |p − a_i|``, ``R = diag(σ_i²)``)."""
     p = np.empty(3)
     p[0], p[1] = x[0], x[1]
     p[2] = x[2] if dim == 3 else z_m
+    if ranges:
+        for i in range(nk):
+            j = keep[i]
+            d = p - anchors[j]
+            r = math.sqrt((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2])   # np.linalg.norm's order
+            z[i], h[i] = row[j], r
+            H[i] = 0.0
+            for c in range(dim):
+                H[i, c] = d[c] / max(r, 1e-9)
+            R[i, :nk] = 0.0
+            R[i, i] = var[j]
+        return nk
     dr = p - anchors[ref]
     rr = math.sqrt((dr[0] * dr[0] + dr[2] * dr[2]) + dr[1] * dr[1])   # numpy's einsum order for three terms
     sr = max(rr, 1e-12)

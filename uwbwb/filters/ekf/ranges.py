@@ -2,7 +2,7 @@
 
 Beside :mod:`.tdoa` (range *differences*, notebook 03): where the anchors sit in a small cluster far from the
 tag, range differences hardly locate it while the ranges do, so the same motion models run on the ranges
-themselves (:class:`uwbwb.scoreboard.estimators.RangeEkfEstimator`).
+themselves (:class:`uwbwb.scoreboard.estimators.RangeEkfEstimator`, through :func:`run_ranges`).
 """
 
 from __future__ import annotations
@@ -13,9 +13,10 @@ import numpy as np
 
 from ...models.motion import MotionModel
 from ...types import RangeLog
-from .core import Linearisation
+from . import kernels
+from .core import Ekf, KalmanRun, Linearisation
 
-__all__ = ["RangeMeasurement"]
+__all__ = ["RangeMeasurement", "run_ranges"]
 
 
 @dataclass(frozen=True)
@@ -72,3 +73,13 @@ class RangeMeasurement:
     def linearise_components(self, x: np.ndarray, measurement, keep: np.ndarray) -> Linearisation:
         """Linearisation from anchors ``keep`` only."""
         return self._lin(x, np.asarray(measurement, float), np.asarray(keep))
+
+
+def run_ranges(ekf: Ekf, log: RangeLog, x0, *, start: int = 0, name: str = "EKF") -> KalmanRun:
+    """``ekf.run(log.t_s, RangeMeasurement.epochs(log), x0, start=start, name=name)`` for an :class:`Ekf` with a
+    :class:`RangeMeasurement`: its compiled loop (:mod:`.kernels`, the Python run's decisions, its numbers to
+    rounding within the twin's stated tolerance) where that runs the filter's gate, else the Python loop."""
+    fast = None
+    if type(ekf.measurement) is RangeMeasurement and isinstance(ekf.measurement.motion, MotionModel):
+        fast = kernels.run(ekf, log.t_s, log.range_m, None, x0, start, name)
+    return fast if fast is not None else ekf.run(log.t_s, RangeMeasurement.epochs(log), x0, start=start, name=name)

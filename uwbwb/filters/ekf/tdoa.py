@@ -202,7 +202,7 @@ class TdoaEkf(Ekf):
                     start, x0 = lo + k, self.init(ls.pos_m[k])
                     break
         name = name or self.name
-        fast = kernels.run(self, log, x0, start, name) if self.compiled else None
+        fast = kernels.run(self, log.t_s, log.tdoa_m, log.ref, x0, start, name) if self.compiled else None
         return fast if fast is not None else super().run(log.t_s, TdoaMeasurement.epochs(log), x0, start=start,
                                                            name=name)
 
