@@ -237,7 +237,12 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     for pick, what in (("best", "best on the scored case"), ("chosen", "picked on the tuning case")):
         r = ratios[ratios[pick]]
         assert len(r) == 1 and r["B"].iloc[0] == "authors LS (external)"
-        assert values[f"RMSE_2d ratio ours ({what}) / authors LS"] == r["A / B"].iloc[0]
+        q = f"RMSE_2d ratio ours ({what}) / authors LS"
+        assert values[q] == r["A / B"].iloc[0]
+        # its interval's ends beside it, the table's own (where the table has an interval)
+        ends = (r["A / B 95 % low"].iloc[0], r["A / B 95 % high"].iloc[0])
+        assert ((values.get(f"{q}, 95 % low"), values.get(f"{q}, 95 % high")) == ends if np.isfinite(ends).all()
+                else f"{q}, 95 % low" not in values)
     assert ratios.loc[ratios["best"], "A / B"].iloc[0] == ratios.loc[ratios["B"] == "authors LS (external)", "A / B"].min()
     methods = set(ratios["A"])
     assert "raw LS, authors' front end (jump gate + hold)" in methods
@@ -276,6 +281,12 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     label = f"hanyang-outdoor-uwb/{prune.facts['case']}"
     assert len(s2) == len(prune.rows) > 0 and {r["data"] for r in prune.rows} == {label, label + sections.EXTERNAL}
     theirs = [r for r in prune.rows if r["quantity"] == "RMSE_2d, authors LS (external)"]
+    pv = {r["quantity"]: r["value"] for r in prune.rows}
+    for r in prune.tables["ablation"].to_dict("records"):          # each ratio with the table's interval ends
+        q = f"RMSE_2d ratio {r['A']} / {r['B']}"
+        assert pv[q] == r["A / B"]
+        if np.isfinite([r["A / B 95 % low"], r["A / B 95 % high"]]).all():
+            assert (pv[f"{q}, 95 % low"], pv[f"{q}, 95 % high"]) == (r["A / B 95 % low"], r["A / B 95 % high"])
     assert len(theirs) == 1 and theirs[0]["kind"] == "input" and theirs[0]["data"] == label + sections.EXTERNAL
     motion = sections.motion_section(cases[1].name, data, fast=True)
     assert set(motion.tables["models"]["A"]) == {"EKF-RW ranges", "EKF-RF ranges", "EKF-RJ ranges"}

@@ -149,17 +149,25 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
                 theirs_added.add((data, on))
                 rows.append(dict(quantity=f"RMSE_2d, authors LS ({on})", value=r["RMSE B (m)"], unit="m",
                                  data=data + EXTERNAL, kind="input"))
-            rows.append(dict(quantity=f"RMSE_2d ratio ours ({what}) / authors LS", value=r["A / B"], unit="",
-                             data=data, kind="reproduced"))
+            rows += _ratio_rows(f"RMSE_2d ratio ours ({what}) / authors LS", r, data)
     for r in declared.to_dict("records"):
         theirs, mean = r["B"].split(" (")[0], r["case"].startswith("mean over")
-        rows.append(dict(quantity=f"RMSE_2d ratio ours (declared before scoring: {r['A']}) / {theirs}"
-                         + (", mean over the cases scored" if mean else ""), value=r["A / B"], unit="",
-                         data=f"{NAME}/{r['case'].split()[-2]} cases" if mean else r["recording"], kind="reproduced"))
+        rows += _ratio_rows(f"RMSE_2d ratio ours (declared before scoring: {r['A']}) / {theirs}"
+                            + (", mean over the cases scored" if mean else ""), r,
+                            f"{NAME}/{r['case'].split()[-2]} cases" if mean else r["recording"])
     tables = {"reproduction": repro, "ratios": ratios, "declared": declared, "static_effect": effect,
               "static_models": pd.DataFrame(map(dataclasses.asdict, models)),
               "placement": placement_table(boards), "own_bound": own_bound_table(boards)}
     return Section(None, tables, boards, {"tuning": tuning, "picks": picks}, tuple(rows))
+
+
+def _ratio_rows(quantity: str, r: Mapping, data: str) -> list[dict]:
+    """Summary rows of one difference-table row's ratio A / B and, where it has one, its 95 % interval's ends
+    (``A / B 95 % low`` / ``high``: the table's own numbers)."""
+    ends = [(f", 95 % {end}", r.get(f"A / B 95 % {end}", np.nan)) for end in ("low", "high")]
+    ends = ends if all(np.isfinite(v) for _, v in ends) else []
+    return [dict(quantity=quantity + suffix, value=v, unit="", data=data, kind="reproduced")
+            for suffix, v in [("", r["A / B"]), *ends]]
 
 
 def _one_case(case: str | None, data_dir, prefer: str) -> tuple[str | None, str | None, list[str]]:
@@ -192,8 +200,8 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
     pairs = [("NLS residual pruning", "NLS"), ("NLS robust mean", "NLS"), ("NLS", "raw LS"),
              ("NLS residual pruning", study.THEIRS), ("NLS robust mean", study.THEIRS)]
     table = difference_table({board.label: board}, pairs, seed=seed)
-    rows = [dict(quantity=f"RMSE_2d ratio {r['A']} / {r['B']}", value=r["A / B"], unit="", data=board.label,
-                 kind="reproduced") for r in table.to_dict("records")]
+    rows = [x for r in table.to_dict("records") for x in _ratio_rows(f"RMSE_2d ratio {r['A']} / {r['B']}", r,
+                                                                    board.label)]
     for r in board.table().itertuples(index=False):
         if np.isfinite(r.rmse_m):          # the authors' LS is an outside method's number: input, data marked external
             ext = r.method in board.external
@@ -224,6 +232,5 @@ def motion_section(case: str | None = None, data_dir: PathLike | None = None, *,
     for r in table.to_dict("records"):
         rows.append(dict(quantity=f"RMSE_2d, {r['A']}", value=r["RMSE A (m)"], unit="m", data=board.label,
                          kind="reproduced"))
-        rows.append(dict(quantity=f"RMSE_2d ratio {r['A']} / raw LS", value=r["A / B"], unit="", data=board.label,
-                         kind="reproduced"))
+        rows += _ratio_rows(f"RMSE_2d ratio {r['A']} / raw LS", r, board.label)
     return Section(None, {"models": table}, {case: board}, {"case": case, "tuned_on": tune}, tuple(rows))
