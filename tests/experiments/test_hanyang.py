@@ -118,8 +118,11 @@ def test_external_rows_are_interpolated_onto_the_board_epochs_without_extrapolat
     rec = replace(rec, meta={**rec.meta, "authors_estimates": {"LS": est}})
     cal = fit_calibration(rec, dim=2)
     log = rec.ranges["tag"]
-    (theirs,) = external_estimators(rec, ("LS", "ESKF"))     # the case holds no ESKF here: no row
+    theirs, eskf = external_estimators(rec, ("LS", "ESKF"))  # the case holds no ESKF here: a row that says so
     assert theirs.name == "authors LS (external)" and theirs.external
+    assert eskf.applies(rec, "tag", cal) == "no outside estimates for tag 'tag'"
+    assert external_estimators(replace(rec, meta={k: v for k, v in rec.meta.items() if k != "authors_estimates"}),
+                               ("LS", "ESKF")) == []        # not a Hanyang case: no authors' rows at all
     out = theirs.estimate(rec, "tag", cal)
     assert np.array_equal(out.t_s, log.t_s)
     inside = (log.t_s >= 1.0) & (log.t_s <= 1.2)

@@ -65,9 +65,11 @@ def load_target(spec: str, data_dir: str | os.PathLike | None = None) -> Recordi
 def external_estimators(rec: Recording, authors: tuple[str, ...] = ("LS", "ESKF")) -> list[ExternalEstimates]:
     """One *external* row per outside method of ``rec``, in the order given: a tidy folder's
     (``meta["external_estimates"]``: method → tag → trajectory, as :func:`uwbwb.datasets.tidy.load_recording` reads
-    its ``external/*.csv``), then the Hanyang authors' ``authors`` a case folder holds (``meta["authors_estimates"]``,
-    ``LS.csv`` / ``ESKF.csv``; their ESKF also used the robot's IMU); none when it has none."""
-    theirs, given = rec.meta.get("authors_estimates", {}), rec.meta.get("external_estimates", {})
+    its ``external/*.csv``), then the Hanyang authors' ``authors`` of a case folder (``meta["authors_estimates"]``,
+    ``LS.csv`` / ``ESKF.csv``; their ESKF also used the robot's IMU) — a Hanyang case without one of those files
+    keeps that row, which then says it has no outside estimates; none for a recording with neither."""
+    theirs, given = rec.meta.get("authors_estimates"), rec.meta.get("external_estimates", {})
     return ([ExternalEstimates(method, dict(tracks)) for method, tracks in given.items()]
             + [ExternalEstimates(f"authors {m} (external{', +IMU' if m == 'ESKF' else ''})",
-                                 {"tag": theirs[m].to_trajectory()}) for m in authors if m in theirs])
+                                 {"tag": theirs[m].to_trajectory()} if m in theirs else {})
+               for m in (authors if theirs is not None else ())])
