@@ -337,7 +337,7 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
              n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "systematic",
              common_random_numbers: bool = True, dtype=np.float32, block_particles: int = 1 << 17,
              n_threads: int = 1, scheduler=None, truth_m=None, keep_positions: bool = True,
-             progress: bool | None = False, desc: str = "PF sweep", compiled: bool = False) -> PFSweep:
+             progress: bool | None = False, desc: str = "PF sweep", compiled: bool = True) -> PFSweep:
     """Run the PF for every filter variant × trial × σ_d value as one batched computation.
 
     Parameters
@@ -382,9 +382,9 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
     progress
         Show a ``tqdm`` bar over trials (None: only when a cluster is used).
     compiled
-        True: each block's epochs run in the compiled loops of :func:`_sweep_block_compiled` (the same
-        draws, faster); False (default): the NumPy :func:`_sweep_block`, their declared twin
-        (:mod:`uwbwb.filters.twins`).
+        True (default): each block's epochs run in the compiled loops of :func:`_sweep_block_compiled`
+        (the same draws, faster; positions and ESS in their last bits); False: the NumPy
+        :func:`_sweep_block`, their declared twin (:mod:`uwbwb.filters.twins`).
 
     Returns
     -------
