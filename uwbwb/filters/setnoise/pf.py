@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 import pandas as pd
 
@@ -336,7 +337,7 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
              n_particles: int = 1000, ess_fraction: float = 0.5, resampler: str = "systematic",
              common_random_numbers: bool = True, dtype=np.float32, block_particles: int = 1 << 17,
              n_threads: int = 1, scheduler=None, truth_m=None, keep_positions: bool = True,
-             progress: bool | None = False, desc: str = "PF sweep") -> PFSweep:
+             progress: bool | None = False, desc: str = "PF sweep", compiled: bool = True) -> PFSweep:
     """Run the PF for every filter variant × trial × σ_d value as one batched computation.
 
     Parameters
@@ -380,6 +381,10 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
         errors travel back and are held, not ``M·n_trials·S·T·2`` positions.
     progress
         Show a ``tqdm`` bar over trials (None: only when a cluster is used).
+    compiled
+        True (default): each block's epochs run in the compiled loops of :func:`_sweep_block_compiled`
+        (the same draws, faster; positions and ESS in their last bits); False: the NumPy
+        :func:`_sweep_block`, their declared twin (:mod:`uwbwb.filters.twins`).
 
     Returns
     -------
@@ -421,7 +426,7 @@ def pf_sweep(t_s, z_m, mu_m, sigma_m, x0_m, sigma_d_mps, *, rng: np.random.Gener
     if truth is None and not keep_positions:
         raise ValueError("keep_positions=False needs truth_m (the errors are then all that is kept)")
     inputs = _SweepInputs(centre, half_prec, dt_d, sig_d, x0, truth, K, M, ess_fraction, resampler,
-                          common_random_numbers, dtype.name, keep_positions)
+                          common_random_numbers, dtype.name, keep_positions, compiled)
 
     pos = np.empty((M, n_trials, S, T, 2)) if keep_positions else None
     err = np.empty((M, n_trials, S)) if truth is not None else None
@@ -458,6 +463,7 @@ class _SweepInputs:
     crn: bool
     dtype: str
     keep_positions: bool
+    compiled: bool
 
 
 def _sweep_task(trials: range, seed: tuple, inputs: _SweepInputs):
@@ -468,8 +474,9 @@ def _sweep_task(trials: range, seed: tuple, inputs: _SweepInputs):
     """
     d = inputs
     rngs = [np.random.default_rng(s) for s in seed]
-    blk_pos, blk_res, blk_ess = _sweep_block(rngs, d.centre, d.half_prec, d.dt, d.sig_d, d.K, d.M, d.ess_fraction,
-                                             d.resampler, d.crn, np.dtype(d.dtype))
+    block = _sweep_block_compiled if d.compiled else _sweep_block
+    blk_pos, blk_res, blk_ess = block(rngs, d.centre, d.half_prec, d.dt, d.sig_d, d.K, d.M, d.ess_fraction,
+                                      d.resampler, d.crn, np.dtype(d.dtype))
     pos = np.moveaxis(blk_pos, 0, 1) + d.x0                      # (M, b, S, T, 2), float64
     err = None if d.truth is None else np.linalg.norm(pos - d.truth, axis=-1).mean(axis=-1)
     return (pos if d.keep_positions else None), err, np.moveaxis(blk_res, 0, 1), np.moveaxis(blk_ess, 0, 1)
@@ -543,6 +550,125 @@ def _sweep_block(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampl
             logw[need] = log_k
             n_res += need
     return pos, n_res, ess_sum
+
+
+def _sweep_block_compiled(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction, resampler, crn, dtype):
+    """:func:`_sweep_block` with its arithmetic in compiled loops over the block's rows: the same random
+    draws in the same order (NumPy's generators), the same float operations for the state, the weights and
+    the systematic resampling (bit for bit), ``np.exp`` itself; only the sums of eqs. 11–12 differ (float64
+    accumulators instead of NumPy's pairwise and float32 ``einsum`` sums), so positions and ESS differ in
+    their last bits, and a resampling decision only where an ESS falls within that of the threshold."""
+    b, S, T = len(rngs), sig_d.size, centre.shape[1]
+    R = b * M * S
+    x, vx, y, vy, logw = (np.zeros((R, K), dtype) for _ in range(5))
+    logw[:] = -np.log(K)
+    w = np.empty((R, K), dtype)
+    Mn, Sn = (1, 1) if crn else (M, S)
+    noise = np.empty((b, 2, Mn, Sn, K), dtype)
+    sd = sig_d.astype(dtype)
+    pos = np.empty((R, T, 2), dtype)
+    n_res = np.zeros(R, np.int64)
+    ess_sum = np.zeros(R)
+    need = np.zeros(R, np.bool_)
+    rows = _Rows(rngs, M * S, K, resampler)
+    c_x, c_y, a_x, a_y = (np.ascontiguousarray(a[:, :, i].T) for a in (centre, half_prec) for i in (0, 1))
+    log_k, one = dtype.type(-np.log(K)), dtype.type(1)
+    for k in range(T):
+        if k:
+            for j, g in enumerate(rngs):
+                g.standard_normal(out=noise[j], dtype=dtype)
+        _predict_weigh(x, vx, y, vy, logw, noise, sd, dt[k], k > 0, c_x[k], c_y[k], a_x[k], a_y[k], M, S)
+        np.exp(logw, out=w)
+        _moments(w, x, y, pos, k, ess_sum, need, ess_fraction * K)
+        if need.any():
+            flagged = np.flatnonzero(need)
+            if resampler == "systematic":
+                # as particle.systematic_counts: its float32 (1 − u) and K / c_K
+                _systematic(flagged, one - rows._uniforms(flagged, 1)[:, 0].astype(dtype), dtype.type(K), w,
+                            (x, vx, y, vy), logw, log_k)
+            else:
+                flat = rows.ancestors(need, w)
+                for a in (x, vx, y, vy):
+                    a.reshape(-1)[:] = a.reshape(-1)[flat]
+                logw[flagged] = log_k
+            n_res += need
+    return pos.reshape(b, M, S, T, 2), n_res.reshape(b, M, S), ess_sum.reshape(b, M, S)
+
+
+@numba.njit(cache=True, nogil=True)
+def _predict_weigh(x, vx, y, vy, logw, noise, sd, dt, predict, c_x, c_y, a_x, a_y, M, S):
+    """Per row ``(trial, variant, σ_d)`` of ``(R, K)`` arrays: eq. 3 (when ``predict``: positions with
+    the old velocity, then the kick ``noise · σ_d``), eq. 9 subtracted from the log-weights, and the row's
+    maximum subtracted (the ``np.exp`` that follows is NumPy's)."""
+    Mn, Sn = noise.shape[2], noise.shape[3]
+    for r in range(x.shape[0]):
+        j, m, s = r // (M * S), (r // S) % M, r % S
+        xr, vxr, yr, vyr, lr = x[r], vx[r], y[r], vy[r], logw[r]
+        if predict:
+            kick = noise[j, :, m if Mn > 1 else 0, s if Sn > 1 else 0]
+            nx, ny, sd_s = kick[0], kick[1], sd[s]
+            for i in range(xr.size):
+                xr[i] += vxr[i] * dt
+                yr[i] += vyr[i] * dt
+                vxr[i] += nx[i] * sd_s
+                vyr[i] += ny[i] * sd_s
+        cx, cy, ax, ay = c_x[m], c_y[m], a_x[m], a_y[m]
+        for i in range(xr.size):
+            d, e = xr[i] - cx, yr[i] - cy
+            lr[i] = (lr[i] - d * d * ax) - e * e * ay
+        top = lr[0]
+        for i in range(1, lr.size):
+            top = max(top, lr[i])
+        for i in range(lr.size):
+            lr[i] -= top
+
+
+@numba.njit(cache=True, nogil=True)
+def _moments(w, x, y, pos, k, ess_sum, need, threshold):
+    """Eq. 11 into ``pos[:, k]`` and eq. 12 (``ESS = (Σw)² / Σw²``) per row, float64 sums; ``need`` flags
+    ``ESS < threshold``."""
+    for r in range(w.shape[0]):
+        sw = swx = swy = sww = 0.0
+        for i in range(w.shape[1]):
+            wi = np.float64(w[r, i])
+            sw += wi
+            swx += wi * x[r, i]
+            swy += wi * y[r, i]
+            sww += wi * wi
+        pos[r, k, 0] = swx / sw
+        pos[r, k, 1] = swy / sw
+        ess = sw * sw / sww
+        ess_sum[r] += ess
+        need[r] = ess < threshold
+
+
+@numba.njit(cache=True, nogil=True)
+def _systematic(rows, one_minus_u, Kf, w, state, logw, log_k):
+    """Systematic resampling of the flagged rows in place, as :func:`~uwbwb.filters.particle.systematic_counts`
+    (float cumulative sum ``c``, ``⌊c K / c_K + 1 − u⌋`` descendants below) and ``np.repeat``'s gather."""
+    K = w.shape[1]
+    c, tmp = np.empty(K, w.dtype), np.empty(K, w.dtype)
+    below, anc = np.empty(K + 1, np.int64), np.empty(K, np.int64)
+    for n in range(rows.size):
+        r = rows[n]
+        c[0] = w[r, 0]
+        for i in range(1, K):
+            c[i] = c[i - 1] + w[r, i]
+        scale = Kf / c[K - 1]
+        # particle i has min(⌊c_i K / c_K + 1 − u⌋, K) new particles below its last copy (K for the last):
+        # the ancestor of new particle j is the number of particles with at most j below
+        below[:] = 0
+        for i in range(K - 1):
+            below[min(np.int64(c[i] * scale + one_minus_u[n]), K)] += 1
+        run = 0
+        for i in range(K):
+            run += below[i]
+            anc[i] = run
+        for a in state:
+            for i in range(K):
+                tmp[i] = a[r, anc[i]]
+            a[r, :] = tmp
+        logw[r, :] = log_k
 
 
 class _Rows:
