@@ -140,6 +140,14 @@ class Summary:
         return self.frame()
 
 
+def interval_rows(quantity: str, value: float, lo: float, hi: float, **row) -> list[dict]:
+    """Summary rows (keyword arguments of :meth:`Summary.add`) of a number and, where both ends are finite, the ends
+    of its 95 % interval beside it (``<quantity>, 95 % low`` / ``high``); ``row`` (unit, data, kind, ...) goes to
+    each."""
+    ends = [(", 95 % low", lo), (", 95 % high", hi)] if np.isfinite(lo) and np.isfinite(hi) else []
+    return [dict(quantity=quantity + suffix, value=v, **row) for suffix, v in [("", value), *ends]]
+
+
 def _is_recording_label(data: str) -> bool:
     dataset, _, recording = data.partition("/")
     return bool(dataset.strip()) and bool(recording.strip())

@@ -31,6 +31,7 @@ import pandas as pd
 
 from ...datasets import dataset_available, hanyang_dynamic
 from ...errors import DataNotFoundError
+from ...metrics import interval_rows
 from ...scoreboard import Board
 from ...scoreboard.estimators import RawLs, default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S, WindowNls
@@ -162,12 +163,9 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
 
 
 def _ratio_rows(quantity: str, r: Mapping, data: str) -> list[dict]:
-    """Summary rows of one difference-table row's ratio A / B and, where it has one, its 95 % interval's ends
-    (``A / B 95 % low`` / ``high``: the table's own numbers)."""
-    ends = [(f", 95 % {end}", r.get(f"A / B 95 % {end}", np.nan)) for end in ("low", "high")]
-    ends = ends if all(np.isfinite(v) for _, v in ends) else []
-    return [dict(quantity=quantity + suffix, value=v, unit="", data=data, kind="reproduced")
-            for suffix, v in [("", r["A / B"]), *ends]]
+    """Summary rows of one difference-table row's ratio A / B with its interval's ends (the table's own)."""
+    return interval_rows(quantity, r["A / B"], r.get("A / B 95 % low", np.nan), r.get("A / B 95 % high", np.nan),
+                         unit="", data=data, kind="reproduced")
 
 
 def _one_case(case: str | None, data_dir, prefer: str) -> tuple[str | None, str | None, list[str]]:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...metrics import interval_rows
 from ...models.imu import GRADES
 from ...sim import robot
 from .ablation import DEFAULT_OUTAGE_S, EKF_TDOA_GATE, HOLD_S, LADDER, RECOVERY_MAX_M, ROWS, AblationResult
@@ -27,6 +28,7 @@ def error_range_assumption(world: robot.RobotConfig) -> str:
 
 
 _GATED = ("EKF + gate", "loose + gate", "tight + gate")
+_RATIO = dict(unit="", data="synthetic", kind="reproduced")
 #: The gated rows with the IMU: asked to re-acquire after any outage the notebook accepts.
 _GATED_IMU = ("loose + gate", "tight + gate")
 
@@ -54,18 +56,12 @@ def ablation_rows(res: AblationResult) -> list[dict]:
             out.append(dict(quantity=f"ablation: slowest re-acquisition after the outage, {r} (time to get below "
                                      f"{RECOVERY_MAX_M:g} m and hold {HOLD_S:g} s; worst of {n} seeds, matched model)",
                             value=float(rec[r].max()), unit="s", data="synthetic", kind="reproduced"))
-    def ratio_rows(quantity: str, r: dict) -> list[dict]:
-        """The ratio and, where the seeds give one, its 95 % interval ends (the verdict table's numbers)."""
-        rows = [(quantity, r["ratio"])] + [(f"{quantity}, 95 % {end}", r[key]) for end, key in (("low", "lo"),
-                                                                                             ("high", "hi"))
-                                           if np.isfinite(r["lo"]) and np.isfinite(r["hi"])]
-        return [dict(quantity=q, value=v, unit="", data="synthetic", kind="reproduced") for q, v in rows]
-
     for what, a, b in LADDER:
         for m, label in (("dyn_rmse", "dynamic RMSE"), ("outage_max", "outage max error")):
             r = pair_rmse(res, what, m)
             if np.isfinite(r["ratio"]):
-                out += ratio_rows(f"ablation ratio {a} / {b}, {label} ({what}; geometric mean of {r['n']} seeds)", r)
+                out += interval_rows(f"ablation ratio {a} / {b}, {label} ({what}; geometric mean of {r['n']} seeds)",
+                                     r["ratio"], r["lo"], r["hi"], **_RATIO)
     for case in cfg.cases[1:]:
         t = res.table(case)
         for r in t.index:
@@ -77,7 +73,8 @@ def ablation_rows(res: AblationResult) -> list[dict]:
         for other in ("EKF + gate", EKF_TDOA_GATE, "loose + gate"):
             r = res.ratio(other, "tight + gate", "outage_max", case)
             if np.isfinite(r["ratio"]):
-                out += ratio_rows(f"mismatch '{case}': outage max error {other} / tight + gate ({r['n']} seeds)", r)
+                out += interval_rows(f"mismatch '{case}': outage max error {other} / tight + gate ({r['n']} seeds)",
+                                     r["ratio"], r["lo"], r["hi"], **_RATIO)
     for case, c in res.counts.items():
         out.append(dict(quantity=f"ablation '{case}': injected multipath TDoAs removed by eq. 4",
                         value=c["eq4_on_injected"], unit="", data="synthetic", kind="reproduced"))
