@@ -7,6 +7,10 @@ Each selected notebook runs once per mode, one notebook at a time, in a fresh ke
 * ``fast``: ``reproduce --quick --only NN`` (``FAST = True``);
 * ``full``: ``reproduce --only NN`` (full fidelity), only with ``--full`` (tens of minutes per notebook).
 
+``--from-reproduce DIR`` instead takes the full-mode times of a finished ``reproduce --force`` into ``DIR`` (each
+notebook's own wall time, from ``DIR/<notebook>.cache.json``): the notebooks ran as ``reproduce`` runs them, as many
+at once as ``--jobs`` allowed, each in one process; ``--load`` says what else the machine was doing.
+
 The numba kernels are compiled into their cache first (``python -m uwbwb.filters.twins``, as ``make env`` does at
 install time), so no notebook's time includes compiling them. Every (notebook, mode) row of the table carries its wall time, the date, the machine (CPU and cores) and the
 load average when that notebook started (it includes this command's previous notebook). A run of some notebooks
@@ -18,6 +22,7 @@ A script beside the benchmarks rather than a ``uwbwb`` command: it measures the 
 what a lecturer or a student runs, and the package does not grow for it.
 
 Run:  python benchmarks/run_times.py [--only 00 03] [--modes class fast] [--full] [--table docs/run_times.md]
+      python benchmarks/run_times.py --from-reproduce reports --jobs 2 --load "idle machine" [--commit 33b1571]
 """
 
 from __future__ import annotations
@@ -231,6 +236,25 @@ def write_quotes(entries: list[Entry]) -> list[Path]:
     return changed
 
 
+def from_reproduce(out: Path, *, jobs: int, load: str, commit: str = "") -> list[Entry]:
+    """The full-mode rows of a ``reproduce --force`` run into ``out``: each notebook's wall time from its cache entry
+    (written when it succeeded), dated by that file; a notebook without one is an error, naming the file."""
+    import json
+
+    entries = []
+    for path in sorted(out.glob("*.cache.json")):
+        seconds = json.loads(path.read_text(encoding="utf-8")).get("seconds")
+        if not isinstance(seconds, (int, float)) or not math.isfinite(seconds):
+            raise ValueError(f"{path}: no 'seconds' of a finished run")
+        date = dt.datetime.fromtimestamp(path.stat().st_mtime, dt.timezone.utc).strftime("%Y-%m-%d %H:%M")
+        at = f" at {commit}" if commit else ""
+        entries.append(Entry(path.name.removesuffix(".cache.json"), "full", float(seconds), date, machine(), load,
+                             f"`reproduce --force` of all notebooks, {jobs} at once{at}"))
+    if not entries:
+        raise ValueError(f"{out}: no <notebook>.cache.json (run `reproduce --force --out {out}` first)")
+    return entries
+
+
 def main(argv: list[str] | None = None) -> int:
     from uwbwb import reproduce
 
@@ -239,7 +263,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--modes", nargs="+", choices=MODES[:2], default=list(MODES[:2]), help="modes (class fast)")
     ap.add_argument("--full", action="store_true", help="measure full fidelity too (tens of minutes per notebook)")
     ap.add_argument("--table", type=Path, default=TABLE, help="the table file (default docs/run_times.md)")
+    ap.add_argument("--from-reproduce", type=Path, metavar="DIR",
+                    help="take the full times of a finished `reproduce --force --out DIR` instead of measuring")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count(), help="with --from-reproduce: notebooks it ran at once")
+    ap.add_argument("--load", default="not recorded", help="with --from-reproduce: what else the machine was doing")
+    ap.add_argument("--commit", default="", help="with --from-reproduce: the commit it ran")
     args = ap.parse_args(argv)
+    if args.from_reproduce is not None:
+        entries = parse(args.table.read_text(encoding="utf-8")) if args.table.is_file() else []
+        entries = merge(entries, from_reproduce(args.from_reproduce, jobs=args.jobs, load=args.load, commit=args.commit))
+        args.table.write_text(render(entries), encoding="utf-8")
+        changed = write_quotes(entries)
+        print(f"written: {args.table}; the times quoted in {', '.join(p.name for p in changed) or 'no file (all agree)'}")
+        return 0
     notebooks = reproduce.select_notebooks(ROOT / "notebooks", args.only)
     modes = [m for m in MODES if m in args.modes or (m == "full" and args.full)]
     entries = parse(args.table.read_text(encoding="utf-8")) if args.table.is_file() else []

@@ -198,3 +198,20 @@ def test_the_command_writes_the_quotes_the_checks_read():
         assert route_problems(route, rows, there) == []
     front = nbformat.read(NOTEBOOKS[1], as_version=4).cells[0].source
     assert front_problems(NOTEBOOKS[1].stem, rt.quote_front(front, there["01"]), there) == []
+
+
+def test_full_times_taken_from_a_reproduce_run_are_each_notebooks_own(tmp_path):
+    """``--from-reproduce``: one full row per notebook, its seconds the run's cache entry; a run without a finished
+    notebook, or an entry without seconds, is an error naming the folder or file."""
+    (tmp_path / "00_quickstart.cache.json").write_text('{"key": "k", "inputs": {}, "seconds": 63.3}')
+    (tmp_path / "05_uwb_ins_fusion.cache.json").write_text('{"key": "k", "inputs": {}, "seconds": 776.2}')
+    entries = rt.from_reproduce(tmp_path, jobs=2, load="idle", commit="abc1234")
+    assert [(e.notebook, e.mode, e.seconds) for e in entries] == [("00_quickstart", "full", 63.3),
+                                                                  ("05_uwb_ins_fusion", "full", 776.2)]
+    assert all("2 at once at abc1234" in e.source and e.load == "idle" for e in entries)
+    assert rt.times(entries)["05_uwb_ins_fusion"]["full"] == "13 min"
+    (tmp_path / "06_scoreboard.cache.json").write_text('{"key": "k", "inputs": {}}')
+    with pytest.raises(ValueError, match="06_scoreboard.cache.json"):
+        rt.from_reproduce(tmp_path, jobs=2, load="idle")
+    with pytest.raises(ValueError, match="no <notebook>.cache.json"):
+        rt.from_reproduce(tmp_path / "empty", jobs=2, load="idle")
