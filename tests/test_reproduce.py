@@ -294,6 +294,33 @@ def test_reproduce_says_which_notebooks_get_a_parameter_only_some_declare(tmp_pa
     assert "parameter TOURS goes to 02_b only (the others do not declare it)" in lines
 
 
+def test_notebooks_start_longest_first_by_the_time_their_front_quotes(tmp_path, monkeypatch):
+    """The run order follows each front's *Run time* for the mode (unknown first); the report keeps notebook order."""
+    fronts = {"01_short": "[FAST](G.md#fast) 20 s, [full](G.md#full-mode) 1 min 3 s",
+              "02_none": "",
+              "03_long": "[FAST](G.md#fast) 10 s, [full](G.md#full-mode) 11 min",
+              "04_mid": "[FAST](G.md#fast) 1 min 5 s, [full](G.md#full-mode) 4 min 41 s"}
+    for stem, times in fronts.items():
+        path = _notebook(tmp_path / f"{stem}.ipynb", GOOD_PARAMS, "")
+        nb = nbformat.read(path, as_version=4)
+        nb.cells[0].source = f"# {stem}\n\n**Run time** (measured): class mode 5 s, {times}." if times else "# x"
+        nbformat.write(nb, path)
+    started = []
+
+    def fake_run(source, out_dir, parameters, **kwargs):
+        started.append(source.stem)
+        return rp.NotebookRun(notebook=source.stem, source=source, executed=out_dir / "x.ipynb", html=None,
+                              summary=out_dir / "x.json", seconds=0.0, error=None)
+
+    monkeypatch.setattr(rp, "run_notebook", fake_run)
+    full = rp.reproduce(notebooks_dir=tmp_path, out=tmp_path / "full", jobs=1)
+    assert started == ["02_none", "03_long", "04_mid", "01_short"]
+    assert [r.notebook for r in full.runs] == list(fronts)
+    started.clear()
+    rp.reproduce(notebooks_dir=tmp_path, out=tmp_path / "fast", jobs=1, quick=True)
+    assert started == ["02_none", "04_mid", "01_short", "03_long"]
+
+
 def test_folders_are_arguments_with_defaults_in_the_working_directory_not_the_package(tmp_path, monkeypatch):
     """Installed as a wheel, the package holds no notebooks: the folders come from the caller."""
     (tmp_path / "notebooks").mkdir()

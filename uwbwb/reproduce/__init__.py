@@ -62,6 +62,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import re
 import signal
 import subprocess
 import threading
@@ -274,6 +275,7 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, log, ke
         else:
             runs.append(run)
             _log_end(log, order[source], len(notebooks), run)
+    todo.sort(key=lambda item: -_expected_seconds(item[0], quick=bool(resolved[item[0]].get("FAST"))))
     processes, stopping, finished = set(), threading.Event(), []
 
     def one(source: Path, key: str) -> NotebookRun:
@@ -303,6 +305,27 @@ def _execute(notebooks, out_dir, resolved, client, scheduler, timeout_s, log, ke
     pool.shutdown()
     runs.extend(finished)
     runs.sort(key=lambda r: order[r.source])
+
+
+#: A notebook front's *Run time* line (written from docs/run_times.md by benchmarks/run_times.py):
+#: ``… [FAST](GLOSSARY.md#fast) 42 s, [full](GLOSSARY.md#full-mode) 11 min.``
+_FRONT_TIME = re.compile(r"\[(FAST|full)\]\([^)]*\) (?:(\d+) min)? ?(?:(\d+) s)?")
+
+
+def _expected_seconds(source: Path, *, quick: bool) -> float:
+    """How long ``source`` runs in its mode, as its front quotes it; ``inf`` when it quotes none (a notebook of
+    unknown length starts first). Notebooks start longest first, so that a long one does not start last on a
+    machine whose other cores are idle by then; the numbers do not depend on the order."""
+    try:
+        front = "".join(json.loads(source.read_text(encoding="utf-8"))["cells"][0]["source"])
+    except (OSError, ValueError, KeyError, IndexError, TypeError):
+        return float("inf")
+    for line in front.splitlines():
+        if "Run time" in line:
+            for mode, minutes, seconds in _FRONT_TIME.findall(line):
+                if (mode == "FAST") == quick and (minutes or seconds):
+                    return 60.0 * int(minutes or 0) + int(seconds or 0)
+    return float("inf")
 
 
 def _log_end(log, i: int, n: int, run: NotebookRun) -> None:
