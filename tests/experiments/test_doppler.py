@@ -444,15 +444,40 @@ def test_summary_rows_are_the_cells_of_the_tables_the_notebook_shows():
         assert (row["ours"], row["interval"]) == (ours, ci), r
 
 
-def test_cep50_row_carries_the_paper_value_only_once_converged_in_particles():
+def test_pf_rows_carry_the_paper_value_only_once_converged_in_particles():
     q = "PF snapshot CEP50, reconstructed lab, median over recordings"
-    assert headlines.JUDGED_IF_CONVERGED == {q}
+    ratio = [f"PF along/across-track ratio, {c} corner, reconstructed lab, median over recordings"
+             for c in ("bottom-left", "top-left")]
+    assert headlines.JUDGED_IF_CONVERGED == {q, *ratio}
     f, _ = _table(floor=[40.0, 38.0, 30.0, 27.0], floor_drop_ci=(2.0, 4.0))     # not converged
-    row = next(r for r in headlines.rows(f) if r["quantity"] == q)
-    assert row["paper_value"] is None
+    rows = {r["quantity"]: r for r in headlines.rows(f)}
+    assert all(rows[k]["paper_value"] is None for k in (q, *ratio))
     f, _ = _table(floor=[40.0, 38.0, 30.0, 29.5])                               # converged
     assert f["particles_converged"]
-    assert next(r for r in headlines.rows(f) if r["quantity"] == q)["paper_value"] == 25
+    rows = {r["quantity"]: r for r in headlines.rows(f)}
+    assert rows[q]["paper_value"] == 25 and all(rows[k]["paper_value"] == 0.5 for k in ratio)
+
+
+def test_every_verdict_on_the_doppler_pf_runs_waits_for_the_particle_count():
+    converged, ct = _table()
+    assert converged["particles_converged"]
+    for drop_ci, gate in (((2.0, 4.0), facts.NOT_CONVERGED), ((-1.5, 2.5), facts.NOT_JUDGED)):
+        f, t = _table(floor=[40.0, 38.0, 30.0, 27.0], floor_drop_ci=drop_ci)
+        assert not f["particles_converged"]
+        assert all(f[k] == gate for k in facts.PF_RUN_VERDICTS)
+        for c in f["corners"]:                                  # the Fig 6 table's ratio verdicts too
+            assert _fig6(f, f"along / across, {c}")[["asymmetry (≠ 1)", "paper vs mean"]].tolist() == [gate] * 2
+        for claim in ("Fig 6: offset²", "along/across ratio ≈ 0.5", "along/across ratio, ", ALL, TRACKED,
+                      "PF keeps track, Doppler:"):
+            assert _verdict(t, claim) == gate, claim
+            assert t.loc[t["claim"].str.startswith(claim), "rule"].iloc[0].endswith(facts.PF_GATE), claim
+        # the numbers stay; the verdicts that do not rest on the Doppler-only PF runs stay too
+        assert t.loc[t["claim"] == ALL, "ours"].iloc[0] == ct.loc[ct["claim"] == ALL, "ours"].iloc[0]
+        assert _verdict(t, "MH-EKF keeps track, Doppler:") == "keeps track"
+        assert _verdict(t, "PF keeps track, Doppler + ranges") == "keeps track"
+        assert _verdict(t, "MH-EKF − PF CEP50 on the scored epochs per recording, Doppler + ranges, all") == \
+            converged["kf_vs_pf[Doppler + ranges]"]
+        assert _verdict(t, "particle count") == ("not converged" if gate == facts.NOT_CONVERGED else "undecided")
 
 
 def test_checks_report_what_fails():

@@ -69,8 +69,9 @@ def _headlines() -> tuple[Headline, ...]:
 
 HEADLINES = _headlines()
 #: Rows set beside the paper's value only where the particle count has converged (facts' ``particles_verdict``):
-#: until then the notebook does not judge the PF's CEP50 against the paper's, and neither does the summary.
-JUDGED_IF_CONVERGED = frozenset(h.quantity for h in HEADLINES if h.quantity.startswith("PF snapshot CEP50")
+#: until then the notebook gives no verdict on the Doppler-only PF runs (facts' ``PF_RUN_VERDICTS``: the CEP50 and
+#: the along/across ratios against the paper's), and neither does the summary.
+JUDGED_IF_CONVERGED = frozenset(h.quantity for h in HEADLINES if h.quantity.startswith("PF ")
                                 and h.paper is not None)
 
 
