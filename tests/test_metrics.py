@@ -148,6 +148,14 @@ def test_summary_validation(field, bad):
         m.Summary("nb", fast=False).add(**row)
 
 
+def test_summary_names_an_assumption_as_its_own_kind():
+    s = m.Summary("nb", fast=False)      # a simulator setting the paper does not give is neither input nor target
+    s.add(quantity="timing jitter", value=1.5, unit="cm", paper_value=None, data="synthetic", kind="assumption")
+    assert s.frame()["kind"].tolist() == ["assumption"]
+    assert m.Headline("timing jitter", "cm", "assumption", lambda f: f["jitter"]).row({"jitter": 1.5})["kind"] == \
+        "assumption"
+
+
 def test_summary_needs_kind_and_mode():
     with pytest.raises(TypeError):
         m.Summary("nb")                      # the mode is not guessed

@@ -189,14 +189,35 @@ def test_dp_verdict_names_the_reading_that_reproduces_the_printed_values():
     assert _verdict(t, f"ΔP_ref of beacons 0 and 7 (ms), {R_MODEL}") == "does not reproduce"
 
 
+def _brute(lo_pct: float, hi_pct: float) -> dict:
+    """at15 of _results with the cubic brute-force estimate given by its interval (%)."""
+    at15 = _results()["at15"]
+    at15["cubic"]["brute force"] = smp.FractionEstimate(0.15, (lo_pct + hi_pct) / 200, lo_pct / 100, hi_pct / 100,
+                                                        0.95, "brute force", 1000, 1000, 10)
+    return at15
+
+
 @pytest.mark.parametrize("interval, words", [((4.94e-4, 4.99e-4), "agrees"), ((4.90e-4, 5.10e-4), "undecided"),
                                              ((5.01e-4, 5.20e-4), "disagrees")])
-def test_fraction_verdict_follows_the_interval(interval, words):
-    f, t = _table(frac={R_MODEL: (sum(interval) / 2, *interval), R_500: (6.3e-4, 6.2e-4, 6.4e-4)})
-    assert f[f"frac_verdict[cubic][{R_MODEL}]"] == words
-    assert _verdict(t, f"fraction of the 6-D space with δ < 15 cm, cubic (%), {R_MODEL}") == words
+@pytest.mark.parametrize("brute, brute_words", [((4.0e-4, 6.0e-4), "undecided"), ((4.0e-4, 4.9e-4), "agrees"),
+                                                ((5.1e-4, 6.0e-4), "disagrees")])
+def test_fraction_verdict_follows_the_interval_of_each_estimator(interval, words, brute, brute_words):
+    f, t = _table(frac={R_MODEL: (sum(interval) / 2, *interval), R_500: (6.3e-4, 6.2e-4, 6.4e-4)}, at15=_brute(*brute))
+    # the per-beacon row rests on the conditional and the brute force estimate: both named where they differ
+    both = words if words == brute_words else f"{words} (conditional); brute force {brute_words}"
+    assert f["frac_verdict_brute"] == brute_words and f[f"frac_verdict[cubic][{R_MODEL}]"] == both
+    assert _verdict(t, f"fraction of the 6-D space with δ < 15 cm, cubic (%), {R_MODEL}") == both
+    # the 500 ms reading has the conditional estimate alone
     assert f["frac_verdict[cubic][500 ms for all]"] == "disagrees"
     assert _verdict(t, f"fraction of the 6-D space with δ < 15 cm, cubic (%), {R_500}") == "disagrees"
+
+
+def test_the_referees_fraction_row_says_the_brute_force_did_not_resolve_it():
+    # full run: conditional 0.000494 [0.000491, 0.000497] %, brute force 0.000504 % whose interval holds 0.0005 %
+    f, t = _table(frac={R_MODEL: (4.94e-4, 4.91e-4, 4.97e-4), R_500: (6.3e-4, 6.2e-4, 6.4e-4)},
+                  at15=_brute(4.9e-4, 5.18e-4))
+    assert _verdict(t, f"fraction of the 6-D space with δ < 15 cm, cubic (%), {R_MODEL}") == \
+        "agrees (conditional); brute force undecided"
 
 
 def test_cep50_verdict_judges_one_recording_against_the_spread_of_recordings():
@@ -411,19 +432,52 @@ def test_summary_rows_are_the_cells_of_the_tables_the_notebook_shows():
     for r in f["readings"]:
         ours = t.loc[t["claim"] == f"ΔP_ref of beacons 0 and 7 (ms), {r}", "ours"].iloc[0]
         assert ours == f"{rows[f'ΔP_ref beacon 0 ({r})']['value']:.2f}, {rows[f'ΔP_ref beacon 7 ({r})']['value']:.2f}"
-        ours = t.loc[t["claim"] == f"fraction of the 6-D space with δ < 15 cm, cubic (%), {r}", "ours"].iloc[0]
-        assert ours == f"{rows[f'fraction δ < 15 cm, cubic layout ({r})']['value']:.3g}"
+        row = t[t["claim"] == f"fraction of the 6-D space with δ < 15 cm, cubic (%), {r}"].iloc[0]
+        q = f"fraction δ < 15 cm, cubic layout ({r})"
+        lo, hi = (rows[f"{q}, 95 % interval {e}"]["value"] for e in ("low", "high"))
+        ours, ci = f"{rows[q]['value']:.3g}", f"[{lo:.3g}, {hi:.3g}]"
+        if r == R_MODEL:                                  # and the brute force's, which ran on these periods
+            q = "fraction δ < 15 cm, cubic layout (brute force, per-beacon periods)"
+            ours += f" (conditional); {rows[q]['value']:.3g} (brute force)"
+            lo, hi = (rows[f"{q}, 95 % interval {e}"]["value"] for e in ("low", "high"))
+            ci += f" (conditional); [{lo:.3g}, {hi:.3g}] (brute force)"
+        assert (row["ours"], row["interval"]) == (ours, ci), r
 
 
-def test_cep50_row_carries_the_paper_value_only_once_converged_in_particles():
+def test_pf_rows_carry_the_paper_value_only_once_converged_in_particles():
     q = "PF snapshot CEP50, reconstructed lab, median over recordings"
-    assert headlines.JUDGED_IF_CONVERGED == {q}
+    ratio = [f"PF along/across-track ratio, {c} corner, reconstructed lab, median over recordings"
+             for c in ("bottom-left", "top-left")]
+    assert headlines.JUDGED_IF_CONVERGED == {q, *ratio}
     f, _ = _table(floor=[40.0, 38.0, 30.0, 27.0], floor_drop_ci=(2.0, 4.0))     # not converged
-    row = next(r for r in headlines.rows(f) if r["quantity"] == q)
-    assert row["paper_value"] is None
+    rows = {r["quantity"]: r for r in headlines.rows(f)}
+    assert all(rows[k]["paper_value"] is None for k in (q, *ratio))
     f, _ = _table(floor=[40.0, 38.0, 30.0, 29.5])                               # converged
     assert f["particles_converged"]
-    assert next(r for r in headlines.rows(f) if r["quantity"] == q)["paper_value"] == 25
+    rows = {r["quantity"]: r for r in headlines.rows(f)}
+    assert rows[q]["paper_value"] == 25 and all(rows[k]["paper_value"] == 0.5 for k in ratio)
+
+
+def test_every_verdict_on_the_doppler_pf_runs_waits_for_the_particle_count():
+    converged, ct = _table()
+    assert converged["particles_converged"]
+    for drop_ci, gate in (((2.0, 4.0), facts.NOT_CONVERGED), ((-1.5, 2.5), facts.NOT_JUDGED)):
+        f, t = _table(floor=[40.0, 38.0, 30.0, 27.0], floor_drop_ci=drop_ci)
+        assert not f["particles_converged"]
+        assert all(f[k] == gate for k in facts.PF_RUN_VERDICTS)
+        for c in f["corners"]:                                  # the Fig 6 table's ratio verdicts too
+            assert _fig6(f, f"along / across, {c}")[["asymmetry (≠ 1)", "paper vs mean"]].tolist() == [gate] * 2
+        for claim in ("Fig 6: offset²", "along/across ratio ≈ 0.5", "along/across ratio, ", ALL, TRACKED,
+                      "PF keeps track, Doppler:"):
+            assert _verdict(t, claim) == gate, claim
+            assert t.loc[t["claim"].str.startswith(claim), "rule"].iloc[0].endswith(facts.PF_GATE), claim
+        # the numbers stay; the verdicts that do not rest on the Doppler-only PF runs stay too
+        assert t.loc[t["claim"] == ALL, "ours"].iloc[0] == ct.loc[ct["claim"] == ALL, "ours"].iloc[0]
+        assert _verdict(t, "MH-EKF keeps track, Doppler:") == "keeps track"
+        assert _verdict(t, "PF keeps track, Doppler + ranges") == "keeps track"
+        assert _verdict(t, "MH-EKF − PF CEP50 on the scored epochs per recording, Doppler + ranges, all") == \
+            converged["kf_vs_pf[Doppler + ranges]"]
+        assert _verdict(t, "particle count") == ("not converged" if gate == facts.NOT_CONVERGED else "undecided")
 
 
 def test_checks_report_what_fails():

@@ -37,7 +37,8 @@ class Summary:
         ``"reproduced"`` — came out of the method; ``"target"`` — a simulator
         parameter was chosen to hit it (agreement with the paper is by
         construction); ``"input"`` — taken from the paper (or follows directly
-        from a value taken from it).
+        from a value taken from it); ``"assumption"`` — a setting the paper does
+        not give, chosen by us (see the glossary).
     ``mode``
         ``"FAST"`` (small CI-sized experiments: smoke-test numbers) or ``"full"``.
 
@@ -61,7 +62,7 @@ class Summary:
 
     COLUMNS = ("notebook", "quantity", "value", "unit", "paper_value", "data", "kind", "mode")
     #: Allowed values of ``kind``.
-    KINDS = ("reproduced", "target", "input")
+    KINDS = ("reproduced", "target", "input", "assumption")
     #: Allowed values of ``mode``: under ``FAST=True`` and otherwise.
     MODES = ("FAST", "full")
 
@@ -95,7 +96,7 @@ class Summary:
         data
             ``"synthetic"`` or ``"dataset/recording"`` (e.g. ``Recording.label``).
         kind
-            ``"reproduced"``, ``"target"`` or ``"input"`` (see the class docstring).
+            ``"reproduced"``, ``"target"``, ``"input"`` or ``"assumption"`` (see the class docstring).
         paper_value
             The value the paper reports, or None (NaN is read as None).
 
@@ -163,7 +164,7 @@ class Headline:
     quantity, unit
         As in :meth:`Summary.add`.
     kind
-        One of :attr:`Summary.KINDS`: *reproduced*, *target* or *input*.
+        One of :attr:`Summary.KINDS`: *reproduced*, *target*, *input* or *assumption*.
     read
         ``facts → value``.
     paper

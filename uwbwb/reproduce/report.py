@@ -50,7 +50,8 @@ def summary_markdown(runs: Iterable[NotebookRun], parameters: Mapping[str, Any] 
                     "whose numbers are smoke tests, not reproductions; do not compare them with the paper's values."]
     out += ["", "## Headline numbers", "",
             "Kind: *reproduced* came out of the method; *target* is a number a simulator parameter "
-            "was chosen to hit; *input* is taken from the paper.", ""]
+            "was chosen to hit; *input* is taken from the paper; *assumption* is a setting the paper does not "
+            "give.", ""]
     rows = [[row["notebook"], row["quantity"],
              _cell(row["value"]) + (f" {FAST_MARK}" if row["mode"] == "FAST" else ""),
              row["unit"], row["paper_value"], row["kind"], row["mode"], row["data"]] for row in all_rows]

@@ -14,10 +14,14 @@ Rules
 Each claim of :func:`verdict_table` states its rule in the table's ``rule`` column; the constants below set them.
 Those of :func:`fig6_table`:
 
+* The particle count (one rule for every verdict on the Doppler-only PF runs of Fig 6 and the filter comparison,
+  :data:`PF_RUN_VERDICTS`): they all run at the particle count whose convergence the last row of
+  :func:`verdict_table` tests (the drop of the CEP50 with 4× the particles inside ±1 cm, on Doppler-only data).
+  Until it has converged each of them reads :data:`NOT_CONVERGED` or :data:`NOT_JUDGED` in place of its verdict:
+  more particles may still move the numbers it rests on. The numbers stay in their tables. The Doppler + ranges
+  runs are outside the test (it filters Doppler-only data); their verdicts do not wait for it.
 * Fig 6 CEP50 (paper ≈ 25 cm, from *one* recording): judged against the spread of single recordings ([min, max]
-  over ≥ 3 recordings: consistent, or above / below), and against the interval of the mean separately — but only
-  once the particle count has converged (the drop of the CEP50 with 4× the particles inside ±1 cm); else
-  :data:`NOT_CONVERGED` or :data:`NOT_JUDGED`.
+  over ≥ 3 recordings: consistent, or above / below), and against the interval of the mean separately.
 * The along/across ratio per corner (paper ≈ 0.5) claims an asymmetry, so the interval of the mean ratio over
   recordings gets two verdicts, each of which it can reject: *asymmetry (≠ 1)* (:data:`ASYMMETRY`) and *the paper's
   0.5* inside or outside. Reproduced when every corner detects an asymmetry below 1 and holds 0.5; "no asymmetry
@@ -35,7 +39,7 @@ from ...metrics import interval_side, seeds_interval
 from .study import KEEPS_TRACK, PAPER, READINGS, keeps_track
 
 __all__ = ["facts", "fig6_table", "verdict_table", "DP_TOLERANCE_MS", "GHOST_ANGLE_DEG", "OFFSET_SHARE",
-           "EQUAL_CM", "PARTICLE_STEP_CM", "NOT_CONVERGED", "NOT_JUDGED", "ASYMMETRY"]
+           "EQUAL_CM", "PARTICLE_STEP_CM", "NOT_CONVERGED", "NOT_JUDGED", "PF_RUN_VERDICTS", "ASYMMETRY"]
 
 #: Half of the last printed digit of the paper's ΔP_ref (ms).
 DP_TOLERANCE_MS = 0.05
@@ -52,12 +56,20 @@ REFERENCE_S_M = 0.01
 REFERENCE_DELTA_CM = 1e-3
 #: Threshold (cm) under which a cut's minimum counts as a ghost.
 GHOST_CUT_CM = 8.0
-#: The Fig 6 CEP50 verdicts when the particle count has not converged, or when that is undecided.
+#: What every verdict of PF_RUN_VERDICTS reads while the particle count has not converged, or while that is undecided.
 NOT_CONVERGED = "not converged"
 NOT_JUDGED = "not judged (convergence not shown)"
+#: Verdicts read from the Doppler-only PF runs at the tested particle count (keys of :func:`facts`; the corners'
+#: "asymmetry" and "paper" too): each is given only once that count has converged.
+PF_RUN_VERDICTS = ("cep50_verdict", "cep50_mean_verdict", "offset_or_spread", "ratio_verdict", "corner_dependence",
+                   "kf_vs_pf[Doppler]", "kf_vs_pf_tracked[Doppler]", "pf_track_verdict[Doppler]")
+#: Appended to the rule of each verdict-table row whose verdict is one of PF_RUN_VERDICTS.
+PF_GATE = "; given once the particle count has converged (last row)"
 NO_INTERVAL = "no interval"
 #: Fig 6 (which draws recording 0): a better filter that lost track there is named with it.
 FIG6_RECORDING = 0
+#: The period reading the brute force ran on (the model's own periods): its fraction row has two estimators.
+BRUTE_READING = next(r for r, p in READINGS.items() if p is None)
 #: Words of each claim for the sides of :func:`~uwbwb.metrics.interval_side`.
 ASYMMETRY = {"contains": "not detected", "below": "detected (< 1)", "above": "detected, the other way (> 1)"}
 PAPER_INSIDE = {"contains": "inside", "above": "outside (interval above 0.5)", "below": "outside (interval below 0.5)"}
@@ -106,8 +118,14 @@ def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_ru
 
     # --- estimators, the lab, Figs 3-5
     c, lab = at15["cubic"], at15["lab"]
-    f["brute_frac_pct"] = 100 * c["brute force"].fraction
-    f["brute_draws"] = int(c["brute force"].n_draws)
+    b = c["brute force"]
+    f["brute_frac_pct"], f["brute_lo_pct"], f["brute_hi_pct"] = 100 * b.fraction, 100 * b.ci_low, 100 * b.ci_high
+    f["brute_draws"] = int(b.n_draws)
+    # the brute force ran on the per-beacon periods only: that row rests on two estimators, and says so when they differ
+    k = f"[cubic][{BRUTE_READING}]"
+    f["frac_verdict_brute"] = _side(f["brute_lo_pct"], f["brute_hi_pct"], PAPER["fraction_15cm_pct"]["cubic"], FRACTION)
+    if f["frac_verdict_brute"] != f["frac_verdict" + k]:
+        f["frac_verdict" + k] += f" (conditional); brute force {f['frac_verdict_brute']}"
     f["estimators_agree"] = bool(all(
         e["conditional"].ci_low <= e["brute force"].ci_high and e["brute force"].ci_low <= e["conditional"].ci_high
         for e in at15.values()))
@@ -183,6 +201,9 @@ def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_ru
         f[f"pf_restarted_share[{variant}]"] = float(d["PF runs restarted"].sum() / runs)
         f[f"pf_keeps_track[{variant}]"], f[f"kf_keeps_track[{variant}]"] = (bool(k) for k in keeps_track(   # pooled
             f[f"pf_in_track[{variant}]"], runs, d["PF runs restarted"].sum(), f[f"kf_in_track[{variant}]"]))
+        for k in ("pf", "kf"):
+            f[f"{k}_track_verdict[{variant}]"] = "keeps track" if f[f"{k}_keeps_track[{variant}]"] else \
+                "does not keep track"
 
     # --- the particle count (zero noise, exact ΔP, 1× and 4× the particles)
     fl = floor["CEP50, scored epochs (cm)"]
@@ -193,9 +214,11 @@ def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_ru
     f["particles_verdict"] = (NO_INTERVAL if up == "none" else "converged" if (up, down) == ("below", "above") else
                               "not converged" if up == "above" or down == "below" else "undecided")
     f["particles_converged"] = f["particles_verdict"] == "converged"
-    if not f["particles_converged"]:        # the CEP50 may still change with more particles: no verdict on its value
-        f["cep50_verdict"] = f["cep50_mean_verdict"] = (
-            NOT_CONVERGED if f["particles_verdict"] == "not converged" else NOT_JUDGED)
+    if not f["particles_converged"]:        # the PF runs may still change with more particles: no verdict on them
+        gate = NOT_CONVERGED if f["particles_verdict"] == "not converged" else NOT_JUDGED
+        f.update({k: gate for k in PF_RUN_VERDICTS if k in f})
+        for corner in f["corners"].values():
+            corner["asymmetry"] = corner["paper"] = gate
     return f
 
 
@@ -237,9 +260,13 @@ def verdict_table(f: dict) -> pd.DataFrame:
             "both within the printed precision", "reproduces" if r in f["dp_reproduces"] else "does not reproduce")
     for r in f["readings"]:
         k = f"[cubic][{r}]"
+        ours, ci = f"{f['frac_pct' + k]:.3g}", _ci(f["frac_lo_pct" + k], f["frac_hi_pct" + k], ".3g")
+        if r == BRUTE_READING:
+            ours += f" (conditional); {f['brute_frac_pct']:.3g} (brute force)"
+            ci += f" (conditional); {_ci(f['brute_lo_pct'], f['brute_hi_pct'], '.3g')} (brute force)"
         add(f"fraction of the 6-D space with δ < 15 cm, cubic (%), {r}", f"< {PAPER['fraction_15cm_pct']['cubic']:g}",
-            f"{f['frac_pct' + k]:.3g}", _ci(f["frac_lo_pct" + k], f["frac_hi_pct" + k], ".3g"),
-            "95 % interval below the bound: agrees; above: disagrees", f["frac_verdict" + k])
+            ours, ci, "95 % interval below the bound: agrees; above: disagrees; each estimator that ran, both named "
+            "where they differ", f["frac_verdict" + k])
     add("brute force and conditional estimator agree (δ < 15 cm, cubic and lab)", "—",
         f"cubic brute force {f['brute_frac_pct']:.3g} % from {f['brute_draws']:.2g} draws",
         "both 95 % intervals, each layout", "intervals overlap in both layouts",
@@ -255,24 +282,27 @@ def verdict_table(f: dict) -> pd.DataFrame:
             f"a ghost when under {GHOST_CUT_CM:g} cm away from the reference (s ≠ 0)", f["cut_verdict"][k])
     t = f["offset_share"]
     add("Fig 6: offset² / (offset² + run-to-run²), mean over recordings", "—", f"{t['mean']:.2f}",
-        _ci(t["lo"], t["hi"], ".2f"), f"interval above {OFFSET_SHARE:g}: offset; below: spread", f["offset_or_spread"])
+        _ci(t["lo"], t["hi"], ".2f"), f"interval above {OFFSET_SHARE:g}: offset; below: spread{PF_GATE}",
+        f["offset_or_spread"])
     if f["corners"]:
         add("along/across ratio ≈ 0.5 at every corner (Fig 6)", f"{PAPER['along_over_cross']:g}",
             ", ".join(f"{c} {v['mean']:.2f}" for c, v in f["corners"].items()),
             "; ".join(f"{c} {_ci(v['lo'], v['hi'], '.2f')}" for c, v in f["corners"].items()),
-            "at every corner the mean's interval excludes 1 (asymmetry detected, < 1) and holds 0.5",
+            f"at every corner the mean's interval excludes 1 (asymmetry detected, < 1) and holds 0.5{PF_GATE}",
             f["ratio_verdict"])
     if "corner_dependence" in f:
         t = f["corner_diff"]
         add(f"along/across ratio, {f['corner_pair'][0]} − {f['corner_pair'][1]} per recording", "—", f"{t['mean']:+.2f}",
-            _ci(t["lo"], t["hi"], "+.2f"), "interval excludes 0: depends on the corner", f["corner_dependence"])
+            _ci(t["lo"], t["hi"], "+.2f"), f"interval excludes 0: depends on the corner{PF_GATE}",
+            f["corner_dependence"])
     keeps = f"≥ {100 * KEEPS_TRACK[0]:.0f} % within 0.5 m"
     for v in ("Doppler", "Doppler + ranges"):
         if f"kf_vs_pf[{v}]" not in f:
             continue
         lost = f[f"lost_track[{v}]"]
         n_both, n_rec = f[f"both_keep_track[{v}]"]
-        rule = f"interval inside ±{EQUAL_CM:g} cm: equal; else one that excludes 0 names the better filter"
+        gated = PF_GATE if f"kf_vs_pf[{v}]" in PF_RUN_VERDICTS else ""
+        rule = f"interval inside ±{EQUAL_CM:g} cm: equal; else one that excludes 0 names the better filter{gated}"
         t = f[f"kf_minus_pf_cm[{v}]"]
         add(f"MH-EKF − PF CEP50 on the scored epochs per recording, {v}, all recordings (cm)", "—",
             f"{t['mean']:+.1f}; lost track: PF {len(lost['PF'])}, MH-EKF {len(lost['MH-EKF'])} of {n_rec}",
@@ -286,10 +316,11 @@ def verdict_table(f: dict) -> pd.DataFrame:
             add(f"{who} keeps track, {v}: epochs within 0.5 m{what}, recordings where it lost track", "—",
                 f"{100 * f[f'{k}_in_track[{v}]']:.1f} %{extra}, {lost[who] or 'none'}", "—",
                 keeps + (f" and ≤ {100 * KEEPS_TRACK[1]:.0f} % restarted" if who == "PF" else "")
-                + ", pooled (per recording: the scores table)",
-                "keeps track" if f[f"{k}_keeps_track[{v}]"] else "does not keep track")
+                + ", pooled (per recording: the scores table)"
+                + (PF_GATE if f"{k}_track_verdict[{v}]" in PF_RUN_VERDICTS else ""), f[f"{k}_track_verdict[{v}]"])
     drop, lo, hi = f["floor_particles_step"]
     add("particle count: drop of the scored-epoch CEP50 with 4× the particles, zero noise and exact ΔP (cm)", "—",
         f"{drop:.1f}", _ci(lo, hi, ".1f"), f"interval inside ±{PARTICLE_STEP_CM:g} cm: converged; wholly outside: "
-        "not converged (the CEP50 is then no floor and is not judged against the paper's)", f["particles_verdict"])
+        "not converged (the CEP50 is then no floor, and no verdict is given on the Doppler-only PF runs)",
+        f["particles_verdict"])
     return pd.DataFrame(rows)

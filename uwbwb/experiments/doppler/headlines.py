@@ -29,8 +29,11 @@ def _headlines() -> tuple[Headline, ...]:
             for end in ("low", "high"):
                 out.append(Headline(f"fraction δ < 15 cm, {layout} layout{note} ({r}), 95 % interval {end}", "%",
                                     "reproduced", lambda f, k=f"[{layout}][{r}]", e=end: f[f"frac_{e[:2]}_pct" + k]))
-    out.append(Headline("fraction δ < 15 cm, cubic layout (brute force, per-beacon periods)", "%", "reproduced",
-                        lambda f: f["brute_frac_pct"]))
+    brute = "fraction δ < 15 cm, cubic layout (brute force, per-beacon periods)"
+    out.append(Headline(brute, "%", "reproduced", lambda f: f["brute_frac_pct"]))
+    for end in ("low", "high"):
+        out.append(Headline(f"{brute}, 95 % interval {end}", "%", "reproduced",
+                            lambda f, e=end: f[f"brute_{e[:2]}_pct"]))
     for layout in ("cubic", "lab"):
         out.append(Headline(f"fraction δ < 15 cm with pseudo-ranges, {layout} layout", "%", "reproduced",
                             lambda f, l=layout: f["ranges_frac_pct"][l]))
@@ -66,8 +69,9 @@ def _headlines() -> tuple[Headline, ...]:
 
 HEADLINES = _headlines()
 #: Rows set beside the paper's value only where the particle count has converged (facts' ``particles_verdict``):
-#: until then the notebook does not judge the PF's CEP50 against the paper's, and neither does the summary.
-JUDGED_IF_CONVERGED = frozenset(h.quantity for h in HEADLINES if h.quantity.startswith("PF snapshot CEP50")
+#: until then the notebook gives no verdict on the Doppler-only PF runs (facts' ``PF_RUN_VERDICTS``: the CEP50 and
+#: the along/across ratios against the paper's), and neither does the summary.
+JUDGED_IF_CONVERGED = frozenset(h.quantity for h in HEADLINES if h.quantity.startswith("PF ")
                                 and h.paper is not None)
 
 
