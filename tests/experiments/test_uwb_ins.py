@@ -8,7 +8,7 @@ from tests.conftest import real_dataset
 from tests.filters.test_eskf_recovery import fusion_errors, rmse_and_coverage
 from tests.fixtures import iasl as fx
 from uwbwb.experiments.uwb_ins import ablation as ab
-from uwbwb.experiments.uwb_ins import study
+from uwbwb.experiments.uwb_ins import headlines, study
 from uwbwb.filters import alignment, imu_calibration
 from uwbwb.models.tdoa import TdoaModel
 from uwbwb.sim import robot
@@ -62,6 +62,21 @@ def test_the_cell_the_sections_and_the_ablation_run_one_builders_filters():
     assert loose.gate_prob == cfg.gate_prob and ungated.gate_prob is None
     np.testing.assert_array_equal(comp.estimates["loose"].pos_m,
                                   ungated.run(s.imu, s.fixes, s.x0, heading=run.heading).to_estimates(dim=2).pos_m)
+
+
+def test_the_paper_comparisons_rows_say_they_are_its_pairing_and_are_the_cells_of_its_tables(short_dynamic):
+    """Sections 2–4 pair the paper's ungated loose filter with the gated tight one on one seed: a summary row from
+    there says so (summary.md must not read as the ablation's like-for-like comparison) and is its table's cell."""
+    run, comp = short_dynamic
+    ranges = {n: study.error_ranges(comp, n) for n in ("loose", "tight")}
+    rows = headlines.comparison_rows((comp,), ranges, ranges, outage_s=3.0, paper=study.PAPER, world=run.config)
+    method_rows = {r["quantity"]: r["value"] for r in rows if r["kind"] == "reproduced" and "TDoAs" not in r["quantity"]}
+    assert method_rows and all(headlines.PAPERS_PAIRING in q for q in method_rows)
+    assert headlines.PAPERS_PAIRING == "paper's pairing: loose ungated vs tight gated, 1 seed"
+    for m, v in comp.table()["RMSE (m)"].items():
+        assert method_rows[f"RMSE {m} ({comp.label}; {headlines.PAPERS_PAIRING})"] == v
+    assert method_rows[f"max error in the 3 s outage, loose ({comp.label}; {headlines.PAPERS_PAIRING})"] == \
+        comp.table("outage").loc["loose", "max (m)"]
 
 
 def test_error_ranges_are_min_and_max_of_the_signed_errors(short_dynamic):

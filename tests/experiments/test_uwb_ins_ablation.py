@@ -258,6 +258,13 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     rows = headlines.ablation_rows(bad)
     q = [r for r in rows if r["quantity"].startswith("mismatch 'IMU 10× worse': dynamic RMSE, tight + gate")]
     assert len(q) == 1 and q[0]["value"] > 0.1
+    # the summary flags what the verdict table calls diverged: the row's numbers in that case, and every ratio on it
+    flagged = {r["quantity"] for r in rows if "diverged" in r["quantity"]}
+    assert flagged == {r["quantity"] for r in rows if r["quantity"].startswith("mismatch 'IMU 10× worse': ")
+                       and ("tight + gate (mean" in r["quantity"] or "/ tight + gate" in r["quantity"])}
+    assert q[0]["quantity"].endswith("(mean of 6 seeds; diverged on dyn_rmse)")
+    assert all("a row diverged: the ratio measures a failure" in k for k in flagged if "/ tight + gate" in k)
+    assert not any("diverged" in r["quantity"] for r in headlines.ablation_rows(_fake(GOOD)))
     m = (sc["case"] == "matched") & (sc["method"] == "EKF + gate") & (sc["seed"] == 2)
     sc.loc[m, "recovery_max"] = 0.8                        # drift found on UWB's return, re-acquired in 1.8 s
     sc.loc[m, "reacq_s"] = 1.8

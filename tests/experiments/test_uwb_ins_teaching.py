@@ -10,6 +10,8 @@ import json
 from pathlib import Path
 
 from uwbwb import scoreboard as sb
+from uwbwb.notebook_params import SPECS
+from uwbwb.scoreboard import teaching as sbt
 from uwbwb.datasets import iasl
 from uwbwb.experiments.uwb_ins import exercises, panels, realdata
 from uwbwb.filters import alignment, imu_calibration
@@ -71,11 +73,22 @@ def test_each_filters_scales_reach_it_and_the_start_is_shared(tmp_path):
         alignment.run_fusion_filter("UWB-only", start, rec, cal)
 
 
+def _code_cells(notebook: str) -> list[tuple[str, list]]:
+    """The notebook's code cells: (source, tags)."""
+    nb = json.loads((Path(__file__).parents[2] / "notebooks" / notebook).read_text(encoding="utf-8"))
+    return [("".join(c["source"]), c["metadata"].get("tags", [])) for c in nb["cells"] if c["cell_type"] == "code"]
+
+
 def _iasl_cell(notebook: str) -> str:
     """The code of the notebook's cell that builds its i-ASL board."""
-    nb = json.loads((Path(__file__).parents[2] / "notebooks" / notebook).read_text(encoding="utf-8"))
-    cells = ["".join(c["source"]) for c in nb["cells"] if c["cell_type"] == "code"]
-    return next(c for c in cells if "sb.score(" in c and "iasl.load_scenario(IASL_SCENARIO" in c)
+    return next(c for c, _ in _code_cells(notebook) if "sb.score(" in c and "iasl.load_scenario(IASL_SCENARIO" in c)
+
+
+def _defaults(notebook: str) -> dict:
+    """The notebook's parameter defaults (its cell tagged ``parameters``: assignments only)."""
+    params: dict = {}
+    exec(next(c for c, tags in _code_cells(notebook) if "parameters" in tags), params)
+    return params
 
 
 #: Notebook 05's real-data rows and the pairs of its verdict table.
@@ -89,7 +102,18 @@ def test_05_and_06_score_the_flight_on_one_board_and_print_the_same_verdicts(tmp
     05's tables and summary rows are cells of that board."""
     for nb in ("05_uwb_ins_fusion.ipynb", "06_scoreboard.ipynb"):       # the cells build them as this test does
         assert "equal_knobs=True" in _iasl_cell(nb) and "rate_hz=RATE_HZ" in _iasl_cell(nb)
-    fx.write_dataset(tmp_path / "iasl-uwb-imu", rng=np.random.default_rng(8), duration_s=30.0)
+        assert any("sb.verdicts.difference_table(" in c and "seed=SEED)" in c for c, _ in _code_cells(nb))
+    # at their defaults the two print one comparison: the same seed and rate (FAST: the same cap), and 05's fusion
+    # settings are the ones 06's board builds its filters with
+    p05, p06 = _defaults("05_uwb_ins_fusion.ipynb"), _defaults("06_scoreboard.ipynb")
+    assert (p05["SEED"], p05["RATE_HZ"]) == (p06["SEED"], p06["RATE_HZ"])
+    assert SPECS["05_uwb_ins_fusion"]["RATE_HZ"].fast_cap == SPECS["06_scoreboard"]["RATE_HZ"].fast_cap
+    assert alignment.FusionSettings(outlier_c_m=p05["OUTLIER_C_M"], gate_prob=p05["GATE_PROB"],
+                                    loose_window=p05["LOOSE_WINDOW"]) == alignment.FusionSettings()
+    assert "ins_settings=SETTINGS" in _iasl_cell("05_uwb_ins_fusion.ipynb")
+    assert "ins_settings" not in _iasl_cell("06_scoreboard.ipynb")
+    # 150 s: long enough that the IMU filters' pairs get ten blocks and a verdict (30 s: "no verdict" on both sides)
+    fx.write_dataset(tmp_path / "iasl-uwb-imu", rng=np.random.default_rng(8), duration_s=150.0)
     cal, test = iasl.load_scenario("scenario1", tmp_path), iasl.load_scenario("scenario2", tmp_path)
     est05 = [e for e in sb.default_estimators(fast=True, ins_kinds=("loose", "tight", "tight (ranges)", "INS-only"),
                                               ins_settings=alignment.FusionSettings(), equal_knobs=True)
@@ -98,7 +122,13 @@ def test_05_and_06_score_the_flight_on_one_board_and_print_the_same_verdicts(tmp
     b06 = sb.score(test, cal, estimators=sb.default_estimators(fast=True, equal_knobs=True), rate_hz=5.0, fast=True)
     v05, v06 = (sb.verdicts.difference_table({test.label: b}, PAIRS_05, seed=0) for b in (b05, b06))
     assert len(v05) == len(PAIRS_05)
-    pd.testing.assert_frame_equal(v05, v06)
+    pd.testing.assert_frame_equal(v05, v06)                             # intervals and verdict strings
+    # 06's own table (its pairs, its order) prints 05's rows for the pairs both notebooks show
+    t06 = sb.verdicts.difference_table({test.label: b06}, sbt.PAIRS, seed=0).set_index(["A", "B"])
+    shared = [p for p in PAIRS_05 if p in sbt.PAIRS]
+    assert set(shared) >= {("tight", "loose"), ("tight", "EKF-RF")}
+    assert not v05["verdict"].str.startswith("no ").any()             # each pair compared by a verdict, not a blank
+    pd.testing.assert_frame_equal(v05.set_index(["A", "B"]).loc[shared], t06.loc[shared])
     for m in ("EKF-RF", "loose", "tight"):
         p05, p06 = b05.calibration.params(m), b06.calibration.params(m)
         assert p05["grid"] == p06["grid"] == sb.estimators.INS_GRID_FAST      # one grid of (Q ×, R ×) for all
@@ -110,9 +140,9 @@ def test_05_and_06_score_the_flight_on_one_board_and_print_the_same_verdicts(tmp
     np.testing.assert_array_equal(t["horizontal RMSE (m)"], board_t.loc[t.index, "rmse_common_m"])
     rows = {r["quantity"]: r for r in realdata.summary_rows(b05, cal_label="scenario1", cal_data=cal.label, rate_hz=5.0,
                                                             verdicts=v05)}
-    for m in t.index:
-        assert rows[f"RMSE {m} (calibrated on scenario1)"]["value"] == t.loc[m, "horizontal RMSE (m)"]
-        assert rows[f"3-D RMSE {m}, common epochs (calibrated on scenario1)"]["value"] == t.loc[m, "3-D RMSE (m)"]
+    rmse = {k: r["value"] for k, r in rows.items() if r["unit"] == "m" and "RMSE" in k}
+    assert rmse == {f"{c.split(' (')[0]} {m}, common epochs (calibrated on scenario1)": t.loc[m, c] for m in t.index
+                    for c in ("horizontal RMSE (m)", "vertical RMSE (m)", "3-D RMSE (m)") if np.isfinite(t.loc[m, c])}
     q = [k for k in rows if k.startswith("EKF-RF R multiplier")]
     assert len(q) == 1 and rows[q[0]]["value"] == b05.calibration.params("EKF-RF")["r_scale"] and rows[q[0]]["data"] == cal.label
     for _, r in v05.iterrows():

@@ -35,7 +35,7 @@ from ...metrics import interval_side
 from .ablation import HOLD_S, RECOVERY_MAX_M, AblationResult, EKF_TDOA_GATE, LADDER, choose_knobs
 from .ladder import eq4_path, eq4_thresholds, pair_rmse
 
-__all__ = ["DIVERGED_FACTOR", "verdict", "verdict_table"]
+__all__ = ["DIVERGED_FACTOR", "diverged", "verdict", "verdict_table"]
 
 #: A mismatch row whose dynamic RMSE or recovery max exceeds this many times its matched value (and
 #: RECOVERY_MAX_M) diverged.
@@ -67,7 +67,7 @@ def _gated(rows) -> list:
     return [r for r in rows if r.endswith("+ gate") and not r.startswith("LS")]
 
 
-def _diverged(res: AblationResult, case: str) -> list[dict]:
+def diverged(res: AblationResult, case: str) -> list[dict]:
     """Rows of ``case`` whose dyn RMSE or recovery max exceeds DIVERGED_FACTOR × matched (same seeds) and
     RECOVERY_MAX_M."""
     c, m = res.case(case), res.case("matched")
@@ -133,10 +133,10 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
             qualified(verdict(r["lo"], r["hi"]), (other, "tight + gate")))
     words = {"helps": "survives", "hurts": "reversed", "not significant": "not significant",
              "undetermined": "undetermined"}
-    diverged = {case: _diverged(res, case) for case in cfg.cases[1:]}          # the first is "matched"
+    diverged_in = {case: diverged(res, case) for case in cfg.cases[1:]}          # the first is "matched"
     for metric, what, versus in (("outage_max", "max outage error", _VERSUS), ("dyn_rmse", "dynamic RMSE", _VERSUS[:2])):
         for case in cfg.cases[1:]:
-            gone = {d["row"] for d in diverged[case]}
+            gone = {d["row"] for d in diverged_in[case]}
             for other in versus:
                 r = kept(res, other, metric, case)
                 failure = bool({other, "tight + gate"} & gone)          # the ratio measures a failure: no share
@@ -146,7 +146,7 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
                     _RATIO_RULE + " (above 1: the advantage survives)",
                     "a row diverged (the ratio measures a failure)" if failure else
                     qualified(words[verdict(r["lo"], r["hi"])], (other, "tight + gate"), reacquired=False))
-    for case, ds in diverged.items():
+    for case, ds in diverged_in.items():
         for d in ds:
             add(f"{case}: {d['row']} diverged ({d['metric']})", f"{d['value']:.3g} m against {d['matched']:.3g} m "
                 "matched", "—", n_mis, f"above {DIVERGED_FACTOR:g}× the matched value and {RECOVERY_MAX_M:g} m",

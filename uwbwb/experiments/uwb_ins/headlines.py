@@ -14,10 +14,11 @@ import numpy as np
 from ...metrics import interval_rows
 from ...models.imu import GRADES
 from ...sim import robot
+from . import facts
 from .ablation import DEFAULT_OUTAGE_S, EKF_TDOA_GATE, HOLD_S, LADDER, RECOVERY_MAX_M, ROWS, AblationResult
 from .ladder import pair_rmse
 
-__all__ = ["error_range_assumption", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
+__all__ = ["PAPERS_PAIRING", "error_range_assumption", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
 
 def error_range_assumption(world: robot.RobotConfig) -> str:
     """What the synthetic error ranges follow from, read off the simulated world ``world``."""
@@ -38,7 +39,9 @@ def ablation_rows(res: AblationResult) -> list[dict]:
     mean scores per row (matched), the ladder ratios on the dynamic RMSE and the outage — each the number
     :func:`~.ladder.ladder_table` shows, both rows scored on the epochs both cover (:func:`~.ladder.pair_rmse`) —,
     the outage ratio of tight coupling under each mismatch case, each ratio with its 95 % interval ends over seeds
-    (the verdict table's), and the eq-4 counts."""
+    (the verdict table's), and the eq-4 counts. A mismatch row of a filter that diverged in that case
+    (:func:`~.facts.diverged`) says so in its quantity, and so does a ratio on such a row (the verdict table's
+    "a row diverged": the ratio measures a failure)."""
     cfg = res.config
     n = cfg.seeds
     out = []
@@ -64,17 +67,22 @@ def ablation_rows(res: AblationResult) -> list[dict]:
                                      r["ratio"], r["lo"], r["hi"], **_RATIO)
     for case in cfg.cases[1:]:
         t = res.table(case)
+        gone: dict[str, list[str]] = {}                 # the verdict table's diverged rows, and on which metric
+        for d in facts.diverged(res, case):
+            gone.setdefault(d["row"], []).append(d["metric"])
         for r in t.index:
+            flag = f"; diverged on {', '.join(gone[r])}" if r in gone else ""
             for m, what in (("dyn_rmse", "dynamic RMSE"), ("recovery_max", "max error in the recovery")):
                 v = t.loc[r, m]
                 if np.isfinite(v):
                     out.append(dict(quantity=f"mismatch '{case}': {what}, {r} (mean of {int(t.loc[r, 'seeds'])} "
-                                             f"seeds)", value=v, unit="m", data="synthetic", kind="reproduced"))
+                                             f"seeds{flag})", value=v, unit="m", data="synthetic", kind="reproduced"))
         for other in ("EKF + gate", EKF_TDOA_GATE, "loose + gate"):
             r = res.ratio(other, "tight + gate", "outage_max", case)
+            flag = "; a row diverged: the ratio measures a failure" if {other, "tight + gate"} & set(gone) else ""
             if np.isfinite(r["ratio"]):
-                out += interval_rows(f"mismatch '{case}': outage max error {other} / tight + gate ({r['n']} seeds)",
-                                     r["ratio"], r["lo"], r["hi"], **_RATIO)
+                out += interval_rows(f"mismatch '{case}': outage max error {other} / tight + gate ({r['n']} seeds"
+                                     f"{flag})", r["ratio"], r["lo"], r["hi"], **_RATIO)
     for case, c in res.counts.items():
         out.append(dict(quantity=f"ablation '{case}': injected multipath TDoAs removed by eq. 4",
                         value=c["eq4_on_injected"], unit="", data="synthetic", kind="reproduced"))
@@ -159,28 +167,33 @@ def checks(res: AblationResult) -> list[str]:
     return fails
 
 
+#: What the paper re-creation's rows compare (sections 2–4): not the ablation's like-for-like ladder.
+PAPERS_PAIRING = "paper's pairing: loose ungated vs tight gated, 1 seed"
+
+
 def comparison_rows(comps, static_ranges: dict, dyn_ranges: dict, *, outage_s: float, paper: dict,
                     world: robot.RobotConfig) -> list[dict]:
     """Summary rows of the paper re-creation: RMSE per method and run, the outage maxima, the
     outlier counts, and the paper's error ranges beside ours — labelled as following from the
-    assumed noise of the simulated ``world`` (:func:`error_range_assumption`), since the paper gives none of it."""
+    assumed noise of the simulated ``world`` (:func:`error_range_assumption`), since the paper gives none of it.
+    Every row that scores a method says it comes from the paper's pairing on one seed (:data:`PAPERS_PAIRING`)."""
     out = []
     for comp in comps:
         t = comp.table()
         for m in t.index:
-            out.append(dict(quantity=f"RMSE {m} ({comp.label})", value=t.loc[m, "RMSE (m)"], unit="m",
-                            data="synthetic", kind="reproduced"))
+            out.append(dict(quantity=f"RMSE {m} ({comp.label}; {PAPERS_PAIRING})", value=t.loc[m, "RMSE (m)"],
+                            unit="m", data="synthetic", kind="reproduced"))
     degraded = comps[-1]
     o = degraded.table("outage")
     for m in ("loose", "tight", "INS-only"):
-        out.append(dict(quantity=f"max error in the {outage_s:g} s outage, {m} ({degraded.label})",
+        out.append(dict(quantity=f"max error in the {outage_s:g} s outage, {m} ({degraded.label}; {PAPERS_PAIRING})",
                         value=o.loc[m, "max (m)"], unit="m", data="synthetic", kind="reproduced"))
     rej = degraded.rejected
     out += [dict(quantity=f"TDoAs rejected by eq. 4 ({degraded.label} run)", value=rej["eq4"], unit="",
                  data="synthetic", kind="reproduced"),
             dict(quantity=f"TDoAs rejected by the tight filter's gate ({degraded.label} run)", value=rej["gated"],
                  unit="", data="synthetic", kind="reproduced")]
-    a = error_range_assumption(world)
+    a = f"{PAPERS_PAIRING}; {error_range_assumption(world)}"
     for name, r in static_ranges.items():
         for key, q, pv in (("E_min", "static E error min", paper["static_E_m"][0]),
                            ("E_max", "static E error max", paper["static_E_m"][1]),

@@ -105,7 +105,8 @@ def _clock_rows(clock: pd.DataFrame, offset_ms: float, data: str) -> list[dict]:
 def summary_rows(board: Board, *, cal_label: str, cal_data: str, rate_hz: float, verdicts=None, clock=None,
                  clock_offset_ms: float = np.nan, inflation: dict | None = None) -> list[dict]:
     """Summary rows of the real-data section, each a cell of a table the notebook shows (kind *reproduced*):
-    :func:`common_table`'s RMSEs and mean NEES, each tuned filter's ``Q ×`` and ``R ×`` (a tuning output on
+    :func:`common_table`'s RMSEs (labelled *common epochs*: the board's own-epoch RMSEs, shown beside the figures,
+    are not rows) and mean NEES, each tuned filter's ``Q ×`` and ``R ×`` (a tuning output on
     ``cal_data``), the covariance scale (:func:`nees_inflation`), the TDoAs the tight filter rejected, the IMU clock
     offset from the ranges and each IMU filter's RMSE change with it (``clock``: a difference table of ``m (ranges
     clock)`` against ``m``), and the board's differences (``verdicts``), each with its 95 % interval ends."""
@@ -114,8 +115,7 @@ def summary_rows(board: Board, *, cal_label: str, cal_data: str, rate_hz: float,
     def add(quantity, value, unit="m", d=data):
         return dict(quantity=quantity, value=float(value), unit=unit, data=d, kind="reproduced")
 
-    out = [add(f"RMSE {m} (calibrated on {cal_label})", v) for m, v in t["horizontal RMSE (m)"].items() if np.isfinite(v)]
-    out += [add(f"{c.split(' (')[0]} {m}, common epochs (calibrated on {cal_label})", t.loc[m, c]) for m in t.index
+    out = [add(f"{c.split(' (')[0]} {m}, common epochs (calibrated on {cal_label})", t.loc[m, c]) for m in t.index
             for c in ("horizontal RMSE (m)", "vertical RMSE (m)", "3-D RMSE (m)") if np.isfinite(t.loc[m, c])]
     out += [add(f"mean position NEES {m} ({int(r['dof'])} dof)", r["mean NEES"], "") for m, r in t.iterrows()
             if np.isfinite(r.get("mean NEES", np.nan))]
