@@ -395,6 +395,14 @@ def test_the_persistence_row_asks_whether_the_best_stays_best(gap_m, verdict):
     assert row.verdict == verdict, row.ours
 
 
+def test_the_persistence_row_names_no_best_the_base_intervals_do_not_resolve():
+    """A lowest median at 3 s inside the noise is not "the best": the row says which tie and decides nothing."""
+    base = _long({"percentile": 0.0, "residual": None, "robust_mean": 0.4}).assign(nlos_dwell_s=3.0)
+    long = _long({"percentile": 0.0, "residual": 0.3, "robust_mean": 0.6}, seed=7).assign(nlos_dwell_s=30.0)
+    row = _row(ex.verdicts.verdict_table(_syn(), persistence=pd.concat([base, long])), "the best heuristic at 3 s")
+    assert row.verdict == "not resolved" and ": tied) still best at 30 s" in row.claim, row.ours
+    assert "5th percentile" in row.claim and "residual pruning" in row.claim
+
 
 def _poses(offsets, n=14, seed=3):
     """LIAS-like runs: ``n`` poses, one error per pose and heuristic, scored at 5 epochs each."""

@@ -274,12 +274,17 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
         base, long = (3.0 if 3.0 in dwell else dwell[0]), dwell[-1]
         at = {w: persistence[persistence["nlos_dwell_s"] == w] for w in (base, long)}
         three = [h for h in PAPER_RANKING if h in set(persistence["heuristic"])]
-        best = at[base][at[base]["heuristic"].isin(three)].groupby("heuristic")["err_m"].median().idxmin()
-        text, verdict = _steps(at[long], [(best, h) for h in three if h != best], rng, "same", "changes")
-        add(f"the best heuristic at {base:g} s NLOS episodes ({LABELS[best]}) still best at {long:g} s", "—", text,
-            f"95 % bootstrap interval of its median difference to each other heuristic at {long:g} s (each "
-            "experiment's stops one block): all below 0 same, one above 0 changes", verdict,
-            f"nlos_dwell_s varied, the rest as above: {_OURS}")
+        first = ranking(at[base], ["experiment", "tag"], rng=rng)       # best at the base: ranked alone first
+        top = list(first.rank.index[first.rank == 1])
+        text, verdict = _steps(at[long], [(top[0], h) for h in three if h != top[0]], rng, "same", "changes")
+        if len(top) > 1:
+            verdict = "no interval" if all(d["side"] == "none" for d in first.pairs) else "not resolved"
+        add(f"the best heuristic at {base:g} s NLOS episodes ({', '.join(LABELS[h] for h in top)}"
+            f"{'' if len(top) == 1 else ': tied'}) still best at {long:g} s", "—",
+            f"{base:g} s: rank (tied where not resolved) {first.text()}; {long:g} s: {text}",
+            f"best at {base:g} s: ranked alone first there (the ranking row's rank rule); then the 95 % bootstrap "
+            f"interval of its median difference to each other heuristic at {long:g} s (each experiment's stops one "
+            "block): all below 0 same, one above 0 changes", verdict, f"nlos_dwell_s varied, the rest as above: {_OURS}")
     for k in (lias.runs if lias is not None else ()):
         if len(ranks[k].rank) >= 2:
             text, verdict = ranked(ranks[k], "poses")
