@@ -283,14 +283,17 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     prune.record(s2)
     label = f"hanyang-outdoor-uwb/{prune.facts['case']}"
     assert len(s2) == len(prune.rows) > 0 and {r["data"] for r in prune.rows} == {label, label + sections.EXTERNAL}
-    theirs = [r for r in prune.rows if r["quantity"] == "RMSE_2d, authors LS (external)"]
+    theirs = [r for r in prune.rows if r["quantity"] == "RMSE_2d, authors LS (external) (epochs it covered)"]
     pv = {r["quantity"]: r["value"] for r in prune.rows}
     for r in prune.tables["ablation"].to_dict("records"):          # each ratio with the table's interval ends
-        q = f"RMSE_2d ratio {r['A']} / {r['B']}"
+        q = f"RMSE_2d ratio {r['A']} / {r['B']} (epochs both covered)"           # the table's: on the pair's epochs
         assert pv[q] == r["A / B"]
         if np.isfinite([r["A / B 95 % low"], r["A / B 95 % high"]]).all():
             assert (pv[f"{q}, 95 % low"], pv[f"{q}, 95 % high"]) == (r["A / B 95 % low"], r["A / B 95 % high"])
     assert len(theirs) == 1 and theirs[0]["kind"] == "input" and theirs[0]["data"] == label + sections.EXTERNAL
+    own = prune.boards[prune.facts["case"]].table().set_index("method")["rmse_m"]    # each RMSE row: the board's
+    for m, v in own[np.isfinite(own)].items():
+        assert pv[f"RMSE_2d, {m} (epochs it covered)"] == v
     motion = sections.motion_section(cases[1].name, data, fast=True)
     assert set(motion.tables["models"]["A"]) == {"EKF-RW ranges", "EKF-RF ranges", "EKF-RJ ranges"}
     assert motion.boards[cases[1].name].table().set_index("method").loc["EKF-RF", "note"].startswith("not run: TDoAs")
@@ -317,7 +320,7 @@ def test_pruning_notebook_runs_on_a_generated_dynamic_case(tmp_path):
     cases = _hanyang_tree(data_dir, rng)
     rows = _run_on("02_pruning_nls.ipynb", tmp_path, data_dir, RECORDING="medium", HANYANG_CASE=cases[3].name)
     hy = [r for r in rows if r["data"] == f"hanyang-outdoor-uwb/{cases[3].name}"]
-    assert any(r["quantity"] == "RMSE_2d ratio NLS residual pruning / NLS" for r in hy)
+    assert any(r["quantity"] == "RMSE_2d ratio NLS residual pruning / NLS (epochs both covered)" for r in hy)
     assert {r["kind"] for r in hy} == {"reproduced"} and {r["mode"] for r in hy} == {"FAST"}
 
 

@@ -395,6 +395,15 @@ def test_the_persistence_row_asks_whether_the_best_stays_best(gap_m, verdict):
     assert row.verdict == verdict, row.ours
 
 
+def test_the_persistence_row_names_no_best_the_base_intervals_do_not_resolve():
+    """A lowest median at 3 s inside the noise is not "the best": the row says which tie and decides nothing."""
+    base = _long({"percentile": 0.0, "residual": None, "robust_mean": 0.4}).assign(nlos_dwell_s=3.0)
+    long = _long({"percentile": 0.0, "residual": 0.3, "robust_mean": 0.6}, seed=7).assign(nlos_dwell_s=30.0)
+    row = _row(ex.verdicts.verdict_table(_syn(), persistence=pd.concat([base, long])), "the best heuristic at 3 s")
+    assert row.verdict == "not resolved" and ": tied) still best at 30 s" in row.claim, row.ours
+    assert "5th percentile" in row.claim and "residual pruning" in row.claim
+
+
 def _poses(offsets, n=14, seed=3):
     """LIAS-like runs: ``n`` poses, one error per pose and heuristic, scored at 5 epochs each."""
     rng = np.random.default_rng(seed)
@@ -496,17 +505,19 @@ def test_the_wins_table_names_a_leader_only_when_its_interval_lies_below_0(gap_m
 def test_headline_rows_say_their_kind_and_name_the_noise_beside_the_paper_4_m():
     t = pd.DataFrame({"stop_median_m": [1.157, 0.321, 0.515, 0.604, np.nan], "all_p90_m": [1.9, 0.6, 1.5, 1.7, 2.9],
                       "coverage": 1.0}, index=pd.Index([*HS, "point"], name="heuristic"))
-    res = dict(synthetic=_syn(), synthetic_table=t, synthetic_dim=2, control=t, tour=tours.TourConfig(
+    stops = _long({"none": 1.0, "percentile": 0.0, "robust_mean": 0.3, "residual": 0.6})
+    res = dict(synthetic=_syn(stops), synthetic_table=t, synthetic_dim=2, control=t, tour=tours.TourConfig(
         nlos_mean_m=2.5, p_nlos_out=0.3), other_table=t.loc[["none", "percentile", "residual"]].assign(
-        stop_err_z_median_m=1.0))
+        stop_err_z_median_m=1.0), rankings=ex.verdicts.rankings(_syn(stops)))
     rows = ex.headlines.rows(res)
     assert rows and {r["kind"] for r in rows} == {"reproduced"} and all(np.isfinite(r["value"]) for r in rows)
     four = [r for r in rows if r["paper_value"] == 4.0]
     assert len(four) == 1 and "follows from assumed noise: NLOS excess N(2.5 m, 1 m)" in four[0]["quantity"]
     assert "30 % of links outside" in four[0]["quantity"]
     q = {r["quantity"]: r["value"] for r in rows}
-    rank = "rank by median stationary error among the three heuristics (1 = best)"
-    assert q[f"{rank}, 5th percentile (known height)"] == 1
+    rank = "rank by median stationary error among the three heuristics (1 = best; tied where not resolved)"
+    assert [q[f"{rank}, {ex.scoring.LABELS[h]} (known height)"] for h in ("percentile", "robust_mean", "residual")] \
+        == [1, 2, 3]                                                                  # every step resolved
     assert {r["paper_value"] for r in rows if r["quantity"].startswith("rank")} == {1, 2, 3}
     assert q["90 % of all distance errors, residual pruning minus point-based (known height)"] == pytest.approx(-1.2)
     assert "median stationary height error |dz|, 5th percentile (3-D, no height)" in q
@@ -516,3 +527,61 @@ def test_headline_rows_say_their_kind_and_name_the_noise_beside_the_paper_4_m():
     for r in rows:
         s.add(**r)
     assert len(s.frame()) == len(rows)
+
+
+@pytest.mark.parametrize("offsets, ranks", [((0.0, 0.3, 0.6), (1, 2, 3)), ((0.0, None, 0.6), (1, 1, 3)),
+                                            ((0.6, None, 0.0), (3, 1, 1)), ((0.0, None, None), (1, 1, 1))])
+def test_the_ranks_tie_the_heuristics_no_interval_separates(offsets, ranks):
+    """Ranks (residual pruning, robust mean, 5th percentile) by every pair's median-difference interval: a pair
+    inside the noise shares a rank, so no rank states an order the intervals do not resolve; one block: all 1."""
+    stops = _long({"none": 1.0, **dict(zip(("residual", "robust_mean", "percentile"), offsets))})
+    r = ex.verdicts.ranking(stops, ["experiment", "tag"], rng=np.random.default_rng(0))
+    assert tuple(r.rank[["residual", "robust_mean", "percentile"]]) == ranks, [(d["a"], d["b"], d["side"]) for d in r.pairs]
+    assert [(d["a"], d["b"]) for d in r.pairs][:2] == [("residual", "robust_mean"), ("robust_mean", "percentile")]
+    for d in r.pairs:                      # a strict order between two ranks only where their interval resolves it
+        ra, rb = r.rank[d["a"]], r.rank[d["b"]]
+        assert ra == rb or d["side"] == ("below" if ra < rb else "above")
+    one = ex.verdicts.ranking(stops[stops.experiment == "e0"], ["experiment", "tag"], rng=np.random.default_rng(0))
+    assert set(one.rank) == {1}                                                    # FAST: no interval, no order
+
+
+def test_every_summary_row_is_the_number_of_the_table_it_comes_from():
+    """Each headline row equals the cell of the notebook table it is read from (synthetic, LIAS static, Hanyang
+    static), and every rank row is the rank the verdict table's ranking row shows, from the same object."""
+    offsets = {"none": 1.0, "percentile": 0.4, "robust_mean": None, "residual": 0.0}
+    stops, track = _long(offsets), _long({**offsets, "point": 0.8}, n=20, seed=6)
+    syn, table, tour = _syn(stops, track), ex.scoring.heuristic_summary(stops, None, track), tours.TourConfig()
+    lias = _poses({"raw": {"none": 0.0, "percentile": 0.05, "robust_mean": None, "residual": 0.1, "point": 0.0}})
+    lias.table = pd.concat({k: ex.scoring.heuristic_summary(v.poses) for k, v in lias.runs.items()})
+    lias.epochs = {k: metrics.epoch_summary(v.epochs, by="heuristic", order=ex.scoring.ESTIMATORS)
+                   for k, v in lias.runs.items()}
+    lias.label = "lias-planar-uwb/8.14"
+    hy = pd.DataFrame({"median_err_m": [0.24, 0.28], "pq_err_m": [0.2, 0.25]}, index=["LOS", "NLOS"])
+    ranks = ex.verdicts.rankings(syn, lias, seed=3)
+    rows = ex.headlines.rows(dict(synthetic=syn, synthetic_table=table, synthetic_dim=2, tour=tour, rankings=ranks,
+                                  lias_static=lias, hanyang=hy, hanyang_label="hanyang-outdoor-uwb/static"))
+    got = {(r["quantity"], r["data"]): r["value"] for r in rows}
+    want, H = {}, ex.headlines
+    note = "; follows from assumed noise: " + ex.verdicts.noise(tour)
+    for decl, t, data, fmt in [(H.SYNTHETIC, table, "synthetic", {"geo": "known height"}),
+                               (H.LIAS_POSES, lias.table.loc["raw"], lias.label, {"k": "raw"}),
+                               (H.LIAS_EPOCHS, lias.epochs["raw"], lias.label, {"k": "raw"}),
+                               (H.HANYANG, hy, "hanyang-outdoor-uwb/static", {})]:
+        for h in t.index:
+            for q, col, _ in decl:
+                if col in t and np.isfinite(t.loc[h, col]):
+                    lab = ex.scoring.LABELS.get(h, h)
+                    want[q.format(lab=lab, note=note if h == "residual" else "", **fmt), data] = t.loc[h, col]
+    rank = "rank by median stationary error among the three heuristics (1 = best; tied where not resolved)"
+    for key, where, data in (("synthetic", " (known height)", "synthetic"), ("raw", ", raw", lias.label)):
+        for h, v in ranks[key].rank.items():
+            want[f"{rank}, {ex.scoring.LABELS[h]}{where}", data] = v
+    want["90 % of all distance errors, residual pruning minus point-based (known height)", "synthetic"] = (
+        table.loc["residual", "all_p90_m"] - table.loc["point", "all_p90_m"])
+    assert got == want
+    assert ranks["synthetic"].rank["residual"] == ranks["synthetic"].rank["robust_mean"] == 1     # a tie, not 1 and 2
+    t = ex.verdicts.verdict_table(syn, lias=lias, ranks=ranks, seed=3)
+    for claim, key in (("ranking of the heuristics", "synthetic"), ("LIAS static, raw ranges: the heuristics ranked",
+                                                                    "raw")):
+        assert _row(t, claim).ours.endswith(f"rank (tied where not resolved): {ranks[key].text()}")
+    assert t.equals(ex.verdicts.verdict_table(syn, lias=lias, seed=3))                 # the same object by default

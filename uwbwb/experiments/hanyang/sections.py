@@ -185,7 +185,9 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
 
     Rows: raw LS, NLS (no pruning), NLS with residual pruning, NLS with the robust mean, the authors' LS
     (external); each pruned NLS against plain NLS (and against the authors' LS) on the epochs both covered,
-    a row of :func:`~uwbwb.scoreboard.verdicts.difference_table`.
+    a row of :func:`~uwbwb.scoreboard.verdicts.difference_table` whose ratio (and its interval's ends) the summary
+    row labelled "(epochs both covered)" is; each method's RMSE_2d row is the board's, on the scored epochs it
+    covered ("(epochs it covered)"): where coverages differ, the quotient of two RMSE rows is not the ratio row.
     """
     case, absent, available = _one_case(case, data_dir, "NLOS")
     if absent:
@@ -198,12 +200,12 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
     pairs = [("NLS residual pruning", "NLS"), ("NLS robust mean", "NLS"), ("NLS", "raw LS"),
              ("NLS residual pruning", study.THEIRS), ("NLS robust mean", study.THEIRS)]
     table = difference_table({board.label: board}, pairs, seed=seed)
-    rows = [x for r in table.to_dict("records") for x in _ratio_rows(f"RMSE_2d ratio {r['A']} / {r['B']}", r,
-                                                                    board.label)]
+    rows = [x for r in table.to_dict("records") for x in _ratio_rows(
+        f"RMSE_2d ratio {r['A']} / {r['B']} (epochs both covered)", r, board.label)]
     for r in board.table().itertuples(index=False):
         if np.isfinite(r.rmse_m):          # the authors' LS is an outside method's number: input, data marked external
             ext = r.method in board.external
-            rows.append(dict(quantity=f"RMSE_2d, {r.method}", value=r.rmse_m, unit="m",
+            rows.append(dict(quantity=f"RMSE_2d, {r.method} (epochs it covered)", value=r.rmse_m, unit="m",
                              data=board.label + (EXTERNAL if ext else ""), kind="input" if ext else "reproduced"))
     return Section(None, {"ablation": table}, {case: board}, {"case": case, "tuned_on": tune}, tuple(rows))
 

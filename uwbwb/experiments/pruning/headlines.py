@@ -9,19 +9,11 @@ whatever the noise levels (none of them is the paper's number).
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
 from .scoring import LABELS, PAPER_RANKING, POINT
 from .verdicts import noise
 
 __all__ = ["checks", "rows"]
-
-
-def _ranks(table: pd.DataFrame) -> pd.Series:
-    """Rank (1 = best) by median stop error of the paper's three heuristics present (plain NLS and the point-based
-    baseline are not ranked, as in the paper)."""
-    three = [h for h in PAPER_RANKING if h in table.index and np.isfinite(table.loc[h, "stop_median_m"])]
-    return table.loc[three, "stop_median_m"].rank()
 
 
 #: The summary rows per estimator, declared as data: (quantity, column of its table, unit); ``{lab}`` is the
@@ -56,7 +48,9 @@ def rows(results: dict) -> list[dict]:
     """The notebook's headline numbers as :meth:`uwbwb.metrics.Summary.add` keyword dicts, each with its kind.
 
     ``results`` holds ``synthetic_table`` (:func:`.scoring.heuristic_summary` of the ranked synthetic comparison),
-    ``synthetic_dim`` (its geometry: 2, known mount height; 3, no height) and, where run, ``other_table`` (the same
+    ``synthetic_dim`` (its geometry: 2, known mount height; 3, no height), ``rankings``
+    (:func:`.verdicts.rankings`: the ranks the verdict table's ranking rows show, ties where an interval does not
+    resolve the order) and, where run, ``other_table`` (the same
     packets in the other geometry), ``lias_static`` and ``lias_dynamic`` (:mod:`.sections`), ``hanyang`` (per
     condition, the median over the static files of ``median_err_m`` and ``pq_err_m``) with ``hanyang_label``, and
     ``tour`` (the simulator configuration). Every value came out of the method on the run's data
@@ -82,8 +76,9 @@ def rows(results: dict) -> list[dict]:
     t, tour = results["synthetic_table"], results.get("tour")
     table(t, SYNTHETIC, "synthetic", geo=geo, note="; follows from assumed noise: " + (
         noise(tour) if tour is not None else "our simulator's (uw.sim.tours.TourConfig)"))
-    rank = "rank by median stationary error among the three heuristics (1 = best)"
-    for h, v in _ranks(t).items():
+    ranks = results["rankings"]
+    rank = "rank by median stationary error among the three heuristics (1 = best; tied where not resolved)"
+    for h, v in ranks["synthetic"].rank.items():
         add(f"{rank}, {LABELS[h]} ({geo})", v, "", "synthetic", PAPER_RANK[h])
     if {"residual", POINT} <= set(t.index):
         add(f"90 % of all distance errors, residual pruning minus point-based ({geo})",
@@ -93,7 +88,7 @@ def rows(results: dict) -> list[dict]:
     st = results.get("lias_static")
     for k in (st.runs if st is not None else ()):
         table(st.table.loc[k], LIAS_POSES, st.label, k=k)
-        for h, v in _ranks(st.table.loc[k]).items():
+        for h, v in ranks[k].rank.items():
             add(f"{rank}, {LABELS[h]}, {k}", v, "", st.label, PAPER_RANK[h])
         table(st.epochs[k], LIAS_EPOCHS, st.label, k=k)
     dy = results.get("lias_dynamic")

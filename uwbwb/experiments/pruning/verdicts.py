@@ -11,6 +11,9 @@ on, rule, verdict); :func:`wins_table` says which estimator leads where, by the 
 
 from __future__ import annotations
 
+import itertools
+from dataclasses import dataclass
+
 import numpy as np
 import pandas as pd
 
@@ -18,7 +21,7 @@ from ... import metrics
 from ...sim.tours import TourConfig
 from .scoring import ESTIMATORS, LABELS, PAPER_RANKING, POINT
 
-__all__ = ["COLUMNS", "assumption", "noise", "paired", "verdict_table", "wins_table"]
+__all__ = ["COLUMNS", "Ranking", "assumption", "noise", "paired", "ranking", "rankings", "verdict_table", "wins_table"]
 
 #: The columns of :func:`verdict_table`.
 COLUMNS = ["claim", "paper", "paper kind", "ours", "ours kind", "assumption", "rule", "verdict"]
@@ -37,6 +40,9 @@ _EXCESS = {frozenset({"below"}): "agrees at each", frozenset({"above"}): "differ
            frozenset({"below", "above"}): "depends on the assumed excess", frozenset({"none"}): "no interval"}
 #: Rule text of the paired rows.
 _PAIRED_RULE = "95 % block-bootstrap interval of the median difference vs 0"
+_RANK_RULE = ("each step of the paper's order: 95 % block-bootstrap interval of the median difference below 0 (all: "
+              "as in the paper; one above 0: differs); rank: 1 + the number ranked above, a heuristic ranked above "
+              "another only where every pair's interval resolves it (otherwise they share a rank)")
 _SEEDS_RULE = ("95 % Student-t interval, over the simulated experiments (independent draws), of their 90th "
                "percentile vs 4 m")
 
@@ -67,18 +73,77 @@ def _pair_text(d: dict, what: str, digits: int = 3) -> str:
 def _steps(stops: pd.DataFrame, pairs, rng, holds: str, fails: str, column: str = "err_m") -> tuple[str, str]:
     """Each pair ``a < b`` of ``pairs`` on the stops both fitted (one series per experiment and node, each resampled
     whole: its stops share the experiment's per-pair range biases): the differences with their intervals, and the
-    verdict: every interval below 0, ``holds``; one above 0, ``fails``; no interval at all, "no interval"; else not
+    verdict (:func:`_decide`)."""
+    return _decide([paired(stops, a, b, ["experiment", "tag"], at="segment", column=column, blocks="segment",
+                           rng=rng) for a, b in pairs], holds, fails)
+
+
+def _decide(steps: list[dict], holds: str, fails: str, what: str = "stops") -> tuple[str, str]:
+    """The text of the paired differences ``steps`` (each ``a < b`` claimed; ``what`` they count) and their verdict:
+    every interval below 0, ``holds``; one above 0, ``fails``; no interval at all, "no interval"; else not
     resolved."""
-    steps = [paired(stops, a, b, ["experiment", "tag"], at="segment", column=column, blocks="segment", rng=rng)
-             for a, b in pairs]
     sides = [s["side"] for s in steps]
     text = "; ".join(f"{LABELS[s['a']]} − {LABELS[s['b']]} {s['diff_m']:+.2f} m {_iv(s)}" for s in steps) + (
-        f" ({steps[0]['n']} stops)" if steps else "")
+        f" ({steps[0]['n']} {what})" if steps else "")
     if sides and all(x == "below" for x in sides):
         return text, holds
     if "above" in sides:
         return text, fails
     return text, ("no interval" if all(x == "none" for x in sides) else "not resolved")
+
+
+@dataclass(frozen=True)
+class Ranking:
+    """The paper's three heuristics ranked by median stop error, each order decided by an interval (:func:`ranking`).
+
+    Attributes
+    ----------
+    pairs
+        :func:`paired` of every pair of them: first the steps of the paper's order (residual pruning − robust mean,
+        robust mean − 5th percentile), then the rest.
+    rank
+        Per heuristic (lowest median first): 1 + the number ranked above it, where a heuristic is ranked above
+        another only when every interval resolves it (tied groups: each heuristic ranked above a group is resolved
+        better than every one in it; no interval at all: all 1).
+    """
+
+    pairs: tuple
+    rank: pd.Series
+
+    def text(self) -> str:
+        """The ranks in words, e.g. "robust mean 1, 5th percentile 1, residual pruning 3"."""
+        return ", ".join(f"{LABELS[h]} {r}" for h, r in self.rank.items())
+
+
+def ranking(stops: pd.DataFrame, series: list[str], *, at: str = "segment", rng: np.random.Generator) -> Ranking:
+    """Rank the paper's three heuristics present in ``stops`` (one error ``err_m`` per stop, ``heuristic``) by every
+    pair's median difference on the stops both fitted, with its block-bootstrap interval (:func:`paired`, each
+    series of ``series`` one block, ordered by ``at``); see :class:`Ranking`. Walking up the medians, a heuristic
+    opens a group only when every one before it is resolved better; otherwise it joins, with every group after the
+    first one holding a heuristic not resolved better than it."""
+    order = [h for h in PAPER_RANKING if h in set(stops["heuristic"])]
+    steps = list(zip(order[:-1], order[1:]))
+    pairs = tuple(paired(stops, a, b, series, at=at, blocks="segment", rng=rng)
+                  for a, b in steps + [p for p in itertools.combinations(order, 2) if p not in steps])
+    better = {(d["a"], d["b"]) if d["side"] == "below" else (d["b"], d["a"]) for d in pairs
+              if d["side"] in ("below", "above")}
+    groups = []
+    for h in stops[stops["heuristic"].isin(order)].groupby("heuristic")["err_m"].median().sort_values().index:
+        i = next((j for j, g in enumerate(groups) if any((m, h) not in better for m in g)), len(groups))
+        groups = groups[:i] + [[m for g in groups[i:] for m in g] + [h]]
+    rank = {h: 1 + sum(map(len, groups[:j])) for j, g in enumerate(groups) for h in g}
+    return Ranking(pairs, pd.Series(rank, name="rank", dtype=int))
+
+
+def rankings(syn, lias=None, *, seed: int = 0) -> dict[str, Ranking]:
+    """The :class:`Ranking` of every stop table the notebook ranks: ``"synthetic"`` (``syn.stops``, each experiment
+    and node one block) and each LIAS static run by its name (its poses, each pose one block). The verdict table's
+    ranking rows and the summary's rank rows both read these."""
+    rng = np.random.default_rng(seed)
+    out = {"synthetic": ranking(syn.stops, ["experiment", "tag"], rng=rng)}
+    for k, run in (lias.runs.items() if lias is not None else ()):
+        out[k] = ranking(run.poses, ["recording"], at="tag", rng=rng)
+    return out
 
 
 def _p90(track: pd.DataFrame) -> tuple[float, dict]:
@@ -114,7 +179,8 @@ def noise(tour: TourConfig) -> str:
 
 def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = None,
                   persistence: pd.DataFrame | None = None, excess: pd.DataFrame | None = None, lias=None,
-                  lias_dyn=None, hanyang: pd.DataFrame | None = None, seed: int = 0) -> pd.DataFrame:
+                  lias_dyn=None, hanyang: pd.DataFrame | None = None, ranks: dict | None = None,
+                  seed: int = 0) -> pd.DataFrame:
     """The claims of notebook 02, one row each (:data:`COLUMNS`), each decided by an interval.
 
     Parameters
@@ -138,6 +204,8 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
     hanyang
         :func:`uwbwb.calibration.percentile_by_file` of the Hanyang static files (LOS and NLOS paired by height and
         true range).
+    ranks
+        :func:`rankings` of ``syn`` and ``lias`` (None: computed here with ``seed``), which the ranking rows read.
     seed
         Seeds the bootstrap of every row.
 
@@ -154,13 +222,18 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
 
     syn_a = assumption(tour)
     geo = "known mount height" if dim == 2 else "3-D, no height"
-    order = [h for h in PAPER_RANKING if h in set(syn.stops["heuristic"])]
-    text, verdict = _steps(syn.stops, zip(order[:-1], order[1:]), rng, "as in the paper", "differs")
-    add(f"ranking of the heuristics by median stop error, synthetic ({geo})",
-        " < ".join(LABELS[h] for h in PAPER_RANKING), text,
-        "each step of the paper's order: 95 % bootstrap interval of the median difference (block-bootstrap rule, "
-        "each experiment's series of stops one block) below 0 (all: as in the paper; one above 0: differs)",
-        verdict, syn_a)
+    ranks = rankings(syn, lias, seed=seed) if ranks is None else ranks
+    paper_order = " < ".join(LABELS[h] for h in PAPER_RANKING)
+
+    def ranked(r: Ranking, what: str = "stops") -> tuple[str, str]:
+        """A ranking row's text and verdict: the paper's steps decide; every pair gives the ranks."""
+        _, verdict = _decide(list(r.pairs[:max(len(r.rank) - 1, 0)]), "as in the paper", "differs")
+        text = _decide(list(r.pairs), "", "", what)[0]
+        return text + (f"; rank (tied where not resolved): {r.text()}" if len(r.rank) else ""), verdict
+
+    text, verdict = ranked(ranks["synthetic"])
+    add(f"ranking of the heuristics by median stop error, synthetic ({geo})", paper_order, text,
+        "each experiment's series of stops one block; " + _RANK_RULE, verdict, syn_a)
     track = syn.track
     if {"residual", POINT} <= set(track["heuristic"]):
         d = paired(track, "residual", POINT, ["experiment", "tag"], blocks="segment", rng=rng)
@@ -201,12 +274,22 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
         base, long = (3.0 if 3.0 in dwell else dwell[0]), dwell[-1]
         at = {w: persistence[persistence["nlos_dwell_s"] == w] for w in (base, long)}
         three = [h for h in PAPER_RANKING if h in set(persistence["heuristic"])]
-        best = at[base][at[base]["heuristic"].isin(three)].groupby("heuristic")["err_m"].median().idxmin()
-        text, verdict = _steps(at[long], [(best, h) for h in three if h != best], rng, "same", "changes")
-        add(f"the best heuristic at {base:g} s NLOS episodes ({LABELS[best]}) still best at {long:g} s", "—", text,
-            f"95 % bootstrap interval of its median difference to each other heuristic at {long:g} s (each "
-            "experiment's stops one block): all below 0 same, one above 0 changes", verdict,
-            f"nlos_dwell_s varied, the rest as above: {_OURS}")
+        first = ranking(at[base], ["experiment", "tag"], rng=rng)       # best at the base: ranked alone first
+        top = list(first.rank.index[first.rank == 1])
+        text, verdict = _steps(at[long], [(top[0], h) for h in three if h != top[0]], rng, "same", "changes")
+        if len(top) > 1:
+            verdict = "no interval" if all(d["side"] == "none" for d in first.pairs) else "not resolved"
+        add(f"the best heuristic at {base:g} s NLOS episodes ({', '.join(LABELS[h] for h in top)}"
+            f"{'' if len(top) == 1 else ': tied'}) still best at {long:g} s", "—",
+            f"{base:g} s: rank (tied where not resolved) {first.text()}; {long:g} s: {text}",
+            f"best at {base:g} s: ranked alone first there (the ranking row's rank rule); then the 95 % bootstrap "
+            f"interval of its median difference to each other heuristic at {long:g} s (each experiment's stops one "
+            "block): all below 0 same, one above 0 changes", verdict, f"nlos_dwell_s varied, the rest as above: {_OURS}")
+    for k in (lias.runs if lias is not None else ()):
+        if len(ranks[k].rank) >= 2:
+            text, verdict = ranked(ranks[k], "poses")
+            add(f"LIAS static, {k} ranges: the heuristics ranked by median pose error", paper_order, text,
+                "each pose one block; " + _RANK_RULE, verdict)
     pairs = []                              # (claim, paired difference, what is counted, rule, verdicts)
     for k, run in (lias.runs.items() if lias is not None else ()):
         pairs.append((f"LIAS static, {k} ranges: plain NLS (fixed in advance) vs point fixes, median error on common "
