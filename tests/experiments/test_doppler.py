@@ -122,7 +122,7 @@ def _results(**change) -> dict:
 
     at15 = {lay: {"conditional": est(4.97e-6 * k, 4.94e-6 * k, 4.99e-6 * k),
                   "brute force": est(5e-6 * k, 4e-6 * k, 6e-6 * k, "brute force"), "ranges": est(1e-12, 0, 2e-12)}
-            for lay, k in (("cubic", 1), ("lab", 7))}
+            for lay, k in (("cubic", 1), ("lab", change.pop("lab_over_cubic", 7)))}
     cep = change.pop("cep", [24.0, 26.0, 25.0, 23.0, 27.0])
     ratio = change.pop("ratio", {"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [1.8, 1.9, 2.0, 1.7, 1.6]})
     offset = np.broadcast_to(change.pop("offset", 20.0), (len(cep),))
@@ -400,6 +400,16 @@ def test_ghost_rules_flip():
     # a minimum near s = 0 that is not δ = 0 is not the reference
     f, t = _table(cut_minima={"V = V_ref": (0.0, 0.0), "V = 0.8 V_ref": (0.005, 5.0)})
     assert _verdict(t, "Fig 5: minimum of δ along the band, V = 0.8 V_ref") == "a ghost"
+
+
+@pytest.mark.parametrize("factor, words", [(3.1, "agrees"), (1 / 3.1, "agrees"), (3.2, "differs"),
+                                           (1 / 3.2, "differs")])
+def test_lab_ratio_verdict_flips_at_the_threshold_its_rule_states(factor, words):
+    paper = study.PAPER["fraction_15cm_pct"]["lab"] / study.PAPER["fraction_15cm_pct"]["cubic"]
+    f, t = _table(lab_over_cubic=paper * factor)                 # 10 ** 0.5 ≈ 3.16
+    assert _verdict(t, "lab fraction over cubic fraction") == words
+    rule = t.loc[t["claim"].str.startswith("lab fraction over cubic"), "rule"].iloc[0]
+    assert f"|log10(ours / paper)| < {facts.SAME_ORDER_LOG10:g}" in rule and f"{10 ** facts.SAME_ORDER_LOG10:.1f}" in rule
 
 
 def test_lab_row_says_reconstruction():
