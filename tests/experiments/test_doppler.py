@@ -122,7 +122,7 @@ def _results(**change) -> dict:
 
     at15 = {lay: {"conditional": est(4.97e-6 * k, 4.94e-6 * k, 4.99e-6 * k),
                   "brute force": est(5e-6 * k, 4e-6 * k, 6e-6 * k, "brute force"), "ranges": est(1e-12, 0, 2e-12)}
-            for lay, k in (("cubic", 1), ("lab", 7))}
+            for lay, k in (("cubic", 1), ("lab", change.pop("lab_over_cubic", 7)))}
     cep = change.pop("cep", [24.0, 26.0, 25.0, 23.0, 27.0])
     ratio = change.pop("ratio", {"bottom-left": [0.4, 0.5, 0.6, 0.55, 0.45], "top-left": [1.8, 1.9, 2.0, 1.7, 1.6]})
     offset = np.broadcast_to(change.pop("offset", 20.0), (len(cep),))
@@ -402,6 +402,16 @@ def test_ghost_rules_flip():
     assert _verdict(t, "Fig 5: minimum of δ along the band, V = 0.8 V_ref") == "a ghost"
 
 
+@pytest.mark.parametrize("factor, words", [(3.1, "agrees"), (1 / 3.1, "agrees"), (3.2, "differs"),
+                                           (1 / 3.2, "differs")])
+def test_lab_ratio_verdict_flips_at_the_threshold_its_rule_states(factor, words):
+    paper = study.PAPER["fraction_15cm_pct"]["lab"] / study.PAPER["fraction_15cm_pct"]["cubic"]
+    f, t = _table(lab_over_cubic=paper * factor)                 # 10 ** 0.5 ≈ 3.16
+    assert _verdict(t, "lab fraction over cubic fraction") == words
+    rule = t.loc[t["claim"].str.startswith("lab fraction over cubic"), "rule"].iloc[0]
+    assert f"|log10(ours / paper)| < {facts.SAME_ORDER_LOG10:g}" in rule and f"{10 ** facts.SAME_ORDER_LOG10:.1f}" in rule
+
+
 def test_lab_row_says_reconstruction():
     rows = headlines.rows(facts.facts(**_results()))
     names = [r["quantity"] for r in rows]
@@ -415,20 +425,53 @@ def test_lab_row_says_reconstruction():
     assert {r["kind"] for r in rows} <= {"reproduced", "target", "input"}
 
 
-def test_summary_rows_are_the_cells_of_the_tables_the_notebook_shows():
-    f, t = _table()
+NOT_CONVERGED = dict(floor=[40.0, 38.0, 30.0, 27.0], floor_drop_ci=(2.0, 4.0))
+
+
+@pytest.mark.parametrize("change", [{}, dict(kf_minus_pf=[-9.0, -10.0, -8.0, 6.0, 5.0],
+                                             kf_in_track=[0.25, 1.0, 1.0, 0.5, 1.0], **NOT_CONVERGED),
+                                    dict(in_track=0.9, **NOT_CONVERGED)])
+def test_summary_rows_are_the_cells_of_the_tables_the_notebook_shows(change):
+    """Converged; the MH-EKF lost two recordings; the PF lost all (none where both keep track)."""
+    f, t = _table(**change)
     rows = {r["quantity"]: r for r in headlines.rows(f)}
     lab = ", reconstructed lab"
     fig = facts.fig6_table(f)
-    for variant, tag in (("Doppler", ""), ("Doppler + ranges", " with ranges")):
-        for q, name in (("snapshot CEP50 (cm)", f"PF snapshot CEP50{tag}{lab}, median over recordings"),
+    # the Doppler-only PF rows carry the particle count's verdict until it has converged, as the tables' verdicts do
+    gate = "" if f["particles_converged"] else f" (particle count: {f['particles_verdict']})"
+    for variant, tag in headlines.VARIANTS:
+        q = gate if variant == "Doppler" else ""
+        for c, name in (("snapshot CEP50 (cm)", f"PF snapshot CEP50{tag}{lab}, median over recordings"),
                         ("shared offset (cm)", f"PF snapshot shared offset, median over recordings{tag}{lab}"),
                         ("run-to-run CEP50 (cm)", f"PF snapshot run-to-run CEP50, median over recordings{tag}{lab}")):
-            cell = fig[(fig["variant"] == variant) & (fig["quantity"] == q)]["median"].iloc[0]
-            assert rows[name]["value"] == cell, (variant, q)
+            cell = fig[(fig["variant"] == variant) & (fig["quantity"] == c)]["median"].iloc[0]
+            assert rows[name + q]["value"] == cell, (variant, c)
+        # the filter comparison: MH-EKF − PF with its interval, the recordings each filter lost, those where both
+        # keep track, and each filter's share within 0.5 m; the MH-EKF's own rows rest on no particles
+        value = {k: r["value"] for k, r in rows.items()}
+        n_rec = f[f"both_keep_track[{variant}]"][1]
+        n_pf, n_kf = value[f"recordings where the PF lost track{tag}{lab}{q}"], \
+            value[f"recordings where the MH-EKF lost track{tag}{lab}"]
+        n_both = value[f"recordings where both filters keep track{tag}{lab}{q}"]
+        for which, ours in (("all recordings", f"; lost track: PF {n_pf:.0f}, MH-EKF {n_kf:.0f} of {n_rec}"),
+                            ("recordings where both keep track", f" on {n_both:.0f} of {n_rec}")):
+            row = t[t["claim"] == f"MH-EKF − PF CEP50 on the scored epochs per recording, {variant}, {which} (cm)"]
+            name = f"MH-EKF − PF CEP50 on the scored epochs per recording{tag}{lab}, mean over {which}{q}"
+            if not n_both and which != "all recordings":
+                assert row["ours"].iloc[0] == f"none of {n_rec}" and not any(k.startswith(name) for k in rows)
+                continue
+            lo, hi = value[f"{name}, 95 % low"], value[f"{name}, 95 % high"]
+            assert (row["ours"].iloc[0], row["interval"].iloc[0]) == (
+                f"{value[name]:+.1f}{ours}", f"[{lo:+.1f}, {hi:+.1f}]"), (variant, which)
+        for who in ("PF", "MH-EKF"):
+            ours = t.loc[t["claim"].str.startswith(f"{who} keeps track, {variant}:"), "ours"].iloc[0]
+            share = value[f"{who} share of scored epochs within 0.5 m{tag}{lab}" + (q if who == "PF" else "")]
+            assert ours.startswith(f"{100 * share:.1f} %"), (variant, who)
+        assert {f"PF CEP50, scored epochs{tag}{lab}, median over recordings{q}",
+                f"MH-EKF CEP50, scored epochs{tag}{lab}, median over recordings"} <= set(rows)
     for corner in f["corners"]:
         cell = fig[fig["quantity"] == f"along / across, {corner}"]["median"].iloc[0]
-        assert rows[f"PF along/across-track ratio, {corner} corner{lab}, median over recordings"]["value"] == cell
+        assert rows[f"PF along/across-track ratio, {corner} corner{lab}, median over recordings{gate}"]["value"] == cell
     for r in f["readings"]:
         ours = t.loc[t["claim"] == f"ΔP_ref of beacons 0 and 7 (ms), {r}", "ours"].iloc[0]
         assert ours == f"{rows[f'ΔP_ref beacon 0 ({r})']['value']:.2f}, {rows[f'ΔP_ref beacon 7 ({r})']['value']:.2f}"
@@ -449,9 +492,19 @@ def test_pf_rows_carry_the_paper_value_only_once_converged_in_particles():
     ratio = [f"PF along/across-track ratio, {c} corner, reconstructed lab, median over recordings"
              for c in ("bottom-left", "top-left")]
     assert headlines.JUDGED_IF_CONVERGED == {q, *ratio}
-    f, _ = _table(floor=[40.0, 38.0, 30.0, 27.0], floor_drop_ci=(2.0, 4.0))     # not converged
+    f, _ = _table(**NOT_CONVERGED)
     rows = {r["quantity"]: r for r in headlines.rows(f)}
-    assert all(rows[k]["paper_value"] is None for k in (q, *ratio))
+    gate = " (particle count: not converged)"
+    assert all(rows[k + gate]["paper_value"] is None for k in (q, *ratio))
+    # every row read from the Doppler-only PF runs carries the count's verdict: the PF's rows (not the zero-noise
+    # test's own), the recordings the PF lost or both kept, and the MH-EKF − PF differences; no other row does
+    diff = "MH-EKF − PF CEP50 on the scored epochs per recording, reconstructed lab, mean over"
+    pf_runs = {k for k in rows if k.startswith("PF ") and "with ranges" not in k and "zero noise" not in k} | {
+        f"recordings where the PF lost track, reconstructed lab{gate}",
+        f"recordings where both filters keep track, reconstructed lab{gate}",
+        *(f"{diff} {which}{gate}{end}" for which in ("all recordings", "recordings where both keep track")
+          for end in ("", ", 95 % low", ", 95 % high"))}
+    assert {k for k in rows if gate in k} == pf_runs
     f, _ = _table(floor=[40.0, 38.0, 30.0, 29.5])                               # converged
     assert f["particles_converged"]
     rows = {r["quantity"]: r for r in headlines.rows(f)}
