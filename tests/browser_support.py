@@ -12,6 +12,8 @@ Used by ``tests/test_browser.py`` and ``benchmarks/bench_widgets.py``.
 * :func:`check_notebook` opens a notebook, runs all cells, asserts that nothing
   failed, changes one control of every ``uwbwb-panel`` and asserts that the
   panel updated; every failure is an ``AssertionError`` naming the notebook.
+  With ``save=True`` JupyterLab saves the executed notebook (before any control
+  moves), so that the one run also serves the checks of an executed notebook.
 
 JupyterLab is told to expose its application object (``window.jupyterapp``,
 the setting JupyterLab's own UI tests use), so cells are run with the
@@ -73,18 +75,31 @@ def project_notebooks() -> list[Path]:
     return sorted(NOTEBOOK_DIR.glob("*.ipynb"))
 
 
+#: Node-id prefix of the browser test's run of one project notebook (``...[<stem>]``).
+BROWSER_RUN = "tests/test_browser.py::test_notebook_in_jupyterlab["
+
+
+def browser_runs(config) -> set[str]:
+    """Stems of the notebooks the browser test runs in this pytest session (selected, not deselected, and
+    collected: the module skips itself without Chromium or Playwright); set by ``tests/conftest.py``."""
+    return getattr(config, "uwbwb_browser_runs", set())
+
+
 # --------------------------------------------------------------------------- notebook copy
 
-def prepare_notebook(src: Path, dst_dir: Path, parameters: dict | None = None) -> Path:
+def prepare_notebook(src: Path, dst_dir: Path, parameters: dict | None = None, *, first_cell=None) -> Path:
     """Copy ``src`` into ``dst_dir`` with ``parameters`` injected as papermill does.
 
     The copy keeps the file name, has no outputs or execution counts, and names
-    the ``python3`` kernel of this environment.
+    the ``python3`` kernel of this environment. ``first_cell`` (a code cell, e.g.
+    :func:`uwbwb.classroom.hook_cell`) is put before the notebook's own cells.
     """
     from papermill.iorw import load_notebook_node, write_ipynb
     from papermill.parameterize import parameterize_notebook
 
     nb = load_notebook_node(str(src))
+    if first_cell is not None:
+        nb.cells.insert(0, first_cell)
     if parameters:
         nb = parameterize_notebook(nb, parameters, kernel_name="python3", language="python")
     for cell in nb.cells:
@@ -335,6 +350,14 @@ _JS_RUN_ALL = """async (id) => {
     err => { window.__uwbwbRunAll = 'failed: ' + err; });
 }"""
 
+# Save the notebook at `path` (its outputs as the kernel left them) and wait until written.
+_JS_SAVE = """async (path) => {
+  for (const w of window.jupyterapp.shell.widgets('main')) {
+    if (w.context && w.context.path === path) { await w.context.save(); return !w.context.model.dirty; }
+  }
+  return false;
+}"""
+
 # Text of every stderr output and of everything that looks like a widget failure.
 _JS_PAGE_PROBLEMS = """() => {
   const out = [];
@@ -547,7 +570,7 @@ class NotebookReport:
 
 def check_notebook(server: LabServer, browser, name: str, *, out_dir: Path | None = None,
                    timeout_s: float = RUN_TIMEOUT_S,
-                   update_timeout_s: float = UPDATE_TIMEOUT_S) -> NotebookReport:
+                   update_timeout_s: float = UPDATE_TIMEOUT_S, save: bool = False) -> NotebookReport:
     """Run notebook ``name`` (already in the server's root) in the browser and check its panels.
 
     Asserts: no error output or error-looking stderr, no "Error displaying widget",
@@ -556,7 +579,9 @@ def check_notebook(server: LabServer, browser, name: str, *, out_dir: Path | Non
     ``output_text``. Screenshots (whole panel before and after,
     figure before) and a ``report.json`` go to ``out_dir``. Failures raise
     AssertionError whose message starts with the notebook's name. The notebook's
-    kernel is shut down afterwards.
+    kernel is shut down afterwards. ``save=True``: once every cell has run and
+    before any control moves, JupyterLab saves the notebook with its outputs
+    over the copy in the server's root.
     """
     stem = Path(name).stem
     out_dir = Path(out_dir) if out_dir is not None else OUTPUT_DIR / stem
@@ -573,6 +598,8 @@ def check_notebook(server: LabServer, browser, name: str, *, out_dir: Path | Non
             report = NotebookReport(name, run_s)
             _wait_for_widget_views(page, name)
             report.output_text = "\n".join(page.locator(".jp-OutputArea-output").all_inner_texts())
+            if save and not page.evaluate(_JS_SAVE, name):
+                raise AssertionError(f"{name}: JupyterLab did not save the executed notebook")
             problems = _page_problems(page)
             if problems:
                 raise AssertionError(f"{name}: after running all cells:\n  " + "\n  ".join(problems))

@@ -17,3 +17,13 @@ def real_dataset(name: str):
         pytest.skip(f"real dataset {name!r} not found (set UWBWB_DATA or run "
                     f"`python -m uwbwb fetch {name}`)")
     return find_dataset(name)
+
+
+@pytest.hookimpl(trylast=True)      # after -k / -m have deselected
+def pytest_collection_modifyitems(config, items):
+    """Note which project notebooks the browser test runs in this session (``browser_support.browser_runs``):
+    there each notebook is executed once, and the tests that would execute it again read that run instead."""
+    from tests.browser_support import BROWSER_RUN
+
+    config.uwbwb_browser_runs = {item.nodeid[len(BROWSER_RUN):-1] for item in items
+                                 if item.nodeid.startswith(BROWSER_RUN)}

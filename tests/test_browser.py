@@ -2,8 +2,12 @@
 
 One JupyterLab server (from this environment) and one headless system Chromium
 serve the whole module; notebooks are opened one after another, each with the
-FAST parameters injected as papermill injects them. Screenshots of every panel go
-to ``test-output/browser/<notebook>/``. See ``tests/browser_support.py``.
+parameters of its checked FAST run (``FAST`` and ``CLASS``) injected as papermill injects them. Screenshots of
+every panel go to ``test-output/browser/<notebook>/``. See ``tests/browser_support.py``.
+
+This run is each notebook's one execution on the workbench's data in the session: it also stands for the
+papermill run of ``tests/test_notebooks.py`` (the same checks on the saved notebook) and for the all-notebook
+LocalCluster run of ``tests/test_reproduce_cluster.py``, which skip themselves where it runs.
 """
 
 from __future__ import annotations
@@ -14,9 +18,8 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from tests.browser_support import (CHROMIUM, FAST_PARAMETERS, NOTEBOOK_DIR, OUTPUT_DIR, SMALLEST,
-                                   check_notebook, lab_session, prepare_notebook,
-                                   project_notebooks, widget_manager_versions)
+from tests.browser_support import (CHROMIUM, FAST_PARAMETERS, NOTEBOOK_DIR, OUTPUT_DIR, check_notebook,
+                                   lab_session, prepare_notebook, project_notebooks, widget_manager_versions)
 
 pytestmark = pytest.mark.browser
 
@@ -67,22 +70,24 @@ def test_kernel_and_widget_manager_come_from_this_environment(lab):
     NOTEBOOKS or [pytest.param(None, marks=pytest.mark.skip(reason=f"no notebooks in {NOTEBOOK_DIR} yet"))],
     ids=[p.stem for p in NOTEBOOKS] or ["no-notebooks"])
 def test_notebook_in_jupyterlab(notebook, lab, lab_root, tmp_path, cluster_address):
-    """Run every cell in the browser with the FAST parameters (sizes from ``SMALLEST`` where a notebook has them) and
-    the sweeps on a LocalCluster, move a control
-    of every panel; the notebook must join the cluster and publish its FAST summary."""
-    from uwbwb.reproduce import read_summary
+    """Run every cell in the browser with the parameters of the checked FAST run (``FAST``, and ``CLASS`` where the
+    notebook has it) and the sweeps on a LocalCluster, move a control of every panel; the notebook must join the
+    cluster, and the saved run must pass the checks of ``tests/test_notebooks.py`` (summary, figure audit, class
+    limits, whole tables: :func:`tests.test_notebooks.check_class_run`)."""
+    from tests.test_notebooks import check_class_run, class_run_parameters
+    from uwbwb import classroom
 
     server, browser = lab
     summary = tmp_path / f"{notebook.stem}.summary.json"
-    parameters = {**FAST_PARAMETERS, **SMALLEST.get(notebook.stem, {}), "SUMMARY_PATH": str(summary),
+    figures = tmp_path / f"{notebook.stem}.figures.json"
+    parameters = {**class_run_parameters(notebook), "SUMMARY_PATH": str(summary),
                   "DASK_SCHEDULER": cluster_address}
-    prepare_notebook(notebook, lab_root, parameters)
-    report = check_notebook(server, browser, notebook.name, out_dir=OUTPUT_DIR / notebook.stem)
+    saved = prepare_notebook(notebook, lab_root, parameters, first_cell=classroom.hook_cell(figures))
+    report = check_notebook(server, browser, notebook.name, out_dir=OUTPUT_DIR / notebook.stem, save=True)
     assert report.panels, f"{notebook.name}: no panel was checked"
     assert f"Sweeps run on the Dask cluster at {cluster_address}" in report.output_text, \
         f"{notebook.name} did not join the cluster at {cluster_address}"
-    rows, problem = read_summary(summary, notebook.stem, "FAST")
-    assert problem is None and rows, f"{notebook.name}: {problem or 'no summary rows'}"
+    check_class_run(notebook, parameters, summary, figures, nbformat.read(saved, as_version=4))
 
 
 # --------------------------------------------------------------------------- self-check

@@ -69,38 +69,24 @@ def test_notebook_code_rules(path):
         warnings.warn(f"not yet audited ({path.stem} is not in AUDITED): " + "; ".join(problems), stacklevel=1)
 
 
-@pytest.mark.notebook
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=_ids(NOTEBOOKS))
-def test_notebook_executes_fast(path, tmp_path):
-    """Execute with papermill in FAST mode, and in class mode where the notebook has ``CLASS``; any
-    error fails, a summary must be written, and the figure audit and class limits must hold
-    (enforced for the stems in :data:`AUDITED`, reported as warnings for the others)."""
-    import warnings
-
-    import papermill as pm
-
-    from uwbwb import classroom
+def class_run_parameters(path: Path) -> dict:
+    """The parameters of a notebook's checked FAST run: ``FAST``, and ``CLASS`` where the notebook has it."""
     from uwbwb.reproduce import notebook_parameters
 
-    summary = tmp_path / f"{path.stem}.summary.json"
-    figures = tmp_path / f"{path.stem}.figures.json"
-    prepared, out = tmp_path / "prepared" / path.name, tmp_path / path.name
-    prepared.parent.mkdir()
-    nb = nbformat.read(path, as_version=4)
-    nb.cells.insert(0, classroom.hook_cell(figures))     # records every Axes while the notebook runs
-    nbformat.write(nb, prepared)
-    parameters = {"FAST": True, "SUMMARY_PATH": str(summary)}
-    if "CLASS" in notebook_parameters(path):
-        parameters["CLASS"] = True
-    try:
-        pm.execute_notebook(str(prepared), str(out), parameters=parameters,
-                            kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
-                            execution_timeout=CELL_TIMEOUT_S)
-    except pm.PapermillExecutionError as exc:
-        pytest.fail(f"{path.name} failed in cell {exc.exec_count}: {exc.ename}: {exc.evalue}")
+    return {"FAST": True, **({"CLASS": True} if "CLASS" in notebook_parameters(path) else {})}
+
+
+def check_class_run(path: Path, parameters: dict, summary: Path, figures: Path, executed) -> None:
+    """What a notebook's FAST run (``parameters`` from :func:`class_run_parameters`) must give: a summary,
+    and the figure audit, class limits and whole tables of :mod:`uwbwb.classroom` on the ``executed``
+    notebook and the figures the hook cell recorded into ``figures`` (enforced for the stems in
+    :data:`AUDITED`, reported as warnings for the others). Used here and by ``tests/test_browser.py``."""
+    import warnings
+
+    from uwbwb import classroom
+
     rows, problem = read_summary(summary, path.stem, "FAST")   # keys, kind, and every row marked FAST
-    assert problem is None, f"{path.name}: {problem}"
-    executed = nbformat.read(out, as_version=4)
+    assert problem is None and rows, f"{path.name}: {problem or 'no summary rows'}"
     found = {"figure audit": classroom.figure_audit(json.loads(figures.read_text()), executed),
              "class limits": classroom.class_limits(executed), "cut tables": classroom.cut_tables(executed)}
     report = "; ".join(f"{path.name} {what}: " + "; ".join(p) for what, p in found.items() if p)
@@ -109,6 +95,37 @@ def test_notebook_executes_fast(path, tmp_path):
         assert not report, report
     elif report:
         warnings.warn(f"not yet audited ({path.stem} is not in AUDITED): {report}", stacklevel=1)
+
+
+@pytest.mark.notebook
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=_ids(NOTEBOOKS))
+def test_notebook_executes_fast(path, tmp_path, request):
+    """Execute with papermill in FAST mode, and in class mode where the notebook has ``CLASS``; any
+    error fails, a summary must be written, and the figure audit and class limits must hold
+    (:func:`check_class_run`). Where the browser test runs the notebook in this session, that run
+    (the same parameters, in JupyterLab) is checked the same way and this one is skipped."""
+    import papermill as pm
+
+    from tests.browser_support import browser_runs
+    from uwbwb import classroom
+
+    if path.stem in browser_runs(request.config):
+        pytest.skip("tests/test_browser.py runs this notebook with these parameters and checks that run")
+    summary = tmp_path / f"{path.stem}.summary.json"
+    figures = tmp_path / f"{path.stem}.figures.json"
+    prepared, out = tmp_path / "prepared" / path.name, tmp_path / path.name
+    prepared.parent.mkdir()
+    nb = nbformat.read(path, as_version=4)
+    nb.cells.insert(0, classroom.hook_cell(figures))     # records every Axes while the notebook runs
+    nbformat.write(nb, prepared)
+    parameters = {**class_run_parameters(path), "SUMMARY_PATH": str(summary)}
+    try:
+        pm.execute_notebook(str(prepared), str(out), parameters=parameters,
+                            kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
+                            execution_timeout=CELL_TIMEOUT_S)
+    except pm.PapermillExecutionError as exc:
+        pytest.fail(f"{path.name} failed in cell {exc.exec_count}: {exc.ename}: {exc.evalue}")
+    check_class_run(path, parameters, summary, figures, nbformat.read(out, as_version=4))
 
 
 def _run_on(notebook: str, tmp_path, data_dir, **parameters) -> list[dict]:

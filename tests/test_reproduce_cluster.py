@@ -100,25 +100,18 @@ def test_cli_reproduce_quick_runs_the_notebooks_on_a_local_cluster(tmp_path, cap
     assert "DASK_SCHEDULER='tcp://" in (out / "summary.md").read_text()
 
 
-def _browser_test_runs() -> bool:
-    from tests.browser_support import CHROMIUM
-
-    try:
-        import playwright.sync_api  # noqa: F401
-    except ImportError:
-        return False
-    return CHROMIUM.exists()
-
-
 @pytest.mark.notebook
-@pytest.mark.skipif(_browser_test_runs(), reason="tests/test_browser.py runs every notebook on a LocalCluster")
-def test_cli_reproduce_quick_runs_every_notebook_on_a_local_cluster(tmp_path, capsys):
+def test_cli_reproduce_quick_runs_every_notebook_on_a_local_cluster(tmp_path, capsys, request):
     """Without the browser test: every notebook of the workbench, concurrently, on one LocalCluster."""
+    from tests.browser_support import browser_runs
+
+    stems = sorted(p.stem for p in NOTEBOOK_DIR.glob("*.ipynb"))
+    if set(stems) <= browser_runs(request.config):
+        pytest.skip("tests/test_browser.py runs every notebook on a LocalCluster in this session")
     out = tmp_path / "reports"
     code = cli.main(["reproduce", "--scheduler", "local", "--quick", "--out", str(out), "--timeout", "900"])
     printed = capsys.readouterr().out
     assert code == 0, printed
-    stems = sorted(p.stem for p in NOTEBOOK_DIR.glob("*.ipynb"))
     for stem in stems:
         assert "Sweeps run on the Dask cluster at tcp://" in (out / f"{stem}.ipynb").read_text(), \
             f"{stem} did not join the cluster"
