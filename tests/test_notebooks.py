@@ -128,6 +128,37 @@ def test_notebook_executes_fast(path, tmp_path, request):
     check_class_run(path, parameters, summary, figures, nbformat.read(out, as_version=4))
 
 
+#: Notebooks whose ``CLASS = False`` cells no test on generated recordings executes (04 has no real-data section,
+#: 05's needs an i-ASL flight): where the browser test runs them in class mode, they also run here in FAST alone.
+RESEARCH_ONLY_HERE = ("04_doppler_beacons", "05_uwb_ins_fusion")
+
+
+@pytest.mark.notebook
+@pytest.mark.parametrize("stem", RESEARCH_ONLY_HERE)
+def test_research_cells_run_fast(stem, tmp_path, request):
+    """FAST with ``CLASS = False`` on the datasets found (as ``reproduce --quick`` runs it): no error, a FAST
+    summary, no cut table. Without the browser test the all-notebook LocalCluster reproduce test runs these cells."""
+    import papermill as pm
+
+    from tests.browser_support import browser_runs
+    from uwbwb import classroom
+
+    if stem not in browser_runs(request.config):
+        pytest.skip("the browser test does not run this notebook here: its research cells run in the LocalCluster "
+                    "reproduce test (tests/test_reproduce_cluster.py)")
+    summary, out = tmp_path / "summary.json", tmp_path / f"{stem}.ipynb"
+    try:
+        pm.execute_notebook(str(NOTEBOOK_DIR / f"{stem}.ipynb"), str(out),
+                            parameters={"FAST": True, "SUMMARY_PATH": str(summary)}, kernel_name="python3",
+                            cwd=str(NOTEBOOK_DIR), progress_bar=False, execution_timeout=CELL_TIMEOUT_S)
+    except pm.PapermillExecutionError as exc:
+        pytest.fail(f"{stem} failed in cell {exc.exec_count}: {exc.ename}: {exc.evalue}")
+    rows, problem = read_summary(summary, stem, "FAST")
+    assert problem is None and rows, f"{stem}: {problem or 'no summary rows'}"
+    cut = classroom.cut_tables(nbformat.read(out, as_version=4))
+    assert not cut, f"{stem}: " + "; ".join(cut)
+
+
 def _run_on(notebook: str, tmp_path, data_dir, **parameters) -> list[dict]:
     """Execute ``notebook`` in FAST mode on the data tree ``data_dir``; return its published summary rows."""
     import papermill as pm
