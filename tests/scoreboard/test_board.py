@@ -469,8 +469,8 @@ def test_a_board_fits_the_common_bound_a_given_calibration_lacks_or_says_in_one_
 
 def test_a_method_that_ran_never_shows_zero_time():
     """The time columns round a run's time for display, never to 0: a lookup-fast method shows its few significant
-    digits (an outside method's estimates, looked up, took 1–2 µs/epoch, 0.0 × raw LS on notebook 06's Hanyang
-    board)."""
+    digits. An outside method's estimates are read from file, not run: no time (NaN), and the Markdown says so
+    (notebook 06's Hanyang boards showed the authors' rows at 1 µs/epoch, 0.035 × raw LS)."""
     from uwbwb.scoreboard.estimators import ExternalEstimates, RawLs
 
     rec = syn.simulate(syn.SyntheticConfig(duration_s=10.0), rng=np.random.default_rng(6))
@@ -485,6 +485,10 @@ def test_a_method_that_ran_never_shows_zero_time():
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert cells[cols.index("µs/epoch")] == "0.2" and cells[cols.index("time × raw LS")] == "0.0002"
     assert float(cells[cols.index("µs/epoch")]) == pytest.approx(quick.table().set_index("method").loc["LS", "us_per_epoch"])
+    ext = next(x for x in quick.markdown().splitlines() if x.startswith("| vendor (external) "))
+    cells = [c.strip() for c in ext.strip("|").split("|")]
+    assert cells[cols.index("µs/epoch")] == cells[cols.index("time × raw LS")] == "external: not timed"
+    assert quick.table().set_index("method").loc["vendor (external)", ["us_per_epoch", "time_ratio"]].isna().all()
 
 
 def test_uwb_ins_filters_are_tuned_like_the_ekfs_and_checked_against_their_bound(tmp_path):
