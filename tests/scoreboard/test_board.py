@@ -22,11 +22,11 @@ def test_filters_reach_their_bound_where_truth_and_noise_are_known():
     """Synthetic runs from the model itself, exact noise: LS, TDoA LS and the EKF with the true
     motion model must meet their Cramér–Rao bounds within Monte Carlo error (30 runs)."""
     mc = syn.monte_carlo(30, seed=7)
-    eff = syn.efficiency_summary(mc, prob=0.997).set_index("method")
+    eff = syn.own_bound_summary(mc, prob=0.997).set_index("method")
     assert set(eff.index) == {"LS", "TDoA LS", "EKF-RF"}
     for m, r in eff.iterrows():
-        assert r.verdict == "on its bound", f"{m}: {r.efficiency:.3f} [{r.efficiency_lo:.3f}, {r.efficiency_hi:.3f}]"
-        assert 0.9 < r.efficiency < 1.1, f"{m}: efficiency {r.efficiency:.3f}"
+        assert r.verdict == "on its bound", f"{m}: {r.rmse_over_bound:.3f} [{r.rmse_over_bound_lo:.3f}, {r.rmse_over_bound_hi:.3f}]"
+        assert 0.9 < r.rmse_over_bound < 1.1, f"{m}: RMSE / own bound {r.rmse_over_bound:.3f}"
     # the tracking filter uses its motion model: well below the snapshot fixes
     assert eff.loc["EKF-RF", "rmse_m"] < 0.9 * eff.loc["LS", "rmse_m"]
 
@@ -47,13 +47,13 @@ def test_the_monte_carlo_verdict_is_the_seeds_interval_of_the_ratio_against_1(fa
 
     rng = np.random.default_rng(3)
     mc = _runs(factor, np.full(40, 0.01), rng)
-    r = syn.efficiency_summary(mc).iloc[0]
+    r = syn.own_bound_summary(mc).iloc[0]
     ci = seeds_interval(mc["mse_m2"] / mc["bound_m2"])
-    assert (r.efficiency_lo, r.efficiency_hi) == pytest.approx((np.sqrt(ci["lo"]), np.sqrt(ci["hi"])), rel=1e-12)
-    assert r.efficiency == pytest.approx(np.sqrt(mc["mse_m2"].sum() / mc["bound_m2"].sum()), rel=1e-12)
+    assert (r.rmse_over_bound_lo, r.rmse_over_bound_hi) == pytest.approx((np.sqrt(ci["lo"]), np.sqrt(ci["hi"])), rel=1e-12)
+    assert r.rmse_over_bound == pytest.approx(np.sqrt(mc["mse_m2"].sum() / mc["bound_m2"].sum()), rel=1e-12)
     assert r.verdict == verdict
-    strict = syn.efficiency_summary(mc, prob=0.997).iloc[0]            # the notebook's check: a wider interval
-    assert strict.efficiency_lo < r.efficiency_lo < r.efficiency < r.efficiency_hi < strict.efficiency_hi
+    strict = syn.own_bound_summary(mc, prob=0.997).iloc[0]            # the notebook's check: a wider interval
+    assert strict.rmse_over_bound_lo < r.rmse_over_bound_lo < r.rmse_over_bound < r.rmse_over_bound_hi < strict.rmse_over_bound_hi
 
 
 def test_default_estimators_fit_the_interface():
@@ -243,6 +243,10 @@ def test_summary_rows_come_from_the_board():
     assert set(df["data"]) == {"synthetic"} and set(df["kind"]) == {"reproduced"} and set(df["mode"]) == {"FAST"}
     row = df[df["quantity"] == "RMSE, LS"].iloc[0]
     assert row["value"] == pytest.approx(b.table().set_index("method").loc["LS", "rmse_m"])
+    # the row is named for what it holds: RMSE over the own bound (the textbook efficiency is its inverse)
+    own = df[df["quantity"] == "RMSE/own bound, LS"]["value"]
+    assert len(own) == 1 and own.iloc[0] == pytest.approx(b.table().set_index("method").loc["LS", "rmse_over_bound"])
+    assert not df["quantity"].str.contains("efficiency").any()
 
 
 def test_board_on_a_generated_iasl_tree_calibrates_on_another_scenario(tmp_path, capsys):

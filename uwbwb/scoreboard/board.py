@@ -472,8 +472,8 @@ class Board:
     def to_summary(self, summary, *, methods: Sequence[str] | None = None) -> None:
         """Record each method's RMSE, bounds and their ratios into a :class:`uwbwb.metrics.Summary`.
 
-        ``efficiency RMSE/bound`` is RMSE / the method's own bound (quantity name kept for existing
-        summaries; the textbook efficiency is its inverse). Rows of a method run here are
+        ``RMSE/own bound`` is RMSE / the method's own bound (the textbook efficiency is its inverse).
+        Rows of a method run here are
         *reproduced*; rows of an external method (:attr:`external`) are *input* (estimates made
         elsewhere), with the data label marked ``(external estimates)``."""
         df = self.table().set_index("method")
@@ -482,7 +482,7 @@ class Board:
             if not np.isfinite(r.rmse_m):
                 continue
             for q, v, u in ((f"RMSE, {m}", r.rmse_m, "m"), (f"bound, {m} ({r.bound_kind})", r.bound_m, "m"),
-                            (f"efficiency RMSE/bound, {m}", r.rmse_over_bound, ""),
+                            (f"RMSE/own bound, {m}", r.rmse_over_bound, ""),
                             (f"common bound, {m}", r.common_bound_m, "m"),
                             (f"RMSE/common bound, {m}", r.rmse_over_common, ""), (f"coverage, {m}", r.coverage, "")):
                 if np.isfinite(v) and m in self.external:      # an outside method's numbers: input
