@@ -286,6 +286,6 @@ def test_scoreboard_runs_unchanged_on_another_lias_recording(tmp_path):
     assert {r["mode"] for r in rows} == {"FAST"}
     assert {r["kind"] for r in rows if not r["data"].startswith("hanyang")} == {"reproduced"}
     assert {r["kind"] for r in rows if "(external" in r["data"]} == {"input"}
-    assert any(r["quantity"] == "efficiency RMSE/bound, EKF-RF" for r in rows)
+    assert any(r["quantity"] == "RMSE/own bound, EKF-RF" for r in rows)
     assert any(r["quantity"].startswith("authors LS RMSE_2d, recomputed") for r in rows
                if r["data"].startswith(ours))

@@ -55,7 +55,8 @@
     NIS per degree of freedom and the χ² verdict (:func:`uwbwb.metrics.nis_consistency`, which also gives ``nees_ok``).
 ``us_per_epoch``, ``time_ratio``
     Compute time per epoch (this machine, this run) and its ratio to ``raw LS``'s in the
-    same run.
+    same run; NaN for an external method (its estimates are read from file, not run here: the
+    Markdown says "external: not timed").
 ``grid_edge``
     Whether the method's tuning pick on the calibration part lies on the edge of its grid (a wider
     grid might do better: its tuning effort fell short); None for a method that tunes nothing.
@@ -372,7 +373,8 @@ class Board:
             c = metrics.nis_consistency(nis, dof)
             row.update(nis_over_dof=c["mean_nis_over_dof"], nis_verdict=c["verdict"])
         epochs = sum(len(e.estimates) for e in ents)
-        row["us_per_epoch"] = 1e6 * sum(e.seconds for e in ents) / epochs if epochs else np.nan
+        if method not in self.external:         # an external method's estimates are read, not run: not timed
+            row["us_per_epoch"] = 1e6 * sum(e.seconds for e in ents) / epochs if epochs else np.nan
         return row
 
     def table(self) -> pd.DataFrame:
@@ -420,7 +422,9 @@ class Board:
         def f(x, fmt=".3f"):
             return "—" if x is None or (isinstance(x, float) and not np.isfinite(x)) else format(x, fmt)
 
-        def took(x, fmt):                  # a time: a method that ran took some, so it never shows as 0
+        def took(x, fmt, method):          # a time: a method that ran took some, so it never shows as 0
+            if method in self.external:
+                return "external: not timed"
             return f(x, ".2g" if x > 0 and float(format(x, fmt)) == 0 else fmt)
 
         for r in df.itertuples(index=False):
@@ -437,7 +441,8 @@ class Board:
                                               f(r.rmse_common_over_common, ".2f"), f(r.bound_m),
                                               r.bound_kind or "—", eff, meas, f(r.bound_over_ranges_crlb, ".3g"),
                                               f(r.bias_share, ".2f"), nees, nis,
-                                              took(r.us_per_epoch, ".0f"), took(r.time_ratio, ".1f"),
+                                              took(r.us_per_epoch, ".0f", r.method),
+                                              took(r.time_ratio, ".1f", r.method),
                                               r.tuning_pick, r.note or ""]) + " |")
         lines += ["", "```", self.calibration.describe(), *self.checks, "```", ""]
         return "\n".join(lines)
@@ -467,8 +472,8 @@ class Board:
     def to_summary(self, summary, *, methods: Sequence[str] | None = None) -> None:
         """Record each method's RMSE, bounds and their ratios into a :class:`uwbwb.metrics.Summary`.
 
-        ``efficiency RMSE/bound`` is RMSE / the method's own bound (quantity name kept for existing
-        summaries; the textbook efficiency is its inverse). Rows of a method run here are
+        ``RMSE/own bound`` is RMSE / the method's own bound (the textbook efficiency is its inverse).
+        Rows of a method run here are
         *reproduced*; rows of an external method (:attr:`external`) are *input* (estimates made
         elsewhere), with the data label marked ``(external estimates)``."""
         df = self.table().set_index("method")
@@ -477,7 +482,7 @@ class Board:
             if not np.isfinite(r.rmse_m):
                 continue
             for q, v, u in ((f"RMSE, {m}", r.rmse_m, "m"), (f"bound, {m} ({r.bound_kind})", r.bound_m, "m"),
-                            (f"efficiency RMSE/bound, {m}", r.rmse_over_bound, ""),
+                            (f"RMSE/own bound, {m}", r.rmse_over_bound, ""),
                             (f"common bound, {m}", r.common_bound_m, "m"),
                             (f"RMSE/common bound, {m}", r.rmse_over_common, ""), (f"coverage, {m}", r.coverage, "")):
                 if np.isfinite(v) and m in self.external:      # an outside method's numbers: input

@@ -32,7 +32,7 @@ from .board import Board, calibrate, score
 from .estimators import CalibratedLs, TdoaEkfEstimator, TdoaLs, default_estimators
 from .protocol import Calibration
 
-__all__ = ["SyntheticConfig", "exact_calibration", "monte_carlo", "simulate", "synthetic_board", "efficiency_summary"]
+__all__ = ["SyntheticConfig", "exact_calibration", "monte_carlo", "simulate", "synthetic_board", "own_bound_summary"]
 
 
 @dataclass(frozen=True)
@@ -154,15 +154,15 @@ def monte_carlo(n_runs: int, config: SyntheticConfig = SyntheticConfig(), *, see
     return pd.DataFrame(rows)
 
 
-def efficiency_summary(mc: pd.DataFrame, *, prob: float = 0.95) -> pd.DataFrame:
+def own_bound_summary(mc: pd.DataFrame, *, prob: float = 0.95) -> pd.DataFrame:
     """Per method: RMSE and own bound over all runs, their ratio, its interval over runs and the verdict.
 
-    ``efficiency = sqrt(Σ mse / Σ bound)`` over runs — RMSE / bound, the inverse of the textbook efficiency
-    (column name kept for existing callers). Its interval is :func:`uwbwb.metrics.seeds_interval` (Student t at
+    ``rmse_over_bound = sqrt(Σ mse / Σ bound)`` over runs — RMSE / own bound (the textbook efficiency is its
+    inverse). Its interval is :func:`uwbwb.metrics.seeds_interval` (Student t at
     ``prob``, runs independent) of each run's linearised share of ``R = Σ mse / Σ bound``,
     ``R + (mse_k − R bound_k) / mean(bound)`` (mean ``R``; the linearisation of a ratio of sums, as the board's
-    :func:`.verdicts.block_se_ratio` with runs for blocks), its ends square-rooted: ``efficiency_lo``,
-    ``efficiency_hi``. ``verdict``: :func:`uwbwb.metrics.interval_side` of that interval against 1 —
+    :func:`.verdicts.block_se_ratio` with runs for blocks), its ends square-rooted: ``rmse_over_bound_lo``,
+    ``rmse_over_bound_hi``. ``verdict``: :func:`uwbwb.metrics.interval_side` of that interval against 1 —
     ``on its bound`` (it holds 1), ``above its bound``, ``below its bound``.
     """
     rows = []
@@ -173,7 +173,8 @@ def efficiency_summary(mc: pd.DataFrame, *, prob: float = 0.95) -> pd.DataFrame:
         lo, hi = np.sqrt(max(ci["lo"], 0.0)), np.sqrt(ci["hi"])
         rows.append({"method": m, "bound_kind": g["bound_kind"].iloc[0], "runs": len(g),
                      "rmse_m": float(np.sqrt(mse.mean())), "bound_m": float(np.sqrt(bnd.mean())),
-                     "efficiency": float(np.sqrt(r)), "efficiency_lo": float(lo), "efficiency_hi": float(hi),
+                     "rmse_over_bound": float(np.sqrt(r)), "rmse_over_bound_lo": float(lo),
+                     "rmse_over_bound_hi": float(hi),
                      "verdict": _SIDES[interval_side(lo, hi, 1.0)]})
     return pd.DataFrame(rows)
 

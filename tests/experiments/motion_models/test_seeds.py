@@ -104,3 +104,29 @@ def test_pairs_per_tag_run_split_what_the_data_set_pools():
     assert per.loc["office tag2", "verdict"] == "EKF-RW better"
     with pytest.raises(ValueError, match="by must be"):
         s.pairs(by="tag")
+
+
+def _models(rw, rf, rj):
+    """A seeds table of agv1 tag1 with the given CEP95 of the three EKFs per seed (raw and LS fixed)."""
+    rows = [{"seed": s, "run": "agv1", "tag": "tag1", "raw": 1.2, "LS": 1.0, "EKF-RW": rw[s], "EKF-RF": rf[s],
+             "EKF-RJ": rj[s]} for s in range(len(rw))]
+    t = pd.DataFrame(rows).set_index(["seed", "run", "tag"])[list(mm.METHODS)]
+    return mm.seeds.SeedStudy(t, {"synthetic AGV": ("agv1",)}, tuple(range(len(rw))))
+
+
+@pytest.mark.parametrize("rw, rf, rj, want", [
+    # RW and RF swap with the seed (not significant), both below RJ on every seed
+    ((0.40, 0.46, 0.41, 0.45), (0.44, 0.41, 0.45, 0.40), (0.50, 0.52, 0.51, 0.53), "RF ≈ RW < RJ"),
+    # only RF < RJ is decided: the chain ties all three and names the decided pair
+    ((0.35, 0.48, 0.37, 0.47), (0.40, 0.41, 0.40, 0.41), (0.42, 0.43, 0.425, 0.435), "RF ≈ RW ≈ RJ (RF < RJ)"),
+    # every pair decided: a strict order
+    ((0.30, 0.31, 0.30, 0.32), (0.40, 0.41, 0.40, 0.42), (0.50, 0.52, 0.51, 0.53), "RW < RF < RJ"),
+])
+def test_the_ranking_carries_the_resolution_of_the_pair_verdicts(rw, rf, rj, want):
+    """The seeds table's ranking is ordered by the means but strict only where the pair verdicts (the same
+    intervals as :meth:`SeedStudy.pairs`) decide: a point order over an undecided pair is no ranking."""
+    s = _models(rw, rf, rj)
+    verdicts = s.pairs(mm.MODEL_PAIRS, by="tag-run").set_index(["A", "B"])["verdict"]
+    undecided = {k for k, v in verdicts.items() if v == "not significant"}
+    assert s.ranking().loc[("agv1", "tag1")] == want
+    assert ("≈" in want) == bool(undecided)

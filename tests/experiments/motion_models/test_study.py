@@ -124,6 +124,10 @@ def test_ranking_and_the_thesis_tables():
     table = pd.DataFrame({"EKF-RW": [0.4, 0.5], "EKF-RF": [0.7, 0.3], "EKF-RJ": [1.0, 0.45]},
                          index=pd.MultiIndex.from_tuples([("office", "tag1"), ("agv1", "tag1")], names=["run", "tag"]))
     assert list(mm.ranking(table)) == ["RW < RF < RJ", "RF < RJ < RW"]
+    # values equal as the table prints them share a place: no order the printed numbers do not show
+    close = pd.DataFrame({"EKF-RW": [0.4406], "EKF-RF": [0.4399], "EKF-RJ": [0.45]})
+    assert list(mm.ranking(close, decimals=2)) == ["RF = RW < RJ"]
+    assert list(mm.ranking(close)) == ["RF < RW < RJ"]                  # at the default 3 decimals they differ
     assert mm.PAPER_MODELS_CEP95[("office", "tag2")] == {"EKF-RW": 0.48, "EKF-RF": 1.13, "EKF-RJ": 1.14}
     assert mm.PAPER_METHODS_CEP95[("office", "tag2")]["raw"] == 2.03
 

@@ -169,12 +169,36 @@ class TagResults:
         return pd.DataFrame(rows).set_index("method")
 
 
-def ranking(table: pd.DataFrame, models: Sequence[str] = MODELS) -> pd.Series:
-    """Order of the motion models by CEP95 per row, e.g. ``"RW < RF < RJ"``."""
+def ranking(table: pd.DataFrame, models: Sequence[str] = MODELS, *, decimals: int = 3,
+            winners: Mapping | None = None) -> pd.Series:
+    """Order of the motion models by CEP95 per row, e.g. ``"RW < RF < RJ"``, resolved no further than its evidence.
+
+    Without ``winners`` (one run, or the thesis' numbers: no interval) it is the order of the values rounded to
+    ``decimals`` (as the table prints them); values equal there share a place (``"RF = RW < RJ"``). With
+    ``winners`` (row label → ``{(A, B): the better of the pair by its verdict, or None where not significant}``,
+    e.g. :meth:`~.seeds.SeedStudy.ranking`) the models are sorted by value and ``<`` separates two groups only
+    where every pair across them is decided in that direction, ``≈`` otherwise; a decided pair the chain does not
+    show is added in brackets (``"RF ≈ RW ≈ RJ (RF < RJ)"``)."""
     cols = [ekf_name(m) for m in models]
+    short = dict(zip(cols, models))
 
     def order(row):
-        ranked = sorted(zip(row[cols], models))
-        return " < ".join(m for _, m in ranked)
+        ranked = sorted(zip(np.round(row[cols].to_numpy(float), decimals), cols))
+        names = [c for _, c in ranked]
+        if winners is None:
+            seps = ["=" if a == b else "<" for (a, _), (b, _) in zip(ranked, ranked[1:])]
+            extra = []
+        else:
+            won = winners[row.name]
+
+            def beats(a, b):
+                return won.get((a, b), won.get((b, a))) == a
+
+            seps = ["<" if all(beats(a, b) for a in names[:i + 1] for b in names[i + 1:]) else "≈"
+                    for i in range(len(names) - 1)]
+            extra = [f"{short[a]} < {short[b]}" for i, a in enumerate(names) for j, b in enumerate(names)
+                     if i != j and beats(a, b) and not (i < j and "<" in seps[i:j])]
+        chain = short[names[0]] + "".join(f" {sep} {short[n]}" for sep, n in zip(seps, names[1:]))
+        return chain + (f" ({', '.join(extra)})" if extra else "")
 
     return table.apply(order, axis=1).rename("ranking")

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from ...metrics import interval_side, seeds_interval
-from .results import PAPER_METHODS_CEP95, PAPER_MODELS_CEP95
+from .results import MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, ekf_name, ranking
 from .study import Study, estimate, synthetic_acquisition
 
 __all__ = ["MODEL_PAIRS", "SEED_PAIRS", "SEED_RULE", "SeedStudy", "seed_rows", "seed_study"]
@@ -118,6 +118,20 @@ class SeedStudy:
                              "95 % low (m)": t["lo"], "95 % high (m)": t["hi"], "thesis A − B (m, input)": thesis,
                              "rule": SEED_RULE, "verdict": verdict, "vs thesis": order})
         return pd.DataFrame(rows)
+
+
+    def ranking(self, models: Sequence[str] = MODELS, *, prob: float = 0.95) -> pd.Series:
+        """Per ``(run, tag)``: the motion models ordered by their mean CEP95 over the seeds, resolved by the pair
+        verdicts of :meth:`pairs` (``by="tag-run"``, the same intervals): ``≈`` where they leave an order
+        undecided (:func:`~.results.ranking`)."""
+        names = [ekf_name(m) for m in models]
+        verdicts = self.pairs([(a, b) for i, a in enumerate(names) for b in names[i + 1:]], by="tag-run", prob=prob)
+        key = {f"{r} {t}": (r, t) for r, t in self.base().index}
+        winners: dict = {}
+        for v in verdicts.to_dict("records"):
+            better = v["verdict"][:-len(" better")] if v["verdict"].endswith(" better") else None
+            winners.setdefault(key[v["data"]], {})[(v["A"], v["B"])] = better
+        return ranking(self.table(names, prob=prob).xs("mean", axis=1, level=1), models, winners=winners)
 
 
 def seed_study(studies: Mapping[str, tuple[Study, Sequence[str]]], seeds: Sequence[int], *, gate_prob: float | None,
