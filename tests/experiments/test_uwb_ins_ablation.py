@@ -168,7 +168,7 @@ def _fake(ratios: dict, *, case_ratios: dict | None = None, fast=False, nis=None
                 noise = np.random.default_rng([1, cfg.cases.index(case), k, sum(map(ord, r))]).normal(0, 0.02, 99)
                 for i, m in enumerate(ab.METRICS):
                     row[m] = base * rr.get(r, 1.0) * math.exp(noise[i])
-                row.update(static_cov=1.0, dyn_cov=1.0, outage_cov=0.0 if r.startswith("LS") else 1.0)
+                row.update(static_cov=1.0, dyn_cov=1.0, recovery_cov=1.0, outage_cov=0.0 if r.startswith("LS") else 1.0)
                 if r.startswith("LS"):
                     row["outage_max"] = row["outage_rmse"] = np.nan
                 n = (nis or {}).get(case, 1.0)
@@ -245,8 +245,11 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     t = facts.verdict_table(bad)
     assert list(t["claim"][t["verdict"] == "diverged"]) == ["IMU 10× worse: tight + gate diverged (dyn_rmse)"]
     assert _row(f, "IMU 10× worse: tight + gate diverged (dyn_rmse)").verdict == "diverged"
-    assert _row(f, "IMU 10× worse: loose + gate / tight + gate, max outage error").verdict.startswith("a row diverged")
-    assert "share kept" not in _row(f, "IMU 10× worse: loose + gate / tight + gate, max outage error").ours
+    # a steady-state divergence voids the dynamic RMSE's ratio, not the outage's (which it does not enter)
+    dyn = _row(f, "IMU 10× worse: loose + gate / tight + gate, dynamic RMSE")
+    assert dyn.verdict == "a row diverged on dyn_rmse (the ratio measures a failure)" and "share kept" not in dyn.ours
+    out = _row(f, "IMU 10× worse: loose + gate / tight + gate, max outage error")
+    assert not out.verdict.startswith("a row diverged") and "share kept" in out.ours
     assert headlines.checks(bad) == []                      # mismatch divergence is reported, not a check
     small = _fake(GOOD)                                     # 20× the matched error but still centimetres: not a failure
     hs = (small.scores["case"] == "UWB σ 2×") & (small.scores["method"] == "tight + gate")
@@ -258,13 +261,27 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     rows = headlines.ablation_rows(bad)
     q = [r for r in rows if r["quantity"].startswith("mismatch 'IMU 10× worse': dynamic RMSE, tight + gate")]
     assert len(q) == 1 and q[0]["value"] > 0.1
-    # the summary flags what the verdict table calls diverged: the row's numbers in that case, and every ratio on it
+    # the summary flags what the verdict table calls diverged, on the metric that diverged only: the dynamic RMSE
+    # row, not the recovery row beside it nor the outage ratios (the summary has no dynamic-RMSE ratio)
     flagged = {r["quantity"] for r in rows if "diverged" in r["quantity"]}
-    assert flagged == {r["quantity"] for r in rows if r["quantity"].startswith("mismatch 'IMU 10× worse': ")
-                       and ("tight + gate (mean" in r["quantity"] or "/ tight + gate" in r["quantity"])}
-    assert q[0]["quantity"].endswith("(mean of 6 seeds; diverged on dyn_rmse)")
-    assert all("a row diverged: the ratio measures a failure" in k for k in flagged if "/ tight + gate" in k)
+    assert flagged == {q[0]["quantity"]} and q[0]["quantity"].endswith("(mean of 6 seeds; diverged on dyn_rmse)")
     assert not any("diverged" in r["quantity"] for r in headlines.ablation_rows(_fake(GOOD)))
+    # a divergence in the recovery only (the dynamic RMSE leaves out the outage and the recovery): it voids the
+    # outage ratio, in the table and the summary, and leaves the dynamic RMSE's verdict standing
+    rec = _fake(GOOD)
+    hr = (rec.scores["case"] == "UWB σ 2×") & (rec.scores["method"] == "loose + gate")
+    rec.scores.loc[hr, "recovery_max"] = 3.0
+    assert [(d["row"], d["metric"]) for d in facts.diverged(rec, "UWB σ 2×")] == [("loose + gate", "recovery_max")]
+    assert _row(rec, "UWB σ 2×: loose + gate / tight + gate, max outage error").verdict == \
+        "a row diverged on recovery_max (the ratio measures a failure)"
+    assert _row(rec, "UWB σ 2×: loose + gate / tight + gate, dynamic RMSE").verdict == "survives"
+    assert _row(rec, "UWB σ 2×: EKF + gate / tight + gate, max outage error").verdict == "survives"
+    flagged = {r["quantity"] for r in headlines.ablation_rows(rec) if "diverged" in r["quantity"]}
+    assert flagged == {"mismatch 'UWB σ 2×': max error in the recovery, loose + gate (mean of 6 seeds; diverged on "
+                       "recovery_max)", "mismatch 'UWB σ 2×': outage max error loose + gate / tight + gate (6 seeds; "
+                       "a row diverged on recovery_max: the ratio measures a failure)"} | {
+        f"mismatch 'UWB σ 2×': outage max error loose + gate / tight + gate (6 seeds; a row diverged on recovery_max: "
+        f"the ratio measures a failure), 95 % {end}" for end in ("low", "high")}
     m = (sc["case"] == "matched") & (sc["method"] == "EKF + gate") & (sc["seed"] == 2)
     sc.loc[m, "recovery_max"] = 0.8                        # drift found on UWB's return, re-acquired in 1.8 s
     sc.loc[m, "reacq_s"] = 1.8
@@ -375,6 +392,47 @@ def test_the_summary_ladder_rows_are_the_numbers_the_ladder_table_shows():
     rows = {r["quantity"]: r["value"] for r in headlines.ablation_rows(res)}
     (q,) = [k for k in rows if k.startswith("ablation ratio LS / LS + gate, dynamic RMSE") and "95 %" not in k]
     assert rows[q] == table.loc[step, ("dyn_rmse", "ratio")] == pytest.approx(1.0)
+
+
+def test_a_step_on_the_outage_with_a_row_that_has_no_fix_there_is_not_applicable():
+    """LS has no fix in the outage (one TDoA per epoch): a ratio there does not apply, computed from the coverage."""
+    f = _fake(GOOD)
+    r = _row(f, "outlier handling (gate), LS: max error in the outage")
+    assert (r.verdict, r.ours, r.interval) == ("not applicable (no fix in the outage: LS, LS + gate)", "—", "—")
+    assert _row(f, "temporal filtering (LS → EKF, gated): max error in the outage").verdict == \
+        "not applicable (no fix in the outage: LS + gate)"
+    assert _row(f, "outlier handling (gate), LS: dynamic RMSE").verdict not in ("undetermined", "not applicable")
+    assert not _row(f, "outlier handling (gate), EKF: max error in the outage").verdict.startswith("not applicable")
+    hit = f.scores["method"] == "LS + gate"                 # a fix in the outage on one seed: the step applies again
+    f.scores.loc[hit & (f.scores["seed"] == 1), "outage_cov"] = 0.2
+    assert not _row(f, "temporal filtering (LS → EKF, gated): max error in the outage").verdict.startswith("not appl")
+
+
+def test_every_own_epoch_score_in_the_summary_has_its_coverage_beside_it():
+    """A row's mean score is on its own epochs: LS + gate's RMSE over the 80 % it keeps stands beside that 80 %."""
+    res = _fake(GOOD)
+    res.scores.loc[res.scores["method"] == "LS + gate", ["dyn_cov", "recovery_cov"]] = 0.8
+    rows = headlines.ablation_rows(res)
+    q = [r["quantity"] for r in rows]
+    for case in res.config.cases:
+        t = res.table(case)
+        for r in t.index:
+            for m, what in (("static_rmse", "static RMSE"), ("dyn_rmse", "dynamic RMSE"),
+                            ("recovery_max", "max error in the recovery"),
+                            ("outage_max", f"max error in the {res.config.outage_s:g} s outage")):
+                if case == "matched":
+                    own, cov = f"ablation: {what}, {r} (mean", f"ablation: coverage of the {what}, {r} ("
+                else:
+                    own, cov = f"mismatch '{case}': {what}, {r} (mean", f"mismatch '{case}': coverage of the {what}, {r} ("
+                i = [k for k, x in enumerate(q) if x.startswith(own)]
+                if not i:
+                    continue
+                (i,) = i
+                assert q[i + 1].startswith(cov), (q[i], q[i + 1])          # beside it, from the same table
+                assert rows[i + 1]["value"] == t.loc[r, ab.COVERAGE[m]] and rows[i]["value"] == t.loc[r, m]
+    (v,) = [r["value"] for r in rows if r["quantity"].startswith("ablation: coverage of the dynamic RMSE, LS + gate")]
+    assert v == pytest.approx(0.8)
+    assert any(x.startswith("mismatch 'UWB σ 2×': coverage of the max error in the recovery, LS + gate") for x in q)
 
 
 def test_every_ablation_ratio_row_is_the_cell_of_the_table_it_comes_from():

@@ -145,8 +145,9 @@ def test_05_and_06_score_the_flight_on_one_board_and_print_the_same_verdicts(tmp
                     for c in ("horizontal RMSE (m)", "vertical RMSE (m)", "3-D RMSE (m)") if np.isfinite(t.loc[m, c])}
     q = [k for k in rows if k.startswith("EKF-RF R multiplier")]
     assert len(q) == 1 and rows[q[0]]["value"] == b05.calibration.params("EKF-RF")["r_scale"] and rows[q[0]]["data"] == cal.label
-    for _, r in v05.iterrows():
-        key = f"horizontal RMSE difference {r['A']} − {r['B']} (scoreboard, 5 Hz)"
+    for _, r in v05.iterrows():       # an edge-bound verdict (the table's) is said in the row's quantity
+        edge = f"; {realdata.EDGE_BOUND}" if r["verdict"].startswith("edge-bound") else ""
+        key = f"horizontal RMSE difference {r['A']} − {r['B']} (scoreboard, 5 Hz{edge})"
         assert rows[key]["value"] == r["A − B (mm)"]
         if np.isfinite(r["95 % low (mm)"]):
             assert rows[key + ", 95 % interval low"]["value"] == r["95 % low (mm)"]
@@ -163,14 +164,19 @@ def test_clock_rows_are_the_cells_of_the_clock_table():
     """The IMU clock's rows: the offset, and per IMU filter but INS-only the change (ranges clock − motion capture)
     with its interval ends, read from the board's difference table of ``m (ranges clock)`` against ``m``."""
     clock = pd.DataFrame([{"A": f"{m} (ranges clock)", "B": m, "A − B (mm)": c, "95 % low (mm)": lo,
-                           "95 % high (mm)": hi} for m, (c, lo, hi) in
-                          {"loose": (2.5, np.nan, np.nan), "tight": (0.1, -0.2, 0.5), "INS-only": (9.0, 1.0, 20.0)}.items()])
+                           "95 % high (mm)": hi, "verdict": v} for m, (c, lo, hi, v) in
+                          {"loose": (2.5, np.nan, np.nan, "edge-bound: not significant at the picks (loose: Q × 100)"),
+                           "tight": (0.1, -0.2, 0.5, "not significant"),
+                           "INS-only": (9.0, 1.0, 20.0, "not significant")}.items()])
     rows = realdata._clock_rows(clock, -40.0, "x")
     assert [r["unit"] for r in rows] == ["ms", "mm", "mm", "mm", "mm"] and rows[0]["value"] == -40.0
     q = "horizontal RMSE change of tight with the IMU clock from the ranges"
     assert {r["quantity"]: r["value"] for r in rows if r["quantity"].startswith(q)} == {
         q: 0.1, q + ", 95 % interval low": -0.2, q + ", 95 % interval high": 0.5}
     assert not any("INS-only" in r["quantity"] for r in rows)
+    # an edge-bound verdict is said in the quantity, the others are not
+    assert [r["quantity"] for r in rows if "edge-bound" in r["quantity"]] == [
+        f"horizontal RMSE change of loose with the IMU clock from the ranges ({realdata.EDGE_BOUND})"]
 
 
 def test_figures_draw_truth_only_where_it_exists_and_keep_uwb_spikes_off_the_axes():

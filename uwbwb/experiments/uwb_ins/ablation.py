@@ -65,7 +65,7 @@ from ...validate import integer, number, probability
 from . import study
 from .study import OUTAGE_START_S, fusion_filters, injected, start
 
-__all__ = ["R_GRID", "FAST_R_GRID", "BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "METRICS", "LADDER", "EKF_Q0",
+__all__ = ["R_GRID", "FAST_R_GRID", "BASES", "ROWS", "EKF_TDOA_GATE", "EKF_TDOA_MAX_GATED", "gate_table", "METRICS", "COVERAGE", "LADDER", "EKF_Q0",
            "RECOVERY_S", "RECOVERY_MAX_M", "HOLD_S", "reacquisition_s", "AblationConfig", "AblationResult", "check_outage", "notebook_config",
            "legs_for_outage", "simulate", "ls_gate", "run_methods", "score_seed", "tune", "run_ablation", "ratio_ci",
            "choose_knobs", "TIE_REL", "FULL_GRID", "FAST_GRID"]
@@ -99,7 +99,9 @@ RECOVERY_S = 5.0
 RECOVERY_MAX_M, HOLD_S = 0.5, 5.0
 #: Scores per row and seed (m; coverage as a fraction of the scored epochs).
 METRICS = ("static_rmse", "static_cov", "dyn_rmse", "dyn_cov", "outage_max", "outage_rmse", "outage_cov",
-           "recovery_max", "reacq_s", "nis")
+           "recovery_max", "recovery_cov", "reacq_s", "nis")
+#: The coverage each accuracy metric is scored on (a row's own epochs: the share of the window's scored epochs it has).
+COVERAGE = {"static_rmse": "static_cov", "dyn_rmse": "dyn_cov", "outage_max": "outage_cov", "recovery_max": "recovery_cov"}
 _TUNED = tuple(r for r in ROWS if not r.startswith("LS"))
 
 
@@ -435,6 +437,7 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, tuple[float, float]], c
                 o = own["outage"].stats(own={"rmse": rmse, "max": np.max})
                 s["outage_rmse"], s["outage_max"], s["outage_cov"] = o["rmse"], o["max"], own["outage"].coverage
                 s["recovery_max"] = own["recovery"].stats(own={"max": np.max})["max"]
+                s["recovery_cov"] = own["recovery"].coverage
                 if run.outage.any():
                     s["reacq_s"] = reacquisition_s(run.truth.t_s[k0:], err[r][k0:], float(run.truth.t_s[run.outage][-1]))
                 s["nis"] = counts[scen]["nis"].get(r, np.nan)

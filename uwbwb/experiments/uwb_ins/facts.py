@@ -15,6 +15,11 @@ Rules
   after the outage (mean over the case's seeds) exceeds :data:`DIVERGED_FACTOR` × its matched
   value on the same seeds *and* the re-acquisition limit :data:`~.ablation.RECOVERY_MAX_M`: a failure,
   not a degradation, and named as such (a centimetre error ten times a millimetre one is not a failure).
+  A divergence voids a ratio only of a metric it enters (:data:`ENTERS`): one in the recovery voids the
+  outage-and-recovery ratios, not the dynamic RMSE (which leaves out the outage and the recovery after it);
+  a steady-state one voids the dynamic RMSE's, not the outage's.
+* A ladder step on the max error in the outage is **not applicable** when a row has no estimate in the
+  outage window on any seed (LS: one TDoA per epoch gives no fix): there is nothing to compare.
 * A verdict on two rows (a ladder step, the headline, a mismatch case) is **edge-bound** when either row's
   tuning pick lies on an edge of its grid (:func:`~.ablation.choose_knobs`): the ratio then compares a filter whose
   best knob may lie off the grid, and the interval's reading is given only as at the picks. A ladder or headline
@@ -32,14 +37,16 @@ import numpy as np
 import pandas as pd
 
 from ...metrics import interval_side
-from .ablation import HOLD_S, RECOVERY_MAX_M, AblationResult, EKF_TDOA_GATE, LADDER, choose_knobs
+from .ablation import COVERAGE, HOLD_S, RECOVERY_MAX_M, AblationResult, EKF_TDOA_GATE, LADDER, choose_knobs
 from .ladder import eq4_path, eq4_thresholds, pair_rmse
 
-__all__ = ["DIVERGED_FACTOR", "diverged", "verdict", "verdict_table"]
+__all__ = ["DIVERGED_FACTOR", "ENTERS", "diverged", "diverged_on", "verdict", "verdict_table"]
 
 #: A mismatch row whose dynamic RMSE or recovery max exceeds this many times its matched value (and
 #: RECOVERY_MAX_M) diverged.
 DIVERGED_FACTOR = 10.0
+#: Per metric a ratio or summary row is on, the divergences (:func:`diverged`'s metrics) that enter it.
+ENTERS = {"outage_max": ("recovery_max",), "recovery_max": ("recovery_max",), "dyn_rmse": ("dyn_rmse",)}
 
 #: The rows tight coupling's outage advantage is measured against.
 _VERSUS = ("loose + gate", "EKF + gate", EKF_TDOA_GATE)
@@ -84,6 +91,11 @@ def diverged(res: AblationResult, case: str) -> list[dict]:
     return out
 
 
+def diverged_on(ds: list[dict], metric: str) -> set[str]:
+    """The rows of :func:`diverged`'s ``ds`` whose divergence enters ``metric`` (:data:`ENTERS`)."""
+    return {d["row"] for d in ds if d["metric"] in ENTERS.get(metric, ())}
+
+
 def _interval(r: dict) -> str:
     return f"[{r['lo']:.2f}, {r['hi']:.2f}]" if np.isfinite(r["lo"]) and np.isfinite(r["hi"]) else "—"
 
@@ -94,7 +106,9 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
     Rows: each ladder step on the dynamic RMSE and the max outage error (without / with the ingredient); the
     headline (the others' max outage error over tight's, matched); how much of that advantage, and of tight's
     lead on the dynamic RMSE, each mismatch case keeps (``share kept`` in log ratio; none where reversed) — *a row diverged* instead of a verdict where tight or the other
-    row diverged in that case (the ratio then measures a failure); every diverged row; every gated row that
+    row diverged in that case on a metric that enters the ratio (:data:`ENTERS`; the ratio then measures a failure);
+    *not applicable* for a ladder step where a row has no estimate in the metric's window; every diverged row; every
+    gated row that
     failed to re-acquire in the matched world (:func:`~.ablation.reacquisition_s` beyond the recovery time on some
     seed) and every one whose max error in the recovery window reaches :data:`~.ablation.RECOVERY_MAX_M` (the
     earlier reading of the re-acquisition check, which also counts the drift UWB finds on its return); where eq. 4
@@ -107,6 +121,7 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
                      "verdict": verdict})
 
     matched = res.case("matched")
+    cov = res.table("matched")
     rec, back = matched["reacq_s"].unstack("method"), matched["recovery_max"].unstack("method")
     failed = {str(r): {int(k): float(v) for k, v in rec[r].items()} for r in _gated(rec.columns)
               if not (rec[r] <= cfg.recovery_s).all()}
@@ -124,8 +139,11 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
     for what, a, b in LADDER:
         for metric in ("dyn_rmse", "outage_max"):
             r = pair_rmse(res, what, metric)
-            add(f"{what}: {_METRIC_WORDS[metric]}, without / with", f"{r['ratio']:.2f}×", _interval(r), r["n"],
-                _RATIO_RULE, qualified(verdict(r["lo"], r["hi"]), (a, b)))
+            none = [x for x in (a, b) if not cov.loc[x, COVERAGE[metric]] > 0]      # no estimate in the window
+            window = "outage" if metric == "outage_max" else "scored epochs"
+            add(f"{what}: {_METRIC_WORDS[metric]}, without / with", "—" if none else f"{r['ratio']:.2f}×",
+                _interval(r), r["n"], _RATIO_RULE, f"not applicable (no fix in the {window}: {', '.join(none)})"
+                if none else qualified(verdict(r["lo"], r["hi"]), (a, b)))
     for other in _VERSUS:
         r = res.ratio(other, "tight + gate", "outage_max")
         add(f"headline: {other} / tight + gate, max error in the {cfg.outage_s:g} s outage, matched",
@@ -136,7 +154,7 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
     diverged_in = {case: diverged(res, case) for case in cfg.cases[1:]}          # the first is "matched"
     for metric, what, versus in (("outage_max", "max outage error", _VERSUS), ("dyn_rmse", "dynamic RMSE", _VERSUS[:2])):
         for case in cfg.cases[1:]:
-            gone = {d["row"] for d in diverged_in[case]}
+            gone = diverged_on(diverged_in[case], metric)          # only a divergence that enters this metric
             for other in versus:
                 r = kept(res, other, metric, case)
                 failure = bool({other, "tight + gate"} & gone)          # the ratio measures a failure: no share
@@ -144,7 +162,7 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
                     f", share kept {100 * r['share']:.0f} %" if r["share"] >= 0 else ", none kept"
                 add(f"{case}: {other} / tight + gate, {what}", f"{r['ratio']:.2f}×{share}", _interval(r), r["n"],
                     _RATIO_RULE + " (above 1: the advantage survives)",
-                    "a row diverged (the ratio measures a failure)" if failure else
+                    f"a row diverged on {', '.join(ENTERS[metric])} (the ratio measures a failure)" if failure else
                     qualified(words[verdict(r["lo"], r["hi"])], (other, "tight + gate"), reacquired=False))
     for case, ds in diverged_in.items():
         for d in ds:

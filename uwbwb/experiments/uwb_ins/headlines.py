@@ -15,7 +15,7 @@ from ...metrics import interval_rows
 from ...models.imu import GRADES
 from ...sim import robot
 from . import facts
-from .ablation import DEFAULT_OUTAGE_S, EKF_TDOA_GATE, HOLD_S, LADDER, RECOVERY_MAX_M, ROWS, AblationResult
+from .ablation import COVERAGE, DEFAULT_OUTAGE_S, EKF_TDOA_GATE, HOLD_S, LADDER, RECOVERY_MAX_M, ROWS, AblationResult
 from .ladder import pair_rmse
 
 __all__ = ["PAPERS_PAIRING", "error_range_assumption", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
@@ -39,9 +39,11 @@ def ablation_rows(res: AblationResult) -> list[dict]:
     mean scores per row (matched), the ladder ratios on the dynamic RMSE and the outage — each the number
     :func:`~.ladder.ladder_table` shows, both rows scored on the epochs both cover (:func:`~.ladder.pair_rmse`) —,
     the outage ratio of tight coupling under each mismatch case, each ratio with its 95 % interval ends over seeds
-    (the verdict table's), and the eq-4 counts. A mismatch row of a filter that diverged in that case
-    (:func:`~.facts.diverged`) says so in its quantity, and so does a ratio on such a row (the verdict table's
-    "a row diverged": the ratio measures a failure)."""
+    (the verdict table's), and the eq-4 counts. Every mean score is on the row's own epochs and has its coverage
+    row beside it (the share of the window's scored epochs it has: the same table's column). A mismatch row of a
+    filter that diverged in that case (:func:`~.facts.diverged`) on the metric it shows says so in its quantity, and
+    so does a ratio on such a row where the divergence enters it (:data:`~.facts.ENTERS`; the verdict table's "a row
+    diverged": the ratio measures a failure)."""
     cfg = res.config
     n = cfg.seeds
     out = []
@@ -53,6 +55,9 @@ def ablation_rows(res: AblationResult) -> list[dict]:
             if np.isfinite(v):
                 out.append(dict(quantity=f"ablation: {what}, {r} (mean of {n} seeds, matched model)", value=v,
                                 unit="m", data="synthetic", kind="reproduced"))
+                out.append(dict(quantity=f"ablation: coverage of the {what}, {r} (share of the window's scored epochs "
+                                         f"with an estimate; mean of {n} seeds, matched model)",
+                                value=t.loc[r, COVERAGE[m]], unit="", data="synthetic", kind="reproduced"))
     rec = res.case("matched")["reacq_s"].unstack("method")
     for r in _GATED:
         if r in rec.columns and np.isfinite(rec[r].to_numpy(float)).all():   # a failure is the check's, not a row
@@ -67,19 +72,23 @@ def ablation_rows(res: AblationResult) -> list[dict]:
                                      r["ratio"], r["lo"], r["hi"], **_RATIO)
     for case in cfg.cases[1:]:
         t = res.table(case)
-        gone: dict[str, list[str]] = {}                 # the verdict table's diverged rows, and on which metric
-        for d in facts.diverged(res, case):
-            gone.setdefault(d["row"], []).append(d["metric"])
+        ds = facts.diverged(res, case)                  # the verdict table's diverged rows, and on which metric
         for r in t.index:
-            flag = f"; diverged on {', '.join(gone[r])}" if r in gone else ""
+            k = int(t.loc[r, "seeds"])
             for m, what in (("dyn_rmse", "dynamic RMSE"), ("recovery_max", "max error in the recovery")):
+                flag = f"; diverged on {', '.join(facts.ENTERS[m])}" if r in facts.diverged_on(ds, m) else ""
                 v = t.loc[r, m]
                 if np.isfinite(v):
-                    out.append(dict(quantity=f"mismatch '{case}': {what}, {r} (mean of {int(t.loc[r, 'seeds'])} "
-                                             f"seeds{flag})", value=v, unit="m", data="synthetic", kind="reproduced"))
+                    out.append(dict(quantity=f"mismatch '{case}': {what}, {r} (mean of {k} seeds{flag})", value=v,
+                                    unit="m", data="synthetic", kind="reproduced"))
+                    out.append(dict(quantity=f"mismatch '{case}': coverage of the {what}, {r} (share of the window's "
+                                             f"scored epochs with an estimate; mean of {k} seeds)",
+                                    value=t.loc[r, COVERAGE[m]], unit="", data="synthetic", kind="reproduced"))
+        gone = facts.diverged_on(ds, "outage_max")
         for other in ("EKF + gate", EKF_TDOA_GATE, "loose + gate"):
             r = res.ratio(other, "tight + gate", "outage_max", case)
-            flag = "; a row diverged: the ratio measures a failure" if {other, "tight + gate"} & set(gone) else ""
+            on = ", ".join(facts.ENTERS["outage_max"])
+            flag = f"; a row diverged on {on}: the ratio measures a failure" if {other, "tight + gate"} & gone else ""
             if np.isfinite(r["ratio"]):
                 out += interval_rows(f"mismatch '{case}': outage max error {other} / tight + gate ({r['n']} seeds"
                                      f"{flag})", r["ratio"], r["lo"], r["hi"], **_RATIO)

@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 
 from ...sim import robot
-from .ablation import LADDER, ROWS, ratio_ci
+from .ablation import COVERAGE, LADDER, ROWS, ratio_ci
 
 if TYPE_CHECKING:
     from .ablation import AblationConfig, AblationResult
@@ -43,8 +43,7 @@ def ladder_table(res: AblationResult, case: str = "matched",
         for m in metrics:
             r = pair_rmse(res, what, m, case)
             row[(m, "ratio")], row[(m, "lo")], row[(m, "hi")] = r["ratio"], r["lo"], r["hi"]
-            cov = {"static_rmse": "static_cov", "dyn_rmse": "dyn_cov", "outage_max": "outage_cov"}[m]
-            row[(m, "cov without")], row[(m, "cov with")] = t.loc[a, cov], t.loc[b, cov]
+            row[(m, "cov without")], row[(m, "cov with")] = t.loc[a, COVERAGE[m]], t.loc[b, COVERAGE[m]]
             row[(m, "cov both")] = r["both_cov"]
         rows[what] = row
     t = pd.DataFrame(rows).T
