@@ -70,14 +70,6 @@ def _pair_text(d: dict, what: str, digits: int = 3) -> str:
             f"{_iv(d, digits)} ({d['n']} {what})")
 
 
-def _steps(stops: pd.DataFrame, pairs, rng, holds: str, fails: str) -> tuple[str, str]:
-    """Each pair ``a < b`` of ``pairs`` on the stops both fitted (one series per experiment and node, each resampled
-    whole: its stops share the experiment's per-pair range biases): the differences with their intervals, and the
-    verdict (:func:`_decide`)."""
-    return _decide([paired(stops, a, b, ["experiment", "tag"], at="segment", blocks="segment", rng=rng)
-                    for a, b in pairs], holds, fails)
-
-
 def _decide(steps: list[dict], holds: str, fails: str, what: str = "stops") -> tuple[str, str]:
     """The text of the paired differences ``steps`` (each ``a < b`` claimed; ``what`` they count) and their verdict:
     every interval below 0, ``holds``; one above 0, ``fails``; no interval at all, "no interval"; else not
@@ -292,7 +284,8 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
         three = [h for h in PAPER_RANKING if h in set(persistence["heuristic"])]
         first = ranking(at[base], ["experiment", "tag"], rng=rng)       # best at the base: ranked alone first
         top = list(first.rank.index[first.rank == 1])
-        text, verdict = _steps(at[long], [(top[0], h) for h in three if h != top[0]], rng, "same", "changes")
+        text, verdict = _decide([paired(at[long], top[0], h, ["experiment", "tag"], at="segment", blocks="segment",
+                                        rng=rng) for h in three if h != top[0]], "same", "changes")
         if len(top) > 1:
             verdict = "no interval" if all(d["side"] == "none" for d in first.pairs) else "not resolved"
         add(f"the best heuristic at {base:g} s NLOS episodes ({', '.join(LABELS[h] for h in top)}"
