@@ -228,20 +228,28 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     for r in summary.frame().to_dict("records"):
         assert (r["kind"] == "input") == r["data"].endswith(sections.EXTERNAL), r
     assert kinds["authors LS RMSE_2d, recomputed (their definition)"] == "input"
-    assert kinds["RMSE_2d ratio ours (best on the scored case) / authors LS"] == "reproduced"
-    assert kinds["RMSE_2d ratio ours (picked on the tuning case) / authors LS"] == "reproduced"
-    for theirs in ("authors LS", "authors ESKF"):      # the method declared before scoring, per case and mean
-        assert kinds[f"RMSE_2d ratio ours (declared before scoring: EKF-RF ranges) / {theirs}"] == "reproduced"
-        assert kinds[f"RMSE_2d ratio ours (declared before scoring: EKF-RF ranges) / {theirs}, mean over the cases "
-                     f"scored"] == "reproduced"
-    assert list(sec.tables["declared"]["B"]) == list(study.AUTHORS_ROWS) * 2
-    # the picks' rows are the ratio table's: one best and one chosen, both against the authors' LS
+    declared = sec.tables["declared"]
+    for theirs, ref in zip(("authors LS", "authors ESKF"), study.AUTHORS_ROWS):   # declared before scoring
+        r = declared[(declared["B"] == ref) & ~declared["case"].str.startswith("mean")].iloc[0]
+        assert kinds[_labelled(f"RMSE_2d ratio ours (declared before scoring: EKF-RF ranges) / {theirs}", r)] == (
+            "reproduced")
+        (mean,) = [q for q in kinds if q.startswith(f"RMSE_2d ratio ours (declared before scoring: EKF-RF ranges) / "
+                                                    f"{theirs}, mean over the cases scored (epochs both covered")]
+        assert mean.endswith(f"; {sections.EDGE} of 1 of 1 cases)" if r["verdict"].startswith("edge-bound") else
+                             "(epochs both covered)")
+    assert list(declared["B"]) == list(study.AUTHORS_ROWS) * 2
+    # the picks' rows are the ratio table's: one best and one chosen, both against the authors' LS, each labelled
+    # with the table's qualifiers (the pair's epochs; edge-bound where the verdict is), both RMSEs beside
     ratios = sec.tables["ratios"]
     for pick, what in (("best", "best on the scored case"), ("chosen", "picked on the tuning case")):
         r = ratios[ratios[pick]]
         assert len(r) == 1 and r["B"].iloc[0] == "authors LS (external)"
-        q = f"RMSE_2d ratio ours ({what}) / authors LS"
-        assert values[q] == r["A / B"].iloc[0]
+        q = _labelled(f"RMSE_2d ratio ours ({what}) / authors LS", r.iloc[0])
+        assert values[q] == r["A / B"].iloc[0] and kinds[q] == "reproduced"
+        a = r["A"].iloc[0]
+        assert values[f"RMSE_2d, our ranges-only method {what} ({a}; epochs both covered with authors LS)"] == (
+            r["RMSE A (m)"].iloc[0])
+        assert values[f"RMSE_2d, authors LS (epochs both covered with {a})"] == r["RMSE B (m)"].iloc[0]
         # its interval's ends beside it, the table's own (where the table has an interval)
         ends = (r["A / B 95 % low"].iloc[0], r["A / B 95 % high"].iloc[0])
         assert ((values.get(f"{q}, 95 % low"), values.get(f"{q}, 95 % high")) == ends if np.isfinite(ends).all()
@@ -286,18 +294,50 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
     theirs = [r for r in prune.rows if r["quantity"] == "RMSE_2d, authors LS (external) (epochs it covered)"]
     pv = {r["quantity"]: r["value"] for r in prune.rows}
     for r in prune.tables["ablation"].to_dict("records"):          # each ratio with the table's interval ends
-        q = f"RMSE_2d ratio {r['A']} / {r['B']} (epochs both covered)"           # the table's: on the pair's epochs
+        q = _labelled(f"RMSE_2d ratio {r['A']} / {r['B']}", r)      # the table's: on the pair's epochs, edge-bound
         assert pv[q] == r["A / B"]
         if np.isfinite([r["A / B 95 % low"], r["A / B 95 % high"]]).all():
             assert (pv[f"{q}, 95 % low"], pv[f"{q}, 95 % high"]) == (r["A / B 95 % low"], r["A / B 95 % high"])
     assert len(theirs) == 1 and theirs[0]["kind"] == "input" and theirs[0]["data"] == label + sections.EXTERNAL
-    own = prune.boards[prune.facts["case"]].table().set_index("method")["rmse_m"]    # each RMSE row: the board's
-    for m, v in own[np.isfinite(own)].items():
-        assert pv[f"RMSE_2d, {m} (epochs it covered)"] == v
+    own = prune.boards[prune.facts["case"]].table().set_index("method")    # each RMSE row: the board's, coverage beside
+    for m, r in own[np.isfinite(own["rmse_m"])].iterrows():
+        assert pv[f"RMSE_2d, {m} (epochs it covered)"] == r["rmse_m"]
+        assert pv[f"epoch coverage, {m} (share of the scored epochs)"] == r["coverage"]
     motion = sections.motion_section(cases[1].name, data, fast=True)
     assert set(motion.tables["models"]["A"]) == {"EKF-RW ranges", "EKF-RF ranges", "EKF-RJ ranges"}
+    mv = {r["quantity"]: r["value"] for r in motion.rows}
+    for r in motion.tables["models"].to_dict("records"):           # on the epochs each EKF and raw LS both covered
+        assert mv[f"RMSE_2d, {r['A']} (epochs both covered with raw LS)"] == r["RMSE A (m)"]
+        assert mv[_labelled(f"RMSE_2d ratio {r['A']} / raw LS", r)] == r["A / B"]
     assert motion.boards[cases[1].name].table().set_index("method").loc["EKF-RF", "note"].startswith("not run: TDoAs")
     assert motion.facts["tuned_on"] == cases[0].name
+
+
+def _labelled(quantity: str, r) -> str:
+    """A ratio row's summary label from its difference-table row: the pair's epochs, and edge-bound where the
+    table's verdict is."""
+    edge = "; edge-bound at the tuning picks" if r["verdict"].startswith("edge-bound: ") else ""
+    return f"{quantity} (epochs both covered{edge})"
+
+
+def test_a_ratio_row_carries_the_edge_bound_qualifier_of_its_verdict():
+    """The board's grid_edge makes the difference table's verdict edge-bound; the summary rows of that ratio (and its
+    interval's ends) say so, those of a pair whose picks lie inside their grids do not, nor do the RMSE rows."""
+    n = 400
+    rng = np.random.default_rng(3)
+    errs = {"A": np.abs(rng.normal(1.0, 0.3, n)), "authors LS (external)": np.abs(rng.normal(2.0, 0.3, n)),
+            "C": np.abs(rng.normal(1.0, 0.3, n))}
+    board = _fake_board("d/X", errs, {m: np.ones(n, bool) for m in errs})
+    table = board.table()
+    table["grid_edge"], table["tuning_pick"] = [True, None, False], ["σ_w 1: on the grid's edge", "—", "σ_w 2"]
+    t = study.ratio_table({"X": board}).set_index("A")
+    assert t.loc["A", "verdict"] == "edge-bound: A more accurate at the picks (A: σ_w 1: on the grid's edge)"
+    assert t.loc["C", "verdict"] == "C more accurate"
+    rows = {r["quantity"]: r["value"] for m in "AC" for r in sections._ratio_rows(f"ratio {m}", t.loc[m], "d/X")}
+    assert rows["ratio A (epochs both covered; edge-bound at the tuning picks)"] == t.loc["A", "A / B"]
+    assert rows["ratio A (epochs both covered; edge-bound at the tuning picks), 95 % low"] == t.loc["A", "A / B 95 % low"]
+    assert rows["ratio C (epochs both covered)"] == t.loc["C", "A / B"]
+    assert len(rows) == 6
 
 
 # ------------------------------------------------------------------ notebooks on generated trees
@@ -320,7 +360,7 @@ def test_pruning_notebook_runs_on_a_generated_dynamic_case(tmp_path):
     cases = _hanyang_tree(data_dir, rng)
     rows = _run_on("02_pruning_nls.ipynb", tmp_path, data_dir, RECORDING="medium", HANYANG_CASE=cases[3].name)
     hy = [r for r in rows if r["data"] == f"hanyang-outdoor-uwb/{cases[3].name}"]
-    assert any(r["quantity"] == "RMSE_2d ratio NLS residual pruning / NLS (epochs both covered)" for r in hy)
+    assert any(r["quantity"].startswith("RMSE_2d ratio NLS residual pruning / NLS (epochs both covered") for r in hy)
     assert {r["kind"] for r in hy} == {"reproduced"} and {r["mode"] for r in hy} == {"FAST"}
 
 

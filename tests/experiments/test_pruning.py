@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 import types
 
 import matplotlib
@@ -386,6 +387,20 @@ def test_the_3d_rows_decide_the_known_order_and_the_height_error_by_intervals(ga
     assert _row(t, "5th percentile in 3-D").verdict == height
 
 
+def test_the_3d_row_reads_the_tied_known_height_ranking():
+    """An order of medians that no known-height interval resolves (a tie in the ranking) is no order to keep: even
+    resolved in 3-D, the row says "not resolved", and it shows both rankings."""
+    known = _long({"none": 1.0, "residual": 0.0, "percentile": None, "robust_mean": 0.6})
+    three = _long({"none": 1.0, "residual": 0.0, "percentile": 0.3}, seed=6).assign(err_z_m=0.0)
+    three["err_3d_m"] = three["err_m"]
+    ranks = ex.verdicts.rankings(_syn(known))
+    assert ranks["synthetic"].rank["residual"] == ranks["synthetic"].rank["percentile"] == 1
+    row = _row(ex.verdicts.verdict_table(_syn(known), other=_syn(three), ranks=ranks), "the known-height ranking in 3-D")
+    assert row.verdict == "not resolved"
+    assert row.ours.startswith(f"known height: rank {ranks['synthetic'].text()}; 3-D: ")
+    assert row.ours.endswith("rank (tied where not resolved): residual pruning 1, 5th percentile 2")
+
+
 @pytest.mark.parametrize("gap_m, verdict", [(0.3, "same"), (-0.3, "changes"), (None, "not resolved")])
 def test_the_persistence_row_asks_whether_the_best_stays_best(gap_m, verdict):
     base = _long({"percentile": 0.0, "residual": 0.3, "robust_mean": 0.4}).assign(nlos_dwell_s=3.0)
@@ -521,6 +536,10 @@ def test_headline_rows_say_their_kind_and_name_the_noise_beside_the_paper_4_m():
     assert {r["paper_value"] for r in rows if r["quantity"].startswith("rank")} == {1, 2, 3}
     assert q["90 % of all distance errors, residual pruning minus point-based (known height)"] == pytest.approx(-1.2)
     assert "median stationary height error |dz|, 5th percentile (3-D, no height)" in q
+    for quantity in q:      # every accuracy row on an estimator's own packets has that estimator's coverage beside it
+        if "covered packets" in quantity:
+            lab, geo = re.match(r".*, (.+) \((known height|3-D, no height), covered packets", quantity).groups()
+            assert q[f"packet coverage, {lab} ({geo})"] == 1.0, quantity
     assert not any("3-D" in r["quantity"] for r in ex.headlines.rows({**res, "synthetic_dim": 3})
                    if "(3-D, no height)" in r["quantity"] and "known" in r["quantity"])
     s = metrics.Summary("02_pruning_nls", fast=True)
@@ -551,6 +570,9 @@ def test_every_summary_row_is_the_number_of_the_table_it_comes_from():
     offsets = {"none": 1.0, "percentile": 0.4, "robust_mean": None, "residual": 0.0}
     stops, track = _long(offsets), _long({**offsets, "point": 0.8}, n=20, seed=6)
     syn, table, tour = _syn(stops, track), ex.scoring.heuristic_summary(stops, None, track), tours.TourConfig()
+    flat = stops.heuristic != "robust_mean"                          # the same packets in 3-D: no robust mean
+    other = ex.scoring.heuristic_summary(stops[flat].assign(err_z_m=0.2, err_3d_m=stops.err_m[flat] + 0.1), None,
+                                         track[track.heuristic != "robust_mean"])
     lias = _poses({"raw": {"none": 0.0, "percentile": 0.05, "robust_mean": None, "residual": 0.1, "point": 0.0}})
     lias.table = pd.concat({k: ex.scoring.heuristic_summary(v.poses) for k, v in lias.runs.items()})
     lias.epochs = {k: metrics.epoch_summary(v.epochs, by="heuristic", order=ex.scoring.ESTIMATORS)
@@ -559,11 +581,13 @@ def test_every_summary_row_is_the_number_of_the_table_it_comes_from():
     hy = pd.DataFrame({"median_err_m": [0.24, 0.28], "pq_err_m": [0.2, 0.25]}, index=["LOS", "NLOS"])
     ranks = ex.verdicts.rankings(syn, lias, seed=3)
     rows = ex.headlines.rows(dict(synthetic=syn, synthetic_table=table, synthetic_dim=2, tour=tour, rankings=ranks,
-                                  lias_static=lias, hanyang=hy, hanyang_label="hanyang-outdoor-uwb/static"))
+                                  other_table=other, lias_static=lias, hanyang=hy,
+                                  hanyang_label="hanyang-outdoor-uwb/static"))
     got = {(r["quantity"], r["data"]): r["value"] for r in rows}
     want, H = {}, ex.headlines
     note = "; follows from assumed noise: " + ex.verdicts.noise(tour)
     for decl, t, data, fmt in [(H.SYNTHETIC, table, "synthetic", {"geo": "known height"}),
+                               (H.THREE_D, other, "synthetic", {}),
                                (H.LIAS_POSES, lias.table.loc["raw"], lias.label, {"k": "raw"}),
                                (H.LIAS_EPOCHS, lias.epochs["raw"], lias.label, {"k": "raw"}),
                                (H.HANYANG, hy, "hanyang-outdoor-uwb/static", {})]:

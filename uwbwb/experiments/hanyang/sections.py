@@ -12,7 +12,8 @@ not hold is an error.
   against their LS and ESKF (:func:`~.study.declared_method_table`), the static range
   model's effect, and each board's methods against the common bound and their own bounds
   (:func:`~uwbwb.scoreboard.verdicts.placement_table`, :func:`~uwbwb.scoreboard.verdicts.own_bound_table`).
-  Every comparison of two methods is a row of :func:`~uwbwb.scoreboard.verdicts.difference_table`;
+  Every comparison of two methods is a row of :func:`~uwbwb.scoreboard.verdicts.difference_table`, whose summary
+  rows (in every section) say "(epochs both covered)" and, where its verdict is edge-bound, :data:`EDGE`;
 * :func:`pruning_section` (notebook 02): NLS with and without the pruning heuristics of paper 001
   on one case (NLOS is the point), each against plain NLS;
 * :func:`motion_section` (notebook 03): the RW/RF/RJ motion models on ranges (and the TDoA EKF of
@@ -38,12 +39,16 @@ from ...scoreboard.setnoise_nls import NLS_WINDOWS_S, WindowNls
 from ...scoreboard.verdicts import difference_table, own_bound_table, placement_table
 from . import authors, estimators, study
 
-__all__ = ["EXTERNAL", "Section", "motion_section", "pruning_section", "scoreboard_section"]
+__all__ = ["BOTH", "EDGE", "EXTERNAL", "Section", "motion_section", "pruning_section", "scoreboard_section"]
 
 PathLike = str | os.PathLike
 NAME = hanyang_dynamic.NAME
 #: Data label suffix of rows that are numbers of the authors' estimates (their LS.csv / ESKF.csv): *external*.
 EXTERNAL = " (external: authors' estimates)"
+#: The words of every row of a pair (a ratio, or one side's RMSE_2d) on the epochs both methods covered.
+BOTH = "epochs both covered"
+#: A ratio row's qualifier where its difference-table verdict is edge-bound (a tuning pick on its grid's edge).
+EDGE = "edge-bound at the tuning picks"
 
 
 @dataclass(frozen=True)
@@ -143,29 +148,36 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
     theirs_added = set()
     for pick, what in (("best", "best on the scored case"), ("chosen", "picked on the tuning case")):
         for r in (ratios[ratios[pick]] if len(ratios) else ratios).to_dict("records"):
-            on, data = f"epochs of {r['A']} ∩ authors LS", r["recording"]
-            rows.append(dict(quantity=f"RMSE_2d, our ranges-only method {what} ({r['A']}, {on})",
+            data = r["recording"]
+            rows.append(dict(quantity=f"RMSE_2d, our ranges-only method {what} ({r['A']}; {BOTH} with authors LS)",
                              value=r["RMSE A (m)"], unit="m", data=data, kind="reproduced"))
-            if (data, on) not in theirs_added:
-                theirs_added.add((data, on))
-                rows.append(dict(quantity=f"RMSE_2d, authors LS ({on})", value=r["RMSE B (m)"], unit="m",
-                                 data=data + EXTERNAL, kind="input"))
+            if (data, r["A"]) not in theirs_added:
+                theirs_added.add((data, r["A"]))
+                rows.append(dict(quantity=f"RMSE_2d, authors LS ({BOTH} with {r['A']})", value=r["RMSE B (m)"],
+                                 unit="m", data=data + EXTERNAL, kind="input"))
             rows += _ratio_rows(f"RMSE_2d ratio ours ({what}) / authors LS", r, data)
+    per_case = declared[~declared["case"].str.startswith("mean over")]
     for r in declared.to_dict("records"):
         theirs, mean = r["B"].split(" (")[0], r["case"].startswith("mean over")
+        edge = per_case.loc[per_case["B"] == r["B"], "verdict"].str.startswith("edge-bound")   # the cases' verdicts
         rows += _ratio_rows(f"RMSE_2d ratio ours (declared before scoring: {r['A']}) / {theirs}"
                             + (", mean over the cases scored" if mean else ""), r,
-                            f"{NAME}/{r['case'].split()[-2]} cases" if mean else r["recording"])
+                            f"{NAME}/{r['case'].split()[-2]} cases" if mean else r["recording"],
+                            edge=f"{EDGE} of {edge.sum()} of {edge.size} cases" if mean and edge.any() else None)
     tables = {"reproduction": repro, "ratios": ratios, "declared": declared, "static_effect": effect,
               "static_models": pd.DataFrame(map(dataclasses.asdict, models)),
               "placement": placement_table(boards), "own_bound": own_bound_table(boards)}
     return Section(None, tables, boards, {"tuning": tuning, "picks": picks}, tuple(rows))
 
 
-def _ratio_rows(quantity: str, r: Mapping, data: str) -> list[dict]:
-    """Summary rows of one difference-table row's ratio A / B with its interval's ends (the table's own)."""
-    return interval_rows(quantity, r["A / B"], r.get("A / B 95 % low", np.nan), r.get("A / B 95 % high", np.nan),
-                         unit="", data=data, kind="reproduced")
+def _ratio_rows(quantity: str, r: Mapping, data: str, *, edge: str | None = None) -> list[dict]:
+    """Summary rows of one difference-table row's ratio A / B with its interval's ends (the table's own), labelled
+    with the table's qualifiers: "(epochs both covered)", and :data:`EDGE` where the row's verdict is edge-bound
+    (``edge``: the qualifier of a row without a verdict of its own, e.g. a mean over cases)."""
+    edge = edge or (EDGE if str(r.get("verdict", "")).startswith("edge-bound") else None)
+    return interval_rows(f"{quantity} ({BOTH}{'; ' + edge if edge else ''})", r["A / B"],
+                         r.get("A / B 95 % low", np.nan), r.get("A / B 95 % high", np.nan), unit="", data=data,
+                         kind="reproduced")
 
 
 def _one_case(case: str | None, data_dir, prefer: str) -> tuple[str | None, str | None, list[str]]:
@@ -186,8 +198,9 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
     Rows: raw LS, NLS (no pruning), NLS with residual pruning, NLS with the robust mean, the authors' LS
     (external); each pruned NLS against plain NLS (and against the authors' LS) on the epochs both covered,
     a row of :func:`~uwbwb.scoreboard.verdicts.difference_table` whose ratio (and its interval's ends) the summary
-    row labelled "(epochs both covered)" is; each method's RMSE_2d row is the board's, on the scored epochs it
-    covered ("(epochs it covered)"): where coverages differ, the quotient of two RMSE rows is not the ratio row.
+    row labelled "(epochs both covered)" is (with :data:`EDGE` where its verdict is edge-bound); each method's
+    RMSE_2d row is the board's, on the scored epochs it covered ("(epochs it covered)"), its coverage of the
+    scored epochs beside it: where coverages differ, the quotient of two RMSE rows is not the ratio row.
     """
     case, absent, available = _one_case(case, data_dir, "NLOS")
     if absent:
@@ -200,13 +213,16 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
     pairs = [("NLS residual pruning", "NLS"), ("NLS robust mean", "NLS"), ("NLS", "raw LS"),
              ("NLS residual pruning", study.THEIRS), ("NLS robust mean", study.THEIRS)]
     table = difference_table({board.label: board}, pairs, seed=seed)
-    rows = [x for r in table.to_dict("records") for x in _ratio_rows(
-        f"RMSE_2d ratio {r['A']} / {r['B']} (epochs both covered)", r, board.label)]
+    rows = [x for r in table.to_dict("records") for x in _ratio_rows(f"RMSE_2d ratio {r['A']} / {r['B']}", r,
+                                                                      board.label)]
     for r in board.table().itertuples(index=False):
         if np.isfinite(r.rmse_m):          # the authors' LS is an outside method's number: input, data marked external
             ext = r.method in board.external
-            rows.append(dict(quantity=f"RMSE_2d, {r.method} (epochs it covered)", value=r.rmse_m, unit="m",
-                             data=board.label + (EXTERNAL if ext else ""), kind="input" if ext else "reproduced"))
+            row = dict(unit="", data=board.label + (EXTERNAL if ext else ""), kind="input" if ext else "reproduced")
+            rows.append(dict(row, quantity=f"RMSE_2d, {r.method} (epochs it covered)", value=r.rmse_m, unit="m"))
+            if np.isfinite(r.coverage):
+                rows.append(dict(row, quantity=f"epoch coverage, {r.method} (share of the scored epochs)",
+                                 value=r.coverage))
     return Section(None, {"ablation": table}, {case: board}, {"case": case, "tuned_on": tune}, tuple(rows))
 
 
@@ -230,7 +246,7 @@ def motion_section(case: str | None = None, data_dir: PathLike | None = None, *,
     table["sigma_w"] = [board.calibration.params(m).get("sigma_w", np.nan) for m in table["A"]]
     rows = []
     for r in table.to_dict("records"):
-        rows.append(dict(quantity=f"RMSE_2d, {r['A']}", value=r["RMSE A (m)"], unit="m", data=board.label,
-                         kind="reproduced"))
+        rows.append(dict(quantity=f"RMSE_2d, {r['A']} ({BOTH} with raw LS)", value=r["RMSE A (m)"], unit="m",
+                         data=board.label, kind="reproduced"))
         rows += _ratio_rows(f"RMSE_2d ratio {r['A']} / raw LS", r, board.label)
     return Section(None, {"models": table}, {case: board}, {"case": case, "tuned_on": tune}, tuple(rows))

@@ -28,7 +28,8 @@ SYNTHETIC = (("median stationary error, {lab} ({geo})", "stop_median_m", "m"),
 THREE_D = (("median stationary error, {lab} (3-D, no height)", "stop_median_m", "m"),
            ("median stationary height error |dz|, {lab} (3-D, no height)", "stop_err_z_median_m", "m"),
            ("median stationary 3-D error, {lab} (3-D, no height)", "stop_err_3d_median_m", "m"),
-           ("90 % of all distance errors under, {lab} (3-D, no height, covered packets)", "all_p90_m", "m"))
+           ("90 % of all distance errors under, {lab} (3-D, no height, covered packets)", "all_p90_m", "m"),
+           ("packet coverage, {lab} (3-D, no height)", "coverage", ""))
 LIAS_POSES = (("median stationary error, {lab}, {k}", "stop_median_m", "m"),
               ("90th-percentile stationary error, {lab}, {k}", "stop_p90_m", "m"))
 LIAS_EPOCHS = (("median per-epoch error, {lab}, {k}", "median_m", "m"), ("epoch coverage, {lab}, {k}", "coverage", ""))
