@@ -307,14 +307,25 @@ def test_a_table_pandas_cut_is_named_and_a_whole_one_is_not():
 def test_the_answer_key_writes_the_claim_and_a_check_that_disagrees_is_named():
     from uwbwb.widgets import ExerciseCheck
 
-    pred = _code('PREDICTION_1 = None  # write "up" or "not up": the error', "prediction")
+    pred = _code('PREDICTION_1 = None  # write "not up" or "up": the error', "prediction")
+    pred.metadata[classroom.CLAIM_KEY] = "up"                                   # the claim, second in the line
     nb = _notebook(_md("front"), pred, _code("check.against(PREDICTION_1, reveal=not CLASS)"))
     key = classroom.answer_key(nb)
-    assert key.cells[1].source == 'PREDICTION_1 = "up"  # write "up" or "not up": the error'
+    assert key.cells[1].source == 'PREDICTION_1 = "up"  # write "not up" or "up": the error'
     assert nb.cells[1].source.startswith("PREDICTION_1 = None")                 # the student's copy is unchanged
-    for bad in ("PREDICTION_1 = 'up'", "PREDICTION_1 = None  # up or down"):
+    student = classroom.student_notebook(nb, {})
+    assert classroom.CLAIM_KEY not in student.cells[1].metadata                 # nothing in it names the claim
+    assert classroom.answer_key(student, classroom.prediction_claims(nb)).cells[1].source == key.cells[1].source
+    with pytest.raises(ValueError, match="claim"):
+        classroom.answer_key(student)
+    for bad, claim in (("PREDICTION_1 = 'up'", "up"), ("PREDICTION_1 = None  # up or down", "up"),
+                       ('PREDICTION_1 = None  # write "up" or "down"', "sideways"),
+                       ('PREDICTION_1 = None  # write "up" or "down"', None)):
+        cell = _code(bad, "prediction")
+        if claim is not None:
+            cell.metadata[classroom.CLAIM_KEY] = claim
         with pytest.raises(ValueError, match="PREDICTION"):
-            classroom.answer_key(_notebook(_code(bad, "prediction")))
+            classroom.answer_key(_notebook(cell))
     # executed: the check's Markdown output says right when the run shows the claim, and not when it does not
     for holds, expected in ((True, []), (False, ['cell 1: PREDICTION_1 = "up" is not what its check shows'])):
         shown = ExerciseCheck("error up", holds, {"e (m)": 1.0}, ("up", "not up")).against("up")

@@ -13,7 +13,7 @@
   (:mod:`uwbwb.datasets.discovery` searches relative to the package, not the working directory).
 * ``class/answers/`` — what the lecturer keeps: each student notebook executed *as handed out*
   (a Run All in ``class/student/``, no injected parameters) except that its coding exercise is answered and
-  each prediction written (:func:`answer_key`; a check that then does not say "right" fails the notebook:
+  each prediction written (:func:`answer_key`, from the claims in the source's cell metadata; a check that then does not say "right" fails the notebook:
   :func:`wrong_predictions`), its HTML handout, ``TEACHING.md`` (from the folder above the notebooks) and the
   glossary as ``GLOSSARY.md`` and ``GLOSSARY.html``.
 
@@ -80,7 +80,7 @@ from .widgets.notes import RIGHT
 
 __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "MATH_SCALE", "MAX_CODE_LINES",
            "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS", "MAX_OUTPUT_WORDS", "MAX_TABLE_ROWS", "RESEARCH_TAG",
-           "PREDICTION_TAG", "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "answer_key", "axes_problems", "axes_record",
+           "PREDICTION_TAG", "CLAIM_KEY", "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "answer_key", "prediction_claims", "axes_problems", "axes_record",
            "class_limits", "class_values", "code_rules", "cut_tables", "figure_audit", "fold_research", "handout_html", "hook_cell",
            "image_count", "install_figure_recorder", "main", "markdown_page_html", "math_svg", "mathtext_source",
            "notebook_links", "record_figure", "relative_links", "run_class", "set_parameters",
@@ -521,7 +521,7 @@ def student_notebook(nb, values: Mapping[str, object]):
         if cell.cell_type == "code":
             cell.outputs = []
             cell.execution_count = None
-        for key in ("execution", "papermill", "ExecuteTime"):
+        for key in ("execution", "papermill", "ExecuteTime", CLAIM_KEY):
             cell.metadata.pop(key, None)
     if values:
         params[0].source = set_parameters(params[0].source, values)
@@ -532,25 +532,55 @@ def student_notebook(nb, values: Mapping[str, object]):
 
 #: Tag of the cell where a student writes an exercise's prediction (``PREDICTION_1 = None  # write "a" or "b": ...``).
 PREDICTION_TAG = "prediction"
-#: The student's line: its first quoted choice is the claim the notebook asserts, so the answer key writes it.
-_PREDICTION = re.compile(r'^(PREDICTION_\w+)(\s*=\s*)None(\s*#\s*write\s+("[^"\n]+")\s+or\s+"[^"\n]+")', flags=re.M)
+#: The student's line, ``PREDICTION_k = None  # write "a" or "b": ...``, its two choices in either order.
+_PREDICTION = re.compile(r'^(PREDICTION_\w+)(\s*=\s*)None(\s*#\s*write\s+"([^"\n]+)"\s+or\s+"([^"\n]+)")', flags=re.M)
+#: Key of a prediction cell's metadata naming its claim: the choice its check cell asserts, which the answer key
+#: writes. Student copies drop it (:func:`student_notebook`), so nothing in a student's file says which choice it is.
+CLAIM_KEY = "claim"
 _PREDICTION_NAME = re.compile(r"^(PREDICTION_\w+)\s*=\s*(.+?)\s*(#|$)", flags=re.M)
 
 
-def answer_key(nb):
+def prediction_claims(nb) -> dict[str, str]:
+    """``{"PREDICTION_k": claim}`` of ``nb``'s prediction cells (tagged :data:`PREDICTION_TAG`), each claim read from
+    the cell's metadata (:data:`CLAIM_KEY`) and one of the two choices its line offers.
+
+    Raises
+    ------
+    ValueError
+        A prediction cell without one ``PREDICTION_k = None  # write "a" or "b"`` line, or whose claim is missing or
+        not one of its choices (the message shows the cell).
+    """
+    claims = {}
+    for cell in nb.cells:
+        if cell.cell_type != "code" or PREDICTION_TAG not in _tags(cell):
+            continue
+        found, claim = _PREDICTION.findall(cell.source), cell.metadata.get(CLAIM_KEY)
+        if len(found) != 1 or claim not in found[0][3:5]:
+            raise ValueError(f"a cell tagged {PREDICTION_TAG!r} must set one "
+                             f'PREDICTION_… = None  # write "…" or "…", and its metadata {CLAIM_KEY!r} one of the two '
+                             f"choices; got {claim!r} and:\n{cell.source}")
+        claims[found[0][0]] = claim
+    return claims
+
+
+def answer_key(nb, claims: Mapping[str, str] | None = None):
     """``nb`` with the stub of each coding exercise (cells tagged :data:`uwbwb.coding.EXERCISE_TAG`) replaced by
     its answer (:func:`uwbwb.coding.answer_cell`), and each prediction (cells tagged :data:`PREDICTION_TAG`,
-    ``PREDICTION_k = None  # write "claim" or "its opposite": ...``) set to its first choice, the claim that the
-    check cell asserts; ``nb`` itself is not changed."""
+    ``PREDICTION_k = None  # write "a" or "b": ...``) set to its claim, the choice its check cell asserts:
+    ``claims`` (from :func:`prediction_claims` of the notebook a student copy was made from; default: ``nb``'s
+    own). ``nb`` itself is not changed."""
+    claims = prediction_claims(nb) if claims is None else claims
     nb = copy.deepcopy(nb)
     for cell in nb.cells:
         if cell.cell_type == "code" and EXERCISE_TAG in _tags(cell):
             cell.source = answer_cell(cell.source)
         elif cell.cell_type == "code" and PREDICTION_TAG in _tags(cell):
-            cell.source, n = _PREDICTION.subn(r"\g<1>\g<2>\g<4>\g<3>", cell.source)
-            if n != 1:
-                raise ValueError(f"a cell tagged {PREDICTION_TAG!r} must set one "
-                                 f'PREDICTION_… = None  # write "…" or "…", got:\n{cell.source}')
+            m = _PREDICTION.search(cell.source)
+            if m is None or claims.get(m.group(1)) not in (m.group(4), m.group(5)):
+                raise ValueError(f"no claim among the choices of {m.group(1) if m else 'this cell'} "
+                                 f"(PREDICTION_… = None  # write \"…\" or \"…\"):\n{cell.source}")
+            cell.source = (cell.source[:m.start()] + f'{m.group(1)}{m.group(2)}"{claims[m.group(1)]}"{m.group(3)}'
+                           + cell.source[m.end():])
     return nb
 
 
@@ -1137,7 +1167,8 @@ def run_class(notebooks: Iterable[Path], out_dir: Path, *, kernel_name: str = re
         error = None
         t0 = time.perf_counter()
         try:            # a student's Run All of the copy as handed out, answered, run in the student folder
-            nbformat.write(answer_key(nbformat.read(student, as_version=4)), executed)
+            nbformat.write(answer_key(nbformat.read(student, as_version=4),
+                                      prediction_claims(nbformat.read(source, as_version=4))), executed)
             pm.execute_notebook(str(executed), str(executed), kernel_name=kernel_name, cwd=str(student_dir),
                                 progress_bar=False, log_output=False, execution_timeout=timeout_s,
                                 kernel_manager_class=reproduce.ipc_kernel_manager())

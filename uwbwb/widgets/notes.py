@@ -150,7 +150,8 @@ class ExerciseCheck:
     def against(self, prediction: str | None, *, reveal: bool = False) -> "PredictionCheck":
         """The student's ``prediction`` (one of :attr:`choices`, or None before they write one) read against the
         run. With None the result asks for a prediction and shows no number, unless ``reveal`` (a research run,
-        where nobody predicts). The answer key (``make class``) writes the claim, ``choices[0]``, and reads "right".
+        where nobody predicts). The answer key (``make class``) writes the claim, ``choices[0]``, and reads "right"; the error for a
+        prediction that is not a choice lists them sorted, not claim first.
 
         Raises
         ------
@@ -158,7 +159,7 @@ class ExerciseCheck:
             A prediction that is not one of the choices (the message lists them).
         """
         if prediction is not None and prediction not in self.choices:
-            raise ValueError(f"PREDICTION: write one of {list(self.choices)} (as a string), or None; "
+            raise ValueError(f"PREDICTION: write one of {sorted(self.choices)} (as a string), or None; "
                              f"got {prediction!r}")
         return PredictionCheck(self, prediction, bool(reveal))
 
