@@ -564,6 +564,20 @@ def test_the_ranks_tie_the_heuristics_no_interval_separates(offsets, ranks):
     assert set(one.rank) == {1}                                                    # FAST: no interval, no order
 
 
+def test_a_tie_that_hides_a_resolved_pair_says_so_in_its_text_and_rows():
+    """Not transitive: robust mean ≈ 5th percentile ≈ residual pruning, yet robust mean resolved better than residual
+    pruning. Tied groups rank all three 1; the ranking's text and every rank row then name the hidden pair."""
+    pair = lambda a, b, side: {"a": a, "b": b, "side": side, "d_m": 0.0, "lo_m": 0.0, "hi_m": 0.0}
+    r = ex.verdicts.Ranking((pair("residual", "robust_mean", "above"), pair("robust_mean", "percentile", "none"),
+                             pair("residual", "percentile", "none")),
+                            pd.Series({"robust_mean": 1, "percentile": 1, "residual": 1}, name="rank"))
+    assert r.hidden() == [("robust_mean", "residual")]
+    assert r.text().endswith("; inside the tie, robust mean resolved better than residual pruning")
+    clear = ex.verdicts.Ranking(r.pairs[1:], r.rank)
+    assert clear.hidden() == [] and clear.note() == ""
+    assert ex.verdicts.Ranking(r.pairs, pd.Series({"robust_mean": 1, "percentile": 1, "residual": 3})).hidden() == []
+
+
 def test_every_summary_row_is_the_number_of_the_table_it_comes_from():
     """Each headline row equals the cell of the notebook table it is read from (synthetic, LIAS static, Hanyang
     static), and every rank row is the rank the verdict table's ranking row shows, from the same object."""

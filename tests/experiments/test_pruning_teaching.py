@@ -17,7 +17,7 @@ import pytest  # noqa: E402
 import uwbwb as uw  # noqa: E402
 from uwbwb import calibration  # noqa: E402
 from uwbwb.experiments import pruning as ex  # noqa: E402
-from uwbwb.experiments.pruning import exercises, headlines, panels  # noqa: E402
+from uwbwb.experiments.pruning import exercises, headlines, panels, verdicts  # noqa: E402
 from uwbwb.filters.pruning import PruningConfig  # noqa: E402
 from uwbwb.sim import rig, tours  # noqa: E402
 from tests.test_teaching import assert_reads_predictions
@@ -98,7 +98,8 @@ def test_checks_pass_and_each_one_can_fail():
 def test_rows_of_results_say_their_kind_and_the_3d_rows_only_beside_a_2d_run():
     syn_table = pd.DataFrame({"stop_median_m": [1.2, 0.5, 0.6, 0.4], "all_p90_m": [3.0, 2.0, 2.5, np.nan]},
                              index=pd.Index(["none", "percentile", "robust_mean", "residual"], name="heuristic"))
-    res = dict(synthetic_table=syn_table, synthetic_dim=2, other_table=syn_table)
+    ranks = {"synthetic": verdicts.Ranking((), pd.Series({"residual": 1, "percentile": 1, "robust_mean": 1}))}
+    res = dict(synthetic_table=syn_table, synthetic_dim=2, other_table=syn_table, rankings=ranks)
     rows = headlines.rows(res)
     assert {r["kind"] for r in rows} == {"reproduced"}
     s = uw.metrics.Summary("02_pruning_nls", fast=True)

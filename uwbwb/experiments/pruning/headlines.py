@@ -80,7 +80,7 @@ def rows(results: dict) -> list[dict]:
     ranks = results["rankings"]
     rank = "rank by median stationary error among the three heuristics (1 = best; tied where not resolved)"
     for h, v in ranks["synthetic"].rank.items():
-        add(f"{rank}, {LABELS[h]} ({geo})", v, "", "synthetic", PAPER_RANK[h])
+        add(f"{rank}, {LABELS[h]} ({geo}){ranks['synthetic'].note()}", v, "", "synthetic", PAPER_RANK[h])
     if {"residual", POINT} <= set(t.index):
         add(f"90 % of all distance errors, residual pruning minus point-based ({geo})",
             t.loc["residual", "all_p90_m"] - t.loc[POINT, "all_p90_m"], "m", "synthetic")
@@ -90,7 +90,7 @@ def rows(results: dict) -> list[dict]:
     for k in (st.runs if st is not None else ()):
         table(st.table.loc[k], LIAS_POSES, st.label, k=k)
         for h, v in ranks[k].rank.items():
-            add(f"{rank}, {LABELS[h]}, {k}", v, "", st.label, PAPER_RANK[h])
+            add(f"{rank}, {LABELS[h]}, {k}{ranks[k].note()}", v, "", st.label, PAPER_RANK[h])
         table(st.epochs[k], LIAS_EPOCHS, st.label, k=k)
     dy = results.get("lias_dynamic")
     for k in (dy.runs if dy is not None else ()):

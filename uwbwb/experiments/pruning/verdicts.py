@@ -102,9 +102,20 @@ class Ranking:
     pairs: tuple
     rank: pd.Series
 
+    def hidden(self) -> list[tuple[str, str]]:
+        """``(better, worse)`` of every pair an interval resolves that the ranks tie: an order that is not transitive
+        (a ≈ b, a ≈ c, yet b better than c) and that tied groups cannot show."""
+        return [(d["a"], d["b"]) if d["side"] == "below" else (d["b"], d["a"]) for d in self.pairs
+                if d["side"] in ("below", "above") and self.rank[d["a"]] == self.rank[d["b"]]]
+
+    def note(self) -> str:
+        """What the ties hide (:meth:`hidden`), e.g. "; inside the tie, robust mean resolved better than residual
+        pruning"; empty when nothing is hidden."""
+        return "".join(f"; inside the tie, {LABELS[a]} resolved better than {LABELS[b]}" for a, b in self.hidden())
+
     def text(self) -> str:
-        """The ranks in words, e.g. "robust mean 1, 5th percentile 1, residual pruning 3"."""
-        return ", ".join(f"{LABELS[h]} {r}" for h, r in self.rank.items())
+        """The ranks in words, e.g. "robust mean 1, 5th percentile 1, residual pruning 3", and :meth:`note`."""
+        return ", ".join(f"{LABELS[h]} {r}" for h, r in self.rank.items()) + self.note()
 
 
 def ranking(stops: pd.DataFrame, series: list[str], *, at: str = "segment", rng: np.random.Generator) -> Ranking:
