@@ -37,7 +37,7 @@ import pandas as pd
 
 from ..metrics.errors import MIN_BLOCKS, block_bootstrap_difference, block_ids, interval_side
 
-__all__ = ["DIFFERENCE_RULE", "N_BOOT", "OWN_BOUND_RULE", "PLACEMENT_RULE", "block_se_ratio", "difference_table",
+__all__ = ["DIFFERENCE_RULE", "EDGE_BOUND", "edge_bound", "N_BOOT", "OWN_BOUND_RULE", "PLACEMENT_RULE", "block_se_ratio", "difference_table",
            "own_bound_table", "pair_rng", "placement_table"]
 
 #: Bootstrap resamples of a difference.
@@ -112,6 +112,15 @@ def pair_rng(seed: int, label: str, a: str, b: str) -> np.random.Generator:
     return np.random.default_rng([int(seed), zlib.crc32(f"{label}\x00{a}\x00{b}".encode())])
 
 
+#: How a :func:`difference_table` verdict starts when either method's tuning pick lies on its grid's edge.
+EDGE_BOUND = "edge-bound"
+
+
+def edge_bound(verdict) -> bool:
+    """Whether a :func:`difference_table` verdict is edge-bound (:data:`EDGE_BOUND`): it holds at the picks only."""
+    return str(verdict).startswith(EDGE_BOUND)
+
+
 def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, str]], *, seed: int,
                      n_boot: int = N_BOOT) -> pd.DataFrame:
     """Every pair ``(A, B)`` that ran on each board (module docstring), one row each: recording, A, B, each one's
@@ -143,7 +152,7 @@ def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, st
             else:
                 edge = [f"{m}: {tab.loc[m, 'tuning_pick']}" for m in (a, b) if _on_edge(tab, m)]
                 if edge:
-                    verdict = f"edge-bound: {verdict} at the picks ({'; '.join(edge)})"
+                    verdict = f"{EDGE_BOUND}: {verdict} at the picks ({'; '.join(edge)})"
             rows.append({"recording": label, "A": a, "B": b, "coverage A": float(cov[a]), "coverage B": float(cov[b]),
                          "epochs": d["n"], "blocks": d["n_blocks"],
                          "RMSE A (m)": d["rmse_a_m"], "RMSE B (m)": d["rmse_b_m"], "A − B (mm)": 1000 * d["diff_m"],

@@ -36,7 +36,7 @@ from ...metrics import interval_rows
 from ...scoreboard import Board
 from ...scoreboard.estimators import RawLs, default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S, WindowNls
-from ...scoreboard.verdicts import difference_table, own_bound_table, placement_table
+from ...scoreboard.verdicts import difference_table, edge_bound, own_bound_table, placement_table
 from . import authors, estimators, study
 
 __all__ = ["BOTH", "EDGE", "EXTERNAL", "Section", "motion_section", "pruning_section", "scoreboard_section"]
@@ -159,7 +159,7 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
     per_case = declared[~declared["case"].str.startswith("mean over")]
     for r in declared.to_dict("records"):
         theirs, mean = r["B"].split(" (")[0], r["case"].startswith("mean over")
-        edge = per_case.loc[per_case["B"] == r["B"], "verdict"].str.startswith("edge-bound")   # the cases' verdicts
+        edge = per_case.loc[per_case["B"] == r["B"], "verdict"].map(edge_bound)   # the cases' verdicts
         rows += _ratio_rows(f"RMSE_2d ratio ours (declared before scoring: {r['A']}) / {theirs}"
                             + (", mean over the cases scored" if mean else ""), r,
                             f"{NAME}/{r['case'].split()[-2]} cases" if mean else r["recording"],
@@ -174,7 +174,7 @@ def _ratio_rows(quantity: str, r: Mapping, data: str, *, edge: str | None = None
     """Summary rows of one difference-table row's ratio A / B with its interval's ends (the table's own), labelled
     with the table's qualifiers: "(epochs both covered)", and :data:`EDGE` where the row's verdict is edge-bound
     (``edge``: the qualifier of a row without a verdict of its own, e.g. a mean over cases)."""
-    edge = edge or (EDGE if str(r.get("verdict", "")).startswith("edge-bound") else None)
+    edge = edge or (EDGE if edge_bound(r.get("verdict", "")) else None)
     return interval_rows(f"{quantity} ({BOTH}{'; ' + edge if edge else ''})", r["A / B"],
                          r.get("A / B 95 % low", np.nan), r.get("A / B 95 % high", np.nan), unit="", data=data,
                          kind="reproduced")

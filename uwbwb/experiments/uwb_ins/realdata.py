@@ -13,6 +13,7 @@ from scipy import stats
 from ... import metrics
 from ...filters.alignment import Comparison
 from ...scoreboard import Board
+from ...scoreboard.verdicts import edge_bound
 from ...types import Trajectory
 
 __all__ = ["CONSISTENT_POINTS", "EDGE_BOUND", "board_comparison", "common_table", "nees_inflation", "summary_rows"]
@@ -86,11 +87,6 @@ def nees_inflation(cal_board: Board, board: Board, method: str = "tight", tag: s
 EDGE_BOUND = "edge-bound: a tuning pick on its grid's edge, the verdict holds at the picks"
 
 
-def _edge_bound(row) -> bool:
-    """Whether a row of :func:`uwbwb.scoreboard.verdicts.difference_table` has an edge-bound verdict."""
-    return str(row.get("verdict", "")).startswith("edge-bound")
-
-
 def _interval_rows(quantity: str, row, columns: tuple[str, str, str], data: str) -> list[dict]:
     """A value (mm) and the ends of its 95 % interval as three summary rows (``quantity``, then ``…, 95 % interval
     low`` / ``high``), read from ``row[columns]`` (value, low, high); a non-finite one is left out."""
@@ -106,7 +102,7 @@ def _clock_rows(clock: pd.DataFrame, offset_ms: float, data: str) -> list[dict]:
     out = [dict(quantity="IMU clock offset from the ranges minus from the motion capture", value=float(offset_ms),
                 unit="ms", data=data, kind="reproduced")]
     for _, r in clock[clock["B"] != "INS-only"].iterrows():
-        edge = f" ({EDGE_BOUND})" if _edge_bound(r) else ""
+        edge = f" ({EDGE_BOUND})" if edge_bound(r.get("verdict")) else ""
         out += _interval_rows(f"horizontal RMSE change of {r['B']} with the IMU clock from the ranges{edge}", r,
                               ("A − B (mm)", "95 % low (mm)", "95 % high (mm)"), data)
     return out
@@ -144,7 +140,7 @@ def summary_rows(board: Board, *, cal_label: str, cal_data: str, rate_hz: float,
     if clock is not None:
         out += _clock_rows(clock, clock_offset_ms, data)
     for _, r in (verdicts.iterrows() if verdicts is not None else ()):
-        edge = f"; {EDGE_BOUND}" if _edge_bound(r) else ""
+        edge = f"; {EDGE_BOUND}" if edge_bound(r.get("verdict")) else ""
         out += _interval_rows(f"horizontal RMSE difference {r['A']} − {r['B']} (scoreboard, {rate_hz:g} Hz{edge})", r,
                               ("A − B (mm)", "95 % low (mm)", "95 % high (mm)"), r["recording"])
     return out
