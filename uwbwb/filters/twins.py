@@ -38,15 +38,16 @@ from ..models.motion import RandomForce, RandomJerk, RandomWalk, VelocityKick
 from ..models.setnoise import SetNoiseModel
 from ..models.tdoa import TdoaModel
 from ..sim import robot
-from ..types import EstimateStatus, RangeLog, TdoaLog, pseudo_tdoa
+from ..types import Estimates, EstimateStatus, RangeLog, TdoaLog, pseudo_tdoa
 from . import kalman, particle
 from .ekf import Ekf, Linearisation, RangeMeasurement, TdoaEkf, TdoaMeasurement
 from .ekf import kernels as ekf_kernels
-from .eskf import TdoaUpdate, TightEskf, _tag_jacobian
+from .eskf import LooseFilter, TdoaUpdate, TightEskf, _tag_jacobian
 from .eskf import kernels as eskf_kernels
 from .gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate
 from .setnoise import kf_sweep, pf_sweep, reference_pf
 from .setnoise.pf import _sweep_block, _sweep_block_compiled
+from .tdoa_ls import tdoa_least_squares
 
 __all__ = ["BIT", "Tol", "Twin", "TWINS", "compile_kernels", "setnoise_case"]
 
@@ -165,12 +166,12 @@ def _tight_inputs():
     return filt, run.imu, run.tdoa, run.x0, kw
 
 
-def _tight_fast(a):
+def _fusion_fast(a):
     filt, imu, uwb, x0, kw = a
     return _run_outputs(filt.run(imu, uwb, x0, **kw), _FUSION_FLOATS, _FUSION_INTS)
 
 
-def _tight_definition(a):
+def _fusion_definition(a):
     filt, imu, uwb, x0, kw = a
     return _run_outputs(filt.run_reference(imu, uwb, x0, **kw), _FUSION_FLOATS, _FUSION_INTS)
 
@@ -178,6 +179,28 @@ def _tight_definition(a):
 def _tight_exercised(out):
     if not np.any(out["status"] == 1) or not np.any(out["n_outliers"] + out["n_gated"] > 0):
         return "no epoch updated, or none screened or gated"
+    return None
+
+
+# ---------------------------------------------------------------- the loose filter
+def _loose_inputs():
+    """A case of tests/filters/test_eskf.py's loose twin test: the short run with 10 % multipath and a 2 s UWB
+    outage after which the epoch gate shuts and the lock is admitted lost, a 1 s IMU gap (coasting), heading."""
+    cfg = robot.RobotConfig(outlier_rate=0.1, outlier_excess_m=(0.3, 3.0), outage_start_s=4.0, outage_s=2.0)
+    run = robot.simulate(robot.broken_line(((2.0, 1.0), (3.2, 1.0), (3.2, 1.9)), turn_s=1.5, pause_s=0.5), cfg,
+                         rng=np.random.default_rng(4))
+    ls = tdoa_least_squares(run.tdoa, TdoaModel(np.asarray(cfg.stations_m), 0.01, dim=2, z_m=cfg.tag_height_m))
+    fixes = Estimates(ls.t_s, np.where(ls.ok[:, None], ls.pos_m, np.nan),
+                      np.where(ls.ok, EstimateStatus.UPDATED, EstimateStatus.NO_ESTIMATE).astype(np.int8), "UWB")
+    filt = LooseFilter(height_m=cfg.tag_height_m, lever_arm_m=cfg.lever_arm_m, gate=ChiSquareEpoch(0.99, max_gated=3))
+    imu = run.imu.select((run.imu.t_s <= 7.0) | (run.imu.t_s >= 8.0))
+    return filt, imu, fixes, run.x0, dict(heading=run.heading)
+
+
+def _loose_exercised(out):
+    st = out["status"]
+    if not np.any(st == EstimateStatus.GATED) or not np.any(out["dof"] == 4):
+        return "no gated epoch, or no update with the differenced velocity"
     return None
 
 
@@ -606,6 +629,7 @@ def _tdoa_ekf_exercised(gated: bool, dropped: bool):
 _ESKF = "uwbwb.filters.eskf.kernels."
 _INS = "uwbwb.models.ins."
 _TIGHT_TEST = "tests/filters/test_eskf.py::test_compiled_run_equals_the_reference_loop"
+_LOOSE_TEST = "tests/filters/test_eskf.py::test_compiled_loose_run_equals_the_reference_loop"
 _PIECES_TEST = "tests/filters/test_eskf.py::test_compiled_pieces_equal_the_model_functions"
 _SWEEP_KERNELS = tuple(f"uwbwb.filters.setnoise.pf.{f}" for f in ("_predict_weigh", "_moments", "_systematic"))
 
@@ -613,9 +637,12 @@ _SWEEP_KERNELS = tuple(f"uwbwb.filters.setnoise.pf.{f}" for f in ("_predict_weig
 def _registry() -> tuple[Twin, ...]:
     tight_tol = {**{f: Tol(1e-9, 1e-10) for f in _FUSION_FLOATS}, **{f: BIT for f in _FUSION_INTS}}
     twins = [
-        Twin("eskf._tight_loop", _tight_fast, _tight_definition, _tight_inputs, tight_tol, _TIGHT_TEST,
+        Twin("eskf._tight_loop", _fusion_fast, _fusion_definition, _tight_inputs, tight_tol, _TIGHT_TEST,
              (_ESKF + "_tight_loop", _ESKF + "_uwb_rows", _INS + "propagate", "uwbwb.filters.kalman._sequential",
               "uwbwb.filters.kalman._scalar_updates"), _tight_exercised),
+        Twin("eskf._loose_loop", _fusion_fast, _fusion_definition, _loose_inputs, tight_tol, _LOOSE_TEST,
+             (_ESKF + "_loose_loop", _ESKF + "_consistent_nb", _INS + "propagate", _INS + "coast",
+              "uwbwb.filters.ekf.kernels._predict", "uwbwb.filters.ekf.kernels._update"), _loose_exercised),
         Twin("ins._exp_left_nb", _per_case(_exp_left_fast),
              _per_case(lambda rv, q, P: {"quat": ins._exp_left(rv, q)}), _rotation_inputs,
              {"quat": BIT}, _PIECES_TEST,

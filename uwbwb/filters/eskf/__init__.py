@@ -48,8 +48,8 @@ and also marks the epochs after the first gap (``meta["imu_coasted"]``).
 Modules: :mod:`.common` (constants, the time line and IMU gaps), :mod:`.updates` (TDoA and range
 measurement models), :mod:`.result` (:class:`FusionRun`, :func:`dead_reckon`), :mod:`.tight`
 (:class:`TightEskf` and its Python reference :meth:`TightEskf.run_reference`), :mod:`.kernels`
-(the compiled loop and its pieces, each tested equal to its Python twin), :mod:`.loose`
-(:class:`LooseFilter`). Every public name is importable from ``uwbwb.filters.eskf``.
+(the compiled loops and their pieces, each tested equal to its Python twin), :mod:`.loose`
+(:class:`LooseFilter` and its Python reference :meth:`LooseFilter.run_reference`). Every public name is importable from ``uwbwb.filters.eskf``.
 """
 
 from .common import (HEADING_KNOWN_RAD, LOST_BUILD_S, MAX_IMU_GAP_STEPS, SNAPSHOT_RMS_SIGMAS, gap_timeline, imu_gaps,

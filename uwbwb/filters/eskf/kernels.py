@@ -1,5 +1,6 @@
-"""Compiled kernels of the tight filter. Declared twins: :func:`_tight_loop` must equal
-:meth:`~.tight.TightEskf.run_reference` to rounding; :func:`_reset_block`, :func:`_skew_into`
+"""Compiled kernels of the tight and the loose filter. Declared twins: :func:`_tight_loop` must equal
+:meth:`~.tight.TightEskf.run_reference` and :func:`_loose_loop` :meth:`~.loose.LooseFilter.run_reference`
+to rounding; :func:`_reset_block`, :func:`_skew_into`
 equal their :mod:`uwbwb.models.ins` definitions (tests/filters/test_eskf.py). The attitude
 injection :func:`~uwbwb.models.ins._exp_left_nb` is not a twin: it is compiled from the scalar
 quaternion code the per-step path runs."""
@@ -12,6 +13,7 @@ import numba
 import numpy as np
 
 from ...models.ins import _dcm_nb, _exp_left_nb, coast, propagate
+from ..ekf.kernels import _predict, _update
 from ..kalman import _sequential
 from .common import LOST_BUILD_S
 
@@ -349,3 +351,215 @@ def _fill_row(H, a, hp, Sl):
     for b in range(3):
         H[a, b] = hp[b]
         H[a, 6 + b] = -(hp[0] * Sl[0, b] + hp[1] * Sl[1, b] + hp[2] * Sl[2, b])
+
+
+# ====================================================================== loose, compiled
+#: Names of the entries of :func:`_loose_loop`'s ``scalars`` (float64) and ``ints`` (int64) arrays.
+LOOSE_SCALARS = ("attitude_tau_s", "q_scale", "height_m", "coast_acc_var", "gate_pos", "gate_full")
+LOOSE_INTS = ("dim", "vel_window", "gated", "max_gated", "use_height", "feedback", "st_updated", "st_gated",
+              "st_predicted")
+
+
+@numba.njit(cache=True, nogil=True)
+def _loose_loop(timeline, epochs, scalars, ints, vectors, nav, P, outputs):
+    """:meth:`LooseFilter.run` compiled: the steps of its reference loop, sample after sample.
+    Its declared twin is :meth:`~.loose.LooseFilter.run_reference` (equal to rounding, tested).
+
+    Arguments, bundled: ``timeline = (t, acc, gyro, ep_at, coasting)`` (the merged time line, the
+    epoch at each of its points or −1, the IMU-gap steps); ``epochs = (t_ep, fix, has, yaw_meas)``
+    (per UWB epoch: time, fix ``(T, 3)``, whether it has one, heading); ``scalars`` and ``ints``: the
+    settings named by :data:`LOOSE_SCALARS` and :data:`LOOSE_INTS` (``gate_pos``, ``gate_full``: the
+    χ² thresholds of a position and a position + velocity epoch; ``gated`` 0 for
+    :class:`~uwbwb.filters.gating.NoGate`, 1 for :class:`~uwbwb.filters.gating.ChiSquareEpoch`);
+    ``vectors = (q_diag, R, p_lost, lever, g_n, g_up)`` (``Q`` per second of step before ``q_scale``,
+    ``R``, :meth:`~.loose.LooseFilter.lost_lock_variance` without the innovation); ``nav = (p, v, q)``
+    and ``P`` (worked on in place); ``outputs = (pos_o, vel_o, quat_o, ba_o, bg_o, P_o, cov_o, nis_o,
+    dof_o, gated_o, status_o)``.
+
+    Per sample: :func:`propagate` one IMU step without biases (or :func:`coast` inside an IMU gap,
+    whose position/velocity noise is carried to the epoch), the height held for ``dim`` 2. Per
+    epoch: the complementary levelling and heading correction (:func:`_exp_left_nb`), the predict
+    of eq. 5 (:func:`~uwbwb.filters.ekf.kernels._predict`), the fix and differenced velocity of
+    eq. 6 with the lost-lock inflation and the epoch gate, filterpy's batch update as
+    :func:`~uwbwb.filters.ekf.kernels._update` forms it (its NIS), feedback or not. Raises
+    FloatingPointError where the Python loop would raise (a non-finite measurement, ``S`` not
+    positive definite): the caller then runs the Python loop, which decides.
+    """
+    t, acc, gyro, ep_at, coasting = timeline
+    t_ep, fix, has, yaw_meas = epochs
+    q_diag, R, p_lost, lever, g_n, g_up = vectors
+    p, v, q = nav
+    pos_o, vel_o, quat_o, ba_o, bg_o, P_o, cov_o, nis_o, dof_o, gated_o, status_o = outputs
+    tau, q_scale, height_m = scalars[0], scalars[1], scalars[2]
+    acc_var, gate_pos, gate_full = scalars[3], scalars[4], scalars[5]
+    d, W, gated, max_gated, use_height = ints[0], ints[1], ints[2] != 0, ints[3], ints[4] != 0
+    feedback, st_updated, st_gated, st_predicted = ints[5] != 0, ints[6], ints[7], ints[8]
+    n = 2 * d
+    dx = np.zeros(n)
+    no_bias, no_q = np.zeros(3), np.zeros(15)
+    Phi_s, Q_s = np.zeros((15, 15)), np.zeros((15, 15))    # propagate's 15-state pieces: not used here
+    Phi_c, Q_c = np.eye(15), np.zeros((15, 15))            # coast accumulators since the last epoch
+    coasted = False
+    blk = np.empty(n, np.int64)
+    for a in range(d):
+        blk[a], blk[d + a] = a, 3 + a
+    C = np.empty((3, 3))
+    A = np.empty((n, n))
+    Q = np.empty((n, n))
+    H = np.zeros((n, n))
+    for a in range(n):
+        H[a, a] = 1.0
+    z = np.empty(n)
+    h = np.empty(n)
+    z_pos = np.empty(d)
+    corr = np.empty(3)
+    hist_t, hist_p, n_hist = np.empty(W + 2), np.empty((W + 2, 3)), 0   # the fixes of the velocity window
+    gated_y, gated_run = np.empty((max_gated + 1, 3)), 0                 # position innovations of a gated run
+    last_t, started = 0.0, False
+    for i in range(t.size):
+        if i > 0 and coasting[i]:               # inside an IMU gap: nothing measured the motion
+            coast(p, v, t, i - 1, i, no_q, acc_var, 0.0, Phi_c, Q_c)
+            coasted = True
+        elif i > 0:
+            propagate(p, v, q, no_bias, no_bias, t, acc, gyro, i - 1, i, g_n, no_q, Phi_s, Q_s)
+            if coasted:                         # carry the coast noise to the epoch (F of a step)
+                dt = t[i] - t[i - 1]
+                for a in range(3):
+                    for b in range(15):
+                        Q_c[a, b] += dt * Q_c[3 + a, b]
+                for a in range(15):
+                    for b in range(3):
+                        Q_c[a, b] += dt * Q_c[a, 3 + b]
+            if d == 2 and use_height:
+                _dcm_nb(q, C)
+                p[2], v[2] = height_m - (C @ lever)[2], 0.0
+        k = ep_at[i]
+        if k < 0:
+            continue
+        T_s = t[i] - last_t if started else 0.0
+        last_t, started = t[i], True
+        # attitude: complementary levelling (+ heading)
+        _dcm_nb(q, C)
+        gain = min(1.0, T_s / tau) if T_s > 0 else 0.0
+        if gain > 0:
+            fn = C @ acc[i]
+            if np.isfinite(fn[0]) and np.isfinite(fn[1]) and np.isfinite(fn[2]):
+                u = fn / max(math.sqrt(fn @ fn), 1e-9)
+                corr[0] = gain * (u[1] * g_up[2] - u[2] * g_up[1])
+                corr[1] = gain * (u[2] * g_up[0] - u[0] * g_up[2])
+                corr[2] = gain * (u[0] * g_up[1] - u[1] * g_up[0])
+            else:                               # inside an IMU gap: no specific force to level with
+                corr[:] = 0.0
+            if np.isfinite(yaw_meas[k]):
+                a = yaw_meas[k] - math.atan2(C[1, 0], C[0, 0])
+                corr[2] += gain * ((a + np.pi) % (2 * np.pi) - np.pi)
+            _exp_left_nb(corr, q)
+        # predict (eq. 5)
+        A[:, :] = 0.0
+        Q[:, :] = 0.0
+        for a in range(n):
+            A[a, a] = 1.0
+            Q[a, a] = q_diag[a] * (T_s * q_scale)
+        for a in range(d):
+            A[a, d + a] = T_s
+        if coasted:
+            for a in range(n):
+                for b in range(n):
+                    Q[a, b] += Q_c[blk[a], blk[b]]
+            Phi_c[:, :] = np.eye(15)
+            Q_c[:, :] = 0.0
+            coasted = False
+        dx, P = _predict(dx, P, A, Q)
+        _dcm_nb(q, C)
+        cl = C @ lever
+        nis, dof, status, n_gated = np.nan, 0, st_predicted, 0
+        if has[k]:
+            # the fix (eq. 6) and, over a full window, the differenced velocity
+            hist_t[n_hist] = t_ep[k]
+            hist_p[n_hist] = fix[k]
+            n_hist += 1
+            for a in range(d):
+                z_pos[a] = p[a] + cl[a] - fix[k, a]
+                z[a] = z_pos[a]
+            m = d
+            if n_hist > W and t_ep[k] - hist_t[n_hist - 1 - W] < 1.0:
+                span = t_ep[k] - hist_t[n_hist - 1 - W]
+                for a in range(d):
+                    z[d + a] = v[a] - (hist_p[n_hist - 1, a] - hist_p[n_hist - 1 - W, a]) / span
+                m = n
+            for a in range(m):
+                if not np.isfinite(z[a]):
+                    raise FloatingPointError("non-finite measurement: the Python path decides")
+            if 0 < gated_run >= max_gated and _consistent_nb(gated_y, gated_run, d):
+                ms = 0.0                        # lock lost (the gated fixes agree): admit it, re-acquire
+                for a in range(d):
+                    y = z_pos[a] - dx[a]
+                    ms += y * y
+                ms /= d
+                for a in range(n):
+                    P[a, a] += p_lost[a] + (ms if a < d else ms / LOST_BUILD_S ** 2)
+            for a in range(m):
+                h[a] = dx[a]                    # H δx, H the identity's first m rows
+            x_post, P_post, nis_e = _update(dx, P, z, h, H, R, m)
+            if gated and gated_run < max_gated and nis_e > (gate_pos if m == d else gate_full):
+                n_hist -= 1                     # a gated fix does not enter the velocity difference
+                for a in range(d):
+                    gated_y[gated_run, a] = z_pos[a] - dx[a]
+                gated_run += 1
+                status, n_gated = st_gated, 1
+            else:
+                gated_run = 0
+                dx, P = x_post, P_post
+                nis, dof, status = nis_e, m, st_updated
+            if n_hist > W + 1:                  # keep the last W + 1 fixes
+                for j in range(W + 1):
+                    hist_t[j] = hist_t[j + n_hist - W - 1]
+                    hist_p[j] = hist_p[j + n_hist - W - 1]
+                n_hist = W + 1
+        if feedback:                            # closed loop: correct the INS; open loop: report INS − δx
+            for a in range(d):
+                p[a] -= dx[a]
+                v[a] -= dx[d + a]
+        for a in range(3):
+            pos_o[k, a], vel_o[k, a] = p[a], v[a]
+        if feedback:
+            dx[:] = 0.0
+        else:
+            for a in range(d):
+                pos_o[k, a] -= dx[a]
+                vel_o[k, a] -= dx[d + a]
+        for a in range(3):
+            pos_o[k, a] += cl[a]
+        quat_o[k] = q
+        ba_o[k] = 0.0
+        bg_o[k] = 0.0
+        P_o[k] = P
+        for a in range(d):
+            for b in range(d):
+                cov_o[k, a, b] = P[a, b]
+        nis_o[k], dof_o[k], gated_o[k], status_o[k] = nis, dof, n_gated, status
+    return 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _consistent_nb(y, n, d):
+    """:func:`~.loose._consistent` of the first ``n`` rows of ``y`` (``d`` columns)."""
+    if n == 0:
+        return False
+    mm = 0.0
+    for a in range(d):
+        acc = 0.0
+        for j in range(n):
+            acc += y[j, a]
+        mean = acc / n
+        mm += mean * mean
+    step2 = 0.0
+    if n > 1:
+        for j in range(n - 1):
+            s = 0.0
+            for a in range(d):
+                e = y[j + 1, a] - y[j, a]
+                s += e * e
+            step2 += s
+        step2 /= n - 1
+    return mm > step2

@@ -18,9 +18,10 @@ from ...models.ins import N_ERR, Mechanization, NavState, _dcm, _exp_left, _yaw,
 from ...types import Estimates, EstimateStatus, ImuLog
 from .. import kalman
 from ..ekf import Linearisation
-from ..gating import ChiSquareEpoch, GatePolicy, NoGate, gate_policy, ungated_update
+from ..gating import ChiSquareEpoch, GatePolicy, NoGate, _chi2_ppf, gate_policy, ungated_update
 from ..kalman import Gaussian
 from .common import LOST_BUILD_S, _lever, check_inputs, gap_timeline
+from .kernels import LOOSE_INTS, LOOSE_SCALARS, _loose_loop
 from .result import FusionRun, _empty, _wrap
 
 
@@ -179,7 +180,7 @@ class LooseFilter:
         return A, Q, R
 
     def run(self, imu: ImuLog, fixes: Estimates, x0: NavState, *, heading: HeadingLog | None = None,
-            name: str | None = None) -> FusionRun:
+            name: str | None = None, reference_step: bool = False) -> FusionRun:
         """Filter a recording.
 
         Parameters
@@ -193,6 +194,13 @@ class LooseFilter:
             Navigation state at the first IMU sample.
         heading
             Magnetometer headings (used by the attitude correction).
+        reference_step
+            Same as :meth:`run_reference` (kept as an alias): run the readable loop below, step by
+            step in Python (the mechanization, the engine's predict and the gate policy's update)
+            instead of the compiled loop (:func:`~.kernels._loose_loop`: the same steps); results are
+            identical up to rounding (tested). Where the compiled loop meets what the Python loop
+            refuses (a non-finite fix, an innovation covariance that is not positive definite), the
+            Python loop runs and decides.
         """
         check_inputs("LooseFilter.run", imu, x0)
         d = self.dim
@@ -223,6 +231,12 @@ class LooseFilter:
         no_q, acc_var = np.zeros(N_ERR), float(self.coast_acc_sigma_mps2) ** 2
         Phi_c, Q_c = np.eye(N_ERR), np.zeros((N_ERR, N_ERR))
         coasted = False
+        if not reference_step:
+            try:
+                self._run_compiled(t, acc, gyro, ep_at, coasting, t_ep, fix, has, yaw_meas, p, v, q, P, out)
+                return FusionRun(t_ep.copy(), name=name or self.name, meta={"imu_gaps_s": gaps_s}, **out)
+            except FloatingPointError:
+                out = _empty(T, 2 * d)
         for i in range(t.size):
             if i > 0 and coasting[i]:                    # inside an IMU gap: nothing measured the motion
                 coast(p, v, t, i - 1, i, no_q, acc_var, 0.0, Phi_c, Q_c)
@@ -306,3 +320,35 @@ class LooseFilter:
             out["pos_cov_m2"][k] = cov
             out["nis"][k], out["dof"][k], out["status"][k] = nis, dof, status
         return FusionRun(t_ep.copy(), name=name or self.name, meta={"imu_gaps_s": gaps_s}, **out)
+
+    def run_reference(self, imu: ImuLog, fixes: Estimates, x0: NavState, *, heading: HeadingLog | None = None,
+                      name: str | None = None) -> FusionRun:
+        """The Python definition of :meth:`run` (its ``reference_step=True``): per IMU sample the
+        mechanization (:meth:`~uwbwb.models.ins.Mechanization.step`) or a coast, per epoch the
+        attitude correction, :func:`kalman.predict <uwbwb.filters.kalman.predict>` with
+        :meth:`matrices` and the fix as a linear :class:`~uwbwb.filters.ekf.Linearisation` through
+        :attr:`gate_policy` (or :func:`~uwbwb.filters.gating.ungated_update` once released). The
+        compiled loop must equal it to rounding (the twin tests)."""
+        return self.run(imu, fixes, x0, heading=heading, name=name, reference_step=True)
+
+    def _run_compiled(self, t, acc, gyro, ep_at, coasting, t_ep, fix, has, yaw_meas, p, v, q, P, out):
+        """The filter of :meth:`run` as one compiled loop (:func:`_loose_loop`), writing into ``out``."""
+        d, gate = self.dim, self.gate_policy
+        prob = getattr(gate, "prob", None)
+        thr = {m: float(_chi2_ppf(prob, m)) if prob is not None else math.inf for m in (d, 2 * d)}
+        named = dict(attitude_tau_s=self.attitude_tau_s, q_scale=self.q_scale, height_m=float(self.height_m or 0.0),
+                     coast_acc_var=float(self.coast_acc_sigma_mps2) ** 2, gate_pos=thr[d], gate_full=thr[2 * d],
+                     dim=d, vel_window=self.vel_window, gated=isinstance(gate, ChiSquareEpoch),
+                     max_gated=gate.max_gated, use_height=self.height_m is not None, feedback=bool(self.feedback),
+                     st_updated=EstimateStatus.UPDATED, st_gated=EstimateStatus.GATED,
+                     st_predicted=EstimateStatus.PREDICTED)
+        q_diag = np.array([self.q_pos_m_rts ** 2] * d + [self.q_vel_mps_rts ** 2] * d)
+        g_n = self.mechanization.g_n
+        _loose_loop(
+            (t, acc, gyro, ep_at, np.ascontiguousarray(coasting, np.bool_)),
+            (np.asarray(t_ep, float), fix, np.ascontiguousarray(has, np.bool_), np.asarray(yaw_meas, float)),
+            np.array([float(named[n]) for n in LOOSE_SCALARS]), np.array([int(named[n]) for n in LOOSE_INTS], np.int64),
+            (q_diag, self.matrices(1.0)[2], self.lost_lock_variance(), self.lever_arm_m, g_n, -g_n / np.linalg.norm(g_n)),
+            (p.copy(), v.copy(), q.copy()), P.copy(),
+            (out["pos_m"], out["vel_mps"], out["quat"], out["acc_bias_mps2"], out["gyro_bias_radps"], out["P"],
+             out["pos_cov_m2"], out["nis"], out["dof"], out["n_gated"], out["status"]))
