@@ -219,3 +219,21 @@ def test_a_difference_whose_tuning_pick_lies_on_a_grid_edge_is_edge_bound(monkey
         t["tuning_pick"] = ["Q × 3: on the grid's edge" if m == "LS" else "—" for m in t["method"]]
         monkeypatch.setattr(type(b), "table", lambda self, t=t: t)
         assert difference_table({"syn": b}, [("LS", ext)], seed=0).loc[0, "verdict"] == expected
+
+
+def test_an_edge_bound_summary_row_reads_the_same_in_every_notebook():
+    """Notebook 05's real-data rows and the Hanyang ratio rows (notebooks 02, 03, 06) add one wording to the quantity
+    of a row whose verdict is edge-bound, :data:`~uwbwb.scoreboard.verdicts.EDGE_BOUND_LABEL`."""
+    import pandas as pd
+
+    from uwbwb.experiments.hanyang import sections
+    from uwbwb.experiments.uwb_ins import realdata
+    from uwbwb.scoreboard import verdicts
+
+    v = "edge-bound: A more accurate at the picks (A: σ_w 1: on the grid's edge)"
+    clock = pd.DataFrame([{"A": "loose (ranges clock)", "B": "loose", "A − B (mm)": 1.0, "95 % low (mm)": 0.5,
+                           "95 % high (mm)": 2.0, "verdict": v}])
+    q05 = realdata._clock_rows(clock, 0.0, "x")[1]["quantity"]
+    hanyang = sections._ratio_rows("ratio A", {"A / B": 1.1, "verdict": v}, "x")[0]["quantity"]
+    assert q05.endswith(f" ({verdicts.EDGE_BOUND_LABEL})") and hanyang.endswith(f"; {verdicts.EDGE_BOUND_LABEL})")
+    assert verdicts.edge_bound(verdicts.EDGE_BOUND_LABEL)

@@ -37,7 +37,7 @@ import pandas as pd
 
 from ..metrics.errors import MIN_BLOCKS, block_bootstrap_difference, block_ids, interval_side
 
-__all__ = ["DIFFERENCE_RULE", "EDGE_BOUND", "edge_bound", "N_BOOT", "OWN_BOUND_RULE", "PLACEMENT_RULE", "block_se_ratio", "difference_table",
+__all__ = ["DIFFERENCE_RULE", "EDGE_BOUND", "EDGE_BOUND_LABEL", "edge_bound", "N_BOOT", "OWN_BOUND_RULE", "PLACEMENT_RULE", "block_se_ratio", "difference_table",
            "own_bound_table", "pair_rng", "placement_table"]
 
 #: Bootstrap resamples of a difference.
@@ -114,6 +114,8 @@ def pair_rng(seed: int, label: str, a: str, b: str) -> np.random.Generator:
 
 #: How a :func:`difference_table` verdict starts when either method's tuning pick lies on its grid's edge.
 EDGE_BOUND = "edge-bound"
+#: What a summary row's quantity adds where its verdict is edge-bound: one wording in every notebook's summary.
+EDGE_BOUND_LABEL = f"{EDGE_BOUND} at the tuning picks"
 
 
 def edge_bound(verdict) -> bool:
