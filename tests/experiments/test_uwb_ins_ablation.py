@@ -12,6 +12,7 @@ from uwbwb.experiments.uwb_ins import ablation as ab
 from uwbwb.experiments.uwb_ins import facts, headlines, ladder
 from uwbwb.filters import alignment
 from uwbwb.models.tdoa import TdoaModel, triangle_outliers
+from uwbwb.scoreboard.verdicts import EDGE_BOUND_LABEL
 from uwbwb.sim import robot
 from uwbwb.types import EstimateStatus, Estimates, TdoaLog
 
@@ -343,6 +344,30 @@ def test_a_ladder_step_whose_pick_lies_on_a_grid_edge_is_edge_bound():
         assert v.startswith("edge-bound: ") and "loose + gate R ×" in v, (claim, v)
         assert _row(base, claim).verdict in ("helps", "survives"), claim
     assert _row(g, "headline: EKF + gate / tight + gate").verdict == "helps"
+
+
+def test_a_ratio_row_is_edge_bound_where_its_verdict_is():
+    """The summary's ladder and mismatch ratio rows on a pair with a pick on its grid's edge carry the qualifier the
+    verdict table's verdict on that pair carries (one rule: facts.qualified), in the summaries' one wording."""
+    pairs = [(q, r) for q in (0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0)]
+    centre = [2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0, 2.0]        # best at (1, 1): inside the grid
+    top_r = [2.0, 2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0]         # best at (1, 3): on the R edge
+    t = pd.DataFrame({p: {"EKF": centre[i], "EKF + gate": centre[i], "loose": top_r[i], "loose + gate": top_r[i]}
+                      for i, p in enumerate(pairs)})
+    t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
+    base = _fake(GOOD)
+    res = ab.AblationResult(base.config, True, t, {}, base.scores, base.counts)
+    rows = {r["quantity"] for r in headlines.ablation_rows(res)}
+    edge = f"; {EDGE_BOUND_LABEL}"
+    gate = "ablation ratio loose / loose + gate, dynamic RMSE (outlier handling (gate), loose; geometric mean of 6 seeds"
+    assert gate + edge + ")" in rows and gate + ")" not in rows
+    assert _row(res, "outlier handling (gate), loose: dynamic RMSE").verdict.startswith("edge-bound: ")
+    ekf = "ablation ratio EKF / EKF + gate, dynamic RMSE (outlier handling (gate), EKF; geometric mean of 6 seeds)"
+    assert ekf in rows and _row(res, "outlier handling (gate), EKF: dynamic RMSE").verdict == "helps"
+    case = "mismatch 'UWB σ 2×': outage max error loose + gate / tight + gate (6 seeds"
+    assert case + edge + ")" in rows and case + edge + "), 95 % low" in rows
+    assert "mismatch 'UWB σ 2×': outage max error EKF + gate / tight + gate (6 seeds)" in rows
+    assert not any(EDGE_BOUND_LABEL in q for q in {r["quantity"] for r in headlines.ablation_rows(base)})
 
 
 def test_the_measurement_noise_knob_reaches_every_tuned_filter():
