@@ -10,7 +10,8 @@ Rules
   (that method's max outage error / tight's; likewise its steady-state lead, on the dynamic RMSE) has its interval above 1 in that case, is **not
   significant** when the interval includes 1 and **reversed** when it lies below 1; its
   *share kept* is ``log(ratio_case) / log(ratio_matched)`` (1: all of it, 0: none; < 0 prints as none kept),
-  both ratios over the same seeds (the case's).
+  both ratios over the same seeds (the case's). It is a share of the matched *lead*, not of any count, so it has
+  no 100 % ceiling: above 100 % the case widened the lead, and it prints as *lead grew to … % of matched*.
 * A row **diverged** in a mismatch case when its dynamic RMSE or its max error in the recovery
   after the outage (mean over the case's seeds) exceeds :data:`DIVERGED_FACTOR` × its matched
   value on the same seeds *and* the re-acquisition limit :data:`~.ablation.RECOVERY_MAX_M`: a failure,
@@ -123,7 +124,8 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
 
     Rows: each ladder step on the dynamic RMSE and the max outage error (without / with the ingredient); the
     headline (the others' max outage error over tight's, matched); how much of that advantage, and of tight's
-    lead on the dynamic RMSE, each mismatch case keeps (``share kept`` in log ratio; none where reversed) — *a row diverged* instead of a verdict where tight or the other
+    lead on the dynamic RMSE, each mismatch case keeps (``share kept`` in log ratio; none where reversed; "lead
+    grew" above 100 %) — *a row diverged* instead of a verdict where tight or the other
     row diverged in that case on a metric that enters the ratio (:data:`ENTERS`; the ratio then measures a failure);
     *not applicable* for a ladder step where a row has no estimate in the metric's window; every diverged row; every
     gated row that
@@ -167,8 +169,9 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
             for other in versus:
                 r = kept(res, other, metric, case)
                 failure = bool({other, "tight + gate"} & gone)          # the ratio measures a failure: no share
-                share = "" if failure or not np.isfinite(r["share"]) else \
-                    f", share kept {100 * r['share']:.0f} %" if r["share"] >= 0 else ", none kept"
+                pct = f"{100 * r['share']:.0f}"                   # as printed: above 100, the lead grew
+                share = ("" if failure or not np.isfinite(r["share"]) else ", none kept" if r["share"] < 0 else
+                         f", share kept {pct} %" if float(pct) <= 100 else f", lead grew to {pct} % of matched")
                 add(f"{case}: {other} / tight + gate, {what}", f"{r['ratio']:.2f}×{share}", _interval(r), r["n"],
                     _RATIO_RULE + " (above 1: the advantage survives)",
                     f"a row diverged on {', '.join(ENTERS[metric])} (the ratio measures a failure)" if failure else
