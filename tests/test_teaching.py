@@ -266,3 +266,20 @@ def test_the_claim_is_not_always_the_first_choice():
               for stem in TAUGHT for c in nbformat.read(NOTEBOOK_DIR / f"{stem}.ipynb", as_version=4).cells
               if "prediction" in c.metadata.get("tags", [])]
     assert len(places) >= 14 and 3 * places.count(False) >= len(places), places
+
+
+def test_the_guide_to_tables_a_class_sees_is_shown_in_class_mode():
+    """Notebook 04's "How to read them" explains the verdict tables its class-mode run shows (that cell is not tagged
+    ``research``), so the guide is not folded away either: none of its cells is ``research``, each keeps to the class
+    limit on words, and together they hold the whole guide (its last item, the ranging term, included)."""
+    from uwbwb import classroom
+
+    cells = nbformat.read(NOTEBOOK_DIR / "04_doppler_beacons.ipynb", as_version=4).cells
+    start = next(k for k, c in enumerate(cells) if c.source.startswith("How to read them"))
+    table = next(k for k, c in enumerate(cells) if "display(facts.verdict_table(f))" in c.source)
+    assert start < table and classroom.RESEARCH_TAG not in cells[table].metadata.get("tags", [])
+    guide = [c for c in cells[start:table] if c.cell_type == "markdown"]
+    for c in guide:
+        assert classroom.RESEARCH_TAG not in c.metadata.get("tags", []), c.source[:60]
+        assert classroom._prose_words(c.source) <= classroom.MAX_MARKDOWN_WORDS, c.source[:60]
+    assert "**The ranging term.**" in "".join(c.source for c in guide)

@@ -371,6 +371,25 @@ def test_coverage_is_low_for_an_overconfident_posterior():
     assert study.coverage_95(np.full((1, 2), np.nan), 0.01 * np.eye(2)[None]) == 0.0
 
 
+def test_a_keeps_track_cell_says_what_its_verdict_says():
+    """The per-recording tables show each keeps-track cell in its verdict's words; the PF's on the Doppler rows read
+    the particle count's gate while that count has not converged (its verdict is one of PF_RUN_VERDICTS), never a
+    bare True / False beside a withheld verdict. The Doppler + ranges rows are outside the test."""
+    for ci, particles in (((2.0, 4.0), "not converged"), ((-0.4, 0.9), "converged"), ((-2.0, 0.9), "undecided")):
+        res = _results(in_track=0.99, kf_in_track=[0.5, 1.0, 1.0, 1.0, 1.0], floor_drop_ci=ci)
+        f = facts.facts(**res)
+        assert facts.particles_verdict(res["floor"]) == f["particles_verdict"] == particles
+        for table in (res["scores"], res["scores"].set_index(["recording", "variant"])):   # column or index level
+            t = facts.track_cells(table, particles).reset_index()
+            dop, rng = t[t["variant"] == "Doppler"], t[t["variant"] == "Doppler + ranges"]
+            assert set(dop["PF keeps track"]) == {f["pf_track_verdict[Doppler]"]}       # the verdict's own words
+            assert set(dop["PF keeps track"]) == ({"keeps track"} if particles == "converged" else
+                                                  {facts.NOT_CONVERGED if ci[0] > 0 else facts.NOT_JUDGED})
+            assert set(rng["PF keeps track"]) == {f["pf_track_verdict[Doppler + ranges]"]} == {"keeps track"}
+            assert dop["MH-EKF keeps track"].tolist() == ["does not keep track"] + ["keeps track"] * 4
+    assert res["scores"]["PF keeps track"].dtype == bool                      # the data itself is left as it was
+
+
 def test_floor_verdict_is_read_from_the_interval_of_the_particle_step():
     f, t = _table(floor=[40.0, 38.0, 30.0, 27.0], floor_drop_ci=(2.0, 4.0))   # 4× particles: 3 [2, 4] cm lower
     assert f["particles_verdict"] == "not converged" and _verdict(t, "particle count") == "not converged"

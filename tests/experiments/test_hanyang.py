@@ -12,7 +12,7 @@ from uwbwb.errors import DataFormatError
 from uwbwb.experiments.hanyang import authors, estimators, sections, study
 from uwbwb.scoreboard.interface import GEOMETRY, MAX_TDOA_OVER_RANGES
 from uwbwb.scoreboard.sources import external_estimators
-from uwbwb.scoreboard.verdicts import DIFFERENCE_RULE
+from uwbwb.scoreboard.verdicts import DIFFERENCE_RULE, EDGE_BOUND_LABEL
 from uwbwb.types import EstimateStatus, Estimates
 
 
@@ -235,7 +235,7 @@ def test_sections_run_on_a_generated_tree_and_record_their_rows(tree):
             "reproduced")
         (mean,) = [q for q in kinds if q.startswith(f"RMSE_2d ratio ours (declared before scoring: EKF-RF ranges) / "
                                                     f"{theirs}, mean over the cases scored (epochs both covered")]
-        assert mean.endswith(f"; {sections.EDGE} of 1 of 1 cases)" if r["verdict"].startswith("edge-bound") else
+        assert mean.endswith(f"; {EDGE_BOUND_LABEL} of 1 of 1 cases)" if r["verdict"].startswith("edge-bound") else
                              "(epochs both covered)")
     assert list(declared["B"]) == list(study.AUTHORS_ROWS) * 2
     # the picks' rows are the ratio table's: one best and one chosen, both against the authors' LS, each labelled

@@ -2,6 +2,7 @@
 parameters refused up front, eq-4 thresholds, and verdict sentences that flip with the numbers."""
 
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -12,6 +13,7 @@ from uwbwb.experiments.uwb_ins import ablation as ab
 from uwbwb.experiments.uwb_ins import facts, headlines, ladder
 from uwbwb.filters import alignment
 from uwbwb.models.tdoa import TdoaModel, triangle_outliers
+from uwbwb.scoreboard.verdicts import EDGE_BOUND_LABEL
 from uwbwb.sim import robot
 from uwbwb.types import EstimateStatus, Estimates, TdoaLog
 
@@ -214,8 +216,24 @@ def test_survival_rows_say_where_the_outage_advantage_is_kept_or_lost():
     assert _row(f, "IMU 10× worse: EKF + gate / tight + gate, max outage error").verdict == "reversed"
     assert _row(f, "multipath up to 12 m: EKF + gate / tight + gate, max outage error").verdict == "survives"
     assert facts.kept(f, "EKF + gate", "outage_max", "UWB σ 2×")["share"] == pytest.approx(0.0, abs=0.1)
-    assert "share kept" in _row(f, "multipath up to 12 m: EKF + gate / tight + gate, max outage error").ours
+    kept = _row(f, "multipath up to 12 m: EKF + gate / tight + gate, max outage error").ours   # the lead's share
+    assert re.fullmatch(r"[\d.]+×, (share kept \d+ %|lead grew to \d+ % of matched)", kept), kept
     assert _row(f, "matched: injected-multipath TDoAs that eq. 4 removed").ours == "0 of 100"
+
+
+def test_a_lead_that_grew_in_a_case_is_not_printed_as_a_share_kept_above_100_percent():
+    """*share kept* is a share of the matched lead in log ratio, both ratios on the case's seeds: a case that widens
+    tight's lead has a share above 1, printed as the lead having grown, never as more than 100 % kept."""
+    f = _fake(GOOD, case_ratios={"UWB σ 2×": {**GOOD, "loose + gate": 2.8}})      # matched lead 1.4×, here 2.8×
+    k = facts.kept(f, "loose + gate", "outage_max", "UWB σ 2×")
+    seeds = f.case("UWB σ 2×").index.get_level_values("seed").unique()
+    r0 = f.ratio("loose + gate", "tight + gate", "outage_max", "matched", seeds=seeds)["ratio"]
+    assert k["share"] == pytest.approx(math.log(k["ratio"]) / math.log(r0)) and k["share"] > 1.5
+    row = _row(f, "UWB σ 2×: loose + gate / tight + gate, max outage error")
+    assert row.ours == f"{k['ratio']:.2f}×, lead grew to {100 * k['share']:.0f} % of matched"
+    for ours in facts.verdict_table(f)["ours"]:                                  # every share printed as kept
+        for pct in re.findall(r"share kept (-?\d+) %", ours):
+            assert 0 <= int(pct) <= 100, ours
 
 
 def test_survival_covers_the_dynamic_rmse_and_a_reversal_reads_as_none_kept():
@@ -249,7 +267,7 @@ def test_a_diverged_mismatch_row_is_named_and_a_matched_one_fails_the_checks():
     dyn = _row(f, "IMU 10× worse: loose + gate / tight + gate, dynamic RMSE")
     assert dyn.verdict == "a row diverged on dyn_rmse (the ratio measures a failure)" and "share kept" not in dyn.ours
     out = _row(f, "IMU 10× worse: loose + gate / tight + gate, max outage error")
-    assert not out.verdict.startswith("a row diverged") and "share kept" in out.ours
+    assert not out.verdict.startswith("a row diverged") and "lead grew to" in out.ours     # 3× loose's coasting
     assert headlines.checks(bad) == []                      # mismatch divergence is reported, not a check
     small = _fake(GOOD)                                     # 20× the matched error but still centimetres: not a failure
     hs = (small.scores["case"] == "UWB σ 2×") & (small.scores["method"] == "tight + gate")
@@ -343,6 +361,30 @@ def test_a_ladder_step_whose_pick_lies_on_a_grid_edge_is_edge_bound():
         assert v.startswith("edge-bound: ") and "loose + gate R ×" in v, (claim, v)
         assert _row(base, claim).verdict in ("helps", "survives"), claim
     assert _row(g, "headline: EKF + gate / tight + gate").verdict == "helps"
+
+
+def test_a_ratio_row_is_edge_bound_where_its_verdict_is():
+    """The summary's ladder and mismatch ratio rows on a pair with a pick on its grid's edge carry the qualifier the
+    verdict table's verdict on that pair carries (one rule: facts.qualified), in the summaries' one wording."""
+    pairs = [(q, r) for q in (0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0)]
+    centre = [2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0, 2.0]        # best at (1, 1): inside the grid
+    top_r = [2.0, 2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0]         # best at (1, 3): on the R edge
+    t = pd.DataFrame({p: {"EKF": centre[i], "EKF + gate": centre[i], "loose": top_r[i], "loose + gate": top_r[i]}
+                      for i, p in enumerate(pairs)})
+    t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
+    base = _fake(GOOD)
+    res = ab.AblationResult(base.config, True, t, {}, base.scores, base.counts)
+    rows = {r["quantity"] for r in headlines.ablation_rows(res)}
+    edge = f"; {EDGE_BOUND_LABEL}"
+    gate = "ablation ratio loose / loose + gate, dynamic RMSE (outlier handling (gate), loose; geometric mean of 6 seeds"
+    assert gate + edge + ")" in rows and gate + ")" not in rows
+    assert _row(res, "outlier handling (gate), loose: dynamic RMSE").verdict.startswith("edge-bound: ")
+    ekf = "ablation ratio EKF / EKF + gate, dynamic RMSE (outlier handling (gate), EKF; geometric mean of 6 seeds)"
+    assert ekf in rows and _row(res, "outlier handling (gate), EKF: dynamic RMSE").verdict == "helps"
+    case = "mismatch 'UWB σ 2×': outage max error loose + gate / tight + gate (6 seeds"
+    assert case + edge + ")" in rows and case + edge + "), 95 % low" in rows
+    assert "mismatch 'UWB σ 2×': outage max error EKF + gate / tight + gate (6 seeds)" in rows
+    assert not any(EDGE_BOUND_LABEL in q for q in {r["quantity"] for r in headlines.ablation_rows(base)})
 
 
 def test_the_measurement_noise_knob_reaches_every_tuned_filter():

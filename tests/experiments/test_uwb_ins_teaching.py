@@ -146,7 +146,7 @@ def test_05_and_06_score_the_flight_on_one_board_and_print_the_same_verdicts(tmp
     q = [k for k in rows if k.startswith("EKF-RF R multiplier")]
     assert len(q) == 1 and rows[q[0]]["value"] == b05.calibration.params("EKF-RF")["r_scale"] and rows[q[0]]["data"] == cal.label
     for _, r in v05.iterrows():       # an edge-bound verdict (the table's) is said in the row's quantity
-        edge = f"; {realdata.EDGE_BOUND}" if r["verdict"].startswith("edge-bound") else ""
+        edge = f"; {sb.verdicts.EDGE_BOUND_LABEL}" if r["verdict"].startswith("edge-bound") else ""
         key = f"horizontal RMSE difference {r['A']} − {r['B']} (scoreboard, 5 Hz{edge})"
         assert rows[key]["value"] == r["A − B (mm)"]
         if np.isfinite(r["95 % low (mm)"]):
@@ -176,7 +176,7 @@ def test_clock_rows_are_the_cells_of_the_clock_table():
     assert not any("INS-only" in r["quantity"] for r in rows)
     # an edge-bound verdict is said in the quantity, the others are not
     assert [r["quantity"] for r in rows if "edge-bound" in r["quantity"]] == [
-        f"horizontal RMSE change of loose with the IMU clock from the ranges ({realdata.EDGE_BOUND})"]
+        "horizontal RMSE change of loose with the IMU clock from the ranges (edge-bound at the tuning picks)"]
 
 
 def test_figures_draw_truth_only_where_it_exists_and_keep_uwb_spikes_off_the_axes():

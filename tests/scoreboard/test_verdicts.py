@@ -10,7 +10,7 @@ import pytest
 from uwbwb.scoreboard import calibrate, score
 from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, ExternalEstimates
-from uwbwb.metrics.errors import BLOCK_LAG_FACTOR, MIN_BLOCKS, block_length
+from uwbwb.metrics.errors import BLOCK_LAG_FACTOR, MIN_BLOCKS, block_ids, block_length
 from uwbwb.scoreboard.verdicts import difference_table, own_bound_table, pair_rng, placement_table
 from uwbwb.types import Trajectory
 
@@ -219,3 +219,42 @@ def test_a_difference_whose_tuning_pick_lies_on_a_grid_edge_is_edge_bound(monkey
         t["tuning_pick"] = ["Q × 3: on the grid's edge" if m == "LS" else "—" for m in t["method"]]
         monkeypatch.setattr(type(b), "table", lambda self, t=t: t)
         assert difference_table({"syn": b}, [("LS", ext)], seed=0).loc[0, "verdict"] == expected
+
+
+def test_an_edge_bound_summary_row_reads_the_same_in_every_notebook():
+    """Notebook 05's real-data rows and the Hanyang ratio rows (notebooks 02, 03, 06) add one wording to the quantity
+    of a row whose verdict is edge-bound, :data:`~uwbwb.scoreboard.verdicts.EDGE_BOUND_LABEL`."""
+    import pandas as pd
+
+    from uwbwb.experiments.hanyang import sections
+    from uwbwb.experiments.uwb_ins import realdata
+    from uwbwb.scoreboard import verdicts
+
+    v = "edge-bound: A more accurate at the picks (A: σ_w 1: on the grid's edge)"
+    clock = pd.DataFrame([{"A": "loose (ranges clock)", "B": "loose", "A − B (mm)": 1.0, "95 % low (mm)": 0.5,
+                           "95 % high (mm)": 2.0, "verdict": v}])
+    q05 = realdata._clock_rows(clock, 0.0, "x")[1]["quantity"]
+    hanyang = sections._ratio_rows("ratio A", {"A / B": 1.1, "verdict": v}, "x")[0]["quantity"]
+    assert q05.endswith(f" ({verdicts.EDGE_BOUND_LABEL})") and hanyang.endswith(f"; {verdicts.EDGE_BOUND_LABEL})")
+    assert verdicts.edge_bound(verdicts.EDGE_BOUND_LABEL)
+
+
+def test_the_placement_table_shows_its_blocks_and_says_why_a_difference_has_others():
+    """Each interval's blocks follow the series it is on: the placement's one method's squared error on its own
+    epochs (the board's ``rmse_over_common_blocks``, the count its standard error is formed from), a difference's the
+    paired difference on the epochs both covered. Both tables show their count, and the placement's rule says why
+    the two differ."""
+    from uwbwb.scoreboard.verdicts import PLACEMENT_RULE, block_se_ratio
+
+    b = _board(0.2)
+    place = placement_table({"syn": b}).set_index("method")
+    e = b.entry("LS", "tag")
+    tr = e.trace_m2("common")[e.scored]
+    have = np.isfinite(tr)
+    se, nb = block_se_ratio([e.error_m[e.scored][have] ** 2], [tr[have]])
+    assert place.loc["LS", "blocks"] == nb == b.table().set_index("method").loc["LS", "rmse_over_common_blocks"]
+    assert place.loc["LS", "standard error"] == se
+    diff = difference_table({"syn": b}, [("LS", "shifted truth (external)")], seed=0).iloc[0]
+    sq = (e.error_m[e.scored] ** 2 - b.entry("shifted truth (external)", "tag").error_m[e.scored] ** 2)
+    assert diff["blocks"] == block_ids([sq])[1]        # the same epochs, its own series
+    assert "paired difference" in PLACEMENT_RULE and place.loc["LS", "rule"] == PLACEMENT_RULE

@@ -10,15 +10,16 @@
     Horizontal errors over the epochs it covered.
 ``rmse_common_m``
     RMSE over the epochs *every* method on the board covered (the like-for-like figure).
-``common_bound_m``, ``rmse_over_common``, ``rmse_over_common_se``
+``common_bound_m``, ``rmse_over_common``, ``rmse_over_common_se``, ``rmse_over_common_blocks``
     The recording's **common bound** (:mod:`.reference`: the posterior CRLB of the motion
     model that best fits the calibration truth, with every range at the calibrated robust noise
     treated as Gaussian, evaluated along the one realised true track; the same for every method;
     it bounds causal estimators only — a smoother or a method with an IMU may go below it)
     aggregated as ``sqrt(mean_k tr C_k)`` over the method's covered epochs, and the method's RMSE
     over those epochs divided by it, with a block standard error (:func:`.verdicts.block_se_ratio`:
-    the board's one block rule; NaN with fewer than :data:`uwbwb.metrics.MIN_BLOCKS` blocks). These are each
-    method's own covered epochs: a method that skips the hard epochs is placed on easier ones.
+    the board's one block rule; NaN with fewer than :data:`uwbwb.metrics.MIN_BLOCKS` blocks) and its number of
+    blocks (each ``_se`` column has its ``_blocks`` beside it). These are each method's own covered epochs: a
+    method that skips the hard epochs is placed on easier ones.
 ``common_bound_common_m``, ``rmse_common_over_common``
     The same on the epochs *every* method covered: one bound and one set of epochs for all, so this
     is the column to rank methods by (it orders them as ``rmse_common_m`` does); the coverage beside it.
@@ -90,10 +91,11 @@ __all__ = ["Board", "Entry", "calibrate", "score", "TABLE_COLUMNS"]
 
 #: Columns of :meth:`Board.table`, in order.
 TABLE_COLUMNS = ("method", "coverage", "n_scored", "rmse_m", "cep50_m", "cep95_m", "rmse_common_m",
-                 "common_bound_m", "rmse_over_common", "rmse_over_common_se", "common_bound_common_m",
-                 "rmse_common_over_common", "bound_m", "bound_kind", "n_bound",
-                 "rmse_over_bound", "rmse_over_bound_se", "bound_measured_m", "rmse_over_bound_measured",
-                 "rmse_over_bound_measured_se", "ranges_crlb_m", "bound_over_ranges_crlb", "bias_share",
+                 "common_bound_m", "rmse_over_common", "rmse_over_common_se", "rmse_over_common_blocks",
+                 "common_bound_common_m", "rmse_common_over_common", "bound_m", "bound_kind", "n_bound",
+                 "rmse_over_bound", "rmse_over_bound_se", "rmse_over_bound_blocks", "bound_measured_m",
+                 "rmse_over_bound_measured", "rmse_over_bound_measured_se", "rmse_over_bound_measured_blocks",
+                 "ranges_crlb_m", "bound_over_ranges_crlb", "bias_share",
                  "nees_mean", "nees_dof", "nees_ok", "nis_over_dof",
                  "nis_verdict", "us_per_epoch", "time_ratio", "grid_edge", "tuning_pick", "note")
 
@@ -177,16 +179,16 @@ class Entry:
         return metrics.nees(est.pos_m - self.truth_pos_m, est.pos_cov_m2, ok)
 
 
-def _se(ents: list[Entry], which: str) -> float:
-    """Block standard error of RMSE / bound over the entries' scored epochs with that bound
-    (:func:`.verdicts.block_se_ratio`: the board's one block rule, blocks cut per tag)."""
+def _se(ents: list[Entry], which: str) -> tuple[float, int]:
+    """Block standard error of RMSE / bound over the entries' scored epochs with that bound, and its number of
+    blocks (:func:`.verdicts.block_se_ratio`: the board's one block rule, blocks cut per tag)."""
     sq, tr = [], []
     for e in ents:
         t = e.trace_m2(which)[e.scored]
         have = np.isfinite(t)
         sq.append(e.error_m[e.scored][have] ** 2)
         tr.append(t[have])
-    return block_se_ratio(sq, tr)[0]
+    return block_se_ratio(sq, tr)
 
 
 def _run_estimate(est: Estimator, rec: Recording, tag: str, cal: Calibration) -> tuple[Estimates | None, str]:
@@ -355,7 +357,7 @@ class Board:
             if have.any():
                 row[col] = float(np.sqrt(np.mean(tr[w][have])))
                 row[ratio] = float(np.sqrt(np.mean(err[have] ** 2)) / row[col])
-                row[ratio + "_se"] = _se(ents, w)
+                row[ratio + "_se"], row[ratio + "_blocks"] = _se(ents, w)
         both = np.isfinite(tr["bound"]) & np.isfinite(tr["ranges_crlb"])   # epochs whose ranges alone fix the position
         if both.any():
             row["ranges_crlb_m"] = float(np.sqrt(np.mean(tr["ranges_crlb"][both])))

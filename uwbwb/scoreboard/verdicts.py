@@ -16,7 +16,10 @@ Three tables, each the numbers and the verdict by its rule (tests feed values on
 * :func:`placement_table` — a method against the recording's common
   bound (:mod:`.reference`): the interval RMSE / common bound ± 2 block standard errors; "above" or "below" where
   it excludes 1, else "on the bound"; no verdict when the standard error could not be formed (fewer than
-  :data:`MIN_BLOCKS` blocks).
+  :data:`MIN_BLOCKS` blocks). Its blocks are not a difference's on the same recording: each interval's blocks
+  follow the series it is on (one method's squared error on its own epochs here, the paired difference on the
+  epochs both covered there), so a method may have a verdict in one table and too few blocks in the other; each
+  table shows its count.
 
 Every verdict is :func:`uwbwb.metrics.interval_side` of an interval (the bootstrap's, or ratio ± 2 se) against its
 null (0 for a difference, 1 for a ratio to a bound): the package's one interval → verdict rule.
@@ -37,14 +40,16 @@ import pandas as pd
 
 from ..metrics.errors import MIN_BLOCKS, block_bootstrap_difference, block_ids, interval_side
 
-__all__ = ["DIFFERENCE_RULE", "EDGE_BOUND", "edge_bound", "N_BOOT", "OWN_BOUND_RULE", "PLACEMENT_RULE", "block_se_ratio", "difference_table",
+__all__ = ["DIFFERENCE_RULE", "EDGE_BOUND", "EDGE_BOUND_LABEL", "edge_bound", "N_BOOT", "OWN_BOUND_RULE", "PLACEMENT_RULE", "block_se_ratio", "difference_table",
            "own_bound_table", "pair_rng", "placement_table"]
 
 #: Bootstrap resamples of a difference.
 N_BOOT = 2000
 #: The rules the tables state beside each verdict.
 DIFFERENCE_RULE = "95 % block-bootstrap interval of RMSE(A) − RMSE(B) on common epochs excludes 0"
-PLACEMENT_RULE = "the interval RMSE / common bound ± 2 block standard errors excludes 1 (above or below), else on"
+PLACEMENT_RULE = ("the interval RMSE / common bound ± 2 block standard errors excludes 1 (above or below), else on; "
+                  "blocks of the method's squared error on its own epochs (a difference's: of the paired difference "
+                  "on the epochs both covered, so their counts differ)")
 OWN_BOUND_RULE = ("below: the interval RMSE / own bound ± 2 block standard errors lies below 1; then the same against "
                   "the own bound at the scored part's measured noise")
 
@@ -114,6 +119,8 @@ def pair_rng(seed: int, label: str, a: str, b: str) -> np.random.Generator:
 
 #: How a :func:`difference_table` verdict starts when either method's tuning pick lies on its grid's edge.
 EDGE_BOUND = "edge-bound"
+#: What a summary row's quantity adds where its verdict is edge-bound: one wording in every notebook's summary.
+EDGE_BOUND_LABEL = f"{EDGE_BOUND} at the tuning picks"
 
 
 def edge_bound(verdict) -> bool:
@@ -170,7 +177,7 @@ def _on_edge(tab: pd.DataFrame, method: str) -> bool:
 
 def placement_table(boards: Mapping[str, object]) -> pd.DataFrame:
     """Every method that ran on each board against the recording's common bound (module docstring): recording,
-    method, RMSE / common bound, its block standard error, the rule and the verdict."""
+    method, RMSE / common bound, its block standard error and number of blocks, the rule and the verdict."""
     rows = []
     for label, board in boards.items():
         for r in board.table().query("n_scored > 0").itertuples():
@@ -179,5 +186,6 @@ def placement_table(boards: Mapping[str, object]) -> pd.DataFrame:
                        "none": "no common bound on its epochs"}.get(_side(ratio, se),
                                                                     f"no verdict (fewer than {MIN_BLOCKS} blocks)")
             rows.append({"recording": label, "method": r.method, "RMSE / common bound": ratio, "standard error": se,
-                         "rule": PLACEMENT_RULE, "verdict": verdict})
+                         "blocks": getattr(r, "rmse_over_common_blocks", np.nan), "rule": PLACEMENT_RULE,
+                         "verdict": verdict})
     return pd.DataFrame(rows)

@@ -40,7 +40,7 @@ from .study import KEEPS_TRACK, PAPER, READINGS, keeps_track
 
 __all__ = ["facts", "fig6_table", "verdict_table", "DP_TOLERANCE_MS", "GHOST_ANGLE_DEG", "OFFSET_SHARE",
            "EQUAL_CM", "PARTICLE_STEP_CM", "SAME_ORDER_LOG10", "NOT_CONVERGED", "NOT_JUDGED", "PF_RUN_VERDICTS",
-           "ASYMMETRY"]
+           "ASYMMETRY", "TRACK_WORDS", "particles_verdict", "track_cells"]
 
 #: Half of the last printed digit of the paper's ΔP_ref (ms).
 DP_TOLERANCE_MS = 0.05
@@ -62,6 +62,8 @@ GHOST_CUT_CM = 8.0
 #: What every verdict of PF_RUN_VERDICTS reads while the particle count has not converged, or while that is undecided.
 NOT_CONVERGED = "not converged"
 NOT_JUDGED = "not judged (convergence not shown)"
+#: Words of a keeps-track verdict (:func:`~.study.keeps_track`), and of a keeps-track cell (:func:`track_cells`).
+TRACK_WORDS = {True: "keeps track", False: "does not keep track"}
 #: Verdicts read from the Doppler-only PF runs at the tested particle count (keys of :func:`facts`; the corners'
 #: "asymmetry" and "paper" too): each is given only once that count has converged.
 PF_RUN_VERDICTS = ("cep50_verdict", "cep50_mean_verdict", "offset_or_spread", "ratio_verdict", "corner_dependence",
@@ -205,24 +207,51 @@ def facts(*, ref_table: pd.DataFrame, readings: pd.DataFrame, at15: dict, fig_ru
         f[f"pf_keeps_track[{variant}]"], f[f"kf_keeps_track[{variant}]"] = (bool(k) for k in keeps_track(   # pooled
             f[f"pf_in_track[{variant}]"], runs, d["PF runs restarted"].sum(), f[f"kf_in_track[{variant}]"]))
         for k in ("pf", "kf"):
-            f[f"{k}_track_verdict[{variant}]"] = "keeps track" if f[f"{k}_keeps_track[{variant}]"] else \
-                "does not keep track"
+            f[f"{k}_track_verdict[{variant}]"] = TRACK_WORDS[f[f"{k}_keeps_track[{variant}]"]]
 
     # --- the particle count (zero noise, exact ΔP, 1× and 4× the particles)
     fl = floor["CEP50, scored epochs (cm)"]
     f["floor_cm"] = {k: float(v) for k, v in fl.items()}
     lo, hi = (float(floor.iloc[-1].get(c, np.nan)) for c in ("drop 95 % low (cm)", "drop 95 % high (cm)"))
     f["floor_particles_step"] = (float(fl.iloc[-2] - fl.iloc[-1]), lo, hi)
-    up, down = interval_side(lo, hi, PARTICLE_STEP_CM), interval_side(lo, hi, -PARTICLE_STEP_CM)
-    f["particles_verdict"] = (NO_INTERVAL if up == "none" else "converged" if (up, down) == ("below", "above") else
-                              "not converged" if up == "above" or down == "below" else "undecided")
+    f["particles_verdict"] = particles_verdict(floor)
     f["particles_converged"] = f["particles_verdict"] == "converged"
     if not f["particles_converged"]:        # the PF runs may still change with more particles: no verdict on them
-        gate = NOT_CONVERGED if f["particles_verdict"] == "not converged" else NOT_JUDGED
+        gate = _gate(f["particles_verdict"])
         f.update({k: gate for k in PF_RUN_VERDICTS if k in f})
         for corner in f["corners"].values():
             corner["asymmetry"] = corner["paper"] = gate
     return f
+
+
+def particles_verdict(floor: pd.DataFrame) -> str:
+    """The particle count's verdict from :func:`~.study.error_floor`'s last row (the CEP50's drop with 4× the
+    particles and its interval): "converged" inside ±:data:`PARTICLE_STEP_CM`, "not converged" wholly outside,
+    else "undecided"; :data:`NO_INTERVAL` without an interval."""
+    lo, hi = (float(floor.iloc[-1].get(c, np.nan)) for c in ("drop 95 % low (cm)", "drop 95 % high (cm)"))
+    up, down = interval_side(lo, hi, PARTICLE_STEP_CM), interval_side(lo, hi, -PARTICLE_STEP_CM)
+    return (NO_INTERVAL if up == "none" else "converged" if (up, down) == ("below", "above") else
+            "not converged" if up == "above" or down == "below" else "undecided")
+
+
+def _gate(particles: str) -> str:
+    """What a verdict of :data:`PF_RUN_VERDICTS` reads while the particle count is ``particles`` (not converged)."""
+    return NOT_CONVERGED if particles == "not converged" else NOT_JUDGED
+
+
+def track_cells(table: pd.DataFrame, particles: str) -> pd.DataFrame:
+    """``table`` (rows with a ``variant`` column or index level and the columns ``PF keeps track`` / ``MH-EKF keeps
+    track`` of :func:`~.study.filter_scores`) with each of those cells in the words of its verdict
+    (:data:`TRACK_WORDS`), and the PF's on Doppler-only rows reading the particle count's gate (:data:`NOT_CONVERGED`
+    or :data:`NOT_JUDGED`) while ``particles`` (:func:`particles_verdict`) is not "converged": a cell says what
+    the verdict on it says (``pf_track_verdict[Doppler]`` is one of :data:`PF_RUN_VERDICTS`)."""
+    out = table.copy()
+    variant = out.index.get_level_values("variant") if "variant" in out.index.names else out["variant"]
+    for col in ("PF keeps track", "MH-EKF keeps track"):
+        out[col] = [TRACK_WORDS[bool(v)] for v in out[col]]
+    if particles != "converged":
+        out.loc[np.asarray(variant == "Doppler"), "PF keeps track"] = _gate(particles)
+    return out
 
 
 def fig6_table(f: dict) -> pd.DataFrame:

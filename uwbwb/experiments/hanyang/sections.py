@@ -13,7 +13,7 @@ not hold is an error.
   model's effect, and each board's methods against the common bound and their own bounds
   (:func:`~uwbwb.scoreboard.verdicts.placement_table`, :func:`~uwbwb.scoreboard.verdicts.own_bound_table`).
   Every comparison of two methods is a row of :func:`~uwbwb.scoreboard.verdicts.difference_table`, whose summary
-  rows (in every section) say "(epochs both covered)" and, where its verdict is edge-bound, :data:`EDGE`;
+  rows (in every section) say "(epochs both covered)" and, where its verdict is edge-bound, :data:`EDGE_BOUND_LABEL`;
 * :func:`pruning_section` (notebook 02): NLS with and without the pruning heuristics of paper 001
   on one case (NLOS is the point), each against plain NLS;
 * :func:`motion_section` (notebook 03): the RW/RF/RJ motion models on ranges (and the TDoA EKF of
@@ -36,10 +36,10 @@ from ...metrics import interval_rows
 from ...scoreboard import Board
 from ...scoreboard.estimators import RawLs, default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S, WindowNls
-from ...scoreboard.verdicts import difference_table, edge_bound, own_bound_table, placement_table
+from ...scoreboard.verdicts import EDGE_BOUND_LABEL, difference_table, edge_bound, own_bound_table, placement_table
 from . import authors, estimators, study
 
-__all__ = ["BOTH", "EDGE", "EXTERNAL", "Section", "motion_section", "pruning_section", "scoreboard_section"]
+__all__ = ["BOTH", "EXTERNAL", "Section", "motion_section", "pruning_section", "scoreboard_section"]
 
 PathLike = str | os.PathLike
 NAME = hanyang_dynamic.NAME
@@ -47,8 +47,6 @@ NAME = hanyang_dynamic.NAME
 EXTERNAL = " (external: authors' estimates)"
 #: The words of every row of a pair (a ratio, or one side's RMSE_2d) on the epochs both methods covered.
 BOTH = "epochs both covered"
-#: A ratio row's qualifier where its difference-table verdict is edge-bound (a tuning pick on its grid's edge).
-EDGE = "edge-bound at the tuning picks"
 
 
 @dataclass(frozen=True)
@@ -163,7 +161,8 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
         rows += _ratio_rows(f"RMSE_2d ratio ours (declared before scoring: {r['A']}) / {theirs}"
                             + (", mean over the cases scored" if mean else ""), r,
                             f"{NAME}/{r['case'].split()[-2]} cases" if mean else r["recording"],
-                            edge=f"{EDGE} of {edge.sum()} of {edge.size} cases" if mean and edge.any() else None)
+                            edge=f"{EDGE_BOUND_LABEL} of {edge.sum()} of {edge.size} cases"
+                            if mean and edge.any() else None)
     tables = {"reproduction": repro, "ratios": ratios, "declared": declared, "static_effect": effect,
               "static_models": pd.DataFrame(map(dataclasses.asdict, models)),
               "placement": placement_table(boards), "own_bound": own_bound_table(boards)}
@@ -172,9 +171,9 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
 
 def _ratio_rows(quantity: str, r: Mapping, data: str, *, edge: str | None = None) -> list[dict]:
     """Summary rows of one difference-table row's ratio A / B with its interval's ends (the table's own), labelled
-    with the table's qualifiers: "(epochs both covered)", and :data:`EDGE` where the row's verdict is edge-bound
-    (``edge``: the qualifier of a row without a verdict of its own, e.g. a mean over cases)."""
-    edge = edge or (EDGE if edge_bound(r.get("verdict", "")) else None)
+    with the table's qualifiers: "(epochs both covered)", and :data:`EDGE_BOUND_LABEL` where the row's verdict is
+    edge-bound (``edge``: the qualifier of a row without a verdict of its own, e.g. a mean over cases)."""
+    edge = edge or (EDGE_BOUND_LABEL if edge_bound(r.get("verdict", "")) else None)
     return interval_rows(f"{quantity} ({BOTH}{'; ' + edge if edge else ''})", r["A / B"],
                          r.get("A / B 95 % low", np.nan), r.get("A / B 95 % high", np.nan), unit="", data=data,
                          kind="reproduced")
@@ -198,7 +197,7 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
     Rows: raw LS, NLS (no pruning), NLS with residual pruning, NLS with the robust mean, the authors' LS
     (external); each pruned NLS against plain NLS (and against the authors' LS) on the epochs both covered,
     a row of :func:`~uwbwb.scoreboard.verdicts.difference_table` whose ratio (and its interval's ends) the summary
-    row labelled "(epochs both covered)" is (with :data:`EDGE` where its verdict is edge-bound); each method's
+    row labelled "(epochs both covered)" is (with :data:`EDGE_BOUND_LABEL` where its verdict is edge-bound); each method's
     RMSE_2d row is the board's, on the scored epochs it covered ("(epochs it covered)"), its coverage of the
     scored epochs beside it: where coverages differ, the quotient of two RMSE rows is not the ratio row.
     """

@@ -10,7 +10,8 @@ Rules
   (that method's max outage error / tight's; likewise its steady-state lead, on the dynamic RMSE) has its interval above 1 in that case, is **not
   significant** when the interval includes 1 and **reversed** when it lies below 1; its
   *share kept* is ``log(ratio_case) / log(ratio_matched)`` (1: all of it, 0: none; < 0 prints as none kept),
-  both ratios over the same seeds (the case's).
+  both ratios over the same seeds (the case's). It is a share of the matched *lead*, not of any count, so it has
+  no 100 % ceiling: above 100 % the case widened the lead, and it prints as *lead grew to … % of matched*.
 * A row **diverged** in a mismatch case when its dynamic RMSE or its max error in the recovery
   after the outage (mean over the case's seeds) exceeds :data:`DIVERGED_FACTOR` × its matched
   value on the same seeds *and* the re-acquisition limit :data:`~.ablation.RECOVERY_MAX_M`: a failure,
@@ -37,10 +38,12 @@ import numpy as np
 import pandas as pd
 
 from ...metrics import interval_side
+from ...scoreboard.verdicts import EDGE_BOUND
 from .ablation import COVERAGE, HOLD_S, RECOVERY_MAX_M, AblationResult, EKF_TDOA_GATE, LADDER, choose_knobs
 from .ladder import eq4_path, eq4_thresholds, pair_rmse
 
-__all__ = ["DIVERGED_FACTOR", "ENTERS", "diverged", "diverged_on", "verdict", "verdict_table"]
+__all__ = ["DIVERGED_FACTOR", "ENTERS", "diverged", "diverged_on", "qualified", "tuning_picks", "verdict",
+           "verdict_table"]
 
 #: A mismatch row whose dynamic RMSE or recovery max exceeds this many times its matched value (and
 #: RECOVERY_MAX_M) diverged.
@@ -58,6 +61,22 @@ def verdict(lo: float, hi: float) -> str:
     """``"helps"``, ``"hurts"``, ``"not significant"`` or ``"undetermined"`` from a ratio interval."""
     return {"above": "helps", "below": "hurts", "contains": "not significant"}.get(interval_side(lo, hi, 1.0),
                                                                                   "undetermined")
+
+
+def tuning_picks(res: AblationResult) -> dict:
+    """Row → its tuning pick (:func:`~.ablation.choose_knobs`: ``Q ×``, ``R ×``, ``edge``, ...); empty untuned."""
+    return {} if res.tuning.empty else choose_knobs(res.tuning).to_dict("index")
+
+
+def qualified(v: str, pair, picks: dict, failed=()) -> str:
+    """``v`` with the qualifiers every verdict on the rows of ``pair`` carries: edge-bound (:data:`EDGE_BOUND`) where
+    either row's pick (``picks``: :func:`tuning_picks`) lies on its grid's edge and ``v`` is a verdict, and the rows
+    of ``pair`` among ``failed`` (those that failed to re-acquire after the outage in the matched world)."""
+    edge = [f"{x} {k} ×" for x in pair for k in picks.get(x, {}).get("edge", "—").split(", ") if k in ("Q", "R")]
+    bad = [x for x in pair if x in failed]
+    if edge and v != "undetermined":
+        v = f"{EDGE_BOUND}: {v} at the picks ({', '.join(edge)} on the grid's edge)"
+    return v + (f" ({', '.join(bad)} failed to re-acquire)" if bad else "")
 
 
 def kept(res: AblationResult, other: str, metric: str, case: str) -> dict:
@@ -105,7 +124,8 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
 
     Rows: each ladder step on the dynamic RMSE and the max outage error (without / with the ingredient); the
     headline (the others' max outage error over tight's, matched); how much of that advantage, and of tight's
-    lead on the dynamic RMSE, each mismatch case keeps (``share kept`` in log ratio; none where reversed) — *a row diverged* instead of a verdict where tight or the other
+    lead on the dynamic RMSE, each mismatch case keeps (``share kept`` in log ratio; none where reversed; "lead
+    grew" above 100 %) — *a row diverged* instead of a verdict where tight or the other
     row diverged in that case on a metric that enters the ratio (:data:`ENTERS`; the ratio then measures a failure);
     *not applicable* for a ladder step where a row has no estimate in the metric's window; every diverged row; every
     gated row that
@@ -125,16 +145,7 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
     rec, back = matched["reacq_s"].unstack("method"), matched["recovery_max"].unstack("method")
     failed = {str(r): {int(k): float(v) for k, v in rec[r].items()} for r in _gated(rec.columns)
               if not (rec[r] <= cfg.recovery_s).all()}
-    picks = {} if res.tuning.empty else choose_knobs(res.tuning).to_dict("index")
-
-    def qualified(v: str, pair, reacquired: bool = True) -> str:
-        """``v`` with the qualifiers every verdict on the rows of ``pair`` carries: edge-bound tuning picks and, in
-        the matched world, a failure to re-acquire after the outage."""
-        edge = [f"{x} {k} ×" for x in pair for k in picks.get(x, {}).get("edge", "—").split(", ") if k in ("Q", "R")]
-        bad = [x for x in pair if x in failed] if reacquired else []
-        if edge and v != "undetermined":
-            v = f"edge-bound: {v} at the picks ({', '.join(edge)} on the grid's edge)"
-        return v + (f" ({', '.join(bad)} failed to re-acquire)" if bad else "")
+    picks = tuning_picks(res)
 
     for what, a, b in LADDER:
         for metric in ("dyn_rmse", "outage_max"):
@@ -143,12 +154,12 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
             window = "outage" if metric == "outage_max" else "scored epochs"
             add(f"{what}: {_METRIC_WORDS[metric]}, without / with", "—" if none else f"{r['ratio']:.2f}×",
                 _interval(r), r["n"], _RATIO_RULE, f"not applicable (no fix in the {window}: {', '.join(none)})"
-                if none else qualified(verdict(r["lo"], r["hi"]), (a, b)))
+                if none else qualified(verdict(r["lo"], r["hi"]), (a, b), picks, failed))
     for other in _VERSUS:
         r = res.ratio(other, "tight + gate", "outage_max")
         add(f"headline: {other} / tight + gate, max error in the {cfg.outage_s:g} s outage, matched",
             f"{r['ratio']:.2f}×", _interval(r), r["n"], _RATIO_RULE,
-            qualified(verdict(r["lo"], r["hi"]), (other, "tight + gate")))
+            qualified(verdict(r["lo"], r["hi"]), (other, "tight + gate"), picks, failed))
     words = {"helps": "survives", "hurts": "reversed", "not significant": "not significant",
              "undetermined": "undetermined"}
     diverged_in = {case: diverged(res, case) for case in cfg.cases[1:]}          # the first is "matched"
@@ -158,12 +169,13 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
             for other in versus:
                 r = kept(res, other, metric, case)
                 failure = bool({other, "tight + gate"} & gone)          # the ratio measures a failure: no share
-                share = "" if failure or not np.isfinite(r["share"]) else \
-                    f", share kept {100 * r['share']:.0f} %" if r["share"] >= 0 else ", none kept"
+                pct = f"{100 * r['share']:.0f}"                   # as printed: above 100, the lead grew
+                share = ("" if failure or not np.isfinite(r["share"]) else ", none kept" if r["share"] < 0 else
+                         f", share kept {pct} %" if float(pct) <= 100 else f", lead grew to {pct} % of matched")
                 add(f"{case}: {other} / tight + gate, {what}", f"{r['ratio']:.2f}×{share}", _interval(r), r["n"],
                     _RATIO_RULE + " (above 1: the advantage survives)",
                     f"a row diverged on {', '.join(ENTERS[metric])} (the ratio measures a failure)" if failure else
-                    qualified(words[verdict(r["lo"], r["hi"])], (other, "tight + gate"), reacquired=False))
+                    qualified(words[verdict(r["lo"], r["hi"])], (other, "tight + gate"), picks))
     for case, ds in diverged_in.items():
         for d in ds:
             add(f"{case}: {d['row']} diverged ({d['metric']})", f"{d['value']:.3g} m against {d['matched']:.3g} m "

@@ -13,6 +13,7 @@ import numpy as np
 
 from ...metrics import interval_rows
 from ...models.imu import GRADES
+from ...scoreboard.verdicts import EDGE_BOUND_LABEL, edge_bound
 from ...sim import robot
 from . import facts
 from .ablation import COVERAGE, DEFAULT_OUTAGE_S, EKF_TDOA_GATE, HOLD_S, LADDER, RECOVERY_MAX_M, ROWS, AblationResult
@@ -43,7 +44,8 @@ def ablation_rows(res: AblationResult) -> list[dict]:
     row beside it (the share of the window's scored epochs it has: the same table's column). A mismatch row of a
     filter that diverged in that case (:func:`~.facts.diverged`) on the metric it shows says so in its quantity, and
     so does a ratio on such a row where the divergence enters it (:data:`~.facts.ENTERS`; the verdict table's "a row
-    diverged": the ratio measures a failure)."""
+    diverged": the ratio measures a failure); a ratio whose verdict there is edge-bound (a tuning pick on its grid's
+    edge: :func:`~.facts.qualified`) says so too (:data:`~uwbwb.scoreboard.verdicts.EDGE_BOUND_LABEL`)."""
     cfg = res.config
     n = cfg.seeds
     out = []
@@ -64,12 +66,18 @@ def ablation_rows(res: AblationResult) -> list[dict]:
             out.append(dict(quantity=f"ablation: slowest re-acquisition after the outage, {r} (time to get below "
                                      f"{RECOVERY_MAX_M:g} m and hold {HOLD_S:g} s; worst of {n} seeds, matched model)",
                             value=float(rec[r].max()), unit="s", data="synthetic", kind="reproduced"))
+    picks = facts.tuning_picks(res)
+
+    def edge(r: dict, pair) -> str:        # where the verdict table's verdict on the pair is edge-bound
+        v = facts.qualified(facts.verdict(r["lo"], r["hi"]), pair, picks)
+        return f"; {EDGE_BOUND_LABEL}" if edge_bound(v) else ""
+
     for what, a, b in LADDER:
         for m, label in (("dyn_rmse", "dynamic RMSE"), ("outage_max", "outage max error")):
             r = pair_rmse(res, what, m)
             if np.isfinite(r["ratio"]):
-                out += interval_rows(f"ablation ratio {a} / {b}, {label} ({what}; geometric mean of {r['n']} seeds)",
-                                     r["ratio"], r["lo"], r["hi"], **_RATIO)
+                out += interval_rows(f"ablation ratio {a} / {b}, {label} ({what}; geometric mean of {r['n']} seeds"
+                                     f"{edge(r, (a, b))})", r["ratio"], r["lo"], r["hi"], **_RATIO)
     for case in cfg.cases[1:]:
         t = res.table(case)
         ds = facts.diverged(res, case)                  # the verdict table's diverged rows, and on which metric
@@ -88,7 +96,8 @@ def ablation_rows(res: AblationResult) -> list[dict]:
         for other in ("EKF + gate", EKF_TDOA_GATE, "loose + gate"):
             r = res.ratio(other, "tight + gate", "outage_max", case)
             on = ", ".join(facts.ENTERS["outage_max"])
-            flag = f"; a row diverged on {on}: the ratio measures a failure" if {other, "tight + gate"} & gone else ""
+            flag = (f"; a row diverged on {on}: the ratio measures a failure" if {other, "tight + gate"} & gone
+                    else edge(r, (other, "tight + gate")))
             if np.isfinite(r["ratio"]):
                 out += interval_rows(f"mismatch '{case}': outage max error {other} / tight + gate ({r['n']} seeds"
                                      f"{flag})", r["ratio"], r["lo"], r["hi"], **_RATIO)

@@ -13,10 +13,10 @@ from scipy import stats
 from ... import metrics
 from ...filters.alignment import Comparison
 from ...scoreboard import Board
-from ...scoreboard.verdicts import edge_bound
+from ...scoreboard.verdicts import EDGE_BOUND_LABEL, edge_bound
 from ...types import Trajectory
 
-__all__ = ["CONSISTENT_POINTS", "EDGE_BOUND", "board_comparison", "common_table", "nees_inflation", "summary_rows"]
+__all__ = ["CONSISTENT_POINTS", "board_comparison", "common_table", "nees_inflation", "summary_rows"]
 
 #: The scaled covariance is consistent when its share of epochs inside the ellipse is within this of the level.
 CONSISTENT_POINTS = 0.10
@@ -83,10 +83,6 @@ def nees_inflation(cal_board: Board, board: Board, method: str = "tight", tag: s
             "inside_test_scaled": inside, "prob": prob, "scaled_consistent": bool(abs(inside - prob) <= CONSISTENT_POINTS)}
 
 
-#: What a difference row's quantity adds when its verdict (the board's difference table's) is edge-bound.
-EDGE_BOUND = "edge-bound: a tuning pick on its grid's edge, the verdict holds at the picks"
-
-
 def _interval_rows(quantity: str, row, columns: tuple[str, str, str], data: str) -> list[dict]:
     """A value (mm) and the ends of its 95 % interval as three summary rows (``quantity``, then ``…, 95 % interval
     low`` / ``high``), read from ``row[columns]`` (value, low, high); a non-finite one is left out."""
@@ -98,11 +94,11 @@ def _interval_rows(quantity: str, row, columns: tuple[str, str, str], data: str)
 def _clock_rows(clock: pd.DataFrame, offset_ms: float, data: str) -> list[dict]:
     """The IMU clock offset from the ranges minus from the motion capture (ms), and each IMU filter's RMSE change
     with the ranges' clock, with its interval ends: the cells of ``clock`` (a difference table of ``m (ranges
-    clock)`` against ``m``; INS-only, no UWB, left out), edge-bound where its verdict is (:data:`EDGE_BOUND`)."""
+    clock)`` against ``m``; INS-only, no UWB, left out), edge-bound where its verdict is (:data:`EDGE_BOUND_LABEL`)."""
     out = [dict(quantity="IMU clock offset from the ranges minus from the motion capture", value=float(offset_ms),
                 unit="ms", data=data, kind="reproduced")]
     for _, r in clock[clock["B"] != "INS-only"].iterrows():
-        edge = f" ({EDGE_BOUND})" if edge_bound(r.get("verdict")) else ""
+        edge = f" ({EDGE_BOUND_LABEL})" if edge_bound(r.get("verdict")) else ""
         out += _interval_rows(f"horizontal RMSE change of {r['B']} with the IMU clock from the ranges{edge}", r,
                               ("A − B (mm)", "95 % low (mm)", "95 % high (mm)"), data)
     return out
@@ -116,7 +112,7 @@ def summary_rows(board: Board, *, cal_label: str, cal_data: str, rate_hz: float,
     ``cal_data``), the covariance scale (:func:`nees_inflation`), the TDoAs the tight filter rejected, the IMU clock
     offset from the ranges and each IMU filter's RMSE change with it (``clock``: a difference table of ``m (ranges
     clock)`` against ``m``), and the board's differences (``verdicts``), each with its 95 % interval ends; a
-    difference whose verdict is edge-bound says so in its quantity (:data:`EDGE_BOUND`)."""
+    difference whose verdict is edge-bound says so in its quantity (:data:`EDGE_BOUND_LABEL`)."""
     data, t = board.data_label, common_table(board)
 
     def add(quantity, value, unit="m", d=data):
@@ -140,7 +136,7 @@ def summary_rows(board: Board, *, cal_label: str, cal_data: str, rate_hz: float,
     if clock is not None:
         out += _clock_rows(clock, clock_offset_ms, data)
     for _, r in (verdicts.iterrows() if verdicts is not None else ()):
-        edge = f"; {EDGE_BOUND}" if edge_bound(r.get("verdict")) else ""
+        edge = f"; {EDGE_BOUND_LABEL}" if edge_bound(r.get("verdict")) else ""
         out += _interval_rows(f"horizontal RMSE difference {r['A']} − {r['B']} (scoreboard, {rate_hz:g} Hz{edge})", r,
                               ("A − B (mm)", "95 % low (mm)", "95 % high (mm)"), r["recording"])
     return out
