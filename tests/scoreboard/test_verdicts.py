@@ -11,7 +11,7 @@ from uwbwb.scoreboard import calibrate, score
 from uwbwb.scoreboard import synthetic as syn
 from uwbwb.scoreboard.estimators import CalibratedLs, ExternalEstimates
 from uwbwb.metrics.errors import BLOCK_LAG_FACTOR, MIN_BLOCKS, block_ids, block_length
-from uwbwb.scoreboard.verdicts import difference_table, own_bound_table, pair_rng, placement_table
+from uwbwb.scoreboard.verdicts import DIFFERENCE_COLUMNS, difference_table, own_bound_table, pair_rng, placement_table
 from uwbwb.types import Trajectory
 
 
@@ -258,3 +258,10 @@ def test_the_placement_table_shows_its_blocks_and_says_why_a_difference_has_othe
     sq = (e.error_m[e.scored] ** 2 - b.entry("shifted truth (external)", "tag").error_m[e.scored] ** 2)
     assert diff["blocks"] == block_ids([sq])[1]        # the same epochs, its own series
     assert "paired difference" in PLACEMENT_RULE and place.loc["LS", "rule"] == PLACEMENT_RULE
+
+
+def test_a_difference_table_with_no_pair_that_ran_keeps_its_columns():
+    """No board (a recording absent): the table is empty but has its header, so a notebook can select columns."""
+    t = difference_table({}, [("A", "B")], seed=0)
+    assert t.empty and list(t.columns) == list(DIFFERENCE_COLUMNS)
+    assert list(t.drop(columns="rule").columns) == [c for c in DIFFERENCE_COLUMNS if c != "rule"]

@@ -128,6 +128,12 @@ def edge_bound(verdict) -> bool:
     return str(verdict).startswith(EDGE_BOUND)
 
 
+#: The columns of :func:`difference_table`, also when no pair ran.
+DIFFERENCE_COLUMNS = ("recording", "A", "B", "coverage A", "coverage B", "epochs", "blocks", "RMSE A (m)", "RMSE B (m)",
+                      "A − B (mm)", "95 % low (mm)", "95 % high (mm)", "A / B", "A / B 95 % low", "A / B 95 % high",
+                      "rule", "verdict")
+
+
 def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, str]], *, seed: int,
                      n_boot: int = N_BOOT) -> pd.DataFrame:
     """Every pair ``(A, B)`` that ran on each board (module docstring), one row each: recording, A, B, each one's
@@ -166,7 +172,8 @@ def difference_table(boards: Mapping[str, object], pairs: Sequence[tuple[str, st
                          "95 % low (mm)": 1000 * d["lo_m"], "95 % high (mm)": 1000 * d["hi_m"],
                          "A / B": np.divide(d["rmse_a_m"], d["rmse_b_m"]), "A / B 95 % low": d["ratio_lo"],
                          "A / B 95 % high": d["ratio_hi"], "rule": DIFFERENCE_RULE, "verdict": verdict})
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows, columns=DIFFERENCE_COLUMNS)   # no pair ran (no data): the header, no rows
+
 
 
 def _on_edge(tab: pd.DataFrame, method: str) -> bool:
