@@ -33,10 +33,11 @@ LAB_DIR ?= notebooks
 lab: $(STAMP)
 	$(VENV)/bin/jupyter lab --notebook-dir=$(LAB_DIR) --ServerApp.ip=$(LAB_IP) --ServerApp.port=$(LAB_PORT) $(LAB_ROOT)
 
-## Run the whole test suite, notebooks and the browser test included, on every core (TEST_WORKERS=0: one process).
+## Run the whole test suite, notebooks and the browser test included, on every core (TEST_WORKERS=0: one process);
+## whole files to each worker, the files that execute notebooks first (tests/conftest.py).
 TEST_WORKERS ?= auto
 test: $(TEST_STAMP)
-	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder $(PYTEST_ARGS)
 
 ## Headless main job: execute every notebook, write reports/ with summary.json + summary.md.
 reproduce: $(STAMP)

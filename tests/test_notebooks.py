@@ -213,22 +213,29 @@ def test_set_noise_runs_unchanged_on_another_lias_recording(tmp_path):
 
 @pytest.mark.notebook
 def test_pruning_runs_unchanged_on_other_recordings(tmp_path):
-    """Notebook 02 on recordings that are not in ../shared: another LIAS run and a Hanyang tree of short files."""
+    """Notebook 02 on recordings that are not in ../shared: another LIAS run, and a Hanyang tree of short static files
+    with a dynamic case that is not an upstream name (chosen by HANYANG_CASE) for its Hanyang section."""
     import numpy as np
 
     from tests.fixtures import hanyang as hfx
     from tests.fixtures import lias as fx
+    from uwbwb.experiments.hanyang.sections import EXTERNAL
 
     data_dir = tmp_path / "data"
     rng = np.random.default_rng(12)
     fx.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 40.0, "clock_offset_s": 0.2}},
                  sessions=[fx.session_814(rng, files=((1, 0), (2, 0), (3, 0), (1, 60)))], static_rows=300)
-    hfx.write_dataset(data_dir / "hanyang-outdoor-uwb", rng=rng)     # 12 samples a file: too few for a percentile
-    rows = _run_on("02_pruning_nls.ipynb", tmp_path, data_dir, RECORDING="medium")
+    hfx.write_dataset(data_dir / "hanyang-outdoor-uwb", rng=rng, distances_m=(2, 4, 10, 20))   # 12 samples a file
+    case = hfx.write_dynamic_tree(data_dir / "hanyang-outdoor-uwb", rng=rng, speed_mps=4.0)[3].name
+    rows = _run_on("02_pruning_nls.ipynb", tmp_path, data_dir, RECORDING="medium", HANYANG_CASE=case)
     data = {r["data"] for r in rows}
     assert {"synthetic", "lias-planar-uwb/8.14", "lias-planar-uwb/medium"} <= data
     assert "hanyang-outdoor-uwb/static" not in data                   # no file long enough: no rows, no KeyError
-    assert {r["kind"] for r in rows} == {"reproduced"} and {r["mode"] for r in rows} == {"FAST"}
+    assert {r["mode"] for r in rows} == {"FAST"}
+    assert {r["kind"] for r in rows if not r["data"].endswith(EXTERNAL)} == {"reproduced"}
+    assert {r["kind"] for r in rows if r["data"].endswith(EXTERNAL)} == {"input"}     # the authors' estimates
+    hy = [r for r in rows if r["data"] == f"hanyang-outdoor-uwb/{case}"]
+    assert any(r["quantity"].startswith("RMSE_2d ratio NLS residual pruning / NLS (epochs both covered") for r in hy)
 
 
 @pytest.mark.notebook

@@ -340,30 +340,6 @@ def test_a_ratio_row_carries_the_edge_bound_qualifier_of_its_verdict():
     assert len(rows) == 6
 
 
-# ------------------------------------------------------------------ notebooks on generated trees
-
-def _hanyang_tree(data_dir, rng):
-    fx.write_dataset(data_dir / "hanyang-outdoor-uwb", rng=rng, distances_m=(2, 4, 10, 20))
-    return fx.write_dynamic_tree(data_dir / "hanyang-outdoor-uwb", rng=rng, speed_mps=4.0)
-
-
-@pytest.mark.notebook
-def test_pruning_notebook_runs_on_a_generated_dynamic_case(tmp_path):
-    """Notebook 02's Hanyang section on a case that is not in ../shared (chosen by HANYANG_CASE)."""
-    from tests.fixtures import lias as fx_lias
-    from tests.test_notebooks import _run_on
-
-    data_dir = tmp_path / "data"
-    rng = np.random.default_rng(21)
-    fx_lias.make_tree(data_dir, rng=rng, dynamic={"medium": {"duration_s": 40.0, "clock_offset_s": 0.2}},
-                      sessions=[fx_lias.session_814(rng, files=((1, 0), (2, 0), (3, 0), (1, 60)))], static_rows=300)
-    cases = _hanyang_tree(data_dir, rng)
-    rows = _run_on("02_pruning_nls.ipynb", tmp_path, data_dir, RECORDING="medium", HANYANG_CASE=cases[3].name)
-    hy = [r for r in rows if r["data"] == f"hanyang-outdoor-uwb/{cases[3].name}"]
-    assert any(r["quantity"].startswith("RMSE_2d ratio NLS residual pruning / NLS (epochs both covered") for r in hy)
-    assert {r["kind"] for r in hy} == {"reproduced"} and {r["mode"] for r in hy} == {"FAST"}
-
-
 def _fake_board(label, errors, has):
     """A board-like object whose entries have the given horizontal errors and coverage masks."""
     from types import SimpleNamespace

@@ -339,7 +339,12 @@ def _papermill_in_subprocess(source, executed, params, cwd, timeout_s, kernel_en
 def _papermill_job(job: str) -> None:
     """Entry point of :func:`_papermill_in_subprocess`'s child: run the pickled job, write the error line if any."""
     import pickle
+    import sys
 
+    # Where rfc3987-syntax is installed (jsonschema[format-nongpl], under nbformat), importing jsonschema builds its
+    # Earley parsers for the "iri" formats: ~3.5 s of CPU in every notebook's process, for formats no notebook
+    # schema names (python-jsonschema/jsonschema#1428). Without the module jsonschema leaves those formats unchecked.
+    sys.modules.setdefault("rfc3987_syntax", None)
     source, executed, params, cwd, timeout_s, kernel_env = pickle.loads(Path(job).read_bytes())
     try:
         _papermill(source, executed, params, cwd, timeout_s, kernel_env)

@@ -442,12 +442,15 @@ class TightEskf:
                      max_iter=self.max_iter, use_height=self.height_m is not None, feedback=bool(self.feedback),
                      st_updated=EstimateStatus.UPDATED, st_gated=EstimateStatus.GATED,
                      st_predicted=EstimateStatus.PREDICTED)
+        # rows, refs and anchors as writable copies: numba compiles the loop once per read-only flag of an argument,
+        # and a recording's arrays are read-only where a simulated one's are not (one signature, the one
+        # `python -m uwbwb.filters.twins` puts in the cache at install, instead of ~30 s of compiling per variant)
         code = _tight_loop(
             (t, acc, gyro, tl, ep_at[tl], np.ascontiguousarray(coasting, np.bool_)),
-            (np.ascontiguousarray(rows, float), np.asarray(refs, np.int64), np.ascontiguousarray(fix_tag, float),
+            (np.array(rows, float, order="C"), np.array(refs, np.int64), np.ascontiguousarray(fix_tag, float),
              np.asarray(yaw_meas, float)),
             np.array([float(named[n]) for n in SCALARS]), np.array([int(named[n]) for n in INTS], np.int64),
-            (np.ascontiguousarray(anchors, float), np.ascontiguousarray(var_m, float), self.lost_lock_variance(),
+            (np.array(anchors, float, order="C"), np.ascontiguousarray(var_m, float), self.lost_lock_variance(),
              self.lever_arm_m, qrate, self.mechanization.g_n),
             (p.copy(), v.copy(), q.copy(), ba.copy(), bg.copy()), P.copy(),
             (out["pos_m"], out["vel_mps"], out["quat"], out["acc_bias_mps2"], out["gyro_bias_radps"], out["P"],
