@@ -607,14 +607,19 @@ def test_small_study_end_to_end(cfg):
     assert study.error_floor("lab", replace(cfg, n_particles=60, floor_runs=3))["drop 95 % low (cm)"].isna().all()
     assert scores["PF keeps track"].dtype == bool and scores["MH-EKF keeps track"].dtype == bool
     # Fig 6(a) says in its legend whether each filter kept track on the recording it draws, and its title who lost it
+    # (each cell in its verdict's words: the PF's on Doppler-only rows withheld until the particle count converged)
     for pf_ok, kf_ok in ((True, False), (False, True)):
-        ax = figures.tracks_figure(tracks[0], kept={"PF keeps track": pf_ok, "MH-EKF keeps track": kf_ok})
-        labels = {line.get_label() for line in ax.get_lines()}
-        assert {"PF runs (kept track)" if pf_ok else "PF runs (lost track on this recording)",
-                "MH-EKF (kept track)" if kf_ok else "MH-EKF (lost track on this recording)"} <= labels
-        assert ax.get_title().endswith("; MH-EKF lost track" if pf_ok else "; PF lost track")
-    assert figures.tracks_figure(tracks[0], kept={"PF keeps track": True, "MH-EKF keeps track": True}).get_title() == (
-        "Doppler: tracks between the two corners")
+        row = {"variant": "Doppler", "PF keeps track": pf_ok, "MH-EKF keeps track": kf_ok}
+        for particles, pf_said in (("converged", facts.TRACK_WORDS[pf_ok]), ("not shown", facts.NOT_JUDGED)):
+            cells = facts.track_cells(pd.DataFrame([row]), particles).iloc[0]
+            ax = figures.tracks_figure(tracks[0], kept=cells)
+            labels = {line.get_label() for line in ax.get_lines()}
+            assert {f"PF runs ({pf_said} on this recording)",
+                    f"MH-EKF ({facts.TRACK_WORDS[kf_ok]} on this recording)"} <= labels
+            lost = [m for m, ok in (("PF", pf_ok), ("MH-EKF", kf_ok)) if not ok and (m != "PF" or particles == "converged")]
+            assert ax.get_title().endswith(f"; {' and '.join(lost)} lost track") if lost else "lost" not in ax.get_title()
+    both = {"PF keeps track": facts.TRACK_WORDS[True], "MH-EKF keeps track": facts.TRACK_WORDS[True]}
+    assert figures.tracks_figure(tracks[0], kept=both).get_title() == "Doppler: tracks between the two corners"
     matplotlib.pyplot.close("all")
 
 

@@ -190,12 +190,13 @@ def cuts_figure(df, *, threshold_cm: float = 6.0, ax=None):
 def tracks_figure(study, variant: str = "Doppler", *, kept=None, n_runs: int = 5, ax=None):
     """Fig 6(a): the rectangle (clockwise), five PF runs between the two corners, and the MH-EKF.
 
-    ``kept`` (``{"PF keeps track": bool, "MH-EKF keeps track": bool}``, a row of
-    :func:`~.study.filter_scores` for this recording) puts into each filter's legend entry whether it kept track
-    on this recording, and into the title which one lost it."""
+    ``kept`` (``{"PF keeps track": words, "MH-EKF keeps track": words}``, this recording's row of
+    :func:`~.facts.track_cells`: each cell in the words of its verdict, the PF's withheld while its particle count is
+    not shown to converge) puts each cell into its filter's legend entry, and into the title which one did not keep
+    track."""
     kept = {} if kept is None else dict(kept)
-    said = {m: "" if f"{m} keeps track" not in kept else " (kept track)" if kept[f"{m} keeps track"] else
-            " (lost track on this recording)" for m in ("PF", "MH-EKF")}
+    said = {m: f" ({kept[f'{m} keeps track']} on this recording)" if f"{m} keeps track" in kept else ""
+            for m in ("PF", "MH-EKF")}
     ax = lap(_ax(ax), study, label="truth (clockwise)", beacons=True)
     runs = study.pf[variant]
     t0, t1 = study.snapshots_s
@@ -210,7 +211,7 @@ def tracks_figure(study, variant: str = "Doppler", *, kept=None, n_runs: int = 5
     for k, tk in enumerate(study.snapshots_s):
         p = study.track.pos_m(tk)
         ax.plot(p[0], p[1], "o", markerfacecolor="none", markeredgecolor="#000000", markersize=10)
-    lost = [m for m, v in said.items() if "lost" in v]
+    lost = [m for m, v in said.items() if "does not keep track" in v]
     return plan(ax, f"{variant}: tracks between the two corners" + (f"; {' and '.join(lost)} lost track" if lost else ""))
 
 
