@@ -82,10 +82,12 @@ def main():
         if args.reference:
             ref = Path(tmp) / "ref"
             ref.mkdir()
-            archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.reference, "uwbwb"],
-                                     check=True, capture_output=True).stdout
-            subprocess.run(["tar", "-x", "-C", str(ref)], input=archive, check=True)
-            runs = {f"reference {args.reference}": ref, **runs}
+            archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.reference, "uwbwb"], capture_output=True)
+            if archive.returncode == 0:
+                subprocess.run(["tar", "-x", "-C", str(ref)], input=archive.stdout, check=True)
+                runs = {f"reference {args.reference}": ref, **runs}
+            else:                                   # e.g. a copy without its git history: this checkout only
+                print(f"no reference: git archive {args.reference} failed ({archive.stderr.decode().strip()})")
         res = {}
         for label, path in runs.items():
             out = str(Path(tmp) / f"{len(res)}.npz")
