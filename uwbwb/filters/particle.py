@@ -126,7 +126,11 @@ def effective_sample_size(logw: np.ndarray, *, normalised: bool = False) -> np.n
     -------
     ndarray, shape ``(...)``, in ``[1, K]``.
     """
-    w = np.exp(_as_float(logw)) if normalised else _normalised_weights(logw)
+    return _ess(np.exp(_as_float(logw)) if normalised else _normalised_weights(logw))
+
+
+def _ess(w: np.ndarray) -> np.ndarray:
+    """``1 / Σ w²`` of normalised weights ``w`` (..., K)."""
     return 1.0 / np.sum(w * w, axis=-1)
 
 
@@ -273,12 +277,14 @@ def resample_indices(logw: np.ndarray, *, rng: np.random.Generator, method: str 
     ndarray of intp, shape ``(..., K)``
     """
     choice("method", method, RESAMPLERS)
-    w = _normalised_weights(logw)
+    return _indices(_normalised_weights(logw), rng, method)
+
+
+def _indices(w: np.ndarray, rng: np.random.Generator, method: str) -> np.ndarray:
+    """:func:`resample_indices` from normalised weights ``w``."""
     if method == "systematic":
         return systematic_indices(w, rng.random(w.shape[:-1]))
-    if method == "multinomial":
-        return multinomial_indices(w, rng.random(w.shape))
-    raise ValueError(f"unknown resampler {method!r}; choose from {RESAMPLERS}")
+    return multinomial_indices(w, rng.random(w.shape))
 
 
 def resample(particles: np.ndarray, logw: np.ndarray, *, rng: np.random.Generator,
@@ -308,14 +314,27 @@ def resample(particles: np.ndarray, logw: np.ndarray, *, rng: np.random.Generato
     logw = _as_float(logw)
     if particles.shape[:-1] != logw.shape:
         raise ValueError(f"resample: particles {particles.shape} and logw {logw.shape} do not match")
-    K = logw.shape[-1]
-    need = effective_sample_size(logw) < threshold * K
+    w = _normalised_weights(logw)
+    need = _ess(w) < threshold * logw.shape[-1]
+    return (*_resample_rows(particles, logw, w, need, rng=rng, method=method), need)
+
+
+def _resample_rows(particles: np.ndarray, logw: np.ndarray, w: np.ndarray, need: np.ndarray, *,
+                   rng: np.random.Generator, method: str) -> tuple[np.ndarray, np.ndarray]:
+    """New particles and log-weights with the rows ``need`` resampled (``w``: the normalised weights of ``logw``)."""
+    particles = np.asarray(particles)
+    K, n_x = particles.shape[-2:]
+    if not np.any(need):
+        return particles.copy(), logw.copy()
+    rows = np.flatnonzero(need)
+    idx = _indices(w[need], rng, method)                                # (rows, K) ancestors, row by row
+    picked = particles.reshape(-1, n_x)[(idx + K * rows[:, None]).ravel()]
+    if rows.size == need.size:                                          # every row: no copy of the old cloud
+        return picked.reshape(particles.shape), np.full(logw.shape, -np.log(K), logw.dtype)
     particles, logw = particles.copy(), logw.copy()
-    if np.any(need):
-        idx = resample_indices(logw[need], rng=rng, method=method)
-        particles[need] = np.take_along_axis(particles[need], idx[..., None], axis=-2)
-        logw[need] = -np.log(K)
-    return particles, logw, need
+    particles[need] = picked.reshape(idx.shape + (n_x,))
+    logw[need] = -np.log(K)
+    return particles, logw
 
 
 def roughen(particles: np.ndarray, *, rng: np.random.Generator, k: float = 0.2,
@@ -342,14 +361,16 @@ def roughen(particles: np.ndarray, *, rng: np.random.Generator, k: float = 0.2,
     k = number("k", k, minimum=0.0)
     particles = np.asarray(particles, float)
     K, n_x = particles.shape[-2:]
-    spread = np.ptp(particles, axis=-2, keepdims=True)                 # (..., 1, n_x)
+    # the spread over a component-major copy: long contiguous loops, not (..., n_x) blocks (max, min are exact)
+    spread = np.ptp(np.ascontiguousarray(np.swapaxes(particles, -1, -2)), axis=-1)[..., None, :]   # (..., 1, n_x)
     sigma = k * spread * K ** (-1.0 / n_x)
     if rows is not None:
         sigma = sigma * np.asarray(rows, bool)[..., None, None]
     return particles + sigma * rng.standard_normal(particles.shape)
 
 
-def tempering_exponent(logw: np.ndarray, ll: np.ndarray, min_ess_fraction: float) -> np.ndarray:
+def tempering_exponent(logw: np.ndarray, ll: np.ndarray, min_ess_fraction: float, *,
+                       full_ess: np.ndarray | None = None) -> np.ndarray:
     """Per row, the largest ``β ≤ 1`` with ``ESS(logw + β·ll) ≥ min_ess_fraction · K`` (likelihood tempering).
 
     ``ESS(β)`` falls from the prior's ESS (β = 0) to the full update's (β = 1). Where the full update
@@ -364,6 +385,8 @@ def tempering_exponent(logw: np.ndarray, ll: np.ndarray, min_ess_fraction: float
         Log-likelihood of each particle, shape ``(..., K)``, finite.
     min_ess_fraction
         Target as a fraction of ``K`` in ``[0, 1)``; 0 = off (β = 1 everywhere).
+    full_ess
+        ``ESS(logw + ll)`` (:func:`effective_sample_size`), shape ``(...)``, when the caller has it already.
 
     Returns
     -------
@@ -373,7 +396,7 @@ def tempering_exponent(logw: np.ndarray, ll: np.ndarray, min_ess_fraction: float
     if min_ess_fraction <= 0:
         return beta
     target = min_ess_fraction * np.shape(logw)[-1]
-    need = effective_sample_size(logw + ll) < target
+    need = (effective_sample_size(logw + ll) if full_ess is None else full_ess) < target
     if need.any():
         lo, hi = np.zeros(int(need.sum())), np.ones(int(need.sum()))
         lw, l = logw[need], ll[need]
@@ -435,8 +458,8 @@ class ParticleFilter:
     3. weight ``log w ← log w + β log p(z | X)``, normalised by log-sum-exp (eqs. 8–10 of paper 000);
        ``β = 1``, or :func:`tempering_exponent` when ``temper_ess > 0``;
     4. keep ``estimate(X, log w)`` and the ESS (eq. 12);
-    5. resample the rows with ``ESS < ess_fraction · K`` (:func:`resample`, which computes the ESS of
-       the same weights itself; with ``ess_renormalises=False`` the recorded ESS and that one may differ
+    5. resample the rows with ``ESS < ess_fraction · K`` as :func:`resample` does (its ESS normalises the
+       weights once more; with ``ess_renormalises=False`` the recorded ESS and that one may differ
        in the last bits, so a row exactly at the threshold can be recorded on the other side of it),
        then roughen those rows when ``roughening > 0`` (:func:`roughen`).
 
@@ -499,12 +522,21 @@ class ParticleFilter:
         if self.constrain is not None:
             particles, logw, restarted = self.constrain(particles, logw, rng=rng)
         ll = self.log_likelihood(particles, z)
-        beta = tempering_exponent(logw, ll, self.temper_ess)
-        logw, _ = normalise_log_weights(logw + beta[..., None] * ll if self.temper_ess > 0 else logw + ll)
+        prior = logw
+        logw, _ = normalise_log_weights(prior + ll)                    # the full update (β = 1) ...
+        ess = _ess(np.exp(logw))
+        beta = tempering_exponent(prior, ll, self.temper_ess, full_ess=ess)
+        tempered = beta < 1.0
+        if tempered.any():                           # ... or likelihood^β on the rows tempering_exponent chose
+            logw = np.where(tempered[..., None], normalise_log_weights(prior + beta[..., None] * ll)[0], logw)
+            ess = np.where(tempered, _ess(np.exp(logw)), ess)
         est = self.estimate(particles, logw)
-        ess = effective_sample_size(logw, normalised=not self.ess_renormalises)
-        particles, logw, resampled = resample(particles, logw, rng=rng, threshold=self.ess_fraction,
-                                              method=self.method)
+        w = _normalised_weights(logw)                # resample's weights: log-sum-exp once more
+        resample_ess = _ess(w)
+        if self.ess_renormalises:
+            ess = resample_ess
+        resampled = resample_ess < self.ess_fraction * logw.shape[-1]
+        particles, logw = _resample_rows(particles, logw, w, resampled, rng=rng, method=self.method)
         if self.roughening > 0 and resampled.any():
             particles = roughen(particles, rng=rng, k=self.roughening, rows=resampled)
         return particles, logw, Epoch(est, ess, resampled, restarted, beta)

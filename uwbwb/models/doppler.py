@@ -187,10 +187,11 @@ class DopplerModel:
         T, P = self._select(beacon)
         if beacon is None:
             X, V = X[..., None, :], V[..., None, :]
-        if not instantaneous and self.lag:
-            X = X - (self.lag * P)[..., None] * V
-        d = X - T
-        r = np.sum(d * V, axis=-1) / (np.linalg.norm(d, axis=-1) * self.v_s_mps)
+        lagged = not instantaneous and self.lag
+        # one axis at a time (long loops, not (..., 3) blocks), summed in np.sum's order: (d0 V0 + d1 V1) + d2 V2
+        d = [(X[..., c] - self.lag * P * V[..., c] if lagged else X[..., c]) - T[..., c] for c in range(3)]
+        r = (d[0] * V[..., 0] + d[1] * V[..., 1] + d[2] * V[..., 2]) / (
+            np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) * self.v_s_mps)
         return P * r / (1.0 - r)
 
     def jacobian(self, pos_m, vel_mps, beacon=None, *, instantaneous: bool = True) -> np.ndarray:
@@ -226,7 +227,8 @@ class DopplerModel:
         T, _ = self._select(beacon)
         if beacon is None:
             X = X[..., None, :]
-        return np.linalg.norm(X - T, axis=-1)
+        d = [X[..., c] - T[..., c] for c in range(3)]            # as delta_p: one axis at a time
+        return np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
 
     def distance_m(self, dp_a_s, dp_b_s) -> np.ndarray:
         """Section 3's δ as a distance: ``v_s ‖ΔP_a − ΔP_b‖`` over the last axis, metres.

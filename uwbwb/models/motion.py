@@ -534,11 +534,13 @@ class ReceiverMotion(_Kinematic):
     def propagate(self, x: np.ndarray, dt_s, *, rng: np.random.Generator | None) -> np.ndarray:
         """Move states ``(..., 6)`` over ``dt_s`` (scalar or broadcastable); ``rng=None``: no noise."""
         x = np.asarray(x, float)
-        dt = np.asarray(dt_s, float)[..., None]
-        a = 0.0 if rng is None else rng.standard_normal(x.shape[:-1] + (3,)) * np.asarray(self.sigma_acc_mps2)
+        dt = np.asarray(dt_s, float)
+        noise = None if rng is None else rng.standard_normal(x.shape[:-1] + (3,))
         out = np.empty_like(x)
-        out[..., :3] = x[..., :3] + x[..., 3:] * dt + 0.5 * a * dt * dt
-        out[..., 3:] = x[..., 3:] + a * dt
+        for c in range(3):       # one axis at a time: long loops over the particles, not (..., 3) blocks
+            a = 0.0 if noise is None else noise[..., c] * self.sigma_acc_mps2[c]
+            out[..., c] = x[..., c] + x[..., 3 + c] * dt + 0.5 * a * dt * dt
+            out[..., 3 + c] = x[..., 3 + c] + a * dt
         return out
 
     def step(self, x: np.ndarray, dt_s, *, rng: np.random.Generator | None) -> np.ndarray:

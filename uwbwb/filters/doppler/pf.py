@@ -269,7 +269,9 @@ class DopplerPf:
     def _keep_in_room(self, x: np.ndarray, logw: np.ndarray, *, rng: np.random.Generator):
         """Zero weight outside the room; a run with no particle left inside is drawn again (a restart)."""
         lo, hi = np.asarray(self.room_lo_m, float), np.asarray(self.room_hi_m, float)
-        inside = np.all((x[..., :3] >= lo) & (x[..., :3] <= hi), axis=-1)
+        inside = (x[..., 0] >= lo[0]) & (x[..., 0] <= hi[0])      # one axis at a time: long loops over particles
+        for c in (1, 2):
+            inside &= (x[..., c] >= lo[c]) & (x[..., c] <= hi[c])
         lost = ~np.any(inside, axis=-1)
         if lost.any():                           # the run lost track: start it again
             x, logw = x.copy(), logw.copy()
@@ -302,8 +304,11 @@ def _moments(x: np.ndarray, logw: np.ndarray):
     w = np.exp(logw)
     pos = np.einsum("rk,rkn->rn", w, x[..., :3])
     vel = np.einsum("rk,rkn->rn", w, x[..., 3:])
-    d = x[..., :3] - pos[:, None, :]
-    return pos, vel, np.swapaxes(d * w[..., None], 1, 2) @ d
+    d, dw = np.empty(w.shape + (3,)), np.empty(w.shape + (3,))
+    for c in range(3):           # d = x − mean and d·w one axis at a time: long loops over the particles
+        np.subtract(x[..., c], pos[:, c, None], out=d[..., c])
+        np.multiply(d[..., c], w, out=dw[..., c])
+    return pos, vel, np.swapaxes(dw, 1, 2) @ d
 
 
 def _pf_block(start: int, n_runs: int, seed, pf: DopplerPf, meas):
