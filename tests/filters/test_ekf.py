@@ -253,7 +253,7 @@ def test_compiled_run_equals_the_python_loop(name, monkeypatch):
 @pytest.mark.parametrize("gate,compiled", [
     (NoGate(), True), (ChiSquareEpoch(0.999), True), (ChiSquarePerMeasurement(0.999, 2), True),
     (AnchorDropping(0.999, 2), True), (None, True),
-    (Robust(), False), (Robust(gate=AnchorDropping(0.999, 2)), False), ("sequential", False)])
+    (Robust(), True), (Robust("cauchy", gate=AnchorDropping(0.999, 2)), True), ("sequential", False)])
 def test_the_compiled_loop_runs_exactly_where_it_applies(gate, compiled, monkeypatch, rng):
     model = TdoaModel(ANCHORS, 0.1, dim=2, z_m=1.0)
     t = np.arange(0, 5, 0.1)

@@ -61,8 +61,9 @@ def test_compiled_run_equals_the_python_loop(name, monkeypatch):
     assert (fast.name, fast.pos_index, fast.vel_index) == (slow.name, slow.pos_index, slow.vel_index)
 
 
-def test_a_robust_update_takes_the_python_loop():
+def test_a_sequential_robust_update_takes_the_python_loop():
     ekf, log, x0 = TWINS["ekf.RangeEkf.run[anchor dropping, RF 2-D]"].inputs()
     robust = Ekf(ekf.transition, ekf.measurement, gate=Robust(gate=ekf.gate))
-    assert kernels.run(robust, log.t_s, log.range_m, None, x0, 0, "R") is None
-    assert kernels.run(ekf, log.t_s, log.range_m, None, x0, 0, "R") is not None
+    sequential = Ekf(ekf.transition, ekf.measurement, gate=Robust(gate=ekf.gate), sequential=True)
+    assert kernels.run(sequential, log.t_s, log.range_m, None, x0, 0, "R") is None
+    assert kernels.run(robust, log.t_s, log.range_m, None, x0, 0, "R") is not None

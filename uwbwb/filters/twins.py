@@ -44,7 +44,7 @@ from .ekf import Ekf, Linearisation, RangeMeasurement, TdoaEkf, TdoaMeasurement
 from .ekf import kernels as ekf_kernels
 from .eskf import LooseFilter, TdoaUpdate, TightEskf, _tag_jacobian
 from .eskf import kernels as eskf_kernels
-from .gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate
+from .gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate, Robust
 from .setnoise import kf_sweep, pf_sweep, reference_pf
 from .setnoise.pf import _sweep_block, _sweep_block_compiled
 from .tdoa_ls import tdoa_least_squares
@@ -715,18 +715,23 @@ def _registry() -> tuple[Twin, ...]:
     # carries a one-ulp change of its prior: on these cases the Python loop itself moves by up to 750 ULP of the
     # largest element for such a change, the compiled loop differs by up to 710 (states), 30 (covariances), 560
     # (NIS) with the TDoAs, 82, 135, 283 with the ranges (whose lengths are the same operations as numpy's norm);
-    # the bounds below are those with a margin for other CPUs' kernels. The decisions are equal.
+    # the bounds below are those with a margin for other CPUs' kernels. The decisions are equal. The Robust cases
+    # (reweighted passes after a screening gate that fires) stay within the same bounds.
     ekf_tol = {"x_prior": Tol(ulps=2048), "x_post": Tol(ulps=2048), "P_prior": Tol(ulps=256),
                "P_post": Tol(ulps=256), "nis": Tol(ulps=2048), **{f: BIT for f in _EKF_INTS}}
     ekf_kernels = tuple(f"uwbwb.filters.ekf.kernels.{f}" for f in (
         "_loop", "_reference", "_linearise", "_mul", "_mul_t", "_symmetric", "_predict", "_lu", "_lu_solve",
-        "_quadratic", "_nis", "_update", "_add_into"))
+        "_quadratic", "_nis", "_update", "_use", "_add_into"))
     for case, motion, gate, correlated, gated, dropped in (
             ("no gate, RW 2-D", RandomWalk(0.3, dim=2), NoGate(), True, False, False),
             ("χ² epoch, RF 2-D, diagonal Σ", RandomForce(0.5, dim=2), ChiSquareEpoch(0.999), False, True, False),
             ("χ² per measurement, RJ 2-D", RandomJerk(1.0, dim=2), ChiSquarePerMeasurement(0.999, 2), True, True, True),
             ("anchor dropping, RF 2-D", RandomForce(0.5, dim=2), AnchorDropping(0.9999, 2), True, True, True),
-            ("anchor dropping, RJ 3-D", RandomJerk(1.0, dim=3), AnchorDropping(0.999, 3), True, True, True)):
+            ("anchor dropping, RJ 3-D", RandomJerk(1.0, dim=3), AnchorDropping(0.999, 3), True, True, True),
+            ("robust Huber, χ² per measurement, RF 2-D", RandomForce(0.5, dim=2),
+             Robust(gate=ChiSquarePerMeasurement(0.999, 2)), True, True, True),
+            ("robust Cauchy, χ² epoch, RF 2-D, diagonal Σ", RandomForce(0.5, dim=2),
+             Robust("cauchy", gate=ChiSquareEpoch(0.999)), False, True, False)):
         twins.append(Twin(f"ekf.TdoaEkf.run[{case}]", _tdoa_ekf_fast, _tdoa_ekf_definition,
                           _tdoa_ekf_inputs(motion, gate, correlated), ekf_tol,
                           "tests/filters/test_ekf.py::test_compiled_run_equals_the_python_loop", ekf_kernels,
@@ -735,7 +740,12 @@ def _registry() -> tuple[Twin, ...]:
             ("no gate, RF 2-D", RandomForce(0.5, dim=2), NoGate(), False, False),
             ("χ² epoch, RW 2-D", RandomWalk(0.3, dim=2), ChiSquareEpoch(0.999), True, False),
             ("anchor dropping, RF 2-D", RandomForce(0.5, dim=2), AnchorDropping(0.9999, 2), True, True),
-            ("anchor dropping, RJ 3-D", RandomJerk(1.0, dim=3), AnchorDropping(0.999, 3), True, True)):
+            ("anchor dropping, RJ 3-D", RandomJerk(1.0, dim=3), AnchorDropping(0.999, 3), True, True),
+            ("robust Huber, no gate, RF 2-D", RandomForce(0.5, dim=2), Robust(), False, False),
+            ("robust Huber, χ² epoch, RW 2-D", RandomWalk(0.3, dim=2), Robust(gate=ChiSquareEpoch(0.999)), True,
+             False),
+            ("robust Cauchy, anchor dropping, RF 2-D", RandomForce(0.5, dim=2),
+             Robust("cauchy", gate=AnchorDropping(0.9999, 2)), True, True)):
         twins.append(Twin(f"ekf.RangeEkf.run[{case}]", _tdoa_ekf_fast, _tdoa_ekf_definition,
                           _tdoa_ekf_inputs(motion, gate, ranges=True), ekf_tol,
                           "tests/filters/test_ekf_ranges.py::test_compiled_run_equals_the_python_loop", ekf_kernels,

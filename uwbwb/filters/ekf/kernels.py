@@ -1,7 +1,7 @@
 """The EKF's epoch loop compiled for the TDoA measurement (:meth:`~.tdoa.TdoaEkf.run`) and the range
 measurement (:func:`~.ranges.run_ranges`), for the gates :class:`NoGate`, :class:`ChiSquareEpoch`,
-:class:`ChiSquarePerMeasurement` and :class:`AnchorDropping` with the batch update. Declared twin: the
-Python :meth:`~.core.Ekf.run` (``uwbwb/filters/twins.py``).
+:class:`ChiSquarePerMeasurement` and :class:`AnchorDropping`, and :class:`Robust` screening with one of them,
+with the batch update. Declared twin: the Python :meth:`~.core.Ekf.run` (``uwbwb/filters/twins.py``).
 
 Each epoch repeats the Python steps in their order: the prediction of
 :func:`~uwbwb.filters.kalman.predict` (``F x``, ``(F P) Fᵀ + Q``, symmetrised), the linearisation of
@@ -9,9 +9,12 @@ Each epoch repeats the Python steps in their order: the prediction of
 (``(H P) Hᵀ + R`` and ``yᵀ S⁻¹ y`` as :mod:`~uwbwb.filters.gating` forms them) and filterpy's Joseph-form update as
 :func:`~uwbwb.filters.kalman.update` calls it (``y = (z − h + H x) − H x``, ``S = H (P Hᵀ) + R``,
 ``K = P Hᵀ S⁻¹``, ``P = ((I − K H) P) (I − K H)ᵀ + (K R) Kᵀ``, symmetrised; NIS with the symmetrised
-``S``). Products are plain loops and ``S⁻¹`` an LU factorisation with partial pivoting, where the
-Python path calls BLAS and LAPACK: the same operations, summed in another order, so the results agree
-to a few units in the last place, not bit for bit. Where the Python path would raise (a non-finite
+``S``), for :class:`Robust` its passes (:meth:`Robust.update`: that update from the prior with ``R`` scaled by
+the weights of the residuals over ``√S_ii``, ``S = (H P) Hᵀ + R`` symmetrised). Products are plain loops and
+``S⁻¹`` an LU factorisation with partial pivoting, where the Python path calls BLAS and LAPACK: the same
+operations, summed in another order, so the results agree to a few units in the last place, not bit for bit
+(a Robust pass that stops because its weights equal the last pass's may then stop one pass apart, where the
+posterior is the same to rounding). Where the Python path would raise (a non-finite
 state, an innovation covariance that is not positive definite, a singular matrix) the kernel stops
 and :func:`run` returns None: the Python run then decides.
 """
@@ -24,22 +27,31 @@ import numba
 import numpy as np
 
 from ...types import EstimateStatus
-from ..gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate, _chi2_ppf
+from ..gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate, Robust, _chi2_ppf
 from .core import KalmanRun
 
-#: The gate policies the kernel runs, by its code for them (any other policy keeps the Python path).
+#: The gate policies the kernel runs, by its code for them, alone or as a :class:`Robust` update's screening gate
+#: (any other policy keeps the Python path).
 GATE_KINDS = {NoGate: 0, ChiSquareEpoch: 1, ChiSquarePerMeasurement: 2, AnchorDropping: 3}
+#: :class:`Robust` weights the kernel computes, by its code for them (0: no reweighting).
+ROBUST_KINDS = {"huber": 1, "cauchy": 2}
+
+
+def takes(gate) -> bool:
+    """Whether the kernel runs the gate policy ``gate``: one of :data:`GATE_KINDS`, or a :class:`Robust` update
+    screening with one."""
+    return type(gate.gate if type(gate) is Robust else gate) in GATE_KINDS
 
 
 def run(ekf, t_s, rows, refs, x0, start: int, name: str) -> KalmanRun | None:
     """:meth:`~.core.Ekf.run` of ``ekf`` on epochs at ``t_s`` from epoch ``start`` (prior ``x0``), compiled:
     ``rows`` the TDoAs of a :class:`~.tdoa.TdoaEkf` with ``refs`` their reference anchors, or (``refs`` None)
     the ranges of an :class:`~.core.Ekf` with a :class:`~.ranges.RangeMeasurement`. None where the Python run
-    must decide: a gate not in :data:`GATE_KINDS`, the sequential update, an input :meth:`~.core.Ekf.run`
+    must decide: a gate it does not :func:`take <takes>`, the sequential update, an input :meth:`~.core.Ekf.run`
     refuses, or an epoch where the kernel stopped (see the module)."""
     t_s = np.asarray(t_s, float)
     T, n = t_s.size, x0.x.size
-    if (type(ekf.gate) not in GATE_KINDS or ekf.sequential or (T > 1 and np.any(np.diff(t_s) <= 0))
+    if (not takes(ekf.gate) or ekf.sequential or (T > 1 and np.any(np.diff(t_s) <= 0))
             or n != ekf.transition.n_x or not 0 <= start <= T or len(rows) != T):
         return None
     xm, Pm = np.full((T, n), np.nan), np.full((T, n, n), np.nan)
@@ -53,7 +65,9 @@ def run(ekf, t_s, rows, refs, x0, start: int, name: str) -> KalmanRun | None:
         F_all = np.array(ekf.transition.F(dt), float, order="C").reshape(-1, n, n)
         Q_all = np.array(ekf.transition.Q(dt), float, order="C").reshape(-1, n, n)
         F[start], F[start + 1:] = np.eye(n), F_all
-        gate, m, ranges = ekf.gate, ekf.measurement, refs is None
+        robust, m, ranges = ekf.gate, ekf.measurement, refs is None
+        gate = robust.gate if type(robust) is Robust else robust
+        robust = (ROBUST_KINDS[robust.kind], robust.k, robust.iterations) if gate is not robust else (0, np.inf, 0)
         if ranges:                        # RangeMeasurement: anchors, σ, tag height of a 2-D model
             model = (m.anchors_m, m.sigma_m, np.nan if m.z_m is None else m.z_m, m.motion.dim, False)
             refs = np.full(T, -1)
@@ -65,10 +79,10 @@ def run(ekf, t_s, rows, refs, x0, start: int, name: str) -> KalmanRun | None:
                                    for k in range(1, len(model[0]) + 1)])
         settings = np.array([GATE_KINDS[type(gate)], getattr(gate, "min_rows", 1), gate.max_gated, model[3],
                              model[4], start, EstimateStatus.UPDATED, EstimateStatus.PREDICTED,
-                             EstimateStatus.GATED, ranges], np.int64)
+                             EstimateStatus.GATED, ranges, robust[0], robust[2]], np.int64)
         try:
             _loop((F_all, Q_all), (np.array(rows, float, order="C"), np.array(refs, np.int64)),
-                  (np.array(model[0], float, order="C"), np.array(model[1] ** 2, float), thr),
+                  (np.array(model[0], float, order="C"), np.array(model[1] ** 2, float), thr, float(robust[1])),
                   float(model[2]), settings, np.array(x0.x, float), np.array(x0.P, float, order="C"),
                   (xm, Pm, xp, Pp, nis, dof, n_rej, status))
         except FloatingPointError:
@@ -80,15 +94,17 @@ def run(ekf, t_s, rows, refs, x0, start: int, name: str) -> KalmanRun | None:
 def _loop(steps, epochs, model, z_m, settings, x, P, outputs):
     """The epochs ``start..T−1`` of :meth:`~.core.Ekf.run` with the TDoA or range measurement and a gate of
     :data:`GATE_KINDS`. ``steps = (F_all, Q_all)``, ``epochs = (tdoa_m, ref)`` or ``(range_m, −1)``,
-    ``model = (anchors, σ², χ² quantiles by degrees of freedom)``, ``settings`` = (gate kind, min_rows,
-    max_gated, dim, correlated, start, UPDATED, PREDICTED, GATED, ranges); outputs written in place. Raises
+    ``model = (anchors, σ², χ² quantiles by degrees of freedom, Robust's k)``, ``settings`` = (gate kind,
+    min_rows, max_gated, dim, correlated, start, UPDATED, PREDICTED, GATED, ranges, robust kind of
+    :data:`ROBUST_KINDS` or 0, Robust's iterations); outputs written in place. Raises
     FloatingPointError where the Python path would raise (or meets a NaN statistic)."""
     F_all, Q_all = steps
     tdoa, refs = epochs
-    anchors, var, thr = model
+    anchors, var, thr, k_robust = model
     xm, Pm, xp, Pp, nis_o, dof_o, rej_o, status_o = outputs
     kind, min_rows, max_gated, dim, correlated = settings[0], settings[1], settings[2], settings[3], settings[4] != 0
     start, updated, predicted, gated_st, ranges = settings[5], settings[6], settings[7], settings[8], settings[9] != 0
+    robust = (settings[10], k_robust, settings[11])
     T, n_a = tdoa.shape
     n = x.size
     comp = np.empty(n_a, np.int64)
@@ -114,10 +130,12 @@ def _loop(steps, epochs, model, z_m, settings, x, P, outputs):
                 raise FloatingPointError("the Python path decides")
             m = _linearise(x, row, ref, comp, nc, anchors, var, z_m, dim, correlated, ranges, z, h, H, R)
             st, dof = updated, m
-            if kind == 0 or run >= max_gated:
+            if run >= max_gated:                # released: the plain update
                 x, P, nis = _update(x, P, z, h, H, R, m)
-            elif kind == 1:                     # ChiSquareEpoch: the update's own NIS decides
-                xn, Pn, nis = _update(x, P, z, h, H, R, m)
+            elif kind == 0:
+                x, P, nis = _use(x, P, z, h, H, R, m, robust, np.inf)
+            elif kind == 1:                     # ChiSquareEpoch: the update's (Robust: the innovation's) NIS decides
+                xn, Pn, nis = _use(x, P, z, h, H, R, m, robust, thr[m])
                 if nis > thr[m]:
                     st, dof = gated_st, 0
                 else:
@@ -135,7 +153,7 @@ def _loop(steps, epochs, model, z_m, settings, x, P, outputs):
                         keep[w] = a
                         w += 1
                 if w == m:
-                    x, P, nis = _update(x, P, z, h, H, R, m)
+                    x, P, nis = _use(x, P, z, h, H, R, m, robust, np.inf)
                 elif w < min_rows:
                     nis, st, dof, rej = _nis(P, z, h, H, R, m), gated_st, 0, m
                 else:
@@ -143,7 +161,7 @@ def _loop(steps, epochs, model, z_m, settings, x, P, outputs):
                         z2[a], h2[a], H2[a] = z[keep[a]], h[keep[a]], H[keep[a]]
                         for b in range(w):
                             R2[a, b] = R[keep[a], keep[b]]
-                    x, P, nis = _update(x, P, z2, h2, H2, R2, w)
+                    x, P, nis = _use(x, P, z2, h2, H2, R2, w, robust, np.inf)
                     dof, rej = w, m - w
             else:                               # AnchorDropping: drop the anchor whose removal lowers the NIS most
                 nk = nc
@@ -182,10 +200,52 @@ def _loop(steps, epochs, model, z_m, settings, x, P, outputs):
                 if drop:
                     st, dof = gated_st, 0
                 else:
-                    x, P, nis = _update(x, P, z, h, H, R, m)
+                    x, P, nis = _use(x, P, z, h, H, R, m, robust, np.inf)
                     dof = m
         run = run + 1 if st == gated_st else 0
         xp[k], Pp[k], nis_o[k], dof_o[k], rej_o[k], status_o[k] = x, P, nis, dof, rej, st
+
+
+@numba.njit(cache=True, nogil=True)
+def _use(x, P, z, h, H, R, m, robust, limit):
+    """The update a gate lets through: :func:`_update`, or (``robust = (kind, k, iterations)``, kind ≠ 0)
+    :meth:`Robust.update`'s passes. Returns the posterior and the NIS, for Robust that of the innovation
+    (``y = z − h``, ``S = (H P) Hᵀ + R`` symmetrised) and the prior itself where that NIS is above ``limit``."""
+    kind, k, iterations = robust
+    if kind == 0:
+        return _update(x, P, z, h, H, R, m)
+    n = x.size
+    S = _mul_t(_mul(H, P, m, n, n), H, m, n, m)
+    _add_into(S, R, m, m)
+    S = _symmetric(S)
+    y, scale = np.empty(m), np.empty(m)
+    for a in range(m):
+        y[a], scale[a] = z[a] - h[a], math.sqrt(S[a, a])
+    nis = _quadratic(S, y, m)
+    if nis > limit:
+        return x, P, nis
+    xn, Pn = x, P
+    w, w_last, Rw = np.empty(m), np.empty(m), np.empty((m, m))
+    for it in range(iterations):
+        for a in range(m):                      # r = (y − H (x_j − x⁻)) / √S_ii and its weight
+            acc = 0.0
+            for b in range(n):
+                acc += H[a, b] * (xn[b] - x[b])
+            r = abs((y[a] - acc) / scale[a])
+            if kind == 2:
+                w[a] = 1.0 / (1.0 + (r / k) * (r / k))
+            else:
+                w[a] = k / r if r > k else 1.0
+        if it > 0 and (w == w_last).all():
+            break                               # the same weights would give the same posterior again
+        for a in range(m):                      # R · outer(d, d), d = 1 / √w
+            for b in range(m):
+                Rw[a, b] = R[a, b] * ((1.0 / math.sqrt(w[a])) * (1.0 / math.sqrt(w[b])))
+        if not np.isfinite(Rw).all():
+            raise FloatingPointError("an inflated R that is not finite: the Python path decides")
+        xn, Pn, _ = _update(x, P, z, h, H, Rw, m)
+        w_last[:] = w
+    return xn, Pn, nis
 
 
 @numba.njit(cache=True, nogil=True)

@@ -209,10 +209,10 @@ class TdoaEkf(Ekf):
     @property
     def compiled(self) -> bool:
         """Whether :meth:`run` takes the compiled loop (:mod:`.kernels`: the Python :meth:`Ekf.run`'s
-        decisions, its numbers to rounding, within its twin's stated tolerance): a gate of :data:`.kernels.GATE_KINDS`, the
-        batch update (not ``sequential``) and the TDoA measurement of a :class:`MotionModel`. Any other
-        filter (e.g. a :class:`~uwbwb.filters.gating.Robust` update) runs the Python loop."""
-        return (type(self.gate) in kernels.GATE_KINDS and not self.sequential
+        decisions, its numbers to rounding, within its twin's stated tolerance): a gate the kernel
+        :func:`takes <.kernels.takes>`, the batch update (not ``sequential``) and the TDoA measurement of a
+        :class:`MotionModel`. Any other filter runs the Python loop."""
+        return (kernels.takes(self.gate) and not self.sequential
                 and type(self.measurement) is TdoaMeasurement and isinstance(self.measurement.motion, MotionModel))
 
 
