@@ -6,7 +6,8 @@ acquisition, 10 Hz, the range noise σ the notebook calibrates), as the TDoA EKF
 (:class:`~uwbwb.filters.ekf.Ekf` with :class:`~uwbwb.filters.ekf.RangeMeasurement`, the tag at its known
 height), with each motion model (RW, RF, RJ at the thesis' Table 1 σ) and the two gates the notebooks run
 (none: notebook 03's ``GATE_PROB = None``; anchor dropping at 0.9999: the board's default in notebook 06),
-from the same start and prior:
+the range EKF also with the :class:`~uwbwb.filters.gating.Robust` (Huber) update screened by that gate (notebook
+06's update-variant rows "robust" and "both"), from the same start and prior:
 
 * **Python** — :meth:`uwbwb.filters.ekf.Ekf.run`: filterpy's predict and update per epoch, the gate
   policy's own decision (the twin's definition, ``uwbwb/filters/twins.py``);
@@ -31,7 +32,7 @@ from uwbwb import calibration
 from uwbwb.experiments import motion_models as mm
 from uwbwb.filters.ekf import Ekf, RangeMeasurement, TdoaEkf, TdoaMeasurement
 from uwbwb.filters.ekf.ranges import run_ranges
-from uwbwb.filters.gating import AnchorDropping, NoGate
+from uwbwb.filters.gating import AnchorDropping, NoGate, Robust
 from uwbwb.filters.kalman import Gaussian
 from uwbwb.models import motion
 from uwbwb.models.tdoa import TdoaModel
@@ -51,7 +52,7 @@ def main() -> None:
     model = TdoaModel.for_tag(head, sigma)
     epochs, rows = TdoaMeasurement.epochs(log), RangeMeasurement.epochs(head.ranges)
     print(f"recording: {head.key}, {len(log)} epochs ({args.duration:g} s at 10 Hz), {log.n_anchors} anchors")
-    ratios = {"TDoA": [], "ranges": []}
+    ratios = {"TDoA": [], "ranges": [], "robust ranges": []}
     for name in mm.MODELS:
         for gate_prob in (None, 0.9999):
             m = motion.make_motion_model(name, sigma=mm.PAPER_SIGMA["office"][name], dt_s=head.dt_s, dim=head.dim)
@@ -65,12 +66,14 @@ def main() -> None:
             _report(f"EKF-{name:2s} TDoA   {type(ekf.gate).__name__:14s}", len(log) - start, t_py, c_py, t_fast,
                     c_fast, py, fast, ratios["TDoA"], f" (TdoaEkf.run with its LS start: {t_whole * 1e3:5.1f} ms)")
             gate = NoGate() if gate_prob is None else AnchorDropping(gate_prob, min_rows=2)   # the board's range gate
-            rng_ekf = Ekf(m, RangeMeasurement(head.anchors.pos_m, sigma, m, head.z_m), gate=gate)
-            run_ranges(rng_ekf, head.ranges, x0, start=start)                               # compile (or load)
-            t_fast, c_fast, fast = _best(lambda: run_ranges(rng_ekf, head.ranges, x0, start=start), args.repeat)
-            t_py, c_py, py = _best(lambda: rng_ekf.run(head.ranges.t_s, rows, x0, start=start), args.repeat)
-            _report(f"EKF-{name:2s} ranges {type(gate).__name__:14s}", len(log) - start, t_py, c_py, t_fast, c_fast,
-                    py, fast, ratios["ranges"])
+            for policy, kind, label in ((gate, "ranges", type(gate).__name__),
+                                        (Robust(gate=gate), "robust ranges", f"Robust+{type(gate).__name__}")):
+                rng_ekf = Ekf(m, RangeMeasurement(head.anchors.pos_m, sigma, m, head.z_m), gate=policy)
+                run_ranges(rng_ekf, head.ranges, x0, start=start)                           # compile (or load)
+                t_fast, c_fast, fast = _best(lambda: run_ranges(rng_ekf, head.ranges, x0, start=start), args.repeat)
+                t_py, c_py, py = _best(lambda: rng_ekf.run(head.ranges.t_s, rows, x0, start=start), args.repeat)
+                _report(f"EKF-{name:2s} ranges {label:21s}", len(log) - start, t_py, c_py, t_fast, c_fast, py, fast,
+                        ratios[kind])
     for meas, rs in ratios.items():
         for k, kind in enumerate(("wall", "CPU")):
             r = [q[k] for q in rs]
