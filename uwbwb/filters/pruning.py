@@ -38,9 +38,11 @@ import math
 from dataclasses import dataclass, field, replace
 from itertools import combinations
 
+import numba
 import numpy as np
 
-from ..geometry import Status, multilaterate
+from ..geometry.solvers import _MAX_HALVINGS, RCOND
+from ..models.ranging import TINY_RANGE_M
 from ..models.track import LinearTrackRanges, anchor_array
 from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples
 from ..validate import integer, number
@@ -251,15 +253,111 @@ def tuple_fixes(range_m, anchors, *, z_m: float, t_s=None, k: int = 3,
     spread_ok = sv[:, 1] > min_tuple_spread * sv[:, 0]
     used, skipped = combos[spread_ok], combos[~spread_ok]
     C = used.shape[0]
-    mask = np.zeros((C, n), bool)
-    mask[np.arange(C)[:, None], used] = True
-    Rt = np.where(mask[None], R[:, None, :], np.nan).reshape(T * C, n)
-    complete = np.isfinite(Rt).sum(axis=1) == k
-    res = multilaterate(Rt[complete], A, dim=2, z_m=z_m, min_anchors=3)
-    ok = res.status == Status.OK
-    rows = np.flatnonzero(complete)[ok]
-    return TupleCloud(res.pos_m[ok], t[rows // C], rows % C, used, skipped,
-                      int(T * C - ok.sum()), float(z_m))
+    centre = A[:, :2].mean(axis=0)                # the frame multilaterate solves in
+    pos, ok = _tuple_gauss_newton(R, A[:, :2] - centre, (A[:, 2] - float(z_m)) ** 2, used, _GN_MAX_ITER, _GN_TOL_M)
+    rows = np.flatnonzero(ok)
+    return TupleCloud(pos[rows] + centre, t[rows // C], rows % C, used, skipped,
+                      int(T * C - rows.size), float(z_m))
+
+
+#: :func:`uwbwb.geometry.multilaterate`'s defaults, which the tuple fixes follow.
+_GN_MAX_ITER, _GN_TOL_M = 50, 1e-9
+
+
+@numba.njit(cache=True, nogil=True)
+def _solve2(a, b, c, g0, g1):
+    """``[[a, b], [b, c]]⁻¹ g`` and whether the matrix is regular as :func:`uwbwb.geometry.solvers._solve_psd`
+    judges it (largest eigenvalue positive, smallest above ``RCOND`` of it); ``(0, 0)`` when not."""
+    lam1 = 0.5 * (a + c) + math.sqrt((0.5 * (a - c)) ** 2 + b * b)
+    det = a * c - b * b
+    if not (lam1 > 0.0 and det / lam1 > RCOND * lam1):
+        return 0.0, 0.0, False
+    return (c * g0 - b * g1) / det, (a * g1 - b * g0) / det, True
+
+
+@numba.njit(cache=True, nogil=True)
+def _tuple_gauss_newton(R, A, dz2, used, max_iter, tol_m):
+    """Every epoch × tuple of :func:`tuple_fixes` solved as :func:`uwbwb.geometry.multilaterate` (``dim=2``,
+    Gauss--Newton with its Newton step and step halving) solves its rows, one row at a time.
+
+    ``R`` ranges (T, n), NaN = missing; ``A`` horizontal anchors (n, 2) centred as multilaterate centres them;
+    ``dz2`` squared height differences (n,); ``used`` tuples (C, k). Returns ``pos`` (T·C, 2) in ``A``'s frame
+    and ``ok`` (T·C,): a complete tuple, a regular linear start, converged, regular at the solution.
+    """
+    T, C, k = R.shape[0], used.shape[0], used.shape[1]
+    pos = np.full((T * C, 2), np.nan)
+    ok = np.zeros(T * C, np.bool_)
+    ax, ay, d2, r = np.empty(k), np.empty(k), np.empty(k), np.empty(k)
+    for row in range(T * C):
+        complete = True
+        for j in range(k):
+            a = used[row % C, j]
+            ax[j], ay[j], d2[j], r[j] = A[a, 0], A[a, 1], dz2[a], R[row // C, a]
+            complete = complete and np.isfinite(r[j])
+        if not complete:
+            continue
+        # the closed-form linear start (solvers._linear)
+        mx, my, bb = 0.0, 0.0, 0.0
+        for j in range(k):
+            mx, my, bb = mx + ax[j], my + ay[j], bb + (r[j] * r[j] - d2[j] - (ax[j] * ax[j] + ay[j] * ay[j]))
+        mx, my, bb = mx / k, my / k, bb / k
+        hxx, hxy, hyy, gx, gy = 0.0, 0.0, 0.0, 0.0, 0.0
+        for j in range(k):
+            dx, dy = ax[j] - mx, ay[j] - my
+            e = r[j] * r[j] - d2[j] - (ax[j] * ax[j] + ay[j] * ay[j]) - bb
+            hxx, hxy, hyy, gx, gy = hxx + dx * dx, hxy + dx * dy, hyy + dy * dy, gx + dx * e, gy + dy * e
+        sx, sy, regular = _solve2(hxx, hxy, hyy, gx, gy)
+        if not regular:
+            continue
+        x, y = -0.5 * sx, -0.5 * sy
+        cost = 0.0
+        for j in range(k):
+            e = r[j] - max(math.sqrt((x - ax[j]) ** 2 + (y - ay[j]) ** 2 + d2[j]), TINY_RANGE_M)
+            cost += e * e
+        converged = False
+        for _ in range(max_iter):
+            # Gauss-Newton normal equations, and the full Hessian with the range model's curvature
+            hxx, hxy, hyy, gx, gy, sxx, sxy, syy = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+            for j in range(k):
+                rh = max(math.sqrt((x - ax[j]) ** 2 + (y - ay[j]) ** 2 + d2[j]), TINY_RANGE_M)
+                jx, jy, e = (x - ax[j]) / rh, (y - ay[j]) / rh, r[j] - rh
+                hxx, hxy, hyy, gx, gy = hxx + jx * jx, hxy + jx * jy, hyy + jy * jy, gx + jx * e, gy + jy * e
+                f = e / rh
+                sxx, sxy, syy = sxx + f * (1.0 - jx * jx), sxy - f * jx * jy, syy + f * (1.0 - jy * jy)
+            px, py, regular = _solve2(hxx, hxy, hyy, gx, gy)
+            nx, ny, newton_ok = _solve2(hxx - sxx, hxy - sxy, hyy - syy, gx, gy)
+            if newton_ok:
+                px, py = nx, ny
+            if not regular:
+                break
+            norm = math.sqrt(px * px + py * py)
+            if norm < tol_m:
+                x, y, converged = x + px, y + py, True
+                break
+            alpha, accepted = 1.0, False
+            for _h in range(_MAX_HALVINGS):
+                xt, yt, ct = x + alpha * px, y + alpha * py, 0.0
+                for j in range(k):
+                    e = r[j] - max(math.sqrt((xt - ax[j]) ** 2 + (yt - ay[j]) ** 2 + d2[j]), TINY_RANGE_M)
+                    ct += e * e
+                if ct <= cost * (1.0 + 1e-12):
+                    x, y, cost, accepted = xt, yt, ct, True
+                    break
+                alpha *= 0.5
+            if not accepted:
+                break
+            if alpha * norm < tol_m:
+                converged = True
+                break
+        # multilaterate's last check: the geometry matrix regular at the solution
+        hxx, hxy, hyy = 0.0, 0.0, 0.0
+        for j in range(k):
+            rh = max(math.sqrt((x - ax[j]) ** 2 + (y - ay[j]) ** 2 + d2[j]), TINY_RANGE_M)
+            jx, jy = (x - ax[j]) / rh, (y - ay[j]) / rh
+            hxx, hxy, hyy = hxx + jx * jx, hxy + jx * jy, hyy + jy * jy
+        if converged and _solve2(hxx, hxy, hyy, 0.0, 0.0)[2]:
+            pos[row, 0], pos[row, 1], ok[row] = x, y, True
+    return pos, ok
 
 
 @dataclass(frozen=True)
