@@ -427,10 +427,14 @@ def robust_mean(points_m, *, retention: float = 0.5, dropout: float = 0.01, t_s=
         raise ValueError(f"t_s must have shape ({P.shape[0]},), got {t.shape}")
     t0 = float(t.min())
     moving = moving and np.ptp(t) > 0
+    steps = drop_schedule(P.shape[0], retention, dropout)
+    if not moving:
+        kept, history = _static_robust_mean(P, steps)
+        return RobustMean(history[-1].copy(), np.zeros(P.shape[1]), t0, kept, history)
     kept = np.ones(P.shape[0], bool)
     c, v = _centre(P, t, t0, moving)
     history = [c]
-    for n_drop in drop_schedule(P.shape[0], retention, dropout):
+    for n_drop in steps:
         idx = np.flatnonzero(kept)
         ref = c + np.multiply.outer(t[idx] - t0, v) if moving else c
         dist = np.linalg.norm(P[idx] - ref, axis=1)
@@ -439,6 +443,45 @@ def robust_mean(points_m, *, retention: float = 0.5, dropout: float = 0.01, t_s=
         c, v = _centre(P[kept], t[kept], t0, moving)
         history.append(c)
     return RobustMean(c, v, t0, kept, np.array(history))
+
+
+@numba.njit(cache=True, nogil=True)
+def _static_robust_mean(P, steps):
+    """:func:`robust_mean`'s loop for a static cloud, compiled: drop the ``steps[i]`` points furthest from the
+    centroid of those kept, recompute it. Returns ``(kept (N,), history (len(steps) + 1, d))``; the sums run in
+    NumPy's order (``mean(axis=0)`` adds the rows in turn), the points at exactly the cut distance are dropped
+    first come, first dropped (NumPy's ``argpartition`` leaves that choice open)."""
+    N, d = P.shape
+    kept = np.ones(N, np.bool_)
+    history = np.zeros((steps.size + 1, d))
+    dist, idx = np.empty(N), np.empty(N, np.int64)
+    for s in range(steps.size + 1):
+        n = 0
+        for i in range(N):
+            if kept[i]:
+                n += 1
+                for j in range(d):
+                    history[s, j] += P[i, j]
+        for j in range(d):
+            history[s, j] /= n
+        if s == steps.size:
+            break
+        m = 0
+        for i in range(N):
+            if kept[i]:
+                acc = 0.0
+                for j in range(d):
+                    acc += (P[i, j] - history[s, j]) ** 2
+                dist[m], idx[m], m = math.sqrt(acc), i, m + 1
+        cut = np.partition(dist[:m], m - steps[s])[m - steps[s]]
+        left = steps[s]
+        for q in range(m):                       # beyond the cut, then at it
+            if dist[q] > cut:
+                kept[idx[q]], left = False, left - 1
+        for q in range(m):
+            if left > 0 and dist[q] == cut:
+                kept[idx[q]], left = False, left - 1
+    return kept, history
 
 
 # --------------------------------------------------------------------------- residual pruning

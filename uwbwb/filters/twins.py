@@ -595,6 +595,31 @@ def _tuple_definition(a):
     return {"pos_m": res.pos_m[ok], "tuple_index": rows % C, "n_failed": np.array(Rt.shape[0] - ok.sum())}
 
 
+def _robust_mean_inputs():
+    """The triplet cloud of :func:`_tuple_inputs` (about 14 000 fixes, the NLOS ones far out)."""
+    r, A, z_m = _tuple_inputs()
+    return pruning.tuple_fixes(r, A, z_m=z_m).pos_m, 0.5, 0.01
+
+
+def _robust_mean_fast(a):
+    res = pruning.robust_mean(a[0], retention=a[1], dropout=a[2])
+    return {"kept": res.kept, "history_m": res.history_m}
+
+
+def _robust_mean_definition(a):
+    """The iterated centroid in NumPy: distances of the kept points, ``argpartition`` of the furthest, the mean."""
+    P, retention, dropout = a
+    kept, c = np.ones(len(P), bool), P.mean(axis=0)
+    history = [c]
+    for n_drop in pruning.drop_schedule(len(P), retention, dropout):
+        idx = np.flatnonzero(kept)
+        dist = np.linalg.norm(P[idx] - c, axis=1)
+        kept[idx[np.argpartition(dist, dist.size - n_drop)[dist.size - n_drop:]]] = False
+        c = P[kept].mean(axis=0)
+        history.append(c)
+    return {"kept": kept, "history_m": np.array(history)}
+
+
 # ---------------------------------------------------------------- the EKF's epoch loop (TDoAs or ranges)
 def _tdoa_ekf_inputs(motion, gate, correlated: bool = True, ranges: bool = False):
     """A 40 s walk at about 10 Hz (a Lissajous figure at walking speed, 1 m ± 0.3 m high) in a 30 m square
@@ -753,6 +778,12 @@ def _registry() -> tuple[Twin, ...]:
                       {"pos_m": Tol(0.0, 1e-9), "tuple_index": BIT, "n_failed": BIT},
                       "tests/filters/test_pruning.py::test_tuple_fixes_noise_free_and_collinear_tuples_skipped",
                       ("uwbwb.filters.pruning._tuple_gauss_newton", "uwbwb.filters.pruning._solve2")))
+    # bit for bit: the same distances and sums in the same order; only points at exactly the cut distance could be
+    # dropped otherwise (argpartition leaves that choice open: the kept mask, and the centroid by rounding, would differ)
+    twins.append(Twin("pruning.robust_mean[static]", _robust_mean_fast, _robust_mean_definition, _robust_mean_inputs,
+                      {"kept": BIT, "history_m": BIT},
+                      "tests/filters/test_pruning.py::test_robust_mean_keeps_the_cluster_and_drops_the_scatter",
+                      ("uwbwb.filters.pruning._static_robust_mean",)))
     # not bit for bit: the Python loop's products and S⁻¹ are BLAS and LAPACK calls (their summation order depends
     # on the CPU's kernels), the compiled loop's are plain loops. A filter carries a rounding difference from
     # epoch to epoch and grows it where its gain is high (the first epochs, re-acquiring after a gap), as it
