@@ -779,7 +779,7 @@ def _registry() -> tuple[Twin, ...]:
                       "tests/filters/test_pruning.py::test_tuple_fixes_noise_free_and_collinear_tuples_skipped",
                       ("uwbwb.filters.pruning._tuple_gauss_newton", "uwbwb.filters.pruning._solve2")))
     # bit for bit: the same distances and sums in the same order; only points at exactly the cut distance could be
-    # dropped otherwise (argpartition leaves that choice open: the kept mask, and the centroid by rounding, would differ)
+    # dropped otherwise (argpartition leaves that open: the kept mask, and by rounding the centroid, would differ)
     twins.append(Twin("pruning.robust_mean[static]", _robust_mean_fast, _robust_mean_definition, _robust_mean_inputs,
                       {"kept": BIT, "history_m": BIT},
                       "tests/filters/test_pruning.py::test_robust_mean_keeps_the_cluster_and_drops_the_scatter",
