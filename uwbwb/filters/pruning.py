@@ -389,9 +389,7 @@ class RobustMean:
         return self.history_m.shape[0] - 1
 
 
-def _centre(P, t, t0, moving):
-    if not moving:
-        return P.mean(axis=0), np.zeros(P.shape[1])
+def _line(P, t, t0):
     G = np.column_stack([np.ones_like(t), t - t0])
     coef, *_ = np.linalg.lstsq(G, P, rcond=None)
     return coef[0], coef[1]
@@ -421,26 +419,23 @@ def robust_mean(points_m, *, retention: float = 0.5, dropout: float = 0.01, t_s=
     P = np.asarray(points_m, float)
     if P.ndim != 2 or P.shape[0] == 0:
         raise ValueError(f"points_m must have shape (N, d) with N >= 1, got {P.shape}")
-    moving = t_s is not None
     t = np.zeros(P.shape[0]) if t_s is None else np.asarray(t_s, float)
     if t.shape != (P.shape[0],):
         raise ValueError(f"t_s must have shape ({P.shape[0]},), got {t.shape}")
     t0 = float(t.min())
-    moving = moving and np.ptp(t) > 0
     steps = drop_schedule(P.shape[0], retention, dropout)
-    if not moving:
+    if t_s is None or not np.ptp(t) > 0:
         kept, history = _static_robust_mean(P, steps)
         return RobustMean(history[-1].copy(), np.zeros(P.shape[1]), t0, kept, history)
     kept = np.ones(P.shape[0], bool)
-    c, v = _centre(P, t, t0, moving)
+    c, v = _line(P, t, t0)
     history = [c]
     for n_drop in steps:
         idx = np.flatnonzero(kept)
-        ref = c + np.multiply.outer(t[idx] - t0, v) if moving else c
-        dist = np.linalg.norm(P[idx] - ref, axis=1)
+        dist = np.linalg.norm(P[idx] - (c + np.multiply.outer(t[idx] - t0, v)), axis=1)
         far = idx[np.argpartition(dist, dist.size - n_drop)[dist.size - n_drop:]]
         kept[far] = False
-        c, v = _centre(P[kept], t[kept], t0, moving)
+        c, v = _line(P[kept], t[kept], t0)
         history.append(c)
     return RobustMean(c, v, t0, kept, np.array(history))
 
