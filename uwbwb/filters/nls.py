@@ -366,9 +366,9 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
                             max_nfev=int(max_iter))
         q, n_iter, n_fev, success, msg = res.x, int(res.nfev), int(res.nfev), bool(res.success), str(res.message)
 
-    f, g = fun_grad(q)
-    grad_norm = float(np.max(np.abs(g)))
     r, J = model.residuals_jacobian(q, tc, k, d)
+    f, g = float(r @ r) / M, (2.0 / M) * (J.T @ r)           # fun_grad(q), from the one evaluation
+    grad_norm = float(np.max(np.abs(g)))
     theta = from_internal(q)
     P, v = model.unpack(theta)
 

@@ -38,9 +38,11 @@ import math
 from dataclasses import dataclass, field, replace
 from itertools import combinations
 
+import numba
 import numpy as np
 
-from ..geometry import Status, multilaterate
+from ..geometry.solvers import _MAX_HALVINGS, RCOND
+from ..models.ranging import TINY_RANGE_M
 from ..models.track import LinearTrackRanges, anchor_array
 from ..types import EstimateStatus, Estimates, RangeLog, RangeSamples
 from ..validate import integer, number
@@ -251,15 +253,111 @@ def tuple_fixes(range_m, anchors, *, z_m: float, t_s=None, k: int = 3,
     spread_ok = sv[:, 1] > min_tuple_spread * sv[:, 0]
     used, skipped = combos[spread_ok], combos[~spread_ok]
     C = used.shape[0]
-    mask = np.zeros((C, n), bool)
-    mask[np.arange(C)[:, None], used] = True
-    Rt = np.where(mask[None], R[:, None, :], np.nan).reshape(T * C, n)
-    complete = np.isfinite(Rt).sum(axis=1) == k
-    res = multilaterate(Rt[complete], A, dim=2, z_m=z_m, min_anchors=3)
-    ok = res.status == Status.OK
-    rows = np.flatnonzero(complete)[ok]
-    return TupleCloud(res.pos_m[ok], t[rows // C], rows % C, used, skipped,
-                      int(T * C - ok.sum()), float(z_m))
+    centre = A[:, :2].mean(axis=0)                # the frame multilaterate solves in
+    pos, ok = _tuple_gauss_newton(R, A[:, :2] - centre, (A[:, 2] - float(z_m)) ** 2, used, _GN_MAX_ITER, _GN_TOL_M)
+    rows = np.flatnonzero(ok)
+    return TupleCloud(pos[rows] + centre, t[rows // C], rows % C, used, skipped,
+                      int(T * C - rows.size), float(z_m))
+
+
+#: :func:`uwbwb.geometry.multilaterate`'s defaults, which the tuple fixes follow.
+_GN_MAX_ITER, _GN_TOL_M = 50, 1e-9
+
+
+@numba.njit(cache=True, nogil=True)
+def _solve2(a, b, c, g0, g1):
+    """``[[a, b], [b, c]]⁻¹ g`` and whether the matrix is regular as :func:`uwbwb.geometry.solvers._solve_psd`
+    judges it (largest eigenvalue positive, smallest above ``RCOND`` of it); ``(0, 0)`` when not."""
+    lam1 = 0.5 * (a + c) + math.sqrt((0.5 * (a - c)) ** 2 + b * b)
+    det = a * c - b * b
+    if not (lam1 > 0.0 and det / lam1 > RCOND * lam1):
+        return 0.0, 0.0, False
+    return (c * g0 - b * g1) / det, (a * g1 - b * g0) / det, True
+
+
+@numba.njit(cache=True, nogil=True)
+def _tuple_gauss_newton(R, A, dz2, used, max_iter, tol_m):
+    """Every epoch × tuple of :func:`tuple_fixes` solved as :func:`uwbwb.geometry.multilaterate` (``dim=2``,
+    Gauss--Newton with its Newton step and step halving) solves its rows, one row at a time.
+
+    ``R`` ranges (T, n), NaN = missing; ``A`` horizontal anchors (n, 2) centred as multilaterate centres them;
+    ``dz2`` squared height differences (n,); ``used`` tuples (C, k). Returns ``pos`` (T·C, 2) in ``A``'s frame
+    and ``ok`` (T·C,): a complete tuple, a regular linear start, converged, regular at the solution.
+    """
+    T, C, k = R.shape[0], used.shape[0], used.shape[1]
+    pos = np.full((T * C, 2), np.nan)
+    ok = np.zeros(T * C, np.bool_)
+    ax, ay, d2, r = np.empty(k), np.empty(k), np.empty(k), np.empty(k)
+    for row in range(T * C):
+        complete = True
+        for j in range(k):
+            a = used[row % C, j]
+            ax[j], ay[j], d2[j], r[j] = A[a, 0], A[a, 1], dz2[a], R[row // C, a]
+            complete = complete and np.isfinite(r[j])
+        if not complete:
+            continue
+        # the closed-form linear start (solvers._linear)
+        mx, my, bb = 0.0, 0.0, 0.0
+        for j in range(k):
+            mx, my, bb = mx + ax[j], my + ay[j], bb + (r[j] * r[j] - d2[j] - (ax[j] * ax[j] + ay[j] * ay[j]))
+        mx, my, bb = mx / k, my / k, bb / k
+        hxx, hxy, hyy, gx, gy = 0.0, 0.0, 0.0, 0.0, 0.0
+        for j in range(k):
+            dx, dy = ax[j] - mx, ay[j] - my
+            e = r[j] * r[j] - d2[j] - (ax[j] * ax[j] + ay[j] * ay[j]) - bb
+            hxx, hxy, hyy, gx, gy = hxx + dx * dx, hxy + dx * dy, hyy + dy * dy, gx + dx * e, gy + dy * e
+        sx, sy, regular = _solve2(hxx, hxy, hyy, gx, gy)
+        if not regular:
+            continue
+        x, y = -0.5 * sx, -0.5 * sy
+        cost = 0.0
+        for j in range(k):
+            e = r[j] - max(math.sqrt((x - ax[j]) ** 2 + (y - ay[j]) ** 2 + d2[j]), TINY_RANGE_M)
+            cost += e * e
+        converged = False
+        for _ in range(max_iter):
+            # Gauss-Newton normal equations, and the full Hessian with the range model's curvature
+            hxx, hxy, hyy, gx, gy, sxx, sxy, syy = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+            for j in range(k):
+                rh = max(math.sqrt((x - ax[j]) ** 2 + (y - ay[j]) ** 2 + d2[j]), TINY_RANGE_M)
+                jx, jy, e = (x - ax[j]) / rh, (y - ay[j]) / rh, r[j] - rh
+                hxx, hxy, hyy, gx, gy = hxx + jx * jx, hxy + jx * jy, hyy + jy * jy, gx + jx * e, gy + jy * e
+                f = e / rh
+                sxx, sxy, syy = sxx + f * (1.0 - jx * jx), sxy - f * jx * jy, syy + f * (1.0 - jy * jy)
+            px, py, regular = _solve2(hxx, hxy, hyy, gx, gy)
+            nx, ny, newton_ok = _solve2(hxx - sxx, hxy - sxy, hyy - syy, gx, gy)
+            if newton_ok:
+                px, py = nx, ny
+            if not regular:
+                break
+            norm = math.sqrt(px * px + py * py)
+            if norm < tol_m:
+                x, y, converged = x + px, y + py, True
+                break
+            alpha, accepted = 1.0, False
+            for _h in range(_MAX_HALVINGS):
+                xt, yt, ct = x + alpha * px, y + alpha * py, 0.0
+                for j in range(k):
+                    e = r[j] - max(math.sqrt((xt - ax[j]) ** 2 + (yt - ay[j]) ** 2 + d2[j]), TINY_RANGE_M)
+                    ct += e * e
+                if ct <= cost * (1.0 + 1e-12):
+                    x, y, cost, accepted = xt, yt, ct, True
+                    break
+                alpha *= 0.5
+            if not accepted:
+                break
+            if alpha * norm < tol_m:
+                converged = True
+                break
+        # multilaterate's last check: the geometry matrix regular at the solution
+        hxx, hxy, hyy = 0.0, 0.0, 0.0
+        for j in range(k):
+            rh = max(math.sqrt((x - ax[j]) ** 2 + (y - ay[j]) ** 2 + d2[j]), TINY_RANGE_M)
+            jx, jy = (x - ax[j]) / rh, (y - ay[j]) / rh
+            hxx, hxy, hyy = hxx + jx * jx, hxy + jx * jy, hyy + jy * jy
+        if converged and _solve2(hxx, hxy, hyy, 0.0, 0.0)[2]:
+            pos[row, 0], pos[row, 1], ok[row] = x, y, True
+    return pos, ok
 
 
 @dataclass(frozen=True)
@@ -291,9 +389,7 @@ class RobustMean:
         return self.history_m.shape[0] - 1
 
 
-def _centre(P, t, t0, moving):
-    if not moving:
-        return P.mean(axis=0), np.zeros(P.shape[1])
+def _line(P, t, t0):
     G = np.column_stack([np.ones_like(t), t - t0])
     coef, *_ = np.linalg.lstsq(G, P, rcond=None)
     return coef[0], coef[1]
@@ -323,24 +419,64 @@ def robust_mean(points_m, *, retention: float = 0.5, dropout: float = 0.01, t_s=
     P = np.asarray(points_m, float)
     if P.ndim != 2 or P.shape[0] == 0:
         raise ValueError(f"points_m must have shape (N, d) with N >= 1, got {P.shape}")
-    moving = t_s is not None
     t = np.zeros(P.shape[0]) if t_s is None else np.asarray(t_s, float)
     if t.shape != (P.shape[0],):
         raise ValueError(f"t_s must have shape ({P.shape[0]},), got {t.shape}")
     t0 = float(t.min())
-    moving = moving and np.ptp(t) > 0
+    steps = drop_schedule(P.shape[0], retention, dropout)
+    if t_s is None or not np.ptp(t) > 0:
+        kept, history = _static_robust_mean(P, steps)
+        return RobustMean(history[-1].copy(), np.zeros(P.shape[1]), t0, kept, history)
     kept = np.ones(P.shape[0], bool)
-    c, v = _centre(P, t, t0, moving)
+    c, v = _line(P, t, t0)
     history = [c]
-    for n_drop in drop_schedule(P.shape[0], retention, dropout):
+    for n_drop in steps:
         idx = np.flatnonzero(kept)
-        ref = c + np.multiply.outer(t[idx] - t0, v) if moving else c
-        dist = np.linalg.norm(P[idx] - ref, axis=1)
+        dist = np.linalg.norm(P[idx] - (c + np.multiply.outer(t[idx] - t0, v)), axis=1)
         far = idx[np.argpartition(dist, dist.size - n_drop)[dist.size - n_drop:]]
         kept[far] = False
-        c, v = _centre(P[kept], t[kept], t0, moving)
+        c, v = _line(P[kept], t[kept], t0)
         history.append(c)
     return RobustMean(c, v, t0, kept, np.array(history))
+
+
+@numba.njit(cache=True, nogil=True)
+def _static_robust_mean(P, steps):
+    """:func:`robust_mean`'s loop for a static cloud, compiled: drop the ``steps[i]`` points furthest from the
+    centroid of those kept, recompute it. Returns ``(kept (N,), history (len(steps) + 1, d))``; the sums run in
+    NumPy's order (``mean(axis=0)`` adds the rows in turn), the points at exactly the cut distance are dropped
+    first come, first dropped (NumPy's ``argpartition`` leaves that choice open)."""
+    N, d = P.shape
+    kept = np.ones(N, np.bool_)
+    history = np.zeros((steps.size + 1, d))
+    dist, idx = np.empty(N), np.empty(N, np.int64)
+    for s in range(steps.size + 1):
+        n = 0
+        for i in range(N):
+            if kept[i]:
+                n += 1
+                for j in range(d):
+                    history[s, j] += P[i, j]
+        for j in range(d):
+            history[s, j] /= n
+        if s == steps.size:
+            break
+        m = 0
+        for i in range(N):
+            if kept[i]:
+                acc = 0.0
+                for j in range(d):
+                    acc += (P[i, j] - history[s, j]) ** 2
+                dist[m], idx[m], m = math.sqrt(acc), i, m + 1
+        cut = np.partition(dist[:m], m - steps[s])[m - steps[s]]
+        left = steps[s]
+        for q in range(m):                       # beyond the cut, then at it
+            if dist[q] > cut:
+                kept[idx[q]], left = False, left - 1
+        for q in range(m):
+            if left > 0 and dist[q] == cut:
+                kept[idx[q]], left = False, left - 1
+    return kept, history
 
 
 # --------------------------------------------------------------------------- residual pruning

@@ -25,6 +25,7 @@ time), never by ``import uwbwb``.
 from __future__ import annotations
 
 import copy
+import itertools
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, NamedTuple
 
@@ -39,7 +40,7 @@ from ..models.setnoise import SetNoiseModel
 from ..models.tdoa import TdoaModel
 from ..sim import robot
 from ..types import Estimates, EstimateStatus, RangeLog, TdoaLog, pseudo_tdoa
-from . import kalman, particle
+from . import kalman, particle, pruning
 from .ekf import Ekf, Linearisation, RangeMeasurement, TdoaEkf, TdoaMeasurement
 from .ekf import kernels as ekf_kernels
 from .eskf import LooseFilter, TdoaUpdate, TightEskf, _tag_jacobian
@@ -558,6 +559,67 @@ def _multilaterate(method: str):
     return run
 
 
+# ---------------------------------------------------------------- the robust mean's tuple fixes
+def _tuple_inputs():
+    """300 epochs of a tag 1.3 m up in a 12 m × 9 m room with eight anchors near one plane (LIAS-like), ranges with
+    5 cm noise, a positive NLOS excess on 10 % of them and 5 % missing: every anchor triplet at every epoch."""
+    rng = np.random.default_rng(5)
+    A = np.array([[0.0, 0.0, 1.6], [12.0, 0.0, 1.5], [12.0, 9.0, 1.7], [0.0, 9.0, 1.6],
+                  [6.0, -0.5, 1.4], [12.5, 4.5, 1.8], [6.0, 9.5, 1.5], [-0.5, 4.5, 1.3]])
+    r = np.linalg.norm(np.array([4.0, 3.0, 1.3]) - A, axis=1) + 0.05 * rng.standard_normal((300, 8))
+    r += np.where(rng.random(r.shape) < 0.1, rng.exponential(0.8, r.shape), 0.0)
+    r[rng.random(r.shape) < 0.05] = np.nan
+    return r, A, 1.3
+
+
+def _tuple_fast(a):
+    cloud = pruning.tuple_fixes(a[0], a[1], z_m=a[2])
+    return {"pos_m": cloud.pos_m, "tuple_index": cloud.tuple_index, "n_failed": np.array(cloud.n_failed)}
+
+
+def _tuple_definition(a):
+    """Every complete (epoch, tuple) row through :func:`uwbwb.geometry.multilaterate` at once, the other anchors'
+    ranges masked, its OK rows kept."""
+    R, A, z_m = a
+    combos = np.array(list(itertools.combinations(range(A.shape[0]), 3)))
+    sv = np.linalg.svd(A[combos, :2] - A[combos, :2].mean(axis=1, keepdims=True), compute_uv=False)
+    used = combos[sv[:, 1] > 0.02 * sv[:, 0]]
+    C = used.shape[0]
+    mask = np.zeros((C, A.shape[0]), bool)
+    mask[np.arange(C)[:, None], used] = True
+    Rt = np.where(mask[None], R[:, None, :], np.nan).reshape(-1, A.shape[0])
+    complete = np.isfinite(Rt).sum(axis=1) == 3
+    res = geometry.multilaterate(Rt[complete], A, dim=2, z_m=z_m, min_anchors=3)
+    ok = res.ok
+    rows = np.flatnonzero(complete)[ok]
+    return {"pos_m": res.pos_m[ok], "tuple_index": rows % C, "n_failed": np.array(Rt.shape[0] - ok.sum())}
+
+
+def _robust_mean_inputs():
+    """The triplet cloud of :func:`_tuple_inputs` (about 14 000 fixes, the NLOS ones far out)."""
+    r, A, z_m = _tuple_inputs()
+    return pruning.tuple_fixes(r, A, z_m=z_m).pos_m, 0.5, 0.01
+
+
+def _robust_mean_fast(a):
+    res = pruning.robust_mean(a[0], retention=a[1], dropout=a[2])
+    return {"kept": res.kept, "history_m": res.history_m}
+
+
+def _robust_mean_definition(a):
+    """The iterated centroid in NumPy: distances of the kept points, ``argpartition`` of the furthest, the mean."""
+    P, retention, dropout = a
+    kept, c = np.ones(len(P), bool), P.mean(axis=0)
+    history = [c]
+    for n_drop in pruning.drop_schedule(len(P), retention, dropout):
+        idx = np.flatnonzero(kept)
+        dist = np.linalg.norm(P[idx] - c, axis=1)
+        kept[idx[np.argpartition(dist, dist.size - n_drop)[dist.size - n_drop:]]] = False
+        c = P[kept].mean(axis=0)
+        history.append(c)
+    return {"kept": kept, "history_m": np.array(history)}
+
+
 # ---------------------------------------------------------------- the EKF's epoch loop (TDoAs or ranges)
 def _tdoa_ekf_inputs(motion, gate, correlated: bool = True, ranges: bool = False):
     """A 40 s walk at about 10 Hz (a Lissajous figure at walking speed, 1 m ± 0.3 m high) in a 30 m square
@@ -709,6 +771,19 @@ def _registry() -> tuple[Twin, ...]:
                           {"pos_m": Tol(0.0, 1e-6), "cov_m2": Tol(1e-4, 1e-12), "ok": BIT},
                           "tests/test_geometry.py::test_gauss_newton_and_least_squares_agree",
                           exercised=lambda out: None if out["ok"].all() else "an epoch without a fix"))
+    # not bit for bit: the compiled loop solves the 2 × 2 normal equations in closed form where multilaterate takes
+    # LAPACK's eigen-decomposition, so each step differs by rounding; both stop once a step is below 1e-9 m, so
+    # the fixes differ by far less than that (1e-9 m here, which the tuple counts show hides no other decision)
+    twins.append(Twin("pruning.tuple_fixes", _tuple_fast, _tuple_definition, _tuple_inputs,
+                      {"pos_m": Tol(0.0, 1e-9), "tuple_index": BIT, "n_failed": BIT},
+                      "tests/filters/test_pruning.py::test_tuple_fixes_noise_free_and_collinear_tuples_skipped",
+                      ("uwbwb.filters.pruning._tuple_gauss_newton", "uwbwb.filters.pruning._solve2")))
+    # bit for bit: the same distances and sums in the same order; only points at exactly the cut distance could be
+    # dropped otherwise (argpartition leaves that open: the kept mask, and by rounding the centroid, would differ)
+    twins.append(Twin("pruning.robust_mean[static]", _robust_mean_fast, _robust_mean_definition, _robust_mean_inputs,
+                      {"kept": BIT, "history_m": BIT},
+                      "tests/filters/test_pruning.py::test_robust_mean_keeps_the_cluster_and_drops_the_scatter",
+                      ("uwbwb.filters.pruning._static_robust_mean",)))
     # not bit for bit: the Python loop's products and S⁻¹ are BLAS and LAPACK calls (their summation order depends
     # on the CPU's kernels), the compiled loop's are plain loops. A filter carries a rounding difference from
     # epoch to epoch and grows it where its gain is high (the first epochs, re-acquiring after a gap), as it

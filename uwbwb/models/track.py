@@ -116,7 +116,7 @@ class LinearTrackRanges:
         (only ``u_m`` when ``static``).
         """
         P, v = self.unpack(theta)
-        diff = P + np.multiply.outer(t_s, v) - self.anchor_pos_m[anchor_index]        # (M, 3)
+        diff = (P if self.static else P + np.multiply.outer(t_s, v)) - self.anchor_pos_m[anchor_index]   # (M, 3)
         dist = np.sqrt(np.einsum("mi,mi->m", diff, diff))
         res = dist - range_m
         if not jacobian:
