@@ -337,25 +337,31 @@ def test_knobs_break_near_ties_towards_the_models_own_noise_flag_the_edge_and_na
     assert ab.R_GRID == (0.3, 1.0, 3.0, 10.0, 30.0, 100.0) and ab.AblationConfig().r_grid == ab.R_GRID
 
 
+_PAIRS = [(q, r) for q in (0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0)]
+_CENTRE = [2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0, 2.0]        # best at (1, 1): inside the grid
+_TOP_R = [2.0, 2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0]         # best at (1, 3): on the R edge
+
+
+def _tuning(**rows) -> pd.DataFrame:
+    """A tuning table over :data:`_PAIRS`: each named row's RMSE per pair (``_CENTRE`` or ``_TOP_R``), the rest of
+    EKF, EKF + gate, loose and loose + gate at ``_CENTRE``."""
+    rows = {r: rows.get(r.replace(" + ", "_").replace(" ", "_"), _CENTRE) for r in ("EKF", "EKF + gate", "loose",
+                                                                                   "loose + gate")}
+    t = pd.DataFrame({p: {r: v[i] for r, v in rows.items()} for i, p in enumerate(_PAIRS)})
+    t.columns = pd.MultiIndex.from_tuples(_PAIRS, names=["Q ×", "R ×"])
+    return t
+
+
 def test_a_ladder_step_whose_pick_lies_on_a_grid_edge_is_edge_bound():
-    pairs = [(q, r) for q in (0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0)]
-    centre = [2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0, 2.0]        # best at (1, 1): inside the grid
-    top_r = [2.0, 2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0]         # best at (1, 3): on the R edge
-    t = pd.DataFrame({p: {"EKF": centre[i], "EKF + gate": centre[i], "loose": top_r[i], "loose + gate": centre[i]}
-                      for i, p in enumerate(pairs)})
-    t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
     base = _fake(GOOD)
-    f = ab.AblationResult(base.config, True, t, {}, base.scores, base.counts)
+    f = ab.AblationResult(base.config, True, _tuning(loose=_TOP_R), {}, base.scores, base.counts)
     loose = _row(f, "outlier handling (gate), loose: dynamic RMSE").verdict
     assert loose.startswith("edge-bound: helps") and "loose R ×" in loose
     assert _row(f, "outlier handling (gate), EKF: dynamic RMSE").verdict == "helps"
     assert _row(base, "outlier handling (gate), loose: dynamic RMSE").verdict == "helps"
     # the headline and the mismatch rows on the same pair carry the same qualifier, not a bare verdict
     assert _row(f, "headline: loose + gate / tight + gate").verdict == "helps"       # loose's edge is not theirs
-    t = pd.DataFrame({p: {"EKF": centre[i], "EKF + gate": centre[i], "loose": centre[i], "loose + gate": top_r[i]}
-                      for i, p in enumerate(pairs)})
-    t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
-    g = ab.AblationResult(base.config, True, t, {}, base.scores, base.counts)
+    g = ab.AblationResult(base.config, True, _tuning(loose_gate=_TOP_R), {}, base.scores, base.counts)
     for claim in ("headline: loose + gate / tight + gate", "UWB σ 2×: loose + gate / tight + gate, max outage error"):
         v = _row(g, claim).verdict
         assert v.startswith("edge-bound: ") and "loose + gate R ×" in v, (claim, v)
@@ -366,14 +372,8 @@ def test_a_ladder_step_whose_pick_lies_on_a_grid_edge_is_edge_bound():
 def test_a_ratio_row_is_edge_bound_where_its_verdict_is():
     """The summary's ladder and mismatch ratio rows on a pair with a pick on its grid's edge carry the qualifier the
     verdict table's verdict on that pair carries (one rule: facts.qualified), in the summaries' one wording."""
-    pairs = [(q, r) for q in (0.1, 1.0, 10.0) for r in (0.3, 1.0, 3.0)]
-    centre = [2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0, 2.0]        # best at (1, 1): inside the grid
-    top_r = [2.0, 2.0, 2.0, 2.0, 2.0, 1.0, 2.0, 2.0, 2.0]         # best at (1, 3): on the R edge
-    t = pd.DataFrame({p: {"EKF": centre[i], "EKF + gate": centre[i], "loose": top_r[i], "loose + gate": top_r[i]}
-                      for i, p in enumerate(pairs)})
-    t.columns = pd.MultiIndex.from_tuples(pairs, names=["Q ×", "R ×"])
     base = _fake(GOOD)
-    res = ab.AblationResult(base.config, True, t, {}, base.scores, base.counts)
+    res = ab.AblationResult(base.config, True, _tuning(loose=_TOP_R, loose_gate=_TOP_R), {}, base.scores, base.counts)
     rows = {r["quantity"] for r in headlines.ablation_rows(res)}
     edge = f"; {EDGE_BOUND_LABEL}"
     gate = "ablation ratio loose / loose + gate, dynamic RMSE (outlier handling (gate), loose; geometric mean of 6 seeds"
