@@ -187,8 +187,8 @@ def test_scoring_on_common_epochs_with_coverage_beside(office_runs):
     in_outage = ekf_own & (t_s >= 10.0) & (t_s < 14.0)
     assert in_outage.sum() > 30                                              # the EKF coasted there ...
     assert common["EKF-RW"].size == ekf_own.sum() - in_outage.sum()        # ... and is scored without them
-    own = est.cep95(common=False)
-    assert own["LS"] == pytest.approx(est.cep95()["LS"])                     # LS's own epochs are the common ones
+    own = metrics.cep95(scores["LS"].own_m)
+    assert own == pytest.approx(est.cep95()["LS"])                           # LS's own epochs are the common ones
     table = mm.Study(None, {}, [est]).coverage()
     assert table.loc[("office", "tag1"), "LS"] == pytest.approx(100 * cov["LS"])
     with pytest.raises(ValueError, match="no epoch where every estimator"):

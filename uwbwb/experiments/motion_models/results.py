@@ -133,11 +133,9 @@ class TagResults:
                              f"and truth exists (coverage {cov}); nothing can be scored on common epochs")
         return {n: scores[n].common_m for n in self.methods}
 
-    def cep95(self, *, common: bool = True) -> dict[str, float]:
-        """Name → CEP95 (m), on the common epochs (default) or on each estimator's own."""
-        if common:
-            return {k: metrics.cep95(e) for k, e in self.common_errors().items()}
-        return {n: metrics.cep95(self.scores[n].own_m) for n in self.methods}
+    def cep95(self) -> dict[str, float]:
+        """Name → CEP95 (m) on the common epochs."""
+        return {k: metrics.cep95(e) for k, e in self.common_errors().items()}
 
     def coverage(self) -> dict[str, float]:
         """Name → fraction of the run's epochs with a position, and ``"common"``: the share the tables score."""
@@ -145,12 +143,12 @@ class TagResults:
         return {**{m: int(self.estimates(m).has_estimate.sum()) / n for m in self.methods},
                 "common": self.scores.methods[0].n_common / n}
 
-    def nis(self, prob: float = 0.95) -> pd.DataFrame:
+    def nis(self) -> pd.DataFrame:
         """NIS consistency per filter (every method with a NIS) over its updates (:func:`uwbwb.metrics.nis_consistency`).
 
         Under right noise models the NIS summed over the ``n`` updates is χ² with
         ``sum_dof`` degrees of freedom; the verdict compares it with the central
-        ``prob`` interval of that χ² (``mean_lo``, ``mean_hi``: the interval divided
+        95 % interval of that χ² (``mean_lo``, ``mean_hi``: the interval divided
         by ``sum_dof``, around a mean NIS per degree of freedom of 1).
         *Over-confident*: errors larger than the filter's covariance says.
         """
@@ -160,7 +158,7 @@ class TagResults:
             if "nis" not in est.info:
                 continue
             up = est.status == EstimateStatus.UPDATED
-            c = metrics.nis_consistency(est.info["nis"][up], est.info["dof"][up], prob)
+            c = metrics.nis_consistency(est.info["nis"][up], est.info["dof"][up])
             dof = max(c["sum_dof"], 1)
             rows.append({"method": m, "n": c["n"], "mean_nis_over_dof": c["mean_nis_over_dof"],
                          "mean_lo": c["sum_lo"] / dof, "mean_hi": c["sum_hi"] / dof,

@@ -20,7 +20,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ...metrics import interval_side, seeds_interval
+from ...metrics import interval_rows, interval_side, seeds_interval
 from .results import MODELS, PAPER_METHODS_CEP95, PAPER_MODELS_CEP95, ekf_name, ranking
 from .study import Study, estimate, synthetic_acquisition
 
@@ -69,14 +69,14 @@ class SeedStudy:
         """The first seed's rows, indexed ``(run, tag)``: the single-seed tables' numbers."""
         return self.cep95.xs(self.seeds[0], level="seed")
 
-    def table(self, methods: Sequence[str] | None = None, *, prob: float = 0.95) -> pd.DataFrame:
+    def table(self, methods: Sequence[str] | None = None) -> pd.DataFrame:
         """Per ``(run, tag)``: the mean CEP95 over the seeds of every method and the half-width of its
         Student-t interval (columns ``(method, "mean")``, ``(method, "± 95 %")``), and the seed count."""
         out = {}
         for key, g in self.cep95.groupby(level=["run", "tag"], sort=False):
             row = {}
             for m in self.cep95.columns if methods is None else methods:
-                t = seeds_interval(g[m], prob=prob)
+                t = seeds_interval(g[m])
                 row[(m, "mean")], row[(m, "± 95 %")] = t["mean"], (t["hi"] - t["lo"]) / 2
             row[("seeds", "")] = len(g)
             out[key] = row
@@ -85,8 +85,7 @@ class SeedStudy:
         table.columns = pd.MultiIndex.from_tuples(table.columns)
         return table
 
-    def pairs(self, pairs: Sequence[tuple[str, str]] = SEED_PAIRS, *, by: str = "data",
-              prob: float = 0.95) -> pd.DataFrame:
+    def pairs(self, pairs: Sequence[tuple[str, str]] = SEED_PAIRS, *, by: str = "data") -> pd.DataFrame:
         """Per data set (``by="data"``) or per tag-run (``by="tag-run"``) and pair ``(A, B)``: seeds, the mean over
         seeds of ``CEP95(A) − CEP95(B)`` (with ``by="data"`` each seed's value averaged over the data set's
         tag-runs), its Student-t interval, the thesis' difference on the same rows (*input*), the rule, the verdict
@@ -106,7 +105,7 @@ class SeedStudy:
         for label, d, keys in groups:
             for a, b in pairs:
                 per_seed = (d[a] - d[b]).groupby(level="seed").mean()
-                t = seeds_interval(per_seed.to_numpy(), prob=prob)
+                t = seeds_interval(per_seed.to_numpy())
                 side = interval_side(t["lo"], t["hi"])
                 verdict = {"below": f"{a} better", "above": f"{b} better", "contains": "not significant"}.get(
                     side, "no interval (one seed)")
@@ -119,19 +118,18 @@ class SeedStudy:
                              "rule": SEED_RULE, "verdict": verdict, "vs thesis": order})
         return pd.DataFrame(rows)
 
-
-    def ranking(self, models: Sequence[str] = MODELS, *, prob: float = 0.95) -> pd.Series:
+    def ranking(self, models: Sequence[str] = MODELS) -> pd.Series:
         """Per ``(run, tag)``: the motion models ordered by their mean CEP95 over the seeds, resolved by the pair
         verdicts of :meth:`pairs` (``by="tag-run"``, the same intervals): ``≈`` where they leave an order
         undecided (:func:`~.results.ranking`)."""
         names = [ekf_name(m) for m in models]
-        verdicts = self.pairs([(a, b) for i, a in enumerate(names) for b in names[i + 1:]], by="tag-run", prob=prob)
+        verdicts = self.pairs([(a, b) for i, a in enumerate(names) for b in names[i + 1:]], by="tag-run")
         key = {f"{r} {t}": (r, t) for r, t in self.base().index}
         winners: dict = {}
         for v in verdicts.to_dict("records"):
             better = v["verdict"][:-len(" better")] if v["verdict"].endswith(" better") else None
             winners.setdefault(key[v["data"]], {})[(v["A"], v["B"])] = better
-        return ranking(self.table(names, prob=prob).xs("mean", axis=1, level=1), models, winners=winners)
+        return ranking(self.table(names).xs("mean", axis=1, level=1), models, winners=winners)
 
 
 def seed_study(studies: Mapping[str, tuple[Study, Sequence[str]]], seeds: Sequence[int], *, gate_prob: float | None,
@@ -166,15 +164,12 @@ def seed_study(studies: Mapping[str, tuple[Study, Sequence[str]]], seeds: Sequen
 
 
 def seed_rows(seeds: SeedStudy, pairs: Sequence[tuple[str, str]] = SEED_PAIRS) -> list[dict]:
-    """Summary rows of :meth:`SeedStudy.pairs` (all *reproduced*; the thesis' difference as ``paper_value``):
-    the mean difference and the two ends of its interval, where finite."""
+    """Summary rows of :meth:`SeedStudy.pairs` (all *reproduced*; the thesis' difference as ``paper_value`` of the
+    mean): the mean difference and the two ends of its interval, where finite (:func:`~uwbwb.metrics.interval_rows`)."""
     rows = []
     for r in seeds.pairs(pairs).to_dict("records"):
-        base = f"CEP95 {r['A']} minus {r['B']}, mean over test seeds ({r['data']})"
-        thesis = r["thesis A − B (m, input)"]
-        for q, v, pv in ((base, r["A − B (m)"], thesis if np.isfinite(thesis) else None),
-                         (f"{base}, 95 % low", r["95 % low (m)"], None), (f"{base}, 95 % high", r["95 % high (m)"], None)):
-            if np.isfinite(v):
-                rows.append({"quantity": q, "value": float(v), "unit": "m", "data": "synthetic",
-                             "paper_value": pv, "kind": "reproduced"})
+        mean, *ends = interval_rows(f"CEP95 {r['A']} minus {r['B']}, mean over test seeds ({r['data']})",
+                                    r["A − B (m)"], r["95 % low (m)"], r["95 % high (m)"], unit="m", data="synthetic",
+                                    paper_value=None, kind="reproduced")
+        rows += [{**mean, "paper_value": r["thesis A − B (m, input)"]}, *ends]     # NaN: the summary reads None
     return rows

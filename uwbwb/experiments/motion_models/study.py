@@ -238,27 +238,24 @@ class Study:
                          for s, c, r in zip(p["grid"], sc["cep95"], sc["rmse"])]
         return pd.DataFrame(rows)
 
-    def _per_run(self, values, columns) -> pd.DataFrame:
-        rows = []
-        for r in self.results:
-            v = values(r)
-            rows.append({"run": r.run.name, "tag": r.run.tag, **{c: v[c] for c in (v if columns is None else columns)}})
-        return pd.DataFrame(rows).set_index(["run", "tag"])
+    def _per_run(self, values) -> pd.DataFrame:
+        return pd.DataFrame([{"run": r.run.name, "tag": r.run.tag, **values(r)} for r in self.results]).set_index(
+            ["run", "tag"])
 
-    def table(self, methods: Sequence[str] | None = None, *, common: bool = True) -> pd.DataFrame:
+    def table(self, methods: Sequence[str] | None = None) -> pd.DataFrame:
         """CEP95 (m) per test run/tag (rows) and method (columns; None: every method, in table order): every method
-        on the epochs where all of a run's estimators have a position (:meth:`TagResults.common_errors`), or
-        (``common=False``) each over its own epochs (see :meth:`coverage` for how many)."""
-        return self._per_run(lambda r: r.cep95(common=common), methods)
+        on the epochs where all of a run's estimators have a position (:meth:`TagResults.common_errors`; see
+        :meth:`coverage` for how many)."""
+        table = self._per_run(lambda r: r.cep95())
+        return table if methods is None else table[list(methods)]
 
-    def coverage(self, methods: Sequence[str] | None = None) -> pd.DataFrame:
+    def coverage(self) -> pd.DataFrame:
         """Coverage (%) per test run/tag and method, and ``common``: the share of epochs the CEP95 tables score."""
-        return self._per_run(lambda r: {k: 100 * v for k, v in r.coverage().items()},
-                             None if methods is None else (*methods, "common"))
+        return self._per_run(lambda r: {k: 100 * v for k, v in r.coverage().items()})
 
-    def nis(self, prob: float = 0.95) -> pd.DataFrame:
+    def nis(self) -> pd.DataFrame:
         """:meth:`TagResults.nis` of every test run, rows ``(run/tag, method)``."""
-        return pd.concat({r.run.key: r.nis(prob) for r in self.results}, names=["run/tag"])
+        return pd.concat({r.run.key: r.nis() for r in self.results}, names=["run/tag"])
 
     def result_for(self, name: str, tag: str) -> TagResults:
         """The test result of run ``name`` and ``tag``."""
@@ -274,12 +271,11 @@ def _tune(name: str, estimators, rec: Recording, tags, cal: Calibration) -> dict
 
 
 def run_study(cal_runs: Sequence[TagRun], test_runs: Sequence[TagRun], *, gate_prob: float | None, grids=None,
-              models: Sequence[str] = MODELS, ref: int = 0, sigma_method: str = "tdoa", progress: bool = True,
-              scheduler=None) -> Study:
+              models: Sequence[str] = MODELS, ref: int = 0, progress: bool = True, scheduler=None) -> Study:
     """Fit range noise and tune every estimator on ``cal_runs`` (one run per tag of one recording), then run every
     estimator on ``test_runs``.
 
-    The range σ per anchor of each tag is :func:`~uwbwb.calibration.fit_range_sigma` (``sigma_method``) on its
+    The range σ per anchor of each tag is :func:`~uwbwb.calibration.fit_range_sigma` (its ``tdoa`` reading) on its
     calibration run; with the tag heights and the runs' rate it forms the protocol's
     :class:`~uwbwb.scoreboard.protocol.Calibration` (ranges as logged). On it each of the notebook's estimators
     (:func:`~.results.estimators`, with the χ² gate ``gate_prob`` (None for none; required) and reference anchor
@@ -292,7 +288,7 @@ def run_study(cal_runs: Sequence[TagRun], test_runs: Sequence[TagRun], *, gate_p
     tags = [r.tag for r in cal_runs]
     if len(set(tags)) != len(tags) or len({r.name for r in cal_runs}) != 1:
         raise ValueError(f"calibration runs must be one per tag of one recording, got {[r.key for r in cal_runs]}")
-    fits = {r.tag: fit_range_sigma(r, method=sigma_method) for r in cal_runs}
+    fits = {r.tag: fit_range_sigma(r) for r in cal_runs}
     missing = sorted({r.tag for r in test_runs} - set(fits))
     if missing:
         raise ValueError(f"test tags {missing} have no calibration run")
