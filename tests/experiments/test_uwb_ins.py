@@ -79,6 +79,19 @@ def test_the_paper_comparisons_rows_say_they_are_its_pairing_and_are_the_cells_o
         comp.table("outage").loc["loose", "max (m)"]
 
 
+def test_the_error_range_rows_say_the_assumed_noise_they_follow_from(short_dynamic):
+    from uwbwb.models.imu import GRADES
+
+    run, comp = short_dynamic
+    ranges = {"tight": study.error_ranges(comp, "tight")}
+    for world, said in ((robot.RobotConfig(), "3 cm arrival-time σ, 2 % multipath of 0.3–4 m, consumer IMU"),
+                        (robot.RobotConfig(imu=GRADES["tactical"], outlier_rate=0.05, sigma_toa_m=0.05),
+                         "5 cm arrival-time σ, 5 % multipath of 0.3–4 m, tactical IMU")):
+        rows = headlines.comparison_rows((comp,), ranges, ranges, outage_s=3.0, paper=study.PAPER, world=world)
+        q = [r["quantity"] for r in rows if r["quantity"].startswith("static max |error|, tight")]
+        assert q == [f"static max |error|, tight ({headlines.PAPERS_PAIRING}; follows from assumed noise: {said})"]
+
+
 def test_error_ranges_are_min_and_max_of_the_signed_errors(short_dynamic):
     _, comp = short_dynamic
     r = study.error_ranges(comp, "tight")

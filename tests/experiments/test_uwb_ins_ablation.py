@@ -605,15 +605,6 @@ def test_outage_spec_of_reproduce_is_the_longest_outage_the_run_holds():
         ablation.check_outage(longest + 0.1, ablation.RECOVERY_S, robot.broken_line())
 
 
-def test_error_range_assumption_is_read_off_the_simulated_world():
-    from uwbwb.models.imu import GRADES
-
-    assert headlines.error_range_assumption(robot.RobotConfig()).endswith(
-        "3 cm arrival-time σ, 2 % multipath of 0.3–4 m, consumer IMU")
-    w = robot.RobotConfig(imu=GRADES["tactical"], outlier_rate=0.05, sigma_toa_m=0.05)
-    assert headlines.error_range_assumption(w).endswith("5 cm arrival-time σ, 5 % multipath of 0.3–4 m, tactical IMU")
-
-
 def test_reacquisition_time_is_the_start_of_the_first_stretch_below_the_limit_that_holds():
     t = np.arange(0.0, 12.0, 0.5)                           # outage ends at t = 3 s; UWB returns at 3.5 s
     e = np.full(t.size, 0.1)

@@ -40,12 +40,10 @@ def test_gate_exercise_compares_the_same_run_with_and_without_the_gate():
     assert clean.numbers["tight RMSE without gate (m)"] < 2 * clean.numbers["tight RMSE with gate (m)"] + 0.01
 
 
-def test_panel_offers_the_notebooks_outage_and_says_what_to_see():
+def test_panel_offers_the_notebooks_outage_and_reads_the_outage():
     panel = panels.build_panel(seed=0, grade="consumer", outlier_rate=0.02, outage_s=5.0, outlier_c_m=0.1,
                                gate_prob=0.999, loose_window=5, stations_m=np.zeros((4, 3)))
     assert panel.controls["outage_s"].max == 5.0 and panel.values["outage_s"] == 5.0
-    note = panels.panel_note(panel)
-    assert "outage" in note and "RMSE" in note
     comp = panels.panel_comparison("dynamic", "consumer", 1.0, 1.0, 0.1, 0.02, 5.0, True, "tight", **panel.fixed)
     assert "max tight in outage (m)" in panels.readout(comp, "tight")
     with pytest.raises(ValueError, match="OUTAGE_S"):
@@ -202,7 +200,7 @@ def test_figures_draw_truth_only_where_it_exists_and_keep_uwb_spikes_off_the_axe
     line = next(ln for ln in a.lines if ln.get_label() == "truth")
     assert np.isnan(line.get_xdata()[:5]).all() and a.get_xlim()[1] < 10      # no segment from (0, 0); spike off
     assert any("1 UWB-only fixes outside" in x.get_text() for x in a.texts)
-    figures.error_vs_time(comp, ("UWB-only", "tight"), ax=b, ylim_m=None)
+    figures.error_vs_time(comp, ("UWB-only", "tight"), ax=b)
     assert b.get_ylim()[1] < 1.0 and any("UWB-only: 1 epochs above" in x.get_text() for x in b.texts)
     assert a.get_title() and b.get_title()
     plt.close(fig)

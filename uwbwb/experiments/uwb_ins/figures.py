@@ -96,22 +96,19 @@ def track(comp: Comparison, names=("UWB-only", "loose", "tight"), ax=None, *, an
     return ax
 
 
-def error_vs_time(comp: Comparison, names=("UWB-only", "loose", "tight"), ax=None, *, ylim_m: float | None = 0.5):
+def error_vs_time(comp: Comparison, names=("UWB-only", "loose", "tight"), ax=None):
     """Fig. 8: horizontal error against time (degradation windows shaded).
 
     UWB-only is drawn thin and beneath the filters so that its multipath spikes do not hide
-    them; the y axis stops at ``ylim_m`` (None: 1.2 × the largest error of the other methods) and
-    the UWB-only epochs above it are counted in a note.
+    them; the y axis stops at 1.2 × the largest error of the other methods and the UWB-only
+    epochs above it are counted in a note.
     """
     ax = _axes(ax)
     _shade(comp, ax)
     t = comp.truth.t_s
     scored = comp.masks.get("scored", np.ones(len(t), bool))
-    others = [comp.errors(n)[scored] for n in names if n not in FIXES]
-    top = ylim_m
-    if top is None:
-        finite = [e[np.isfinite(e)] for e in others]
-        top = 1.2 * max((float(e.max()) for e in finite if e.size), default=1.0)
+    finite = [e[np.isfinite(e)] for e in (comp.errors(n)[scored] for n in names if n not in FIXES)]
+    top = 1.2 * max((float(e.max()) for e in finite if e.size), default=1.0)
     for name in names:
         e = np.where(scored, comp.errors(name), np.nan)
         uwb = name in FIXES

@@ -16,18 +16,11 @@ from ...models.imu import GRADES
 from ...scoreboard.verdicts import EDGE_BOUND_LABEL, edge_bound
 from ...sim import robot
 from . import facts
-from .ablation import COVERAGE, DEFAULT_OUTAGE_S, EKF_TDOA_GATE, HOLD_S, LADDER, RECOVERY_MAX_M, ROWS, AblationResult
+from .ablation import (COVERAGE, DEFAULT_OUTAGE_S, EKF_TDOA_GATE, HOLD_S, LADDER, RECOVERY_MAX_M, ROWS, AblationResult,
+                       ratio_ci)
 from .ladder import pair_rmse
 
-__all__ = ["PAPERS_PAIRING", "error_range_assumption", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
-
-def error_range_assumption(world: robot.RobotConfig) -> str:
-    """What the synthetic error ranges follow from, read off the simulated world ``world``."""
-    grade = next((g for g, m in GRADES.items() if m == world.imu), "custom")
-    lo, hi = world.outlier_excess_m
-    return (f"follows from assumed noise: {world.sigma_toa_m * 100:g} cm arrival-time σ, "
-            f"{world.outlier_rate * 100:g} % multipath of {lo:g}–{hi:g} m, {grade} IMU")
-
+__all__ = ["PAPERS_PAIRING", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
 
 _GATED = ("EKF + gate", "loose + gate", "tight + gate")
 _RATIO = dict(unit="", data="synthetic", kind="reproduced")
@@ -165,7 +158,7 @@ def checks(res: AblationResult) -> list[str]:
         m = res.case("matched")["outage_max"].unstack("method")["loose + gate"]
         w = res.case("IMU 10× worse")["outage_max"].unstack("method")["loose + gate"]
         common = w.index.intersection(m.index)
-        r = np.exp(np.mean(np.log(w.loc[common].to_numpy() / m.loc[common].to_numpy())))
+        r = ratio_ci(w.loc[common], m.loc[common])["ratio"]
         if not r > 1:
             fails.append(f"mismatch: a 10× worse IMU does not worsen the loose filter's coasting through the outage "
                          f"(paired ratio {r:.2f})")
@@ -193,7 +186,8 @@ def comparison_rows(comps, static_ranges: dict, dyn_ranges: dict, *, outage_s: f
                     world: robot.RobotConfig) -> list[dict]:
     """Summary rows of the paper re-creation: RMSE per method and run, the outage maxima, the
     outlier counts, and the paper's error ranges beside ours — labelled as following from the
-    assumed noise of the simulated ``world`` (:func:`error_range_assumption`), since the paper gives none of it.
+    assumed noise of the simulated ``world`` (read off it: arrival-time σ, multipath, IMU grade), since the paper
+    gives none of it.
     Every row that scores a method says it comes from the paper's pairing on one seed (:data:`PAPERS_PAIRING`)."""
     out = []
     for comp in comps:
@@ -211,7 +205,10 @@ def comparison_rows(comps, static_ranges: dict, dyn_ranges: dict, *, outage_s: f
                  data="synthetic", kind="reproduced"),
             dict(quantity=f"TDoAs rejected by the tight filter's gate ({degraded.label} run)", value=rej["gated"],
                  unit="", data="synthetic", kind="reproduced")]
-    a = f"{PAPERS_PAIRING}; {error_range_assumption(world)}"
+    grade = next((g for g, m in GRADES.items() if m == world.imu), "custom")
+    lo, hi = world.outlier_excess_m
+    a = (f"{PAPERS_PAIRING}; follows from assumed noise: {world.sigma_toa_m * 100:g} cm arrival-time σ, "
+         f"{world.outlier_rate * 100:g} % multipath of {lo:g}–{hi:g} m, {grade} IMU")
     for name, r in static_ranges.items():
         for key, q, pv in (("E_min", "static E error min", paper["static_E_m"][0]),
                            ("E_max", "static E error max", paper["static_E_m"][1]),

@@ -1,5 +1,5 @@
 """Notebook 05's ablation read-outs: the ingredient ladder (paired ratios on the epochs both rows
-cover), the mismatch table and where eq. 4 fires in the ablation's geometry. Re-exported from :mod:`.ablation`."""
+cover), the mismatch table and where eq. 4 fires in the ablation's geometry."""
 
 from __future__ import annotations
 

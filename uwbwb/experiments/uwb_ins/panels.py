@@ -1,4 +1,4 @@
-"""Back end of notebook 05's panel: short synthetic runs, cached, and the note under the panel.
+"""Back end of notebook 05's panel: short synthetic runs, cached, and the readout beside them.
 
 The panel's dynamic run drives the fewest legs of the broken line that hold the longest outage
 the slider offers (the notebook's ``OUTAGE_S``) and one second after it, so every offered length
@@ -19,7 +19,7 @@ from ...widgets import Panel, PanelFigure, dropdown, float_slider
 from . import figures, study
 from .ablation import legs_for_outage
 
-__all__ = ["panel_run", "panel_comparison", "readout", "build_panel", "panel_note"]
+__all__ = ["panel_run", "panel_comparison", "readout", "build_panel"]
 
 #: Length of the panel's static run, s.
 PANEL_STATIC_S = 8.0
@@ -69,7 +69,7 @@ def build_panel(*, seed: int, grade: str, outlier_rate: float, outage_s: float, 
                                 **fixed)
         axes = view.clear()
         figures.track(comp, ("UWB-only", method), ax=axes[0], anchors_m=stations_m)
-        figures.error_vs_time(comp, ("UWB-only", method), ax=axes[1], ylim_m=None)
+        figures.error_vs_time(comp, ("UWB-only", method), ax=axes[1])
         return view.done(), readout(comp, method)
 
     c0 = outlier_c_m if outlier_c_m in (0.0, 0.1, 0.5, 1.0) else 0.1
@@ -88,18 +88,3 @@ def build_panel(*, seed: int, grade: str, outlier_rate: float, outage_s: float, 
     panel.fixed = fixed
     return panel
 
-
-def panel_note(panel: Panel) -> str:
-    """What to look at in the panel, with the current setting's numbers (for ``what_you_should_see``)."""
-    v = panel.values
-    comp = panel_comparison(v["scenario"], v["grade"], v["q_scale"], v["r_scale"], v["c_m"], v["outlier_rate"],
-                            v["outage_s"], v["feedback"], v["method"], **panel.fixed)
-    r = readout(comp, v["method"])
-    m = v["method"]
-    text = (f"The {m} filter stays on the truth where UWB-only jumps with multipath (RMSE {r[f'RMSE {m} (m)']:.3f} m "
-            f"vs {r['RMSE UWB-only (m)']:.3f} m).")
-    key = f"max {m} in outage (m)"
-    if key in r and np.isfinite(r[key]):
-        text += (f"\nIn the shaded {v['outage_s']:g} s outage its error peaks at {r[key]:.2f} m: switch the filter to "
-                 "compare loose (no fix, INS drifts) with tight (single TDoAs still update it).")
-    return text

@@ -83,12 +83,12 @@ def nees_inflation(cal_board: Board, board: Board, method: str = "tight", tag: s
             "inside_test_scaled": inside, "prob": prob, "scaled_consistent": bool(abs(inside - prob) <= CONSISTENT_POINTS)}
 
 
-def _interval_rows(quantity: str, row, columns: tuple[str, str, str], data: str) -> list[dict]:
-    """A value (mm) and the ends of its 95 % interval as three summary rows (``quantity``, then ``…, 95 % interval
-    low`` / ``high``), read from ``row[columns]`` (value, low, high); a non-finite one is left out."""
+def _interval_rows(quantity: str, row, data: str) -> list[dict]:
+    """A difference-table row's ``A − B`` (mm) and the ends of its 95 % interval as three summary rows (``quantity``,
+    then ``…, 95 % interval low`` / ``high``); a non-finite one is left out."""
     tails = ("", ", 95 % interval low", ", 95 % interval high")
     return [dict(quantity=quantity + tail, value=float(row[col]), unit="mm", data=data, kind="reproduced")
-            for tail, col in zip(tails, columns) if np.isfinite(row[col])]
+            for tail, col in zip(tails, ("A − B (mm)", "95 % low (mm)", "95 % high (mm)")) if np.isfinite(row[col])]
 
 
 def _clock_rows(clock: pd.DataFrame, offset_ms: float, data: str) -> list[dict]:
@@ -99,8 +99,7 @@ def _clock_rows(clock: pd.DataFrame, offset_ms: float, data: str) -> list[dict]:
                 unit="ms", data=data, kind="reproduced")]
     for _, r in clock[clock["B"] != "INS-only"].iterrows():
         edge = f" ({EDGE_BOUND_LABEL})" if edge_bound(r.get("verdict")) else ""
-        out += _interval_rows(f"horizontal RMSE change of {r['B']} with the IMU clock from the ranges{edge}", r,
-                              ("A − B (mm)", "95 % low (mm)", "95 % high (mm)"), data)
+        out += _interval_rows(f"horizontal RMSE change of {r['B']} with the IMU clock from the ranges{edge}", r, data)
     return out
 
 
@@ -138,5 +137,5 @@ def summary_rows(board: Board, *, cal_label: str, cal_data: str, rate_hz: float,
     for _, r in (verdicts.iterrows() if verdicts is not None else ()):
         edge = f"; {EDGE_BOUND_LABEL}" if edge_bound(r.get("verdict")) else ""
         out += _interval_rows(f"horizontal RMSE difference {r['A']} − {r['B']} (scoreboard, {rate_hz:g} Hz{edge})", r,
-                              ("A − B (mm)", "95 % low (mm)", "95 % high (mm)"), r["recording"])
+                              r["recording"])
     return out
