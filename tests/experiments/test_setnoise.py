@@ -302,12 +302,12 @@ def test_headline_rows_say_their_kind(study):
                        index=[E.SET_PF, E.BASE_PF, E.SET_KF, E.BASE_KF, E.SET_KF_POOLED])
     rows = E.headline_rows(shares=E.set_shares(study.fig3), table1=t1, improvement=imp, off_improvement=imp)
     kind = {r["quantity"]: r["kind"] for r in rows}
-    assert all(kind[q] == E.TARGET for q in kind if q.startswith(("raw error", "top")))
-    assert all(kind[q] == E.INPUT for q in kind if q.startswith("fixes"))
-    assert all(kind[q] == E.REPRODUCED for q in kind if "improvement" in q)
+    assert all(kind[q] == "target" for q in kind if q.startswith(("raw error", "top")))
+    assert all(kind[q] == "input" for q in kind if q.startswith("fixes"))
+    assert all(kind[q] == "reproduced" for q in kind if "improvement" in q)
     assert sum("away from calibration" in q for q in kind) == 4
     targets = E.headline_rows(shares=E.set_shares(study.fig3), table1=t1)      # no improvement: no reproduction
-    assert {r["kind"] for r in targets} == {E.TARGET, E.INPUT} and len(targets) == len(rows) - 14
+    assert {r["kind"] for r in targets} == {"target", "input"} and len(targets) == len(rows) - 14
 
 
 def test_second_track_keeps_away_from_the_calibration_locations(study):
@@ -403,7 +403,7 @@ def test_real_rows_and_checks():
 
     studies = {"calibrated": Cov(), "raw": Cov()}
     rows = E.headlines.real_rows(real_band, studies, "lias-planar-uwb/fast")
-    assert len(rows) == 2 * 6 and {r["kind"] for r in rows} == {E.REPRODUCED}
+    assert len(rows) == 2 * 6 and {r["kind"] for r in rows} == {"reproduced"}
     assert rows[0]["value"] == 10.0 and rows[1]["value"] == pytest.approx(80.0) and rows[6]["value"] == 14.0
     imp = pd.DataFrame({"improvement_pct": [5.0, 6.0, 4.0]}, index=[E.SET_PF, E.SET_KF, E.BASE_KF])
     band_table = pd.DataFrame({E.SET_PF: [12.0], E.SET_KF: [11.0]}, index=["mean"])

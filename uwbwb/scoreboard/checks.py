@@ -86,7 +86,7 @@ def _predicted(pos_m: np.ndarray, anchor_pos_m: np.ndarray) -> np.ndarray:
     return np.linalg.norm(pos_m[:, None, :] - anchor_pos_m[None], axis=-1)
 
 
-def fit_tag_height(rec: Recording, tag: str, *, z_grid_m: np.ndarray | None = None) -> float:
+def fit_tag_height(rec: Recording, tag: str) -> float:
     """The height at which ranges predicted from a 2-D truth fit the measured ranges best.
 
     Mean squared residual, each clipped at 1 m² (so that outliers do not decide), over a 1 cm grid
@@ -103,7 +103,7 @@ def fit_tag_height(rec: Recording, tag: str, *, z_grid_m: np.ndarray | None = No
     idx = np.flatnonzero(inside)[:: max(1, int(inside.sum()) // 2000)]
     xy = tr.interp(log.t_s[idx])[:, :2]
     r = log.range_m[idx]
-    z = np.arange(a[:, 2].min() - 3.0, a[:, 2].max() + 3.0, 0.01) if z_grid_m is None else np.asarray(z_grid_m)
+    z = np.arange(a[:, 2].min() - 3.0, a[:, 2].max() + 3.0, 0.01)
     d2 = np.sum((xy[:, None, :] - a[None, :, :2]) ** 2, axis=-1)                 # (T, n)
     cost = np.array([np.nanmean(np.minimum((r - np.sqrt(d2 + (zk - a[:, 2]) ** 2)) ** 2, 1.0)) for zk in z])
     best = int(np.nanargmin(cost))
@@ -121,16 +121,14 @@ def fit_tag_height(rec: Recording, tag: str, *, z_grid_m: np.ndarray | None = No
     return float(z[best])
 
 
-def lift_truth(rec: Recording, tag_height_m: Mapping[str, float] | float | None = None,
-               *, fit_on: Recording | None = None) -> tuple[Recording, dict[str, str]]:
+def lift_truth(rec: Recording, tag_height_m: Mapping[str, float] | float | None = None
+               ) -> tuple[Recording, dict[str, str]]:
     """``rec`` with every 2-D truth made 3-D at the tag's height.
 
     Parameters
     ----------
     tag_height_m
-        A height for every tag, or per tag; None: fitted (:func:`fit_tag_height`) on ``fit_on``.
-    fit_on
-        The recording whose ranges fit the height (the calibration part; default ``rec``).
+        A height for every tag, or per tag; None: fitted (:func:`fit_tag_height`) on the ranges of ``rec``.
 
     Returns
     -------
@@ -146,8 +144,8 @@ def lift_truth(rec: Recording, tag_height_m: Mapping[str, float] | float | None 
         else:
             h = tag_height_m
         if h is None:
-            h = fit_tag_height(fit_on if fit_on is not None else rec, tag)
-            how[tag] = f"height {h:.2f} m fitted from the ranges of {(fit_on or rec).label}"
+            h = fit_tag_height(rec, tag)
+            how[tag] = f"height {h:.2f} m fitted from the ranges of {rec.label}"
         else:
             if not np.isfinite(h):
                 raise ValueError(f"tag_height_m must be finite, got {h!r}")
@@ -429,9 +427,7 @@ def check_ranges_against_truth(rec: Recording, tag: str, *, max_residual_m: floa
     if n_finite < MIN_ANCHOR_SAMPLES:
         raise ValueError(f"{where}: tag {tag!r} has only {n_finite} valid ranges{_units_hint(rec)}")
     inside = (log.t_s >= tr.t_s[0]) & (log.t_s <= tr.t_s[-1])
-    ok_offset = True
-    if inside.sum() < 10:
-        ok_offset = False
+    ok_offset = inside.sum() >= 10
     idx = np.flatnonzero(inside)
     idx = idx[:: max(1, idx.size // 1500)]
     if ok_offset:

@@ -85,15 +85,15 @@ def error_over_time(board, method: str, tag: str | None = None, ax=None, *, unit
     return ax
 
 
-def board_figure(board, *, methods: Sequence[str] | None = None, time_method: str | None = None):
-    """The three panels in one figure (what ``python -m uwbwb score`` writes)."""
+def board_figure(board, *, methods: Sequence[str] | None = None):
+    """The three panels in one figure (what ``python -m uwbwb score`` writes); the error over time is of the first
+    of EKF-RF, EKF-RW and LS that ran (else the first method that ran)."""
     fig = plt.figure(figsize=(13, 8.5))
     gs = fig.add_gridspec(2, 2, height_ratios=[1.2, 1.0])
     error_cdfs(board, fig.add_subplot(gs[0, 0]), methods=methods)
     rmse_vs_bound(board, fig.add_subplot(gs[0, 1]), methods=methods)
     ran = _methods(board, methods)
-    if time_method is None:
-        time_method = next((m for m in ("EKF-RF", "EKF-RW", "LS") if m in ran), ran[0] if ran else None)
+    time_method = next((m for m in ("EKF-RF", "EKF-RW", "LS") if m in ran), ran[0] if ran else None)
     if time_method is not None:
         error_over_time(board, time_method, ax=fig.add_subplot(gs[1, :]))
     fig.tight_layout()

@@ -100,7 +100,7 @@ def fit_reference_motion(rec: Recording, tags: Sequence[str], cal: Calibration,
             "sigma_w_per_model": {m: v[0] for m, v in best.items()}}
 
 
-def common_bound(rec: Recording, tag: str, cal: Calibration, t_s: np.ndarray | None = None) -> bounds.Bound | None:
+def common_bound(rec: Recording, tag: str, cal: Calibration) -> bounds.Bound | None:
     """The common bound along ``tag``'s epochs of the scoring part ``rec`` (None if ``cal`` has no model).
 
     The recursion runs over every epoch of the tag (from the first with truth); epochs without

@@ -76,8 +76,8 @@ def fewer_anchors(rec: Recording, tag: str, *, tag_height_m: float, calibration:
         c_part > c_full,
         {"HDOP, all anchors": h_full, f"HDOP, {int(mask.sum())} anchors": h_part,
          "CEP95 all (m)": c_full, f"CEP95 {int(mask.sum())} anchors (m)": c_part,
-         "coverage all (%)": 100 * np.isfinite(full.err_m).mean(),
-         f"coverage {int(mask.sum())} anchors (%)": 100 * np.isfinite(part.err_m).mean()},
+         "coverage all (%)": 100 * common["all"].coverage,
+         f"coverage {int(mask.sum())} anchors (%)": 100 * common["part"].coverage},
         ("higher", "not higher"),
         "Removing anchors removes rows of H, so the HDOP can only grow (compare the two HDOPs); with the same "
         "range errors the fixes then usually scatter more, but on one short run they need not — so only CEP95 "

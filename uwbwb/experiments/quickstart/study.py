@@ -122,9 +122,8 @@ def verdicts(errors: dict, *, rng: np.random.Generator) -> pd.DataFrame:
     """
     rows = []
     for tag in errors["raw"]:
-        _, on_grid = metrics.errors_on_grid({v: errors[v][tag] for v in VARIANTS})
-        both = np.isfinite(on_grid["raw"]) & np.isfinite(on_grid["calibrated"])
-        d = metrics.block_bootstrap_difference(on_grid["raw"][both], on_grid["calibrated"][both], rng=rng)
+        scores = metrics.score_epochs(metrics.errors_on_grid({v: errors[v][tag] for v in VARIANTS})[1])   # both fixed
+        d = metrics.block_bootstrap_difference(scores["raw"].common_m, scores["calibrated"].common_m, rng=rng)
         lo, hi = d["lo_m"], d["hi_m"]
         verdict = {"above": "better", "below": "worse", "contains": "not significant"}.get(
             interval_side(lo, hi), "no verdict")

@@ -15,15 +15,15 @@ from .figures import (plot_facility, plot_fixes, plot_pf_kf_gap, plot_set_ellips
 from .real import RealStudy, emulate_fixes, modelled_share, real_inputs, real_study
 from .diagnostics import FACILITY_WIDE, PAPER_SIGMA_RULE, POOLED_SIGMA_RULE, pf_kf_gap, residual_table, trace
 from .headlines import headline_rows
-from .study import (BAND_MPS, BASE_KF, BASE_PF, FILTERS, INPUT, OFF_TRACK_XY_M, PAPER, RAW, REPRODUCED, SET_KF,
-                    SET_KF_POOLED, SET_PF, SIGMA_D_GRID_MPS, TARGET, SweepConfig, SyntheticStudy, band_summary,
+from .study import (BAND_MPS, BASE_KF, BASE_PF, FILTERS, OFF_TRACK_XY_M, PAPER, RAW, SET_KF,
+                    SET_KF_POOLED, SET_PF, SIGMA_D_GRID_MPS, SweepConfig, SyntheticStudy, band_summary,
                     calibration_proximity, mean_over_recordings, raw_error_m, set_shares, sweep, synthetic_study,
                     table1)
 
 __all__ = [
-    "BAND_MPS", "BASE_KF", "BASE_PF", "FACILITY_WIDE", "FILTERS", "INPUT", "OFF_TRACK_XY_M", "PAPER",
-    "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "RAW", "REPRODUCED", "SET_KF", "SET_KF_POOLED", "SET_PF",
-    "SIGMA_D_GRID_MPS", "TARGET", "RealStudy", "SweepConfig", "SyntheticStudy", "band_summary",
+    "BAND_MPS", "BASE_KF", "BASE_PF", "FACILITY_WIDE", "FILTERS", "OFF_TRACK_XY_M", "PAPER",
+    "PAPER_SIGMA_RULE", "POOLED_SIGMA_RULE", "RAW", "SET_KF", "SET_KF_POOLED", "SET_PF",
+    "SIGMA_D_GRID_MPS", "RealStudy", "SweepConfig", "SyntheticStudy", "band_summary",
     "calibration_proximity", "emulate_fixes", "exercises", "headline_rows", "headlines", "mean_over_recordings",
     "modelled_share", "panels", "pf_kf_gap", "plot_facility", "plot_fixes", "plot_pf_kf_gap",
     "plot_set_ellipses", "plot_set_frequency", "plot_sweep", "plot_trace", "raw_error_m", "real_inputs", "real_study",

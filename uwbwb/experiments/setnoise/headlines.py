@@ -16,7 +16,7 @@ import pandas as pd
 
 from ...metrics import interval_side
 from .real import RealStudy
-from .study import BASE_KF, BASE_PF, INPUT, PAPER, RAW, REPRODUCED, SET_KF, SET_KF_POOLED, SET_PF, TARGET
+from .study import BASE_KF, BASE_PF, PAPER, RAW, SET_KF, SET_KF_POOLED, SET_PF
 
 __all__ = ["checks", "headline_rows", "real_rows", "verdicts"]
 
@@ -31,13 +31,13 @@ def real_rows(real_band: pd.DataFrame, studies: Mapping[str, RealStudy], data_la
     for variant in studies:
         b = real_band.loc[variant]
         rows.append(dict(quantity=f"real data, {variant} ranges: raw error, mean of tags",
-                         value=b.loc[RAW, "error_cm"], unit="cm", data=data_label, kind=REPRODUCED))
+                         value=b.loc[RAW, "error_cm"], unit="cm", data=data_label, kind="reproduced"))
         rows.append(dict(quantity=f"real data, {variant} ranges: coverage of the test epochs",
                          value=100 * studies[variant].coverage().loc["test", "coverage"], unit="%",
-                         data=data_label, kind=REPRODUCED))
+                         data=data_label, kind="reproduced"))
         for name in (SET_PF, BASE_PF, SET_KF, SET_KF_POOLED):
             rows.append(dict(quantity=f"real data, {variant} ranges: {name} improvement over raw, sigma_d 30-50 cm/s",
-                             value=b.loc[name, "improvement_pct"], unit="%", data=data_label, kind=REPRODUCED))
+                             value=b.loc[name, "improvement_pct"], unit="%", data=data_label, kind="reproduced"))
     return rows
 
 
@@ -100,26 +100,26 @@ def headline_rows(*, shares: dict, table1: pd.DataFrame, improvement: pd.DataFra
         paper = "paper_raw_error_cm" in r and not pd.isna(r.get("paper_raw_error_cm"))
         speed = f" ({int(r['paper_speed_cmps'])} cm/s)" if paper else ""
         rows.append(dict(quantity=f"raw error, recording {i + 1}{speed}", value=r["raw_error_cm"], unit="cm",
-                         paper_value=r["paper_raw_error_cm"] if paper else None, kind=TARGET))
+                         paper_value=r["paper_raw_error_cm"] if paper else None, kind="target"))
         rows.append(dict(quantity=f"fixes, recording {i + 1}", value=r["n_fixes"], unit="",
-                         paper_value=r["paper_n_fixes"] if paper else None, kind=INPUT))
+                         paper_value=r["paper_n_fixes"] if paper else None, kind="input"))
     rows.append(dict(quantity="top-5 set share at the Fig. 3 location", value=100 * shares["top5_share"], unit="%",
-                     paper_value=PAPER["top5_share_pct"], kind=TARGET))
+                     paper_value=PAPER["top5_share_pct"], kind="target"))
     rows.append(dict(quantity="top set share at the Fig. 3 location (paper: below 45 %)",
-                     value=100 * shares["top1_share"], unit="%", paper_value=None, kind=TARGET))
+                     value=100 * shares["top1_share"], unit="%", paper_value=None, kind="target"))
     for name in (SET_PF, BASE_PF, SET_KF, BASE_KF, SET_KF_POOLED) if improvement is not None else ():
         paper = name == SET_PF
         rows.append(dict(quantity=f"{name} improvement over raw, sigma_d 30-50 cm/s, mean of 5 recordings",
                          value=improvement.loc[name, "improvement_pct"], unit="%",
-                         paper_value=PAPER["improvement_pct"] if paper else None, kind=REPRODUCED))
+                         paper_value=PAPER["improvement_pct"] if paper else None, kind="reproduced"))
         rows.append(dict(quantity=f"{name} improvement over raw (cm), sigma_d 30-50 cm/s, mean of 5 recordings",
                          value=improvement.loc[name, "improvement_cm"], unit="cm",
-                         paper_value=PAPER["improvement_cm"] if paper else None, kind=REPRODUCED))
+                         paper_value=PAPER["improvement_cm"] if paper else None, kind="reproduced"))
     if off_improvement is not None:
         for name in (SET_PF, BASE_PF, SET_KF, BASE_KF):
             rows.append(dict(quantity=f"{name} improvement over raw, sigma_d 30-50 cm/s, track away from "
                                       "calibration locations", value=off_improvement.loc[name, "improvement_pct"],
-                             unit="%", paper_value=None, kind=REPRODUCED))
+                             unit="%", paper_value=None, kind="reproduced"))
     return rows
 
 
@@ -151,40 +151,36 @@ def verdicts(band: pd.DataFrame, off_band: pd.DataFrame, resampler: Mapping[str,
     reduction" (B's error minus A's) is *better* (A better) or *worse* when its interval excludes 0, else *not
     significant*.
     """
-    k = VERDICT_RULE_SE
     raw, _ = _mean(band, RAW)
+    pf, pf_se = _mean(band, SET_PF)
+    kf, _ = _mean(band, SET_KF)
+    paper_rule, diff_rule = "paper in interval", "difference excludes 0"
+    claims = [("set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (%)", PAPER["improvement_pct"],
+               100 * (raw - pf) / raw, 100 * pf_se / raw, paper_rule),
+              ("set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (cm)", PAPER["improvement_cm"],
+               raw - pf, pf_se, paper_rule)]
+    for label, data in (("paper's track", band), ("track away from calibration", off_band)):
+        for a, b in ((SET_PF, BASE_PF), (SET_KF, BASE_KF)):
+            (ea, sa), (eb, sb) = _mean(data, a), _mean(data, b)
+            claims.append((f"{a} vs {b}: error reduction, σ_d 30-50 cm/s, {label} (cm)", np.nan, eb - ea,
+                           float(np.hypot(sa, sb)), diff_rule))
+    claims.append((f"{SET_KF} vs {SET_PF}: error reduction, σ_d 30-50 cm/s, paper's track (cm)", np.nan, pf - kf, pf_se,
+                   diff_rule))
+    (a, (ea, sa)), (b, (eb, sb)) = ((r, _mean(t, SET_PF)) for r, t in resampler.items())
+    claims.append((f"{a} vs {b} resampling: set-noise PF error reduction, {resampler[a]['recording'].iloc[0]} (cm)",
+                   np.nan, eb - ea, float(np.hypot(sa, sb)), diff_rule))
     rows = []
-
-    def add(claim, paper, ours, se, rule):
-        lo, hi = ours - k * se, ours + k * se
+    for claim, paper, ours, se, rule in claims:
+        lo, hi = ours - VERDICT_RULE_SE * se, ours + VERDICT_RULE_SE * se
         if not np.isfinite(se):
             verdict = "no interval (fewer than two trials)"
         elif se == 0:
             verdict = "exact filters: no Monte Carlo interval"
-        elif rule == "paper in interval":
+        elif rule == paper_rule:
             verdict = {"contains": "agrees", "above": "differs: ours larger",
                        "below": "differs: ours smaller"}[interval_side(lo, hi, paper)]
         else:
             verdict = {"above": "better", "below": "worse", "contains": "not significant"}[interval_side(lo, hi)]
         rows.append({"claim": claim, "paper": paper, "ours": ours, "low": lo, "high": hi, "rule": rule,
                      "verdict": verdict})
-
-    pf, pf_se = _mean(band, SET_PF)
-    add("set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (%)", PAPER["improvement_pct"],
-        100 * (raw - pf) / raw, 100 * pf_se / raw, "paper in interval")
-    add("set-noise PF improvement over raw, σ_d 30-50 cm/s, mean of recordings (cm)", PAPER["improvement_cm"],
-        raw - pf, pf_se, "paper in interval")
-    for label, data in (("paper's track", band), ("track away from calibration", off_band)):
-        for a, b in ((SET_PF, BASE_PF), (SET_KF, BASE_KF)):
-            ea, sa = _mean(data, a)
-            eb, sb = _mean(data, b)
-            add(f"{a} vs {b}: error reduction, σ_d 30-50 cm/s, {label} (cm)", np.nan, eb - ea, float(np.hypot(sa, sb)),
-                "difference excludes 0")
-    kf, _ = _mean(band, SET_KF)
-    add(f"{SET_KF} vs {SET_PF}: error reduction, σ_d 30-50 cm/s, paper's track (cm)", np.nan, pf - kf, pf_se,
-        "difference excludes 0")
-    (a, (ea, sa)), (b, (eb, sb)) = ((r, _mean(t, SET_PF)) for r, t in resampler.items())
-    recording = resampler[a]["recording"].iloc[0]
-    add(f"{a} vs {b} resampling: set-noise PF error reduction, {recording} (cm)", np.nan, eb - ea,
-        float(np.hypot(sa, sb)), "difference excludes 0")
     return pd.DataFrame(rows)

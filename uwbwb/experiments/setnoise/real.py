@@ -92,8 +92,6 @@ def emulate_fixes(rec: Recording, tag: str, emulation: sim.SetEmulation = sim.Se
 class RealStudy:
     """The set-noise model calibrated on static poses and the dynamic run's fixes per tag."""
 
-    inputs: RoomData
-    emulation: sim.SetEmulation
     range_calibration: RangeCalibration | None
     tag_height: MountHeight
     calibration: tuple[SetFixLog, ...]
@@ -140,7 +138,7 @@ def real_study(inputs: RoomData, emulation: sim.SetEmulation = sim.SetEmulation(
                                    decimate=decimate, calibration=cal)
         tests.append(fixes)
         rows.append({"recording": inputs.dynamic.name, "tag": tag, "role": "test", **rep})
-    return RealStudy(inputs, emulation, cal, height, tuple(logs), model, pooled, tuple(tests), pd.DataFrame(rows))
+    return RealStudy(cal, height, tuple(logs), model, pooled, tuple(tests), pd.DataFrame(rows))
 
 
 def modelled_share(log: SetFixLog, model: SetNoiseModel) -> float:

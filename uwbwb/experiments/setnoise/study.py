@@ -308,9 +308,3 @@ def band_summary(df: pd.DataFrame, band=BAND_MPS) -> pd.DataFrame:
                         "raw_cm": 100 * raw[rec], "improvement_cm": 100 * (raw[rec] - row[name]),
                         "improvement_pct": 100 * (raw[rec] - row[name]) / raw[rec]})
     return pd.DataFrame(out)
-
-
-# --------------------------------------------------------------------------- what kind each number is
-
-#: Kinds of headline numbers (as in :class:`uwbwb.metrics.Summary`).
-REPRODUCED, TARGET, INPUT = "reproduced", "target", "input"

@@ -22,12 +22,8 @@ from ... import metrics
 from ...metrics import interval_side
 from .study import Results
 
-__all__ = ["LEVEL", "N_BOOT", "NIS_BAND", "facts", "nis_verdict", "verdict"]
+__all__ = ["NIS_BAND", "facts", "nis_verdict", "verdict"]
 
-#: Bootstrap replicates.
-N_BOOT = 2000
-#: Level of the interval.
-LEVEL = 0.95
 #: Mean NIS/dof band of a consistent filter.
 NIS_BAND = (0.5, 2.0)
 
@@ -59,7 +55,7 @@ def facts(res: Results) -> dict:
         f[f"coverage[{s.name}]"] = s.coverage
         f[f"rmse_m[{s.name}]"] = s.stats(common={"rmse": metrics.rmse})["rmse"]
     d = metrics.block_bootstrap_difference(scores["EKF-RF"].common_m, scores["LS"].common_m,   # the package's one rule
-                                           rng=np.random.default_rng(res.seed), n_boot=N_BOOT, level=LEVEL)
+                                           rng=np.random.default_rng(res.seed))
     f.update(diff_m=d["diff_m"], lo_m=d["lo_m"], hi_m=d["hi_m"], verdict=verdict(d["lo_m"], d["hi_m"]))
     nis = res.nis_per_dof[np.isfinite(res.nis_per_dof)]
     f["nis_per_dof"] = float(nis.mean()) if nis.size else np.nan
