@@ -305,8 +305,8 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
     if lias is not None and "calibrated (LOSO)" in lias.runs:
         poses = pd.concat([lias.runs["calibrated (LOSO)"].poses.query("heuristic == 'none'").assign(heuristic="calibrated"),
                            lias.runs["raw"].poses.query("heuristic == 'residual'")])
-        add("LIAS static: range calibration (plain NLS) vs residual pruning (raw ranges, fixed in advance), median error "
-            "on the same poses (m)", "—", None, _PAIRED_RULE + " (each pose one block)",
+        add("LIAS static: range calibration (plain NLS) vs residual pruning (raw ranges, fixed in advance), median "
+            "error on the same poses (m)", "—", None, _PAIRED_RULE + " (each pose one block)",
             _sides("calibration better", "pruning better"),
             d=paired(poses, "calibrated", "residual", ["recording"], at="tag", blocks="segment", rng=rng))
     for k, run in (lias_dyn.runs.items() if lias_dyn is not None else ()):
