@@ -169,8 +169,7 @@ def held_ratio(board: Board, method: str, *, seed: int) -> dict:
     has = a.estimates.has_estimate
     last = np.maximum.accumulate(np.where(has, np.arange(has.size), -1))
     pos = np.where((last >= 0)[:, None], a.estimates.pos_m[np.maximum(last, 0)], np.nan)
-    d = pos[:, :2] - a.truth_pos_m[:, :2]
-    err = np.sqrt(np.sum(d * d, axis=1))
+    err = metrics.position_error_m(pos, a.truth_pos_m)
     keep = b.scored & np.isfinite(err)
     iv = metrics.block_bootstrap_difference(err[keep], b.error_m[keep],
                                             rng=pair_rng(seed, board.label, f"{method}, held", THEIRS))
