@@ -99,7 +99,7 @@ def _cases(data_dir, wanted: Sequence[str] | None) -> tuple[list[str], list[str]
 
 
 def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | None = None, *, fast: bool,
-                       seed: int = 0, progress: bool = False) -> Section:
+                       seed: int = 0) -> Section:
     """Notebook 06's Hanyang section: reproduction, boards, ours / theirs per case, static model.
 
     ``cases`` None: every case present (FAST: the first only); named cases run as named, FAST
@@ -124,10 +124,9 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
     boards, tuning, picks = {}, {}, {}
     for c in chosen:
         tuning[c] = study.tuning_case(c, available)
-        boards[c] = study.case_board(c, tuning[c], data_dir, fast=fast, static_models=models, progress=progress)
+        boards[c] = study.case_board(c, tuning[c], data_dir, fast=fast, static_models=models)
         if tuning[c] not in picks:
-            picks[tuning[c]] = study.pick_on_tuning_case(tuning[c], data_dir, fast=fast, static_models=models,
-                                                         progress=progress)[0]
+            picks[tuning[c]] = study.pick_on_tuning_case(tuning[c], data_dir, fast=fast, static_models=models)[0]
         scored = boards[c].table().set_index("method").loc[study.THEIRS, "n_scored"]
         assert scored > 0, f"{c}: the authors' LS was not scored"
     ratios = study.ratio_table(boards, picks={c: picks[t] for c, t in tuning.items()}, seed=seed)
