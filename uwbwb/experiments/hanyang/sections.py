@@ -99,7 +99,7 @@ def _cases(data_dir, wanted: Sequence[str] | None) -> tuple[list[str], list[str]
 
 
 def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | None = None, *, fast: bool,
-                       seed: int = 0, progress: bool = False) -> Section:
+                       seed: int = 0) -> Section:
     """Notebook 06's Hanyang section: reproduction, boards, ours / theirs per case, static model.
 
     ``cases`` None: every case present (FAST: the first only); named cases run as named, FAST
@@ -124,10 +124,9 @@ def scoreboard_section(cases: Sequence[str] | None = None, data_dir: PathLike | 
     boards, tuning, picks = {}, {}, {}
     for c in chosen:
         tuning[c] = study.tuning_case(c, available)
-        boards[c] = study.case_board(c, tuning[c], data_dir, fast=fast, static_models=models, progress=progress)
+        boards[c] = study.case_board(c, tuning[c], data_dir, fast=fast, static_models=models)
         if tuning[c] not in picks:
-            picks[tuning[c]] = study.pick_on_tuning_case(tuning[c], data_dir, fast=fast, static_models=models,
-                                                         progress=progress)[0]
+            picks[tuning[c]] = study.pick_on_tuning_case(tuning[c], data_dir, fast=fast, static_models=models)[0]
         scored = boards[c].table().set_index("method").loc[study.THEIRS, "n_scored"]
         assert scored > 0, f"{c}: the authors' LS was not scored"
     ratios = study.ratio_table(boards, picks={c: picks[t] for c, t in tuning.items()}, seed=seed)
@@ -179,14 +178,18 @@ def _ratio_rows(quantity: str, r: Mapping, data: str, *, edge: str | None = None
                          kind="reproduced")
 
 
-def _one_case(case: str | None, data_dir, prefer: str) -> tuple[str | None, str | None, list[str]]:
+def _case_pairs(case: str | None, data_dir, prefer: str, estimators: list, authors: tuple, pairs: list, *,
+                fast: bool, seed: int) -> tuple[str | None, str | None, str | None, Board | None, pd.DataFrame | None]:
+    """One case (None: the first of condition ``prefer``) on a board of ``estimators`` and the authors' ``authors``
+    rows, tuned on :func:`~.study.tuning_case`, and the :func:`~uwbwb.scoreboard.verdicts.difference_table` of
+    ``pairs`` on it: ``(absent, case, tuning case, board, table)``, all but ``absent`` None where it is set."""
     available, chosen, absent = _cases(data_dir, None if case is None else [case])
     if absent:
-        return None, absent, available
-    if chosen:
-        return chosen[0], None, available
-    pick = [c for c in available if c.startswith(prefer + "/")]
-    return (pick or available)[0], None, available
+        return absent, None, None, None, None
+    case = chosen[0] if chosen else ([c for c in available if c.startswith(prefer + "/")] or available)[0]
+    tune = study.tuning_case(case, available)
+    board = study.case_board(case, tune, data_dir, fast=fast, estimators=estimators, authors=authors)
+    return None, case, tune, board, difference_table({board.label: board}, pairs, seed=seed)
 
 
 def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *, fast: bool,
@@ -201,17 +204,14 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
     RMSE_2d row is the board's, on the scored epochs it covered ("(epochs it covered)"), its coverage of the
     scored epochs beside it: where coverages differ, the quotient of two RMSE rows is not the ratio row.
     """
-    case, absent, available = _one_case(case, data_dir, "NLOS")
-    if absent:
-        return Section(absent=absent)
-    tune = study.tuning_case(case, available)
     windows = (1.0,) if fast else NLS_WINDOWS_S
     est = [RawLs(), WindowNls(windows_s=windows), estimators.PrunedNls(windows_s=windows, heuristic="residual"),
            estimators.PrunedNls(windows_s=windows, heuristic="robust_mean")]
-    board = study.case_board(case, tune, data_dir, fast=fast, estimators=est, authors=("LS",))
     pairs = [("NLS residual pruning", "NLS"), ("NLS robust mean", "NLS"), ("NLS", "raw LS"),
              ("NLS residual pruning", study.THEIRS), ("NLS robust mean", study.THEIRS)]
-    table = difference_table({board.label: board}, pairs, seed=seed)
+    absent, case, tune, board, table = _case_pairs(case, data_dir, "NLOS", est, ("LS",), pairs, fast=fast, seed=seed)
+    if absent:
+        return Section(absent=absent)
     rows = [x for r in table.to_dict("records") for x in _ratio_rows(f"RMSE_2d ratio {r['A']} / {r['B']}", r,
                                                                       board.label)]
     for r in board.table().itertuples(index=False):
@@ -233,15 +233,12 @@ def motion_section(case: str | None = None, data_dir: PathLike | None = None, *,
     LS and the authors' ESKF (external, IMU-aided); each EKF that ran against raw LS, a row of
     :func:`~uwbwb.scoreboard.verdicts.difference_table` with its tuned ``sigma_w``. The EKFs are the board's
     (:func:`~uwbwb.scoreboard.estimators.default_estimators`, FAST grids in FAST)."""
-    case, absent, available = _one_case(case, data_dir, "LOS")
-    if absent:
-        return Section(absent=absent)
-    tune = study.tuning_case(case, available)
     board_est = {e.name: e for e in default_estimators(fast=fast)}
     names = ["EKF-RF", "EKF-RW ranges", "EKF-RF ranges", "EKF-RJ ranges"]
-    est = [board_est["raw LS"], *[board_est[m] for m in names]]
-    board = study.case_board(case, tune, data_dir, fast=fast, estimators=est, authors=("ESKF",))
-    table = difference_table({board.label: board}, [(m, "raw LS") for m in names], seed=seed)
+    absent, case, tune, board, table = _case_pairs(case, data_dir, "LOS", [board_est[m] for m in ("raw LS", *names)],
+                                                   ("ESKF",), [(m, "raw LS") for m in names], fast=fast, seed=seed)
+    if absent:
+        return Section(absent=absent)
     table["sigma_w"] = [board.calibration.params(m).get("sigma_w", np.nan) for m in table["A"]]
     rows = []
     for r in table.to_dict("records"):

@@ -99,7 +99,7 @@ def study_estimators(*, fast: bool = False, static_models: Sequence[StaticRangeM
 
 def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: bool = False,
                estimators: Sequence | None = None, static_models: Sequence[StaticRangeModel] = (),
-               authors: tuple[str, ...] = ("LS", "ESKF"), progress: bool = False) -> Board:
+               authors: tuple[str, ...] = ("LS", "ESKF")) -> Board:
     """The board of ``case`` with calibration and tuning on ``tune`` (never the scored case): ``estimators``
     (default :func:`study_estimators`), then the authors' ``authors`` rows of ``case`` (*external*).
 
@@ -127,8 +127,8 @@ def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: 
         tr = theirs.to_trajectory()      # sensitivity: their latency, measured on the tuning case, removed
         est.append(ExternalEstimates(f"authors LS, latency removed ({lag:+.2f} s, tuning case) (external)",
                                      {"tag": Trajectory(tr.t_s + float(lag), tr.pos_m)}))
-    return score(test, cal, estimators=est, rate_hz=None, dim=2, fast=fast, progress=progress,
-                 label=test_rec.label, other_anchors=True)   # the two trajectories place the same anchors apart
+    return score(test, cal, estimators=est, rate_hz=None, dim=2, fast=fast, label=test_rec.label,
+                 other_anchors=True)   # the two trajectories place the same anchors apart
 
 
 
@@ -136,8 +136,8 @@ THEIRS = "authors LS (external)"
 
 
 def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bool = False,
-                        estimators: Sequence | None = None, static_models: Sequence[StaticRangeModel] = (),
-                        progress: bool = False) -> tuple[str | None, Board]:
+                        estimators: Sequence | None = None,
+                        static_models: Sequence[StaticRangeModel] = ()) -> tuple[str | None, Board]:
     """Our ranges-only method to set against the authors' LS, picked on the tuning case alone.
 
     The authors' window of ``tune`` (FAST: its first :data:`FAST_SPAN_S` s) is split in time: its
@@ -155,7 +155,7 @@ def pick_on_tuning_case(tune: str, data_dir: PathLike | None = None, *, fast: bo
     second = rec.between(mid, c1, f"{rec.name} [authors' window, second half]")
     est = study_estimators(fast=fast, static_models=static_models) if estimators is None else estimators
     est = [*(e for e in est if not getattr(e, "external", False)), *external_estimators(rec, ("LS",))]
-    board = score(second, first, estimators=est, rate_hz=None, dim=2, fast=fast, progress=progress,
+    board = score(second, first, estimators=est, rate_hz=None, dim=2, fast=fast,
                   label=f"{rec.label} [pick: tuned on first half, scored on second]")
     t = ratio_table({tune: board})
     return (t.loc[t["best"], "A"].iloc[0] if len(t) else None), board
@@ -169,8 +169,7 @@ def held_ratio(board: Board, method: str, *, seed: int) -> dict:
     has = a.estimates.has_estimate
     last = np.maximum.accumulate(np.where(has, np.arange(has.size), -1))
     pos = np.where((last >= 0)[:, None], a.estimates.pos_m[np.maximum(last, 0)], np.nan)
-    d = pos[:, :2] - a.truth_pos_m[:, :2]
-    err = np.sqrt(np.sum(d * d, axis=1))
+    err = metrics.position_error_m(pos, a.truth_pos_m)
     keep = b.scored & np.isfinite(err)
     iv = metrics.block_bootstrap_difference(err[keep], b.error_m[keep],
                                             rng=pair_rng(seed, board.label, f"{method}, held", THEIRS))

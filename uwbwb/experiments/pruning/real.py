@@ -53,10 +53,8 @@ def _check_heights(heights_m, tags) -> dict:
     return {t: float(heights_m[t]) for t in tags}
 
 
-def run_static_poses(recordings, *, heights_m: dict, tags=None, heuristics=HEURISTICS,
-                     config: PruningConfig = PruningConfig(dim=2), stride: int = 10,
-                     calibrations: dict | None = None,
-                     progress: bool = False) -> StaticResult:
+def run_static_poses(recordings, *, heights_m: dict, tags=None, config: PruningConfig = PruningConfig(dim=2),
+                     stride: int = 10, calibrations: dict | None = None, progress: bool = False) -> StaticResult:
     """Each static pose file is a stationary segment: localise every tag with every heuristic.
 
     Parameters
@@ -69,8 +67,6 @@ def run_static_poses(recordings, *, heights_m: dict, tags=None, heuristics=HEURI
         the dataset's description, never from the evaluated recording's truth.
     tags
         Tags to use (default all).
-    heuristics
-        Heuristics to run.
     config
         Heuristic/solver parameters. Default ``dim=2``: the LIAS anchors and tags
         all sit close to one horizontal plane, so the height is not observable
@@ -100,7 +96,7 @@ def run_static_poses(recordings, *, heights_m: dict, tags=None, heuristics=HEURI
             log = rec.ranges[tag] if cal is None else cal.apply(rec.ranges[tag])
             log = log.select(slice(None, None, int(stride)))
             true = rec.truth[tag].pos_m[0]
-            fits, ep = score_segment(log, rec.anchors, heuristics, config, still=True, z_m=heights[tag],
+            fits, ep = score_segment(log, rec.anchors, HEURISTICS, config, still=True, z_m=heights[tag],
                                      true_xy=true[:2], keys={"recording": rec.name, "site": site, "tag": tag})
             epochs += ep
             rows += [{"recording": rec.name, "site": site, "yaw_deg": rec.meta.get("yaw_deg"), "tag": tag, **row,

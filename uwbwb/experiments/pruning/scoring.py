@@ -106,9 +106,8 @@ def heuristic_summary(stops: pd.DataFrame, moves: pd.DataFrame | None = None,
     """
     parts = []
     if len(stops):
-        g = stops.groupby("heuristic")
-        parts.append(pd.DataFrame({"n_stops": g.size(), "stop_median_m": g["err_m"].median(),
-                                   "stop_p90_m": g["err_m"].agg(lambda e: np.quantile(e, 0.9)),
+        g, s = stops.groupby("heuristic"), metrics.epoch_summary(stops, by="heuristic")   # a stop: one epoch
+        parts.append(pd.DataFrame({"n_stops": s.n_epochs, "stop_median_m": s.median_m, "stop_p90_m": s.p90_m,
                                    "stop_max_m": g["err_m"].max()}))
         if "err_z_m" in stops:
             parts.append(pd.DataFrame({"stop_err_z_median_m": g["err_z_m"].agg(lambda z: z.abs().median()),

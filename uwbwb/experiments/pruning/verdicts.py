@@ -4,9 +4,11 @@ Every verdict comes from an interval and :func:`uwbwb.metrics.interval_side`: a 
 median errors on the epochs (or stops) both covered gets the block-bootstrap interval of
 :func:`uwbwb.metrics.block_bootstrap_difference` (:func:`paired`); the paper's "90 % of all distance errors under
 4 m" gets the interval over independent simulated experiments of :func:`uwbwb.metrics.seeds_interval`. With too
-few blocks (or one experiment, as in FAST) a row says "no interval", never a verdict. :func:`verdict_table` lays the
-claims out as rows (claim, paper and its kind, ours and its kind, the simulator assumption a synthetic number rests
-on, rule, verdict); :func:`wins_table` says which estimator leads where, by the same rule.
+few blocks (or one experiment, as in FAST) a row has no interval and says "no interval", never a verdict.
+:func:`verdict_table` lays the claims out as rows (:data:`COLUMNS`: claim, paper and its kind, ours with its 95 %
+interval and count, its kind, the simulator assumption a synthetic number rests on, rule, verdict); a ranking's
+``ours`` is its ranks, and a row per pair of the ranking follows it. :func:`wins_table` says which estimator leads
+where, by the same rule.
 """
 
 from __future__ import annotations
@@ -24,7 +26,8 @@ from .scoring import ESTIMATORS, LABELS, PAPER_RANKING, POINT
 __all__ = ["COLUMNS", "Ranking", "assumption", "noise", "paired", "ranking", "rankings", "verdict_table", "wins_table"]
 
 #: The columns of :func:`verdict_table`.
-COLUMNS = ["claim", "paper", "paper kind", "ours", "ours kind", "assumption", "rule", "verdict"]
+COLUMNS = ["claim", "paper", "paper kind", "ours", "95 % low", "95 % high", "n", "ours kind", "assumption", "rule",
+           "verdict"]
 
 
 def _sides(below: str, above: str) -> dict:
@@ -35,9 +38,6 @@ def _sides(below: str, above: str) -> dict:
 _NLS = _sides("NLS better", "NLS worse")
 #: Verdicts of "90 % of all distance errors under 4 m" from the side of its interval against 4 m.
 _UNDER = {"below": "agrees", "above": "differs", "contains": "not resolved", "none": "no interval"}
-#: The scaled-excess row's verdict from the sides of its intervals (any other mix: not resolved).
-_EXCESS = {frozenset({"below"}): "agrees at each", frozenset({"above"}): "differs at each",
-           frozenset({"below", "above"}): "depends on the assumed excess", frozenset({"none"}): "no interval"}
 #: Rule text of the paired rows.
 _PAIRED_RULE = "95 % block-bootstrap interval of the median difference vs 0"
 _RANK_RULE = ("each step of the paper's order: 95 % block-bootstrap interval of the median difference below 0 (all: "
@@ -60,28 +60,15 @@ def paired(table: pd.DataFrame, a: str, b: str, series: list[str], *, at: str = 
     return {**d, "a": a, "b": b, "side": metrics.interval_side(d["lo_m"], d["hi_m"])}
 
 
-def _iv(d: dict, digits: int = 2) -> str:
-    return f"[{d['lo_m']:+.{digits}f}, {d['hi_m']:+.{digits}f}]" if d["side"] != "none" else "(no interval)"
-
-
-def _pair_text(d: dict, what: str, digits: int = 3) -> str:
-    a, b = (LABELS.get(d[k], d[k]) for k in ("a", "b"))
-    return (f"{a} {d['median_a_m']:.{digits}f}, {b} {d['median_b_m']:.{digits}f}: {d['diff_m']:+.{digits}f} "
-            f"{_iv(d, digits)} ({d['n']} {what})")
-
-
-def _decide(steps: list[dict], holds: str, fails: str, what: str = "stops") -> tuple[str, str]:
-    """The text of the paired differences ``steps`` (each ``a < b`` claimed; ``what`` they count) and their verdict:
-    every interval below 0, ``holds``; one above 0, ``fails``; no interval at all, "no interval"; else not
-    resolved."""
+def _decide(steps: list[dict], holds: str, fails: str) -> str:
+    """The verdict of the paired differences ``steps`` (each ``a < b`` claimed): every interval below 0, ``holds``;
+    one above 0, ``fails``; no interval at all, "no interval"; else not resolved."""
     sides = [s["side"] for s in steps]
-    text = "; ".join(f"{LABELS[s['a']]} − {LABELS[s['b']]} {s['diff_m']:+.2f} m {_iv(s)}" for s in steps) + (
-        f" ({steps[0]['n']} {what})" if steps else "")
     if sides and all(x == "below" for x in sides):
-        return text, holds
+        return holds
     if "above" in sides:
-        return text, fails
-    return text, ("no interval" if all(x == "none" for x in sides) else "not resolved")
+        return fails
+    return "no interval" if all(x == "none" for x in sides) else "not resolved"
 
 
 @dataclass(frozen=True)
@@ -138,19 +125,17 @@ def ranking(stops: pd.DataFrame, series: list[str], *, at: str = "segment", rng:
     return Ranking(pairs, pd.Series(rank, name="rank", dtype=int))
 
 
-def _same_order(a: Ranking, b: Ranking) -> tuple[str, str]:
+def _same_order(a: Ranking, b: Ranking) -> str:
     """Whether two rankings of the same heuristics (:func:`ranking`: ties where an interval does not resolve the
-    order) give the same order of the heuristics both hold: ``b``'s differences and ranks in words, and "same"
-    (every pair resolved in both, the same way), "changes" (a pair resolved in both, the other way), "no interval"
-    (no interval in ``b``) or "not resolved"."""
+    order) give the same order of the heuristics both hold: "same" (every pair resolved in both, the same way),
+    "changes" (a pair resolved in both, the other way), "no interval" (no interval in ``b``) or "not resolved"."""
     both = [h for h in b.rank.index if h in a.rank.index]
     pairs = [(a.rank[h] - a.rank[g], b.rank[h] - b.rank[g]) for h, g in itertools.combinations(both, 2)]
-    text = _decide(list(b.pairs), "", "")[0] + (f"; rank (tied where not resolved): {b.text()}" if len(b.rank) else "")
     if any(x * y < 0 for x, y in pairs):
-        return text, "changes"
+        return "changes"
     if pairs and all(x * y > 0 for x, y in pairs):
-        return text, "same"
-    return text, ("no interval" if all(d["side"] == "none" for d in b.pairs) else "not resolved")
+        return "same"
+    return "no interval" if all(d["side"] == "none" for d in b.pairs) else "not resolved"
 
 
 def rankings(syn, lias=None, *, seed: int = 0) -> dict[str, Ranking]:
@@ -164,16 +149,12 @@ def rankings(syn, lias=None, *, seed: int = 0) -> dict[str, Ranking]:
     return out
 
 
-def _p90(track: pd.DataFrame) -> tuple[float, dict]:
-    """Pooled 90th percentile of the covered packets, and the interval of the experiments' own 90th percentiles."""
+def _p90(track: pd.DataFrame) -> dict:
+    """The mean of the experiments' own 90th percentiles of the covered packets, its interval and its side of 4 m."""
     e = track.dropna(subset=["err_m"])
     s = metrics.seeds_interval(e.groupby("experiment")["err_m"].quantile(0.9))
-    return float(np.quantile(e["err_m"], 0.9)), {**s, "side": metrics.interval_side(s["lo"], s["hi"], 4.0)}
-
-
-def _p90_text(pooled: float, s: dict) -> str:
-    per = (f"[{s['lo']:.2f}, {s['hi']:.2f}]" if s["side"] != "none" else "(no interval)")
-    return f"{pooled:.2f} m; per experiment (n = {s['n']}) {s['mean']:.2f} m {per}"
+    return {"diff_m": s["mean"], "lo_m": s["lo"], "hi_m": s["hi"], "n": s["n"],
+            "side": metrics.interval_side(s["lo"], s["hi"], 4.0)}
 
 
 #: Whose range errors a synthetic row rests on.
@@ -199,7 +180,8 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
                   persistence: pd.DataFrame | None = None, excess: pd.DataFrame | None = None, lias=None,
                   lias_dyn=None, hanyang: pd.DataFrame | None = None, ranks: dict | None = None,
                   seed: int = 0) -> pd.DataFrame:
-    """The claims of notebook 02, one row each (:data:`COLUMNS`), each decided by an interval.
+    """The claims of notebook 02, one row each (:data:`COLUMNS`), each decided by an interval; each ranking row
+    (ours: its ranks) is followed by a row per pair of the ranking.
 
     Parameters
     ----------
@@ -234,60 +216,65 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
     rng = np.random.default_rng(seed)
     rows = []
 
-    def add(claim, paper, ours, rule, verdict, assumption="—"):
+    def add(claim, paper, ours, rule, verdict, assumption="—", d=None):
+        """One row; ``d`` (:func:`paired`, or :func:`_p90`) gives ``ours``, its interval, count and verdict."""
+        if d is not None:
+            ours, verdict = d["diff_m"], verdict[d["side"]]
         rows.append({"claim": claim, "paper": paper, "paper kind": "—" if paper == "—" else "input", "ours": ours,
-                     "ours kind": "reproduced", "assumption": assumption, "rule": rule, "verdict": verdict})
+                     "95 % low": np.nan if d is None else d["lo_m"], "95 % high": np.nan if d is None else d["hi_m"],
+                     "n": np.nan if d is None else d["n"], "ours kind": "reproduced", "assumption": assumption,
+                     "rule": rule, "verdict": verdict})
+
+    def each_pair(pairs, what: str, blocks: str, assumption="—", where="row above"):
+        """A row per paired difference behind the row above (what it differences, and in which blocks)."""
+        for d in pairs:
+            a, b = LABELS[d["a"]], LABELS[d["b"]]
+            add(f"pair of the {where}: {a} − {b}, median {what} (m)", "—", None, _PAIRED_RULE + blocks,
+                _sides(f"{a} lower", f"{b} lower"), assumption, d)
 
     syn_a = assumption(tour)
     geo = "known mount height" if dim == 2 else "3-D, no height"
     ranks = rankings(syn, lias, seed=seed) if ranks is None else ranks
     paper_order = " < ".join(LABELS[h] for h in PAPER_RANKING)
 
-    def ranked(r: Ranking, what: str = "stops") -> tuple[str, str]:
-        """A ranking row's text and verdict: the paper's steps decide; every pair gives the ranks."""
-        _, verdict = _decide(list(r.pairs[:max(len(r.rank) - 1, 0)]), "as in the paper", "differs")
-        text = _decide(list(r.pairs), "", "", what)[0]
-        return text + (f"; rank (tied where not resolved): {r.text()}" if len(r.rank) else ""), verdict
+    def ranked(claim: str, r: Ranking, rule: str, what: str, blocks: str, assumption="—"):
+        """A ranking row (ours: the ranks, tied where not resolved; the paper's steps decide) and its pairs."""
+        add(claim, paper_order, r.text(), rule + _RANK_RULE, _decide(list(r.pairs[:max(len(r.rank) - 1, 0)]),
+                                                                     "as in the paper", "differs"), assumption)
+        each_pair(r.pairs, what, blocks, assumption, "ranking above")
 
-    text, verdict = ranked(ranks["synthetic"])
-    add(f"ranking of the heuristics by median stop error, synthetic ({geo})", paper_order, text,
-        "each experiment's series of stops one block; " + _RANK_RULE, verdict, syn_a)
+    ranked(f"ranking of the heuristics by median stop error, synthetic ({geo})", ranks["synthetic"],
+           "each experiment's series of stops one block; ", "stop error", " (each experiment's stops one block)", syn_a)
     track = syn.track
     if {"residual", POINT} <= set(track["heuristic"]):
-        d = paired(track, "residual", POINT, ["experiment", "tag"], blocks="segment", rng=rng)
-        cov = track.groupby("heuristic")["err_m"].apply(lambda e: e.notna().mean())
         add("residual pruning (fixed in advance) vs the point-based fixes, median of all distance errors on the "
-            "packets both covered (m)", "a slight improvement", _pair_text(d, "packets", 2)
-            + f"; coverage {100 * cov['residual']:.0f} %, {100 * cov[POINT]:.0f} %",
-            _PAIRED_RULE + " (each experiment and node one block)", _NLS[d["side"]], syn_a)
+            "packets both covered (m)", "a slight improvement", None, _PAIRED_RULE + " (each experiment and node one "
+            "block)", _NLS, syn_a, paired(track, "residual", POINT, ["experiment", "tag"], blocks="segment", rng=rng))
     if "residual" in set(track["heuristic"]):
-        pooled, s = _p90(track[track["heuristic"] == "residual"])
-        add("residual pruning: 90 % of all distance errors under 4 m", "yes (the paper's cafeteria)",
-            _p90_text(pooled, s), _SEEDS_RULE, _UNDER[s["side"]], syn_a)
-    if excess is not None and len(excess):
-        p = {m: _p90(t) for m, t in excess.groupby("nlos_mean_m")}
-        sides = [s["side"] for _, s in p.values()]
-        add("residual pruning: 90 % of all distance errors under 4 m, as the simulated NLOS excess is scaled",
-            "yes (the paper's cafeteria)", " / ".join(f"{m:g} m: {_p90_text(*v)}" for m, v in p.items()),
-            _SEEDS_RULE + ", at each mean excess", _EXCESS.get(frozenset(sides), "not resolved"),
-            f"nlos_mean_m scaled, the rest as above: {_OURS}")
+        add("residual pruning: 90 % of all distance errors under 4 m (mean of the experiments' 90th percentiles, m)",
+            "yes (the paper's cafeteria)", None, _SEEDS_RULE, _UNDER, syn_a,
+            _p90(track[track["heuristic"] == "residual"]))
+    for m, t in (excess.groupby("nlos_mean_m") if excess is not None and len(excess) else ()):
+        add(f"residual pruning: 90 % of all distance errors under 4 m, as the simulated NLOS excess is scaled: "
+            f"{m:g} m (mean of the experiments' 90th percentiles, m)", "yes (the paper's cafeteria)", None,
+            _SEEDS_RULE, _UNDER, f"nlos_mean_m scaled, the rest as above: {_OURS}", _p90(t))
     if other is not None:
         three_d, known = (other, syn) if dim == 2 else (syn, other)
         present = set(three_d.stops["heuristic"])
         flat = ranks["synthetic"] if dim == 2 else ranking(known.stops, ["experiment", "tag"], rng=rng)
         up = ranking(three_d.stops.assign(err_m=three_d.stops["err_3d_m"]), ["experiment", "tag"], rng=rng)
-        text, verdict = _same_order(flat, up)
         add("the known-height ranking in 3-D without a height, by 3-D median error (the robust mean has no 3-D "
-            "version)", "—", f"known height: rank {flat.text()}; 3-D: {text}", "each order by the ranking rule "
+            "version)", "—", f"known height: {flat.text()}; 3-D: {up.text()}", "each order by the ranking rule "
             "(each experiment's stops one block; 3-D: the 3-D error): every pair of the heuristics in both resolved "
-            "in both and the same, same; one resolved the other way, changes; else not resolved", verdict, syn_a)
+            "in both and the same, same; one resolved the other way, changes; else not resolved",
+            _same_order(flat, up), syn_a)
+        each_pair(up.pairs, "3-D stop error", " (each experiment's stops one block)", syn_a)
         if "percentile" in present:
             dz = three_d.stops[three_d.stops["heuristic"] == "percentile"]
-            d = paired(pd.concat([dz, dz.assign(heuristic="0", err_z_m=0.0)]), "percentile", "0",
-                       ["experiment", "tag"], at="segment", column="err_z_m", blocks="segment", rng=rng)
-            add("5th percentile in 3-D: median height error (m; > 0: the node sits too high)", "—",
-                f"{d['diff_m']:+.2f} {_iv(d)} ({d['n']} stops)", _PAIRED_RULE + " (each experiment's stops one block)",
-                _sides("too low", "too high")[d["side"]], syn_a)
+            add("5th percentile in 3-D: median height error (m; > 0: the node sits too high)", "—", None,
+                _PAIRED_RULE + " (each experiment's stops one block)", _sides("too low", "too high"), syn_a,
+                paired(pd.concat([dz, dz.assign(heuristic="0", err_z_m=0.0)]), "percentile", "0",
+                       ["experiment", "tag"], at="segment", column="err_z_m", blocks="segment", rng=rng))
     if persistence is not None and persistence["nlos_dwell_s"].nunique() >= 2:
         dwell = sorted(persistence["nlos_dwell_s"].unique())
         base, long = (3.0 if 3.0 in dwell else dwell[0]), dwell[-1]
@@ -295,47 +282,45 @@ def verdict_table(syn, *, dim: int = 2, other=None, tour: TourConfig | None = No
         three = [h for h in PAPER_RANKING if h in set(persistence["heuristic"])]
         first = ranking(at[base], ["experiment", "tag"], rng=rng)       # best at the base: ranked alone first
         top = list(first.rank.index[first.rank == 1])
-        text, verdict = _decide([paired(at[long], top[0], h, ["experiment", "tag"], at="segment", blocks="segment",
-                                        rng=rng) for h in three if h != top[0]], "same", "changes")
+        steps = [paired(at[long], top[0], h, ["experiment", "tag"], at="segment", blocks="segment", rng=rng)
+                 for h in three if h != top[0]]
+        verdict = _decide(steps, "same", "changes")
         if len(top) > 1:
             verdict = "no interval" if all(d["side"] == "none" for d in first.pairs) else "not resolved"
         add(f"the best heuristic at {base:g} s NLOS episodes ({', '.join(LABELS[h] for h in top)}"
-            f"{'' if len(top) == 1 else ': tied'}) still best at {long:g} s", "—",
-            f"{base:g} s: rank (tied where not resolved) {first.text()}; {long:g} s: {text}",
+            f"{'' if len(top) == 1 else ': tied'}) still best at {long:g} s", "—", f"{base:g} s: {first.text()}",
             f"best at {base:g} s: ranked alone first there (the ranking row's rank rule); then the 95 % bootstrap "
             f"interval of its median difference to each other heuristic at {long:g} s (each experiment's stops one "
             "block): all below 0 same, one above 0 changes", verdict, f"nlos_dwell_s varied, the rest as above: {_OURS}")
+        each_pair(steps, f"stop error at {long:g} s", " (each experiment's stops one block)",
+                  f"nlos_dwell_s varied, the rest as above: {_OURS}")
     for k in (lias.runs if lias is not None else ()):
         if len(ranks[k].rank) >= 2:
-            text, verdict = ranked(ranks[k], "poses")
-            add(f"LIAS static, {k} ranges: the heuristics ranked by median pose error", paper_order, text,
-                "each pose one block; " + _RANK_RULE, verdict)
-    pairs = []                              # (claim, paired difference, what is counted, rule, verdicts)
+            ranked(f"LIAS static, {k} ranges: the heuristics ranked by median pose error", ranks[k],
+                   "each pose one block; ", "pose error", " (each pose one block)")
     for k, run in (lias.runs.items() if lias is not None else ()):
-        pairs.append((f"LIAS static, {k} ranges: plain NLS (fixed in advance) vs point fixes, median error on common "
-                      "epochs (m)", paired(run.epochs, "none", POINT, ["recording", "tag"], blocks="segment", rng=rng),
-                      "epochs", " (each pose one block)", _NLS))
+        add(f"LIAS static, {k} ranges: plain NLS (fixed in advance) vs point fixes, median error on common epochs (m)",
+            "—", None, _PAIRED_RULE + " (each pose one block)", _NLS, d=paired(
+                run.epochs, "none", POINT, ["recording", "tag"], blocks="segment", rng=rng))
     if lias is not None and "calibrated (LOSO)" in lias.runs:
         poses = pd.concat([lias.runs["calibrated (LOSO)"].poses.query("heuristic == 'none'").assign(heuristic="calibrated"),
                            lias.runs["raw"].poses.query("heuristic == 'residual'")])
-        pairs.append(("LIAS static: range calibration (plain NLS) vs residual pruning (raw ranges, fixed in advance), "
-                      "median error on the same poses (m)",
-                      paired(poses, "calibrated", "residual", ["recording"], at="tag", blocks="segment", rng=rng),
-                      "poses", " (each pose one block)", _sides("calibration better", "pruning better")))
+        add("LIAS static: range calibration (plain NLS) vs residual pruning (raw ranges, fixed in advance), median "
+            "error on the same poses (m)", "—", None, _PAIRED_RULE + " (each pose one block)",
+            _sides("calibration better", "pruning better"),
+            d=paired(poses, "calibrated", "residual", ["recording"], at="tag", blocks="segment", rng=rng))
     for k, run in (lias_dyn.runs.items() if lias_dyn is not None else ()):
-        pairs += [(f"LIAS dynamic, {k} ranges: residual pruning (fixed in advance) vs plain NLS, median error on "
-                   "common epochs (m)", paired(run.epochs, "residual", "none", ["segment", "tag"], rng=rng), "epochs",
-                   "", _sides("residual pruning better", "plain NLS better")),
-                  (f"LIAS dynamic, {k} ranges: plain NLS (fixed in advance) vs point fixes, median error on common "
-                   "epochs (m)", paired(run.epochs, "none", POINT, ["segment", "tag"], rng=rng), "epochs", "", _NLS)]
+        add(f"LIAS dynamic, {k} ranges: residual pruning (fixed in advance) vs plain NLS, median error on common "
+            "epochs (m)", "—", None, _PAIRED_RULE, _sides("residual pruning better", "plain NLS better"),
+            d=paired(run.epochs, "residual", "none", ["segment", "tag"], rng=rng))
+        add(f"LIAS dynamic, {k} ranges: plain NLS (fixed in advance) vs point fixes, median error on common epochs "
+            "(m)", "—", None, _PAIRED_RULE, _NLS, d=paired(run.epochs, "none", POINT, ["segment", "tag"], rng=rng))
     if hanyang is not None and {"LOS", "NLOS"} <= set(hanyang["condition"]):
-        pairs.append(("Hanyang static: NLOS − LOS median range error, files paired by height and range (m)",
-                      paired(hanyang, "NLOS", "LOS", ["height_m"], at="true_range_m", by="condition",
-                             column="median_err_m", blocks="segment", rng=rng), "pairs", " (each height one block)",
-                      _sides("NLOS smaller", "NLOS larger")))
-    for claim, d, what, blocks, words in pairs:
-        add(claim, "—", _pair_text(d, what), _PAIRED_RULE + blocks, words[d["side"]])
-    return pd.DataFrame(rows, columns=COLUMNS)
+        add("Hanyang static: NLOS − LOS median range error, files paired by height and range (m)", "—", None,
+            _PAIRED_RULE + " (each height one block)", _sides("NLOS smaller", "NLOS larger"),
+            d=paired(hanyang, "NLOS", "LOS", ["height_m"], at="true_range_m", by="condition", column="median_err_m",
+                     blocks="segment", rng=rng))
+    return pd.DataFrame(rows, columns=COLUMNS).astype({"n": "Int64"})
 
 
 #: The wins table's lead from the side of the interval of ``leader − runner-up``.
