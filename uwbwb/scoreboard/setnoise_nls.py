@@ -14,7 +14,7 @@ import numpy as np
 from .. import bounds
 from ..calibration import fit_set_noise_from_fixes
 from ..filters.nls import fit_trajectory
-from ..filters.setnoise import model_noise, run_set_noise_kf, run_set_noise_pf
+from ..filters.setnoise import kf_sweep, model_noise, run_set_noise_kf, run_set_noise_pf
 from ..models.motion import VelocityKick
 from ..sim.setnoise import SetEmulation, emulate_set_fixes
 from ..types import Estimates, RangeLog, RangeSamples
@@ -71,13 +71,11 @@ class SetNoiseFilter(BaseEstimator):
             return {}                                 # the PF takes the KF's tuning (see estimate)
         fixes = [self._fixes(rec, t, cal, truth=True)[0] for t in tags]
         model = fit_set_noise_from_fixes(fixes)
-        cost = []
-        for s in SIGMA_D_GRID_MPS:
-            errs = []
-            for f in fixes:
-                run = run_set_noise_kf(f, model, f.pos_m[0], s)
-                errs.append(np.sum((run.pos_m - f.truth_m) ** 2, axis=1))
-            cost.append(float(np.sqrt(np.mean(np.concatenate(errs)))))
+        sq = []                                       # per fix log: squared errors (σ_d, T), one KF run for the grid
+        for f in fixes:
+            run = kf_sweep(f.t_s, f.pos_m, *model_noise(f, model), f.pos_m[0], SIGMA_D_GRID_MPS)
+            sq.append(np.sum((run.pos_m - f.truth_m) ** 2, axis=-1))
+        cost = [float(np.sqrt(np.mean(np.concatenate([e[j] for e in sq])))) for j in range(len(SIGMA_D_GRID_MPS))]
         best = int(np.argmin(cost))
         return {"sigma_d_mps": float(SIGMA_D_GRID_MPS[best]), "model": model, "n_sets": len(model),
                 "grid_rmse_m": tuple(cost), "grid_edge": on_grid_edge(best, len(SIGMA_D_GRID_MPS))}
