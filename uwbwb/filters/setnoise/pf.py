@@ -605,8 +605,8 @@ def _predict_weigh(x, vx, y, vy, logw, noise, sd, dt, predict, c_x, c_y, a_x, a_
         j, m, s = r // (M * S), (r // S) % M, r % S
         xr, vxr, yr, vyr, lr = x[r], vx[r], y[r], vy[r], logw[r]
         if predict:
-            kick = noise[j, :, m if Mn > 1 else 0, s if Sn > 1 else 0]
-            nx, ny, sd_s = kick[0], kick[1], sd[s]
+            mn, sn = (m if Mn > 1 else 0), (s if Sn > 1 else 0)
+            nx, ny, sd_s = noise[j, 0, mn, sn], noise[j, 1, mn, sn], sd[s]     # contiguous rows: SIMD loops
             for i in range(xr.size):
                 xr[i] += vxr[i] * dt
                 yr[i] += vyr[i] * dt
@@ -667,7 +667,8 @@ def _systematic(rows, one_minus_u, Kf, w, state, logw, log_k):
         for a in state:
             for i in range(K):
                 tmp[i] = a[r, anc[i]]
-            a[r, :] = tmp
+            for i in range(K):                   # an explicit loop: faster than numba's slice assignment
+                a[r, i] = tmp[i]
         logw[r, :] = log_k
 
 
@@ -685,11 +686,11 @@ class _Rows:
         self.identity = np.arange(len(rngs) * rows_per_trial * K)
 
     def _uniforms(self, rows: np.ndarray, per_row: int) -> np.ndarray:
-        owner = self.trial_of_row[rows]
+        owner = self.trial_of_row[rows]              # rows ascending: each trial's rows are one run
+        cut = np.searchsorted(owner, np.arange(len(self.rngs) + 1))
         u = np.empty((rows.size, per_row))
-        for j in np.unique(owner):
-            sel = owner == j
-            u[sel] = self.rngs[j].random((int(sel.sum()), per_row))
+        for j in np.flatnonzero(np.diff(cut)):
+            u[cut[j]:cut[j + 1]] = self.rngs[j].random((int(cut[j + 1] - cut[j]), per_row))
         return u
 
     def ancestors(self, need: np.ndarray, w: np.ndarray) -> np.ndarray:
