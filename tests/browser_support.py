@@ -47,9 +47,15 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 #: Parameters the browser test injects (the same as CI's papermill runs).
 FAST_PARAMETERS = {"FAST": True}
-#: Sizes below FAST for the runs whose point is a path, not a number (the browser session, the runs on generated
-#: recordings): the smallest that still run every section and panel. Notebooks not named run at FAST sizes.
-SMALLEST = {"03_ekf_motion_models": {"SIM_DURATION_S": 40.0, "GRID_POINTS": 3}}
+#: Sizes below FAST for the runs whose point is a path, not a number (the runs on generated recordings, the FAST
+#: runs of 04's and 05's ``CLASS = False`` cells): the smallest that still run every section and panel. Notebooks not
+#: named run at FAST sizes. 04 takes its class-mode draws and PF runs (``StudyConfig.for_class``); 05 and 06 score
+#: at a lower epoch rate, 05 on a shorter static run, 06 over fewer Monte Carlo runs (3.5 Hz still gives a tag the
+#: 40 scored epochs the board needs on the 15 s second half of a 30 s generated recording; 2.5 Hz does not).
+SMALLEST = {"03_ekf_motion_models": {"SIM_DURATION_S": 40.0, "GRID_POINTS": 3},
+            "04_doppler_beacons": {"N_BRUTE": 5_000_000, "N_POSITIONS": 30_000, "PF_RUNS": 4},
+            "05_uwb_ins_fusion": {"RATE_HZ": 2.0, "STATIC_S": 10.0},
+            "06_scoreboard": {"RATE_HZ": 3.5, "MC_RUNS": 5}}
 #: Longest time one notebook may take to run all its cells.
 RUN_TIMEOUT_S = float(os.environ.get("UWBWB_BROWSER_TIMEOUT_S", "600"))
 #: Longest time JupyterLab may take to open a notebook and start its kernel.

@@ -136,8 +136,9 @@ RESEARCH_ONLY_HERE = ("04_doppler_beacons", "05_uwb_ins_fusion")
 @pytest.mark.notebook
 @pytest.mark.parametrize("stem", RESEARCH_ONLY_HERE)
 def test_research_cells_run_fast(stem, tmp_path, request):
-    """FAST with ``CLASS = False`` on the datasets found (as ``reproduce --quick`` runs it): no error, a FAST
-    summary, no cut table. Without the browser test the all-notebook LocalCluster reproduce test runs these cells."""
+    """FAST with ``CLASS = False`` on the datasets found (as ``reproduce --quick`` runs it, at the sizes of
+    ``SMALLEST``): no error, a FAST summary, no cut table. Without the browser test the all-notebook LocalCluster
+    reproduce test runs these cells."""
     import papermill as pm
 
     from tests.browser_support import browser_runs
@@ -149,8 +150,9 @@ def test_research_cells_run_fast(stem, tmp_path, request):
     summary, out = tmp_path / "summary.json", tmp_path / f"{stem}.ipynb"
     try:
         pm.execute_notebook(str(NOTEBOOK_DIR / f"{stem}.ipynb"), str(out),
-                            parameters={"FAST": True, "SUMMARY_PATH": str(summary)}, kernel_name="python3",
-                            cwd=str(NOTEBOOK_DIR), progress_bar=False, execution_timeout=CELL_TIMEOUT_S)
+                            parameters={"FAST": True, **SMALLEST[stem], "SUMMARY_PATH": str(summary)},
+                            kernel_name="python3", cwd=str(NOTEBOOK_DIR), progress_bar=False,
+                            execution_timeout=CELL_TIMEOUT_S)
     except pm.PapermillExecutionError as exc:
         pytest.fail(f"{stem} failed in cell {exc.exec_count}: {exc.ename}: {exc.evalue}")
     rows, problem = read_summary(summary, stem, "FAST")
@@ -285,7 +287,8 @@ def test_scoreboard_runs_unchanged_on_another_lias_recording(tmp_path):
                  sessions=[fx.session_814(rng)])
     cases = hfx.write_dynamic_tree(data_dir / "hanyang-outdoor-uwb", rng=rng, speed_mps=4.0)
     chosen = cases[-1].name
-    rows = _run_on("06_scoreboard.ipynb", tmp_path, data_dir, LIAS_RECORDING="medium", HANYANG_CASES=[chosen])
+    rows = _run_on("06_scoreboard.ipynb", tmp_path, data_dir, LIAS_RECORDING="medium", HANYANG_CASES=[chosen],
+                   **SMALLEST["06_scoreboard"])
     ours = f"hanyang-outdoor-uwb/{chosen}"
     assert {r["data"] for r in rows} == {"synthetic", "lias-planar-uwb/medium", ours,
                                          f"{ours} (external: authors' estimates)",
