@@ -33,6 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable, NamedTuple
 
+import numba
 import numpy as np
 
 from ..validate import choice, number, probability
@@ -361,12 +362,44 @@ def roughen(particles: np.ndarray, *, rng: np.random.Generator, k: float = 0.2,
     k = number("k", k, minimum=0.0)
     particles = np.asarray(particles, float)
     K, n_x = particles.shape[-2:]
-    # the spread over a component-major copy: long contiguous loops, not (..., n_x) blocks (max, min are exact)
-    spread = np.ptp(np.ascontiguousarray(np.swapaxes(particles, -1, -2)), axis=-1)[..., None, :]   # (..., 1, n_x)
-    sigma = k * spread * K ** (-1.0 / n_x)
-    if rows is not None:
-        sigma = sigma * np.asarray(rows, bool)[..., None, None]
-    return particles + sigma * rng.standard_normal(particles.shape)
+    if K == 0 or n_x == 0:
+        raise ValueError(f"particles must have shape (..., K, n_x) with K >= 1 and n_x >= 1, got {particles.shape}")
+    batch = particles.shape[:-2]
+    # one row per batch element; rows=None is every row, a factor 1.0 (0.0: a row left as it is)
+    mask = np.ones(batch) if rows is None else np.broadcast_to(np.asarray(rows, bool), batch).astype(float)
+    noise = rng.standard_normal(particles.shape)
+    out = np.empty(particles.shape)
+    _roughen_rows(np.ascontiguousarray(particles).reshape(-1, K, n_x), noise.reshape(-1, K, n_x), k,
+                  K ** (-1.0 / n_x), mask.reshape(-1), rows is not None, out.reshape(-1, K, n_x))
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _roughen_rows(x, noise, k, scale, mask, masked, out):
+    """:func:`roughen` on rows ``(B, K, n_x)``: ``σ_j = k · (max − min of component j) · scale`` (times the row's
+    ``mask`` when ``masked``), ``out = x + σ_j · noise``; the operations of the NumPy definition in its order."""
+    B, K, n_x = x.shape
+    lo, hi, nan = np.empty(n_x), np.empty(n_x), np.empty(n_x, np.bool_)
+    for b in range(B):
+        for j in range(n_x):
+            lo[j] = hi[j] = x[b, 0, j]
+            nan[j] = False
+        for i in range(K):                  # max and min are exact: any order gives NumPy's spread
+            for j in range(n_x):
+                v = x[b, i, j]
+                if v < lo[j]:
+                    lo[j] = v
+                if v > hi[j]:
+                    hi[j] = v
+                if v != v:
+                    nan[j] = True
+        for j in range(n_x):
+            hi[j] = k * (np.nan if nan[j] else hi[j] - lo[j]) * scale       # σ_j
+            if masked:
+                hi[j] = hi[j] * mask[b]
+        for i in range(K):
+            for j in range(n_x):
+                out[b, i, j] = x[b, i, j] + hi[j] * noise[b, i, j]
 
 
 def tempering_exponent(logw: np.ndarray, ll: np.ndarray, min_ess_fraction: float, *,

@@ -35,12 +35,13 @@ from .. import geometry, sampling
 from ..models import doppler as doppler_model
 from ..models import ins
 from ..models.imu import GRADES
-from ..models.motion import RandomForce, RandomJerk, RandomWalk, VelocityKick
+from ..models.motion import RandomForce, RandomJerk, RandomWalk, ReceiverMotion, VelocityKick
 from ..models.setnoise import SetNoiseModel
 from ..models.tdoa import TdoaModel
 from ..sim import robot
 from ..types import Estimates, EstimateStatus, RangeLog, TdoaLog, pseudo_tdoa
 from . import kalman, particle, pruning
+from .doppler import DopplerPf
 from .ekf import Ekf, Linearisation, RangeMeasurement, TdoaEkf, TdoaMeasurement
 from .ekf import kernels as ekf_kernels
 from .eskf import LooseFilter, TdoaUpdate, TightEskf, _tag_jacobian
@@ -485,6 +486,68 @@ def _indices_definition(a):
                                  for i in range(w.shape[0])])}
 
 
+# ---------------------------------------------------------------- Doppler particle filter: one epoch's loops
+def _doppler_pf_inputs():
+    rng = np.random.default_rng(11)
+    x = np.concatenate([rng.uniform(-4.0, 4.0, (3, 60, 3)), rng.uniform(-1.5, 1.5, (3, 60, 3))], axis=-1)
+    x[1, :, 0] += 10.0                                       # every particle of row 1 outside the room: a restart
+    pf = DopplerPf(doppler_model.DopplerModel.for_layout(doppler_model.lab_layout()), ReceiverMotion((2.0, 1.0, 0.2)),
+                   n_particles=60)
+    return pf, x, np.full((3, 60), -np.log(60)), np.array([True, False, True])
+
+
+def _doppler_pf_fast(a):
+    pf, x, logw, rows = a
+    rng = np.random.default_rng(3)
+    kept, kept_logw, lost = pf._keep_in_room(x, logw, rng=rng)
+    return {"propagated": pf.motion.propagate(x, 0.07, rng=rng), "coasted": pf.motion.propagate(x, np.arange(60) / 50,
+                                                                                                   rng=None),
+            "roughened": particle.roughen(x, rng=rng, k=0.2, rows=rows), "roughened all": particle.roughen(x, rng=rng),
+            "kept": kept, "kept logw": kept_logw, "lost": lost}
+
+
+def _doppler_pf_definition(a):
+    """NumPy, one axis at a time: the room test, the random-acceleration step ``p + v dt + a dt²/2``, ``v + a dt``
+    (``a = σ · N(0, 1)``), and roughening ``x + σ_j N(0, 1)`` with ``σ_j = k · (max − min) · K^(−1/n_x)`` per row
+    (times the row's mask); the draws in the filter's order (restart, prediction, roughening)."""
+    pf, x, logw, rows = a
+    rng = np.random.default_rng(3)
+    lo, hi = np.asarray(pf.room_lo_m), np.asarray(pf.room_hi_m)
+    inside = (x[..., 0] >= lo[0]) & (x[..., 0] <= hi[0])
+    for c in (1, 2):
+        inside &= (x[..., c] >= lo[c]) & (x[..., c] <= hi[c])
+    lost = ~np.any(inside, axis=-1)
+    kept, kept_logw = x.copy(), logw.copy()
+    kept[lost] = pf._draw(rng, int(lost.sum()), lo, hi)
+    kept_logw[lost] = -np.log(pf.n_particles)
+    inside[lost] = True
+    out = {"kept": kept, "kept logw": np.where(inside, kept_logw, -np.inf), "lost": lost}
+
+    def propagate(x, dt, noise):
+        y = np.empty_like(x)
+        for c in range(3):
+            acc = 0.0 if noise is None else noise[..., c] * pf.motion.sigma_acc_mps2[c]
+            y[..., c] = x[..., c] + x[..., 3 + c] * dt + 0.5 * acc * dt * dt
+            y[..., 3 + c] = x[..., 3 + c] + acc * dt
+        return y
+
+    def roughen(x, k, rows):
+        K, n_x = x.shape[-2:]
+        sigma = k * np.ptp(x, axis=-2)[..., None, :] * K ** (-1.0 / n_x)
+        if rows is not None:
+            sigma = sigma * rows[..., None, None]
+        return x + sigma * rng.standard_normal(x.shape)
+
+    out["propagated"] = propagate(x, 0.07, rng.standard_normal(x.shape[:-1] + (3,)))
+    out["coasted"] = propagate(x, np.arange(60) / 50, None)
+    out["roughened"], out["roughened all"] = roughen(x, 0.2, rows), roughen(x, 0.2, None)
+    return out
+
+
+def _doppler_pf_exercised(out):
+    return None if out["lost"].sum() == 1 and np.isinf(out["kept logw"]).any() else "no restart or no particle out"
+
+
 # ---------------------------------------------------------------- Doppler space sampling (eq. 1)
 def _brute_inputs():
     model = doppler_model.DopplerModel.for_layout(doppler_model.cubic_layout())
@@ -758,6 +821,12 @@ def _registry() -> tuple[Twin, ...]:
         twins.append(Twin(f"particle.{method}_indices[batched]", _indices_fast, _indices_definition,
                           _indices_inputs(method), {"indices": BIT},
                           "tests/filters/test_particle.py::test_batched_indices_equal_row_by_row"))
+    twins.append(Twin("doppler.pf[room, motion, roughening]", _doppler_pf_fast, _doppler_pf_definition,
+                      _doppler_pf_inputs, dict.fromkeys(("propagated", "coasted", "roughened", "roughened all", "kept",
+                                                         "kept logw", "lost"), BIT),
+                      "tests/golden/test_doppler_golden.py::test_every_doppler_configuration_reproduces_the_golden_outputs",
+                      ("uwbwb.filters.doppler.pf._inside_room", "uwbwb.models.motion._propagate_rows",
+                       "uwbwb.filters.particle._roughen_rows"), _doppler_pf_exercised))
     twins.append(Twin("sampling._brute_kernel", _brute_fast, _brute_definition, _brute_inputs,
                       {"counts": BIT, "delta_m": Tol(1e-9, 0.0)},
                       "tests/test_sampling.py::test_kernel_counts_equal_numpy_on_the_same_stream",

@@ -70,6 +70,7 @@ from dataclasses import dataclass, field, make_dataclass, replace
 from math import factorial
 from typing import ClassVar
 
+import numba
 import numpy as np
 from .layout import StateLayout
 
@@ -534,13 +535,12 @@ class ReceiverMotion(_Kinematic):
     def propagate(self, x: np.ndarray, dt_s, *, rng: np.random.Generator | None) -> np.ndarray:
         """Move states ``(..., 6)`` over ``dt_s`` (scalar or broadcastable); ``rng=None``: no noise."""
         x = np.asarray(x, float)
-        dt = np.asarray(dt_s, float)
-        noise = None if rng is None else rng.standard_normal(x.shape[:-1] + (3,))
-        out = np.empty_like(x)
-        for c in range(3):       # one axis at a time: long loops over the particles, not (..., 3) blocks
-            a = 0.0 if noise is None else noise[..., c] * self.sigma_acc_mps2[c]
-            out[..., c] = x[..., c] + x[..., 3 + c] * dt + 0.5 * a * dt * dt
-            out[..., 3 + c] = x[..., 3 + c] + a * dt
+        batch = x.shape[:-1]
+        noise = np.zeros(batch + (3,)) if rng is None else rng.standard_normal(batch + (3,))
+        dt = np.broadcast_to(np.asarray(dt_s, float), batch)
+        out = np.empty(x.shape)
+        _propagate_rows(np.ascontiguousarray(x).reshape(-1, 6), noise.reshape(-1, 3), np.ravel(dt),
+                        np.asarray(self.sigma_acc_mps2), out.reshape(-1, 6))
         return out
 
     def step(self, x: np.ndarray, dt_s, *, rng: np.random.Generator | None) -> np.ndarray:
@@ -550,3 +550,16 @@ class ReceiverMotion(_Kinematic):
     def sample_path(self, x0: np.ndarray, t_s: np.ndarray, *, rng: np.random.Generator) -> np.ndarray:
         """States ``(T, 6)`` at ``t_s`` from ``x0``, one :meth:`propagate` per interval."""
         return _sample_by_steps(self, x0, t_s, rng)
+
+
+@numba.njit(cache=True, nogil=True)
+def _propagate_rows(x, noise, dt, sigma, out):
+    """:meth:`ReceiverMotion.propagate` on rows ``(N, 6)`` with their standard normals ``(N, 3)`` and steps ``(N,)``:
+    per axis ``a = noise · σ``, ``p + v dt + a dt²/2`` and ``v + a dt``, the operations of its NumPy definition in
+    its order (no noise: ``noise`` all zeros, ``a = 0``)."""
+    for n in range(x.shape[0]):
+        h = dt[n]
+        for c in range(3):
+            a = noise[n, c] * sigma[c]
+            out[n, c] = x[n, c] + x[n, 3 + c] * h + 0.5 * a * h * h
+            out[n, 3 + c] = x[n, 3 + c] + a * h

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from ... import parallel
@@ -269,9 +270,8 @@ class DopplerPf:
     def _keep_in_room(self, x: np.ndarray, logw: np.ndarray, *, rng: np.random.Generator):
         """Zero weight outside the room; a run with no particle left inside is drawn again (a restart)."""
         lo, hi = np.asarray(self.room_lo_m, float), np.asarray(self.room_hi_m, float)
-        inside = (x[..., 0] >= lo[0]) & (x[..., 0] <= hi[0])      # one axis at a time: long loops over particles
-        for c in (1, 2):
-            inside &= (x[..., c] >= lo[c]) & (x[..., c] <= hi[c])
+        inside = np.empty(x.shape[:-1], bool)
+        _inside_room(np.ascontiguousarray(x).reshape(-1, x.shape[-1]), lo, hi, inside.reshape(-1))
         lost = ~np.any(inside, axis=-1)
         if lost.any():                           # the run lost track: start it again
             x, logw = x.copy(), logw.copy()
@@ -309,6 +309,13 @@ def _moments(x: np.ndarray, logw: np.ndarray):
         np.subtract(x[..., c], pos[:, c, None], out=d[..., c])
         np.multiply(d[..., c], w, out=dw[..., c])
     return pos, vel, np.swapaxes(dw, 1, 2) @ d
+
+
+@numba.njit(cache=True, nogil=True)
+def _inside_room(x, lo, hi, inside):
+    """Per particle ``(N, n_x)``: whether its position ``x[:, :3]`` lies in the box ``[lo, hi]`` (bounds included)."""
+    for n in range(x.shape[0]):
+        inside[n] = (lo[0] <= x[n, 0] <= hi[0]) and (lo[1] <= x[n, 1] <= hi[1]) and (lo[2] <= x[n, 2] <= hi[2])
 
 
 def _pf_block(start: int, n_runs: int, seed, pf: DopplerPf, meas):
