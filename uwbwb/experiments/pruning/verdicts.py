@@ -150,7 +150,8 @@ def rankings(syn, lias=None, *, seed: int = 0) -> dict[str, Ranking]:
 
 
 def _p90(track: pd.DataFrame) -> dict:
-    """The mean of the experiments' own 90th percentiles of the covered packets, its interval and its side of 4 m."""
+    """The mean of the experiments' own 90th percentiles of the covered packets, its interval and its side of 4 m,
+    under the keys of :func:`paired` that a verdict row reads (``diff_m`` holds the mean, not a difference)."""
     e = track.dropna(subset=["err_m"])
     s = metrics.seeds_interval(e.groupby("experiment")["err_m"].quantile(0.9))
     return {"diff_m": s["mean"], "lo_m": s["lo"], "hi_m": s["hi"], "n": s["n"],
