@@ -505,6 +505,10 @@ def test_every_ablation_ratio_row_is_the_cell_of_the_table_it_comes_from():
         t = res.table(case)
         assert rows[f"mismatch '{case}': dynamic RMSE, tight + gate (mean of {int(t.loc['tight + gate', 'seeds'])} "
                     "seeds)"] == t.loc["tight + gate", "dyn_rmse"]
+    shared = facts.ratios(res)                  # computed once: the verdict table's first rows and the summary's
+    assert facts.verdict_table(res).head(len(shared)).to_dict("records") == [
+        {k: r[k] for k in ("claim", "ours", "interval", "seeds", "rule", "verdict")} for r in shared]
+    assert {v for q, v in rows.items() if " / " in q and "95 %" not in q} <= {r["ratio"] for r in shared}
 
 
 def test_a_matched_failure_to_reacquire_is_named():

@@ -191,6 +191,11 @@ def test_scoring_on_common_epochs_with_coverage_beside(office_runs):
     assert own == pytest.approx(est.cep95()["LS"])                           # LS's own epochs are the common ones
     table = mm.Study(None, {}, [est]).coverage()
     assert table.loc[("office", "tag1"), "LS"] == pytest.approx(100 * cov["LS"])
+    board = est.board.table().set_index("method")                          # coverage and NIS are the board's
+    assert [cov[m] for m in est.methods] == pytest.approx(list(board.loc[list(est.methods), "coverage"]))
+    nis = est.nis()
+    assert list(nis["mean_nis_over_dof"]) == pytest.approx(list(board.loc[nis.index, "nis_over_dof"]))
+    assert list(nis["verdict"]) == list(board.loc[nis.index, "nis_verdict"])
     with pytest.raises(ValueError, match="no epoch where every estimator"):
         mm.estimate(_outage(test[0], -1.0, 1e9), fit_range_sigma(cal[0]), {"RW": 1.0}, gate_prob=None,
                     models=("RW",)).cep95()

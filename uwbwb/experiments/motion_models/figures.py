@@ -108,5 +108,6 @@ def cdf_figure(res: TagResults, names: Sequence[str] = ("EKF-RW", "EKF-RF", "EKF
     """
     common = res.common_errors()
     ax = plotting.error_cdf({n: common[n] for n in names}, ax=ax)
-    ax.set_title(f"{res.run.name}, {res.run.tag} ({100 * res.coverage()['common']:.0f} % of epochs, common to all)")
+    ax.set_title(f"{res.run.name}, {res.run.tag} ({100 * res.coverage()['common']:.0f} % of epochs with truth, "
+                 "common to all)")
     return ax

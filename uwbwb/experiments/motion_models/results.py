@@ -14,7 +14,7 @@ import pandas as pd
 from ... import metrics
 from ...scoreboard.board import Board
 from ...scoreboard.estimators import default_estimators
-from ...types import EstimateStatus, Estimates, TagRun
+from ...types import Estimates, TagRun
 
 
 __all__ = ["LABELS", "MODELS", "METHODS", "PAPER_SIGMA", "PAPER_METHODS_CEP95", "PAPER_MODELS_CEP95", "TagResults",
@@ -138,13 +138,16 @@ class TagResults:
         return {k: metrics.cep95(e) for k, e in self.common_errors().items()}
 
     def coverage(self) -> dict[str, float]:
-        """Name → fraction of the run's epochs with a position, and ``"common"``: the share the tables score."""
-        n = len(self.run.ranges)
-        return {**{m: int(self.estimates(m).has_estimate.sum()) / n for m in self.methods},
-                "common": self.scores.methods[0].n_common / n}
+        """Name → its coverage as the board scores it (:attr:`uwbwb.metrics.MethodEpochs.coverage`: the share of the
+        run's epochs with truth where it has a position), and ``"common"``: the share of those the tables score."""
+        scores = self.scores
+        first = scores.methods[0]
+        return {**{m: scores[m].coverage for m in self.methods},
+                "common": first.n_common / first.n_epochs if first.n_epochs else np.nan}
 
     def nis(self) -> pd.DataFrame:
-        """NIS consistency per filter (every method with a NIS) over its updates (:func:`uwbwb.metrics.nis_consistency`).
+        """NIS consistency per filter (every method with a NIS) over its updates at its scored epochs (truth and a
+        position: the board's NIS, :meth:`~uwbwb.scoreboard.board.Entry.scored`; :func:`uwbwb.metrics.nis_consistency`).
 
         Under right noise models the NIS summed over the ``n`` updates is χ² with
         ``sum_dof`` degrees of freedom; the verdict compares it with the central
@@ -154,11 +157,11 @@ class TagResults:
         """
         rows = []
         for m in self.methods:
-            est = self.estimates(m)
+            entry = self.board.entry(m, self.run.tag)
+            est = entry.estimates
             if "nis" not in est.info:
                 continue
-            up = est.status == EstimateStatus.UPDATED
-            c = metrics.nis_consistency(est.info["nis"][up], est.info["dof"][up])
+            c = metrics.nis_consistency(est.info["nis"][entry.scored], np.asarray(est.info["dof"])[entry.scored])
             dof = max(c["sum_dof"], 1)
             rows.append({"method": m, "n": c["n"], "mean_nis_over_dof": c["mean_nis_over_dof"],
                          "mean_lo": c["sum_lo"] / dof, "mean_hi": c["sum_hi"] / dof,

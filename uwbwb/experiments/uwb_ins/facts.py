@@ -42,7 +42,7 @@ from ...scoreboard.verdicts import EDGE_BOUND
 from .ablation import COVERAGE, HOLD_S, RECOVERY_MAX_M, AblationResult, EKF_TDOA_GATE, LADDER, choose_knobs
 from .ladder import eq4_path, eq4_thresholds, pair_rmse
 
-__all__ = ["DIVERGED_FACTOR", "ENTERS", "diverged", "diverged_on", "qualified", "tuning_picks", "verdict",
+__all__ = ["DIVERGED_FACTOR", "ENTERS", "diverged", "diverged_on", "qualified", "ratios", "tuning_picks", "verdict",
            "verdict_table"]
 
 #: A mismatch row whose dynamic RMSE or recovery max exceeds this many times its matched value (and
@@ -119,46 +119,42 @@ def _interval(r: dict) -> str:
     return f"[{r['lo']:.2f}, {r['hi']:.2f}]" if np.isfinite(r["lo"]) and np.isfinite(r["hi"]) else "—"
 
 
-def verdict_table(res: AblationResult) -> pd.DataFrame:
-    """Notebook 05's ablation verdicts, one row each: ``claim, ours, interval, seeds, rule, verdict``.
+def _failed(res: AblationResult) -> dict:
+    """Gated row → ``{seed: re-acquisition time}`` of those that failed to re-acquire in the matched world."""
+    rec = res.case("matched")["reacq_s"].unstack("method")
+    return {str(r): {int(k): float(v) for k, v in rec[r].items()} for r in _gated(rec.columns)
+            if not (rec[r] <= res.config.recovery_s).all()}
 
-    Rows: each ladder step on the dynamic RMSE and the max outage error (without / with the ingredient); the
-    headline (the others' max outage error over tight's, matched); how much of that advantage, and of tight's
-    lead on the dynamic RMSE, each mismatch case keeps (``share kept`` in log ratio; none where reversed; "lead
-    grew" above 100 %) — *a row diverged* instead of a verdict where tight or the other
-    row diverged in that case on a metric that enters the ratio (:data:`ENTERS`; the ratio then measures a failure);
-    *not applicable* for a ladder step where a row has no estimate in the metric's window; every diverged row; every
-    gated row that
-    failed to re-acquire in the matched world (:func:`~.ablation.reacquisition_s` beyond the recovery time on some
-    seed) and every one whose max error in the recovery window reaches :data:`~.ablation.RECOVERY_MAX_M` (the
-    earlier reading of the re-acquisition check, which also counts the drift UWB finds on its return); where eq. 4
-    can fire and what it removed."""
-    cfg, rows = res.config, []
-    n_mis = min(cfg.mismatch_seeds, cfg.seeds)
 
-    def add(claim, ours, interval, seeds, rule, verdict):
-        rows.append({"claim": claim, "ours": ours, "interval": interval, "seeds": seeds, "rule": rule,
-                     "verdict": verdict})
+def ratios(res: AblationResult) -> list[dict]:
+    """The ablation's paired ratios, each computed once for :func:`verdict_table` (its first rows) and the summary
+    rows (:func:`~.headlines.ablation_rows`): every ladder step on the dynamic RMSE and the max outage error (without /
+    with, :func:`~.ladder.pair_rmse`), the headline (the others' max outage error over tight's, matched) and per
+    mismatch case tight's lead on both metrics with its share kept (:func:`kept`). Each is the ratio's dict
+    (``ratio``, ``lo``, ``hi``, ``n``) with ``kind`` (``"ladder"``, ``"headline"``, ``"mismatch"``), ``what`` (the
+    ladder step or the case), ``pair``, ``metric``, ``diverged`` (a row of the pair diverged in the case on a metric
+    that enters the ratio, :data:`ENTERS`: it measures a failure) and the verdict table's columns."""
+    cfg, out = res.config, []
+    cov, picks, failed = res.table("matched"), tuning_picks(res), _failed(res)
 
-    matched = res.case("matched")
-    cov = res.table("matched")
-    rec, back = matched["reacq_s"].unstack("method"), matched["recovery_max"].unstack("method")
-    failed = {str(r): {int(k): float(v) for k, v in rec[r].items()} for r in _gated(rec.columns)
-              if not (rec[r] <= cfg.recovery_s).all()}
-    picks = tuning_picks(res)
+    def add(r, kind, what, pair, metric, claim, ours, rule, verdict, diverged=False):
+        out.append({**r, "kind": kind, "what": what, "pair": pair, "metric": metric, "diverged": diverged,
+                    "claim": claim, "ours": ours, "interval": _interval(r), "seeds": r["n"], "rule": rule,
+                    "verdict": verdict})
 
     for what, a, b in LADDER:
         for metric in ("dyn_rmse", "outage_max"):
             r = pair_rmse(res, what, metric)
             none = [x for x in (a, b) if not cov.loc[x, COVERAGE[metric]] > 0]      # no estimate in the window
             window = "outage" if metric == "outage_max" else "scored epochs"
-            add(f"{what}: {_METRIC_WORDS[metric]}, without / with", "—" if none else f"{r['ratio']:.2f}×",
-                _interval(r), r["n"], _RATIO_RULE, f"not applicable (no fix in the {window}: {', '.join(none)})"
-                if none else qualified(verdict(r["lo"], r["hi"]), (a, b), picks, failed))
+            add(r, "ladder", what, (a, b), metric, f"{what}: {_METRIC_WORDS[metric]}, without / with",
+                "—" if none else f"{r['ratio']:.2f}×", _RATIO_RULE, f"not applicable (no fix in the {window}: "
+                f"{', '.join(none)})" if none else qualified(verdict(r["lo"], r["hi"]), (a, b), picks, failed))
     for other in _VERSUS:
         r = res.ratio(other, "tight + gate", "outage_max")
-        add(f"headline: {other} / tight + gate, max error in the {cfg.outage_s:g} s outage, matched",
-            f"{r['ratio']:.2f}×", _interval(r), r["n"], _RATIO_RULE,
+        add(r, "headline", "matched", (other, "tight + gate"), "outage_max",
+            f"headline: {other} / tight + gate, max error in the {cfg.outage_s:g} s outage, matched",
+            f"{r['ratio']:.2f}×", _RATIO_RULE,
             qualified(verdict(r["lo"], r["hi"]), (other, "tight + gate"), picks, failed))
     words = {"helps": "survives", "hurts": "reversed", "not significant": "not significant",
              "undetermined": "undetermined"}
@@ -172,16 +168,41 @@ def verdict_table(res: AblationResult) -> pd.DataFrame:
                 pct = f"{100 * r['share']:.0f}"                   # as printed: above 100, the lead grew
                 share = ("" if failure or not np.isfinite(r["share"]) else ", none kept" if r["share"] < 0 else
                          f", share kept {pct} %" if float(pct) <= 100 else f", lead grew to {pct} % of matched")
-                add(f"{case}: {other} / tight + gate, {what}", f"{r['ratio']:.2f}×{share}", _interval(r), r["n"],
-                    _RATIO_RULE + " (above 1: the advantage survives)",
+                add(r, "mismatch", case, (other, "tight + gate"), metric, f"{case}: {other} / tight + gate, {what}",
+                    f"{r['ratio']:.2f}×{share}", _RATIO_RULE + " (above 1: the advantage survives)",
                     f"a row diverged on {', '.join(ENTERS[metric])} (the ratio measures a failure)" if failure else
-                    qualified(words[verdict(r["lo"], r["hi"])], (other, "tight + gate"), picks))
-    for case, ds in diverged_in.items():
-        for d in ds:
+                    qualified(words[verdict(r["lo"], r["hi"])], (other, "tight + gate"), picks), failure)
+    return out
+
+
+def verdict_table(res: AblationResult) -> pd.DataFrame:
+    """Notebook 05's ablation verdicts, one row each: ``claim, ours, interval, seeds, rule, verdict``.
+
+    Rows: the ratios of :func:`ratios` — each ladder step on the dynamic RMSE and the max outage error (without /
+    with the ingredient); the headline (the others' max outage error over tight's, matched); how much of that
+    advantage, and of tight's lead on the dynamic RMSE, each mismatch case keeps (``share kept`` in log ratio; none
+    where reversed; "lead grew" above 100 %) — *a row diverged* instead of a verdict where tight or the other
+    row diverged in that case on a metric that enters the ratio (:data:`ENTERS`; the ratio then measures a failure);
+    *not applicable* for a ladder step where a row has no estimate in the metric's window —; every diverged row;
+    every gated row that failed to re-acquire in the matched world (:func:`~.ablation.reacquisition_s` beyond the
+    recovery time on some seed) and every one whose max error in the recovery window reaches
+    :data:`~.ablation.RECOVERY_MAX_M` (the earlier reading of the re-acquisition check, which also counts the drift
+    UWB finds on its return); where eq. 4 can fire and what it removed."""
+    cfg = res.config
+    n_mis = min(cfg.mismatch_seeds, cfg.seeds)
+    rows = [{k: r[k] for k in ("claim", "ours", "interval", "seeds", "rule", "verdict")} for r in ratios(res)]
+
+    def add(claim, ours, interval, seeds, rule, verdict):
+        rows.append({"claim": claim, "ours": ours, "interval": interval, "seeds": seeds, "rule": rule,
+                     "verdict": verdict})
+
+    back = res.case("matched")["recovery_max"].unstack("method")
+    for case in cfg.cases[1:]:
+        for d in diverged(res, case):
             add(f"{case}: {d['row']} diverged ({d['metric']})", f"{d['value']:.3g} m against {d['matched']:.3g} m "
                 "matched", "—", n_mis, f"above {DIVERGED_FACTOR:g}× the matched value and {RECOVERY_MAX_M:g} m",
                 "diverged")
-    for row, per_seed in failed.items():
+    for row, per_seed in _failed(res).items():
         add(f"matched: {row} re-acquires after the outage", ", ".join(
             f"seed {k}: " + ("never" if not np.isfinite(v) else f"{v:.3g} s") for k, v in per_seed.items()),
             "—", cfg.seeds, f"error below {RECOVERY_MAX_M:g} m within {cfg.recovery_s:g} s of UWB's return, "

@@ -16,9 +16,7 @@ from ...models.imu import GRADES
 from ...scoreboard.verdicts import EDGE_BOUND_LABEL, edge_bound
 from ...sim import robot
 from . import facts
-from .ablation import (COVERAGE, DEFAULT_OUTAGE_S, EKF_TDOA_GATE, HOLD_S, LADDER, RECOVERY_MAX_M, ROWS, AblationResult,
-                       ratio_ci)
-from .ladder import pair_rmse
+from .ablation import COVERAGE, DEFAULT_OUTAGE_S, HOLD_S, RECOVERY_MAX_M, ROWS, AblationResult, ratio_ci
 
 __all__ = ["PAPERS_PAIRING", "ablation_rows", "checks", "comparison_rows", "comparison_checks"]
 
@@ -33,8 +31,9 @@ def ablation_rows(res: AblationResult) -> list[dict]:
     mean scores per row (matched), the ladder ratios on the dynamic RMSE and the outage — each the number
     :func:`~.ladder.ladder_table` shows, both rows scored on the epochs both cover (:func:`~.ladder.pair_rmse`) —,
     the outage ratio of tight coupling under each mismatch case, each ratio with its 95 % interval ends over seeds
-    (the verdict table's), and the eq-4 counts. Every mean score is on the row's own epochs and has its coverage
-    row beside it (the share of the window's scored epochs it has: the same table's column). A mismatch row of a
+    (the verdict table's own: :func:`~.facts.ratios`), and the eq-4 counts. Every mean score is on the row's own
+    epochs and has its coverage row beside it (the share of the window's scored epochs it has: the same table's
+    column). A mismatch row of a
     filter that diverged in that case (:func:`~.facts.diverged`) on the metric it shows says so in its quantity, and
     so does a ratio on such a row where the divergence enters it (:data:`~.facts.ENTERS`; the verdict table's "a row
     diverged": the ratio measures a failure); a ratio whose verdict there is edge-bound (a tuning pick on its grid's
@@ -59,18 +58,16 @@ def ablation_rows(res: AblationResult) -> list[dict]:
             out.append(dict(quantity=f"ablation: slowest re-acquisition after the outage, {r} (time to get below "
                                      f"{RECOVERY_MAX_M:g} m and hold {HOLD_S:g} s; worst of {n} seeds, matched model)",
                             value=float(rec[r].max()), unit="s", data="synthetic", kind="reproduced"))
-    picks = facts.tuning_picks(res)
+    ratios = [r for r in facts.ratios(res) if np.isfinite(r["ratio"])]      # the verdict table's, verdicts included
 
-    def edge(r: dict, pair) -> str:        # where the verdict table's verdict on the pair is edge-bound
-        v = facts.qualified(facts.verdict(r["lo"], r["hi"]), pair, picks)
-        return f"; {EDGE_BOUND_LABEL}" if edge_bound(v) else ""
+    def edge(r: dict) -> str:        # where the verdict table's verdict on the pair is edge-bound
+        return f"; {EDGE_BOUND_LABEL}" if edge_bound(r["verdict"]) else ""
 
-    for what, a, b in LADDER:
-        for m, label in (("dyn_rmse", "dynamic RMSE"), ("outage_max", "outage max error")):
-            r = pair_rmse(res, what, m)
-            if np.isfinite(r["ratio"]):
-                out += interval_rows(f"ablation ratio {a} / {b}, {label} ({what}; geometric mean of {r['n']} seeds"
-                                     f"{edge(r, (a, b))})", r["ratio"], r["lo"], r["hi"], **_RATIO)
+    for r in ratios:
+        if r["kind"] == "ladder":
+            (a, b), label = r["pair"], "dynamic RMSE" if r["metric"] == "dyn_rmse" else "outage max error"
+            out += interval_rows(f"ablation ratio {a} / {b}, {label} ({r['what']}; geometric mean of {r['n']} seeds"
+                                 f"{edge(r)})", r["ratio"], r["lo"], r["hi"], **_RATIO)
     for case in cfg.cases[1:]:
         t = res.table(case)
         ds = facts.diverged(res, case)                  # the verdict table's diverged rows, and on which metric
@@ -85,15 +82,12 @@ def ablation_rows(res: AblationResult) -> list[dict]:
                     out.append(dict(quantity=f"mismatch '{case}': coverage of the {what}, {r} (share of the window's "
                                              f"scored epochs with an estimate; mean of {k} seeds)",
                                     value=t.loc[r, COVERAGE[m]], unit="", data="synthetic", kind="reproduced"))
-        gone = facts.diverged_on(ds, "outage_max")
-        for other in ("EKF + gate", EKF_TDOA_GATE, "loose + gate"):
-            r = res.ratio(other, "tight + gate", "outage_max", case)
-            on = ", ".join(facts.ENTERS["outage_max"])
-            flag = (f"; a row diverged on {on}: the ratio measures a failure" if {other, "tight + gate"} & gone
-                    else edge(r, (other, "tight + gate")))
-            if np.isfinite(r["ratio"]):
-                out += interval_rows(f"mismatch '{case}': outage max error {other} / tight + gate ({r['n']} seeds"
-                                     f"{flag})", r["ratio"], r["lo"], r["hi"], **_RATIO)
+        for r in ratios:
+            if r["kind"] == "mismatch" and r["what"] == case and r["metric"] == "outage_max":
+                flag = (f"; a row diverged on {', '.join(facts.ENTERS['outage_max'])}: the ratio measures a failure"
+                        if r["diverged"] else edge(r))
+                out += interval_rows(f"mismatch '{case}': outage max error {r['pair'][0]} / tight + gate ({r['n']} "
+                                     f"seeds{flag})", r["ratio"], r["lo"], r["hi"], **_RATIO)
     for case, c in res.counts.items():
         out.append(dict(quantity=f"ablation '{case}': injected multipath TDoAs removed by eq. 4",
                         value=c["eq4_on_injected"], unit="", data="synthetic", kind="reproduced"))
