@@ -43,7 +43,7 @@ def real_inputs(data_dir=None, recording: str = "fast", static_session: str = "8
 def emulate_fixes(rec: Recording, tag: str, emulation: sim.SetEmulation = sim.SetEmulation(), *, tag_height_m: float,
                   rng: np.random.Generator, decimate: int = 10, calibration: RangeCalibration | None = None,
                   name: str | None = None) -> tuple[SetFixLog, dict]:
-    """Position fixes of one tag from sensor sets emulated on every ``decimate``-th epoch.
+    """Position fixes of one tag from sensor sets emulated on every ``decimate``-th epoch (:meth:`Recording.decimate`).
 
     Parameters
     ----------
@@ -65,10 +65,9 @@ def emulate_fixes(rec: Recording, tag: str, emulation: sim.SetEmulation = sim.Se
         ``fixes``, and ``coverage`` = fixes ÷ decimated epochs with truth (every
         estimator is scored on the fixes only, so this is their common coverage).
     """
-    log = rec.ranges[tag]
+    log = rec.decimate(validate.integer("decimate", decimate, minimum=1)).ranges[tag]
     if calibration is not None:
         log = calibration.apply(log)
-    log = log.select(slice(None, None, validate.integer("decimate", decimate, minimum=1)))
     truth_xyz = rec.truth[tag].interp(log.t_s)
     has_truth = np.all(np.isfinite(truth_xyz), axis=1)
     em = sim.emulate_set_fixes(log.select(has_truth), rec.anchors.pos_m, tag_height_m, emulation, rng=rng,
