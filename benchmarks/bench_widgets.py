@@ -129,15 +129,13 @@ def run_headless(notebook: Path, repeats: int) -> list[dict]:
 
 # --------------------------------------------------------------------------- browser
 
-def run_browser(server, browser, notebook: Path, repeats: int) -> list[dict]:
-    """Open ``notebook`` in JupyterLab, change each panel's first control ``repeats`` times."""
-    from tests.browser_support import change_control, open_and_run
+def run_browser(server, page, notebook: Path, repeats: int) -> list[dict]:
+    """Open ``notebook`` in JupyterLab in ``page``, change each panel's first control ``repeats`` times."""
+    from tests.browser_support import change_control, close_notebook, open_and_run
 
-    context = browser.new_context(viewport={"width": 1400, "height": 1000})
-    page = context.new_page()
     rows = []
     try:
-        open_and_run(page, server, notebook.name, workspace=f"bench-{notebook.stem}")
+        open_and_run(page, server, notebook.name)
         panels = page.locator(".uwbwb-panel")
         for i in range(panels.count()):
             panel = panels.nth(i)
@@ -156,8 +154,7 @@ def run_browser(server, browser, notebook: Path, repeats: int) -> list[dict]:
                 row["times_s"].append(change.latency_s)
             rows.append(row)
     finally:
-        context.close()
-        server.shutdown_kernels()
+        close_notebook(page, server, notebook.name)
     return rows
 
 
@@ -250,10 +247,10 @@ def main(argv=None) -> int:
             print(f"headless  {nb.name}: {time.perf_counter() - t0:.1f} s", flush=True)
         in_browser = {nb.name: [] for nb in prepared}
         if use_browser:
-            with lab_session(root) as (server, browser):
+            with lab_session(root) as (server, page):
                 for nb in prepared:
                     t0 = time.perf_counter()
-                    in_browser[nb.name] = run_browser(server, browser, nb, args.repeats)
+                    in_browser[nb.name] = run_browser(server, page, nb, args.repeats)
                     print(f"browser   {nb.name}: {time.perf_counter() - t0:.1f} s", flush=True)
     results = {nb.stem: _match(in_browser[nb.name], headless[nb.name]) for nb in prepared}
     print_table(results, args.repeats)

@@ -9,6 +9,8 @@ Used by ``tests/test_browser.py`` and ``benchmarks/bench_widgets.py``.
   127.0.0.1 with a random port and token and throw-away runtime, config,
   settings and workspace folders; it shuts down with its kernels, whatever happens.
 * :func:`launch_chromium` starts the system Chromium (never a downloaded one).
+* :func:`lab_session` loads JupyterLab once into one page; every notebook is
+  opened in that page as a tab and closed (its kernel shut down) when checked.
 * :func:`check_notebook` opens a notebook, runs all cells, asserts that nothing
   failed, changes one control of every ``uwbwb-panel`` and asserts that the
   panel updated; every failure is an ``AssertionError`` naming the notebook.
@@ -171,9 +173,9 @@ class LabServer:
         except OSError:
             return "(no server log)"
 
-    def lab_url(self, notebook: str, workspace: str) -> str:
-        """URL opening ``notebook`` (relative to root_dir) in a fresh named workspace."""
-        return f"{self.base_url}/lab/workspaces/{workspace}/tree/{notebook}?reset&token={self.token}"
+    def lab_url(self, workspace: str = "uwbwb") -> str:
+        """URL of JupyterLab in a fresh named workspace (no document open)."""
+        return f"{self.base_url}/lab/workspaces/{workspace}?reset&token={self.token}"
 
     def api(self, method: str, path: str, timeout_s: float = 10.0):
         req = urllib.request.Request(f"{self.base_url}{path}", method=method,
@@ -310,13 +312,17 @@ def launch_chromium(playwright):
 
 @contextlib.contextmanager
 def lab_session(root_dir: Path):
-    """``(server, browser)`` for one folder of prepared notebooks; everything closed on exit."""
+    """``(server, page)`` for one folder of prepared notebooks: ``page`` shows JupyterLab (:func:`open_lab`), where
+    :func:`open_and_run` opens the notebooks one after another; everything closed on exit."""
     from playwright.sync_api import sync_playwright
 
     with LabServer(root_dir) as server, sync_playwright() as pw:
         browser = launch_chromium(pw)
         try:
-            yield server, browser
+            page = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
+            page.set_default_timeout(30_000)
+            open_lab(page, server)
+            yield server, page
         finally:
             browser.close()
 
@@ -330,7 +336,7 @@ _JS_STATE = """(path) => {
   if (!app) return {phase: 'no app'};
   let nb = null;
   for (const w of app.shell.widgets('main')) { if (w.context && w.context.path === path) nb = w; }
-  if (!nb || !nb.context.isReady) return {phase: 'opening'};
+  if (!nb || !nb.context.isReady) return {phase: 'opening', open: window.__uwbwbOpen || null};
   const sc = nb.sessionContext;
   const kernel = sc.session ? sc.session.kernel : null;
   const cells = nb.content.widgets.filter(c => c.model.type === 'code');
@@ -345,6 +351,21 @@ _JS_STATE = """(path) => {
   return {phase: 'open', id: nb.id, kernel: kernel ? kernel.status : 'none', ready: sc.isReady,
           nCode: cells.length, pending: pending, errors: errors,
           runAll: window.__uwbwbRunAll || null};
+}"""
+
+_JS_OPEN = """(path) => {
+  window.__uwbwbRunAll = null;
+  window.__uwbwbOpen = 'opening';
+  window.jupyterapp.commands.execute('docmanager:open', {path: path, factory: 'Notebook'}).then(
+    () => { window.__uwbwbOpen = 'open'; }, err => { window.__uwbwbOpen = 'failed: ' + err; });
+}"""
+
+# Close the notebook at `path` without saving; true when no dialog is left on the page.
+_JS_CLOSE = """(path) => {
+  for (const w of window.jupyterapp.shell.widgets('main')) {
+    if (w.context && w.context.path === path) { w.context.model.dirty = false; w.dispose(); }
+  }
+  return !document.querySelector('.jp-Dialog');
 }"""
 
 _JS_RUN_ALL = """async (id) => {
@@ -405,34 +426,65 @@ def _page_problems(page) -> list[str]:
 
 
 class _Console:
-    """Collects the page's console errors and uncaught exceptions for failure messages."""
+    """Collects the page's console errors and uncaught exceptions for failure messages, until :meth:`close`."""
 
     def __init__(self, page):
         self.messages: list[str] = []
-        page.on("console", lambda m: self.messages.append(f"console.{m.type}: {m.text}")
-                if m.type == "error" else None)
-        page.on("pageerror", lambda e: self.messages.append(f"page error: {e}"))
+        self._page = page
+        self._listeners = {"console": lambda m: self.messages.append(f"console.{m.type}: {m.text}")
+                           if m.type == "error" else None,
+                           "pageerror": lambda e: self.messages.append(f"page error: {e}")}
+        for event, listener in self._listeners.items():
+            page.on(event, listener)
 
     def tail(self, n: int = 10) -> str:
         return "\n".join(self.messages[-n:]) or "(none)"
 
+    def close(self) -> None:
+        for event, listener in self._listeners.items():
+            self._page.remove_listener(event, listener)
 
-def open_and_run(page, server: LabServer, name: str, *, workspace: str,
-                 timeout_s: float = RUN_TIMEOUT_S) -> float:
-    """Open notebook ``name`` (relative to the server root), run all cells, wait until done.
+
+def open_lab(page, server: LabServer) -> None:
+    """Load JupyterLab into ``page`` (a fresh workspace) and wait until it has restored its layout."""
+    page.goto(server.lab_url(), wait_until="domcontentloaded", timeout=OPEN_TIMEOUT_S * 1000)
+    deadline = time.monotonic() + OPEN_TIMEOUT_S
+    while not page.evaluate("async () => !!window.jupyterapp && (await window.jupyterapp.restored, true)"):
+        if time.monotonic() > deadline:
+            raise AssertionError(f"JupyterLab did not load within {OPEN_TIMEOUT_S:.0f} s.\n"
+                                 f"Server log:\n{server.log_tail()}")
+        time.sleep(0.2)
+
+
+def close_notebook(page, server: LabServer, name: str) -> None:
+    """Close notebook ``name``'s tab without saving and shut the kernels down. Where a dialog is left open
+    or the page broke, JupyterLab is loaded afresh, so that the next notebook starts on a clean page."""
+    try:
+        clean = page.evaluate(_JS_CLOSE, name)
+    except Exception:
+        clean = False
+    server.shutdown_kernels()
+    if not clean:
+        open_lab(page, server)
+
+
+def open_and_run(page, server: LabServer, name: str, *, timeout_s: float = RUN_TIMEOUT_S) -> float:
+    """Open notebook ``name`` (relative to the server root) in JupyterLab in ``page``, run all cells, wait until
+    done; :func:`close_notebook` closes it.
 
     Returns the time from "run all" to the last cell finishing, in seconds.
     Raises AssertionError (naming the notebook) on a cell error, a dead kernel or
     a timeout.
     """
-    page.goto(server.lab_url(name, workspace), wait_until="domcontentloaded",
-              timeout=OPEN_TIMEOUT_S * 1000)
+    page.evaluate(_JS_OPEN, name)
     deadline = time.monotonic() + min(timeout_s, OPEN_TIMEOUT_S)
     state: dict = {}
     while True:  # open, kernel started and idle
         state = page.evaluate(_JS_STATE, name)
         if state.get("phase") == "open" and state["ready"] and state["kernel"] == "idle":
             break
+        if str(state.get("open")).startswith("failed"):
+            raise AssertionError(f"{name}: JupyterLab could not open it: {state['open']}")
         if time.monotonic() > deadline:
             raise AssertionError(
                 f"{name}: JupyterLab did not open the notebook with an idle kernel within "
@@ -574,18 +626,18 @@ class NotebookReport:
     output_text: str = ""
 
 
-def check_notebook(server: LabServer, browser, name: str, *, out_dir: Path | None = None,
+def check_notebook(server: LabServer, page, name: str, *, out_dir: Path | None = None,
                    timeout_s: float = RUN_TIMEOUT_S,
                    update_timeout_s: float = UPDATE_TIMEOUT_S, save: bool = False) -> NotebookReport:
-    """Run notebook ``name`` (already in the server's root) in the browser and check its panels.
+    """Run notebook ``name`` (already in the server's root) in JupyterLab in ``page`` and check its panels.
 
     Asserts: no error output or error-looking stderr, no "Error displaying widget",
     no panel error, at least one ``uwbwb-panel``, and every panel updates its readout
     or figure after one control change. The text of every cell output after the run is in the report's
     ``output_text``. Screenshots (whole panel before and after,
     figure before) and a ``report.json`` go to ``out_dir``. Failures raise
-    AssertionError whose message starts with the notebook's name. The notebook's
-    kernel is shut down afterwards. ``save=True``: once every cell has run and
+    AssertionError whose message starts with the notebook's name. The notebook is
+    closed and its kernel shut down afterwards (:func:`close_notebook`). ``save=True``: once every cell has run and
     before any control moves, JupyterLab saves the notebook with its outputs
     over the copy in the server's root.
     """
@@ -594,13 +646,10 @@ def check_notebook(server: LabServer, browser, name: str, *, out_dir: Path | Non
     out_dir.mkdir(parents=True, exist_ok=True)
     for old in [*out_dir.glob("panel*.png"), out_dir / "failure.png", out_dir / "report.json"]:
         old.unlink(missing_ok=True)  # nothing from an earlier run may pass for this one's
-    context = browser.new_context(viewport={"width": 1400, "height": 1000})
-    page = context.new_page()
-    page.set_default_timeout(30_000)
     console = _Console(page)
     try:
         try:
-            run_s = open_and_run(page, server, name, workspace=f"check-{stem}", timeout_s=timeout_s)
+            run_s = open_and_run(page, server, name, timeout_s=timeout_s)
             report = NotebookReport(name, run_s)
             _wait_for_widget_views(page, name)
             report.output_text = "\n".join(page.locator(".jp-OutputArea-output").all_inner_texts())
@@ -647,7 +696,7 @@ def check_notebook(server: LabServer, browser, name: str, *, out_dir: Path | Non
              "panels": [vars(p) for p in report.panels]}, indent=2))
         return report
     finally:
-        context.close()
+        console.close()
         with contextlib.suppress(Exception):
-            server.shutdown_kernels()
+            close_notebook(page, server, name)
 

@@ -1,7 +1,7 @@
 """The workbench in a real browser: every notebook run in JupyterLab, its panels poked.
 
-One JupyterLab server (from this environment) and one headless system Chromium
-serve the whole module; notebooks are opened one after another, each with the
+One JupyterLab server (from this environment) and one page of a headless system Chromium, where JupyterLab is
+loaded once, serve the whole module; notebooks are opened there one after another, each with the
 parameters of its checked FAST run (``FAST`` and ``CLASS``) injected as papermill injects them. Screenshots of
 every panel go to ``test-output/browser/<notebook>/``. See ``tests/browser_support.py``.
 
@@ -50,9 +50,9 @@ def cluster_address():
 
 @pytest.fixture(scope="module")
 def lab(lab_root):
-    """``(server, browser)``, shared by the module and closed even when tests fail."""
-    with lab_session(lab_root) as (server, browser):
-        yield server, browser
+    """``(server, page)``, shared by the module and closed even when tests fail."""
+    with lab_session(lab_root) as (server, page):
+        yield server, page
 
 
 def test_kernel_and_widget_manager_come_from_this_environment(lab):
@@ -77,13 +77,13 @@ def test_notebook_in_jupyterlab(notebook, lab, lab_root, tmp_path, cluster_addre
     from tests.test_notebooks import check_class_run, class_run_parameters
     from uwbwb import classroom
 
-    server, browser = lab
+    server, page = lab
     summary = tmp_path / f"{notebook.stem}.summary.json"
     figures = tmp_path / f"{notebook.stem}.figures.json"
     parameters = {**class_run_parameters(notebook), "SUMMARY_PATH": str(summary),
                   "DASK_SCHEDULER": cluster_address}
     saved = prepare_notebook(notebook, lab_root, parameters, first_cell=classroom.hook_cell(figures))
-    report = check_notebook(server, browser, notebook.name, out_dir=OUTPUT_DIR / notebook.stem, save=True)
+    report = check_notebook(server, page, notebook.name, out_dir=OUTPUT_DIR / notebook.stem, save=True)
     assert report.panels, f"{notebook.name}: no panel was checked"
     assert f"Sweeps run on the Dask cluster at {cluster_address}" in report.output_text, \
         f"{notebook.name} did not join the cluster at {cluster_address}"
@@ -135,7 +135,7 @@ def _write_selfcheck_notebook(path: Path, code: str) -> None:
 @pytest.mark.parametrize("name", list(SELF_CHECKS))
 def test_browser_selfcheck(name, lab, lab_root, tmp_path):
     """The harness passes a working notebook and fails broken ones, naming them."""
-    server, browser = lab
+    server, page = lab
     code, failure = SELF_CHECKS[name]
     _write_selfcheck_notebook(tmp_path / f"{name}.ipynb", code)
     nb_path = prepare_notebook(tmp_path / f"{name}.ipynb", lab_root, FAST_PARAMETERS)
@@ -144,12 +144,12 @@ def test_browser_selfcheck(name, lab, lab_root, tmp_path):
 
     out_dir = OUTPUT_DIR / name
     if failure is None:
-        report = check_notebook(server, browser, nb_path.name, out_dir=out_dir)
+        report = check_notebook(server, page, nb_path.name, out_dir=out_dir)
         (change,) = report.panels
         assert change.readout_before != change.readout_after and change.figure_changed
         assert "FAST\tTrue" in change.readout_before  # the injected parameter was used
         assert all(p.stat().st_size > 0 for p in report.screenshots)
     else:
         with pytest.raises(AssertionError, match=failure) as caught:
-            check_notebook(server, browser, nb_path.name, out_dir=out_dir, update_timeout_s=5.0)
+            check_notebook(server, page, nb_path.name, out_dir=out_dir, update_timeout_s=5.0)
         assert str(caught.value).startswith(nb_path.name)
