@@ -342,8 +342,18 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
         v = vq / h
         return np.concatenate([Pm - v * (t_mid - t0), v])
 
+    last = {}
+
+    def terms(q):
+        """Residuals and Jacobian at ``q``; the last point evaluated is kept, since the solver's first
+        evaluation is the start (where the BFGS matrix was set up) and its solution is usually its last."""
+        key = q.tobytes()
+        if last.get("key") != key:
+            last.update(key=key, value=model.residuals_jacobian(q, tc, k, d))
+        return last["value"]
+
     def fun_grad(q):
-        r, J = model.residuals_jacobian(q, tc, k, d)
+        r, J = terms(q)
         return float(r @ r) / M, (2.0 / M) * (J.T @ r)
 
     q0 = to_internal(theta0)
@@ -351,7 +361,7 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
         options = {"gtol": gtol, "maxiter": int(max_iter)}
         # start the quasi-Newton matrix from the Gauss-Newton Hessian (2/M) J^T J at q0 instead of the
         # identity: same BFGS iteration, far fewer steps (it matters inside residual pruning's loop)
-        J0 = model.residuals_jacobian(q0, tc, k, d)[1]
+        J0 = terms(q0)[1]
         H0 = (2.0 / M) * (J0.T @ J0)
         lam, V = np.linalg.eigh(H0)
         if lam[0] > 1e-9 * lam[-1] > 0:
@@ -366,7 +376,7 @@ def fit_trajectory(samples: RangeSamples | RangeLog, anchors, *, dim: int = 3, s
                             max_nfev=int(max_iter))
         q, n_iter, n_fev, success, msg = res.x, int(res.nfev), int(res.nfev), bool(res.success), str(res.message)
 
-    r, J = model.residuals_jacobian(q, tc, k, d)
+    r, J = terms(q)
     f, g = float(r @ r) / M, (2.0 / M) * (J.T @ r)           # fun_grad(q), from the one evaluation
     grad_norm = float(np.max(np.abs(g)))
     theta = from_internal(q)

@@ -38,6 +38,7 @@ from ..models.imu import GRADES
 from ..models.motion import RandomForce, RandomJerk, RandomWalk, ReceiverMotion, VelocityKick
 from ..models.setnoise import SetNoiseModel
 from ..models.tdoa import TdoaModel
+from ..models.track import LinearTrackRanges
 from ..sim import robot
 from ..types import Estimates, EstimateStatus, RangeLog, TdoaLog, pseudo_tdoa
 from . import kalman, particle, pruning
@@ -622,6 +623,35 @@ def _multilaterate(method: str):
     return run
 
 
+# ---------------------------------------------------------------- eq. (1)'s residuals and Jacobian
+def _track_inputs(dim: int, static: bool):
+    def build():
+        """A 20 s walk (or a stop) past eight anchors, one range every 25 ms from a random anchor with 5 cm noise and
+        a positive NLOS excess on 10 %; the unknowns 30 cm and 5 cm/s off the truth (as inside a solver)."""
+        rng = np.random.default_rng(7)
+        A = np.array([[0.0, 0.0, 2.5], [10.0, 0.0, 2.4], [10.0, 8.0, 2.6], [0.0, 8.0, 2.5],
+                      [5.0, -1.0, 1.0], [11.0, 4.0, 0.5], [5.0, 9.0, 2.0], [-1.0, 4.0, 1.5]])
+        t = np.arange(800) * 0.025
+        k = rng.integers(0, 8, t.size)
+        v = np.zeros(3) if static else np.array([0.4, 0.25, 0.0])
+        P = np.array([2.0, 1.5, 1.3])
+        r = np.linalg.norm(P + np.multiply.outer(t, v) - A[k], axis=1) + 0.05 * rng.standard_normal(t.size)
+        r += np.where(rng.random(t.size) < 0.1, rng.exponential(0.8, t.size), 0.0)
+        model = LinearTrackRanges(A, dim, static, 1.3 if dim == 2 else None)
+        theta = model.pack(P + 0.3 * rng.standard_normal(3), v + 0.05 * rng.standard_normal(3))
+        return model, theta, t, k, r
+    return build
+
+
+def _track_terms(compiled: bool):
+    def run(a):
+        model, theta, t, k, r = a
+        res, J = model.residuals_jacobian(theta, t, k, r, compiled=compiled)
+        return {"res_m": res, "J": J, "res_only_m": model.residuals_jacobian(theta, t, k, r, jacobian=False,
+                                                                           compiled=compiled)[0]}
+    return run
+
+
 # ---------------------------------------------------------------- the robust mean's tuple fixes
 def _tuple_inputs():
     """300 epochs of a tag 1.3 m up in a 12 m × 9 m room with eight anchors near one plane (LIAS-like), ranges with
@@ -840,6 +870,16 @@ def _registry() -> tuple[Twin, ...]:
                           {"pos_m": Tol(0.0, 1e-6), "cov_m2": Tol(1e-4, 1e-12), "ok": BIT},
                           "tests/test_geometry.py::test_gauss_newton_and_least_squares_agree",
                           exercised=lambda out: None if out["ok"].all() else "an epoch without a fix"))
+    # bit for bit on the machines measured: the same differences, quotients and products; each squared length is
+    # three products summed in the order NumPy's einsum takes here (x² + z², then + y²), which is its SIMD loop's
+    # choice and may be another on other CPUs: then a distance differs by an ulp (1e-14 m at these ranges) and a
+    # Jacobian entry by an ulp of the largest
+    for dim, static in ((2, False), (2, True), (3, False), (3, True)):
+        twins.append(Twin(f"track.residuals_jacobian[{dim}-D{', static' if static else ''}]", _track_terms(True),
+                          _track_terms(False), _track_inputs(dim, static),
+                          {"res_m": Tol(0.0, 1e-14), "res_only_m": Tol(0.0, 1e-14), "J": Tol(ulps=4)},
+                          "tests/models/test_track.py::test_gradient_and_jacobian_match_finite_differences",
+                          ("uwbwb.models.track._residuals_jacobian",)))
     # not bit for bit: the compiled loop solves the 2 × 2 normal equations in closed form where multilaterate takes
     # LAPACK's eigen-decomposition, so each step differs by rounding; both stop once a step is below 1e-9 m, so
     # the fixes differ by far less than that (1e-9 m here, which the tuple counts show hides no other decision)

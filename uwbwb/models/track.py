@@ -18,8 +18,10 @@ part when ``static`` (``v = 0``: static localisation from all ranges).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ..types import RangeSamples
@@ -108,14 +110,22 @@ class LinearTrackRanges:
         return theta
 
     # ------------------------------------------------------------ the model
-    def residuals_jacobian(self, theta, t_s, anchor_index, range_m, *, jacobian: bool = True):
+    def residuals_jacobian(self, theta, t_s, anchor_index, range_m, *, jacobian: bool = True,
+                           compiled: bool = True):
         """Residuals ``h_m − d_m`` ``(M,)`` and their Jacobian ``(M, n_params)`` (None if not wanted).
 
         The kernel every solver step calls: no checks, ``t_s`` ``(M,)`` relative to the time of ``P``.
         Row ``m`` of the Jacobian is ``[u_m, u_m t_m]`` restricted to the solved coordinates
-        (only ``u_m`` when ``static``).
+        (only ``u_m`` when ``static``). ``compiled`` (default): one compiled loop over the rows
+        (:func:`_residuals_jacobian`); False: the NumPy lines below, its declared twin
+        (:mod:`uwbwb.filters.twins`).
         """
         P, v = self.unpack(theta)
+        if compiled:
+            res, J = _residuals_jacobian(P, v, np.asarray(t_s, float), np.asarray(anchor_index, np.intp),
+                                         np.asarray(range_m, float), self.anchor_pos_m, self.dim, self.static,
+                                         jacobian)
+            return res, (J if jacobian else None)
         diff = (P if self.static else P + np.multiply.outer(t_s, v)) - self.anchor_pos_m[anchor_index]   # (M, 3)
         dist = np.sqrt(np.einsum("mi,mi->m", diff, diff))
         res = dist - range_m
@@ -157,3 +167,29 @@ class LinearTrackRanges:
         """The sum of squares of eq. (1), m², and its analytic gradient ``2 Jᵀ r``, shape ``(n_params,)``."""
         r, J = self._terms(theta, samples, t0_s, True)
         return float(r @ r), 2.0 * (J.T @ r)
+
+
+@numba.njit(cache=True, nogil=True)
+def _residuals_jacobian(P, v, t_s, anchor_index, range_m, A, dim, static, jacobian):
+    """:meth:`LinearTrackRanges.residuals_jacobian` row by row: the same differences, quotients and products;
+    each squared length summed as NumPy's ``einsum`` sums three terms on the machines measured (``x² + z²``,
+    then ``+ y²``). Returns the residuals ``(M,)`` and the Jacobian ``(M, n_params)`` (``(M, 0)`` when not
+    ``jacobian``)."""
+    M = t_s.size
+    p = dim if static else 2 * dim
+    res = np.empty(M)
+    J = np.empty((M, p if jacobian else 0))
+    d = np.empty(3)
+    for m in range(M):
+        a, t = anchor_index[m], t_s[m]
+        for i in range(3):
+            d[i] = (P[i] - A[a, i]) if static else ((P[i] + t * v[i]) - A[a, i])
+        dist = math.sqrt((d[0] * d[0] + d[2] * d[2]) + d[1] * d[1])
+        res[m] = dist - range_m[m]
+        if jacobian:
+            den = _TINY_M if dist < _TINY_M else dist          # np.maximum's: NaN stays NaN
+            for i in range(dim):
+                J[m, i] = d[i] / den
+                if not static:
+                    J[m, dim + i] = J[m, i] * t
+    return res, J
