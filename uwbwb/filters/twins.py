@@ -31,7 +31,7 @@ from typing import Any, Callable, Mapping, NamedTuple
 
 import numpy as np
 
-from .. import geometry, sampling
+from .. import geometry, metrics, sampling
 from ..models import doppler as doppler_model
 from ..models import ins
 from ..models.imu import GRADES
@@ -713,6 +713,36 @@ def _robust_mean_definition(a):
     return {"kept": kept, "history_m": np.array(history)}
 
 
+# ---------------------------------------------------------------- the median block bootstrap's replicates
+def _median_inputs():
+    """40 blocks of 1–30 epochs (odd and even replicate sizes), the b side zero in 21 of them (so some replicates
+    have a zero median: NaN ratio), 500 replicates."""
+    rng = np.random.default_rng(11)
+    counts = rng.integers(1, 31, 40)
+    xa, xb = rng.lognormal(0.0, 0.5, counts.sum()), rng.lognormal(0.1, 0.5, counts.sum())
+    starts = np.cumsum(counts) - counts
+    xb[:starts[21]] = 0.0
+    return xa, xb, starts, counts, rng.integers(0, 40, (500, 40))
+
+
+def _median_fast(a):
+    d, ratio = metrics.errors._median_replicates(*a)
+    return {"d": d, "ratio": ratio}
+
+
+def _median_definition(a):
+    """One ``np.median`` per replicate on the epochs of its blocks gathered by index."""
+    xa, xb, starts, counts, pick = a
+    d, ratio = np.empty(len(pick)), np.empty(len(pick))
+    for r in range(len(pick)):
+        c = counts[pick[r]]
+        idx = np.repeat(starts[pick[r]] - (np.cumsum(c) - c), c) + np.arange(c.sum())
+        ma, mb = np.median(xa[idx]), np.median(xb[idx])
+        d[r] = ma - mb
+        ratio[r] = ma / mb if mb > 0 else np.nan
+    return {"d": d, "ratio": ratio}
+
+
 # ---------------------------------------------------------------- the EKF's epoch loop (TDoAs or ranges)
 def _tdoa_ekf_inputs(motion, gate, correlated: bool = True, ranges: bool = False):
     """A 40 s walk at about 10 Hz (a Lissajous figure at walking speed, 1 m ± 0.3 m high) in a 30 m square
@@ -893,6 +923,11 @@ def _registry() -> tuple[Twin, ...]:
                       {"kept": BIT, "history_m": BIT},
                       "tests/filters/test_pruning.py::test_robust_mean_keeps_the_cluster_and_drops_the_scatter",
                       ("uwbwb.filters.pruning._static_robust_mean",)))
+    # bit for bit: a median is one of the epochs (or the mean of two, (a + b) / 2 on both sides), whatever the order
+    twins.append(Twin("metrics._median_replicates", _median_fast, _median_definition, _median_inputs,
+                      {"d": BIT, "ratio": BIT},
+                      "tests/test_metrics.py::test_block_bootstrap_median_difference_sees_a_shift_and_not_a_tie",
+                      ("uwbwb.metrics.errors._median_replicates",)))
     # not bit for bit: the Python loop's products and S⁻¹ are BLAS and LAPACK calls (their summation order depends
     # on the CPU's kernels), the compiled loop's are plain loops. A filter carries a rounding difference from
     # epoch to epoch and grows it where its gain is high (the first epochs, re-acquiring after a gap), as it
