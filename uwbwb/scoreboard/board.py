@@ -205,27 +205,29 @@ def _run_estimate(est: Estimator, rec: Recording, tag: str, cal: Calibration) ->
     return out, ""
 
 
-def _with_reference_and_geometry(rec: Recording, tags: Sequence[str], cal: Calibration) -> Calibration:
-    """``cal`` with what it lacks of the common bound's motion model (:func:`.reference.fit_reference_motion`) and
-    the measurement geometry (:func:`.interface.measurement_geometry`), both fitted on ``rec``."""
-    reference = {} if REFERENCE in cal.tuned else fit_reference_motion(rec, tags, cal)
-    if reference:
-        cal = cal.with_tuned(REFERENCE, reference)
-    return cal if GEOMETRY in cal.tuned else cal.with_tuned(GEOMETRY, measurement_geometry(rec, tags, cal))
-
-
 def calibrate(cal_rec: Recording, estimators: Sequence[Estimator], tags: Sequence[str] | None = None, *,
               rate_hz: float | None = None, dim: int | None = None, progress: bool = False,
-              tag_height_m: Mapping[str, float] | None = None) -> Calibration:
+              tag_height_m: Mapping[str, float] | None = None, calibration: Calibration | None = None) -> Calibration:
     """Fit the shared calibration on ``cal_rec``, the common bound's motion model
     (:func:`.reference.fit_reference_motion`) and the measurement geometry (:func:`.interface.measurement_geometry`:
-    whether the TDoA methods run), then let each estimator that applies tune itself on it."""
+    whether the TDoA methods run), then let each estimator that applies tune itself on it.
+
+    ``calibration``: a calibration made elsewhere (the exact noise of a synthetic run, an earlier board's on the same
+    calibration part) to start from instead: only what it lacks is fitted on ``cal_rec`` (the common bound's model,
+    the geometry, the tuning of each estimator it holds none of, by name); ``dim`` and ``tag_height_m`` are its."""
     tags = scored_tags(cal_rec, tags)
-    cal = fit_calibration(cal_rec, tags, rate_hz=rate_hz, dim=dim, tag_height_m=tag_height_m)
+    cal = fit_calibration(cal_rec, tags, rate_hz=rate_hz, dim=dim, tag_height_m=tag_height_m) if calibration is None \
+        else calibration
+    done = set(cal.tuned) if calibration is not None else set()
     rec = cal_rec if rate_hz is None else cal_rec.decimate(rate_hz=rate_hz)
-    cal = _with_reference_and_geometry(rec, tags, cal)
+    if REFERENCE not in cal.tuned:
+        reference = fit_reference_motion(rec, tags, cal)
+        if reference:
+            cal = cal.with_tuned(REFERENCE, reference)
+    if GEOMETRY not in cal.tuned:
+        cal = cal.with_tuned(GEOMETRY, measurement_geometry(rec, tags, cal))
     for est in estimators:
-        usable = [t for t in tags if est.applies(rec, t, cal) is None]
+        usable = [] if est.name in done else [t for t in tags if est.applies(rec, t, cal) is None]
         if not usable:
             continue
         if progress:
@@ -547,7 +549,8 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
     dim
         Force 2 or 3 (default from the calibration truth).
     calibration
-        Use this calibration (e.g. the exact noise of a synthetic run) instead of fitting one.
+        Use this calibration (e.g. the exact noise of a synthetic run, or an earlier board's on the same calibration
+        part) instead of fitting one; what it lacks is fitted on ``cal_rec`` (:func:`calibrate`).
     fast
         CI-sized settings (recorded in the board's mode).
     label
@@ -622,8 +625,7 @@ def score(test_rec: Recording, cal_rec: Recording, *, estimators: Sequence[Estim
         calibration = calibrate(cal_rec, estimators, tags, rate_hz=rate_hz, dim=dim, progress=progress,
                                 tag_height_m=known)
     else:      # a calibration made elsewhere: what it lacks of calibrate's fits, on this one's calibration part
-        calibration = _with_reference_and_geometry(cal_rec if rate_hz is None else cal_rec.decimate(rate_hz=rate_hz),
-                                                   tags, calibration)
+        calibration = calibrate(cal_rec, estimators, tags, rate_hz=rate_hz, progress=progress, calibration=calibration)
     rec = test_rec if rate_hz is None else test_rec.decimate(rate_hz=rate_hz)
     commons = {t: common_bound(rec, t, calibration) for t in tags}
     ranges_crlb = {t: _range_bound(rec, t, calibration, rec.ranges[t], "CRLB of the ranges") for t in tags}

@@ -43,7 +43,7 @@ from ..filters.gating import AnchorDropping, NoGate, Robust, gate_from_prob
 from ..filters.kalman import Gaussian
 from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import RandomForce, make_motion_model
-from ..types import Estimates, TdoaLog, Trajectory
+from ..types import Estimates, RangeLog, TdoaLog, Trajectory
 from .interface import (BaseEstimator, Estimator, TUNING_CRITERIA, _NONE, _UP, _range_bound, _range_information,
                         _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge,
                         tdoa_geometry_note)
@@ -158,8 +158,9 @@ class _MotionEkf(BaseEstimator):
     posterior CRLB with the same motion model (tuned driving noise), the information of the filter's
     measurements at every epoch and its initial covariance as prior, from the filter's first epoch. ``update``
     picks the measurement update (:data:`UPDATES`; a variant's row name carries its suffix, the default
-    ``"gate"`` none), so an ablation row is one argument. A subclass gives the filter (:meth:`_filter`), its run
-    (:meth:`_run`) and its initial covariance (:meth:`_prior`); the information is that of its measurements.
+    ``"gate"`` none), so an ablation row is one argument. A subclass gives the filter (:meth:`_filter`), what its
+    run reads that no knob changes (:meth:`_inputs`, made once per tag for the whole grid), its run (:meth:`_run`)
+    and its initial covariance (:meth:`_prior`); the information is that of its measurements.
 
     ``knobs``: tune instead the UWB/INS filters' two knobs on their grid of ``(Q ×, R ×)`` pairs (:data:`INS_GRID`),
     multipliers on the calibrated noise: ``σ_w² = Q × · σ_w,fit²`` (σ_w,fit: this motion model fitted to the
@@ -205,7 +206,9 @@ class _MotionEkf(BaseEstimator):
                                  "truth (the common bound's fit found too little truth)")
             grid = tuple((float(q), float(r)) for q, r in self.knobs)
             points = [(s0 * math.sqrt(q), r) for q, r in grid]
-        scores = [[_tuning_scores(self._run(rec, t, _noisier(cal, r), s), rec, t) for t in tags] for s, r in points]
+        inputs = {t: self._inputs(rec, t, cal) for t in tags}     # what no knob changes: once per tag
+        scores = [[_tuning_scores(self._run(rec, t, _noisier(cal, r), s, inputs[t]), rec, t) for t in tags]
+                  for s, r in points]
         mean = {c: tuple(float(np.mean([sc[c] for sc in row])) for row in scores) for c in TUNING_CRITERIA}
         best = int(np.argmin(mean[self.criterion]))
         out = {"sigma_w": points[best][0], "grid": tuple(grid) if self.knobs else tuple(float(g) for g in grid),
@@ -255,8 +258,12 @@ class TdoaEkfEstimator(_MotionEkf):
         ekf = TdoaEkf(motion, model, gate_prob=self.gate_prob)
         return ekf if self.update == "gate" else TdoaEkf(motion, model, gate=self._policy(ekf.gate))
 
-    def _run(self, rec, tag, cal, sigma_w) -> Estimates:
-        log = TdoaLog.from_ranges(calibrated_log(rec, tag, cal), self.ref)
+    def _inputs(self, rec, tag, cal) -> TdoaLog:
+        """The pseudo-TDoAs of the calibrated ranges (no knob changes them)."""
+        return TdoaLog.from_ranges(calibrated_log(rec, tag, cal), self.ref)
+
+    def _run(self, rec, tag, cal, sigma_w, inputs=None) -> Estimates:
+        log = self._inputs(rec, tag, cal) if inputs is None else inputs
         return self._filter(rec, tag, cal, sigma_w).run(log, name=self.name).to_estimates()
 
     def _prior(self, ekf):
@@ -282,16 +289,22 @@ class RangeEkfEstimator(_MotionEkf):
         gate = gate_from_prob(self.gate_prob, 10, self.name, kind=AnchorDropping, min_rows=2)
         return Ekf(motion, meas, vel_index=motion.layout.vel_index, gate=self._policy(gate))
 
-    def _run(self, rec, tag, cal, sigma_w) -> Estimates:
+    def _inputs(self, rec, tag, cal) -> tuple[RangeLog, int | None, np.ndarray | None]:
+        """The calibrated ranges, the first epoch with a multilateration fix and that fix (None, None: no epoch
+        has one); no knob changes them."""
         log = calibrated_log(rec, tag, cal)
-        ekf = self._filter(rec, tag, cal, sigma_w)
         fix = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag))
         ok = np.flatnonzero(np.all(np.isfinite(fix.pos_m), axis=1))
-        if ok.size == 0:
+        return (log, None, None) if ok.size == 0 else (log, int(ok[0]), fix.pos_m[ok[0], : cal.dim])
+
+    def _run(self, rec, tag, cal, sigma_w, inputs=None) -> Estimates:
+        log, k0, pos0 = self._inputs(rec, tag, cal) if inputs is None else inputs
+        ekf = self._filter(rec, tag, cal, sigma_w)
+        if k0 is None:
             T = len(log)
             return Estimates(log.t_s, np.full((T, cal.dim), np.nan), np.full(T, _NONE, np.int8), self.name)
-        x0 = Gaussian(ekf.transition.initial_state(fix.pos_m[ok[0], : cal.dim]), self._prior(ekf))
-        return run_ranges(ekf, log, x0, start=int(ok[0]), name=self.name).to_estimates()
+        x0 = Gaussian(ekf.transition.initial_state(pos0), self._prior(ekf))
+        return run_ranges(ekf, log, x0, start=k0, name=self.name).to_estimates()
 
     def _prior(self, ekf):
         s = self.init_sigma

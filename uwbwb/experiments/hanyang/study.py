@@ -41,6 +41,7 @@ from ... import metrics
 from ...datasets import hanyang_dynamic
 from ...errors import DataNotFoundError
 from ...scoreboard import Board, score
+from ...scoreboard.protocol import Calibration
 from ...types import Trajectory
 from ...scoreboard.estimators import ExternalEstimates, RangeEkfEstimator, default_estimators
 from ...scoreboard.setnoise_nls import NLS_WINDOWS_S
@@ -99,9 +100,11 @@ def study_estimators(*, fast: bool = False, static_models: Sequence[StaticRangeM
 
 def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: bool = False,
                estimators: Sequence | None = None, static_models: Sequence[StaticRangeModel] = (),
-               authors: tuple[str, ...] = ("LS", "ESKF")) -> Board:
+               authors: tuple[str, ...] = ("LS", "ESKF"), calibration: Calibration | None = None) -> Board:
     """The board of ``case`` with calibration and tuning on ``tune`` (never the scored case): ``estimators``
     (default :func:`study_estimators`), then the authors' ``authors`` rows of ``case`` (*external*).
+    ``calibration``: an earlier board's of the same two cases (:attr:`~uwbwb.scoreboard.Board.calibration`), whose
+    fits and tunings are kept (only what it lacks is fitted: :func:`~uwbwb.scoreboard.score`).
 
     Scored epochs: the range epochs inside the authors' window of ``case`` (FAST: its first
     :data:`FAST_SPAN_S` s, and the tuning case cut to as many seconds of its own window).
@@ -128,7 +131,7 @@ def case_board(case: str, tune: str, data_dir: PathLike | None = None, *, fast: 
         est.append(ExternalEstimates(f"authors LS, latency removed ({lag:+.2f} s, tuning case) (external)",
                                      {"tag": Trajectory(tr.t_s + float(lag), tr.pos_m)}))
     return score(test, cal, estimators=est, rate_hz=None, dim=2, fast=fast, label=test_rec.label,
-                 other_anchors=True)   # the two trajectories place the same anchors apart
+                 other_anchors=True, calibration=calibration)   # the two trajectories place the same anchors apart
 
 
 
