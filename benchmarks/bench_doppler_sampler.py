@@ -14,9 +14,12 @@ of paper 003, section 3:
   its early exit (a draw abandoned once its partial δ exceeds the threshold) and without it
   (a second threshold of 10⁹ m keeps every beacon evaluated);
 * **conditional** — :func:`uwbwb.sampling.conditional`: uniform positions, the velocity
-  handled per position through its δ-ellipsoid.
+  handled per position through its δ-ellipsoid;
+* **ellipsoids** — the conditional sampler's set-up per position (the ellipsoid's centre, Cholesky factor and
+  radius), compiled (:func:`uwbwb.sampling._ellipsoids`) against its NumPy definition (the declared twin in
+  ``uwbwb/filters/twins.py``) on the same positions, one thread, CPU time.
 
-Printed: draws per second of each (timed in this process, after compilation) and three
+Printed: draws (positions) per second of each (timed in this process, after compilation) and three
 ratios side by side — the figure reported so far (brute force on ``--workers`` threads
 with early exit over the model-method reference on one), the like-for-like ratio (brute
 force on one thread *without* early exit over the plain-eq-1 reference on one thread), and
@@ -70,6 +73,23 @@ def reference_plain(model, ref_pos, ref_vel, n, *, seed, chunk=1 << 16):
     return hits / n
 
 
+def ellipsoid_rates(n: int, *, seed=4) -> dict[str, float]:
+    """Positions per CPU second of the ellipsoid set-up, compiled and by its twin's NumPy definition."""
+    from uwbwb.filters import twins
+
+    a = twins._ellipsoid_inputs(False)()
+    a["X"] = np.random.default_rng(seed).uniform(-5.0, 5.0, (n, 3))
+    twins._ellipsoid_fast(dict(a, X=a["X"][:100]))                    # compile outside the timing
+    rates = {}
+    for name, fn in (("ellipsoids, compiled", twins._ellipsoid_fast), ("ellipsoids, NumPy definition",
+                                                                      twins._ellipsoid_definition)):
+        t = time.process_time()
+        for start in range(0, n, 1 << 15):                             # the sampler's chunk size
+            fn(dict(a, X=a["X"][start:start + (1 << 15)]))
+        rates[name] = n / (time.process_time() - t)
+    return rates
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=float, default=2e7, help="draws for the compiled brute force")
@@ -97,6 +117,11 @@ def main():
 
     for k, v in rate.items():
         print(f"{k:45s} {v / 1e6:8.2f} M draws/s")
+    ell = ellipsoid_rates(int(args.positions))
+    for k, v in ell.items():
+        print(f"{k:45s} {v / 1e6:8.2f} M positions per CPU second")
+    print(f"ratio ellipsoids (compiled / NumPy definition, 1 thread, CPU time): "
+          f"{ell['ellipsoids, compiled'] / ell['ellipsoids, NumPy definition']:.1f}")
     old_ref = min(rate["reference (as before)"], rate["reference (as before), again"])
     new_ref = max(rate["reference (plain eq 1)"], rate["reference (plain eq 1), again"])
     w = args.workers

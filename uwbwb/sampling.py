@@ -352,25 +352,16 @@ def _conditional_chunk(model: DopplerModel, b, rho_ref, ranges, box: SearchBox, 
         centre, M, half, volume = region
         X = centre + np.linalg.solve(M, (rng.uniform(-1.0, 1.0, (n, 3)) * half).T).T
         w_x = volume / (box.pos_hi_m - box.pos_lo_m) ** 3
-    d = X[:, None, :] - T
-    rho = np.linalg.norm(d, axis=-1)                                     # (n, nb)
-    A = P[:, None] * d / rho[..., None]                                  # (n, nb, 3): L = A V
-    rr2 = np.sum((rho - rho_ref) ** 2, axis=-1) if ranges else np.zeros(n)
-    tau_v = np.sqrt(np.clip(tau_max ** 2 - rr2, 0.0, None))              # what the Doppler part may use
     e = (np.abs(b) + tau_max) ** 2 / (v_s * P - np.abs(b) - tau_max)
-    radius = tau_v + np.linalg.norm(e)
-    M = np.einsum("nbi,nbj->nij", A, A)
-    c = np.einsum("nbi,b->ni", A, b)
-    v_star = np.linalg.solve(M, c[..., None])[..., 0]
-    res2 = np.sum((np.einsum("nbi,ni->nb", A, v_star) - b) ** 2, axis=-1)
-    r2 = radius ** 2 - res2
-    in_box = np.all((X >= box.pos_lo_m) & (X <= box.pos_hi_m), axis=1)
-    active = (rr2 < tau_max ** 2) & (r2 > 0) & in_box
+    L, v_star, r2, rr2 = (np.empty((n, 3, 3)), np.empty((n, 3)), np.empty(n), np.empty(n))
+    active = np.empty(n, np.bool_)
+    _ellipsoids(X, T, P, b, rho_ref, ranges, tau_max, float(np.linalg.norm(e)), box.pos_lo_m, box.pos_hi_m,
+                L, v_star, r2, rr2, active)
     p_hat = np.zeros((n, tau.size))
     ia = np.flatnonzero(active)
     if ia.size == 0:
         return p_hat, np.empty((0, 8)), 0
-    L = np.linalg.cholesky(M[ia])                                        # M = L Lᵀ
+    L = L[ia]                                                            # M = L Lᵀ
     r_e = np.sqrt(r2[ia])
     vol = 4.0 / 3.0 * np.pi * r_e ** 3 / np.prod(np.diagonal(L, axis1=1, axis2=2), axis=-1)
     g = rng.standard_normal((ia.size, draws, 3))
@@ -390,6 +381,71 @@ def _conditional_chunk(model: DopplerModel, b, rho_ref, ranges, box: SearchBox, 
     kept = np.concatenate([Xa[keep], V[keep], np.sqrt(delta2[keep])[:, None],
                            np.broadcast_to(weight[:, None], keep.shape)[keep][:, None]], axis=1)
     return p_hat, kept, ia.size * draws
+
+
+@numba.njit(nogil=True, cache=True)
+def _ellipsoids(X, T, P, b, rho_ref, ranges, tau_max, e_norm, pos_lo, pos_hi, L, v_star, r2, rr2, active):
+    """Per position ``X[n]`` (rows ``(n, 3)``) the velocity ellipsoid of :func:`conditional` (module docstring).
+
+    With ``d_i = X − T_i``, ``ρ_i = ‖d_i‖`` and the rows ``A_i = P_i d_i / ρ_i`` (eq 1's linear part is ``A V``):
+    ``rr2`` the range part ``Σ (ρ_i − ρ_ref,i)²`` (0 without ``ranges``), ``M = AᵀA`` as its Cholesky factor
+    ``L`` (lower, ``M = L Lᵀ``), the centre ``v* = M⁻¹ Aᵀb``, the squared radius
+    ``r2 = (√max(τ² − rr2, 0) + ‖e‖)² − ‖A v* − b‖²`` and ``active`` where the ellipsoid may hold a draw
+    (``rr2 < τ²``, ``r2 > 0``, ``X`` in the position box). A position whose ``M`` is not positive definite
+    gets NaN (not active)."""
+    nb = T.shape[0]
+    A = np.empty((nb, 3))
+    rho = np.empty(nb)
+    c = np.empty(3)
+    y = np.empty(3)
+    tau2 = tau_max * tau_max
+    for n in range(X.shape[0]):
+        for i in range(nb):
+            d0, d1, d2 = X[n, 0] - T[i, 0], X[n, 1] - T[i, 1], X[n, 2] - T[i, 2]
+            rho[i] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            A[i, 0] = P[i] * d0 / rho[i]
+            A[i, 1] = P[i] * d1 / rho[i]
+            A[i, 2] = P[i] * d2 / rho[i]
+        acc = 0.0
+        if ranges:
+            for i in range(nb):
+                acc += (rho[i] - rho_ref[i]) ** 2
+        rr2[n] = acc
+        radius = math.sqrt(max(tau2 - acc, 0.0)) + e_norm
+        Ln = L[n]
+        for p in range(3):                    # M = AᵀA and Aᵀb, then M = L Lᵀ (Cholesky, row by row)
+            s = 0.0
+            for i in range(nb):
+                s += A[i, p] * b[i]
+            c[p] = s
+            for q in range(p + 1):
+                s = 0.0
+                for i in range(nb):
+                    s += A[i, p] * A[i, q]
+                for k in range(q):
+                    s -= Ln[p, k] * Ln[q, k]
+                Ln[p, q] = math.sqrt(s) if p == q and s > 0 else (s / Ln[q, q] if p != q else np.nan)
+            for q in range(p + 1, 3):
+                Ln[p, q] = 0.0
+        for p in range(3):                    # L y = c, then Lᵀ v* = y
+            s = c[p]
+            for k in range(p):
+                s -= Ln[p, k] * y[k]
+            y[p] = s / Ln[p, p]
+        for p in range(2, -1, -1):
+            s = y[p]
+            for k in range(p + 1, 3):
+                s -= Ln[k, p] * v_star[n, k]
+            v_star[n, p] = s / Ln[p, p]
+        res2 = 0.0
+        for i in range(nb):
+            g = A[i, 0] * v_star[n, 0] + A[i, 1] * v_star[n, 1] + A[i, 2] * v_star[n, 2] - b[i]
+            res2 += g * g
+        r2[n] = radius * radius - res2
+        in_box = True
+        for k in range(3):
+            in_box = in_box and pos_lo <= X[n, k] <= pos_hi
+        active[n] = acc < tau2 and r2[n] > 0 and in_box
 
 
 def conditional(model: DopplerModel, ref_pos_m, ref_vel_mps, n_positions: int, *, seed,

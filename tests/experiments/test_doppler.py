@@ -13,6 +13,7 @@ from tests.test_teaching import assert_reads_predictions
 matplotlib.use("Agg")
 
 R_MODEL, R_500 = study.READINGS
+TRACK_STUDY = study.track_study
 
 
 @pytest.fixture(scope="module")
@@ -389,6 +390,19 @@ def test_a_keeps_track_cell_says_what_its_verdict_says():
             assert dop["MH-EKF keeps track"].tolist() == ["does not keep track"] + ["keeps track"] * 4
     assert res["scores"]["PF keeps track"].dtype == bool                      # the data itself is left as it was
 
+
+def test_error_floor_reads_its_first_condition_from_the_first_recording(cfg, monkeypatch):
+    # the notebook's first recording ran the as-simulated PF already: its first whole blocks are those runs
+    small = replace(cfg, n_particles=40, floor_runs=study.BLOCK_RUNS)
+    first = study.track_study("lab", small, pf_runs=2 * study.BLOCK_RUNS, variants=("Doppler",), kf=False)
+    calls = []
+    monkeypatch.setattr(study, "track_study", lambda *a, **k: calls.append(k) or TRACK_STUDY(*a, **k))
+    reused = study.error_floor("lab", small, first=first)
+    assert len(calls) == len(study.FLOOR_CONDITIONS) - 1 and not calls[0]["noise"]
+    pd.testing.assert_frame_equal(reused, study.error_floor("lab", small))
+    assert len(calls) == 2 * len(study.FLOOR_CONDITIONS) - 1
+    study.error_floor("lab", replace(small, floor_runs=3), first=first)     # not whole blocks: other draws, run again
+    assert len(calls) == 3 * len(study.FLOOR_CONDITIONS) - 1
 
 def test_floor_verdict_is_read_from_the_interval_of_the_particle_step():
     f, t = _table(floor=[40.0, 38.0, 30.0, 27.0], floor_drop_ci=(2.0, 4.0))   # 4× particles: 3 [2, 4] cm lower

@@ -39,10 +39,10 @@ from ..models.motion import RandomForce, RandomJerk, RandomWalk, ReceiverMotion,
 from ..models.setnoise import SetNoiseModel
 from ..models.tdoa import TdoaModel
 from ..models.track import LinearTrackRanges
-from ..sim import robot
+from ..sim import chirps, robot
 from ..types import Estimates, EstimateStatus, RangeLog, TdoaLog, pseudo_tdoa
 from . import kalman, particle, pruning
-from .doppler import DopplerPf
+from .doppler import DopplerPf, ScaatMhEkf, assign_chirps, clock_pseudo_ranges
 from .ekf import Ekf, Linearisation, RangeMeasurement, TdoaEkf, TdoaMeasurement
 from .ekf import kernels as ekf_kernels
 from .eskf import LooseFilter, TdoaUpdate, TightEskf, _tag_jacobian
@@ -549,6 +549,30 @@ def _doppler_pf_exercised(out):
     return None if out["lost"].sum() == 1 and np.isinf(out["kept logw"]).any() else "no restart or no particle out"
 
 
+
+def _mh_inputs(ranges: bool, **settings):
+    """The lab walked for 9 s (timing jitter, 5 % missed chirps, one spurious detection a second), assigned by the
+    front end, with exact clock pseudo-ranges or none; the MH-EKF with ``settings`` and a room-sized prior."""
+    def build():
+        lab = doppler_model.DopplerModel.for_layout(doppler_model.lab_layout())
+        track, _ = chirps.rectangle_track()
+        rec = chirps.simulate_chirps(lab, track, 9.0, rng=np.random.default_rng(3), p_miss=0.05, spurious_rate_hz=1.0)
+        log = assign_chirps(rec.t_s, lab)
+        rr = clock_pseudo_ranges(log, lab, rec.phase_s) if ranges else np.full(len(log), np.nan)
+        x0 = kalman.Gaussian(np.zeros(6), np.diag([3.0, 2.1, 0.6, 0.75, 0.75, 0.75]))
+        return ScaatMhEkf(lab, **settings), log, rr, x0
+    return build
+
+
+def _mh_outputs(est):
+    return {"pos_m": est.pos_m, "vel_mps": est.vel_mps, "pos_cov_m2": est.pos_cov_m2, "status": est.status,
+            "n_hypotheses": est.info["n_hypotheses"], "beacon": est.info["beacon"]}
+
+
+def _mh_exercised(out):
+    return None if out["n_hypotheses"].max() > 1 and (out["beacon"] == -1).any() else "one hypothesis, no noise"
+
+
 # ---------------------------------------------------------------- Doppler space sampling (eq. 1)
 def _brute_inputs():
     model = doppler_model.DopplerModel.for_layout(doppler_model.cubic_layout())
@@ -580,6 +604,61 @@ def _brute_definition(a):
 
 def _brute_exercised(out):
     return None if out["counts"].min() > 0 else "a threshold with no hit"
+
+
+
+def _ellipsoid_inputs(ranges: bool):
+    """Positions of the conditional sampler for the cubic layout at the reference pair: 4000 uniform in the
+    position box (a few of them outside it) or, with ``ranges``, in the ranging region of a 15 cm threshold."""
+    def build():
+        model = doppler_model.DopplerModel.for_layout(doppler_model.cubic_layout())
+        ref = (doppler_model.REFERENCE_POS_M, doppler_model.REFERENCE_VEL_MPS)
+        b, rho_ref = sampling._reference(model, *ref, ranges)
+        rng = np.random.default_rng(11)
+        if ranges:
+            M, half, _ = sampling.ranging_region(model, ref[0], 0.15)
+            X = ref[0] + np.linalg.solve(M, (rng.uniform(-1.0, 1.0, (4000, 3)) * half).T).T
+        else:
+            X = rng.uniform(-5.2, 5.2, (4000, 3))
+        return dict(model=model, X=X, b=b, rho_ref=rho_ref, ranges=ranges, tau_max=0.15, box=sampling.SearchBox())
+    return build
+
+
+def _ellipsoid_e_norm(a):
+    m, b, t = a["model"], a["b"], a["tau_max"]
+    return float(np.linalg.norm((np.abs(b) + t) ** 2 / (m.v_s_mps * m.period_s - np.abs(b) - t)))
+
+
+def _ellipsoid_fast(a):
+    n = a["X"].shape[0]
+    out = dict(L=np.empty((n, 3, 3)), v_star=np.empty((n, 3)), r2=np.empty(n), rr2=np.empty(n),
+               active=np.empty(n, np.bool_))
+    sampling._ellipsoids(a["X"], a["model"].beacons.pos_m, a["model"].period_s, a["b"], a["rho_ref"], a["ranges"],
+                         a["tau_max"], _ellipsoid_e_norm(a), a["box"].pos_lo_m, a["box"].pos_hi_m, *out.values())
+    return out
+
+
+def _ellipsoid_definition(a):
+    """The velocity ellipsoid per position in NumPy (the module docstring of :mod:`uwbwb.sampling`): rows
+    ``A = P d / ρ``, ``M = AᵀA`` (its Cholesky factor), ``v* = M⁻¹ Aᵀb`` by LAPACK, the squared radius left
+    after the residual at ``v*``, and whether the position takes draws."""
+    X, T, P, b, tau_max, box = a["X"], a["model"].beacons.pos_m, a["model"].period_s, a["b"], a["tau_max"], a["box"]
+    d = X[:, None, :] - T
+    rho = np.linalg.norm(d, axis=-1)                                     # (n, nb)
+    A = P[:, None] * d / rho[..., None]                                  # (n, nb, 3): eq 1's linear part A V
+    rr2 = np.sum((rho - a["rho_ref"]) ** 2, axis=-1) if a["ranges"] else np.zeros(X.shape[0])
+    tau_v = np.sqrt(np.clip(tau_max ** 2 - rr2, 0.0, None))              # what the Doppler part may use
+    radius = tau_v + _ellipsoid_e_norm(a)
+    M = np.einsum("nbi,nbj->nij", A, A)
+    v_star = np.linalg.solve(M, np.einsum("nbi,b->ni", A, b)[..., None])[..., 0]
+    res2 = np.sum((np.einsum("nbi,ni->nb", A, v_star) - b) ** 2, axis=-1)
+    r2 = radius ** 2 - res2
+    in_box = np.all((X >= box.pos_lo_m) & (X <= box.pos_hi_m), axis=1)
+    return dict(L=np.linalg.cholesky(M), v_star=v_star, r2=r2, rr2=rr2, active=(rr2 < tau_max ** 2) & (r2 > 0) & in_box)
+
+
+def _ellipsoid_exercised(out):
+    return None if 0 < out["active"].sum() < out["active"].size else "every position or none takes draws"
 
 
 # ---------------------------------------------------------------- error transition, written out by blocks
@@ -887,10 +966,34 @@ def _registry() -> tuple[Twin, ...]:
                       "tests/golden/test_doppler_golden.py::test_every_doppler_configuration_reproduces_the_golden_outputs",
                       ("uwbwb.filters.doppler.pf._inside_room", "uwbwb.models.motion._propagate_rows",
                        "uwbwb.filters.particle._roughen_rows"), _doppler_pf_exercised))
+    # not bit for bit: the compiled loop's products and S⁻¹ are plain loops where the Python run calls BLAS and LAPACK
+    # (as the EKF's compiled run); on these cases the estimates differ by at most 3e-14 of a metre (m/s, m²), the
+    # hypotheses, their count and the beacons chosen are equal
+    mh_tol = {**dict.fromkeys(("pos_m", "vel_mps", "pos_cov_m2"), Tol(1e-9, 1e-12)),
+              **dict.fromkeys(("status", "n_hypotheses", "beacon"), BIT)}
+    for case, ranges, settings in (("default", False, {}), ("ranges, clutter", True,
+                                                            {"spurious_rate_hz": 5.0, "p_detect": 0.8})):
+        twins.append(Twin(f"doppler.ScaatMhEkf.run[{case}]",
+                          lambda a: _mh_outputs(a[0].run(a[1], a[3], ranges_m=a[2])),
+                          lambda a: _mh_outputs(a[0]._run_python(a[1], a[3], a[2])), _mh_inputs(ranges, **settings),
+                          mh_tol, "tests/golden/test_doppler_golden.py::"
+                                  "test_every_doppler_configuration_reproduces_the_golden_outputs",
+                          ("uwbwb.filters.doppler.scaat._mh_loop", "uwbwb.filters.doppler.scaat._transition",
+                           "uwbwb.filters.doppler.scaat._doppler_rows", "uwbwb.filters.ekf.kernels._predict",
+                           "uwbwb.filters.ekf.kernels._update", "uwbwb.filters.ekf.kernels._lu"), _mh_exercised))
     twins.append(Twin("sampling._brute_kernel", _brute_fast, _brute_definition, _brute_inputs,
                       {"counts": BIT, "delta_m": Tol(1e-9, 0.0)},
                       "tests/test_sampling.py::test_kernel_counts_equal_numpy_on_the_same_stream",
                       ("uwbwb.sampling._brute_kernel",), _brute_exercised))
+    # not bit for bit: NumPy forms M = AᵀA and Aᵀb with einsum and solves with LAPACK's LU, the compiled loop sums
+    # the products in its own order and solves through the Cholesky factor; on these cases the results differ by
+    # up to 5 ULP of the largest element (v*), the decisions (which positions take draws) are equal
+    for case, ranges in (("Doppler", False), ("with ranges", True)):
+        twins.append(Twin(f"sampling._ellipsoids[{case}]", _ellipsoid_fast, _ellipsoid_definition,
+                          _ellipsoid_inputs(ranges), {**dict.fromkeys(("L", "v_star", "r2", "rr2"), Tol(ulps=64)),
+                                                      "active": BIT},
+                          "tests/test_sampling.py::test_conditional_agrees_with_brute_force_within_intervals",
+                          ("uwbwb.sampling._ellipsoids",), _ellipsoid_exercised))
     twins.append(Twin("ins.error_transition", lambda a: {"F": ins.error_transition(*a)}, _transition_definition,
                       _transition_inputs, {"F": Tol(0.0, 1e-14)},
                       "tests/models/test_ins.py::test_block_transition_equals_the_matrix_series"))

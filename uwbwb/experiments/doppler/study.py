@@ -51,6 +51,8 @@ ROOMS = {"cubic": ((-2.0, -2.0, -2.0), (2.0, 2.0, 2.0)), "lab": ((-3.0, -2.5, -1
 KEEPS_TRACK = (0.95, 0.05)
 #: Horizontal error (m) beyond which an epoch counts as off the track.
 LOST_M = 0.5
+#: PF runs per block of :func:`track_study` (a block's runs draw from one child of the recording's generator).
+BLOCK_RUNS = 25
 
 
 @dataclass(frozen=True)
@@ -342,7 +344,7 @@ def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs:
 
     The walk starts at the top-left corner; after ``cfg.laps_before`` full laps the two
     snapshots are the arrivals at the bottom-left and then the top-left corner, 3 s apart.
-    ``workers`` threads, or the Dask cluster ``scheduler``, run blocks of 25 PF runs
+    ``workers`` threads, or the Dask cluster ``scheduler``, run blocks of :data:`BLOCK_RUNS` PF runs
     (the numbers do not depend on it).
 
     ``noise=False`` simulates no timing jitter, no missed and no spurious chirps;
@@ -370,7 +372,7 @@ def track_study(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, pf_runs:
     pf_out, kf_out = {}, {}
     for variant in variants:
         r = ranges if variant == "Doppler + ranges" else None
-        pf_out[variant] = replace(pf.run(log, n_runs=pf_runs or cfg.pf_runs, rng=rng, ranges_m=r, block_runs=25,
+        pf_out[variant] = replace(pf.run(log, n_runs=pf_runs or cfg.pf_runs, rng=rng, ranges_m=r, block_runs=BLOCK_RUNS,
                                          workers=workers, progress=progress, scheduler=scheduler),
                                   name=f"PF ({variant})")
         if kf:
@@ -450,7 +452,7 @@ FLOOR_CONDITIONS = (("as simulated", True, False, 1), ("zero noise", False, Fals
 
 
 def error_floor(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, workers: int = 1,
-                scheduler=None) -> pd.DataFrame:
+                scheduler=None, first: TrackStudy | None = None) -> pd.DataFrame:
     """What the Doppler-only PF's CEP50 is made of, measured on one recording (Doppler only).
 
     The same walk (same seed) is filtered under each of :data:`FLOOR_CONDITIONS`: as
@@ -463,13 +465,27 @@ def error_floor(layout: str, cfg: StudyConfig, *, seed_offset: int = 0, workers:
     runs share their epochs (not across the noise step, whose chirps differ; NaN also with fewer runs than
     :data:`uwbwb.metrics.MIN_BLOCKS`). The last condition's CEP50 is a floor only if that drop is nil within its
     interval.
+
+    ``first`` is :func:`track_study` of the same ``layout``, ``cfg`` and ``seed_offset`` with its default motion and
+    particles (the notebook's first recording). Where its Doppler PF ran ``cfg.floor_runs`` runs or more and
+    ``cfg.floor_runs`` fills whole blocks of :data:`BLOCK_RUNS`, its first ``cfg.floor_runs`` runs are the first
+    condition's (the same recording, the same draws) and are read from it instead of run again.
     """
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 5, seed_offset]))
     rows, errs = [], []
+    runs = None if first is None else first.pf.get("Doppler")
     for label, noise, exact, factor in FLOOR_CONDITIONS:
-        st = track_study(layout, cfg, seed_offset=seed_offset, pf_runs=cfg.floor_runs, noise=noise, exact_dp=exact,
-                         n_particles=factor * cfg.n_particles, variants=("Doppler",), kf=False, workers=workers,
-                         scheduler=scheduler)
+        n = cfg.floor_runs
+        if (noise, exact, factor) == (True, False, 1) and runs is not None and n % BLOCK_RUNS == 0 \
+                and runs.n_runs >= n and runs.meta["n_particles"] == cfg.n_particles:
+            st = replace(first, kf={}, pf={"Doppler": replace(
+                runs, pos_m=runs.pos_m[:n], status=runs.status[:n], pos_cov_m2=runs.pos_cov_m2[:n],
+                vel_mps=runs.vel_mps[:n], info={"ess": runs.ess[:n]},
+                meta={**runs.meta, "restarts": runs.restarts[:n], "tempered": runs.meta["tempered"][:n]})})
+        else:
+            st = track_study(layout, cfg, seed_offset=seed_offset, pf_runs=n, noise=noise, exact_dp=exact,
+                             n_particles=factor * cfg.n_particles, variants=("Doppler",), kf=False, workers=workers,
+                             scheduler=scheduler)
         snap, e = st.snapshot_errors("Doppler"), st.pf_errors_m("Doppler")
         clouds = [st.cloud("Doppler", k)[:, :2] - st.track.pos_m(t)[:2] for k, t in enumerate(st.snapshots_s)]
         drop = (metrics.block_bootstrap_difference(list(errs[-1]), list(e), rng=rng, statistic="median",
