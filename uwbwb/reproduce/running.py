@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .. import parallel
+from ..metrics import Summary
 from .params import notebook_parameters, parameterized
 
 __all__ = ["KERNEL_NAME", "NotebookRun", "ReproduceResult", "ipc_kernel_manager", "read_summary",
@@ -122,8 +123,6 @@ def read_summary(path: Path, notebook: str, mode: str | None = None) -> tuple[li
     ``mode`` (``"FAST"`` / ``"full"``), when given, is the mode the notebook ran
     in: every row must say so.
     """
-    from ..metrics import Summary    # imported when used: scipy.stats costs seconds in each notebook's process
-
     if not path.is_file():
         return [], f"no summary file: the notebook wrote nothing to SUMMARY_PATH ({path})"
     try:
