@@ -223,9 +223,17 @@ def pair_samples(recordings: Iterable[Recording]):
 
 
 def _robust_sigma(resid: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    r = np.where(mask, resid, np.nan)
-    med = np.nanmedian(r, axis=0)
-    return MAD_TO_SIGMA * np.nanmedian(np.abs(r - med), axis=0)
+    """1.4826 × MAD over axis 0 of the ``resid`` entries where ``mask``, per pair (NaN left out, as nanmedian does).
+
+    Each pair's samples copied once into a contiguous row and partitioned in place: the same medians as nanmedian
+    over axis 0 of the (rows, tags, anchors) array, which gathers every column with a strided copy."""
+    by_pair, keep = np.moveaxis(resid, 0, -1).copy(), np.moveaxis(mask, 0, -1)   # each pair's samples contiguous
+    sigma = np.full(resid.shape[1:], np.nan)
+    for k, a in np.ndindex(*sigma.shape):
+        r = by_pair[k, a] if keep[k, a].all() else by_pair[k, a][keep[k, a]]
+        r = r - np.nanmedian(r, overwrite_input=True)      # reorders by_pair's copy, not the median
+        sigma[k, a] = MAD_TO_SIGMA * np.nanmedian(np.abs(r, out=r), overwrite_input=True)
+    return sigma
 
 
 def fit_range_calibration(recordings: Sequence[Recording] | Recording, *, fit_scale: bool = True,
@@ -273,8 +281,9 @@ def fit_range_calibration(recordings: Sequence[Recording] | Recording, *, fit_sc
     scale = np.ones(n.shape)
     for _ in range(n_iter):
         # weighted normal equations of y = scale * x + bias, all pairs at once
-        sw, sx, sy = w.sum(0), (w * x0).sum(0), (w * y0).sum(0)
-        sxx, sxy = (w * x0 * x0).sum(0), (w * x0 * y0).sum(0)
+        wx = w * x0
+        sw, sx, sy = w.sum(0), wx.sum(0), (w * y0).sum(0)
+        sxx, sxy = (wx * x0).sum(0), (wx * y0).sum(0)
         det = sw * sxx - sx * sx
         with np.errstate(invalid="ignore", divide="ignore"):
             s_full = (sw * sxy - sx * sy) / det

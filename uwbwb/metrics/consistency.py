@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import chi2
 
 from ..validate import probability
 
@@ -66,6 +65,8 @@ def nis_consistency(nis, dof, prob: float = 0.95) -> dict:
     if not ok.any():
         return {"n": 0, "mean_nis_over_dof": np.nan, "fraction_inside": np.nan, "sum_nis": np.nan,
                 "sum_dof": 0, "sum_lo": np.nan, "sum_hi": np.nan, "verdict": "no updates"}
+    from scipy.stats import chi2    # imported when used: scipy.stats costs seconds wherever uwbwb.metrics is imported
+
     nis, dof = nis[ok], dof[ok]
     a = (1 - prob) / 2
     inside = (nis >= chi2.ppf(a, dof)) & (nis <= chi2.ppf(1 - a, dof))

@@ -27,7 +27,6 @@ from typing import Sequence
 
 import numba
 import numpy as np
-from scipy import stats
 import pandas as pd
 
 from ..types import Trajectory
@@ -385,6 +384,8 @@ def seeds_interval(x, *, prob: float = 0.95) -> dict:
     m = float(x.mean())
     if n < 2:
         return {"mean": m, "lo": np.nan, "hi": np.nan, "n": n}
+    from scipy import stats         # imported when used: scipy.stats costs seconds wherever uwbwb.metrics is imported
+
     h = float(stats.t.ppf(0.5 + prob / 2, n - 1) * x.std(ddof=1) / math.sqrt(n))
     return {"mean": m, "lo": m - h, "hi": m + h, "n": n}
 
