@@ -122,9 +122,11 @@ class LinearTrackRanges:
         """
         P, v = self.unpack(theta)
         if compiled:
-            res, J = _residuals_jacobian(P, v, np.asarray(t_s, float), np.asarray(anchor_index, np.intp),
-                                         np.asarray(range_m, float), self.anchor_pos_m, self.dim, self.static,
-                                         jacobian)
+            # writeable C arrays: one compiled signature, the one compiled at install (numba types read-only
+            # and Fortran-ordered arrays apart and would compile again at first use)
+            res, J = _residuals_jacobian(P, v, *(np.require(x, dt, "CW") for x, dt in (
+                (t_s, float), (anchor_index, np.intp), (range_m, float), (self.anchor_pos_m, float))),
+                self.dim, self.static, jacobian)
             return res, (J if jacobian else None)
         diff = (P if self.static else P + np.multiply.outer(t_s, v)) - self.anchor_pos_m[anchor_index]   # (M, 3)
         dist = np.sqrt(np.einsum("mi,mi->m", diff, diff))
