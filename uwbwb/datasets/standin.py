@@ -133,8 +133,7 @@ def load_lias_room(data_dir=None, recording: str = "fast", static_session: str =
                                     f"(A stand-in replaces only a dataset that is absent, never a wrong name.)"
                                     ) from exc
         return RoomData(LIAS, dynamic, static, False, "",
-                        f"dynamic run {recording!r}, {len(static)} static poses of session {static_session}"
-                        + ("" if static_yaws is None else f" (yaws {', '.join(map(str, yaws))}° only)"))
+                        f"dynamic run {recording!r}, {len(static)} static poses of session {static_session}")
     reason = f"{LIAS} was not found in the data folders"
     if stand_in is None:
         return RoomData(LIAS, None, (), False, reason, "nothing loaded")

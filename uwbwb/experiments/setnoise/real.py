@@ -13,7 +13,7 @@ on the static poses and emulates the dynamic run's fixes.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -32,12 +32,18 @@ def real_inputs(data_dir=None, recording: str = "fast", static_session: str = "8
                 fast: bool = False) -> RoomData:
     """A LIAS dynamic run and the static poses of its room, or the synthetic rig if absent.
 
-    With ``fast`` only the first yaw (0°) of every static site is loaded (5 poses instead of 30), each whole: the
-    set-noise model needs every set's fixes at a pose (``min_count``), which thinning the poses' epochs would starve.
+    With ``fast`` only the first yaw of every static site is kept (5 poses instead of 30).
     """
     stand_in = rig.RigConfig(duration_s=60.0 if fast else 120.0)
-    return load_lias_room(data_dir, recording, static_session, static_yaws=(0,) if fast else None, stand_in=stand_in,
+    room = load_lias_room(data_dir, recording, static_session, stand_in=stand_in,
                           static_duration_s=10.0 if fast else 20.0, rng=np.random.default_rng(seed))
+    if fast and room.real:
+        first = {}
+        for rec in room.static:
+            first.setdefault(rec.meta["site"], rec)
+        room = replace(room, static=tuple(first.values()),
+                       note=room.note + f" (FAST: first yaw of each of {len(first)} sites)")
+    return room
 
 
 def emulate_fixes(rec: Recording, tag: str, emulation: sim.SetEmulation = sim.SetEmulation(), *, tag_height_m: float,
