@@ -338,7 +338,7 @@ def _doppler_rows(x, i, dp, range_m, Tb, P, v_s, lag, var_dp, var_r, z, h, H, R)
     ru = uv / v_s
     scale = P / (1.0 - ru) ** 2
     for c in range(3):
-        u = d0 / rho if c == 0 else (d1 / rho if c == 1 else d2 / rho)
+        u = (u0, u1, u2)[c]
         dr_dx = (x[3 + c] - uv * u) / (rho * v_s)
         H[0, c] = scale * dr_dx
         H[0, 3 + c] = scale * (u / v_s - lp * dr_dx)
