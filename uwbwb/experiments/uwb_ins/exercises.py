@@ -26,9 +26,12 @@ def outage_loose_vs_tight(*, seed: int, outage_s: float = 5.0, grade: str = "con
     """Exercise: an outage of ``outage_s`` (only BS1 and BS2 heard: one TDoA per epoch, no fix);
     predict which filter's maximum error in the outage is larger, loose or tight.
 
-    The loose filter needs a position fix, so through the outage it runs on the INS alone and
-    drifts; the tight filter still updates with the single TDoA of each epoch. Claim: the loose
-    filter's maximum error in the outage exceeds ``factor`` × the tight one's.
+    The loose filter needs a position fix, so through the outage it runs on the INS alone from the
+    velocity it had when the fixes stopped — a velocity from differenced fixes, wrong by decimetres
+    per second — and the IMU's drift adds to that; the tight filter still updates with the single
+    TDoA of each epoch. Claim: the loose filter's maximum error in the outage exceeds ``factor`` ×
+    the tight one's (notebook 05 asks it with a ``"tactical"`` IMU, whose drift over seconds is
+    millimetres, so the entry velocity is what is left).
     """
     outage_s = validate.number("outage_s", outage_s, minimum=0.0, strict_minimum=True)
     factor = validate.number("factor", factor, minimum=1.0)
@@ -40,8 +43,10 @@ def outage_loose_vs_tight(*, seed: int, outage_s: float = 5.0, grade: str = "con
     return ExerciseCheck(f"{outage_s:g} s outage: loose max error more than {factor:g}× tight's",
                          loose > factor * tight, {"loose max in outage (m)": loose, "tight max in outage (m)": tight},
                          (f"loose, by more than {factor:g}×", f"not loose by more than {factor:g}×"),
-                         "Two stations give no position fix, so the loose filter coasts on the IMU alone; the tight "
-                         "filter still uses the one TDoA per epoch, which holds one direction of the drift.")
+                         "Two stations give no position fix, so the loose filter coasts on the INS from the velocity "
+                         "it had when the fixes stopped (differenced fixes: wrong by decimetres per second), plus the "
+                         "IMU's drift; a better IMU removes only the drift. The tight filter still uses the one TDoA "
+                         "per epoch, which holds one direction of the error.")
 
 
 def gate_off(*, seed: int, outlier_rate: float = 0.1, duration_s: float = 8.0, gate_prob: float = 0.999,
