@@ -154,7 +154,7 @@ def test_readme_and_teaching_quote_the_table():
     assert quoted == {"class", "fast", "full"}                  # README quotes every mode
 
 
-def test_two_routes_of_at_most_two_hours_from_the_measured_class_times():
+def test_two_routes_of_at_most_two_hours_from_the_measured_run_times_and_the_assumed_minutes():
     routes = route_tables((ROOT / "TEACHING.md").read_text("utf-8"))
     assert [re.findall(r"0\d", name) for name in routes] == [["00", "03", "01"], ["00", "03", "05"]]
     for name, rows in routes.items():
