@@ -386,7 +386,7 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
             nis[row] = nis_consistency(kr.nis[up], kr.dof[up])["mean_nis_over_dof"]
         elif base in ("loose", "tight"):
             tight, loose = fusion_filters(model, FusionSettings(cfg.outlier_c_m, g, q, r, loose_window=cfg.loose_window))
-            fr = (tight.run(s.imu, run.tdoa, s.x0, heading=run.heading) if base == "tight"
+            fr = (tight.run(s.imu, run.tdoa, s.x0, heading=run.heading, fix_tag=s.snapshot) if base == "tight"
                   else loose.run(s.imu, s.fixes, s.x0, heading=run.heading))
             pos = fr.to_estimates(dim=2).pos_m
             gated[row] = int(fr.n_gated.sum())
