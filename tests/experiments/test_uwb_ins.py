@@ -56,6 +56,11 @@ def test_the_cell_the_sections_and_the_ablation_run_one_builders_filters():
     assert k0 == s.k0
     for r in rows:
         np.testing.assert_array_equal(pos[r][k0:], cell[r].to_estimates(dim=2).pos_m[k0:])
+    shared, _, _ = ab.run_methods(run, cfg.model, dict.fromkeys(rows, (1.0, 1.0)), cfg, rows=rows, started=s)
+    for r in rows:                                     # the tuning's path: the start computed once, passed in
+        np.testing.assert_array_equal(shared[r], pos[r])
+    with pytest.raises(ValueError, match="fix_tag must have shape"):
+        tight.run(s.imu, run.tdoa, s.x0, heading=run.heading, fix_tag=s.snapshot[1:])
     comp = study.compare_synthetic(run, settings)
     np.testing.assert_array_equal(comp.estimates["tight"].pos_m, cell["tight + gate"].to_estimates(dim=2).pos_m)
     ungated = study.fusion_filters(cfg.model, settings, gate_loose=False)[1]

@@ -39,7 +39,7 @@ from ..models.motion import RandomForce, RandomJerk, RandomWalk, ReceiverMotion,
 from ..models.setnoise import SetNoiseModel
 from ..models.tdoa import TdoaModel
 from ..models.track import LinearTrackRanges
-from ..sim import chirps, robot
+from ..sim import chirps, robot, walk
 from ..types import Estimates, EstimateStatus, RangeLog, TdoaLog, pseudo_tdoa
 from . import kalman, particle, pruning
 from .doppler import DopplerPf, ScaatMhEkf, assign_chirps, clock_pseudo_ranges
@@ -792,6 +792,40 @@ def _robust_mean_definition(a):
     return {"kept": kept, "history_m": np.array(history)}
 
 
+def _steer_inputs():
+    """Arguments of :func:`uwbwb.sim.walk._steer_loop`: 20 s at 100 Hz around a rounded 6 m × 4 m loop (path points
+    every 2 cm, slower in turns), random-force kicks, started at rest so the command is clipped at first."""
+    xy, kappa = walk.path_points(((0.0, 0.0), (6.0, 0.0), (6.0, 4.0), (0.0, 4.0)), 1.0)
+    rf, dt = RandomForce(0.05, dim=2), 0.01
+    noise = np.random.default_rng(7).standard_normal((2001, 4)) @ rf.Q_sqrt(dt).T
+    x = np.zeros((2001, 4))
+    x[0, :2] = xy[0]
+    return x, xy, 0.8 / (1.0 + 0.5 * kappa), noise, rf.F(dt), rf.G(dt), 50, 100, 0.5, 1.5
+
+
+def _steer_fast(a):
+    walk._steer_loop(*a)
+    return {"x": a[0]}
+
+
+def _steer_definition(a):
+    """The pursuit loop in NumPy: nearest of the next ``window`` path points, command towards the point ``look``
+    further on, clipped, then ``x_{k+1} = F x_k + G u + w_k``."""
+    x, xy, v_path, noise, F, G, look, window, tau_s, max_acc_mps2 = a
+    N, i = len(xy), 0
+    for k in range(len(x) - 1):
+        p, v = x[k, :2], x[k, 2:]
+        cand = (i + np.arange(window)) % N
+        i = int(cand[np.argmin(np.sum((xy[cand] - p) ** 2, axis=1))])
+        d = xy[(i + look) % N] - p
+        u = (v_path[i] * d / max(np.linalg.norm(d), 1e-9) - v) / tau_s
+        a_norm = np.linalg.norm(u)
+        if a_norm > max_acc_mps2:
+            u = u * (max_acc_mps2 / a_norm)
+        x[k + 1] = F @ x[k] + G @ u + noise[k]
+    return {"x": x}
+
+
 # ---------------------------------------------------------------- the median block bootstrap's replicates
 def _median_inputs():
     """40 blocks of 1–30 epochs (odd and even replicate sizes), the b side zero in 21 of them (so some replicates
@@ -1026,6 +1060,12 @@ def _registry() -> tuple[Twin, ...]:
                       {"kept": BIT, "history_m": BIT},
                       "tests/filters/test_pruning.py::test_robust_mean_keeps_the_cluster_and_drops_the_scatter",
                       ("uwbwb.filters.pruning._static_robust_mean",)))
+    # bit for bit here (the same products and sums in the same order), but the definition's norms and F x are BLAS
+    # calls whose summation order (and use of FMA) depends on the CPU: a few ulps per step, which the stable pursuit
+    # loop does not amplify past 1e-9 m
+    twins.append(Twin("walk._steer_loop", _steer_fast, _steer_definition, _steer_inputs, {"x": Tol(0.0, 1e-9)},
+                      "tests/sim/test_walk.py::test_steering_follows_the_path_at_the_scenario_speed",
+                      ("uwbwb.sim.walk._steer_loop",)))
     # bit for bit: a median is one of the epochs (or the mean of two, (a + b) / 2 on both sides), whatever the order
     twins.append(Twin("metrics._median_replicates", _median_fast, _median_definition, _median_inputs,
                       {"d": BIT, "ratio": BIT},

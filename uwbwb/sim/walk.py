@@ -47,6 +47,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
+import numba
 import numpy as np
 
 from .. import geometry, validate
@@ -366,20 +367,43 @@ def steer(config: WalkScenario, *, rng: np.random.Generator,
     x = np.empty((t_s.size, 4))
     heading0 = xy[1] - xy[0]
     x[0] = np.r_[xy[0], 0.2 * config.speed_mps * heading0 / np.linalg.norm(heading0)]
-    i = 0
-    for k in range(t_s.size - 1):
-        p, v = x[k, :2], x[k, 2:]
-        cand = (i + np.arange(window)) % N
-        i = int(cand[np.argmin(np.sum((xy[cand] - p) ** 2, axis=1))])
-        target = xy[(i + look) % N]
-        d = target - p
-        v_cmd = v_path[i] * d / max(np.linalg.norm(d), 1e-9)
-        u = (v_cmd - v) / config.tau_s
-        a = np.linalg.norm(u)
-        if a > config.max_acc_mps2:
-            u = u * (config.max_acc_mps2 / a)
-        x[k + 1] = F @ x[k] + G @ u + noise[k]
+    _steer_loop(x, xy, v_path, noise, F, G, look, window, float(config.tau_s), float(config.max_acc_mps2))
     return t_s, x
+
+
+@numba.njit(cache=True, nogil=True)
+def _steer_loop(x, xy, v_path, noise, F, G, look, window, tau_s, max_acc_mps2):
+    """The pursuit loop of :func:`steer`, in place on ``x`` (row 0 given): at each step the nearest path point
+    among the ``window`` from the last one, the command towards the point ``look`` further on at the path's speed,
+    clipped to ``max_acc_mps2``, then ``x_{k+1} = F x_k + G u + noise_k``. Its definition, the same loop in
+    NumPy, is the declared twin (:mod:`uwbwb.filters.twins`)."""
+    N = xy.shape[0]
+    i = 0
+    u = np.empty(2)
+    for k in range(x.shape[0] - 1):
+        px, py = x[k, 0], x[k, 1]
+        best, best_d2 = i, np.inf
+        for c in range(window):
+            j = (i + c) % N
+            ex, ey = xy[j, 0] - px, xy[j, 1] - py
+            d2 = ex * ex + ey * ey
+            if d2 < best_d2:
+                best, best_d2 = j, d2
+        i = best
+        dx, dy = xy[(i + look) % N, 0] - px, xy[(i + look) % N, 1] - py
+        n = max(np.sqrt(dx * dx + dy * dy), 1e-9)
+        u[0] = (v_path[i] * dx / n - x[k, 2]) / tau_s
+        u[1] = (v_path[i] * dy / n - x[k, 3]) / tau_s
+        a = np.sqrt(u[0] * u[0] + u[1] * u[1])
+        if a > max_acc_mps2:
+            s = max_acc_mps2 / a
+            u[0] *= s
+            u[1] *= s
+        for r in range(4):
+            fx = F[r, 0] * x[k, 0]
+            for c in range(1, 4):
+                fx += F[r, c] * x[k, c]
+            x[k + 1, r] = (fx + (G[r, 0] * u[0] + G[r, 1] * u[1])) + noise[k, r]
 
 
 # --------------------------------------------------------------------------- ranging

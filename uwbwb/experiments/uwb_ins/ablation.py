@@ -341,7 +341,8 @@ def ls_gate(fixes: Estimates, tdoa, model: TdoaModel, gate_prob: float) -> tuple
 
 
 def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[str, tuple[float, float]],
-                cfg: AblationConfig, rows: Sequence[str] = ROWS) -> tuple[dict, int, dict]:
+                cfg: AblationConfig, rows: Sequence[str] = ROWS, *,
+                started: study.Start | None = None) -> tuple[dict, int, dict]:
     """Every row of ``rows`` on one run, with the filters' ``model`` (not the run's world) and each tuned row's
     ``knobs[row] = (Q ×, R ×)``, all from :func:`~.study.start`; the loose and tight rows are the filters of
     :func:`~.study.fusion_filters` (notebook 05's cell) at that pair and gate.
@@ -352,8 +353,10 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
     freedom over the scored epochs before the outage — the filters' noise model in normal operation, which the
     NIS check reads; whether a filter re-acquires after the outage is the re-acquisition check's (a filter
     that never does would otherwise fail the NIS check too, naming no parameter) —, NaN for LS).
+    ``started``: :func:`~.study.start` of ``run`` and ``model`` at ``cfg.outlier_c_m`` when the caller already has it
+    (the tuning runs every row and pair on the same two runs).
     """
-    s = start(run, model, cfg.outlier_c_m)
+    s = start(run, model, cfg.outlier_c_m) if started is None else started
     k0 = s.k0
     tag0 = s.x0.pos_m + quat_to_dcm(s.x0.quat) @ np.asarray(model.lever_arm_m, float)
     keep = _masks(run, k0, cfg.recovery_s)["all"]              # scored epochs, and only those before an outage:
@@ -383,7 +386,7 @@ def run_methods(run: robot.RobotRun, model: robot.RobotConfig, knobs: Mapping[st
             nis[row] = nis_consistency(kr.nis[up], kr.dof[up])["mean_nis_over_dof"]
         elif base in ("loose", "tight"):
             tight, loose = fusion_filters(model, FusionSettings(cfg.outlier_c_m, g, q, r, loose_window=cfg.loose_window))
-            fr = (tight.run(s.imu, run.tdoa, s.x0, heading=run.heading) if base == "tight"
+            fr = (tight.run(s.imu, run.tdoa, s.x0, heading=run.heading, fix_tag=s.snapshot) if base == "tight"
                   else loose.run(s.imu, s.fixes, s.x0, heading=run.heading))
             pos = fr.to_estimates(dim=2).pos_m
             gated[row] = int(fr.n_gated.sum())
@@ -444,13 +447,13 @@ def score_seed(case: str, seed: int, knobs: Mapping[str, tuple[float, float]], c
     return {"scores": scores, "counts": counts, "pairs": pairs}
 
 
-def _tune_task(*, row: str, knob: tuple[float, float], cfg: AblationConfig, tuning_seed: int) -> tuple[float, float]:
+def _tune_task(*, row: str, knob: tuple[float, float], cfg: AblationConfig,
+               runs: Mapping[str, tuple[robot.RobotRun, study.Start]]) -> tuple[float, float]:
     """RMSE over the tuning seed's scored epochs (no outage, no recovery), and the row's mean NIS per dof on its
-    dynamic run (NaN for rows without one)."""
+    dynamic run (NaN for rows without one); ``runs``: scenario → (run, its start), the same for every task."""
     parts, nis = [], np.nan
-    for scen in ("static", "dynamic"):
-        run = simulate(scen, cfg.model, cfg, tuning_seed)
-        pos, k0, counts = run_methods(run, cfg.model, {row: knob}, cfg, (row,))
+    for scen, (run, s) in runs.items():
+        pos, k0, counts = run_methods(run, cfg.model, {row: knob}, cfg, (row,), started=s)
         parts.append(score_epochs({row: np.linalg.norm(pos[row] - run.truth.pos_m[:, :2], axis=1)},
                                   _masks(run, k0, cfg.recovery_s)["all"]))
         if scen == "dynamic":
@@ -464,12 +467,17 @@ def tune(cfg: AblationConfig, *, tuning_seed: int, scheduler=None,
     """RMSE on the tuning seed for every tuned row × ``(Q ×, R ×)`` pair (rows: rows; columns: the pairs, a
     two-level index ``Q ×``, ``R ×``), and the mean NIS per dof of the same runs' dynamic part (same shape).
 
-    The pair of each row is chosen by :func:`choose_knobs`.
+    The tuning seed's static and dynamic runs and their start (eq. 4, LS fixes) are computed once and shared by
+    every task. The pair of each row is chosen by :func:`choose_knobs`.
     """
+    runs = {}
+    for scen in ("static", "dynamic"):
+        run = simulate(scen, cfg.model, cfg, tuning_seed)
+        runs[scen] = (run, start(run, cfg.model, cfg.outlier_c_m))
     pairs = [(float(q), float(r)) for q in cfg.grid for r in cfg.r_grid]
     tasks = [parallel.Task({"row": row, "knob": pair}) for row in _TUNED for pair in pairs]
     res = {(t.params["row"], t.params["knob"]): v for t, v in parallel.imap(
-        _tune_task, tasks, shared={"cfg": cfg, "tuning_seed": tuning_seed}, scheduler=scheduler,
+        _tune_task, tasks, shared={"cfg": cfg, "runs": runs}, scheduler=scheduler,
         workers=workers, desc="ablation tuning", unit="run")}
     tables = []
     for i in (0, 1):

@@ -69,7 +69,9 @@ class Start:
     """What every method of one synthetic run shares (:func:`start`): the TDoAs after the eq-4 test
     (``screened``) and the count it removed per epoch (``n_eq4``), the 2-D TDoA model at the known tag
     height (``tdoa2``), the UWB-only least-squares ``fixes``, the filters' initial state ``x0`` at epoch
-    ``k0`` (the first scored one) and the ``imu`` samples from there on."""
+    ``k0`` (the first scored one), the ``imu`` samples from there on, and the tight filter's ``snapshot`` fixes
+    (:meth:`~uwbwb.filters.eskf.TdoaUpdate.snapshot` of the run's TDoAs after its eq-4 test, ``(T, 3)``: every
+    tight filter of :func:`fusion_filters` on this run starts its iterated updates there, whatever its knobs)."""
 
     screened: TdoaLog
     n_eq4: np.ndarray
@@ -78,6 +80,7 @@ class Start:
     x0: NavState
     k0: int
     imu: ImuLog
+    snapshot: np.ndarray
 
 
 def start(run: robot.RobotRun, model: robot.RobotConfig, outlier_c_m: float | None) -> Start:
@@ -90,7 +93,9 @@ def start(run: robot.RobotRun, model: robot.RobotConfig, outlier_c_m: float | No
     fixes = ls_estimates(screened, tdoa2)
     yaw0 = float(run.heading.yaw_rad[int(np.flatnonzero(fixes.has_estimate)[0])])
     x0, k0 = initial_state(fixes, height_m=model.tag_height_m, lever_m=model.lever_arm_m, yaw_rad=yaw0)
-    return Start(screened, n_eq4, tdoa2, fixes, x0, k0, imu_after(run.imu, run.truth.t_s[k0]))
+    uwb = eskf.TdoaUpdate(model.tdoa_model(), outlier_c_m)             # the tight filter's (fusion_filters)
+    snapshot = uwb.snapshot(run.tdoa.t_s, uwb.screen(run.tdoa.tdoa_m, run.tdoa.ref)[0], run.tdoa.ref)
+    return Start(screened, n_eq4, tdoa2, fixes, x0, k0, imu_after(run.imu, run.truth.t_s[k0]), snapshot)
 
 
 def fusion_filters(model: robot.RobotConfig, settings: FusionSettings = FusionSettings(), *,
@@ -138,7 +143,7 @@ def compare_synthetic(run: robot.RobotRun, settings: FusionSettings = FusionSett
     cfg = run.config
     s = start(run, cfg, settings.outlier_c_m)
     tight, loose = fusion_filters(cfg, settings, gate_loose=False)
-    todo = {"tight": lambda: tight.run(s.imu, run.tdoa, s.x0, heading=run.heading),
+    todo = {"tight": lambda: tight.run(s.imu, run.tdoa, s.x0, heading=run.heading, fix_tag=s.snapshot),
             "loose": lambda: loose.run(s.imu, s.fixes, s.x0, heading=run.heading),
             "INS-only": lambda: eskf.dead_reckon(s.imu, s.x0, run.truth.t_s, lever_arm_m=cfg.lever_arm_m)}
     runs = {k: f() for k, f in todo.items() if k in methods}

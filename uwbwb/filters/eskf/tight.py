@@ -232,7 +232,7 @@ class TightEskf:
     # ---------------------------------------------------------------- run
     def run(self, imu: ImuLog, uwb: TdoaLog | RangeLog | None, x0: NavState, *, t_s: np.ndarray | None = None,
             heading: HeadingLog | None = None, acc_bias0=None, gyro_bias0=None, P0=None, name: str | None = None,
-            reference_step: bool = False) -> FusionRun:
+            reference_step: bool = False, fix_tag: np.ndarray | None = None) -> FusionRun:
         """Filter a recording.
 
         Parameters
@@ -261,6 +261,10 @@ class TightEskf:
             benchmarks and tests) instead of the compiled loop (:func:`_tight_loop`: the
             accumulated transition once per epoch, same updates); results are identical up to
             rounding (tested).
+        fix_tag
+            The snapshot fixes of ``uwb`` (:meth:`TdoaUpdate.snapshot` of its TDoAs after :meth:`TdoaUpdate.screen`,
+            ``(T, 3)``) when the caller has them: runs of several filters with this ``uwb`` model on one log share
+            them (:func:`uwbwb.experiments.uwb_ins.study.start`); None computes them here.
         """
         check_inputs("TightEskf.run", imu, x0)
         t_ep = (imu.t_s if t_s is None else np.asarray(t_s, float)) if uwb is None else uwb.t_s
@@ -271,9 +275,11 @@ class TightEskf:
         if uwb is not None:
             refs = uwb.ref if isinstance(uwb, TdoaLog) else np.zeros(T, int)
             rows, n_out_all = self.uwb.screen(uwb.tdoa_m if isinstance(uwb, TdoaLog) else uwb.range_m, refs)
-        fix_tag = np.full((T, 3), np.nan)       # first linearisation point of an iterated update
+        given, fix_tag = fix_tag, np.full((T, 3), np.nan)   # first linearisation point of an iterated update
         if rows is not None and isinstance(self.uwb, TdoaUpdate) and math.isfinite(self.iterate_sigma_m):
-            fix_tag = self.uwb.snapshot(t_ep, rows, refs)
+            fix_tag = self.uwb.snapshot(t_ep, rows, refs) if given is None else np.asarray(given, float)
+            if fix_tag.shape != (T, 3):
+                raise ValueError(f"TightEskf.run: fix_tag must have shape ({T}, 3), got {fix_tag.shape}")
         # epochs inside an IMU gap: nothing measured there, so no IMU value is invented (NaN)
         t, acc, gyro, ep_idx, coasting, gaps_s = gap_timeline(imu, t_ep, self.max_imu_gap_s)
         meta = {"imu_gaps_s": gaps_s}
