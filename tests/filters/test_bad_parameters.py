@@ -8,7 +8,7 @@ import pytest
 
 from uwbwb.filters import kalman, particle
 from uwbwb.filters import setnoise as sn
-from uwbwb.filters.ekf import TdoaEkf, run_tdoa_ekf
+from uwbwb.filters.ekf import TdoaEkf
 from uwbwb.models.motion import RandomForce, VelocityKick
 from uwbwb.models.tdoa import TdoaModel
 from uwbwb.types import TdoaLog, pseudo_tdoa
@@ -31,7 +31,7 @@ def _one_absurd_tdoa():
 
 def test_ekf_default_gate_rejects_one_absurd_tdoa():
     model, log, pos = _one_absurd_tdoa()
-    res = run_tdoa_ekf(log, RandomForce(0.3), model)              # default settings
+    res = TdoaEkf(RandomForce(0.3), model).run(log)              # default settings
     err = np.linalg.norm(res.pos_m - pos, axis=1)
     assert err.max() < 0.5 and res.n_rejected[50] >= 1            # flagged and counted, estimate kept
     assert TdoaEkf(RandomForce(0.3), model).gate_prob == 0.9999
@@ -39,7 +39,7 @@ def test_ekf_default_gate_rejects_one_absurd_tdoa():
 
 def test_ekf_without_gate_follows_the_absurd_tdoa():
     model, log, pos = _one_absurd_tdoa()
-    res = run_tdoa_ekf(log, RandomForce(0.3), model, gate_prob=None)   # None: no gate, as documented
+    res = TdoaEkf(RandomForce(0.3), model, gate_prob=None).run(log)   # None: no gate, as documented
     assert np.linalg.norm(res.pos_m[50] - pos[50]) > 1e3
 
 

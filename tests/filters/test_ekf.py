@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from uwbwb.filters import kalman
-from uwbwb.filters.ekf import Ekf, TdoaEkf, TdoaMeasurement, kernels, run_tdoa_ekf
+from uwbwb.filters.ekf import Ekf, TdoaEkf, TdoaMeasurement, kernels
 from uwbwb.filters.gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMeasurement, NoGate, Robust
 from uwbwb.filters.twins import TWINS
 from uwbwb.models.motion import RandomForce, RandomJerk, RandomWalk
@@ -97,11 +97,11 @@ def test_estimate_does_not_depend_on_reference_when_correlation_is_modelled(rng)
     pos = np.column_stack([5 + 0.8 * t, 10 + 0.3 * t])
     r = model.ranges(pos) + 0.1 * rng.standard_normal((t.size, 8))
     logs = [TdoaLog(t, *pseudo_tdoa(r, k), IDS) for k in (0, 5)]
-    a, b = (run_tdoa_ekf(lg, RandomForce(0.5), model) for lg in logs)
+    a, b = (TdoaEkf(RandomForce(0.5), model).run(lg) for lg in logs)
     np.testing.assert_allclose(a.x_post, b.x_post, atol=1e-9)
     np.testing.assert_allclose(a.nis, b.nis, atol=1e-9)
     naive = TdoaModel(ANCHORS, 0.1, dim=2, z_m=1.0, correlated=False)
-    c, d = (run_tdoa_ekf(lg, RandomForce(0.5), naive) for lg in logs)
+    c, d = (TdoaEkf(RandomForce(0.5), naive).run(lg) for lg in logs)
     assert np.abs(c.x_post - d.x_post).max() > 1e-3
 
 
@@ -115,8 +115,8 @@ def test_chi2_gate_rejects_nlos_outliers(rng):
     r[hit, 3] += 3.0                                    # strong positive NLOS bias on anchor 3
     r[hit & (np.arange(t.size) % 20 == 10), 0] += 3.0   # ...and sometimes on the reference too
     log = TdoaLog(t, *pseudo_tdoa(r, 0), IDS)
-    plain = run_tdoa_ekf(log, RandomForce(0.2), model, gate_prob=None)
-    gated = run_tdoa_ekf(log, RandomForce(0.2), model, gate_prob=0.999)
+    plain = TdoaEkf(RandomForce(0.2), model, gate_prob=None).run(log)
+    gated = TdoaEkf(RandomForce(0.2), model, gate_prob=0.999).run(log)
     assert gated.n_rejected[hit].sum() >= hit.sum() + (hit & (np.arange(t.size) % 20 == 10)).sum()
     assert gated.n_rejected[~hit].sum() <= 5          # false alarms ~ 0.1 % of epochs
     e_plain = np.linalg.norm(plain.pos_m - pos, axis=1)[hit].mean()
@@ -142,7 +142,7 @@ def test_run_result_frame_and_trajectory(rng):
     pos = np.column_stack([5 + 0.8 * t, 10 + 0.3 * t])
     r = model.ranges(pos) + 0.1 * rng.standard_normal((t.size, 8))
     r[:3] = np.nan                                      # no data at first: initialise at epoch 3
-    res = run_tdoa_ekf(TdoaLog(t, *pseudo_tdoa(r, 0), IDS), RandomForce(0.5), model, name="mine")
+    res = TdoaEkf(RandomForce(0.5), model).run(TdoaLog(t, *pseudo_tdoa(r, 0), IDS), name="mine")
     assert not res.started[:3].any() and res.started[3:].all()
     assert (res.status[:3] == EstimateStatus.NO_ESTIMATE).all() and (res.status[3:] == EstimateStatus.UPDATED).all()
     df = res.to_frame()
@@ -161,7 +161,7 @@ def test_three_dimensional_filter(rng):
     t = np.arange(0, 20, 0.1)
     pos = np.column_stack([5 + 0.8 * t, 10 + 0.3 * t, 1.0 + 0.05 * t])
     r = model.ranges(pos) + 0.05 * rng.standard_normal((t.size, 8))
-    res = run_tdoa_ekf(TdoaLog(t, *pseudo_tdoa(r, 0), IDS), RandomForce(0.05, dim=3), model)
+    res = TdoaEkf(RandomForce(0.05, dim=3), model).run(TdoaLog(t, *pseudo_tdoa(r, 0), IDS))
     assert res.pos_m.shape == (t.size, 3)
     assert np.sqrt(np.mean((res.pos_m[50:] - pos[50:]) ** 2)) < 0.1
 
@@ -215,7 +215,7 @@ def test_gated_epochs_are_reported_as_such_in_the_common_result(rng):
     r = model.ranges(pos) + 0.1 * rng.standard_normal((t.size, 8))
     r[100, :] += np.array([0.0, 9.0, -7.0, 8.0, -9.0, 7.0, -8.0, 9.0])      # nothing consistent left
     r[50:52] = np.nan                                                     # nothing measured
-    res = run_tdoa_ekf(TdoaLog(t, *pseudo_tdoa(r, 0), IDS), RandomForce(0.2), model, gate_prob=0.999)
+    res = TdoaEkf(RandomForce(0.2), model, gate_prob=0.999).run(TdoaLog(t, *pseudo_tdoa(r, 0), IDS))
     est = res.to_estimates()
     assert est.status[100] == EstimateStatus.GATED and res.n_rejected[100] > 0 and res.dof[100] == 0
     assert (est.status[50:52] == EstimateStatus.PREDICTED).all()

@@ -254,14 +254,6 @@ class NavState:
             a.setflags(write=False)
             object.__setattr__(self, name, a)
 
-    @property
-    def dcm(self) -> np.ndarray:
-        return quat_to_dcm(self.quat)
-
-    @classmethod
-    def from_euler(cls, pos_m, vel_mps, roll_rad: float, pitch_rad: float, yaw_rad: float) -> "NavState":
-        return cls(pos_m, vel_mps, dcm_to_quat(dcm_from_euler(roll_rad, pitch_rad, yaw_rad)))
-
 
 @dataclass(frozen=True)
 class Mechanization:

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..datasets.registration import residual_spread
 from ..models.imu import RATE_SCALE_DEG_LIMIT
+from ..models.ranging import predict_ranges
 from ..types import CleaningStep, RangeLog, Recording, Trajectory
 
 __all__ = ["MAX_RESIDUAL_M", "MIN_SCORED_EPOCHS", "MAX_OFFSET_S", "MIN_ANCHOR_SAMPLES", "RangeCheck",
@@ -80,10 +81,6 @@ def shift_truth(rec: Recording, offset_s: float) -> Recording:
     step = CleaningStep("truth clock shifted", sum(len(tr) for tr in truth.values()),
                         f"truth time stamps moved by {-offset_s:+.3f} s (given)")
     return replace(rec, truth=truth, cleaning=(*rec.cleaning, step))
-
-
-def _predicted(pos_m: np.ndarray, anchor_pos_m: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(pos_m[:, None, :] - anchor_pos_m[None], axis=-1)
 
 
 def fit_tag_height(rec: Recording, tag: str) -> float:
@@ -431,7 +428,7 @@ def check_ranges_against_truth(rec: Recording, tag: str, *, max_residual_m: floa
     idx = np.flatnonzero(inside)
     idx = idx[:: max(1, idx.size // 1500)]
     if ok_offset:
-        pred = _predicted(tr.interp(log.t_s[idx]), a)
+        pred = predict_ranges(tr.interp(log.t_s[idx]), a)
         r = log.range_m[idx]
         per = np.nanmedian(np.abs(r - pred), axis=0)
         base = float(np.nanmedian(per))
@@ -488,7 +485,7 @@ def check_ranges_against_truth(rec: Recording, tag: str, *, max_residual_m: floa
     ids = rec.anchors.ids
     bad = [i for i, p in enumerate(per) if not p <= max_residual_m]
     good = len(per) - len(bad)
-    pred = _predicted(pos, a)
+    pred = predict_ranges(pos, a)
     lines, matched = [], 0
     for i in bad:
         cross = np.nanmedian(np.abs(r[:, [i]] - pred), axis=0)

@@ -22,6 +22,7 @@ from dataclasses import replace
 
 from .. import bounds, metrics
 from ..calibration import range_sigma_from_truth
+from ..models.ranging import predict_ranges
 from ..models.tdoa import TdoaModel
 from ..types import EstimateStatus, Estimates, MAX_TRUTH_GAP_S, RangeLog, Recording
 from .protocol import Calibration
@@ -106,7 +107,7 @@ def measured_noise_calibration(rec: Recording, tag: str, cal: Calibration) -> Ca
         if h is None:
             return cal
         pos = np.column_stack([pos, np.full(len(pos), h)])
-    true_r = np.linalg.norm(pos[:, None, :] - rec.anchors.pos_m[None], axis=-1)
+    true_r = predict_ranges(pos, rec.anchors.pos_m)
     resid = log.range_m - true_r
     sigma = cal.sigma(tag).copy()
     ok = np.isfinite(resid).sum(axis=0) >= MIN_NOISE_SAMPLES

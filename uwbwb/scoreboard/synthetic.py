@@ -26,7 +26,7 @@ import pandas as pd
 from ..calibration import RangeCalibration
 from ..metrics.errors import interval_side, seeds_interval
 from ..models.motion import RandomForce
-from ..models.ranging import TwrRangeModel
+from ..models.ranging import TwrRangeModel, predict_ranges
 from ..types import Anchors, RangeLog, Recording, Trajectory
 from .board import Board, calibrate, score
 from .estimators import CalibratedLs, TdoaEkfEstimator, TdoaLs, default_estimators
@@ -91,7 +91,7 @@ def simulate(config: SyntheticConfig = SyntheticConfig(), *, rng: np.random.Gene
     x = motion.sample_path(x0, t, rng=rng)
     pos = np.column_stack([x[:, :2], np.full(t.size, config.tag_height_m)])
     anchors = config.anchors()
-    true_r = np.linalg.norm(pos[:, None, :] - anchors.pos_m[None], axis=-1)
+    true_r = predict_ranges(pos, anchors.pos_m)
     unbiased = np.zeros((1, len(anchors)))
     r = TwrRangeModel(unbiased, unbiased + 1.0, sigma_m=config.sigma_m).sample(true_r, rng=rng)
     log = RangeLog(t, r, anchors.ids, "tag")

@@ -57,10 +57,6 @@ def _dS(u):
     return 1 - np.cos(_TWO_PI * u)
 
 
-def _d2S(u):
-    return _TWO_PI * np.sin(_TWO_PI * u)
-
-
 def _I(u):
     """∫₀ᵘ S."""
     return u * u / 2 + (np.cos(_TWO_PI * u) - 1) / _TWO_PI ** 2

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from ...models.ranging import predict_ranges
 from ...sim import robot
 from .ablation import COVERAGE, LADDER, ROWS, ratio_ci
 
@@ -71,7 +72,7 @@ def eq4_thresholds(model: robot.RobotConfig, pos_m: np.ndarray, c_m: float) -> p
     """
     a = np.asarray(model.stations_m, float)
     p = np.atleast_2d(np.asarray(pos_m, float))
-    r = np.linalg.norm(p[:, None, :] - a[None], axis=-1)
+    r = predict_ranges(p, a)
     ref = model.reference
     rows = {}
     for j in range(len(a)):

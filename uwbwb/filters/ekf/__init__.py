@@ -32,8 +32,8 @@ up an epoch.
 Modules
 -------
 :mod:`.core` (:class:`Ekf`, :class:`KalmanRun`, :class:`Linearisation`, the model protocols,
-:func:`nis_consistency`), :mod:`.tdoa` (:class:`TdoaEkf`, :class:`TdoaMeasurement`,
-:func:`run_tdoa_ekf`), :mod:`.kernels` (:meth:`TdoaEkf.run`'s compiled loop, twin of :meth:`Ekf.run`) and
+:func:`nis_consistency`), :mod:`.tdoa` (:class:`TdoaEkf`, :class:`TdoaMeasurement`),
+:mod:`.kernels` (:meth:`TdoaEkf.run`'s compiled loop, twin of :meth:`Ekf.run`) and
 :mod:`.ranges` (:class:`RangeMeasurement`: the ranges themselves as the measurement); every name importable from
 here.
 """
@@ -42,7 +42,7 @@ from ..gating import UpdateInfo
 from .core import Ekf, KalmanRun, Linearisation, MeasurementModel, TransitionModel
 from ...metrics import nis_consistency
 from .ranges import RangeMeasurement
-from .tdoa import TdoaEkf, TdoaMeasurement, run_tdoa_ekf
+from .tdoa import TdoaEkf, TdoaMeasurement
 
 __all__ = ["Ekf", "KalmanRun", "Linearisation", "MeasurementModel", "TransitionModel", "UpdateInfo",
-           "nis_consistency", "RangeMeasurement", "TdoaEkf", "TdoaMeasurement", "run_tdoa_ekf"]
+           "nis_consistency", "RangeMeasurement", "TdoaEkf", "TdoaMeasurement"]

@@ -214,9 +214,3 @@ class TdoaEkf(Ekf):
         :class:`MotionModel`. Any other filter runs the Python loop."""
         return (kernels.takes(self.gate) and not self.sequential
                 and type(self.measurement) is TdoaMeasurement and isinstance(self.measurement.motion, MotionModel))
-
-
-def run_tdoa_ekf(log: TdoaLog, motion: MotionModel, measurement: TdoaModel, *, gate_prob: float | None = 0.9999,
-                 x0: Gaussian | None = None, name: str | None = None, **settings) -> KalmanRun:
-    """Shorthand for ``TdoaEkf(motion, measurement, gate_prob, **settings).run(log, x0=x0, name=name)``."""
-    return TdoaEkf(motion, measurement, gate_prob=gate_prob, **settings).run(log, x0=x0, name=name)
