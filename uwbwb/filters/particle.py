@@ -328,6 +328,15 @@ def _resample_rows(particles: np.ndarray, logw: np.ndarray, w: np.ndarray, need:
     if not np.any(need):
         return particles.copy(), logw.copy()
     rows = np.flatnonzero(need)
+    if method == "systematic":                   # the rows in place in a copy, one compiled pass
+        _check_weights(w[need])
+        dtype = np.dtype(np.float32 if w.dtype == np.float32 else np.float64)
+        u = rng.random(rows.size).astype(dtype)     # as _indices draws them: one uniform per row, in row order
+        particles, logw = np.array(particles, order="C"), logw.copy()
+        x = particles.reshape(-1, K, n_x)
+        _systematic(rows, 1 - u, dtype.type(K), np.ascontiguousarray(w, dtype).reshape(-1, K),
+                    tuple(x[..., c] for c in range(n_x)), logw.reshape(-1, K), logw.dtype.type(-np.log(K)))
+        return particles, logw
     idx = _indices(w[need], rng, method)                                # (rows, K) ancestors, row by row
     picked = particles.reshape(-1, n_x)[(idx + K * rows[:, None]).ravel()]
     if rows.size == need.size:                                          # every row: no copy of the old cloud
@@ -336,6 +345,37 @@ def _resample_rows(particles: np.ndarray, logw: np.ndarray, w: np.ndarray, need:
     particles[need] = picked.reshape(idx.shape + (n_x,))
     logw[need] = -np.log(K)
     return particles, logw
+
+
+@numba.njit(cache=True, nogil=True)
+def _systematic(rows, one_minus_u, Kf, w, state, logw, log_k):
+    """Systematic resampling of the flagged rows in place, as :func:`systematic_counts` (float cumulative sum
+    ``c``, ``⌊c K / c_K + 1 − u⌋`` descendants below) and ``np.repeat``'s gather: weights ``w`` ``(B, K)``, the
+    state as a tuple of ``(B, K)`` arrays (one per component), log-weights ``(B, K)`` set to ``log_k``."""
+    K = w.shape[1]
+    c, tmp = np.empty(K, w.dtype), np.empty(K, state[0].dtype)
+    below, anc = np.empty(K + 1, np.int64), np.empty(K, np.int64)
+    for n in range(rows.size):
+        r = rows[n]
+        c[0] = w[r, 0]
+        for i in range(1, K):
+            c[i] = c[i - 1] + w[r, i]
+        scale = Kf / c[K - 1]
+        # particle i has min(⌊c_i K / c_K + 1 − u⌋, K) new particles below its last copy (K for the last):
+        # the ancestor of new particle j is the number of particles with at most j below
+        below[:] = 0
+        for i in range(K - 1):
+            below[min(np.int64(c[i] * scale + one_minus_u[n]), K)] += 1
+        run = 0
+        for i in range(K):
+            run += below[i]
+            anc[i] = run
+        for a in state:
+            for i in range(K):
+                tmp[i] = a[r, anc[i]]
+            for i in range(K):                   # an explicit loop: faster than numba's slice assignment
+                a[r, i] = tmp[i]
+        logw[r, :] = log_k
 
 
 def roughen(particles: np.ndarray, *, rng: np.random.Generator, k: float = 0.2,

@@ -43,6 +43,7 @@ from ..sim import chirps, robot, walk
 from ..types import Estimates, EstimateStatus, RangeLog, TdoaLog, pseudo_tdoa
 from . import kalman, particle, pruning
 from .doppler import DopplerPf, ScaatMhEkf, assign_chirps, clock_pseudo_ranges
+from .doppler.pf import _moments
 from .ekf import Ekf, Linearisation, RangeMeasurement, TdoaEkf, TdoaMeasurement
 from .ekf import kernels as ekf_kernels
 from .eskf import LooseFilter, TdoaUpdate, TightEskf, _tag_jacobian
@@ -550,6 +551,40 @@ def _doppler_pf_exercised(out):
 
 
 
+def _pf_pieces_fast(a):
+    pf, x, logw, rows = a
+    lw = particle.normalise_log_weights(logw + np.random.default_rng(4).normal(0.0, 2.0, logw.shape))[0]
+    pos, vel, cov = _moments(x, lw)
+    moved, moved_logw = particle._resample_rows(x, lw, np.exp(lw), rows, rng=np.random.default_rng(5),
+                                                method="systematic")
+    return {"log-likelihood": pf._log_likelihood(x, (2, 1e-3, None)),
+            "log-likelihood, range": pf._log_likelihood(x, (5, -2e-3, 2.5)), "pos_m": pos, "vel_mps": vel,
+            "pos_cov_m2": cov, "resampled": moved, "resampled logw": moved_logw}
+
+
+def _pf_pieces_definition(a):
+    """The model's log-likelihood (:meth:`DopplerModel.log_likelihood`) with the outlier mixture; the moments as
+    einsum and matmul; the resampled rows by fancy indexing with the ancestors of :func:`particle.systematic_indices`
+    (the uniforms drawn as the engine draws them)."""
+    pf, x, logw, rows = a
+    lw = particle.normalise_log_weights(logw + np.random.default_rng(4).normal(0.0, 2.0, logw.shape))[0]
+
+    def ll(beacon, dp_s, range_m):
+        out = pf.model.log_likelihood(x[..., :3], x[..., 3:], np.int64(beacon), dp_s, range_m=range_m)
+        return np.logaddexp(np.log1p(-pf.outlier_prob) + out, np.log(pf.outlier_prob / (2 * pf.outlier_window_s)))
+
+    w = np.exp(lw)
+    pos, vel = np.einsum("rk,rkn->rn", w, x[..., :3]), np.einsum("rk,rkn->rn", w, x[..., 3:])
+    d = x[..., :3] - pos[:, None, :]
+    idx = particle.systematic_indices(w[rows], np.random.default_rng(5).random(int(rows.sum())))
+    moved, moved_logw = x.copy(), lw.copy()
+    moved[rows] = np.take_along_axis(x[rows], idx[..., None], axis=-2)
+    moved_logw[rows] = -np.log(x.shape[-2])
+    return {"log-likelihood": ll(2, 1e-3, None), "log-likelihood, range": ll(5, -2e-3, 2.5), "pos_m": pos,
+            "vel_mps": vel, "pos_cov_m2": np.swapaxes(d * w[..., None], 1, 2) @ d, "resampled": moved,
+            "resampled logw": moved_logw}
+
+
 def _mh_inputs(ranges: bool, **settings):
     """The lab walked for 9 s (timing jitter, 5 % missed chirps, one spurious detection a second), assigned by the
     front end, with exact clock pseudo-ranges or none; the MH-EKF with ``settings`` and a room-sized prior."""
@@ -929,7 +964,8 @@ _INS = "uwbwb.models.ins."
 _TIGHT_TEST = "tests/filters/test_eskf.py::test_compiled_run_equals_the_reference_loop"
 _LOOSE_TEST = "tests/filters/test_eskf.py::test_compiled_loose_run_equals_the_reference_loop"
 _PIECES_TEST = "tests/filters/test_eskf.py::test_compiled_pieces_equal_the_model_functions"
-_SWEEP_KERNELS = tuple(f"uwbwb.filters.setnoise.pf.{f}" for f in ("_predict_weigh", "_moments", "_systematic"))
+_SWEEP_KERNELS = (*(f"uwbwb.filters.setnoise.pf.{f}" for f in ("_predict_weigh", "_moments")),
+                  "uwbwb.filters.particle._systematic")
 
 
 def _registry() -> tuple[Twin, ...]:
@@ -1000,6 +1036,14 @@ def _registry() -> tuple[Twin, ...]:
                       "tests/golden/test_doppler_golden.py::test_every_doppler_configuration_reproduces_the_golden_outputs",
                       ("uwbwb.filters.doppler.pf._inside_room", "uwbwb.models.motion._propagate_rows",
                        "uwbwb.filters.particle._roughen_rows"), _doppler_pf_exercised))
+    # the moments not bit for bit: the compiled sums run over the particles in order, einsum and matmul in their own
+    twins.append(Twin("doppler.pf[likelihood, moments, resampling]", _pf_pieces_fast, _pf_pieces_definition,
+                      _doppler_pf_inputs, {**dict.fromkeys(("log-likelihood", "log-likelihood, range", "resampled",
+                                                            "resampled logw"), BIT),
+                                           **dict.fromkeys(("pos_m", "vel_mps", "pos_cov_m2"), Tol(0.0, 1e-12))},
+                      "tests/golden/test_doppler_golden.py::test_every_doppler_configuration_reproduces_the_golden_outputs",
+                      ("uwbwb.filters.doppler.pf._chirp_log_likelihood", "uwbwb.filters.doppler.pf._moments_rows",
+                       "uwbwb.filters.particle._systematic")))
     # not bit for bit: the compiled loop's products and S⁻¹ are plain loops where the Python run calls BLAS and LAPACK
     # (as the EKF's compiled run); on these cases the estimates differ by at most 3e-14 of a metre (m/s, m²), the
     # hypotheses, their count and the beacons chosen are equal

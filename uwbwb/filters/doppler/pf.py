@@ -11,6 +11,7 @@ Part of the :mod:`uwbwb.filters.doppler` package.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numba
@@ -251,9 +252,20 @@ class DopplerPf:
 
     def _log_likelihood(self, x, chirp):
         """Per-particle log-likelihood of one chirp ``(beacon, ΔP, range or None)``, with the outlier mixture;
-        shape ``x.shape[:-1]``."""
+        shape ``x.shape[:-1]``. :meth:`DopplerModel.log_likelihood` (its declared twin, bit for bit) compiled over
+        the particles, its scalars (σ and the log normalisers) computed by NumPy as there; the mixture in NumPy."""
         beacon, dp_s, range_m = chirp
-        ll = self.model.log_likelihood(x[..., :3], x[..., 3:], np.int64(beacon), dp_s, range_m=range_m)
+        m, b = self.model, np.int64(beacon)
+        s = m.sigma_dp_s(b)
+        if s <= 0:
+            raise ValueError("log_likelihood needs sigma_t_s > 0 or sigma_model_mps > 0")
+        sr = m.sigma_m
+        ll = np.empty(x.shape[:-1])
+        _chirp_log_likelihood(np.ascontiguousarray(x, float).reshape(-1, x.shape[-1]), m.beacons.pos_m[b],
+                              m.period_s[b], m.lag * m.period_s[b], bool(m.lag), m.v_s_mps, float(dp_s), s,
+                              np.log(s * np.sqrt(2 * np.pi)), range_m is not None,
+                              np.nan if range_m is None else float(range_m), sr,
+                              np.log(sr * np.sqrt(2 * np.pi)) if range_m is not None else np.nan, ll.reshape(-1))
         if self.outlier_prob > 0:
             ll = np.logaddexp(np.log1p(-self.outlier_prob) + ll,
                               np.log(self.outlier_prob / (2 * self.outlier_window_s)))
@@ -300,15 +312,54 @@ class DopplerPf:
 
 def _moments(x: np.ndarray, logw: np.ndarray):
     """Weighted mean position ``(R, 3)``, velocity ``(R, 3)`` and position covariance ``(R, 3, 3)`` of
-    particles ``(R, K, 6)`` with normalised log-weights ``(R, K)``."""
+    particles ``(R, K, 6)`` with normalised log-weights ``(R, K)``: ``w = exp(logw)`` (NumPy), the sums compiled
+    (declared twin: the einsum and matmul definition, to rounding: the sums are taken in another order)."""
     w = np.exp(logw)
-    pos = np.einsum("rk,rkn->rn", w, x[..., :3])
-    vel = np.einsum("rk,rkn->rn", w, x[..., 3:])
-    d, dw = np.empty(w.shape + (3,)), np.empty(w.shape + (3,))
-    for c in range(3):           # d = x − mean and d·w one axis at a time: long loops over the particles
-        np.subtract(x[..., c], pos[:, c, None], out=d[..., c])
-        np.multiply(d[..., c], w, out=dw[..., c])
-    return pos, vel, np.swapaxes(dw, 1, 2) @ d
+    R = w.shape[0]
+    pos, vel, cov = np.empty((R, 3)), np.empty((R, 3)), np.empty((R, 3, 3))
+    _moments_rows(np.ascontiguousarray(x, float), np.ascontiguousarray(w), pos, vel, cov)
+    return pos, vel, cov
+
+
+@numba.njit(cache=True, nogil=True)
+def _moments_rows(x, w, pos, vel, cov):
+    """:func:`_moments` on rows: ``pos = Σ w x[:3]``, ``vel = Σ w x[3:]``, ``cov = Σ (d w) dᵀ`` with
+    ``d = x[:3] − pos``, each sum over the particles in their order."""
+    R, K = w.shape
+    for r in range(R):
+        m = np.zeros(6)
+        for k in range(K):
+            for j in range(6):
+                m[j] += w[r, k] * x[r, k, j]
+        pos[r], vel[r] = m[:3], m[3:]
+        c = np.zeros((3, 3))
+        for k in range(K):
+            for i in range(3):
+                dw = (x[r, k, i] - m[i]) * w[r, k]
+                for j in range(3):
+                    c[i, j] += dw * (x[r, k, j] - m[j])
+        cov[r] = c
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _chirp_log_likelihood(x, T, P, lag_p, lagged, v_s, dp, s, log_norm, ranged, range_m, sr, log_norm_r, out):
+    """:meth:`DopplerModel.log_likelihood` of one chirp for particles ``(N, 6)`` (beacon at ``T``, period ``P``,
+    ``lag_p = lag · P``): the lagged eq 1 ``h``, ``−½ y² − log_norm`` with ``y = (ΔP − h) / s``, and with ``ranged``
+    the pseudo-range term; the operations of the NumPy definition in its order."""
+    for n in range(x.shape[0]):
+        v0, v1, v2 = x[n, 3], x[n, 4], x[n, 5]
+        if lagged:
+            d0, d1, d2 = (x[n, 0] - lag_p * v0) - T[0], (x[n, 1] - lag_p * v1) - T[1], (x[n, 2] - lag_p * v2) - T[2]
+        else:
+            d0, d1, d2 = x[n, 0] - T[0], x[n, 1] - T[1], x[n, 2] - T[2]
+        r = (d0 * v0 + d1 * v1 + d2 * v2) / (math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) * v_s)
+        y = (dp - P * r / (1.0 - r)) / s
+        ll = -0.5 * y * y - log_norm
+        if ranged:
+            e0, e1, e2 = x[n, 0] - T[0], x[n, 1] - T[1], x[n, 2] - T[2]
+            yr = (range_m - math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)) / sr
+            ll = ll - 0.5 * yr * yr - log_norm_r
+        out[n] = ll
 
 
 @numba.njit(cache=True, nogil=True)

@@ -584,8 +584,8 @@ def _sweep_block_compiled(rngs, centre, half_prec, dt, sig_d, K, M, ess_fraction
             flagged = np.flatnonzero(need)
             if resampler == "systematic":
                 # as particle.systematic_counts: its float32 (1 − u) and K / c_K
-                _systematic(flagged, one - rows._uniforms(flagged, 1)[:, 0].astype(dtype), dtype.type(K), w,
-                            (x, vx, y, vy), logw, log_k)
+                particle._systematic(flagged, one - rows._uniforms(flagged, 1)[:, 0].astype(dtype), dtype.type(K), w,
+                                     (x, vx, y, vy), logw, log_k)
             else:
                 flat = rows.ancestors(need, w)
                 for a in (x, vx, y, vy):
@@ -640,36 +640,6 @@ def _moments(w, x, y, pos, k, ess_sum, need, threshold):
         ess = sw * sw / sww
         ess_sum[r] += ess
         need[r] = ess < threshold
-
-
-@numba.njit(cache=True, nogil=True)
-def _systematic(rows, one_minus_u, Kf, w, state, logw, log_k):
-    """Systematic resampling of the flagged rows in place, as :func:`~uwbwb.filters.particle.systematic_counts`
-    (float cumulative sum ``c``, ``⌊c K / c_K + 1 − u⌋`` descendants below) and ``np.repeat``'s gather."""
-    K = w.shape[1]
-    c, tmp = np.empty(K, w.dtype), np.empty(K, w.dtype)
-    below, anc = np.empty(K + 1, np.int64), np.empty(K, np.int64)
-    for n in range(rows.size):
-        r = rows[n]
-        c[0] = w[r, 0]
-        for i in range(1, K):
-            c[i] = c[i - 1] + w[r, i]
-        scale = Kf / c[K - 1]
-        # particle i has min(⌊c_i K / c_K + 1 − u⌋, K) new particles below its last copy (K for the last):
-        # the ancestor of new particle j is the number of particles with at most j below
-        below[:] = 0
-        for i in range(K - 1):
-            below[min(np.int64(c[i] * scale + one_minus_u[n]), K)] += 1
-        run = 0
-        for i in range(K):
-            run += below[i]
-            anc[i] = run
-        for a in state:
-            for i in range(K):
-                tmp[i] = a[r, anc[i]]
-            for i in range(K):                   # an explicit loop: faster than numba's slice assignment
-                a[r, i] = tmp[i]
-        logw[r, :] = log_k
 
 
 class _Rows:
