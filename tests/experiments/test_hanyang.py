@@ -191,6 +191,19 @@ def test_case_board_scores_ours_and_theirs_on_the_same_epochs(tree):
         study.case_board(case, case, data, fast=True, estimators=est)
 
 
+def test_residual_pruning_on_the_board_starts_from_the_nls_lines(tree):
+    data, cases = tree
+    case, tune = cases[2].name, cases[3].name
+    nls, pruned = [e for e in study.study_estimators(fast=True) if e.name in ("NLS", "NLS residual pruning")]
+    assert pruned.fits is nls.fits                        # the board's NLS row and residual pruning share the lines
+    shared = study.case_board(case, tune, data, fast=True, estimators=[nls, pruned], authors=())
+    alone = [type(nls)(windows_s=nls.windows_s), estimators.PrunedNls(windows_s=pruned.windows_s)]
+    apart = study.case_board(case, tune, data, fast=True, estimators=alone, authors=())
+    for m in ("NLS", "NLS residual pruning"):
+        np.testing.assert_array_equal(shared.entry(m, "tag").estimates.pos_m, apart.entry(m, "tag").estimates.pos_m)
+    assert len(nls.fits) < len(alone[0].fits) + len(alone[1].fits)        # windows both fit were solved once
+
+
 # ------------------------------------------------------------------ notebook sections
 
 def test_sections_say_why_they_did_not_run(tmp_path):

@@ -122,6 +122,17 @@ def test_segments_with_too_few_ranges_count_as_not_covered():
     assert cov["none"] < 1.0 and cov["point"] < 1.0
 
 
+def test_a_stops_only_run_gives_the_stops_of_the_full_run():
+    cfg = _small()
+    rec, truth = tours.simulate_tour(dataclasses.replace(cfg.tour, tour=1, pace="fast"), rng=np.random.default_rng(3))
+    s, m, tr = ex.study.run_tour(rec, truth, cfg)
+    s1, m1, tr1 = ex.study.run_tour(rec, truth, dataclasses.replace(cfg, kinds=("stop",)))
+    assert m and not m1 and set(pd.concat(tr1).kind) == {"stop"}
+    pd.testing.assert_frame_equal(pd.DataFrame(s1), pd.DataFrame(s))
+    with pytest.raises(ValueError, match="kinds"):
+        dataclasses.replace(cfg, kinds=("walk",))
+
+
 def test_summary_on_a_constructed_table():
     stops = pd.DataFrame({"heuristic": ["none"] * 3 + ["residual"] * 3 + ["percentile"] * 3,
                           "err_m": [1.0, 2.0, 3.0, 0.1, 0.2, 0.3, 0.5, 0.6, 0.9]})

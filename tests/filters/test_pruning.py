@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from math import comb
 
 import numpy as np
@@ -173,3 +174,21 @@ def test_localize_every_heuristic_and_bad_name(rng):
         assert res.t0_s == 0.0 and res.t_end_s == log.t_s[-1]
     with pytest.raises(ValueError, match="heuristic"):
         pruning.localize(log, ANCHORS, "median", stationary=True)
+
+
+def test_residual_pruning_from_the_plain_fit_given(rng):
+    # the caller's plain NLS of the segment is residual pruning's first solve: the same result, that fit not solved again
+    log, _ = _static_log(rng, p_nlos=0.1)
+    s = RangeSamples.from_ranges(log)
+    plain = nls.fit_trajectory(s, ANCHORS, dim=2, z_m=2.0)
+    own = pruning.residual_pruning(s, ANCHORS, dim=2, z_m=2.0)
+    given = pruning.residual_pruning(s, ANCHORS, dim=2, z_m=2.0, fit=plain)
+    np.testing.assert_array_equal(given.kept, own.kept)
+    np.testing.assert_array_equal(given.rms_history_m, own.rms_history_m)
+    np.testing.assert_array_equal(given.fit.p0_m, own.fit.p0_m)
+    cfg = pruning.PruningConfig(dim=2)
+    assert pruning.localize(s, ANCHORS, "none", cfg, stationary=False, z_m=2.0, fit=plain).fit is plain
+    res = pruning.localize(s, ANCHORS, "residual", cfg, stationary=False, z_m=2.0, fit=plain)
+    np.testing.assert_array_equal(res.detail.kept, own.kept)
+    marked = pruning.residual_pruning(s, ANCHORS, dim=2, z_m=2.0, fit=replace(plain, residual_rms_m=123.0))
+    assert marked.rms_history_m[0] == 123.0                          # the fit given is the one used

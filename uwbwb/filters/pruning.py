@@ -507,17 +507,19 @@ class ResidualPruning:
 
 def residual_pruning(samples: RangeSamples, anchors, *, retention: float = 0.9, dropout: float = 0.005,
                      static: bool = False, dim: int = 3, z_m: float | None = None,
-                     method: str = "bfgs") -> ResidualPruning:
+                     method: str = "bfgs", fit: TrajectoryFit | None = None) -> ResidualPruning:
     """Solve, drop the largest absolute residuals, re-solve, until ``retention`` remain.
 
     Parameters are as in :func:`~uwbwb.filters.nls.fit_trajectory` and
     :class:`PruningConfig`. Each re-solve starts from the previous solution.
+    ``fit``: the first solve, :func:`~uwbwb.filters.nls.fit_trajectory` of all ``samples`` with
+    these settings, where the caller has it already (plain NLS of the same segment).
     """
     number("retention", retention, minimum=0.0, maximum=1.0, strict_minimum=True)
     number("dropout", dropout, minimum=0.0, maximum=1.0, strict_minimum=True)
     kw = dict(dim=dim, static=static, z_m=z_m, method=method)
     kept = np.ones(len(samples), bool)
-    fit = fit_trajectory(samples, anchors, **kw)
+    fit = fit_trajectory(samples, anchors, **kw) if fit is None else fit
     model = LinearTrackRanges(anchors, dim, static, z_m if dim == 2 else None)
     history = [fit.residual_rms_m]
     for n_drop in drop_schedule(len(samples), retention, dropout):
@@ -591,8 +593,8 @@ class LocalizationResult:
 
 
 def localize(ranges: RangeLog | RangeSamples, anchors, heuristic: str = "residual",
-             config: PruningConfig = PruningConfig(), *, stationary: bool, z_m: float | None = None
-             ) -> LocalizationResult:
+             config: PruningConfig = PruningConfig(), *, stationary: bool, z_m: float | None = None,
+             fit: TrajectoryFit | None = None) -> LocalizationResult:
     """Heuristic -> resolution routine -> ``(P0, v)`` for one segment (Fig. 7).
 
     Parameters
@@ -610,6 +612,9 @@ def localize(ranges: RangeLog | RangeSamples, anchors, heuristic: str = "residua
     z_m
         The node's height, metres: required with ``config.dim == 2`` and for
         ``"robust_mean"``; the initial-guess height hint otherwise.
+    fit
+        Plain NLS of this segment with these settings (the ``"none"`` result's :attr:`~LocalizationResult.fit`)
+        where the caller has it: ``"none"`` returns it, ``"residual"`` starts from it, instead of solving it again.
 
     Raises
     ------
@@ -624,7 +629,7 @@ def localize(ranges: RangeLog | RangeSamples, anchors, heuristic: str = "residua
     t0, t_end = float(samples.t_s[0]), float(samples.t_s[-1])
     kw = dict(dim=config.dim, z_m=z_m, method=config.method)
     if heuristic == "none":
-        fit = fit_trajectory(samples, anchors, static=stationary, **kw)
+        fit = fit_trajectory(samples, anchors, static=stationary, **kw) if fit is None else fit
         return LocalizationResult(heuristic, fit.p0_m, fit.vel_mps, t0, t_end, fit.n_used, fit)
     if heuristic == "percentile":
         if not stationary:
@@ -633,7 +638,7 @@ def localize(ranges: RangeLog | RangeSamples, anchors, heuristic: str = "residua
         return LocalizationResult(heuristic, fit.p0_m, fit.vel_mps, t0, t_end, fit.n_used, fit, d)
     if heuristic == "residual":
         rp = residual_pruning(samples, anchors, retention=config.res_retention, dropout=config.res_dropout,
-                              static=stationary, **kw)
+                              static=stationary, fit=fit, **kw)
         f = rp.fit
         return LocalizationResult(heuristic, f.position_at(t0), f.vel_mps, t0, t_end, f.n_used, f, rp)
     # robust mean over k-tuples

@@ -6,14 +6,15 @@ parts on the tag's epochs here; both tune one knob on the calibration part (σ_d
 
 from __future__ import annotations
 
+import hashlib
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .. import bounds
 from ..calibration import fit_set_noise_from_fixes
-from ..filters.nls import fit_trajectory
+from ..filters.nls import TrajectoryFit, fit_trajectory
 from ..filters.setnoise import kf_sweep, model_noise, run_set_noise_kf, run_set_noise_pf
 from ..models.motion import VelocityKick
 from ..sim.setnoise import SetEmulation, emulate_set_fixes
@@ -151,14 +152,31 @@ class WindowNls(BaseEstimator):
     consecutive fixed-length windows, so that no truth is needed to cut segments. ``tune``
     picks the window length on the calibration part. Bound: the CRLB of the same line fit
     per window (:func:`uwbwb.bounds.line_crlb`).
+
+    ``fits`` keeps each window's line by the window's content (the same window recurs: the pruned variants of
+    :class:`uwbwb.experiments.hanyang.estimators.PrunedNls` given the same dict start from it).
     """
 
     name: str = "NLS"
     windows_s: tuple[float, ...] = NLS_WINDOWS_S
+    fits: dict = field(default_factory=dict, repr=False, compare=False)
     _covariance = True                        # a subclass whose window fits give no covariance sets False
 
     def _windows(self, log: RangeLog, w: float) -> np.ndarray:
         return np.floor((log.t_s - log.t_s[0]) / w).astype(int) if len(log) else np.zeros(0, int)
+
+    def _line(self, samples: RangeSamples, rec, tag, cal) -> TrajectoryFit | None:
+        """Eq. (1) fitted to one window's ranges (None where it cannot be solved), from :attr:`fits` where solved."""
+        z, A = cal.height(tag), rec.anchors.pos_m
+        head = [len(samples), len(A), cal.dim, np.nan if z is None else z]
+        key = hashlib.blake2b(b"".join(np.ascontiguousarray(a).tobytes() for a in (
+            head, samples.t_s, samples.anchor_index, samples.range_m, A)), digest_size=16).digest()
+        if key not in self.fits:
+            try:
+                self.fits[key] = fit_trajectory(samples, rec.anchors, dim=cal.dim, z_m=z)
+            except ValueError:
+                self.fits[key] = None
+        return self.fits[key]
 
     def _fit(self, part: RangeLog, rec, tag, cal) -> tuple[np.ndarray, np.ndarray | None] | None:
         """One window's positions (and covariances) at its epochs, or None where it does not fit."""
@@ -166,11 +184,8 @@ class WindowNls(BaseEstimator):
         samples = RangeSamples.from_ranges(part)
         if len(samples) < 2 * d + 2:
             return None
-        try:
-            fit = fit_trajectory(samples, rec.anchors, dim=d, z_m=cal.height(tag))
-        except ValueError:
-            return None
-        if not fit.converged:
+        fit = self._line(samples, rec, tag, cal)
+        if fit is None or not fit.converged:
             return None
         tau = part.t_s - fit.t0_s
         A = np.concatenate([np.broadcast_to(np.eye(d), (len(part), d, d)), tau[:, None, None] * np.eye(d)], axis=-1)

@@ -14,6 +14,7 @@ from ...datasets import hanyang
 from ...filters.pruning import LABELS as PRUNING_LABELS, PruningConfig, localize
 from ...scoreboard.estimators import RawLs
 from ...scoreboard.setnoise_nls import WindowNls
+from ...types import RangeSamples
 
 PathLike = str | os.PathLike
 
@@ -23,7 +24,8 @@ class PrunedNls(WindowNls):
     """The windowed NLS of the board with one pruning heuristic of paper 001 (Zupanec et al., sec. 2.5)
     inside each window: ``"residual"`` (drop the largest residuals, re-solve) or ``"robust_mean"``
     (triplet fixes, pruned centroid line). Same windows and window tuning as ``NLS``; solved in
-    2-D at the calibrated height (:func:`uwbwb.filters.pruning.localize`, ``stationary=False``).
+    2-D at the calibrated height (:func:`uwbwb.filters.pruning.localize`, ``stationary=False``); residual
+    pruning starts from the window's plain NLS line, kept in ``fits`` (pass the ``NLS`` row's to share its lines).
     Bound: the line-fit CRLB of all the window's ranges (a lower bound for a fit that uses fewer).
     """
 
@@ -38,11 +40,15 @@ class PrunedNls(WindowNls):
             object.__setattr__(self, "name", f"NLS {PRUNING_LABELS[self.heuristic]}")
 
     def _fit(self, part, rec, tag, cal):
-        if np.isfinite(part.range_m).sum() < 2 * cal.dim + 2:
+        samples = RangeSamples.from_ranges(part)
+        if len(samples) < 2 * cal.dim + 2:
+            return None
+        plain = self._line(samples, rec, tag, cal) if self.heuristic == "residual" else None   # its first solve
+        if self.heuristic == "residual" and plain is None:
             return None
         try:
-            res = localize(part, rec.anchors, self.heuristic, PruningConfig(dim=cal.dim), stationary=False,
-                           z_m=cal.height(tag))
+            res = localize(samples, rec.anchors, self.heuristic, PruningConfig(dim=cal.dim), stationary=False,
+                           z_m=cal.height(tag), fit=plain)
         except ValueError:
             return None
         if res.fit is not None and not res.fit.converged:

@@ -205,7 +205,8 @@ def pruning_section(case: str | None = None, data_dir: PathLike | None = None, *
     scored epochs beside it: where coverages differ, the quotient of two RMSE rows is not the ratio row.
     """
     windows = (1.0,) if fast else NLS_WINDOWS_S
-    est = [RawLs(), WindowNls(windows_s=windows), estimators.PrunedNls(windows_s=windows, heuristic="residual"),
+    nls = WindowNls(windows_s=windows)
+    est = [RawLs(), nls, estimators.PrunedNls(windows_s=windows, heuristic="residual", fits=nls.fits),
            estimators.PrunedNls(windows_s=windows, heuristic="robust_mean")]
     pairs = [("NLS residual pruning", "NLS"), ("NLS robust mean", "NLS"), ("NLS", "raw LS"),
              ("NLS residual pruning", study.THEIRS), ("NLS robust mean", study.THEIRS)]

@@ -44,7 +44,7 @@ from ...scoreboard import Board, score
 from ...scoreboard.protocol import Calibration
 from ...types import Trajectory
 from ...scoreboard.estimators import ExternalEstimates, RangeEkfEstimator, default_estimators
-from ...scoreboard.setnoise_nls import NLS_WINDOWS_S
+from ...scoreboard.setnoise_nls import NLS_WINDOWS_S, WindowNls
 from ...scoreboard.sources import external_estimators
 from ...scoreboard.verdicts import difference_table, pair_rng
 from .authors import AUTHORS_FRONT_END_LS, authors_window
@@ -93,7 +93,9 @@ def study_estimators(*, fast: bool = False, static_models: Sequence[StaticRangeM
     with the robust mean, LS on ranges corrected by each static model and raw LS behind the authors' front end
     (:data:`AUTHORS_FRONT_END_LS`); :func:`case_board` adds the authors' LS and ESKF (*external*)."""
     windows = (1.0,) if fast else NLS_WINDOWS_S
-    return [*default_estimators(fast=fast), PrunedNls(windows_s=windows, heuristic="residual"),
+    base = default_estimators(fast=fast)
+    fits = next(e.fits for e in base if isinstance(e, WindowNls))    # NLS's window lines: residual pruning's start
+    return [*base, PrunedNls(windows_s=windows, heuristic="residual", fits=fits),
             PrunedNls(windows_s=windows, heuristic="robust_mean"),
             *map(static_model_ls, static_models), AUTHORS_FRONT_END_LS]
 

@@ -25,8 +25,8 @@ __all__ = ["no_nlos", "pruning_off"]
 def _stop_medians(rec: Recording, truth: tours_mod.TourTruth, config: SyntheticConfig, node: str,
                   heuristics) -> pd.Series:
     """Median horizontal stop error (m) per heuristic on one recording and node (no point-based baseline)."""
-    stops, _, _ = run_tour(rec, truth, dataclasses.replace(config, point_baseline=False), tags=[node],
-                           heuristics=list(heuristics))
+    stops, _, _ = run_tour(rec, truth, dataclasses.replace(config, point_baseline=False, kinds=("stop",)),
+                           tags=[node], heuristics=list(heuristics))
     return pd.DataFrame(stops).groupby("heuristic")["err_m"].median()
 
 

@@ -61,12 +61,13 @@ def score_segment(log, anchors, heuristics, config, *, still: bool, z_m, true_xy
     if point:
         P = point_fixes(log.range_m, anchors, dim=config.dim, z_m=z_m) if fixes is None else fixes
         add(POINT, np.linalg.norm(P[:, :2] - (true_xy if epoch_xy is None else epoch_xy), axis=1), P[:, 2])
-    samples = RangeSamples.from_ranges(log)
+    samples, plain = RangeSamples.from_ranges(log), None
     for h in heuristics:
         if len(samples) < MIN_SEGMENT_RANGES:
             add(h, np.nan)
             continue
-        res = localize(samples, anchors, h, config, stationary=still, z_m=z_m)
+        res = localize(samples, anchors, h, config, stationary=still, z_m=z_m, fit=plain)
+        plain = res.fit if h == "none" else plain          # plain NLS: residual pruning's first solve
         row = {"heuristic": h, "t0_s": res.t0_s, "t_end_s": res.t_end_s, "x0_m": res.p0_m[0], "y0_m": res.p0_m[1],
                "z0_m": res.p0_m[2], "vx_mps": res.vel_mps[0], "vy_mps": res.vel_mps[1], "vz_mps": res.vel_mps[2],
                "n_used": res.n_used, "converged": bool(res.fit.converged) if res.fit is not None else True}

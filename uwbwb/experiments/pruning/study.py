@@ -64,6 +64,8 @@ class SyntheticConfig:
         out: its ranges were measured in the 130 ms *before* its time stamp, partly in the previous segment.
     point_baseline
         Also score the point-based baseline on the same packets.
+    kinds
+        Segments localised: ``"stop"``, ``"move"`` (the stops alone where only they are read).
     """
 
     tours: tuple = (1, 2, 3)
@@ -73,11 +75,14 @@ class SyntheticConfig:
     pruning: PruningConfig = PruningConfig(dim=2)
     tour: tours_mod.TourConfig = tours_mod.TourConfig()
     point_baseline: bool = True
+    kinds: tuple = ("stop", "move")
 
     def __post_init__(self):
         unknown = set(self.heuristics) - set(HEURISTICS)
         if unknown:
             raise ValueError(f"unknown heuristics {sorted(unknown)}; choose from {HEURISTICS}")
+        if not set(self.kinds) <= {"stop", "move"}:
+            raise ValueError(f"kinds must be 'stop' and/or 'move', got {self.kinds!r}")
         if self.pruning.dim == 3 and "robust_mean" in self.heuristics:
             raise ValueError("the robust mean localises triplets at the node's known height; a 3-D comparison "
                              "without height information must leave it out (heuristics=...)")
@@ -132,7 +137,7 @@ def run_tour(rec: Recording, truth: tours_mod.TourTruth, config: SyntheticConfig
     stops, moves, track = [], [], []
     for tag in tags:
         z_known = float(rec.meta["node_heights_m"][tag]) if dim == 2 else None
-        for seg in truth.segments:
+        for seg in (s for s in truth.segments if s.kind in config.kinds):
             log = rec.ranges[tag].between(seg.t_start_s + tcfg.period_s, seg.t_end_s)   # see SyntheticConfig
             if len(log) == 0:
                 continue
