@@ -343,8 +343,10 @@ _JS_STATE = """(path) => {
   const errors = [];
   cells.forEach((c, i) => {
     for (let k = 0; k < c.model.outputs.length; k++) {
-      const o = c.model.outputs.get(k).toJSON();
-      if (o.output_type === 'error') errors.push(`code cell ${i + 1}: ${o.ename}: ${o.evalue}`);
+      const output = c.model.outputs.get(k);
+      if (output.type !== 'error') continue;     // no copy of every figure's data on every look
+      const o = output.toJSON();
+      errors.push(`code cell ${i + 1}: ${o.ename}: ${o.evalue}`);
     }
   });
   const pending = cells.findIndex(c => c.model.executionCount === null);
@@ -407,6 +409,31 @@ _JS_PANEL_STATE = """(panel) => {
   const error = panel.querySelector('.uwbwb-error');
   return {readout: readout ? readout.innerText : null, img: img ? img.src : null,
           error: error ? error.innerText : null};
+}"""
+
+# Wait in the page (no round trip per look) until the panel's state (_JS_PANEL_STATE) differs from `before` or
+# shows an error, then until it has not changed for `settleMs`, both within `timeoutMs`; the last state seen and
+# when (ms after the call) it last changed. `changed` is false when nothing changed in time.
+_JS_PANEL_UPDATE = """async (panel, [before, settleMs, timeoutMs]) => {
+  const state = () => (""" + _JS_PANEL_STATE + """)(panel);
+  const pause = () => new Promise(resolve => setTimeout(resolve, 10));
+  const t0 = performance.now();
+  let now = state();
+  while (!now.error && now.readout === before.readout && now.img === before.img) {
+    if (performance.now() - t0 > timeoutMs) return {state: now, changed: false, lastMs: null};
+    await pause();
+    now = state();
+  }
+  let last = performance.now();
+  while (!now.error && performance.now() - last < settleMs && performance.now() - t0 < timeoutMs) {
+    await pause();
+    const next = state();
+    if (next.readout !== now.readout || next.img !== now.img || next.error !== now.error) {
+      now = next;
+      last = performance.now();
+    }
+  }
+  return {state: now, changed: true, lastMs: last - t0};
 }"""
 
 
@@ -580,29 +607,17 @@ def change_control(page, panel, *, name: str, index: int, direction: int = +1,
         action = f"number box -> {value}"
     else:
         raise AssertionError(f"{where}: no slider, dropdown or number box to change")
-    deadline = t0 + timeout_s
-    while True:  # the first update ...
-        after = panel.evaluate(_JS_PANEL_STATE)
-        if after["error"]:
-            raise AssertionError(f"{where}: error after changing {label!r} ({action}):\n{after['error']}")
-        if after["readout"] != before["readout"] or after["img"] != before["img"]:
-            latency = time.monotonic() - t0
-            break
-        if time.monotonic() > deadline:
-            raise AssertionError(f"{where}: changed {label!r} ({action}) but neither the readout nor "
-                                 f"the figure updated within {timeout_s:.0f} s")
-        time.sleep(0.01)
-    # ... and the rest of it (readout and figure arrive as separate messages): the
-    # latency runs to the last change seen before the panel is quiet for SETTLE_S.
-    quiet_since = time.monotonic()
-    while time.monotonic() - quiet_since < SETTLE_S and time.monotonic() < deadline:
-        time.sleep(0.01)
-        now_state = panel.evaluate(_JS_PANEL_STATE)
-        if now_state != after:
-            after, quiet_since = now_state, time.monotonic()
-            latency = quiet_since - t0
+    # The first update and the rest of it (readout and figure arrive as separate messages), watched in the page:
+    # the latency runs to the last change seen before the panel is quiet for SETTLE_S.
+    waited = time.monotonic()
+    update = panel.evaluate(_JS_PANEL_UPDATE, [before, 1000 * SETTLE_S, 1000 * max(t0 + timeout_s - waited, 0.0)])
+    after = update["state"]
     if after["error"]:
         raise AssertionError(f"{where}: error after changing {label!r} ({action}):\n{after['error']}")
+    if not update["changed"]:
+        raise AssertionError(f"{where}: changed {label!r} ({action}) but neither the readout nor "
+                             f"the figure updated within {timeout_s:.0f} s")
+    latency = waited - t0 + update["lastMs"] / 1000
     return ControlChange(label, action, direction, latency, before["readout"], after["readout"],
                          after["img"] != before["img"])
 
