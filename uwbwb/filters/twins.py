@@ -32,6 +32,7 @@ from typing import Any, Callable, Mapping, NamedTuple
 import numpy as np
 
 from .. import geometry, metrics, sampling
+from ..calibration import twr
 from ..models import doppler as doppler_model
 from ..models import ins
 from ..models.imu import GRADES
@@ -862,6 +863,51 @@ def _steer_definition(a):
 
 
 # ---------------------------------------------------------------- the median block bootstrap's replicates
+def _irls_inputs():
+    """12 000 rows, 2 tags × 3 anchors: ranges 1–9 m with a bias and scale per pair, 0.05 m noise, 5 % outliers
+    (+1 to +3 m), rows with no sample in each pair (odd and even counts, over the 5 000 from which the medians
+    take their bracket from a sample), one bias-only pair."""
+    rng = np.random.default_rng(17)
+    x = rng.uniform(1.0, 9.0, (12_000, 2, 3))
+    y = 1.01 * x + 0.2 + rng.normal(0.0, 0.05, x.shape) + (rng.random(x.shape) < 0.05) * rng.uniform(1, 3, x.shape)
+    mask = rng.random(x.shape) > 0.1
+    x[~mask & (rng.random(x.shape) < 0.5)] = np.nan
+    with_scale = np.ones((2, 3), bool)
+    with_scale[1, 2] = False
+    return x, y, mask, with_scale, 30
+
+
+def _irls_fast(a):
+    return dict(zip(("bias", "scale", "median", "sigma", "rms"), twr._irls(*a)))
+
+
+def _irls_definition(a):
+    """The IRLS in NumPy on every pair at once: weighted normal equations over the rows, residuals, robust σ
+    (1.4826·MAD per pair, at least 0.1 mm) and Huber weights; the final residuals' median, robust σ and RMS."""
+    x, y, mask, with_scale, n_iter = a
+    x0, y0, w = np.where(mask, x, 0.0), np.where(mask, y, 0.0), mask.astype(float)
+
+    def robust_sigma(resid):
+        r = np.where(mask, resid, np.nan)
+        return twr.MAD_TO_SIGMA * np.nanmedian(np.abs(r - np.nanmedian(r, axis=0)), axis=0)
+
+    for _ in range(n_iter):
+        wx = w * x0
+        sw, sx, sy = w.sum(0), wx.sum(0), (w * y0).sum(0)
+        sxx, sxy = (wx * x0).sum(0), (wx * y0).sum(0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s_full = (sw * sxy - sx * sy) / (sw * sxx - sx * sx)
+            scale = np.where(with_scale, s_full, 1.0)
+            bias = np.where(with_scale, (sy - s_full * sx) / sw, (sy - sx) / sw)
+        resid = y0 - (scale * x0 + bias)
+        thr = twr._HUBER_K * np.maximum(robust_sigma(resid), 1e-4)
+        d = np.abs(resid)
+        w = np.where(mask, np.where(d <= thr, 1.0, thr / np.maximum(d, 1e-12)), 0.0)
+    resid = np.where(mask, y0 - (scale * x0 + bias), np.nan)
+    return {"bias": bias, "scale": scale, "median": np.nanmedian(resid, axis=0), "sigma": robust_sigma(resid),
+            "rms": np.sqrt(np.nanmean(resid ** 2, axis=0))}
+
+
 def _median_inputs():
     """40 blocks of 1–30 epochs (odd and even replicate sizes), the b side zero in 21 of them (so some replicates
     have a zero median: NaN ratio), 500 replicates."""
@@ -1110,6 +1156,14 @@ def _registry() -> tuple[Twin, ...]:
     twins.append(Twin("walk._steer_loop", _steer_fast, _steer_definition, _steer_inputs, {"x": Tol(0.0, 1e-9)},
                       "tests/sim/test_walk.py::test_steering_follows_the_path_at_the_scenario_speed",
                       ("uwbwb.sim.walk._steer_loop",)))
+    # bit for bit: the same products summed over the rows in the same order, and medians (an element, or (a + b) / 2
+    # on both sides) whatever the order
+    twins.append(Twin("calibration._irls", _irls_fast, _irls_definition, _irls_inputs,
+                      dict.fromkeys(("bias", "scale", "median", "sigma", "rms"), BIT),
+                      "tests/test_calibration.py::test_recovers_known_bias_and_scale_despite_outliers",
+                      ("uwbwb.calibration.twr._irls", "uwbwb.calibration.twr._median"),
+                      lambda out: None if len(set(_irls_inputs()[2].sum(0).ravel() % 2)) == 2
+                      else "sample counts of one parity only"))
     # bit for bit: a median is one of the epochs (or the mean of two, (a + b) / 2 on both sides), whatever the order
     twins.append(Twin("metrics._median_replicates", _median_fast, _median_definition, _median_inputs,
                       {"d": BIT, "ratio": BIT},
