@@ -93,7 +93,7 @@ def start(run: robot.RobotRun, model: robot.RobotConfig, outlier_c_m: float | No
     fixes = ls_estimates(screened, tdoa2)
     yaw0 = float(run.heading.yaw_rad[int(np.flatnonzero(fixes.has_estimate)[0])])
     x0, k0 = initial_state(fixes, height_m=model.tag_height_m, lever_m=model.lever_arm_m, yaw_rad=yaw0)
-    uwb = eskf.TdoaUpdate(model.tdoa_model(), outlier_c_m)             # the tight filter's (fusion_filters)
+    uwb = fusion_filters(model, FusionSettings(outlier_c_m=outlier_c_m))[0].uwb   # the tight filter's update
     snapshot = uwb.snapshot(run.tdoa.t_s, uwb.screen(run.tdoa.tdoa_m, run.tdoa.ref)[0], run.tdoa.ref)
     return Start(screened, n_eq4, tdoa2, fixes, x0, k0, imu_after(run.imu, run.truth.t_s[k0]), snapshot)
 
