@@ -18,6 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import nbformat  # noqa: E402
 import pytest  # noqa: E402
 
+from tests.browser_support import CHROMIUM, launch_chromium  # noqa: E402
 from uwbwb import classroom, reproduce  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -270,12 +271,147 @@ def test_lab_opens_the_student_folder_on_request():
     assert "--notebook-dir=notebooks " in lab()
 
 
+# ------------------------------------------------------------------ a handout opened offline in a browser
+
+def _markdown_formulas(nb) -> int:
+    """The formulas of a notebook's Markdown cells that a handout shows (``research`` cells left out): ``$$...$$``,
+    ``\\begin{env}...\\end{env}`` and ``$...$``, code spans and fenced code not counted."""
+    count = 0
+    for cell in nb.cells:
+        if cell.cell_type != "markdown" or classroom.RESEARCH_TAG in cell.metadata.get("tags", []):
+            continue
+        s = re.sub(r"^(```|~~~).*?^\1", " ", cell.source, flags=re.S | re.M)
+        s = re.sub(r"(`+).*?\1", " ", s, flags=re.S)
+        for pattern in (r"\$\$.+?\$\$", r"\\begin\{([a-z]+\*?)\}.*?\\end\{\1\}", r"(?<!\\)\$[^$\n]+?(?<!\\)\$"):
+            count += len(re.findall(pattern, s, flags=re.S))
+            s = re.sub(pattern, " ", s, flags=re.S)
+    return count
+
+
+def _notebook_panels(nb) -> int:
+    """The :class:`uwbwb.widgets.Panel` views among the outputs of an executed notebook's non-``research`` cells."""
+    state = nb.metadata.get("widgets", {}).get(WIDGET_STATE, {}).get("state", {})
+    return sum("uwbwb-panel" in state.get(out["data"][WIDGET_VIEW]["model_id"], {}).get("state", {}).get(
+                   "_dom_classes", [])
+               for cell in nb.cells if classroom.RESEARCH_TAG not in cell.metadata.get("tags", [])
+               for out in cell.get("outputs", []) if WIDGET_VIEW in out.get("data", {}))
+
+
+#: What a page shows, read in the browser: its images, the math SVGs of its Markdown cells (and those without a
+#: drawn outline or size), the visible text of its rendered Markdown, each static panel's loaded images, its text.
+_JS_HANDOUT = """() => {
+  const math = [...document.querySelectorAll('.jp-MarkdownCell svg.uwbwb-math')];
+  const loaded = img => img.complete && img.naturalWidth > 0;
+  return {
+    images: [...document.images].map(img => [img.src.slice(0, 60), img.naturalWidth]),
+    formulas: math.length,
+    undrawn: math.filter(svg => {const r = svg.getBoundingClientRect();
+                                 return !(r.width > 0 && r.height > 0 && svg.querySelector('path[d]'));}).length,
+    markdown: [...document.querySelectorAll('.jp-RenderedMarkdown')].map(e => e.innerText).join('\\n'),
+    panels: [...document.querySelectorAll('.uwbwb-static-panel')].map(p => [...p.querySelectorAll('img')]
+                                                                               .filter(loaded).length),
+    text: document.body.innerText,
+  };
+}"""
+
+
+def _browser_problems(browser, page_path: Path, *, formulas: int, panels: int, values: dict) -> list[str]:
+    """Open ``page_path`` in a fresh page of ``browser`` with every request other than the file itself aborted, and
+    say what an offline reader would miss: a request that left the file (data: URIs stay in it), an image that did
+    not load, a formula not drawn as an SVG of the page (``formulas`` in the notebook's Markdown) or left as TeX in
+    the text, a panel (``panels`` in the notebook) without its static figure, a class parameter value not shown."""
+    own = page_path.resolve().as_uri()
+    left: list[str] = []
+
+    def only_the_file(route):
+        if route.request.url == own or route.request.url.startswith("data:"):
+            route.continue_()
+        else:
+            left.append(route.request.url)
+            route.abort()
+
+    context = browser.new_context()
+    try:
+        page = context.new_page()
+        page.on("websocket", lambda ws: left.append(ws.url))
+        page.route("**/*", only_the_file)
+        page.goto(own, wait_until="load")
+        seen = page.evaluate(_JS_HANDOUT)
+    finally:
+        context.close()
+    problems = [f"request left the file: {url}" for url in sorted(left)]
+    problems += [f"image not shown: {src}" for src, width in seen["images"] if width == 0]
+    if seen["formulas"] != formulas or seen["undrawn"]:
+        problems.append(f"{seen['formulas'] - seen['undrawn']} of the notebook's {formulas} formulas drawn")
+    problems += [f"TeX left in the text: {tex}" for tex in re.findall(r"\$[^$]+\$|\\[A-Za-z]+", seen["markdown"])]
+    if len(seen["panels"]) != panels or not all(seen["panels"]):
+        problems.append(f"{sum(n > 0 for n in seen['panels'])} of the notebook's {panels} panels shown with their "
+                        "figure")
+    problems += [f"{name} = {value!r} not shown" for name, value in values.items()
+                 if not re.search(rf"\b{name}\s*=\s*{value!r}(?!\w)", seen["text"])]
+    return problems
+
+
+@pytest.fixture
+def chromium():
+    """The system Chromium, headless (as the browser test's), or a skip saying what is missing; started after the
+    test's other fixtures (a notebook runs before Playwright's event loop is up) and closed after it."""
+    if not CHROMIUM.exists():
+        pytest.skip(f"{CHROMIUM} not installed (apt-get install chromium): the handout is opened in the system "
+                    "Chromium only")
+    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed in this environment")
+    with sync_api.sync_playwright() as pw:
+        browser = launch_chromium(pw)
+        yield browser
+        browser.close()
+
+
+@pytest.mark.browser
+def test_the_offline_handout_check_catches_a_cdn_script_a_raw_formula_and_a_missing_figure(chromium, tmp_path):
+    page = tmp_path / "bad.html"
+    page.write_text(
+        '<html><head><script src="https://cdn.jsdelivr.net/npm/mathjax@3/es5/tex-chtml.js"></script></head><body>'
+        '<div class="jp-MarkdownCell"><div class="jp-RenderedMarkdown"><p>An error of $\\frac{1}{K}$ and '
+        + classroom.math_svg("x_i") + '</p></div></div>'
+        '<div class="uwbwb-static-panel"><img src="https://example.org/panel.png" alt="panel figure"></div>'
+        '<pre>FAST = True\nCLASS = False</pre></body></html>', encoding="utf-8")
+    assert _browser_problems(chromium, page, formulas=2, panels=1, values={"FAST": True, "CLASS": True}) == [
+        "request left the file: https://cdn.jsdelivr.net/npm/mathjax@3/es5/tex-chtml.js",
+        "request left the file: https://example.org/panel.png",
+        "image not shown: https://example.org/panel.png",
+        "1 of the notebook's 2 formulas drawn",
+        "TeX left in the text: $\\frac{1}{K}$",
+        "0 of the notebook's 1 panels shown with their figure",
+        "CLASS = True not shown"]
+
+
 # ------------------------------------------------------------------ the class run of a notebook
 
-@pytest.mark.notebook
-def test_class_folders_of_notebook_00(tmp_path):
-    out = tmp_path / "class"
+@pytest.fixture(scope="module")
+def class_00(tmp_path_factory):
+    """``make class`` of notebook 00 (one execution, read by the tests below)."""
+    out = tmp_path_factory.mktemp("class-00") / "class"
     assert classroom.main(["--only", "00", "--notebooks-dir", str(NOTEBOOKS), "--out", str(out)]) == 0
+    return out
+
+
+@pytest.mark.notebook
+@pytest.mark.browser
+def test_the_handout_of_notebook_00_shows_everything_offline_in_chromium(class_00, chromium):
+    """The handout opened in headless Chromium with every request but the file's own aborted: nothing requested,
+    every image loaded, every formula of the notebook's Markdown an SVG of the page and none left as TeX, each
+    panel a static figure, the class values shown."""
+    nb = nbformat.read(class_00 / "answers" / "00_quickstart.ipynb", as_version=4)
+    values = classroom.class_values(reproduce.notebook_parameters(class_00 / "student" / "00_quickstart.ipynb"))
+    formulas, panels = _markdown_formulas(nb), _notebook_panels(nb)
+    assert formulas > 0 and panels > 0 and values == {"FAST": True, "CLASS": True}
+    assert _browser_problems(chromium, class_00 / "answers" / "00_quickstart.html", formulas=formulas,
+                             panels=panels, values=values) == []
+
+
+@pytest.mark.notebook
+def test_class_folders_of_notebook_00(class_00):
+    out = class_00
     student, answers = out / "student", out / "answers"
     given = nbformat.read(student / "00_quickstart.ipynb", as_version=4)
     assert not any(c.get("outputs") for c in given.cells)

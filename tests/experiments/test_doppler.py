@@ -701,13 +701,20 @@ def test_ranging_verdict_flips_at_its_factor():
     assert exercises.ranging_verdict(30.0, 9.0, factor=3.0)
 
 
-def test_pseudo_ranges_exercise_holds_on_a_fresh_walk():
+def test_pseudo_ranges_exercise_holds_on_a_fresh_walk_and_fails_with_few_particles():
     from uwbwb.experiments.doppler import exercises
 
-    check = exercises.pseudo_ranges(study.StudyConfig.for_mode(True, 0))
+    cfg = study.StudyConfig.for_mode(True, 0)
+    check = exercises.pseudo_ranges(cfg)
     assert check.holds, check
     assert check.numbers["ratio"] > 5
-    assert_reads_predictions(check)
+    # too few particles to follow the walk: with the ranges too the CEP50 stays in decimetres, far from a 5-fold cut
+    few = exercises.pseudo_ranges(replace(cfg, n_particles=100), n_runs=1)
+    assert few.holds is False, few
+    assert few.numbers["ratio"] < 5 and few.numbers["CEP50, Doppler + pseudo-ranges (cm)"] > 5 * check.numbers[
+        "CEP50, Doppler + pseudo-ranges (cm)"]
+    for c in (check, few):
+        assert_reads_predictions(c)
 
 
 def test_filter_panel_draws_labelled_axes_with_beacons():

@@ -350,7 +350,14 @@ def test_exercise_no_resampling(study):
     assert 1 <= n["ESS at the last fix, never resample"] < 0.1 * 200       # the weights have degenerated
     again = E.exercises.no_resampling(rec, study.model, rng=np.random.default_rng(6))
     assert again.numbers == check.numbers                           # same seed, same numbers
-    assert_reads_predictions(check)
+    # one particle: its ESS is always 1, above the threshold 0.5 K, so both settings never resample and the same
+    # draws give the same error: the claim does not hold
+    single = E.exercises.no_resampling(rec, study.model, n_particles=1, rng=np.random.default_rng(6))
+    n = single.numbers
+    assert single.holds is False, single
+    assert n["never resample (cm)"] == n["resample when ESS < 0.5 K (cm)"] and n["median ESS, never resample"] == 1
+    for c in (check, single):
+        assert_reads_predictions(c)
 
 
 def test_plot_sweep_marks_points_above_the_axes():

@@ -38,6 +38,10 @@ def test_gate_exercise_compares_the_same_run_with_and_without_the_gate():
     assert_reads_predictions(check)
     clean = exercises.gate_off(seed=0, outlier_rate=0.0, duration_s=4.0)     # nothing to gate: no big difference
     assert clean.numbers["tight RMSE without gate (m)"] < 2 * clean.numbers["tight RMSE with gate (m)"] + 0.01
+    # without multipath the gate only rejects a few good TDoAs: the ungated RMSE is not higher, the claim fails
+    assert clean.holds is False, clean
+    assert clean.numbers["tight RMSE without gate (m)"] <= clean.numbers["tight RMSE with gate (m)"]
+    assert_reads_predictions(clean)
 
 
 def test_panel_offers_the_notebooks_outage_and_reads_the_outage():
