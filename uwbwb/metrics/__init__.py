@@ -20,11 +20,11 @@ from .errors import (MIN_BLOCKS, ErrorSeries, _errors, block_bootstrap_differenc
                      epoch_summary, error_stats, errors_vs_truth, interval_side, position_error_m, rmse,
                      seeds_interval, tied_ranks)
 from .scoring import EpochScores, MethodEpochs, errors_on_grid, pool_scores, score_epochs
-from .summary import Headline, Summary, interval_rows
+from .summary import Headline, Summary, interval_rows, interval_text
 
 __all__ = [
     "ErrorSeries", "Summary", "cep", "cep50", "cep95", "ecdf", "epoch_summary", "error_stats", "errors_vs_truth",
     "nees", "nis_consistency", "position_error_m", "rmse", "block_bootstrap_difference", "block_ids", "MIN_BLOCKS",
-    "interval_rows", "interval_side", "seeds_interval", "tied_ranks",
+    "interval_rows", "interval_side", "interval_text", "seeds_interval", "tied_ranks",
     "Headline", "EpochScores", "MethodEpochs", "errors_on_grid", "pool_scores", "score_epochs",
 ]
