@@ -101,6 +101,8 @@ def test_apply_recording_counts_ranges_set_missing(campaign):
     out = cal.apply_recording(rec)
     assert out.cleaning[-1].n_affected == 5
     assert np.isnan(out.ranges["t0"].range_m[:5, 2]).all()
+    np.testing.assert_array_equal(rec.ranges_of("t0", cal).range_m, out.ranges["t0"].range_m)   # one tag alike
+    assert rec.ranges_of("t0") is rec.ranges["t0"]                                          # no calibration: as logged
 
 
 def test_too_few_samples_is_an_error(rng):

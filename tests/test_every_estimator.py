@@ -32,7 +32,7 @@ from uwbwb.filters.gating import AnchorDropping, ChiSquareEpoch, ChiSquarePerMea
 from uwbwb.models.motion import RandomForce
 from uwbwb.scoreboard.board import calibrate
 from uwbwb.scoreboard.estimators import RangeEkfEstimator, TdoaEkfEstimator, default_estimators
-from uwbwb.scoreboard.interface import BaseEstimator, _tdoa_model, calibrated_log
+from uwbwb.scoreboard.interface import BaseEstimator, _tdoa_model
 from uwbwb.scoreboard.protocol import scored_tags, split_in_time
 from uwbwb.types import EstimateStatus, Estimates, TdoaLog, pseudo_tdoa
 
@@ -48,7 +48,7 @@ class GatedTdoaEkf(BaseEstimator):
         self.name = f"EKF-RF {type(gate).__name__}"
 
     def estimate(self, rec, tag, cal):
-        log = calibrated_log(rec, tag, cal)
+        log = rec.ranges_of(tag, cal.range_calibration)
         d, ref = pseudo_tdoa(log.range_m, 0)
         model = _tdoa_model(rec, tag, cal)
         return TdoaEkf(RandomForce(0.5, dim=cal.dim), model, gate=self.gate).run(

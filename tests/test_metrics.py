@@ -234,6 +234,16 @@ def test_interval_side_rejects_the_null_only_when_the_interval_excludes_it(lo, h
     assert m.interval_side(lo, hi, null) == side
 
 
+def test_tied_ranks_split_only_where_every_pair_across_is_decided():
+    """Ranks walk up the given order; a cut needs every item before it decided better than every item after it,
+    so a decided pair inside a tie (a ≈ b, a ≈ c, b better than c) ties all three, and nothing decided ties all."""
+    assert m.tied_ranks("abc", {("a", "b"), ("a", "c"), ("b", "c")}) == {"a": 1, "b": 2, "c": 3}
+    assert m.tied_ranks("abc", {("a", "c"), ("b", "c")}) == {"a": 1, "b": 1, "c": 3}
+    assert m.tied_ranks("abc", {("b", "c")}) == {"a": 1, "b": 1, "c": 1}
+    assert m.tied_ranks("abc", {("a", "b"), ("a", "c")}) == {"a": 1, "b": 2, "c": 2}
+    assert m.tied_ranks("abc", set()) == {"a": 1, "b": 1, "c": 1}
+
+
 def test_block_bootstrap_median_difference_sees_a_shift_and_not_a_tie():
     """``statistic="median"``: the interval of median(a) − median(b) lies above 0 for a shifted method, contains 0
     for the same errors relabelled, and is NaN with fewer than MIN_BLOCKS blocks; a bad statistic is an error."""

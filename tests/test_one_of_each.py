@@ -1,5 +1,5 @@
 """One of each: the package's one block-bootstrap interval rule, its one interval over seeds, its one interval →
-verdict rule and its one thinning rule are defined once.
+verdict rule, its one thinning rule and its one interval formatter are defined once.
 
 A second definition elsewhere — a block length, a block cut, a block bootstrap, a comparison of an interval's
 ends with a null value, a thinning function — would let two notebooks give two verdicts on one comparison; these
@@ -86,3 +86,12 @@ def test_the_interval_over_seeds_is_defined_once_in_metrics():
     found = sorted(p.relative_to(PACKAGE).as_posix() for p in PACKAGE.rglob("*.py")
                    if re.search(r"\bt\.ppf\(", p.read_text(encoding="utf-8")))
     assert found == ["metrics/errors.py"], found
+
+
+def test_an_interval_is_written_as_text_once_in_metrics():
+    """``"[lo, hi]"`` with both ends formatted: one definition (metrics.interval_text), so every table and figure
+    writes an interval, and its absence, alike."""
+    pattern = re.compile(r"\[\{[^\n]*?:[^\n]*?\}, \{[^\n]*?:[^\n]*?\}\]")     # f"[{lo:.2f}, {hi:.2f}]"
+    found = sorted(p.relative_to(PACKAGE).as_posix() for p in PACKAGE.rglob("*.py")
+                   if pattern.search(p.read_text(encoding="utf-8")))
+    assert found == ["metrics/summary.py"], found

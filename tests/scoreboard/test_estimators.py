@@ -12,7 +12,6 @@ from uwbwb.datasets import iasl
 from uwbwb.filters import alignment
 from uwbwb.scoreboard import Calibration, calibrate
 from uwbwb.scoreboard.estimators import INS_GRID_FAST, TdoaEkfEstimator, TdoaLs, UwbInsFilter
-from uwbwb.scoreboard.interface import calibrated_log
 from uwbwb.sim import walk
 
 
@@ -28,7 +27,7 @@ def _office(sigma_m=0.1):
 def test_ekf_tuning_minimises_the_mean_over_tags_of_its_criterion():
     rec, cal = _office()
     tags = list(rec.tags)
-    assert calibrated_log(rec, tags[0], cal) is rec.ranges[tags[0]]        # no range calibration: as logged
+    assert rec.ranges_of(tags[0], cal.range_calibration) is rec.ranges[tags[0]]     # no range calibration: as logged
     grid = (0.05, 1.0, 20.0)
     for criterion, key in (("rmse", "grid_rmse_m"), ("cep95", "grid_cep95_m")):
         p = TdoaEkfEstimator("RW", gate_prob=None, grid=grid, criterion=criterion).tune(rec, tags, cal)

@@ -345,8 +345,7 @@ def range_residuals(rec: Recording, calibration: RangeCalibration | None = None)
     """
     rows = []
     for tag in rec.tags:
-        log = rec.ranges[tag] if calibration is None else calibration.apply(rec.ranges[tag])
-        r = log.range_m - true_ranges(rec, tag)
+        r = rec.ranges_of(tag, calibration).range_m - true_ranges(rec, tag)
         for j, anchor in enumerate(rec.anchors.ids):
             v = r[:, j][np.isfinite(r[:, j])]
             med = np.median(v) if v.size else np.nan

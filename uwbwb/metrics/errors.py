@@ -369,6 +369,21 @@ def interval_side(lo: float, hi: float, null: float = 0.0) -> str:
     return "below" if hi < null else "above" if lo > null else "contains"
 
 
+def tied_ranks(order: Sequence[str], better) -> dict[str, int]:
+    """Ranks of the items of ``order`` (sorted by a point value, lowest first) resolved no further than the
+    decided pairs ``better`` (``(a, b)``: ``a`` resolved better than ``b``, e.g. by :func:`interval_side` of their
+    difference): the package's one tie-aware ranking rule. An item's rank is 1 + the number ranked above it; it
+    is ranked below the items before it only where every one of them is resolved better than it and every item
+    after it, else it shares the rank of the one before (a tie). A decided pair inside a tie (an order that is not
+    transitive: a ≈ b, a ≈ c, yet b better than c) is not shown by the ranks."""
+    order = list(order)
+    rank: dict[str, int] = {}
+    for i, h in enumerate(order):
+        cut = all((a, b) in better for a in order[:i] for b in order[i:])
+        rank[h] = i + 1 if cut else rank[order[i - 1]]
+    return rank
+
+
 def seeds_interval(x, *, prob: float = 0.95) -> dict:
     """Mean of ``x`` (one value per independent seed) and its two-sided Student-t interval at ``prob``: the
     package's one interval over seeds (the block bootstrap is its one interval over correlated epochs).

@@ -149,6 +149,12 @@ def interval_rows(quantity: str, value: float, lo: float, hi: float, **row) -> l
     return [dict(quantity=quantity + suffix, value=v, **row) for suffix, v in [("", value), *ends]]
 
 
+def interval_text(lo: float, hi: float, fmt: str = ".3g", *, none: str = "—") -> str:
+    """An interval as a table or a figure shows it, ``"[lo, hi]"`` with both ends in format ``fmt``; ``none`` where
+    either end is not finite (no interval)."""
+    return f"[{lo:{fmt}}, {hi:{fmt}}]" if np.isfinite(lo) and np.isfinite(hi) else none
+
+
 def _is_recording_label(data: str) -> bool:
     dataset, _, recording = data.partition("/")
     return bool(dataset.strip()) and bool(recording.strip())

@@ -45,8 +45,7 @@ from ..filters.tdoa_ls import tdoa_least_squares
 from ..models.motion import RandomForce, make_motion_model
 from ..types import Estimates, RangeLog, TdoaLog, Trajectory
 from .interface import (BaseEstimator, Estimator, TUNING_CRITERIA, _NONE, _UP, _range_bound, _range_information,
-                        _tdoa_model, _tuning_scores, calibrated_log, on_grid_edge,
-                        tdoa_geometry_note)
+                        _tdoa_model, _tuning_scores, on_grid_edge, tdoa_geometry_note)
 from .protocol import Calibration
 from .reference import REFERENCE
 from .setnoise_nls import NLS_WINDOWS_S, SetNoiseFilter, WindowNls
@@ -84,13 +83,13 @@ class CalibratedLs(BaseEstimator):
     name: str = "LS"
 
     def estimate(self, rec, tag, cal):
-        log = calibrated_log(rec, tag, cal)
+        log = rec.ranges_of(tag, cal.range_calibration)
         res = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag),
                                      sigma_m=cal.sigma(tag), t_s=log.t_s, name=self.name)
         return res.to_estimates()
 
     def bound(self, rec, tag, cal, est):
-        return _range_bound(rec, tag, cal, calibrated_log(rec, tag, cal))
+        return _range_bound(rec, tag, cal, rec.ranges_of(tag, cal.range_calibration))
 
 
 @dataclass(frozen=True)
@@ -110,13 +109,13 @@ class TdoaLs(BaseEstimator):
         return tdoa_geometry_note(cal, tag)
 
     def estimate(self, rec, tag, cal):
-        log = calibrated_log(rec, tag, cal)
+        log = rec.ranges_of(tag, cal.range_calibration)
         res = tdoa_least_squares(TdoaLog.from_ranges(log, self.ref), _tdoa_model(rec, tag, cal, self.correlated),
                                  name=self.name)
         return res.to_estimates()
 
     def bound(self, rec, tag, cal, est):
-        log = calibrated_log(rec, tag, cal)
+        log = rec.ranges_of(tag, cal.range_calibration)
         info, _ = _range_information(rec, tag, cal, log, tdoa=True)
         return bounds.Bound(log.t_s, bounds.crlb(info), "CRLB TDoA")
 
@@ -226,7 +225,7 @@ class _MotionEkf(BaseEstimator):
         return self._run(rec, tag, _noisier(cal, p.get("r_scale", 1.0)), p["sigma_w"])
 
     def bound(self, rec, tag, cal, est):
-        log = calibrated_log(rec, tag, cal)
+        log = rec.ranges_of(tag, cal.range_calibration)
         info, have = _range_information(rec, tag, cal, log, tdoa=not self._domain)
         start = np.flatnonzero(est.has_estimate)
         C = np.full((len(log), cal.dim, cal.dim), np.nan)
@@ -260,7 +259,7 @@ class TdoaEkfEstimator(_MotionEkf):
 
     def _inputs(self, rec, tag, cal) -> TdoaLog:
         """The pseudo-TDoAs of the calibrated ranges (no knob changes them)."""
-        return TdoaLog.from_ranges(calibrated_log(rec, tag, cal), self.ref)
+        return TdoaLog.from_ranges(rec.ranges_of(tag, cal.range_calibration), self.ref)
 
     def _run(self, rec, tag, cal, sigma_w, inputs=None) -> Estimates:
         log = self._inputs(rec, tag, cal) if inputs is None else inputs
@@ -292,7 +291,7 @@ class RangeEkfEstimator(_MotionEkf):
     def _inputs(self, rec, tag, cal) -> tuple[RangeLog, int | None, np.ndarray | None]:
         """The calibrated ranges, the first epoch with a multilateration fix and that fix (None, None: no epoch
         has one); no knob changes them."""
-        log = calibrated_log(rec, tag, cal)
+        log = rec.ranges_of(tag, cal.range_calibration)
         fix = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=cal.dim, z_m=cal.height(tag))
         ok = np.flatnonzero(np.all(np.isfinite(fix.pos_m), axis=1))
         return (log, None, None) if ok.size == 0 else (log, int(ok[0]), fix.pos_m[ok[0], : cal.dim])
@@ -414,7 +413,7 @@ class UwbInsFilter(BaseEstimator):
         starts = self._cache.setdefault("starts", {})
         if key not in starts:
             real = replace(imu_cal, range_sigma_m=cal.sigma(tag), range_bias_m=0.0)
-            log = calibrated_log(rec, tag, cal)
+            log = rec.ranges_of(tag, cal.range_calibration)
             # the truth is hidden from the filters: the board scores the estimates itself
             hidden = Trajectory(log.t_s[[0, -1]], np.full((2, 3), np.nan), name="truth (hidden)")
             one = replace(rec, ranges={"tag": log}, truth={"tag": hidden})
@@ -457,7 +456,7 @@ class UwbInsFilter(BaseEstimator):
     def bound(self, rec, tag, cal, est):
         if self.kind == "INS-only":                         # no UWB, no model of its own drift: no bound
             return None
-        log = calibrated_log(rec, tag, cal)
+        log = rec.ranges_of(tag, cal.range_calibration)
         info, have = _range_information(rec, tag, cal, log, tdoa=True)
         C = np.full((len(log), cal.dim, cal.dim), np.nan)
         kind = "PCRLB INS (white acc. noise; attitude, biases known)"

@@ -3,7 +3,7 @@
 A method joins the board by implementing :class:`Estimator` (see :mod:`.estimators` for what each
 member means); :class:`BaseEstimator` gives the defaults. The helpers place truth on a tag's
 epochs (:meth:`~uwbwb.types.Recording.truth_at`, one gap rule: :data:`MAX_TRUTH_GAP_S`), apply the shared range
-calibration (:func:`calibrated_log`) and evaluate the range and TDoA information the adapters'
+calibration (:meth:`~uwbwb.types.Recording.ranges_of`) and evaluate the range and TDoA information the adapters'
 bounds are built from.
 
 Whether a measurement domain is informative on a recording is judged once, on the calibration part
@@ -28,7 +28,7 @@ from ..types import EstimateStatus, Estimates, MAX_TRUTH_GAP_S, RangeLog, Record
 from .protocol import Calibration
 
 __all__ = ["Estimator", "BaseEstimator", "GEOMETRY", "MAX_TDOA_OVER_RANGES", "MIN_NOISE_SAMPLES", "TUNING_CRITERIA",
-           "calibrated_log", "measured_noise_calibration", "measurement_geometry", "tdoa_geometry_note",
+           "measured_noise_calibration", "measurement_geometry", "tdoa_geometry_note",
            "on_grid_edge"]
 
 #: Fewest range residuals of an anchor on the scored part for its noise to be measured there
@@ -88,17 +88,12 @@ class BaseEstimator:
 
 # ----------------------------------------------------------------------------- shared pieces
 
-def calibrated_log(rec: Recording, tag: str, cal: Calibration) -> RangeLog:
-    """``tag``'s ranges with the calibration's per-pair bias/scale removed (as logged where it has none)."""
-    return rec.ranges[tag] if cal.range_calibration is None else cal.range_calibration.apply(rec.ranges[tag])
-
-
 def measured_noise_calibration(rec: Recording, tag: str, cal: Calibration) -> Calibration:
     """``cal`` with ``tag``'s range σ replaced by the robust σ (1.4826 × MAD, as the calibration's) of the
     calibrated ranges of ``rec`` against the true ranges (truth at the calibrated tag height on a 2-D board);
     anchors with fewer than :data:`MIN_NOISE_SAMPLES` residuals keep their calibrated σ. ``cal`` unchanged where
     ``rec`` has no truth for ``tag``."""
-    log = calibrated_log(rec, tag, cal)
+    log = rec.ranges_of(tag, cal.range_calibration)
     if tag not in rec.truth:
         return cal
     pos = rec.truth_at(tag, log.t_s, 3 if rec.truth[tag].dim == 3 else 2)
@@ -163,7 +158,7 @@ def measurement_geometry(rec: Recording, tags: Sequence[str], cal: Calibration) 
     """
     out = {}
     for tag in tags:
-        log = calibrated_log(rec, tag, cal)
+        log = rec.ranges_of(tag, cal.range_calibration)
         info_t, have = _range_information(rec, tag, cal, log, tdoa=True)
         if not have.any():
             continue

@@ -40,7 +40,7 @@ import numpy as np
 from .. import bounds
 from ..models.motion import make_motion_model
 from ..types import Recording
-from .interface import _range_information, calibrated_log
+from .interface import _range_information
 from .protocol import Calibration
 
 __all__ = ["MIN_STRETCH_EPOCHS", "MIN_TRUTH_EPOCHS", "NO_COMMON_BOUND", "REFERENCE", "REFERENCE_GRIDS", "TRUTH_SIGMA_M",
@@ -109,7 +109,7 @@ def common_bound(rec: Recording, tag: str, cal: Calibration) -> bounds.Bound | N
     p = cal.params(REFERENCE)
     if "model" not in p:
         return None
-    log = calibrated_log(rec, tag, cal)
+    log = rec.ranges_of(tag, cal.range_calibration)
     info, have = _range_information(rec, tag, cal, log)
     C = np.full((len(log), cal.dim, cal.dim), np.nan)
     kind = f"PCRLB {p['model']} (common)"

@@ -19,7 +19,7 @@ from ..filters.setnoise import kf_sweep, model_noise, run_set_noise_kf, run_set_
 from ..models.motion import VelocityKick
 from ..sim.setnoise import SetEmulation, emulate_set_fixes
 from ..types import Estimates, RangeLog, RangeSamples
-from .interface import _NONE, _UP, BaseEstimator, _tuning_scores, calibrated_log, on_grid_edge
+from .interface import _NONE, _UP, BaseEstimator, _tuning_scores, on_grid_edge
 
 __all__ = ["SIGMA_D_GRID_MPS", "SetNoiseFilter", "NLS_WINDOWS_S", "WindowNls"]
 
@@ -61,7 +61,7 @@ class SetNoiseFilter(BaseEstimator):
         return np.random.default_rng([self.seed, zlib.crc32(f"{rec.label}/{tag}/{self.name}".encode())])
 
     def _fixes(self, rec, tag, cal, truth: bool = False):
-        log = calibrated_log(rec, tag, cal)
+        log = rec.ranges_of(tag, cal.range_calibration)
         t = rec.truth_at(tag, log.t_s, 2) if truth else None
         em = emulate_set_fixes(log, rec.anchors.pos_m, cal.height(tag), self.emulation, rng=self._rng(rec, tag),
                                truth_m=t, name=f"{rec.label}/{tag}")
@@ -192,7 +192,7 @@ class WindowNls(BaseEstimator):
         return fit.position_at(part.t_s)[:, :d], np.einsum("kij,jl,kml->kim", A, fit.cov, A)
 
     def _run(self, rec, tag, cal, w) -> Estimates:
-        log = calibrated_log(rec, tag, cal)
+        log = rec.ranges_of(tag, cal.range_calibration)
         T, d = len(log), cal.dim
         pos, cov = np.full((T, d), np.nan), np.full((T, d, d), np.nan)
         status = np.full(T, _NONE, np.int8)
@@ -218,7 +218,7 @@ class WindowNls(BaseEstimator):
         return self._run(rec, tag, cal, cal.params(self.name)["window_s"])
 
     def bound(self, rec, tag, cal, est):
-        log = calibrated_log(rec, tag, cal)
+        log = rec.ranges_of(tag, cal.range_calibration)
         pos = rec.truth_at(tag, log.t_s, cal.dim)
         C = np.full((len(log), cal.dim, cal.dim), np.nan)
         win = np.asarray(est.info["window"])

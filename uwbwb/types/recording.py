@@ -112,6 +112,11 @@ class Recording:
             pos[~exact & (tr.t_s[i] - tr.t_s[i - 1] > MAX_TRUTH_GAP_S)] = np.nan
         return pos
 
+    def ranges_of(self, tag: str, calibration=None) -> RangeLog:
+        """``tag``'s ranges, calibrated by ``calibration`` where one is given (a
+        :class:`~uwbwb.calibration.RangeCalibration`, or anything with its ``apply(RangeLog) -> RangeLog``)."""
+        return self.ranges[tag] if calibration is None else calibration.apply(self.ranges[tag])
+
     def range_rate_hz(self) -> float:
         """Range epoch rate: one over the median epoch step of all tags' logs pooled, Hz."""
         steps = np.concatenate([np.diff(log.t_s) for log in self.ranges.values()] or [np.array([])])

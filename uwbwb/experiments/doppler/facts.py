@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ...metrics import interval_side, seeds_interval
+from ...metrics import interval_side, interval_text, seeds_interval
 from .study import KEEPS_TRACK, PAPER, READINGS, keeps_track
 
 __all__ = ["facts", "fig6_table", "verdict_table", "DP_TOLERANCE_MS", "GHOST_ANGLE_DEG", "OFFSET_SHARE",
@@ -273,10 +273,6 @@ def fig6_table(f: dict) -> pd.DataFrame:
                          for v, q, s, vr, vm, va in rows])
 
 
-def _ci(lo: float, hi: float, fmt: str) -> str:
-    return f"[{lo:{fmt}}, {hi:{fmt}}]" if np.isfinite(lo) and np.isfinite(hi) else "—"
-
-
 def verdict_table(f: dict) -> pd.DataFrame:
     """Every claim of notebook 04 outside Fig 6 (that is :func:`fig6_table`), one row each: ``claim, paper, ours,
     interval, rule, verdict``, read from :func:`facts` (the rules are this module's)."""
@@ -292,10 +288,10 @@ def verdict_table(f: dict) -> pd.DataFrame:
             "both within the printed precision", "reproduces" if r in f["dp_reproduces"] else "does not reproduce")
     for r in f["readings"]:
         k = f"[cubic][{r}]"
-        ours, ci = f"{f['frac_pct' + k]:.3g}", _ci(f["frac_lo_pct" + k], f["frac_hi_pct" + k], ".3g")
+        ours, ci = f"{f['frac_pct' + k]:.3g}", interval_text(f["frac_lo_pct" + k], f["frac_hi_pct" + k], ".3g")
         if r == BRUTE_READING:
             ours += f" (conditional); {f['brute_frac_pct']:.3g} (brute force)"
-            ci += f" (conditional); {_ci(f['brute_lo_pct'], f['brute_hi_pct'], '.3g')} (brute force)"
+            ci += f" (conditional); {interval_text(f['brute_lo_pct'], f['brute_hi_pct'], '.3g')} (brute force)"
         add(f"fraction of the 6-D space with δ < 15 cm, cubic (%), {r}", f"< {PAPER['fraction_15cm_pct']['cubic']:g}",
             ours, ci, "95 % interval below the bound: agrees; above: disagrees; each estimator that ran, both named "
             "where they differ", f["frac_verdict" + k])
@@ -316,18 +312,18 @@ def verdict_table(f: dict) -> pd.DataFrame:
             f"a ghost when under {GHOST_CUT_CM:g} cm away from the reference (s ≠ 0)", f["cut_verdict"][k])
     t = f["offset_share"]
     add("Fig 6: offset² / (offset² + run-to-run²), mean over recordings", "—", f"{t['mean']:.2f}",
-        _ci(t["lo"], t["hi"], ".2f"), f"interval above {OFFSET_SHARE:g}: offset; below: spread{PF_GATE}",
+        interval_text(t["lo"], t["hi"], ".2f"), f"interval above {OFFSET_SHARE:g}: offset; below: spread{PF_GATE}",
         f["offset_or_spread"])
     if f["corners"]:
         add("along/across ratio ≈ 0.5 at every corner (Fig 6)", f"{PAPER['along_over_cross']:g}",
             ", ".join(f"{c} {v['mean']:.2f}" for c, v in f["corners"].items()),
-            "; ".join(f"{c} {_ci(v['lo'], v['hi'], '.2f')}" for c, v in f["corners"].items()),
+            "; ".join(f"{c} {interval_text(v['lo'], v['hi'], '.2f')}" for c, v in f["corners"].items()),
             f"at every corner the mean's interval excludes 1 (asymmetry detected, < 1) and holds 0.5{PF_GATE}",
             f["ratio_verdict"])
     if "corner_dependence" in f:
         t = f["corner_diff"]
         add(f"along/across ratio, {f['corner_pair'][0]} − {f['corner_pair'][1]} per recording", "—", f"{t['mean']:+.2f}",
-            _ci(t["lo"], t["hi"], "+.2f"), f"interval excludes 0: depends on the corner{PF_GATE}",
+            interval_text(t["lo"], t["hi"], "+.2f"), f"interval excludes 0: depends on the corner{PF_GATE}",
             f["corner_dependence"])
     keeps = f"≥ {100 * KEEPS_TRACK[0]:.0f} % within 0.5 m"
     for v in ("Doppler", "Doppler + ranges"):
@@ -340,11 +336,11 @@ def verdict_table(f: dict) -> pd.DataFrame:
         t = f[f"kf_minus_pf_cm[{v}]"]
         add(f"MH-EKF − PF CEP50 on the scored epochs per recording, {v}, all recordings (cm)", "—",
             f"{t['mean']:+.1f}; lost track: PF {len(lost['PF'])}, MH-EKF {len(lost['MH-EKF'])} of {n_rec}",
-            _ci(t["lo"], t["hi"], "+.1f"), rule, f[f"kf_vs_pf[{v}]"])
+            interval_text(t["lo"], t["hi"], "+.1f"), rule, f[f"kf_vs_pf[{v}]"])
         t = f[f"kf_minus_pf_cm_tracked[{v}]"]
         add(f"MH-EKF − PF CEP50 on the scored epochs per recording, {v}, recordings where both keep track (cm)",
             "—", f"{t['mean']:+.1f} on {n_both} of {n_rec}" if n_both else f"none of {n_rec}",
-            _ci(t["lo"], t["hi"], "+.1f"), rule, f[f"kf_vs_pf_tracked[{v}]"])
+            interval_text(t["lo"], t["hi"], "+.1f"), rule, f[f"kf_vs_pf_tracked[{v}]"])
         rs, runs = f[f"pf_restarted_runs[{v}]"]
         for who, k, what, extra in (("PF", "pf", ", runs restarted", f", {rs} of {runs}"), ("MH-EKF", "kf", "", "")):
             add(f"{who} keeps track, {v}: epochs within 0.5 m{what}, recordings where it lost track", "—",
@@ -354,7 +350,7 @@ def verdict_table(f: dict) -> pd.DataFrame:
                 + (PF_GATE if f"{k}_track_verdict[{v}]" in PF_RUN_VERDICTS else ""), f[f"{k}_track_verdict[{v}]"])
     drop, lo, hi = f["floor_particles_step"]
     add("particle count: drop of the scored-epoch CEP50 with 4× the particles, zero noise and exact ΔP (cm)", "—",
-        f"{drop:.1f}", _ci(lo, hi, ".1f"), f"interval inside ±{PARTICLE_STEP_CM:g} cm: converged; wholly outside: "
-        "not converged (the CEP50 is then no floor, and no verdict is given on the Doppler-only PF runs)",
+        f"{drop:.1f}", interval_text(lo, hi, ".1f"), f"interval inside ±{PARTICLE_STEP_CM:g} cm: converged; wholly "
+        "outside: not converged (the CEP50 is then no floor, and no verdict is given on the Doppler-only PF runs)",
         f["particles_verdict"])
     return pd.DataFrame(rows)

@@ -7,6 +7,7 @@ import numpy as np
 
 from ... import sampling as smp
 from ...models import doppler as dm
+from ...metrics import interval_text
 from ...plotting import color_for
 from .study import distinct_counts
 
@@ -154,7 +155,7 @@ def space_figure(runs_by_threshold: dict[float, smp.SamplerResult], model: dm.Do
         ghost_panel(s, "position", beacons=model.beacons.pos_m, weak_dir=pos_dir, ax=axes[0, j],
                     title=f"({'abcd'[j]}) δ < {100 * tau:g} cm")
         ghost_panel(s, "velocity", weak_dir=vel_dir, ax=axes[1, j])
-        iv = f" [{100 * e.ci_low:.2g}, {100 * e.ci_high:.2g}]" if np.isfinite(e.ci_low) else " (no interval)"
+        iv = " " + interval_text(100 * e.ci_low, 100 * e.ci_high, ".2g", none="(no interval)")
         far = f"{far_positions(s)} of them > {100 * NEAR_REFERENCE * LIMITS['position']:g} cm from the reference"
         axes[1, j].set_title(f"{n_s} distinct samples, {n_p} positions,\n{far}\nfraction {100 * e.fraction:.2g} %{iv}",
                              fontsize=8)

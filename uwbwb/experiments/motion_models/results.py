@@ -171,35 +171,28 @@ class TagResults:
 
 
 def ranking(table: pd.DataFrame, models: Sequence[str] = MODELS, *, decimals: int = 3,
-            winners: Mapping | None = None) -> pd.Series:
-    """Order of the motion models by CEP95 per row, e.g. ``"RW < RF < RJ"``, resolved no further than its evidence.
+            better: Mapping | None = None) -> pd.Series:
+    """Order of the motion models by CEP95 per row, e.g. ``"RW < RF < RJ"``, resolved no further than its evidence
+    (:func:`uwbwb.metrics.tied_ranks`: ``<`` between two ranks, a tie inside one).
 
-    Without ``winners`` (one run, or the thesis' numbers: no interval) it is the order of the values rounded to
-    ``decimals`` (as the table prints them); values equal there share a place (``"RF = RW < RJ"``). With
-    ``winners`` (row label → ``{(A, B): the better of the pair by its verdict, or None where not significant}``,
-    e.g. :meth:`~.seeds.SeedStudy.ranking`) the models are sorted by value and ``<`` separates two groups only
-    where every pair across them is decided in that direction, ``≈`` otherwise; a decided pair the chain does not
-    show is added in brackets (``"RF ≈ RW ≈ RJ (RF < RJ)"``)."""
+    Without ``better`` (one run, or the thesis' numbers: no interval) a model is better than another where its value
+    rounded to ``decimals`` (as the table prints it) is lower; values equal there tie (``"RF = RW < RJ"``). With
+    ``better`` (row label → the pairs ``(A, B)`` whose verdict says A is better, e.g.
+    :meth:`~.seeds.SeedStudy.ranking`) the models are sorted by value and tie as ``≈`` where the verdicts leave the
+    order undecided; a decided pair inside a tie is added in brackets (``"RF ≈ RW ≈ RJ (RF < RJ)"``)."""
     cols = [ekf_name(m) for m in models]
     short = dict(zip(cols, models))
+    tie = "=" if better is None else "≈"
 
     def order(row):
-        ranked = sorted(zip(np.round(row[cols].to_numpy(float), decimals), cols))
-        names = [c for _, c in ranked]
-        if winners is None:
-            seps = ["=" if a == b else "<" for (a, _), (b, _) in zip(ranked, ranked[1:])]
-            extra = []
-        else:
-            won = winners[row.name]
-
-            def beats(a, b):
-                return won.get((a, b), won.get((b, a))) == a
-
-            seps = ["<" if all(beats(a, b) for a in names[:i + 1] for b in names[i + 1:]) else "≈"
-                    for i in range(len(names) - 1)]
-            extra = [f"{short[a]} < {short[b]}" for i, a in enumerate(names) for j, b in enumerate(names)
-                     if i != j and beats(a, b) and not (i < j and "<" in seps[i:j])]
-        chain = short[names[0]] + "".join(f" {sep} {short[n]}" for sep, n in zip(seps, names[1:]))
+        values = np.round(row[cols].to_numpy(float), decimals)
+        names = [c for _, c in sorted(zip(values, cols))]
+        won = better[row.name] if better is not None else {
+            (a, b) for a, va in zip(cols, values) for b, vb in zip(cols, values) if va < vb}
+        rank = metrics.tied_ranks(names, won)
+        chain = short[names[0]] + "".join(f" {'<' if rank[b] > rank[a] else tie} {short[b]}"
+                                          for a, b in zip(names, names[1:]))
+        extra = [f"{short[a]} < {short[b]}" for a in names for b in names if (a, b) in won and rank[a] == rank[b]]
         return chain + (f" ({', '.join(extra)})" if extra else "")
 
     return table.apply(order, axis=1).rename("ranking")

@@ -125,11 +125,12 @@ class SeedStudy:
         names = [ekf_name(m) for m in models]
         verdicts = self.pairs([(a, b) for i, a in enumerate(names) for b in names[i + 1:]], by="tag-run")
         key = {f"{r} {t}": (r, t) for r, t in self.base().index}
-        winners: dict = {}
+        better: dict = {k: set() for k in key.values()}
         for v in verdicts.to_dict("records"):
-            better = v["verdict"][:-len(" better")] if v["verdict"].endswith(" better") else None
-            winners.setdefault(key[v["data"]], {})[(v["A"], v["B"])] = better
-        return ranking(self.table(names).xs("mean", axis=1, level=1), models, winners=winners)
+            a, b = (v["A"], v["B"]) if v["verdict"] == f"{v['A']} better" else (v["B"], v["A"])
+            if v["verdict"] == f"{a} better":
+                better[key[v["data"]]].add((a, b))
+        return ranking(self.table(names).xs("mean", axis=1, level=1), models, better=better)
 
 
 def seed_study(studies: Mapping[str, tuple[Study, Sequence[str]]], seeds: Sequence[int], *, gate_prob: float | None,

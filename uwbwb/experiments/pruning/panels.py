@@ -126,7 +126,7 @@ class PieceExplorer:
         """Figure (fit over the per-epoch point fixes and the truth) and readout."""
         row = self.piece(segment, tag, heuristic, res_retention, rm_retention, dropout_pct, ranges)
         s = self.segments.iloc[segment]
-        log = self.rec.ranges[tag] if ranges == "raw" else self.calibration.apply(self.rec.ranges[tag])
+        log = self.rec.ranges_of(tag, None if ranges == "raw" else self.calibration)
         log = log.between(s.t_start_s, s.t_end_s)
         fixes = point_fixes(log.range_m, self.rec.anchors, dim=2, z_m=self.heights_m[tag])
         fig, ax = plt.subplots(figsize=(6.5, 4.8))

@@ -93,8 +93,7 @@ def run_static_poses(recordings, *, heights_m: dict, tags=None, config: PruningC
         use = rec.tags if tags is None else tags
         heights = _check_heights(heights_m, use)
         for tag in use:
-            log = rec.ranges[tag] if cal is None else cal.apply(rec.ranges[tag])
-            log = log.select(slice(None, None, int(stride)))
+            log = rec.ranges_of(tag, cal).select(slice(None, None, int(stride)))
             true = rec.truth[tag].pos_m[0]
             fits, ep = score_segment(log, rec.anchors, HEURISTICS, config, still=True, z_m=heights[tag],
                                      true_xy=true[:2], keys={"recording": rec.name, "site": site, "tag": tag})
@@ -164,7 +163,7 @@ def run_dynamic_segments(rec: Recording, segments: pd.DataFrame, *, heights_m: d
     use = rec.tags if tags is None else tags
     heights = _check_heights(heights_m, use)
     for tag in use:
-        full = rec.ranges[tag] if calibration is None else calibration.apply(rec.ranges[tag])
+        full = rec.ranges_of(tag, calibration)
         full = full.select(slice(None, None, int(stride)))
         tr = rec.truth[tag]
         full = full.between(tr.t_s[0], tr.t_s[-1])              # epochs with truth

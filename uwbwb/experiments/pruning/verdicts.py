@@ -81,9 +81,8 @@ class Ranking:
         :func:`paired` of every pair of them: first the steps of the paper's order (residual pruning − robust mean,
         robust mean − 5th percentile), then the rest.
     rank
-        Per heuristic (lowest median first): 1 + the number ranked above it, where a heuristic is ranked above
-        another only when every interval resolves it (tied groups: each heuristic ranked above a group is resolved
-        better than every one in it; no interval at all: all 1).
+        Per heuristic (lowest median first): its rank by :func:`uwbwb.metrics.tied_ranks` from the pairs the
+        intervals resolve (no interval at all: all 1).
     """
 
     pairs: tuple
@@ -108,21 +107,16 @@ class Ranking:
 def ranking(stops: pd.DataFrame, series: list[str], *, at: str = "segment", rng: np.random.Generator) -> Ranking:
     """Rank the paper's three heuristics present in ``stops`` (one error ``err_m`` per stop, ``heuristic``) by every
     pair's median difference on the stops both fitted, with its block-bootstrap interval (:func:`paired`, each
-    series of ``series`` one block, ordered by ``at``); see :class:`Ranking`. Walking up the medians, a heuristic
-    opens a group only when every one before it is resolved better; otherwise it joins, with every group after the
-    first one holding a heuristic not resolved better than it."""
+    series of ``series`` one block, ordered by ``at``), walking up the medians by :func:`uwbwb.metrics.tied_ranks`;
+    see :class:`Ranking`."""
     order = [h for h in PAPER_RANKING if h in set(stops["heuristic"])]
     steps = list(zip(order[:-1], order[1:]))
     pairs = tuple(paired(stops, a, b, series, at=at, blocks="segment", rng=rng)
                   for a, b in steps + [p for p in itertools.combinations(order, 2) if p not in steps])
     better = {(d["a"], d["b"]) if d["side"] == "below" else (d["b"], d["a"]) for d in pairs
               if d["side"] in ("below", "above")}
-    groups = []
-    for h in stops[stops["heuristic"].isin(order)].groupby("heuristic")["err_m"].median().sort_values().index:
-        i = next((j for j, g in enumerate(groups) if any((m, h) not in better for m in g)), len(groups))
-        groups = groups[:i] + [[m for g in groups[i:] for m in g] + [h]]
-    rank = {h: 1 + sum(map(len, groups[:j])) for j, g in enumerate(groups) for h in g}
-    return Ranking(pairs, pd.Series(rank, name="rank", dtype=int))
+    medians = stops[stops["heuristic"].isin(order)].groupby("heuristic")["err_m"].median().sort_values()
+    return Ranking(pairs, pd.Series(metrics.tied_ranks(medians.index, better), name="rank", dtype=int))
 
 
 def _same_order(a: Ranking, b: Ranking) -> str:

@@ -28,7 +28,7 @@ def _errors(rec: Recording, tag: str, range_m: np.ndarray, z_m: float, mask=None
 
 
 def _ranges(rec: Recording, tag: str, calibration: RangeCalibration | None) -> np.ndarray:
-    log = rec.ranges[tag] if calibration is None else calibration.apply(rec.ranges[tag])
+    log = rec.ranges_of(tag, calibration)
     return log.range_m
 
 

@@ -45,7 +45,7 @@ def multilaterate_tags(rec: Recording, *, tag_height_m, calibration: RangeCalibr
     out = {}
     for tag in rec.tags:
         z = tag_height_m[tag] if isinstance(tag_height_m, dict) else float(tag_height_m)
-        log = rec.ranges[tag] if calibration is None else calibration.apply(rec.ranges[tag])
+        log = rec.ranges_of(tag, calibration)
         out[tag] = geometry.multilaterate(log.range_m, rec.anchors.pos_m, dim=2, z_m=z)
     return out
 

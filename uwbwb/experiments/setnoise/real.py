@@ -71,9 +71,7 @@ def emulate_fixes(rec: Recording, tag: str, emulation: sim.SetEmulation = sim.Se
         ``fixes``, and ``coverage`` = fixes ÷ decimated epochs with truth (every
         estimator is scored on the fixes only, so this is their common coverage).
     """
-    log = rec.decimate(validate.integer("decimate", decimate, minimum=1)).ranges[tag]
-    if calibration is not None:
-        log = calibration.apply(log)
+    log = rec.decimate(validate.integer("decimate", decimate, minimum=1)).ranges_of(tag, calibration)
     truth_xyz = rec.truth[tag].interp(log.t_s)
     has_truth = np.all(np.isfinite(truth_xyz), axis=1)
     em = sim.emulate_set_fixes(log.select(has_truth), rec.anchors.pos_m, tag_height_m, emulation, rng=rng,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from .facts import facts
 from .study import METHODS, Results
-from ...metrics import Headline
+from ...metrics import Headline, interval_text
 
 __all__ = ["HEADLINES", "PAPER", "checks"]
 
@@ -52,6 +52,6 @@ def checks(res: Results, fast: bool) -> list[str]:
     if f["nis_verdict"] != "consistent":
         fail.append(f"EKF-RF mean NIS/dof {f['nis_per_dof']:.2f} outside the consistent band")
     if f["verdict"] != "better":
-        fail.append(f"the EKF must beat LS on common epochs (ΔRMSE interval [{f['lo_m']:+.3f}, {f['hi_m']:+.3f}] m: "
-                    f"{f['verdict']})")
+        fail.append(f"the EKF must beat LS on common epochs (ΔRMSE interval "
+                    f"{interval_text(f['lo_m'], f['hi_m'], '+.3f')} m: {f['verdict']})")
     return fail

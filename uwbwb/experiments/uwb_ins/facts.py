@@ -37,7 +37,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from ...metrics import interval_side
+from ...metrics import interval_side, interval_text
 from ...scoreboard.verdicts import EDGE_BOUND
 from .ablation import COVERAGE, HOLD_S, RECOVERY_MAX_M, AblationResult, EKF_TDOA_GATE, LADDER, choose_knobs
 from .ladder import eq4_path, eq4_thresholds, pair_rmse
@@ -115,10 +115,6 @@ def diverged_on(ds: list[dict], metric: str) -> set[str]:
     return {d["row"] for d in ds if d["metric"] in ENTERS.get(metric, ())}
 
 
-def _interval(r: dict) -> str:
-    return f"[{r['lo']:.2f}, {r['hi']:.2f}]" if np.isfinite(r["lo"]) and np.isfinite(r["hi"]) else "—"
-
-
 def _failed(res: AblationResult) -> dict:
     """Gated row → ``{seed: re-acquisition time}`` of those that failed to re-acquire in the matched world."""
     rec = res.case("matched")["reacq_s"].unstack("method")
@@ -139,8 +135,8 @@ def ratios(res: AblationResult) -> list[dict]:
 
     def add(r, kind, what, pair, metric, claim, ours, rule, verdict, diverged=False):
         out.append({**r, "kind": kind, "what": what, "pair": pair, "metric": metric, "diverged": diverged,
-                    "claim": claim, "ours": ours, "interval": _interval(r), "seeds": r["n"], "rule": rule,
-                    "verdict": verdict})
+                    "claim": claim, "ours": ours, "interval": interval_text(r["lo"], r["hi"], ".2f"), "seeds": r["n"],
+                    "rule": rule, "verdict": verdict})
 
     for what, a, b in LADDER:
         for metric in ("dyn_rmse", "outage_max"):
