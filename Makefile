@@ -20,8 +20,7 @@ $(STAMP): environment.txt pyproject.toml
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r environment.txt
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
-	$(PY) -m ipykernel install --sys-prefix --name python3 --display-name "Python 3 (uwbwb)" \
-	  --env OPENBLAS_NUM_THREADS 1 --env OMP_NUM_THREADS 1 --env MKL_NUM_THREADS 1 >/dev/null   # as reproduce's kernels
+	$(PY) -m ipykernel install --sys-prefix --name python3 --display-name "Python 3 (uwbwb)" >/dev/null
 	touch $(STAMP)
 
 $(KERNELS): $(STAMP) $(shell find uwbwb -name '*.py')
@@ -44,7 +43,7 @@ lab: $(KERNELS)
 ## whole files to each worker, the files that execute notebooks first (tests/conftest.py).
 TEST_WORKERS ?= auto
 test: $(TEST_STAMP) $(KERNELS)
-	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder $(PYTEST_ARGS)
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder $(PYTEST_ARGS)
 
 ## Headless main job: execute every notebook, write reports/ with summary.json + summary.md.
 reproduce: $(KERNELS)

@@ -19,15 +19,12 @@ PROJECT = Path(__file__).resolve().parents[1]
 GOOD_PARAMS = 'FAST = False\nSEED = 0\nDATA_DIR = None\nSUMMARY_PATH = None\nN = 1\nLABEL = "default"\n'
 GOOD_BODY = """\
 import json
-import os
 mode = "FAST" if FAST else "full"
 rows = [
     {"notebook": "01_good", "quantity": "doubled N", "value": 2.5 * N, "unit": "m",
      "paper_value": None, "data": LABEL, "kind": "reproduced", "mode": mode},
     {"notebook": "01_good", "quantity": "fast | flag", "value": FAST, "unit": "",
      "paper_value": 1.0, "data": "synthetic", "kind": "target", "mode": mode},
-    {"notebook": "01_good", "quantity": "BLAS threads", "value": int(os.environ.get("OPENBLAS_NUM_THREADS", 0)),
-     "unit": "", "paper_value": None, "data": "synthetic", "kind": "input", "mode": mode},
 ]
 with open(SUMMARY_PATH, "w") as fh:
     json.dump(rows, fh)
@@ -63,7 +60,6 @@ def ran(tmp_path_factory):
           "kind": "reproduced", "mode": "FAST"}]))
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(rp, "NOTEBOOKS_DIR", notebooks)
-        mp.delenv("OPENBLAS_NUM_THREADS", raising=False)       # the kernel gets one BLAS thread all the same
         code = cli.main(["reproduce", "--quick", "--out", str(out), "-p", "N", "4",
                          "-p", "LABEL", "synthetic run", "--timeout", "120"])
     return code, out
@@ -89,12 +85,11 @@ def test_executed_notebooks_and_html_are_written(ran):
 def test_parameters_reach_the_notebook_and_summary_is_aggregated(ran):
     _, out = ran
     rows = json.loads((out / "summary.json").read_text())
-    assert [r["quantity"] for r in rows] == ["doubled N", "fast | flag", "BLAS threads"]
+    assert [r["quantity"] for r in rows] == ["doubled N", "fast | flag"]
     assert all(list(r) == list(Summary.COLUMNS) for r in rows)
     assert rows[0]["value"] == 10.0            # -p N 4 parsed as an int
     assert rows[0]["data"] == "synthetic run"  # -p LABEL ... kept as a string
     assert rows[1]["value"] is True            # --quick sets FAST=True
-    assert rows[2]["value"] == 1               # running.KERNEL_THREADS_ENV, not the caller's environment
     assert json.loads((out / "01_good.summary.json").read_text()) == rows
 
 

@@ -26,12 +26,6 @@ __all__ = ["KERNEL_NAME", "NotebookRun", "ReproduceResult", "ipc_kernel_manager"
 #: Kernel the notebooks are executed with.
 KERNEL_NAME = "python3"
 
-#: One BLAS/OpenMP thread per kernel unless the caller's environment says otherwise: notebooks run side by side
-#: and their sweeps in threads, so BLAS threads on the package's small matrices only compete for the same cores
-#: (on 2 cores they doubled the CPU time of a linear-algebra loop and slowed it). The numbers do not depend on it
-#: (every summary row equal with and without).
-KERNEL_THREADS_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-
 
 @dataclass(frozen=True)
 class NotebookRun:
@@ -214,7 +208,7 @@ def _papermill(source, executed, params, cwd, timeout_s, kernel_env=None) -> Non
 def ipc_kernel_manager(env: Mapping[str, str] | None = None):
     """A jupyter_client kernel manager on IPC transport (Unix sockets in Jupyter's private runtime
     folder, removed at shutdown): no TCP port is opened, so ipykernel has no unencrypted-TCP warning
-    to print. ``env`` is added to the kernel's environment, after :data:`KERNEL_THREADS_ENV` and the caller's."""
+    to print. ``env`` is added to the kernel's environment."""
     import uuid
 
     from jupyter_client.connect import jupyter_runtime_dir
@@ -233,7 +227,8 @@ def ipc_kernel_manager(env: Mapping[str, str] | None = None):
             return str(runtime / f"uwbwb-{uuid.uuid4().hex[:12]}-ipc")
 
         async def start_kernel(self, **kw):
-            kw["env"] = {**KERNEL_THREADS_ENV, **kw.get("env", os.environ), **extra}
+            if extra:
+                kw["env"] = {**kw.get("env", os.environ), **extra}
             return await super().start_kernel(**kw)
 
     return IpcKernelManager
