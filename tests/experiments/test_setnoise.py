@@ -334,7 +334,16 @@ def test_exercise_few_particles_at_small_sigma_d(study):
     # the verdict follows the numbers: an impossible factor turns it
     strict = E.exercises.few_particles(rec, study.model, factor=1000.0, rng=np.random.default_rng(5))
     assert not strict.holds and strict.numbers == check.numbers
-    for c in (check, strict):
+    # at the paper's slowest speed (0.11 m/s) the turns of the track are slow enough for the small σ_d to follow:
+    # the cloud stays on the set's moves, the PF stays within the default 1.5× of the KF and the claim fails
+    slow = E.synthetic_study(dataclasses.replace(SMALL, speeds_mps=(0.11,)), rng=np.random.default_rng(0),
+                             off_track_xy_m=None)
+    crawl = E.exercises.few_particles(slow.recording("rec1"), slow.model, rng=np.random.default_rng(5))
+    m = crawl.numbers
+    assert crawl.holds is False, crawl
+    assert m["PF at 2 cm/s (cm)"] <= 1.5 * m["KF at 2 cm/s (cm)"]
+    assert m["PF at 2 cm/s (cm)"] < 0.5 * n["PF at 2 cm/s (cm)"]      # far below the PF's error at 0.35 m/s
+    for c in (check, strict, crawl):
         assert_reads_predictions(c)
     with pytest.raises(ValueError, match="factor"):
         E.exercises.few_particles(rec, study.model, factor=0.5, rng=np.random.default_rng(5))
