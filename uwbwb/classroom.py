@@ -76,7 +76,7 @@ from pathlib import Path
 
 from . import reproduce
 from .reproduce import INJECTED_TAG
-from .coding import EXERCISE_TAG, answer_cell
+from .coding import EXERCISE_TAG, Verdict, answer_cell
 from .widgets.notes import RIGHT
 
 __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "MATH_SCALE", "MAX_CODE_LINES",
@@ -588,20 +588,28 @@ def answer_key(nb, claims: Mapping[str, str] | None = None):
 
 
 def wrong_predictions(nb) -> list[str]:
-    """The predictions of an executed answer key (:func:`answer_key`) whose check cell (the next code cell that
-    reads it) does not say :data:`uwbwb.widgets.notes.RIGHT`, one sentence each; empty when every check agrees with its answer."""
+    """What the checks of an executed answer key (:func:`answer_key`) do not say right, one sentence each; empty when
+    every check agrees with its answer: a prediction whose check cell (the next code cell that reads it) does not say
+    :data:`uwbwb.widgets.notes.RIGHT`, and a coding exercise (its cell tagged :data:`uwbwb.coding.EXERCISE_TAG`)
+    whose check cell (the next code cell with ``check(name)``) does not report its function right
+    (:class:`uwbwb.coding.Verdict`)."""
     problems = []
     for i, cell in enumerate(nb.cells):
-        m = _PREDICTION_NAME.match(cell.source) if PREDICTION_TAG in _tags(cell) else None
-        if m is None:
+        tags = _tags(cell)
+        if PREDICTION_TAG in tags and (m := _PREDICTION_NAME.match(cell.source)):
+            name, reads, right = m.group(1), re.compile(rf"\({m.group(1)}\b"), RIGHT
+            wrong = f"{name} = {m.group(2)} is not what its check shows"
+        elif EXERCISE_TAG in tags and (m := re.search(r"^def\s+(\w+)\s*\(", cell.source, flags=re.M)):
+            name, reads = m.group(1), re.compile(rf"\bcheck\(\s*{m.group(1)}\s*\)")
+            right = Verdict(name, "right", "")._repr_markdown_().strip()
+            wrong = f"the answer of {name} is not right by its check"
+        else:
             continue
-        reads = re.compile(rf"\({m.group(1)}\b")
         check = next((c for c in nb.cells[i + 1:] if c.cell_type == "code" and reads.search(c.source)), None)
         shown = "" if check is None else " ".join(_text(o.get("data", {}).get("text/markdown", ""))
                                                   for o in check.get("outputs", []))
-        if RIGHT not in shown:
-            problems.append(f"cell {i}: {m.group(1)} = {m.group(2)} is not what its check shows"
-                            if check is not None else f"cell {i}: no check cell reads {m.group(1)}")
+        if right not in shown:
+            problems.append(f"cell {i}: {wrong}" if check is not None else f"cell {i}: no check cell reads {name}")
     return problems
 
 
