@@ -335,6 +335,34 @@ def test_the_answer_key_writes_the_claim_and_a_check_that_disagrees_is_named():
     assert classroom.wrong_predictions(_notebook(key.cells[1])) == ["cell 0: no check cell reads PREDICTION_1"]
 
 
+def test_the_answer_key_of_a_coding_exercise_must_be_right_by_its_check():
+    from uwbwb import coding
+
+    ex = coding.exercise_of("04")
+    nb = _notebook(_md("front"), _code(ex.stub(), coding.EXERCISE_TAG), _code("x = 1"),
+                   _code(f"uw.coding.check({ex.name})   # yours against DopplerModel.delta_p"))
+    key = classroom.answer_key(nb)
+    assert key.cells[1].source == ex.answer()
+    space = {"np": np}
+    exec(ex.stub(), space)
+    negated = ex.solved()
+
+    def wrong(*args):
+        return -negated(*args)
+
+    wrong.__name__ = ex.name
+    said = f"cell 1: the answer of {ex.name} is not right by its check"
+    for student, expected in ((ex.solved(), []), (wrong, [said]), (space[ex.name], [said])):   # right, wrong, missing
+        verdict = coding.check(student)
+        key.cells[3].outputs = [nbformat.from_dict({"output_type": "execute_result", "execution_count": 2,
+                                                    "metadata": {}, "data": {"text/markdown": verdict._repr_markdown_(),
+                                                                             "text/plain": str(verdict)}})]
+        assert classroom.wrong_predictions(key) == expected, verdict
+    key.cells[3].outputs = []
+    assert classroom.wrong_predictions(key) == [said]                          # a check that did not run
+    assert classroom.wrong_predictions(_notebook(key.cells[1])) == [f"cell 0: no check cell reads {ex.name}"]
+
+
 def test_class_limits_name_an_empty_section_and_a_reference_to_a_research_cell():
     nb = _notebook(_md("front"), _md("See the protocol. Details: next cell."), _md("protocol", "research"),
                    _md("## 2 · Real data"), _code("x", "research"), _md("## 3 · Next"), _code("y"))

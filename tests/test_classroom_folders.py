@@ -4,6 +4,7 @@ answers with handouts that show everything offline."""
 from __future__ import annotations
 
 import base64
+import copy
 import html as html_mod
 import io
 import re
@@ -51,34 +52,6 @@ def _notebook(*cells):
 def _plain(html: str) -> str:
     """The text of an HTML page (tags dropped, entities decoded)."""
     return html_mod.unescape(re.sub(r"<[^>]*>", "", html))
-
-
-def _offline_problems(html: str) -> list[str]:
-    """What an HTML page would fetch or need a script for."""
-    found = [f"script loaded from {m}" for m in re.findall(r"<script\b[^>]*\bsrc\s*=\s*[\"']([^\"']*)", html, re.I)]
-    found += [f"stylesheet from {m}" for m in re.findall(r"<link\b[^>]*\bhref\s*=\s*[\"'](https?:[^\"']*)", html, re.I)]
-    found += [f"CSS loads {m}" for m in re.findall(r"(?:@import\s*|url\(\s*[\"']?)(https?:[^\"')\s;]*)", html, re.I)]
-    found += ["mentions MathJax"] * ("mathjax" in html.lower())
-    found += ["holds widget views"] * (WIDGET_VIEW in html or WIDGET_STATE in html)
-    return found
-
-
-def _formulas(html: str) -> list[str]:
-    """The formulas an HTML page draws as inline SVG (their ARIA labels)."""
-    return re.findall(r"<svg\b[^>]*\baria-label=\"([^\"]*)\"[^>]*\bclass=\"uwbwb-math\"", html)
-
-
-def _static_panels(html: str) -> list[str]:
-    """The HTML of each static panel of a handout (its whole ``<div class="uwbwb-static-panel">``)."""
-    panels = []
-    for m in re.finditer(r'<div class="uwbwb-static-panel">', html):
-        depth = 0
-        for tag in re.finditer(r"<(/?)div\b[^>]*>", html[m.start():]):
-            depth += -1 if tag.group(1) else 1
-            if depth == 0:
-                panels.append(html[m.start():m.start() + tag.end()])
-                break
-    return panels
 
 
 def _relative_hrefs(html: str) -> list[str]:
@@ -228,8 +201,9 @@ def test_a_handout_shows_formulas_panels_and_class_values_offline():
     nb, png = _panel_notebook()
     tex_left = []
     html = classroom.handout_html(nb, name="00_lab", link_map={"GLOSSARY.md": "GLOSSARY.html"}, tex_left=tex_left)
-    assert _offline_problems(html) == [] and tex_left == []
-    assert len(_formulas(html)) == 2 and "$x_i^2$" not in html                        # both formulas drawn
+    assert classroom.handout_problems(html, nb, {"FAST": True, "CLASS": True}) == [] and tex_left == []
+    assert classroom.markdown_formulas(nb) == 2 and "$x_i^2$" not in html             # both formulas drawn
+    assert classroom.notebook_panels(nb) == 1                                         # a bar is no panel
     assert 'href="GLOSSARY.html#ekf"' in html
     text = " ".join(_plain(html).split())
     assert "CLASS = True" in text and "Explorer of a panel" in text and "tag: t1" in text
@@ -239,6 +213,34 @@ def test_a_handout_shows_formulas_panels_and_class_values_offline():
     assert text.count(classroom.STATIC_PANEL_NOTE) == 1 and "sweep: 100%" in text      # a bar is no panel
     assert WIDGET_STATE in nb.metadata["widgets"]                                   # the notebook is untouched
     assert "<title>00_lab</title>" in html
+
+
+def test_a_handout_that_does_not_show_everything_offline_is_named():
+    """What a class run checks of each handout (:func:`uwbwb.classroom.handout_problems`), on hand-spoilt pages."""
+    nb, _ = _panel_notebook()
+    values = {"FAST": True, "CLASS": True}
+    good = classroom.handout_html(nb, name="00_lab")
+    assert classroom.handout_problems(good, nb, values) == []
+    cdn = '<script src="https://cdn.jsdelivr.net/npm/mathjax@3/es5/tex-chtml.js"></script>'
+    first_formula = good.index("<svg", good.index("jp-MarkdownCell"))
+    spoilt = {
+        "a CDN": (good.replace("</head>", cdn + '<link rel="stylesheet" href="https://example.org/a.css"></head>'),
+                  ["script loaded from https://cdn.jsdelivr.net/npm/mathjax@3/es5/tex-chtml.js",
+                   "stylesheet from https://example.org/a.css", "mentions MathJax"]),
+        "a raw formula": (good[:first_formula] + "$x_i^2$" + good[good.index("</svg>", first_formula) + 6:],
+                          ["TeX left in the Markdown text: $x_i^2$",
+                           "1 formulas drawn for the 2 of the notebook's Markdown"]),
+        "no panel figure": (re.sub(r'<img\b[^>]*src="data:image/png;base64,[^"]*"[^>]*>', "", good),
+                            ["0 static panels with their figure for the notebook's 1 panels"]),
+    }
+    for what, (page, expected) in spoilt.items():
+        assert classroom.handout_problems(page, nb, values) == expected, what
+    tex_out = copy.deepcopy(nb)
+    tex_out.cells.append(_code("error", count=4, outputs=[
+        {"output_type": "stream", "name": "stdout", "text": "an error of $\\frac{1}{K}$\n"}]))
+    tex_out.cells[1].source = "FAST = True\nCLASS = False"
+    assert classroom.handout_problems(classroom.handout_html(tex_out), tex_out, values) == [
+        "TeX left in the output text: $\\frac{1}{K}$", "CLASS = True not shown"]
 
 
 def test_a_formula_mathtext_cannot_draw_is_shown_as_tex_and_reported():
@@ -272,30 +274,6 @@ def test_lab_opens_the_student_folder_on_request():
 
 
 # ------------------------------------------------------------------ a handout opened offline in a browser
-
-def _markdown_formulas(nb) -> int:
-    """The formulas of a notebook's Markdown cells that a handout shows (``research`` cells left out): ``$$...$$``,
-    ``\\begin{env}...\\end{env}`` and ``$...$``, code spans and fenced code not counted."""
-    count = 0
-    for cell in nb.cells:
-        if cell.cell_type != "markdown" or classroom.RESEARCH_TAG in cell.metadata.get("tags", []):
-            continue
-        s = re.sub(r"^(```|~~~).*?^\1", " ", cell.source, flags=re.S | re.M)
-        s = re.sub(r"(`+).*?\1", " ", s, flags=re.S)
-        for pattern in (r"\$\$.+?\$\$", r"\\begin\{([a-z]+\*?)\}.*?\\end\{\1\}", r"(?<!\\)\$[^$\n]+?(?<!\\)\$"):
-            count += len(re.findall(pattern, s, flags=re.S))
-            s = re.sub(pattern, " ", s, flags=re.S)
-    return count
-
-
-def _notebook_panels(nb) -> int:
-    """The :class:`uwbwb.widgets.Panel` views among the outputs of an executed notebook's non-``research`` cells."""
-    state = nb.metadata.get("widgets", {}).get(WIDGET_STATE, {}).get("state", {})
-    return sum("uwbwb-panel" in state.get(out["data"][WIDGET_VIEW]["model_id"], {}).get("state", {}).get(
-                   "_dom_classes", [])
-               for cell in nb.cells if classroom.RESEARCH_TAG not in cell.metadata.get("tags", [])
-               for out in cell.get("outputs", []) if WIDGET_VIEW in out.get("data", {}))
-
 
 #: What a page shows, read in the browser: its images, the math SVGs of its Markdown cells (and those without a
 #: drawn outline or size), the visible text of its rendered Markdown, each static panel's loaded images, its text.
@@ -343,7 +321,7 @@ def _browser_problems(browser, page_path: Path, *, formulas: int, panels: int, v
     problems += [f"image not shown: {src}" for src, width in seen["images"] if width == 0]
     if seen["formulas"] != formulas or seen["undrawn"]:
         problems.append(f"{seen['formulas'] - seen['undrawn']} of the notebook's {formulas} formulas drawn")
-    problems += [f"TeX left in the text: {tex}" for tex in re.findall(r"\$[^$]+\$|\\[A-Za-z]+", seen["markdown"])]
+    problems += [f"TeX left in the text: {tex}" for tex in classroom.TEX_LEFT.findall(seen["markdown"])]
     if len(seen["panels"]) != panels or not all(seen["panels"]):
         problems.append(f"{sum(n > 0 for n in seen['panels'])} of the notebook's {panels} panels shown with their "
                         "figure")
@@ -403,7 +381,7 @@ def test_the_handout_of_notebook_00_shows_everything_offline_in_chromium(class_0
     panel a static figure, the class values shown."""
     nb = nbformat.read(class_00 / "answers" / "00_quickstart.ipynb", as_version=4)
     values = classroom.class_values(reproduce.notebook_parameters(class_00 / "student" / "00_quickstart.ipynb"))
-    formulas, panels = _markdown_formulas(nb), _notebook_panels(nb)
+    formulas, panels = classroom.markdown_formulas(nb), classroom.notebook_panels(nb)
     assert formulas > 0 and panels > 0 and values == {"FAST": True, "CLASS": True}
     assert _browser_problems(chromium, class_00 / "answers" / "00_quickstart.html", formulas=formulas,
                              panels=panels, values=values) == []
@@ -428,12 +406,11 @@ def test_class_folders_of_notebook_00(class_00):
     assert (student / "docs" / "run_times.md").is_file()                  # the front's run-time table, linked
     assert classroom.unresolved_links(answers) == []                      # TEACHING.md's glossary link too
     html = (answers / "00_quickstart.html").read_text(encoding="utf-8")
-    assert _offline_problems(html) == []
-    assert _formulas(html) and not re.search(r"\$[^$<]+\$", _plain(html))          # formulas drawn, no TeX left
-    panels = _static_panels(html)
-    assert panels and all(re.search(r'<img\b[^>]*\bsrc="data:image/png;base64,', p) for p in panels)  # its figure
-    text = " ".join(_plain(html).split())
-    assert "CLASS = True" in text and "CLASS = False" not in text and "FAST = True" in text
+    values = classroom.class_values(reproduce.notebook_parameters(student / "00_quickstart.ipynb"))
+    assert classroom.markdown_formulas(executed) > 0 and classroom.notebook_panels(executed) > 0
+    assert values == {"FAST": True, "CLASS": True} and classroom.handout_problems(html, executed, values) == []
+    assert "CLASS = False" not in " ".join(_plain(html).split())
     hrefs = _relative_hrefs(html)
     assert hrefs and all((answers / h.partition("#")[0]).is_file() for h in hrefs), hrefs
-    assert _offline_problems((answers / "GLOSSARY.html").read_text(encoding="utf-8")) == []
+    glossary = _notebook(_md((answers / "GLOSSARY.md").read_text(encoding="utf-8")))
+    assert classroom.handout_problems((answers / "GLOSSARY.html").read_text(encoding="utf-8"), glossary, {}) == []

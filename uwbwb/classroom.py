@@ -14,7 +14,8 @@
 * ``class/answers/`` — what the lecturer keeps: each student notebook executed *as handed out*
   (a Run All in ``class/student/``, no injected parameters) except that its coding exercise is answered and
   each prediction written (:func:`answer_key`, from the claims in the source's cell metadata; a check that then does not say "right" fails the notebook:
-  :func:`wrong_predictions`), its HTML handout, ``TEACHING.md`` (from the folder above the notebooks) and the
+  :func:`wrong_predictions`), its HTML handout (one that does not show all the notebook holds offline fails the
+  notebook: :func:`handout_problems`), ``TEACHING.md`` (from the folder above the notebooks) and the
   glossary as ``GLOSSARY.md`` and ``GLOSSARY.html``.
 
 A handout (:func:`handout_html`) is the executed notebook without its ``research`` cells, readable
@@ -75,17 +76,18 @@ from pathlib import Path
 
 from . import reproduce
 from .reproduce import INJECTED_TAG
-from .coding import EXERCISE_TAG, answer_cell
+from .coding import EXERCISE_TAG, Verdict, answer_cell
 from .widgets.notes import RIGHT
 
 __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "MATH_SCALE", "MAX_CODE_LINES",
            "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS", "MAX_OUTPUT_WORDS", "MAX_TABLE_ROWS", "RESEARCH_TAG",
-           "PREDICTION_TAG", "CLAIM_KEY", "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "answer_key", "prediction_claims", "axes_problems", "axes_record",
-           "class_limits", "class_values", "code_rules", "cut_tables", "figure_audit", "fold_research", "handout_html", "hook_cell",
-           "image_count", "install_figure_recorder", "main", "markdown_page_html", "math_svg", "mathtext_source",
-           "notebook_links", "record_figure", "relative_links", "run_class", "set_parameters",
-           "source_indices", "static_panels", "static_widget_html", "student_notebook", "unresolved_links",
-           "write_student_folder", "wrong_predictions"]
+           "PREDICTION_TAG", "CLAIM_KEY", "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "TEX_LEFT",
+           "answer_key", "prediction_claims", "axes_problems", "axes_record", "class_limits", "class_values",
+           "code_rules", "cut_tables", "figure_audit", "fold_research", "handout_html", "handout_problems",
+           "hook_cell", "image_count", "install_figure_recorder", "main", "markdown_formulas", "markdown_page_html",
+           "math_svg", "mathtext_source", "notebook_links", "notebook_panels", "record_figure", "relative_links",
+           "run_class", "set_parameters", "source_indices", "static_panels", "static_widget_html",
+           "student_notebook", "unresolved_links", "write_student_folder", "wrong_predictions"]
 
 #: Tag of the research-bookkeeping cells: folded in class notebooks, dropped from handouts.
 RESEARCH_TAG = "research"
@@ -109,6 +111,7 @@ _UNIT = re.compile(r"[\[(][^\[\]()]{1,20}[\])]")
 _DIMLESS = re.compile(r"\b(" + "|".join(DIMENSIONLESS) + r")s?\b", re.IGNORECASE)
 _PANEL = re.compile(r"^\s*\(?[a-zA-Z]\)\s*")
 _WIDGET_MIME = "application/vnd.jupyter.widget-view+json"
+_WIDGET_STATE = "application/vnd.jupyter.widget-state+json"
 
 
 # ---------------------------------------------------------------- class limits
@@ -585,20 +588,28 @@ def answer_key(nb, claims: Mapping[str, str] | None = None):
 
 
 def wrong_predictions(nb) -> list[str]:
-    """The predictions of an executed answer key (:func:`answer_key`) whose check cell (the next code cell that
-    reads it) does not say :data:`uwbwb.widgets.notes.RIGHT`, one sentence each; empty when every check agrees with its answer."""
+    """What the checks of an executed answer key (:func:`answer_key`) do not say right, one sentence each; empty when
+    every check agrees with its answer: a prediction whose check cell (the next code cell that reads it) does not say
+    :data:`uwbwb.widgets.notes.RIGHT`, and a coding exercise (its cell tagged :data:`uwbwb.coding.EXERCISE_TAG`)
+    whose check cell (the next code cell with ``check(name)``) does not report its function right
+    (:class:`uwbwb.coding.Verdict`)."""
     problems = []
     for i, cell in enumerate(nb.cells):
-        m = _PREDICTION_NAME.match(cell.source) if PREDICTION_TAG in _tags(cell) else None
-        if m is None:
+        tags = _tags(cell)
+        if PREDICTION_TAG in tags and (m := _PREDICTION_NAME.match(cell.source)):
+            name, reads, right = m.group(1), re.compile(rf"\({m.group(1)}\b"), RIGHT
+            wrong = f"{name} = {m.group(2)} is not what its check shows"
+        elif EXERCISE_TAG in tags and (m := re.search(r"^def\s+(\w+)\s*\(", cell.source, flags=re.M)):
+            name, reads = m.group(1), re.compile(rf"\bcheck\(\s*{m.group(1)}\s*\)")
+            right = Verdict(name, "right", "")._repr_markdown_().strip()
+            wrong = f"the answer of {name} is not right by its check"
+        else:
             continue
-        reads = re.compile(rf"\({m.group(1)}\b")
         check = next((c for c in nb.cells[i + 1:] if c.cell_type == "code" and reads.search(c.source)), None)
         shown = "" if check is None else " ".join(_text(o.get("data", {}).get("text/markdown", ""))
                                                   for o in check.get("outputs", []))
-        if RIGHT not in shown:
-            problems.append(f"cell {i}: {m.group(1)} = {m.group(2)} is not what its check shows"
-                            if check is not None else f"cell {i}: no check cell reads {m.group(1)}")
+        if right not in shown:
+            problems.append(f"cell {i}: {wrong}" if check is not None else f"cell {i}: no check cell reads {name}")
     return problems
 
 
@@ -939,7 +950,7 @@ def static_panels(nb) -> int:
     HTML export needs no widget script; returns the number of widget outputs made static."""
     import html as html_mod
 
-    state = nb.metadata.get("widgets", {}).get("application/vnd.jupyter.widget-state+json", {}).get("state", {})
+    state = nb.metadata.get("widgets", {}).get(_WIDGET_STATE, {}).get("state", {})
     count = 0
     for cell in nb.cells:
         for out in cell.get("outputs", []):
@@ -1065,6 +1076,90 @@ def markdown_page_html(markdown: str, *, name: str, link_map: Mapping[str, str] 
     return handout_html(nb, name=name, link_map=link_map, tex_left=tex_left)
 
 
+#: TeX a reader would see as code: a ``$...$`` formula or a ``\\command`` (in a handout's visible text, a formula
+#: mathtext could not draw, or one the renderer did not take as math).
+TEX_LEFT = re.compile(r"\$[^$]+\$|\\[A-Za-z]+")
+
+
+def markdown_formulas(nb) -> int:
+    """The formulas of a notebook's Markdown cells that a handout shows (``research`` cells left out): ``$$...$$``,
+    ``\\begin{env}...\\end{env}`` and ``$...$``, code spans and fenced code not counted."""
+    count = 0
+    for cell in nb.cells:
+        if cell.cell_type != "markdown" or RESEARCH_TAG in _tags(cell):
+            continue
+        s = re.sub(r"^(```|~~~).*?^\1", " ", cell.source, flags=re.S | re.M)
+        s = re.sub(r"(`+).*?\1", " ", s, flags=re.S)
+        for pattern in (r"\$\$.+?\$\$", r"(?<!\\)\$[^$]+?(?<!\\)\$", r"\\begin\{([a-z]+\*?)\}.*?\\end\{\1\}"):
+            count += len(re.findall(pattern, s, flags=re.S))
+            s = re.sub(pattern, " ", s, flags=re.S)
+    return count
+
+
+def notebook_panels(nb) -> int:
+    """The :class:`uwbwb.widgets.Panel` views among the outputs of an executed notebook's non-``research`` cells."""
+    state = nb.metadata.get("widgets", {}).get(_WIDGET_STATE, {}).get("state", {})
+    return sum(_PANEL_CLASS in state.get(out["data"][_WIDGET_MIME].get("model_id", ""), {}).get("state", {}).get(
+                   "_dom_classes", [])
+               for cell in nb.cells if RESEARCH_TAG not in _tags(cell)
+               for out in cell.get("outputs", []) if _WIDGET_MIME in out.get("data", {}))
+
+
+def _plain(html: str) -> str:
+    """The text of an HTML fragment: style and SVG elements (a formula's TeX is its SVG's title) and tags dropped,
+    entities decoded."""
+    import html as html_mod
+
+    html = re.sub(r"<(style|svg)\b.*?</\1>", " ", html, flags=re.S | re.I)
+    return html_mod.unescape(re.sub(r"<[^>]*>", "", html))
+
+
+def _static_panel_html(html: str) -> list[str]:
+    """The HTML of each static panel of a handout (its whole ``<div class="uwbwb-static-panel">``)."""
+    panels = []
+    for m in re.finditer(r'<div class="uwbwb-static-panel">', html):
+        depth = 0
+        for tag in re.finditer(r"<(/?)div\b[^>]*>", html[m.start():]):
+            depth += -1 if tag.group(1) else 1
+            if depth == 0:
+                panels.append(html[m.start():m.start() + tag.end()])
+                break
+    return panels
+
+
+def handout_problems(html: str, nb, values: Mapping[str, object]) -> list[str]:
+    """What the handout ``html`` of the executed notebook ``nb`` (:func:`handout_html`) would not show offline, read
+    without a browser, one sentence each; empty when it shows everything:
+
+    * a script loaded from a file, a stylesheet or CSS import loaded from the web, MathJax or widget views;
+    * TeX (:data:`TEX_LEFT`) in the visible text of its Markdown cells or of its outputs;
+    * a number of math SVGs in its Markdown cells other than the formulas of ``nb``'s Markdown
+      (:func:`markdown_formulas`);
+    * a number of static panels with an embedded image other than the panels of ``nb`` (:func:`notebook_panels`);
+    * a parameter of ``values`` (:func:`class_values`) not shown as ``NAME = value``.
+    """
+    found = [f"script loaded from {m}" for m in re.findall(r"<script\b[^>]*\bsrc\s*=\s*[\"']([^\"']*)", html, re.I)]
+    found += [f"stylesheet from {m}" for m in re.findall(r"<link\b[^>]*\bhref\s*=\s*[\"'](https?:[^\"']*)", html, re.I)]
+    found += [f"CSS loads {m}" for m in re.findall(r"(?:@import\s*|url\(\s*[\"']?)(https?:[^\"')\s;]*)", html, re.I)]
+    found += ["mentions MathJax"] * ("mathjax" in html.lower())
+    found += ["holds widget views"] * (_WIDGET_MIME in html or _WIDGET_STATE in html)
+    cells = re.split(r'(?=<div class="jp-Cell )', html)[1:]
+    markdown = [c for c in cells if c.startswith('<div class="jp-Cell jp-MarkdownCell')]
+    outputs = [c[c.find("jp-Cell-outputWrapper"):] for c in cells if "jp-Cell-outputWrapper" in c]
+    for where, parts in (("Markdown", markdown), ("output", outputs)):
+        found += [f"TeX left in the {where} text: {tex}" for part in parts for tex in TEX_LEFT.findall(_plain(part))]
+    drawn = sum(len(re.findall(r'<svg\b[^>]*\bclass="uwbwb-math"', c)) for c in markdown)
+    if drawn != markdown_formulas(nb):
+        found.append(f"{drawn} formulas drawn for the {markdown_formulas(nb)} of the notebook's Markdown")
+    shown = sum(bool(re.search(r'<img\b[^>]*\bsrc="data:image/', p)) for p in _static_panel_html(html))
+    if shown != notebook_panels(nb):
+        found.append(f"{shown} static panels with their figure for the notebook's {notebook_panels(nb)} panels")
+    text = _plain(html)
+    found += [f"{name} = {value!r} not shown" for name, value in values.items()
+              if not re.search(rf"\b{name}\s*=\s*{value!r}(?!\w)", text)]
+    return found
+
+
 # ---------------------------------------------------------------- class run
 
 def _one_folder(notebooks: Sequence[Path]) -> Path:
@@ -1143,7 +1238,8 @@ def run_class(notebooks: Iterable[Path], out_dir: Path, *, kernel_name: str = re
     -------
     list of dict
         Per notebook: ``notebook``, ``seconds`` (wall time, kernel start included), ``error`` (None when it
-        ran), ``limits`` (:func:`class_limits`), ``student``, ``executed`` and ``html`` paths, ``tex_left``
+        ran; what its answer key's checks or its handout (:func:`handout_problems`) got wrong, when it ran), ``limits``
+        (:func:`class_limits`), ``student``, ``executed`` and ``html`` paths, ``tex_left``
         (formulas the handout shows as TeX) and ``class_parameter``.
     """
     import nbformat
@@ -1180,10 +1276,12 @@ def run_class(notebooks: Iterable[Path], out_dir: Path, *, kernel_name: str = re
             nb = nbformat.read(executed, as_version=4)
             limits = class_limits(nb)
             wrong = wrong_predictions(nb) if error is None else []
-            error = f"answer key: {'; '.join(wrong)}" if wrong else error
             nbformat.write(fold_research(nb), executed)
-            html.write_text(handout_html(nb, name=source.stem, path=answers_dir, link_map=link_map,
-                                         tex_left=tex_left), encoding="utf-8")
+            page = handout_html(nb, name=source.stem, path=answers_dir, link_map=link_map, tex_left=tex_left)
+            html.write_text(page, encoding="utf-8")
+            lacks = handout_problems(page, nb, values) if error is None else []
+            error = "; ".join([f"answer key: {'; '.join(wrong)}"] * bool(wrong)
+                              + [f"handout {html.name}: {'; '.join(lacks)}"] * bool(lacks)) or error
         run = {"notebook": source.stem, "seconds": seconds, "error": error, "limits": limits, "student": student,
                "executed": executed if executed.is_file() else None, "html": html if html.is_file() else None,
                "tex_left": tex_left, "class_parameter": "CLASS" in values}
