@@ -237,9 +237,10 @@ def test_a_handout_that_does_not_show_everything_offline_is_named():
         assert classroom.handout_problems(page, nb, values) == expected, what
     tex_out = copy.deepcopy(nb)
     tex_out.cells.append(_code("error", count=4, outputs=[
-        {"output_type": "stream", "name": "stdout", "text": "an error of $\\frac{1}{K}$\n"}]))
+        {"output_type": "stream", "name": "stdout", "text": "an error of $\\frac{1}{K}$\n"},
+        {"output_type": "stream", "name": "stdout", "text": "a lab PC costs $5 and $6 a day; C:\\Users\\lab\n"}]))
     tex_out.cells[1].source = "FAST = True\nCLASS = False"
-    assert classroom.handout_problems(classroom.handout_html(tex_out), tex_out, values) == [
+    assert classroom.handout_problems(classroom.handout_html(tex_out), tex_out, values) == [    # prices, paths: no TeX
         "TeX left in the output text: $\\frac{1}{K}$", "CLASS = True not shown"]
 
 

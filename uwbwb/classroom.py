@@ -1079,6 +1079,9 @@ def markdown_page_html(markdown: str, *, name: str, link_map: Mapping[str, str] 
 #: TeX a reader would see as code: a ``$...$`` formula or a ``\\command`` (in a handout's visible text, a formula
 #: mathtext could not draw, or one the renderer did not take as math).
 TEX_LEFT = re.compile(r"\$[^$]+\$|\\[A-Za-z]+")
+#: The same in printed outputs, narrower: only a ``$...$`` holding TeX (``\\``, ``^``, ``_`` or ``{``) with no space
+#: inside its dollars, so that prices ("$5 and $6") or a Windows path in a printed line are not taken for formulas.
+TEX_LEFT_OUTPUT = re.compile(r"\$(?!\s)[^$\n]*[\\^_{][^$\n]*(?<!\s)\$")
 
 
 def markdown_formulas(nb) -> int:
@@ -1146,8 +1149,8 @@ def handout_problems(html: str, nb, values: Mapping[str, object]) -> list[str]:
     cells = re.split(r'(?=<div class="jp-Cell )', html)[1:]
     markdown = [c for c in cells if c.startswith('<div class="jp-Cell jp-MarkdownCell')]
     outputs = [c[c.find("jp-Cell-outputWrapper"):] for c in cells if "jp-Cell-outputWrapper" in c]
-    for where, parts in (("Markdown", markdown), ("output", outputs)):
-        found += [f"TeX left in the {where} text: {tex}" for part in parts for tex in TEX_LEFT.findall(_plain(part))]
+    for where, parts, tex_left in (("Markdown", markdown, TEX_LEFT), ("output", outputs, TEX_LEFT_OUTPUT)):
+        found += [f"TeX left in the {where} text: {tex}" for part in parts for tex in tex_left.findall(_plain(part))]
     drawn = sum(len(re.findall(r'<svg\b[^>]*\bclass="uwbwb-math"', c)) for c in markdown)
     if drawn != markdown_formulas(nb):
         found.append(f"{drawn} formulas drawn for the {markdown_formulas(nb)} of the notebook's Markdown")
