@@ -115,6 +115,13 @@ def test_the_student_folder_of_the_notebooks(tmp_path):
         links += len(classroom.notebook_links(nb))
     assert (student / "GLOSSARY.md").read_text() == (NOTEBOOKS / "GLOSSARY.md").read_text()
     assert links > 0 and classroom.unresolved_links(student) == []
+    sheets = (student / classroom.LAB_SHEETS_NAME).read_text()           # the routes, without the answers
+    teaching = (NOTEBOOKS.parent / "TEACHING.md").read_text()
+    answers = teaching[teaching.index("\n## Answers"):]
+    assert "### Route A" in sheets and "### Route B" in sheets and sheets.count("**The questions.**") == 2
+    assert "## Answers" not in sheets and not any(ln in sheets for ln in answers.splitlines() if len(ln) > 40)
+    with pytest.raises(ValueError, match="Two two-hour routes"):
+        classroom.lab_sheets("# Teaching\n\n## Answers: notebook 00\n")
 
 
 def test_linked_files_are_copied_beside_the_notebooks_and_links_follow_them(tmp_path):
@@ -397,6 +404,7 @@ def test_class_folders_of_notebook_00(class_00):
     assert reproduce.notebook_parameters(student / "00_quickstart.ipynb")["CLASS"] is True
     assert (student / "GLOSSARY.md").is_file() and classroom.unresolved_links(student) == []
     assert not (student / "TEACHING.md").exists()                       # the answers stay with the lecturer
+    assert "## Answers" not in (student / classroom.LAB_SHEETS_NAME).read_text()   # the routes go to the students
     executed = nbformat.read(answers / "00_quickstart.ipynb", as_version=4)
     params = [c for c in executed.cells if "parameters" in c.metadata.get("tags", [])]
     assert [c.source for c in params] == [c.source for c in given.cells if "parameters" in c.metadata.get("tags", [])]

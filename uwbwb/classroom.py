@@ -8,7 +8,7 @@
   (each where the notebook declares it; :func:`set_parameters`), cells tagged ``research`` *folded*
   (cell metadata ``jupyter: {source_hidden: true, outputs_hidden: true}``; one click unfolds them),
   with ``GLOSSARY.md`` and every other file the notebooks link to copied beside them (links rewritten
-  where a copy moved: :func:`unresolved_links` finds none). Students open it with
+  where a copy moved: :func:`unresolved_links` finds none), and the lab sheets (:func:`lab_sheets`). Students open it with
   ``make lab LAB_DIR=class/student``; the package finds the datasets wherever the notebook runs from
   (:mod:`uwbwb.datasets.discovery` searches relative to the package, not the working directory).
 * ``class/answers/`` — what the lecturer keeps: each student notebook executed *as handed out*
@@ -82,7 +82,7 @@ from .widgets.notes import RIGHT
 __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "MATH_SCALE", "MAX_CODE_LINES",
            "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS", "MAX_OUTPUT_WORDS", "MAX_TABLE_ROWS", "RESEARCH_TAG",
            "PREDICTION_TAG", "CLAIM_KEY", "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "TEX_LEFT",
-           "answer_key", "prediction_claims", "axes_problems", "axes_record", "class_limits", "class_values",
+           "TEX_LEFT_OUTPUT", "LAB_SHEETS_NAME", "ANSWERS_HEADING", "ROUTES_HEADING", "lab_sheets", "answer_key", "prediction_claims", "axes_problems", "axes_record", "class_limits", "class_values",
            "code_rules", "cut_tables", "figure_audit", "fold_research", "handout_html", "handout_problems",
            "hook_cell", "image_count", "install_figure_recorder", "main", "markdown_formulas", "markdown_page_html",
            "math_svg", "mathtext_source", "notebook_links", "notebook_panels", "record_figure", "relative_links",
@@ -106,6 +106,11 @@ CLASS_DIR = Path("class")
 STUDENT_DIR, ANSWERS_DIR = "student", "answers"
 #: The glossary beside the notebooks (copied beside each class copy) and the lecturer's notes above them.
 GLOSSARY_NAME, TEACHING_NAME = "GLOSSARY.md", "TEACHING.md"
+#: The students' lab sheets in the student folder: the routes of ``TEACHING.md`` without its answers
+#: (:func:`lab_sheets`).
+LAB_SHEETS_NAME = "LAB_SHEETS.md"
+#: Where the routes start and where the answers start in ``TEACHING.md``.
+ROUTES_HEADING, ANSWERS_HEADING = "## Two two-hour routes", "## Answers"
 
 _UNIT = re.compile(r"[\[(][^\[\]()]{1,20}[\])]")
 _DIMLESS = re.compile(r"\b(" + "|".join(DIMENSIONLESS) + r")s?\b", re.IGNORECASE)
@@ -1173,9 +1178,21 @@ def _one_folder(notebooks: Sequence[Path]) -> Path:
     return folders.pop()
 
 
+def lab_sheets(teaching: str) -> str:
+    """The students' lab sheets from the text of ``TEACHING.md``: its section :data:`ROUTES_HEADING` (each route's
+    objectives, steps, questions and timing) up to the first :data:`ANSWERS_HEADING` heading, under a title."""
+    lines = teaching.splitlines()
+    start = next((i for i, ln in enumerate(lines) if ln.strip() == ROUTES_HEADING), None)
+    if start is None:
+        raise ValueError(f"{TEACHING_NAME} has no {ROUTES_HEADING!r} heading: no lab sheets to hand out")
+    end = next((i for i, ln in enumerate(lines) if i > start and ln.startswith(ANSWERS_HEADING)), len(lines))
+    return "# Lab sheets\n\n" + "\n".join(lines[start:end]).rstrip() + "\n"
+
+
 def write_student_folder(notebooks: Iterable[Path], student_dir: Path) -> tuple[_Companions, dict[Path, Path]]:
     """The student folder (module docstring): each notebook's :func:`student_notebook` with the class values of
-    its parameters (:func:`class_values`), and the glossary and every file they link to beside them.
+    its parameters (:func:`class_values`), the glossary and every file they link to beside them, and the lab sheets
+    (:func:`lab_sheets`, when ``TEACHING.md`` is in the folder above the notebooks').
 
     Returns
     -------
@@ -1193,7 +1210,14 @@ def write_student_folder(notebooks: Iterable[Path], student_dir: Path) -> tuple[
     companions.add(source_dir / GLOSSARY_NAME)
     for nb in sources.values():
         companions.add_links(notebook_links(nb), source_dir)
+    teaching = source_dir.parent / TEACHING_NAME
+    if teaching.is_file():
+        sheets = lab_sheets(teaching.read_text(encoding="utf-8"))
+        companions.add_links(relative_links(sheets), teaching.parent)
     companions.write(student_dir)
+    if teaching.is_file():
+        (student_dir / LAB_SHEETS_NAME).write_text(companions.relink(
+            sheets, teaching.parent, student_dir.resolve(), student_dir.resolve()), encoding="utf-8")
     copies = {}
     for source, nb in sources.items():
         copies[source] = student_dir / source.name
