@@ -8,8 +8,8 @@
   (each where the notebook declares it; :func:`set_parameters`), cells tagged ``research`` *folded*
   (cell metadata ``jupyter: {source_hidden: true, outputs_hidden: true}``; one click unfolds them),
   with ``GLOSSARY.md`` and every other file the notebooks link to copied beside them (links rewritten
-  where a copy moved: :func:`unresolved_links` finds none), and the lab sheets (:func:`lab_sheets`). Students open it with
-  ``make lab LAB_DIR=class/student``; the package finds the datasets wherever the notebook runs from
+  where a copy moved: :func:`unresolved_links` finds none), and the lab sheets (:func:`lab_sheets`). Students
+  open it with ``make lab LAB_DIR=class/student``; the package finds the datasets wherever the notebook runs from
   (:mod:`uwbwb.datasets.discovery` searches relative to the package, not the working directory).
 * ``class/answers/`` — what the lecturer keeps: each student notebook executed *as handed out*
   (a Run All in ``class/student/``, no injected parameters) except that its coding exercise is answered and
@@ -82,7 +82,8 @@ from .widgets.notes import RIGHT
 __all__ = ["ANSWERS_DIR", "AUDIT_HOOK_TAG", "DIMENSIONLESS", "GLOSSARY_NAME", "MATH_SCALE", "MAX_CODE_LINES",
            "MAX_FRONT_WORDS", "MAX_MARKDOWN_WORDS", "MAX_OUTPUT_WORDS", "MAX_TABLE_ROWS", "RESEARCH_TAG",
            "PREDICTION_TAG", "CLAIM_KEY", "STATIC_PANEL_NOTE", "STUDENT_DIR", "TEACHING_NAME", "TEX_LEFT",
-           "TEX_LEFT_OUTPUT", "LAB_SHEETS_NAME", "ANSWERS_HEADING", "ROUTES_HEADING", "lab_sheets", "answer_key", "prediction_claims", "axes_problems", "axes_record", "class_limits", "class_values",
+           "TEX_LEFT_OUTPUT", "LAB_SHEETS_NAME", "ANSWERS_HEADING", "ROUTES_HEADING", "lab_sheets", "answer_key",
+           "prediction_claims", "axes_problems", "axes_record", "class_limits", "class_values",
            "code_rules", "cut_tables", "figure_audit", "fold_research", "handout_html", "handout_problems",
            "hook_cell", "image_count", "install_figure_recorder", "main", "markdown_formulas", "markdown_page_html",
            "math_svg", "mathtext_source", "notebook_links", "notebook_panels", "record_figure", "relative_links",
@@ -949,13 +950,23 @@ STATIC_PANEL_NOTE = ("Static copy of an interactive panel: its controls and figu
 _PANEL_CLASS = "uwbwb-panel"
 
 
+def _widget_state(nb) -> dict:
+    """The saved widget models of an executed notebook, ``{model_id: model}``."""
+    return nb.metadata.get("widgets", {}).get(_WIDGET_STATE, {}).get("state", {})
+
+
+def _is_panel(state: Mapping[str, dict], model_id: str) -> bool:
+    """Whether the widget ``model_id`` of ``state`` is a :class:`uwbwb.widgets.Panel`."""
+    return _PANEL_CLASS in state.get(model_id, {}).get("state", {}).get("_dom_classes", [])
+
+
 def static_panels(nb) -> int:
     """Replace every widget output of ``nb`` (in place) by static HTML (:func:`static_widget_html`; a
     :class:`uwbwb.widgets.Panel` under :data:`STATIC_PANEL_NOTE`) and drop the saved widget state, so that an
     HTML export needs no widget script; returns the number of widget outputs made static."""
     import html as html_mod
 
-    state = nb.metadata.get("widgets", {}).get(_WIDGET_STATE, {}).get("state", {})
+    state = _widget_state(nb)
     count = 0
     for cell in nb.cells:
         for out in cell.get("outputs", []):
@@ -969,7 +980,7 @@ def static_panels(nb) -> int:
                 data.setdefault("text/plain", "(a widget: open the notebook)")
                 continue
             count += 1
-            if _PANEL_CLASS in state.get(model_id, {}).get("state", {}).get("_dom_classes", []):
+            if _is_panel(state, model_id):
                 body = (f'<div class="uwbwb-static-panel"><p class="uwbwb-static-note">'
                         f'{html_mod.escape(STATIC_PANEL_NOTE)}</p>{body}</div>')
             data["text/html"] = body
@@ -1106,9 +1117,8 @@ def markdown_formulas(nb) -> int:
 
 def notebook_panels(nb) -> int:
     """The :class:`uwbwb.widgets.Panel` views among the outputs of an executed notebook's non-``research`` cells."""
-    state = nb.metadata.get("widgets", {}).get(_WIDGET_STATE, {}).get("state", {})
-    return sum(_PANEL_CLASS in state.get(out["data"][_WIDGET_MIME].get("model_id", ""), {}).get("state", {}).get(
-                   "_dom_classes", [])
+    state = _widget_state(nb)
+    return sum(_is_panel(state, out["data"][_WIDGET_MIME].get("model_id", ""))
                for cell in nb.cells if RESEARCH_TAG not in _tags(cell)
                for out in cell.get("outputs", []) if _WIDGET_MIME in out.get("data", {}))
 
@@ -1157,11 +1167,11 @@ def handout_problems(html: str, nb, values: Mapping[str, object]) -> list[str]:
     for where, parts, tex_left in (("Markdown", markdown, TEX_LEFT), ("output", outputs, TEX_LEFT_OUTPUT)):
         found += [f"TeX left in the {where} text: {tex}" for part in parts for tex in tex_left.findall(_plain(part))]
     drawn = sum(len(re.findall(r'<svg\b[^>]*\bclass="uwbwb-math"', c)) for c in markdown)
-    if drawn != markdown_formulas(nb):
-        found.append(f"{drawn} formulas drawn for the {markdown_formulas(nb)} of the notebook's Markdown")
+    if drawn != (formulas := markdown_formulas(nb)):
+        found.append(f"{drawn} formulas drawn for the {formulas} of the notebook's Markdown")
     shown = sum(bool(re.search(r'<img\b[^>]*\bsrc="data:image/', p)) for p in _static_panel_html(html))
-    if shown != notebook_panels(nb):
-        found.append(f"{shown} static panels with their figure for the notebook's {notebook_panels(nb)} panels")
+    if shown != (panels := notebook_panels(nb)):
+        found.append(f"{shown} static panels with their figure for the notebook's {panels} panels")
     text = _plain(html)
     found += [f"{name} = {value!r} not shown" for name, value in values.items()
               if not re.search(rf"\b{name}\s*=\s*{value!r}(?!\w)", text)]
@@ -1211,11 +1221,11 @@ def write_student_folder(notebooks: Iterable[Path], student_dir: Path) -> tuple[
     for nb in sources.values():
         companions.add_links(notebook_links(nb), source_dir)
     teaching = source_dir.parent / TEACHING_NAME
-    if teaching.is_file():
-        sheets = lab_sheets(teaching.read_text(encoding="utf-8"))
+    sheets = lab_sheets(teaching.read_text(encoding="utf-8")) if teaching.is_file() else None
+    if sheets is not None:
         companions.add_links(relative_links(sheets), teaching.parent)
     companions.write(student_dir)
-    if teaching.is_file():
+    if sheets is not None:
         (student_dir / LAB_SHEETS_NAME).write_text(companions.relink(
             sheets, teaching.parent, student_dir.resolve(), student_dir.resolve()), encoding="utf-8")
     copies = {}
