@@ -127,9 +127,9 @@ class SeedStudy:
         key = {f"{r} {t}": (r, t) for r, t in self.base().index}
         better: dict = {k: set() for k in key.values()}
         for v in verdicts.to_dict("records"):
-            a, b = (v["A"], v["B"]) if v["verdict"] == f"{v['A']} better" else (v["B"], v["A"])
-            if v["verdict"] == f"{a} better":
-                better[key[v["data"]]].add((a, b))
+            for a, b in ((v["A"], v["B"]), (v["B"], v["A"])):     # "A better", "B better" or not significant
+                if v["verdict"] == f"{a} better":
+                    better[key[v["data"]]].add((a, b))
         return ranking(self.table(names).xs("mean", axis=1, level=1), models, better=better)
 
 
